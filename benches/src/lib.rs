@@ -1,1 +1,9 @@
-//! placeholder
+//! Workloads and baselines shared by the criterion benches and `cetratus bench`.
+//!
+//! Every figure the project reports is measured on a workload defined here, so that `cargo bench`
+//! and `cetratus bench --quick --json` measure the same thing.
+
+pub mod analysis;
+pub mod dense;
+pub mod measure;
+pub mod workloads;

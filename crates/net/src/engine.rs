@@ -339,8 +339,10 @@ impl Engine {
         if !self.is_enabled(t) {
             return Ok(false);
         }
-        self.apply(t)
-            .map_err(|place| FireError::Overflow { transition: t, place })?;
+        self.apply(t).map_err(|place| FireError::Overflow {
+            transition: t,
+            place,
+        })?;
         self.update_enabling();
         Ok(true)
     }
@@ -377,10 +379,18 @@ impl Engine {
             match guard(t) {
                 Ok(true) => {}
                 Ok(false) => continue,
-                Err(error) => break Err(FireError::Guard { transition: t, error }),
+                Err(error) => {
+                    break Err(FireError::Guard {
+                        transition: t,
+                        error,
+                    })
+                }
             }
             if let Err(place) = self.apply(t) {
-                break Err(FireError::Overflow { transition: t, place });
+                break Err(FireError::Overflow {
+                    transition: t,
+                    place,
+                });
             }
             for &(p, w) in net.post(t) {
                 let i = p.index();
@@ -442,12 +452,19 @@ impl Engine {
             match guard(t) {
                 Ok(true) => best = Some((k, t)),
                 Ok(false) => {}
-                Err(error) => return Err(FireError::Guard { transition: t, error }),
+                Err(error) => {
+                    return Err(FireError::Guard {
+                        transition: t,
+                        error,
+                    })
+                }
             }
         }
         if let Some((_, t)) = best {
-            self.apply(t)
-                .map_err(|place| FireError::Overflow { transition: t, place })?;
+            self.apply(t).map_err(|place| FireError::Overflow {
+                transition: t,
+                place,
+            })?;
         }
         Ok(())
     }

@@ -23,7 +23,9 @@ impl fmt::Display for SourcePos {
 #[derive(Debug, thiserror::Error)]
 pub enum NetError {
     /// Two nodes share an id.
-    #[error("duplicate id `{id}`: every place, transition and arc needs its own id; rename one of them")]
+    #[error(
+        "duplicate id `{id}`: every place, transition and arc needs its own id; rename one of them"
+    )]
     DuplicateId {
         /// The id.
         id: String,

@@ -443,12 +443,16 @@ impl NetBuilder {
                 })
             }
             (NodeRef::Transition(_), NodeRef::Place(_)) if kind == ArcKind::Inhibitor => {
-                return Err(NetError::InhibitorFromTransition { arc: id.to_string() })
+                return Err(NetError::InhibitorFromTransition {
+                    arc: id.to_string(),
+                })
             }
             _ => {}
         }
         if weight == 0 {
-            return Err(NetError::ZeroWeight { arc: id.to_string() });
+            return Err(NetError::ZeroWeight {
+                arc: id.to_string(),
+            });
         }
         if self.ids.contains_key(id) || self.arc_ids.contains_key(id) {
             return Err(NetError::DuplicateId { id: id.to_string() });
@@ -507,8 +511,10 @@ impl NetBuilder {
         for (&(t, p), &w) in &post {
             post_pairs.push((t, (PlaceIdx(p), to_tokens(w, t)?)));
         }
-        let mut inh_pairs: Vec<(u32, (PlaceIdx, Tokens))> =
-            inh.iter().map(|(&(t, p), &w)| (t, (PlaceIdx(p), w))).collect();
+        let mut inh_pairs: Vec<(u32, (PlaceIdx, Tokens))> = inh
+            .iter()
+            .map(|(&(t, p), &w)| (t, (PlaceIdx(p), w)))
+            .collect();
         pre_pairs.sort_unstable_by_key(|&(t, (p, _))| (t, p));
         post_pairs.sort_unstable_by_key(|&(t, (p, _))| (t, p));
         inh_pairs.sort_unstable_by_key(|&(t, (p, _))| (t, p));
@@ -528,8 +534,10 @@ impl NetBuilder {
         delta_pairs.sort_unstable_by_key(|&(t, (p, _))| (t, p));
 
         let flip = |pairs: &[(u32, (PlaceIdx, Tokens))]| {
-            let mut v: Vec<(u32, (TransIdx, Tokens))> =
-                pairs.iter().map(|&(t, (p, w))| (p.0, (TransIdx(t), w))).collect();
+            let mut v: Vec<(u32, (TransIdx, Tokens))> = pairs
+                .iter()
+                .map(|&(t, (p, w))| (p.0, (TransIdx(t), w)))
+                .collect();
             v.sort_unstable_by_key(|&(p, (t, _))| (p, t));
             v
         };

@@ -101,7 +101,11 @@ impl Reference {
             pre: vec![vec![0; np]; nt],
             post: vec![vec![0; np]; nt],
             inhib: vec![vec![None; np]; nt],
-            cap: net.places().iter().map(|p| p.capacity.map(i64::from)).collect(),
+            cap: net
+                .places()
+                .iter()
+                .map(|p| p.capacity.map(i64::from))
+                .collect(),
             prio: net.transitions().iter().map(|t| t.priority).collect(),
         };
         for a in net.arcs() {
@@ -228,8 +232,8 @@ proptest! {
             let mut m = before.clone();
             for &t in &fired {
                 prop_assert!(r.enabled(t, &m), "t{} not enabled in sequence at {:?}", t, m);
-                for p in 0..m.len() {
-                    m[p] += r.c(t, p);
+                for (p, mp) in m.iter_mut().enumerate() {
+                    *mp += r.c(t, p);
                 }
             }
 

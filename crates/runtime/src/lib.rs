@@ -1,1 +1,24 @@
-//! placeholder
+//! The Cetratus scan engine: Provider → container → Dispatcher, once per cycle.
+//!
+//! Time is an argument everywhere (`now_us`, microseconds): a [`Clock`] supplies it, virtual in
+//! tests and twins, real on a machine. The [`Container`] holds one running program; its
+//! [`Container::scan`] reads an input image, runs the net as DESIGN §3 says, and leaves an output
+//! image, without allocating. [`ScanCycle`] drives containers against drivers in virtual time or
+//! in real time, where it sleeps to absolute deadlines and measures what the OpenPLC v4 runtime
+//! measures: scan time, cycle time, latency and overruns.
+
+mod clock;
+mod container;
+mod cycle;
+mod error;
+mod io;
+pub mod rt;
+mod stats;
+pub mod trace;
+
+pub use clock::{Clock, RealClock, VirtualClock};
+pub use container::{Container, ScanOutcome};
+pub use cycle::{CycleFigures, ScanCycle};
+pub use error::RuntimeError;
+pub use io::{Dispatcher, Provider};
+pub use stats::{Summary, TimingStats};

@@ -1,0 +1,449 @@
+//! `check`: every analysis of the crate, gathered into one [`Report`].
+
+use std::sync::atomic::AtomicBool;
+use std::sync::Arc;
+use std::time::Instant;
+
+use cetratus_net::{Net, PlaceIdx, TransIdx};
+
+use crate::classify::classify;
+use crate::coverability::{karp_miller, OMEGA};
+use crate::invariants::{p_semiflows, structural_bounds, t_semiflows, Semiflow, DEFAULT_MAX_ROWS};
+use crate::reach::{explore, Packing, ReachOptions, ReachResult, Stop};
+use crate::report::{Bound, Named, Report, Timings};
+use crate::siphons::{holds_marked_trap, minimal_siphons, minimal_traps, MinimalSets, SetLimits};
+use crate::{AnalysisError, Incidence};
+
+/// How far an exploration has got.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Progress {
+    /// States discovered.
+    pub states: u64,
+    /// Edges counted.
+    pub edges: u64,
+    /// States expanded (the BFS cursor).
+    pub expanded: u64,
+}
+
+/// A progress callback, called from the exploring thread every few thousand states.
+pub type ProgressFn = Arc<dyn Fn(Progress) + Send + Sync>;
+
+/// Options of [`check`].
+#[derive(Clone)]
+pub struct CheckOptions {
+    /// Stop exploring after this many states; the report is then partial.
+    pub max_states: Option<u64>,
+    /// Threads to use. With 2 or more, the invariants, siphons and traps are computed beside the
+    /// state-space exploration; the exploration itself is single-threaded.
+    pub threads: usize,
+    /// Set to true (e.g. by Ctrl-C) to stop with a partial report.
+    pub cancel: Option<Arc<AtomicBool>>,
+    /// Called while the state space grows.
+    pub progress: Option<ProgressFn>,
+    /// Row limit of the Farkas tableau.
+    pub farkas_max_rows: usize,
+    /// Limits of the siphon and trap enumeration.
+    pub set_limits: SetLimits,
+    /// Explore the state space (false: structure only).
+    pub behaviour: bool,
+}
+
+impl Default for CheckOptions {
+    fn default() -> Self {
+        CheckOptions {
+            max_states: None,
+            threads: 1,
+            cancel: None,
+            progress: None,
+            farkas_max_rows: DEFAULT_MAX_ROWS,
+            set_limits: SetLimits::default(),
+            behaviour: true,
+        }
+    }
+}
+
+fn ms(t: Instant) -> f64 {
+    t.elapsed().as_secs_f64() * 1e3
+}
+
+struct Structural {
+    p: Result<Vec<Semiflow>, AnalysisError>,
+    t: Result<Vec<Semiflow>, AnalysisError>,
+    siphons: MinimalSets,
+    traps: MinimalSets,
+    invariants_ms: f64,
+    siphons_ms: f64,
+}
+
+fn structural(net: &Net, opts: &CheckOptions) -> Structural {
+    let t0 = Instant::now();
+    let p = p_semiflows(net, opts.farkas_max_rows);
+    let t = t_semiflows(net, opts.farkas_max_rows);
+    let invariants_ms = ms(t0);
+    let t1 = Instant::now();
+    let siphons = minimal_siphons(net, opts.set_limits);
+    let traps = minimal_traps(net, opts.set_limits);
+    Structural {
+        p,
+        t,
+        siphons,
+        traps,
+        invariants_ms,
+        siphons_ms: ms(t1),
+    }
+}
+
+/// What the behavioural phase found.
+enum Behaviour {
+    None(String),
+    Reach(ReachResult),
+    Cover(crate::coverability::Coverability),
+}
+
+fn behaviour(
+    net: &Net,
+    known: &[Option<u64>],
+    opts: &CheckOptions,
+    notes: &mut Vec<String>,
+) -> Behaviour {
+    let ropts = ReachOptions {
+        max_states: opts.max_states,
+        cancel: opts.cancel.clone(),
+        progress: opts.progress.clone(),
+        liveness: true,
+    };
+    let bounds: Vec<u64> = if known.iter().all(Option::is_some) {
+        notes.push(
+            "every place has a structural bound or a capacity, so the states are packed with \
+             those widths from the start"
+                .into(),
+        );
+        known.iter().map(|b| b.unwrap_or(0)).collect()
+    } else {
+        let km = karp_miller(net, &ropts);
+        if !km.unbounded.is_empty() || km.stopped.is_some() {
+            return Behaviour::Cover(km);
+        }
+        notes.push(
+            "some place has no structural bound; a Karp–Miller graph found the net bounded, and \
+             its exact place bounds size the packed states"
+                .into(),
+        );
+        km.max_tokens
+    };
+    let packing = Packing::new(&bounds);
+    match explore(net, &packing, &ropts) {
+        Ok(r) => Behaviour::Reach(r),
+        Err(e) => Behaviour::None(e.to_string()),
+    }
+}
+
+fn named_flow(net: &Net, s: &Semiflow, places: bool) -> Named<i64> {
+    Named(
+        s.0.iter()
+            .map(|&(i, w)| {
+                let id = if places {
+                    net.places()[i].id.clone()
+                } else {
+                    net.transitions()[i].id.clone()
+                };
+                (id, w)
+            })
+            .collect(),
+    )
+}
+
+/// Runs every analysis on `net` and reports. Never fails: what could not be computed is `null` in
+/// the report and explained in its notes.
+pub fn check(net: &Net, opts: &CheckOptions) -> Report {
+    let t0 = Instant::now();
+    let np = net.num_places();
+    let nt = net.num_transitions();
+    let pid = |p: usize| net.places()[p].id.clone();
+    let tid = |t: TransIdx| net.transitions()[t.index()].id.clone();
+    let mut notes: Vec<String> = Vec::new();
+    let mut warnings: Vec<String> = Vec::new();
+    let classification = classify(net);
+    let incidence = (np * nt <= 10_000).then(|| Incidence::of(net));
+    let sb = structural_bounds(net, opts.farkas_max_rows);
+    let known: Vec<Option<u64>> = match &sb {
+        Ok(b) => b
+            .iter()
+            .enumerate()
+            .map(|(p, s)| {
+                let cap = net.capacity(PlaceIdx(p as u32)).map(u64::from);
+                match (s, cap) {
+                    (Some(a), Some(c)) => Some((*a).min(c)),
+                    (a, c) => a.or(c),
+                }
+            })
+            .collect(),
+        Err(e) => {
+            notes.push(format!("structural boundedness not decided: {e}"));
+            net.places()
+                .iter()
+                .map(|p| p.capacity.map(u64::from))
+                .collect()
+        }
+    };
+    let structurally_bounded = sb.as_ref().ok().map(|b| b.iter().all(Option::is_some));
+    let structure_ms = ms(t0);
+
+    let tb = Instant::now();
+    let (st, beh, behaviour_ms) = if opts.threads >= 2 && opts.behaviour {
+        std::thread::scope(|s| {
+            let h = s.spawn(|| structural(net, opts));
+            let mut n = Vec::new();
+            let b = behaviour(net, &known, opts, &mut n);
+            let bms = ms(tb);
+            // A panic in the structural thread is a bug; surface it rather than hide it.
+            let st = match h.join() {
+                Ok(st) => st,
+                Err(p) => std::panic::resume_unwind(p),
+            };
+            notes.extend(n);
+            (st, b, bms)
+        })
+    } else {
+        let st = structural(net, opts);
+        let tb = Instant::now();
+        let b = if opts.behaviour {
+            behaviour(net, &known, opts, &mut notes)
+        } else {
+            Behaviour::None("behaviour not requested".into())
+        };
+        (st, b, ms(tb))
+    };
+
+    let p_invariants = match &st.p {
+        Ok(v) => Some(
+            v.iter()
+                .map(|s| named_flow(net, s, true))
+                .collect::<Vec<_>>(),
+        ),
+        Err(e) => {
+            notes.push(format!("P-invariants: {e}"));
+            None
+        }
+    };
+    let m0 = net.initial_marking();
+    let p_invariant_constants = st.p.as_ref().ok().and_then(|v| {
+        v.iter()
+            .map(|s| s.dot(m0.as_slice()))
+            .collect::<Option<Vec<_>>>()
+    });
+    let t_invariants = match &st.t {
+        Ok(v) => Some(
+            v.iter()
+                .map(|s| named_flow(net, s, false))
+                .collect::<Vec<_>>(),
+        ),
+        Err(e) => {
+            notes.push(format!("T-invariants: {e}"));
+            None
+        }
+    };
+    let conservative = st.p.as_ref().ok().map(|v| {
+        let mut covered = vec![false; np];
+        for s in v {
+            for &(p, _) in &s.0 {
+                covered[p] = true;
+            }
+        }
+        covered.iter().all(|&c| c)
+    });
+    let set_names = |m: &MinimalSets| -> Vec<Vec<String>> {
+        m.sets
+            .iter()
+            .map(|s| s.iter().map(|&p| pid(p)).collect())
+            .collect()
+    };
+    for s in &st.siphons.sets {
+        if !holds_marked_trap(net, s) {
+            let ids: Vec<String> = s.iter().map(|&p| pid(p)).collect();
+            warnings.push(format!(
+                "siphon {{{}}} holds no initially marked trap: once it is emptied it stays empty \
+                 and its output transitions are dead (Commoner: a free-choice net is live iff \
+                 every siphon holds a marked trap)",
+                ids.join(", ")
+            ));
+        }
+    }
+    if st.siphons.truncated {
+        notes.push(format!(
+            "siphon enumeration stopped at its limit ({} search nodes or {} sets)",
+            opts.set_limits.max_nodes, opts.set_limits.max_sets
+        ));
+    }
+    if st.traps.truncated {
+        notes.push("trap enumeration stopped at its limit".into());
+    }
+    if classification.inhibitor_arcs {
+        notes.push(
+            "inhibitor arcs are honoured in the state space but ignored by invariants, siphons, \
+             traps and net classes"
+                .into(),
+        );
+    }
+
+    let mut report = Report {
+        net: net.id().to_string(),
+        places: np,
+        transitions: nt,
+        arcs: net.arcs().len(),
+        graph: "none",
+        states: 0,
+        edges: 0,
+        deadlocks: 0,
+        deadlock_witness: None,
+        bounded: structurally_bounded.filter(|&b| b),
+        safe: None,
+        unbounded_places: Vec::new(),
+        max_tokens: Named(
+            (0..np)
+                .map(|p| (pid(p), known[p].map_or(Bound::Unknown, Bound::Tokens)))
+                .collect(),
+        ),
+        live: None,
+        non_live_transitions: Vec::new(),
+        dead_transitions: Vec::new(),
+        reversible: None,
+        p_invariants,
+        p_invariant_constants,
+        t_invariants,
+        conservative,
+        structurally_bounded,
+        classification,
+        siphons: set_names(&st.siphons),
+        siphons_truncated: st.siphons.truncated,
+        traps: set_names(&st.traps),
+        traps_truncated: st.traps.truncated,
+        warnings,
+        notes,
+        partial: false,
+        partial_reason: None,
+        bits_per_state: None,
+        bytes_per_state: None,
+        incidence,
+        timings: Timings {
+            structure_ms,
+            invariants_ms: st.invariants_ms,
+            siphons_ms: st.siphons_ms,
+            behaviour_ms,
+        },
+    };
+    let stop_reason = |s: &Stop| match s {
+        Stop::MaxStates(n) => format!(
+            "stopped after {n} states (--max-states); counts are lower bounds and liveness, \
+             reversibility and exact bounds are not decided"
+        ),
+        Stop::Cancelled => "cancelled (Ctrl-C); counts are lower bounds and liveness, \
+                            reversibility and exact bounds are not decided"
+            .into(),
+    };
+    match beh {
+        Behaviour::None(why) => {
+            if opts.behaviour {
+                report.partial = true;
+                report.partial_reason = Some(why);
+            }
+        }
+        Behaviour::Reach(r) => {
+            report.graph = "reachability";
+            report.states = r.states;
+            report.edges = r.edges;
+            report.deadlocks = r.deadlocks;
+            report.deadlock_witness = r
+                .deadlock_witness
+                .as_ref()
+                .map(|w| w.iter().map(|&t| tid(t)).collect());
+            report.bits_per_state = Some(r.bits_per_state);
+            report.bytes_per_state = Some(r.peak_bytes as f64 / r.states.max(1) as f64);
+            report.max_tokens = Named(
+                (0..np)
+                    .map(|p| (pid(p), Bound::Tokens(u64::from(r.max_tokens[p]))))
+                    .collect(),
+            );
+            report.dead_transitions = r.never_enabled.iter().map(|&t| tid(t)).collect();
+            // Packing widths come from proven bounds, so even a partial run knows boundedness.
+            report.bounded = Some(true);
+            match &r.stopped {
+                Some(s) => {
+                    report.partial = true;
+                    report.partial_reason = Some(stop_reason(s));
+                }
+                None => {
+                    report.safe = Some(r.max_tokens.iter().all(|&m| m <= 1));
+                    if let Some(l) = &r.liveness {
+                        report.live = Some(l.live);
+                        report.non_live_transitions = l.non_live.iter().map(|&t| tid(t)).collect();
+                        report.reversible = Some(l.reversible);
+                    }
+                }
+            }
+            if r.deadlocks > 0 {
+                report.warnings.push(format!(
+                    "{} dead state(s): no transition is enabled there{}",
+                    r.deadlocks,
+                    report
+                        .deadlock_witness
+                        .as_ref()
+                        .map(|w| format!("; shortest firing sequence to one: {}", w.join(" ")))
+                        .unwrap_or_default()
+                ));
+            }
+        }
+        Behaviour::Cover(km) => {
+            report.graph = "coverability";
+            report.states = km.nodes;
+            report.edges = km.edges;
+            report.deadlocks = km.dead;
+            report.deadlock_witness = km
+                .dead_witness
+                .as_ref()
+                .map(|w| w.iter().map(|&t| tid(t)).collect());
+            report.unbounded_places = km.unbounded.iter().map(|p| pid(p.index())).collect();
+            report.max_tokens = Named(
+                (0..np)
+                    .map(|p| {
+                        let m = km.max_tokens[p];
+                        (
+                            pid(p),
+                            if m == OMEGA {
+                                Bound::Omega
+                            } else {
+                                Bound::Tokens(m)
+                            },
+                        )
+                    })
+                    .collect(),
+            );
+            if !km.unbounded.is_empty() {
+                report.bounded = Some(false);
+                report.safe = Some(false);
+                report.warnings.push(format!(
+                    "the net is unbounded: {} can grow without limit; the figures are those of \
+                     the Karp–Miller coverability graph, and liveness and reversibility are not \
+                     decided",
+                    report.unbounded_places.join(", ")
+                ));
+                if classification_has_extras(&report) {
+                    report.notes.push(
+                        "with inhibitor arcs or capacities the coverability graph is an \
+                         approximation"
+                            .into(),
+                    );
+                }
+            }
+            if let Some(s) = &km.stopped {
+                report.partial = true;
+                report.partial_reason = Some(stop_reason(s));
+            }
+        }
+    }
+    report
+}
+
+fn classification_has_extras(r: &Report) -> bool {
+    r.classification.inhibitor_arcs || r.classification.capacities
+}

@@ -1,0 +1,635 @@
+//! The reachability graph over bit-packed markings.
+//!
+//! Encoding. Every place gets a fixed field of `⌈log2(bound+1)⌉` bits, where the bound is proven
+//! before exploring (a structural bound from `y·C ≤ 0`, a capacity, or the exact bound of a finished
+//! Karp–Miller graph). Fields never straddle a 64-bit word and each word uses at most 63 bits, so
+//! the all-ones word is free to mark empty slots. A state is `[u64; W]` for a small `W` chosen at
+//! run time (the explorer is monomorphised for W = 1, 2, 4, 8, 16, 32).
+//!
+//! Firing is word arithmetic: enabledness is a range test `lo ≤ field ≤ hi` per place the
+//! transition reads (Pre, inhibitors and capacities merged into one test), and the successor is
+//! `key − sub + add` per word, exact because the bounds keep every field inside its bits.
+//!
+//! Storage. States are numbered in breadth-first order: a state's id is its insertion index in a
+//! chunked array (no reallocation peaks), and the queue is implicit (a cursor over that array).
+//! A set of keys is an open-addressing, linear-probing hash table of the keys themselves (load at
+//! most 3/4), so a lookup costs one cache miss. Each state also records its BFS parent (4 bytes)
+//! for the shortest deadlock witness. For the liveness pass the table also keeps the id of every
+//! slot (4 bytes per slot). At Kanban N=5 that is 8 (state) + 4 (parent) + ≈13 (table) bytes.
+
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
+
+use cetratus_net::{Net, PlaceIdx, TransIdx};
+
+use crate::{AnalysisError, Progress, ProgressFn};
+
+/// Bits a state may use at most in the packed explorer.
+pub const MAX_BITS: usize = 32 * 63;
+
+/// Where one place lives in a packed state.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Field {
+    /// Word index.
+    pub word: u32,
+    /// Bit offset in the word.
+    pub shift: u32,
+    /// Mask of the field's width, not shifted.
+    pub mask: u64,
+}
+
+/// The layout of packed states: one field per place.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Packing {
+    /// Fields in place order.
+    pub fields: Vec<Field>,
+    /// Words per state.
+    pub words: usize,
+    /// Bits used in total.
+    pub bits: usize,
+}
+
+impl Packing {
+    /// A layout for places whose token counts never exceed `bounds`.
+    pub fn new(bounds: &[u64]) -> Packing {
+        let mut fields = Vec::with_capacity(bounds.len());
+        let (mut word, mut used, mut bits) = (0u32, 0u32, 0usize);
+        for &b in bounds {
+            let width = 64 - b.leading_zeros();
+            if used + width > 63 {
+                word += 1;
+                used = 0;
+            }
+            let mask = if width == 0 {
+                0
+            } else {
+                u64::MAX >> (64 - width)
+            };
+            fields.push(Field {
+                word,
+                shift: used,
+                mask,
+            });
+            used += width;
+            bits += width as usize;
+        }
+        Packing {
+            fields,
+            words: word as usize + 1,
+            bits,
+        }
+    }
+
+    /// Packs a marking.
+    pub fn encode(&self, m: &[u32], out: &mut [u64]) {
+        out.iter_mut().for_each(|w| *w = 0);
+        for (f, &v) in self.fields.iter().zip(m) {
+            out[f.word as usize] |= (u64::from(v) & f.mask) << f.shift;
+        }
+    }
+
+    /// Unpacks a state.
+    pub fn decode(&self, key: &[u64], out: &mut [u32]) {
+        for (f, o) in self.fields.iter().zip(out.iter_mut()) {
+            *o = ((key[f.word as usize] >> f.shift) & f.mask) as u32;
+        }
+    }
+}
+
+/// Why an exploration stopped before it was complete.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum Stop {
+    /// `max_states` states were discovered.
+    MaxStates(u64),
+    /// The cancel flag was set.
+    Cancelled,
+}
+
+/// Options of one exploration.
+#[derive(Clone, Default)]
+pub struct ReachOptions {
+    /// Stop after discovering this many states.
+    pub max_states: Option<u64>,
+    /// Stop when this flag becomes true (checked every few thousand states).
+    pub cancel: Option<Arc<AtomicBool>>,
+    /// Called every few thousand states with the counts so far.
+    pub progress: Option<ProgressFn>,
+    /// Compute terminal SCCs, liveness and reversibility after a complete exploration.
+    pub liveness: bool,
+}
+
+/// What the terminal strongly connected components say.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Liveness {
+    /// Strongly connected components of the reachability graph.
+    pub sccs: u64,
+    /// Terminal ones (no edge leaves them).
+    pub terminal_sccs: u64,
+    /// Every transition occurs in every terminal SCC (for a bounded net: the net is live).
+    pub live: bool,
+    /// Transitions missing from some terminal SCC.
+    pub non_live: Vec<TransIdx>,
+    /// M0 is a home state: its SCC is the only terminal one.
+    pub reversible: bool,
+}
+
+/// The result of a packed exploration.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct ReachResult {
+    /// States discovered.
+    pub states: u64,
+    /// Edges from the expanded states (one per enabled transition per state).
+    pub edges: u64,
+    /// Expanded states with no enabled transition.
+    pub deadlocks: u64,
+    /// A shortest firing sequence from M0 to a dead state.
+    pub deadlock_witness: Option<Vec<TransIdx>>,
+    /// The largest count seen in each place.
+    pub max_tokens: Vec<u32>,
+    /// Transitions enabled in no expanded state.
+    pub never_enabled: Vec<TransIdx>,
+    /// Why it stopped early, if it did.
+    pub stopped: Option<Stop>,
+    /// SCC results, when asked for and the exploration was complete.
+    pub liveness: Option<Liveness>,
+    /// Bytes held by the state store at its largest (states, parents, hash table).
+    pub peak_bytes: usize,
+    /// Bits per packed state.
+    pub bits_per_state: usize,
+}
+
+#[derive(Clone, Copy, Debug)]
+struct Test {
+    word: u32,
+    shift: u32,
+    mask: u64,
+    lo: u64,
+    hi: u64,
+}
+
+struct Compiled<const W: usize> {
+    tests: Vec<Test>,
+    offsets: Vec<u32>,
+    sub: Vec<[u64; W]>,
+    add: Vec<[u64; W]>,
+}
+
+impl<const W: usize> Compiled<W> {
+    fn new(net: &Net, pk: &Packing) -> Self {
+        let nt = net.num_transitions();
+        let mut tests = Vec::new();
+        let mut offsets = vec![0u32];
+        let mut sub = vec![[0u64; W]; nt];
+        let mut add = vec![[0u64; W]; nt];
+        for ti in 0..nt {
+            let t = TransIdx(ti as u32);
+            let mut per: Vec<(PlaceIdx, u64, u64)> = Vec::new();
+            let mut bound = |p: PlaceIdx, lo: u64, hi: u64| match per.iter_mut().find(|e| e.0 == p)
+            {
+                Some(e) => {
+                    e.1 = e.1.max(lo);
+                    e.2 = e.2.min(hi);
+                }
+                None => per.push((p, lo, hi)),
+            };
+            for &(p, w) in net.pre(t) {
+                bound(p, u64::from(w), u64::MAX);
+            }
+            for &(p, w) in net.inhibitors(t) {
+                // M[p] < w; w ≥ 1 is guaranteed by the net.
+                bound(p, 0, u64::from(w) - 1);
+            }
+            for &(p, d) in net.delta(t) {
+                if let (Some(cap), true) = (net.capacity(p), d > 0) {
+                    let hi = i64::from(cap) - d;
+                    if hi < 0 {
+                        bound(p, 1, 0);
+                    } else {
+                        bound(p, 0, hi as u64);
+                    }
+                }
+                let f = pk.fields[p.index()];
+                let amount = (d.unsigned_abs()) << f.shift;
+                if d > 0 {
+                    add[ti][f.word as usize] += amount;
+                } else {
+                    sub[ti][f.word as usize] += amount;
+                }
+            }
+            for (p, lo, hi) in per {
+                let f = pk.fields[p.index()];
+                tests.push(Test {
+                    word: f.word,
+                    shift: f.shift,
+                    mask: f.mask,
+                    lo,
+                    hi,
+                });
+            }
+            offsets.push(tests.len() as u32);
+        }
+        Compiled {
+            tests,
+            offsets,
+            sub,
+            add,
+        }
+    }
+
+    #[inline(always)]
+    fn enabled(&self, key: &[u64; W], t: usize) -> bool {
+        let a = self.offsets[t] as usize;
+        let b = self.offsets[t + 1] as usize;
+        self.tests[a..b].iter().all(|x| {
+            let v = (key[x.word as usize] >> x.shift) & x.mask;
+            v >= x.lo && v <= x.hi
+        })
+    }
+
+    #[inline(always)]
+    fn fire(&self, key: &[u64; W], t: usize) -> [u64; W] {
+        let mut out = *key;
+        let (s, a) = (&self.sub[t], &self.add[t]);
+        for i in 0..W {
+            out[i] = out[i].wrapping_sub(s[i]).wrapping_add(a[i]);
+        }
+        out
+    }
+}
+
+const CHUNK_BITS: u32 = 16;
+
+/// An append-only array in fixed chunks, so that growing never copies (no reallocation peak).
+struct Chunked<T: Copy> {
+    chunks: Vec<Vec<T>>,
+    len: usize,
+}
+
+impl<T: Copy> Chunked<T> {
+    fn new() -> Self {
+        Chunked {
+            chunks: Vec::new(),
+            len: 0,
+        }
+    }
+    #[inline(always)]
+    fn push(&mut self, v: T) {
+        if self.len & ((1 << CHUNK_BITS) - 1) == 0 {
+            self.chunks.push(Vec::with_capacity(1 << CHUNK_BITS));
+        }
+        if let Some(c) = self.chunks.last_mut() {
+            c.push(v);
+        }
+        self.len += 1;
+    }
+    #[inline(always)]
+    fn get(&self, i: usize) -> T {
+        self.chunks[i >> CHUNK_BITS][i & ((1 << CHUNK_BITS) - 1)]
+    }
+    fn bytes(&self) -> usize {
+        self.chunks.len() * (1 << CHUNK_BITS) * std::mem::size_of::<T>()
+    }
+}
+
+#[inline(always)]
+fn hash<const W: usize>(k: &[u64; W]) -> u64 {
+    // A multiply-xorshift mix per word: cheap and good enough for structured keys.
+    let mut h = 0x243F_6A88_85A3_08D3u64;
+    for &w in k {
+        h = (h ^ w).wrapping_mul(0x9E37_79B9_7F4A_7C15);
+        h ^= h >> 32;
+    }
+    h.wrapping_mul(0xD6E8_FEB8_6659_FD93) ^ (h >> 29)
+}
+
+const EMPTY: u64 = u64::MAX;
+
+/// Open addressing over the keys themselves; ids per slot only when asked for.
+struct Table<const W: usize> {
+    slots: Vec<[u64; W]>,
+    ids: Option<Vec<u32>>,
+    len: usize,
+    peak_bytes: usize,
+}
+
+impl<const W: usize> Table<W> {
+    fn new(with_ids: bool) -> Self {
+        let cap = 1 << 12;
+        Table {
+            slots: vec![[EMPTY; W]; cap],
+            ids: with_ids.then(|| vec![0; cap]),
+            len: 0,
+            peak_bytes: 0,
+        }
+    }
+
+    fn bytes(&self) -> usize {
+        self.slots.len() * (8 * W + if self.ids.is_some() { 4 } else { 0 })
+    }
+
+    /// Inserts the key; true when it was new.
+    #[inline(always)]
+    fn insert(&mut self, key: &[u64; W], id: u32) -> bool {
+        if (self.len + 1) * 4 > self.slots.len() * 3 {
+            self.grow();
+        }
+        let mask = self.slots.len() - 1;
+        let mut i = hash(key) as usize & mask;
+        loop {
+            let s = &self.slots[i];
+            if s[0] == EMPTY {
+                self.slots[i] = *key;
+                if let Some(ids) = &mut self.ids {
+                    ids[i] = id;
+                }
+                self.len += 1;
+                return true;
+            }
+            if s == key {
+                return false;
+            }
+            i = (i + 1) & mask;
+        }
+    }
+
+    #[inline(always)]
+    fn id_of(&self, key: &[u64; W]) -> Option<u32> {
+        let ids = self.ids.as_ref()?;
+        let mask = self.slots.len() - 1;
+        let mut i = hash(key) as usize & mask;
+        loop {
+            let s = &self.slots[i];
+            if s[0] == EMPTY {
+                return None;
+            }
+            if s == key {
+                return Some(ids[i]);
+            }
+            i = (i + 1) & mask;
+        }
+    }
+
+    fn grow(&mut self) {
+        let cap = self.slots.len() * 2;
+        let old = std::mem::replace(&mut self.slots, vec![[EMPTY; W]; cap]);
+        let old_ids = self.ids.take();
+        let mut ids = old_ids.as_ref().map(|_| vec![0u32; cap]);
+        // Both tables are alive here: this is the peak of the table's memory.
+        self.peak_bytes = self
+            .peak_bytes
+            .max(old.len() * 8 * W + self.bytes() + old_ids.as_ref().map_or(0, |v| v.len() * 4));
+        let mask = cap - 1;
+        for (j, k) in old.iter().enumerate() {
+            if k[0] == EMPTY {
+                continue;
+            }
+            let mut i = hash(k) as usize & mask;
+            while self.slots[i][0] != EMPTY {
+                i = (i + 1) & mask;
+            }
+            self.slots[i] = *k;
+            if let (Some(ids), Some(old_ids)) = (&mut ids, &old_ids) {
+                ids[i] = old_ids[j];
+            }
+        }
+        self.ids = ids;
+    }
+}
+
+/// Explores the reachability graph of `net` with states packed by `packing`, whose field widths
+/// must hold every reachable marking (see the module documentation).
+pub fn explore(
+    net: &Net,
+    packing: &Packing,
+    opts: &ReachOptions,
+) -> Result<ReachResult, AnalysisError> {
+    match packing.words {
+        1 => Ok(explore_w::<1>(net, packing, opts)),
+        2 => Ok(explore_w::<2>(net, packing, opts)),
+        3..=4 => Ok(explore_w::<4>(net, packing, opts)),
+        5..=8 => Ok(explore_w::<8>(net, packing, opts)),
+        9..=16 => Ok(explore_w::<16>(net, packing, opts)),
+        17..=32 => Ok(explore_w::<32>(net, packing, opts)),
+        _ => Err(AnalysisError::StateTooWide {
+            bits: packing.bits,
+            max: MAX_BITS,
+        }),
+    }
+}
+
+fn explore_w<const W: usize>(net: &Net, pk: &Packing, opts: &ReachOptions) -> ReachResult {
+    let nt = net.num_transitions();
+    let np = net.num_places();
+    let code = Compiled::<W>::new(net, pk);
+    let mut table = Table::<W>::new(opts.liveness);
+    let mut states: Chunked<[u64; W]> = Chunked::new();
+    let mut parents: Chunked<u32> = Chunked::new();
+    let mut k0 = [0u64; W];
+    pk.encode(net.initial_marking().as_slice(), &mut k0);
+    table.insert(&k0, 0);
+    states.push(k0);
+    parents.push(u32::MAX);
+    let max_states = opts.max_states.unwrap_or(u64::from(u32::MAX - 1));
+    let mut max_fields: Vec<u64> = vec![0; np];
+    let mut observe = |k: &[u64; W]| {
+        for (m, f) in max_fields.iter_mut().zip(&pk.fields) {
+            *m = (*m).max((k[f.word as usize] >> f.shift) & f.mask);
+        }
+    };
+    observe(&k0);
+    let mut enabled_ever = vec![false; nt];
+    let (mut edges, mut deadlocks) = (0u64, 0u64);
+    let mut first_dead: Option<usize> = None;
+    let mut stopped = None;
+    let mut cur = 0usize;
+    'bfs: while cur < states.len {
+        if cur & 0x3FFF == 0 && cur > 0 {
+            if opts
+                .cancel
+                .as_ref()
+                .is_some_and(|c| c.load(Ordering::Relaxed))
+            {
+                stopped = Some(Stop::Cancelled);
+                break;
+            }
+            if let Some(p) = &opts.progress {
+                p(Progress {
+                    states: states.len as u64,
+                    edges,
+                    expanded: cur as u64,
+                });
+            }
+        }
+        let key = states.get(cur);
+        let mut any = false;
+        for t in 0..nt {
+            if !code.enabled(&key, t) {
+                continue;
+            }
+            any = true;
+            enabled_ever[t] = true;
+            edges += 1;
+            let succ = code.fire(&key, t);
+            let id = states.len as u32;
+            if table.insert(&succ, id) {
+                if states.len as u64 >= max_states {
+                    // One state too many: the run is partial; the expansion of this state stops.
+                    stopped = Some(Stop::MaxStates(max_states));
+                    break 'bfs;
+                }
+                states.push(succ);
+                parents.push(cur as u32);
+                observe(&succ);
+            }
+        }
+        if !any {
+            deadlocks += 1;
+            first_dead.get_or_insert(cur);
+        }
+        cur += 1;
+    }
+    let peak_bytes = table.peak_bytes.max(table.bytes()) + states.bytes() + parents.bytes();
+    let deadlock_witness = first_dead.map(|d| {
+        let mut path = Vec::new();
+        let mut v = d;
+        while parents.get(v) != u32::MAX {
+            let u = parents.get(v) as usize;
+            let (ku, kv) = (states.get(u), states.get(v));
+            if let Some(t) = (0..nt).find(|&t| code.enabled(&ku, t) && code.fire(&ku, t) == kv) {
+                path.push(TransIdx(t as u32));
+            }
+            v = u;
+        }
+        path.reverse();
+        path
+    });
+    let liveness = (opts.liveness && stopped.is_none()).then(|| tarjan(&code, &table, &states, nt));
+    ReachResult {
+        states: states.len as u64,
+        edges,
+        deadlocks,
+        deadlock_witness,
+        max_tokens: max_fields.iter().map(|&m| m as u32).collect(),
+        never_enabled: (0..nt)
+            .filter(|&t| !enabled_ever[t])
+            .map(|t| TransIdx(t as u32))
+            .collect(),
+        stopped,
+        liveness,
+        peak_bytes,
+        bits_per_state: pk.bits,
+    }
+}
+
+/// Iterative Tarjan over the implicit graph (successors are recomputed from the packed states),
+/// recording terminal SCCs and which transitions occur inside each.
+fn tarjan<const W: usize>(
+    code: &Compiled<W>,
+    table: &Table<W>,
+    states: &Chunked<[u64; W]>,
+    nt: usize,
+) -> Liveness {
+    const NONE: u32 = u32::MAX;
+    let n = states.len;
+    let mut index = vec![NONE; n];
+    let mut low = vec![0u32; n];
+    let mut on_stack = vec![0u64; n.div_ceil(64)];
+    let mut exits = vec![0u64; n.div_ceil(64)];
+    let bit = |v: &Vec<u64>, i: usize| v[i >> 6] >> (i & 63) & 1 == 1;
+    let mut stack: Vec<u32> = Vec::new();
+    let mut frames: Vec<(u32, u32)> = Vec::new();
+    let mut next_index = 0u32;
+    let (mut sccs, mut terminal) = (0u64, 0u64);
+    let mut missing = vec![false; nt];
+    let mut root_terminal = false;
+    let mut occurs = vec![false; nt];
+    let mut visit = |v: usize,
+                     index: &mut Vec<u32>,
+                     low: &mut Vec<u32>,
+                     on_stack: &mut Vec<u64>,
+                     stack: &mut Vec<u32>| {
+        index[v] = next_index;
+        low[v] = next_index;
+        next_index += 1;
+        on_stack[v >> 6] |= 1 << (v & 63);
+        stack.push(v as u32);
+    };
+    visit(0, &mut index, &mut low, &mut on_stack, &mut stack);
+    frames.push((0, 0));
+    while let Some(&(v, t0)) = frames.last() {
+        let v = v as usize;
+        let key = states.get(v);
+        let mut descended = false;
+        let mut t = t0 as usize;
+        while t < nt {
+            if code.enabled(&key, t) {
+                let succ = code.fire(&key, t);
+                let w = table.id_of(&succ).map_or(0, |w| w as usize);
+                if index[w] == NONE {
+                    if let Some(f) = frames.last_mut() {
+                        f.1 = t as u32 + 1;
+                    }
+                    visit(w, &mut index, &mut low, &mut on_stack, &mut stack);
+                    frames.push((w as u32, 0));
+                    descended = true;
+                    break;
+                } else if bit(&on_stack, w) {
+                    low[v] = low[v].min(index[w]);
+                } else {
+                    // w belongs to an SCC already completed, so this edge leaves v's SCC.
+                    exits[v >> 6] |= 1 << (v & 63);
+                }
+            }
+            t += 1;
+        }
+        if descended {
+            continue;
+        }
+        frames.pop();
+        if low[v] == index[v] {
+            sccs += 1;
+            let start = stack.iter().rposition(|&x| x as usize == v).unwrap_or(0);
+            let members = stack.split_off(start);
+            let is_terminal = members.iter().all(|&x| !bit(&exits, x as usize));
+            occurs.iter_mut().for_each(|o| *o = false);
+            for &x in &members {
+                let x = x as usize;
+                on_stack[x >> 6] &= !(1 << (x & 63));
+                if is_terminal {
+                    let k = states.get(x);
+                    for (t, o) in occurs.iter_mut().enumerate() {
+                        *o |= code.enabled(&k, t);
+                    }
+                }
+            }
+            if is_terminal {
+                terminal += 1;
+                for (m, o) in missing.iter_mut().zip(&occurs) {
+                    *m |= !o;
+                }
+                if v == 0 {
+                    root_terminal = true;
+                }
+            }
+            if let Some(&(u, _)) = frames.last() {
+                // v's SCC is finished and differs from u's: the tree edge u → v leaves u's SCC.
+                let u = u as usize;
+                exits[u >> 6] |= 1 << (u & 63);
+            }
+        } else if let Some(&(u, _)) = frames.last() {
+            let u = u as usize;
+            low[u] = low[u].min(low[v]);
+        }
+    }
+    let non_live: Vec<TransIdx> = (0..nt)
+        .filter(|&t| missing[t])
+        .map(|t| TransIdx(t as u32))
+        .collect();
+    Liveness {
+        sccs,
+        terminal_sccs: terminal,
+        live: non_live.is_empty(),
+        non_live,
+        reversible: root_terminal && terminal == 1,
+    }
+}

@@ -1,0 +1,314 @@
+//! The report of `cetratus check`: serialisable, with a text rendering for people.
+
+use std::fmt;
+
+use serde::ser::{SerializeMap, Serializer};
+use serde::Serialize;
+
+use crate::{Classification, Incidence};
+
+/// A list of `(id, value)` pairs serialised as a JSON object in declaration order.
+#[derive(Clone, Debug, PartialEq, Default)]
+pub struct Named<V>(pub Vec<(String, V)>);
+
+impl<V: Serialize> Serialize for Named<V> {
+    fn serialize<S: Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        let mut m = s.serialize_map(Some(self.0.len()))?;
+        for (k, v) in &self.0 {
+            m.serialize_entry(k, v)?;
+        }
+        m.end()
+    }
+}
+
+/// The bound of a place: a number, ω (unbounded), or unknown.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Bound {
+    /// At most this many tokens in every reachable marking (or seen so far, in a partial run).
+    Tokens(u64),
+    /// Unbounded: serialised as `"ω"`.
+    Omega,
+    /// Not known: serialised as `null`.
+    Unknown,
+}
+
+impl Serialize for Bound {
+    fn serialize<S: Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        match self {
+            Bound::Tokens(n) => s.serialize_u64(*n),
+            Bound::Omega => s.serialize_str("ω"),
+            Bound::Unknown => s.serialize_none(),
+        }
+    }
+}
+
+impl fmt::Display for Bound {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Bound::Tokens(n) => write!(f, "{n}"),
+            Bound::Omega => f.write_str("ω"),
+            Bound::Unknown => f.write_str("?"),
+        }
+    }
+}
+
+/// Wall-clock time spent in each part of the analysis, in milliseconds.
+#[derive(Clone, Debug, PartialEq, Default, Serialize)]
+pub struct Timings {
+    /// Classification, incidence and structural bounds.
+    pub structure_ms: f64,
+    /// P- and T-semiflows.
+    pub invariants_ms: f64,
+    /// Siphons and traps.
+    pub siphons_ms: f64,
+    /// State-space exploration, SCCs included.
+    pub behaviour_ms: f64,
+}
+
+/// Everything `cetratus check` finds about a net. Ids are the file's place and transition ids.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct Report {
+    /// The net's id.
+    pub net: String,
+    /// Number of places.
+    pub places: usize,
+    /// Number of transitions.
+    pub transitions: usize,
+    /// Number of declared arcs (inhibitor arcs included).
+    pub arcs: usize,
+    /// `"reachability"`, `"coverability"` (Karp–Miller, the net is or may be unbounded) or
+    /// `"none"` (behaviour not explored).
+    pub graph: &'static str,
+    /// Nodes of that graph.
+    pub states: u64,
+    /// Edges: one per enabled transition at each expanded state.
+    pub edges: u64,
+    /// Dead states (no transition enabled), each counted once.
+    pub deadlocks: u64,
+    /// A shortest firing sequence from M0 to a dead state, as transition ids.
+    pub deadlock_witness: Option<Vec<String>>,
+    /// Every place bounded; `null` when a partial run could not tell.
+    pub bounded: Option<bool>,
+    /// Every place holds at most one token.
+    pub safe: Option<bool>,
+    /// Places found unbounded (ω in the coverability graph).
+    pub unbounded_places: Vec<String>,
+    /// Bound of each place (`"ω"` unbounded, `null` unknown).
+    pub max_tokens: Named<Bound>,
+    /// Every transition occurs in every terminal SCC (bounded nets only).
+    pub live: Option<bool>,
+    /// Transitions that are not live.
+    pub non_live_transitions: Vec<String>,
+    /// Transitions enabled in no reachable state.
+    pub dead_transitions: Vec<String>,
+    /// M0 is a home state: the initial state's SCC is the unique terminal SCC.
+    pub reversible: Option<bool>,
+    /// Minimal P-semiflows (`y·C = 0`), `null` when they could not be computed (see `notes`).
+    pub p_invariants: Option<Vec<Named<i64>>>,
+    /// The constant `y·M0` of each P-invariant, in the same order.
+    pub p_invariant_constants: Option<Vec<i128>>,
+    /// Minimal T-semiflows (`C·x = 0`).
+    pub t_invariants: Option<Vec<Named<i64>>>,
+    /// Some `y > 0` has `y·C = 0` (every place is in a P-semiflow).
+    pub conservative: Option<bool>,
+    /// Some `y > 0` has `y·C ≤ 0`: bounded for every initial marking.
+    pub structurally_bounded: Option<bool>,
+    /// Net classes.
+    pub classification: Classification,
+    /// Minimal siphons, as place ids.
+    pub siphons: Vec<Vec<String>>,
+    /// The siphon enumeration stopped at its limit.
+    pub siphons_truncated: bool,
+    /// Minimal traps, as place ids.
+    pub traps: Vec<Vec<String>>,
+    /// The trap enumeration stopped at its limit.
+    pub traps_truncated: bool,
+    /// Findings an engineer should look at (Commoner, deadlocks, unboundedness).
+    pub warnings: Vec<String>,
+    /// How the results were obtained, and what could not be computed.
+    pub notes: Vec<String>,
+    /// The run stopped early: counts are lower bounds and verdicts may be missing.
+    pub partial: bool,
+    /// Why it stopped early.
+    pub partial_reason: Option<String>,
+    /// Bits per packed state (reachability graph only).
+    pub bits_per_state: Option<usize>,
+    /// Peak bytes of the state store divided by the number of states.
+    pub bytes_per_state: Option<f64>,
+    /// The incidence matrices, for nets of at most 10,000 entries.
+    pub incidence: Option<Incidence>,
+    /// Time per phase.
+    pub timings: Timings,
+}
+
+fn yes_no(b: Option<bool>) -> &'static str {
+    match b {
+        Some(true) => "yes",
+        Some(false) => "no",
+        None => "unknown",
+    }
+}
+
+fn weights(v: &Named<i64>) -> String {
+    v.0.iter()
+        .map(|(id, w)| {
+            if *w == 1 {
+                id.clone()
+            } else {
+                format!("{w}·{id}")
+            }
+        })
+        .collect::<Vec<_>>()
+        .join(" + ")
+}
+
+impl fmt::Display for Report {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        writeln!(
+            f,
+            "net {}: {} places, {} transitions, {} arcs",
+            self.net, self.places, self.transitions, self.arcs
+        )?;
+        if self.partial {
+            writeln!(
+                f,
+                "PARTIAL RESULT: {}",
+                self.partial_reason.as_deref().unwrap_or("stopped early")
+            )?;
+        }
+        let c = &self.classification;
+        let classes: Vec<&str> = [
+            (c.ordinary, "ordinary"),
+            (c.pure, "pure"),
+            (c.state_machine, "state machine"),
+            (c.marked_graph, "marked graph"),
+            (c.free_choice, "free choice"),
+            (c.extended_free_choice, "extended free choice"),
+            (c.inhibitor_arcs, "inhibitor arcs"),
+            (c.capacities, "capacities"),
+        ]
+        .iter()
+        .filter(|(b, _)| *b)
+        .map(|(_, n)| *n)
+        .collect();
+        writeln!(f, "\nstructure")?;
+        writeln!(
+            f,
+            "  classes: {}",
+            if classes.is_empty() {
+                "none".into()
+            } else {
+                classes.join(", ")
+            }
+        )?;
+        writeln!(f, "  conservative: {}", yes_no(self.conservative))?;
+        writeln!(
+            f,
+            "  structurally bounded: {}",
+            yes_no(self.structurally_bounded)
+        )?;
+        match (&self.p_invariants, &self.p_invariant_constants) {
+            (Some(ps), Some(ks)) => {
+                writeln!(f, "  P-invariants: {}", ps.len())?;
+                for (p, k) in ps.iter().zip(ks) {
+                    writeln!(f, "    {} = {k}", weights(p))?;
+                }
+            }
+            _ => writeln!(f, "  P-invariants: not computed (see notes)")?,
+        }
+        match &self.t_invariants {
+            Some(ts) => {
+                writeln!(f, "  T-invariants: {}", ts.len())?;
+                for t in ts {
+                    writeln!(f, "    {}", weights(t))?;
+                }
+            }
+            None => writeln!(f, "  T-invariants: not computed (see notes)")?,
+        }
+        let sets = |v: &Vec<Vec<String>>| {
+            v.iter()
+                .map(|s| format!("{{{}}}", s.join(", ")))
+                .collect::<Vec<_>>()
+                .join(" ")
+        };
+        writeln!(
+            f,
+            "  minimal siphons: {}{} {}",
+            self.siphons.len(),
+            if self.siphons_truncated {
+                " (truncated)"
+            } else {
+                ""
+            },
+            sets(&self.siphons)
+        )?;
+        writeln!(
+            f,
+            "  minimal traps: {}{} {}",
+            self.traps.len(),
+            if self.traps_truncated {
+                " (truncated)"
+            } else {
+                ""
+            },
+            sets(&self.traps)
+        )?;
+        writeln!(f, "\nbehaviour ({} graph)", self.graph)?;
+        writeln!(f, "  states: {}", self.states)?;
+        writeln!(f, "  edges: {}", self.edges)?;
+        writeln!(f, "  deadlocks: {}", self.deadlocks)?;
+        if let Some(w) = &self.deadlock_witness {
+            writeln!(
+                f,
+                "  shortest path to a deadlock: {}",
+                if w.is_empty() {
+                    "(the initial marking)".into()
+                } else {
+                    w.join(" ")
+                }
+            )?;
+        }
+        writeln!(f, "  bounded: {}", yes_no(self.bounded))?;
+        if !self.unbounded_places.is_empty() {
+            writeln!(
+                f,
+                "  unbounded places: {}",
+                self.unbounded_places.join(", ")
+            )?;
+        }
+        writeln!(f, "  safe: {}", yes_no(self.safe))?;
+        let bounds: Vec<String> = self
+            .max_tokens
+            .0
+            .iter()
+            .map(|(p, b)| format!("{p}={b}"))
+            .collect();
+        writeln!(f, "  place bounds: {}", bounds.join(" "))?;
+        writeln!(f, "  live: {}", yes_no(self.live))?;
+        if !self.non_live_transitions.is_empty() {
+            writeln!(f, "  not live: {}", self.non_live_transitions.join(", "))?;
+        }
+        if !self.dead_transitions.is_empty() {
+            writeln!(f, "  never enabled: {}", self.dead_transitions.join(", "))?;
+        }
+        writeln!(f, "  reversible: {}", yes_no(self.reversible))?;
+        if let (Some(b), Some(bps)) = (self.bits_per_state, self.bytes_per_state) {
+            writeln!(
+                f,
+                "  state encoding: {b} bits, {bps:.1} bytes per state at peak"
+            )?;
+        }
+        for w in &self.warnings {
+            writeln!(f, "\nwarning: {w}")?;
+        }
+        for n in &self.notes {
+            writeln!(f, "note: {n}")?;
+        }
+        let t = &self.timings;
+        writeln!(
+            f,
+            "\ntime: structure {:.1} ms, invariants {:.1} ms, siphons/traps {:.1} ms, behaviour {:.1} ms",
+            t.structure_ms, t.invariants_ms, t.siphons_ms, t.behaviour_ms
+        )
+    }
+}

@@ -1,0 +1,67 @@
+//! `cetratus check FILE`: the structural and behavioural analysis of a net or a program's net.
+
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
+
+use anyhow::Context;
+use cetratus_analysis::{check, CheckOptions, TerminalProgress};
+use cetratus_net::Net;
+
+/// Arguments of `cetratus check`.
+#[derive(clap::Args, Debug)]
+pub struct CheckArgs {
+    /// A PNML file (ISO/IEC 15909-2 or PIPE dialect) or a program file (.toml).
+    pub file: PathBuf,
+    /// Print the report as JSON on stdout.
+    #[arg(long)]
+    pub json: bool,
+    /// Stop exploring after N states; the report is then marked partial.
+    #[arg(long, value_name = "N")]
+    pub max_states: Option<u64>,
+    /// Threads: with 2 or more, invariants, siphons and traps run beside the (single-threaded)
+    /// state-space exploration.
+    #[arg(long, value_name = "N", default_value_t = 1)]
+    pub threads: usize,
+}
+
+fn load(path: &Path) -> anyhow::Result<Net> {
+    let is_program = path
+        .extension()
+        .and_then(|e| e.to_str())
+        .is_some_and(|e| e.eq_ignore_ascii_case("toml"));
+    if is_program {
+        let program = cetratus_program::Program::load(path)
+            .with_context(|| format!("cannot load the program {}", path.display()))?;
+        return Ok(Net::clone(program.net()));
+    }
+    cetratus_net::pnml::read_file(path)
+        .with_context(|| format!("cannot read the net {}", path.display()))
+}
+
+/// Runs `cetratus check`: prints the report, as text or JSON. Ctrl-C stops the exploration and
+/// prints what was found so far, marked partial.
+pub fn run(args: &CheckArgs) -> anyhow::Result<()> {
+    let net = load(&args.file)?;
+    let cancel = Arc::new(AtomicBool::new(false));
+    let flag = cancel.clone();
+    if let Err(e) = ctrlc::set_handler(move || flag.store(true, Ordering::Relaxed)) {
+        eprintln!("warning: Ctrl-C will end the process without a partial report ({e})");
+    }
+    let progress = TerminalProgress::new();
+    let opts = CheckOptions {
+        max_states: args.max_states,
+        threads: args.threads.max(1),
+        cancel: Some(cancel),
+        progress: Some(progress.callback()),
+        ..CheckOptions::default()
+    };
+    let report = check(&net, &opts);
+    progress.finish();
+    if args.json {
+        println!("{}", serde_json::to_string_pretty(&report)?);
+    } else {
+        print!("{report}");
+    }
+    Ok(())
+}

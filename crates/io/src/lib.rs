@@ -1,0 +1,135 @@
+//! I/O drivers behind the runtime's [`Provider`] and [`Dispatcher`] traits.
+//!
+//! The first driver is the simulated plant: [`TwinDriver`] connects a program's signals, by name,
+//! to a digital twin's signals.
+
+use cetratus_program::{Signal, Type, Value};
+use cetratus_runtime::{Dispatcher, Provider};
+use cetratus_twin::Plant;
+
+/// What can go wrong when connecting a program to a driver.
+#[derive(Debug, thiserror::Error)]
+pub enum IoError {
+    /// The program reads an input the plant does not have.
+    #[error("the program reads input `{signal}` but the {plant} twin has no such signal; its inputs are {available}")]
+    UnknownInput {
+        /// The signal.
+        signal: String,
+        /// The plant's name.
+        plant: String,
+        /// The plant's inputs, comma-separated.
+        available: String,
+    },
+    /// The program drives an output the plant does not have.
+    #[error("the program drives output `{signal}` but the {plant} twin has no such signal; its outputs are {available}")]
+    UnknownOutput {
+        /// The signal.
+        signal: String,
+        /// The plant's name.
+        plant: String,
+        /// The plant's outputs, comma-separated.
+        available: String,
+    },
+    /// A simulated signal is not boolean.
+    #[error(
+        "signal `{signal}` is declared {ty} but the twin's signals are bool; declare it as bool"
+    )]
+    NotBool {
+        /// The signal.
+        signal: String,
+        /// Its declared type.
+        ty: &'static str,
+    },
+}
+
+/// A digital twin seen as the plant's I/O: it provides the inputs and takes the outputs.
+///
+/// `write_outputs(now)` applies the outputs at `now`; `read_inputs(now)` advances the plant to `now`
+/// under the outputs last written, then reads it.
+#[derive(Debug)]
+pub struct TwinDriver<P: Plant> {
+    plant: P,
+    // For each program input, the plant input it reads.
+    inputs_from: Vec<usize>,
+    // For each plant output, the program output that drives it.
+    outputs_from: Vec<Option<usize>>,
+    plant_inputs: Vec<bool>,
+    plant_outputs: Vec<bool>,
+}
+
+impl<P: Plant> TwinDriver<P> {
+    /// Connects `plant` to a program's inputs and outputs by name.
+    pub fn new(plant: P, inputs: &[Signal], outputs: &[Signal]) -> Result<Self, IoError> {
+        let pin = plant.input_names().to_vec();
+        let pout = plant.output_names().to_vec();
+        for s in inputs.iter().chain(outputs) {
+            if s.ty != Type::Bool {
+                return Err(IoError::NotBool {
+                    signal: s.name.clone(),
+                    ty: s.ty.name(),
+                });
+            }
+        }
+        let inputs_from = inputs
+            .iter()
+            .map(|s| {
+                pin.iter()
+                    .position(|n| *n == s.name)
+                    .ok_or_else(|| IoError::UnknownInput {
+                        signal: s.name.clone(),
+                        plant: plant.name().to_string(),
+                        available: pin.join(", "),
+                    })
+            })
+            .collect::<Result<Vec<_>, _>>()?;
+        for s in outputs {
+            if !pout.contains(&s.name.as_str()) {
+                return Err(IoError::UnknownOutput {
+                    signal: s.name.clone(),
+                    plant: plant.name().to_string(),
+                    available: pout.join(", "),
+                });
+            }
+        }
+        let outputs_from = pout
+            .iter()
+            .map(|n| outputs.iter().position(|s| s.name == *n))
+            .collect();
+        Ok(TwinDriver {
+            plant_inputs: vec![false; pin.len()],
+            plant_outputs: vec![false; pout.len()],
+            plant,
+            inputs_from,
+            outputs_from,
+        })
+    }
+
+    /// The plant.
+    pub fn plant(&self) -> &P {
+        &self.plant
+    }
+
+    /// The plant, for pressing buttons or forking.
+    pub fn plant_mut(&mut self) -> &mut P {
+        &mut self.plant
+    }
+}
+
+impl<P: Plant> Provider for TwinDriver<P> {
+    fn read_inputs(&mut self, now_us: u64, inputs: &mut [Value]) {
+        self.plant.step(now_us, &self.plant_outputs);
+        self.plant.inputs(&mut self.plant_inputs);
+        for (v, &i) in inputs.iter_mut().zip(&self.inputs_from) {
+            *v = Value::Bool(self.plant_inputs[i]);
+        }
+    }
+}
+
+impl<P: Plant> Dispatcher for TwinDriver<P> {
+    fn write_outputs(&mut self, now_us: u64, outputs: &[Value]) {
+        for (o, from) in self.plant_outputs.iter_mut().zip(&self.outputs_from) {
+            *o = from.is_some_and(|j| matches!(outputs.get(j), Some(Value::Bool(true))));
+        }
+        self.plant.step(now_us, &self.plant_outputs);
+    }
+}

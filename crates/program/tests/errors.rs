@@ -1,0 +1,149 @@
+//! Load errors say file:line:column and what was expected.
+
+use std::path::Path;
+
+use cetratus_net::Net;
+use cetratus_program::Program;
+
+fn vernadat() -> Net {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../examples/vernadat/vernadat.pnml");
+    match cetratus_net::pnml::read_file(&path) {
+        Ok(n) => n,
+        Err(e) => panic!("{e}"),
+    }
+}
+
+const HEAD: &str = r#"[program]
+name = "t"
+version = "1"
+[[input]]
+name = "PE"
+type = "bool"
+[[input]]
+name = "count"
+type = "int"
+[[output]]
+name = "CM1"
+type = "bool"
+"#;
+
+/// Loads HEAD + `rest` and returns the error message (empty when it loads).
+fn error(rest: &str) -> String {
+    match Program::from_sources(&format!("{HEAD}{rest}"), "prog.toml", vernadat()) {
+        Ok(_) => String::new(),
+        Err(e) => e.to_string(),
+    }
+}
+
+fn assert_at(msg: &str, line: u32, column: u32, needle: &str) {
+    let prefix = format!("prog.toml:{line}:{column}: ");
+    assert!(msg.starts_with(&prefix), "expected {prefix}…, got: {msg}");
+    assert!(msg.contains(needle), "expected `{needle}` in: {msg}");
+}
+
+#[test]
+fn an_unknown_signal_in_a_guard_points_at_the_name_inside_the_string() {
+    let msg = error("[guards]\nT10 = \"PE && FOO\"\n");
+    assert_at(&msg, 14, 14, "unknown name `FOO`");
+    assert!(
+        msg.contains("expected an input, a variable or a place"),
+        "{msg}"
+    );
+}
+
+#[test]
+fn comparing_a_bool_with_an_int_is_a_type_error_at_the_operator() {
+    let msg = error("[guards]\nT10 = \"PE == 3\"\n");
+    assert_at(&msg, 14, 11, "cannot compare bool with int");
+}
+
+#[test]
+fn mixing_int_and_real_suggests_a_conversion() {
+    let msg = error("[guards]\nT10 = \"count + 1.5 > 2.0\"\n");
+    assert_at(&msg, 14, 14, "real(");
+}
+
+#[test]
+fn a_guard_that_is_not_a_condition_is_refused() {
+    let msg = error("[guards]\nT10 = \"count + 1\"\n");
+    assert_at(&msg, 14, 8, "must be a condition (bool)");
+}
+
+#[test]
+fn a_guard_on_an_unknown_transition_points_at_the_key() {
+    let msg = error("[guards]\nT10 = \"PE\"\nT99 = \"PE\"\n");
+    assert_at(&msg, 15, 1, "unknown transition `T99`");
+}
+
+#[test]
+fn bad_guard_syntax_points_at_the_offending_token() {
+    let msg = error("[guards]\nT10 = \"PE && (count > 2\"\n");
+    assert_at(&msg, 14, 24, "expected `)`");
+    let msg = error("[guards]\nT10 = \"PE & PE\"\n");
+    assert_at(&msg, 14, 11, "use `&&`");
+    let msg = error("[guards]\nT10 = \"count = 2\"\n");
+    assert_at(&msg, 14, 14, "use `==`");
+}
+
+#[test]
+fn a_guard_too_deep_for_the_evaluator_is_refused_at_load() {
+    // Right-nested sums need one stack slot per level.
+    let mut g = String::from("count");
+    for _ in 0..40 {
+        g = format!("1 + ({g})");
+    }
+    let msg = error(&format!("[guards]\nT10 = \"{g} > 0\"\n"));
+    assert!(msg.starts_with("prog.toml:14:"), "{msg}");
+    assert!(
+        msg.contains("nested too deeply") || msg.contains("stack"),
+        "{msg}"
+    );
+}
+
+#[test]
+fn an_action_on_an_unknown_place_or_target_is_refused() {
+    let msg = error("[[action]]\nplace = \"P99\"\nqualifier = \"N\"\ntarget = \"CM1\"\n");
+    assert_at(&msg, 14, 9, "unknown place `P99`");
+    let msg = error("[[action]]\nplace = \"P11\"\nqualifier = \"N\"\ntarget = \"PE\"\n");
+    assert_at(&msg, 16, 10, "is an input");
+    let msg = error("[[action]]\nplace = \"P11\"\nqualifier = \"L\"\ntarget = \"CM1\"\n");
+    assert_at(&msg, 15, 13, "needs a duration");
+}
+
+#[test]
+fn an_unknown_place_in_an_invariant_is_refused() {
+    let msg = error("[[invariant]]\nexpr = \"R + P11 + X14 = 1\"\n");
+    assert_at(&msg, 14, 19, "unknown place `X14`");
+}
+
+#[test]
+fn an_invariant_that_does_not_hold_at_m0_is_refused() {
+    let msg = error("[[invariant]]\nexpr = \"H + B + 2*P14 = 8\"\n");
+    assert_at(&msg, 14, 8, "does not hold at the initial marking");
+}
+
+#[test]
+fn a_wrong_type_in_the_file_is_reported_by_toml_with_a_position() {
+    let msg = error("[[variable]]\nname = \"v\"\ntype = \"int\"\ninitial = true\n");
+    assert_at(&msg, 16, 11, "must be a int");
+    let msg = error("[[variable]]\nname = \"v\"\ntype = \"integer\"\n");
+    assert_at(&msg, 15, 8, "expected bool, int or real");
+    let msg = error("[[output]]\nname = \"X\"\ntype = \"bool\"\ncolour = 1\n");
+    assert_at(&msg, 16, 1, "unknown field `colour`");
+}
+
+#[test]
+fn a_signal_named_like_a_place_is_refused() {
+    let msg = error("[[input]]\nname = \"P11\"\ntype = \"bool\"\n");
+    assert_at(&msg, 14, 8, "same name as a place");
+}
+
+#[test]
+fn an_unknown_policy_lists_the_choices() {
+    let src = "[program]\nname = \"t\"\nversion = \"1\"\npolicy = \"random\"\n";
+    let msg = Program::from_sources(src, "prog.toml", vernadat())
+        .err()
+        .map(|e| e.to_string())
+        .unwrap_or_default();
+    assert_at(&msg, 4, 10, "single-last");
+}

@@ -1,0 +1,211 @@
+//! A container: one running program with its marking, timers, action state and I/O images.
+
+use std::sync::Arc;
+
+use cetratus_net::{Engine, FireError, Tokens};
+use cetratus_program::{ActionState, EvalCtx, Program, Value};
+
+use crate::RuntimeError;
+
+/// One program running: the paper's program container.
+///
+/// All buffers are sized at construction; [`Container::scan`] never allocates.
+#[derive(Clone, Debug)]
+pub struct Container {
+    program: Arc<Program>,
+    engine: Engine,
+    // The marking as it was at the start of the scan: guards read this, not the step in progress.
+    marking_at_start: Vec<Tokens>,
+    place_since_us: Vec<Option<u64>>,
+    actions: ActionState,
+    inputs: Vec<Value>,
+    prev_inputs: Vec<Value>,
+    vars: Vec<Value>,
+    outputs: Vec<Value>,
+    firings: Vec<u64>,
+    scans: u64,
+}
+
+/// What one scan did.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct ScanOutcome {
+    /// Transitions fired.
+    pub fired: usize,
+    /// True when no transition is enabled after the scan.
+    pub deadlocked: bool,
+}
+
+impl Container {
+    /// A container running `program` from its initial marking, with every place's timer started
+    /// at `now_us` for the places marked at start.
+    pub fn new(program: Arc<Program>, now_us: u64) -> Self {
+        let engine = Engine::new(program.net().clone());
+        let marking = engine.marking().to_vec();
+        Self::assemble(program, engine, marking, now_us)
+    }
+
+    /// A container running `program` from a given marking and place timers (state transformation,
+    /// warm start).
+    pub fn with_state(
+        program: Arc<Program>,
+        marking: &[Tokens],
+        place_since_us: &[Option<u64>],
+        now_us: u64,
+    ) -> Result<Self, cetratus_net::NetError> {
+        let engine = Engine::with_marking(program.net().clone(), marking.to_vec().into())?;
+        let mut c = Self::assemble(program, engine, marking.to_vec(), now_us);
+        for (slot, (&since, &m)) in c
+            .place_since_us
+            .iter_mut()
+            .zip(place_since_us.iter().zip(marking))
+        {
+            *slot = if m > 0 { since.or(Some(now_us)) } else { None };
+        }
+        Ok(c)
+    }
+
+    fn assemble(program: Arc<Program>, engine: Engine, marking: Vec<Tokens>, now_us: u64) -> Self {
+        let place_since_us = marking.iter().map(|&m| (m > 0).then_some(now_us)).collect();
+        let inputs: Vec<Value> = program.inputs().iter().map(|s| s.initial).collect();
+        let vars: Vec<Value> = program.variables().iter().map(|s| s.initial).collect();
+        let outputs: Vec<Value> = program.outputs().iter().map(|s| s.initial).collect();
+        let actions = ActionState::new(&program);
+        Container {
+            firings: vec![0; program.net().num_transitions()],
+            marking_at_start: marking,
+            place_since_us,
+            actions,
+            prev_inputs: inputs.clone(),
+            inputs,
+            vars,
+            outputs,
+            engine,
+            program,
+            scans: 0,
+        }
+    }
+
+    /// The program.
+    pub fn program(&self) -> &Arc<Program> {
+        &self.program
+    }
+    /// The marking, in place order.
+    pub fn marking(&self) -> &[Tokens] {
+        self.engine.marking()
+    }
+    /// When each place last went from empty to marked (`None` while empty).
+    pub fn place_since_us(&self) -> &[Option<u64>] {
+        &self.place_since_us
+    }
+    /// The output image computed by the last scan.
+    pub fn outputs(&self) -> &[Value] {
+        &self.outputs
+    }
+    /// The input image of the last scan.
+    pub fn inputs(&self) -> &[Value] {
+        &self.inputs
+    }
+    /// The variables.
+    pub fn variables(&self) -> &[Value] {
+        &self.vars
+    }
+    /// Firings per transition since the container started.
+    pub fn firings(&self) -> &[u64] {
+        &self.firings
+    }
+    /// Scans run.
+    pub fn scans(&self) -> u64 {
+        self.scans
+    }
+    /// The transitions fired by the last scan.
+    pub fn fired(&self) -> &[cetratus_net::TransIdx] {
+        self.engine.fired()
+    }
+    /// The underlying engine (enabled set, last changes).
+    pub fn engine(&self) -> &Engine {
+        &self.engine
+    }
+
+    /// One scan: take the input image, fire under the program's policy with its guards, update
+    /// place timers, then compute the actions into the output image.
+    ///
+    /// On error nothing has changed but the input image: the marking, timers, variables and
+    /// outputs are as after the previous scan.
+    pub fn scan(&mut self, now_us: u64, inputs: &[Value]) -> Result<ScanOutcome, RuntimeError> {
+        if inputs.len() != self.inputs.len() {
+            return Err(RuntimeError::InputImage {
+                expected: self.inputs.len(),
+                got: inputs.len(),
+            });
+        }
+        if self.scans == 0 {
+            // No edge on the first scan: rise/fall compare against the same image.
+            self.prev_inputs.copy_from_slice(inputs);
+        } else {
+            self.prev_inputs.copy_from_slice(&self.inputs);
+        }
+        self.inputs.copy_from_slice(inputs);
+
+        let program = &*self.program;
+        let ctx = EvalCtx {
+            inputs: &self.inputs,
+            prev_inputs: &self.prev_inputs,
+            vars: &self.vars,
+            marking: &self.marking_at_start,
+            place_since_us: &self.place_since_us,
+            now_us,
+        };
+        let policy = program.policy();
+        let result = self
+            .engine
+            .scan(policy, |t| program.eval_guard(t, &ctx))
+            .map(|f| f.len());
+        let fired = match result {
+            Ok(n) => n,
+            Err(FireError::Guard { transition, error }) => {
+                return Err(RuntimeError::Guard {
+                    transition: program.net().transition(transition).id.clone(),
+                    message: error.to_string(),
+                })
+            }
+            Err(FireError::Overflow { transition, place }) => {
+                return Err(RuntimeError::Overflow {
+                    transition: program.net().transition(transition).id.clone(),
+                    place: program.net().place(place).id.clone(),
+                })
+            }
+        };
+        for &t in self.engine.fired() {
+            self.firings[t.index()] += 1;
+        }
+        let marking = self.engine.marking();
+        for &(p, old) in self.engine.changes() {
+            let new = marking[p.index()];
+            self.marking_at_start[p.index()] = new;
+            if old == 0 && new > 0 {
+                self.place_since_us[p.index()] = Some(now_us);
+            } else if new == 0 {
+                self.place_since_us[p.index()] = None;
+            }
+        }
+        self.actions.apply(
+            program,
+            marking,
+            self.engine.changes(),
+            &self.place_since_us,
+            now_us,
+            &mut self.outputs,
+            &mut self.vars,
+        );
+        self.scans += 1;
+        Ok(ScanOutcome {
+            fired,
+            deadlocked: self.engine.enabled().is_empty(),
+        })
+    }
+
+    /// Writes the program's declared safe output values into `out`.
+    pub fn safe_outputs(&self, out: &mut [Value]) {
+        self.program.safe_outputs(out);
+    }
+}

@@ -1,0 +1,887 @@
+//! The Festo processing station: rotary indexing table, hole tester, drill with clamp, ejector.
+//!
+//! The signal semantics are described in the crate documentation.
+
+use serde::{Deserialize, Serialize};
+
+use crate::rng::SplitMix64;
+use crate::{
+    check_image, monotonic, out, Counters, Fault, FaultKind, FaultLog, Plant, TwinError, SECOND_US,
+};
+
+/// The twin's name.
+pub const NAME: &str = "festo";
+
+/// Input names, in image order.
+pub const INPUT_NAMES: [&str; 13] = [
+    "START",
+    "STOP",
+    "RESET",
+    "PART_AT_INPUT",
+    "TABLE_IN_POS",
+    "PART_AT_TEST",
+    "TESTER_DOWN",
+    "PART_AT_DRILL",
+    "CLAMPED",
+    "DRILL_UP",
+    "DRILL_DOWN",
+    "PART_AT_EJECT",
+    "EJECTOR_OUT",
+];
+
+/// Output names, in image order.
+pub const OUTPUT_NAMES: [&str; 6] = [
+    "TABLE_MOTOR",
+    "TESTER_SOLENOID",
+    "CLAMP",
+    "DRILL_MOTOR",
+    "DRILL_FEED_DOWN",
+    "EJECTOR",
+];
+
+/// The operator buttons, in input order.
+pub const BUTTONS: [&str; 3] = ["START", "STOP", "RESET"];
+
+/// Number of nests on the rotary table.
+pub const NESTS: usize = 6;
+
+/// Table positions of the stations (nest under each station after an index).
+pub mod position {
+    /// Where the upstream station puts parts.
+    pub const INPUT: usize = 0;
+    /// Under the hole tester.
+    pub const TEST: usize = 1;
+    /// Under the drill.
+    pub const DRILL: usize = 2;
+    /// In front of the ejector.
+    pub const EJECT: usize = 3;
+}
+
+/// Indices of the inputs in the input image.
+pub mod input {
+    /// Start button held.
+    pub const START: usize = 0;
+    /// Stop button held.
+    pub const STOP: usize = 1;
+    /// Reset button held.
+    pub const RESET: usize = 2;
+    /// A part sits in the input nest.
+    pub const PART_AT_INPUT: usize = 3;
+    /// The table stands (or passes) at an indexing position.
+    pub const TABLE_IN_POS: usize = 4;
+    /// A part sits under the tester.
+    pub const PART_AT_TEST: usize = 5;
+    /// The tester's probe is down: the part's hole is there.
+    pub const TESTER_DOWN: usize = 6;
+    /// A part sits under the drill.
+    pub const PART_AT_DRILL: usize = 7;
+    /// The clamp is closed.
+    pub const CLAMPED: usize = 8;
+    /// The drill feed is at its top.
+    pub const DRILL_UP: usize = 9;
+    /// The drill feed is at its bottom.
+    pub const DRILL_DOWN: usize = 10;
+    /// A part sits in front of the ejector.
+    pub const PART_AT_EJECT: usize = 11;
+    /// The ejector is fully out.
+    pub const EJECTOR_OUT: usize = 12;
+}
+
+/// Indices of the outputs in the output image.
+pub mod output {
+    /// Turn the table.
+    pub const TABLE_MOTOR: usize = 0;
+    /// Lower the tester's probe.
+    pub const TESTER_SOLENOID: usize = 1;
+    /// Close the clamp.
+    pub const CLAMP: usize = 2;
+    /// Spin the drill.
+    pub const DRILL_MOTOR: usize = 3;
+    /// Feed the drill down (off: up).
+    pub const DRILL_FEED_DOWN: usize = 4;
+    /// Push the part off the table.
+    pub const EJECTOR: usize = 5;
+}
+
+/// Physical parameters of the station; every duration is in microseconds of virtual time.
+#[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct FestoParams {
+    /// Travel time of one table index (one nest further).
+    pub index_us: u64,
+    /// Travel after a position during which the position cam stays made.
+    pub in_position_window_us: u64,
+    /// Time for the tester's probe to reach down.
+    pub test_us: u64,
+    /// Time for the clamp to close.
+    pub clamp_us: u64,
+    /// Time for the drill feed to travel from top to bottom (the drilling).
+    pub drill_down_us: u64,
+    /// Time for the drill feed to travel from bottom to top.
+    pub drill_up_us: u64,
+    /// Time for the ejector to push fully out.
+    pub eject_us: u64,
+    /// Period of part arrivals upstream; the first arrives at time 0.
+    pub arrival_interval_us: u64,
+    /// How long [`Plant::press`] holds a button.
+    pub press_us: u64,
+    /// Largest random extra added to each actuator stroke and arrival (0: none).
+    pub jitter_us: u64,
+}
+
+impl Default for FestoParams {
+    fn default() -> Self {
+        Self {
+            index_us: SECOND_US,
+            in_position_window_us: 100_000,
+            test_us: 500_000,
+            clamp_us: 200_000,
+            drill_down_us: 2 * SECOND_US,
+            drill_up_us: 500_000,
+            eject_us: 500_000,
+            arrival_interval_us: 5 * SECOND_US,
+            press_us: 200_000,
+            jitter_us: 0,
+        }
+    }
+}
+
+impl FestoParams {
+    fn validate(&self) -> Result<(), TwinError> {
+        let bad = |name: &'static str, reason: &str| {
+            Err(TwinError::InvalidParameter {
+                twin: NAME,
+                name,
+                reason: reason.to_owned(),
+            })
+        };
+        if self.in_position_window_us == 0 || self.in_position_window_us >= self.index_us {
+            return bad(
+                "in_position_window_us",
+                "must be positive and shorter than index_us, or the cam is never or always made",
+            );
+        }
+        if self.drill_down_us == 0 || self.drill_up_us == 0 {
+            return bad(
+                "drill_down_us",
+                "drill_down_us and drill_up_us must be positive: the feed has a travel",
+            );
+        }
+        if self.arrival_interval_us == 0 {
+            return bad("arrival_interval_us", "must be positive");
+        }
+        Ok(())
+    }
+}
+
+/// A part on the table, with what has been done to it.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+struct Part {
+    tested: bool,
+    drilled: bool,
+}
+
+/// A single-acting actuator: extends in a set time while commanded, springs back at once.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Stroke {
+    Retracted,
+    Extending { done_at: u64 },
+    Extended,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+struct Actuator {
+    cmd: bool,
+    stroke: Stroke,
+}
+
+impl Actuator {
+    const fn new() -> Self {
+        Self {
+            cmd: false,
+            stroke: Stroke::Retracted,
+        }
+    }
+
+    fn set(&mut self, now: u64, on: bool, stroke_us: u64, rng: &mut SplitMix64, jitter: u64) {
+        if on && !self.cmd {
+            self.stroke = Stroke::Extending {
+                done_at: now.saturating_add(rng.jitter(stroke_us, jitter)),
+            };
+        } else if !on {
+            self.stroke = Stroke::Retracted;
+        }
+        self.cmd = on;
+    }
+
+    fn due(&self) -> Option<u64> {
+        match self.stroke {
+            Stroke::Extending { done_at } => Some(done_at),
+            _ => None,
+        }
+    }
+
+    fn engaged(&self) -> bool {
+        self.stroke != Stroke::Retracted
+    }
+
+    fn extended(&self) -> bool {
+        self.stroke == Stroke::Extended
+    }
+}
+
+/// The drill feed: a position in microseconds of downward travel, `0` at the top.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+struct Feed {
+    down: bool,
+    pos: u64,
+    at: u64,
+}
+
+impl Feed {
+    fn pos_at(&self, t: u64, p: &FestoParams) -> u64 {
+        let dt = t.saturating_sub(self.at);
+        if self.down {
+            self.pos.saturating_add(dt).min(p.drill_down_us)
+        } else {
+            // Upward speed is drill_down_us / drill_up_us travel per microsecond.
+            let up = u128::from(dt) * u128::from(p.drill_down_us) / u128::from(p.drill_up_us);
+            self.pos
+                .saturating_sub(u64::try_from(up).unwrap_or(u64::MAX))
+        }
+    }
+
+    fn sync(&mut self, t: u64, p: &FestoParams) {
+        self.pos = self.pos_at(t, p);
+        self.at = t;
+    }
+
+    fn due(&self, p: &FestoParams) -> Option<u64> {
+        if self.down && self.pos < p.drill_down_us {
+            Some(self.at.saturating_add(p.drill_down_us - self.pos))
+        } else if !self.down && self.pos > 0 {
+            // Rounded up so that at the event time the feed is surely at the top.
+            let num = u128::from(self.pos) * u128::from(p.drill_up_us);
+            let den = u128::from(p.drill_down_us);
+            let dt = u64::try_from(num.div_ceil(den)).unwrap_or(u64::MAX);
+            Some(self.at.saturating_add(dt))
+        } else {
+            None
+        }
+    }
+}
+
+/// The rotary table: travel since the last position, in microseconds.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+struct Table {
+    motor: bool,
+    progress: u64,
+    at: u64,
+}
+
+impl Table {
+    fn progress_at(&self, t: u64, p: &FestoParams) -> u64 {
+        if self.motor {
+            self.progress
+                .saturating_add(t.saturating_sub(self.at))
+                .min(p.index_us)
+        } else {
+            self.progress
+        }
+    }
+
+    fn sync(&mut self, t: u64, p: &FestoParams) {
+        self.progress = self.progress_at(t, p);
+        self.at = t;
+    }
+
+    fn in_position(&self, t: u64, p: &FestoParams) -> bool {
+        self.progress_at(t, p) < p.in_position_window_us
+    }
+
+    fn due(&self, p: &FestoParams) -> Option<u64> {
+        self.motor
+            .then(|| self.at.saturating_add(p.index_us - self.progress))
+    }
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Event {
+    Arrival,
+    Table,
+    Tester,
+    Clamp,
+    Feed,
+    Ejector,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+struct Tally {
+    supplied: u64,
+    tested: u64,
+    drilled: u64,
+    ejected: u64,
+    ejected_incomplete: u64,
+}
+
+/// The Festo processing station's digital twin.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct FestoStation {
+    params: FestoParams,
+    rng: SplitMix64,
+    now: u64,
+    nests: [Option<Part>; NESTS],
+    table: Table,
+    tester: Actuator,
+    clamp: Actuator,
+    drill_motor: bool,
+    feed: Feed,
+    ejector: Actuator,
+    waiting: u64,
+    next_arrival: u64,
+    /// Per button, the interval `[from, until)` of its scheduled press.
+    presses: [Option<(u64, u64)>; 3],
+    tally: Tally,
+    turning_latched: bool,
+    misaligned_latched: bool,
+    image_size_reported: bool,
+    faults: FaultLog,
+}
+
+impl FestoStation {
+    /// A station at time 0 with the given parameters and jitter seed.
+    pub fn new(params: FestoParams, seed: u64) -> Result<Self, TwinError> {
+        params.validate()?;
+        Ok(Self::build(params, seed))
+    }
+
+    /// A station with the documented default times.
+    pub fn with_defaults(seed: u64) -> Self {
+        Self::build(FestoParams::default(), seed)
+    }
+
+    fn build(params: FestoParams, seed: u64) -> Self {
+        Self {
+            params,
+            rng: SplitMix64::new(seed),
+            now: 0,
+            nests: [None; NESTS],
+            table: Table {
+                motor: false,
+                progress: 0,
+                at: 0,
+            },
+            tester: Actuator::new(),
+            clamp: Actuator::new(),
+            drill_motor: false,
+            feed: Feed {
+                down: false,
+                pos: 0,
+                at: 0,
+            },
+            ejector: Actuator::new(),
+            waiting: 0,
+            next_arrival: 0,
+            presses: [None; 3],
+            tally: Tally::default(),
+            turning_latched: false,
+            misaligned_latched: false,
+            image_size_reported: false,
+            faults: FaultLog::new(),
+        }
+    }
+
+    /// The parameters the station was built with.
+    pub fn params(&self) -> &FestoParams {
+        &self.params
+    }
+
+    /// Holds button `index` (see [`BUTTONS`]) from `at_us` for `press_us`.
+    fn press_index(&mut self, index: usize, at_us: u64) {
+        if let Some(slot) = self.presses.get_mut(index) {
+            *slot = Some((at_us, at_us.saturating_add(self.params.press_us)));
+        }
+    }
+
+    fn next_event(&self) -> (u64, Event) {
+        let p = &self.params;
+        let mut best = (self.next_arrival, Event::Arrival);
+        for (t, ev) in [
+            (self.table.due(p), Event::Table),
+            (self.tester.due(), Event::Tester),
+            (self.clamp.due(), Event::Clamp),
+            (self.feed.due(p), Event::Feed),
+            (self.ejector.due(), Event::Ejector),
+        ] {
+            // Strictly earlier only: ties go to the event listed first, which keeps the order fixed.
+            if let Some(t) = t.filter(|&t| t < best.0) {
+                best = (t, ev);
+            }
+        }
+        best
+    }
+
+    fn run_events_until(&mut self, now: u64) {
+        loop {
+            let (t, ev) = self.next_event();
+            if t > now {
+                break;
+            }
+            self.table.sync(t, &self.params);
+            self.feed.sync(t, &self.params);
+            self.handle(t, ev);
+            self.place_waiting_part(t);
+            self.check_engagement(t);
+        }
+        self.table.sync(now, &self.params);
+        self.feed.sync(now, &self.params);
+    }
+
+    fn handle(&mut self, t: u64, ev: Event) {
+        let jitter = self.params.jitter_us;
+        match ev {
+            Event::Arrival => {
+                self.waiting += 1;
+                self.next_arrival = t.saturating_add(
+                    self.rng
+                        .jitter(self.params.arrival_interval_us, jitter)
+                        .max(1),
+                );
+            }
+            Event::Table => {
+                self.nests.rotate_right(1);
+                self.table.progress = 0;
+            }
+            Event::Tester => {
+                self.tester.stroke = Stroke::Extended;
+                if let Some(part) = &mut self.nests[position::TEST] {
+                    if !part.tested {
+                        part.tested = true;
+                        self.tally.tested += 1;
+                    }
+                }
+            }
+            Event::Clamp => self.clamp.stroke = Stroke::Extended,
+            Event::Feed => {
+                if self.feed.pos == self.params.drill_down_us && self.feed.down {
+                    self.drill_reaches_bottom(t);
+                }
+            }
+            Event::Ejector => {
+                self.ejector.stroke = Stroke::Extended;
+                if let Some(part) = self.nests[position::EJECT].take() {
+                    self.tally.ejected += 1;
+                    if !(part.tested && part.drilled) {
+                        self.tally.ejected_incomplete += 1;
+                    }
+                }
+            }
+        }
+    }
+
+    fn drill_reaches_bottom(&mut self, t: u64) {
+        let Some(part) = &mut self.nests[position::DRILL] else {
+            return;
+        };
+        if !self.clamp.extended() {
+            self.faults.push(
+                FaultKind::DrillWithoutClamp,
+                t,
+                "the drill reached a part that was not clamped; the part is not drilled",
+            );
+        } else if !self.drill_motor {
+            self.faults.push(
+                FaultKind::DrillMotorOff,
+                t,
+                "the drill was fed into the part with its spindle stopped; the part is not drilled",
+            );
+        } else if !part.drilled {
+            part.drilled = true;
+            self.tally.drilled += 1;
+        }
+    }
+
+    /// The upstream station hands over a part only into an empty input nest of a table at rest.
+    fn place_waiting_part(&mut self, t: u64) {
+        if self.waiting > 0
+            && self.nests[position::INPUT].is_none()
+            && !self.table.motor
+            && self.table.in_position(t, &self.params)
+        {
+            self.waiting -= 1;
+            self.nests[position::INPUT] = Some(Part {
+                tested: false,
+                drilled: false,
+            });
+            self.tally.supplied += 1;
+        }
+    }
+
+    /// What is engaged, as the fault message to give if the table moves; `None` when all is clear.
+    fn engaged_module(&self, t: u64) -> Option<&'static str> {
+        if self.tester.engaged() {
+            Some("the table turned while the tester was down")
+        } else if self.clamp.engaged() {
+            Some("the table turned while the clamp was closed")
+        } else if self.feed.pos_at(t, &self.params) > 0 {
+            Some("the table turned while the drill was not up")
+        } else if self.ejector.engaged() {
+            Some("the table turned while the ejector was out")
+        } else {
+            None
+        }
+    }
+
+    /// Reports each episode of a module engaged while the table turns or stands misaligned, once.
+    fn check_engagement(&mut self, t: u64) {
+        let engaged = self.engaged_module(t);
+        let turning = self.table.motor && engaged.is_some();
+        if let (true, false, Some(msg)) = (turning, self.turning_latched, engaged) {
+            self.faults.push(FaultKind::TableTurnWhileEngaged, t, msg);
+        }
+        self.turning_latched = turning;
+        let misaligned =
+            !self.table.motor && engaged.is_some() && !self.table.in_position(t, &self.params);
+        if misaligned && !self.misaligned_latched {
+            self.faults.push(
+                FaultKind::EngagedOutOfPosition,
+                t,
+                "a module engaged while the table stood between two positions",
+            );
+        }
+        self.misaligned_latched = misaligned;
+    }
+
+    fn apply(&mut self, now: u64, outputs: &[bool]) {
+        let p = &self.params;
+        let jitter = p.jitter_us;
+        self.table.sync(now, p);
+        self.table.motor = out(outputs, output::TABLE_MOTOR);
+        self.tester.set(
+            now,
+            out(outputs, output::TESTER_SOLENOID),
+            p.test_us,
+            &mut self.rng,
+            jitter,
+        );
+        let clamp = out(outputs, output::CLAMP);
+        if self.clamp.cmd
+            && !clamp
+            && self.feed.pos_at(now, p) > 0
+            && self.nests[position::DRILL].is_some()
+        {
+            self.faults.push(
+                FaultKind::DrillWithoutClamp,
+                now,
+                "the clamp opened while the drill was in the part",
+            );
+        }
+        self.clamp
+            .set(now, clamp, p.clamp_us, &mut self.rng, jitter);
+        self.drill_motor = out(outputs, output::DRILL_MOTOR);
+        self.feed.sync(now, p);
+        self.feed.down = out(outputs, output::DRILL_FEED_DOWN);
+        self.ejector.set(
+            now,
+            out(outputs, output::EJECTOR),
+            p.eject_us,
+            &mut self.rng,
+            jitter,
+        );
+        self.place_waiting_part(now);
+        self.check_engagement(now);
+    }
+
+    fn pressed(&self, index: usize) -> bool {
+        matches!(self.presses[index], Some((from, until)) if from <= self.now && self.now < until)
+    }
+}
+
+impl Plant for FestoStation {
+    fn name(&self) -> &'static str {
+        NAME
+    }
+
+    fn input_names(&self) -> &[&'static str] {
+        &INPUT_NAMES
+    }
+
+    fn output_names(&self) -> &[&'static str] {
+        &OUTPUT_NAMES
+    }
+
+    fn step(&mut self, now_us: u64, outputs: &[bool]) {
+        let now = monotonic(&mut self.faults, self.now, now_us);
+        check_image(
+            &mut self.faults,
+            &mut self.image_size_reported,
+            now,
+            outputs.len(),
+            OUTPUT_NAMES.len(),
+        );
+        self.run_events_until(now);
+        self.now = now;
+        self.apply(now, outputs);
+        // Zero-length strokes (a parameter of 0) complete at once.
+        self.run_events_until(now);
+    }
+
+    fn inputs(&self, buf: &mut [bool]) {
+        let p = &self.params;
+        let t = self.now;
+        let in_pos = self.table.in_position(t, p);
+        let at = |pos: usize| in_pos && self.nests[pos].is_some();
+        let feed = self.feed.pos_at(t, p);
+        let values = [
+            self.pressed(0),
+            self.pressed(1),
+            self.pressed(2),
+            at(position::INPUT),
+            in_pos,
+            at(position::TEST),
+            self.tester.extended(),
+            at(position::DRILL),
+            self.clamp.extended(),
+            feed == 0,
+            feed == p.drill_down_us,
+            at(position::EJECT),
+            self.ejector.extended(),
+        ];
+        for (slot, v) in buf.iter_mut().zip(values) {
+            *slot = v;
+        }
+    }
+
+    fn now_us(&self) -> u64 {
+        self.now
+    }
+
+    fn faults(&self) -> &[Fault] {
+        self.faults.as_slice()
+    }
+
+    fn faults_dropped(&self) -> u64 {
+        self.faults.dropped()
+    }
+
+    fn counters(&self) -> Counters {
+        Counters::from_pairs(&[
+            ("parts_supplied", self.tally.supplied),
+            ("parts_tested", self.tally.tested),
+            ("parts_drilled", self.tally.drilled),
+            ("parts_ejected", self.tally.ejected),
+            ("parts_ejected_incomplete", self.tally.ejected_incomplete),
+            ("parts_waiting", self.waiting),
+        ])
+    }
+
+    fn buttons(&self) -> &[&'static str] {
+        &BUTTONS
+    }
+
+    fn press(&mut self, button: &str, at_us: u64) -> Result<(), TwinError> {
+        match BUTTONS.iter().position(|b| b.eq_ignore_ascii_case(button)) {
+            Some(i) => {
+                self.press_index(i, at_us);
+                Ok(())
+            }
+            None => Err(TwinError::UnknownButton {
+                twin: NAME,
+                button: button.to_owned(),
+                known: BUTTONS.join(", "),
+            }),
+        }
+    }
+
+    fn fork(&self) -> Box<dyn Plant> {
+        Box::new(self.clone())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::input::*;
+    use super::output::*;
+    use super::*;
+
+    /// Steps to `t_ms` with the listed outputs on, returns the input image.
+    fn drive(st: &mut FestoStation, t_ms: u64, on: &[usize]) -> [bool; 13] {
+        let mut outs = [false; 6];
+        for &o in on {
+            outs[o] = true;
+        }
+        st.step(t_ms * 1_000, &outs);
+        let mut ins = [false; 13];
+        st.inputs(&mut ins);
+        ins
+    }
+
+    fn kinds(st: &FestoStation) -> Vec<FaultKind> {
+        st.faults().iter().map(|f| f.kind).collect()
+    }
+
+    /// Indexes the table once, stopping on the cam; starts and ends at `t_ms`.
+    fn index(st: &mut FestoStation, t_ms: &mut u64) {
+        let mut left = false;
+        loop {
+            *t_ms += 10;
+            let i = drive(st, *t_ms, &[TABLE_MOTOR]);
+            if !i[TABLE_IN_POS] {
+                left = true;
+            } else if left {
+                break;
+            }
+        }
+        *t_ms += 10;
+        drive(st, *t_ms, &[]);
+    }
+
+    #[test]
+    fn the_first_part_is_placed_at_the_input_at_once() {
+        let mut st = FestoStation::with_defaults(0);
+        let i = drive(&mut st, 0, &[]);
+        assert!(i[PART_AT_INPUT] && i[TABLE_IN_POS] && i[DRILL_UP]);
+        assert_eq!(st.counters().get("parts_supplied"), Some(1));
+    }
+
+    #[test]
+    fn one_index_takes_one_second_and_moves_the_part_to_the_tester() {
+        let mut st = FestoStation::with_defaults(0);
+        drive(&mut st, 0, &[]);
+        let mut t = 0;
+        index(&mut st, &mut t);
+        assert_eq!(
+            t, 1_020,
+            "motor on at 10 ms, in position at 1 010 ms, off 10 ms later"
+        );
+        let i = drive(&mut st, t + 10, &[]);
+        assert!(i[PART_AT_TEST] && i[TABLE_IN_POS] && !i[PART_AT_INPUT]);
+    }
+
+    #[test]
+    fn a_table_left_running_passes_the_position() {
+        let mut st = FestoStation::with_defaults(0);
+        drive(&mut st, 0, &[TABLE_MOTOR]);
+        assert!(drive(&mut st, 1_050, &[TABLE_MOTOR])[TABLE_IN_POS]);
+        assert!(!drive(&mut st, 1_150, &[TABLE_MOTOR])[TABLE_IN_POS]);
+    }
+
+    #[test]
+    fn turning_the_table_with_the_tester_down_is_a_fault() {
+        let mut st = FestoStation::with_defaults(0);
+        drive(&mut st, 0, &[TESTER_SOLENOID]);
+        drive(&mut st, 600, &[TESTER_SOLENOID]);
+        drive(&mut st, 610, &[TESTER_SOLENOID, TABLE_MOTOR]);
+        drive(&mut st, 620, &[TESTER_SOLENOID, TABLE_MOTOR]);
+        assert_eq!(kinds(&st), vec![FaultKind::TableTurnWhileEngaged]);
+        assert_eq!(
+            st.faults()[0].message,
+            "the table turned while the tester was down"
+        );
+    }
+
+    #[test]
+    fn turning_the_table_before_the_drill_is_up_is_a_fault() {
+        let mut st = FestoStation::with_defaults(0);
+        drive(&mut st, 0, &[DRILL_FEED_DOWN]);
+        drive(&mut st, 500, &[]);
+        drive(&mut st, 510, &[TABLE_MOTOR]);
+        assert_eq!(kinds(&st), vec![FaultKind::TableTurnWhileEngaged]);
+    }
+
+    #[test]
+    fn drilling_without_clamp_is_a_fault_and_leaves_the_part_undrilled() {
+        let mut st = FestoStation::with_defaults(0);
+        drive(&mut st, 0, &[]);
+        let mut t = 0;
+        index(&mut st, &mut t);
+        index(&mut st, &mut t);
+        assert!(drive(&mut st, t, &[])[PART_AT_DRILL]);
+        drive(&mut st, t + 10, &[DRILL_MOTOR, DRILL_FEED_DOWN]);
+        let i = drive(&mut st, t + 2_010, &[DRILL_MOTOR, DRILL_FEED_DOWN]);
+        assert!(i[DRILL_DOWN]);
+        assert_eq!(kinds(&st), vec![FaultKind::DrillWithoutClamp]);
+        assert_eq!(st.counters().get("parts_drilled"), Some(0));
+    }
+
+    #[test]
+    fn drilling_with_the_spindle_stopped_is_a_fault() {
+        let mut st = FestoStation::with_defaults(0);
+        drive(&mut st, 0, &[]);
+        let mut t = 0;
+        index(&mut st, &mut t);
+        index(&mut st, &mut t);
+        drive(&mut st, t, &[CLAMP]);
+        drive(&mut st, t + 300, &[CLAMP, DRILL_FEED_DOWN]);
+        drive(&mut st, t + 2_300, &[CLAMP, DRILL_FEED_DOWN]);
+        assert_eq!(kinds(&st), vec![FaultKind::DrillMotorOff]);
+    }
+
+    #[test]
+    fn opening_the_clamp_with_the_drill_in_the_part_is_a_fault() {
+        let mut st = FestoStation::with_defaults(0);
+        drive(&mut st, 0, &[]);
+        let mut t = 0;
+        index(&mut st, &mut t);
+        index(&mut st, &mut t);
+        drive(&mut st, t, &[CLAMP]);
+        drive(&mut st, t + 300, &[CLAMP, DRILL_MOTOR, DRILL_FEED_DOWN]);
+        drive(&mut st, t + 1_000, &[DRILL_MOTOR, DRILL_FEED_DOWN]);
+        assert_eq!(kinds(&st), vec![FaultKind::DrillWithoutClamp]);
+    }
+
+    #[test]
+    fn engaging_a_module_between_positions_is_a_fault() {
+        let mut st = FestoStation::with_defaults(0);
+        drive(&mut st, 0, &[TABLE_MOTOR]);
+        drive(&mut st, 500, &[]);
+        drive(&mut st, 510, &[EJECTOR]);
+        assert_eq!(kinds(&st), vec![FaultKind::EngagedOutOfPosition]);
+    }
+
+    #[test]
+    fn the_drill_feed_goes_down_in_two_seconds_and_up_in_half_a_second() {
+        let mut st = FestoStation::with_defaults(0);
+        drive(&mut st, 0, &[DRILL_FEED_DOWN]);
+        assert!(!drive(&mut st, 1_999, &[DRILL_FEED_DOWN])[DRILL_DOWN]);
+        let i = drive(&mut st, 2_000, &[]);
+        assert!(i[DRILL_DOWN] && !i[DRILL_UP]);
+        assert!(!drive(&mut st, 2_499, &[])[DRILL_UP]);
+        assert!(drive(&mut st, 2_500, &[])[DRILL_UP]);
+    }
+
+    #[test]
+    fn a_pressed_button_is_held_for_the_press_time() {
+        let mut st = FestoStation::with_defaults(0);
+        st.press("start", 1_000_000)
+            .expect("the station has a start button");
+        assert!(!drive(&mut st, 990, &[])[START]);
+        assert!(drive(&mut st, 1_000, &[])[START]);
+        assert!(drive(&mut st, 1_190, &[])[START]);
+        assert!(!drive(&mut st, 1_200, &[])[START]);
+        assert!(st.press("emergency", 0).is_err());
+    }
+
+    #[test]
+    fn parts_wait_upstream_while_the_input_nest_is_full() {
+        let mut st = FestoStation::with_defaults(0);
+        drive(&mut st, 10_000, &[]);
+        let c = st.counters();
+        assert_eq!(c.get("parts_supplied"), Some(1));
+        assert_eq!(c.get("parts_waiting"), Some(2));
+    }
+
+    #[test]
+    fn invalid_parameters_are_rejected_with_the_parameter_named() {
+        let params = FestoParams {
+            in_position_window_us: 2 * SECOND_US,
+            ..FestoParams::default()
+        };
+        match FestoStation::new(params, 0) {
+            Err(TwinError::InvalidParameter { name, .. }) => {
+                assert_eq!(name, "in_position_window_us")
+            }
+            other => panic!("expected an invalid parameter, got {other:?}"),
+        }
+    }
+}

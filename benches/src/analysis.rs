@@ -1,1 +1,158 @@
-//! Workloads of the state-space benches.
+//! Workloads of the state-space benches: reachability speed and memory on Kanban and FMS, the
+//! Farkas invariants' time, and the plain-Python BFS baseline on the same nets.
+
+use std::path::Path;
+use std::process::Command;
+use std::time::Instant;
+
+use cetratus_analysis::families::{fms, kanban};
+use cetratus_analysis::invariants::{p_semiflows, t_semiflows, DEFAULT_MAX_ROWS};
+use cetratus_analysis::reach::{explore, structural_packing, ReachOptions, ReachResult};
+use cetratus_net::Net;
+use serde::Serialize;
+
+/// The figures of one net.
+#[derive(Clone, Debug, Serialize)]
+pub struct NetFigures {
+    /// `Kanban` or `FMS`.
+    pub family: &'static str,
+    /// The family's parameter.
+    pub n: u32,
+    /// Reachable states.
+    pub states: u64,
+    /// Edges.
+    pub edges: u64,
+    /// Wall-clock seconds of the exploration (one thread).
+    pub seconds: f64,
+    /// `reachability_states_per_s`: states discovered per second.
+    pub reachability_states_per_s: f64,
+    /// Bits per packed state.
+    pub bits_per_state: usize,
+    /// Peak bytes of the state store (states, BFS parents, hash table) per state.
+    pub bytes_per_state: f64,
+    /// Time of the minimal P- and T-semiflows, in milliseconds.
+    pub invariants_ms: f64,
+    /// Number of P-semiflows and T-semiflows.
+    pub invariants: (usize, usize),
+}
+
+/// The Python baseline and this crate on the same net, in the same run.
+#[derive(Clone, Debug, Serialize)]
+pub struct Baseline {
+    /// `Kanban` or `FMS`.
+    pub family: &'static str,
+    /// The family's parameter.
+    pub n: u32,
+    /// States found by Python (must equal ours).
+    pub states: u64,
+    /// Python's seconds.
+    pub python_seconds: f64,
+    /// Our seconds on the same net.
+    pub rust_seconds: f64,
+    /// `python_seconds / rust_seconds`.
+    pub speedup: f64,
+}
+
+/// Everything `cetratus bench` reports about the analysis.
+#[derive(Clone, Debug, Serialize)]
+pub struct ReachabilityFigures {
+    /// Per net.
+    pub nets: Vec<NetFigures>,
+    /// Per baseline comparison; empty when `python3` is not available.
+    pub baselines: Vec<Baseline>,
+    /// Why a baseline is missing, if it is.
+    pub baseline_note: Option<String>,
+}
+
+/// Builds a family member.
+pub fn family(name: &str, n: u32) -> Net {
+    let net = if name == "FMS" { fms(n) } else { kanban(n) };
+    net.expect("the family generators build well-formed nets")
+}
+
+/// Explores `net` once (no liveness pass), as the bench measures it.
+pub fn explore_once(net: &Net) -> ReachResult {
+    let packing = structural_packing(net, DEFAULT_MAX_ROWS)
+        .expect("structural bounds of the families")
+        .expect("the families are structurally bounded");
+    explore(net, &packing, &ReachOptions::default()).expect("the families fit the packed explorer")
+}
+
+fn measure(family_name: &'static str, n: u32) -> NetFigures {
+    let net = family(family_name, n);
+    let t = Instant::now();
+    let r = explore_once(&net);
+    let seconds = t.elapsed().as_secs_f64();
+    let ti = Instant::now();
+    let p = p_semiflows(&net, DEFAULT_MAX_ROWS).map_or(0, |v| v.len());
+    let tt = t_semiflows(&net, DEFAULT_MAX_ROWS).map_or(0, |v| v.len());
+    let invariants_ms = ti.elapsed().as_secs_f64() * 1e3;
+    NetFigures {
+        family: family_name,
+        n,
+        states: r.states,
+        edges: r.edges,
+        seconds,
+        reachability_states_per_s: r.states as f64 / seconds,
+        bits_per_state: r.bits_per_state,
+        bytes_per_state: r.peak_bytes as f64 / r.states as f64,
+        invariants_ms,
+        invariants: (p, tt),
+    }
+}
+
+fn python(family_name: &str, n: u32) -> Result<(u64, f64), String> {
+    let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("../scripts/bfs_baseline.py");
+    let out = Command::new("python3")
+        .arg(&script)
+        .args(["--family", &family_name.to_lowercase(), "--n", &n.to_string()])
+        .output()
+        .map_err(|e| format!("python3 not runnable: {e}"))?;
+    if !out.status.success() {
+        return Err(String::from_utf8_lossy(&out.stderr).into_owned());
+    }
+    // The script prints `states edges seconds` on its last line.
+    let text = String::from_utf8_lossy(&out.stdout);
+    let last: Vec<&str> = text.lines().last().unwrap_or("").split_whitespace().collect();
+    match last.as_slice() {
+        [s, _, secs] => Ok((
+            s.parse().map_err(|_| "bad state count".to_string())?,
+            secs.parse().map_err(|_| "bad seconds".to_string())?,
+        )),
+        _ => Err(format!("unexpected output from the baseline: {text}")),
+    }
+}
+
+/// Measures the figures: N = 5 (quick: N = 3) for speed and memory, and the Python baseline at
+/// N = 4 (quick: N = 2) against this crate on the same net.
+pub fn reachability_figures(quick: bool) -> ReachabilityFigures {
+    let (n, nb) = if quick { (3, 2) } else { (5, 4) };
+    let nets = vec![measure("Kanban", n), measure("FMS", n)];
+    let mut baselines = Vec::new();
+    let mut baseline_note = None;
+    for fam in ["Kanban", "FMS"] {
+        match python(fam, nb) {
+            Ok((states, python_seconds)) => {
+                let net = family(fam, nb);
+                let t = Instant::now();
+                let r = explore_once(&net);
+                let rust_seconds = t.elapsed().as_secs_f64();
+                assert_eq!(r.states, states, "Python and Rust disagree on {fam}({nb})");
+                baselines.push(Baseline {
+                    family: fam,
+                    n: nb,
+                    states,
+                    python_seconds,
+                    rust_seconds,
+                    speedup: python_seconds / rust_seconds,
+                });
+            }
+            Err(e) => baseline_note = Some(e),
+        }
+    }
+    ReachabilityFigures {
+        nets,
+        baselines,
+        baseline_note,
+    }
+}

@@ -258,16 +258,22 @@ pub fn check(net: &Net, opts: &CheckOptions) -> Report {
             .map(|s| s.iter().map(|&p| pid(p)).collect())
             .collect()
     };
-    for s in &st.siphons.sets {
-        if !holds_marked_trap(net, s) {
-            let ids: Vec<String> = s.iter().map(|&p| pid(p)).collect();
-            warnings.push(format!(
-                "siphon {{{}}} holds no initially marked trap: once it is emptied it stays empty \
-                 and its output transitions are dead (Commoner: a free-choice net is live iff \
-                 every siphon holds a marked trap)",
-                ids.join(", ")
-            ));
-        }
+    let unguarded: Vec<Vec<String>> = st
+        .siphons
+        .sets
+        .iter()
+        .filter(|s| !holds_marked_trap(net, s))
+        .map(|s| s.iter().map(|&p| pid(p)).collect())
+        .collect();
+    if let Some(first) = unguarded.first() {
+        warnings.push(format!(
+            "{} minimal siphon(s) hold no initially marked trap, e.g. {{{}}}: once such a siphon \
+             is emptied it stays empty and its output transitions are dead (Commoner: a \
+             free-choice net is live iff every siphon holds a marked trap); see \
+             `siphons_without_marked_trap`",
+            unguarded.len(),
+            first.join(", ")
+        ));
     }
     if st.siphons.truncated {
         notes.push(format!(
@@ -316,6 +322,7 @@ pub fn check(net: &Net, opts: &CheckOptions) -> Report {
         classification,
         siphons: set_names(&st.siphons),
         siphons_truncated: st.siphons.truncated,
+        siphons_without_marked_trap: unguarded,
         traps: set_names(&st.traps),
         traps_truncated: st.traps.truncated,
         warnings,
@@ -324,6 +331,7 @@ pub fn check(net: &Net, opts: &CheckOptions) -> Report {
         partial_reason: None,
         bits_per_state: None,
         bytes_per_state: None,
+        store_bytes: None,
         incidence,
         timings: Timings {
             structure_ms,
@@ -359,6 +367,7 @@ pub fn check(net: &Net, opts: &CheckOptions) -> Report {
                 .map(|w| w.iter().map(|&t| tid(t)).collect());
             report.bits_per_state = Some(r.bits_per_state);
             report.bytes_per_state = Some(r.peak_bytes as f64 / r.states.max(1) as f64);
+            report.store_bytes = Some(r.peak_bytes);
             report.max_tokens = Named(
                 (0..np)
                     .map(|p| (pid(p), Bound::Tokens(u64::from(r.max_tokens[p]))))

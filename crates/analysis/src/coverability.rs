@@ -4,9 +4,10 @@
 //! covers one of its ancestors on the BFS tree gets ω in every place that grew. When no ω appears,
 //! the graph is the reachability graph and its maxima are the exact place bounds.
 //!
-//! Inhibitor arcs and capacities make coverability undecidable in general; here an ω place fails
-//! every inhibitor test, and places with a capacity are never accelerated. With either feature the
-//! unbounded places reported are a best effort, and the report says so.
+//! Inhibitor arcs and capacities make coverability undecidable in general. Here places with a
+//! capacity or an inhibitor arc are never accelerated (so a place that an inhibitor keeps small is
+//! explored exactly, not declared ω), and an ω place fails every inhibitor test. With either
+//! feature the unbounded places reported are a best effort, and the report says so.
 
 use std::collections::HashMap;
 use std::sync::atomic::Ordering;
@@ -78,6 +79,12 @@ pub fn karp_miller(net: &Net, opts: &ReachOptions) -> Coverability {
         .iter()
         .map(|&v| u64::from(v))
         .collect();
+    let frozen: Vec<bool> = (0..np)
+        .map(|p| {
+            let p = PlaceIdx(p as u32);
+            net.capacity(p).is_some() || !net.inhibited(p).is_empty()
+        })
+        .collect();
     let mut nodes: Vec<Vec<u64>> = vec![m0.clone()];
     let mut parent: Vec<(u32, u32)> = vec![(u32::MAX, 0)];
     let mut seen: HashMap<Vec<u64>, u32> = HashMap::new();
@@ -119,7 +126,7 @@ pub fn karp_miller(net: &Net, opts: &ReachOptions) -> Coverability {
                 let anc = &nodes[a as usize];
                 if anc.iter().zip(&succ).all(|(x, y)| x <= y) && *anc != succ {
                     for p in 0..np {
-                        if anc[p] < succ[p] && net.places()[p].capacity.is_none() {
+                        if anc[p] < succ[p] && !frozen[p] {
                             succ[p] = OMEGA;
                         }
                     }

@@ -633,3 +633,18 @@ fn tarjan<const W: usize>(
         reversible: root_terminal && terminal == 1,
     }
 }
+
+/// A packing from the structural bounds and capacities alone, or `None` when some place has
+/// neither (then [`crate::coverability::karp_miller`] must find the bounds first).
+pub fn structural_packing(net: &Net, max_rows: usize) -> Result<Option<Packing>, AnalysisError> {
+    let sb = crate::invariants::structural_bounds(net, max_rows)?;
+    let bounds: Option<Vec<u64>> = sb
+        .iter()
+        .zip(net.places())
+        .map(|(s, p)| match (*s, p.capacity.map(u64::from)) {
+            (Some(a), Some(c)) => Some(a.min(c)),
+            (a, c) => a.or(c),
+        })
+        .collect();
+    Ok(bounds.map(|b| Packing::new(&b)))
+}

@@ -119,6 +119,8 @@ pub struct Report {
     pub siphons: Vec<Vec<String>>,
     /// The siphon enumeration stopped at its limit.
     pub siphons_truncated: bool,
+    /// The minimal siphons that hold no trap marked at M0 (Commoner's condition fails for them).
+    pub siphons_without_marked_trap: Vec<Vec<String>>,
     /// Minimal traps, as place ids.
     pub traps: Vec<Vec<String>>,
     /// The trap enumeration stopped at its limit.
@@ -133,8 +135,11 @@ pub struct Report {
     pub partial_reason: Option<String>,
     /// Bits per packed state (reachability graph only).
     pub bits_per_state: Option<usize>,
-    /// Peak bytes of the state store divided by the number of states.
+    /// Peak bytes of the state store divided by the number of states (the store allocates in
+    /// chunks of 65,536 states, so small nets show large values).
     pub bytes_per_state: Option<f64>,
+    /// Peak bytes of the state store.
+    pub store_bytes: Option<usize>,
     /// The incidence matrices, for nets of at most 10,000 entries.
     pub incidence: Option<Incidence>,
     /// Time per phase.

@@ -371,7 +371,8 @@ impl Engine {
                 .pre(t)
                 .iter()
                 .all(|&(p, w)| m[p.index()] - produced[p.index()] >= w)
-                && net.inhibitors(t).iter().all(|&(p, w)| m[p.index()] < w)
+                && (!net.has_inhibitors()
+                    || net.inhibitors(t).iter().all(|&(p, w)| m[p.index()] < w))
                 && net.fits_capacity(t, m);
             if !ok {
                 continue;
@@ -401,16 +402,18 @@ impl Engine {
             }
             // A firing that lowers a count can lift an inhibitor or make room under a capacity
             // for a transition visited later in this same step.
-            for &(p, d) in net.delta(t) {
-                if d >= 0 {
-                    continue;
-                }
-                for &(u, _) in net.inhibited(p) {
-                    self.push_later(u, r, epoch);
-                }
-                if net.capacity(p).is_some() {
-                    for &(u, _) in net.producers(p) {
+            if net.has_inhibitors() || net.has_capacities() {
+                for &(p, d) in net.delta(t) {
+                    if d >= 0 {
+                        continue;
+                    }
+                    for &(u, _) in net.inhibited(p) {
                         self.push_later(u, r, epoch);
+                    }
+                    if net.capacity(p).is_some() {
+                        for &(u, _) in net.producers(p) {
+                            self.push_later(u, r, epoch);
+                        }
                     }
                 }
             }

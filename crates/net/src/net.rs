@@ -177,6 +177,12 @@ pub struct Net {
     dependents: Csr<TransIdx>,
     rank: Vec<u32>,
     by_rank: Vec<TransIdx>,
+    // Visiting order is declaration order when every priority is equal: rank(t) = t, no lookup.
+    rank_is_identity: bool,
+    // Capacities as a dense vector (Tokens::MAX = unbounded), so the hot path avoids `Place`.
+    caps: Vec<Tokens>,
+    any_capacity: bool,
+    any_inhibitor: bool,
     place_index: HashMap<String, PlaceIdx>,
     trans_index: HashMap<String, TransIdx>,
 }
@@ -277,34 +283,52 @@ impl Net {
     /// The visiting rank of t: 0 is visited first (highest priority, then earliest declared).
     #[inline]
     pub fn rank(&self, t: TransIdx) -> u32 {
-        self.rank[t.index()]
+        if self.rank_is_identity {
+            t.0
+        } else {
+            self.rank[t.index()]
+        }
     }
     /// The transition with visiting rank `r`.
     #[inline]
     pub fn by_rank(&self, r: u32) -> TransIdx {
-        self.by_rank[r as usize]
+        if self.rank_is_identity {
+            TransIdx(r)
+        } else {
+            self.by_rank[r as usize]
+        }
     }
     /// Capacity of p, `None` for unbounded.
     #[inline]
     pub fn capacity(&self, p: PlaceIdx) -> Option<Tokens> {
         self.places[p.index()].capacity
     }
+    /// True when some place has a capacity.
+    #[inline]
+    pub fn has_capacities(&self) -> bool {
+        self.any_capacity
+    }
+    /// True when the net has an inhibitor arc.
+    #[inline]
+    pub fn has_inhibitors(&self) -> bool {
+        self.any_inhibitor
+    }
 
     /// Enabled(t, M) as DESIGN §3 defines it: `M ≥ Pre[·,t]`, every inhibitor arc `M[p] < w`, and
     /// `M + C[·,t]` within every capacity.
     pub fn is_enabled(&self, t: TransIdx, m: &[Tokens]) -> bool {
         self.pre(t).iter().all(|&(p, w)| m[p.index()] >= w)
-            && self.inhibitors(t).iter().all(|&(p, w)| m[p.index()] < w)
+            && (!self.any_inhibitor || self.inhibitors(t).iter().all(|&(p, w)| m[p.index()] < w))
             && self.fits_capacity(t, m)
     }
 
     /// True when `M + C[·,t]` respects every capacity.
     #[inline]
     pub(crate) fn fits_capacity(&self, t: TransIdx, m: &[Tokens]) -> bool {
-        self.delta(t).iter().all(|&(p, d)| match self.capacity(p) {
-            Some(cap) if d > 0 => i64::from(m[p.index()]) + d <= i64::from(cap),
-            _ => true,
-        })
+        !self.any_capacity
+            || self.delta(t).iter().all(|&(p, d)| {
+                d <= 0 || i64::from(m[p.index()]) + d <= i64::from(self.caps[p.index()])
+            })
     }
 
     /// A copy of this net with a different initial marking (same length).
@@ -577,6 +601,12 @@ impl NetBuilder {
             .map(|(i, t)| (t.id.clone(), TransIdx(i as u32)))
             .collect();
 
+        let caps: Vec<Tokens> = self
+            .places
+            .iter()
+            .map(|p| p.capacity.unwrap_or(Tokens::MAX))
+            .collect();
+        let any_capacity = self.places.iter().any(|p| p.capacity.is_some());
         Ok(Net {
             id: self.id,
             name: self.name,
@@ -592,8 +622,12 @@ impl NetBuilder {
             transitions: self.transitions,
             arcs: self.arcs,
             toolspecific: self.toolspecific,
+            rank_is_identity: by_rank.iter().enumerate().all(|(r, t)| t.index() == r),
             rank,
             by_rank,
+            caps,
+            any_capacity,
+            any_inhibitor: !inh_pairs.is_empty(),
             place_index,
             trans_index,
         })

@@ -78,7 +78,7 @@ pub struct ActionState {
 }
 
 impl ActionState {
-    /// Fresh state: every latch off.
+    /// Fresh state for `program`, every latch off; use it only with that program.
     pub fn new(program: &Program) -> Self {
         let n = program.action_targets.len();
         ActionState {
@@ -170,11 +170,15 @@ impl ActionState {
                 program.actions[a as usize].qualifier,
                 program.action_slot[a as usize] as usize,
             );
-            match (q, entered) {
-                (Qualifier::S, true) => self.latch[slot] = true,
-                (Qualifier::R, true) => self.reset[slot] = true,
-                (Qualifier::P1, true) | (Qualifier::P0, false) => self.on[slot] = true,
-                _ => {}
+            // `get_mut`: a state made for another program must not be able to panic the scan.
+            let cell = match (q, entered) {
+                (Qualifier::S, true) => self.latch.get_mut(slot),
+                (Qualifier::R, true) => self.reset.get_mut(slot),
+                (Qualifier::P1, true) | (Qualifier::P0, false) => self.on.get_mut(slot),
+                _ => None,
+            };
+            if let Some(c) = cell {
+                *c = true;
             }
         }
     }
@@ -216,15 +220,16 @@ impl ActionState {
                 }
                 _ => false,
             };
-            if on {
-                self.on[slot as usize] = true;
+            if let (true, Some(c)) = (on, self.on.get_mut(slot as usize)) {
+                *c = true;
             }
         }
         for (o, s) in outputs.iter_mut().zip(&program.outputs) {
             *o = s.ty.zero();
         }
         for (slot, target) in program.action_targets.iter().enumerate() {
-            let v = Value::Bool(self.on[slot] || self.latch[slot]);
+            let on = self.on.get(slot).copied().unwrap_or(false);
+            let v = Value::Bool(on || self.latch.get(slot).copied().unwrap_or(false));
             let cell = match *target {
                 Target::Output(i) => outputs.get_mut(i as usize),
                 Target::Variable(i) => vars.get_mut(i as usize),

@@ -6,6 +6,8 @@
 //! a `Program` that exists is ready to run: [`Program::eval_guard`] and [`ActionState::apply`]
 //! never allocate. The file format is documented in `docs/program-format.md`.
 
+#![warn(missing_docs)]
+
 mod action;
 mod error;
 pub mod guard;
@@ -25,14 +27,14 @@ pub use value::{Signal, Type, Value};
 
 use cetratus_net::Net;
 
-/// Reads a PNML net file.
+/// Reads a PNML net file (UTF-8 or ISO-8859-1, as the net crate accepts).
 fn load_net(path: &Path) -> Result<Net, ProgramError> {
-    let label = path.display().to_string();
-    let text = std::fs::read_to_string(path).map_err(|source| ProgramError::Io {
-        path: label.clone(),
-        source,
-    })?;
-    read_net_str(&text, &label)
+    match cetratus_net::pnml::read_file(path) {
+        Ok(net) => Ok(net),
+        // Kept apart so the caller can point at the `net =` line that named the file.
+        Err(cetratus_net::NetError::Io { path, source }) => Err(ProgramError::Io { path, source }),
+        Err(e) => Err(e.into()),
+    }
 }
 
 /// Reads PNML text.

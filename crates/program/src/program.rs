@@ -56,10 +56,15 @@ impl Program {
     /// `.pnml` file that carries the program in a net-level `<toolspecific tool="cetratus">`.
     pub fn load(path: &Path) -> Result<Program, ProgramError> {
         let label = path.display().to_string();
-        let text = std::fs::read_to_string(path).map_err(|source| ProgramError::Io {
+        let bytes = std::fs::read(path).map_err(|source| ProgramError::Io {
             path: label.clone(),
             source,
         })?;
+        let text = match String::from_utf8(bytes) {
+            Ok(s) => s,
+            // PIPE writes ISO-8859-1, whose every byte is the code point of the same value.
+            Err(e) => e.into_bytes().iter().map(|&b| char::from(b)).collect(),
+        };
         let is_pnml = path
             .extension()
             .and_then(|e| e.to_str())

@@ -197,3 +197,42 @@ fn the_broken_program_loads_but_its_buffer_invariant_breaks_when_t13_fires() {
         .unwrap_or_default()
         .contains("H + B + P14 = 7"));
 }
+
+#[test]
+fn the_cell_runs_with_its_guards_and_keeps_its_invariants_at_every_scan() {
+    let p = load(&example("u2.toml"));
+    let mut engine = Engine::new(p.net().clone());
+    let inputs = vec![Value::Bool(true); p.inputs().len()];
+    let mut since: Vec<Option<u64>> = engine
+        .marking()
+        .iter()
+        .map(|&m| (m > 0).then_some(0))
+        .collect();
+    let mut fired = 0;
+    for scan in 1..=200u64 {
+        let now = scan * 100_000;
+        let ctx_marking = engine.marking().to_vec();
+        let ctx = cetratus_program::EvalCtx {
+            inputs: &inputs,
+            prev_inputs: &inputs,
+            vars: &[],
+            marking: &ctx_marking,
+            place_since_us: &since,
+            now_us: now,
+        };
+        let n = match engine.scan(p.policy(), |t| p.eval_guard(t, &ctx)) {
+            Ok(f) => f.len(),
+            Err(e) => panic!("{e}"),
+        };
+        fired += n;
+        for (s, &m) in since.iter_mut().zip(engine.marking()) {
+            if m == 0 {
+                *s = None;
+            } else if s.is_none() {
+                *s = Some(now);
+            }
+        }
+        assert_eq!(p.check_invariants(engine.marking()), Ok(()), "scan {scan}");
+    }
+    assert!(fired > 50, "the cell should keep cycling, fired {fired}");
+}

@@ -188,15 +188,27 @@ impl Container {
                 self.place_since_us[p.index()] = None;
             }
         }
-        self.actions.apply(
-            program,
-            marking,
-            self.engine.changes(),
-            &self.place_since_us,
-            now_us,
-            &mut self.outputs,
-            &mut self.vars,
-        );
+        if self.scans == 0 {
+            // The first scan enters every marked place: P1 and S actions of M0 take effect.
+            self.actions.start(
+                program,
+                marking,
+                &self.place_since_us,
+                now_us,
+                &mut self.outputs,
+                &mut self.vars,
+            );
+        } else {
+            self.actions.apply(
+                program,
+                marking,
+                self.engine.changes(),
+                &self.place_since_us,
+                now_us,
+                &mut self.outputs,
+                &mut self.vars,
+            );
+        }
         self.scans += 1;
         Ok(ScanOutcome {
             fired,

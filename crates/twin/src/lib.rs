@@ -68,8 +68,9 @@
 //! Counters: `parts_finished`, `parts_in_buffer`, `lubrications_m1`, `lubrications_m2`,
 //! `parts_machined_m1`, `parts_machined_m2`, `parts_scrapped`.
 //!
-//! With the program net of DESIGN §6 scanned every 10 ms the cell makes about 447 parts in a virtual
-//! hour (the bound is 450: machine 2 needs 8 s per part) with no fault.
+//! Driven by the program net of DESIGN §6 scanned every 10 ms, the cell makes 446 parts in a virtual
+//! hour with no fault (the bound is 450: machine 2 needs 8 s per part); with U.2's 3 s lubrication
+//! stages it makes 325 (`tests/vernadat_program.rs`).
 //!
 //! # The Festo processing station ([`festo::FestoStation`], name `festo`)
 //!
@@ -105,7 +106,8 @@
 //! puts it into the input nest when that nest is empty and the table stands in position with its motor
 //! off; until then it waits. A part is tested when the probe reaches down on it, drilled when the feed
 //! reaches its lower end on it while it is clamped and the drill spins, ejected when the ejector is fully
-//! out. Faults: [`FaultKind::TableTurnWhileEngaged`] (the motor runs while the tester is down, the
+//! out. A hand-coded program that tests, drills and ejects in parallel and then indexes ejects 718
+//! parts in a virtual hour (`tests/festo_program.rs`). Faults: [`FaultKind::TableTurnWhileEngaged`] (the motor runs while the tester is down, the
 //! clamp closed, the drill below its top or the ejector out), [`FaultKind::EngagedOutOfPosition`]
 //! (a module engaged while the table stands between positions), [`FaultKind::DrillWithoutClamp`] (the
 //! drill reaches an unclamped part, or the clamp opens with the drill in the part),
@@ -118,6 +120,8 @@
 //!
 //! [`TwinKind`] parses `vernadat` and `festo`; [`TwinKind::build`] makes a [`Twin`] with default
 //! parameters, [`TwinKind::boxed`] a `Box<dyn Plant>`.
+
+#![warn(missing_docs)]
 
 pub mod festo;
 pub mod rng;
@@ -319,7 +323,7 @@ pub struct Counter {
 }
 
 /// A plant's counters, by name, in a fixed order; a value type so that reading them never allocates.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, PartialEq, Eq)]
 pub struct Counters {
     items: [Counter; MAX_COUNTERS],
     len: usize,
@@ -351,6 +355,14 @@ impl Counters {
     /// Iterates over the counters in the twin's order.
     pub fn iter(&self) -> std::slice::Iter<'_, Counter> {
         self.as_slice().iter()
+    }
+}
+
+impl fmt::Debug for Counters {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.debug_map()
+            .entries(self.iter().map(|c| (c.name, c.value)))
+            .finish()
     }
 }
 

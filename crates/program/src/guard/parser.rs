@@ -16,7 +16,8 @@ use super::ast::{BinOp, Expr, ExprKind, Func, UnOp};
 use super::lexer::{lex, Tok, Token};
 use super::SyntaxError;
 
-/// Deepest nesting the parser accepts; keeps the recursion (and the evaluator's stack) bounded.
+/// Deepest nesting of parentheses, unary operators and calls the parser accepts; keeps its
+/// recursion bounded whatever the input.
 pub const MAX_NESTING: usize = 48;
 
 /// Parses a guard.
@@ -98,7 +99,6 @@ impl Parser {
         op_of: fn(&Tok) -> Option<BinOp>,
         chain: bool,
     ) -> Result<Expr, SyntaxError> {
-        self.enter()?;
         let mut left = next(self)?;
         while let Some(op) = op_of(self.peek()) {
             let pos = self.bump().offset;
@@ -116,7 +116,6 @@ impl Parser {
                 break;
             }
         }
-        self.depth -= 1;
         Ok(left)
     }
 

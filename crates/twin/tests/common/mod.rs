@@ -25,7 +25,7 @@ pub trait Controller: Clone {
 pub fn run<C: Controller, P: Plant + ?Sized>(
     plant: &mut P,
     ctl: &mut C,
-    outputs: &mut Vec<bool>,
+    outputs: &mut [bool],
     from_us: u64,
     to_us: u64,
 ) -> u64 {

@@ -1,0 +1,104 @@
+//! `Program::eval_guard`, `Program::check_invariants` and `ActionState::apply` never allocate.
+//!
+//! Counting allocations needs a `#[global_allocator]`, and implementing `GlobalAlloc` is an
+//! `unsafe impl`: this one test file therefore allows unsafe code. The allocator only forwards
+//! to the system allocator and counts.
+#![allow(unsafe_code)]
+
+mod common;
+
+use std::alloc::{GlobalAlloc, Layout, System};
+use std::cell::Cell;
+
+use cetratus_net::{PlaceIdx, TransIdx};
+use cetratus_program::{ActionState, EvalCtx, Value};
+
+struct Counting;
+
+thread_local! {
+    // Per thread, so allocations of the test harness's other threads do not count.
+    static ALLOCATIONS: Cell<u64> = const { Cell::new(0) };
+}
+
+// SAFETY: every method forwards to `System` with the caller's arguments unchanged.
+unsafe impl GlobalAlloc for Counting {
+    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
+        ALLOCATIONS.with(|c| c.set(c.get() + 1));
+        unsafe { System.alloc(layout) }
+    }
+    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
+        unsafe { System.dealloc(ptr, layout) }
+    }
+    unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
+        ALLOCATIONS.with(|c| c.set(c.get() + 1));
+        unsafe { System.realloc(ptr, layout, new_size) }
+    }
+}
+
+#[global_allocator]
+static GLOBAL: Counting = Counting;
+
+fn allocations_during(f: impl FnOnce()) -> u64 {
+    let before = ALLOCATIONS.with(Cell::get);
+    f();
+    ALLOCATIONS.with(Cell::get) - before
+}
+
+#[test]
+fn evaluating_guards_and_applying_actions_does_not_allocate() {
+    let p = common::program(
+        "[[output]]\nname = \"o\"\ntype = \"bool\"\n\
+         [[output]]\nname = \"q\"\ntype = \"bool\"\n\
+         [guards]\nT1 = \"rise(x) || (A.t >= 3s && n / 2 + v * 3 > 1 && real(n) < r + 1.5) || C == 2\"\n\
+         T2 = \"10 / n > 1\"\n\
+         [[action]]\nplace = \"A\"\nqualifier = \"N\"\ntarget = \"o\"\n\
+         [[action]]\nplace = \"B\"\nqualifier = \"S\"\ntarget = \"q\"\n\
+         [[action]]\nplace = \"B\"\nqualifier = \"L\"\ntarget = \"o\"\nduration = \"2s\"\n\
+         [[action]]\nplace = \"A\"\nqualifier = \"P0\"\ntarget = \"q\"\n\
+         [[invariant]]\nexpr = \"A + B = 1\"\n",
+    );
+    let inputs = [Value::Bool(true), Value::Int(0), Value::Real(0.25)];
+    let prev = [Value::Bool(false), Value::Int(0), Value::Real(0.25)];
+    let vars = [Value::Int(5)];
+    let marking = [0u32, 1, 2];
+    let since = [None, Some(1_000_000), Some(0)];
+    let ctx = EvalCtx {
+        inputs: &inputs,
+        prev_inputs: &prev,
+        vars: &vars,
+        marking: &marking,
+        place_since_us: &since,
+        now_us: 4_000_000,
+    };
+    let mut state = ActionState::new(&p);
+    let mut out = vec![Value::Bool(false); 2];
+    let mut vars_out = vec![Value::Int(5)];
+    let changes = [(PlaceIdx(0), 1), (PlaceIdx(1), 0)];
+
+    let mut results = [Ok(false), Ok(false)];
+    let mut inv = Ok(());
+    let n = allocations_during(|| {
+        for _ in 0..100 {
+            results[0] = p.eval_guard(TransIdx(0), &ctx);
+            results[1] = p.eval_guard(TransIdx(1), &ctx);
+            inv = p.check_invariants(&marking);
+            state.apply(
+                &p,
+                &marking,
+                &changes,
+                &since,
+                4_000_000,
+                &mut out,
+                &mut vars_out,
+            );
+        }
+    });
+    assert_eq!(n, 0, "allocations in the scan path");
+    assert_eq!(results[0], Ok(true));
+    assert!(
+        results[1].is_err(),
+        "division by zero is an error, and reporting it does not allocate"
+    );
+    assert!(inv.is_ok());
+    assert_eq!(out, [Value::Bool(false), Value::Bool(true)]);
+}

@@ -105,7 +105,12 @@ fn python(family_name: &str, n: u32) -> Result<(u64, f64), String> {
     let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("../scripts/bfs_baseline.py");
     let out = Command::new("python3")
         .arg(&script)
-        .args(["--family", &family_name.to_lowercase(), "--n", &n.to_string()])
+        .args([
+            "--family",
+            &family_name.to_lowercase(),
+            "--n",
+            &n.to_string(),
+        ])
         .output()
         .map_err(|e| format!("python3 not runnable: {e}"))?;
     if !out.status.success() {
@@ -113,7 +118,12 @@ fn python(family_name: &str, n: u32) -> Result<(u64, f64), String> {
     }
     // The script prints `states edges seconds` on its last line.
     let text = String::from_utf8_lossy(&out.stdout);
-    let last: Vec<&str> = text.lines().last().unwrap_or("").split_whitespace().collect();
+    let last: Vec<&str> = text
+        .lines()
+        .last()
+        .unwrap_or("")
+        .split_whitespace()
+        .collect();
     match last.as_slice() {
         [s, _, secs] => Ok((
             s.parse().map_err(|_| "bad state count".to_string())?,

@@ -6,4 +6,5 @@
 pub mod analysis;
 pub mod dense;
 pub mod measure;
+pub mod program;
 pub mod workloads;

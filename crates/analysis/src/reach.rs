@@ -462,12 +462,12 @@ fn explore_w<const W: usize>(net: &Net, pk: &Packing, opts: &ReachOptions) -> Re
         }
         let key = states.get(cur);
         let mut any = false;
-        for t in 0..nt {
+        for (t, ever) in enabled_ever.iter_mut().enumerate() {
             if !code.enabled(&key, t) {
                 continue;
             }
             any = true;
-            enabled_ever[t] = true;
+            *ever = true;
             edges += 1;
             let succ = code.fire(&key, t);
             let id = states.len as u32;

@@ -73,6 +73,11 @@ impl ScanCycle {
         self.period_us
     }
 
+    /// Overrides the program's scan period (benches, commissioning at another rate).
+    pub fn set_period_us(&mut self, period_us: u64) {
+        self.period_us = period_us.max(1);
+    }
+
     /// The figures so far.
     pub fn figures(&self) -> CycleFigures {
         CycleFigures {

@@ -27,6 +27,8 @@ pub struct Summary {
     pub min_ns: u64,
     /// The mean.
     pub mean_ns: u64,
+    /// The median (upper edge of its histogram bucket, capped at max).
+    pub p50_ns: u64,
     /// The 99th percentile (upper edge of its histogram bucket, capped at max).
     pub p99_ns: u64,
     /// The largest sample.
@@ -110,6 +112,7 @@ impl TimingStats {
             last_ns: self.last,
             min_ns: self.min,
             mean_ns: (self.sum / u128::from(self.count)) as u64,
+            p50_ns: self.quantile(0.5),
             p99_ns: self.quantile(0.99),
             max_ns: self.max,
         }

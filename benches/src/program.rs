@@ -1,0 +1,123 @@
+//! Program-level workloads: the Vernadat program scan, its load, a virtual hour with its twin, and
+//! the real-time jitter of the scan cycle.
+
+use std::hint::black_box;
+use std::path::{Path, PathBuf};
+use std::sync::atomic::AtomicBool;
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+use cetratus_io::TwinDriver;
+use cetratus_program::{Program, Value};
+use cetratus_runtime::{Container, CycleFigures, ScanCycle};
+use cetratus_twin::TwinKind;
+use serde::Serialize;
+
+use crate::measure::median_ns;
+
+/// The examples directory of the source tree.
+pub fn examples_dir() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../examples")
+}
+
+/// The Vernadat example program.
+pub fn vernadat_program() -> Arc<Program> {
+    let path = examples_dir().join("vernadat/vernadat.toml");
+    Arc::new(Program::load(&path).expect("the Vernadat example loads"))
+}
+
+/// The input images of a virtual run of the Vernadat program on its twin, one per scan.
+pub fn recorded_inputs(program: &Arc<Program>, scans: usize) -> Vec<Vec<Value>> {
+    let twin = TwinKind::Vernadat.build(1);
+    let mut io = TwinDriver::new(twin, program.inputs(), program.outputs()).expect("signals match");
+    let mut cycle = ScanCycle::new(Container::new(program.clone(), 0));
+    let mut images = Vec::with_capacity(scans);
+    let until = scans as u64 * cycle.period_us();
+    cycle
+        .run_virtual(0, until, &mut io, |c, _, _| {
+            images.push(c.container().inputs().to_vec())
+        })
+        .expect("the Vernadat program runs without fault");
+    images
+}
+
+/// Mean ns of one full program scan (guards, enabling, firing, actions, output image), replaying
+/// the inputs of a real run on a fresh container.
+pub fn program_scan_ns(quick: bool) -> f64 {
+    let program = vernadat_program();
+    let images = recorded_inputs(&program, if quick { 30_000 } else { 360_000 });
+    let period = program.scan_period().as_micros() as u64;
+    let fresh = Container::new(program, 0);
+    let mut runs = Vec::new();
+    for _ in 0..if quick { 5 } else { 11 } {
+        let mut c = fresh.clone();
+        let t0 = Instant::now();
+        for (k, img) in images.iter().enumerate() {
+            black_box(c.scan(k as u64 * period, img).expect("replay runs"));
+        }
+        runs.push(t0.elapsed().as_nanos() as f64 / images.len() as f64);
+    }
+    runs.sort_by(|a, b| a.total_cmp(b));
+    runs[runs.len() / 2]
+}
+
+/// Median µs to load the Vernadat program from its files (parse, resolve, build).
+pub fn program_load_us(quick: bool) -> f64 {
+    let path = examples_dir().join("vernadat/vernadat.toml");
+    let batch = Duration::from_millis(if quick { 30 } else { 200 });
+    median_ns(
+        || {
+            black_box(Program::load(&path).expect("loads"));
+        },
+        batch,
+        7,
+    ) / 1e3
+}
+
+/// What one virtual hour of the Vernadat cell gave.
+#[derive(Debug, Serialize)]
+pub struct HourFigures {
+    /// Wall time of the run in ms.
+    pub wall_ms: f64,
+    /// Parts finished.
+    pub parts_finished: u64,
+    /// Faults seen.
+    pub faults: usize,
+}
+
+/// Runs one virtual hour of the Vernadat cell with its program.
+pub fn twin_hour() -> HourFigures {
+    let program = vernadat_program();
+    let twin = TwinKind::Vernadat.build(1);
+    let mut io = TwinDriver::new(twin, program.inputs(), program.outputs()).expect("signals match");
+    let mut cycle = ScanCycle::new(Container::new(program, 0));
+    let t0 = Instant::now();
+    cycle
+        .run_virtual(0, 3_600_000_000, &mut io, |_, _, _| {})
+        .expect("the Vernadat program runs without fault");
+    let wall_ms = t0.elapsed().as_secs_f64() * 1e3;
+    use cetratus_twin::Plant;
+    HourFigures {
+        wall_ms,
+        parts_finished: io.plant().counters().get("parts_finished").unwrap_or(0),
+        faults: io.plant().faults().len(),
+    }
+}
+
+/// Runs the Vernadat program on its twin in real time at `period_us` for `for_us` of wall time
+/// and returns the cycle figures (latency, cycle time, overruns).
+pub fn jitter(period_us: u64, for_us: u64, rt: bool) -> (CycleFigures, Option<String>) {
+    let status = rt.then(|| cetratus_runtime::rt::request(80).to_string());
+    let program = vernadat_program();
+    let twin = TwinKind::Vernadat.build(1);
+    let mut io = TwinDriver::new(twin, program.inputs(), program.outputs()).expect("signals match");
+    let mut cycle = ScanCycle::new(Container::new(program, 0));
+    cycle.set_period_us(period_us);
+    let stop = AtomicBool::new(false);
+    // The program's timing (robot moves, machining) stays in program time, so a 1 ms period runs
+    // the cell ten times as often per program second; speed 1 keeps program time = wall time.
+    cycle
+        .run_realtime(for_us, 1.0, &stop, &mut io, |_, _, _| {})
+        .expect("the Vernadat program runs without fault");
+    (cycle.figures(), status)
+}

@@ -309,7 +309,9 @@ struct Table<const W: usize> {
     slots: Vec<[u64; W]>,
     ids: Option<Vec<u32>>,
     len: usize,
-    peak_bytes: usize,
+    /// Bytes held during the last growth, when the old and the new slots coexist.
+    transient_bytes: usize,
+    grows: u32,
 }
 
 impl<const W: usize> Table<W> {
@@ -319,7 +321,8 @@ impl<const W: usize> Table<W> {
             slots: vec![[EMPTY; W]; cap],
             ids: with_ids.then(|| vec![0; cap]),
             len: 0,
-            peak_bytes: 0,
+            transient_bytes: 0,
+            grows: 0,
         }
     }
 
@@ -327,14 +330,26 @@ impl<const W: usize> Table<W> {
         self.slots.len() * (8 * W + if self.ids.is_some() { 4 } else { 0 })
     }
 
-    /// Inserts the key; true when it was new.
+    /// Makes room for `n` more keys, so that slot positions computed now stay valid.
     #[inline(always)]
-    fn insert(&mut self, key: &[u64; W], id: u32) -> bool {
-        if (self.len + 1) * 4 > self.slots.len() * 3 {
+    fn reserve(&mut self, n: usize) {
+        while (self.len + n) * 4 > self.slots.len() * 3 {
             self.grow();
         }
+    }
+
+    /// Starts loading the first slot of a key's probe sequence. The loads of one state's
+    /// successors are independent, so the CPU overlaps their cache misses.
+    #[inline(always)]
+    fn touch(&self, h: u64) {
+        std::hint::black_box(self.slots[h as usize & (self.slots.len() - 1)][0]);
+    }
+
+    /// Inserts the key whose hash is `h`; true when it was new. Call [`Table::reserve`] first.
+    #[inline(always)]
+    fn insert_hashed(&mut self, key: &[u64; W], h: u64, id: u32) -> bool {
         let mask = self.slots.len() - 1;
-        let mut i = hash(key) as usize & mask;
+        let mut i = h as usize & mask;
         loop {
             let s = &self.slots[i];
             if s[0] == EMPTY {
@@ -350,6 +365,12 @@ impl<const W: usize> Table<W> {
             }
             i = (i + 1) & mask;
         }
+    }
+
+    /// Inserts the key; true when it was new.
+    fn insert(&mut self, key: &[u64; W], id: u32) -> bool {
+        self.reserve(1);
+        self.insert_hashed(key, hash(key), id)
     }
 
     #[inline(always)]
@@ -375,9 +396,9 @@ impl<const W: usize> Table<W> {
         let old_ids = self.ids.take();
         let mut ids = old_ids.as_ref().map(|_| vec![0u32; cap]);
         // Both tables are alive here: this is the peak of the table's memory.
-        self.peak_bytes = self
-            .peak_bytes
-            .max(old.len() * 8 * W + self.bytes() + old_ids.as_ref().map_or(0, |v| v.len() * 4));
+        let id_bytes = if old_ids.is_some() { 4 } else { 0 };
+        self.transient_bytes = (old.len() + cap) * (8 * W + id_bytes);
+        self.grows += 1;
         let mask = cap - 1;
         for (j, k) in old.iter().enumerate() {
             if k[0] == EMPTY {
@@ -438,9 +459,11 @@ fn explore_w<const W: usize>(net: &Net, pk: &Packing, opts: &ReachOptions) -> Re
     };
     observe(&k0);
     let mut enabled_ever = vec![false; nt];
+    let mut batch: Vec<([u64; W], u64)> = Vec::with_capacity(nt);
     let (mut edges, mut deadlocks) = (0u64, 0u64);
     let mut first_dead: Option<usize> = None;
     let mut stopped = None;
+    let mut peak_bytes = 0usize;
     let mut cur = 0usize;
     'bfs: while cur < states.len {
         if cur & 0x3FFF == 0 && cur > 0 {
@@ -462,24 +485,35 @@ fn explore_w<const W: usize>(net: &Net, pk: &Packing, opts: &ReachOptions) -> Re
         }
         let key = states.get(cur);
         let mut any = false;
+        batch.clear();
         for (t, ever) in enabled_ever.iter_mut().enumerate() {
-            if !code.enabled(&key, t) {
-                continue;
+            if code.enabled(&key, t) {
+                any = true;
+                *ever = true;
+                let succ = code.fire(&key, t);
+                batch.push((succ, hash(&succ)));
             }
-            any = true;
-            *ever = true;
-            edges += 1;
-            let succ = code.fire(&key, t);
+        }
+        edges += batch.len() as u64;
+        let grows = table.grows;
+        table.reserve(batch.len());
+        if table.grows != grows {
+            peak_bytes = peak_bytes.max(table.transient_bytes + states.bytes() + parents.bytes());
+        }
+        for &(_, h) in &batch {
+            table.touch(h);
+        }
+        for (succ, h) in &batch {
             let id = states.len as u32;
-            if table.insert(&succ, id) {
+            if table.insert_hashed(succ, *h, id) {
                 if states.len as u64 >= max_states {
                     // One state too many: the run is partial; the expansion of this state stops.
                     stopped = Some(Stop::MaxStates(max_states));
                     break 'bfs;
                 }
-                states.push(succ);
+                states.push(*succ);
                 parents.push(cur as u32);
-                observe(&succ);
+                observe(succ);
             }
         }
         if !any {
@@ -488,7 +522,7 @@ fn explore_w<const W: usize>(net: &Net, pk: &Packing, opts: &ReachOptions) -> Re
         }
         cur += 1;
     }
-    let peak_bytes = table.peak_bytes.max(table.bytes()) + states.bytes() + parents.bytes();
+    let peak_bytes = peak_bytes.max(table.bytes() + states.bytes() + parents.bytes());
     let deadlock_witness = first_dead.map(|d| {
         let mut path = Vec::new();
         let mut v = d;

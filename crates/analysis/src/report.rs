@@ -297,10 +297,11 @@ impl fmt::Display for Report {
             writeln!(f, "  never enabled: {}", self.dead_transitions.join(", "))?;
         }
         writeln!(f, "  reversible: {}", yes_no(self.reversible))?;
-        if let (Some(b), Some(bps)) = (self.bits_per_state, self.bytes_per_state) {
+        if let (Some(b), Some(bytes)) = (self.bits_per_state, self.store_bytes) {
             writeln!(
                 f,
-                "  state encoding: {b} bits, {bps:.1} bytes per state at peak"
+                "  state encoding: {b} bits per state; state store peak {:.1} MiB",
+                bytes as f64 / (1024.0 * 1024.0)
             )?;
         }
         for w in &self.warnings {

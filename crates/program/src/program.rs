@@ -352,6 +352,21 @@ impl Program {
     pub fn variable_index(&self, name: &str) -> Option<usize> {
         self.variables.iter().position(|s| s.name == name)
     }
+    /// Compiles a condition over this program's inputs, variables, places and place timers (the
+    /// guard language), e.g. `P10 == 1 && P20 == 1` for `substitute --when`. The error names the
+    /// column in `text`.
+    pub fn compile_condition(&self, text: &str) -> Result<Guard, ProgramError> {
+        let scope = crate::guard::Scope {
+            inputs: &self.inputs,
+            outputs: &self.outputs,
+            vars: &self.variables,
+            net: &self.net,
+        };
+        Guard::compile(text, &scope).map_err(|e| ProgramError::File {
+            path: "<condition>".to_string(),
+            message: format!("column {}: {}", e.offset + 1, e.message),
+        })
+    }
     /// The declared invariants, in declaration order.
     pub fn invariants(&self) -> &[Invariant] {
         &self.invariants

@@ -2,7 +2,7 @@
 
 use std::sync::Arc;
 
-use cetratus_net::{Engine, FireError, Tokens};
+use cetratus_net::{Engine, FireError, PlaceIdx, Tokens, TransIdx};
 use cetratus_program::{ActionState, EvalCtx, Program, Value};
 
 use crate::RuntimeError;
@@ -24,6 +24,23 @@ pub struct Container {
     outputs: Vec<Value>,
     firings: Vec<u64>,
     scans: u64,
+}
+
+/// Why a transition did not fire in a container's last scan.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Blocker {
+    /// An input place held too few tokens.
+    Place(PlaceIdx),
+    /// An inhibitor place held too many.
+    Inhibitor(PlaceIdx),
+    /// An output place was at its capacity.
+    Capacity(PlaceIdx),
+    /// It was enabled but its guard was false.
+    Guard,
+    /// It was enabled with a true guard (or none) but a transition of higher rank took its tokens.
+    Conflict,
+    /// The container's program has no such transition.
+    Absent,
 }
 
 /// What one scan did.
@@ -214,6 +231,67 @@ impl Container {
             fired,
             deadlocked: self.engine.enabled().is_empty(),
         })
+    }
+
+    /// Replaces the marking and place timers without allocating (an update's install, a
+    /// retransform at substitution). The next scan enters every marked place, as a first scan does.
+    pub fn set_state(
+        &mut self,
+        marking: &[Tokens],
+        place_since_us: &[Option<u64>],
+    ) -> Result<(), cetratus_net::NetError> {
+        if place_since_us.len() != marking.len() {
+            return Err(cetratus_net::NetError::MarkingLength {
+                expected: marking.len(),
+                got: place_since_us.len(),
+            });
+        }
+        self.engine.set_marking(marking)?;
+        self.marking_at_start.copy_from_slice(marking);
+        self.place_since_us.copy_from_slice(place_since_us);
+        self.scans = 0;
+        Ok(())
+    }
+
+    /// The tokens place `p` held before the last scan, from the marking after it and the
+    /// firings of the scan.
+    pub fn tokens_before_last_scan(&self, p: PlaceIdx) -> i64 {
+        let net = self.program.net();
+        let mut m = i64::from(self.engine.marking()[p.index()]);
+        for &t in self.engine.fired() {
+            if let Ok(k) = net.delta(t).binary_search_by_key(&p, |&(q, _)| q) {
+                m -= net.delta(t)[k].1;
+            }
+        }
+        m
+    }
+
+    /// Why transition `t` did not fire in the last scan: the first input place short of tokens,
+    /// an inhibitor, a capacity, or else its guard (or a conflict with a transition of higher rank).
+    pub fn blocker(&self, t: TransIdx) -> Blocker {
+        let net = self.program.net();
+        for &(p, w) in net.pre(t) {
+            if self.tokens_before_last_scan(p) < i64::from(w) {
+                return Blocker::Place(p);
+            }
+        }
+        for &(p, w) in net.inhibitors(t) {
+            if self.tokens_before_last_scan(p) >= i64::from(w) {
+                return Blocker::Inhibitor(p);
+            }
+        }
+        for &(p, d) in net.delta(t) {
+            if let Some(cap) = net.capacity(p) {
+                if d > 0 && self.tokens_before_last_scan(p) + d > i64::from(cap) {
+                    return Blocker::Capacity(p);
+                }
+            }
+        }
+        if self.program.has_guard(t) {
+            Blocker::Guard
+        } else {
+            Blocker::Conflict
+        }
     }
 
     /// Writes the program's declared safe output values into `out`.

@@ -19,6 +19,17 @@ pub enum RuntimeError {
         /// The place id.
         place: String,
     },
+    /// A primary scan ran past the watchdog.
+    #[error("the scan took {took_us} µs, past the watchdog of {limit_us} µs")]
+    Watchdog {
+        /// How long it took.
+        took_us: u64,
+        /// The watchdog time.
+        limit_us: u64,
+    },
+    /// A fault injected on purpose by a test (feature `fault-injection`).
+    #[error("injected fault: {0}")]
+    Injected(String),
     /// The input image does not match the program's inputs.
     #[error("the input image has {got} signals but the program declares {expected}")]
     InputImage {

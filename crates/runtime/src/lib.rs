@@ -12,13 +12,19 @@ mod container;
 mod cycle;
 mod error;
 mod io;
+pub mod monitor;
+pub mod plc;
+#[cfg(feature = "fault-injection")]
+pub mod inject;
 pub mod rt;
 mod stats;
 pub mod trace;
 
 pub use clock::{Clock, RealClock, VirtualClock};
-pub use container::{Container, ScanOutcome};
+pub use container::{Blocker, Container, ScanOutcome};
 pub use cycle::{CycleFigures, ScanCycle};
 pub use error::RuntimeError;
 pub use io::{Dispatcher, Provider};
+pub use monitor::{Slot, Status};
+pub use plc::{Command, Event, Limits, Plc, PreparedUpdate, SubstituteMode, SubstituteRequest};
 pub use stats::{Summary, TimingStats};

@@ -1,0 +1,910 @@
+//! State transformations `M_new = ST·M_old + ST_base` and projections `Π·M_cand + Π_base` (DESIGN
+//! §1, §4).
+//!
+//! Both are linear maps between the place spaces of two nets, resolved once against those nets
+//! (ids checked, stored sparse) so that applying one at a cycle boundary is a few multiply-adds
+//! and never allocates. Rows and columns follow each net's declaration order.
+
+use std::collections::BTreeMap;
+use std::fmt;
+
+use cetratus_net::{Net, PlaceIdx, Tokens};
+
+use crate::{InvariantViolation, Program};
+
+/// Why a transform or projection could not be resolved, or refused to apply.
+#[derive(Debug, thiserror::Error)]
+pub enum TransformError {
+    /// The matrix has the wrong number of rows or columns for a net.
+    #[error("the {what} has {found} {axis}, but the {net} net has {expected} places; {axis} follow its places in declaration order")]
+    Dimensions {
+        /// "state transform" or "projection".
+        what: &'static str,
+        /// "rows" or "columns".
+        axis: &'static str,
+        /// Which net the axis follows.
+        net: &'static str,
+        /// Places of that net.
+        expected: usize,
+        /// What the matrix has.
+        found: usize,
+    },
+    /// A row of a dense matrix has the wrong length.
+    #[error("row {row} (`{id}`) of the {what} has {found} entries; it needs one per place of the {net} net ({expected})")]
+    RowLength {
+        /// "state transform" or "projection".
+        what: &'static str,
+        /// The row, from 1.
+        row: usize,
+        /// The row's place id.
+        id: String,
+        /// Which net the columns follow.
+        net: &'static str,
+        /// Places of that net.
+        expected: usize,
+        /// What the row has.
+        found: usize,
+    },
+    /// The base vector has the wrong length.
+    #[error("the base of the {what} has {found} entries; it needs one per row ({expected})")]
+    BaseLength {
+        /// "state transform" or "projection".
+        what: &'static str,
+        /// Rows.
+        expected: usize,
+        /// What the base has.
+        found: usize,
+    },
+    /// A row or column id of a dense matrix differs from the net's place at that position.
+    #[error("{axis} {index} of the {what} is `{found}`, but place {index} of the {net} net is `{expected}`; list the {net} net's place ids in declaration order")]
+    PlaceId {
+        /// "state transform" or "projection".
+        what: &'static str,
+        /// "row" or "column".
+        axis: &'static str,
+        /// The position, from 1.
+        index: usize,
+        /// Which net.
+        net: &'static str,
+        /// The net's place id there.
+        expected: String,
+        /// The id the matrix gives.
+        found: String,
+    },
+    /// A sparse entry or base key names a place the net does not have.
+    #[error("the {what} names `{id}` as {role}, which is not a place of the {net} net")]
+    UnknownPlace {
+        /// "state transform" or "projection".
+        what: &'static str,
+        /// The id.
+        id: String,
+        /// Where it was used ("a target (`to`)", "a source (`from`)", "a base key").
+        role: &'static str,
+        /// Which net.
+        net: &'static str,
+    },
+    /// A sparse matrix gives the same (to, from) pair twice.
+    #[error("the {what} gives `{to}` <- `{from}` twice; give each pair once")]
+    DuplicateEntry {
+        /// "state transform" or "projection".
+        what: &'static str,
+        /// Row place.
+        to: String,
+        /// Column place.
+        from: String,
+    },
+    /// `removed` names a place the new net still has.
+    #[error("`{id}` is listed in `removed`, but the new net still has a place `{id}`, which keeps its tokens; remove it from `removed`")]
+    RemovedIsKept {
+        /// The place.
+        id: String,
+    },
+    /// `removed` names a place the old net does not have.
+    #[error("`{id}` is listed in `removed`, but the running program's net has no such place")]
+    RemovedUnknown {
+        /// The place.
+        id: String,
+    },
+    /// `removed` sends tokens to a place the new net does not have.
+    #[error("removed place `{from}` sends its tokens to `{to}`, which is not a place of the new net")]
+    RemovedTargetUnknown {
+        /// The removed place.
+        from: String,
+        /// The missing destination.
+        to: String,
+    },
+    /// A marking or output buffer has a length other than the one the transform was resolved for.
+    #[error("the {what} was resolved for {expected} places, but the {which} has {found}; resolve it against this program")]
+    MarkingLength {
+        /// "state transform" or "projection".
+        what: &'static str,
+        /// "old marking", "new program" or "output marking".
+        which: &'static str,
+        /// Places the transform expects.
+        expected: usize,
+        /// What was given.
+        found: usize,
+    },
+    /// A row evaluates to a negative token count.
+    #[error("place `{place}` would get {value} tokens, a negative count; check the coefficients and base of its row")]
+    Negative {
+        /// The new place.
+        place: String,
+        /// The value computed.
+        value: i128,
+    },
+    /// A row evaluates to more tokens than a count can hold.
+    #[error("place `{place}` would get {value} tokens, more than a token count can hold ({max})", max = Tokens::MAX)]
+    Overflow {
+        /// The new place.
+        place: String,
+        /// The value computed.
+        value: i128,
+    },
+    /// A row evaluates above the place's capacity in the new net.
+    #[error("place `{place}` would get {value} tokens, above its capacity {capacity} in the new net; wait for a marking that fits, or fix the transform")]
+    AboveCapacity {
+        /// The new place.
+        place: String,
+        /// The value computed.
+        value: u64,
+        /// Its capacity.
+        capacity: Tokens,
+    },
+    /// A place the update removes holds tokens and the package says nowhere for them to go.
+    #[error("place `{place}` is removed by the update and holds {tokens} token(s) that would be lost; apply the update when it is empty, or send its tokens to a new place (generated: `removed = {{ {place} = \"…\" }}`; dense or sparse: a nonzero coefficient in its column)")]
+    RemovedNotEmpty {
+        /// The old place.
+        place: String,
+        /// Its tokens.
+        tokens: Tokens,
+    },
+    /// The transformed marking breaks an invariant the new program declares.
+    #[error("the transformed marking breaks the new program's {violation}; fix the transform's matrix or base so that it holds")]
+    Invariant {
+        /// Which invariant and by how much.
+        violation: InvariantViolation,
+    },
+}
+
+const ST: &str = "state transform";
+const PROJ: &str = "projection";
+const NEW: &str = "new";
+const OLD: &str = "running (old)";
+
+/// A sparse linear map `y = A·x + b` between two place spaces, with the ids of both.
+#[derive(Clone, Debug, PartialEq)]
+struct Linear {
+    /// `entries[row_start[r]..row_start[r + 1]]` are row r's (column, coefficient), no zeros.
+    row_start: Vec<usize>,
+    entries: Vec<(u32, i64)>,
+    base: Vec<i64>,
+    row_ids: Vec<String>,
+    col_ids: Vec<String>,
+}
+
+/// Which map and which nets, for messages.
+#[derive(Clone, Copy)]
+struct Role {
+    what: &'static str,
+    row_net: &'static str,
+    col_net: &'static str,
+}
+
+fn ids(net: &Net) -> Vec<String> {
+    net.places().iter().map(|p| p.id.clone()).collect()
+}
+
+impl Linear {
+    fn from_rows(rows: Vec<Vec<(u32, i64)>>, base: Vec<i64>, row_net: &Net, col_net: &Net) -> Self {
+        let mut row_start = Vec::with_capacity(rows.len() + 1);
+        let mut entries = Vec::new();
+        row_start.push(0);
+        for mut r in rows {
+            r.retain(|&(_, c)| c != 0);
+            r.sort_unstable_by_key(|&(c, _)| c);
+            entries.extend(r);
+            row_start.push(entries.len());
+        }
+        Linear {
+            row_start,
+            entries,
+            base,
+            row_ids: ids(row_net),
+            col_ids: ids(col_net),
+        }
+    }
+
+    fn dense(
+        role: Role,
+        row_net: &Net,
+        col_net: &Net,
+        row_ids: &[String],
+        col_ids: &[String],
+        matrix: &[Vec<i64>],
+        base: &[i64],
+    ) -> Result<Self, TransformError> {
+        let (nr, nc) = (row_net.num_places(), col_net.num_places());
+        let dims = |axis, net, expected, found| TransformError::Dimensions {
+            what: role.what,
+            axis,
+            net,
+            expected,
+            found,
+        };
+        if row_ids.len() != nr {
+            return Err(dims("row ids", role.row_net, nr, row_ids.len()));
+        }
+        if col_ids.len() != nc {
+            return Err(dims("column ids", role.col_net, nc, col_ids.len()));
+        }
+        check_ids(role.what, "row", role.row_net, row_net, row_ids)?;
+        check_ids(role.what, "column", role.col_net, col_net, col_ids)?;
+        if matrix.len() != nr {
+            return Err(dims("rows", role.row_net, nr, matrix.len()));
+        }
+        if base.len() != nr {
+            return Err(TransformError::BaseLength {
+                what: role.what,
+                expected: nr,
+                found: base.len(),
+            });
+        }
+        let mut rows = Vec::with_capacity(nr);
+        for (r, row) in matrix.iter().enumerate() {
+            if row.len() != nc {
+                return Err(TransformError::RowLength {
+                    what: role.what,
+                    row: r + 1,
+                    id: row_ids[r].clone(),
+                    net: role.col_net,
+                    expected: nc,
+                    found: row.len(),
+                });
+            }
+            rows.push(
+                row.iter()
+                    .enumerate()
+                    .map(|(c, &k)| (c as u32, k))
+                    .collect::<Vec<_>>(),
+            );
+        }
+        Ok(Self::from_rows(rows, base.to_vec(), row_net, col_net))
+    }
+
+    fn sparse(
+        role: Role,
+        row_net: &Net,
+        col_net: &Net,
+        entries: &[(String, String, i64)],
+        base: &BTreeMap<String, i64>,
+    ) -> Result<Self, TransformError> {
+        let unknown = |id: &str, role_name, net| TransformError::UnknownPlace {
+            what: role.what,
+            id: id.to_string(),
+            role: role_name,
+            net,
+        };
+        let mut rows: Vec<Vec<(u32, i64)>> = vec![Vec::new(); row_net.num_places()];
+        for (to, from, coef) in entries {
+            let r = row_net
+                .place_by_id(to)
+                .ok_or_else(|| unknown(to, "a target (`to`)", role.row_net))?;
+            let c = col_net
+                .place_by_id(from)
+                .ok_or_else(|| unknown(from, "a source (`from`)", role.col_net))?;
+            let row = &mut rows[r.index()];
+            if row.iter().any(|&(k, _)| k == c.0) {
+                return Err(TransformError::DuplicateEntry {
+                    what: role.what,
+                    to: to.clone(),
+                    from: from.clone(),
+                });
+            }
+            row.push((c.0, *coef));
+        }
+        let mut b = vec![0i64; row_net.num_places()];
+        for (id, v) in base {
+            let r = row_net
+                .place_by_id(id)
+                .ok_or_else(|| unknown(id, "a base key", role.row_net))?;
+            b[r.index()] = *v;
+        }
+        Ok(Self::from_rows(rows, b, row_net, col_net))
+    }
+
+    fn rows(&self) -> usize {
+        self.base.len()
+    }
+
+    fn cols(&self) -> usize {
+        self.col_ids.len()
+    }
+
+    fn row(&self, r: usize) -> &[(u32, i64)] {
+        &self.entries[self.row_start[r]..self.row_start[r + 1]]
+    }
+
+    /// Row r at x, exactly: `i64 · u32` terms fit an i128 with room for any realistic row.
+    #[inline]
+    fn eval(&self, r: usize, x: &[Tokens]) -> i128 {
+        self.row(r).iter().fold(i128::from(self.base[r]), |acc, &(c, k)| {
+            let v = x.get(c as usize).copied().unwrap_or(0);
+            acc.saturating_add(i128::from(k) * i128::from(v))
+        })
+    }
+
+    /// True when some row reads column c.
+    fn reads(&self, c: u32) -> bool {
+        self.entries.iter().any(|&(k, _)| k == c)
+    }
+
+    fn to_dense(&self) -> DenseMatrix {
+        let mut matrix = vec![vec![0i64; self.cols()]; self.rows()];
+        for (r, row) in matrix.iter_mut().enumerate() {
+            for &(c, k) in self.row(r) {
+                row[c as usize] = k;
+            }
+        }
+        DenseMatrix {
+            row_ids: self.row_ids.clone(),
+            col_ids: self.col_ids.clone(),
+            matrix,
+            base: self.base.clone(),
+        }
+    }
+}
+
+fn check_ids(
+    what: &'static str,
+    axis: &'static str,
+    net_name: &'static str,
+    net: &Net,
+    given: &[String],
+) -> Result<(), TransformError> {
+    for (i, (p, g)) in net.places().iter().zip(given).enumerate() {
+        if p.id != *g {
+            return Err(TransformError::PlaceId {
+                what,
+                axis,
+                index: i + 1,
+                net: net_name,
+                expected: p.id.clone(),
+                found: g.clone(),
+            });
+        }
+    }
+    Ok(())
+}
+
+/// A state transformation `M_new = ST·M_old + ST_base`, resolved against an old and a new net.
+#[derive(Clone, Debug, PartialEq)]
+pub struct StateTransform {
+    map: Linear,
+    /// Per new place, the old place whose timer it inherits (the old place with the same id).
+    timer_from: Vec<Option<PlaceIdx>>,
+    /// Old places that no row reads and the new net does not have: their tokens would vanish.
+    must_be_empty: Vec<PlaceIdx>,
+}
+
+impl StateTransform {
+    /// The transformation generated from place ids: a place kept by id keeps its tokens and
+    /// timer, a new place starts at its initial marking, and a removed place either sends its
+    /// tokens to the new place `removed` names for it or must be empty when the update applies.
+    pub fn generated(
+        old: &Program,
+        new: &Program,
+        removed: &BTreeMap<String, String>,
+    ) -> Result<Self, TransformError> {
+        let (on, nn) = (old.net().as_ref(), new.net().as_ref());
+        let mut rows: Vec<Vec<(u32, i64)>> = vec![Vec::new(); nn.num_places()];
+        let mut base = vec![0i64; nn.num_places()];
+        for (r, p) in nn.places().iter().enumerate() {
+            match on.place_by_id(&p.id) {
+                Some(q) => rows[r].push((q.0, 1)),
+                None => base[r] = i64::from(p.initial),
+            }
+        }
+        for (from, to) in removed {
+            let Some(q) = on.place_by_id(from) else {
+                return Err(TransformError::RemovedUnknown { id: from.clone() });
+            };
+            if nn.place_by_id(from).is_some() {
+                return Err(TransformError::RemovedIsKept { id: from.clone() });
+            }
+            let Some(r) = nn.place_by_id(to) else {
+                return Err(TransformError::RemovedTargetUnknown {
+                    from: from.clone(),
+                    to: to.clone(),
+                });
+            };
+            rows[r.index()].push((q.0, 1));
+        }
+        Ok(Self::from_map(Linear::from_rows(rows, base, nn, on), on, nn))
+    }
+
+    /// An explicit transformation from a dense `|P_new| × |P_old|` matrix whose row ids are the
+    /// new net's place ids in order and whose column ids are the old net's.
+    pub fn dense(
+        old: &Net,
+        new: &Net,
+        row_ids: &[String],
+        col_ids: &[String],
+        matrix: &[Vec<i64>],
+        base: &[i64],
+    ) -> Result<Self, TransformError> {
+        let role = Role {
+            what: ST,
+            row_net: NEW,
+            col_net: OLD,
+        };
+        let map = Linear::dense(role, new, old, row_ids, col_ids, matrix, base)?;
+        Ok(Self::from_map(map, old, new))
+    }
+
+    /// An explicit transformation from `(new place, old place, coefficient)` entries and a base
+    /// keyed by new place (missing entries are 0).
+    pub fn sparse(
+        old: &Net,
+        new: &Net,
+        entries: &[(String, String, i64)],
+        base: &BTreeMap<String, i64>,
+    ) -> Result<Self, TransformError> {
+        let role = Role {
+            what: ST,
+            row_net: NEW,
+            col_net: OLD,
+        };
+        let map = Linear::sparse(role, new, old, entries, base)?;
+        Ok(Self::from_map(map, old, new))
+    }
+
+    fn from_map(map: Linear, old: &Net, new: &Net) -> Self {
+        let timer_from = new
+            .places()
+            .iter()
+            .map(|p| old.place_by_id(&p.id))
+            .collect();
+        let must_be_empty = old
+            .places()
+            .iter()
+            .enumerate()
+            .filter(|(c, p)| new.place_by_id(&p.id).is_none() && !map.reads(*c as u32))
+            .map(|(c, _)| PlaceIdx(c as u32))
+            .collect();
+        StateTransform {
+            map,
+            timer_from,
+            must_be_empty,
+        }
+    }
+
+    /// Places of the new net.
+    pub fn rows(&self) -> usize {
+        self.map.rows()
+    }
+
+    /// Places of the old net.
+    pub fn cols(&self) -> usize {
+        self.map.cols()
+    }
+
+    /// Old places whose tokens this transform drops, so they must be empty when it applies.
+    pub fn must_be_empty(&self) -> &[PlaceIdx] {
+        &self.must_be_empty
+    }
+
+    /// `M_new = ST·M_old + ST_base`, written into `out` only when every check passes: no
+    /// negative count, no overflow, no count above a capacity of the new net, no removed place
+    /// with tokens and nowhere to send them, and every invariant of `new` holds. Never allocates
+    /// on success, so it can run at a cycle boundary on the scan thread.
+    pub fn apply(
+        &self,
+        old_marking: &[Tokens],
+        new: &Program,
+        out: &mut [Tokens],
+    ) -> Result<(), TransformError> {
+        let len = |which, expected, found| TransformError::MarkingLength {
+            what: ST,
+            which,
+            expected,
+            found,
+        };
+        if old_marking.len() != self.cols() {
+            return Err(len("old marking", self.cols(), old_marking.len()));
+        }
+        let net = new.net();
+        if net.num_places() != self.rows() {
+            return Err(len("new program", self.rows(), net.num_places()));
+        }
+        if out.len() != self.rows() {
+            return Err(len("output marking", self.rows(), out.len()));
+        }
+        for &p in &self.must_be_empty {
+            let tokens = old_marking[p.index()];
+            if tokens > 0 {
+                return Err(TransformError::RemovedNotEmpty {
+                    place: self.map.col_ids[p.index()].clone(),
+                    tokens,
+                });
+            }
+        }
+        for r in 0..self.rows() {
+            let v = self.row_tokens(r, old_marking)?;
+            if let Some(cap) = net.capacity(PlaceIdx(r as u32)) {
+                if v > cap {
+                    return Err(TransformError::AboveCapacity {
+                        place: self.map.row_ids[r].clone(),
+                        value: u64::from(v),
+                        capacity: cap,
+                    });
+                }
+            }
+        }
+        // The invariants are checked on rows computed again, not on `out`, so that a refusal
+        // leaves the caller's buffer as it was.
+        for (index, inv) in new.invariants().iter().enumerate() {
+            let mut actual = 0i128;
+            for &(p, w) in inv.terms() {
+                let v = self.row_tokens(p.index(), old_marking)?;
+                actual = actual.saturating_add(i128::from(w) * i128::from(v));
+            }
+            if actual != i128::from(inv.constant()) {
+                return Err(TransformError::Invariant {
+                    violation: InvariantViolation {
+                        index,
+                        expr: inv.expr().into(),
+                        actual,
+                        expected: inv.constant(),
+                    },
+                });
+            }
+        }
+        for (r, o) in out.iter_mut().enumerate() {
+            *o = self.row_tokens(r, old_marking)?;
+        }
+        Ok(())
+    }
+
+    /// Row r as a token count, or why it is not one.
+    #[inline]
+    fn row_tokens(&self, r: usize, old: &[Tokens]) -> Result<Tokens, TransformError> {
+        let v = self.map.eval(r, old);
+        if v < 0 {
+            return Err(TransformError::Negative {
+                place: self.map.row_ids[r].clone(),
+                value: v,
+            });
+        }
+        Tokens::try_from(v).map_err(|_| TransformError::Overflow {
+            place: self.map.row_ids[r].clone(),
+            value: v,
+        })
+    }
+
+    /// The timers (start of marking, µs) of the new marking: a kept place that was marked keeps
+    /// its timer, any other marked place starts at `now_us`, an empty place has none.
+    pub fn apply_timers(
+        &self,
+        old_since: &[Option<u64>],
+        new_marking: &[Tokens],
+        now_us: u64,
+        out: &mut [Option<u64>],
+    ) {
+        for (r, o) in out.iter_mut().enumerate() {
+            let marked = new_marking.get(r).is_some_and(|&m| m > 0);
+            *o = if marked {
+                self.timer_from
+                    .get(r)
+                    .copied()
+                    .flatten()
+                    .and_then(|q| old_since.get(q.index()).copied().flatten())
+                    .or(Some(now_us))
+            } else {
+                None
+            };
+        }
+    }
+
+    /// The matrix and base in dense form, with the place ids of rows (new) and columns (old).
+    pub fn to_dense(&self) -> DenseMatrix {
+        self.map.to_dense()
+    }
+}
+
+/// A projection `Π·M_cand + Π_base` of a candidate (new) marking into the old net's place space,
+/// against which the primary's marking is compared to measure drift.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Projection {
+    map: Linear,
+}
+
+impl Projection {
+    /// The projection generated from place ids: each old place kept by id reads its new place;
+    /// places only in the new net are dropped, places only in the old net read 0.
+    pub fn generated(old: &Net, new: &Net) -> Projection {
+        let rows = old
+            .places()
+            .iter()
+            .map(|p| match new.place_by_id(&p.id) {
+                Some(q) => vec![(q.0, 1)],
+                None => Vec::new(),
+            })
+            .collect();
+        Projection {
+            map: Linear::from_rows(rows, vec![0; old.num_places()], old, new),
+        }
+    }
+
+    /// An explicit projection from a dense `|P_old| × |P_new|` matrix whose row ids are the old
+    /// net's place ids in order and whose column ids are the new net's.
+    pub fn dense(
+        old: &Net,
+        new: &Net,
+        row_ids: &[String],
+        col_ids: &[String],
+        matrix: &[Vec<i64>],
+        base: &[i64],
+    ) -> Result<Self, TransformError> {
+        let role = Role {
+            what: PROJ,
+            row_net: OLD,
+            col_net: NEW,
+        };
+        Ok(Projection {
+            map: Linear::dense(role, old, new, row_ids, col_ids, matrix, base)?,
+        })
+    }
+
+    /// An explicit projection from `(old place, new place, coefficient)` entries and a base keyed
+    /// by old place (missing entries are 0).
+    pub fn sparse(
+        old: &Net,
+        new: &Net,
+        entries: &[(String, String, i64)],
+        base: &BTreeMap<String, i64>,
+    ) -> Result<Self, TransformError> {
+        let role = Role {
+            what: PROJ,
+            row_net: OLD,
+            col_net: NEW,
+        };
+        Ok(Projection {
+            map: Linear::sparse(role, old, new, entries, base)?,
+        })
+    }
+
+    /// Places of the old net.
+    pub fn rows(&self) -> usize {
+        self.map.rows()
+    }
+
+    /// Places of the new net.
+    pub fn cols(&self) -> usize {
+        self.map.cols()
+    }
+
+    /// Drift `‖Π·M_cand + Π_base − M_primary‖₁`, saturating at `u64::MAX`; a primary place
+    /// beyond the slice counts as empty. Never allocates.
+    pub fn drift(&self, candidate: &[Tokens], primary: &[Tokens]) -> u64 {
+        let mut sum: u128 = 0;
+        for r in 0..self.rows() {
+            let p = i128::from(primary.get(r).copied().unwrap_or(0));
+            let d = self.map.eval(r, candidate).saturating_sub(p);
+            sum = sum.saturating_add(d.unsigned_abs());
+        }
+        u64::try_from(sum).unwrap_or(u64::MAX)
+    }
+
+    /// The matrix and base in dense form, with the place ids of rows (old) and columns (new).
+    pub fn to_dense(&self) -> DenseMatrix {
+        self.map.to_dense()
+    }
+}
+
+/// A matrix and base in dense form with the place ids of its rows and columns, for reports.
+#[derive(Clone, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+pub struct DenseMatrix {
+    /// Row place ids, in declaration order.
+    pub row_ids: Vec<String>,
+    /// Column place ids, in declaration order.
+    pub col_ids: Vec<String>,
+    /// `matrix[row][col]`.
+    pub matrix: Vec<Vec<i64>>,
+    /// One entry per row.
+    pub base: Vec<i64>,
+}
+
+impl fmt::Display for DenseMatrix {
+    /// An aligned table: a header of column ids, then per row its id, its coefficients, `|` and
+    /// its base. Zeros print as `.` so that the structure stands out in a large matrix.
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let cell = |k: i64| if k == 0 { ".".to_string() } else { k.to_string() };
+        let id_w = self.row_ids.iter().map(String::len).max().unwrap_or(0);
+        let widths: Vec<usize> = self
+            .col_ids
+            .iter()
+            .enumerate()
+            .map(|(c, id)| {
+                self.matrix
+                    .iter()
+                    .filter_map(|row| row.get(c))
+                    .map(|&k| cell(k).len())
+                    .chain([id.len()])
+                    .max()
+                    .unwrap_or(1)
+            })
+            .collect();
+        let base_w = self
+            .base
+            .iter()
+            .map(|&k| k.to_string().len())
+            .chain(["base".len()])
+            .max()
+            .unwrap_or(4);
+        write!(f, "{:id_w$}", "")?;
+        for (id, w) in self.col_ids.iter().zip(&widths) {
+            write!(f, " {id:>w$}")?;
+        }
+        writeln!(f, " | {:>base_w$}", "base")?;
+        for (r, id) in self.row_ids.iter().enumerate() {
+            write!(f, "{id:<id_w$}")?;
+            for (c, w) in widths.iter().enumerate() {
+                let k = self.matrix.get(r).and_then(|row| row.get(c)).copied();
+                write!(f, " {:>w$}", cell(k.unwrap_or(0)))?;
+            }
+            writeln!(
+                f,
+                " | {:>base_w$}",
+                self.base.get(r).copied().unwrap_or(0)
+            )?;
+        }
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use cetratus_net::{NetBuilder, Place};
+
+    fn net(places: &[(&str, Tokens)]) -> Net {
+        let mut b = NetBuilder::new("n");
+        for &(id, m) in places {
+            b.add_place(Place::new(id, m))
+                .unwrap_or_else(|e| panic!("{e}"));
+        }
+        b.build().unwrap_or_else(|e| panic!("{e}"))
+    }
+
+    fn program(places: &[(&str, Tokens)], invariants: &[&str]) -> Program {
+        let mut src = String::from("[program]\nname = \"t\"\nversion = \"1\"\n");
+        for i in invariants {
+            src.push_str(&format!("[[invariant]]\nexpr = \"{i}\"\n"));
+        }
+        Program::from_sources(&src, "t.toml", net(places)).unwrap_or_else(|e| panic!("{e}"))
+    }
+
+    fn s(v: &[&str]) -> Vec<String> {
+        v.iter().map(|x| x.to_string()).collect()
+    }
+
+    #[test]
+    fn generated_keeps_kept_places_and_starts_new_ones_at_their_initial_marking() {
+        let old = program(&[("A", 1), ("B", 0)], &[]);
+        let new = program(&[("B", 0), ("C", 2), ("A", 0)], &[]);
+        let st = StateTransform::generated(&old, &new, &BTreeMap::new())
+            .unwrap_or_else(|e| panic!("{e}"));
+        assert_eq!((st.rows(), st.cols()), (3, 2));
+        let mut out = [0; 3];
+        st.apply(&[5, 7], &new, &mut out)
+            .unwrap_or_else(|e| panic!("{e}"));
+        assert_eq!(out, [7, 2, 5]);
+    }
+
+    #[test]
+    fn a_removed_place_with_tokens_and_no_destination_is_refused_by_name() {
+        let old = program(&[("A", 1), ("X", 0)], &[]);
+        let new = program(&[("A", 1)], &[]);
+        let st = StateTransform::generated(&old, &new, &BTreeMap::new())
+            .unwrap_or_else(|e| panic!("{e}"));
+        let mut out = [9];
+        let err = st.apply(&[1, 2], &new, &mut out).unwrap_err();
+        assert!(err.to_string().contains("`X`"), "{err}");
+        assert_eq!(out, [9], "nothing written");
+        st.apply(&[1, 0], &new, &mut out)
+            .unwrap_or_else(|e| panic!("{e}"));
+        assert_eq!(out, [1]);
+    }
+
+    #[test]
+    fn a_removed_place_sends_its_tokens_where_the_package_says() {
+        let old = program(&[("A", 1), ("X", 0)], &[]);
+        let new = program(&[("A", 1)], &[]);
+        let removed = BTreeMap::from([("X".to_string(), "A".to_string())]);
+        let st = StateTransform::generated(&old, &new, &removed).unwrap_or_else(|e| panic!("{e}"));
+        let mut out = [0];
+        st.apply(&[1, 2], &new, &mut out)
+            .unwrap_or_else(|e| panic!("{e}"));
+        assert_eq!(out, [3]);
+    }
+
+    #[test]
+    fn removed_must_name_a_place_that_is_really_removed() {
+        let old = program(&[("A", 1), ("X", 0)], &[]);
+        let new = program(&[("A", 1)], &[]);
+        let kept = BTreeMap::from([("A".to_string(), "A".to_string())]);
+        assert!(matches!(
+            StateTransform::generated(&old, &new, &kept),
+            Err(TransformError::RemovedIsKept { .. })
+        ));
+        let nowhere = BTreeMap::from([("X".to_string(), "Z".to_string())]);
+        assert!(matches!(
+            StateTransform::generated(&old, &new, &nowhere),
+            Err(TransformError::RemovedTargetUnknown { .. })
+        ));
+        let unknown = BTreeMap::from([("Q".to_string(), "A".to_string())]);
+        assert!(matches!(
+            StateTransform::generated(&old, &new, &unknown),
+            Err(TransformError::RemovedUnknown { .. })
+        ));
+    }
+
+    #[test]
+    fn sparse_refuses_unknown_places_and_duplicates() {
+        let old = net(&[("A", 0)]);
+        let new = net(&[("A", 0), ("B", 0)]);
+        let e = |t: &str, f: &str| (t.to_string(), f.to_string(), 1);
+        let none = BTreeMap::new();
+        let err = StateTransform::sparse(&old, &new, &[e("Z", "A")], &none).unwrap_err();
+        assert!(err.to_string().contains("`Z`") && err.to_string().contains("new net"));
+        let err = StateTransform::sparse(&old, &new, &[e("A", "B")], &none).unwrap_err();
+        assert!(err.to_string().contains("`B`") && err.to_string().contains("running"));
+        let err = StateTransform::sparse(&old, &new, &[e("A", "A"), e("A", "A")], &none);
+        assert!(matches!(err, Err(TransformError::DuplicateEntry { .. })));
+        let bad_base = BTreeMap::from([("Q".to_string(), 1)]);
+        assert!(StateTransform::sparse(&old, &new, &[], &bad_base).is_err());
+    }
+
+    #[test]
+    fn timers_of_kept_places_carry_over_and_new_marked_places_start_now() {
+        let old = program(&[("A", 1), ("B", 0)], &[]);
+        let new = program(&[("A", 0), ("N", 1), ("B", 0)], &[]);
+        let st = StateTransform::generated(&old, &new, &BTreeMap::new())
+            .unwrap_or_else(|e| panic!("{e}"));
+        let mut m = [0; 3];
+        st.apply(&[1, 0], &new, &mut m)
+            .unwrap_or_else(|e| panic!("{e}"));
+        let mut since = [Some(7); 3];
+        st.apply_timers(&[Some(100), None], &m, 500, &mut since);
+        assert_eq!(since, [Some(100), Some(500), None]);
+    }
+
+    #[test]
+    fn the_dense_form_prints_aligned_with_place_ids() {
+        let old = net(&[("A", 0), ("LONG", 0)]);
+        let new = net(&[("A", 0)]);
+        let st = StateTransform::dense(
+            &old,
+            &new,
+            &s(&["A"]),
+            &s(&["A", "LONG"]),
+            &[vec![1, -12]],
+            &[3],
+        )
+        .unwrap_or_else(|e| panic!("{e}"));
+        let text = st.to_dense().to_string();
+        assert_eq!(text, "  A LONG | base\nA 1  -12 |    3\n");
+    }
+
+    #[test]
+    fn drift_counts_every_token_of_difference() {
+        let old = net(&[("A", 0), ("B", 0)]);
+        let new = net(&[("B", 0), ("C", 0)]);
+        let pi = Projection::generated(&old, &new);
+        assert_eq!((pi.rows(), pi.cols()), (2, 2));
+        // A reads nothing (0 vs 2), B reads B (1 vs 4).
+        assert_eq!(pi.drift(&[1, 9], &[2, 4]), 5);
+        assert_eq!(pi.drift(&[4, 9], &[0, 4]), 0);
+    }
+}

@@ -1,0 +1,952 @@
+//! The PLC of the paper's Figure 1: containers A and B, PRIMARY and STATUS, the Message Router, the
+//! Updater and the Monitor, advanced one cycle at a time.
+//!
+//! [`Plc::cycle`] runs one cycle at program time `now`: first what is due at the cycle boundary
+//! (an update's install, a substitution), then the Provider, the containers, the Dispatcher and the
+//! Monitor. Commands ([`Plc::command`]) are accepted or refused between cycles; everything they
+//! cause happens at the next boundary, so nothing is ever half-applied.
+
+use std::panic::{catch_unwind, AssertUnwindSafe};
+use std::sync::Arc;
+
+use cetratus_net::{Tokens, TransIdx};
+use cetratus_program::{EvalCtx, Guard, PackageMeta, Program, Projection, ResolvedUpdate, StateTransform, Value};
+use serde::Serialize;
+
+use crate::monitor::{describe_cause, Cause, ContainerStats, CycleRecord, ExecInfo, Monitor, ProgramId, Slot, Status};
+use crate::{Blocker, Container, Dispatcher, Provider, RuntimeError, TimingStats};
+
+/// Measures the in-cycle part of an update, injected like the clock so virtual runs stay
+/// deterministic.
+pub trait Stopwatch: Send {
+    /// Starts a measurement.
+    fn start(&mut self);
+    /// Ends it; `work` is the number of entries the install touched. Returns nanoseconds.
+    fn stop(&mut self, work: u64) -> u64;
+}
+
+/// The machine's monotonic clock.
+#[derive(Debug, Default)]
+pub struct RealStopwatch(Option<std::time::Instant>);
+
+impl Stopwatch for RealStopwatch {
+    fn start(&mut self) {
+        self.0 = Some(std::time::Instant::now());
+    }
+    fn stop(&mut self, _work: u64) -> u64 {
+        self.0.take().map_or(0, |t| t.elapsed().as_nanos() as u64)
+    }
+}
+
+/// A cost model for virtual time: `ns_per_unit` per entry touched.
+#[derive(Debug, Clone, Copy)]
+pub struct ModelStopwatch {
+    /// Nanoseconds charged per entry.
+    pub ns_per_unit: u64,
+}
+
+impl Stopwatch for ModelStopwatch {
+    fn start(&mut self) {}
+    fn stop(&mut self, work: u64) -> u64 {
+        work * self.ns_per_unit
+    }
+}
+
+/// How the candidate's marking is taken at substitution (DESIGN §4).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Default)]
+#[serde(rename_all = "snake_case")]
+pub enum SubstituteMode {
+    /// Recompute `ST·M_primary + ST_base` at the switch: consistent with the plant by construction.
+    #[default]
+    Retransform,
+    /// Keep the candidate's own marking; only when drift is 0, unless forced.
+    Keep,
+}
+
+impl std::str::FromStr for SubstituteMode {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, String> {
+        match s {
+            "retransform" => Ok(SubstituteMode::Retransform),
+            "keep" => Ok(SubstituteMode::Keep),
+            o => Err(format!("unknown substitution mode `{o}`; expected retransform or keep")),
+        }
+    }
+}
+
+/// A substitution request, its condition compiled against the primary program.
+pub struct SubstituteRequest {
+    /// Retransform (default) or keep.
+    pub mode: SubstituteMode,
+    /// Wait until this condition over the primary holds.
+    pub when: Option<(String, Guard)>,
+    /// Give up after this long (program time) when `when` never holds.
+    pub within_us: Option<u64>,
+    /// Keep even with drift.
+    pub force: bool,
+}
+
+/// An update verified, resolved and built away from the scan thread, ready to install.
+pub struct PreparedUpdate {
+    meta: PackageMeta,
+    base_hash: [u8; 32],
+    transform: StateTransform,
+    projection: Projection,
+    container: Container,
+    scratch_marking: Vec<Tokens>,
+    scratch_since: Vec<Option<u64>>,
+    in_map: Vec<usize>,
+    out_map: Vec<Option<usize>>,
+    // Candidate transition → the primary's transition of the same id.
+    to_primary: Vec<Option<TransIdx>>,
+    // Primary transition → the candidate's transition of the same id.
+    from_primary: Vec<Option<TransIdx>>,
+    work: u64,
+}
+
+impl PreparedUpdate {
+    /// The package's metadata.
+    pub fn meta(&self) -> &PackageMeta {
+        &self.meta
+    }
+}
+
+/// A command from the operator or the MCT.
+pub enum Command {
+    /// Install a prepared update into the secondary container.
+    Load(Box<PreparedUpdate>),
+    /// Make the candidate PRIMARY.
+    Substitute(SubstituteRequest),
+    /// Drop the candidate in quarantine.
+    Remove,
+    /// Cancel whatever update is under way.
+    Abort,
+    /// Leave the fault state.
+    Reset,
+}
+
+/// Something that happened, for the event stream and the audit log.
+#[derive(Clone, Debug, Serialize)]
+pub struct Event {
+    /// Cycle index at which it happened.
+    pub cycle: u64,
+    /// Program time in microseconds.
+    pub time_us: u64,
+    /// What (snake_case), e.g. `load_accepted`, `state_trans_timeout`, `substituted`.
+    pub kind: &'static str,
+    /// In words: what, why, and what to do.
+    pub message: String,
+    /// Figures that go with it (drift, install time, mode).
+    #[serde(skip_serializing_if = "serde_json::Value::is_null")]
+    pub detail: serde_json::Value,
+}
+
+/// Limits of the Updater and the watchdog.
+#[derive(Clone, Copy, Debug)]
+pub struct Limits {
+    /// stateTransTimeout: budget of the in-cycle install, in ns. Defaults to one scan period.
+    pub state_trans_timeout_ns: u64,
+    /// A candidate scan longer than this (ns) in quarantine aborts the update.
+    pub candidate_budget_ns: u64,
+    /// A primary scan longer than this (ns) is a primary fault.
+    pub watchdog_ns: u64,
+}
+
+impl Limits {
+    /// Everything at one scan period.
+    pub fn for_period_us(period_us: u64) -> Self {
+        let ns = period_us.saturating_mul(1000);
+        Limits {
+            state_trans_timeout_ns: ns,
+            candidate_budget_ns: ns,
+            watchdog_ns: ns,
+        }
+    }
+}
+
+struct Quarantine {
+    meta: PackageMeta,
+    transform: StateTransform,
+    projection: Projection,
+    to_primary: Vec<Option<TransIdx>>,
+    from_primary: Vec<Option<TransIdx>>,
+    scratch_marking: Vec<Tokens>,
+    scratch_since: Vec<Option<u64>>,
+    pending: Option<(SubstituteRequest, u64)>,
+    started_us: u64,
+}
+
+/// The PLC: two containers, PRIMARY, STATUS, the Updater and the Monitor.
+pub struct Plc {
+    slots: [Option<Container>; 2],
+    primary: Slot,
+    status: Status,
+    setup: Option<Box<PreparedUpdate>>,
+    quarantine: Option<Quarantine>,
+    // The I/O map: signal names of the Provider's and the Dispatcher's images.
+    io_inputs: Vec<String>,
+    io_outputs: Vec<String>,
+    inputs: Vec<Value>,
+    prev_inputs: Vec<Value>,
+    images: [Vec<Value>; 2],
+    in_maps: [Vec<usize>; 2],
+    out_maps: [Vec<Option<usize>>; 2],
+    io_outs: [Vec<Value>; 2],
+    dispatched: Vec<Value>,
+    safe: Vec<Value>,
+    stopwatch: Box<dyn Stopwatch>,
+    limits: Limits,
+    /// The Monitor.
+    pub monitor: Monitor,
+    events: Vec<Event>,
+    cycle: u64,
+    now_us: u64,
+    deadlock_alarmed: bool,
+    retired: Vec<Container>,
+    cycle_stats: TimingStats,
+}
+
+fn map_by_name(from: &[String], to: &[cetratus_program::Signal]) -> Vec<Option<usize>> {
+    from.iter()
+        .map(|n| to.iter().position(|s| &s.name == n))
+        .collect()
+}
+
+fn bits(values: &[Value]) -> u64 {
+    values.iter().enumerate().take(64).fold(0, |acc, (i, v)| {
+        if matches!(v, Value::Bool(true)) || matches!(v, Value::Int(x) if *x != 0) {
+            acc | (1 << i)
+        } else {
+            acc
+        }
+    })
+}
+
+impl Plc {
+    /// A PLC at cold start: A runs `program` from M0; its signals define the I/O map.
+    pub fn new(program: Arc<Program>, now_us: u64) -> Self {
+        let io_inputs: Vec<String> = program.inputs().iter().map(|s| s.name.clone()).collect();
+        let io_outputs: Vec<String> = program.outputs().iter().map(|s| s.name.clone()).collect();
+        let container = Container::new(program.clone(), now_us);
+        let mut safe = vec![Value::Bool(false); io_outputs.len()];
+        program.safe_outputs(&mut safe);
+        let limits = Limits::for_period_us(program.scan_period().as_micros() as u64);
+        let mut plc = Plc {
+            images: [container.inputs().to_vec(), Vec::new()],
+            in_maps: [(0..io_inputs.len()).collect(), Vec::new()],
+            out_maps: [(0..io_outputs.len()).map(Some).collect(), Vec::new()],
+            io_outs: [
+                vec![Value::Bool(false); io_outputs.len()],
+                vec![Value::Bool(false); io_outputs.len()],
+            ],
+            inputs: container.inputs().to_vec(),
+            prev_inputs: container.inputs().to_vec(),
+            dispatched: vec![Value::Bool(false); io_outputs.len()],
+            slots: [Some(container), None],
+            primary: Slot::A,
+            status: Status::Idle,
+            setup: None,
+            quarantine: None,
+            monitor: Monitor::new(8192, io_outputs.len()),
+            io_inputs,
+            io_outputs,
+            safe,
+            stopwatch: Box::new(RealStopwatch::default()),
+            limits,
+            events: Vec::with_capacity(64),
+            cycle: 0,
+            now_us,
+            deadlock_alarmed: false,
+            retired: Vec::with_capacity(2),
+            cycle_stats: TimingStats::new(),
+        };
+        plc.event("cold_start", format!("cold start: A runs {} {} from M0", program.name(), program.version()), serde_json::Value::Null);
+        plc
+    }
+
+    /// Replaces the stopwatch of the Updater (a cost model for virtual runs).
+    pub fn set_stopwatch(&mut self, sw: Box<dyn Stopwatch>) {
+        self.stopwatch = sw;
+    }
+    /// Sets the Updater's and the watchdog's limits.
+    pub fn set_limits(&mut self, limits: Limits) {
+        self.limits = limits;
+    }
+    /// The limits.
+    pub fn limits(&self) -> Limits {
+        self.limits
+    }
+    /// PRIMARY.
+    pub fn primary(&self) -> Slot {
+        self.primary
+    }
+    /// STATUS.
+    pub fn status(&self) -> Status {
+        self.status
+    }
+    /// Cycles run.
+    pub fn cycles(&self) -> u64 {
+        self.cycle
+    }
+    /// Program time of the last cycle.
+    pub fn now_us(&self) -> u64 {
+        self.now_us
+    }
+    /// A container, if it holds a program.
+    pub fn container(&self, slot: Slot) -> Option<&Container> {
+        self.slots[slot.index()].as_ref()
+    }
+    /// The primary container.
+    pub fn primary_container(&self) -> &Container {
+        self.slots[self.primary.index()]
+            .as_ref()
+            .expect("the primary container always holds a program")
+    }
+    /// The primary's program.
+    pub fn primary_program(&self) -> &Arc<Program> {
+        self.primary_container().program()
+    }
+    /// Input names of the I/O map.
+    pub fn io_inputs(&self) -> &[String] {
+        &self.io_inputs
+    }
+    /// Output names of the I/O map.
+    pub fn io_outputs(&self) -> &[String] {
+        &self.io_outputs
+    }
+    /// The input image of the last cycle.
+    pub fn inputs(&self) -> &[Value] {
+        &self.inputs
+    }
+    /// What the Dispatcher got in the last cycle.
+    pub fn dispatched(&self) -> &[Value] {
+        &self.dispatched
+    }
+    /// A container's outputs in I/O-map order (`None` when empty).
+    pub fn outputs_of(&self, slot: Slot) -> Option<&[Value]> {
+        self.slots[slot.index()].as_ref().map(|_| &self.io_outs[slot.index()][..])
+    }
+    /// Drift of the candidate in quarantine.
+    pub fn drift(&self) -> Option<u64> {
+        self.quarantine
+            .as_ref()
+            .map(|_| self.monitor.stats[self.primary.other().index()].drift)
+    }
+    /// Metadata of the update under way.
+    pub fn update_meta(&self) -> Option<&PackageMeta> {
+        self.setup
+            .as_ref()
+            .map(|s| &s.meta)
+            .or(self.quarantine.as_ref().map(|q| &q.meta))
+    }
+    /// Whole-cycle time (all containers, routing, Monitor).
+    pub fn cycle_stats(&self) -> &TimingStats {
+        &self.cycle_stats
+    }
+    /// Takes the events since the last call.
+    pub fn drain_events(&mut self) -> Vec<Event> {
+        std::mem::take(&mut self.events)
+    }
+    /// The events not yet drained.
+    pub fn pending_events(&self) -> &[Event] {
+        &self.events
+    }
+    /// Takes containers that left service, so they are freed away from the scan thread.
+    pub fn take_retired(&mut self) -> Vec<Container> {
+        std::mem::take(&mut self.retired)
+    }
+
+    fn event(&mut self, kind: &'static str, message: String, detail: serde_json::Value) {
+        self.events.push(Event {
+            cycle: self.cycle,
+            time_us: self.now_us,
+            kind,
+            message,
+            detail,
+        });
+    }
+
+    /// Builds an update away from the scan thread: the candidate container, its I/O maps and the
+    /// transition correspondence used by the Monitor. Refuses a candidate whose signals the I/O
+    /// map lacks.
+    pub fn prepare(
+        primary: &Program,
+        io_inputs: &[String],
+        io_outputs: &[String],
+        update: ResolvedUpdate,
+    ) -> Result<PreparedUpdate, String> {
+        let program = update.program.clone();
+        let mut in_map = Vec::with_capacity(program.inputs().len());
+        for s in program.inputs() {
+            match io_inputs.iter().position(|n| *n == s.name) {
+                Some(i) => in_map.push(i),
+                None => {
+                    return Err(format!(
+                        "the candidate reads input `{}`, which the running I/O map does not provide ({}); keep the I/O map or restart with the new program",
+                        s.name,
+                        io_inputs.join(", ")
+                    ))
+                }
+            }
+        }
+        for s in program.outputs() {
+            if !io_outputs.contains(&s.name) {
+                return Err(format!(
+                    "the candidate drives output `{}`, which the running I/O map does not have ({})",
+                    s.name,
+                    io_outputs.join(", ")
+                ));
+            }
+        }
+        let out_map = map_by_name(io_outputs, program.outputs());
+        let (pn, cn) = (primary.net(), program.net());
+        let to_primary = cn
+            .transitions()
+            .iter()
+            .map(|t| pn.transition_by_id(&t.id))
+            .collect();
+        let from_primary = pn
+            .transitions()
+            .iter()
+            .map(|t| cn.transition_by_id(&t.id))
+            .collect();
+        let np = cn.num_places();
+        let work = (update.transform.rows() + update.transform.cols() + np + cn.num_transitions()) as u64;
+        Ok(PreparedUpdate {
+            base_hash: primary.hash(),
+            container: Container::new(program, 0),
+            scratch_marking: vec![0; np],
+            scratch_since: vec![None; np],
+            in_map,
+            out_map,
+            to_primary,
+            from_primary,
+            work,
+            meta: update.meta,
+            transform: update.transform,
+            projection: update.projection,
+        })
+    }
+
+    /// Accepts or refuses a command. Accepted commands take effect at the next cycle boundary;
+    /// every refusal is also an event with its reason.
+    pub fn command(&mut self, cmd: Command) -> Result<(), String> {
+        let res = self.command_inner(cmd);
+        if let Err(reason) = &res {
+            self.event("refused", reason.clone(), serde_json::Value::Null);
+        }
+        res
+    }
+
+    fn command_inner(&mut self, cmd: Command) -> Result<(), String> {
+        match cmd {
+            Command::Load(p) => {
+                match self.status {
+                    Status::Idle => {}
+                    Status::Fault => return Err("load refused: the PLC is in fault; reset it first".into()),
+                    s => return Err(format!("load refused: an update is already under way (status {}); substitute, remove or abort it first", s.name())),
+                }
+                if p.base_hash != self.primary_program().hash() {
+                    return Err("load refused: the update was prepared against another running program; load it again".into());
+                }
+                let msg = format!("load accepted: {} {} goes into {} at the next cycle", p.meta.name, p.meta.version, self.primary.other().name());
+                self.setup = Some(p);
+                self.status = Status::Setup;
+                self.event("load_accepted", msg, serde_json::Value::Null);
+                Ok(())
+            }
+            Command::Substitute(req) => {
+                if self.status != Status::Quarantine {
+                    return Err(format!("substitute refused: no candidate in quarantine (status {})", self.status.name()));
+                }
+                let q = self.quarantine.as_mut().expect("quarantine state exists in quarantine");
+                if q.pending.is_some() {
+                    return Err("substitute refused: a substitution is already waiting; abort it first".into());
+                }
+                let deadline = req.within_us.map_or(u64::MAX, |w| self.now_us.saturating_add(w));
+                let msg = match &req.when {
+                    Some((text, _)) => format!("substitution waits for `{text}`"),
+                    None => "substitution at the next cycle".to_string(),
+                };
+                q.pending = Some((req, deadline));
+                self.event("substitute_accepted", msg, serde_json::Value::Null);
+                Ok(())
+            }
+            Command::Remove => {
+                if self.status != Status::Quarantine {
+                    return Err(format!("remove refused: no candidate in quarantine (status {})", self.status.name()));
+                }
+                self.drop_candidate("removed", "the candidate was removed by the operator".into());
+                Ok(())
+            }
+            Command::Abort => match self.status {
+                Status::Setup => {
+                    self.setup = None;
+                    self.status = Status::Idle;
+                    self.event("aborted", "the update was aborted before its install".into(), serde_json::Value::Null);
+                    Ok(())
+                }
+                Status::Quarantine => {
+                    self.drop_candidate("aborted", "the update was aborted; the candidate is removed".into());
+                    Ok(())
+                }
+                s => Err(format!("abort refused: no update under way (status {})", s.name())),
+            },
+            Command::Reset => {
+                if self.status != Status::Fault {
+                    return Err(format!("reset refused: the PLC is not in fault (status {})", self.status.name()));
+                }
+                self.status = Status::Idle;
+                self.event("reset", "fault reset by the operator: the primary resumes from its last good state".into(), serde_json::Value::Null);
+                Ok(())
+            }
+        }
+    }
+
+    fn drop_candidate(&mut self, kind: &'static str, message: String) {
+        let other = self.primary.other().index();
+        if let Some(c) = self.slots[other].take() {
+            self.retired.push(c);
+        }
+        self.quarantine = None;
+        self.status = Status::Idle;
+        self.event(kind, message, serde_json::Value::Null);
+    }
+
+    /// One cycle at program time `now_us`.
+    pub fn cycle<IO: Provider + Dispatcher>(&mut self, now_us: u64, io: &mut IO) {
+        let t0 = std::time::Instant::now();
+        self.now_us = now_us;
+        self.boundary(now_us);
+        self.prev_inputs.copy_from_slice(&self.inputs);
+        io.read_inputs(now_us, &mut self.inputs);
+
+        if self.status == Status::Fault {
+            io.write_outputs(now_us, &self.safe);
+            self.dispatched.copy_from_slice(&self.safe);
+            self.record(now_us);
+            self.cycle += 1;
+            return;
+        }
+
+        // Primary.
+        let p = self.primary.index();
+        if let Err(e) = self.scan_slot(p, now_us) {
+            self.primary_fault(format!("primary {} faulted: {e}", self.primary.name()), io);
+            self.record(now_us);
+            self.cycle += 1;
+            return;
+        }
+
+        // Candidate, isolated: an error, a panic, an invalid marking or an overrun aborts the update.
+        if self.status == Status::Quarantine {
+            let c = self.primary.other().index();
+            let started = std::time::Instant::now();
+            let outcome = catch_unwind(AssertUnwindSafe(|| self.scan_slot(c, now_us)));
+            let took = started.elapsed().as_nanos() as u64;
+            let fault = match outcome {
+                Err(panic) => Some(format!(
+                    "candidate panicked: {}",
+                    panic
+                        .downcast_ref::<&str>()
+                        .map(|s| s.to_string())
+                        .or_else(|| panic.downcast_ref::<String>().cloned())
+                        .unwrap_or_else(|| "unknown panic".into())
+                )),
+                Ok(Err(e)) => Some(format!("candidate faulted: {e}")),
+                Ok(Ok(())) => {
+                    let cand = self.slots[c].as_ref().expect("candidate present in quarantine");
+                    if let Err(v) = cand.program().check_invariants(cand.marking()) {
+                        Some(format!("candidate reached an invalid marking: {v}"))
+                    } else if took > self.limits.candidate_budget_ns {
+                        Some(format!(
+                            "candidate scan took {} µs, over its budget of {} µs",
+                            took / 1000,
+                            self.limits.candidate_budget_ns / 1000
+                        ))
+                    } else {
+                        None
+                    }
+                }
+            };
+            if let Some(reason) = fault {
+                self.drop_candidate("candidate_fault", format!("{reason}; the update is aborted and the primary goes on"));
+            } else {
+                self.monitor_quarantine(now_us);
+            }
+        }
+
+        // Dispatcher: PRIMARY's outputs only.
+        self.dispatched.copy_from_slice(&self.io_outs[p]);
+        io.write_outputs(now_us, &self.dispatched);
+
+        // Deadlock alarm: no transition enabled while the inputs change.
+        let deadlocked = self.primary_container().engine().enabled().is_empty();
+        self.monitor.stats[p].deadlocked = deadlocked;
+        if !deadlocked {
+            self.deadlock_alarmed = false;
+        } else if !self.deadlock_alarmed && self.inputs != self.prev_inputs {
+            self.deadlock_alarmed = true;
+            self.event("deadlock_alarm", format!("primary {} is deadlocked: no transition is enabled while its inputs change", self.primary.name()), serde_json::Value::Null);
+        }
+        self.record(now_us);
+        self.cycle += 1;
+        self.cycle_stats.record(t0.elapsed().as_nanos() as u64);
+    }
+
+    fn scan_slot(&mut self, i: usize, now_us: u64) -> Result<(), RuntimeError> {
+        for (v, &j) in self.images[i].iter_mut().zip(&self.in_maps[i]) {
+            *v = self.inputs[j];
+        }
+        let c = self.slots[i].as_mut().expect("scanned slots hold a program");
+        #[cfg(feature = "fault-injection")]
+        crate::inject::before_scan(c.program().name(), c.program().version())?;
+        let t = std::time::Instant::now();
+        let r = c.scan(now_us, &self.images[i]);
+        let took = t.elapsed().as_nanos() as u64;
+        self.monitor.stats[i].scan.record(took);
+        r?;
+        for (o, m) in self.io_outs[i].iter_mut().zip(&self.out_maps[i]) {
+            *o = m.map_or(Value::Bool(false), |k| c.outputs()[k]);
+        }
+        if i == self.primary.index() && took > self.limits.watchdog_ns {
+            return Err(RuntimeError::Watchdog {
+                took_us: took / 1000,
+                limit_us: self.limits.watchdog_ns / 1000,
+            });
+        }
+        Ok(())
+    }
+
+    fn primary_fault<IO: Dispatcher>(&mut self, message: String, io: &mut IO) {
+        io.write_outputs(self.now_us, &self.safe);
+        self.dispatched.copy_from_slice(&self.safe);
+        if self.status == Status::Quarantine || self.status == Status::Setup {
+            let other = self.primary.other().index();
+            if let Some(c) = self.slots[other].take() {
+                self.retired.push(c);
+            }
+            self.quarantine = None;
+            self.setup = None;
+            self.event("update_discarded", "the update under way is discarded because the primary faulted".into(), serde_json::Value::Null);
+        }
+        self.status = Status::Fault;
+        self.event("primary_fault", format!("{message}; safe output values are driven until an operator resets"), serde_json::Value::Null);
+    }
+
+    fn monitor_quarantine(&mut self, now_us: u64) {
+        let p = self.primary.index();
+        let c = self.primary.other().index();
+        let q = self.quarantine.as_ref().expect("quarantine state exists in quarantine");
+        let (pc, cc) = (
+            self.slots[p].as_ref().expect("primary present"),
+            self.slots[c].as_ref().expect("candidate present"),
+        );
+        let drift = q.projection.drift(cc.marking(), pc.marking());
+        let stats = &mut self.monitor.stats[c];
+        stats.drift = drift;
+        stats.max_drift = stats.max_drift.max(drift);
+        stats.deadlocked = cc.engine().enabled().is_empty();
+
+        // Divergence per signal, and its derived cause.
+        let mut differs = false;
+        for (k, (a, b)) in self.io_outs[p].iter().zip(&self.io_outs[c]).enumerate() {
+            if a != b {
+                stats.divergent_cycles[k] += 1;
+                differs = true;
+            }
+        }
+        let fired_diff = Self::first_difference(pc, cc, &q.to_primary, &q.from_primary, self.primary);
+        if let Some((slot, t)) = fired_diff {
+            let (fired, other, other_t) = if slot == self.primary {
+                (pc, cc, q.from_primary[t.index()])
+            } else {
+                (cc, pc, q.to_primary[t.index()])
+            };
+            let _ = fired;
+            let blocked = other_t.map_or(Blocker::Absent, |u| other.blocker(u));
+            let cause = Cause {
+                cycle: self.cycle,
+                time_us: now_us,
+                fired_in: slot,
+                transition: t,
+                blocked,
+            };
+            if differs || stats.last_cause.is_none() {
+                stats.last_cause = Some(cause);
+                if stats.first_cause.is_none() {
+                    stats.first_cause = Some(cause);
+                }
+            }
+        }
+    }
+
+    /// The first transition (in firing order) that fired in one container and not in the other.
+    fn first_difference(
+        pc: &Container,
+        cc: &Container,
+        to_primary: &[Option<TransIdx>],
+        from_primary: &[Option<TransIdx>],
+        primary: Slot,
+    ) -> Option<(Slot, TransIdx)> {
+        for &t in pc.fired() {
+            let mapped = from_primary[t.index()];
+            if !mapped.is_some_and(|u| cc.fired().contains(&u)) {
+                return Some((primary, t));
+            }
+        }
+        for &t in cc.fired() {
+            let mapped = to_primary[t.index()];
+            if !mapped.is_some_and(|u| pc.fired().contains(&u)) {
+                return Some((primary.other(), t));
+            }
+        }
+        None
+    }
+
+    fn record(&mut self, now_us: u64) {
+        let out = |s: Slot| self.slots[s.index()].as_ref().map(|_| bits(&self.io_outs[s.index()]));
+        let r = CycleRecord {
+            cycle: self.cycle,
+            time_us: now_us,
+            primary: self.primary,
+            status: self.status,
+            inputs: bits(&self.inputs),
+            outputs_a: out(Slot::A),
+            outputs_b: out(Slot::B),
+            dispatched: bits(&self.dispatched),
+        };
+        self.monitor.record(r);
+    }
+
+    /// What is due at the cycle boundary: an install, a substitution, a substitution's timeout.
+    fn boundary(&mut self, now_us: u64) {
+        if self.status == Status::Setup {
+            self.install(now_us);
+        }
+        if self.status == Status::Quarantine {
+            self.try_substitute(now_us);
+        }
+    }
+
+    fn install(&mut self, now_us: u64) {
+        let Some(mut up) = self.setup.take() else {
+            return;
+        };
+        let primary = self.slots[self.primary.index()].as_ref().expect("primary present");
+        self.stopwatch.start();
+        let result = up
+            .transform
+            .apply(primary.marking(), up.container.program(), &mut up.scratch_marking)
+            .map_err(|e| e.to_string())
+            .and_then(|()| {
+                up.transform.apply_timers(
+                    primary.place_since_us(),
+                    &up.scratch_marking,
+                    now_us,
+                    &mut up.scratch_since,
+                );
+                up.container
+                    .set_state(&up.scratch_marking, &up.scratch_since)
+                    .map_err(|e| e.to_string())
+            });
+        let took = self.stopwatch.stop(up.work);
+        if let Err(reason) = result {
+            self.status = Status::Idle;
+            self.event("transform_refused", format!("state transformation refused: {reason}; the secondary is emptied and the primary goes on"), serde_json::Value::Null);
+            return;
+        }
+        if took > self.limits.state_trans_timeout_ns {
+            self.status = Status::Idle;
+            self.event(
+                "state_trans_timeout",
+                format!(
+                    "stateTransTimeout: the install took {} ns, over its budget of {} ns; the update is aborted and the primary goes on",
+                    took, self.limits.state_trans_timeout_ns
+                ),
+                serde_json::json!({ "install_ns": took, "budget_ns": self.limits.state_trans_timeout_ns }),
+            );
+            return;
+        }
+        let s = self.primary.other().index();
+        let up = *up;
+        self.images[s] = up.container.inputs().to_vec();
+        self.in_maps[s] = up.in_map;
+        self.out_maps[s] = up.out_map;
+        self.monitor.stats[s] = ContainerStats::new(self.io_outputs.len());
+        let name = format!("{} {}", up.meta.name, up.meta.version);
+        self.slots[s] = Some(up.container);
+        self.quarantine = Some(Quarantine {
+            meta: up.meta,
+            transform: up.transform,
+            projection: up.projection,
+            to_primary: up.to_primary,
+            from_primary: up.from_primary,
+            scratch_marking: up.scratch_marking,
+            scratch_since: up.scratch_since,
+            pending: None,
+            started_us: now_us,
+        });
+        self.status = Status::Quarantine;
+        self.event(
+            "quarantine_started",
+            format!("{name} installed in {} within one cycle; it runs in quarantine, its outputs withheld", self.primary.other().name()),
+            serde_json::json!({ "install_ns": took, "budget_ns": self.limits.state_trans_timeout_ns }),
+        );
+    }
+
+    fn try_substitute(&mut self, now_us: u64) {
+        let p = self.primary.index();
+        let c = self.primary.other().index();
+        let Some(q) = self.quarantine.as_mut() else {
+            return;
+        };
+        let Some((req, deadline)) = q.pending.as_ref() else {
+            return;
+        };
+        let primary = self.slots[p].as_ref().expect("primary present");
+        if let Some((text, guard)) = &req.when {
+            let ctx = EvalCtx {
+                inputs: primary.inputs(),
+                prev_inputs: primary.inputs(),
+                vars: primary.variables(),
+                marking: primary.marking(),
+                place_since_us: primary.place_since_us(),
+                now_us,
+            };
+            let holds = guard.eval(&ctx).unwrap_or(false);
+            if !holds {
+                if now_us >= *deadline {
+                    let msg = format!("substitution given up: `{text}` did not hold within the time allowed; the candidate stays in quarantine");
+                    q.pending = None;
+                    self.event("substitute_timeout", msg, serde_json::Value::Null);
+                }
+                return;
+            }
+        }
+        let (mode, force) = (req.mode, req.force);
+        let drift = self.monitor.stats[c].drift;
+        if mode == SubstituteMode::Keep && drift != 0 && !force {
+            q.pending = None;
+            self.event("refused", format!("substitute refused: mode keep needs drift 0 but the candidate has drifted by {drift} tokens; use retransform, or force"), serde_json::json!({ "drift": drift }));
+            return;
+        }
+        if mode == SubstituteMode::Retransform {
+            let res = q
+                .transform
+                .apply(primary.marking(), self.slots[c].as_ref().expect("candidate present").program(), &mut q.scratch_marking)
+                .map_err(|e| e.to_string());
+            if let Err(reason) = res {
+                q.pending = None;
+                self.event("refused", format!("substitute refused: the retransform failed: {reason}; the candidate stays in quarantine"), serde_json::Value::Null);
+                return;
+            }
+            q.transform.apply_timers(primary.place_since_us(), &q.scratch_marking, now_us, &mut q.scratch_since);
+            let cand = self.slots[c].as_mut().expect("candidate present");
+            if let Err(e) = cand.set_state(&q.scratch_marking, &q.scratch_since) {
+                q.pending = None;
+                self.event("refused", format!("substitute refused: {e}"), serde_json::Value::Null);
+                return;
+            }
+        }
+        let meta = q.meta.clone();
+        let started = q.started_us;
+        self.quarantine = None;
+        let old = self.primary;
+        self.primary = old.other();
+        if let Some(c) = self.slots[old.index()].take() {
+            self.retired.push(c);
+        }
+        self.status = Status::Idle;
+        self.event(
+            "substituted",
+            format!(
+                "PRIMARY = {}: {} {} drives the outputs ({} mode, drift {} at the switch, {:.1} s in quarantine); {} stops",
+                self.primary.name(),
+                meta.name,
+                meta.version,
+                match mode {
+                    SubstituteMode::Retransform => "retransform",
+                    SubstituteMode::Keep => "keep",
+                },
+                drift,
+                (now_us - started) as f64 / 1e6,
+                old.name()
+            ),
+            serde_json::json!({ "drift": drift, "mode": mode }),
+        );
+    }
+
+    /// `program_exec_info` of both containers.
+    pub fn exec_info(&self) -> [Option<ExecInfo>; 2] {
+        let describe = |s: &ContainerStats, slot: Slot| -> (Option<String>, Option<String>) {
+            let text = |c: &Option<Cause>| {
+                c.as_ref().and_then(|cause| {
+                    let fired = self.slots[cause.fired_in.index()].as_ref()?;
+                    let other = self.slots[cause.fired_in.other().index()].as_ref()?;
+                    Some(describe_cause(cause, fired, other))
+                })
+            };
+            let _ = slot;
+            (text(&s.first_cause), text(&s.last_cause))
+        };
+        [Slot::A, Slot::B].map(|slot| {
+            let c = self.slots[slot.index()].as_ref()?;
+            let s = &self.monitor.stats[slot.index()];
+            let net = c.program().net();
+            let is_primary = slot == self.primary;
+            let (first_cause, last_cause) = if is_primary { (None, None) } else { describe(s, slot) };
+            Some(ExecInfo {
+                container: slot,
+                role: if is_primary { "primary" } else { "candidate" },
+                program: ProgramId::of(c),
+                cycles: c.scans(),
+                scan: s.scan.summary(),
+                firings: net
+                    .transitions()
+                    .iter()
+                    .zip(c.firings())
+                    .map(|(t, &n)| (t.id.clone(), n))
+                    .collect(),
+                marking: net
+                    .places()
+                    .iter()
+                    .zip(c.marking())
+                    .map(|(p, &m)| (p.id.clone(), m))
+                    .collect(),
+                outputs: c
+                    .program()
+                    .outputs()
+                    .iter()
+                    .zip(c.outputs())
+                    .map(|(s, v)| (s.name.clone(), value_json(*v)))
+                    .collect(),
+                divergence: if is_primary {
+                    Default::default()
+                } else {
+                    self.io_outputs
+                        .iter()
+                        .zip(&s.divergent_cycles)
+                        .filter(|(_, &n)| n > 0)
+                        .map(|(n, &k)| (n.clone(), k))
+                        .collect()
+                },
+                first_cause,
+                last_cause,
+                drift: if is_primary { 0 } else { s.drift },
+                max_drift: if is_primary { 0 } else { s.max_drift },
+                deadlock: s.deadlocked,
+                verdicts: Vec::new(),
+            })
+        })
+    }
+}
+
+/// A value as plain JSON.
+pub fn value_json(v: Value) -> serde_json::Value {
+    match v {
+        Value::Bool(b) => b.into(),
+        Value::Int(i) => i.into(),
+        Value::Real(x) => x.into(),
+    }
+}

@@ -15,7 +15,8 @@
 //! A set of keys is an open-addressing, linear-probing hash table of the keys themselves (load at
 //! most 3/4), so a lookup costs one cache miss. Each state also records its BFS parent (4 bytes)
 //! for the shortest deadlock witness. For the liveness pass the table also keeps the id of every
-//! slot (4 bytes per slot). At Kanban N=5 that is 8 (state) + 4 (parent) + ≈13 (table) bytes.
+//! slot (4 bytes per slot). At Kanban N=5 that is 8 (state) + 4 (parent) + ≈13 (table) bytes per
+//! state at the end, 27 at the peak (while the table doubles, both tables are alive).
 
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;

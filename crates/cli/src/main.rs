@@ -6,6 +6,7 @@
 mod bench;
 mod check;
 mod convert;
+mod demo;
 mod duration;
 mod run;
 mod sim;
@@ -28,6 +29,8 @@ enum Command {
     Convert(convert::ConvertArgs),
     /// Analyse a net: invariants, reachability, deadlocks, boundedness, liveness.
     Check(check::CheckArgs),
+    /// The paper's U.1/U.2 live-update experiment on the Vernadat cell.
+    Demo(demo::DemoArgs),
     /// Run a program against a digital twin, in virtual or real time.
     Run(run::RunArgs),
     /// Measure the figures in docs/performance.md.
@@ -40,6 +43,7 @@ fn main() -> std::process::ExitCode {
         Command::Sim(a) => sim::run(a),
         Command::Convert(a) => convert::run(a),
         Command::Check(a) => check::run(a),
+        Command::Demo(a) => demo::run(a),
         Command::Run(a) => run::run(a),
         Command::Bench(a) => bench::run(a),
     };

@@ -5,6 +5,10 @@
 //! every name, type-checks and compiles every guard, and checks the declared invariants at M0, so
 //! a `Program` that exists is ready to run: [`Program::eval_guard`] and [`ActionState::apply`]
 //! never allocate. The file format is documented in `docs/program-format.md`.
+//!
+//! Live updates: [`transform`] holds the state transformation `M_new = ST·M_old + ST_base` and the
+//! projection used to measure drift; [`package`] holds the signed update package that carries a new
+//! program and its transformation (`docs/package-format.md`).
 
 #![warn(missing_docs)]
 
@@ -12,8 +16,10 @@ mod action;
 mod error;
 pub mod guard;
 mod invariant;
+pub mod package;
 mod program;
 mod source;
+pub mod transform;
 mod value;
 
 use std::path::Path;
@@ -22,7 +28,12 @@ pub use action::{Action, ActionState, Qualifier, Target};
 pub use error::ProgramError;
 pub use guard::{EvalCtx, EvalError, EvalErrorKind, Guard};
 pub use invariant::{Invariant, InvariantViolation};
+pub use package::{
+    build_package, BuildReport, KeyPair, PackageError, PackageMeta, ResolvedUpdate, TransformSpec,
+    TrustStore, UpdatePackage, VerifyingKeyFile,
+};
 pub use program::{Program, DEFAULT_SCAN_PERIOD, TOOL};
+pub use transform::{DenseMatrix, Projection, StateTransform, TransformError};
 pub use value::{Signal, Type, Value};
 
 use cetratus_net::Net;

@@ -1,4 +1,5 @@
-//! `Program::eval_guard`, `Program::check_invariants` and `ActionState::apply` never allocate.
+//! `Program::eval_guard`, `Program::check_invariants`, `ActionState::apply`,
+//! `StateTransform::apply` and `Projection::drift` never allocate.
 //!
 //! Counting allocations needs a `#[global_allocator]`, and implementing `GlobalAlloc` is an
 //! `unsafe impl`: this one test file therefore allows unsafe code. The allocator only forwards
@@ -101,4 +102,45 @@ fn evaluating_guards_and_applying_actions_does_not_allocate() {
     );
     assert!(inv.is_ok());
     assert_eq!(out, [Value::Bool(false), Value::Bool(true)]);
+}
+
+#[test]
+fn applying_a_state_transform_and_measuring_drift_does_not_allocate() {
+    use std::collections::BTreeMap;
+    use std::path::Path;
+
+    use cetratus_program::{Program, Projection, StateTransform};
+
+    let example = |name: &str| {
+        let path = Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("../../examples/vernadat")
+            .join(name);
+        Program::load(&path).unwrap_or_else(|e| panic!("{e}"))
+    };
+    let (old, new) = (example("vernadat.toml"), example("u2.toml"));
+    let st = StateTransform::generated(&old, &new, &BTreeMap::new())
+        .unwrap_or_else(|e| panic!("{e}"));
+    let pi = Projection::generated(old.net(), new.net());
+    let m_old = old.net().initial_marking();
+    let since_old = [Some(5u64); 13];
+    let mut m_new = [0u32; 15];
+    let mut since_new = [None; 15];
+    let mut result = Ok(());
+    let mut drift = u64::MAX;
+    let n = allocations_during(|| {
+        for _ in 0..100 {
+            result = st.apply(m_old.as_slice(), &new, &mut m_new);
+            st.apply_timers(&since_old, &m_new, 1_000, &mut since_new);
+            drift = pi.drift(&m_new, m_old.as_slice());
+        }
+    });
+    let a = allocations_during(|| { result = st.apply(m_old.as_slice(), &new, &mut m_new); });
+    let b = allocations_during(|| { st.apply_timers(&since_old, &m_new, 1_000, &mut since_new); });
+    let c = allocations_during(|| { drift = pi.drift(&m_new, m_old.as_slice()); });
+    eprintln!("{a} {b} {c} {result:?}");
+    assert_eq!(n, 0, "allocations at the cycle boundary");
+    assert!(result.is_ok());
+    assert_eq!(drift, 0);
+    assert_eq!(since_new[0], Some(5), "H is kept and keeps its timer");
+    assert_eq!(since_new[13], None, "P30 is empty");
 }

@@ -294,6 +294,23 @@ impl Container {
         }
     }
 
+    /// The S/R latches of the action state, in the program's action-target order.
+    pub fn latches(&self) -> &[bool] {
+        self.actions.latches()
+    }
+
+    /// Restores variables and latches (warm start).
+    pub fn restore_retained(&mut self, vars: &[Value], latches: &[bool]) {
+        for ((v, s), new) in self.vars.iter_mut().zip(self.program.variables()).zip(vars) {
+            if s.retain && new.ty() == s.ty {
+                *v = *new;
+            }
+        }
+        if latches.len() == self.actions.latches().len() {
+            self.actions.set_latches(latches);
+        }
+    }
+
     /// Writes the program's declared safe output values into `out`.
     pub fn safe_outputs(&self, out: &mut [Value]) {
         self.program.safe_outputs(out);

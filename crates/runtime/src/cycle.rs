@@ -20,10 +20,7 @@ pub struct ScanCycle {
     safe: Vec<Value>,
     period_us: u64,
     scan: TimingStats,
-    cycle: TimingStats,
-    latency: TimingStats,
-    overruns: u64,
-    last_start: Option<Instant>,
+    timing: LoopTiming,
 }
 
 /// The timing figures of a run, in nanoseconds.
@@ -56,10 +53,7 @@ impl ScanCycle {
             safe,
             period_us: period_us.max(1),
             scan: TimingStats::new(),
-            cycle: TimingStats::new(),
-            latency: TimingStats::new(),
-            overruns: 0,
-            last_start: None,
+            timing: LoopTiming::default(),
         }
     }
 
@@ -84,9 +78,9 @@ impl ScanCycle {
             cycles: self.scan.summary().count,
             period_us: self.period_us,
             scan: self.scan.summary(),
-            cycle: self.cycle.summary(),
-            latency: self.latency.summary(),
-            overruns: self.overruns,
+            cycle: self.timing.cycle.summary(),
+            latency: self.timing.latency.summary(),
+            overruns: self.timing.overruns,
         }
     }
 
@@ -137,43 +131,85 @@ impl ScanCycle {
         io: &mut IO,
         mut observe: impl FnMut(&ScanCycle, u64, &mut IO),
     ) -> Result<u64, RuntimeError> {
-        let speed = if speed.is_finite() && speed > 0.0 {
-            speed
+        let period_us = self.period_us;
+        let mut timing = std::mem::take(&mut self.timing);
+        let mut result = Ok(());
+        let reached = run_periodic(period_us, until_us, speed, stop, &mut timing, |now_us| {
+            match self.cycle(now_us, io) {
+                Ok(_) => {
+                    observe(self, now_us, io);
+                    true
+                }
+                Err(e) => {
+                    result = Err(e);
+                    false
+                }
+            }
+        });
+        self.timing = timing;
+        result.map(|()| reached)
+    }
+}
+
+/// What the real-time loop measures: cycle time (start to start), latency (actual start minus
+/// planned start) and overruns.
+#[derive(Clone, Debug, Default)]
+pub struct LoopTiming {
+    /// Start to start.
+    pub cycle: TimingStats,
+    /// Actual start minus planned start.
+    pub latency: TimingStats,
+    /// Cycles whose body ran past the next planned start.
+    pub overruns: u64,
+}
+
+/// Calls `body(now_us)` every `period_us` of program time, sleeping to absolute deadlines of the
+/// wall clock (`speed` program seconds per wall second), until `until_us`, until `stop` is set or
+/// until `body` returns false. A cycle that overruns skips the deadlines already missed instead
+/// of running a burst of late cycles. Returns the program time reached.
+pub fn run_periodic(
+    period_us: u64,
+    until_us: u64,
+    speed: f64,
+    stop: &AtomicBool,
+    timing: &mut LoopTiming,
+    mut body: impl FnMut(u64) -> bool,
+) -> u64 {
+    let speed = if speed.is_finite() && speed > 0.0 { speed } else { 1.0 };
+    let wall_period = Duration::from_secs_f64(period_us.max(1) as f64 / 1e6 / speed);
+    let origin = Instant::now();
+    let mut last_start: Option<Instant> = None;
+    let mut k: u64 = 0;
+    loop {
+        let now_us = k * period_us;
+        if now_us >= until_us || stop.load(Ordering::Relaxed) {
+            return now_us;
+        }
+        let planned = origin + wall_period.mul_f64(k as f64);
+        let before = Instant::now();
+        if planned > before {
+            std::thread::sleep(planned - before);
+        }
+        let start = Instant::now();
+        timing
+            .latency
+            .record(start.saturating_duration_since(planned).as_nanos() as u64);
+        if let Some(last) = last_start {
+            timing.cycle.record((start - last).as_nanos() as u64);
+        }
+        last_start = Some(start);
+        if !body(now_us) {
+            return now_us;
+        }
+        let next = planned + wall_period;
+        let end = Instant::now();
+        if end > next {
+            timing.overruns += 1;
+            let behind = (end - planned).as_secs_f64() / wall_period.as_secs_f64();
+            k += behind.floor().max(1.0) as u64;
         } else {
-            1.0
-        };
-        let wall_period = Duration::from_secs_f64(self.period_us as f64 / 1e6 / speed);
-        let origin = Instant::now();
-        let mut k: u64 = 0;
-        loop {
-            let now_us = k * self.period_us;
-            if now_us >= until_us || stop.load(Ordering::Relaxed) {
-                return Ok(now_us);
-            }
-            let planned = origin + wall_period.mul_f64(k as f64);
-            let before = Instant::now();
-            if planned > before {
-                std::thread::sleep(planned - before);
-            }
-            let start = Instant::now();
-            self.latency
-                .record(start.saturating_duration_since(planned).as_nanos() as u64);
-            if let Some(last) = self.last_start {
-                self.cycle.record((start - last).as_nanos() as u64);
-            }
-            self.last_start = Some(start);
-            self.cycle(now_us, io)?;
-            observe(self, now_us, io);
-            let next = planned + wall_period;
-            let end = Instant::now();
-            if end > next {
-                self.overruns += 1;
-                // Skip the deadlines already missed rather than running a burst of late cycles.
-                let behind = (end - planned).as_secs_f64() / wall_period.as_secs_f64();
-                k += behind.floor().max(1.0) as u64;
-            } else {
-                k += 1;
-            }
+            k += 1;
         }
     }
+
 }

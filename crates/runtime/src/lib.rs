@@ -22,9 +22,9 @@ pub mod trace;
 
 pub use clock::{Clock, RealClock, VirtualClock};
 pub use container::{Blocker, Container, ScanOutcome};
-pub use cycle::{CycleFigures, ScanCycle};
+pub use cycle::{run_periodic, CycleFigures, LoopTiming, ScanCycle};
 pub use error::RuntimeError;
 pub use io::{Dispatcher, Provider};
 pub use monitor::{Slot, Status};
-pub use plc::{Command, Event, Limits, Plc, PreparedUpdate, SubstituteMode, SubstituteRequest};
+pub use plc::{Command, Event, Limits, Plc, PreparedUpdate, SubstituteMode, SubstituteRequest, UpdateContext};
 pub use stats::{Summary, TimingStats};

@@ -10,7 +10,7 @@ use serde::Serialize;
 use crate::{Blocker, Container, Summary, TimingStats};
 
 /// A program container: A or B.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize, serde::Deserialize)]
 pub enum Slot {
     /// Container A (PRIMARY at boot).
     A,
@@ -54,7 +54,7 @@ impl std::str::FromStr for Slot {
 }
 
 /// STATUS: whether an update is under way (DESIGN §4), or the PLC is in fault.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize, serde::Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum Status {
     /// No update under way.
@@ -237,12 +237,12 @@ pub fn describe_cause(cause: &Cause, fired: &Container, other: &Container) -> St
     let t = &fired.program().net().transition(cause.transition).id;
     let (a, b) = (cause.fired_in.name(), cause.fired_in.other().name());
     let why = match cause.blocked {
-        Blocker::Place(p) => format!("blocked by place {}", other.program().net().place(p).id),
-        Blocker::Inhibitor(p) => format!("inhibited by place {}", other.program().net().place(p).id),
-        Blocker::Capacity(p) => format!("blocked by the capacity of place {}", other.program().net().place(p).id),
+        Blocker::Place(p) => format!("it was blocked by {}", other.program().net().place(p).id),
+        Blocker::Inhibitor(p) => format!("it was inhibited by {}", other.program().net().place(p).id),
+        Blocker::Capacity(p) => format!("it was blocked by the capacity of {}", other.program().net().place(p).id),
         Blocker::Guard => "its guard was false".to_string(),
         Blocker::Conflict => "it lost a conflict to a transition of higher rank".to_string(),
-        Blocker::Absent => "it does not exist there".to_string(),
+        Blocker::Absent => "it does not exist".to_string(),
     };
     format!("{t} fired in {a} only; in {b} {why}")
 }

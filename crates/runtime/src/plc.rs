@@ -10,7 +10,10 @@ use std::panic::{catch_unwind, AssertUnwindSafe};
 use std::sync::Arc;
 
 use cetratus_net::{Tokens, TransIdx};
-use cetratus_program::{EvalCtx, Guard, PackageMeta, Program, Projection, ResolvedUpdate, StateTransform, Value};
+use cetratus_program::{
+    EvalCtx, Guard, PackageMeta, Program, Projection, ResolvedUpdate, StateTransform, TrustStore,
+    UpdatePackage, Value,
+};
 use serde::Serialize;
 
 use crate::monitor::{describe_cause, Cause, ContainerStats, CycleRecord, ExecInfo, Monitor, ProgramId, Slot, Status};
@@ -108,6 +111,36 @@ impl PreparedUpdate {
     /// The package's metadata.
     pub fn meta(&self) -> &PackageMeta {
         &self.meta
+    }
+}
+
+/// What building an update needs from the running PLC, cloned so it can be done on any thread.
+#[derive(Clone)]
+pub struct UpdateContext {
+    /// The running primary program.
+    pub primary: Arc<Program>,
+    /// Input names of the I/O map.
+    pub io_inputs: Vec<String>,
+    /// Output names of the I/O map.
+    pub io_outputs: Vec<String>,
+}
+
+impl UpdateContext {
+    /// Verifies a package file against the trusted keys, resolves it against the running program
+    /// and builds the candidate container: everything but the in-cycle install.
+    pub fn prepare_package(
+        &self,
+        bytes: &[u8],
+        trust: &TrustStore,
+        allow_unsigned: bool,
+        force: bool,
+    ) -> Result<PreparedUpdate, String> {
+        let pkg = UpdatePackage::verify(bytes, trust, allow_unsigned).map_err(|e| format!("package refused: {e}"))?;
+        let resolved = pkg
+            .resolve(&self.primary, force)
+            .map_err(|e| format!("package refused: {e}"))?;
+        Plc::prepare(&self.primary, &self.io_inputs, &self.io_outputs, resolved)
+            .map_err(|e| format!("package refused: {e}"))
     }
 }
 
@@ -262,6 +295,15 @@ impl Plc {
         };
         plc.event("cold_start", format!("cold start: A runs {} {} from M0", program.name(), program.version()), serde_json::Value::Null);
         plc
+    }
+
+    /// What an update needs to be prepared away from the scan thread.
+    pub fn update_context(&self) -> UpdateContext {
+        UpdateContext {
+            primary: self.primary_program().clone(),
+            io_inputs: self.io_inputs.clone(),
+            io_outputs: self.io_outputs.clone(),
+        }
     }
 
     /// Replaces the stopwatch of the Updater (a cost model for virtual runs).
@@ -681,7 +723,8 @@ impl Plc {
         }
     }
 
-    /// The first transition (in firing order) that fired in one container and not in the other.
+    /// The first transition in visiting order (priority, then declaration) that fired in one
+    /// container and not in the other; on a tie of rank, the primary's.
     fn first_difference(
         pc: &Container,
         cc: &Container,
@@ -689,19 +732,21 @@ impl Plc {
         from_primary: &[Option<TransIdx>],
         primary: Slot,
     ) -> Option<(Slot, TransIdx)> {
-        for &t in pc.fired() {
-            let mapped = from_primary[t.index()];
-            if !mapped.is_some_and(|u| cc.fired().contains(&u)) {
-                return Some((primary, t));
-            }
+        let only = |a: &Container, b: &Container, map: &[Option<TransIdx>]| {
+            a.fired()
+                .iter()
+                .copied()
+                .filter(|t| !map[t.index()].is_some_and(|u| b.fired().contains(&u)))
+                .min_by_key(|&t| a.program().net().rank(t))
+        };
+        let p = only(pc, cc, from_primary).map(|t| (pc.program().net().rank(t), primary, t));
+        let c = only(cc, pc, to_primary).map(|t| (cc.program().net().rank(t), primary.other(), t));
+        match (p, c) {
+            (Some(a), Some(b)) => Some(if b.0 < a.0 { (b.1, b.2) } else { (a.1, a.2) }),
+            (Some(a), None) => Some((a.1, a.2)),
+            (None, Some(b)) => Some((b.1, b.2)),
+            (None, None) => None,
         }
-        for &t in cc.fired() {
-            let mapped = to_primary[t.index()];
-            if !mapped.is_some_and(|u| pc.fired().contains(&u)) {
-                return Some((primary.other(), t));
-            }
-        }
-        None
     }
 
     fn record(&mut self, now_us: u64) {
@@ -939,6 +984,158 @@ impl Plc {
                 verdicts: Vec::new(),
             })
         })
+    }
+}
+
+/// The state of one container, as persisted.
+#[derive(Clone, Debug, Default, Serialize, serde::Deserialize, PartialEq)]
+pub struct ContainerSnapshot {
+    /// Hex SHA-256 of its program.
+    pub program_hash: String,
+    /// The marking.
+    pub marking: Vec<Tokens>,
+    /// When each place went from empty to marked.
+    pub place_since_us: Vec<Option<u64>>,
+    /// The variables, as JSON scalars.
+    pub variables: Vec<serde_json::Value>,
+    /// The S/R latches.
+    pub latches: Vec<bool>,
+}
+
+/// Everything a warm start needs, written by the persistence thread.
+#[derive(Clone, Debug, Default, Serialize, serde::Deserialize, PartialEq)]
+pub struct PlcSnapshot {
+    /// Cycle index of the snapshot.
+    pub cycle: u64,
+    /// Program time of the snapshot.
+    pub time_us: u64,
+    /// PRIMARY ("A"/"B").
+    pub primary: Option<Slot>,
+    /// STATUS.
+    pub status: Option<Status>,
+    /// Containers A and B.
+    pub containers: [Option<ContainerSnapshot>; 2],
+    /// The update under way, in words.
+    pub update: Option<String>,
+}
+
+impl Plc {
+    /// Copies the state into `snap`, reusing its buffers.
+    pub fn snapshot_into(&self, snap: &mut PlcSnapshot) {
+        snap.cycle = self.cycle;
+        snap.time_us = self.now_us;
+        snap.primary = Some(self.primary);
+        snap.status = Some(self.status);
+        for slot in [Slot::A, Slot::B] {
+            let i = slot.index();
+            match &self.slots[i] {
+                None => snap.containers[i] = None,
+                Some(c) => {
+                    let s = snap.containers[i].get_or_insert_with(Default::default);
+                    let hash = c.program().hash_hex();
+                    if s.program_hash != hash {
+                        s.program_hash = hash;
+                    }
+                    s.marking.clear();
+                    s.marking.extend_from_slice(c.marking());
+                    s.place_since_us.clear();
+                    s.place_since_us.extend_from_slice(c.place_since_us());
+                    s.variables.clear();
+                    s.variables.extend(c.variables().iter().map(|v| value_json(*v)));
+                    s.latches.clear();
+                    s.latches.extend_from_slice(c.latches());
+                }
+            }
+        }
+        snap.update = self
+            .update_meta()
+            .map(|m| format!("{} {}", m.name, m.version));
+    }
+
+    /// A warm start: the saved PRIMARY resumes its last committed marking, timers, variables and
+    /// latches; an update that was under way is discarded, with an event (DESIGN §4). A PLC that
+    /// was in fault comes back in fault. `program` finds a program by its hash.
+    pub fn warm_start(
+        snap: &PlcSnapshot,
+        program: impl Fn(&str) -> Option<Arc<Program>>,
+        io_program: Arc<Program>,
+    ) -> Result<Plc, String> {
+        let primary = snap.primary.ok_or("the saved state has no PRIMARY")?;
+        let cs = snap.containers[primary.index()]
+            .as_ref()
+            .ok_or("the saved state has no program in the PRIMARY container")?;
+        let prog = program(&cs.program_hash).ok_or_else(|| {
+            format!("the saved state refers to program {} which the state directory does not hold", cs.program_hash)
+        })?;
+        if cs.marking.len() != prog.net().num_places() {
+            return Err(format!(
+                "the saved marking has {} places but program {} has {}",
+                cs.marking.len(),
+                prog.name(),
+                prog.net().num_places()
+            ));
+        }
+        if let Err(v) = prog.check_invariants(&cs.marking) {
+            return Err(format!("the saved marking breaks an invariant: {v}"));
+        }
+        let now = snap.time_us;
+        let container = Container::with_state(prog.clone(), &cs.marking, &cs.place_since_us, now)
+            .map_err(|e| e.to_string())?;
+        let mut plc = Plc::new(io_program, now);
+        plc.events.clear();
+        let vars: Vec<Value> = prog
+            .variables()
+            .iter()
+            .zip(&cs.variables)
+            .map(|(s, j)| match s.ty {
+                cetratus_program::Type::Bool => Value::Bool(j.as_bool().unwrap_or(false)),
+                cetratus_program::Type::Int => Value::Int(j.as_i64().unwrap_or(0)),
+                cetratus_program::Type::Real => Value::Real(j.as_f64().unwrap_or(0.0)),
+            })
+            .collect();
+        let mut container = container;
+        container.restore_retained(&vars, &cs.latches);
+        let i = primary.index();
+        plc.images[i] = container.inputs().to_vec();
+        plc.in_maps[i] = prog
+            .inputs()
+            .iter()
+            .map(|s| plc.io_inputs.iter().position(|n| *n == s.name).ok_or(s.name.clone()))
+            .collect::<Result<Vec<_>, _>>()
+            .map_err(|n| format!("the saved program reads input `{n}` which the I/O map lacks"))?;
+        plc.out_maps[i] = map_by_name(&plc.io_outputs, prog.outputs());
+        plc.slots = [None, None];
+        plc.slots[i] = Some(container);
+        plc.primary = primary;
+        plc.cycle = snap.cycle;
+        plc.now_us = now;
+        plc.status = if snap.status == Some(Status::Fault) { Status::Fault } else { Status::Idle };
+        plc.event(
+            "warm_start",
+            format!(
+                "warm start: PRIMARY = {} resumes {} {} at cycle {} ({:.3} s)",
+                primary.name(),
+                prog.name(),
+                prog.version(),
+                snap.cycle,
+                now as f64 / 1e6
+            ),
+            serde_json::Value::Null,
+        );
+        if matches!(snap.status, Some(Status::Setup) | Some(Status::Quarantine)) {
+            plc.event(
+                "update_discarded",
+                format!(
+                    "the update under way at the crash ({}) is discarded; load it again",
+                    snap.update.as_deref().unwrap_or("unnamed")
+                ),
+                serde_json::Value::Null,
+            );
+        }
+        if plc.status == Status::Fault {
+            plc.event("primary_fault", "the PLC was in fault when it stopped; it stays in fault until an operator resets".into(), serde_json::Value::Null);
+        }
+        Ok(plc)
     }
 }
 

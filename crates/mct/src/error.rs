@@ -1,0 +1,56 @@
+//! The crate's one error type.
+
+use std::net::SocketAddr;
+
+/// What went wrong when starting or running the MQTT control plane.
+#[derive(Debug, thiserror::Error)]
+pub enum MctError {
+    /// The embedded broker could not listen because another process holds the port.
+    #[error(
+        "cannot start the embedded MQTT broker: {addr} is already in use (another broker, or another cetratus?); \
+         choose another port with `--mqtt 127.0.0.1:1884`, or use the broker that is already there with \
+         `--broker mqtt://{addr}`"
+    )]
+    PortTaken {
+        /// The address asked for.
+        addr: SocketAddr,
+    },
+    /// The embedded broker could not start for another reason.
+    #[error("cannot start the embedded MQTT broker on {addr}: {reason}")]
+    Broker {
+        /// The address asked for.
+        addr: SocketAddr,
+        /// What the broker said.
+        reason: String,
+    },
+    /// `--broker` is not a usable URL.
+    #[error("bad broker URL `{url}`: {reason}; expected mqtt://host:port or mqtts://host:port")]
+    BrokerUrl {
+        /// The URL as given.
+        url: String,
+        /// What is wrong with it.
+        reason: String,
+    },
+    /// The PLC id cannot be used as a topic level.
+    #[error("bad PLC id `{0}`: it must be non-empty and must not contain `/`, `+`, `#` or control characters")]
+    PlcId(String),
+    /// An operator key in the configuration is not a valid ed25519 public key.
+    #[error("bad operator key `{id}`: {reason}")]
+    OperatorKey {
+        /// Key id.
+        id: String,
+        /// What is wrong with it.
+        reason: String,
+    },
+    /// A thread or runtime could not be created.
+    #[error("cannot start the MQTT threads: {0}")]
+    Spawn(#[from] std::io::Error),
+    /// The client did not reach the broker in time.
+    #[error("cannot connect to the MQTT broker at {url}: {reason}")]
+    Connect {
+        /// Where.
+        url: String,
+        /// What the client said.
+        reason: String,
+    },
+}

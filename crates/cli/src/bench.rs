@@ -52,14 +52,29 @@ pub fn run(args: &BenchArgs) -> anyhow::Result<()> {
     let mut out: BTreeMap<String, serde_json::Value> = BTreeMap::new();
     let engine = measure::engine_figures(args.quick);
     out.insert(s("vernadat_scan_ns"), engine.vernadat_scan_ns.into());
-    out.insert(s("scale_ratio_1m_vs_1k"), engine.scale_ratio_1m_vs_1k.into());
+    out.insert(
+        s("scale_ratio_1m_vs_1k"),
+        engine.scale_ratio_1m_vs_1k.into(),
+    );
     out.insert(s("dense_speedup_10k"), engine.dense_speedup_10k.into());
     out.insert(s("dense_speedup_1k"), engine.dense_speedup_1k.into());
-    out.insert(s("ring_scan_ns"), serde_json::to_value(&engine.ring_scan_ns)?);
-    out.insert(s("dense_scan_ns"), serde_json::to_value(&engine.dense_scan_ns)?);
+    out.insert(
+        s("ring_scan_ns"),
+        serde_json::to_value(&engine.ring_scan_ns)?,
+    );
+    out.insert(
+        s("dense_scan_ns"),
+        serde_json::to_value(&engine.dense_scan_ns)?,
+    );
 
-    out.insert(s("program_scan_ns"), program::program_scan_ns(args.quick).into());
-    out.insert(s("program_load_us"), program::program_load_us(args.quick).into());
+    out.insert(
+        s("program_scan_ns"),
+        program::program_scan_ns(args.quick).into(),
+    );
+    out.insert(
+        s("program_load_us"),
+        program::program_load_us(args.quick).into(),
+    );
     let hour = program::twin_hour();
     out.insert(s("twin_hour_wall_ms"), hour.wall_ms.into());
     out.insert(s("twin_hour_parts_finished"), hour.parts_finished.into());
@@ -86,7 +101,10 @@ fn jitter(period: &str, for_: &str, rt: bool, json: bool) -> anyhow::Result<()> 
     out.insert(s("scan_p99_ns"), figures.scan.p99_ns.into());
     out.insert(s("cycle_p99_ns"), figures.cycle.p99_ns.into());
     out.insert(s("overruns"), figures.overruns.into());
-    out.insert(s("rt"), status.unwrap_or_else(|| "not requested".into()).into());
+    out.insert(
+        s("rt"),
+        status.unwrap_or_else(|| "not requested".into()).into(),
+    );
     print(&out, json)
 }
 

@@ -19,14 +19,38 @@ use serde::Serialize;
 
 /// The Vernadat example, embedded so the demo runs from any directory.
 const FILES: [(&str, &str); 8] = [
-    ("vernadat.toml", include_str!("../../../examples/vernadat/vernadat.toml")),
-    ("vernadat.pnml", include_str!("../../../examples/vernadat/vernadat.pnml")),
-    ("u1.toml", include_str!("../../../examples/vernadat/u1.toml")),
-    ("u1.pnml", include_str!("../../../examples/vernadat/u1.pnml")),
-    ("u2.toml", include_str!("../../../examples/vernadat/u2.toml")),
-    ("u2.pnml", include_str!("../../../examples/vernadat/u2.pnml")),
-    ("u1.package.toml", include_str!("../../../examples/vernadat/u1.package.toml")),
-    ("u2.package.toml", include_str!("../../../examples/vernadat/u2.package.toml")),
+    (
+        "vernadat.toml",
+        include_str!("../../../examples/vernadat/vernadat.toml"),
+    ),
+    (
+        "vernadat.pnml",
+        include_str!("../../../examples/vernadat/vernadat.pnml"),
+    ),
+    (
+        "u1.toml",
+        include_str!("../../../examples/vernadat/u1.toml"),
+    ),
+    (
+        "u1.pnml",
+        include_str!("../../../examples/vernadat/u1.pnml"),
+    ),
+    (
+        "u2.toml",
+        include_str!("../../../examples/vernadat/u2.toml"),
+    ),
+    (
+        "u2.pnml",
+        include_str!("../../../examples/vernadat/u2.pnml"),
+    ),
+    (
+        "u1.package.toml",
+        include_str!("../../../examples/vernadat/u1.package.toml"),
+    ),
+    (
+        "u2.package.toml",
+        include_str!("../../../examples/vernadat/u2.package.toml"),
+    ),
 ];
 
 /// Arguments of `cetratus demo`.
@@ -81,7 +105,8 @@ pub fn prepare(dir: &Path, quiet: bool) -> anyhow::Result<DemoFiles> {
     for (name, text) in FILES {
         let path = dir.join(name);
         if std::fs::read_to_string(&path).ok().as_deref() != Some(text) {
-            std::fs::write(&path, text).with_context(|| format!("cannot write {}", path.display()))?;
+            std::fs::write(&path, text)
+                .with_context(|| format!("cannot write {}", path.display()))?;
         }
     }
     let key_path = dir.join("demo.key");
@@ -91,7 +116,11 @@ pub fn prepare(dir: &Path, quiet: bool) -> anyhow::Result<DemoFiles> {
         let k = KeyPair::generate();
         k.save(&key_path)?;
         if !quiet {
-            eprintln!("made a demo signing key {} (id {})", key_path.display(), k.key_id());
+            eprintln!(
+                "made a demo signing key {} (id {})",
+                key_path.display(),
+                k.key_id()
+            );
         }
         k
     };
@@ -109,7 +138,11 @@ pub fn prepare(dir: &Path, quiet: bool) -> anyhow::Result<DemoFiles> {
     let u1 = build("u1.package.toml", "u1.cpkg")?;
     let u2 = build("u2.package.toml", "u2.cpkg")?;
     if !quiet {
-        eprintln!("built and signed {} and {}", dir.join("u1.cpkg").display(), dir.join("u2.cpkg").display());
+        eprintln!(
+            "built and signed {} and {}",
+            dir.join("u1.cpkg").display(),
+            dir.join("u2.cpkg").display()
+        );
     }
     Ok(DemoFiles {
         program: dir.join("vernadat.toml"),
@@ -170,7 +203,13 @@ fn named(names: &[String], values: &[Value]) -> BTreeMap<String, bool> {
 
 struct Recorder {
     steps: Vec<Step>,
-    last_key: Option<(Slot, &'static str, Vec<Value>, Vec<Option<Vec<Value>>>, Vec<Option<Vec<u32>>>)>,
+    last_key: Option<(
+        Slot,
+        &'static str,
+        Vec<Value>,
+        Vec<Option<Vec<Value>>>,
+        Vec<Option<Vec<u32>>>,
+    )>,
 }
 
 impl Recorder {
@@ -183,7 +222,13 @@ impl Recorder {
             .iter()
             .map(|&s| plc.container(s).map(|c| c.marking().to_vec()))
             .collect();
-        let key = (plc.primary(), plc.status().name(), plc.inputs().to_vec(), outs, marks);
+        let key = (
+            plc.primary(),
+            plc.status().name(),
+            plc.inputs().to_vec(),
+            outs,
+            marks,
+        );
         if self.last_key.as_ref() == Some(&key) {
             return;
         }
@@ -281,7 +326,10 @@ pub fn scripted(files: &DemoFiles) -> anyhow::Result<DemoRecord> {
         plc: Plc::new(program, 0),
         io,
         now: 0,
-        rec: Recorder { steps: Vec::new(), last_key: None },
+        rec: Recorder {
+            steps: Vec::new(),
+            last_key: None,
+        },
         events: Vec::new(),
     };
     let mut exec_info = Vec::new();
@@ -292,7 +340,12 @@ pub fn scripted(files: &DemoFiles) -> anyhow::Result<DemoRecord> {
     r.load(&files.u1, &files.trust)?;
     r.step();
     let b = Slot::B.index();
-    r.run_while(300_000_000, |plc| plc.monitor.stats[b].divergent_cycles.iter().all(|&n| n == 0));
+    r.run_while(300_000_000, |plc| {
+        plc.monitor.stats[b]
+            .divergent_cycles
+            .iter()
+            .all(|&n| n == 0)
+    });
     r.run_until(r.now + 10_000_000);
     exec_info.push(r.exec_info());
     r.substitute()?;
@@ -332,7 +385,13 @@ pub fn scripted(files: &DemoFiles) -> anyhow::Result<DemoRecord> {
     use cetratus_twin::Plant;
     Ok(DemoRecord {
         parts_finished: r.io.plant().counters().get("parts_finished").unwrap_or(0),
-        faults: r.io.plant().faults().iter().map(|f| f.to_string()).collect(),
+        faults: r
+            .io
+            .plant()
+            .faults()
+            .iter()
+            .map(|f| f.to_string())
+            .collect(),
         steps: r.rec.steps,
         events: r.events,
         exec_info,
@@ -358,19 +417,28 @@ pub fn diagram(rec: &DemoRecord, end_ms: f64) -> TimingDiagram {
             .collect(),
     };
     for n in first.inputs.keys() {
-        d.lanes.push(lane("inputs", n, &|s| s.inputs.get(n).copied()));
+        d.lanes
+            .push(lane("inputs", n, &|s| s.inputs.get(n).copied()));
     }
     for n in first.dispatched.keys() {
-        d.lanes.push(lane("outputs of A", n, &|s| s.outputs_a.as_ref().and_then(|o| o.get(n).copied())));
+        d.lanes.push(lane("outputs of A", n, &|s| {
+            s.outputs_a.as_ref().and_then(|o| o.get(n).copied())
+        }));
     }
     for n in first.dispatched.keys() {
-        d.lanes.push(lane("outputs of B", n, &|s| s.outputs_b.as_ref().and_then(|o| o.get(n).copied())));
+        d.lanes.push(lane("outputs of B", n, &|s| {
+            s.outputs_b.as_ref().and_then(|o| o.get(n).copied())
+        }));
     }
     for n in first.dispatched.keys() {
-        d.lanes.push(lane("dispatched", n, &|s| s.dispatched.get(n).copied()));
+        d.lanes
+            .push(lane("dispatched", n, &|s| s.dispatched.get(n).copied()));
     }
     for e in &rec.events {
-        if matches!(e.kind, "load_accepted" | "substituted" | "quarantine_started") {
+        if matches!(
+            e.kind,
+            "load_accepted" | "substituted" | "quarantine_started"
+        ) {
             d.markers.push((e.time_us, e.kind.replace('_', " ")));
         }
     }
@@ -378,7 +446,11 @@ pub fn diagram(rec: &DemoRecord, end_ms: f64) -> TimingDiagram {
 }
 
 fn on(m: &BTreeMap<String, bool>) -> String {
-    let v: Vec<&str> = m.iter().filter(|(_, &b)| b).map(|(k, _)| k.as_str()).collect();
+    let v: Vec<&str> = m
+        .iter()
+        .filter(|(_, &b)| b)
+        .map(|(k, _)| k.as_str())
+        .collect();
     if v.is_empty() {
         "-".into()
     } else {
@@ -428,14 +500,28 @@ pub fn run(args: &DemoArgs) -> anyhow::Result<()> {
     print!("{}", table(&rec));
     println!("\nevents:");
     for e in &rec.events {
-        println!("  {:>9.2} s  {:<20} {}", e.time_us as f64 / 1e6, e.kind, e.message);
+        println!(
+            "  {:>9.2} s  {:<20} {}",
+            e.time_us as f64 / 1e6,
+            e.kind,
+            e.message
+        );
     }
     for info in &rec.exec_info {
-        for c in info.as_array().into_iter().flatten().filter(|c| !c.is_null()) {
+        for c in info
+            .as_array()
+            .into_iter()
+            .flatten()
+            .filter(|c| !c.is_null())
+        {
             if c["role"] == "candidate" {
                 println!(
                     "\nquarantine of {} {}: divergence {}, cause: {}, max drift {}",
-                    c["program"]["name"], c["program"]["version"], c["divergence"], c["first_cause"], c["max_drift"]
+                    c["program"]["name"],
+                    c["program"]["version"],
+                    c["divergence"],
+                    c["first_cause"],
+                    c["max_drift"]
                 );
             }
         }

@@ -7,7 +7,10 @@ use std::sync::Arc;
 use anyhow::{bail, Context};
 use cetratus_io::TwinDriver;
 use cetratus_program::Program;
-use cetratus_runtime::{trace::Trace, Container, CycleFigures, ScanCycle};
+use cetratus_runtime::trace::Trace;
+use cetratus_runtime::{
+    run_periodic, Command, CycleFigures, LoopTiming, Plc, SubstituteMode, SubstituteRequest,
+};
 use cetratus_twin::{Plant, Twin, TwinKind};
 use serde::Serialize;
 
@@ -49,6 +52,43 @@ pub struct RunArgs {
     /// Print the closing summary as one JSON object.
     #[arg(long)]
     json: bool,
+    /// Scripted operator commands at program times (repeatable): `10s load PKG`,
+    /// `60s substitute [keep|retransform]`, `70s remove`, `70s abort`, `80s reset`.
+    #[arg(long = "at")]
+    at: Vec<String>,
+    /// Directory of trusted public keys for `load`.
+    #[arg(long)]
+    trust: Option<PathBuf>,
+    /// Accept unsigned packages (local configuration only).
+    #[arg(long)]
+    allow_unsigned: bool,
+}
+
+/// A scripted command.
+struct Scripted {
+    at_us: u64,
+    verb: String,
+    arg: Option<String>,
+}
+
+fn parse_script(items: &[String]) -> anyhow::Result<Vec<Scripted>> {
+    let mut v = Vec::new();
+    for item in items {
+        let mut parts = item.split_whitespace();
+        let (Some(t), Some(verb)) = (parts.next(), parts.next()) else {
+            bail!("--at `{item}`: expected a time and a command, e.g. `10s load u1.cpkg`");
+        };
+        if !matches!(verb, "load" | "substitute" | "remove" | "abort" | "reset") {
+            bail!("--at `{item}`: unknown command `{verb}`; expected load, substitute, remove, abort or reset");
+        }
+        v.push(Scripted {
+            at_us: parse_duration_us(t)?,
+            verb: verb.to_string(),
+            arg: parts.next().map(str::to_string),
+        });
+    }
+    v.sort_by_key(|s| s.at_us);
+    Ok(v)
 }
 
 /// The closing summary of a run.
@@ -72,6 +112,10 @@ pub struct Summary {
     pub counters: serde_json::Value,
     /// Scan timing figures.
     pub scan: CycleFigures,
+    /// PRIMARY at the end.
+    pub primary: &'static str,
+    /// STATUS at the end.
+    pub status: &'static str,
 }
 
 /// Runs `cetratus run`.
@@ -98,26 +142,64 @@ pub fn run(args: &RunArgs) -> anyhow::Result<()> {
         (None, false) => u64::MAX,
     };
     let mut io = TwinDriver::new(twin, program.inputs(), program.outputs())?;
-    let mut cycle = ScanCycle::new(Container::new(program.clone(), 0));
-    let mut trace = Trace::new(
-        program.inputs().iter().map(|s| s.name.clone()).collect(),
-        program.outputs().iter().map(|s| s.name.clone()).collect(),
-    );
+    let script = parse_script(&args.at)?;
+    let trust = match &args.trust {
+        Some(dir) => cetratus_program::TrustStore::load_dir(dir)?,
+        None => cetratus_program::TrustStore::empty(),
+    };
+    let mut plc = Plc::new(program.clone(), 0);
+    let period_us = program.scan_period().as_micros() as u64;
+    let mut trace = Trace::new(plc.io_inputs().to_vec(), plc.io_outputs().to_vec());
     let record = args.trace.is_some() || args.svg.is_some();
     let mut violations: Vec<String> = Vec::new();
-    let observe = |c: &ScanCycle, now: u64, _: &mut TwinDriver<Twin>| {
-        let k = c.container();
+    let mut events = Vec::new();
+    let mut next_cmd = 0usize;
+    let mut script_error: Option<anyhow::Error> = None;
+    let json = args.json;
+    let mut body = |plc: &mut Plc, now: u64, io: &mut TwinDriver<Twin>| -> bool {
+        while next_cmd < script.len() && script[next_cmd].at_us <= now {
+            let s = &script[next_cmd];
+            next_cmd += 1;
+            let cmd = match scripted_command(plc, s, &trust, args.allow_unsigned) {
+                Ok(c) => c,
+                Err(e) => {
+                    script_error = Some(e);
+                    return false;
+                }
+            };
+            let _ = plc.command(cmd);
+        }
+        plc.cycle(now, io);
+        let k = plc.primary_container();
         if record {
-            trace.observe(k.scans() - 1, now, k.inputs(), k.outputs());
+            trace.observe(plc.cycles() - 1, now, plc.inputs(), plc.dispatched());
         }
         if violations.len() < 100 {
             if let Err(v) = k.program().check_invariants(k.marking()) {
                 violations.push(format!("{:.3}s: {v}", now as f64 / 1e6));
             }
         }
+        for e in plc.drain_events() {
+            if !json {
+                eprintln!(
+                    "{:>10.3} s  {:<20} {}",
+                    e.time_us as f64 / 1e6,
+                    e.kind,
+                    e.message
+                );
+            }
+            events.push(e);
+        }
+        drop(plc.take_retired());
+        true
     };
-    let result = if args.virtual_time {
-        cycle.run_virtual(0, until_us, &mut io, observe)
+    let mut timing = LoopTiming::default();
+    let reached_us = if args.virtual_time {
+        let mut now = 0;
+        while now < until_us && body(&mut plc, now, &mut io) {
+            now += period_us;
+        }
+        now
     } else {
         let stop = Arc::new(AtomicBool::new(false));
         let s = stop.clone();
@@ -138,16 +220,29 @@ pub fn run(args: &RunArgs) -> anyhow::Result<()> {
                 args.speed
             );
         }
-        cycle.run_realtime(until_us, args.speed, &stop, &mut io, observe)
+        run_periodic(period_us, until_us, args.speed, &stop, &mut timing, |now| {
+            body(&mut plc, now, &mut io)
+        })
     };
+    if let Some(e) = script_error {
+        return Err(e);
+    }
     let mut faults: Vec<String> = io.plant().faults().iter().map(|f| f.to_string()).collect();
     faults.extend(violations);
-    let reached_us = match result {
-        Ok(t) => t,
-        Err(e) => {
-            faults.push(format!("scan error: {e}"));
-            cycle.container().scans() * cycle.period_us()
-        }
+    faults.extend(
+        events
+            .iter()
+            .filter(|e| matches!(e.kind, "primary_fault" | "deadlock_alarm"))
+            .map(|e| format!("{:.3}s: {}", e.time_us as f64 / 1e6, e.message)),
+    );
+    let scan = plc.monitor.stats[plc.primary().index()].scan.summary();
+    let figures = CycleFigures {
+        cycles: plc.cycles(),
+        period_us,
+        scan,
+        cycle: timing.cycle.summary(),
+        latency: timing.latency.summary(),
+        overruns: timing.overruns,
     };
     let counters = io.plant().counters();
     let parts_finished = counters
@@ -158,12 +253,14 @@ pub fn run(args: &RunArgs) -> anyhow::Result<()> {
         program: program.name().to_string(),
         twin: kind.to_string(),
         seconds: reached_us as f64 / 1e6,
-        scans: cycle.container().scans(),
-        firings: cycle.container().firings().iter().sum(),
+        scans: plc.cycles(),
+        firings: plc.primary_container().firings().iter().sum(),
         parts_finished,
         faults,
         counters: serde_json::to_value(&counters)?,
-        scan: cycle.figures(),
+        scan: figures,
+        primary: plc.primary().name(),
+        status: plc.status().name(),
     };
     trace.end_us = reached_us;
     if let Some(path) = &args.trace {
@@ -223,4 +320,42 @@ fn print_summary(s: &Summary) {
             println!("    {fault}");
         }
     }
+}
+
+fn scripted_command(
+    plc: &Plc,
+    s: &Scripted,
+    trust: &cetratus_program::TrustStore,
+    allow_unsigned: bool,
+) -> anyhow::Result<Command> {
+    Ok(match s.verb.as_str() {
+        "load" => {
+            let Some(path) = &s.arg else {
+                bail!("`load` needs a package file");
+            };
+            let bytes = std::fs::read(path).with_context(|| format!("cannot read {path}"))?;
+            // Verified and built here, between cycles; the install happens at the next boundary.
+            match plc
+                .update_context()
+                .prepare_package(&bytes, trust, allow_unsigned, false)
+            {
+                Ok(p) => Command::Load(Box::new(p)),
+                Err(e) => bail!("{path}: {e}"),
+            }
+        }
+        "substitute" => Command::Substitute(SubstituteRequest {
+            mode: match s.arg.as_deref() {
+                Some(m) => m
+                    .parse::<SubstituteMode>()
+                    .map_err(|e| anyhow::anyhow!(e))?,
+                None => SubstituteMode::Retransform,
+            },
+            when: None,
+            within_us: None,
+            force: false,
+        }),
+        "remove" => Command::Remove,
+        "abort" => Command::Abort,
+        _ => Command::Reset,
+    })
 }

@@ -30,7 +30,12 @@ impl RetainStorage for MemRetain {
     fn enable(&self) -> bool {
         true
     }
-    async fn set(&self, topic: &TopicName, retain: Retain, expiry: Option<Duration>) -> rmqtt::Result<()> {
+    async fn set(
+        &self,
+        topic: &TopicName,
+        retain: Retain,
+        expiry: Option<Duration>,
+    ) -> rmqtt::Result<()> {
         self.0.set_with_timeout(topic, retain, expiry).await
     }
     async fn get(&self, filter: &TopicFilter) -> rmqtt::Result<Vec<(TopicName, Retain)>> {
@@ -58,7 +63,10 @@ impl Handler for Users {
         let Parameter::ClientAuthenticate(info) = param else {
             return (true, acc);
         };
-        let user = info.username().map(|u| u.as_bytes().to_vec()).unwrap_or_default();
+        let user = info
+            .username()
+            .map(|u| u.as_bytes().to_vec())
+            .unwrap_or_default();
         let pass = info.password().map(|p| p.to_vec()).unwrap_or_default();
         let ok = self
             .0
@@ -82,7 +90,9 @@ pub struct EmbeddedBroker {
 
 impl std::fmt::Debug for EmbeddedBroker {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.debug_struct("EmbeddedBroker").field("addr", &self.addr).finish()
+        f.debug_struct("EmbeddedBroker")
+            .field("addr", &self.addr)
+            .finish()
     }
 }
 
@@ -90,7 +100,11 @@ impl EmbeddedBroker {
     /// Starts a broker on `addr`; with a non-empty `users`, clients must log in as one of them.
     /// Port 0 picks a free port (see [`EmbeddedBroker::addr`]).
     pub fn start(addr: SocketAddr, users: Vec<(String, String)>) -> Result<Self, MctError> {
-        let addr = if addr.port() == 0 { free_port(addr)? } else { addr };
+        let addr = if addr.port() == 0 {
+            free_port(addr)?
+        } else {
+            addr
+        };
         let rt = tokio::runtime::Builder::new_multi_thread()
             .worker_threads(2)
             .thread_name("cetratus-mqtt-broker")
@@ -114,10 +128,13 @@ impl EmbeddedBroker {
             *scx.extends.retain_mut().await = Box::new(MemRetain(DefaultRetainStorage::new()));
             if !users.is_empty() {
                 let reg = scx.extends.hook_mgr().register();
-                reg.add(Type::ClientAuthenticate, Box::new(Users(users))).await;
+                reg.add(Type::ClientAuthenticate, Box::new(Users(users)))
+                    .await;
                 reg.start().await;
             }
-            MqttServer::new(scx).listener_by_id(listener, addr.port()).build()
+            MqttServer::new(scx)
+                .listener_by_id(listener, addr.port())
+                .build()
         });
         rt.spawn(async move {
             if let Err(e) = server.run().await {

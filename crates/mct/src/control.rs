@@ -17,7 +17,14 @@ use crate::MctError;
 pub const MAX_PAYLOAD: usize = 1 << 20;
 
 /// The command verbs, as the last topic level under `cmd/`.
-pub const VERBS: [&str; 6] = ["load", "remove", "substitute", "abort", "reset", "exec_info"];
+pub const VERBS: [&str; 6] = [
+    "load",
+    "remove",
+    "substitute",
+    "abort",
+    "reset",
+    "exec_info",
+];
 
 /// Why a command failed: the `error.code` of a reply.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize, Deserialize)]
@@ -259,7 +266,10 @@ fn rejected_event(verb: &str, code: ErrorCode, message: &str, request_id: u64) -
 impl ControlPlane {
     /// The control plane of PLC `plc_id`; with operator keys, every command must be signed.
     pub fn new(plc_id: &str, keys: Option<OperatorKeys>) -> Result<Self, MctError> {
-        if plc_id.is_empty() || plc_id.contains(['/', '+', '#']) || plc_id.chars().any(char::is_control) {
+        if plc_id.is_empty()
+            || plc_id.contains(['/', '+', '#'])
+            || plc_id.chars().any(char::is_control)
+        {
             return Err(MctError::PlcId(plc_id.to_string()));
         }
         Ok(ControlPlane {
@@ -310,7 +320,11 @@ impl ControlPlane {
         let obj = parsed.as_ref().ok().and_then(Value::as_object);
         let reply_to = response_topic
             .map(str::to_string)
-            .or_else(|| obj.and_then(|o| o.get("reply_to")).and_then(Value::as_str).map(str::to_string))
+            .or_else(|| {
+                obj.and_then(|o| o.get("reply_to"))
+                    .and_then(Value::as_str)
+                    .map(str::to_string)
+            })
             .filter(|t| valid_topic(t));
         let handle = ReplyHandle {
             verb: verb.unwrap_or(verb_raw).chars().take(64).collect(),
@@ -321,23 +335,43 @@ impl ControlPlane {
         };
         let reject = |code: ErrorCode, message: String| Rejection {
             event: rejected_event(&handle.verb, code, &message, request_id),
-            reply: handle.topic.is_some().then(|| (handle.clone(), Reply::err(code, message))),
+            reply: handle
+                .topic
+                .is_some()
+                .then(|| (handle.clone(), Reply::err(code, message))),
         };
         let Some(verb) = verb else {
             return Err(reject(
                 ErrorCode::UnknownVerb,
-                format!("unknown verb `{}`; expected one of {}", handle.verb, VERBS.join(", ")),
+                format!(
+                    "unknown verb `{}`; expected one of {}",
+                    handle.verb,
+                    VERBS.join(", ")
+                ),
             ));
         };
         if payload.len() > MAX_PAYLOAD {
             return Err(reject(
                 ErrorCode::TooLarge,
-                format!("payload of {} bytes exceeds the limit of {MAX_PAYLOAD} bytes", payload.len()),
+                format!(
+                    "payload of {} bytes exceeds the limit of {MAX_PAYLOAD} bytes",
+                    payload.len()
+                ),
             ));
         }
         let obj = match (&parsed, obj) {
-            (Err(e), _) => return Err(reject(ErrorCode::Malformed, format!("payload is not JSON: {e}"))),
-            (Ok(_), None) => return Err(reject(ErrorCode::Malformed, "payload must be a JSON object".into())),
+            (Err(e), _) => {
+                return Err(reject(
+                    ErrorCode::Malformed,
+                    format!("payload is not JSON: {e}"),
+                ))
+            }
+            (Ok(_), None) => {
+                return Err(reject(
+                    ErrorCode::Malformed,
+                    "payload must be a JSON object".into(),
+                ))
+            }
             (Ok(_), Some(o)) => o.clone(),
         };
         let (mut body, key_id) = match self.keys.as_mut() {
@@ -346,7 +380,8 @@ impl ControlPlane {
                 let Some(env) = obj.get("envelope") else {
                     return Err(reject(
                         ErrorCode::Unauthorised,
-                        "operator keys are configured: the command must be a signed envelope".into(),
+                        "operator keys are configured: the command must be a signed envelope"
+                            .into(),
                     ));
                 };
                 let env: Envelope = serde_json::from_value(env.clone())
@@ -354,11 +389,20 @@ impl ControlPlane {
                 let (inner, key_id) = keys
                     .verify(verb, &env, now_unix_s)
                     .map_err(|(code, m)| reject(code, m))?;
-                let inner: Value = serde_json::from_slice(&inner)
-                    .map_err(|e| reject(ErrorCode::Malformed, format!("signed payload is not JSON: {e}")))?;
+                let inner: Value = serde_json::from_slice(&inner).map_err(|e| {
+                    reject(
+                        ErrorCode::Malformed,
+                        format!("signed payload is not JSON: {e}"),
+                    )
+                })?;
                 match inner {
                     Value::Object(o) => (o, Some(key_id)),
-                    _ => return Err(reject(ErrorCode::Malformed, "signed payload must be a JSON object".into())),
+                    _ => {
+                        return Err(reject(
+                            ErrorCode::Malformed,
+                            "signed payload must be a JSON object".into(),
+                        ))
+                    }
                 }
             }
         };
@@ -394,7 +438,8 @@ impl ControlPlane {
                 struct Load {
                     package_b64: String,
                 }
-                let l: Load = serde_json::from_value(Value::Object(body)).map_err(|e| format!("bad `load` arguments: {e}"))?;
+                let l: Load = serde_json::from_value(Value::Object(body))
+                    .map_err(|e| format!("bad `load` arguments: {e}"))?;
                 let package = base64::engine::general_purpose::STANDARD
                     .decode(l.package_b64.trim())
                     .map_err(|e| format!("package_b64 is not base64: {e}"))?;
@@ -404,11 +449,13 @@ impl ControlPlane {
                 Ok(Request::Load { package })
             }
             "substitute" => {
-                let a: SubstituteArgs =
-                    serde_json::from_value(Value::Object(body)).map_err(|e| format!("bad `substitute` arguments: {e}"))?;
+                let a: SubstituteArgs = serde_json::from_value(Value::Object(body))
+                    .map_err(|e| format!("bad `substitute` arguments: {e}"))?;
                 if let Some(m) = &a.mode {
                     if m != "retransform" && m != "keep" {
-                        return Err(format!("unknown substitution mode `{m}`; expected retransform or keep"));
+                        return Err(format!(
+                            "unknown substitution mode `{m}`; expected retransform or keep"
+                        ));
                     }
                 }
                 Ok(Request::Substitute(a))
@@ -477,8 +524,15 @@ mod tests {
     #[test]
     fn a_load_with_reply_to_parses_into_the_package_bytes() {
         let p = br#"{"package_b64":"aGVsbG8=","reply_to":"me/r","correlation":42}"#;
-        let c = cp().parse("cetratus/cell1/cmd/load", p, None, None, 0).expect("accepted");
-        assert_eq!(c.request, Request::Load { package: b"hello".to_vec() });
+        let c = cp()
+            .parse("cetratus/cell1/cmd/load", p, None, None, 0)
+            .expect("accepted");
+        assert_eq!(
+            c.request,
+            Request::Load {
+                package: b"hello".to_vec()
+            }
+        );
         assert_eq!(c.reply.topic.as_deref(), Some("me/r"));
         assert_eq!(c.reply.correlation, Some(json!(42)));
     }
@@ -486,7 +540,13 @@ mod tests {
     #[test]
     fn the_mqtt5_response_topic_wins_over_reply_to() {
         let c = cp()
-            .parse("cetratus/cell1/cmd/abort", br#"{"reply_to":"x"}"#, Some("v5/r"), Some(b"c1"), 0)
+            .parse(
+                "cetratus/cell1/cmd/abort",
+                br#"{"reply_to":"x"}"#,
+                Some("v5/r"),
+                Some(b"c1"),
+                0,
+            )
             .expect("accepted");
         assert_eq!(c.reply.topic.as_deref(), Some("v5/r"));
         assert_eq!(c.reply.correlation_data.as_deref(), Some(&b"c1"[..]));
@@ -495,26 +555,67 @@ mod tests {
     #[test]
     fn bad_commands_get_the_right_error_codes() {
         let r = Some("r");
-        assert_eq!(code(cp().parse("cetratus/cell1/cmd/explode", b"{}", r, None, 0)), ErrorCode::UnknownVerb);
-        assert_eq!(code(cp().parse("cetratus/cell1/cmd/load", b"\xff\x00", r, None, 0)), ErrorCode::Malformed);
-        assert_eq!(code(cp().parse("cetratus/cell1/cmd/load", b"[1]", r, None, 0)), ErrorCode::Malformed);
-        assert_eq!(code(cp().parse("cetratus/cell1/cmd/load", b"{}", r, None, 0)), ErrorCode::Malformed);
-        assert_eq!(code(cp().parse("cetratus/cell1/cmd/load", br#"{"package_b64":"!!"}"#, r, None, 0)), ErrorCode::Malformed);
-        assert_eq!(code(cp().parse("cetratus/cell1/cmd/remove", br#"{"x":1}"#, r, None, 0)), ErrorCode::Malformed);
-        assert_eq!(code(cp().parse("cetratus/cell1/cmd/substitute", br#"{"mode":"yolo"}"#, r, None, 0)), ErrorCode::Malformed);
+        assert_eq!(
+            code(cp().parse("cetratus/cell1/cmd/explode", b"{}", r, None, 0)),
+            ErrorCode::UnknownVerb
+        );
+        assert_eq!(
+            code(cp().parse("cetratus/cell1/cmd/load", b"\xff\x00", r, None, 0)),
+            ErrorCode::Malformed
+        );
+        assert_eq!(
+            code(cp().parse("cetratus/cell1/cmd/load", b"[1]", r, None, 0)),
+            ErrorCode::Malformed
+        );
+        assert_eq!(
+            code(cp().parse("cetratus/cell1/cmd/load", b"{}", r, None, 0)),
+            ErrorCode::Malformed
+        );
+        assert_eq!(
+            code(cp().parse(
+                "cetratus/cell1/cmd/load",
+                br#"{"package_b64":"!!"}"#,
+                r,
+                None,
+                0
+            )),
+            ErrorCode::Malformed
+        );
+        assert_eq!(
+            code(cp().parse("cetratus/cell1/cmd/remove", br#"{"x":1}"#, r, None, 0)),
+            ErrorCode::Malformed
+        );
+        assert_eq!(
+            code(cp().parse(
+                "cetratus/cell1/cmd/substitute",
+                br#"{"mode":"yolo"}"#,
+                r,
+                None,
+                0
+            )),
+            ErrorCode::Malformed
+        );
         let huge = vec![b' '; MAX_PAYLOAD + 1];
-        assert_eq!(code(cp().parse("cetratus/cell1/cmd/load", &huge, r, None, 0)), ErrorCode::TooLarge);
+        assert_eq!(
+            code(cp().parse("cetratus/cell1/cmd/load", &huge, r, None, 0)),
+            ErrorCode::TooLarge
+        );
     }
 
     #[test]
     fn allow_unsigned_from_a_command_is_never_accepted() {
         let p = br#"{"package_b64":"aGVsbG8=","allow_unsigned":true}"#;
-        assert_eq!(code(cp().parse("cetratus/cell1/cmd/load", p, Some("r"), None, 0)), ErrorCode::NotAllowed);
+        assert_eq!(
+            code(cp().parse("cetratus/cell1/cmd/load", p, Some("r"), None, 0)),
+            ErrorCode::NotAllowed
+        );
     }
 
     #[test]
     fn a_rejection_without_reply_address_still_makes_an_event() {
-        let rej = cp().parse("cetratus/cell1/cmd/load", b"nope", None, None, 0).expect_err("rejected");
+        let rej = cp()
+            .parse("cetratus/cell1/cmd/load", b"nope", None, None, 0)
+            .expect_err("rejected");
         assert!(rej.reply.is_none());
         assert_eq!(rej.event["kind"], "command_rejected");
     }
@@ -525,12 +626,20 @@ mod tests {
         let mut keys = OperatorKeys::new(Duration::from_secs(30));
         keys.add("op", sk.verifying_key());
         let mut cp = ControlPlane::new("cell1", Some(keys)).expect("valid id");
-        assert_eq!(code(cp.parse("cetratus/cell1/cmd/abort", b"{}", Some("r"), None, 100)), ErrorCode::Unauthorised);
+        assert_eq!(
+            code(cp.parse("cetratus/cell1/cmd/abort", b"{}", Some("r"), None, 100)),
+            ErrorCode::Unauthorised
+        );
         let env = crate::envelope::sign("abort", b"{}", 100, "n-123456", "op", &sk);
         let payload = serde_json::to_vec(&json!({"envelope": env})).expect("serialisable");
-        let c = cp.parse("cetratus/cell1/cmd/abort", &payload, Some("r"), None, 100).expect("accepted");
+        let c = cp
+            .parse("cetratus/cell1/cmd/abort", &payload, Some("r"), None, 100)
+            .expect("accepted");
         assert_eq!(c.key_id.as_deref(), Some("op"));
-        assert_eq!(code(cp.parse("cetratus/cell1/cmd/abort", &payload, Some("r"), None, 100)), ErrorCode::Replayed);
+        assert_eq!(
+            code(cp.parse("cetratus/cell1/cmd/abort", &payload, Some("r"), None, 100)),
+            ErrorCode::Replayed
+        );
     }
 
     #[test]

@@ -42,7 +42,14 @@ pub fn signing_message(verb: &str, payload: &[u8], timestamp: u64, nonce: &str) 
 }
 
 /// Signs a command body: what an operator tool (or a test) does.
-pub fn sign(verb: &str, payload: &[u8], timestamp: u64, nonce: &str, key_id: &str, key: &SigningKey) -> Envelope {
+pub fn sign(
+    verb: &str,
+    payload: &[u8],
+    timestamp: u64,
+    nonce: &str,
+    key_id: &str,
+    key: &SigningKey,
+) -> Envelope {
     let b64 = base64::engine::general_purpose::STANDARD;
     let sig = key.sign(&signing_message(verb, payload, timestamp, nonce));
     Envelope {
@@ -85,10 +92,11 @@ impl OperatorKeys {
             reason,
         };
         let bytes = hex::decode(hex_key.trim()).map_err(|e| bad(format!("not hex: {e}")))?;
-        let arr: [u8; 32] = bytes
-            .try_into()
-            .map_err(|v: Vec<u8>| bad(format!("{} bytes; an ed25519 public key has 32", v.len())))?;
-        let key = VerifyingKey::from_bytes(&arr).map_err(|e| bad(format!("not an ed25519 point: {e}")))?;
+        let arr: [u8; 32] = bytes.try_into().map_err(|v: Vec<u8>| {
+            bad(format!("{} bytes; an ed25519 public key has 32", v.len()))
+        })?;
+        let key = VerifyingKey::from_bytes(&arr)
+            .map_err(|e| bad(format!("not an ed25519 point: {e}")))?;
         self.add(id, key);
         Ok(())
     }
@@ -99,7 +107,12 @@ impl OperatorKeys {
     }
 
     /// Checks an envelope for `verb` at Unix time `now_s`; returns the signed body and the key id.
-    pub fn verify(&mut self, verb: &str, env: &Envelope, now_s: u64) -> Result<(Vec<u8>, String), (ErrorCode, String)> {
+    pub fn verify(
+        &mut self,
+        verb: &str,
+        env: &Envelope,
+        now_s: u64,
+    ) -> Result<(Vec<u8>, String), (ErrorCode, String)> {
         let unauth = |m: String| (ErrorCode::Unauthorised, m);
         let key = self
             .keys
@@ -115,20 +128,38 @@ impl OperatorKeys {
             )));
         }
         let b64 = base64::engine::general_purpose::STANDARD;
-        let payload = b64
-            .decode(&env.payload_b64)
-            .map_err(|e| (ErrorCode::Malformed, format!("payload_b64 is not base64: {e}")))?;
+        let payload = b64.decode(&env.payload_b64).map_err(|e| {
+            (
+                ErrorCode::Malformed,
+                format!("payload_b64 is not base64: {e}"),
+            )
+        })?;
         let sig_bytes = b64
             .decode(&env.signature)
             .map_err(|e| unauth(format!("signature is not base64: {e}")))?;
-        let sig = Signature::from_slice(&sig_bytes).map_err(|e| unauth(format!("bad signature: {e}")))?;
-        key.verify(&signing_message(verb, &payload, env.timestamp, &env.nonce), &sig)
-            .map_err(|_| unauth(format!("the signature does not verify with key `{}` for verb `{verb}`", env.key_id)))?;
+        let sig =
+            Signature::from_slice(&sig_bytes).map_err(|e| unauth(format!("bad signature: {e}")))?;
+        key.verify(
+            &signing_message(verb, &payload, env.timestamp, &env.nonce),
+            &sig,
+        )
+        .map_err(|_| {
+            unauth(format!(
+                "the signature does not verify with key `{}` for verb `{verb}`",
+                env.key_id
+            ))
+        })?;
         // Only a verified command may consume a nonce, so forgeries cannot burn someone else's nonces.
         let window = self.window_s;
         self.seen.retain(|_, ts| ts.abs_diff(now_s) <= window);
         if self.seen.contains_key(&env.nonce) {
-            return Err((ErrorCode::Replayed, format!("nonce `{}` was already used inside the replay window", env.nonce)));
+            return Err((
+                ErrorCode::Replayed,
+                format!(
+                    "nonce `{}` was already used inside the replay window",
+                    env.nonce
+                ),
+            ));
         }
         self.seen.insert(env.nonce.clone(), env.timestamp);
         Ok((payload, env.key_id.clone()))
@@ -150,7 +181,10 @@ mod tests {
     fn a_signed_command_verifies_and_yields_its_body_and_key_id() {
         let (mut k, sk) = keys();
         let env = sign("remove", b"{}", 1000, "nonce-0001", "op1", &sk);
-        assert_eq!(k.verify("remove", &env, 1010), Ok((b"{}".to_vec(), "op1".to_string())));
+        assert_eq!(
+            k.verify("remove", &env, 1010),
+            Ok((b"{}".to_vec(), "op1".to_string()))
+        );
     }
 
     #[test]
@@ -158,29 +192,49 @@ mod tests {
         let (mut k, sk) = keys();
         let env = sign("abort", b"{}", 1000, "nonce-0002", "op1", &sk);
         assert!(k.verify("abort", &env, 1000).is_ok());
-        assert_eq!(k.verify("abort", &env, 1001).map_err(|e| e.0), Err(ErrorCode::Replayed));
+        assert_eq!(
+            k.verify("abort", &env, 1001).map_err(|e| e.0),
+            Err(ErrorCode::Replayed)
+        );
     }
 
     #[test]
     fn a_signature_for_another_verb_is_refused() {
         let (mut k, sk) = keys();
         let env = sign("remove", b"{}", 1000, "nonce-0003", "op1", &sk);
-        assert_eq!(k.verify("substitute", &env, 1000).map_err(|e| e.0), Err(ErrorCode::Unauthorised));
+        assert_eq!(
+            k.verify("substitute", &env, 1000).map_err(|e| e.0),
+            Err(ErrorCode::Unauthorised)
+        );
     }
 
     #[test]
     fn a_tampered_payload_is_refused() {
         let (mut k, sk) = keys();
-        let mut env = sign("substitute", br#"{"mode":"retransform"}"#, 1000, "nonce-0004", "op1", &sk);
-        env.payload_b64 = base64::engine::general_purpose::STANDARD.encode(br#"{"mode":"keep","force":true}"#);
-        assert_eq!(k.verify("substitute", &env, 1000).map_err(|e| e.0), Err(ErrorCode::Unauthorised));
+        let mut env = sign(
+            "substitute",
+            br#"{"mode":"retransform"}"#,
+            1000,
+            "nonce-0004",
+            "op1",
+            &sk,
+        );
+        env.payload_b64 =
+            base64::engine::general_purpose::STANDARD.encode(br#"{"mode":"keep","force":true}"#);
+        assert_eq!(
+            k.verify("substitute", &env, 1000).map_err(|e| e.0),
+            Err(ErrorCode::Unauthorised)
+        );
     }
 
     #[test]
     fn a_stale_timestamp_is_refused() {
         let (mut k, sk) = keys();
         let env = sign("reset", b"{}", 1000, "nonce-0005", "op1", &sk);
-        assert_eq!(k.verify("reset", &env, 1031).map_err(|e| e.0), Err(ErrorCode::Unauthorised));
+        assert_eq!(
+            k.verify("reset", &env, 1031).map_err(|e| e.0),
+            Err(ErrorCode::Unauthorised)
+        );
     }
 
     #[test]
@@ -188,7 +242,10 @@ mod tests {
         let (mut k, _) = keys();
         let other = SigningKey::from_bytes(&[9u8; 32]);
         let env = sign("reset", b"{}", 1000, "nonce-0006", "mallory", &other);
-        assert_eq!(k.verify("reset", &env, 1000).map_err(|e| e.0), Err(ErrorCode::Unauthorised));
+        assert_eq!(
+            k.verify("reset", &env, 1000).map_err(|e| e.0),
+            Err(ErrorCode::Unauthorised)
+        );
     }
 
     #[test]
@@ -196,6 +253,8 @@ mod tests {
         let mut k = OperatorKeys::new(Duration::from_secs(30));
         assert!(k.add_hex("x", "abcd").is_err());
         let sk = SigningKey::from_bytes(&[3u8; 32]);
-        assert!(k.add_hex("x", &hex::encode(sk.verifying_key().to_bytes())).is_ok());
+        assert!(k
+            .add_hex("x", &hex::encode(sk.verifying_key().to_bytes()))
+            .is_ok());
     }
 }

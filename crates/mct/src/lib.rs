@@ -1,1 +1,47 @@
-//! placeholder
+//! The Machine Configuration Tool's control plane: the PLC over MQTT (DESIGN §5, docs/mqtt.md).
+//!
+//! Two halves:
+//! * [`ControlPlane`], transport-independent: turns `(topic, payload, response topic, correlation
+//!   data)` into a typed, authorised [`IncomingCommand`] or a [`Rejection`] holding the error reply
+//!   and the event; formats replies. Plain serde types ([`StateMsg`], [`Reply`]) describe payloads.
+//! * [`start`] / [`spawn_mqtt`]: an MQTT 5 client (rumqttc) in its own threads, connected to the
+//!   [`EmbeddedBroker`] (rmqtt, one port for MQTT 3.1.1 and 5) or to a plant broker.
+//!
+//! The scan thread meets MQTT only through [`MctLink`], two bounded `sync_channel`s, and only with
+//! non-blocking calls:
+//!
+//! ```no_run
+//! # use cetratus_mct::*;
+//! let (link, handle) = start(MqttConfig::new("cell1"))?;
+//! loop {
+//!     // once per cycle, on the scan thread:
+//!     while let Some(cmd) = link.try_command() {
+//!         let result: Result<serde_json::Value, String> = Ok(serde_json::Value::Null); // Plc::command(...)
+//!         let _ = link.send(Outgoing::Reply(cmd.reply, Reply::from_result(result)));
+//!     }
+//!     // `send` never blocks: a full queue gives the message back; keep events/replies for the
+//!     // next cycle, drop periodic figures.
+//!     # break;
+//! }
+//! handle.shutdown();
+//! # Ok::<(), MctError>(())
+//! ```
+
+mod broker;
+mod control;
+mod envelope;
+mod error;
+mod link;
+
+pub use broker::{EmbeddedBroker, BROKER_MAX_PACKET};
+pub use control::{
+    unix_now, ControlPlane, ErrorBody, ErrorCode, IncomingCommand, ProgramInfo, Programs,
+    Rejection, Reply, ReplyHandle, Request, StateMsg, SubstituteArgs, MAX_PAYLOAD, VERBS,
+};
+pub use envelope::{sign, signing_message, Envelope, OperatorKeys};
+pub use error::MctError;
+pub use link::{
+    client_options, spawn_mqtt, start, BrokerChoice, MctLink, MqttConfig, MqttHandle, Outgoing,
+    DEFAULT_MQTT_ADDR,
+};
+pub use rumqttc::v5::MqttOptions;

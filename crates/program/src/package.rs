@@ -55,8 +55,8 @@ pub enum PackageError {
         path: String,
         /// `transform` or `projection`.
         section: &'static str,
-        /// Why.
-        source: TransformError,
+        /// Why (boxed: it is large, and this is a build-time error).
+        source: Box<TransformError>,
     },
     /// The bytes are not a package (not JSON of the right shape, truncated, bad base64).
     #[error("not a Cetratus update package: {reason}; a package is the single JSON file `cetratus package build` writes (was it truncated or edited?)")]
@@ -587,7 +587,8 @@ impl VerifyingKeyFile {
     pub fn parse(text: &str, label: &str) -> Result<Self, PackageError> {
         let fields = key_fields(text, label, PUBLIC_HEADER)?;
         let raw = field_bytes::<32>(&fields, "ed25519", label)?;
-        let key = VerifyingKey::from_bytes(&raw).map_err(|_| key_err(label, "`ed25519` is not a valid Ed25519 public key"))?;
+        let key = VerifyingKey::from_bytes(&raw)
+            .map_err(|_| key_err(label, "`ed25519` is not a valid Ed25519 public key"))?;
         let key_id = key_id_of(&key);
         check_key_id(&fields, &key_id, label)?;
         Ok(VerifyingKeyFile { key_id, key })
@@ -783,9 +784,12 @@ fn field_bytes<const N: usize>(
     let raw = B64
         .decode(v)
         .map_err(|_| key_err(label, format!("`{name}` is not base64")))?;
-    raw.as_slice()
-        .try_into()
-        .map_err(|_| key_err(label, format!("`{name}` must be {N} bytes, found {}", raw.len())))
+    raw.as_slice().try_into().map_err(|_| {
+        key_err(
+            label,
+            format!("`{name}` must be {N} bytes, found {}", raw.len()),
+        )
+    })
 }
 
 fn check_key_id(
@@ -797,7 +801,9 @@ fn check_key_id(
         Some(id) if id == actual => Ok(()),
         Some(id) => Err(key_err(
             label,
-            format!("`key-id {id}` does not match its key, whose id is {actual}; the file was edited"),
+            format!(
+                "`key-id {id}` does not match its key, whose id is {actual}; the file was edited"
+            ),
         )),
         None => Err(key_err(label, "no `key-id` line")),
     }
@@ -907,9 +913,8 @@ pub fn build_package_at(
         ),
         other => other,
     };
-    let (program_toml, program_pnml) =
-        program_sources(&dir.join(m.package.program.get_ref()))
-            .map_err(|e| in_manifest(e, &m.package.program))?;
+    let (program_toml, program_pnml) = program_sources(&dir.join(m.package.program.get_ref()))
+        .map_err(|e| in_manifest(e, &m.package.program))?;
     let base_path = dir.join(m.package.base.get_ref());
     if !base_path.is_file() {
         return Err(at(
@@ -944,7 +949,7 @@ pub fn build_package_at(
     let manifest_err = |section, source| PackageError::ManifestTransform {
         path: label.clone(),
         section,
-        source,
+        source: Box::new(source),
     };
     let transform = resolve_transform(&payload.transform, &base, &new)
         .map_err(|e| manifest_err("transform", e))?;
@@ -985,7 +990,10 @@ pub fn build_package_at(
         base_program: format!("{} {}", base.name(), base.version()),
         transform_kind: payload.transform.kind(),
         transform: transform.to_dense(),
-        projection_kind: payload.projection.as_ref().map_or("generated", TransformSpec::kind),
+        projection_kind: payload
+            .projection
+            .as_ref()
+            .map_or("generated", TransformSpec::kind),
         projection: projection.to_dense(),
         signer: key.map(KeyPair::key_id),
         warnings,
@@ -1094,7 +1102,10 @@ mod tests {
     #[test]
     fn an_edited_key_id_is_refused() {
         let k = KeyPair::generate();
-        let text = k.public().to_text().replace(&k.key_id(), "0000000000000000");
+        let text = k
+            .public()
+            .to_text()
+            .replace(&k.key_id(), "0000000000000000");
         let err = VerifyingKeyFile::parse(&text, "x.pub").unwrap_err();
         assert!(err.to_string().contains("does not match"), "{err}");
         let err = VerifyingKeyFile::parse("hello", "x.pub").unwrap_err();

@@ -106,7 +106,9 @@ pub enum TransformError {
         id: String,
     },
     /// `removed` sends tokens to a place the new net does not have.
-    #[error("removed place `{from}` sends its tokens to `{to}`, which is not a place of the new net")]
+    #[error(
+        "removed place `{from}` sends its tokens to `{to}`, which is not a place of the new net"
+    )]
     RemovedTargetUnknown {
         /// The removed place.
         from: String,
@@ -328,10 +330,12 @@ impl Linear {
     /// Row r at x, exactly: `i64 · u32` terms fit an i128 with room for any realistic row.
     #[inline]
     fn eval(&self, r: usize, x: &[Tokens]) -> i128 {
-        self.row(r).iter().fold(i128::from(self.base[r]), |acc, &(c, k)| {
-            let v = x.get(c as usize).copied().unwrap_or(0);
-            acc.saturating_add(i128::from(k) * i128::from(v))
-        })
+        self.row(r)
+            .iter()
+            .fold(i128::from(self.base[r]), |acc, &(c, k)| {
+                let v = x.get(c as usize).copied().unwrap_or(0);
+                acc.saturating_add(i128::from(k) * i128::from(v))
+            })
     }
 
     /// True when some row reads column c.
@@ -420,7 +424,11 @@ impl StateTransform {
             };
             rows[r.index()].push((q.0, 1));
         }
-        Ok(Self::from_map(Linear::from_rows(rows, base, nn, on), on, nn))
+        Ok(Self::from_map(
+            Linear::from_rows(rows, base, nn, on),
+            on,
+            nn,
+        ))
     }
 
     /// An explicit transformation from a dense `|P_new| × |P_old|` matrix whose row ids are the
@@ -719,7 +727,13 @@ impl fmt::Display for DenseMatrix {
     /// An aligned table: a header of column ids, then per row its id, its coefficients, `|` and
     /// its base. Zeros print as `.` so that the structure stands out in a large matrix.
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        let cell = |k: i64| if k == 0 { ".".to_string() } else { k.to_string() };
+        let cell = |k: i64| {
+            if k == 0 {
+                ".".to_string()
+            } else {
+                k.to_string()
+            }
+        };
         let id_w = self.row_ids.iter().map(String::len).max().unwrap_or(0);
         let widths: Vec<usize> = self
             .col_ids
@@ -753,11 +767,7 @@ impl fmt::Display for DenseMatrix {
                 let k = self.matrix.get(r).and_then(|row| row.get(c)).copied();
                 write!(f, " {:>w$}", cell(k.unwrap_or(0)))?;
             }
-            writeln!(
-                f,
-                " | {:>base_w$}",
-                self.base.get(r).copied().unwrap_or(0)
-            )?;
+            writeln!(f, " | {:>base_w$}", self.base.get(r).copied().unwrap_or(0))?;
         }
         Ok(())
     }

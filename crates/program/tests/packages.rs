@@ -94,6 +94,11 @@ fn u1_dense_transform_gives_h_plus_two_with_other_places_equal() {
         .apply(m_old.as_slice(), &up.program, &mut m_new));
     assert_eq!(m_new[0], m_old.as_slice()[0] + 2, "H grows by two");
     assert_eq!(m_new[1..], m_old.as_slice()[1..], "the other places keep");
+    assert_eq!(
+        up.projection.drift(&m_new, m_old.as_slice()),
+        0,
+        "H - 2 projects back"
+    );
 
     // Any marking of the old invariants, not only M0: one part unloading M1 (P14) with H=3, B=3.
     let m = [3, 3, 0, 0, 0, 0, 0, 1, 1, 0, 0, 0, 0];
@@ -117,7 +122,7 @@ fn u2_generated_transform_is_the_identity_over_a_zero_block() {
     assert_eq!(report.transform.row_ids, rows);
 
     let pkg = ok(UpdatePackage::verify(&bytes, &s.trust(), false));
-    let old = load("vernadat.toml");
+    let old = load("u1.toml");
     let up = ok(pkg.resolve(&old, false));
     assert_eq!(up.transform.to_dense(), report.transform);
     assert_eq!((up.transform.rows(), up.transform.cols()), (15, 13));
@@ -131,8 +136,8 @@ fn u2_generated_transform_is_the_identity_over_a_zero_block() {
         assert_eq!(row[r], 1, "identity on kept place {}", IDS[r]);
     }
     // A candidate lubricating M1 (P30) while the primary's M1 part is ready (P13): no drift.
-    let primary = [4, 3, 1, 0, 0, 0, 1, 0, 1, 0, 0, 0, 0];
-    let candidate = [4, 3, 1, 0, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0];
+    let primary = [6, 3, 1, 0, 0, 0, 1, 0, 1, 0, 0, 0, 0];
+    let candidate = [6, 3, 1, 0, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0];
     assert_eq!(up.projection.drift(&candidate, &primary), 0);
 }
 
@@ -143,12 +148,15 @@ fn a_package_file_says_who_signed_it_and_hashes_its_bytes() {
     let pkg = ok(UpdatePackage::verify(&bytes, &s.trust(), false));
     assert_eq!(pkg.meta().name, "U.2 lubrication");
     assert_eq!(pkg.meta().created, "2023-11-14T22:13:20Z");
-    assert_eq!(pkg.meta().base_program_hash, load("vernadat.toml").hash_hex());
+    assert_eq!(pkg.meta().base_program_hash, load("u1.toml").hash_hex());
     assert_eq!(pkg.program().hash_hex(), load("u2.toml").hash_hex());
     assert_eq!(pkg.program().hash_hex(), report.program_hash);
     assert_eq!(pkg.hash_hex().len(), 64);
     let info = ok(cetratus_program::package::inspect(&bytes));
-    assert_eq!(info.claimed_signer.as_deref(), Some(s.key.key_id().as_str()));
+    assert_eq!(
+        info.claimed_signer.as_deref(),
+        Some(s.key.key_id().as_str())
+    );
     assert_eq!(info.hash_hex, pkg.hash_hex());
 }
 
@@ -213,11 +221,12 @@ fn a_package_built_against_another_program_is_refused_unless_forced() {
     let s = Signer::new();
     let (bytes, _) = s.build(&example("u2.package.toml"));
     let pkg = ok(UpdatePackage::verify(&bytes, &s.trust(), false));
-    let u1 = load("u1.toml");
-    let err = pkg.resolve(&u1, false).unwrap_err();
+    // U.2 follows U.1; the cell still running the initial program is another program.
+    let initial = load("vernadat.toml");
+    let err = pkg.resolve(&initial, false).unwrap_err();
     assert!(matches!(err, PackageError::BaseMismatch { .. }), "{err}");
-    assert!(err.to_string().contains(&u1.hash_hex()), "{err}");
-    let up = ok(pkg.resolve(&u1, true));
+    assert!(err.to_string().contains(&initial.hash_hex()), "{err}");
+    let up = ok(pkg.resolve(&initial, true));
     assert_eq!(up.transform.rows(), 15);
 }
 
@@ -228,7 +237,10 @@ fn wrong_dimensions_are_refused_naming_them() {
     let short: Vec<String> = ids()[..12].to_vec();
     let err = StateTransform::dense(on, nn, &short, &ids(), &identity(12), &[0; 12]).unwrap_err();
     assert!(matches!(err, TransformError::Dimensions { .. }), "{err}");
-    assert!(err.to_string().contains("12") && err.to_string().contains("13"), "{err}");
+    assert!(
+        err.to_string().contains("12") && err.to_string().contains("13"),
+        "{err}"
+    );
 
     let mut ragged = identity(13);
     ragged[4].pop();
@@ -245,7 +257,10 @@ fn wrong_dimensions_are_refused_naming_them() {
         "[transform]\nkind = \"dense\"\nrows = [\"H\"]\ncols = [\"H\"]\nmatrix = [[1]]\n",
     );
     let err = build_package(&m, None).unwrap_err();
-    assert!(matches!(err, PackageError::ManifestTransform { .. }), "{err}");
+    assert!(
+        matches!(err, PackageError::ManifestTransform { .. }),
+        "{err}"
+    );
     assert!(err.to_string().contains("t.package.toml"), "{err}");
 }
 
@@ -255,17 +270,18 @@ fn wrong_place_ids_are_refused_naming_them() {
     let (on, nn) = (old.net(), new.net());
     let mut swapped = ids();
     swapped.swap(0, 1);
-    let err =
-        StateTransform::dense(on, nn, &swapped, &ids(), &identity(13), &[0; 13]).unwrap_err();
+    let err = StateTransform::dense(on, nn, &swapped, &ids(), &identity(13), &[0; 13]).unwrap_err();
     let text = err.to_string();
-    assert!(text.contains("row 1") && text.contains("`B`") && text.contains("`H`"), "{text}");
-    let err =
-        StateTransform::dense(on, nn, &ids(), &swapped, &identity(13), &[0; 13]).unwrap_err();
+    assert!(
+        text.contains("row 1") && text.contains("`B`") && text.contains("`H`"),
+        "{text}"
+    );
+    let err = StateTransform::dense(on, nn, &ids(), &swapped, &identity(13), &[0; 13]).unwrap_err();
     assert!(err.to_string().contains("column 1"), "{err}");
 
     let u2 = load("u2.toml");
-    let err = StateTransform::dense(on, u2.net(), &ids(), &ids(), &identity(13), &[0; 13])
-        .unwrap_err();
+    let err =
+        StateTransform::dense(on, u2.net(), &ids(), &ids(), &identity(13), &[0; 13]).unwrap_err();
     assert!(matches!(err, TransformError::Dimensions { .. }), "{err}");
 }
 
@@ -287,7 +303,10 @@ fn a_negative_result_is_refused_and_nothing_is_written() {
         .apply(old.net().initial_marking().as_slice(), &new, &mut out)
         .unwrap_err();
     assert!(matches!(err, TransformError::Negative { .. }), "{err}");
-    assert!(err.to_string().contains("`B`") && err.to_string().contains("-2"), "{err}");
+    assert!(
+        err.to_string().contains("`B`") && err.to_string().contains("-2"),
+        "{err}"
+    );
     assert_eq!(out, [77; 13], "nothing written");
 }
 
@@ -360,6 +379,8 @@ fn a_sparse_transform_in_a_manifest_resolves_like_the_dense_one() {
     let (_, sparse) = ok(build_package(&m, None));
     let (_, dense) = ok(build_package(&example("u1.package.toml"), None));
     assert_eq!(sparse.transform, dense.transform);
+    assert_eq!(dense.projection_kind, "sparse");
+    assert_eq!(dense.projection.base[0], -2);
     assert!(sparse.warnings.is_empty(), "{:?}", sparse.warnings);
 }
 
@@ -370,7 +391,10 @@ fn a_manifest_with_an_unknown_key_is_refused_at_its_position() {
     let err = build_package(&m, None).unwrap_err();
     let text = err.to_string();
     // Internally tagged tables are read whole, so the position is that of `[transform]`.
-    assert!(text.contains("t.package.toml:6:") && text.contains("`rowz`"), "{text}");
+    assert!(
+        text.contains("t.package.toml:6:") && text.contains("`rowz`"),
+        "{text}"
+    );
 }
 
 #[test]

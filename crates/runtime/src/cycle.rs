@@ -134,18 +134,24 @@ impl ScanCycle {
         let period_us = self.period_us;
         let mut timing = std::mem::take(&mut self.timing);
         let mut result = Ok(());
-        let reached = run_periodic(period_us, until_us, speed, stop, &mut timing, |now_us| {
-            match self.cycle(now_us, io) {
-                Ok(_) => {
-                    observe(self, now_us, io);
-                    true
-                }
-                Err(e) => {
-                    result = Err(e);
-                    false
-                }
-            }
-        });
+        let reached =
+            run_periodic(
+                period_us,
+                until_us,
+                speed,
+                stop,
+                &mut timing,
+                |now_us| match self.cycle(now_us, io) {
+                    Ok(_) => {
+                        observe(self, now_us, io);
+                        true
+                    }
+                    Err(e) => {
+                        result = Err(e);
+                        false
+                    }
+                },
+            );
         self.timing = timing;
         result.map(|()| reached)
     }
@@ -175,7 +181,11 @@ pub fn run_periodic(
     timing: &mut LoopTiming,
     mut body: impl FnMut(u64) -> bool,
 ) -> u64 {
-    let speed = if speed.is_finite() && speed > 0.0 { speed } else { 1.0 };
+    let speed = if speed.is_finite() && speed > 0.0 {
+        speed
+    } else {
+        1.0
+    };
     let wall_period = Duration::from_secs_f64(period_us.max(1) as f64 / 1e6 / speed);
     let origin = Instant::now();
     let mut last_start: Option<Instant> = None;
@@ -211,5 +221,4 @@ pub fn run_periodic(
             k += 1;
         }
     }
-
 }

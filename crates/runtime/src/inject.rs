@@ -42,7 +42,9 @@ pub(crate) fn before_scan(name: &str, version: &str) -> Result<(), RuntimeError>
     });
     match fault {
         Some(Fault::Panic) => panic!("injected panic in {name} {version}"),
-        Some(Fault::Error) => Err(RuntimeError::Injected(format!("guard error in {name} {version}"))),
+        Some(Fault::Error) => Err(RuntimeError::Injected(format!(
+            "guard error in {name} {version}"
+        ))),
         Some(Fault::Slow(us)) => {
             std::thread::sleep(std::time::Duration::from_micros(us));
             Ok(())

@@ -11,11 +11,11 @@ mod clock;
 mod container;
 mod cycle;
 mod error;
+#[cfg(feature = "fault-injection")]
+pub mod inject;
 mod io;
 pub mod monitor;
 pub mod plc;
-#[cfg(feature = "fault-injection")]
-pub mod inject;
 pub mod rt;
 mod stats;
 pub mod trace;
@@ -26,5 +26,7 @@ pub use cycle::{run_periodic, CycleFigures, LoopTiming, ScanCycle};
 pub use error::RuntimeError;
 pub use io::{Dispatcher, Provider};
 pub use monitor::{Slot, Status};
-pub use plc::{Command, Event, Limits, Plc, PreparedUpdate, SubstituteMode, SubstituteRequest, UpdateContext};
+pub use plc::{
+    Command, Event, Limits, Plc, PreparedUpdate, SubstituteMode, SubstituteRequest, UpdateContext,
+};
 pub use stats::{Summary, TimingStats};

@@ -238,8 +238,13 @@ pub fn describe_cause(cause: &Cause, fired: &Container, other: &Container) -> St
     let (a, b) = (cause.fired_in.name(), cause.fired_in.other().name());
     let why = match cause.blocked {
         Blocker::Place(p) => format!("it was blocked by {}", other.program().net().place(p).id),
-        Blocker::Inhibitor(p) => format!("it was inhibited by {}", other.program().net().place(p).id),
-        Blocker::Capacity(p) => format!("it was blocked by the capacity of {}", other.program().net().place(p).id),
+        Blocker::Inhibitor(p) => {
+            format!("it was inhibited by {}", other.program().net().place(p).id)
+        }
+        Blocker::Capacity(p) => format!(
+            "it was blocked by the capacity of {}",
+            other.program().net().place(p).id
+        ),
         Blocker::Guard => "its guard was false".to_string(),
         Blocker::Conflict => "it lost a conflict to a transition of higher rank".to_string(),
         Blocker::Absent => "it does not exist".to_string(),

@@ -16,7 +16,9 @@ use cetratus_program::{
 };
 use serde::Serialize;
 
-use crate::monitor::{describe_cause, Cause, ContainerStats, CycleRecord, ExecInfo, Monitor, ProgramId, Slot, Status};
+use crate::monitor::{
+    describe_cause, Cause, ContainerStats, CycleRecord, ExecInfo, Monitor, ProgramId, Slot, Status,
+};
 use crate::{Blocker, Container, Dispatcher, Provider, RuntimeError, TimingStats};
 
 /// Measures the in-cycle part of an update, injected like the clock so virtual runs stay
@@ -72,7 +74,9 @@ impl std::str::FromStr for SubstituteMode {
         match s {
             "retransform" => Ok(SubstituteMode::Retransform),
             "keep" => Ok(SubstituteMode::Keep),
-            o => Err(format!("unknown substitution mode `{o}`; expected retransform or keep")),
+            o => Err(format!(
+                "unknown substitution mode `{o}`; expected retransform or keep"
+            )),
         }
     }
 }
@@ -135,7 +139,8 @@ impl UpdateContext {
         allow_unsigned: bool,
         force: bool,
     ) -> Result<PreparedUpdate, String> {
-        let pkg = UpdatePackage::verify(bytes, trust, allow_unsigned).map_err(|e| format!("package refused: {e}"))?;
+        let pkg = UpdatePackage::verify(bytes, trust, allow_unsigned)
+            .map_err(|e| format!("package refused: {e}"))?;
         let resolved = pkg
             .resolve(&self.primary, force)
             .map_err(|e| format!("package refused: {e}"))?;
@@ -293,7 +298,15 @@ impl Plc {
             retired: Vec::with_capacity(2),
             cycle_stats: TimingStats::new(),
         };
-        plc.event("cold_start", format!("cold start: A runs {} {} from M0", program.name(), program.version()), serde_json::Value::Null);
+        plc.event(
+            "cold_start",
+            format!(
+                "cold start: A runs {} {} from M0",
+                program.name(),
+                program.version()
+            ),
+            serde_json::Value::Null,
+        );
         plc
     }
 
@@ -366,7 +379,9 @@ impl Plc {
     }
     /// A container's outputs in I/O-map order (`None` when empty).
     pub fn outputs_of(&self, slot: Slot) -> Option<&[Value]> {
-        self.slots[slot.index()].as_ref().map(|_| &self.io_outs[slot.index()][..])
+        self.slots[slot.index()]
+            .as_ref()
+            .map(|_| &self.io_outs[slot.index()][..])
     }
     /// Drift of the candidate in quarantine.
     pub fn drift(&self) -> Option<u64> {
@@ -453,7 +468,8 @@ impl Plc {
             .map(|t| cn.transition_by_id(&t.id))
             .collect();
         let np = cn.num_places();
-        let work = (update.transform.rows() + update.transform.cols() + np + cn.num_transitions()) as u64;
+        let work =
+            (update.transform.rows() + update.transform.cols() + np + cn.num_transitions()) as u64;
         Ok(PreparedUpdate {
             base_hash: primary.hash(),
             container: Container::new(program, 0),
@@ -491,7 +507,12 @@ impl Plc {
                 if p.base_hash != self.primary_program().hash() {
                     return Err("load refused: the update was prepared against another running program; load it again".into());
                 }
-                let msg = format!("load accepted: {} {} goes into {} at the next cycle", p.meta.name, p.meta.version, self.primary.other().name());
+                let msg = format!(
+                    "load accepted: {} {} goes into {} at the next cycle",
+                    p.meta.name,
+                    p.meta.version,
+                    self.primary.other().name()
+                );
                 self.setup = Some(p);
                 self.status = Status::Setup;
                 self.event("load_accepted", msg, serde_json::Value::Null);
@@ -499,13 +520,24 @@ impl Plc {
             }
             Command::Substitute(req) => {
                 if self.status != Status::Quarantine {
-                    return Err(format!("substitute refused: no candidate in quarantine (status {})", self.status.name()));
+                    return Err(format!(
+                        "substitute refused: no candidate in quarantine (status {})",
+                        self.status.name()
+                    ));
                 }
-                let q = self.quarantine.as_mut().expect("quarantine state exists in quarantine");
+                let q = self
+                    .quarantine
+                    .as_mut()
+                    .expect("quarantine state exists in quarantine");
                 if q.pending.is_some() {
-                    return Err("substitute refused: a substitution is already waiting; abort it first".into());
+                    return Err(
+                        "substitute refused: a substitution is already waiting; abort it first"
+                            .into(),
+                    );
                 }
-                let deadline = req.within_us.map_or(u64::MAX, |w| self.now_us.saturating_add(w));
+                let deadline = req
+                    .within_us
+                    .map_or(u64::MAX, |w| self.now_us.saturating_add(w));
                 let msg = match &req.when {
                     Some((text, _)) => format!("substitution waits for `{text}`"),
                     None => "substitution at the next cycle".to_string(),
@@ -516,30 +548,54 @@ impl Plc {
             }
             Command::Remove => {
                 if self.status != Status::Quarantine {
-                    return Err(format!("remove refused: no candidate in quarantine (status {})", self.status.name()));
+                    return Err(format!(
+                        "remove refused: no candidate in quarantine (status {})",
+                        self.status.name()
+                    ));
                 }
-                self.drop_candidate("removed", "the candidate was removed by the operator".into());
+                self.drop_candidate(
+                    "removed",
+                    "the candidate was removed by the operator".into(),
+                );
                 Ok(())
             }
             Command::Abort => match self.status {
                 Status::Setup => {
                     self.setup = None;
                     self.status = Status::Idle;
-                    self.event("aborted", "the update was aborted before its install".into(), serde_json::Value::Null);
+                    self.event(
+                        "aborted",
+                        "the update was aborted before its install".into(),
+                        serde_json::Value::Null,
+                    );
                     Ok(())
                 }
                 Status::Quarantine => {
-                    self.drop_candidate("aborted", "the update was aborted; the candidate is removed".into());
+                    self.drop_candidate(
+                        "aborted",
+                        "the update was aborted; the candidate is removed".into(),
+                    );
                     Ok(())
                 }
-                s => Err(format!("abort refused: no update under way (status {})", s.name())),
+                s => Err(format!(
+                    "abort refused: no update under way (status {})",
+                    s.name()
+                )),
             },
             Command::Reset => {
                 if self.status != Status::Fault {
-                    return Err(format!("reset refused: the PLC is not in fault (status {})", self.status.name()));
+                    return Err(format!(
+                        "reset refused: the PLC is not in fault (status {})",
+                        self.status.name()
+                    ));
                 }
                 self.status = Status::Idle;
-                self.event("reset", "fault reset by the operator: the primary resumes from its last good state".into(), serde_json::Value::Null);
+                self.event(
+                    "reset",
+                    "fault reset by the operator: the primary resumes from its last good state"
+                        .into(),
+                    serde_json::Value::Null,
+                );
                 Ok(())
             }
         }
@@ -597,7 +653,9 @@ impl Plc {
                 )),
                 Ok(Err(e)) => Some(format!("candidate faulted: {e}")),
                 Ok(Ok(())) => {
-                    let cand = self.slots[c].as_ref().expect("candidate present in quarantine");
+                    let cand = self.slots[c]
+                        .as_ref()
+                        .expect("candidate present in quarantine");
                     if let Err(v) = cand.program().check_invariants(cand.marking()) {
                         Some(format!("candidate reached an invalid marking: {v}"))
                     } else if took > self.limits.candidate_budget_ns {
@@ -612,7 +670,10 @@ impl Plc {
                 }
             };
             if let Some(reason) = fault {
-                self.drop_candidate("candidate_fault", format!("{reason}; the update is aborted and the primary goes on"));
+                self.drop_candidate(
+                    "candidate_fault",
+                    format!("{reason}; the update is aborted and the primary goes on"),
+                );
             } else {
                 self.monitor_quarantine(now_us);
             }
@@ -629,7 +690,14 @@ impl Plc {
             self.deadlock_alarmed = false;
         } else if !self.deadlock_alarmed && self.inputs != self.prev_inputs {
             self.deadlock_alarmed = true;
-            self.event("deadlock_alarm", format!("primary {} is deadlocked: no transition is enabled while its inputs change", self.primary.name()), serde_json::Value::Null);
+            self.event(
+                "deadlock_alarm",
+                format!(
+                    "primary {} is deadlocked: no transition is enabled while its inputs change",
+                    self.primary.name()
+                ),
+                serde_json::Value::Null,
+            );
         }
         self.record(now_us);
         self.cycle += 1;
@@ -640,7 +708,9 @@ impl Plc {
         for (v, &j) in self.images[i].iter_mut().zip(&self.in_maps[i]) {
             *v = self.inputs[j];
         }
-        let c = self.slots[i].as_mut().expect("scanned slots hold a program");
+        let c = self.slots[i]
+            .as_mut()
+            .expect("scanned slots hold a program");
         #[cfg(feature = "fault-injection")]
         crate::inject::before_scan(c.program().name(), c.program().version())?;
         let t = std::time::Instant::now();
@@ -670,16 +740,27 @@ impl Plc {
             }
             self.quarantine = None;
             self.setup = None;
-            self.event("update_discarded", "the update under way is discarded because the primary faulted".into(), serde_json::Value::Null);
+            self.event(
+                "update_discarded",
+                "the update under way is discarded because the primary faulted".into(),
+                serde_json::Value::Null,
+            );
         }
         self.status = Status::Fault;
-        self.event("primary_fault", format!("{message}; safe output values are driven until an operator resets"), serde_json::Value::Null);
+        self.event(
+            "primary_fault",
+            format!("{message}; safe output values are driven until an operator resets"),
+            serde_json::Value::Null,
+        );
     }
 
     fn monitor_quarantine(&mut self, now_us: u64) {
         let p = self.primary.index();
         let c = self.primary.other().index();
-        let q = self.quarantine.as_ref().expect("quarantine state exists in quarantine");
+        let q = self
+            .quarantine
+            .as_ref()
+            .expect("quarantine state exists in quarantine");
         let (pc, cc) = (
             self.slots[p].as_ref().expect("primary present"),
             self.slots[c].as_ref().expect("candidate present"),
@@ -698,7 +779,8 @@ impl Plc {
                 differs = true;
             }
         }
-        let fired_diff = Self::first_difference(pc, cc, &q.to_primary, &q.from_primary, self.primary);
+        let fired_diff =
+            Self::first_difference(pc, cc, &q.to_primary, &q.from_primary, self.primary);
         if let Some((slot, t)) = fired_diff {
             let (fired, other, other_t) = if slot == self.primary {
                 (pc, cc, q.from_primary[t.index()])
@@ -750,7 +832,11 @@ impl Plc {
     }
 
     fn record(&mut self, now_us: u64) {
-        let out = |s: Slot| self.slots[s.index()].as_ref().map(|_| bits(&self.io_outs[s.index()]));
+        let out = |s: Slot| {
+            self.slots[s.index()]
+                .as_ref()
+                .map(|_| bits(&self.io_outs[s.index()]))
+        };
         let r = CycleRecord {
             cycle: self.cycle,
             time_us: now_us,
@@ -778,11 +864,17 @@ impl Plc {
         let Some(mut up) = self.setup.take() else {
             return;
         };
-        let primary = self.slots[self.primary.index()].as_ref().expect("primary present");
+        let primary = self.slots[self.primary.index()]
+            .as_ref()
+            .expect("primary present");
         self.stopwatch.start();
         let result = up
             .transform
-            .apply(primary.marking(), up.container.program(), &mut up.scratch_marking)
+            .apply(
+                primary.marking(),
+                up.container.program(),
+                &mut up.scratch_marking,
+            )
             .map_err(|e| e.to_string())
             .and_then(|()| {
                 up.transform.apply_timers(
@@ -879,18 +971,31 @@ impl Plc {
         if mode == SubstituteMode::Retransform {
             let res = q
                 .transform
-                .apply(primary.marking(), self.slots[c].as_ref().expect("candidate present").program(), &mut q.scratch_marking)
+                .apply(
+                    primary.marking(),
+                    self.slots[c].as_ref().expect("candidate present").program(),
+                    &mut q.scratch_marking,
+                )
                 .map_err(|e| e.to_string());
             if let Err(reason) = res {
                 q.pending = None;
                 self.event("refused", format!("substitute refused: the retransform failed: {reason}; the candidate stays in quarantine"), serde_json::Value::Null);
                 return;
             }
-            q.transform.apply_timers(primary.place_since_us(), &q.scratch_marking, now_us, &mut q.scratch_since);
+            q.transform.apply_timers(
+                primary.place_since_us(),
+                &q.scratch_marking,
+                now_us,
+                &mut q.scratch_since,
+            );
             let cand = self.slots[c].as_mut().expect("candidate present");
             if let Err(e) = cand.set_state(&q.scratch_marking, &q.scratch_since) {
                 q.pending = None;
-                self.event("refused", format!("substitute refused: {e}"), serde_json::Value::Null);
+                self.event(
+                    "refused",
+                    format!("substitute refused: {e}"),
+                    serde_json::Value::Null,
+                );
                 return;
             }
         }
@@ -940,7 +1045,11 @@ impl Plc {
             let s = &self.monitor.stats[slot.index()];
             let net = c.program().net();
             let is_primary = slot == self.primary;
-            let (first_cause, last_cause) = if is_primary { (None, None) } else { describe(s, slot) };
+            let (first_cause, last_cause) = if is_primary {
+                (None, None)
+            } else {
+                describe(s, slot)
+            };
             Some(ExecInfo {
                 container: slot,
                 role: if is_primary { "primary" } else { "candidate" },
@@ -1041,7 +1150,8 @@ impl Plc {
                     s.place_since_us.clear();
                     s.place_since_us.extend_from_slice(c.place_since_us());
                     s.variables.clear();
-                    s.variables.extend(c.variables().iter().map(|v| value_json(*v)));
+                    s.variables
+                        .extend(c.variables().iter().map(|v| value_json(*v)));
                     s.latches.clear();
                     s.latches.extend_from_slice(c.latches());
                 }
@@ -1065,7 +1175,10 @@ impl Plc {
             .as_ref()
             .ok_or("the saved state has no program in the PRIMARY container")?;
         let prog = program(&cs.program_hash).ok_or_else(|| {
-            format!("the saved state refers to program {} which the state directory does not hold", cs.program_hash)
+            format!(
+                "the saved state refers to program {} which the state directory does not hold",
+                cs.program_hash
+            )
         })?;
         if cs.marking.len() != prog.net().num_places() {
             return Err(format!(
@@ -1100,7 +1213,12 @@ impl Plc {
         plc.in_maps[i] = prog
             .inputs()
             .iter()
-            .map(|s| plc.io_inputs.iter().position(|n| *n == s.name).ok_or(s.name.clone()))
+            .map(|s| {
+                plc.io_inputs
+                    .iter()
+                    .position(|n| *n == s.name)
+                    .ok_or(s.name.clone())
+            })
             .collect::<Result<Vec<_>, _>>()
             .map_err(|n| format!("the saved program reads input `{n}` which the I/O map lacks"))?;
         plc.out_maps[i] = map_by_name(&plc.io_outputs, prog.outputs());
@@ -1109,7 +1227,11 @@ impl Plc {
         plc.primary = primary;
         plc.cycle = snap.cycle;
         plc.now_us = now;
-        plc.status = if snap.status == Some(Status::Fault) { Status::Fault } else { Status::Idle };
+        plc.status = if snap.status == Some(Status::Fault) {
+            Status::Fault
+        } else {
+            Status::Idle
+        };
         plc.event(
             "warm_start",
             format!(
@@ -1133,7 +1255,12 @@ impl Plc {
             );
         }
         if plc.status == Status::Fault {
-            plc.event("primary_fault", "the PLC was in fault when it stopped; it stays in fault until an operator resets".into(), serde_json::Value::Null);
+            plc.event(
+                "primary_fault",
+                "the PLC was in fault when it stopped; it stays in fault until an operator resets"
+                    .into(),
+                serde_json::Value::Null,
+            );
         }
         Ok(plc)
     }

@@ -1,0 +1,407 @@
+//! `cetratus package`: make signing keys, build signed update packages, inspect and verify them.
+//!
+//! The formats (manifest, package file, key files) are in `docs/package-format.md`.
+
+use std::path::{Path, PathBuf};
+
+use anyhow::{bail, Context};
+use cetratus_program::package::{self, build_package_at, BuildReport, TransformSpec};
+use cetratus_program::PackageError;
+use cetratus_program::{build_package, DenseMatrix, KeyPair, Program, TrustStore, UpdatePackage};
+use serde_json::json;
+
+/// Arguments of `cetratus package`.
+#[derive(clap::Args, Debug)]
+pub struct PackageArgs {
+    /// What to do.
+    #[command(subcommand)]
+    pub command: PackageCommand,
+}
+
+/// The `cetratus package` subcommands.
+#[derive(clap::Subcommand, Debug)]
+pub enum PackageCommand {
+    /// Make a signing key: FILE holds the secret (mode 0600), FILE.pub the public key to copy into
+    /// each PLC's trust directory.
+    Keygen(KeygenArgs),
+    /// Build an update package from a manifest (`*.package.toml`) and print its transformation.
+    Build(BuildArgs),
+    /// Show what a package contains (without checking its signature).
+    Inspect(InspectArgs),
+    /// Check a package's signature against trusted keys and, with --base, that it fits a program;
+    /// exits non-zero with the reason when it does not.
+    Verify(VerifyArgs),
+}
+
+/// Arguments of `cetratus package keygen`.
+#[derive(clap::Args, Debug)]
+pub struct KeygenArgs {
+    /// The secret key file to write; the public key goes to FILE.pub. Neither may exist.
+    #[arg(long, short, value_name = "FILE")]
+    pub out: PathBuf,
+}
+
+/// Arguments of `cetratus package build`.
+#[derive(clap::Args, Debug)]
+pub struct BuildArgs {
+    /// The package manifest (TOML).
+    pub manifest: PathBuf,
+    /// The secret key to sign with (from `cetratus package keygen`).
+    #[arg(long, value_name = "FILE", required_unless_present = "unsigned")]
+    pub key: Option<PathBuf>,
+    /// Where to write the package.
+    #[arg(long, short, value_name = "OUT")]
+    pub out: PathBuf,
+    /// Build without a signature (a PLC accepts it only with --allow-unsigned).
+    #[arg(long, conflicts_with = "key")]
+    pub unsigned: bool,
+}
+
+/// Arguments of `cetratus package inspect`.
+#[derive(clap::Args, Debug)]
+pub struct InspectArgs {
+    /// The package file.
+    pub package: PathBuf,
+    /// Also resolve the transformation against this program and print the matrices.
+    #[arg(long, value_name = "PROGRAM")]
+    pub base: Option<PathBuf>,
+    /// Print one JSON object.
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// Arguments of `cetratus package verify`.
+#[derive(clap::Args, Debug)]
+pub struct VerifyArgs {
+    /// The package file.
+    pub package: PathBuf,
+    /// Directory of trusted public keys (`*.pub`).
+    #[arg(long, value_name = "DIR")]
+    pub trust: Option<PathBuf>,
+    /// Also check that the package resolves against this program (the one it will replace).
+    #[arg(long, value_name = "PROGRAM")]
+    pub base: Option<PathBuf>,
+    /// Accept a package without a signature.
+    #[arg(long)]
+    pub allow_unsigned: bool,
+    /// With --base: accept a package built against another program.
+    #[arg(long, requires = "base")]
+    pub force: bool,
+}
+
+/// Runs `cetratus package`.
+pub fn run(args: &PackageArgs) -> anyhow::Result<()> {
+    match &args.command {
+        PackageCommand::Keygen(a) => keygen(a),
+        PackageCommand::Build(a) => build(a),
+        PackageCommand::Inspect(a) => inspect(a),
+        PackageCommand::Verify(a) => verify(a),
+    }
+}
+
+fn keygen(a: &KeygenArgs) -> anyhow::Result<()> {
+    let key = KeyPair::try_generate()?;
+    key.save(&a.out)?;
+    println!("key id      {}", key.key_id());
+    println!("secret key  {}  (keep it private)", a.out.display());
+    println!(
+        "public key  {}  (copy it into each PLC's trust directory)",
+        KeyPair::public_path(&a.out).display()
+    );
+    Ok(())
+}
+
+fn build(a: &BuildArgs) -> anyhow::Result<()> {
+    let key = match &a.key {
+        Some(path) => Some(
+            KeyPair::load(path)
+                .with_context(|| format!("cannot load the key {}", path.display()))?,
+        ),
+        None => None,
+    };
+    // SOURCE_DATE_EPOCH makes `created`, and so the package, reproducible.
+    let (bytes, report) = match std::env::var("SOURCE_DATE_EPOCH") {
+        Ok(s) => {
+            let secs: u64 = s
+                .trim()
+                .parse()
+                .with_context(|| format!("SOURCE_DATE_EPOCH `{s}` is not a number of seconds"))?;
+            build_package_at(&a.manifest, key.as_ref(), secs)?
+        }
+        Err(_) => build_package(&a.manifest, key.as_ref())?,
+    };
+    write_file(&a.out, &bytes)?;
+    print_report(&report);
+    println!("wrote {} ({} bytes)", a.out.display(), bytes.len());
+    Ok(())
+}
+
+/// Writes next to the target and renames, so a reader never sees half a package.
+fn write_file(path: &Path, bytes: &[u8]) -> anyhow::Result<()> {
+    let mut tmp = path.as_os_str().to_owned();
+    tmp.push(".part");
+    let tmp = PathBuf::from(tmp);
+    std::fs::write(&tmp, bytes).with_context(|| format!("cannot write {}", tmp.display()))?;
+    std::fs::rename(&tmp, path).with_context(|| format!("cannot write {}", path.display()))
+}
+
+fn print_report(r: &BuildReport) {
+    println!("package     {} {}", r.meta.name, r.meta.version);
+    if !r.meta.author.is_empty() {
+        println!("author      {}", r.meta.author);
+    }
+    println!("created     {}", r.meta.created);
+    println!(
+        "program     {} {}  {}",
+        r.program_name, r.program_version, r.program_hash
+    );
+    println!(
+        "base        {}  {}",
+        r.base_program, r.meta.base_program_hash
+    );
+    match &r.signer {
+        Some(k) => println!("signed by   {k}"),
+        None => println!("signed by   nobody (unsigned)"),
+    }
+    println!();
+    println!(
+        "state transform ({}): M_new = ST·M_old + ST_base  (rows: new places, columns: old places)",
+        r.transform_kind
+    );
+    print!("{}", r.transform);
+    println!();
+    println!(
+        "projection ({}): Π·M_cand + Π_base  (rows: old places, columns: new places)",
+        r.projection_kind
+    );
+    print!("{}", r.projection);
+    for w in &r.warnings {
+        eprintln!("warning: {w}");
+    }
+}
+
+fn read(path: &Path) -> anyhow::Result<Vec<u8>> {
+    std::fs::read(path).with_context(|| format!("cannot read {}", path.display()))
+}
+
+fn load_program(path: &Path) -> anyhow::Result<Program> {
+    Program::load(path).with_context(|| format!("cannot load the program {}", path.display()))
+}
+
+fn inspect(a: &InspectArgs) -> anyhow::Result<()> {
+    let bytes = read(&a.package)?;
+    let info =
+        package::inspect(&bytes).with_context(|| format!("cannot read {}", a.package.display()))?;
+    let resolved = match &a.base {
+        None => None,
+        Some(base) => {
+            let old = load_program(base)?;
+            let matches = old.hash_hex() == info.meta.base_program_hash;
+            // Resolved as if trusted and forced: inspect shows, it never loads anything.
+            let pkg = UpdatePackage::verify(&bytes, &TrustStore::empty(), true);
+            let up = match pkg {
+                Ok(p) => p.resolve(&old, true)?,
+                Err(_) => bail!(
+                    "--base needs the package's contents; they did not read back (see `cetratus package verify`)"
+                ),
+            };
+            Some((old, matches, up))
+        }
+    };
+    if a.json {
+        let mut v = json!({
+            "file_sha256": info.hash_hex,
+            "meta": info.meta,
+            "claimed_signer": info.claimed_signer,
+            "signature_checked": false,
+            "program": {
+                "name": info.program.name(),
+                "version": info.program.version(),
+                "hash": info.program.hash_hex(),
+                "places": info.program.net().num_places(),
+                "transitions": info.program.net().num_transitions(),
+            },
+            "transform": info.transform,
+            "projection": info.projection,
+        });
+        if let Some((old, matches, up)) = &resolved {
+            v["resolved"] = json!({
+                "base": { "name": old.name(), "version": old.version(), "hash": old.hash_hex(),
+                          "is_the_packages_base": matches },
+                "transform": up.transform.to_dense(),
+                "projection": up.projection.to_dense(),
+            });
+        }
+        println!("{}", serde_json::to_string_pretty(&v)?);
+        return Ok(());
+    }
+    let m = &info.meta;
+    println!("package     {} {}", m.name, m.version);
+    if !m.author.is_empty() {
+        println!("author      {}", m.author);
+    }
+    if !m.description.is_empty() {
+        println!("description {}", m.description);
+    }
+    println!("created     {}", m.created);
+    println!("file sha256 {}", info.hash_hex);
+    match &info.claimed_signer {
+        Some(k) => println!(
+            "signed by   {k}  (not checked here; `cetratus package verify --trust DIR` checks it)"
+        ),
+        None => println!("signed by   nobody (unsigned)"),
+    }
+    let p = &info.program;
+    println!(
+        "program     {} {}  {}  ({} places, {} transitions)",
+        p.name(),
+        p.version(),
+        p.hash_hex(),
+        p.net().num_places(),
+        p.net().num_transitions()
+    );
+    println!("built for   program {}", m.base_program_hash);
+    println!();
+    match &resolved {
+        Some((old, matches, up)) => {
+            if !matches {
+                println!(
+                    "note: {} is not the program this package was built against; shown as if forced",
+                    old.name()
+                );
+            }
+            println!(
+                "state transform ({}), resolved against {} {}:",
+                info.transform.kind(),
+                old.name(),
+                old.version()
+            );
+            print!("{}", up.transform.to_dense());
+            println!();
+            let kind = info
+                .projection
+                .as_ref()
+                .map_or("generated", TransformSpec::kind);
+            println!("projection ({kind}):");
+            print!("{}", up.projection.to_dense());
+        }
+        None => {
+            println!("state transform:");
+            print_spec(&info.transform, "new", "old");
+            println!("projection:");
+            match &info.projection {
+                Some(s) => print_spec(s, "old", "new"),
+                None => println!("  generated: each place kept by id reads itself"),
+            }
+            println!("(add --base PROGRAM to see the matrices resolved against a program)");
+        }
+    }
+    Ok(())
+}
+
+/// A declared transformation, as far as it can be shown without the running program.
+fn print_spec(spec: &TransformSpec, rows: &str, cols: &str) {
+    match spec {
+        TransformSpec::Generated { removed } => {
+            println!("  generated: places kept by id keep their tokens and timers, new places start at their initial marking");
+            for (from, to) in removed {
+                println!("  removed place {from}: its tokens go to {to}");
+            }
+        }
+        TransformSpec::Dense {
+            rows: r,
+            cols: c,
+            matrix,
+            base,
+        } => {
+            println!("  dense (rows: {rows} places, columns: {cols} places)");
+            let d = DenseMatrix {
+                row_ids: r.clone(),
+                col_ids: c.clone(),
+                matrix: matrix.clone(),
+                base: base.clone().unwrap_or_else(|| vec![0; r.len()]),
+            };
+            for line in d.to_string().lines() {
+                println!("  {line}");
+            }
+        }
+        TransformSpec::Sparse {
+            entries,
+            base,
+            identity_on_kept,
+        } => {
+            println!("  sparse (to: {rows} place, from: {cols} place)");
+            if *identity_on_kept {
+                println!("  identity on every place both nets have");
+            }
+            for e in entries {
+                println!("  {} <- {}·{}", e.to, e.coef, e.from);
+            }
+            for (p, b) in base {
+                println!("  base {p} = {b}");
+            }
+        }
+    }
+}
+
+fn verify(a: &VerifyArgs) -> anyhow::Result<()> {
+    let bytes = read(&a.package)?;
+    let trust = match &a.trust {
+        Some(dir) => TrustStore::load_dir(dir)
+            .with_context(|| format!("cannot load the trust directory {}", dir.display()))?,
+        None => TrustStore::empty(),
+    };
+    let pkg = match UpdatePackage::verify(&bytes, &trust, a.allow_unsigned) {
+        Ok(p) => p,
+        Err(e @ PackageError::UnknownSigner { .. }) if a.trust.is_none() => {
+            bail!(
+                "{} refused: {e} (no --trust DIR was given, so no key is trusted)",
+                a.package.display()
+            )
+        }
+        Err(e) => return Err(e).with_context(|| format!("{} refused", a.package.display())),
+    };
+    let m = pkg.meta();
+    match pkg.signer() {
+        Some(k) => println!("signature   good, by trusted key {k}"),
+        None => println!("signature   none (unsigned, allowed by --allow-unsigned)"),
+    }
+    println!(
+        "package     {} {}  sha256 {}",
+        m.name,
+        m.version,
+        pkg.hash_hex()
+    );
+    println!(
+        "program     {} {}  {}",
+        pkg.program().name(),
+        pkg.program().version(),
+        pkg.program().hash_hex()
+    );
+    if let Some(base) = &a.base {
+        let old = load_program(base)?;
+        let up = pkg
+            .resolve(&old, a.force)
+            .with_context(|| format!("{} does not fit {}", a.package.display(), base.display()))?;
+        println!(
+            "resolves    against {} {}: transform {}×{}, projection {}×{}",
+            old.name(),
+            old.version(),
+            up.transform.rows(),
+            up.transform.cols(),
+            up.projection.rows(),
+            up.projection.cols()
+        );
+        // The marking at load time is the PLC's, not M0; M0 is only a hint, so this is a note.
+        let m0 = old.net().initial_marking();
+        let mut out = vec![0; up.transform.rows()];
+        if let Err(e) = up.transform.apply(m0.as_slice(), &up.program, &mut out) {
+            eprintln!(
+                "note: at the initial marking of {}, the transform is refused: {e}",
+                base.display()
+            );
+        }
+    }
+    println!("ok");
+    Ok(())
+}

@@ -1,0 +1,156 @@
+//! A workshop for update tests: a temporary copy of the Vernadat example with a trusted signing
+//! key, and a cell (PLC + twin) that checks the Message Router's law on every cycle.
+
+// Each test crate uses a different part of this module.
+#![allow(dead_code)]
+
+use std::path::PathBuf;
+use std::sync::Arc;
+
+use cetratus_io::TwinDriver;
+use cetratus_program::{build_package, KeyPair, Program, TrustStore};
+use cetratus_runtime::{Command, Plc, Slot, Status, SubstituteMode, SubstituteRequest};
+use cetratus_twin::{Twin, TwinKind};
+
+pub const PERIOD: u64 = 10_000;
+pub const EXAMPLES: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../../examples/vernadat");
+
+/// A temporary copy of the Vernadat example, a signing key that the trust store trusts, and the
+/// packages built from manifests in it.
+pub struct Workshop {
+    dir: tempfile::TempDir,
+    key: KeyPair,
+    pub trust: TrustStore,
+}
+
+impl Workshop {
+    pub fn new() -> Self {
+        let dir = tempfile::tempdir().expect("temp dir");
+        for entry in std::fs::read_dir(EXAMPLES).expect("examples dir") {
+            let path = entry.expect("entry").path();
+            if path.extension().is_some_and(|e| e == "toml" || e == "pnml") {
+                std::fs::copy(&path, dir.path().join(path.file_name().expect("name")))
+                    .expect("copy");
+            }
+        }
+        let key = KeyPair::generate();
+        let key_path = dir.path().join("test.key");
+        key.save(&key_path).expect("save key");
+        let trusted = dir.path().join("trusted");
+        std::fs::create_dir_all(&trusted).expect("trusted dir");
+        std::fs::copy(KeyPair::public_path(&key_path), trusted.join("test.pub")).expect("copy pub");
+        let trust = TrustStore::load_dir(&trusted).expect("trust store");
+        Workshop { dir, key, trust }
+    }
+
+    pub fn path(&self, name: &str) -> PathBuf {
+        self.dir.path().join(name)
+    }
+
+    pub fn package(&self, manifest: &str) -> Vec<u8> {
+        build_package(&self.path(manifest), Some(&self.key))
+            .unwrap_or_else(|e| panic!("{manifest} builds: {e}"))
+            .0
+    }
+
+    /// U.1 with another ST_base, for refusals at install.
+    pub fn u1_with_base(&self, base: &str) -> Vec<u8> {
+        let text = std::fs::read_to_string(self.path("u1.package.toml")).expect("u1 manifest");
+        let text = text.replace("base = [2, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0]", base);
+        std::fs::write(self.path("u1-bad.package.toml"), text).expect("write");
+        self.package("u1-bad.package.toml")
+    }
+
+    pub fn program(&self, name: &str) -> Arc<Program> {
+        Arc::new(Program::load(&self.path(name)).expect("program loads"))
+    }
+}
+
+pub struct Cell {
+    pub plc: Plc,
+    pub io: TwinDriver<Twin>,
+    pub now: u64,
+    pub events: Vec<cetratus_runtime::Event>,
+}
+
+impl Cell {
+    pub fn new(program: Arc<Program>) -> Self {
+        let io = TwinDriver::new(
+            TwinKind::Vernadat.build(1),
+            program.inputs(),
+            program.outputs(),
+        )
+        .expect("signals match the twin");
+        Cell {
+            plc: Plc::new(program, 0),
+            io,
+            now: 0,
+            events: Vec::new(),
+        }
+    }
+
+    /// One cycle, checking the Message Router's law: what is dispatched is the primary's output.
+    pub fn step(&mut self) {
+        self.plc.cycle(self.now, &mut self.io);
+        if self.plc.status() != Status::Fault {
+            let primary = self
+                .plc
+                .outputs_of(self.plc.primary())
+                .expect("primary present");
+            assert_eq!(
+                self.plc.dispatched(),
+                primary,
+                "dispatched = primary's outputs at {} µs",
+                self.now
+            );
+        }
+        self.events.extend(self.plc.drain_events());
+        drop(self.plc.take_retired());
+        self.now += PERIOD;
+    }
+
+    pub fn run_for(&mut self, us: u64) {
+        let end = self.now + us;
+        while self.now < end {
+            self.step();
+        }
+    }
+
+    pub fn load(&mut self, bytes: &[u8], trust: &TrustStore) -> Result<(), String> {
+        let p = self
+            .plc
+            .update_context()
+            .prepare_package(bytes, trust, false, false)?;
+        self.plc.command(Command::Load(Box::new(p)))
+    }
+
+    pub fn substitute(&mut self, mode: SubstituteMode, force: bool) -> Result<(), String> {
+        self.plc.command(Command::Substitute(SubstituteRequest {
+            mode,
+            when: None,
+            within_us: None,
+            force,
+        }))
+    }
+
+    pub fn tokens(&self, slot: Slot, ids: &[&str]) -> u32 {
+        let c = self.plc.container(slot).expect("container present");
+        let net = c.program().net();
+        ids.iter()
+            .map(|id| c.marking()[net.place_by_id(id).expect("place").index()])
+            .sum()
+    }
+
+    pub fn has_event(&self, kind: &str) -> bool {
+        self.events.iter().any(|e| e.kind == kind)
+    }
+}
+
+/// A reference run with no update, to compare the primary against.
+pub fn reference_marking(w: &Workshop, cycles: usize) -> Vec<u32> {
+    let mut cell = Cell::new(w.program("vernadat.toml"));
+    for _ in 0..cycles {
+        cell.step();
+    }
+    cell.plc.primary_container().marking().to_vec()
+}

@@ -1,0 +1,553 @@
+//! The MQTT side: a rumqttc MQTT 5 client in its own threads, connected to the embedded broker or
+//! to a plant broker, exchanging with the scan thread only through bounded queues.
+
+use std::net::SocketAddr;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::mpsc::{Receiver, RecvTimeoutError, SyncSender, TrySendError};
+use std::sync::Arc;
+use std::thread::JoinHandle;
+use std::time::{Duration, Instant};
+
+use rumqttc::v5::mqttbytes::v5::{LastWill, Packet, PublishProperties};
+use rumqttc::v5::mqttbytes::QoS;
+use rumqttc::v5::{AsyncClient, Event, EventLoop, MqttOptions};
+use rumqttc::Transport;
+use serde_json::Value;
+
+use crate::broker::{EmbeddedBroker, BROKER_MAX_PACKET};
+use crate::control::{
+    unix_now, ControlPlane, ErrorCode, IncomingCommand, Reply, ReplyHandle, StateMsg,
+};
+use crate::envelope::OperatorKeys;
+use crate::MctError;
+
+/// The default address of the embedded broker: loopback only, so nothing outside the machine can
+/// command the PLC unless the operator says so.
+pub const DEFAULT_MQTT_ADDR: &str = "127.0.0.1:1883";
+
+/// Which broker the PLC talks through.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum BrokerChoice {
+    /// Start the embedded broker on `addr` (`--mqtt ADDR`); with `users`, clients must log in.
+    Embedded {
+        /// Listening address; port 0 picks a free port.
+        addr: SocketAddr,
+        /// Accepted user/password pairs; the PLC's own client logs in as the first.
+        users: Vec<(String, String)>,
+    },
+    /// Connect to a plant broker (`--broker mqtt://host:port` or `mqtts://host:port`).
+    External {
+        /// `mqtt://host[:port]` or `mqtts://host[:port]`; `user:password@` in the URL is accepted.
+        url: String,
+        /// User name (overrides the URL's).
+        user: Option<String>,
+        /// Password (overrides the URL's).
+        password: Option<String>,
+    },
+}
+
+/// Configuration of the MQTT control plane.
+#[derive(Clone, Debug)]
+pub struct MqttConfig {
+    /// The `<plc-id>` topic level.
+    pub plc_id: String,
+    /// Embedded or external broker.
+    pub broker: BrokerChoice,
+    /// How often `exec_info` and `io` are published (the latest value wins in between).
+    pub publish_period: Duration,
+    /// Operator keys; when set, every command must be a signed envelope.
+    pub operator_keys: Option<OperatorKeys>,
+    /// Capacity of each of the two queues to and from the scan thread.
+    pub queue_capacity: usize,
+}
+
+impl MqttConfig {
+    /// The embedded broker on [`DEFAULT_MQTT_ADDR`], publishing every 500 ms, no operator keys.
+    pub fn new(plc_id: &str) -> Self {
+        MqttConfig {
+            plc_id: plc_id.to_string(),
+            broker: BrokerChoice::Embedded {
+                addr: SocketAddr::from(([127, 0, 0, 1], 1883)),
+                users: Vec::new(),
+            },
+            publish_period: Duration::from_millis(500),
+            operator_keys: None,
+            queue_capacity: 256,
+        }
+    }
+}
+
+/// A message from the scan thread to MQTT.
+#[derive(Clone, Debug)]
+pub enum Outgoing {
+    /// The retained `state`; published at once when PRIMARY, STATUS or the programs change, else
+    /// at the publish period.
+    State(StateMsg),
+    /// `program_exec_info` of both containers; the latest is published every period.
+    ExecInfo(Value),
+    /// Inputs, outputs of A and B, dispatched outputs; the latest is published every period.
+    Io(Value),
+    /// An event (update lifecycle, refusals); published at once, in order.
+    Event(Value),
+    /// The answer to a command.
+    Reply(ReplyHandle, Reply),
+}
+
+/// The scan thread's end: commands in, everything else out. Use only the non-blocking calls.
+#[derive(Debug)]
+pub struct MctLink {
+    /// Commands, parsed and authorised; read with `try_recv` once per cycle.
+    pub commands: Receiver<IncomingCommand>,
+    /// Everything the PLC publishes; write with `try_send` (see [`MctLink::send`]).
+    pub outgoing: SyncSender<Outgoing>,
+}
+
+impl MctLink {
+    /// The next command, if any; never blocks.
+    pub fn try_command(&self) -> Option<IncomingCommand> {
+        self.commands.try_recv().ok()
+    }
+    /// Queues a message without blocking; gives it back when the queue is full (or MQTT is gone),
+    /// so the caller can keep an event or a reply for the next cycle and drop periodic data.
+    pub fn send(&self, msg: Outgoing) -> Result<(), Outgoing> {
+        self.outgoing.try_send(msg).map_err(|e| match e {
+            TrySendError::Full(m) | TrySendError::Disconnected(m) => m,
+        })
+    }
+}
+
+struct Shared {
+    connected: AtomicBool,
+    stopping: AtomicBool,
+}
+
+/// The MQTT threads (and the embedded broker); stops them when dropped.
+pub struct MqttHandle {
+    shared: Arc<Shared>,
+    client: AsyncClient,
+    state_topic: String,
+    rt: Option<tokio::runtime::Runtime>,
+    loop_task: Option<tokio::task::JoinHandle<()>>,
+    out_thread: Option<JoinHandle<()>>,
+    broker: Option<EmbeddedBroker>,
+    url: String,
+}
+
+impl std::fmt::Debug for MqttHandle {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("MqttHandle")
+            .field("url", &self.url)
+            .finish()
+    }
+}
+
+impl MqttHandle {
+    /// Whether the client is connected and subscribed to the commands.
+    pub fn is_connected(&self) -> bool {
+        self.shared.connected.load(Ordering::Acquire)
+    }
+    /// Waits (off the scan thread!) until connected and subscribed; false on timeout.
+    pub fn wait_connected(&self, timeout: Duration) -> bool {
+        let end = Instant::now() + timeout;
+        while Instant::now() < end {
+            if self.is_connected() {
+                return true;
+            }
+            std::thread::sleep(Duration::from_millis(10));
+        }
+        self.is_connected()
+    }
+    /// The embedded broker's address, when it runs.
+    pub fn broker_addr(&self) -> Option<SocketAddr> {
+        self.broker.as_ref().map(EmbeddedBroker::addr)
+    }
+    /// The broker URL the client uses.
+    pub fn url(&self) -> &str {
+        &self.url
+    }
+    /// Publishes `{"online": false}` on `state`, disconnects and stops the threads and the broker.
+    pub fn shutdown(mut self) {
+        self.stop();
+    }
+
+    fn stop(&mut self) {
+        if self.shared.stopping.swap(true, Ordering::AcqRel) {
+            return;
+        }
+        if let Some(rt) = self.rt.take() {
+            let client = self.client.clone();
+            let topic = self.state_topic.clone();
+            let task = self.loop_task.take();
+            rt.block_on(async move {
+                // A clean disconnect suppresses the last will, so say "offline" ourselves.
+                let _ = client
+                    .publish(
+                        topic,
+                        QoS::AtLeastOnce,
+                        true,
+                        ControlPlane::offline_payload(),
+                    )
+                    .await;
+                let _ = client.disconnect().await;
+                if let Some(t) = task {
+                    let _ = tokio::time::timeout(Duration::from_secs(1), t).await;
+                }
+            });
+            if let Some(t) = self.out_thread.take() {
+                let _ = t.join();
+            }
+            rt.shutdown_timeout(Duration::from_millis(200));
+        }
+        if let Some(b) = self.broker.take() {
+            b.stop();
+        }
+    }
+}
+
+impl Drop for MqttHandle {
+    fn drop(&mut self) {
+        self.stop();
+    }
+}
+
+/// Parses `mqtt://[user:password@]host[:port]` or `mqtts://...` into client options.
+pub fn client_options(url: &str, client_id: &str) -> Result<MqttOptions, MctError> {
+    let bad = |reason: &str| MctError::BrokerUrl {
+        url: url.to_string(),
+        reason: reason.to_string(),
+    };
+    let u = url::Url::parse(url).map_err(|e| bad(&e.to_string()))?;
+    let tls = match u.scheme() {
+        "mqtt" | "tcp" => false,
+        "mqtts" | "ssl" => true,
+        _ => return Err(bad("unknown scheme")),
+    };
+    let host = u.host_str().ok_or_else(|| bad("no host"))?;
+    let port = u.port().unwrap_or(if tls { 8883 } else { 1883 });
+    let mut o = MqttOptions::new(
+        client_id,
+        host.trim_start_matches('[').trim_end_matches(']'),
+        port,
+    );
+    if tls {
+        o.set_transport(Transport::tls_with_default_config());
+    }
+    if !u.username().is_empty() {
+        o.set_credentials(u.username(), u.password().unwrap_or(""));
+    }
+    Ok(o)
+}
+
+/// Starts the broker (when embedded) and the MQTT client; returns the scan thread's end and the
+/// handle that keeps the MQTT side alive.
+pub fn start(config: MqttConfig) -> Result<(MctLink, MqttHandle), MctError> {
+    let control = ControlPlane::new(&config.plc_id, config.operator_keys.clone())?;
+    let client_id = format!("cetratus-{}", config.plc_id);
+    let (broker, mut opts, url) = match &config.broker {
+        BrokerChoice::Embedded { addr, users } => {
+            let b = EmbeddedBroker::start(*addr, users.clone())?;
+            let url = format!("mqtt://{}", b.addr());
+            let mut o = client_options(&url, &client_id)?;
+            if let Some((u, p)) = users.first() {
+                o.set_credentials(u, p);
+            }
+            (Some(b), o, url)
+        }
+        BrokerChoice::External {
+            url,
+            user,
+            password,
+        } => {
+            let mut o = client_options(url, &client_id)?;
+            if let Some(u) = user {
+                o.set_credentials(u, password.clone().unwrap_or_default());
+            }
+            (None, o, url.clone())
+        }
+    };
+    let (link, handle) = spawn_mqtt(
+        control,
+        &mut opts,
+        config.publish_period,
+        config.queue_capacity.max(1),
+    )?;
+    let mut handle = handle;
+    handle.broker = broker;
+    handle.url = url;
+    Ok((link, handle))
+}
+
+/// Runs the MQTT client for `control` with `opts` in its own threads (a Tokio runtime for the
+/// event loop, a thread for outgoing messages) and returns the two queue ends.
+pub fn spawn_mqtt(
+    control: ControlPlane,
+    opts: &mut MqttOptions,
+    publish_period: Duration,
+    queue_capacity: usize,
+) -> Result<(MctLink, MqttHandle), MctError> {
+    let state_topic = control.topic("state");
+    opts.set_keep_alive(Duration::from_secs(10))
+        .set_clean_start(true)
+        .set_max_packet_size(Some(BROKER_MAX_PACKET))
+        .set_last_will(LastWill::new(
+            state_topic.clone(),
+            ControlPlane::offline_payload(),
+            QoS::AtLeastOnce,
+            true,
+            None,
+        ));
+    let (client, eventloop) = AsyncClient::new(opts.clone(), 256);
+    let rt = tokio::runtime::Builder::new_multi_thread()
+        .worker_threads(1)
+        .thread_name("cetratus-mqtt-client")
+        .enable_all()
+        .build()?;
+    let shared = Arc::new(Shared {
+        connected: AtomicBool::new(false),
+        stopping: AtomicBool::new(false),
+    });
+    let (cmd_tx, cmd_rx) = std::sync::mpsc::sync_channel(queue_capacity);
+    let (out_tx, out_rx) = std::sync::mpsc::sync_channel(queue_capacity);
+    let topics = Topics {
+        state: state_topic.clone(),
+        exec_info: control.topic("exec_info"),
+        io: control.topic("io"),
+        events: control.topic("events"),
+    };
+    let loop_task = rt.spawn(event_loop(
+        eventloop,
+        client.clone(),
+        control,
+        cmd_tx,
+        shared.clone(),
+        topics.events.clone(),
+    ));
+    let out_thread = {
+        let (client, shared, rt) = (client.clone(), shared.clone(), rt.handle().clone());
+        std::thread::Builder::new()
+            .name("cetratus-mqtt-out".into())
+            .spawn(move || outgoing_loop(out_rx, client, rt, shared, topics, publish_period))?
+    };
+    Ok((
+        MctLink {
+            commands: cmd_rx,
+            outgoing: out_tx,
+        },
+        MqttHandle {
+            shared,
+            client,
+            state_topic,
+            rt: Some(rt),
+            loop_task: Some(loop_task),
+            out_thread: Some(out_thread),
+            broker: None,
+            url: String::new(),
+        },
+    ))
+}
+
+struct Topics {
+    state: String,
+    exec_info: String,
+    io: String,
+    events: String,
+}
+
+fn reply_props(handle: &ReplyHandle) -> PublishProperties {
+    PublishProperties {
+        correlation_data: handle.correlation_data.clone().map(Into::into),
+        content_type: Some("application/json".into()),
+        ..Default::default()
+    }
+}
+
+// Runs inside the event loop task, so it must never await the client (its queue is drained by
+// this very task): try_publish, and a full queue loses the message with a log line.
+fn try_reply(client: &AsyncClient, handle: &ReplyHandle, reply: &Reply) {
+    if let Some(topic) = &handle.topic {
+        let payload = ControlPlane::reply_payload(handle, reply);
+        if let Err(e) = client.try_publish_with_properties(
+            topic.clone(),
+            QoS::AtLeastOnce,
+            false,
+            payload,
+            reply_props(handle),
+        ) {
+            log::warn!("cannot publish the reply to {topic}: {e}");
+        }
+    }
+}
+
+fn try_event(client: &AsyncClient, topic: &str, event: &Value) {
+    if let Err(e) = client.try_publish(topic, QoS::AtLeastOnce, false, event.to_string()) {
+        log::warn!("cannot publish an event: {e}");
+    }
+}
+
+async fn event_loop(
+    mut eventloop: EventLoop,
+    client: AsyncClient,
+    mut control: ControlPlane,
+    commands: SyncSender<IncomingCommand>,
+    shared: Arc<Shared>,
+    events: String,
+) {
+    let filter = control.command_filter();
+    loop {
+        match eventloop.poll().await {
+            Ok(Event::Incoming(Packet::ConnAck(_))) => {
+                if let Err(e) = client.try_subscribe(filter.clone(), QoS::AtLeastOnce) {
+                    log::warn!("cannot subscribe to {filter}: {e}");
+                }
+            }
+            Ok(Event::Incoming(Packet::SubAck(_))) => {
+                shared.connected.store(true, Ordering::Release)
+            }
+            Ok(Event::Incoming(Packet::Publish(p))) => {
+                let Ok(topic) = std::str::from_utf8(&p.topic) else {
+                    continue;
+                };
+                let props = p.properties.as_ref();
+                let response_topic = props.and_then(|pr| pr.response_topic.as_deref());
+                let correlation = props.and_then(|pr| pr.correlation_data.as_deref());
+                match control.parse(topic, &p.payload, response_topic, correlation, unix_now()) {
+                    Ok(cmd) => {
+                        try_event(&client, &events, &ControlPlane::accepted_event(&cmd));
+                        match commands.try_send(cmd) {
+                            Ok(()) => {}
+                            Err(TrySendError::Full(cmd)) => try_reply(
+                                &client,
+                                &cmd.reply,
+                                &Reply::err(
+                                    ErrorCode::Busy,
+                                    "the PLC's command queue is full; retry in a moment",
+                                ),
+                            ),
+                            Err(TrySendError::Disconnected(cmd)) => try_reply(
+                                &client,
+                                &cmd.reply,
+                                &Reply::err(
+                                    ErrorCode::Unavailable,
+                                    "the PLC's scan loop is not running",
+                                ),
+                            ),
+                        }
+                    }
+                    Err(rej) => {
+                        if let Some((h, r)) = &rej.reply {
+                            try_reply(&client, h, r);
+                        }
+                        try_event(&client, &events, &rej.event);
+                    }
+                }
+            }
+            Ok(_) => {}
+            Err(e) => {
+                shared.connected.store(false, Ordering::Release);
+                if shared.stopping.load(Ordering::Acquire) {
+                    return;
+                }
+                log::warn!("MQTT connection: {e}; retrying in 1 s");
+                tokio::time::sleep(Duration::from_secs(1)).await;
+            }
+        }
+    }
+}
+
+fn state_key(s: &StateMsg) -> (String, String, String) {
+    (
+        s.primary.clone(),
+        s.status.clone(),
+        serde_json::to_string(&s.programs).unwrap_or_default(),
+    )
+}
+
+fn outgoing_loop(
+    rx: Receiver<Outgoing>,
+    client: AsyncClient,
+    rt: tokio::runtime::Handle,
+    shared: Arc<Shared>,
+    topics: Topics,
+    period: Duration,
+) {
+    let publish =
+        |topic: &str, retain: bool, payload: Vec<u8>, props: Option<PublishProperties>| {
+            let r = rt.block_on(async {
+                match props {
+                    Some(p) => {
+                        client
+                            .publish_with_properties(topic, QoS::AtLeastOnce, retain, payload, p)
+                            .await
+                    }
+                    None => {
+                        client
+                            .publish(topic, QoS::AtLeastOnce, retain, payload)
+                            .await
+                    }
+                }
+            });
+            if let Err(e) = r {
+                log::warn!("cannot publish on {topic}: {e}");
+            }
+        };
+    let (mut exec_info, mut io, mut state): (Option<Value>, Option<Value>, Option<StateMsg>) =
+        (None, None, None);
+    let mut last_state_key = None;
+    let mut next = Instant::now();
+    let tick = period
+        .min(Duration::from_millis(50))
+        .max(Duration::from_millis(1));
+    while !shared.stopping.load(Ordering::Acquire) {
+        match rx.recv_timeout(tick) {
+            Ok(Outgoing::State(s)) => {
+                let key = state_key(&s);
+                if last_state_key.as_ref() != Some(&key) {
+                    last_state_key = Some(key);
+                    publish(
+                        &topics.state,
+                        true,
+                        serde_json::to_vec(&s).unwrap_or_default(),
+                        None,
+                    );
+                    state = None;
+                } else {
+                    state = Some(s);
+                }
+            }
+            Ok(Outgoing::ExecInfo(v)) => exec_info = Some(v),
+            Ok(Outgoing::Io(v)) => io = Some(v),
+            Ok(Outgoing::Event(v)) => {
+                publish(&topics.events, false, v.to_string().into_bytes(), None)
+            }
+            Ok(Outgoing::Reply(h, r)) => {
+                if let Some(t) = &h.topic {
+                    publish(
+                        t,
+                        false,
+                        ControlPlane::reply_payload(&h, &r),
+                        Some(reply_props(&h)),
+                    );
+                }
+            }
+            Err(RecvTimeoutError::Timeout) => {}
+            Err(RecvTimeoutError::Disconnected) => break,
+        }
+        if Instant::now() >= next {
+            next = Instant::now() + period;
+            if let Some(s) = state.take() {
+                publish(
+                    &topics.state,
+                    true,
+                    serde_json::to_vec(&s).unwrap_or_default(),
+                    None,
+                );
+            }
+            if let Some(v) = exec_info.take() {
+                publish(&topics.exec_info, false, v.to_string().into_bytes(), None);
+            }
+            if let Some(v) = io.take() {
+                publish(&topics.io, false, v.to_string().into_bytes(), None);
+            }
+        }
+    }
+}

@@ -1,0 +1,291 @@
+//! Shared test helpers: free ports, MQTT clients that collect what they receive, a fake scan loop
+//! answering commands through the MctLink, and a real mosquitto on a free port.
+#![allow(dead_code)]
+
+use std::net::{SocketAddr, TcpListener, TcpStream};
+use std::process::{Child, Command, Stdio};
+use std::sync::atomic::{AtomicBool, AtomicU32, Ordering};
+use std::sync::mpsc::{Receiver, RecvTimeoutError};
+use std::sync::Arc;
+use std::thread::JoinHandle;
+use std::time::{Duration, Instant};
+
+use cetratus_mct::{MctLink, Outgoing, ProgramInfo, Programs, Reply, Request, StateMsg};
+use rumqttc::v5::mqttbytes::v5::Packet;
+use rumqttc::v5::mqttbytes::QoS;
+use rumqttc::v5::{Client, Event, MqttOptions};
+use serde_json::{json, Value};
+
+/// A port nobody listens on right now.
+pub fn free_addr() -> SocketAddr {
+    let l = TcpListener::bind("127.0.0.1:0").expect("bind 127.0.0.1:0");
+    l.local_addr().expect("local addr")
+}
+
+/// A received MQTT 5 publish.
+#[derive(Debug, Clone)]
+pub struct Got {
+    pub topic: String,
+    pub payload: Vec<u8>,
+    pub retain: bool,
+    pub response_topic: Option<String>,
+    pub correlation: Option<Vec<u8>>,
+}
+
+impl Got {
+    pub fn json(&self) -> Value {
+        serde_json::from_slice(&self.payload).expect("JSON payload")
+    }
+}
+
+/// An MQTT 5 client whose event loop runs in a thread and forwards publishes.
+pub struct V5 {
+    pub client: Client,
+    pub rx: Receiver<Got>,
+    pub subacks: Receiver<()>,
+    dead: Arc<AtomicBool>,
+    thread: Option<JoinHandle<()>>,
+}
+
+static NEXT: AtomicU32 = AtomicU32::new(0);
+
+pub fn unique(prefix: &str) -> String {
+    format!(
+        "{prefix}-{}-{}",
+        std::process::id(),
+        NEXT.fetch_add(1, Ordering::Relaxed)
+    )
+}
+
+pub fn v5(addr: SocketAddr, creds: Option<(&str, &str)>) -> V5 {
+    let mut o = MqttOptions::new(unique("test"), addr.ip().to_string(), addr.port());
+    o.set_max_packet_size(Some(8 << 20));
+    if let Some((u, p)) = creds {
+        o.set_credentials(u, p);
+    }
+    v5_with(o)
+}
+
+pub fn v5_with(o: MqttOptions) -> V5 {
+    let (client, mut conn) = Client::new(o, 64);
+    let (tx, rx) = std::sync::mpsc::channel();
+    let (stx, subacks) = std::sync::mpsc::channel();
+    let dead = Arc::new(AtomicBool::new(false));
+    let d = dead.clone();
+    let thread = std::thread::spawn(move || {
+        while !d.load(Ordering::Relaxed) {
+            let ev = match conn.recv_timeout(Duration::from_millis(50)) {
+                Ok(ev) => ev,
+                Err(_) => continue,
+            };
+            match ev {
+                Ok(Event::Incoming(Packet::Publish(p))) => {
+                    let props = p.properties.clone().unwrap_or_default();
+                    let _ = tx.send(Got {
+                        topic: String::from_utf8_lossy(&p.topic).into_owned(),
+                        payload: p.payload.to_vec(),
+                        retain: p.retain,
+                        response_topic: props.response_topic,
+                        correlation: props.correlation_data.map(|b| b.to_vec()),
+                    });
+                }
+                Ok(Event::Incoming(Packet::SubAck(_))) => {
+                    let _ = stx.send(());
+                }
+                Ok(_) => {}
+                Err(_) => break,
+            }
+        }
+    });
+    V5 {
+        client,
+        rx,
+        subacks,
+        dead,
+        thread: Some(thread),
+    }
+}
+
+impl V5 {
+    /// Closes the socket without DISCONNECT, as a crash would: the broker sends the last will.
+    pub fn kill(mut self) {
+        self.dead.store(true, Ordering::Relaxed);
+        if let Some(t) = self.thread.take() {
+            let _ = t.join();
+        }
+    }
+    pub fn subscribe(&self, filter: &str) {
+        self.client
+            .subscribe(filter, QoS::AtLeastOnce)
+            .expect("subscribe");
+        self.subacks
+            .recv_timeout(Duration::from_secs(5))
+            .expect("suback");
+    }
+    /// The next publish on `topic`, skipping others.
+    pub fn next_on(&self, topic: &str, timeout: Duration) -> Option<Got> {
+        next_matching(&self.rx, timeout, |g: &Got| g.topic == topic)
+    }
+}
+
+pub fn next_matching<T>(
+    rx: &Receiver<T>,
+    timeout: Duration,
+    mut f: impl FnMut(&T) -> bool,
+) -> Option<T> {
+    let end = Instant::now() + timeout;
+    loop {
+        let left = end.saturating_duration_since(Instant::now());
+        match rx.recv_timeout(left) {
+            Ok(g) if f(&g) => return Some(g),
+            Ok(_) => {}
+            Err(RecvTimeoutError::Timeout) | Err(RecvTimeoutError::Disconnected) => return None,
+        }
+    }
+}
+
+/// A stand-in for the lead's scan loop: polls commands without blocking and answers them.
+pub struct FakeScan {
+    stop: Arc<AtomicBool>,
+    thread: Option<JoinHandle<u64>>,
+}
+
+pub fn state(primary: &str, status: &str) -> StateMsg {
+    StateMsg {
+        online: true,
+        primary: primary.into(),
+        status: status.into(),
+        programs: Programs {
+            A: Some(ProgramInfo {
+                name: "vernadat".into(),
+                version: "1.0".into(),
+                hash: "ab".repeat(32),
+            }),
+            B: None,
+        },
+        cycle: json!({"cycles": 0}),
+    }
+}
+
+impl FakeScan {
+    pub fn start(link: MctLink) -> Self {
+        let stop = Arc::new(AtomicBool::new(false));
+        let s = stop.clone();
+        let thread = std::thread::spawn(move || {
+            let mut answered = 0u64;
+            let _ = link.send(Outgoing::State(state("A", "idle")));
+            let mut cycle = 0u64;
+            while !s.load(Ordering::Relaxed) {
+                cycle += 1;
+                while let Some(cmd) = link.try_command() {
+                    let result = match &cmd.request {
+                        Request::ExecInfo => Ok(json!({"A": {"cycles": cycle}, "B": null})),
+                        Request::Load { package } => Err(format!(
+                            "package of {} bytes is not a valid update package",
+                            package.len()
+                        )),
+                        r => Ok(json!({"verb": r.verb()})),
+                    };
+                    let mut msg = Outgoing::Reply(cmd.reply, Reply::from_result(result));
+                    // A scan loop would keep it for the next cycle; the fake one retries.
+                    while let Err(m) = link.send(msg) {
+                        msg = m;
+                        std::thread::sleep(Duration::from_millis(1));
+                    }
+                    answered += 1;
+                }
+                if cycle % 10 == 0 {
+                    let _ = link.send(Outgoing::Io(json!({"cycle": cycle})));
+                    let _ = link.send(Outgoing::ExecInfo(json!({"A": {"cycles": cycle}})));
+                }
+                std::thread::sleep(Duration::from_millis(2));
+            }
+            answered
+        });
+        FakeScan {
+            stop,
+            thread: Some(thread),
+        }
+    }
+    pub fn stop(mut self) -> u64 {
+        self.stop.store(true, Ordering::Relaxed);
+        self.thread
+            .take()
+            .map(|t| t.join().expect("fake scan"))
+            .unwrap_or(0)
+    }
+}
+
+/// A mosquitto broker on a free port, killed on drop.
+pub struct Mosquitto {
+    pub addr: SocketAddr,
+    child: Child,
+    dir: std::path::PathBuf,
+}
+
+pub fn have(cmd: &str) -> bool {
+    Command::new("sh")
+        .arg("-c")
+        .arg(format!("command -v {cmd} || test -x /usr/sbin/{cmd}"))
+        .stdout(Stdio::null())
+        .status()
+        .map(|s| s.success())
+        .unwrap_or(false)
+}
+
+pub fn mosquitto_bin() -> String {
+    if Command::new("sh")
+        .arg("-c")
+        .arg("command -v mosquitto")
+        .stdout(Stdio::null())
+        .status()
+        .map(|s| s.success())
+        .unwrap_or(false)
+    {
+        "mosquitto".into()
+    } else {
+        "/usr/sbin/mosquitto".into()
+    }
+}
+
+impl Mosquitto {
+    pub fn start() -> Option<Self> {
+        if !have("mosquitto") || !have("mosquitto_sub") || !have("mosquitto_pub") {
+            eprintln!("\n!!!!!!!! SKIPPED: mosquitto, mosquitto_sub or mosquitto_pub missing (apt-get install -y mosquitto mosquitto-clients) !!!!!!!!\n");
+            return None;
+        }
+        let addr = free_addr();
+        let dir = std::env::temp_dir().join(unique("cetratus-mosquitto"));
+        std::fs::create_dir_all(&dir).expect("temp dir");
+        let conf = dir.join("mosquitto.conf");
+        std::fs::write(
+            &conf,
+            format!(
+                "listener {} 127.0.0.1\nallow_anonymous true\npersistence false\n",
+                addr.port()
+            ),
+        )
+        .expect("write conf");
+        let child = Command::new(mosquitto_bin())
+            .arg("-c")
+            .arg(&conf)
+            .stdout(Stdio::null())
+            .stderr(Stdio::null())
+            .spawn()
+            .expect("spawn mosquitto");
+        let end = Instant::now() + Duration::from_secs(5);
+        while TcpStream::connect(addr).is_err() {
+            assert!(Instant::now() < end, "mosquitto did not start on {addr}");
+            std::thread::sleep(Duration::from_millis(20));
+        }
+        Some(Mosquitto { addr, child, dir })
+    }
+}
+
+impl Drop for Mosquitto {
+    fn drop(&mut self) {
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+        let _ = std::fs::remove_dir_all(&self.dir);
+    }
+}

@@ -7,4 +7,5 @@ pub mod analysis;
 pub mod dense;
 pub mod measure;
 pub mod program;
+pub mod update;
 pub mod workloads;

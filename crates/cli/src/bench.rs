@@ -79,6 +79,11 @@ pub fn run(args: &BenchArgs) -> anyhow::Result<()> {
     out.insert(s("twin_hour_wall_ms"), hour.wall_ms.into());
     out.insert(s("twin_hour_parts_finished"), hour.parts_finished.into());
 
+    let update = cetratus_bench::update::update_figures(args.quick);
+    if let serde_json::Value::Object(map) = serde_json::to_value(&update)? {
+        out.extend(map);
+    }
+
     let analysis = cetratus_bench::analysis::reachability_figures(args.quick);
     if let serde_json::Value::Object(map) = serde_json::to_value(&analysis)? {
         for (k, v) in map {

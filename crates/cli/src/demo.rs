@@ -75,8 +75,6 @@ pub struct DemoArgs {
 
 /// The files the demo works with.
 pub struct DemoFiles {
-    /// The directory.
-    pub dir: PathBuf,
     /// The initial program.
     pub program: PathBuf,
     /// U.1, signed.
@@ -146,7 +144,6 @@ pub fn prepare(dir: &Path, quiet: bool) -> anyhow::Result<DemoFiles> {
     }
     Ok(DemoFiles {
         program: dir.join("vernadat.toml"),
-        dir: dir.to_path_buf(),
         u1,
         u2,
         trust,

@@ -8,6 +8,7 @@ mod check;
 mod convert;
 mod demo;
 mod duration;
+mod package;
 mod run;
 mod sim;
 
@@ -31,6 +32,8 @@ enum Command {
     Check(check::CheckArgs),
     /// The paper's U.1/U.2 live-update experiment on the Vernadat cell.
     Demo(demo::DemoArgs),
+    /// Build, inspect and verify update packages; make signing keys.
+    Package(package::PackageArgs),
     /// Run a program against a digital twin, in virtual or real time.
     Run(run::RunArgs),
     /// Measure the figures in docs/performance.md.
@@ -44,6 +47,7 @@ fn main() -> std::process::ExitCode {
         Command::Convert(a) => convert::run(a),
         Command::Check(a) => check::run(a),
         Command::Demo(a) => demo::run(a),
+        Command::Package(a) => package::run(a),
         Command::Run(a) => run::run(a),
         Command::Bench(a) => bench::run(a),
     };

@@ -1,15 +1,18 @@
 //! `cetratus run`: a program against a digital twin, in virtual or real time.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::sync::atomic::AtomicBool;
 use std::sync::Arc;
 
 use anyhow::{bail, Context};
 use cetratus_io::TwinDriver;
 use cetratus_program::Program;
+use cetratus_runtime::persist::{
+    self, AuditRecord, PersistConfig, PersistFigures, PersistStats, Persister, StateStore,
+};
 use cetratus_runtime::trace::Trace;
 use cetratus_runtime::{
-    run_periodic, Command, CycleFigures, LoopTiming, Plc, SubstituteMode, SubstituteRequest,
+    run_periodic, Command, CycleFigures, Event, LoopTiming, Plc, SubstituteMode, SubstituteRequest,
 };
 use cetratus_twin::{Plant, Twin, TwinKind};
 use serde::Serialize;
@@ -62,6 +65,17 @@ pub struct RunArgs {
     /// Accept unsigned packages (local configuration only).
     #[arg(long)]
     allow_unsigned: bool,
+    /// Keep the PLC's state here (programs, PRIMARY/STATUS, markings, timers, retained variables,
+    /// audit log) and warm start from it. Real-time runs default to
+    /// `$XDG_STATE_HOME/cetratus/<program name>`; virtual runs keep no state unless given a directory.
+    #[arg(long = "state-dir")]
+    state_dir: Option<PathBuf>,
+    /// Start afresh: the saved state is ignored and replaced (programs and audit log are kept).
+    #[arg(long)]
+    cold: bool,
+    /// Print `progress cycle=N committed=M` to stderr every this many cycles (for crash tests).
+    #[arg(long, hide = true)]
+    progress: Option<u64>,
 }
 
 /// A scripted command.
@@ -116,6 +130,12 @@ pub struct Summary {
     pub primary: &'static str,
     /// STATUS at the end.
     pub status: &'static str,
+    /// The state directory, when the run kept its state.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub state_dir: Option<String>,
+    /// What the persistence thread did.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub persist: Option<PersistStats>,
 }
 
 /// Runs `cetratus run`.
@@ -125,17 +145,7 @@ pub fn run(args: &RunArgs) -> anyhow::Result<()> {
             .with_context(|| format!("cannot load {}", args.program.display()))?,
     );
     let kind: TwinKind = args.twin.parse().map_err(|e| anyhow::anyhow!("{e}"))?;
-    let mut twin = kind.build(args.seed);
-    let mut presses = args.press.clone();
-    if presses.is_empty() && kind == TwinKind::Festo {
-        presses.push("START@100ms".to_string());
-    }
-    for p in &presses {
-        let (button, at) = p.split_once('@').unwrap_or((p.as_str(), "0s"));
-        let at_us = parse_duration_us(at)?;
-        twin.press(button, at_us)
-            .map_err(|e| anyhow::anyhow!("--press {p}: {e}"))?;
-    }
+    let twin = kind.build(args.seed);
     let until_us = match (&args.for_, args.virtual_time) {
         (Some(d), _) => parse_duration_us(d)?,
         (None, true) => bail!("a virtual run needs a length: add --for, e.g. --for 1h"),
@@ -147,17 +157,53 @@ pub fn run(args: &RunArgs) -> anyhow::Result<()> {
         Some(dir) => cetratus_program::TrustStore::load_dir(dir)?,
         None => cetratus_program::TrustStore::empty(),
     };
-    let mut plc = Plc::new(program.clone(), 0);
     let period_us = program.scan_period().as_micros() as u64;
+    let state_dir = state_dir(args, program.name());
+    let mut events: Vec<Event> = Vec::new();
+    let (mut plc, mut persister) = match &state_dir {
+        Some(dir) => {
+            let (plc, p) = open_state(dir, &program, args, period_us, &mut events)?;
+            (plc, Some(p))
+        }
+        None => {
+            if args.cold && !args.json {
+                eprintln!("cold start: no state directory, nothing saved is used");
+            }
+            (Plc::new(program.clone(), 0), None)
+        }
+    };
+    // Program time resumes after the last committed cycle; `--for`, `--at` and `--press` count
+    // from the start of this run.
+    let base_us = if plc.cycles() > 0 {
+        plc.now_us() + period_us
+    } else {
+        0
+    };
+    for e in plc.drain_events() {
+        print_event(&e, args.json);
+        events.push(e);
+    }
+    let mut presses = args.press.clone();
+    if presses.is_empty() && kind == TwinKind::Festo {
+        presses.push("START@100ms".to_string());
+    }
+    for p in &presses {
+        let (button, at) = p.split_once('@').unwrap_or((p.as_str(), "0s"));
+        let at_us = parse_duration_us(at)?;
+        io.plant_mut()
+            .press(button, at_us.saturating_add(base_us))
+            .map_err(|e| anyhow::anyhow!("--press {p}: {e}"))?;
+    }
     let mut trace = Trace::new(plc.io_inputs().to_vec(), plc.io_outputs().to_vec());
     let record = args.trace.is_some() || args.svg.is_some();
     let mut violations: Vec<String> = Vec::new();
-    let mut events = Vec::new();
     let mut next_cmd = 0usize;
     let mut script_error: Option<anyhow::Error> = None;
     let json = args.json;
+    let progress = args.progress.filter(|&n| n > 0);
     let mut body = |plc: &mut Plc, now: u64, io: &mut TwinDriver<Twin>| -> bool {
-        while next_cmd < script.len() && script[next_cmd].at_us <= now {
+        let now = now + base_us;
+        while next_cmd < script.len() && script[next_cmd].at_us + base_us <= now {
             let s = &script[next_cmd];
             next_cmd += 1;
             let cmd = match scripted_command(plc, s, &trust, args.allow_unsigned) {
@@ -168,6 +214,13 @@ pub fn run(args: &RunArgs) -> anyhow::Result<()> {
                 }
             };
             let _ = plc.command(cmd);
+            for e in plc.drain_events() {
+                print_event(&e, json);
+                if let Some(p) = persister.as_mut() {
+                    p.audit(&e, "cli");
+                }
+                events.push(e);
+            }
         }
         plc.cycle(now, io);
         let k = plc.primary_container();
@@ -180,15 +233,26 @@ pub fn run(args: &RunArgs) -> anyhow::Result<()> {
             }
         }
         for e in plc.drain_events() {
-            if !json {
-                eprintln!(
-                    "{:>10.3} s  {:<20} {}",
-                    e.time_us as f64 / 1e6,
-                    e.kind,
-                    e.message
-                );
+            print_event(&e, json);
+            if let Some(p) = persister.as_mut() {
+                p.audit(&e, "plc");
             }
             events.push(e);
+        }
+        if let Some(p) = persister.as_mut() {
+            p.offer(plc);
+            if let Some(err) = p.take_error() {
+                eprintln!("warning: the state directory could not be written: {err}");
+            }
+            if let Some(n) = progress {
+                if plc.cycles() % n == 0 {
+                    eprintln!(
+                        "progress cycle={} committed={}",
+                        plc.cycles(),
+                        p.committed_cycle().map_or(-1, |c| c as i64)
+                    );
+                }
+            }
         }
         drop(plc.take_retired());
         true
@@ -224,8 +288,17 @@ pub fn run(args: &RunArgs) -> anyhow::Result<()> {
             body(&mut plc, now, &mut io)
         })
     };
+    let persist = persister.map(|p| p.stop(&plc));
     if let Some(e) = script_error {
         return Err(e);
+    }
+    if let (Some(stats), Some(dir)) = (&persist, &state_dir) {
+        if let Some(err) = &stats.last_error {
+            eprintln!(
+                "warning: the state directory {} could not be written: {err}",
+                dir.display()
+            );
+        }
     }
     let mut faults: Vec<String> = io.plant().faults().iter().map(|f| f.to_string()).collect();
     faults.extend(violations);
@@ -261,6 +334,8 @@ pub fn run(args: &RunArgs) -> anyhow::Result<()> {
         scan: figures,
         primary: plc.primary().name(),
         status: plc.status().name(),
+        state_dir: state_dir.as_ref().map(|d| d.display().to_string()),
+        persist,
     };
     trace.end_us = reached_us;
     if let Some(path) = &args.trace {
@@ -282,6 +357,126 @@ pub fn run(args: &RunArgs) -> anyhow::Result<()> {
         print_summary(&summary);
     }
     Ok(())
+}
+
+fn print_event(e: &Event, json: bool) {
+    if !json {
+        eprintln!(
+            "{:>10.3} s  {:<20} {}",
+            e.time_us as f64 / 1e6,
+            e.kind,
+            e.message
+        );
+    }
+}
+
+/// The state directory of this run: `--state-dir`, or for a real-time run
+/// `$XDG_STATE_HOME/cetratus/<program name>` (`~/.local/state/cetratus/<program name>`). A virtual
+/// run is a simulation and keeps no state unless asked to.
+fn state_dir(args: &RunArgs, program_name: &str) -> Option<PathBuf> {
+    if let Some(d) = &args.state_dir {
+        return Some(d.clone());
+    }
+    if args.virtual_time {
+        return None;
+    }
+    let base = std::env::var_os("XDG_STATE_HOME")
+        .map(PathBuf::from)
+        .filter(|p| p.is_absolute())
+        .or_else(|| std::env::var_os("HOME").map(|h| PathBuf::from(h).join(".local/state")))?;
+    // A program name is free text; only a safe subset of it may become a directory name.
+    let name: String = program_name
+        .chars()
+        .map(|c| {
+            if c.is_ascii_alphanumeric() || "-_.".contains(c) {
+                c
+            } else {
+                '_'
+            }
+        })
+        .collect();
+    let name = if name.trim_matches('.').is_empty() {
+        "program".to_string()
+    } else {
+        name
+    };
+    Some(base.join("cetratus").join(name))
+}
+
+/// Opens the state directory and starts the PLC from it (warm, or cold with `--cold` or when
+/// nothing is saved). Before the first scan, the start is made durable: the programs, a first
+/// snapshot and the start-up records of the audit log are written synchronously, so a crash at
+/// any later instant warm starts from this run, never from what `--cold` discarded.
+fn open_state(
+    dir: &Path,
+    program: &Arc<Program>,
+    args: &RunArgs,
+    period_us: u64,
+    events: &mut Vec<Event>,
+) -> anyhow::Result<(Plc, Persister)> {
+    let mut store = StateStore::open(dir)
+        .with_context(|| format!("cannot open the state directory {}", dir.display()))?;
+    let saved = if args.cold {
+        store.load_state().ok().flatten()
+    } else {
+        None
+    };
+    let mut plc = persist::start(&store, program.clone(), args.cold)?;
+    let now = std::time::SystemTime::now();
+    if args.cold {
+        let message = match &saved {
+            Some(s) => format!(
+                "cold start: the saved state in {} is ignored (cycle {}, PRIMARY {}, {})",
+                dir.display(),
+                s.snapshot.cycle,
+                s.snapshot.primary.map_or("?", |p| p.name()),
+                s.snapshot.status.map_or("?", |st| st.name())
+            ),
+            None => format!(
+                "cold start: the saved state in {} is ignored (there was none)",
+                dir.display()
+            ),
+        };
+        eprintln!("{message}");
+        store.append_audit(&AuditRecord {
+            utc: persist::rfc3339_utc(now),
+            cycle: 0,
+            time_us: 0,
+            who: "cli".into(),
+            what: "cold_start_requested".into(),
+            message,
+            detail: serde_json::Value::Null,
+        })?;
+    }
+    for e in plc.drain_events() {
+        print_event(&e, args.json);
+        store.append_audit(&AuditRecord::of_event(&e, "local", now))?;
+        events.push(e);
+    }
+    for slot in [cetratus_runtime::Slot::A, cetratus_runtime::Slot::B] {
+        if let Some(c) = plc.container(slot) {
+            store.save_program(c.program())?;
+        }
+    }
+    let config = PersistConfig::for_period_us(period_us);
+    let mut snap = Default::default();
+    plc.snapshot_into(&mut snap);
+    store.commit(
+        &snap,
+        &PersistFigures {
+            every_cycles: config.every_cycles,
+            ..Default::default()
+        },
+    )?;
+    if !args.json {
+        eprintln!(
+            "state: {} (a snapshot every {} cycles; see docs/persistence.md)",
+            dir.display(),
+            config.every_cycles
+        );
+    }
+    let persister = Persister::start(store, config)?;
+    Ok((plc, persister))
 }
 
 fn print_summary(s: &Summary) {
@@ -310,6 +505,19 @@ fn print_summary(s: &Summary) {
         println!(
             "  latency         mean {} ns, p99 {} ns, max {} ns; overruns {}",
             f.latency.mean_ns, f.latency.p99_ns, f.latency.max_ns, f.overruns
+        );
+    }
+    if let (Some(dir), Some(p)) = (&s.state_dir, &s.persist) {
+        println!(
+            "  state           {dir}: {} snapshots committed, {} superseded, max commit {} µs{}",
+            p.commits,
+            p.coalesced,
+            p.max_commit_us,
+            if p.errors > 0 {
+                format!(", {} write errors", p.errors)
+            } else {
+                String::new()
+            }
         );
     }
     if s.faults.is_empty() {

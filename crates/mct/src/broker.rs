@@ -147,7 +147,7 @@ impl EmbeddedBroker {
             .spawn(move || {
                 // Either a stop message or the handle being dropped ends the broker.
                 let _ = stopped.recv();
-                rt.shutdown_timeout(Duration::from_secs(1));
+                rt.shutdown_timeout(Duration::from_millis(200));
             })?;
         Ok(EmbeddedBroker {
             addr,

@@ -220,12 +220,13 @@ pub struct ProgramInfo {
 
 /// The programs in A and B.
 #[derive(Clone, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
-#[allow(non_snake_case)]
 pub struct Programs {
     /// Container A (`null` when empty).
-    pub A: Option<ProgramInfo>,
+    #[serde(rename = "A")]
+    pub a: Option<ProgramInfo>,
     /// Container B (`null` when empty).
-    pub B: Option<ProgramInfo>,
+    #[serde(rename = "B")]
+    pub b: Option<ProgramInfo>,
 }
 
 /// The retained `state` message.
@@ -303,7 +304,7 @@ impl ControlPlane {
         response_topic: Option<&str>,
         correlation_data: Option<&[u8]>,
         now_unix_s: u64,
-    ) -> Result<IncomingCommand, Rejection> {
+    ) -> Result<IncomingCommand, Box<Rejection>> {
         let request_id = self.next_id;
         self.next_id += 1;
         let verb_raw = topic
@@ -333,12 +334,14 @@ impl ControlPlane {
             correlation: obj.and_then(|o| o.get("correlation")).cloned(),
             request_id,
         };
-        let reject = |code: ErrorCode, message: String| Rejection {
-            event: rejected_event(&handle.verb, code, &message, request_id),
-            reply: handle
-                .topic
-                .is_some()
-                .then(|| (handle.clone(), Reply::err(code, message))),
+        let reject = |code: ErrorCode, message: String| {
+            Box::new(Rejection {
+                event: rejected_event(&handle.verb, code, &message, request_id),
+                reply: handle
+                    .topic
+                    .is_some()
+                    .then(|| (handle.clone(), Reply::err(code, message))),
+            })
         };
         let Some(verb) = verb else {
             return Err(reject(
@@ -514,7 +517,7 @@ mod tests {
         ControlPlane::new("cell1", None).expect("valid id")
     }
 
-    fn code(r: Result<IncomingCommand, Rejection>) -> ErrorCode {
+    fn code(r: Result<IncomingCommand, Box<Rejection>>) -> ErrorCode {
         match r {
             Ok(c) => panic!("accepted: {c:?}"),
             Err(rej) => rej.reply.expect("a reply").1.error.expect("an error").code,

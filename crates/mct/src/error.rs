@@ -31,6 +31,12 @@ pub enum MctError {
         /// What is wrong with it.
         reason: String,
     },
+    /// `--mqtt` is not an address.
+    #[error("bad --mqtt address `{0}`: expected IP:PORT, e.g. 127.0.0.1:1883 or 0.0.0.0:1883")]
+    MqttAddr(String),
+    /// Both `--mqtt` and `--broker` were given.
+    #[error("--mqtt (embedded broker) and --broker (plant broker) exclude each other; give one")]
+    BothBrokers,
     /// The PLC id cannot be used as a topic level.
     #[error("bad PLC id `{0}`: it must be non-empty and must not contain `/`, `+`, `#` or control characters")]
     PlcId(String),

@@ -27,6 +27,9 @@
 //! # Ok::<(), MctError>(())
 //! ```
 
+// Every public item carries a doc line (house style); the compiler keeps us honest.
+#![warn(missing_docs)]
+
 mod broker;
 mod control;
 mod envelope;

@@ -46,6 +46,37 @@ pub enum BrokerChoice {
     },
 }
 
+impl BrokerChoice {
+    /// The choice made by the CLI flags `--mqtt ADDR` and `--broker URL` (neither: the embedded
+    /// broker on [`DEFAULT_MQTT_ADDR`]); users and credentials come from the configuration file.
+    pub fn from_cli(
+        mqtt: Option<&str>,
+        broker: Option<&str>,
+        users: Vec<(String, String)>,
+        credentials: Option<(String, String)>,
+    ) -> Result<Self, MctError> {
+        match (mqtt, broker) {
+            (Some(_), Some(_)) => Err(MctError::BothBrokers),
+            (_, Some(url)) => {
+                // Fail at startup, not at the first reconnect, on a URL the client cannot use.
+                client_options(url, "check")?;
+                let (user, password) =
+                    credentials.map_or((None, None), |(u, p)| (Some(u), Some(p)));
+                Ok(BrokerChoice::External {
+                    url: url.to_string(),
+                    user,
+                    password,
+                })
+            }
+            (m, None) => {
+                let a = m.unwrap_or(DEFAULT_MQTT_ADDR);
+                let addr = a.parse().map_err(|_| MctError::MqttAddr(a.to_string()))?;
+                Ok(BrokerChoice::Embedded { addr, users })
+            }
+        }
+    }
+}
+
 /// Configuration of the MQTT control plane.
 #[derive(Clone, Debug)]
 pub struct MqttConfig {
@@ -109,6 +140,9 @@ impl MctLink {
     }
     /// Queues a message without blocking; gives it back when the queue is full (or MQTT is gone),
     /// so the caller can keep an event or a reply for the next cycle and drop periodic data.
+    // Giving the message back is the point (the caller keeps it for the next cycle), so the large
+    // `Err` is deliberate.
+    #[allow(clippy::result_large_err)]
     pub fn send(&self, msg: Outgoing) -> Result<(), Outgoing> {
         self.outgoing.try_send(msg).map_err(|e| match e {
             TrySendError::Full(m) | TrySendError::Disconnected(m) => m,
@@ -190,7 +224,7 @@ impl MqttHandle {
                     .await;
                 let _ = client.disconnect().await;
                 if let Some(t) = task {
-                    let _ = tokio::time::timeout(Duration::from_secs(1), t).await;
+                    let _ = tokio::time::timeout(Duration::from_millis(250), t).await;
                 }
             });
             if let Some(t) = self.out_thread.take() {
@@ -230,6 +264,10 @@ pub fn client_options(url: &str, client_id: &str) -> Result<MqttOptions, MctErro
         port,
     );
     if tls {
+        // Both ring and aws-lc-rs end up in the dependency tree, so rustls cannot choose on its
+        // own and would panic on the first handshake. An `Err` means a provider is already
+        // installed (by us or by the embedding program), which is as good.
+        let _ = rustls::crypto::ring::default_provider().install_default();
         o.set_transport(Transport::tls_with_default_config());
     }
     if !u.username().is_empty() {
@@ -448,7 +486,13 @@ async fn event_loop(
                     return;
                 }
                 log::warn!("MQTT connection: {e}; retrying in 1 s");
-                tokio::time::sleep(Duration::from_secs(1)).await;
+                // In slices, so a shutdown does not wait out the whole back-off.
+                for _ in 0..20 {
+                    if shared.stopping.load(Ordering::Acquire) {
+                        return;
+                    }
+                    tokio::time::sleep(Duration::from_millis(50)).await;
+                }
             }
         }
     }
@@ -549,5 +593,48 @@ fn outgoing_loop(
                 publish(&topics.io, false, v.to_string().into_bytes(), None);
             }
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn cli_flags_choose_the_broker() {
+        assert!(matches!(
+            BrokerChoice::from_cli(None, None, vec![], None),
+            Ok(BrokerChoice::Embedded { addr, .. }) if addr.to_string() == DEFAULT_MQTT_ADDR
+        ));
+        assert!(matches!(
+            BrokerChoice::from_cli(Some("0.0.0.0:1884"), None, vec![], None),
+            Ok(BrokerChoice::Embedded { addr, .. }) if addr.port() == 1884
+        ));
+        assert!(matches!(
+            BrokerChoice::from_cli(None, Some("mqtts://plant:8883"), vec![], None),
+            Ok(BrokerChoice::External { .. })
+        ));
+        assert!(matches!(
+            BrokerChoice::from_cli(Some("localhost"), None, vec![], None),
+            Err(MctError::MqttAddr(_))
+        ));
+        assert!(matches!(
+            BrokerChoice::from_cli(None, Some("http://x"), vec![], None),
+            Err(MctError::BrokerUrl { .. })
+        ));
+        assert!(matches!(
+            BrokerChoice::from_cli(Some("a"), Some("b"), vec![], None),
+            Err(MctError::BothBrokers)
+        ));
+    }
+
+    #[test]
+    fn a_broker_url_gives_host_port_tls_and_credentials() {
+        let o = client_options("mqtt://op:pw@10.0.0.5:1999", "id").expect("valid");
+        assert_eq!(o.broker_address(), ("10.0.0.5".to_string(), 1999));
+        assert!(o.credentials().is_some());
+        let o = client_options("mqtts://plant.example", "id").expect("valid");
+        assert_eq!(o.broker_address().1, 8883);
+        assert!(matches!(o.transport(), Transport::Tls(_)));
     }
 }

@@ -91,7 +91,7 @@ impl ScanCycle {
         now_us: u64,
         io: &mut IO,
     ) -> Result<ScanOutcome, RuntimeError> {
-        let t0 = Instant::now();
+        let t0 = quanta::Instant::now();
         io.read_inputs(now_us, &mut self.inputs);
         let result = self.container.scan(now_us, &self.inputs);
         match &result {

@@ -15,6 +15,7 @@ mod error;
 pub mod inject;
 mod io;
 pub mod monitor;
+pub mod persist;
 pub mod plc;
 pub mod rt;
 mod stats;

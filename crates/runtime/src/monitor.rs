@@ -131,6 +131,8 @@ pub struct ContainerStats {
     pub drift: u64,
     /// The largest drift seen.
     pub max_drift: u64,
+    /// `drift` was computed since the container was installed.
+    pub drift_valid: bool,
     /// No transition enabled after the last scan.
     pub deadlocked: bool,
 }

@@ -613,7 +613,6 @@ impl Plc {
 
     /// One cycle at program time `now_us`.
     pub fn cycle<IO: Provider + Dispatcher>(&mut self, now_us: u64, io: &mut IO) {
-        let t0 = std::time::Instant::now();
         self.now_us = now_us;
         self.boundary(now_us);
         self.prev_inputs.copy_from_slice(&self.inputs);
@@ -629,7 +628,11 @@ impl Plc {
 
         // Primary.
         let p = self.primary.index();
-        if let Err(e) = self.scan_slot(p, now_us) {
+        // One timestamp before the primary and one after each container: the scans are timed
+        // back to back, so the clock is read once per container plus once.
+        let t0 = quanta::Instant::now();
+        let mut mark = t0;
+        if let Err(e) = self.scan_slot(p, now_us, &mut mark) {
             self.primary_fault(format!("primary {} faulted: {e}", self.primary.name()), io);
             self.record(now_us);
             self.cycle += 1;
@@ -639,9 +642,8 @@ impl Plc {
         // Candidate, isolated: an error, a panic, an invalid marking or an overrun aborts the update.
         if self.status == Status::Quarantine {
             let c = self.primary.other().index();
-            let started = std::time::Instant::now();
-            let outcome = catch_unwind(AssertUnwindSafe(|| self.scan_slot(c, now_us)));
-            let took = started.elapsed().as_nanos() as u64;
+            let outcome = catch_unwind(AssertUnwindSafe(|| self.scan_slot(c, now_us, &mut mark)));
+            let took = self.monitor.stats[c].scan.summary_last();
             let fault = match outcome {
                 Err(panic) => Some(format!(
                     "candidate panicked: {}",
@@ -656,7 +658,11 @@ impl Plc {
                     let cand = self.slots[c]
                         .as_ref()
                         .expect("candidate present in quarantine");
-                    if let Err(v) = cand.program().check_invariants(cand.marking()) {
+                    // The marking only changes when something fires.
+                    let broken = (!cand.fired().is_empty())
+                        .then(|| cand.program().check_invariants(cand.marking()).err())
+                        .flatten();
+                    if let Some(v) = broken {
                         Some(format!("candidate reached an invalid marking: {v}"))
                     } else if took > self.limits.candidate_budget_ns {
                         Some(format!(
@@ -701,10 +707,16 @@ impl Plc {
         }
         self.record(now_us);
         self.cycle += 1;
-        self.cycle_stats.record(t0.elapsed().as_nanos() as u64);
+        self.cycle_stats.record((mark - t0).as_nanos() as u64);
     }
 
-    fn scan_slot(&mut self, i: usize, now_us: u64) -> Result<(), RuntimeError> {
+    /// Scans container `i`; `mark` is the time the scan starts and becomes the time it ends.
+    fn scan_slot(
+        &mut self,
+        i: usize,
+        now_us: u64,
+        mark: &mut quanta::Instant,
+    ) -> Result<(), RuntimeError> {
         for (v, &j) in self.images[i].iter_mut().zip(&self.in_maps[i]) {
             *v = self.inputs[j];
         }
@@ -713,9 +725,10 @@ impl Plc {
             .expect("scanned slots hold a program");
         #[cfg(feature = "fault-injection")]
         crate::inject::before_scan(c.program().name(), c.program().version())?;
-        let t = std::time::Instant::now();
         let r = c.scan(now_us, &self.images[i]);
-        let took = t.elapsed().as_nanos() as u64;
+        let end = quanta::Instant::now();
+        let took = (end - *mark).as_nanos() as u64;
+        *mark = end;
         self.monitor.stats[i].scan.record(took);
         r?;
         for (o, m) in self.io_outs[i].iter_mut().zip(&self.out_maps[i]) {
@@ -765,9 +778,16 @@ impl Plc {
             self.slots[p].as_ref().expect("primary present"),
             self.slots[c].as_ref().expect("candidate present"),
         );
-        let drift = q.projection.drift(cc.marking(), pc.marking());
+        // Drift only moves when a marking does.
+        let stats_c = &self.monitor.stats[c];
+        let drift = if pc.fired().is_empty() && cc.fired().is_empty() && stats_c.drift_valid {
+            stats_c.drift
+        } else {
+            q.projection.drift(cc.marking(), pc.marking())
+        };
         let stats = &mut self.monitor.stats[c];
         stats.drift = drift;
+        stats.drift_valid = true;
         stats.max_drift = stats.max_drift.max(drift);
         stats.deadlocked = cc.engine().enabled().is_empty();
 
@@ -779,8 +799,11 @@ impl Plc {
                 differs = true;
             }
         }
-        let fired_diff =
-            Self::first_difference(pc, cc, &q.to_primary, &q.from_primary, self.primary);
+        let fired_diff = if pc.fired().is_empty() && cc.fired().is_empty() {
+            None
+        } else {
+            Self::first_difference(pc, cc, &q.to_primary, &q.from_primary, self.primary)
+        };
         if let Some((slot, t)) = fired_diff {
             let (fired, other, other_t) = if slot == self.primary {
                 (pc, cc, q.from_primary[t.index()])

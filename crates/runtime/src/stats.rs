@@ -102,6 +102,12 @@ impl TimingStats {
         self.max
     }
 
+    /// The latest sample.
+    #[inline]
+    pub fn summary_last(&self) -> u64 {
+        self.last
+    }
+
     /// The summary of every sample so far.
     pub fn summary(&self) -> Summary {
         if self.count == 0 {

@@ -156,12 +156,12 @@ pub fn state(primary: &str, status: &str) -> StateMsg {
         primary: primary.into(),
         status: status.into(),
         programs: Programs {
-            A: Some(ProgramInfo {
+            a: Some(ProgramInfo {
                 name: "vernadat".into(),
                 version: "1.0".into(),
                 hash: "ab".repeat(32),
             }),
-            B: None,
+            b: None,
         },
         cycle: json!({"cycles": 0}),
     }

@@ -71,6 +71,15 @@ pub struct DemoArgs {
     /// In real time, how many times faster than the wall clock the cell runs.
     #[arg(long, default_value_t = 1.0)]
     pub speed: f64,
+    /// Where the dashboard listens.
+    #[arg(long, default_value = "127.0.0.1:8080")]
+    pub http: String,
+    /// Run for this long (program time), then stop; forever when absent.
+    #[arg(long = "for")]
+    pub for_: Option<String>,
+    /// MQTT: the embedded broker, or a plant broker.
+    #[command(flatten)]
+    pub mqtt: crate::mqtt_args::MqttArgs,
 }
 
 /// The files the demo works with.
@@ -81,6 +90,10 @@ pub struct DemoFiles {
     pub u1: Vec<u8>,
     /// U.2, signed.
     pub u2: Vec<u8>,
+    /// Where U.1 was written.
+    pub u1_path: PathBuf,
+    /// Where U.2 was written.
+    pub u2_path: PathBuf,
     /// Trusts the demo key.
     pub trust: TrustStore,
 }
@@ -143,6 +156,8 @@ pub fn prepare(dir: &Path, quiet: bool) -> anyhow::Result<DemoFiles> {
         );
     }
     Ok(DemoFiles {
+        u1_path: dir.join("u1.cpkg"),
+        u2_path: dir.join("u2.cpkg"),
         program: dir.join("vernadat.toml"),
         u1,
         u2,
@@ -482,7 +497,7 @@ pub fn run(args: &DemoArgs) -> anyhow::Result<()> {
     let dir = args.dir.clone().unwrap_or_else(default_dir);
     let files = prepare(&dir, args.json)?;
     if !args.scripted {
-        bail!("the live demo needs --scripted for now");
+        return live(args, &files);
     }
     let rec = scripted(&files)?;
     let end_ms = rec.steps.last().map_or(0.0, |s| s.time_ms);
@@ -528,6 +543,68 @@ pub fn run(args: &DemoArgs) -> anyhow::Result<()> {
         rec.parts_finished,
         rec.faults.len(),
         rec.steps.last().map_or("A", |s| s.primary.name())
+    );
+    Ok(())
+}
+
+/// The live demo: the cell in real time, the embedded broker and the dashboard.
+fn live(args: &DemoArgs, files: &DemoFiles) -> anyhow::Result<()> {
+    use std::sync::atomic::{AtomicBool, Ordering};
+
+    let program = Arc::new(Program::load(&files.program)?);
+    let io = TwinDriver::new(TwinKind::Vernadat.build(1), program.inputs(), program.outputs())?;
+    let plc = Plc::new(program, 0);
+    let mut config = args.mqtt.config()?;
+    let speed = if args.speed.is_finite() && args.speed > 0.0 { args.speed } else { 1.0 };
+    config.publish_period = std::time::Duration::from_millis(200);
+    let plc_id = config.plc_id.clone();
+    let (link, mqtt) = cetratus_mct::start(config)?;
+    let broker_url = args.mqtt.client_url()?;
+    let http: std::net::SocketAddr = args
+        .http
+        .parse()
+        .with_context(|| format!("--http `{}`: expected an address such as 127.0.0.1:8080", args.http))?;
+    let dashboard = cetratus_dashboard::serve(cetratus_dashboard::DashboardConfig {
+        http,
+        broker_url: broker_url.clone(),
+        user: args.mqtt.user.clone(),
+        password: args.mqtt.password.clone(),
+    })?;
+    let until_us = match &args.for_ {
+        Some(d) => crate::duration::parse_duration_us(d)?,
+        None => u64::MAX,
+    };
+    println!("Cetratus demo: the Vernadat cell runs in real time (speed {speed}) with its digital twin.");
+    println!("  dashboard   http://{}/", dashboard.local_addr());
+    println!("  MQTT        {broker_url}, topics cetratus/{plc_id}/…");
+    println!("  U.1         {}  (two more buffer slots; load it first)", files.u1_path.display());
+    println!("  U.2         {}  (lubrication stage; built against U.1)", files.u2_path.display());
+    println!("Try: open the dashboard, Load U.1 and watch B run in quarantine beside A; when the buffer");
+    println!("fills, A blocks at T13 and B does not. Substitute, then load U.2 the same way.");
+    println!("From a shell: cetratus load {} --plc {plc_id} --broker {broker_url}", files.u1_path.display());
+    println!("Ctrl-C stops.");
+    let stop = Arc::new(AtomicBool::new(false));
+    let s = stop.clone();
+    ctrlc::set_handler(move || s.store(true, Ordering::Relaxed)).context("cannot install the Ctrl-C handler")?;
+    // Snapshots go out about five times a second of wall time, whatever the speed.
+    let period_us = 10_000f64;
+    let publish_every = ((200_000.0 * speed) / period_us).round().max(1.0) as u64;
+    let opts = crate::node::NodeOptions {
+        speed,
+        until_us,
+        trust: files.trust.clone(),
+        allow_unsigned: false,
+        publish_every,
+        echo_events: true,
+    };
+    let (_plc, io) = crate::node::run_node(plc, io, link, opts, &stop);
+    mqtt.shutdown();
+    dashboard.stop();
+    use cetratus_twin::Plant;
+    println!(
+        "stopped: {} parts finished, {} faults",
+        io.plant().counters().get("parts_finished").unwrap_or(0),
+        io.plant().faults().len()
     );
     Ok(())
 }

@@ -5,9 +5,13 @@
 
 mod bench;
 mod check;
+mod client;
 mod convert;
 mod demo;
 mod duration;
+mod mct_cmd;
+mod mqtt_args;
+mod node;
 mod package;
 mod run;
 mod sim;
@@ -38,6 +42,24 @@ enum Command {
     Run(run::RunArgs),
     /// Measure the figures in docs/performance.md.
     Bench(bench::BenchArgs),
+    /// The dashboard on its own, watching the PLCs on a broker.
+    Mct(mct_cmd::MctArgs),
+    /// Send an update package to a PLC and follow it into quarantine.
+    Load(client::LoadArgs),
+    /// Make the candidate in quarantine PRIMARY.
+    Substitute(client::SubstituteArgs),
+    /// Drop the candidate in quarantine.
+    Remove(client::PlainArgs),
+    /// Cancel the update under way.
+    Abort(client::PlainArgs),
+    /// Leave the fault state.
+    Reset(client::PlainArgs),
+    /// PRIMARY, STATUS and the programs of a PLC.
+    Status(client::PlainArgs),
+    /// Follow a PLC's state and events.
+    Watch(client::PlainArgs),
+    /// program_exec_info of both containers.
+    ExecInfo(client::PlainArgs),
 }
 
 fn main() -> std::process::ExitCode {
@@ -50,6 +72,15 @@ fn main() -> std::process::ExitCode {
         Command::Package(a) => package::run(a),
         Command::Run(a) => run::run(a),
         Command::Bench(a) => bench::run(a),
+        Command::Mct(a) => mct_cmd::run(a),
+        Command::Load(a) => client::load(a),
+        Command::Substitute(a) => client::substitute(a),
+        Command::Remove(a) => client::plain("remove", a),
+        Command::Abort(a) => client::plain("abort", a),
+        Command::Reset(a) => client::plain("reset", a),
+        Command::Status(a) => client::status(a),
+        Command::Watch(a) => client::watch(a),
+        Command::ExecInfo(a) => client::exec_info(a),
     };
     match result {
         Ok(()) => std::process::ExitCode::SUCCESS,

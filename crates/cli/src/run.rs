@@ -56,7 +56,8 @@ pub struct RunArgs {
     #[arg(long)]
     json: bool,
     /// Scripted operator commands at program times (repeatable): `10s load PKG`,
-    /// `60s substitute [keep|retransform]`, `70s remove`, `70s abort`, `80s reset`.
+    /// `60s substitute [keep|retransform]`, `70s remove`, `70s abort`, `80s reset`. Times count
+    /// from the start of this run; commands due in the same cycle run one per cycle, in order.
     #[arg(long = "at")]
     at: Vec<String>,
     /// Directory of trusted public keys for `load`.
@@ -203,7 +204,9 @@ pub fn run(args: &RunArgs) -> anyhow::Result<()> {
     let progress = args.progress.filter(|&n| n > 0);
     let mut body = |plc: &mut Plc, now: u64, io: &mut TwinDriver<Twin>| -> bool {
         let now = now + base_us;
-        while next_cmd < script.len() && script[next_cmd].at_us + base_us <= now {
+        // One command per cycle: each takes effect at the next cycle boundary, so the next one
+        // (a substitute after a load) sees that effect, even when a late cycle makes both due.
+        if next_cmd < script.len() && script[next_cmd].at_us + base_us <= now {
             let s = &script[next_cmd];
             next_cmd += 1;
             let cmd = match scripted_command(plc, s, &trust, args.allow_unsigned) {
@@ -284,9 +287,14 @@ pub fn run(args: &RunArgs) -> anyhow::Result<()> {
                 args.speed
             );
         }
-        run_periodic(period_us, until_us, args.speed, &stop, &mut timing, |now| {
-            body(&mut plc, now, &mut io)
-        })
+        run_periodic(
+            period_us,
+            until_us,
+            args.speed,
+            &stop,
+            &mut timing,
+            |now, _| body(&mut plc, now, &mut io),
+        )
     };
     let persist = persister.map(|p| p.stop(&plc));
     if let Some(e) = script_error {
@@ -330,7 +338,7 @@ pub fn run(args: &RunArgs) -> anyhow::Result<()> {
         firings: plc.primary_container().firings().iter().sum(),
         parts_finished,
         faults,
-        counters: serde_json::to_value(&counters)?,
+        counters: serde_json::to_value(counters)?,
         scan: figures,
         primary: plc.primary().name(),
         status: plc.status().name(),

@@ -120,6 +120,9 @@ pub enum Outgoing {
     Io(Value),
     /// An event (update lifecycle, refusals); published at once, in order.
     Event(Value),
+    /// The nets of A and B as SVG drawings (`{"A": svg|null, "B": svg|null}`); retained, published
+    /// at once when a program changes.
+    Net(Value),
     /// The answer to a command.
     Reply(ReplyHandle, Reply),
 }
@@ -349,6 +352,7 @@ pub fn spawn_mqtt(
     let topics = Topics {
         state: state_topic.clone(),
         exec_info: control.topic("exec_info"),
+        net: control.topic("net"),
         io: control.topic("io"),
         events: control.topic("events"),
     };
@@ -389,6 +393,7 @@ struct Topics {
     exec_info: String,
     io: String,
     events: String,
+    net: String,
 }
 
 fn reply_props(handle: &ReplyHandle) -> PublishProperties {
@@ -560,6 +565,7 @@ fn outgoing_loop(
             }
             Ok(Outgoing::ExecInfo(v)) => exec_info = Some(v),
             Ok(Outgoing::Io(v)) => io = Some(v),
+            Ok(Outgoing::Net(v)) => publish(&topics.net, true, v.to_string().into_bytes(), None),
             Ok(Outgoing::Event(v)) => {
                 publish(&topics.events, false, v.to_string().into_bytes(), None)
             }

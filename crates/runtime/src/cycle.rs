@@ -134,24 +134,23 @@ impl ScanCycle {
         let period_us = self.period_us;
         let mut timing = std::mem::take(&mut self.timing);
         let mut result = Ok(());
-        let reached =
-            run_periodic(
-                period_us,
-                until_us,
-                speed,
-                stop,
-                &mut timing,
-                |now_us| match self.cycle(now_us, io) {
-                    Ok(_) => {
-                        observe(self, now_us, io);
-                        true
-                    }
-                    Err(e) => {
-                        result = Err(e);
-                        false
-                    }
-                },
-            );
+        let reached = run_periodic(
+            period_us,
+            until_us,
+            speed,
+            stop,
+            &mut timing,
+            |now_us, _| match self.cycle(now_us, io) {
+                Ok(_) => {
+                    observe(self, now_us, io);
+                    true
+                }
+                Err(e) => {
+                    result = Err(e);
+                    false
+                }
+            },
+        );
         self.timing = timing;
         result.map(|()| reached)
     }
@@ -169,7 +168,7 @@ pub struct LoopTiming {
     pub overruns: u64,
 }
 
-/// Calls `body(now_us)` every `period_us` of program time, sleeping to absolute deadlines of the
+/// Calls `body(now_us, timing so far)` every `period_us` of program time, sleeping to absolute deadlines of the
 /// wall clock (`speed` program seconds per wall second), until `until_us`, until `stop` is set or
 /// until `body` returns false. A cycle that overruns skips the deadlines already missed instead
 /// of running a burst of late cycles. Returns the program time reached.
@@ -179,7 +178,7 @@ pub fn run_periodic(
     speed: f64,
     stop: &AtomicBool,
     timing: &mut LoopTiming,
-    mut body: impl FnMut(u64) -> bool,
+    mut body: impl FnMut(u64, &LoopTiming) -> bool,
 ) -> u64 {
     let speed = if speed.is_finite() && speed > 0.0 {
         speed
@@ -208,7 +207,7 @@ pub fn run_periodic(
             timing.cycle.record((start - last).as_nanos() as u64);
         }
         last_start = Some(start);
-        if !body(now_us) {
+        if !body(now_us, timing) {
             return now_us;
         }
         let next = planned + wall_period;

@@ -940,6 +940,8 @@ pub struct PersistStats {
 pub struct Persister {
     tx: SyncSender<Msg>,
     free_rx: Receiver<Box<PlcSnapshot>>,
+    // Boxed so a snapshot travels through the channels as a pointer and `Msg` stays small.
+    #[allow(clippy::vec_box)]
     free: Vec<Box<PlcSnapshot>>,
     config: PersistConfig,
     last_cycle: Option<u64>,
@@ -1159,10 +1161,7 @@ fn writer(
     };
     let mut coalesced = 0u64;
     let mut max_ns = 0u64;
-    loop {
-        let Ok(first) = rx.recv() else {
-            break;
-        };
+    while let Ok(first) = rx.recv() {
         batch.push(first);
         while let Ok(m) = rx.try_recv() {
             batch.push(m);

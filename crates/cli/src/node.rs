@@ -1,0 +1,388 @@
+//! A PLC node: the scan thread of a [`Plc`] driving a twin in real time, connected to MQTT.
+//!
+//! Three threads, joined by bounded queues; the scan thread never blocks:
+//! * the **scan thread** runs the cycle at absolute deadlines, takes ready commands with
+//!   `try_recv`, and hands snapshots and events on with `try_send`;
+//! * the **preparer** turns MQTT commands into runtime commands: it verifies and builds update
+//!   packages and compiles `substitute --when` conditions, away from the scan thread;
+//! * the **publisher** turns snapshots into `state`, `exec_info`, `io` and `net` messages.
+
+use std::collections::VecDeque;
+use std::sync::atomic::AtomicBool;
+use std::sync::mpsc::{sync_channel, Receiver, SyncSender, TrySendError};
+use std::sync::Arc;
+
+use cetratus_io::TwinDriver;
+use cetratus_mct::{
+    IncomingCommand, MctLink, Outgoing, ProgramInfo, Programs, Reply, Request, StateMsg,
+};
+use cetratus_program::{Program, TrustStore, Value};
+use cetratus_runtime::monitor::{CycleRecord, ExecInfo};
+use cetratus_runtime::plc::value_json;
+use cetratus_runtime::{
+    run_periodic, Command, LoopTiming, Plc, Slot, Status, SubstituteMode, SubstituteRequest,
+    UpdateContext,
+};
+use cetratus_twin::Twin;
+use serde_json::{json, Value as Json};
+
+/// How a node runs.
+pub struct NodeOptions {
+    /// Program time per wall time.
+    pub speed: f64,
+    /// Stop after this much program time.
+    pub until_us: u64,
+    /// Keys trusted for packages.
+    pub trust: TrustStore,
+    /// Accept unsigned packages (local configuration only).
+    pub allow_unsigned: bool,
+    /// Publish `exec_info` and `io` every this many cycles.
+    pub publish_every: u64,
+    /// Print events to stderr.
+    pub echo_events: bool,
+}
+
+enum ToScan {
+    Command(Command, IncomingCommand),
+    ExecInfo(IncomingCommand),
+}
+
+struct Snapshot {
+    state: StateMsg,
+    exec_info: [Option<ExecInfo>; 2],
+    names_in: Arc<Vec<String>>,
+    names_out: Arc<Vec<String>>,
+    inputs: Vec<Value>,
+    outputs: [Option<Vec<Value>>; 2],
+    dispatched: Vec<Value>,
+    samples: Vec<CycleRecord>,
+    programs: Option<[Option<(Arc<Program>, Vec<u32>)>; 2]>,
+    time_us: u64,
+}
+
+fn program_info(plc: &Plc, s: Slot) -> Option<ProgramInfo> {
+    plc.container(s).map(|c| ProgramInfo {
+        name: c.program().name().to_string(),
+        version: c.program().version().to_string(),
+        hash: c.program().hash_hex(),
+    })
+}
+
+fn state_msg(plc: &Plc, timing: &LoopTiming) -> StateMsg {
+    let scan = plc.monitor.stats[plc.primary().index()].scan.summary();
+    StateMsg {
+        online: true,
+        primary: plc.primary().name().to_string(),
+        status: plc.status().name().to_string(),
+        programs: Programs {
+            a: program_info(plc, Slot::A),
+            b: program_info(plc, Slot::B),
+        },
+        cycle: json!({
+            "cycles": plc.cycles(),
+            "time_ms": plc.now_us() / 1000,
+            "scan": scan,
+            "cycle": timing.cycle.summary(),
+            "latency": timing.latency.summary(),
+            "overruns": timing.overruns,
+            "update": plc.update_meta().map(|m| format!("{} {}", m.name, m.version)),
+        }),
+    }
+}
+
+/// Runs the node until `until_us` of program time or `stop`. Returns the PLC and the twin.
+pub fn run_node(
+    mut plc: Plc,
+    mut io: TwinDriver<Twin>,
+    link: MctLink,
+    opts: NodeOptions,
+    stop: &AtomicBool,
+) -> (Plc, TwinDriver<Twin>) {
+    let MctLink { commands, outgoing } = link;
+    let (to_scan_tx, to_scan_rx) = sync_channel::<ToScan>(32);
+    let (ctx_tx, ctx_rx) = sync_channel::<UpdateContext>(4);
+    let (snap_tx, snap_rx) = sync_channel::<Snapshot>(2);
+    let _ = ctx_tx.try_send(plc.update_context());
+    let prep_out = outgoing.clone();
+    let (trust, allow_unsigned) = (opts.trust, opts.allow_unsigned);
+    let preparer = std::thread::Builder::new()
+        .name("cetratus-prepare".into())
+        .spawn(move || {
+            prepare_loop(
+                commands,
+                ctx_rx,
+                to_scan_tx,
+                prep_out,
+                trust,
+                allow_unsigned,
+            )
+        })
+        .expect("spawn the preparer");
+    let pub_out = outgoing.clone();
+    let publisher = std::thread::Builder::new()
+        .name("cetratus-publish".into())
+        .spawn(move || publish_loop(snap_rx, pub_out))
+        .expect("spawn the publisher");
+
+    let names_in = Arc::new(plc.io_inputs().to_vec());
+    let names_out = Arc::new(plc.io_outputs().to_vec());
+    let mut pending: VecDeque<Outgoing> = VecDeque::with_capacity(256);
+    let mut timing = LoopTiming::default();
+    let mut last_key = (Slot::A, Status::Idle, String::new(), String::new());
+    let mut last_sampled = 0u64;
+    let period_us = plc.primary_program().scan_period().as_micros() as u64;
+    let mut first = true;
+    let echo = opts.echo_events;
+    run_periodic(
+        period_us,
+        opts.until_us,
+        opts.speed,
+        stop,
+        &mut timing,
+        |now, timing| {
+            while let Ok(msg) = to_scan_rx.try_recv() {
+                match msg {
+                    ToScan::Command(cmd, from) => {
+                        let r = plc.command(cmd).map(|()| json!({"accepted": true}));
+                        pending.push_back(Outgoing::Reply(from.reply, Reply::from_result(r)));
+                    }
+                    ToScan::ExecInfo(from) => {
+                        let info = serde_json::to_value(plc.exec_info()).unwrap_or(Json::Null);
+                        pending.push_back(Outgoing::Reply(from.reply, Reply::ok(info)));
+                    }
+                }
+            }
+            plc.cycle(now, &mut io);
+            for e in plc.drain_events() {
+                if echo {
+                    eprintln!(
+                        "{:>10.3} s  {:<20} {}",
+                        e.time_us as f64 / 1e6,
+                        e.kind,
+                        e.message
+                    );
+                }
+                pending.push_back(Outgoing::Event(
+                    serde_json::to_value(&e).unwrap_or(Json::Null),
+                ));
+            }
+            drop(plc.take_retired());
+            let hash = |s: Slot| {
+                plc.container(s)
+                    .map_or(String::new(), |c| c.program().hash_hex())
+            };
+            let key = (plc.primary(), plc.status(), hash(Slot::A), hash(Slot::B));
+            let changed = key != last_key;
+            if changed {
+                if key.0 != last_key.0 || key.2 != last_key.2 || key.3 != last_key.3 {
+                    let _ = ctx_tx.try_send(plc.update_context());
+                }
+                last_key = key;
+            }
+            if first || changed || plc.cycles() % opts.publish_every == 0 {
+                let samples: Vec<CycleRecord> = plc
+                    .monitor
+                    .recent
+                    .iter()
+                    .filter(|r| r.cycle >= last_sampled)
+                    .copied()
+                    .collect();
+                last_sampled = plc.cycles();
+                let snap = Snapshot {
+                    state: state_msg(&plc, timing),
+                    exec_info: plc.exec_info(),
+                    names_in: names_in.clone(),
+                    names_out: names_out.clone(),
+                    inputs: plc.inputs().to_vec(),
+                    outputs: [Slot::A, Slot::B].map(|s| plc.outputs_of(s).map(<[Value]>::to_vec)),
+                    dispatched: plc.dispatched().to_vec(),
+                    samples,
+                    programs: (first || changed).then(|| {
+                        [Slot::A, Slot::B].map(|s| {
+                            plc.container(s)
+                                .map(|c| (c.program().clone(), c.marking().to_vec()))
+                        })
+                    }),
+                    time_us: now,
+                };
+                first = false;
+                if let Err(TrySendError::Full(_)) = snap_tx.try_send(snap) {
+                    // The publisher is behind: this snapshot is dropped, the next one carries on.
+                }
+            }
+            while let Some(m) = pending.pop_front() {
+                if let Err(back) = try_out(&outgoing, m) {
+                    pending.push_front(back);
+                    break;
+                }
+            }
+            true
+        },
+    );
+    drop(snap_tx);
+    drop(to_scan_rx);
+    let _ = publisher.join();
+    drop(ctx_tx);
+    let _ = preparer.join();
+    (plc, io)
+}
+
+#[allow(clippy::result_large_err)]
+fn try_out(tx: &SyncSender<Outgoing>, m: Outgoing) -> Result<(), Outgoing> {
+    tx.try_send(m).map_err(|e| match e {
+        TrySendError::Full(m) | TrySendError::Disconnected(m) => m,
+    })
+}
+
+fn prepare_loop(
+    commands: Receiver<IncomingCommand>,
+    ctx_rx: Receiver<UpdateContext>,
+    to_scan: SyncSender<ToScan>,
+    out: SyncSender<Outgoing>,
+    trust: TrustStore,
+    allow_unsigned: bool,
+) {
+    let mut ctx: Option<UpdateContext> = None;
+    loop {
+        let cmd = match commands.recv_timeout(std::time::Duration::from_millis(200)) {
+            Ok(c) => c,
+            Err(std::sync::mpsc::RecvTimeoutError::Timeout) => {
+                if to_scan_closed(&to_scan) {
+                    return;
+                }
+                while let Ok(c) = ctx_rx.try_recv() {
+                    ctx = Some(c);
+                }
+                continue;
+            }
+            Err(_) => return,
+        };
+        while let Ok(c) = ctx_rx.try_recv() {
+            ctx = Some(c);
+        }
+        let Some(c) = ctx.as_ref() else {
+            let _ = out.send(Outgoing::Reply(
+                cmd.reply,
+                Reply::from_result(Err("the PLC is starting; try again".into())),
+            ));
+            continue;
+        };
+        let prepared: Result<ToScan, String> = match &cmd.request {
+            Request::Load { package } => c
+                .prepare_package(package, &trust, allow_unsigned, false)
+                .map(|p| ToScan::Command(Command::Load(Box::new(p)), cmd.clone())),
+            Request::Substitute(a) => {
+                substitute(c, a).map(|s| ToScan::Command(Command::Substitute(s), cmd.clone()))
+            }
+            Request::Remove => Ok(ToScan::Command(Command::Remove, cmd.clone())),
+            Request::Abort => Ok(ToScan::Command(Command::Abort, cmd.clone())),
+            Request::Reset => Ok(ToScan::Command(Command::Reset, cmd.clone())),
+            Request::ExecInfo => Ok(ToScan::ExecInfo(cmd.clone())),
+        };
+        match prepared {
+            Ok(m) => {
+                if to_scan.send(m).is_err() {
+                    return;
+                }
+            }
+            Err(reason) => {
+                let _ = out.send(Outgoing::Event(json!({
+                    "kind": "refused",
+                    "message": reason,
+                    "detail": {"verb": cmd.request.verb(), "key_id": cmd.key_id},
+                })));
+                let _ = out.send(Outgoing::Reply(cmd.reply, Reply::from_result(Err(reason))));
+            }
+        }
+    }
+}
+
+fn to_scan_closed(tx: &SyncSender<ToScan>) -> bool {
+    // A zero-cost probe is not available on SyncSender; the scan side drops its receiver when it
+    // stops, and the next real send fails. Until then keep waiting.
+    let _ = tx;
+    false
+}
+
+fn substitute(
+    c: &UpdateContext,
+    a: &cetratus_mct::SubstituteArgs,
+) -> Result<SubstituteRequest, String> {
+    let mode = match a.mode.as_deref() {
+        None => SubstituteMode::Retransform,
+        Some(m) => m.parse::<SubstituteMode>()?,
+    };
+    let when = match &a.when {
+        Some(text) => Some((
+            text.clone(),
+            c.primary.compile_condition(text).map_err(|e| {
+                format!("substitute refused: the condition `{text}` does not compile: {e}")
+            })?,
+        )),
+        None => None,
+    };
+    Ok(SubstituteRequest {
+        mode,
+        when,
+        within_us: a.within_ms.map(|ms| ms * 1000),
+        force: a.force,
+    })
+}
+
+fn named(names: &[String], values: &[Value]) -> Json {
+    Json::Object(
+        names
+            .iter()
+            .zip(values)
+            .map(|(n, v)| (n.clone(), value_json(*v)))
+            .collect(),
+    )
+}
+
+fn publish_loop(rx: Receiver<Snapshot>, out: SyncSender<Outgoing>) {
+    while let Ok(s) = rx.recv() {
+        if out.send(Outgoing::State(s.state)).is_err() {
+            return;
+        }
+        let _ = out.send(Outgoing::ExecInfo(
+            serde_json::to_value(&s.exec_info).unwrap_or(Json::Null),
+        ));
+        let samples: Vec<Json> = s
+            .samples
+            .iter()
+            .map(|r| {
+                json!([
+                    r.time_us / 1000,
+                    r.primary.name(),
+                    r.status.name(),
+                    r.inputs,
+                    r.outputs_a,
+                    r.outputs_b,
+                    r.dispatched
+                ])
+            })
+            .collect();
+        let io = json!({
+            "time_ms": s.time_us / 1000,
+            "names": {"inputs": &*s.names_in, "outputs": &*s.names_out},
+            "inputs": named(&s.names_in, &s.inputs),
+            "outputs_a": s.outputs[0].as_ref().map(|o| named(&s.names_out, o)),
+            "outputs_b": s.outputs[1].as_ref().map(|o| named(&s.names_out, o)),
+            "dispatched": named(&s.names_out, &s.dispatched),
+            "samples": samples,
+        });
+        let _ = out.send(Outgoing::Io(io));
+        if let Some(programs) = s.programs {
+            let svg = |p: &Option<(Arc<Program>, Vec<u32>)>| {
+                p.as_ref()
+                    .map(|(prog, m)| {
+                        Json::String(cetratus_net::export::to_svg(prog.net(), Some(m)))
+                    })
+                    .unwrap_or(Json::Null)
+            };
+            let _ = out.send(Outgoing::Net(
+                json!({"A": svg(&programs[0]), "B": svg(&programs[1])}),
+            ));
+        }
+    }
+}

@@ -1,0 +1,505 @@
+// Cetratus dashboard: plain JS, no build step. Everything arrives on one EventSource
+// (/api/stream?plc=ID); commands are POSTs whose response is the PLC's reply.
+'use strict';
+(() => {
+  const $ = (id) => document.getElementById(id);
+  const WINDOW_MS = 60000;
+  const MAX_EVENTS = 200;
+
+  let plc = null;
+  let source = null;
+  let plcList = [];
+  let view = fresh();
+  let pendingAction = null;
+
+  function fresh() {
+    return { state: null, exec: null, io: [], firings: { A: {}, B: {} } };
+  }
+
+  // ---- latency: MQTT message at the dashboard (recv_ms, Unix ms) -> DOM updated --------------
+  // `dom` is measured right after the DOM change, `frame` at the next animation frame (when it is
+  // painted), `publish` from the publisher's own `unix_ms` when the payload carries one.
+  const latency = { dom: [], frame: [], publish: [] };
+  window.cetratusLatency = latency;
+  const nowMs = () => performance.timeOrigin + performance.now();
+  function record(list, v) {
+    if (Number.isFinite(v)) {
+      list.push(v);
+      if (list.length > 5000) list.shift();
+    }
+  }
+  function measured(msg) {
+    const t = nowMs();
+    record(latency.dom, t - msg.recv_ms);
+    const d = msg.data;
+    if (d && typeof d === 'object' && typeof d.unix_ms === 'number') record(latency.publish, t - d.unix_ms);
+    requestAnimationFrame(() => record(latency.frame, nowMs() - msg.recv_ms));
+  }
+  function quantile(xs, q) {
+    if (!xs.length) return NaN;
+    const s = xs.slice(-500).sort((a, b) => a - b);
+    return s[Math.min(s.length - 1, Math.floor(q * s.length))];
+  }
+  setInterval(() => {
+    const d = latency.dom;
+    if (!d.length) return;
+    $('latency').textContent =
+      `median ${quantile(d, 0.5).toFixed(2)} ms, p95 ${quantile(d, 0.95).toFixed(2)} ms ` +
+      `(to next frame: median ${quantile(latency.frame, 0.5).toFixed(1)} ms; ${d.length} messages)`;
+  }, 1000);
+
+  // ---- stream ---------------------------------------------------------------------------------
+  function connect() {
+    if (source) source.close();
+    const url = '/api/stream' + (plc ? '?plc=' + encodeURIComponent(plc) : '');
+    source = new EventSource(url);
+    source.addEventListener('hello', (e) => onHello(JSON.parse(e.data)));
+    source.addEventListener('plcs', (e) => setPlcs(JSON.parse(e.data)));
+    source.addEventListener('broker', (e) => setBroker(JSON.parse(e.data)));
+    for (const kind of ['state', 'exec_info', 'io', 'event', 'net']) {
+      source.addEventListener(kind, (e) => onMessage(kind, JSON.parse(e.data)));
+    }
+    source.onerror = () => setBroker(null);
+  }
+
+  function onHello(h) {
+    setBroker(h.broker);
+    setPlcs(h.plcs);
+    const s = h.snapshot;
+    if (!s || s.plc !== plc) return;
+    // A (re)connection: start from the snapshot, so nothing is drawn twice.
+    view = fresh();
+    $('events').textContent = '';
+    if (s.state) renderState(s.state.data);
+    if (s.net) renderNets(s.net.data);
+    if (s.exec_info) { view.exec = s.exec_info.data; renderExec(); updateTokens(); }
+    for (const x of s.io) view.io.push({ t: x.recv_ms, d: x.data });
+    renderTiming();
+    for (const e of s.events) addEvent(e);
+  }
+
+  function onMessage(kind, msg) {
+    if (msg.plc !== plc) return;
+    switch (kind) {
+      case 'state': renderState(msg.data); break;
+      case 'net': renderNets(msg.data); updateTokens(); break;
+      case 'exec_info': view.exec = msg.data; renderExec(); updateTokens(); break;
+      case 'io': view.io.push({ t: msg.recv_ms, d: msg.data }); renderTiming(); break;
+      case 'event': addEvent(msg); break;
+    }
+    measured(msg);
+  }
+
+  function setBroker(b) {
+    const el = $('broker');
+    if (!b) { el.textContent = 'dashboard: reconnecting…'; el.className = 'badge down'; return; }
+    el.textContent = `broker ${b.url}: ${b.connected ? 'connected' : 'disconnected'}`;
+    el.className = 'badge ' + (b.connected ? 'up' : 'down');
+  }
+
+  function setPlcs(list) {
+    plcList = Array.isArray(list) ? list : [];
+    const sel = $('plc-select');
+    sel.textContent = '';
+    for (const p of plcList) {
+      const o = document.createElement('option');
+      o.value = p.id;
+      o.textContent = p.id + (p.online ? '' : ' (offline)');
+      sel.appendChild(o);
+    }
+    if (plc === null && plcList.length) { choose(plcList[0].id); return; }
+    if (plc !== null) sel.value = plc;
+    const me = plcList.find((p) => p.id === plc);
+    const badge = $('online');
+    badge.textContent = me ? (me.online ? 'online' : 'offline') : (plc ? 'not seen' : 'no PLC yet');
+    badge.className = 'badge ' + (me && me.online ? 'up' : 'down');
+  }
+
+  function choose(id) {
+    plc = id;
+    history.replaceState(null, '', '#plc=' + encodeURIComponent(id));
+    view = fresh();
+    $('primary').textContent = '?';
+    $('status').textContent = '?';
+    $('events').textContent = '';
+    renderNets(null);
+    renderTiming();
+    connect();
+    setPlcs(plcList);
+  }
+
+  $('plc-select').addEventListener('change', (e) => choose(e.target.value));
+
+  // ---- state -----------------------------------------------------------------------------------
+  function programText(p) {
+    return p ? `${p.name} ${p.version} (${String(p.hash || '').slice(0, 12)})` : 'empty';
+  }
+
+  function renderState(s) {
+    if (!s) return;
+    view.state = Object.assign({}, view.state || {}, s);
+    const st = view.state;
+    const online = st.online !== false;
+    const me = plcList.find((p) => p.id === plc);
+    if (me) me.online = online;
+    $('online').textContent = online ? 'online' : 'offline';
+    $('online').className = 'badge ' + (online ? 'up' : 'down');
+    if (st.primary) $('primary').textContent = st.primary;
+    if (st.status) {
+      $('status').textContent = st.status;
+      $('status').dataset.status = st.status;
+    }
+    const progs = st.programs || {};
+    $('program-A').textContent = programText(progs.A);
+    $('program-B').textContent = programText(progs.B);
+    const dl = $('cycle');
+    dl.textContent = '';
+    for (const [k, v] of flatten(st.cycle || {}, '')) {
+      const dt = document.createElement('dt');
+      dt.textContent = k;
+      const dd = document.createElement('dd');
+      dd.textContent = typeof v === 'number' && !Number.isInteger(v) ? v.toFixed(2) : String(v);
+      dl.append(dt, dd);
+    }
+    for (const x of ['A', 'B']) {
+      const box = $('net-' + x);
+      const role = st.primary === x ? 'primary' : (progs[x] ? 'candidate' : '');
+      box.classList.toggle('primary', role === 'primary');
+      box.classList.toggle('candidate', role === 'candidate');
+      box.querySelector('.role').textContent = role ? `(${role})` : '';
+    }
+    enableButtons();
+  }
+
+  function flatten(o, prefix) {
+    const out = [];
+    for (const [k, v] of Object.entries(o)) {
+      if (v && typeof v === 'object' && !Array.isArray(v)) out.push(...flatten(v, prefix + k + '.'));
+      else out.push([prefix + k, v]);
+    }
+    return out;
+  }
+
+  function enableButtons() {
+    const st = view.state || {};
+    const up = plc !== null && st.online !== false;
+    const s = st.status;
+    $('load').disabled = !(up && s === 'idle');
+    $('substitute').disabled = !(up && s === 'quarantine');
+    $('remove').disabled = !(up && s === 'quarantine');
+    $('abort').disabled = !(up && (s === 'setup' || s === 'quarantine'));
+    $('reset').disabled = !(up && s === 'fault');
+  }
+
+  // ---- nets ------------------------------------------------------------------------------------
+  // The drawing comes from the broker, which anyone on the cell network may publish to: parse it
+  // as SVG and strip anything that could run script before it enters the page.
+  function safeSvg(text) {
+    const doc = new DOMParser().parseFromString(text, 'image/svg+xml');
+    const root = doc.documentElement;
+    if (!root || root.nodeName !== 'svg' || doc.getElementsByTagName('parsererror').length) return null;
+    for (const bad of root.querySelectorAll('script, foreignObject, iframe, a')) bad.remove();
+    for (const el of [root, ...root.querySelectorAll('*')]) {
+      for (const attr of [...el.attributes]) {
+        const n = attr.name.toLowerCase();
+        if (n.startsWith('on') || ((n === 'href' || n === 'xlink:href') && !attr.value.startsWith('#'))) {
+          el.removeAttribute(attr.name);
+        }
+      }
+    }
+    return document.importNode(root, true);
+  }
+
+  function renderNets(n) {
+    for (const x of ['A', 'B']) {
+      const box = $('net-' + x).querySelector('.net');
+      const text = n && typeof n[x] === 'string' ? n[x] : null;
+      const svg = text ? safeSvg(text) : null;
+      box.textContent = svg ? '' : 'empty';
+      if (svg) box.appendChild(svg);
+    }
+    view.firings = { A: {}, B: {} };
+  }
+
+  // Dice patterns of cetratus_net::export, so a redrawn place looks like a freshly exported one.
+  const D = 6.5;
+  const DICE = [[], [[0, 0]], [[-D, 0], [D, 0]], [[0, -D], [-D, D * 0.8], [D, D * 0.8]],
+    [[-D, -D], [D, -D], [-D, D], [D, D]], [[-D, -D], [D, -D], [0, 0], [-D, D], [D, D]]];
+  const SVGNS = 'http://www.w3.org/2000/svg';
+
+  function drawTokens(g, n) {
+    const c = g.querySelector('circle.node');
+    if (!c) return;
+    const cx = parseFloat(c.getAttribute('cx'));
+    const cy = parseFloat(c.getAttribute('cy'));
+    let tg = g.querySelector('.tokens');
+    if (!tg) {
+      tg = document.createElementNS(SVGNS, 'g');
+      tg.setAttribute('class', 'tokens');
+      c.after(tg);
+    }
+    tg.textContent = '';
+    if (n <= 5) {
+      for (const [dx, dy] of DICE[n]) {
+        const dot = document.createElementNS(SVGNS, 'circle');
+        dot.setAttribute('cx', cx + dx);
+        dot.setAttribute('cy', cy + dy);
+        dot.setAttribute('r', '3.5');
+        tg.appendChild(dot);
+      }
+    } else {
+      const t = document.createElementNS(SVGNS, 'text');
+      t.setAttribute('class', 'count');
+      t.setAttribute('x', cx);
+      t.setAttribute('y', cy + 4);
+      t.textContent = String(n);
+      tg.appendChild(t);
+    }
+  }
+
+  function updateTokens() {
+    if (!view.exec) return;
+    for (const x of ['A', 'B']) {
+      const info = view.exec[x];
+      const box = $('net-' + x);
+      if (!info || !info.marking) continue;
+      for (const [pid, n] of Object.entries(info.marking)) {
+        const g = box.querySelector('#' + CSS.escape('place-' + pid));
+        if (!g || g.getAttribute('data-tokens') === String(n)) continue;
+        g.setAttribute('data-tokens', String(n));
+        drawTokens(g, Math.max(0, Number(n) | 0));
+      }
+      // Flash the transitions that fired since the last exec_info.
+      const prev = view.firings[x] || {};
+      for (const [tid, count] of Object.entries(info.firings || {})) {
+        if (prev[tid] !== undefined && count !== prev[tid]) {
+          const t = box.querySelector('#' + CSS.escape('trans-' + tid));
+          if (t) {
+            t.classList.add('fired');
+            setTimeout(() => t.classList.remove('fired'), 400);
+          }
+        }
+      }
+      view.firings[x] = Object.assign({}, info.firings || {});
+    }
+  }
+
+  // ---- exec info table ---------------------------------------------------------------------
+  const us = (ns) => (typeof ns === 'number' ? (ns / 1000).toFixed(1) : '–');
+
+  function renderExec() {
+    const e = view.exec || {};
+    const a = e.A || null;
+    const b = e.B || null;
+    const rows = [];
+    const row = (label, f, cls) => rows.push([label, a ? f(a) : '–', b ? f(b) : '–', cls]);
+    row('role', (x) => x.role ?? '');
+    row('program', (x) => programText(x.program));
+    row('cycles', (x) => x.cycles, 'num');
+    for (const k of ['last', 'min', 'mean', 'p50', 'p99', 'max']) {
+      row(`scan ${k} (µs)`, (x) => us(x.scan && x.scan[k + '_ns']), 'num');
+    }
+    row('firings', (x) => Object.values(x.firings || {}).reduce((s, v) => s + (Number(v) || 0), 0), 'num');
+    row('drift', (x) => x.drift, 'num');
+    row('max drift', (x) => x.max_drift, 'num');
+    row('deadlock', (x) => (x.deadlock ? 'yes' : 'no'));
+    const signals = new Set([...Object.keys((a && a.divergence) || {}), ...Object.keys((b && b.divergence) || {})]);
+    for (const s of [...signals].sort()) row(`divergence ${s} (cycles)`, (x) => (x.divergence || {})[s] ?? 0, 'num');
+    row('first cause', (x) => x.first_cause ?? '–');
+    row('last cause', (x) => x.last_cause ?? '–');
+    row('verdicts', (x) => (x.verdicts || []).join('; ') || '–');
+
+    const table = $('exec-info');
+    table.textContent = '';
+    const head = table.createTHead().insertRow();
+    for (const h of ['', 'A', 'B']) {
+      const th = document.createElement('th');
+      th.textContent = h;
+      head.appendChild(th);
+    }
+    const body = table.createTBody();
+    for (const [label, va, vb, cls] of rows) {
+      const tr = body.insertRow();
+      const th = document.createElement('th');
+      th.textContent = label;
+      tr.appendChild(th);
+      for (const v of [va, vb]) {
+        const td = tr.insertCell();
+        td.textContent = String(v);
+        if (cls) td.className = cls;
+        if (label.startsWith('divergence') && Number(v) > 0) td.classList.add('bad');
+      }
+    }
+  }
+
+  // ---- timing diagram (the paper's Fig. 7) -----------------------------------------------------
+  const esc = (s) => String(s).replace(/[&<>"']/g, (c) => `&#${c.charCodeAt(0)};`);
+  const high = (v) => v === true || v === 'true' || (typeof v === 'number' && v !== 0);
+  const GROUPS = [
+    ['inputs', 'inputs', (d) => d.inputs],
+    ['A', 'outputs A', (d) => d.outputs && d.outputs.A],
+    ['B', 'outputs B', (d) => d.outputs && d.outputs.B],
+    ['dispatched', 'dispatched', (d) => d.dispatched],
+  ];
+
+  function renderTiming() {
+    const svg = $('timing');
+    const now = nowMs();
+    const t0 = now - WINDOW_MS;
+    // Keep one sample from before the window: it gives the levels at the left edge.
+    let first = 0;
+    while (first + 1 < view.io.length && view.io[first + 1].t < t0) first++;
+    if (first > 0) view.io.splice(0, first);
+    const samples = view.io;
+
+    const width = Math.max(400, svg.clientWidth || 900);
+    const labelW = 130;
+    const plotW = width - labelW - 10;
+    const laneH = 15;
+    const xOf = (t) => labelW + Math.max(0, (t - t0) / WINDOW_MS) * plotW;
+    let y = 14;
+    const out = [];
+    // Grid: a line every 10 s, labelled in seconds before now.
+    for (let k = 0; k <= 6; k++) {
+      const x = xOf(now - k * 10000);
+      out.push(`<line class="grid" x1="${x}" x2="${x}" y1="12" y2="100%"/>`);
+      out.push(`<text class="tick" x="${x - 2}" y="10" text-anchor="end">${k ? '−' + k * 10 + ' s' : 'now'}</text>`);
+    }
+    let signalCount = 0;
+    for (const [key, title, get] of GROUPS) {
+      const names = [];
+      for (const s of samples) {
+        const g = get(s.d);
+        if (g && typeof g === 'object') for (const n of Object.keys(g)) if (!names.includes(n)) names.push(n);
+      }
+      y += 14;
+      out.push(`<g class="g-${key}"><text class="group-label" x="4" y="${y - 2}">${esc(title)}</text>`);
+      if (!names.length) {
+        out.push(`<text class="lane-label" x="${labelW}" y="${y - 2}">(none)</text></g>`);
+        continue;
+      }
+      for (const name of names) {
+        signalCount++;
+        const top = y + 2;
+        const bottom = y + laneH - 2;
+        out.push(`<text class="lane-label" x="10" y="${bottom}">${esc(name)}</text>`);
+        out.push(`<line class="grid" x1="${labelW}" x2="${labelW + plotW}" y1="${bottom}" y2="${bottom}"/>`);
+        let d = '';
+        let open = false;
+        for (let i = 0; i < samples.length; i++) {
+          const g = get(samples[i].d);
+          const x = xOf(samples[i].t).toFixed(1);
+          const xEnd = (i + 1 < samples.length ? xOf(samples[i + 1].t) : xOf(now)).toFixed(1);
+          if (!g || !(name in g)) { open = false; continue; }
+          const v = high(g[name]) ? top : bottom;
+          d += open ? ` V${v} H${xEnd}` : ` M${x},${v} H${xEnd}`;
+          open = true;
+          // Where the candidate's output differs from the primary's, shade its lane (Fig. 7).
+          if (key === 'B') {
+            const ga = samples[i].d.outputs && samples[i].d.outputs.A;
+            if (ga && name in ga && high(ga[name]) !== high(g[name])) {
+              out.push(`<rect class="diverge" x="${x}" y="${y}" width="${Math.max(1, xEnd - x)}" height="${laneH}"/>`);
+            }
+          }
+        }
+        if (d) out.push(`<path class="sig" d="${d.trim()}"/>`);
+        y += laneH;
+      }
+      out.push('</g>');
+    }
+    svg.setAttribute('height', String(y + 8));
+    svg.setAttribute('viewBox', `0 0 ${width} ${y + 8}`);
+    svg.innerHTML = out.join('');
+    svg.dataset.samples = String(samples.length);
+    svg.dataset.signals = String(signalCount);
+    const last = samples[samples.length - 1];
+    svg.dataset.lastCycle = last && last.d.cycle !== undefined ? String(last.d.cycle) : '';
+  }
+  // Scroll even when no sample arrives, so a silent PLC is visible as a flat, ageing trace.
+  setInterval(renderTiming, 500);
+  window.addEventListener('resize', renderTiming);
+
+  // ---- events ----------------------------------------------------------------------------------
+  function addEvent(msg) {
+    const e = msg.data || {};
+    const li = document.createElement('li');
+    const time = document.createElement('span');
+    time.className = 'time';
+    time.textContent = new Date(msg.recv_ms).toLocaleTimeString() + (e.cycle !== undefined ? ` #${e.cycle}` : '');
+    const kind = document.createElement('span');
+    kind.className = 'kind';
+    kind.textContent = e.kind || 'event';
+    li.append(time, kind, document.createTextNode(' ' + (e.message || '')));
+    if (e.detail) li.title = JSON.stringify(e.detail);
+    li.dataset.kind = e.kind || '';
+    const list = $('events');
+    list.insertBefore(li, list.firstChild);
+    while (list.children.length > MAX_EVENTS) list.lastChild.remove();
+  }
+
+  // ---- commands ---------------------------------------------------------------------------------
+  function ask(text, action) {
+    $('confirm-text').textContent = text;
+    pendingAction = action;
+    $('confirm').hidden = false;
+    $('confirm-yes').focus();
+  }
+  function closeDialog() {
+    $('confirm').hidden = true;
+    pendingAction = null;
+  }
+  $('confirm-yes').addEventListener('click', () => {
+    const a = pendingAction;
+    closeDialog();
+    if (a) a();
+  });
+  $('confirm-no').addEventListener('click', () => { closeDialog(); showReply('cancelled', null); });
+  document.addEventListener('keydown', (e) => { if (e.key === 'Escape' && !$('confirm').hidden) closeDialog(); });
+
+  function showReply(text, ok) {
+    const r = $('reply');
+    r.textContent = text;
+    r.className = ok === true ? 'ok' : ok === false ? 'err' : '';
+    r.dataset.ok = ok === null ? '' : String(ok);
+  }
+
+  async function send(verb, body, contentType) {
+    const target = plc;
+    showReply(`${verb}: sent to ${target}, waiting for the reply…`, null);
+    try {
+      const r = await fetch(`/api/${encodeURIComponent(target)}/${verb}`, {
+        method: 'POST', headers: { 'Content-Type': contentType }, body,
+      });
+      const j = await r.json();
+      if (j.ok) showReply(`${verb}: ok` + (j.result !== undefined ? ' ' + JSON.stringify(j.result) : ''), true);
+      else showReply(`${verb} failed: ` + (j.error ? `${j.error.code}: ${j.error.message}` : `HTTP ${r.status}`), false);
+    } catch (err) {
+      showReply(`${verb} failed: ${err}`, false);
+    }
+  }
+
+  $('load').addEventListener('click', () => {
+    const f = $('package-file').files[0];
+    if (!f) { showReply('choose an update package file (.cpkg) first', false); return; }
+    ask(`Load ${f.name} (${f.size} bytes) on ${plc}? The new program runs in quarantine beside ` +
+      `PRIMARY, with its outputs withheld.`, () => send('load', f, 'application/octet-stream'));
+  });
+  $('substitute').addEventListener('click', () => {
+    const mode = $('substitute-mode').value;
+    ask(`Substitute on ${plc} (mode ${mode})? The candidate becomes PRIMARY and drives the ` +
+      `outputs; the old program stops.`, () => send('substitute', JSON.stringify({ mode }), 'application/json'));
+  });
+  $('remove').addEventListener('click', () => ask(`Remove the candidate from ${plc}? PRIMARY keeps running.`,
+    () => send('remove', '{}', 'application/json')));
+  $('abort').addEventListener('click', () => ask(`Abort the update under way on ${plc}?`,
+    () => send('abort', '{}', 'application/json')));
+  $('reset').addEventListener('click', () => ask(`Reset ${plc} out of the fault state? Outputs leave their safe values.`,
+    () => send('reset', '{}', 'application/json')));
+
+  // ---- start -----------------------------------------------------------------------------------
+  const m = /^#plc=(.+)$/.exec(location.hash);
+  if (m) plc = decodeURIComponent(m[1]);
+  enableButtons();
+  renderTiming();
+  connect();
+})();

@@ -1,0 +1,302 @@
+//! The HTTP side: the embedded page, the Server-Sent Events stream, and the command endpoints.
+
+use std::collections::VecDeque;
+use std::convert::Infallible;
+use std::sync::Arc;
+use std::time::Duration;
+
+use axum::body::Bytes;
+use axum::extract::{DefaultBodyLimit, Path, Query, State};
+use axum::http::{header, HeaderMap, StatusCode};
+use axum::response::sse::{Event, KeepAlive, Sse};
+use axum::response::{IntoResponse, Response};
+use axum::routing::{get, post};
+use axum::{Json, Router};
+use base64::Engine as _;
+use futures_util::Stream;
+use serde::Deserialize;
+use serde_json::{json, Value};
+use tokio::sync::{broadcast, watch};
+
+use crate::hub::{run_mqtt, unix_ms, BrokerTarget, Hub, Push};
+use crate::store::valid_plc_id;
+
+const INDEX_HTML: &str = include_str!("../assets/index.html");
+const APP_JS: &str = include_str!("../assets/app.js");
+const STYLE_CSS: &str = include_str!("../assets/style.css");
+
+/// The PLC refuses command payloads over 1 MiB (docs/mqtt.md); base64 grows a package by 4/3, so
+/// this is the largest package worth forwarding.
+const MAX_PACKAGE: usize = (1 << 20) / 4 * 3 - 1024;
+
+/// The verbs a browser may send.
+const VERBS: [&str; 6] = ["load", "substitute", "remove", "abort", "reset", "exec_info"];
+
+#[derive(Clone)]
+struct App {
+    hub: Arc<Hub>,
+    shutdown: watch::Receiver<bool>,
+}
+
+/// Serves until `shutdown` turns true, with the MQTT client on the same runtime.
+pub(crate) async fn run(
+    listener: std::net::TcpListener,
+    broker: BrokerTarget,
+    shutdown: watch::Receiver<bool>,
+) {
+    let listener = match tokio::net::TcpListener::from_std(listener) {
+        Ok(l) => l,
+        Err(e) => {
+            log::error!("the dashboard cannot use its listening socket: {e}");
+            return;
+        }
+    };
+    let (hub, eventloop) = Hub::new(&broker);
+    let mqtt = tokio::spawn(run_mqtt(hub.clone(), eventloop, shutdown.clone()));
+    let app = App {
+        hub,
+        shutdown: shutdown.clone(),
+    };
+    let router = Router::new()
+        .route("/", get(index))
+        .route("/app.js", get(app_js))
+        .route("/style.css", get(style_css))
+        .route("/api/plcs", get(plcs))
+        .route("/api/plc/{plc}", get(snapshot))
+        .route("/api/stream", get(stream))
+        .route("/api/{plc}/{verb}", post(command))
+        .layer(DefaultBodyLimit::max(2 << 20))
+        .with_state(app);
+    let mut stop = shutdown.clone();
+    let graceful = async move {
+        let _ = stop.wait_for(|s| *s).await;
+    };
+    let mut stop = shutdown.clone();
+    // Graceful shutdown waits for open connections; a browser that does not let go must not keep
+    // the process alive, so give up after two seconds.
+    let deadline = async move {
+        let _ = stop.wait_for(|s| *s).await;
+        tokio::time::sleep(Duration::from_secs(2)).await;
+    };
+    tokio::select! {
+        r = axum::serve(listener, router).with_graceful_shutdown(graceful) => {
+            if let Err(e) = r {
+                log::error!("the dashboard's HTTP server stopped: {e}");
+            }
+        }
+        _ = deadline => {}
+    }
+    let _ = tokio::time::timeout(Duration::from_secs(1), mqtt).await;
+}
+
+fn asset(content_type: &'static str, body: &'static str) -> Response {
+    (
+        [
+            (header::CONTENT_TYPE, content_type),
+            (header::CACHE_CONTROL, "no-cache"),
+        ],
+        body,
+    )
+        .into_response()
+}
+
+async fn index() -> Response {
+    asset("text/html; charset=utf-8", INDEX_HTML)
+}
+
+async fn app_js() -> Response {
+    asset("text/javascript; charset=utf-8", APP_JS)
+}
+
+async fn style_css() -> Response {
+    asset("text/css; charset=utf-8", STYLE_CSS)
+}
+
+async fn plcs(State(app): State<App>) -> Json<Value> {
+    Json(app.hub.fleet().list())
+}
+
+async fn snapshot(State(app): State<App>, Path(plc): Path<String>) -> Response {
+    if app.hub.fleet().get(&plc).is_none() {
+        return error(
+            StatusCode::NOT_FOUND,
+            "unknown_plc",
+            format!("no PLC `{plc}` has published on this broker"),
+        );
+    }
+    Json(app.hub.fleet().snapshot(&plc)).into_response()
+}
+
+fn error(status: StatusCode, code: &str, message: String) -> Response {
+    (
+        status,
+        Json(json!({"ok": false, "error": {"code": code, "message": message}})),
+    )
+        .into_response()
+}
+
+#[derive(Deserialize)]
+struct StreamQuery {
+    plc: Option<String>,
+}
+
+fn sse(name: &str, data: &Value) -> Event {
+    Event::default().event(name).data(data.to_string())
+}
+
+fn broker_event(hub: &Hub, up: bool) -> Event {
+    sse("broker", &json!({"connected": up, "url": hub.broker()}))
+}
+
+struct Feed {
+    hub: Arc<Hub>,
+    plc: Option<String>,
+    queue: VecDeque<Event>,
+    rx: broadcast::Receiver<Push>,
+    shutdown: watch::Receiver<bool>,
+}
+
+impl Feed {
+    fn push(&mut self, p: Push) {
+        match p {
+            Push::Plcs(list) => self.queue.push_back(sse("plcs", &list)),
+            Push::Broker(up) => self.queue.push_back(broker_event(&self.hub, up)),
+            Push::Plc(u) if self.plc.as_deref() == Some(u.plc.as_str()) => {
+                let data = json!({"plc": u.plc, "recv_ms": u.recv_ms, "data": u.data});
+                self.queue.push_back(sse(u.kind.name(), &data));
+            }
+            Push::Plc(_) => {}
+        }
+    }
+}
+
+/// `GET /api/stream?plc=ID`: a `hello` event with the PLC list, the broker state and a snapshot of
+/// the chosen PLC, then every change. A browser that falls behind is cut off; `EventSource`
+/// reconnects by itself and gets a fresh snapshot.
+async fn stream(
+    State(app): State<App>,
+    Query(q): Query<StreamQuery>,
+) -> Sse<impl Stream<Item = Result<Event, Infallible>>> {
+    // Subscribe before taking the snapshot so nothing falls between the two.
+    let rx = app.hub.subscribe();
+    let plc = q.plc.filter(|p| valid_plc_id(p));
+    let hello = {
+        let fleet = app.hub.fleet();
+        json!({
+            "plcs": fleet.list(),
+            "broker": {"connected": app.hub.connected(), "url": app.hub.broker()},
+            "snapshot": plc.as_deref().map(|p| fleet.snapshot(p)),
+            "now_ms": unix_ms(),
+        })
+    };
+    let mut queue = VecDeque::new();
+    queue.push_back(sse("hello", &hello).retry(Duration::from_secs(1)));
+    let feed = Feed {
+        hub: app.hub.clone(),
+        plc,
+        queue,
+        rx,
+        shutdown: app.shutdown.clone(),
+    };
+    let s = futures_util::stream::unfold(feed, |mut f| async move {
+        loop {
+            if *f.shutdown.borrow() {
+                return None;
+            }
+            if let Some(e) = f.queue.pop_front() {
+                return Some((Ok(e), f));
+            }
+            tokio::select! {
+                r = f.rx.recv() => match r {
+                    Ok(p) => f.push(p),
+                    Err(_) => return None,
+                },
+                _ = f.shutdown.changed() => return None,
+            }
+        }
+    });
+    Sse::new(s).keep_alive(KeepAlive::new().interval(Duration::from_secs(15)))
+}
+
+/// `POST /api/<plc>/<verb>`: the command goes out on MQTT; the PLC's reply is the response.
+/// `load` takes the package file's bytes as the body (or a JSON object with `package_b64`);
+/// the other verbs take a JSON object of arguments, or nothing.
+async fn command(
+    State(app): State<App>,
+    Path((plc, verb)): Path<(String, String)>,
+    headers: HeaderMap,
+    body: Bytes,
+) -> Response {
+    if !valid_plc_id(&plc) {
+        return error(
+            StatusCode::BAD_REQUEST,
+            "malformed",
+            format!("`{plc}` is not a PLC id (no '/', '+', '#' or control characters)"),
+        );
+    }
+    if !VERBS.contains(&verb.as_str()) {
+        return error(
+            StatusCode::NOT_FOUND,
+            "unknown_verb",
+            format!("`{verb}` is not a command; use one of {}", VERBS.join(", ")),
+        );
+    }
+    let is_json = headers
+        .get(header::CONTENT_TYPE)
+        .and_then(|v| v.to_str().ok())
+        .is_some_and(|v| v.starts_with("application/json"));
+    let args = if verb == "load" && !is_json {
+        if body.is_empty() {
+            return error(
+                StatusCode::BAD_REQUEST,
+                "malformed",
+                "no package: choose an update package file (.cpkg) and send its bytes".into(),
+            );
+        }
+        if body.len() > MAX_PACKAGE {
+            return error(
+                StatusCode::PAYLOAD_TOO_LARGE,
+                "too_large",
+                format!(
+                    "the package is {} bytes; the PLC takes at most {MAX_PACKAGE} over MQTT. \
+                     Load it locally with `cetratus load` instead",
+                    body.len()
+                ),
+            );
+        }
+        json!({"package_b64": base64::engine::general_purpose::STANDARD.encode(&body)})
+    } else if body.iter().all(u8::is_ascii_whitespace) {
+        json!({})
+    } else {
+        match serde_json::from_slice::<Value>(&body) {
+            Ok(v @ Value::Object(_)) => v,
+            Ok(_) => {
+                return error(
+                    StatusCode::BAD_REQUEST,
+                    "malformed",
+                    "the arguments must be a JSON object".into(),
+                )
+            }
+            Err(e) => {
+                return error(
+                    StatusCode::BAD_REQUEST,
+                    "malformed",
+                    format!("the arguments are not JSON: {e}"),
+                )
+            }
+        }
+    };
+    // A substitution that waits for a safe moment answers only when it happens (or gives up).
+    let timeout = args
+        .get("within_ms")
+        .and_then(Value::as_u64)
+        .map(|ms| Duration::from_millis(ms.saturating_add(15_000)));
+    match app.hub.command(&plc, &verb, args, timeout).await {
+        Ok(reply) => Json(reply).into_response(),
+        Err(f) => (
+            StatusCode::from_u16(f.status).unwrap_or(StatusCode::BAD_GATEWAY),
+            Json(f.body),
+        )
+            .into_response(),
+    }
+}

@@ -1,0 +1,417 @@
+//! The MQTT side: one rumqttc MQTT 5 client that feeds the [`Fleet`] and the browsers' streams,
+//! and sends the browsers' commands as requests with a response topic and correlation data.
+
+use std::collections::HashMap;
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::sync::{Arc, Mutex, MutexGuard};
+use std::time::{Duration, SystemTime, UNIX_EPOCH};
+
+use rumqttc::v5::mqttbytes::v5::{Packet, PublishProperties};
+use rumqttc::v5::mqttbytes::QoS;
+use rumqttc::v5::{AsyncClient, Event, EventLoop, MqttOptions};
+use serde_json::{json, Value};
+use tokio::sync::{broadcast, oneshot, watch};
+
+use crate::store::{Fleet, Ignored, Update};
+use crate::DashboardError;
+
+/// Largest MQTT packet taken from the broker: a `net` message carries two SVG drawings, far over
+/// rumqttc's 10 KiB default.
+const MAX_PACKET: u32 = 8 << 20;
+
+/// How long a command waits for the PLC's reply by default.
+const REPLY_TIMEOUT: Duration = Duration::from_secs(15);
+
+/// The broker to connect to, parsed from `mqtt://[user[:password]@]host[:port]`.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub(crate) struct BrokerTarget {
+    host: String,
+    port: u16,
+    credentials: Option<(String, String)>,
+}
+
+impl BrokerTarget {
+    /// Parses the URL; `user` and `password` override the URL's.
+    pub(crate) fn parse(
+        url: &str,
+        user: Option<&str>,
+        password: Option<&str>,
+    ) -> Result<Self, DashboardError> {
+        let bad = |reason: &str| DashboardError::BrokerUrl {
+            url: url.to_string(),
+            reason: reason.to_string(),
+        };
+        let rest = if let Some(r) = url.strip_prefix("mqtt://") {
+            r
+        } else if let Some(r) = url.strip_prefix("tcp://") {
+            r
+        } else if url.starts_with("mqtts://") || url.starts_with("ssl://") {
+            return Err(bad(
+                "TLS brokers are not supported by the dashboard yet; reach the broker over a \
+                 plain `mqtt://host:port` listener on a trusted network",
+            ));
+        } else {
+            return Err(bad("write it as `mqtt://host:port`, e.g. mqtt://127.0.0.1:1883"));
+        };
+        let rest = rest.trim_end_matches('/');
+        let (userinfo, hostport) = match rest.rsplit_once('@') {
+            Some((u, h)) => (Some(u), h),
+            None => (None, rest),
+        };
+        let (host, port) = if let Some(h) = hostport.strip_prefix('[') {
+            let (h, after) = h
+                .split_once(']')
+                .ok_or_else(|| bad("an IPv6 host needs its closing `]`"))?;
+            let port = match after.strip_prefix(':') {
+                Some(p) => Some(p),
+                None if after.is_empty() => None,
+                None => return Err(bad("expected `:port` after the IPv6 host")),
+            };
+            (h, port)
+        } else {
+            match hostport.rsplit_once(':') {
+                Some((h, p)) => (h, Some(p)),
+                None => (hostport, None),
+            }
+        };
+        if host.is_empty() {
+            return Err(bad("no host; write it as `mqtt://host:port`"));
+        }
+        let port = match port {
+            None => 1883,
+            Some(p) => p
+                .parse::<u16>()
+                .map_err(|_| bad("the port must be a number from 1 to 65535"))?,
+        };
+        let mut credentials = userinfo.map(|u| match u.split_once(':') {
+            Some((n, p)) => (n.to_string(), p.to_string()),
+            None => (u.to_string(), String::new()),
+        });
+        if let Some(u) = user {
+            let p = password
+                .map(str::to_string)
+                .or_else(|| credentials.as_ref().map(|c| c.1.clone()))
+                .unwrap_or_default();
+            credentials = Some((u.to_string(), p));
+        } else if let (Some(p), Some(c)) = (password, credentials.as_mut()) {
+            c.1 = p.to_string();
+        }
+        Ok(BrokerTarget {
+            host: host.to_string(),
+            port,
+            credentials,
+        })
+    }
+
+    /// `host:port`, without credentials, for messages.
+    pub(crate) fn display(&self) -> String {
+        if self.host.contains(':') {
+            format!("mqtt://[{}]:{}", self.host, self.port)
+        } else {
+            format!("mqtt://{}:{}", self.host, self.port)
+        }
+    }
+}
+
+/// What the browsers' streams receive.
+#[derive(Clone, Debug)]
+pub(crate) enum Push {
+    /// A message of one PLC.
+    Plc(Arc<Update>),
+    /// The PLC list changed.
+    Plcs(Value),
+    /// The broker connection went up or down.
+    Broker(bool),
+}
+
+/// A command that could not be answered by the PLC: the HTTP status and the reply body.
+#[derive(Debug)]
+pub(crate) struct CommandFailure {
+    /// 503 (no broker), 504 (no reply in time).
+    pub(crate) status: u16,
+    /// `{"ok": false, "error": {"code", "message"}}`.
+    pub(crate) body: Value,
+}
+
+/// Shared by the MQTT task and the HTTP handlers.
+pub(crate) struct Hub {
+    fleet: Mutex<Fleet>,
+    tx: broadcast::Sender<Push>,
+    connected: AtomicBool,
+    pending: Mutex<HashMap<Vec<u8>, oneshot::Sender<Value>>>,
+    client: AsyncClient,
+    reply_topic: String,
+    next_correlation: AtomicU64,
+    broker: String,
+}
+
+/// Unix time in milliseconds, with sub-millisecond digits, comparable with the browser's
+/// `performance.timeOrigin + performance.now()`.
+pub(crate) fn unix_ms() -> f64 {
+    SystemTime::now()
+        .duration_since(UNIX_EPOCH)
+        .map_or(0.0, |d| d.as_secs_f64() * 1000.0)
+}
+
+fn failure(status: u16, code: &str, message: String) -> CommandFailure {
+    CommandFailure {
+        status,
+        body: json!({"ok": false, "error": {"code": code, "message": message}}),
+    }
+}
+
+impl Hub {
+    /// The hub and the event loop to drive with [`run_mqtt`].
+    pub(crate) fn new(target: &BrokerTarget) -> (Arc<Hub>, EventLoop) {
+        // Unique per process and start, so two dashboards on one broker do not kick each other
+        // off (a broker drops the older of two clients with the same id).
+        let nonce = SystemTime::now()
+            .duration_since(UNIX_EPOCH)
+            .map_or(0, |d| d.subsec_nanos());
+        let client_id = format!("cetratus-dashboard-{}-{nonce:08x}", std::process::id());
+        let mut opts = MqttOptions::new(client_id.clone(), target.host.clone(), target.port);
+        opts.set_keep_alive(Duration::from_secs(10))
+            .set_clean_start(true)
+            .set_max_packet_size(Some(MAX_PACKET));
+        if let Some((u, p)) = &target.credentials {
+            opts.set_credentials(u.clone(), p.clone());
+        }
+        let (client, eventloop) = AsyncClient::new(opts, 256);
+        // Lagging browsers are cut off and reconnect with a fresh snapshot, so this only needs
+        // to cover a burst.
+        let (tx, _) = broadcast::channel(1024);
+        let hub = Arc::new(Hub {
+            fleet: Mutex::new(Fleet::new()),
+            tx,
+            connected: AtomicBool::new(false),
+            pending: Mutex::new(HashMap::new()),
+            client,
+            reply_topic: format!("cetratus-dashboard/{client_id}/reply"),
+            next_correlation: AtomicU64::new(1),
+            broker: target.display(),
+        });
+        (hub, eventloop)
+    }
+
+    /// The fleet, even if a panicking thread poisoned the lock (its data is still consistent:
+    /// every update is one assignment or one push).
+    pub(crate) fn fleet(&self) -> MutexGuard<'_, Fleet> {
+        self.fleet.lock().unwrap_or_else(|e| e.into_inner())
+    }
+
+    fn pending(&self) -> MutexGuard<'_, HashMap<Vec<u8>, oneshot::Sender<Value>>> {
+        self.pending.lock().unwrap_or_else(|e| e.into_inner())
+    }
+
+    /// A new receiver of every change.
+    pub(crate) fn subscribe(&self) -> broadcast::Receiver<Push> {
+        self.tx.subscribe()
+    }
+
+    /// Whether the client is connected to the broker.
+    pub(crate) fn connected(&self) -> bool {
+        self.connected.load(Ordering::Acquire)
+    }
+
+    /// The broker's address, for the page.
+    pub(crate) fn broker(&self) -> &str {
+        &self.broker
+    }
+
+    fn set_connected(&self, up: bool) {
+        if self.connected.swap(up, Ordering::AcqRel) != up {
+            let _ = self.tx.send(Push::Broker(up));
+        }
+    }
+
+    fn on_publish(&self, topic: &str, payload: &[u8], props: Option<&PublishProperties>) {
+        if topic == self.reply_topic {
+            let Some(corr) = props.and_then(|p| p.correlation_data.as_ref()) else {
+                log::debug!("a reply without correlation data was dropped");
+                return;
+            };
+            let waiter = self.pending().remove(corr.as_ref());
+            if let Some(w) = waiter {
+                let reply = serde_json::from_slice(payload).unwrap_or_else(|e| {
+                    json!({"ok": false, "error": {"code": "malformed",
+                        "message": format!("the PLC's reply is not JSON: {e}")}})
+                });
+                let _ = w.send(reply);
+            }
+            return;
+        }
+        let result = self.fleet().apply(topic, payload, unix_ms());
+        match result {
+            Ok(update) => {
+                let list = update.list_changed.then(|| self.fleet().list());
+                let _ = self.tx.send(Push::Plc(Arc::new(update)));
+                if let Some(l) = list {
+                    let _ = self.tx.send(Push::Plcs(l));
+                }
+            }
+            Err(Ignored::NotOurs) => {}
+            Err(Ignored::Malformed(why)) => log::warn!("ignored a message: {why}"),
+            Err(Ignored::TooManyPlcs) => {
+                log::warn!("ignored {topic}: too many PLC ids on this broker")
+            }
+        }
+    }
+
+    /// Sends `cetratus/<plc>/cmd/<verb>` with `body` and waits for the PLC's reply.
+    pub(crate) async fn command(
+        &self,
+        plc: &str,
+        verb: &str,
+        body: Value,
+        timeout: Option<Duration>,
+    ) -> Result<Value, CommandFailure> {
+        if !self.connected() {
+            return Err(failure(
+                503,
+                "unavailable",
+                format!(
+                    "the dashboard is not connected to the broker {}; check that the broker \
+                     runs and that --broker names it",
+                    self.broker
+                ),
+            ));
+        }
+        let corr = self
+            .next_correlation
+            .fetch_add(1, Ordering::Relaxed)
+            .to_string()
+            .into_bytes();
+        let (tx, rx) = oneshot::channel();
+        self.pending().insert(corr.clone(), tx);
+        let props = PublishProperties {
+            response_topic: Some(self.reply_topic.clone()),
+            correlation_data: Some(corr.clone().into()),
+            content_type: Some("application/json".into()),
+            ..PublishProperties::default()
+        };
+        let topic = format!("cetratus/{plc}/cmd/{verb}");
+        let sent = self
+            .client
+            .publish_with_properties(topic, QoS::AtLeastOnce, false, body.to_string(), props)
+            .await;
+        if let Err(e) = sent {
+            self.pending().remove(&corr);
+            return Err(failure(
+                503,
+                "unavailable",
+                format!("cannot send the command to the broker: {e}"),
+            ));
+        }
+        let wait = timeout.unwrap_or(REPLY_TIMEOUT);
+        match tokio::time::timeout(wait, rx).await {
+            Ok(Ok(reply)) => Ok(reply),
+            _ => {
+                self.pending().remove(&corr);
+                Err(failure(
+                    504,
+                    "timeout",
+                    format!(
+                        "PLC `{plc}` did not answer `{verb}` within {} s; is it online \
+                         (see the PLC list) and connected to {}?",
+                        wait.as_secs(),
+                        self.broker
+                    ),
+                ))
+            }
+        }
+    }
+}
+
+/// Drives the MQTT client until `shutdown`: (re)connects every second, (re)subscribes on every
+/// connection, and feeds every message to the hub.
+pub(crate) async fn run_mqtt(
+    hub: Arc<Hub>,
+    mut eventloop: EventLoop,
+    mut shutdown: watch::Receiver<bool>,
+) {
+    loop {
+        if *shutdown.borrow() {
+            break;
+        }
+        let polled = tokio::select! {
+            p = eventloop.poll() => p,
+            _ = shutdown.changed() => break,
+        };
+        match polled {
+            Ok(Event::Incoming(Packet::ConnAck(_))) => {
+                // try_subscribe: awaiting here could deadlock, since this task is the one that
+                // drains the request queue.
+                let subs = [
+                    ("cetratus/+/#".to_string(), QoS::AtLeastOnce),
+                    (hub.reply_topic.clone(), QoS::AtLeastOnce),
+                ];
+                for (t, q) in subs {
+                    if let Err(e) = hub.client.try_subscribe(t.clone(), q) {
+                        log::warn!("cannot subscribe to {t}: {e}");
+                    }
+                }
+                hub.set_connected(true);
+            }
+            Ok(Event::Incoming(Packet::Publish(p))) => {
+                match std::str::from_utf8(&p.topic) {
+                    Ok(topic) => hub.on_publish(topic, &p.payload, p.properties.as_ref()),
+                    Err(_) => log::debug!("a message with a non-UTF-8 topic was dropped"),
+                }
+            }
+            Ok(_) => {}
+            Err(e) => {
+                if hub.connected() {
+                    log::warn!("dashboard lost the broker {}: {e}", hub.broker);
+                }
+                hub.set_connected(false);
+                // Fail every waiting command now rather than at its timeout.
+                hub.pending().clear();
+                tokio::select! {
+                    _ = tokio::time::sleep(Duration::from_secs(1)) => {}
+                    _ = shutdown.changed() => break,
+                }
+            }
+        }
+    }
+    let _ = hub.client.try_disconnect();
+    // Give the disconnect a moment to leave.
+    let _ = tokio::time::timeout(Duration::from_millis(100), eventloop.poll()).await;
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn parse(url: &str) -> Result<BrokerTarget, DashboardError> {
+        BrokerTarget::parse(url, None, None)
+    }
+
+    #[test]
+    fn broker_url_forms_are_understood() {
+        let t = parse("mqtt://127.0.0.1:1884").expect("valid");
+        assert_eq!((t.host.as_str(), t.port, t.credentials), ("127.0.0.1", 1884, None));
+        assert_eq!(parse("mqtt://broker").expect("valid").port, 1883);
+        let t = parse("mqtt://alice:s3cret@plant:1883/").expect("valid");
+        assert_eq!(t.credentials, Some(("alice".into(), "s3cret".into())));
+        assert_eq!(t.display(), "mqtt://plant:1883");
+        let t = parse("mqtt://[::1]:1999").expect("valid");
+        assert_eq!((t.host.as_str(), t.port), ("::1", 1999));
+        assert_eq!(t.display(), "mqtt://[::1]:1999");
+    }
+
+    #[test]
+    fn configured_credentials_override_the_url() {
+        let t = BrokerTarget::parse("mqtt://a:b@h", Some("ops"), Some("pw")).expect("valid");
+        assert_eq!(t.credentials, Some(("ops".into(), "pw".into())));
+        let t = BrokerTarget::parse("mqtt://a:b@h", None, Some("pw")).expect("valid");
+        assert_eq!(t.credentials, Some(("a".into(), "pw".into())));
+    }
+
+    #[test]
+    fn unusable_broker_urls_say_what_to_write() {
+        for bad in ["127.0.0.1:1883", "http://h", "mqtt://:1883", "mqtt://h:port", "mqtts://h"] {
+            let e = parse(bad).expect_err(bad).to_string();
+            assert!(e.contains(bad), "{e}");
+        }
+    }
+}

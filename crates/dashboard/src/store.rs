@@ -1,0 +1,450 @@
+//! The latest picture of every PLC seen on the broker: what a browser needs when it connects.
+//!
+//! Nothing here touches the network or a clock (the receive time is passed in), so the state
+//! keeping is tested without a broker.
+
+use std::collections::{BTreeMap, VecDeque};
+
+use serde::Serialize;
+use serde_json::{json, Map, Value};
+
+/// How many `io` samples are kept per PLC: 1024 at the default 500 ms period is about 8 minutes,
+/// more than the 60 s the timing diagram shows, so a browser that connects late still gets a full
+/// diagram at once.
+pub const IO_HISTORY: usize = 1024;
+
+/// How many events are kept per PLC for a browser that connects later.
+pub const EVENT_HISTORY: usize = 200;
+
+/// How many PLC ids are kept at most: anyone on the broker can invent ids, and the dashboard must
+/// not grow without bound because of it.
+pub const MAX_PLCS: usize = 1000;
+
+/// Which topic a message came from.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Kind {
+    /// `state` (retained).
+    State,
+    /// `exec_info`.
+    ExecInfo,
+    /// `io`.
+    Io,
+    /// `events`.
+    Event,
+    /// `net` (retained).
+    Net,
+}
+
+impl Kind {
+    /// The SSE event name.
+    pub fn name(self) -> &'static str {
+        match self {
+            Kind::State => "state",
+            Kind::ExecInfo => "exec_info",
+            Kind::Io => "io",
+            Kind::Event => "event",
+            Kind::Net => "net",
+        }
+    }
+
+    fn from_leaf(leaf: &str) -> Option<Kind> {
+        match leaf {
+            "state" => Some(Kind::State),
+            "exec_info" => Some(Kind::ExecInfo),
+            "io" => Some(Kind::Io),
+            "events" => Some(Kind::Event),
+            "net" => Some(Kind::Net),
+            _ => None,
+        }
+    }
+}
+
+/// A payload with the time the dashboard received it (Unix milliseconds), so the browser can
+/// measure MQTT → DOM latency.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct Stamped {
+    /// When the MQTT message arrived at the dashboard, Unix ms.
+    pub recv_ms: f64,
+    /// The payload, normalised (see [`Fleet::apply`]).
+    pub data: Value,
+}
+
+/// One change, as pushed to the browsers.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct Update {
+    /// The PLC id.
+    pub plc: String,
+    /// Which topic.
+    #[serde(skip)]
+    pub kind: Kind,
+    /// When it arrived, Unix ms.
+    pub recv_ms: f64,
+    /// The payload.
+    pub data: Value,
+    /// Whether this message made the PLC list change (a new id, or `online` changed).
+    #[serde(skip)]
+    pub list_changed: bool,
+}
+
+/// What the dashboard knows about one PLC.
+#[derive(Clone, Debug, Default, PartialEq, Serialize)]
+pub struct PlcView {
+    /// The latest `state`.
+    pub state: Option<Stamped>,
+    /// The latest `exec_info`, as `{"A": …|null, "B": …|null}`.
+    pub exec_info: Option<Stamped>,
+    /// The latest `net`, as `{"A": "<svg…>"|null, "B": …}`.
+    pub net: Option<Stamped>,
+    /// The latest `io` samples, oldest first.
+    pub io: VecDeque<Stamped>,
+    /// The latest events, oldest first.
+    pub events: VecDeque<Stamped>,
+}
+
+impl PlcView {
+    /// Whether the PLC's last `state` said it is online (false before any `state`).
+    pub fn online(&self) -> bool {
+        self.state
+            .as_ref()
+            .and_then(|s| s.data.get("online"))
+            .and_then(Value::as_bool)
+            .unwrap_or(false)
+    }
+}
+
+/// Why a message was not taken.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum Ignored {
+    /// Not under `cetratus/<plc-id>/`, or a leaf the dashboard does not show (commands, replies).
+    NotOurs,
+    /// The payload is not the JSON the topic carries; the reason says what was wrong.
+    Malformed(String),
+    /// [`MAX_PLCS`] ids are known already.
+    TooManyPlcs,
+}
+
+/// Every PLC seen, by id.
+#[derive(Clone, Debug, Default)]
+pub struct Fleet {
+    plcs: BTreeMap<String, PlcView>,
+}
+
+/// A PLC id as `<plc-id>` must be to stand in a topic (and so in a URL path).
+pub fn valid_plc_id(id: &str) -> bool {
+    !id.is_empty()
+        && id.len() <= 256
+        && !id.contains(['/', '+', '#'])
+        && !id.chars().any(char::is_control)
+}
+
+/// `exec_info` may come as `{"A": …, "B": …}` or as `[A, B]`; the browser gets the object form.
+fn normalise_exec_info(v: Value) -> Result<Value, String> {
+    match v {
+        Value::Object(o) => Ok(Value::Object(o)),
+        Value::Array(a) if a.len() == 2 => {
+            let mut it = a.into_iter();
+            let a = it.next().unwrap_or(Value::Null);
+            let b = it.next().unwrap_or(Value::Null);
+            Ok(json!({"A": a, "B": b}))
+        }
+        other => Err(format!(
+            "exec_info must be an object {{\"A\", \"B\"}} or a pair, not {}",
+            type_name(&other)
+        )),
+    }
+}
+
+fn type_name(v: &Value) -> &'static str {
+    match v {
+        Value::Null => "null",
+        Value::Bool(_) => "a boolean",
+        Value::Number(_) => "a number",
+        Value::String(_) => "a string",
+        Value::Array(_) => "an array",
+        Value::Object(_) => "an object",
+    }
+}
+
+fn push_bounded(q: &mut VecDeque<Stamped>, item: Stamped, cap: usize) {
+    if q.len() >= cap {
+        q.pop_front();
+    }
+    q.push_back(item);
+}
+
+impl Fleet {
+    /// An empty fleet.
+    pub fn new() -> Self {
+        Fleet::default()
+    }
+
+    /// Takes one MQTT message received at `recv_ms` (Unix ms). Returns the change to push to the
+    /// browsers. An empty payload on a retained topic (the broker's way of deleting a retained
+    /// message) clears what was kept.
+    pub fn apply(&mut self, topic: &str, payload: &[u8], recv_ms: f64) -> Result<Update, Ignored> {
+        let rest = topic.strip_prefix("cetratus/").ok_or(Ignored::NotOurs)?;
+        let (plc, leaf) = rest.split_once('/').ok_or(Ignored::NotOurs)?;
+        let kind = Kind::from_leaf(leaf).ok_or(Ignored::NotOurs)?;
+        if !valid_plc_id(plc) {
+            return Err(Ignored::NotOurs);
+        }
+        let data: Value = if payload.is_empty() {
+            Value::Null
+        } else {
+            serde_json::from_slice(payload)
+                .map_err(|e| Ignored::Malformed(format!("{topic}: not JSON: {e}")))?
+        };
+        let data = match kind {
+            Kind::ExecInfo if !data.is_null() => {
+                normalise_exec_info(data).map_err(|e| Ignored::Malformed(format!("{topic}: {e}")))?
+            }
+            Kind::State | Kind::Io | Kind::Net if !data.is_null() && !data.is_object() => {
+                return Err(Ignored::Malformed(format!(
+                    "{topic}: expected a JSON object, not {}",
+                    type_name(&data)
+                )))
+            }
+            _ => data,
+        };
+        let is_new = !self.plcs.contains_key(plc);
+        if is_new && self.plcs.len() >= MAX_PLCS {
+            return Err(Ignored::TooManyPlcs);
+        }
+        let view = self.plcs.entry(plc.to_string()).or_default();
+        let was_online = view.online();
+        let stamped = Stamped {
+            recv_ms,
+            data: data.clone(),
+        };
+        let slot_value = (!data.is_null()).then_some(stamped.clone());
+        match kind {
+            Kind::State => view.state = slot_value,
+            Kind::ExecInfo => view.exec_info = slot_value,
+            Kind::Net => view.net = slot_value,
+            Kind::Io => {
+                if data.is_null() {
+                    return Err(Ignored::Malformed(format!("{topic}: empty payload")));
+                }
+                push_bounded(&mut view.io, stamped, IO_HISTORY);
+            }
+            Kind::Event => {
+                if data.is_null() {
+                    return Err(Ignored::Malformed(format!("{topic}: empty payload")));
+                }
+                push_bounded(&mut view.events, stamped, EVENT_HISTORY);
+            }
+        }
+        let list_changed = is_new || was_online != view.online();
+        Ok(Update {
+            plc: plc.to_string(),
+            kind,
+            recv_ms,
+            data,
+            list_changed,
+        })
+    }
+
+    /// The PLC ids with their `online` flag, in id order.
+    pub fn list(&self) -> Value {
+        Value::Array(
+            self.plcs
+                .iter()
+                .map(|(id, v)| json!({"id": id, "online": v.online()}))
+                .collect(),
+        )
+    }
+
+    /// What is known about one PLC.
+    pub fn get(&self, plc: &str) -> Option<&PlcView> {
+        self.plcs.get(plc)
+    }
+
+    /// Everything a browser needs to draw one PLC at once.
+    pub fn snapshot(&self, plc: &str) -> Value {
+        let mut m = Map::new();
+        m.insert("plc".into(), Value::String(plc.to_string()));
+        let view = self.plcs.get(plc);
+        let one = |s: Option<&Stamped>| serde_json::to_value(s).unwrap_or(Value::Null);
+        m.insert("state".into(), one(view.and_then(|v| v.state.as_ref())));
+        m.insert(
+            "exec_info".into(),
+            one(view.and_then(|v| v.exec_info.as_ref())),
+        );
+        m.insert("net".into(), one(view.and_then(|v| v.net.as_ref())));
+        let many = |q: Option<&VecDeque<Stamped>>| {
+            q.map_or(Value::Array(Vec::new()), |q| {
+                serde_json::to_value(q).unwrap_or(Value::Array(Vec::new()))
+            })
+        };
+        m.insert("io".into(), many(view.map(|v| &v.io)));
+        m.insert("events".into(), many(view.map(|v| &v.events)));
+        Value::Object(m)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn state(primary: &str, status: &str) -> Vec<u8> {
+        json!({"online": true, "primary": primary, "status": status,
+               "programs": {"A": {"name": "v", "version": "1", "hash": "ab"}, "B": null},
+               "cycle": {"cycles": 3}})
+        .to_string()
+        .into_bytes()
+    }
+
+    #[test]
+    fn state_message_creates_the_plc_and_is_kept() {
+        let mut f = Fleet::new();
+        let u = f
+            .apply("cetratus/cell1/state", &state("A", "idle"), 1.0)
+            .expect("taken");
+        assert_eq!(u.plc, "cell1");
+        assert_eq!(u.kind, Kind::State);
+        assert!(u.list_changed);
+        let v = f.get("cell1").expect("kept");
+        assert_eq!(v.state.as_ref().map(|s| &s.data["status"]), Some(&json!("idle")));
+        assert!(v.online());
+        assert_eq!(f.list(), json!([{"id": "cell1", "online": true}]));
+    }
+
+    #[test]
+    fn later_state_replaces_earlier_and_list_changes_only_on_online_flip() {
+        let mut f = Fleet::new();
+        f.apply("cetratus/c/state", &state("A", "idle"), 1.0)
+            .expect("taken");
+        let u = f
+            .apply("cetratus/c/state", &state("A", "quarantine"), 2.0)
+            .expect("taken");
+        assert!(!u.list_changed);
+        let u = f
+            .apply("cetratus/c/state", br#"{"online": false}"#, 3.0)
+            .expect("taken");
+        assert!(u.list_changed);
+        assert_eq!(f.list(), json!([{"id": "c", "online": false}]));
+    }
+
+    #[test]
+    fn io_history_is_bounded_and_keeps_the_newest() {
+        let mut f = Fleet::new();
+        for i in 0..IO_HISTORY + 10 {
+            let p = json!({"cycle": i, "inputs": {}, "outputs": {"A": {}, "B": null}, "dispatched": {}});
+            f.apply("cetratus/c/io", p.to_string().as_bytes(), i as f64)
+                .expect("taken");
+        }
+        let io = &f.get("c").expect("kept").io;
+        assert_eq!(io.len(), IO_HISTORY);
+        assert_eq!(io.front().map(|s| s.data["cycle"].clone()), Some(json!(10)));
+        assert_eq!(
+            io.back().map(|s| s.data["cycle"].clone()),
+            Some(json!(IO_HISTORY + 9))
+        );
+    }
+
+    #[test]
+    fn events_are_bounded() {
+        let mut f = Fleet::new();
+        for i in 0..EVENT_HISTORY + 5 {
+            let p = json!({"kind": "x", "message": i});
+            f.apply("cetratus/c/events", p.to_string().as_bytes(), 0.0)
+                .expect("taken");
+        }
+        assert_eq!(f.get("c").expect("kept").events.len(), EVENT_HISTORY);
+    }
+
+    #[test]
+    fn exec_info_pair_is_normalised_to_an_object() {
+        let mut f = Fleet::new();
+        let u = f
+            .apply("cetratus/c/exec_info", br#"[{"cycles": 1}, null]"#, 0.0)
+            .expect("taken");
+        assert_eq!(u.data, json!({"A": {"cycles": 1}, "B": null}));
+        let u = f
+            .apply("cetratus/c/exec_info", br#"{"A": {"cycles": 2}, "B": null}"#, 0.0)
+            .expect("taken");
+        assert_eq!(u.data["A"]["cycles"], json!(2));
+        assert!(matches!(
+            f.apply("cetratus/c/exec_info", b"[1]", 0.0),
+            Err(Ignored::Malformed(_))
+        ));
+    }
+
+    #[test]
+    fn commands_replies_and_foreign_topics_are_not_ours() {
+        let mut f = Fleet::new();
+        for t in [
+            "cetratus/c/cmd/load",
+            "other/c/state",
+            "cetratus/state",
+            "cetratus/c/state/extra",
+        ] {
+            assert_eq!(f.apply(t, b"{}", 0.0), Err(Ignored::NotOurs), "{t}");
+        }
+        assert_eq!(f.list(), json!([]));
+    }
+
+    #[test]
+    fn malformed_payload_is_refused_without_creating_the_plc() {
+        let mut f = Fleet::new();
+        assert!(matches!(
+            f.apply("cetratus/c/state", b"not json", 0.0),
+            Err(Ignored::Malformed(_))
+        ));
+        assert!(matches!(
+            f.apply("cetratus/c/io", b"[1,2]", 0.0),
+            Err(Ignored::Malformed(_))
+        ));
+        assert!(f.get("c").is_none());
+    }
+
+    #[test]
+    fn empty_retained_payload_clears_the_kept_net() {
+        let mut f = Fleet::new();
+        f.apply("cetratus/c/net", br#"{"A": "<svg/>", "B": null}"#, 0.0)
+            .expect("taken");
+        assert!(f.get("c").and_then(|v| v.net.as_ref()).is_some());
+        f.apply("cetratus/c/net", b"", 1.0).expect("taken");
+        assert!(f.get("c").and_then(|v| v.net.as_ref()).is_none());
+    }
+
+    #[test]
+    fn snapshot_holds_everything_for_one_plc() {
+        let mut f = Fleet::new();
+        f.apply("cetratus/c/state", &state("B", "idle"), 5.0)
+            .expect("taken");
+        f.apply("cetratus/c/io", br#"{"cycle": 1}"#, 6.0)
+            .expect("taken");
+        let s = f.snapshot("c");
+        assert_eq!(s["plc"], json!("c"));
+        assert_eq!(s["state"]["recv_ms"], json!(5.0));
+        assert_eq!(s["state"]["data"]["primary"], json!("B"));
+        assert_eq!(s["io"][0]["data"]["cycle"], json!(1));
+        assert_eq!(s["exec_info"], Value::Null);
+        assert_eq!(f.snapshot("unknown")["io"], json!([]));
+    }
+
+    #[test]
+    fn the_number_of_plcs_is_bounded() {
+        let mut f = Fleet::new();
+        for i in 0..MAX_PLCS {
+            f.apply(&format!("cetratus/p{i}/events"), b"{}", 0.0)
+                .expect("taken");
+        }
+        assert_eq!(
+            f.apply("cetratus/one-too-many/events", b"{}", 0.0),
+            Err(Ignored::TooManyPlcs)
+        );
+        // Known PLCs still update.
+        assert!(f.apply("cetratus/p0/events", b"{}", 0.0).is_ok());
+    }
+
+    #[test]
+    fn plc_ids_that_cannot_be_topic_levels_are_invalid() {
+        assert!(valid_plc_id("cell-1"));
+        for bad in ["", "a+b", "a#", "a\nb"] {
+            assert!(!valid_plc_id(bad), "{bad:?}");
+        }
+    }
+}

@@ -72,7 +72,11 @@ struct Session {
 impl Session {
     fn open(opts: &ClientOpts) -> anyhow::Result<Self> {
         let url = opts.mqtt.client_url()?;
-        let id = format!("cetratus-cli-{}-{}", std::process::id(), Instant::now().elapsed().as_nanos());
+        let id = format!(
+            "cetratus-cli-{}-{}",
+            std::process::id(),
+            Instant::now().elapsed().as_nanos()
+        );
         let mut o = cetratus_mct::client_options(&url, &id)?;
         if let Some(u) = &opts.mqtt.user {
             o.set_credentials(u.clone(), opts.mqtt.password.clone().unwrap_or_default());
@@ -137,7 +141,10 @@ impl Session {
             match r {
                 Ok(Event::Incoming(Packet::Publish(p))) => {
                     let topic = String::from_utf8_lossy(&p.topic).to_string();
-                    let leaf = topic.strip_prefix(&self.prefix).unwrap_or(&topic).to_string();
+                    let leaf = topic
+                        .strip_prefix(&self.prefix)
+                        .unwrap_or(&topic)
+                        .to_string();
                     let v = serde_json::from_slice(&p.payload).unwrap_or(Value::Null);
                     return Ok(Some((leaf, v)));
                 }
@@ -173,7 +180,10 @@ impl Session {
                 }
             }
         }
-        bail!("no reply from the PLC within {:?}; check --plc and that it is running", self.deadline)
+        bail!(
+            "no reply from the PLC within {:?}; check --plc and that it is running",
+            self.deadline
+        )
     }
 }
 
@@ -189,7 +199,9 @@ fn print_reply(verb: &str, reply: &Value, json: bool) -> anyhow::Result<()> {
     } else {
         bail!(
             "{verb} refused: {} ({})",
-            reply["error"]["message"].as_str().unwrap_or("no reason given"),
+            reply["error"]["message"]
+                .as_str()
+                .unwrap_or("no reason given"),
             reply["error"]["code"].as_str().unwrap_or("error")
         )
     }
@@ -197,7 +209,8 @@ fn print_reply(verb: &str, reply: &Value, json: bool) -> anyhow::Result<()> {
 
 /// `cetratus load PKG`: sends the package and follows the update until quarantine or refusal.
 pub fn load(args: &LoadArgs) -> anyhow::Result<()> {
-    let bytes = std::fs::read(&args.package).with_context(|| format!("cannot read {}", args.package.display()))?;
+    let bytes = std::fs::read(&args.package)
+        .with_context(|| format!("cannot read {}", args.package.display()))?;
     let quiet = args.opts.json;
     if !quiet {
         eprintln!("read {} ({} bytes)", args.package.display(), bytes.len());
@@ -207,7 +220,8 @@ pub fn load(args: &LoadArgs) -> anyhow::Result<()> {
     if !quiet {
         eprintln!("sending to {} …", s.prefix.trim_end_matches('/'));
     }
-    let payload = json!({ "package_b64": base64::engine::general_purpose::STANDARD.encode(&bytes) });
+    let payload =
+        json!({ "package_b64": base64::engine::general_purpose::STANDARD.encode(&bytes) });
     let reply = s.request("load", payload)?;
     print_reply("load", &reply, quiet)?;
     if !quiet {
@@ -233,7 +247,10 @@ pub fn load(args: &LoadArgs) -> anyhow::Result<()> {
             }
         }
     }
-    bail!("the PLC accepted the package but did not report its install within {:?}", s.deadline)
+    bail!(
+        "the PLC accepted the package but did not report its install within {:?}",
+        s.deadline
+    )
 }
 
 /// `cetratus substitute`.
@@ -260,7 +277,11 @@ pub fn status(args: &PlainArgs) -> anyhow::Result<()> {
     let mut s = Session::open(&args.opts)?;
     s.subscribe("state")?;
     let Some((_, v)) = s.next_message(Some(s.deadline))? else {
-        bail!("no state from {} within {:?}; check --plc", s.prefix.trim_end_matches('/'), s.deadline);
+        bail!(
+            "no state from {} within {:?}; check --plc",
+            s.prefix.trim_end_matches('/'),
+            s.deadline
+        );
     };
     if args.opts.json {
         println!("{}", serde_json::to_string_pretty(&v)?);
@@ -279,13 +300,25 @@ fn print_state(v: &Value) {
         if p.is_null() {
             "(empty)".to_string()
         } else {
-            format!("{} {} ({})", p["name"].as_str().unwrap_or("?"), p["version"].as_str().unwrap_or("?"), &p["hash"].as_str().unwrap_or("")[..12.min(p["hash"].as_str().unwrap_or("").len())])
+            format!(
+                "{} {} ({})",
+                p["name"].as_str().unwrap_or("?"),
+                p["version"].as_str().unwrap_or("?"),
+                &p["hash"].as_str().unwrap_or("")[..12.min(p["hash"].as_str().unwrap_or("").len())]
+            )
         }
     };
-    println!("PRIMARY {}   STATUS {}", v["primary"].as_str().unwrap_or("?"), v["status"].as_str().unwrap_or("?"));
+    println!(
+        "PRIMARY {}   STATUS {}",
+        v["primary"].as_str().unwrap_or("?"),
+        v["status"].as_str().unwrap_or("?")
+    );
     println!("  A  {}", prog(&v["programs"]["A"]));
     println!("  B  {}", prog(&v["programs"]["B"]));
-    println!("  cycles {}  scan p99 {} ns  overruns {}", v["cycle"]["cycles"], v["cycle"]["scan"]["p99_ns"], v["cycle"]["overruns"]);
+    println!(
+        "  cycles {}  scan p99 {} ns  overruns {}",
+        v["cycle"]["cycles"], v["cycle"]["scan"]["p99_ns"], v["cycle"]["overruns"]
+    );
 }
 
 /// `cetratus watch`: state changes and events as they happen.
@@ -297,7 +330,12 @@ pub fn watch(args: &PlainArgs) -> anyhow::Result<()> {
         if args.opts.json {
             println!("{}", json!({ "topic": leaf, "payload": v }));
         } else if leaf == "events" {
-            println!("{:>10.3} s  {:<20} {}", v["time_us"].as_f64().unwrap_or(0.0) / 1e6, v["kind"].as_str().unwrap_or(""), v["message"].as_str().unwrap_or(""));
+            println!(
+                "{:>10.3} s  {:<20} {}",
+                v["time_us"].as_f64().unwrap_or(0.0) / 1e6,
+                v["kind"].as_str().unwrap_or(""),
+                v["message"].as_str().unwrap_or("")
+            );
         } else {
             print_state(&v);
         }
@@ -312,7 +350,12 @@ pub fn exec_info(args: &PlainArgs) -> anyhow::Result<()> {
     if args.opts.json || reply["ok"] != Value::Bool(true) {
         return print_reply("exec_info", &reply, true);
     }
-    for c in reply["result"].as_array().into_iter().flatten().filter(|c| !c.is_null()) {
+    for c in reply["result"]
+        .as_array()
+        .into_iter()
+        .flatten()
+        .filter(|c| !c.is_null())
+    {
         println!(
             "{} ({}): {} {}  cycles {}  scan mean {} ns p99 {} ns  drift {}  deadlock {}",
             c["container"].as_str().unwrap_or("?"),

@@ -213,15 +213,18 @@ fn named(names: &[String], values: &[Value]) -> BTreeMap<String, bool> {
         .collect()
 }
 
+/// What makes a step differ from the previous one.
+type StepKey = (
+    Slot,
+    &'static str,
+    Vec<Value>,
+    Vec<Option<Vec<Value>>>,
+    Vec<Option<Vec<u32>>>,
+);
+
 struct Recorder {
     steps: Vec<Step>,
-    last_key: Option<(
-        Slot,
-        &'static str,
-        Vec<Value>,
-        Vec<Option<Vec<Value>>>,
-        Vec<Option<Vec<u32>>>,
-    )>,
+    last_key: Option<StepKey>,
 }
 
 impl Recorder {
@@ -552,18 +555,28 @@ fn live(args: &DemoArgs, files: &DemoFiles) -> anyhow::Result<()> {
     use std::sync::atomic::{AtomicBool, Ordering};
 
     let program = Arc::new(Program::load(&files.program)?);
-    let io = TwinDriver::new(TwinKind::Vernadat.build(1), program.inputs(), program.outputs())?;
+    let io = TwinDriver::new(
+        TwinKind::Vernadat.build(1),
+        program.inputs(),
+        program.outputs(),
+    )?;
     let plc = Plc::new(program, 0);
     let mut config = args.mqtt.config()?;
-    let speed = if args.speed.is_finite() && args.speed > 0.0 { args.speed } else { 1.0 };
+    let speed = if args.speed.is_finite() && args.speed > 0.0 {
+        args.speed
+    } else {
+        1.0
+    };
     config.publish_period = std::time::Duration::from_millis(200);
     let plc_id = config.plc_id.clone();
     let (link, mqtt) = cetratus_mct::start(config)?;
     let broker_url = args.mqtt.client_url()?;
-    let http: std::net::SocketAddr = args
-        .http
-        .parse()
-        .with_context(|| format!("--http `{}`: expected an address such as 127.0.0.1:8080", args.http))?;
+    let http: std::net::SocketAddr = args.http.parse().with_context(|| {
+        format!(
+            "--http `{}`: expected an address such as 127.0.0.1:8080",
+            args.http
+        )
+    })?;
     let dashboard = cetratus_dashboard::serve(cetratus_dashboard::DashboardConfig {
         http,
         broker_url: broker_url.clone(),
@@ -574,18 +587,32 @@ fn live(args: &DemoArgs, files: &DemoFiles) -> anyhow::Result<()> {
         Some(d) => crate::duration::parse_duration_us(d)?,
         None => u64::MAX,
     };
-    println!("Cetratus demo: the Vernadat cell runs in real time (speed {speed}) with its digital twin.");
+    println!(
+        "Cetratus demo: the Vernadat cell runs in real time (speed {speed}) with its digital twin."
+    );
     println!("  dashboard   http://{}/", dashboard.local_addr());
     println!("  MQTT        {broker_url}, topics cetratus/{plc_id}/…");
-    println!("  U.1         {}  (two more buffer slots; load it first)", files.u1_path.display());
-    println!("  U.2         {}  (lubrication stage; built against U.1)", files.u2_path.display());
-    println!("Try: open the dashboard, Load U.1 and watch B run in quarantine beside A; when the buffer");
+    println!(
+        "  U.1         {}  (two more buffer slots; load it first)",
+        files.u1_path.display()
+    );
+    println!(
+        "  U.2         {}  (lubrication stage; built against U.1)",
+        files.u2_path.display()
+    );
+    println!(
+        "Try: open the dashboard, Load U.1 and watch B run in quarantine beside A; when the buffer"
+    );
     println!("fills, A blocks at T13 and B does not. Substitute, then load U.2 the same way.");
-    println!("From a shell: cetratus load {} --plc {plc_id} --broker {broker_url}", files.u1_path.display());
+    println!(
+        "From a shell: cetratus load {} --plc {plc_id} --broker {broker_url}",
+        files.u1_path.display()
+    );
     println!("Ctrl-C stops.");
     let stop = Arc::new(AtomicBool::new(false));
     let s = stop.clone();
-    ctrlc::set_handler(move || s.store(true, Ordering::Relaxed)).context("cannot install the Ctrl-C handler")?;
+    ctrlc::set_handler(move || s.store(true, Ordering::Relaxed))
+        .context("cannot install the Ctrl-C handler")?;
     // Snapshots go out about five times a second of wall time, whatever the speed.
     let period_us = 10_000f64;
     let publish_every = ((200_000.0 * speed) / period_us).round().max(1.0) as u64;

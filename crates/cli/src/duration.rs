@@ -24,7 +24,7 @@ pub fn parse_duration_us(text: &str) -> anyhow::Result<u64> {
         other => bail!("unknown unit `{other}` in `{text}`; use us, ms, s, min or h"),
     };
     let us = value * scale;
-    if !us.is_finite() || us < 0.0 || us > 1e18 {
+    if !us.is_finite() || !(0.0..=1e18).contains(&us) {
         bail!("`{text}` is out of range");
     }
     Ok(us.round() as u64)

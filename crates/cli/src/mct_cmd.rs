@@ -24,20 +24,27 @@ pub struct MctArgs {
 
 /// Runs `cetratus mct` until Ctrl-C.
 pub fn run(args: &MctArgs) -> anyhow::Result<()> {
-    let http = args
-        .http
-        .parse()
-        .with_context(|| format!("--http `{}`: expected an address such as 127.0.0.1:8080", args.http))?;
+    let http = args.http.parse().with_context(|| {
+        format!(
+            "--http `{}`: expected an address such as 127.0.0.1:8080",
+            args.http
+        )
+    })?;
     let d = cetratus_dashboard::serve(cetratus_dashboard::DashboardConfig {
         http,
         broker_url: args.broker.clone(),
         user: args.user.clone(),
         password: args.password.clone(),
     })?;
-    println!("dashboard on http://{}/ watching {}; Ctrl-C stops", d.local_addr(), args.broker);
+    println!(
+        "dashboard on http://{}/ watching {}; Ctrl-C stops",
+        d.local_addr(),
+        args.broker
+    );
     let stop = Arc::new(AtomicBool::new(false));
     let s = stop.clone();
-    ctrlc::set_handler(move || s.store(true, Ordering::Relaxed)).context("cannot install the Ctrl-C handler")?;
+    ctrlc::set_handler(move || s.store(true, Ordering::Relaxed))
+        .context("cannot install the Ctrl-C handler")?;
     while !stop.load(Ordering::Relaxed) {
         std::thread::sleep(std::time::Duration::from_millis(100));
     }

@@ -40,8 +40,16 @@ impl MqttArgs {
     /// The MQTT configuration of a PLC node.
     pub fn config(&self) -> anyhow::Result<MqttConfig> {
         let mut c = MqttConfig::new(&self.plc_id());
-        let credentials = self.user.clone().map(|u| (u, self.password.clone().unwrap_or_default()));
-        c.broker = BrokerChoice::from_cli(self.mqtt.as_deref(), self.broker.as_deref(), Vec::new(), credentials)?;
+        let credentials = self
+            .user
+            .clone()
+            .map(|u| (u, self.password.clone().unwrap_or_default()));
+        c.broker = BrokerChoice::from_cli(
+            self.mqtt.as_deref(),
+            self.broker.as_deref(),
+            Vec::new(),
+            credentials,
+        )?;
         Ok(c)
     }
 

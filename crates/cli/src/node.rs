@@ -43,9 +43,12 @@ pub struct NodeOptions {
 }
 
 enum ToScan {
-    Command(Command, IncomingCommand),
+    Command(Box<Command>, IncomingCommand),
     ExecInfo(IncomingCommand),
 }
+
+/// A program with the marking to draw it with.
+type ProgramAndMarking = (Arc<Program>, Vec<u32>);
 
 struct Snapshot {
     state: StateMsg,
@@ -56,7 +59,7 @@ struct Snapshot {
     outputs: [Option<Vec<Value>>; 2],
     dispatched: Vec<Value>,
     samples: Vec<CycleRecord>,
-    programs: Option<[Option<(Arc<Program>, Vec<u32>)>; 2]>,
+    programs: Option<[Option<ProgramAndMarking>; 2]>,
     time_us: u64,
 }
 
@@ -105,6 +108,8 @@ pub fn run_node(
     let _ = ctx_tx.try_send(plc.update_context());
     let prep_out = outgoing.clone();
     let (trust, allow_unsigned) = (opts.trust, opts.allow_unsigned);
+    let done = Arc::new(AtomicBool::new(false));
+    let prep_done = done.clone();
     let preparer = std::thread::Builder::new()
         .name("cetratus-prepare".into())
         .spawn(move || {
@@ -115,6 +120,7 @@ pub fn run_node(
                 prep_out,
                 trust,
                 allow_unsigned,
+                prep_done,
             )
         })
         .expect("spawn the preparer");
@@ -143,7 +149,7 @@ pub fn run_node(
             while let Ok(msg) = to_scan_rx.try_recv() {
                 match msg {
                     ToScan::Command(cmd, from) => {
-                        let r = plc.command(cmd).map(|()| json!({"accepted": true}));
+                        let r = plc.command(*cmd).map(|()| json!({"accepted": true}));
                         pending.push_back(Outgoing::Reply(from.reply, Reply::from_result(r)));
                     }
                     ToScan::ExecInfo(from) => {
@@ -221,6 +227,7 @@ pub fn run_node(
     );
     drop(snap_tx);
     drop(to_scan_rx);
+    done.store(true, std::sync::atomic::Ordering::Release);
     let _ = publisher.join();
     drop(ctx_tx);
     let _ = preparer.join();
@@ -241,13 +248,14 @@ fn prepare_loop(
     out: SyncSender<Outgoing>,
     trust: TrustStore,
     allow_unsigned: bool,
+    done: Arc<AtomicBool>,
 ) {
     let mut ctx: Option<UpdateContext> = None;
     loop {
         let cmd = match commands.recv_timeout(std::time::Duration::from_millis(200)) {
             Ok(c) => c,
             Err(std::sync::mpsc::RecvTimeoutError::Timeout) => {
-                if to_scan_closed(&to_scan) {
+                if done.load(std::sync::atomic::Ordering::Acquire) {
                     return;
                 }
                 while let Ok(c) = ctx_rx.try_recv() {
@@ -270,13 +278,12 @@ fn prepare_loop(
         let prepared: Result<ToScan, String> = match &cmd.request {
             Request::Load { package } => c
                 .prepare_package(package, &trust, allow_unsigned, false)
-                .map(|p| ToScan::Command(Command::Load(Box::new(p)), cmd.clone())),
-            Request::Substitute(a) => {
-                substitute(c, a).map(|s| ToScan::Command(Command::Substitute(s), cmd.clone()))
-            }
-            Request::Remove => Ok(ToScan::Command(Command::Remove, cmd.clone())),
-            Request::Abort => Ok(ToScan::Command(Command::Abort, cmd.clone())),
-            Request::Reset => Ok(ToScan::Command(Command::Reset, cmd.clone())),
+                .map(|p| ToScan::Command(Box::new(Command::Load(Box::new(p))), cmd.clone())),
+            Request::Substitute(a) => substitute(c, a)
+                .map(|s| ToScan::Command(Box::new(Command::Substitute(s)), cmd.clone())),
+            Request::Remove => Ok(ToScan::Command(Box::new(Command::Remove), cmd.clone())),
+            Request::Abort => Ok(ToScan::Command(Box::new(Command::Abort), cmd.clone())),
+            Request::Reset => Ok(ToScan::Command(Box::new(Command::Reset), cmd.clone())),
             Request::ExecInfo => Ok(ToScan::ExecInfo(cmd.clone())),
         };
         match prepared {
@@ -297,12 +304,6 @@ fn prepare_loop(
     }
 }
 
-fn to_scan_closed(tx: &SyncSender<ToScan>) -> bool {
-    // A zero-cost probe is not available on SyncSender; the scan side drops its receiver when it
-    // stops, and the next real send fails. Until then keep waiting.
-    let _ = tx;
-    false
-}
 
 fn substitute(
     c: &UpdateContext,

@@ -202,6 +202,7 @@ pub fn run(args: &RunArgs) -> anyhow::Result<()> {
     let mut script_error: Option<anyhow::Error> = None;
     let json = args.json;
     let progress = args.progress.filter(|&n| n > 0);
+    let mut persist_warned = false;
     let mut body = |plc: &mut Plc, now: u64, io: &mut TwinDriver<Twin>| -> bool {
         let now = now + base_us;
         // One command per cycle: each takes effect at the next cycle boundary, so the next one
@@ -244,8 +245,12 @@ pub fn run(args: &RunArgs) -> anyhow::Result<()> {
         }
         if let Some(p) = persister.as_mut() {
             p.offer(plc);
-            if let Some(err) = p.take_error() {
-                eprintln!("warning: the state directory could not be written: {err}");
+            // Said once: a full disk fails every commit, and the summary gives the count.
+            if !persist_warned {
+                if let Some(err) = p.take_error() {
+                    eprintln!("warning: the state directory could not be written: {err}");
+                    persist_warned = true;
+                }
             }
             if let Some(n) = progress {
                 if plc.cycles() % n == 0 {

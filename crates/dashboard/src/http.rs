@@ -30,7 +30,14 @@ const STYLE_CSS: &str = include_str!("../assets/style.css");
 const MAX_PACKAGE: usize = (1 << 20) / 4 * 3 - 1024;
 
 /// The verbs a browser may send.
-const VERBS: [&str; 6] = ["load", "substitute", "remove", "abort", "reset", "exec_info"];
+const VERBS: [&str; 6] = [
+    "load",
+    "substitute",
+    "remove",
+    "abort",
+    "reset",
+    "exec_info",
+];
 
 #[derive(Clone)]
 struct App {

@@ -51,7 +51,9 @@ impl BrokerTarget {
                  plain `mqtt://host:port` listener on a trusted network",
             ));
         } else {
-            return Err(bad("write it as `mqtt://host:port`, e.g. mqtt://127.0.0.1:1883"));
+            return Err(bad(
+                "write it as `mqtt://host:port`, e.g. mqtt://127.0.0.1:1883",
+            ));
         };
         let rest = rest.trim_end_matches('/');
         let (userinfo, hostport) = match rest.rsplit_once('@') {
@@ -352,12 +354,10 @@ pub(crate) async fn run_mqtt(
                 }
                 hub.set_connected(true);
             }
-            Ok(Event::Incoming(Packet::Publish(p))) => {
-                match std::str::from_utf8(&p.topic) {
-                    Ok(topic) => hub.on_publish(topic, &p.payload, p.properties.as_ref()),
-                    Err(_) => log::debug!("a message with a non-UTF-8 topic was dropped"),
-                }
-            }
+            Ok(Event::Incoming(Packet::Publish(p))) => match std::str::from_utf8(&p.topic) {
+                Ok(topic) => hub.on_publish(topic, &p.payload, p.properties.as_ref()),
+                Err(_) => log::debug!("a message with a non-UTF-8 topic was dropped"),
+            },
             Ok(_) => {}
             Err(e) => {
                 if hub.connected() {
@@ -389,7 +389,10 @@ mod tests {
     #[test]
     fn broker_url_forms_are_understood() {
         let t = parse("mqtt://127.0.0.1:1884").expect("valid");
-        assert_eq!((t.host.as_str(), t.port, t.credentials), ("127.0.0.1", 1884, None));
+        assert_eq!(
+            (t.host.as_str(), t.port, t.credentials),
+            ("127.0.0.1", 1884, None)
+        );
         assert_eq!(parse("mqtt://broker").expect("valid").port, 1883);
         let t = parse("mqtt://alice:s3cret@plant:1883/").expect("valid");
         assert_eq!(t.credentials, Some(("alice".into(), "s3cret".into())));
@@ -409,7 +412,13 @@ mod tests {
 
     #[test]
     fn unusable_broker_urls_say_what_to_write() {
-        for bad in ["127.0.0.1:1883", "http://h", "mqtt://:1883", "mqtt://h:port", "mqtts://h"] {
+        for bad in [
+            "127.0.0.1:1883",
+            "http://h",
+            "mqtt://:1883",
+            "mqtt://h:port",
+            "mqtts://h",
+        ] {
             let e = parse(bad).expect_err(bad).to_string();
             assert!(e.contains(bad), "{e}");
         }

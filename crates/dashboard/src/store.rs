@@ -196,9 +196,8 @@ impl Fleet {
                 .map_err(|e| Ignored::Malformed(format!("{topic}: not JSON: {e}")))?
         };
         let data = match kind {
-            Kind::ExecInfo if !data.is_null() => {
-                normalise_exec_info(data).map_err(|e| Ignored::Malformed(format!("{topic}: {e}")))?
-            }
+            Kind::ExecInfo if !data.is_null() => normalise_exec_info(data)
+                .map_err(|e| Ignored::Malformed(format!("{topic}: {e}")))?,
             Kind::State | Kind::Io | Kind::Net if !data.is_null() && !data.is_object() => {
                 return Err(Ignored::Malformed(format!(
                     "{topic}: expected a JSON object, not {}",
@@ -305,7 +304,10 @@ mod tests {
         assert_eq!(u.kind, Kind::State);
         assert!(u.list_changed);
         let v = f.get("cell1").expect("kept");
-        assert_eq!(v.state.as_ref().map(|s| &s.data["status"]), Some(&json!("idle")));
+        assert_eq!(
+            v.state.as_ref().map(|s| &s.data["status"]),
+            Some(&json!("idle"))
+        );
         assert!(v.online());
         assert_eq!(f.list(), json!([{"id": "cell1", "online": true}]));
     }
@@ -362,7 +364,11 @@ mod tests {
             .expect("taken");
         assert_eq!(u.data, json!({"A": {"cycles": 1}, "B": null}));
         let u = f
-            .apply("cetratus/c/exec_info", br#"{"A": {"cycles": 2}, "B": null}"#, 0.0)
+            .apply(
+                "cetratus/c/exec_info",
+                br#"{"A": {"cycles": 2}, "B": null}"#,
+                0.0,
+            )
             .expect("taken");
         assert_eq!(u.data["A"]["cycles"], json!(2));
         assert!(matches!(

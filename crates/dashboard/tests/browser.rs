@@ -1,1 +1,666 @@
+//! The dashboard in a real browser: headless Chromium driven over WebDriver (chromedriver),
+//! against a real broker (Mosquitto) and a fake PLC that speaks the MQTT contract of
+//! docs/mqtt.md. The operator uploads U.1 through the page, sees STATUS `quarantine`, substitutes
+//! and sees PRIMARY flip; the timing diagram and the net's tokens must move on their own.
+//!
+//! Needs Debian's `chromium`, `chromium-driver` and `mosquitto`; it fails (never skips) when they
+//! are missing. Artifacts (a screenshot, the latency figures) go to `target/test-artifacts/`.
 
+use std::net::{SocketAddr, TcpListener, TcpStream};
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, Stdio};
+use std::sync::{Arc, Mutex};
+use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
+
+use base64::Engine as _;
+use cetratus_dashboard::{serve, DashboardConfig};
+use fantoccini::{Client, ClientBuilder, Locator};
+use rumqttc::v5::mqttbytes::v5::{Packet, PublishProperties};
+use rumqttc::v5::mqttbytes::QoS;
+use rumqttc::v5::{AsyncClient, Event, MqttOptions};
+use serde_json::{json, Value};
+
+const CHROMIUM: &str = "/usr/bin/chromium";
+const CHROMEDRIVER: &str = "/usr/bin/chromedriver";
+const PLC: &str = "fake1";
+
+fn free_port() -> u16 {
+    TcpListener::bind("127.0.0.1:0")
+        .and_then(|l| l.local_addr())
+        .map(|a| a.port())
+        .expect("a free loopback port")
+}
+
+fn wait_port(port: u16, what: &str) {
+    let end = Instant::now() + Duration::from_secs(15);
+    while Instant::now() < end {
+        if TcpStream::connect(("127.0.0.1", port)).is_ok() {
+            return;
+        }
+        std::thread::sleep(Duration::from_millis(50));
+    }
+    panic!("{what} did not listen on 127.0.0.1:{port} within 15 s");
+}
+
+fn unix_ms() -> f64 {
+    SystemTime::now()
+        .duration_since(UNIX_EPOCH)
+        .map_or(0.0, |d| d.as_secs_f64() * 1000.0)
+}
+
+/// A child process killed when the test ends, pass or fail.
+struct Guard(Child);
+
+impl Drop for Guard {
+    fn drop(&mut self) {
+        let _ = self.0.kill();
+        let _ = self.0.wait();
+    }
+}
+
+fn find_program(name: &str, fallback: &str) -> Option<PathBuf> {
+    let from_path = std::env::var_os("PATH").and_then(|paths| {
+        std::env::split_paths(&paths)
+            .map(|d| d.join(name))
+            .find(|p| p.is_file())
+    });
+    from_path.or_else(|| Some(PathBuf::from(fallback)).filter(|p| p.is_file()))
+}
+
+fn require(path: &str, package: &str) {
+    assert!(
+        Path::new(path).is_file(),
+        "{path} is missing: install the browser test's dependencies with \
+         `apt-get install -y chromium chromium-driver mosquitto` (CI installs them); the \
+         dashboard's browser test does not skip (missing: Debian package `{package}`)"
+    );
+}
+
+fn artifacts_dir() -> PathBuf {
+    let target = std::env::var_os("CARGO_TARGET_DIR")
+        .map(PathBuf::from)
+        .unwrap_or_else(|| Path::new(env!("CARGO_MANIFEST_DIR")).join("../../target"));
+    let dir = target.join("test-artifacts");
+    std::fs::create_dir_all(&dir).expect("target/test-artifacts can be created");
+    dir
+}
+
+fn scratch_dir() -> PathBuf {
+    let nanos = SystemTime::now()
+        .duration_since(UNIX_EPOCH)
+        .map_or(0, |d| d.subsec_nanos());
+    let dir = std::env::temp_dir().join(format!(
+        "cetratus-dashboard-test-{}-{nanos}",
+        std::process::id()
+    ));
+    std::fs::create_dir_all(&dir).expect("a scratch directory");
+    dir
+}
+
+// ---- the fake PLC -----------------------------------------------------------------------------
+
+struct NetDrawing {
+    net: cetratus_net::Net,
+    m0: Vec<u32>,
+}
+
+impl NetDrawing {
+    fn load(file: &str) -> Self {
+        let path = Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("../../examples/vernadat")
+            .join(file);
+        let net = cetratus_net::pnml::read_file(&path).expect("the example net parses");
+        let m0 = net.initial_marking().as_slice().to_vec();
+        NetDrawing { net, m0 }
+    }
+
+    fn index(&self, id: &str) -> Option<usize> {
+        self.net.places().iter().position(|p| p.id == id)
+    }
+
+    /// The marking at tick `k`: the robot loads M1 on odd ticks (R, P10 -> P11), so tokens move.
+    fn marking(&self, k: u64) -> Vec<u32> {
+        let mut m = self.m0.clone();
+        if k % 2 == 1 {
+            if let (Some(r), Some(p10), Some(p11)) =
+                (self.index("R"), self.index("P10"), self.index("P11"))
+            {
+                m[r] = m[r].saturating_sub(1);
+                m[p10] = m[p10].saturating_sub(1);
+                m[p11] += 1;
+            }
+        }
+        m
+    }
+
+    fn marking_json(&self, k: u64) -> Value {
+        let m = self.marking(k);
+        let obj: serde_json::Map<String, Value> = self
+            .net
+            .places()
+            .iter()
+            .zip(m)
+            .map(|(p, n)| (p.id.clone(), json!(n)))
+            .collect();
+        Value::Object(obj)
+    }
+
+    fn svg(&self) -> String {
+        cetratus_net::export::to_svg(&self.net, Some(&self.m0))
+    }
+}
+
+struct FakeState {
+    primary: &'static str,
+    status: &'static str,
+    b_loaded: bool,
+    a_loaded: bool,
+    tick: u64,
+}
+
+struct FakePlc {
+    state: Mutex<FakeState>,
+    client: AsyncClient,
+    package: Vec<u8>,
+    a: NetDrawing,
+    b: NetDrawing,
+    request_id: Mutex<u64>,
+}
+
+fn program(name: &str, version: &str) -> Value {
+    json!({"name": name, "version": version, "hash": "41aa0b9c3d2e"})
+}
+
+impl FakePlc {
+    fn topic(leaf: &str) -> String {
+        format!("cetratus/{PLC}/{leaf}")
+    }
+
+    fn state_json(&self) -> Value {
+        let s = self.state.lock().expect("fake state");
+        json!({
+            "online": true,
+            "primary": s.primary,
+            "status": s.status,
+            "programs": {
+                "A": if s.a_loaded { program("vernadat", "1.0.0") } else { Value::Null },
+                "B": if s.b_loaded { program("vernadat", "1.1.0") } else { Value::Null },
+            },
+            "cycle": {"cycles": s.tick * 20, "scan_us": {"last": 3.1, "mean": 2.9, "p99": 5.0, "max": 11.2}, "overruns": 0},
+        })
+    }
+
+    fn net_json(&self) -> Value {
+        let s = self.state.lock().expect("fake state");
+        json!({
+            "A": if s.a_loaded { Value::String(self.a.svg()) } else { Value::Null },
+            "B": if s.b_loaded { Value::String(self.b.svg()) } else { Value::Null },
+        })
+    }
+
+    async fn publish(&self, leaf: &str, retain: bool, v: Value) {
+        self.client
+            .publish(Self::topic(leaf), QoS::AtLeastOnce, retain, v.to_string())
+            .await
+            .expect("the fake PLC publishes");
+    }
+
+    async fn publish_state_and_net(&self) {
+        self.publish("state", true, self.state_json()).await;
+        self.publish("net", true, self.net_json()).await;
+    }
+
+    fn exec_info(&self, slot: &str, net: &NetDrawing, role: &str, k: u64) -> Value {
+        json!({
+            "container": slot, "role": role, "program": program("vernadat", "1.0.0"),
+            "cycles": k * 20,
+            "scan": {"count": k * 20, "last_ns": 3100 + k % 7 * 100, "min_ns": 2000, "mean_ns": 2900,
+                     "p50_ns": 2800, "p99_ns": 5000, "max_ns": 11200},
+            "firings": {"T10": k.div_ceil(2), "T11": k / 2},
+            "marking": net.marking_json(k),
+            "outputs": {"CM1": k % 2 == 1, "PM1": false},
+            "divergence": if role == "candidate" { json!({"CM1": 0, "PM1": 0}) } else { json!({}) },
+            "first_cause": null, "last_cause": null, "drift": 0, "max_drift": 0,
+            "deadlock": false, "verdicts": [],
+        })
+    }
+
+    /// One publish period: `io` and `exec_info`, and `state` now and then.
+    async fn tick(&self) {
+        let (k, primary, a_loaded, b_loaded) = {
+            let mut s = self.state.lock().expect("fake state");
+            s.tick += 1;
+            (s.tick, s.primary, s.a_loaded, s.b_loaded)
+        };
+        let role = |slot: &str| {
+            if slot == primary {
+                "primary"
+            } else {
+                "candidate"
+            }
+        };
+        let ea = a_loaded.then(|| self.exec_info("A", &self.a, role("A"), k));
+        let eb = b_loaded.then(|| self.exec_info("B", &self.b, role("B"), k));
+        self.publish("exec_info", false, json!({"A": ea, "B": eb}))
+            .await;
+        let outs = |on: bool| json!({"CM1": k % 2 == 1, "PM1": k % 3 == 0 && on});
+        self.publish(
+            "io",
+            false,
+            json!({
+                "cycle": k * 20,
+                "time_us": k * 200_000,
+                "unix_ms": unix_ms(),
+                "inputs": {"PE": k % 4 < 2, "FCM1": k % 4 == 1, "FPM1": k % 5 == 0},
+                "outputs": {"A": a_loaded.then(|| outs(true)), "B": b_loaded.then(|| outs(false))},
+                "dispatched": outs(true),
+            }),
+        )
+        .await;
+        if k % 5 == 0 {
+            self.publish("state", true, self.state_json()).await;
+        }
+    }
+
+    async fn reply(
+        &self,
+        props: Option<PublishProperties>,
+        verb: &str,
+        result: Result<Value, String>,
+    ) {
+        let Some(p) = props else { return };
+        let Some(topic) = p.response_topic else {
+            return;
+        };
+        let id = {
+            let mut r = self.request_id.lock().expect("request id");
+            *r += 1;
+            *r
+        };
+        let body = match result {
+            Ok(v) => json!({"ok": true, "verb": verb, "request_id": id, "result": v}),
+            Err(m) => json!({"ok": false, "verb": verb, "request_id": id,
+                              "error": {"code": "refused", "message": m}}),
+        };
+        let out = PublishProperties {
+            correlation_data: p.correlation_data,
+            ..PublishProperties::default()
+        };
+        self.client
+            .publish_with_properties(topic, QoS::AtLeastOnce, false, body.to_string(), out)
+            .await
+            .expect("the fake PLC replies");
+    }
+
+    async fn command(&self, verb: &str, payload: &[u8], props: Option<PublishProperties>) {
+        let args: Value = serde_json::from_slice(payload).unwrap_or(Value::Null);
+        let result = {
+            let mut s = self.state.lock().expect("fake state");
+            match verb {
+                "load" => {
+                    let pkg = args["package_b64"]
+                        .as_str()
+                        .and_then(|b| base64::engine::general_purpose::STANDARD.decode(b).ok());
+                    if s.status != "idle" {
+                        Err(format!("load refused: STATUS is {}", s.status))
+                    } else if pkg.as_deref() != Some(self.package.as_slice()) {
+                        Err("not the package the test wrote".to_string())
+                    } else {
+                        s.status = "quarantine";
+                        if s.primary == "A" {
+                            s.b_loaded = true;
+                        } else {
+                            s.a_loaded = true;
+                        }
+                        Ok(json!({"setup_us": 21}))
+                    }
+                }
+                "substitute" if s.status == "quarantine" => {
+                    let (new, old_loaded) = if s.primary == "A" {
+                        ("B", &mut s.a_loaded)
+                    } else {
+                        ("A", &mut s.b_loaded)
+                    };
+                    *old_loaded = false;
+                    s.primary = new;
+                    s.status = "idle";
+                    Ok(json!({"mode": args["mode"].as_str().unwrap_or("retransform"), "drift": 0}))
+                }
+                other => Err(format!("{other} refused in STATUS {}", s.status)),
+            }
+        };
+        if result.is_ok() {
+            self.publish_state_and_net().await;
+            let tick = self.state.lock().expect("fake state").tick;
+            self.publish(
+                "events",
+                false,
+                json!({"cycle": tick * 20, "time_us": tick * 200_000, "kind": verb,
+                       "message": format!("{verb} done"), "detail": args.get("mode")}),
+            )
+            .await;
+        }
+        self.reply(props, verb, result).await;
+    }
+}
+
+async fn run_fake_plc(broker_port: u16, package: Vec<u8>) -> Arc<FakePlc> {
+    let mut opts = MqttOptions::new("fake-plc", "127.0.0.1", broker_port);
+    opts.set_max_packet_size(Some(8 << 20));
+    let (client, mut eventloop) = AsyncClient::new(opts, 256);
+    let plc = Arc::new(FakePlc {
+        state: Mutex::new(FakeState {
+            primary: "A",
+            status: "idle",
+            a_loaded: true,
+            b_loaded: false,
+            tick: 0,
+        }),
+        client: client.clone(),
+        package,
+        a: NetDrawing::load("vernadat.pnml"),
+        b: NetDrawing::load("u1.pnml"),
+        request_id: Mutex::new(0),
+    });
+    client
+        .subscribe(FakePlc::topic("cmd/+"), QoS::AtLeastOnce)
+        .await
+        .expect("subscribe");
+    let me = plc.clone();
+    tokio::spawn(async move {
+        loop {
+            match eventloop.poll().await {
+                Ok(Event::Incoming(Packet::Publish(p))) => {
+                    let topic = String::from_utf8_lossy(&p.topic).to_string();
+                    if let Some(verb) = topic.rsplit('/').next().map(str::to_string) {
+                        let me = me.clone();
+                        tokio::spawn(async move {
+                            me.command(&verb, &p.payload, p.properties).await;
+                        });
+                    }
+                }
+                Ok(_) => {}
+                Err(_) => tokio::time::sleep(Duration::from_millis(200)).await,
+            }
+        }
+    });
+    plc.publish_state_and_net().await;
+    let me = plc.clone();
+    tokio::spawn(async move {
+        loop {
+            me.tick().await;
+            tokio::time::sleep(Duration::from_millis(200)).await;
+        }
+    });
+    plc
+}
+
+// ---- the browser ------------------------------------------------------------------------------
+
+async fn js(c: &Client, script: &str) -> Value {
+    c.execute(script, Vec::new())
+        .await
+        .unwrap_or_else(|e| panic!("script failed: {e}\n{script}"))
+}
+
+async fn text_of(c: &Client, id: &str) -> String {
+    let v = js(
+        c,
+        &format!("const e = document.getElementById('{id}'); return e ? e.textContent : null;"),
+    )
+    .await;
+    v.as_str().unwrap_or("").trim().to_string()
+}
+
+async fn wait_text(c: &Client, id: &str, want: &str, within: Duration) {
+    let end = Instant::now() + within;
+    let mut seen = String::new();
+    while Instant::now() < end {
+        seen = text_of(c, id).await;
+        if seen == want {
+            return;
+        }
+        tokio::time::sleep(Duration::from_millis(50)).await;
+    }
+    let reply = text_of(c, "reply").await;
+    panic!("#{id} is {seen:?}, not {want:?}, after {within:?} (#reply: {reply:?})");
+}
+
+/// Clicks `button`, then the in-page confirmation's `confirm-yes`.
+async fn click_and_confirm(c: &Client, button: &str) {
+    c.find(Locator::Id(button))
+        .await
+        .expect("button")
+        .click()
+        .await
+        .expect("click");
+    let yes = c
+        .wait()
+        .at_most(Duration::from_secs(5))
+        .for_element(Locator::Css("#confirm:not([hidden]) #confirm-yes"))
+        .await
+        .expect("the confirmation dialog opens");
+    yes.click().await.expect("confirm");
+}
+
+/// The token counts of container `slot`'s net, as the DOM shows them.
+async fn tokens(c: &Client, slot: &str) -> String {
+    js(
+        c,
+        &format!(
+            "return [...document.querySelectorAll('#net-{slot} .place')]
+               .map(p => p.id + '=' + p.getAttribute('data-tokens') + ':' + p.querySelector('.tokens').childElementCount)
+               .join(',');"
+        ),
+    )
+    .await
+    .as_str()
+    .unwrap_or("")
+    .to_string()
+}
+
+async fn timing(c: &Client) -> (u64, String, String) {
+    let v = js(
+        c,
+        "const t = document.getElementById('timing');
+         return [Number(t.dataset.samples || 0), t.dataset.lastCycle || '', t.innerHTML];",
+    )
+    .await;
+    (
+        v[0].as_u64().unwrap_or(0),
+        v[1].as_str().unwrap_or("").to_string(),
+        v[2].as_str().unwrap_or("").to_string(),
+    )
+}
+
+fn start_chromedriver() -> (Guard, u16) {
+    let port = free_port();
+    let child = Command::new(CHROMEDRIVER)
+        .arg(format!("--port={port}"))
+        .stdout(Stdio::null())
+        .stderr(Stdio::null())
+        .spawn()
+        .unwrap_or_else(|e| panic!("cannot start {CHROMEDRIVER}: {e}"));
+    let guard = Guard(child);
+    wait_port(port, "chromedriver");
+    (guard, port)
+}
+
+async fn browser(driver_port: u16, profile: &Path) -> Client {
+    let args = [
+        "--headless".to_string(),
+        "--no-sandbox".into(),
+        "--disable-gpu".into(),
+        "--disable-quic".into(),
+        "--no-first-run".into(),
+        "--disable-background-networking".into(),
+        "--disable-component-update".into(),
+        "--disable-sync".into(),
+        "--window-size=1400,1800".into(),
+        format!("--user-data-dir={}", profile.display()),
+    ];
+    let mut caps = serde_json::Map::new();
+    caps.insert(
+        "goog:chromeOptions".into(),
+        json!({"binary": CHROMIUM, "args": args}),
+    );
+    ClientBuilder::new(hyper_util::client::legacy::connect::HttpConnector::new())
+        .capabilities(caps)
+        .connect(&format!("http://127.0.0.1:{driver_port}"))
+        .await
+        .expect("chromedriver starts a Chromium session")
+}
+
+fn start_mosquitto(dir: &Path) -> (Guard, u16) {
+    let bin = find_program("mosquitto", "/usr/sbin/mosquitto").unwrap_or_else(|| {
+        panic!(
+            "mosquitto is missing: install it with `apt-get install -y mosquitto` (CI installs \
+             it); the dashboard's browser test does not skip"
+        )
+    });
+    let port = free_port();
+    let conf = dir.join("mosquitto.conf");
+    std::fs::write(
+        &conf,
+        format!("listener {port} 127.0.0.1\nallow_anonymous true\npersistence false\n"),
+    )
+    .expect("mosquitto.conf");
+    let child = Command::new(bin)
+        .arg("-c")
+        .arg(&conf)
+        .stdout(Stdio::null())
+        .stderr(Stdio::null())
+        .spawn()
+        .expect("mosquitto starts");
+    let guard = Guard(child);
+    wait_port(port, "mosquitto");
+    (guard, port)
+}
+
+fn stats(v: &Value) -> Value {
+    let mut xs: Vec<f64> = v
+        .as_array()
+        .map(|a| a.iter().filter_map(Value::as_f64).collect())
+        .unwrap_or_default();
+    xs.sort_by(f64::total_cmp);
+    let q = |p: f64| {
+        xs.get(((xs.len() as f64 * p) as usize).min(xs.len().saturating_sub(1)))
+            .copied()
+    };
+    json!({"n": xs.len(), "min": xs.first(), "p50": q(0.5), "p95": q(0.95), "p99": q(0.99), "max": xs.last()})
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn operator_loads_u1_then_substitutes_and_primary_flips_in_the_browser() {
+    require(CHROMIUM, "chromium");
+    require(CHROMEDRIVER, "chromium-driver");
+    let started = Instant::now();
+    let dir = scratch_dir();
+    let (_broker, broker_port) = start_mosquitto(&dir);
+
+    let package = b"CPKG fake U.1 package for the browser test\n".to_vec();
+    let package_path = dir.join("u1.cpkg");
+    std::fs::write(&package_path, &package).expect("u1.cpkg");
+    let _plc = run_fake_plc(broker_port, package).await;
+
+    let dashboard = serve(DashboardConfig {
+        http: SocketAddr::from(([127, 0, 0, 1], 0)),
+        broker_url: format!("mqtt://127.0.0.1:{broker_port}"),
+        user: None,
+        password: None,
+    })
+    .expect("the dashboard starts");
+
+    let (_driver, driver_port) = start_chromedriver();
+    let c = browser(driver_port, &dir.join("chromium-profile")).await;
+    c.goto(&dashboard.url()).await.expect("the page loads");
+
+    // The PLC is found on its own and its retained state is shown.
+    wait_text(&c, "primary", "A", Duration::from_secs(15)).await;
+    wait_text(&c, "status", "idle", Duration::from_secs(5)).await;
+    let options = js(
+        &c,
+        "return [...document.getElementById('plc-select').options].map(o => o.value);",
+    )
+    .await;
+    assert_eq!(options, json!([PLC]));
+
+    // Live: the diagram scrolls with new samples and the tokens move.
+    let (n1, cycle1, svg1) = timing(&c).await;
+    let tok1 = tokens(&c, "A").await;
+    assert!(tok1.contains("place-P10="), "net A is drawn: {tok1}");
+    let mut tokens_changed = false;
+    let end = Instant::now() + Duration::from_secs(5);
+    while Instant::now() < end && !tokens_changed {
+        tokio::time::sleep(Duration::from_millis(100)).await;
+        tokens_changed = tokens(&c, "A").await != tok1;
+    }
+    assert!(tokens_changed, "the tokens of net A never moved: {tok1}");
+    tokio::time::sleep(Duration::from_millis(600)).await;
+    let (n2, cycle2, svg2) = timing(&c).await;
+    assert!(
+        n2 > n1 || n2 >= 200,
+        "the timing diagram gained samples ({n1} -> {n2})"
+    );
+    assert_ne!(cycle1, cycle2, "the timing diagram shows newer cycles");
+    assert_ne!(svg1, svg2, "the timing diagram was redrawn");
+    for lane in ["PE", "CM1", "outputs A", "dispatched"] {
+        assert!(svg2.contains(lane), "the timing diagram has {lane}");
+    }
+
+    // Load U.1 through the page.
+    c.find(Locator::Id("package-file"))
+        .await
+        .expect("file input")
+        .send_keys(&package_path.display().to_string())
+        .await
+        .expect("choose the package");
+    click_and_confirm(&c, "load").await;
+    wait_text(&c, "status", "quarantine", Duration::from_secs(10)).await;
+    let reply = js(&c, "return document.getElementById('reply').dataset.ok;").await;
+    assert_eq!(reply, json!("true"), "the load reply is shown as ok");
+    let b = js(&c, "return !!document.querySelector('#net-B svg .place');").await;
+    assert_eq!(
+        b,
+        json!(true),
+        "the candidate's net is drawn in container B"
+    );
+
+    // Substitute: PRIMARY flips.
+    click_and_confirm(&c, "substitute").await;
+    wait_text(&c, "primary", "B", Duration::from_secs(10)).await;
+    wait_text(&c, "status", "idle", Duration::from_secs(5)).await;
+    let events = text_of(&c, "events").await;
+    assert!(
+        events.contains("substitute") && events.contains("load"),
+        "{events}"
+    );
+    // Let the diagram show the candidate's lanes and the flip for a moment before the picture.
+    tokio::time::sleep(Duration::from_millis(1500)).await;
+
+    let dir_out = artifacts_dir();
+    let png = c.screenshot().await.expect("screenshot");
+    std::fs::write(dir_out.join("dashboard.png"), &png).expect("screenshot written");
+    let lat = js(&c, "return window.cetratusLatency;").await;
+    let figures = json!({
+        "what": "update latency in ms: MQTT message at the dashboard -> DOM updated (dom), -> next frame (frame); fake PLC's publish -> DOM (publish)",
+        "dom": stats(&lat["dom"]),
+        "frame": stats(&lat["frame"]),
+        "publish": stats(&lat["publish"]),
+        "test_seconds": started.elapsed().as_secs_f64(),
+    });
+    std::fs::write(
+        dir_out.join("dashboard-latency.json"),
+        serde_json::to_string_pretty(&figures).unwrap_or_default(),
+    )
+    .expect("figures written");
+    println!("dashboard latency: {figures}");
+    assert!(
+        figures["dom"]["n"].as_u64().unwrap_or(0) > 10,
+        "latency was measured"
+    );
+
+    c.close().await.expect("the browser closes");
+    dashboard.stop();
+    let _ = std::fs::remove_dir_all(&dir);
+}

@@ -60,10 +60,7 @@ fn a_primary_that_faults_drives_its_safe_values_until_reset() {
     cell.run_for(5_000_000);
     assert_eq!(cell.plc.status(), Status::Idle);
     assert!(
-        cell.plc
-            .dispatched()
-            .iter()
-            .any(|v| *v == Value::Bool(true)),
+        cell.plc.dispatched().contains(&Value::Bool(true)),
         "the cell works again"
     );
 }

@@ -150,6 +150,8 @@ impl UpdateContext {
 }
 
 /// A command from the operator or the MCT.
+// Commands are few and move once; boxing the substitution would only add an allocation.
+#[allow(clippy::large_enum_variant)]
 pub enum Command {
     /// Install a prepared update into the secondary container.
     Load(Box<PreparedUpdate>),

@@ -15,6 +15,7 @@ mod node;
 mod package;
 mod run;
 mod sim;
+mod state;
 
 use clap::{Parser, Subcommand};
 
@@ -40,6 +41,8 @@ enum Command {
     Package(package::PackageArgs),
     /// Run a program against a digital twin, in virtual or real time.
     Run(run::RunArgs),
+    /// Show what a state directory holds and what a warm start from it would do.
+    State(state::StateArgs),
     /// Measure the figures in docs/performance.md.
     Bench(bench::BenchArgs),
     /// The dashboard on its own, watching the PLCs on a broker.
@@ -71,6 +74,7 @@ fn main() -> std::process::ExitCode {
         Command::Demo(a) => demo::run(a),
         Command::Package(a) => package::run(a),
         Command::Run(a) => run::run(a),
+        Command::State(a) => state::run(a),
         Command::Bench(a) => bench::run(a),
         Command::Mct(a) => mct_cmd::run(a),
         Command::Load(a) => client::load(a),

@@ -20,7 +20,7 @@ use cetratus_program::{Program, TrustStore, Value};
 use cetratus_runtime::monitor::{CycleRecord, ExecInfo};
 use cetratus_runtime::plc::value_json;
 use cetratus_runtime::{
-    run_periodic, Command, LoopTiming, Plc, Slot, Status, SubstituteMode, SubstituteRequest,
+    run_periodic, Command, Event, LoopTiming, Plc, Slot, Status, SubstituteMode, SubstituteRequest,
     UpdateContext,
 };
 use cetratus_twin::Twin;
@@ -93,6 +93,178 @@ fn state_msg(plc: &Plc, timing: &LoopTiming) -> StateMsg {
     }
 }
 
+/// The scan thread's side of the node: call [`Node::take_commands`] before each cycle and
+/// [`Node::after_cycle`] after it. Neither blocks.
+pub struct Node {
+    to_scan_rx: Receiver<ToScan>,
+    ctx_tx: SyncSender<UpdateContext>,
+    snap_tx: Option<SyncSender<Snapshot>>,
+    outgoing: SyncSender<Outgoing>,
+    pending: VecDeque<Outgoing>,
+    names_in: Arc<Vec<String>>,
+    names_out: Arc<Vec<String>>,
+    last_key: (Slot, Status, String, String),
+    last_sampled: u64,
+    first: bool,
+    publish_every: u64,
+    done: Arc<AtomicBool>,
+    threads: Vec<std::thread::JoinHandle<()>>,
+}
+
+impl Node {
+    /// Starts the preparer and the publisher for `plc` on `link`.
+    pub fn start(
+        plc: &Plc,
+        link: MctLink,
+        trust: TrustStore,
+        allow_unsigned: bool,
+        publish_every: u64,
+    ) -> Node {
+        let MctLink { commands, outgoing } = link;
+        let (to_scan_tx, to_scan_rx) = sync_channel::<ToScan>(32);
+        let (ctx_tx, ctx_rx) = sync_channel::<UpdateContext>(4);
+        let (snap_tx, snap_rx) = sync_channel::<Snapshot>(2);
+        let _ = ctx_tx.try_send(plc.update_context());
+        let prep_out = outgoing.clone();
+        let done = Arc::new(AtomicBool::new(false));
+        let prep_done = done.clone();
+        let preparer = std::thread::Builder::new()
+            .name("cetratus-prepare".into())
+            .spawn(move || {
+                prepare_loop(
+                    commands,
+                    ctx_rx,
+                    to_scan_tx,
+                    prep_out,
+                    trust,
+                    allow_unsigned,
+                    prep_done,
+                )
+            })
+            .expect("spawn the preparer");
+        let pub_out = outgoing.clone();
+        let publisher = std::thread::Builder::new()
+            .name("cetratus-publish".into())
+            .spawn(move || publish_loop(snap_rx, pub_out))
+            .expect("spawn the publisher");
+        Node {
+            to_scan_rx,
+            ctx_tx,
+            snap_tx: Some(snap_tx),
+            outgoing,
+            pending: VecDeque::with_capacity(256),
+            names_in: Arc::new(plc.io_inputs().to_vec()),
+            names_out: Arc::new(plc.io_outputs().to_vec()),
+            last_key: (Slot::A, Status::Idle, String::new(), String::new()),
+            last_sampled: 0,
+            first: true,
+            publish_every: publish_every.max(1),
+            done,
+            threads: vec![preparer, publisher],
+        }
+    }
+
+    /// Gives the PLC the commands that are ready. Returns who sent the last one, for the audit
+    /// log (`mqtt` or `mqtt:<key id>`), when there was one.
+    pub fn take_commands(&mut self, plc: &mut Plc) -> Option<String> {
+        let mut who = None;
+        while let Ok(msg) = self.to_scan_rx.try_recv() {
+            match msg {
+                ToScan::Command(cmd, from) => {
+                    let r = plc.command(*cmd).map(|()| json!({"accepted": true}));
+                    who = Some(
+                        from.key_id
+                            .as_ref()
+                            .map_or("mqtt".to_string(), |k| format!("mqtt:{k}")),
+                    );
+                    self.pending
+                        .push_back(Outgoing::Reply(from.reply, Reply::from_result(r)));
+                }
+                ToScan::ExecInfo(from) => {
+                    let info = serde_json::to_value(plc.exec_info()).unwrap_or(Json::Null);
+                    self.pending
+                        .push_back(Outgoing::Reply(from.reply, Reply::ok(info)));
+                }
+            }
+        }
+        who
+    }
+
+    /// Queues events (those of a command taken between cycles) for publication.
+    pub fn queue_events(&mut self, events: &[Event]) {
+        for e in events {
+            self.pending.push_back(Outgoing::Event(
+                serde_json::to_value(e).unwrap_or(Json::Null),
+            ));
+        }
+    }
+
+    /// Publishes the cycle's events, and a snapshot when one is due or something changed.
+    pub fn after_cycle(&mut self, plc: &Plc, events: &[Event], timing: &LoopTiming, now: u64) {
+        self.queue_events(events);
+        let hash = |s: Slot| {
+            plc.container(s)
+                .map_or(String::new(), |c| c.program().hash_hex())
+        };
+        let key = (plc.primary(), plc.status(), hash(Slot::A), hash(Slot::B));
+        let changed = key != self.last_key;
+        if changed {
+            if key.0 != self.last_key.0 || key.2 != self.last_key.2 || key.3 != self.last_key.3 {
+                let _ = self.ctx_tx.try_send(plc.update_context());
+            }
+            self.last_key = key;
+        }
+        if self.first || changed || plc.cycles() % self.publish_every == 0 {
+            let since = self.last_sampled;
+            let samples: Vec<CycleRecord> = plc
+                .monitor
+                .recent
+                .iter()
+                .filter(|r| r.cycle >= since)
+                .copied()
+                .collect();
+            self.last_sampled = plc.cycles();
+            let snap = Snapshot {
+                state: state_msg(plc, timing),
+                exec_info: plc.exec_info(),
+                names_in: self.names_in.clone(),
+                names_out: self.names_out.clone(),
+                inputs: plc.inputs().to_vec(),
+                outputs: [Slot::A, Slot::B].map(|s| plc.outputs_of(s).map(<[Value]>::to_vec)),
+                dispatched: plc.dispatched().to_vec(),
+                samples,
+                programs: (self.first || changed).then(|| {
+                    [Slot::A, Slot::B].map(|s| {
+                        plc.container(s)
+                            .map(|c| (c.program().clone(), c.marking().to_vec()))
+                    })
+                }),
+                time_us: now,
+            };
+            self.first = false;
+            if let Some(tx) = &self.snap_tx {
+                // When the publisher is behind this snapshot is dropped; the next one carries on.
+                let _ = tx.try_send(snap);
+            }
+        }
+        while let Some(m) = self.pending.pop_front() {
+            if let Err(back) = try_out(&self.outgoing, m) {
+                self.pending.push_front(back);
+                break;
+            }
+        }
+    }
+
+    /// Stops the preparer and the publisher.
+    pub fn stop(mut self) {
+        self.snap_tx = None;
+        self.done.store(true, std::sync::atomic::Ordering::Release);
+        for t in self.threads.drain(..) {
+            let _ = t.join();
+        }
+    }
+}
+
 /// Runs the node until `until_us` of program time or `stop`. Returns the PLC and the twin.
 pub fn run_node(
     mut plc: Plc,
@@ -101,44 +273,16 @@ pub fn run_node(
     opts: NodeOptions,
     stop: &AtomicBool,
 ) -> (Plc, TwinDriver<Twin>) {
-    let MctLink { commands, outgoing } = link;
-    let (to_scan_tx, to_scan_rx) = sync_channel::<ToScan>(32);
-    let (ctx_tx, ctx_rx) = sync_channel::<UpdateContext>(4);
-    let (snap_tx, snap_rx) = sync_channel::<Snapshot>(2);
-    let _ = ctx_tx.try_send(plc.update_context());
-    let prep_out = outgoing.clone();
-    let (trust, allow_unsigned) = (opts.trust, opts.allow_unsigned);
-    let done = Arc::new(AtomicBool::new(false));
-    let prep_done = done.clone();
-    let preparer = std::thread::Builder::new()
-        .name("cetratus-prepare".into())
-        .spawn(move || {
-            prepare_loop(
-                commands,
-                ctx_rx,
-                to_scan_tx,
-                prep_out,
-                trust,
-                allow_unsigned,
-                prep_done,
-            )
-        })
-        .expect("spawn the preparer");
-    let pub_out = outgoing.clone();
-    let publisher = std::thread::Builder::new()
-        .name("cetratus-publish".into())
-        .spawn(move || publish_loop(snap_rx, pub_out))
-        .expect("spawn the publisher");
-
-    let names_in = Arc::new(plc.io_inputs().to_vec());
-    let names_out = Arc::new(plc.io_outputs().to_vec());
-    let mut pending: VecDeque<Outgoing> = VecDeque::with_capacity(256);
-    let mut timing = LoopTiming::default();
-    let mut last_key = (Slot::A, Status::Idle, String::new(), String::new());
-    let mut last_sampled = 0u64;
+    let mut node = Node::start(
+        &plc,
+        link,
+        opts.trust,
+        opts.allow_unsigned,
+        opts.publish_every,
+    );
     let period_us = plc.primary_program().scan_period().as_micros() as u64;
-    let mut first = true;
     let echo = opts.echo_events;
+    let mut timing = LoopTiming::default();
     run_periodic(
         period_us,
         opts.until_us,
@@ -146,21 +290,11 @@ pub fn run_node(
         stop,
         &mut timing,
         |now, timing| {
-            while let Ok(msg) = to_scan_rx.try_recv() {
-                match msg {
-                    ToScan::Command(cmd, from) => {
-                        let r = plc.command(*cmd).map(|()| json!({"accepted": true}));
-                        pending.push_back(Outgoing::Reply(from.reply, Reply::from_result(r)));
-                    }
-                    ToScan::ExecInfo(from) => {
-                        let info = serde_json::to_value(plc.exec_info()).unwrap_or(Json::Null);
-                        pending.push_back(Outgoing::Reply(from.reply, Reply::ok(info)));
-                    }
-                }
-            }
+            node.take_commands(&mut plc);
             plc.cycle(now, &mut io);
-            for e in plc.drain_events() {
-                if echo {
+            let events = plc.drain_events();
+            if echo {
+                for e in &events {
                     eprintln!(
                         "{:>10.3} s  {:<20} {}",
                         e.time_us as f64 / 1e6,
@@ -168,69 +302,13 @@ pub fn run_node(
                         e.message
                     );
                 }
-                pending.push_back(Outgoing::Event(
-                    serde_json::to_value(&e).unwrap_or(Json::Null),
-                ));
             }
+            node.after_cycle(&plc, &events, timing, now);
             drop(plc.take_retired());
-            let hash = |s: Slot| {
-                plc.container(s)
-                    .map_or(String::new(), |c| c.program().hash_hex())
-            };
-            let key = (plc.primary(), plc.status(), hash(Slot::A), hash(Slot::B));
-            let changed = key != last_key;
-            if changed {
-                if key.0 != last_key.0 || key.2 != last_key.2 || key.3 != last_key.3 {
-                    let _ = ctx_tx.try_send(plc.update_context());
-                }
-                last_key = key;
-            }
-            if first || changed || plc.cycles() % opts.publish_every == 0 {
-                let samples: Vec<CycleRecord> = plc
-                    .monitor
-                    .recent
-                    .iter()
-                    .filter(|r| r.cycle >= last_sampled)
-                    .copied()
-                    .collect();
-                last_sampled = plc.cycles();
-                let snap = Snapshot {
-                    state: state_msg(&plc, timing),
-                    exec_info: plc.exec_info(),
-                    names_in: names_in.clone(),
-                    names_out: names_out.clone(),
-                    inputs: plc.inputs().to_vec(),
-                    outputs: [Slot::A, Slot::B].map(|s| plc.outputs_of(s).map(<[Value]>::to_vec)),
-                    dispatched: plc.dispatched().to_vec(),
-                    samples,
-                    programs: (first || changed).then(|| {
-                        [Slot::A, Slot::B].map(|s| {
-                            plc.container(s)
-                                .map(|c| (c.program().clone(), c.marking().to_vec()))
-                        })
-                    }),
-                    time_us: now,
-                };
-                first = false;
-                if let Err(TrySendError::Full(_)) = snap_tx.try_send(snap) {
-                    // The publisher is behind: this snapshot is dropped, the next one carries on.
-                }
-            }
-            while let Some(m) = pending.pop_front() {
-                if let Err(back) = try_out(&outgoing, m) {
-                    pending.push_front(back);
-                    break;
-                }
-            }
             true
         },
     );
-    drop(snap_tx);
-    drop(to_scan_rx);
-    done.store(true, std::sync::atomic::Ordering::Release);
-    let _ = publisher.join();
-    drop(ctx_tx);
-    let _ = preparer.join();
+    node.stop();
     (plc, io)
 }
 
@@ -303,7 +381,6 @@ fn prepare_loop(
         }
     }
 }
-
 
 fn substitute(
     c: &UpdateContext,

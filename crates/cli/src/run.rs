@@ -60,6 +60,15 @@ pub struct RunArgs {
     /// from the start of this run; commands due in the same cycle run one per cycle, in order.
     #[arg(long = "at")]
     at: Vec<String>,
+    /// MQTT (real-time runs): the embedded broker by default, or a plant broker.
+    #[command(flatten)]
+    mqtt: crate::mqtt_args::MqttArgs,
+    /// Where the dashboard listens (real-time runs).
+    #[arg(long, default_value = "127.0.0.1:8080")]
+    http: String,
+    /// Real-time runs without MQTT and dashboard.
+    #[arg(long)]
+    no_mct: bool,
     /// Directory of trusted public keys for `load`.
     #[arg(long)]
     trust: Option<PathBuf>,
@@ -195,80 +204,142 @@ pub fn run(args: &RunArgs) -> anyhow::Result<()> {
             .press(button, at_us.saturating_add(base_us))
             .map_err(|e| anyhow::anyhow!("--press {p}: {e}"))?;
     }
+    // Real-time runs are watched and commanded over MQTT, with the dashboard beside them.
+    let mut mct = None;
+    if !args.virtual_time && !args.no_mct {
+        let mut config = args.mqtt.config()?;
+        config.publish_period = std::time::Duration::from_millis(200);
+        let plc_id = config.plc_id.clone();
+        let (link, handle) = cetratus_mct::start(config)?;
+        let broker_url = args.mqtt.client_url()?;
+        let http: std::net::SocketAddr = args.http.parse().with_context(|| {
+            format!(
+                "--http `{}`: expected an address such as 127.0.0.1:8080",
+                args.http
+            )
+        })?;
+        let dashboard = cetratus_dashboard::serve(cetratus_dashboard::DashboardConfig {
+            http,
+            broker_url: broker_url.clone(),
+            user: args.mqtt.user.clone(),
+            password: args.mqtt.password.clone(),
+        })?;
+        if !args.json {
+            eprintln!(
+                "MQTT {broker_url} (topics cetratus/{plc_id}/…), dashboard http://{}/",
+                dashboard.local_addr()
+            );
+        }
+        let speed = if args.speed.is_finite() && args.speed > 0.0 {
+            args.speed
+        } else {
+            1.0
+        };
+        let publish_every = ((200_000.0 * speed) / period_us.max(1) as f64)
+            .round()
+            .max(1.0) as u64;
+        let node = crate::node::Node::start(
+            &plc,
+            link,
+            trust.clone(),
+            args.allow_unsigned,
+            publish_every,
+        );
+        mct = Some((node, handle, dashboard));
+    }
     let mut trace = Trace::new(plc.io_inputs().to_vec(), plc.io_outputs().to_vec());
     let record = args.trace.is_some() || args.svg.is_some();
     let mut violations: Vec<String> = Vec::new();
+    let mut events_all: Vec<Event> = Vec::new();
     let mut next_cmd = 0usize;
     let mut script_error: Option<anyhow::Error> = None;
     let json = args.json;
     let progress = args.progress.filter(|&n| n > 0);
     let mut persist_warned = false;
-    let mut body = |plc: &mut Plc, now: u64, io: &mut TwinDriver<Twin>| -> bool {
-        let now = now + base_us;
-        // One command per cycle: each takes effect at the next cycle boundary, so the next one
-        // (a substitute after a load) sees that effect, even when a late cycle makes both due.
-        if next_cmd < script.len() && script[next_cmd].at_us + base_us <= now {
-            let s = &script[next_cmd];
-            next_cmd += 1;
-            let cmd = match scripted_command(plc, s, &trust, args.allow_unsigned) {
-                Ok(c) => c,
-                Err(e) => {
-                    script_error = Some(e);
-                    return false;
+    let mut body =
+        |plc: &mut Plc, now: u64, io: &mut TwinDriver<Twin>, timing: &LoopTiming| -> bool {
+            let now = now + base_us;
+            if let Some((node, _, _)) = mct.as_mut() {
+                let who = node.take_commands(plc);
+                let events = plc.drain_events();
+                for e in &events {
+                    print_event(e, json);
+                    if let Some(p) = persister.as_mut() {
+                        p.audit(e, who.as_deref().unwrap_or("mqtt"));
+                    }
                 }
-            };
-            let _ = plc.command(cmd);
-            for e in plc.drain_events() {
-                print_event(&e, json);
+                node.queue_events(&events);
+                events_all.extend(events);
+            }
+            // One command per cycle: each takes effect at the next cycle boundary, so the next one
+            // (a substitute after a load) sees that effect, even when a late cycle makes both due.
+            if next_cmd < script.len() && script[next_cmd].at_us + base_us <= now {
+                let s = &script[next_cmd];
+                next_cmd += 1;
+                let cmd = match scripted_command(plc, s, &trust, args.allow_unsigned) {
+                    Ok(c) => c,
+                    Err(e) => {
+                        script_error = Some(e);
+                        return false;
+                    }
+                };
+                let _ = plc.command(cmd);
+                for e in plc.drain_events() {
+                    print_event(&e, json);
+                    if let Some(p) = persister.as_mut() {
+                        p.audit(&e, "cli");
+                    }
+                    events_all.push(e);
+                }
+            }
+            plc.cycle(now, io);
+            let k = plc.primary_container();
+            if record {
+                trace.observe(plc.cycles() - 1, now, plc.inputs(), plc.dispatched());
+            }
+            if violations.len() < 100 {
+                if let Err(v) = k.program().check_invariants(k.marking()) {
+                    violations.push(format!("{:.3}s: {v}", now as f64 / 1e6));
+                }
+            }
+            let cycle_events = plc.drain_events();
+            for e in &cycle_events {
+                print_event(e, json);
                 if let Some(p) = persister.as_mut() {
-                    p.audit(&e, "cli");
+                    p.audit(e, "plc");
                 }
-                events.push(e);
             }
-        }
-        plc.cycle(now, io);
-        let k = plc.primary_container();
-        if record {
-            trace.observe(plc.cycles() - 1, now, plc.inputs(), plc.dispatched());
-        }
-        if violations.len() < 100 {
-            if let Err(v) = k.program().check_invariants(k.marking()) {
-                violations.push(format!("{:.3}s: {v}", now as f64 / 1e6));
+            if let Some((node, _, _)) = mct.as_mut() {
+                node.after_cycle(plc, &cycle_events, timing, now);
             }
-        }
-        for e in plc.drain_events() {
-            print_event(&e, json);
+            events_all.extend(cycle_events);
             if let Some(p) = persister.as_mut() {
-                p.audit(&e, "plc");
-            }
-            events.push(e);
-        }
-        if let Some(p) = persister.as_mut() {
-            p.offer(plc);
-            // Said once: a full disk fails every commit, and the summary gives the count.
-            if !persist_warned {
-                if let Some(err) = p.take_error() {
-                    eprintln!("warning: the state directory could not be written: {err}");
-                    persist_warned = true;
+                p.offer(plc);
+                // Said once: a full disk fails every commit, and the summary gives the count.
+                if !persist_warned {
+                    if let Some(err) = p.take_error() {
+                        eprintln!("warning: the state directory could not be written: {err}");
+                        persist_warned = true;
+                    }
+                }
+                if let Some(n) = progress {
+                    if plc.cycles() % n == 0 {
+                        eprintln!(
+                            "progress cycle={} committed={}",
+                            plc.cycles(),
+                            p.committed_cycle().map_or(-1, |c| c as i64)
+                        );
+                    }
                 }
             }
-            if let Some(n) = progress {
-                if plc.cycles() % n == 0 {
-                    eprintln!(
-                        "progress cycle={} committed={}",
-                        plc.cycles(),
-                        p.committed_cycle().map_or(-1, |c| c as i64)
-                    );
-                }
-            }
-        }
-        drop(plc.take_retired());
-        true
-    };
+            drop(plc.take_retired());
+            true
+        };
     let mut timing = LoopTiming::default();
     let reached_us = if args.virtual_time {
         let mut now = 0;
-        while now < until_us && body(&mut plc, now, &mut io) {
+        let idle = LoopTiming::default();
+        while now < until_us && body(&mut plc, now, &mut io, &idle) {
             now += period_us;
         }
         now
@@ -298,10 +369,16 @@ pub fn run(args: &RunArgs) -> anyhow::Result<()> {
             args.speed,
             &stop,
             &mut timing,
-            |now, _| body(&mut plc, now, &mut io),
+            |now, timing| body(&mut plc, now, &mut io, timing),
         )
     };
     let persist = persister.map(|p| p.stop(&plc));
+    if let Some((node, handle, dashboard)) = mct {
+        node.stop();
+        handle.shutdown();
+        dashboard.stop();
+    }
+    events.extend(events_all);
     if let Some(e) = script_error {
         return Err(e);
     }

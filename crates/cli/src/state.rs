@@ -81,7 +81,13 @@ fn print(ins: &Inspection) {
             .marking
             .iter()
             .filter(|(_, m)| *m > 0)
-            .map(|(p, m)| if *m == 1 { p.clone() } else { format!("{p}×{m}") })
+            .map(|(p, m)| {
+                if *m == 1 {
+                    p.clone()
+                } else {
+                    format!("{p}×{m}")
+                }
+            })
             .collect();
         println!("    marking       {}", marked.join(" "));
         if let Some(v) = &c.violation {
@@ -91,7 +97,11 @@ fn print(ins: &Inspection) {
     if ins.state.is_some() {
         println!(
             "  invariants      {}",
-            if ins.invariants_hold { "hold" } else { "BROKEN" }
+            if ins.invariants_hold {
+                "hold"
+            } else {
+                "BROKEN"
+            }
         );
     }
     println!("  warm start      {}", ins.warm_start);
@@ -108,10 +118,7 @@ fn print(ins: &Inspection) {
         ins.audit.records.len()
     );
     for r in &ins.audit.records {
-        println!(
-            "    {}  {:<8} {:<20} {}",
-            r.utc, r.who, r.what, r.message
-        );
+        println!("    {}  {:<8} {:<20} {}", r.utc, r.who, r.what, r.message);
     }
     if let Some(t) = &ins.audit.torn_tail {
         println!(

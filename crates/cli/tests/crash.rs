@@ -21,8 +21,9 @@ const PERIOD_US: u64 = 10_000;
 const PROGRESS_EVERY: u64 = 10;
 const CHAINS: usize = 10;
 const KILLS_PER_CHAIN: usize = 5;
-/// The longest commit the loss bound assumes on the test machine (write, fsync, rename, fsync).
-/// Measured commits are printed; they are around a millisecond on an ordinary disk.
+/// The longest commit the loss bound assumes on the test machine (write, fsync, rename, fsync), at
+/// least; twice the longest commit measured is used when larger. Measured commits are printed;
+/// they take about a millisecond on an idle disk.
 const ASSUMED_COMMIT_NS: u64 = 25_000_000;
 
 /// SplitMix64: a seeded, dependency-free source of kill times and schedules.
@@ -132,6 +133,7 @@ fn sigkill_at_random_moments_leaves_a_consistent_state_within_the_loss_bound() {
                 .args([
                     "--twin",
                     "vernadat",
+                    "--no-mct",
                     "--speed",
                     &SPEED.to_string(),
                     "--for",
@@ -247,6 +249,10 @@ fn sigkill_at_random_moments_leaves_a_consistent_state_within_the_loss_bound() {
             // Losses: the run had reached at least `last_progress` and at most
             // `last_progress + PROGRESS_EVERY` cycles when it died.
             if let Some(k) = last_progress {
+                // The bound holds given the longest commit; a machine busy compiling can exceed
+                // the assumption, so twice the longest commit seen counts too.
+                let w = ASSUMED_COMMIT_NS.max(2 * fig.max_commit_us * 1000);
+                let bound = config.loss_bound_cycles(w, cycle_ns);
                 let loss = (k + PROGRESS_EVERY).saturating_sub(snap.cycle);
                 fig.max_loss = fig.max_loss.max(loss);
                 assert!(
@@ -286,6 +292,7 @@ fn sigkill_at_random_moments_leaves_a_consistent_state_within_the_loss_bound() {
             .args([
                 "--twin",
                 "vernadat",
+                "--no-mct",
                 "--speed",
                 &SPEED.to_string(),
                 "--for",

@@ -13,7 +13,7 @@
   let pendingAction = null;
 
   function fresh() {
-    return { state: null, exec: null, io: [], firings: { A: {}, B: {} } };
+    return { state: null, exec: null, io: [], firings: { A: {}, B: {} }, clock: null };
   }
 
   // ---- latency: MQTT message at the dashboard (recv_ms, Unix ms) -> DOM updated --------------
@@ -73,7 +73,7 @@
     if (s.state) renderState(s.state.data);
     if (s.net) renderNets(s.net.data);
     if (s.exec_info) { view.exec = s.exec_info.data; renderExec(); updateTokens(); }
-    for (const x of s.io) view.io.push({ t: x.recv_ms, d: x.data });
+    for (const x of s.io) addIo(x);
     renderTiming();
     for (const e of s.events) addEvent(e);
   }
@@ -84,7 +84,7 @@
       case 'state': renderState(msg.data); break;
       case 'net': renderNets(msg.data); updateTokens(); break;
       case 'exec_info': view.exec = msg.data; renderExec(); updateTokens(); break;
-      case 'io': view.io.push({ t: msg.recv_ms, d: msg.data }); renderTiming(); break;
+      case 'io': addIo(msg); renderTiming(); break;
       case 'event': addEvent(msg); break;
     }
     measured(msg);
@@ -154,11 +154,21 @@
     $('program-B').textContent = programText(progs.B);
     const dl = $('cycle');
     dl.textContent = '';
-    for (const [k, v] of flatten(st.cycle || {}, '')) {
+    for (const [k, v] of Object.entries(st.cycle || {})) {
+      if (v === null || v === undefined) continue;
+      let text;
+      if (typeof v === 'object' && 'mean_ns' in v) {
+        // A timing summary (scan, cycle, latency as OpenPLC names them): the figures that matter.
+        text = `mean ${us(v.mean_ns)}, p99 ${us(v.p99_ns)}, max ${us(v.max_ns)} µs`;
+      } else if (typeof v === 'object') {
+        text = flatten(v, '').map(([a, b]) => `${a} ${fmt(b)}`).join(', ');
+      } else {
+        text = fmt(v);
+      }
       const dt = document.createElement('dt');
       dt.textContent = k;
       const dd = document.createElement('dd');
-      dd.textContent = typeof v === 'number' && !Number.isInteger(v) ? v.toFixed(2) : String(v);
+      dd.textContent = text;
       dl.append(dt, dd);
     }
     for (const x of ['A', 'B']) {
@@ -169,6 +179,10 @@
       box.querySelector('.role').textContent = role ? `(${role})` : '';
     }
     enableButtons();
+  }
+
+  function fmt(v) {
+    return typeof v === 'number' && !Number.isInteger(v) ? v.toFixed(2) : String(v);
   }
 
   function flatten(o, prefix) {
@@ -336,15 +350,74 @@
   const esc = (s) => String(s).replace(/[&<>"']/g, (c) => `&#${c.charCodeAt(0)};`);
   const high = (v) => v === true || v === 'true' || (typeof v === 'number' && v !== 0);
   const GROUPS = [
-    ['inputs', 'inputs', (d) => d.inputs],
-    ['A', 'outputs A', (d) => d.outputs && d.outputs.A],
-    ['B', 'outputs B', (d) => d.outputs && d.outputs.B],
-    ['dispatched', 'dispatched', (d) => d.dispatched],
+    ['inputs', 'inputs', (p) => p.inputs],
+    ['A', 'outputs A', (p) => p.A],
+    ['B', 'outputs B', (p) => p.B],
+    ['dispatched', 'dispatched', (p) => p.d],
   ];
+
+  // `io` comes in two shapes: the runtime's, with the Monitor's ring buffer since the last publish
+  // (`samples`: [time_ms, primary, status, inputs, outputs A, outputs B, dispatched] as bit masks
+  // over `names`), and the plain one of docs/mqtt.md (one sample: inputs, outputs {A, B},
+  // dispatched). Both become points {t, inputs, A, B, d}; t is PLC time in ms when the message has
+  // it, so the diagram shows the plant's timing whatever the network did.
+  function bits(v, names) {
+    if (typeof v !== 'number') return null;
+    const o = {};
+    names.forEach((n, i) => { o[n] = Math.floor(v / 2 ** i) % 2 === 1; });
+    return o;
+  }
+  function points(d) {
+    const names = d.names;
+    if (Array.isArray(d.samples) && names && Array.isArray(names.inputs) && Array.isArray(names.outputs)) {
+      return d.samples.filter((x) => Array.isArray(x) && typeof x[0] === 'number').map((x) => ({
+        t: x[0], inputs: bits(x[3], names.inputs), A: bits(x[4], names.outputs),
+        B: bits(x[5], names.outputs), d: bits(x[6], names.outputs),
+      }));
+    }
+    const t = typeof d.time_ms === 'number' ? d.time_ms : typeof d.time_us === 'number' ? d.time_us / 1000 : null;
+    const outs = d.outputs || {};
+    return [{
+      t, inputs: d.inputs, A: 'outputs_a' in d ? d.outputs_a : outs.A,
+      B: 'outputs_b' in d ? d.outputs_b : outs.B, d: d.dispatched,
+    }];
+  }
+  // Maps PLC time to the wall clock (speed = PLC ms per wall ms, smoothed), so the diagram keeps
+  // scrolling between messages at the plant's pace.
+  function addIo(msg) {
+    const d = msg.data || {};
+    let pts = points(d);
+    const plcTime = pts.length && pts[pts.length - 1].t !== null;
+    if (!plcTime) pts = pts.map((p) => Object.assign(p, { t: msg.recv_ms }));
+    if (!pts.length) return;
+    const last = pts[pts.length - 1].t;
+    const c = view.clock;
+    if (!c || c.plcTime !== plcTime || last < c.t) {
+      view.io = [];
+      view.clock = { plcTime, t: last, wall: msg.recv_ms, speed: plcTime ? null : 1 };
+    } else {
+      const dw = msg.recv_ms - c.wall;
+      if (plcTime && dw > 20) {
+        const inst = (last - c.t) / dw;
+        c.speed = c.speed === null ? inst : 0.7 * c.speed + 0.3 * inst;
+      }
+      c.t = last;
+      c.wall = msg.recv_ms;
+    }
+    for (const p of pts) view.io.push(p);
+  }
+  function axisNow() {
+    const c = view.clock;
+    if (!c) return nowMs();
+    if (!c.plcTime) return nowMs();
+    const ahead = Math.max(0, nowMs() - c.wall) * (c.speed || 0);
+    // Never run more than two publish periods' worth ahead of the last sample.
+    return c.t + Math.min(ahead, 2000 * Math.max(1, c.speed || 1));
+  }
 
   function renderTiming() {
     const svg = $('timing');
-    const now = nowMs();
+    const now = axisNow();
     const t0 = now - WINDOW_MS;
     // Keep one sample from before the window: it gives the levels at the left edge.
     let first = 0;
@@ -363,13 +436,13 @@
     for (let k = 0; k <= 6; k++) {
       const x = xOf(now - k * 10000);
       out.push(`<line class="grid" x1="${x}" x2="${x}" y1="12" y2="100%"/>`);
-      out.push(`<text class="tick" x="${x - 2}" y="10" text-anchor="end">${k ? '−' + k * 10 + ' s' : 'now'}</text>`);
+      out.push(`<text class="tick" x="${x - 2}" y="10" text-anchor="end">${k ? '−' + k * 10 + ' s' : (view.clock && view.clock.plcTime ? 'PLC time' : 'now')}</text>`);
     }
     let signalCount = 0;
     for (const [key, title, get] of GROUPS) {
       const names = [];
       for (const s of samples) {
-        const g = get(s.d);
+        const g = get(s);
         if (g && typeof g === 'object') for (const n of Object.keys(g)) if (!names.includes(n)) names.push(n);
       }
       y += 14;
@@ -386,21 +459,32 @@
         out.push(`<line class="grid" x1="${labelW}" x2="${labelW + plotW}" y1="${bottom}" y2="${bottom}"/>`);
         let d = '';
         let open = false;
+        let level = null;
+        let shadeFrom = null;
+        const shades = [];
         for (let i = 0; i < samples.length; i++) {
-          const g = get(samples[i].d);
-          const x = xOf(samples[i].t).toFixed(1);
-          const xEnd = (i + 1 < samples.length ? xOf(samples[i + 1].t) : xOf(now)).toFixed(1);
-          if (!g || !(name in g)) { open = false; continue; }
+          const g = get(samples[i]);
+          const x = xOf(samples[i].t);
+          if (!g || !(name in g)) {
+            if (open) d += ` H${x.toFixed(1)}`;
+            open = false;
+            continue;
+          }
           const v = high(g[name]) ? top : bottom;
-          d += open ? ` V${v} H${xEnd}` : ` M${x},${v} H${xEnd}`;
+          // Only level changes make path segments: thousands of samples stay a short path.
+          if (!open) { d += ` M${x.toFixed(1)},${v}`; level = v; }
+          else if (v !== level) { d += ` H${x.toFixed(1)} V${v}`; level = v; }
           open = true;
           // Where the candidate's output differs from the primary's, shade its lane (Fig. 7).
-          if (key === 'B') {
-            const ga = samples[i].d.outputs && samples[i].d.outputs.A;
-            if (ga && name in ga && high(ga[name]) !== high(g[name])) {
-              out.push(`<rect class="diverge" x="${x}" y="${y}" width="${Math.max(1, xEnd - x)}" height="${laneH}"/>`);
-            }
-          }
+          const ga = samples[i].A;
+          const diff = key === 'B' && ga && name in ga && high(ga[name]) !== high(g[name]);
+          if (diff && shadeFrom === null) shadeFrom = x;
+          if (!diff && shadeFrom !== null) { shades.push([shadeFrom, x]); shadeFrom = null; }
+        }
+        if (open) d += ` H${xOf(now).toFixed(1)}`;
+        if (shadeFrom !== null) shades.push([shadeFrom, xOf(now)]);
+        for (const [a, b] of shades) {
+          out.push(`<rect class="diverge" x="${a.toFixed(1)}" y="${y}" width="${Math.max(1, b - a).toFixed(1)}" height="${laneH}"/>`);
         }
         if (d) out.push(`<path class="sig" d="${d.trim()}"/>`);
         y += laneH;
@@ -413,7 +497,8 @@
     svg.dataset.samples = String(samples.length);
     svg.dataset.signals = String(signalCount);
     const last = samples[samples.length - 1];
-    svg.dataset.lastCycle = last && last.d.cycle !== undefined ? String(last.d.cycle) : '';
+    svg.dataset.lastTime = last ? String(last.t) : '';
+    svg.dataset.axis = view.clock && view.clock.plcTime ? 'plc' : 'wall';
   }
   // Scroll even when no sample arrives, so a silent PLC is visible as a flat, ageing trace.
   setInterval(renderTiming, 500);

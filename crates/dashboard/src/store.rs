@@ -13,6 +13,11 @@ use serde_json::{json, Map, Value};
 /// diagram at once.
 pub const IO_HISTORY: usize = 1024;
 
+/// How many bytes of `io` payload are kept per PLC: the runtime's `io` carries the Monitor's ring
+/// buffer since the last publish (hundreds of samples at high speed), so a count alone would let
+/// one PLC hold tens of megabytes and send them to every browser that connects.
+pub const IO_HISTORY_BYTES: usize = 4 << 20;
+
 /// How many events are kept per PLC for a browser that connects later.
 pub const EVENT_HISTORY: usize = 200;
 
@@ -98,6 +103,12 @@ pub struct PlcView {
     pub net: Option<Stamped>,
     /// The latest `io` samples, oldest first.
     pub io: VecDeque<Stamped>,
+    /// The payload size of each entry of `io`, for [`IO_HISTORY_BYTES`].
+    #[serde(skip)]
+    io_sizes: VecDeque<usize>,
+    /// Their sum.
+    #[serde(skip)]
+    io_bytes: usize,
     /// The latest events, oldest first.
     pub events: VecDeque<Stamped>,
 }
@@ -225,7 +236,18 @@ impl Fleet {
                 if data.is_null() {
                     return Err(Ignored::Malformed(format!("{topic}: empty payload")));
                 }
-                push_bounded(&mut view.io, stamped, IO_HISTORY);
+                let size = payload.len();
+                view.io.push_back(stamped);
+                view.io_sizes.push_back(size);
+                view.io_bytes += size;
+                while (view.io.len() > IO_HISTORY || view.io_bytes > IO_HISTORY_BYTES)
+                    && view.io.len() > 1
+                {
+                    view.io.pop_front();
+                    if let Some(old) = view.io_sizes.pop_front() {
+                        view.io_bytes = view.io_bytes.saturating_sub(old);
+                    }
+                }
             }
             Kind::Event => {
                 if data.is_null() {
@@ -342,6 +364,25 @@ mod tests {
         assert_eq!(
             io.back().map(|s| s.data["cycle"].clone()),
             Some(json!(IO_HISTORY + 9))
+        );
+    }
+
+    #[test]
+    fn io_history_is_bounded_in_bytes_too() {
+        let mut f = Fleet::new();
+        let big = "x".repeat(100_000);
+        for i in 0..100 {
+            let p = json!({"time_ms": i, "pad": big});
+            f.apply("cetratus/c/io", p.to_string().as_bytes(), 0.0)
+                .expect("taken");
+        }
+        let v = f.get("c").expect("kept");
+        let held: usize = v.io.iter().map(|s| s.data.to_string().len()).sum();
+        assert!(held <= IO_HISTORY_BYTES, "{held}");
+        assert!(v.io.len() >= IO_HISTORY_BYTES / 100_100, "{}", v.io.len());
+        assert_eq!(
+            v.io.back().map(|s| s.data["time_ms"].clone()),
+            Some(json!(99))
         );
     }
 

@@ -243,17 +243,49 @@ impl FakePlc {
         let eb = b_loaded.then(|| self.exec_info("B", &self.b, role("B"), k));
         self.publish("exec_info", false, json!({"A": ea, "B": eb}))
             .await;
-        let outs = |on: bool| json!({"CM1": k % 2 == 1, "PM1": k % 3 == 0 && on});
+        // The runtime's shape (crates/cli's node): the Monitor's records since the last
+        // publish as bit masks over `names`, PLC time in ms; plus `unix_ms` for the latency.
+        let names_in = ["PE", "FCM1", "FPM1"];
+        let names_out = ["CM1", "PM1"];
+        let named = |mask: u64, names: &[&str]| -> Value {
+            let m: serde_json::Map<String, Value> = names
+                .iter()
+                .enumerate()
+                .map(|(i, n)| (n.to_string(), json!(mask >> i & 1 == 1)))
+                .collect();
+            Value::Object(m)
+        };
+        let samples: Vec<Value> = (0..20u64)
+            .map(|j| {
+                let c = k * 20 + j;
+                let inputs = (c / 7) % 8;
+                let out = (c / 10) % 4;
+                // The candidate lags by one step, so its lanes differ now and then.
+                let out_b = ((c / 10) + 1) % 4;
+                json!([
+                    c * 10,
+                    primary,
+                    "idle",
+                    inputs,
+                    a_loaded.then_some(out),
+                    b_loaded.then_some(out_b),
+                    out
+                ])
+            })
+            .collect();
+        let last = (k * 20 + 19) % 4;
         self.publish(
             "io",
             false,
             json!({
-                "cycle": k * 20,
-                "time_us": k * 200_000,
+                "time_ms": (k * 20 + 19) * 10,
                 "unix_ms": unix_ms(),
-                "inputs": {"PE": k % 4 < 2, "FCM1": k % 4 == 1, "FPM1": k % 5 == 0},
-                "outputs": {"A": a_loaded.then(|| outs(true)), "B": b_loaded.then(|| outs(false))},
-                "dispatched": outs(true),
+                "names": {"inputs": names_in, "outputs": names_out},
+                "inputs": named(last, &names_in),
+                "outputs_a": a_loaded.then(|| named(last, &names_out)),
+                "outputs_b": b_loaded.then(|| named(last, &names_out)),
+                "dispatched": named(last, &names_out),
+                "samples": samples,
             }),
         )
         .await;
@@ -463,7 +495,7 @@ async fn timing(c: &Client) -> (u64, String, String) {
     let v = js(
         c,
         "const t = document.getElementById('timing');
-         return [Number(t.dataset.samples || 0), t.dataset.lastCycle || '', t.innerHTML];",
+         return [Number(t.dataset.samples || 0), t.dataset.lastTime || '', t.innerHTML];",
     )
     .await;
     (
@@ -586,7 +618,7 @@ async fn operator_loads_u1_then_substitutes_and_primary_flips_in_the_browser() {
     assert_eq!(options, json!([PLC]));
 
     // Live: the diagram scrolls with new samples and the tokens move.
-    let (n1, cycle1, svg1) = timing(&c).await;
+    let (n1, time1, svg1) = timing(&c).await;
     let tok1 = tokens(&c, "A").await;
     assert!(tok1.contains("place-P10="), "net A is drawn: {tok1}");
     let mut tokens_changed = false;
@@ -597,15 +629,16 @@ async fn operator_loads_u1_then_substitutes_and_primary_flips_in_the_browser() {
     }
     assert!(tokens_changed, "the tokens of net A never moved: {tok1}");
     tokio::time::sleep(Duration::from_millis(600)).await;
-    let (n2, cycle2, svg2) = timing(&c).await;
-    assert!(
-        n2 > n1 || n2 >= 200,
-        "the timing diagram gained samples ({n1} -> {n2})"
-    );
-    assert_ne!(cycle1, cycle2, "the timing diagram shows newer cycles");
+    let (n2, time2, svg2) = timing(&c).await;
+    assert!(n2 > n1, "the timing diagram gained samples ({n1} -> {n2})");
+    assert_ne!(time1, time2, "the timing diagram shows newer samples");
     assert_ne!(svg1, svg2, "the timing diagram was redrawn");
     for lane in ["PE", "CM1", "outputs A", "dispatched"] {
-        assert!(svg2.contains(lane), "the timing diagram has {lane}");
+        assert!(
+            svg2.contains(lane),
+            "the timing diagram has {lane}: {}",
+            &svg2[..svg2.len().min(2000)]
+        );
     }
 
     // Load U.1 through the page.

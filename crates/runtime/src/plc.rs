@@ -193,13 +193,16 @@ pub struct Limits {
 }
 
 impl Limits {
-    /// Everything at one scan period.
+    /// The defaults for a scan period: stateTransTimeout is one period (the paper's "within one
+    /// execution cycle"); the watchdog and the candidate's budget are ten periods, so that a scan
+    /// the operating system preempted once does not stop a cell or abort an update, while a
+    /// runaway program is still caught.
     pub fn for_period_us(period_us: u64) -> Self {
         let ns = period_us.saturating_mul(1000);
         Limits {
             state_trans_timeout_ns: ns,
-            candidate_budget_ns: ns,
-            watchdog_ns: ns,
+            candidate_budget_ns: ns.saturating_mul(10),
+            watchdog_ns: ns.saturating_mul(10),
         }
     }
 }

@@ -21,6 +21,21 @@ pub struct BenchArgs {
 
 #[derive(clap::Subcommand, Debug)]
 enum What {
+    /// Scan latency with and without a flood of MQTT commands (mixed valid and invalid).
+    CommandLoad {
+        /// Commands per second during the loaded phase.
+        #[arg(long, default_value_t = 1000)]
+        rate: u32,
+        /// Length of each phase (unloaded, then loaded), wall time.
+        #[arg(long = "for", default_value = "60s")]
+        for_: String,
+        /// The scan period.
+        #[arg(long, default_value = "1ms")]
+        period: String,
+        /// Print one JSON object.
+        #[arg(long)]
+        json: bool,
+    },
     /// Real-time jitter of the scan cycle: the Vernadat program on its twin at a fixed period.
     Jitter {
         /// The scan period.
@@ -40,6 +55,16 @@ enum What {
 
 /// Runs `cetratus bench`.
 pub fn run(args: &BenchArgs) -> anyhow::Result<()> {
+    if let Some(What::CommandLoad {
+        rate,
+        for_,
+        period,
+        json,
+    }) = &args.what
+    {
+        let out = command_load(*rate, parse_duration_us(for_)?, parse_duration_us(period)?)?;
+        return print(&out, *json || args.json);
+    }
     if let Some(What::Jitter {
         period,
         for_,
@@ -126,4 +151,135 @@ fn print(out: &BTreeMap<String, serde_json::Value>, json: bool) -> anyhow::Resul
 
 fn s(key: &str) -> String {
     key.to_string()
+}
+
+/// Runs the Vernadat node on an embedded broker at `period_us`, first alone for `phase_us`, then
+/// while a client sends `rate` commands per second, and reports the scan latency of both phases.
+fn command_load(
+    rate: u32,
+    phase_us: u64,
+    period_us: u64,
+) -> anyhow::Result<BTreeMap<String, serde_json::Value>> {
+    use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+    use std::sync::Arc;
+    use std::time::{Duration, Instant};
+
+    use cetratus_runtime::{run_periodic, LoopTiming, Plc};
+    use rumqttc::v5::mqttbytes::QoS;
+
+    let program = program::vernadat_program();
+    let mut io = cetratus_io::TwinDriver::new(
+        cetratus_twin::TwinKind::Vernadat.build(1),
+        program.inputs(),
+        program.outputs(),
+    )?;
+    let mut plc = Plc::new(program, 0);
+    let port = std::net::TcpListener::bind("127.0.0.1:0")?
+        .local_addr()?
+        .port();
+    let mut config = cetratus_mct::MqttConfig::new("bench");
+    config.broker = cetratus_mct::BrokerChoice::Embedded {
+        addr: std::net::SocketAddr::from(([127, 0, 0, 1], port)),
+        users: Vec::new(),
+    };
+    config.publish_period = Duration::from_millis(200);
+    let (link, handle) = cetratus_mct::start(config)?;
+    handle.wait_connected(Duration::from_secs(10));
+    let mut node = crate::node::Node::start(
+        &plc,
+        link,
+        cetratus_program::TrustStore::empty(),
+        false,
+        (200_000 / period_us.max(1)).max(1),
+    );
+    let mut now_base = 0u64;
+    let mut phase = |plc: &mut Plc,
+                     io: &mut cetratus_io::TwinDriver<cetratus_twin::Twin>,
+                     node: &mut crate::node::Node| {
+        let stop = AtomicBool::new(false);
+        let mut timing = LoopTiming::default();
+        let base = now_base;
+        let reached = run_periodic(period_us, phase_us, 1.0, &stop, &mut timing, |now, t| {
+            let now = base + now;
+            node.take_commands(plc);
+            let pre = plc.drain_events();
+            node.queue_events(&pre);
+            plc.cycle(now, io);
+            let events = plc.drain_events();
+            node.after_cycle(plc, &events, t, now);
+            drop(plc.take_retired());
+            true
+        });
+        now_base += reached;
+        timing
+    };
+    let quiet = phase(&mut plc, &mut io, &mut node);
+
+    // The flood: a client on its own thread, mixed valid and invalid commands.
+    let sent = Arc::new(AtomicU64::new(0));
+    let stop_flood = Arc::new(AtomicBool::new(false));
+    let flood = {
+        let (sent, stop_flood) = (sent.clone(), stop_flood.clone());
+        let url = format!("mqtt://127.0.0.1:{port}");
+        std::thread::spawn(move || -> anyhow::Result<()> {
+            let opts = cetratus_mct::client_options(&url, "bench-flood")?;
+            let (client, mut conn) = rumqttc::v5::Client::new(opts, 4096);
+            std::thread::spawn(move || for _ in conn.iter() {});
+            let payloads: [(&str, &[u8]); 4] = [
+                ("exec_info", b"{\"reply_to\": \"bench/replies\"}"),
+                ("load", b"\x00\x01 not json"),
+                ("frobnicate", b"{\"reply_to\": \"bench/replies\"}"),
+                (
+                    "substitute",
+                    b"{\"mode\": \"sideways\", \"reply_to\": \"bench/replies\"}",
+                ),
+            ];
+            let start = Instant::now();
+            let mut k = 0u64;
+            while !stop_flood.load(Ordering::Relaxed) {
+                let due = start + Duration::from_secs_f64(k as f64 / f64::from(rate.max(1)));
+                if let Some(wait) = due.checked_duration_since(Instant::now()) {
+                    std::thread::sleep(wait);
+                }
+                let (verb, body) = payloads[(k % 4) as usize];
+                let _ = client.try_publish(
+                    format!("cetratus/bench/cmd/{verb}"),
+                    QoS::AtMostOnce,
+                    false,
+                    body.to_vec(),
+                );
+                k += 1;
+                sent.store(k, Ordering::Relaxed);
+            }
+            Ok(())
+        })
+    };
+    let loaded = phase(&mut plc, &mut io, &mut node);
+    stop_flood.store(true, Ordering::Relaxed);
+    let _ = flood.join();
+    node.stop();
+    handle.shutdown();
+
+    let (q, l) = (quiet.latency.summary(), loaded.latency.summary());
+    let limit = 1.2 * q.p99_ns as f64 + 20_000.0;
+    let mut out: BTreeMap<String, serde_json::Value> = BTreeMap::new();
+    out.insert(s("period_us"), period_us.into());
+    out.insert(s("phase_s"), (phase_us as f64 / 1e6).into());
+    out.insert(s("commands_sent"), sent.load(Ordering::Relaxed).into());
+    out.insert(
+        s("commands_per_s"),
+        (sent.load(Ordering::Relaxed) as f64 / (phase_us as f64 / 1e6)).into(),
+    );
+    out.insert(s("latency_p99_ns_unloaded"), q.p99_ns.into());
+    out.insert(s("latency_p99_ns_loaded"), l.p99_ns.into());
+    out.insert(s("latency_p50_ns_unloaded"), q.p50_ns.into());
+    out.insert(s("latency_p50_ns_loaded"), l.p50_ns.into());
+    out.insert(s("latency_max_ns_unloaded"), q.max_ns.into());
+    out.insert(s("latency_max_ns_loaded"), l.max_ns.into());
+    out.insert(s("overruns_unloaded"), quiet.overruns.into());
+    out.insert(s("overruns_loaded"), loaded.overruns.into());
+    out.insert(s("limit_ns"), limit.into());
+    out.insert(s("within_limit"), ((l.p99_ns as f64) <= limit).into());
+    out.insert(s("primary_status"), plc.status().name().into());
+    Ok(out)
 }

@@ -21,6 +21,21 @@ pub struct BenchArgs {
 
 #[derive(clap::Subcommand, Debug)]
 enum What {
+    /// A fleet: N runtime processes on one Mosquitto, watched by one `cetratus mct`.
+    Fleet {
+        /// How many PLC processes.
+        #[arg(long, default_value_t = 50)]
+        n: usize,
+        /// Their scan period.
+        #[arg(long, default_value = "100ms")]
+        period: String,
+        /// How long to measure, wall time.
+        #[arg(long = "for", default_value = "30s")]
+        for_: String,
+        /// Print one JSON object.
+        #[arg(long)]
+        json: bool,
+    },
     /// Scan latency with and without a flood of MQTT commands (mixed valid and invalid).
     CommandLoad {
         /// Commands per second during the loaded phase.
@@ -55,6 +70,16 @@ enum What {
 
 /// Runs `cetratus bench`.
 pub fn run(args: &BenchArgs) -> anyhow::Result<()> {
+    if let Some(What::Fleet {
+        n,
+        period,
+        for_,
+        json,
+    }) = &args.what
+    {
+        let out = fleet(*n, period, parse_duration_us(for_)?)?;
+        return print(&out, *json || args.json);
+    }
     if let Some(What::CommandLoad {
         rate,
         for_,
@@ -282,4 +307,181 @@ fn command_load(
     out.insert(s("within_limit"), ((l.p99_ns as f64) <= limit).into());
     out.insert(s("primary_status"), plc.status().name().into());
     Ok(out)
+}
+
+/// Kills a child process when dropped.
+struct Child(std::process::Child);
+
+impl Drop for Child {
+    fn drop(&mut self) {
+        let _ = self.0.kill();
+        let _ = self.0.wait();
+    }
+}
+
+/// CPU seconds (user + system) a process has used, from /proc.
+fn cpu_seconds(pid: u32) -> anyhow::Result<f64> {
+    let stat = std::fs::read_to_string(format!("/proc/{pid}/stat"))?;
+    // Fields after the command name, which is in parentheses and may hold spaces.
+    let rest = stat.rsplit_once(')').map_or("", |(_, r)| r);
+    let f: Vec<&str> = rest.split_whitespace().collect();
+    let ticks = |i: usize| f.get(i).and_then(|v| v.parse::<f64>().ok()).unwrap_or(0.0);
+    // utime and stime are fields 14 and 15 of the whole line: 11 and 12 after the name.
+    Ok((ticks(11) + ticks(12)) / 100.0)
+}
+
+/// Starts a Mosquitto, `n` runtime processes publishing to it, and one `cetratus mct`; then
+/// measures, for `for_us` of wall time, the dashboard update latency (PLC publish → event
+/// delivered by the dashboard's stream) and the CPU the MCT uses.
+fn fleet(
+    n: usize,
+    period: &str,
+    for_us: u64,
+) -> anyhow::Result<BTreeMap<String, serde_json::Value>> {
+    use std::io::{BufRead, BufReader, Write};
+    use std::process::{Command, Stdio};
+    use std::time::{Duration, Instant};
+
+    let exe = std::env::current_exe()?;
+    let free = || -> anyhow::Result<u16> {
+        Ok(std::net::TcpListener::bind("127.0.0.1:0")?
+            .local_addr()?
+            .port())
+    };
+    let wait = |port: u16| {
+        let end = Instant::now() + Duration::from_secs(20);
+        while Instant::now() < end && std::net::TcpStream::connect(("127.0.0.1", port)).is_err() {
+            std::thread::sleep(Duration::from_millis(50));
+        }
+    };
+    let mosquitto = ["/usr/sbin/mosquitto", "/usr/bin/mosquitto"]
+        .into_iter()
+        .find(|p| std::path::Path::new(p).exists())
+        .ok_or_else(|| anyhow::anyhow!("mosquitto is missing: apt-get install mosquitto"))?;
+    let port = free()?;
+    let _broker = Child(
+        Command::new(mosquitto)
+            .args(["-p", &port.to_string()])
+            .stdout(Stdio::null())
+            .stderr(Stdio::null())
+            .spawn()?,
+    );
+    wait(port);
+    let dir = std::env::temp_dir().join(format!("cetratus-fleet-{}", std::process::id()));
+    std::fs::create_dir_all(&dir)?;
+    let program = program::examples_dir().join("vernadat/vernadat.toml");
+    let url = format!("mqtt://127.0.0.1:{port}");
+    let mut plcs = Vec::with_capacity(n);
+    for k in 0..n {
+        plcs.push(Child(
+            Command::new(&exe)
+                .arg("run")
+                .arg(&program)
+                .args([
+                    "--twin",
+                    "vernadat",
+                    "--period",
+                    period,
+                    "--for",
+                    "10h",
+                    "--no-dashboard",
+                    "--plc",
+                    &format!("cell{k}"),
+                    "--broker",
+                    &url,
+                    "--state-dir",
+                ])
+                .arg(dir.join(format!("cell{k}")))
+                .stdout(Stdio::null())
+                .stderr(Stdio::null())
+                .spawn()?,
+        ));
+    }
+    let http = free()?;
+    let mct = Child(
+        Command::new(&exe)
+            .args([
+                "mct",
+                "--http",
+                &format!("127.0.0.1:{http}"),
+                "--broker",
+                &url,
+            ])
+            .stdout(Stdio::null())
+            .stderr(Stdio::null())
+            .spawn()?,
+    );
+    wait(http);
+    // Let every PLC connect before measuring.
+    std::thread::sleep(Duration::from_secs(5));
+    let plcs_seen = {
+        let mut s = std::net::TcpStream::connect(("127.0.0.1", http))?;
+        write!(s, "GET /api/plcs HTTP/1.0\r\nHost: 127.0.0.1\r\n\r\n")?;
+        let mut body = String::new();
+        std::io::Read::read_to_string(&mut s, &mut body)?;
+        let json = body.split_once("\r\n\r\n").map_or("", |(_, b)| b);
+        serde_json::from_str::<serde_json::Value>(json)
+            .ok()
+            .and_then(|v| v.as_array().map(Vec::len))
+            .unwrap_or(0)
+    };
+    let cpu0 = cpu_seconds(mct.0.id())?;
+    let t0 = Instant::now();
+    // A stream client of the dashboard, as a browser is: latency of every io message of cell0.
+    let mut s = std::net::TcpStream::connect(("127.0.0.1", http))?;
+    s.set_read_timeout(Some(Duration::from_millis(500)))?;
+    write!(s, "GET /api/stream?plc=cell0 HTTP/1.0\r\nHost: 127.0.0.1\r\nAccept: text/event-stream\r\n\r\n")?;
+    let mut reader = BufReader::new(s);
+    let mut lat_ms: Vec<f64> = Vec::new();
+    let mut line = String::new();
+    while t0.elapsed() < Duration::from_micros(for_us) {
+        line.clear();
+        match reader.read_line(&mut line) {
+            Ok(0) => break,
+            Ok(_) => {}
+            Err(_) => continue,
+        }
+        let Some(data) = line.strip_prefix("data:") else {
+            continue;
+        };
+        let Ok(v) = serde_json::from_str::<serde_json::Value>(data.trim()) else {
+            continue;
+        };
+        if let Some(sent) = v["data"]["unix_ms"].as_f64() {
+            let now = std::time::SystemTime::now()
+                .duration_since(std::time::UNIX_EPOCH)
+                .map_or(0.0, |d| d.as_secs_f64() * 1e3);
+            lat_ms.push(now - sent);
+        }
+    }
+    let wall = t0.elapsed().as_secs_f64();
+    let cpu = cpu_seconds(mct.0.id())? - cpu0;
+    drop(plcs);
+    drop(mct);
+    let _ = std::fs::remove_dir_all(&dir);
+    lat_ms.sort_by(|a, b| a.total_cmp(b));
+    let q = |p: f64| {
+        lat_ms
+            .get(((lat_ms.len() as f64 - 1.0) * p).round() as usize)
+            .copied()
+            .unwrap_or(f64::NAN)
+    };
+    let mut out: BTreeMap<String, serde_json::Value> = BTreeMap::new();
+    out.insert(s_("plcs"), n.into());
+    out.insert(s_("plcs_seen_by_mct"), plcs_seen.into());
+    out.insert(s_("period"), period.into());
+    out.insert(s_("seconds"), wall.into());
+    out.insert(s_("io_messages_measured"), lat_ms.len().into());
+    out.insert(s_("update_latency_ms_p50"), q(0.5).into());
+    out.insert(s_("update_latency_ms_p99"), q(0.99).into());
+    out.insert(s_("update_latency_ms_max"), q(1.0).into());
+    out.insert(
+        s_("mct_cpu_percent_of_one_core"),
+        (100.0 * cpu / wall).into(),
+    );
+    Ok(out)
+}
+
+fn s_(key: &str) -> String {
+    key.to_string()
 }

@@ -69,6 +69,12 @@ pub struct RunArgs {
     /// Real-time runs without MQTT and dashboard.
     #[arg(long)]
     no_mct: bool,
+    /// Real-time runs with MQTT but without the dashboard (e.g. a fleet watched by one `cetratus mct`).
+    #[arg(long)]
+    no_dashboard: bool,
+    /// Override the program's scan period, e.g. `100ms`.
+    #[arg(long)]
+    period: Option<String>,
     /// Directory of trusted public keys for `load`.
     #[arg(long)]
     trust: Option<PathBuf>,
@@ -167,7 +173,10 @@ pub fn run(args: &RunArgs) -> anyhow::Result<()> {
         Some(dir) => cetratus_program::TrustStore::load_dir(dir)?,
         None => cetratus_program::TrustStore::empty(),
     };
-    let period_us = program.scan_period().as_micros() as u64;
+    let period_us = match &args.period {
+        Some(p) => parse_duration_us(p)?.max(1),
+        None => program.scan_period().as_micros() as u64,
+    };
     let state_dir = state_dir(args, program.name());
     let mut events: Vec<Event> = Vec::new();
     let (mut plc, mut persister) = match &state_dir {
@@ -182,6 +191,9 @@ pub fn run(args: &RunArgs) -> anyhow::Result<()> {
             (Plc::new(program.clone(), 0), None)
         }
     };
+    if args.period.is_some() {
+        plc.set_limits(cetratus_runtime::Limits::for_period_us(period_us));
+    }
     // Program time resumes after the last committed cycle; `--for`, `--at` and `--press` count
     // from the start of this run.
     let base_us = if plc.cycles() > 0 {
@@ -218,17 +230,26 @@ pub fn run(args: &RunArgs) -> anyhow::Result<()> {
                 args.http
             )
         })?;
-        let dashboard = cetratus_dashboard::serve(cetratus_dashboard::DashboardConfig {
-            http,
-            broker_url: broker_url.clone(),
-            user: args.mqtt.user.clone(),
-            password: args.mqtt.password.clone(),
-        })?;
+        let dashboard = if args.no_dashboard {
+            None
+        } else {
+            Some(cetratus_dashboard::serve(
+                cetratus_dashboard::DashboardConfig {
+                    http,
+                    broker_url: broker_url.clone(),
+                    user: args.mqtt.user.clone(),
+                    password: args.mqtt.password.clone(),
+                },
+            )?)
+        };
         if !args.json {
-            eprintln!(
-                "MQTT {broker_url} (topics cetratus/{plc_id}/…), dashboard http://{}/",
-                dashboard.local_addr()
-            );
+            match &dashboard {
+                Some(d) => eprintln!(
+                    "MQTT {broker_url} (topics cetratus/{plc_id}/…), dashboard http://{}/",
+                    d.local_addr()
+                ),
+                None => eprintln!("MQTT {broker_url} (topics cetratus/{plc_id}/…)"),
+            }
         }
         let speed = if args.speed.is_finite() && args.speed > 0.0 {
             args.speed
@@ -376,7 +397,9 @@ pub fn run(args: &RunArgs) -> anyhow::Result<()> {
     if let Some((node, handle, dashboard)) = mct {
         node.stop();
         handle.shutdown();
-        dashboard.stop();
+        if let Some(d) = dashboard {
+            d.stop();
+        }
     }
     events.extend(events_all);
     if let Some(e) = script_error {

@@ -595,11 +595,22 @@ fn outgoing_loop(
             if let Some(v) = exec_info.take() {
                 publish(&topics.exec_info, false, v.to_string().into_bytes(), None);
             }
-            if let Some(v) = io.take() {
+            if let Some(mut v) = io.take() {
+                // Stamped when it leaves, so a subscriber can measure the delivery latency.
+                if let Some(o) = v.as_object_mut() {
+                    o.insert("unix_ms".into(), Value::from(unix_ms()));
+                }
                 publish(&topics.io, false, v.to_string().into_bytes(), None);
             }
         }
     }
+}
+
+/// Wall-clock milliseconds since the Unix epoch.
+fn unix_ms() -> f64 {
+    std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map_or(0.0, |d| d.as_secs_f64() * 1e3)
 }
 
 #[cfg(test)]

@@ -71,12 +71,21 @@ pub fn family(name: &str, n: u32) -> Net {
     net.expect("the family generators build well-formed nets")
 }
 
-/// Explores `net` once (no liveness pass), as the bench measures it.
+/// Explores `net` once (no liveness pass, one thread), as the bench measures it.
 pub fn explore_once(net: &Net) -> ReachResult {
+    explore_with(net, 1)
+}
+
+/// Explores `net` once (no liveness pass) with `threads` threads.
+pub fn explore_with(net: &Net, threads: usize) -> ReachResult {
     let packing = structural_packing(net, DEFAULT_MAX_ROWS)
         .expect("structural bounds of the families")
         .expect("the families are structurally bounded");
-    explore(net, &packing, &ReachOptions::default()).expect("the families fit the packed explorer")
+    let opts = ReachOptions {
+        threads,
+        ..ReachOptions::default()
+    };
+    explore(net, &packing, &opts).expect("the families fit the packed explorer")
 }
 
 fn measure(family_name: &'static str, n: u32) -> NetFigures {

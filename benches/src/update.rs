@@ -84,6 +84,12 @@ pub struct UpdateFigures {
     pub quarantine_cycle_ns: f64,
     /// quarantine_cycle_ns / single_cycle_ns.
     pub quarantine_ratio: f64,
+    /// Mean ns of a full single-program cycle with the twin as the I/O driver.
+    pub single_cycle_twin_ns: f64,
+    /// Mean ns of a full quarantine cycle with the twin as the I/O driver.
+    pub quarantine_cycle_twin_ns: f64,
+    /// quarantine_cycle_twin_ns / single_cycle_twin_ns.
+    pub quarantine_ratio_twin: f64,
     /// Verify, parse and build the U.2 package away from the scan thread, µs (median).
     pub setup_us: f64,
     /// The in-cycle part of U.2's install (transform + install), µs (median).
@@ -97,7 +103,12 @@ fn median(mut v: Vec<f64>) -> f64 {
     v[v.len() / 2]
 }
 
-fn mean_cycle_ns(plc: &mut Plc, replay: &mut Replay, cycles: usize, start_us: u64) -> f64 {
+fn mean_cycle_ns<IO: Provider + Dispatcher>(
+    plc: &mut Plc,
+    replay: &mut IO,
+    cycles: usize,
+    start_us: u64,
+) -> f64 {
     let t0 = Instant::now();
     for k in 0..cycles {
         plc.cycle(start_us + k as u64 * 10_000, replay);
@@ -138,6 +149,37 @@ pub fn update_figures(quick: bool) -> UpdateFigures {
     let single_cycle_ns = median(single);
     let quarantine_cycle_ns = median(quarantine);
 
+    // The same with the twin as Provider and Dispatcher: the cycle the cell actually runs.
+    let mut single_t = Vec::new();
+    let mut quarantine_t = Vec::new();
+    for _ in 0..rounds {
+        let twin = |p: &Arc<Program>| {
+            cetratus_io::TwinDriver::new(
+                cetratus_twin::TwinKind::Vernadat.build(1),
+                p.inputs(),
+                p.outputs(),
+            )
+            .expect("signals match")
+        };
+        let mut io = twin(&vernadat);
+        let mut plc = Plc::new(vernadat.clone(), 0);
+        single_t.push(mean_cycle_ns(&mut plc, &mut io, cycles, 0));
+
+        let mut io = twin(&vernadat);
+        let mut plc = Plc::new(vernadat.clone(), 0);
+        let prepared = plc
+            .update_context()
+            .prepare_package(&pk.u1, &pk.trust, false, false)
+            .expect("U.1 prepares");
+        plc.command(Command::Load(Box::new(prepared)))
+            .expect("accepted");
+        plc.cycle(0, &mut io);
+        quarantine_t.push(mean_cycle_ns(&mut plc, &mut io, cycles, 10_000));
+        drop(plc.drain_events());
+    }
+    let single_cycle_twin_ns = median(single_t);
+    let quarantine_cycle_twin_ns = median(quarantine_t);
+
     // Setup of U.2 against a PLC running U.1.
     let u1_program =
         Arc::new(Program::load(&examples_dir().join("vernadat/u1.toml")).expect("U.1 loads"));
@@ -175,6 +217,9 @@ pub fn update_figures(quick: bool) -> UpdateFigures {
         single_cycle_ns,
         quarantine_cycle_ns,
         quarantine_ratio: quarantine_cycle_ns / single_cycle_ns,
+        single_cycle_twin_ns,
+        quarantine_cycle_twin_ns,
+        quarantine_ratio_twin: quarantine_cycle_twin_ns / single_cycle_twin_ns,
         setup_us: median(setup),
         state_transform_us,
         state_transform_100k_places_us,

@@ -111,6 +111,7 @@ fn behaviour(
         cancel: opts.cancel.clone(),
         progress: opts.progress.clone(),
         liveness: true,
+        threads: opts.threads,
     };
     let bounds: Vec<u64> = if known.iter().all(Option::is_some) {
         notes.push(

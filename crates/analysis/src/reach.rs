@@ -25,6 +25,8 @@ use cetratus_net::{Net, PlaceIdx, TransIdx};
 
 use crate::{AnalysisError, Progress, ProgressFn};
 
+mod par;
+
 /// Bits a state may use at most in the packed explorer.
 pub const MAX_BITS: usize = 32 * 63;
 
@@ -117,6 +119,9 @@ pub struct ReachOptions {
     pub progress: Option<ProgressFn>,
     /// Compute terminal SCCs, liveness and reversibility after a complete exploration.
     pub liveness: bool,
+    /// Threads of the exploration: 0 or 1 run the sequential explorer, 2 or more the parallel one
+    /// (same states, ids, counts and witness; more memory per state).
+    pub threads: usize,
 }
 
 /// What the terminal strongly connected components say.
@@ -259,6 +264,10 @@ impl<const W: usize> Compiled<W> {
 }
 
 const CHUNK_BITS: u32 = 16;
+
+/// States whose successors are computed ahead of the one being inserted (see `explore_w`).
+const AHEAD: usize = 16;
+const RING: usize = AHEAD + 1;
 
 /// An append-only array in fixed chunks, so that growing never copies (no reallocation peak).
 struct Chunked<T: Copy> {
@@ -440,6 +449,9 @@ pub fn explore(
 }
 
 fn explore_w<const W: usize>(net: &Net, pk: &Packing, opts: &ReachOptions) -> ReachResult {
+    if opts.threads >= 2 {
+        return par::explore_par::<W>(net, pk, opts);
+    }
     let nt = net.num_transitions();
     let np = net.num_places();
     let code = Compiled::<W>::new(net, pk);
@@ -460,7 +472,9 @@ fn explore_w<const W: usize>(net: &Net, pk: &Packing, opts: &ReachOptions) -> Re
     };
     observe(&k0);
     let mut enabled_ever = vec![false; nt];
-    let mut batch: Vec<([u64; W], u64)> = Vec::with_capacity(nt);
+    // Successor buffers of the states from `cur` to `ready - 1`, indexed by state id mod RING.
+    let mut ring: Vec<Vec<(u32, [u64; W], u64)>> = vec![Vec::with_capacity(nt); RING];
+    let mut ready = 0usize;
     let (mut edges, mut deadlocks) = (0u64, 0u64);
     let mut first_dead: Option<usize> = None;
     let mut stopped = None;
@@ -484,27 +498,34 @@ fn explore_w<const W: usize>(net: &Net, pk: &Packing, opts: &ReachOptions) -> Re
                 });
             }
         }
-        let key = states.get(cur);
-        let mut any = false;
-        batch.clear();
-        for (t, ever) in enabled_ever.iter_mut().enumerate() {
-            if code.enabled(&key, t) {
-                any = true;
-                *ever = true;
-                let succ = code.fire(&key, t);
-                batch.push((succ, hash(&succ)));
+        // Successors of the next few states are computed and their slots touched ahead of their
+        // insertion, so the cache misses of several states overlap with the work on this one.
+        while ready < states.len && ready <= cur + AHEAD {
+            let buf = &mut ring[ready % RING];
+            buf.clear();
+            let key = states.get(ready);
+            for t in 0..nt {
+                if code.enabled(&key, t) {
+                    let succ = code.fire(&key, t);
+                    buf.push((t as u32, succ, hash(&succ)));
+                }
             }
+            for &(_, _, h) in buf.iter() {
+                table.touch(h);
+            }
+            ready += 1;
         }
+        let batch = &ring[cur % RING];
         edges += batch.len() as u64;
         let grows = table.grows;
         table.reserve(batch.len());
         if table.grows != grows {
             peak_bytes = peak_bytes.max(table.transient_bytes + states.bytes() + parents.bytes());
         }
-        for &(_, h) in &batch {
-            table.touch(h);
+        for &(t, _, _) in batch {
+            enabled_ever[t as usize] = true;
         }
-        for (succ, h) in &batch {
+        for (_, succ, h) in batch {
             let id = states.len as u32;
             if table.insert_hashed(succ, *h, id) {
                 if states.len as u64 >= max_states {
@@ -517,27 +538,14 @@ fn explore_w<const W: usize>(net: &Net, pk: &Packing, opts: &ReachOptions) -> Re
                 observe(succ);
             }
         }
-        if !any {
+        if batch.is_empty() {
             deadlocks += 1;
             first_dead.get_or_insert(cur);
         }
         cur += 1;
     }
     let peak_bytes = peak_bytes.max(table.bytes() + states.bytes() + parents.bytes());
-    let deadlock_witness = first_dead.map(|d| {
-        let mut path = Vec::new();
-        let mut v = d;
-        while parents.get(v) != u32::MAX {
-            let u = parents.get(v) as usize;
-            let (ku, kv) = (states.get(u), states.get(v));
-            if let Some(t) = (0..nt).find(|&t| code.enabled(&ku, t) && code.fire(&ku, t) == kv) {
-                path.push(TransIdx(t as u32));
-            }
-            v = u;
-        }
-        path.reverse();
-        path
-    });
+    let deadlock_witness = deadlock_witness(&code, &states, &parents, first_dead, nt);
     let liveness = (opts.liveness && stopped.is_none()).then(|| tarjan(&code, &table, &states, nt));
     ReachResult {
         states: states.len as u64,
@@ -554,6 +562,30 @@ fn explore_w<const W: usize>(net: &Net, pk: &Packing, opts: &ReachOptions) -> Re
         peak_bytes,
         bits_per_state: pk.bits,
     }
+}
+
+/// The firing sequence along the BFS parents from M0 to `first_dead`.
+fn deadlock_witness<const W: usize>(
+    code: &Compiled<W>,
+    states: &Chunked<[u64; W]>,
+    parents: &Chunked<u32>,
+    first_dead: Option<usize>,
+    nt: usize,
+) -> Option<Vec<TransIdx>> {
+    first_dead.map(|d| {
+        let mut path = Vec::new();
+        let mut v = d;
+        while parents.get(v) != u32::MAX {
+            let u = parents.get(v) as usize;
+            let (ku, kv) = (states.get(u), states.get(v));
+            if let Some(t) = (0..nt).find(|&t| code.enabled(&ku, t) && code.fire(&ku, t) == kv) {
+                path.push(TransIdx(t as u32));
+            }
+            v = u;
+        }
+        path.reverse();
+        path
+    })
 }
 
 /// Iterative Tarjan over the implicit graph (successors are recomputed from the packed states),

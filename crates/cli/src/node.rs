@@ -67,7 +67,7 @@ fn program_info(plc: &Plc, s: Slot) -> Option<ProgramInfo> {
     plc.container(s).map(|c| ProgramInfo {
         name: c.program().name().to_string(),
         version: c.program().version().to_string(),
-        hash: c.program().hash_hex(),
+        hash: c.program().hash_hex().to_string(),
     })
 }
 
@@ -204,7 +204,7 @@ impl Node {
         self.queue_events(events);
         let hash = |s: Slot| {
             plc.container(s)
-                .map_or(String::new(), |c| c.program().hash_hex())
+                .map_or(String::new(), |c| c.program().hash_hex().to_string())
         };
         let key = (plc.primary(), plc.status(), hash(Slot::A), hash(Slot::B));
         let changed = key != self.last_key;

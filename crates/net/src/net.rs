@@ -1,6 +1,6 @@
 //! The net as data: places, transitions, arcs, and the sparse tables derived from them.
 
-use std::collections::HashMap;
+use rustc_hash::FxHashMap as HashMap;
 
 use crate::{Csr, NetError, Tokens};
 
@@ -504,9 +504,9 @@ impl NetBuilder {
         let np = self.places.len();
         let nt = self.transitions.len();
         // Parallel arcs add up; parallel inhibitor arcs keep the strictest threshold.
-        let mut pre: HashMap<(u32, u32), u64> = HashMap::new();
-        let mut post: HashMap<(u32, u32), u64> = HashMap::new();
-        let mut inh: HashMap<(u32, u32), Tokens> = HashMap::new();
+        let mut pre: HashMap<(u32, u32), u64> = HashMap::default();
+        let mut post: HashMap<(u32, u32), u64> = HashMap::default();
+        let mut inh: HashMap<(u32, u32), Tokens> = HashMap::default();
         for a in &self.arcs {
             match (a.source, a.target, a.kind) {
                 (NodeRef::Place(p), NodeRef::Transition(t), ArcKind::Normal) => {
@@ -543,7 +543,7 @@ impl NetBuilder {
         post_pairs.sort_unstable_by_key(|&(t, (p, _))| (t, p));
         inh_pairs.sort_unstable_by_key(|&(t, (p, _))| (t, p));
 
-        let mut delta_map: HashMap<(u32, u32), i64> = HashMap::new();
+        let mut delta_map: HashMap<(u32, u32), i64> = HashMap::default();
         for &(t, (p, w)) in &pre_pairs {
             *delta_map.entry((t, p.0)).or_default() -= i64::from(w);
         }

@@ -18,12 +18,12 @@
 //! transition is kept as text and written back unchanged (page-level ones move to the net).
 //! Tool-specific data on arcs is dropped, because [`crate::Arc`] has nowhere to keep it.
 
+use rustc_hash::{FxHashMap as HashMap, FxHashSet as HashSet};
 use std::borrow::Cow;
-use std::collections::{HashMap, HashSet};
 use std::fmt::Write as _;
 use std::path::Path;
 
-use roxmltree::{Document, Node, NodeId};
+use crate::xml::{Document, Node};
 
 use crate::{
     ArcKind, Net, NetBuilder, NetError, NodeRef, Place, Position, SourcePos, Tokens, ToolSpecific,
@@ -82,23 +82,21 @@ pub fn read_bytes(bytes: &[u8], file_label: &str) -> Result<Net, NetError> {
 pub fn read_str(text: &str, file_label: &str) -> Result<Net, NetError> {
     let text = text.strip_prefix('\u{feff}').unwrap_or(text);
     let doc = Document::parse(text).map_err(|e| {
-        let pos = e.pos();
-        let full = e.to_string();
-        let suffix = format!(" at {pos}");
-        let what = full.strip_suffix(&suffix).unwrap_or(&full);
+        let (line, column) = Document::text_pos_at_in(text, e.offset);
         NetError::Syntax {
             pos: SourcePos {
                 file: file_label.to_string(),
-                line: pos.row,
-                column: pos.col,
+                line,
+                column,
             },
             message: format!(
-                "not well-formed XML: {what}; fix the XML (an editor that checks XML helps)"
+                "not well-formed XML: {}; fix the XML (an editor that checks XML helps)",
+                e.message
             ),
         }
     })?;
     let root = doc.root_element();
-    let dialect = if root.tag_name().namespace() == Some(PNML_NS) {
+    let dialect = if root.namespace() == Some(PNML_NS) {
         Dialect::Iso
     } else {
         Dialect::Pipe
@@ -114,13 +112,11 @@ pub fn read_str(text: &str, file_label: &str) -> Result<Net, NetError> {
 /// Detects the dialect of a PNML text, or `None` when it is not well-formed XML.
 pub fn detect_dialect(text: &str) -> Option<Dialect> {
     let doc = Document::parse(text.strip_prefix('\u{feff}').unwrap_or(text)).ok()?;
-    Some(
-        if doc.root_element().tag_name().namespace() == Some(PNML_NS) {
-            Dialect::Iso
-        } else {
-            Dialect::Pipe
-        },
-    )
+    Some(if doc.root_element().namespace() == Some(PNML_NS) {
+        Dialect::Iso
+    } else {
+        Dialect::Pipe
+    })
 }
 
 #[derive(Clone, Copy, PartialEq, Eq)]
@@ -172,11 +168,11 @@ struct Reader<'a, 'i> {
 
 impl<'a, 'i: 'a> Reader<'a, 'i> {
     fn pos(&self, node: Node) -> SourcePos {
-        let p = self.doc.text_pos_at(node.range().start);
+        let (line, column) = self.doc.text_pos_at(node.range().start);
         SourcePos {
             file: self.file.to_string(),
-            line: p.row,
-            column: p.col,
+            line,
+            column,
         }
     }
 
@@ -188,12 +184,12 @@ impl<'a, 'i: 'a> Reader<'a, 'i> {
     }
 
     fn read(&self, root: Node<'a, 'i>) -> Result<Net, NetError> {
-        if root.tag_name().name() != "pnml" {
+        if root.name() != "pnml" {
             return Err(self.err(
                 root,
                 format!(
                     "the root element is <{}>, not <pnml>; a PNML file starts with <pnml> and holds one <net>",
-                    root.tag_name().name()
+                    root.name()
                 ),
             ));
         }
@@ -260,18 +256,15 @@ impl<'a, 'i: 'a> Reader<'a, 'i> {
         let mut items = Items::default();
         // Pages are containers only if their parent is one, so a <place> inside a tool's own data
         // is not mistaken for a place of the net.
-        let mut containers: HashSet<NodeId> = HashSet::new();
+        let mut containers: HashSet<u32> = HashSet::default();
         containers.insert(net.id());
-        let mut ids: HashMap<&'a str, Node<'a, 'i>> = HashMap::new();
+        let mut ids: HashMap<&'a str, Node<'a, 'i>> = HashMap::default();
         for node in net.descendants().skip(1) {
-            if !node.is_element() {
-                continue;
-            }
             match node.parent() {
                 Some(parent) if containers.contains(&parent.id()) => {}
                 _ => continue,
             }
-            let tag = node.tag_name().name();
+            let tag = node.name();
             match tag {
                 "page" => {
                     containers.insert(node.id());
@@ -315,7 +308,7 @@ impl<'a, 'i: 'a> Reader<'a, 'i> {
                 node,
                 format!(
                     "<{}> has no id; give it an attribute id=\"...\" that no other element uses",
-                    node.tag_name().name()
+                    node.name()
                 ),
             )),
         }
@@ -327,7 +320,7 @@ impl<'a, 'i: 'a> Reader<'a, 'i> {
                 node,
                 format!(
                     "<{}> has no `{attr}` attribute; add {attr}=\"...\"",
-                    node.tag_name().name()
+                    node.name()
                 ),
             )
         })
@@ -359,8 +352,8 @@ impl<'a, 'i: 'a> Reader<'a, 'i> {
         let mut place = Place::new(self.id_of(node)?, 0);
         let mut pipe_capacity = None;
         let mut own_capacity = None;
-        for c in node.children().filter(Node::is_element) {
-            match c.tag_name().name() {
+        for c in node.children() {
+            match c.name() {
                 "name" => place.name = self.name(c),
                 "initialMarking" => place.initial = self.count(c, 0, "initial marking")?,
                 // PIPE writes 0 for an unbounded place.
@@ -380,8 +373,8 @@ impl<'a, 'i: 'a> Reader<'a, 'i> {
     fn transition(&self, node: Node<'a, 'i>) -> Result<Transition, NetError> {
         let mut t = Transition::new(self.id_of(node)?);
         let mut own_priority = None;
-        for c in node.children().filter(Node::is_element) {
-            match c.tag_name().name() {
+        for c in node.children() {
+            match c.name() {
                 "name" => t.name = self.name(c),
                 "graphics" => t.position = self.position(c)?,
                 "priority" => {
@@ -456,8 +449,8 @@ impl<'a, 'i: 'a> Reader<'a, 'i> {
         if node.attribute("tool") != Some(TOOL) || node.attribute("version") != Some(TOOL_VERSION) {
             return Ok(None);
         }
-        let kids: Vec<Node> = node.children().filter(Node::is_element).collect();
-        let known = |n: &Node| matches!(n.tag_name().name(), "capacity" | "priority" | "arcType");
+        let kids: Vec<Node> = node.children().collect();
+        let known = |n: &Node| matches!(n.name(), "capacity" | "priority" | "arcType");
         if kids.is_empty() || !kids.iter().all(known) {
             return Ok(None);
         }
@@ -465,7 +458,7 @@ impl<'a, 'i: 'a> Reader<'a, 'i> {
         for k in kids {
             let raw = k.text().unwrap_or("");
             let text = raw.trim();
-            match k.tag_name().name() {
+            match k.name() {
                 "capacity" => {
                     let cap = parse_number(text)
                         .map_err(|e| self.err(k, count_message("capacity", text, e)))?;
@@ -492,17 +485,17 @@ impl<'a, 'i: 'a> Reader<'a, 'i> {
         refs: &[(Node<'a, 'i>, RefKind)],
         b: &NetBuilder,
     ) -> Result<HashMap<&'a str, NodeRef>, NetError> {
-        let mut decl: HashMap<&'a str, (Node<'a, 'i>, RefKind, &'a str)> = HashMap::new();
+        let mut decl: HashMap<&'a str, (Node<'a, 'i>, RefKind, &'a str)> = HashMap::default();
         for &(node, kind) in refs {
             let id = self.id_of(node)?;
             let target = self.required_attr(node, "ref")?;
             decl.insert(id, (node, kind, target));
         }
-        let mut resolved: HashMap<&'a str, NodeRef> = HashMap::new();
+        let mut resolved: HashMap<&'a str, NodeRef> = HashMap::default();
         for &(node, _) in refs {
             let start = self.id_of(node)?;
             let mut chain: Vec<&'a str> = vec![start];
-            let mut seen: HashSet<&'a str> = HashSet::from([start]);
+            let mut seen: HashSet<&'a str> = std::iter::once(start).collect();
             let mut cur = start;
             let end = loop {
                 if let Some(&r) = resolved.get(cur) {
@@ -605,8 +598,8 @@ impl<'a, 'i: 'a> Reader<'a, 'i> {
         let mut kind = ArcKind::Normal;
         let mut path = Vec::new();
         let mut pipe_path = Vec::new();
-        for c in node.children().filter(Node::is_element) {
-            match c.tag_name().name() {
+        for c in node.children() {
+            match c.name() {
                 "inscription" => weight = self.count(c, 1, "arc weight")?,
                 "graphics" => {
                     for p in c.children().filter(|n| is(n, "position")) {
@@ -646,7 +639,7 @@ impl<'a, 'i: 'a> Reader<'a, 'i> {
 }
 
 fn is(node: &Node, name: &str) -> bool {
-    node.is_element() && node.tag_name().name() == name
+    node.name() == name
 }
 
 fn child<'a, 'i>(node: Node<'a, 'i>, name: &str) -> Option<Node<'a, 'i>> {

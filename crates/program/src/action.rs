@@ -75,6 +75,11 @@ pub struct ActionState {
     on: Vec<bool>,
     reset: Vec<bool>,
     deadline: Option<u64>,
+    // The outputs of the last scan hold until a place changes, a pulse ends or a timer is due:
+    // a scan with none of these leaves them as they are, at no cost.
+    settled: bool,
+    pulsed: bool,
+    quiet: bool,
 }
 
 impl ActionState {
@@ -86,6 +91,9 @@ impl ActionState {
             on: vec![false; n],
             reset: vec![false; n],
             deadline: None,
+            settled: false,
+            pulsed: false,
+            quiet: false,
         }
     }
 
@@ -114,7 +122,9 @@ impl ActionState {
     /// `marking` is the marking after the update; `changes` lists the places whose count changed
     /// in this scan with their old count (`cetratus_net::Engine::changes()`); `place_since_us` is
     /// already updated for this scan. Outputs no action drives are set to their type's zero;
-    /// variables no action drives are left alone. Never allocates.
+    /// variables no action drives are left alone. `outputs` and `vars` must be the buffers of the
+    /// previous scan: a scan in which no place changed, no pulse ends and no timer is due leaves them
+    /// as they are. Never allocates.
     #[allow(clippy::too_many_arguments)]
     pub fn apply(
         &mut self,
@@ -126,6 +136,11 @@ impl ActionState {
         outputs: &mut [Value],
         vars: &mut [Value],
     ) {
+        if self.settled && changes.is_empty() && self.deadline.is_none_or(|d| now_us < d) {
+            self.quiet = true;
+            return;
+        }
+        self.quiet = false;
         self.begin();
         for &(p, old) in changes {
             let new = marking.get(p.index()).copied().unwrap_or(0);
@@ -136,6 +151,12 @@ impl ActionState {
             }
         }
         self.finish(program, marking, place_since_us, now_us, outputs, vars);
+    }
+
+    /// True when the last `apply` changed nothing: no place changed, no pulse ended, no timer was
+    /// due, so outputs and variables are as before.
+    pub fn last_was_quiet(&self) -> bool {
+        self.quiet
     }
 
     /// The earliest future time at which an L or D action of a marked place changes its output,
@@ -155,9 +176,11 @@ impl ActionState {
         for (l, &v) in self.latch.iter_mut().zip(latches) {
             *l = v;
         }
+        self.settled = false;
     }
 
     fn begin(&mut self) {
+        self.pulsed = false;
         self.on.iter_mut().for_each(|b| *b = false);
         self.reset.iter_mut().for_each(|b| *b = false);
         self.deadline = None;
@@ -174,7 +197,10 @@ impl ActionState {
             let cell = match (q, entered) {
                 (Qualifier::S, true) => self.latch.get_mut(slot),
                 (Qualifier::R, true) => self.reset.get_mut(slot),
-                (Qualifier::P1, true) | (Qualifier::P0, false) => self.on.get_mut(slot),
+                (Qualifier::P1, true) | (Qualifier::P0, false) => {
+                    self.pulsed = true;
+                    self.on.get_mut(slot)
+                }
                 _ => None,
             };
             if let Some(c) = cell {
@@ -238,5 +264,7 @@ impl ActionState {
                 *c = v;
             }
         }
+        // A pulse lasts one scan: the next scan must take it back.
+        self.settled = !self.pulsed;
     }
 }

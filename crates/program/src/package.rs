@@ -331,7 +331,7 @@ impl UpdatePackage {
         if !force && self.meta.base_program_hash != running {
             return Err(PackageError::BaseMismatch {
                 package_base: self.meta.base_program_hash.clone(),
-                running,
+                running: running.to_string(),
                 running_name: old.name().to_string(),
                 running_version: old.version().to_string(),
             });
@@ -933,7 +933,7 @@ pub fn build_package_at(
         author: m.package.author.clone(),
         description: m.package.description.clone(),
         created: rfc3339_utc(created_unix_secs),
-        base_program_hash: base.hash_hex(),
+        base_program_hash: base.hash_hex().to_string(),
     };
     let payload = Payload {
         format: PAYLOAD_FORMAT.to_string(),
@@ -986,7 +986,7 @@ pub fn build_package_at(
         meta,
         program_name: new.name().to_string(),
         program_version: new.version().to_string(),
-        program_hash: new.hash_hex(),
+        program_hash: new.hash_hex().to_string(),
         base_program: format!("{} {}", base.name(), base.version()),
         transform_kind: payload.transform.kind(),
         transform: transform.to_dense(),

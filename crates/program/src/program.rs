@@ -48,7 +48,8 @@ pub struct Program {
     place_actions: Vec<u32>,
     invariants: Vec<Invariant>,
     source: String,
-    hash: [u8; 32],
+    // Computed on first use: loading a program does not need its identity, an update does.
+    hash: std::sync::OnceLock<([u8; 32], String)>,
 }
 
 impl Program {
@@ -281,7 +282,6 @@ impl Program {
             invariants.push(inv);
         }
 
-        let hash = hash(o.text, &net);
         Ok(Program {
             name: p.name.get_ref().clone(),
             version: p.version.get_ref().clone(),
@@ -300,7 +300,7 @@ impl Program {
             place_actions,
             invariants,
             source: o.text.to_string(),
-            hash,
+            hash: std::sync::OnceLock::new(),
         })
     }
 
@@ -385,11 +385,17 @@ impl Program {
     }
     /// SHA-256 over the program text and a canonical serialization of the net.
     pub fn hash(&self) -> [u8; 32] {
-        self.hash
+        self.identity().0
     }
     /// [`Program::hash`] in lowercase hex.
-    pub fn hash_hex(&self) -> String {
-        hex::encode(self.hash)
+    pub fn hash_hex(&self) -> &str {
+        &self.identity().1
+    }
+    fn identity(&self) -> &([u8; 32], String) {
+        self.hash.get_or_init(|| {
+            let h = hash(&self.source, &self.net);
+            (h, hex::encode(h))
+        })
     }
 
     /// The compiled guard of a transition, if it has one.

@@ -24,6 +24,12 @@ pub struct Container {
     outputs: Vec<Value>,
     firings: Vec<u64>,
     scans: u64,
+    // Transitions whose guard reads a place timer: their guard can change with time alone.
+    timed_guard: Vec<bool>,
+    // The next scan must run in full (state was replaced from outside).
+    force_full: bool,
+    // Tests compare against a container that never takes the quiet path.
+    always_full: bool,
 }
 
 /// Why a transition did not fire in a container's last scan.
@@ -87,7 +93,17 @@ impl Container {
         let vars: Vec<Value> = program.variables().iter().map(|s| s.initial).collect();
         let outputs: Vec<Value> = program.outputs().iter().map(|s| s.initial).collect();
         let actions = ActionState::new(&program);
+        let timed_guard = (0..program.net().num_transitions() as u32)
+            .map(|t| {
+                program
+                    .guard(TransIdx(t))
+                    .is_some_and(|g| !g.timers().is_empty())
+            })
+            .collect();
         Container {
+            timed_guard,
+            force_full: true,
+            always_full: false,
             firings: vec![0; program.net().num_transitions()],
             marking_at_start: marking,
             place_since_us,
@@ -155,6 +171,10 @@ impl Container {
                 got: inputs.len(),
             });
         }
+        if self.is_quiet(inputs) {
+            return Ok(self.quiet_scan(now_us));
+        }
+        self.force_full = false;
         if self.scans == 0 {
             // No edge on the first scan: rise/fall compare against the same image.
             self.prev_inputs.copy_from_slice(inputs);
@@ -177,6 +197,10 @@ impl Container {
             .engine
             .scan(policy, |t| program.eval_guard(t, &ctx))
             .map(|f| f.len());
+        if result.is_err() {
+            // The failing guard must fail again on the next scan, not be skipped as quiet.
+            self.force_full = true;
+        }
         let fired = match result {
             Ok(n) => n,
             Err(FireError::Guard { transition, error }) => {
@@ -233,6 +257,54 @@ impl Container {
         })
     }
 
+    /// Whether this scan can be skipped: nothing fired in the last scan, the input image has not
+    /// changed for two scans (so `rise`/`fall` are false as they were), the actions changed no
+    /// variable, and no enabled transition has a guard on a place timer. Then every guard gives
+    /// what it gave in the last scan, which fired nothing: this scan fires nothing either. This is
+    /// what makes a scan cost what the activity costs (DESIGN §3).
+    fn is_quiet(&self, inputs: &[Value]) -> bool {
+        !self.always_full
+            && !self.force_full
+            && self.scans > 0
+            && self.engine.fired().is_empty()
+            && self.actions.last_was_quiet()
+            && inputs == self.inputs.as_slice()
+            && self.prev_inputs == self.inputs
+            && !self
+                .engine
+                .enabled()
+                .iter()
+                .any(|t| self.timed_guard[t.index()])
+    }
+
+    /// A scan that fires nothing: the actions still run, for the L and D timers.
+    fn quiet_scan(&mut self, now_us: u64) -> ScanOutcome {
+        self.actions.apply(
+            &self.program,
+            self.engine.marking(),
+            &[],
+            &self.place_since_us,
+            now_us,
+            &mut self.outputs,
+            &mut self.vars,
+        );
+        self.scans += 1;
+        ScanOutcome {
+            fired: 0,
+            deadlocked: self.engine.enabled().is_empty(),
+        }
+    }
+
+    /// False when the last scan certainly left the outputs and variables as they were.
+    pub fn outputs_may_have_changed(&self) -> bool {
+        !self.actions.last_was_quiet()
+    }
+
+    /// Makes every scan run in full, for comparing against the quiet path in tests.
+    pub fn set_always_full(&mut self, on: bool) {
+        self.always_full = on;
+    }
+
     /// Replaces the marking and place timers without allocating (an update's install, a
     /// retransform at substitution). The next scan enters every marked place, as a first scan does.
     pub fn set_state(
@@ -250,6 +322,7 @@ impl Container {
         self.marking_at_start.copy_from_slice(marking);
         self.place_since_us.copy_from_slice(place_since_us);
         self.scans = 0;
+        self.force_full = true;
         Ok(())
     }
 
@@ -309,6 +382,7 @@ impl Container {
         if latches.len() == self.actions.latches().len() {
             self.actions.set_latches(latches);
         }
+        self.force_full = true;
     }
 
     /// Writes the program's declared safe output values into `out`.

@@ -194,7 +194,7 @@ impl ProgramId {
         ProgramId {
             name: p.name().to_string(),
             version: p.version().to_string(),
-            hash: p.hash_hex(),
+            hash: p.hash_hex().to_string(),
         }
     }
 }

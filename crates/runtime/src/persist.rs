@@ -436,7 +436,7 @@ impl StateStore {
     /// Stores a program under its hash, once per process (idempotent). The files are read back and
     /// must load to the same hash, so a snapshot never refers to a program that cannot come back.
     pub fn save_program(&mut self, program: &Program) -> Result<(), PersistError> {
-        let hash = program.hash_hex();
+        let hash = program.hash_hex().to_string();
         if self.saved.contains(&hash) {
             return Ok(());
         }
@@ -483,7 +483,7 @@ impl StateStore {
                 path: label.clone(),
                 reason: e.to_string(),
             })?;
-        let got = program.hash_hex();
+        let got = program.hash_hex().to_string();
         if got != hash {
             return Err(PersistError::ProgramMismatch {
                 hash: hash.to_string(),

@@ -235,6 +235,12 @@ pub struct Plc {
     in_maps: [Vec<usize>; 2],
     out_maps: [Vec<Option<usize>>; 2],
     io_outs: [Vec<Value>; 2],
+    // Bit masks of the images, kept up to date only when an image changes.
+    in_bits: u64,
+    out_bits: [u64; 2],
+    inputs_changed: bool,
+    // A container's input image or mapped outputs must be rebuilt (new install, warm start).
+    stale: [bool; 2],
     dispatched: Vec<Value>,
     safe: Vec<Value>,
     stopwatch: Box<dyn Stopwatch>,
@@ -282,6 +288,10 @@ impl Plc {
                 vec![Value::Bool(false); io_outputs.len()],
                 vec![Value::Bool(false); io_outputs.len()],
             ],
+            in_bits: bits(container.inputs()),
+            out_bits: [0, 0],
+            inputs_changed: true,
+            stale: [true, true],
             inputs: container.inputs().to_vec(),
             prev_inputs: container.inputs().to_vec(),
             dispatched: vec![Value::Bool(false); io_outputs.len()],
@@ -595,6 +605,8 @@ impl Plc {
                     ));
                 }
                 self.status = Status::Idle;
+                // Inputs kept changing while in fault; rebuild the images at the next scan.
+                self.stale = [true, true];
                 self.event(
                     "reset",
                     "fault reset by the operator: the primary resumes from its last good state"
@@ -622,6 +634,10 @@ impl Plc {
         self.boundary(now_us);
         self.prev_inputs.copy_from_slice(&self.inputs);
         io.read_inputs(now_us, &mut self.inputs);
+        self.inputs_changed = self.inputs != self.prev_inputs;
+        if self.inputs_changed {
+            self.in_bits = bits(&self.inputs);
+        }
 
         if self.status == Status::Fault {
             io.write_outputs(now_us, &self.safe);
@@ -722,8 +738,10 @@ impl Plc {
         now_us: u64,
         mark: &mut quanta::Instant,
     ) -> Result<(), RuntimeError> {
-        for (v, &j) in self.images[i].iter_mut().zip(&self.in_maps[i]) {
-            *v = self.inputs[j];
+        if self.inputs_changed || self.stale[i] {
+            for (v, &j) in self.images[i].iter_mut().zip(&self.in_maps[i]) {
+                *v = self.inputs[j];
+            }
         }
         let c = self.slots[i]
             .as_mut()
@@ -736,9 +754,13 @@ impl Plc {
         *mark = end;
         self.monitor.stats[i].scan.record(took);
         r?;
-        for (o, m) in self.io_outs[i].iter_mut().zip(&self.out_maps[i]) {
-            *o = m.map_or(Value::Bool(false), |k| c.outputs()[k]);
+        if c.outputs_may_have_changed() || self.stale[i] {
+            for (o, m) in self.io_outs[i].iter_mut().zip(&self.out_maps[i]) {
+                *o = m.map_or(Value::Bool(false), |k| c.outputs()[k]);
+            }
+            self.out_bits[i] = bits(&self.io_outs[i]);
         }
+        self.stale[i] = false;
         if i == self.primary.index() && took > self.limits.watchdog_ns {
             return Err(RuntimeError::Watchdog {
                 took_us: took / 1000,
@@ -863,17 +885,22 @@ impl Plc {
         let out = |s: Slot| {
             self.slots[s.index()]
                 .as_ref()
-                .map(|_| bits(&self.io_outs[s.index()]))
+                .map(|_| self.out_bits[s.index()])
+        };
+        let dispatched = if self.status == Status::Fault {
+            bits(&self.dispatched)
+        } else {
+            self.out_bits[self.primary.index()]
         };
         let r = CycleRecord {
             cycle: self.cycle,
             time_us: now_us,
             primary: self.primary,
             status: self.status,
-            inputs: bits(&self.inputs),
+            inputs: self.in_bits,
             outputs_a: out(Slot::A),
             outputs_b: out(Slot::B),
-            dispatched: bits(&self.dispatched),
+            dispatched,
         };
         self.monitor.record(r);
     }
@@ -936,6 +963,7 @@ impl Plc {
         let s = self.primary.other().index();
         let up = *up;
         self.images[s] = up.container.inputs().to_vec();
+        self.stale[s] = true;
         self.in_maps[s] = up.in_map;
         self.out_maps[s] = up.out_map;
         self.monitor.stats[s] = ContainerStats::new(self.io_outputs.len());
@@ -1170,8 +1198,10 @@ impl Plc {
                 Some(c) => {
                     let s = snap.containers[i].get_or_insert_with(Default::default);
                     let hash = c.program().hash_hex();
+                    // Reuses the buffer: no allocation once the hash is known.
                     if s.program_hash != hash {
-                        s.program_hash = hash;
+                        s.program_hash.clear();
+                        s.program_hash.push_str(hash);
                     }
                     s.marking.clear();
                     s.marking.extend_from_slice(c.marking());
@@ -1238,6 +1268,7 @@ impl Plc {
         container.restore_retained(&vars, &cs.latches);
         let i = primary.index();
         plc.images[i] = container.inputs().to_vec();
+        plc.stale[i] = true;
         plc.in_maps[i] = prog
             .inputs()
             .iter()

@@ -1,0 +1,340 @@
+//! The multi-threaded exploration (`threads ≥ 2`): the same breadth-first search, state ids and
+//! counts as the sequential explorer, with the work of each batch of states split between
+//! threads and no atomic operation on the hot path.
+//!
+//! Ownership. The visited set is split into one [`Table`] per thread by the top bits of the
+//! hash: thread `o` alone reads and writes table `o`, so its tables are the sequential ones
+//! (same layout, same growth, same bytes per state).
+//!
+//! A batch is a range of numbered states `[cur, cur + S)`, expanded in two phases:
+//! 1. each thread expands a contiguous sub-range (thread 0 the first) and sorts the successors
+//!    into one outbox per owner, tagged with their *discoverer* `parent << 32 | t`;
+//! 2. each owner inserts the successors of its outboxes, those of thread 0 first, so it meets
+//!    them in discoverer order, and lists the new ones (already in that order).
+//!
+//! Determinism. The sequential BFS numbers a new state by its first discovery, i.e. by the least
+//! discoverer. An owner inserts in discoverer order, so the first insertion of a key is by its
+//! least discoverer; the owners' lists, merged by discoverer, are the new states in sequential
+//! order. States found in earlier batches have smaller discoverers than any in this batch, so the
+//! batches compose.
+
+use cetratus_net::{Net, TransIdx};
+
+use super::{
+    deadlock_witness, hash, tarjan, Chunked, Compiled, Packing, ReachOptions, ReachResult, Stop,
+    Table,
+};
+use crate::Progress;
+use std::sync::atomic::Ordering;
+
+/// Largest batch: enough to keep the threads busy, and few enough states to check the cancel
+/// flag often.
+const MAX_BATCH: usize = 1 << 15;
+
+/// Bytes the outboxes of one batch may take at most (the batch is shortened for wide nets).
+const OUTBOX_BYTES: usize = 64 << 20;
+
+/// Batches smaller than this are expanded on the calling thread: spawning would cost more.
+const MIN_PARALLEL: usize = 1 << 11;
+
+/// Successors handled ahead of the one being inserted, so that their cache misses overlap.
+const AHEAD: usize = 8;
+
+/// A successor on its way to its owner: discoverer, key, hash.
+type Succ<const W: usize> = (u64, [u64; W], u64);
+
+/// The owner of a key: the hash's top bits (the slot index uses the low ones).
+#[inline(always)]
+fn owner(h: u64, owners: usize) -> usize {
+    ((h >> 32) as usize * owners) >> 32
+}
+
+/// What one thread found in its sub-range of a batch.
+struct Expanded<const W: usize> {
+    /// One outbox per owner, in discoverer order.
+    outboxes: Vec<Vec<Succ<W>>>,
+    edges: u64,
+    deadlocks: u64,
+    first_dead: Option<usize>,
+    enabled_ever: Vec<bool>,
+}
+
+impl<const W: usize> Expanded<W> {
+    fn new(owners: usize, nt: usize) -> Self {
+        Expanded {
+            outboxes: vec![Vec::new(); owners],
+            edges: 0,
+            deadlocks: 0,
+            first_dead: None,
+            enabled_ever: vec![false; nt],
+        }
+    }
+}
+
+/// Phase 1: the successors of states `range`, sorted by owner. With `owners == 0`, only counts
+/// (used to stop exactly where the sequential explorer stops at `max_states`).
+fn expand<const W: usize>(
+    code: &Compiled<W>,
+    states: &Chunked<[u64; W]>,
+    range: std::ops::Range<usize>,
+    owners: usize,
+    nt: usize,
+) -> Expanded<W> {
+    let mut ex = Expanded::new(owners, nt);
+    for s in range {
+        let key = states.get(s);
+        let mut any = false;
+        for (t, ever) in ex.enabled_ever.iter_mut().enumerate() {
+            if code.enabled(&key, t) {
+                *ever = true;
+                any = true;
+                ex.edges += 1;
+                if owners > 0 {
+                    let succ = code.fire(&key, t);
+                    let h = hash(&succ);
+                    ex.outboxes[owner(h, owners)].push(((s as u64) << 32 | t as u64, succ, h));
+                }
+            }
+        }
+        if !any {
+            ex.deadlocks += 1;
+            ex.first_dead.get_or_insert(s);
+        }
+    }
+    ex
+}
+
+/// Phase 2: owner `o` inserts what the threads sent it, thread 0's first; the new keys with
+/// their discoverers, in discoverer order.
+fn insert<const W: usize>(
+    table: &mut Table<W>,
+    expanded: &[Expanded<W>],
+    o: usize,
+) -> Vec<(u64, [u64; W])> {
+    let mut new = Vec::new();
+    for ex in expanded {
+        let inbox = &ex.outboxes[o];
+        for (j, (disc, key, h)) in inbox.iter().enumerate() {
+            if let Some(&(_, _, ha)) = inbox.get(j + AHEAD) {
+                table.touch(ha);
+            }
+            table.reserve(1);
+            if table.insert_hashed(key, *h, 0) {
+                new.push((*disc, *key));
+            }
+        }
+    }
+    new
+}
+
+/// Runs `f(i)` for `i` in `0..n`, on `n` threads when `parallel` (the calling thread being one).
+fn run<T: Send, F: Fn(usize) -> T + Sync>(n: usize, parallel: bool, f: F) -> Vec<T> {
+    if !parallel || n < 2 {
+        return (0..n).map(&f).collect();
+    }
+    let f = &f;
+    std::thread::scope(|sc| {
+        let handles: Vec<_> = (1..n).map(|i| sc.spawn(move || f(i))).collect();
+        let mut out = vec![f(0)];
+        // A panic in a worker is a bug in this module; surface it.
+        out.extend(
+            handles
+                .into_iter()
+                .map(|h| h.join().unwrap_or_else(|e| std::panic::resume_unwind(e))),
+        );
+        out
+    })
+}
+
+/// Explores with `opts.threads` threads; the result equals the sequential one.
+pub(super) fn explore_par<const W: usize>(
+    net: &Net,
+    pk: &Packing,
+    opts: &ReachOptions,
+) -> ReachResult {
+    let threads = opts.threads.max(1);
+    let nt = net.num_transitions();
+    let np = net.num_places();
+    let code = Compiled::<W>::new(net, pk);
+    let mut tables: Vec<Table<W>> = (0..threads).map(|_| Table::new(false)).collect();
+    let mut states: Chunked<[u64; W]> = Chunked::new();
+    let mut parents: Chunked<u32> = Chunked::new();
+    let mut k0 = [0u64; W];
+    pk.encode(net.initial_marking().as_slice(), &mut k0);
+    let h0 = hash(&k0);
+    tables[owner(h0, threads)].insert(&k0, 0);
+    states.push(k0);
+    parents.push(u32::MAX);
+    let max_states = opts.max_states.unwrap_or(u64::from(u32::MAX - 1));
+    let mut max_fields: Vec<u64> = vec![0; np];
+    let mut observe = |k: &[u64; W]| {
+        for (m, f) in max_fields.iter_mut().zip(&pk.fields) {
+            *m = (*m).max((k[f.word as usize] >> f.shift) & f.mask);
+        }
+    };
+    observe(&k0);
+    let mut enabled_ever = vec![false; nt];
+    let (mut edges, mut deadlocks) = (0u64, 0u64);
+    let mut first_dead: Option<usize> = None;
+    let mut stopped = None;
+    let mut peak_bytes = 0usize;
+    let max_batch =
+        MAX_BATCH.min((OUTBOX_BYTES / (nt.max(1) * std::mem::size_of::<Succ<W>>())).max(1));
+    let mut cur = 0usize;
+    while cur < states.len {
+        if cur > 0 {
+            if opts
+                .cancel
+                .as_ref()
+                .is_some_and(|c| c.load(Ordering::Relaxed))
+            {
+                stopped = Some(Stop::Cancelled);
+                break;
+            }
+            if let Some(p) = &opts.progress {
+                p(Progress {
+                    states: states.len as u64,
+                    edges,
+                    expanded: cur as u64,
+                });
+            }
+        }
+        let size = (states.len - cur).min(max_batch);
+        let end = cur + size;
+        let parallel = size >= MIN_PARALLEL;
+        let step = size.div_ceil(threads);
+        let expanded = {
+            let (code, states) = (&code, &states);
+            run(threads, parallel, |i| {
+                let a = (cur + i * step).min(end);
+                expand(code, states, a..(a + step).min(end), threads, nt)
+            })
+        };
+        let grows: Vec<u32> = tables.iter().map(|t| t.grows).collect();
+        let lists: Vec<Vec<(u64, [u64; W])>> = if parallel {
+            let expanded = &expanded;
+            std::thread::scope(|sc| {
+                let mut it = tables.iter_mut().enumerate();
+                let first = it.next();
+                let handles: Vec<_> = it
+                    .map(|(o, t)| sc.spawn(move || insert(t, expanded, o)))
+                    .collect();
+                let mut out: Vec<_> = first
+                    .map(|(o, t)| insert(t, expanded, o))
+                    .into_iter()
+                    .collect();
+                // A panic in a worker is a bug in this module; surface it.
+                out.extend(
+                    handles
+                        .into_iter()
+                        .map(|h| h.join().unwrap_or_else(|e| std::panic::resume_unwind(e))),
+                );
+                out
+            })
+        } else {
+            tables
+                .iter_mut()
+                .enumerate()
+                .map(|(o, t)| insert(t, &expanded, o))
+                .collect()
+        };
+        let outbox_bytes: usize = expanded
+            .iter()
+            .flat_map(|e| &e.outboxes)
+            .map(|b| b.capacity() * std::mem::size_of::<Succ<W>>())
+            .sum();
+        let table_bytes: usize = tables
+            .iter()
+            .zip(&grows)
+            .map(|(t, &g)| {
+                if t.grows != g {
+                    t.transient_bytes
+                } else {
+                    t.bytes()
+                }
+            })
+            .sum();
+        peak_bytes = peak_bytes.max(table_bytes + outbox_bytes + states.bytes() + parents.bytes());
+        let mut new = merge(lists);
+        let allowed = max_states.saturating_sub(states.len as u64) as usize;
+        let counts = if new.len() > allowed {
+            // The sequential explorer stops at the first new state beyond the limit, inside the
+            // expansion of its parent: count exactly what it would have counted by then.
+            let parent = (new[allowed].0 >> 32) as usize;
+            new.truncate(allowed);
+            stopped = Some(Stop::MaxStates(max_states));
+            // (`parent` has a successor, so it is not dead and its dead check does not matter.)
+            vec![expand(&code, &states, cur..parent + 1, 0, nt)]
+        } else {
+            expanded
+        };
+        for ex in &counts {
+            edges += ex.edges;
+            deadlocks += ex.deadlocks;
+            if first_dead.is_none() {
+                first_dead = ex.first_dead;
+            }
+            for (e, &x) in enabled_ever.iter_mut().zip(&ex.enabled_ever) {
+                *e |= x;
+            }
+        }
+        drop(counts);
+        for (disc, key) in &new {
+            states.push(*key);
+            parents.push((disc >> 32) as u32);
+            observe(key);
+        }
+        if stopped.is_some() {
+            break;
+        }
+        cur = end;
+    }
+    let table_bytes: usize = tables.iter().map(Table::bytes).sum();
+    let peak_bytes = peak_bytes.max(table_bytes + states.bytes() + parents.bytes());
+    drop(tables);
+    let deadlock_witness = deadlock_witness(&code, &states, &parents, first_dead, nt);
+    let liveness = (opts.liveness && stopped.is_none()).then(|| {
+        // Tarjan looks ids up by key: rebuild the sequential table with ids, in id order.
+        let mut ids = Table::<W>::new(true);
+        for i in 0..states.len {
+            ids.insert(&states.get(i), i as u32);
+        }
+        tarjan(&code, &ids, &states, nt)
+    });
+    ReachResult {
+        states: states.len as u64,
+        edges,
+        deadlocks,
+        deadlock_witness,
+        max_tokens: max_fields.iter().map(|&m| m as u32).collect(),
+        never_enabled: (0..nt)
+            .filter(|&t| !enabled_ever[t])
+            .map(|t| TransIdx(t as u32))
+            .collect(),
+        stopped,
+        liveness,
+        peak_bytes,
+        bits_per_state: pk.bits,
+    }
+}
+
+/// Merges lists sorted by discoverer into one.
+fn merge<const W: usize>(lists: Vec<Vec<(u64, [u64; W])>>) -> Vec<(u64, [u64; W])> {
+    let total = lists.iter().map(Vec::len).sum();
+    let mut out = Vec::with_capacity(total);
+    let mut heads = vec![0usize; lists.len()];
+    while out.len() < total {
+        let mut best: Option<usize> = None;
+        for (l, list) in lists.iter().enumerate() {
+            if let Some(e) = list.get(heads[l]) {
+                if best.is_none_or(|b| e.0 < lists[b][heads[b]].0) {
+                    best = Some(l);
+                }
+            }
+        }
+        let Some(b) = best else { break };
+        out.push(lists[b][heads[b]]);
+        heads[b] += 1;
+    }
+    out
+}

@@ -1,0 +1,149 @@
+//! The parallel exploration (`threads ≥ 2`) finds exactly what the sequential one finds: the
+//! same states, edges, dead states, deadlock witness, bounds, liveness, and the same stopping
+//! point under `--max-states`.
+
+use std::path::Path;
+
+use cetratus_analysis::families::{fms, kanban};
+use cetratus_analysis::invariants::DEFAULT_MAX_ROWS;
+use cetratus_analysis::reach::{explore, structural_packing, ReachOptions, ReachResult};
+use cetratus_analysis::{check, CheckOptions, Report};
+use cetratus_net::Net;
+
+const FIXTURES: [&str; 11] = [
+    "pipe/ClassicGSPN.xml",
+    "pipe/DiningPhilosophers.xml",
+    "pipe/ProducerConsumer.xml",
+    "pipe/ReadersWriters.xml",
+    "pipe5/simpleNet.xml",
+    "pipe5/petriNet.xml",
+    "pipe5/inhibitorArc.xml",
+    "mcc/Philosophers-PT-000005.pnml",
+    "mcc/TokenRing-PT-005.pnml",
+    "mcc/FMS-PT-00002.pnml",
+    "crafted/nested-pages.pnml",
+];
+
+fn fixture(rel: &str) -> Net {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../../../shared/fixtures")
+        .join(rel);
+    cetratus_net::pnml::read_file(&path).unwrap_or_else(|e| panic!("{}: {e}", path.display()))
+}
+
+/// The report without what legitimately differs between runs (time, memory).
+fn behaviour(net: &Net, threads: usize, max_states: Option<u64>) -> Report {
+    let mut r = check(
+        net,
+        &CheckOptions {
+            threads,
+            max_states,
+            ..CheckOptions::default()
+        },
+    );
+    r.timings = Default::default();
+    r.bytes_per_state = None;
+    r.store_bytes = None;
+    r
+}
+
+/// The exploration result without the store's bytes (the parallel store is laid out differently).
+fn explored(net: &Net, threads: usize, max_states: Option<u64>, liveness: bool) -> ReachResult {
+    let packing = structural_packing(net, DEFAULT_MAX_ROWS)
+        .expect("structural bounds")
+        .expect("structurally bounded");
+    let opts = ReachOptions {
+        threads,
+        max_states,
+        liveness,
+        ..ReachOptions::default()
+    };
+    let mut r = explore(net, &packing, &opts).expect("fits the packed explorer");
+    r.peak_bytes = 0;
+    r
+}
+
+#[test]
+fn parallel_check_of_every_fixture_equals_the_sequential_one() {
+    for rel in FIXTURES {
+        let net = fixture(rel);
+        let one = behaviour(&net, 1, None);
+        for threads in [2, 3] {
+            assert_eq!(
+                behaviour(&net, threads, None),
+                one,
+                "{rel}, {threads} threads"
+            );
+        }
+    }
+}
+
+#[test]
+fn parallel_witness_of_philosophers_is_the_sequential_shortest_one() {
+    let net = fixture("mcc/Philosophers-PT-000005.pnml");
+    let one = behaviour(&net, 1, None);
+    let two = behaviour(&net, 2, None);
+    assert!(one.deadlock_witness.is_some());
+    assert_eq!(two.deadlock_witness, one.deadlock_witness);
+}
+
+#[test]
+fn parallel_exploration_of_fms_and_kanban_one_to_three_equals_the_sequential_one() {
+    for n in 1..=3 {
+        for net in [
+            fms(n).expect("FMS builds"),
+            kanban(n).expect("Kanban builds"),
+        ] {
+            let one = explored(&net, 1, None, true);
+            assert!(one.liveness.is_some());
+            for threads in [2, 3, 4] {
+                assert_eq!(
+                    explored(&net, threads, None, true),
+                    one,
+                    "N={n}, {threads} threads"
+                );
+            }
+        }
+    }
+}
+
+#[test]
+#[cfg_attr(debug_assertions, ignore = "slow in debug; run with --release")]
+fn parallel_exploration_of_fms_and_kanban_four_equals_the_sequential_one() {
+    for net in [
+        fms(4).expect("FMS builds"),
+        kanban(4).expect("Kanban builds"),
+    ] {
+        let one = explored(&net, 1, None, false);
+        assert_eq!(explored(&net, 2, None, false), one);
+    }
+}
+
+#[test]
+fn parallel_exploration_stops_at_max_states_where_the_sequential_one_stops() {
+    let net = fms(3).expect("FMS builds");
+    for max in [
+        0, 1, 2, 100, 3_000, 4_095, 4_096, 20_000, 48_589, 48_590, 48_591,
+    ] {
+        let one = explored(&net, 1, Some(max), true);
+        for threads in [2, 3] {
+            assert_eq!(
+                explored(&net, threads, Some(max), true),
+                one,
+                "max_states {max}, {threads} threads"
+            );
+        }
+    }
+}
+
+#[test]
+fn parallel_check_under_max_states_equals_the_sequential_one() {
+    let net = fixture("mcc/Philosophers-PT-000005.pnml");
+    for max in [0, 10, 100, 242, 243] {
+        assert_eq!(
+            behaviour(&net, 2, Some(max)),
+            behaviour(&net, 1, Some(max)),
+            "max_states {max}"
+        );
+    }
+}

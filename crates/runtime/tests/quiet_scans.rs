@@ -1,0 +1,49 @@
+//! A quiet scan (nothing can fire, so nothing is evaluated) is exactly a full scan that fires
+//! nothing: two containers, one that never takes the quiet path, stay identical scan by scan on
+//! random input sequences, for a program with plain guards and one with timer guards.
+
+use std::path::Path;
+use std::sync::Arc;
+
+use cetratus_program::{Program, Value};
+use cetratus_runtime::Container;
+use proptest::prelude::*;
+
+fn program(name: &str) -> Arc<Program> {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../../examples/vernadat")
+        .join(name);
+    Arc::new(Program::load(&path).expect("example loads"))
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(64))]
+
+    #[test]
+    fn quiet_scans_change_nothing_a_full_scan_would(
+        u2 in any::<bool>(),
+        // Runs of (input bits, how many scans they hold, time step in ms).
+        runs in prop::collection::vec((any::<u8>(), 1usize..40, 1u64..500), 1..60),
+    ) {
+        let p = program(if u2 { "u2.toml" } else { "vernadat.toml" });
+        let mut quick = Container::new(p.clone(), 0);
+        let mut full = Container::new(p.clone(), 0);
+        full.set_always_full(true);
+        let n = p.inputs().len();
+        let mut now = 0u64;
+        for (bits, hold, step_ms) in runs {
+            let image: Vec<Value> = (0..n).map(|i| Value::Bool(bits >> (i % 8) & 1 == 1)).collect();
+            for _ in 0..hold {
+                now += step_ms * 1000;
+                let a = quick.scan(now, &image).expect("scans");
+                let b = full.scan(now, &image).expect("scans");
+                prop_assert_eq!(a, b);
+                prop_assert_eq!(quick.marking(), full.marking());
+                prop_assert_eq!(quick.outputs(), full.outputs());
+                prop_assert_eq!(quick.fired(), full.fired());
+                prop_assert_eq!(quick.place_since_us(), full.place_since_us());
+            }
+        }
+        prop_assert_eq!(quick.firings(), full.firings());
+    }
+}

@@ -25,6 +25,10 @@ pub struct ClientOpts {
     /// How long to wait for the PLC.
     #[arg(long, default_value = "10s")]
     pub timeout: String,
+    /// Sign commands with this operator key (`cetratus package keygen` makes one); needed when
+    /// the PLC has operator keys configured.
+    #[arg(long)]
+    pub key: Option<PathBuf>,
 }
 
 /// `cetratus load PKG`.
@@ -67,6 +71,7 @@ struct Session {
     conn: Connection,
     prefix: String,
     deadline: Duration,
+    key: Option<cetratus_program::KeyPair>,
 }
 
 impl Session {
@@ -85,11 +90,19 @@ impl Session {
         o.set_max_packet_size(Some(8 << 20));
         let (client, conn) = Client::new(o, 64);
         let deadline = Duration::from_micros(crate::duration::parse_duration_us(&opts.timeout)?);
+        let key = match &opts.key {
+            Some(p) => Some(
+                cetratus_program::KeyPair::load(p)
+                    .with_context(|| format!("operator key {}", p.display()))?,
+            ),
+            None => None,
+        };
         let mut s = Session {
             client,
             conn,
             prefix: format!("cetratus/{}/", opts.mqtt.plc_id()),
             deadline,
+            key,
         };
         s.wait_for(|e| matches!(e, Packet::ConnAck(_)))
             .with_context(|| format!("cannot reach the broker at {url}; is the PLC running? (--broker URL or --mqtt ADDR)"))?;
@@ -165,11 +178,32 @@ impl Session {
             content_type: Some("application/json".into()),
             ..Default::default()
         };
+        let body = match &self.key {
+            // A signed envelope: ed25519 over the verb, the payload's hash, the time and a nonce.
+            Some(k) => {
+                let inner = serde_json::to_vec(&payload)?;
+                let nonce = format!(
+                    "{}-{}",
+                    std::process::id(),
+                    Instant::now().elapsed().as_nanos() ^ u128::from(cetratus_mct::unix_now())
+                );
+                let env = cetratus_mct::sign(
+                    verb,
+                    &inner,
+                    cetratus_mct::unix_now(),
+                    &nonce,
+                    &k.key_id(),
+                    k.signing_key(),
+                );
+                serde_json::to_vec(&json!({ "envelope": env }))?
+            }
+            None => serde_json::to_vec(&payload)?,
+        };
         self.client.publish_with_properties(
             format!("{}cmd/{verb}", self.prefix),
             QoS::AtLeastOnce,
             false,
-            serde_json::to_vec(&payload)?,
+            body,
             props,
         )?;
         let end = Instant::now() + self.deadline;

@@ -80,6 +80,9 @@ pub struct DemoArgs {
     /// MQTT: the embedded broker, or a plant broker.
     #[command(flatten)]
     pub mqtt: crate::mqtt_args::MqttArgs,
+    /// The local configuration (operator keys, broker accounts, more trusted keys).
+    #[command(flatten)]
+    pub config: crate::config::ConfigArgs,
 }
 
 /// The files the demo works with.
@@ -561,7 +564,8 @@ fn live(args: &DemoArgs, files: &DemoFiles) -> anyhow::Result<()> {
         program.outputs(),
     )?;
     let plc = Plc::new(program, 0);
-    let mut config = args.mqtt.config()?;
+    let local = args.config.load()?;
+    let mut config = args.mqtt.config(&local)?;
     let speed = if args.speed.is_finite() && args.speed > 0.0 {
         args.speed
     } else {
@@ -619,8 +623,13 @@ fn live(args: &DemoArgs, files: &DemoFiles) -> anyhow::Result<()> {
     let opts = crate::node::NodeOptions {
         speed,
         until_us,
-        trust: files.trust.clone(),
-        allow_unsigned: false,
+        trust: {
+            // The demo key, and whatever the local configuration trusts.
+            let mut t = files.trust.clone();
+            t.merge(&local.trust);
+            t
+        },
+        allow_unsigned: local.allow_unsigned,
         publish_every,
         echo_events: true,
     };

@@ -6,6 +6,7 @@
 mod bench;
 mod check;
 mod client;
+mod config;
 mod convert;
 mod demo;
 mod duration;

@@ -37,19 +37,22 @@ impl MqttArgs {
         })
     }
 
-    /// The MQTT configuration of a PLC node.
-    pub fn config(&self) -> anyhow::Result<MqttConfig> {
+    /// The MQTT configuration of a PLC node: broker accounts, plant-broker credentials and
+    /// operator keys come from the local configuration; the command line overrides credentials.
+    pub fn config(&self, local: &crate::config::LocalConfig) -> anyhow::Result<MqttConfig> {
         let mut c = MqttConfig::new(&self.plc_id());
         let credentials = self
             .user
             .clone()
-            .map(|u| (u, self.password.clone().unwrap_or_default()));
+            .map(|u| (u, self.password.clone().unwrap_or_default()))
+            .or_else(|| local.credentials.clone());
         c.broker = BrokerChoice::from_cli(
             self.mqtt.as_deref(),
             self.broker.as_deref(),
-            Vec::new(),
+            local.users.clone(),
             credentials,
         )?;
+        c.operator_keys = local.operators.clone();
         Ok(c)
     }
 

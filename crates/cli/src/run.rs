@@ -75,7 +75,10 @@ pub struct RunArgs {
     /// Override the program's scan period, e.g. `100ms`.
     #[arg(long)]
     period: Option<String>,
-    /// Directory of trusted public keys for `load`.
+    /// The local configuration (trusted keys, operator keys, broker accounts).
+    #[command(flatten)]
+    config: crate::config::ConfigArgs,
+    /// Directory of trusted public keys for `load` (instead of the configuration's `trusted/`).
     #[arg(long)]
     trust: Option<PathBuf>,
     /// Accept unsigned packages (local configuration only).
@@ -169,10 +172,29 @@ pub fn run(args: &RunArgs) -> anyhow::Result<()> {
     };
     let mut io = TwinDriver::new(twin, program.inputs(), program.outputs())?;
     let script = parse_script(&args.at)?;
+    let local = args.config.load()?;
     let trust = match &args.trust {
         Some(dir) => cetratus_program::TrustStore::load_dir(dir)?,
-        None => cetratus_program::TrustStore::empty(),
+        None => local.trust.clone(),
     };
+    let allow_unsigned = args.allow_unsigned || local.allow_unsigned;
+    if !args.json && !args.virtual_time {
+        eprintln!(
+            "configuration {}: {} trusted package keys, {}, unsigned packages {}",
+            local.dir.display(),
+            trust.len(),
+            if local.operators.is_some() {
+                "signed commands required"
+            } else {
+                "no operator keys (commands need no signature)"
+            },
+            if allow_unsigned {
+                "ACCEPTED"
+            } else {
+                "refused"
+            }
+        );
+    }
     let period_us = match &args.period {
         Some(p) => parse_duration_us(p)?.max(1),
         None => program.scan_period().as_micros() as u64,
@@ -219,7 +241,7 @@ pub fn run(args: &RunArgs) -> anyhow::Result<()> {
     // Real-time runs are watched and commanded over MQTT, with the dashboard beside them.
     let mut mct = None;
     if !args.virtual_time && !args.no_mct {
-        let mut config = args.mqtt.config()?;
+        let mut config = args.mqtt.config(&local)?;
         config.publish_period = std::time::Duration::from_millis(200);
         let plc_id = config.plc_id.clone();
         let (link, handle) = cetratus_mct::start(config)?;
@@ -297,7 +319,7 @@ pub fn run(args: &RunArgs) -> anyhow::Result<()> {
             if next_cmd < script.len() && script[next_cmd].at_us + base_us <= now {
                 let s = &script[next_cmd];
                 next_cmd += 1;
-                let cmd = match scripted_command(plc, s, &trust, args.allow_unsigned) {
+                let cmd = match scripted_command(plc, s, &trust, allow_unsigned) {
                     Ok(c) => c,
                     Err(e) => {
                         script_error = Some(e);

@@ -588,18 +588,21 @@ impl NetBuilder {
             rank[t.index()] = r as u32;
         }
 
-        let place_index = self
-            .places
-            .iter()
-            .enumerate()
-            .map(|(i, p)| (p.id.clone(), PlaceIdx(i as u32)))
-            .collect();
-        let trans_index = self
-            .transitions
-            .iter()
-            .enumerate()
-            .map(|(i, t)| (t.id.clone(), TransIdx(i as u32)))
-            .collect();
+        // The id map already owns every node id; moving its strings saves copying each one.
+        let mut place_index: HashMap<String, PlaceIdx> =
+            HashMap::with_capacity_and_hasher(np, Default::default());
+        let mut trans_index: HashMap<String, TransIdx> =
+            HashMap::with_capacity_and_hasher(nt, Default::default());
+        for (id, node) in self.ids {
+            match node {
+                NodeRef::Place(p) => {
+                    place_index.insert(id, p);
+                }
+                NodeRef::Transition(t) => {
+                    trans_index.insert(id, t);
+                }
+            }
+        }
 
         let caps: Vec<Tokens> = self
             .places

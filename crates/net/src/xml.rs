@@ -307,12 +307,9 @@ impl<'i> Builder<'i> {
         let attr_start = self.doc.attributes.len();
         let mut bindings = 0;
         let mut rest = &tag[name_len..];
-        loop {
-            let Some((key, value, after)) = next_attribute(rest)
-                .or_else(|message| Self::fail(start, format!("<{qname}>: {message}")))?
-            else {
-                break;
-            };
+        while let Some((key, value, after)) = next_attribute(rest)
+            .or_else(|message| Self::fail(start, format!("<{qname}>: {message}")))?
+        {
             rest = after;
             let value = self.attribute_value(start, key, value)?;
             if key == "xmlns" || key.starts_with("xmlns:") {

@@ -544,6 +544,13 @@ impl TrustStore {
         self.keys.insert(key.key_id, key.key);
     }
 
+    /// Trusts every key `other` trusts as well.
+    pub fn merge(&mut self, other: &TrustStore) {
+        for (id, key) in &other.keys {
+            self.keys.insert(id.clone(), *key);
+        }
+    }
+
     /// How many keys are trusted.
     pub fn len(&self) -> usize {
         self.keys.len()
@@ -573,6 +580,11 @@ pub struct VerifyingKeyFile {
 }
 
 impl VerifyingKeyFile {
+    /// The Ed25519 public key (also used for operator command keys).
+    pub fn verifying_key(&self) -> &VerifyingKey {
+        &self.key
+    }
+
     /// Reads a public key file.
     pub fn load(path: &Path) -> Result<Self, PackageError> {
         let label = path.display().to_string();
@@ -626,6 +638,11 @@ impl std::fmt::Debug for KeyPair {
 }
 
 impl KeyPair {
+    /// The Ed25519 signing key (also used to sign operator commands).
+    pub fn signing_key(&self) -> &SigningKey {
+        &self.key
+    }
+
     /// A fresh key from the operating system's random source.
     ///
     /// # Panics

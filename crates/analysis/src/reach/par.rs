@@ -71,16 +71,21 @@ impl<const W: usize> Expanded<W> {
     }
 }
 
-/// Phase 1: the successors of states `range`, sorted by owner. With `owners == 0`, only counts
-/// (used to stop exactly where the sequential explorer stops at `max_states`).
+/// Phase 1: the successors of states `range`, sorted by owner into `ex`'s (cleared) outboxes.
+/// With no outboxes, only counts (used to stop exactly where the sequential explorer stops at
+/// `max_states`).
 fn expand<const W: usize>(
     code: &Compiled<W>,
     states: &Chunked<[u64; W]>,
     range: std::ops::Range<usize>,
-    owners: usize,
-    nt: usize,
-) -> Expanded<W> {
-    let mut ex = Expanded::new(owners, nt);
+    ex: &mut Expanded<W>,
+) {
+    let owners = ex.outboxes.len();
+    ex.outboxes.iter_mut().for_each(Vec::clear);
+    ex.edges = 0;
+    ex.deadlocks = 0;
+    ex.first_dead = None;
+    ex.enabled_ever.iter_mut().for_each(|e| *e = false);
     for s in range {
         let key = states.get(s);
         let mut any = false;
@@ -101,17 +106,17 @@ fn expand<const W: usize>(
             ex.first_dead.get_or_insert(s);
         }
     }
-    ex
 }
 
-/// Phase 2: owner `o` inserts what the threads sent it, thread 0's first; the new keys with
-/// their discoverers, in discoverer order.
+/// Phase 2: the owner of `table` inserts what the threads sent it, thread 0's first, and lists
+/// the new keys with their discoverers in `new` (cleared), in discoverer order.
 fn insert<const W: usize>(
     table: &mut Table<W>,
     expanded: &[Expanded<W>],
     o: usize,
-) -> Vec<(u64, [u64; W])> {
-    let mut new = Vec::new();
+    new: &mut Vec<(u64, [u64; W])>,
+) {
+    new.clear();
     for ex in expanded {
         let inbox = &ex.outboxes[o];
         for (j, (disc, key, h)) in inbox.iter().enumerate() {
@@ -124,26 +129,28 @@ fn insert<const W: usize>(
             }
         }
     }
-    new
 }
 
-/// Runs `f(i)` for `i` in `0..n`, on `n` threads when `parallel` (the calling thread being one).
-fn run<T: Send, F: Fn(usize) -> T + Sync>(n: usize, parallel: bool, f: F) -> Vec<T> {
-    if !parallel || n < 2 {
-        return (0..n).map(&f).collect();
+/// Runs `f(i, &mut items[i])` for every item, one thread per item when `parallel` (the calling
+/// thread taking the first).
+fn each<T: Send, F: Fn(usize, &mut T) + Sync>(items: &mut [T], parallel: bool, f: F) {
+    if !parallel {
+        items.iter_mut().enumerate().for_each(|(i, x)| f(i, x));
+        return;
     }
     let f = &f;
     std::thread::scope(|sc| {
-        let handles: Vec<_> = (1..n).map(|i| sc.spawn(move || f(i))).collect();
-        let mut out = vec![f(0)];
-        // A panic in a worker is a bug in this module; surface it.
-        out.extend(
-            handles
-                .into_iter()
-                .map(|h| h.join().unwrap_or_else(|e| std::panic::resume_unwind(e))),
-        );
-        out
-    })
+        let mut it = items.iter_mut().enumerate();
+        let first = it.next();
+        let handles: Vec<_> = it.map(|(i, x)| sc.spawn(move || f(i, x))).collect();
+        if let Some((i, x)) = first {
+            f(i, x);
+        }
+        for h in handles {
+            // A panic in a worker is a bug in this module; surface it.
+            h.join().unwrap_or_else(|e| std::panic::resume_unwind(e));
+        }
+    });
 }
 
 /// Explores with `opts.threads` threads; the result equals the sequential one.
@@ -180,6 +187,11 @@ pub(super) fn explore_par<const W: usize>(
     let mut peak_bytes = 0usize;
     let max_batch =
         MAX_BATCH.min((OUTBOX_BYTES / (nt.max(1) * std::mem::size_of::<Succ<W>>())).max(1));
+    // Buffers reused from batch to batch: one per thread, one per owner.
+    let mut expanded: Vec<Expanded<W>> = (0..threads).map(|_| Expanded::new(threads, nt)).collect();
+    let mut lists: Vec<Vec<(u64, [u64; W])>> = vec![Vec::new(); threads];
+    let mut new: Vec<(u64, [u64; W])> = Vec::new();
+    let mut recount = Expanded::new(0, nt);
     let mut cur = 0usize;
     while cur < states.len {
         if cur > 0 {
@@ -203,41 +215,22 @@ pub(super) fn explore_par<const W: usize>(
         let end = cur + size;
         let parallel = size >= MIN_PARALLEL;
         let step = size.div_ceil(threads);
-        let expanded = {
+        {
             let (code, states) = (&code, &states);
-            run(threads, parallel, |i| {
+            each(&mut expanded, parallel, |i, ex| {
                 let a = (cur + i * step).min(end);
-                expand(code, states, a..(a + step).min(end), threads, nt)
-            })
-        };
+                expand(code, states, a..(a + step).min(end), ex);
+            });
+        }
         let grows: Vec<u32> = tables.iter().map(|t| t.grows).collect();
-        let lists: Vec<Vec<(u64, [u64; W])>> = if parallel {
+        {
             let expanded = &expanded;
-            std::thread::scope(|sc| {
-                let mut it = tables.iter_mut().enumerate();
-                let first = it.next();
-                let handles: Vec<_> = it
-                    .map(|(o, t)| sc.spawn(move || insert(t, expanded, o)))
-                    .collect();
-                let mut out: Vec<_> = first
-                    .map(|(o, t)| insert(t, expanded, o))
-                    .into_iter()
-                    .collect();
-                // A panic in a worker is a bug in this module; surface it.
-                out.extend(
-                    handles
-                        .into_iter()
-                        .map(|h| h.join().unwrap_or_else(|e| std::panic::resume_unwind(e))),
-                );
-                out
-            })
-        } else {
-            tables
-                .iter_mut()
-                .enumerate()
-                .map(|(o, t)| insert(t, &expanded, o))
-                .collect()
-        };
+            let mut work: Vec<(&mut Table<W>, &mut Vec<(u64, [u64; W])>)> =
+                tables.iter_mut().zip(lists.iter_mut()).collect();
+            each(&mut work, parallel, |o, (t, new)| {
+                insert(t, expanded, o, new)
+            });
+        }
         let outbox_bytes: usize = expanded
             .iter()
             .flat_map(|e| &e.outboxes)
@@ -255,7 +248,7 @@ pub(super) fn explore_par<const W: usize>(
             })
             .sum();
         peak_bytes = peak_bytes.max(table_bytes + outbox_bytes + states.bytes() + parents.bytes());
-        let mut new = merge(lists);
+        merge(&lists, &mut new);
         let allowed = max_states.saturating_sub(states.len as u64) as usize;
         let counts = if new.len() > allowed {
             // The sequential explorer stops at the first new state beyond the limit, inside the
@@ -264,11 +257,12 @@ pub(super) fn explore_par<const W: usize>(
             new.truncate(allowed);
             stopped = Some(Stop::MaxStates(max_states));
             // (`parent` has a successor, so it is not dead and its dead check does not matter.)
-            vec![expand(&code, &states, cur..parent + 1, 0, nt)]
+            expand(&code, &states, cur..parent + 1, &mut recount);
+            std::slice::from_ref(&recount)
         } else {
-            expanded
+            &expanded[..]
         };
-        for ex in &counts {
+        for ex in counts {
             edges += ex.edges;
             deadlocks += ex.deadlocks;
             if first_dead.is_none() {
@@ -278,7 +272,6 @@ pub(super) fn explore_par<const W: usize>(
                 *e |= x;
             }
         }
-        drop(counts);
         for (disc, key) in &new {
             states.push(*key);
             parents.push((disc >> 32) as u32);
@@ -318,10 +311,10 @@ pub(super) fn explore_par<const W: usize>(
     }
 }
 
-/// Merges lists sorted by discoverer into one.
-fn merge<const W: usize>(lists: Vec<Vec<(u64, [u64; W])>>) -> Vec<(u64, [u64; W])> {
+/// Merges lists sorted by discoverer into `out` (cleared).
+fn merge<const W: usize>(lists: &[Vec<(u64, [u64; W])>], out: &mut Vec<(u64, [u64; W])>) {
+    out.clear();
     let total = lists.iter().map(Vec::len).sum();
-    let mut out = Vec::with_capacity(total);
     let mut heads = vec![0usize; lists.len()];
     while out.len() < total {
         let mut best: Option<usize> = None;
@@ -336,5 +329,4 @@ fn merge<const W: usize>(lists: Vec<Vec<(u64, [u64; W])>>) -> Vec<(u64, [u64; W]
         out.push(lists[b][heads[b]]);
         heads[b] += 1;
     }
-    out
 }

@@ -1,0 +1,111 @@
+//! Operator keys: with keys in the local configuration, every MQTT command must be a signed
+//! envelope; an unsigned one is refused, a signed one is carried out, and the audit log records
+//! which key gave it.
+
+use std::net::TcpListener;
+use std::path::Path;
+use std::process::{Child, Command, Output, Stdio};
+use std::time::{Duration, Instant};
+
+const BIN: &str = env!("CARGO_BIN_EXE_cetratus");
+
+fn free_port() -> u16 {
+    TcpListener::bind("127.0.0.1:0")
+        .and_then(|l| l.local_addr())
+        .map(|a| a.port())
+        .expect("a free port")
+}
+
+struct Guard(Child);
+
+impl Drop for Guard {
+    fn drop(&mut self) {
+        let _ = self.0.kill();
+        let _ = self.0.wait();
+    }
+}
+
+fn cetratus(args: &[&str]) -> Output {
+    Command::new(BIN).args(args).output().expect("run cetratus")
+}
+
+fn path(p: &Path) -> &str {
+    p.to_str().expect("utf-8 path")
+}
+
+#[test]
+fn with_operator_keys_only_signed_commands_are_carried_out_and_the_audit_log_names_the_key() {
+    let work = tempfile::tempdir().expect("temp dir");
+    let pk = work.path().join("pk");
+    let out = cetratus(&["demo", "--scripted", "--json", "--dir", path(&pk)]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+
+    // The local configuration: the demo's package key is trusted, one operator key.
+    let cfg = work.path().join("config");
+    std::fs::create_dir_all(cfg.join("trusted")).expect("mkdir");
+    std::fs::create_dir_all(cfg.join("operators")).expect("mkdir");
+    std::fs::copy(pk.join("trusted/demo.pub"), cfg.join("trusted/demo.pub")).expect("copy");
+    let key = work.path().join("alice.key");
+    let out = cetratus(&["package", "keygen", "--out", path(&key)]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    std::fs::copy(work.path().join("alice.key.pub"), cfg.join("operators/alice.pub")).expect("copy");
+    let key_id = std::fs::read_to_string(work.path().join("alice.key.pub"))
+        .expect("pub")
+        .lines()
+        .find_map(|l| l.strip_prefix("key-id").map(|r| r.trim_start_matches([':', ' ', '=']).trim().to_string()))
+        .expect("a key-id line");
+
+    let port = free_port();
+    let state = work.path().join("state");
+    let mqtt = format!("127.0.0.1:{port}");
+    let _plc = Guard(
+        Command::new(BIN)
+            .arg("run")
+            .arg(pk.join("vernadat.toml"))
+            .args(["--twin", "vernadat", "--speed", "10", "--for", "1h", "--plc", "ops1", "--http", "127.0.0.1:0"])
+            .args(["--mqtt", &mqtt, "--config", path(&cfg), "--state-dir", path(&state)])
+            .stdout(Stdio::null())
+            .stderr(Stdio::null())
+            .spawn()
+            .expect("start cetratus run"),
+    );
+    let end = Instant::now() + Duration::from_secs(20);
+    while std::net::TcpStream::connect(("127.0.0.1", port)).is_err() && Instant::now() < end {
+        std::thread::sleep(Duration::from_millis(50));
+    }
+    let client = |extra: &[&str]| {
+        let mut a = vec!["--plc", "ops1", "--mqtt", &mqtt];
+        a.extend_from_slice(extra);
+        a.iter().map(|s| s.to_string()).collect::<Vec<_>>()
+    };
+
+    // Unsigned: refused, whatever the verb.
+    let mut args = vec!["exec-info".to_string()];
+    args.extend(client(&[]));
+    let out = Command::new(BIN).args(&args).output().expect("exec-info");
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("unauthorised") || err.contains("signed"), "{err}");
+
+    // Signed: carried out.
+    let mut args = vec!["load".to_string(), path(&pk.join("u1.cpkg")).to_string()];
+    args.extend(client(&["--key", path(&key)]));
+    let out = Command::new(BIN).args(&args).output().expect("load");
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+
+    // The audit log says who: the operator's key id.
+    let end = Instant::now() + Duration::from_secs(10);
+    let mut audit = String::new();
+    while Instant::now() < end {
+        audit = std::fs::read_to_string(state.join("audit.jsonl")).unwrap_or_default();
+        if audit.contains("load_accepted") {
+            break;
+        }
+        std::thread::sleep(Duration::from_millis(100));
+    }
+    let line = audit
+        .lines()
+        .find(|l| l.contains("load_accepted"))
+        .unwrap_or_else(|| panic!("no load_accepted in the audit log:\n{audit}"));
+    assert!(line.contains(&format!("mqtt:{key_id}")), "{line}");
+}

@@ -38,7 +38,11 @@ fn with_operator_keys_only_signed_commands_are_carried_out_and_the_audit_log_nam
     let work = tempfile::tempdir().expect("temp dir");
     let pk = work.path().join("pk");
     let out = cetratus(&["demo", "--scripted", "--json", "--dir", path(&pk)]);
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
 
     // The local configuration: the demo's package key is trusted, one operator key.
     let cfg = work.path().join("config");
@@ -47,12 +51,23 @@ fn with_operator_keys_only_signed_commands_are_carried_out_and_the_audit_log_nam
     std::fs::copy(pk.join("trusted/demo.pub"), cfg.join("trusted/demo.pub")).expect("copy");
     let key = work.path().join("alice.key");
     let out = cetratus(&["package", "keygen", "--out", path(&key)]);
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
-    std::fs::copy(work.path().join("alice.key.pub"), cfg.join("operators/alice.pub")).expect("copy");
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    std::fs::copy(
+        work.path().join("alice.key.pub"),
+        cfg.join("operators/alice.pub"),
+    )
+    .expect("copy");
     let key_id = std::fs::read_to_string(work.path().join("alice.key.pub"))
         .expect("pub")
         .lines()
-        .find_map(|l| l.strip_prefix("key-id").map(|r| r.trim_start_matches([':', ' ', '=']).trim().to_string()))
+        .find_map(|l| {
+            l.strip_prefix("key-id")
+                .map(|r| r.trim_start_matches([':', ' ', '=']).trim().to_string())
+        })
         .expect("a key-id line");
 
     let port = free_port();
@@ -62,8 +77,26 @@ fn with_operator_keys_only_signed_commands_are_carried_out_and_the_audit_log_nam
         Command::new(BIN)
             .arg("run")
             .arg(pk.join("vernadat.toml"))
-            .args(["--twin", "vernadat", "--speed", "10", "--for", "1h", "--plc", "ops1", "--http", "127.0.0.1:0"])
-            .args(["--mqtt", &mqtt, "--config", path(&cfg), "--state-dir", path(&state)])
+            .args([
+                "--twin",
+                "vernadat",
+                "--speed",
+                "10",
+                "--for",
+                "1h",
+                "--plc",
+                "ops1",
+                "--http",
+                "127.0.0.1:0",
+            ])
+            .args([
+                "--mqtt",
+                &mqtt,
+                "--config",
+                path(&cfg),
+                "--state-dir",
+                path(&state),
+            ])
             .stdout(Stdio::null())
             .stderr(Stdio::null())
             .spawn()
@@ -85,13 +118,20 @@ fn with_operator_keys_only_signed_commands_are_carried_out_and_the_audit_log_nam
     let out = Command::new(BIN).args(&args).output().expect("exec-info");
     assert!(!out.status.success());
     let err = String::from_utf8_lossy(&out.stderr);
-    assert!(err.contains("unauthorised") || err.contains("signed"), "{err}");
+    assert!(
+        err.contains("unauthorised") || err.contains("signed"),
+        "{err}"
+    );
 
     // Signed: carried out.
     let mut args = vec!["load".to_string(), path(&pk.join("u1.cpkg")).to_string()];
     args.extend(client(&["--key", path(&key)]));
     let out = Command::new(BIN).args(&args).output().expect("load");
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
 
     // The audit log says who: the operator's key id.
     let end = Instant::now() + Duration::from_secs(10);

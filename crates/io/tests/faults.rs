@@ -64,3 +64,25 @@ fn a_primary_that_faults_drives_its_safe_values_until_reset() {
         "the cell works again"
     );
 }
+
+#[test]
+fn a_primary_scan_past_the_watchdog_is_a_primary_fault() {
+    use cetratus_runtime::inject::{arm, disarm, Fault};
+    let _turn = TURN.lock().unwrap_or_else(|e| e.into_inner());
+    let w = Workshop::new();
+    let mut cell = Cell::new(w.program("u1.toml"));
+    let mut limits = cell.plc.limits();
+    limits.watchdog_ns = 20_000_000;
+    cell.plc.set_limits(limits);
+    cell.run_for(1_000_000);
+    arm("vernadat-cell", "1.1.0", Fault::Slow(50_000));
+    cell.step();
+    disarm();
+    assert_eq!(cell.plc.status(), Status::Fault);
+    let e = cell
+        .events
+        .iter()
+        .find(|e| e.kind == "primary_fault")
+        .expect("primary_fault");
+    assert!(e.message.contains("watchdog"), "{}", e.message);
+}

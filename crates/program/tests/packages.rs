@@ -225,7 +225,7 @@ fn a_package_built_against_another_program_is_refused_unless_forced() {
     let initial = load("vernadat.toml");
     let err = pkg.resolve(&initial, false).unwrap_err();
     assert!(matches!(err, PackageError::BaseMismatch { .. }), "{err}");
-    assert!(err.to_string().contains(&initial.hash_hex()), "{err}");
+    assert!(err.to_string().contains(initial.hash_hex()), "{err}");
     let up = ok(pkg.resolve(&initial, true));
     assert_eq!(up.transform.rows(), 15);
 }

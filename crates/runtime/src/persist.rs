@@ -1270,7 +1270,7 @@ mod tests {
         for name in ["vernadat.toml", "u1.toml", "u2.toml"] {
             let p = example(name);
             store.save_program(&p).expect("save");
-            let back = store.load_program(&p.hash_hex()).expect("load");
+            let back = store.load_program(p.hash_hex()).expect("load");
             assert_eq!(back.hash_hex(), p.hash_hex());
         }
         assert_eq!(store.program_hashes().len(), 3);
@@ -1288,7 +1288,7 @@ mod tests {
         let text = std::fs::read_to_string(&path).expect("read");
         std::fs::write(&path, format!("{text}\n# edited\n")).expect("write");
         assert!(matches!(
-            store.load_program(&h),
+            store.load_program(h),
             Err(PersistError::ProgramMismatch { .. })
         ));
         assert!(matches!(

@@ -1,7 +1,7 @@
 //! Criterion benches of the analysis: reachability on Kanban and FMS, and the Farkas invariants.
 
 use cetratus_analysis::invariants::{p_semiflows, t_semiflows, DEFAULT_MAX_ROWS};
-use cetratus_bench::analysis::{explore_once, family};
+use cetratus_bench::analysis::{explore_once, explore_with, family};
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
 
 fn reachability(c: &mut Criterion) {
@@ -12,6 +12,13 @@ fn reachability(c: &mut Criterion) {
         let states = explore_once(&net).states;
         g.throughput(Throughput::Elements(states));
         g.bench_function(format!("{fam}-{n}"), |b| b.iter(|| explore_once(&net)));
+        // The parallel explorer on every available thread (the same states and edges).
+        let threads = std::thread::available_parallelism().map_or(1, usize::from);
+        if threads > 1 {
+            g.bench_function(format!("{fam}-{n}-threads{threads}"), |b| {
+                b.iter(|| explore_with(&net, threads))
+            });
+        }
     }
     g.finish();
 }

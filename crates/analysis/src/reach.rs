@@ -266,7 +266,7 @@ impl<const W: usize> Compiled<W> {
 const CHUNK_BITS: u32 = 16;
 
 /// States whose successors are computed ahead of the one being inserted (see `explore_w`).
-const AHEAD: usize = 16;
+const AHEAD: usize = 6;
 const RING: usize = AHEAD + 1;
 
 /// An append-only array in fixed chunks, so that growing never copies (no reallocation peak).
@@ -473,7 +473,8 @@ fn explore_w<const W: usize>(net: &Net, pk: &Packing, opts: &ReachOptions) -> Re
     observe(&k0);
     let mut enabled_ever = vec![false; nt];
     // Successor buffers of the states from `cur` to `ready - 1`, indexed by state id mod RING.
-    let mut ring: Vec<Vec<(u32, [u64; W], u64)>> = vec![Vec::with_capacity(nt); RING];
+    let mut ring: Vec<Vec<(u32, [u64; W], u64)>> =
+        (0..RING).map(|_| Vec::with_capacity(nt)).collect();
     let mut ready = 0usize;
     let (mut edges, mut deadlocks) = (0u64, 0u64);
     let mut first_dead: Option<usize> = None;

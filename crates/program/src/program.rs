@@ -12,7 +12,7 @@ use toml::Spanned;
 use crate::action::{Action, Qualifier, Target};
 use crate::guard::{EvalCtx, EvalError, Guard, Scope, SyntaxError};
 use crate::invariant::{self, Invariant, InvariantViolation};
-use crate::source::{Doc, NetOnly, Origin, SignalDecl};
+use crate::source::{Doc, Origin, SignalDecl};
 use crate::value::{Signal, Type, Value};
 use crate::ProgramError;
 
@@ -74,8 +74,9 @@ impl Program {
             return Self::from_pnml_text(&text, &label);
         }
         let origin = Origin::new(&text, &label);
-        let head: NetOnly = toml::from_str(&text).map_err(|e| toml_error(&origin, &e))?;
-        let Some(net_name) = head.program.net else {
+        // Parsed once: the same document names the net and declares the interpretation.
+        let doc: Doc = toml::from_str(&text).map_err(|e| toml_error(&origin, &e))?;
+        let Some(net_name) = doc.program.net.clone() else {
             return Err(ProgramError::File {
                 path: label,
                 message: "`[program]` has no `net = \"….pnml\"`; name the PNML file of the net, next to this file".into(),
@@ -92,7 +93,7 @@ impl Program {
             ),
             other => other,
         })?;
-        Self::build(origin, net)
+        Self::build_doc(origin, doc, net)
     }
 
     /// Loads a program carried inside PNML text (`label` names it in messages).
@@ -136,6 +137,10 @@ impl Program {
 
     fn build(o: Origin, net: Net) -> Result<Program, ProgramError> {
         let doc: Doc = toml::from_str(o.text).map_err(|e| toml_error(&o, &e))?;
+        Self::build_doc(o, doc, net)
+    }
+
+    fn build_doc(o: Origin, doc: Doc, net: Net) -> Result<Program, ProgramError> {
         let p = &doc.program;
         if p.name.get_ref().trim().is_empty() {
             return Err(o.err(

@@ -40,6 +40,9 @@ const MIN_PARALLEL: usize = 1 << 11;
 /// Successors handled ahead of the one being inserted, so that their cache misses overlap.
 const AHEAD: usize = 8;
 
+/// A new state with its discoverer.
+type Found<const W: usize> = (u64, [u64; W]);
+
 /// A successor on its way to its owner: discoverer, key, hash.
 type Succ<const W: usize> = (u64, [u64; W], u64);
 
@@ -114,7 +117,7 @@ fn insert<const W: usize>(
     table: &mut Table<W>,
     expanded: &[Expanded<W>],
     o: usize,
-    new: &mut Vec<(u64, [u64; W])>,
+    new: &mut Vec<Found<W>>,
 ) {
     new.clear();
     for ex in expanded {
@@ -189,8 +192,8 @@ pub(super) fn explore_par<const W: usize>(
         MAX_BATCH.min((OUTBOX_BYTES / (nt.max(1) * std::mem::size_of::<Succ<W>>())).max(1));
     // Buffers reused from batch to batch: one per thread, one per owner.
     let mut expanded: Vec<Expanded<W>> = (0..threads).map(|_| Expanded::new(threads, nt)).collect();
-    let mut lists: Vec<Vec<(u64, [u64; W])>> = vec![Vec::new(); threads];
-    let mut new: Vec<(u64, [u64; W])> = Vec::new();
+    let mut lists: Vec<Vec<Found<W>>> = vec![Vec::new(); threads];
+    let mut new: Vec<Found<W>> = Vec::new();
     let mut recount = Expanded::new(0, nt);
     let mut cur = 0usize;
     while cur < states.len {
@@ -225,7 +228,7 @@ pub(super) fn explore_par<const W: usize>(
         let grows: Vec<u32> = tables.iter().map(|t| t.grows).collect();
         {
             let expanded = &expanded;
-            let mut work: Vec<(&mut Table<W>, &mut Vec<(u64, [u64; W])>)> =
+            let mut work: Vec<(&mut Table<W>, &mut Vec<Found<W>>)> =
                 tables.iter_mut().zip(lists.iter_mut()).collect();
             each(&mut work, parallel, |o, (t, new)| {
                 insert(t, expanded, o, new)
@@ -312,7 +315,7 @@ pub(super) fn explore_par<const W: usize>(
 }
 
 /// Merges lists sorted by discoverer into `out` (cleared).
-fn merge<const W: usize>(lists: &[Vec<(u64, [u64; W])>], out: &mut Vec<(u64, [u64; W])>) {
+fn merge<const W: usize>(lists: &[Vec<Found<W>>], out: &mut Vec<Found<W>>) {
     out.clear();
     let total = lists.iter().map(Vec::len).sum();
     let mut heads = vec![0usize; lists.len()];

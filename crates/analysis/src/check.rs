@@ -34,7 +34,8 @@ pub struct CheckOptions {
     /// Stop exploring after this many states; the report is then partial.
     pub max_states: Option<u64>,
     /// Threads to use. With 2 or more, the invariants, siphons and traps are computed beside the
-    /// state-space exploration; the exploration itself is single-threaded.
+    /// state-space exploration, and the exploration itself runs on this many threads (same
+    /// states, ids, counts and witness as on one thread).
     pub threads: usize,
     /// Set to true (e.g. by Ctrl-C) to stop with a partial report.
     pub cancel: Option<Arc<AtomicBool>>,

@@ -17,6 +17,10 @@
 //! for the shortest deadlock witness. For the liveness pass the table also keeps the id of every
 //! slot (4 bytes per slot). At Kanban N=5 that is 8 (state) + 4 (parent) + ≈13 (table) bytes per
 //! state at the end, 27 at the peak (while the table doubles, both tables are alive).
+//!
+//! With `threads ≥ 2` the exploration is split between threads (module `par`): the table is
+//! sharded by hash, each batch of states is expanded in parallel, and the new states are numbered
+//! exactly as the sequential explorer numbers them.
 
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
@@ -265,10 +269,6 @@ impl<const W: usize> Compiled<W> {
 
 const CHUNK_BITS: u32 = 16;
 
-/// States whose successors are computed ahead of the one being inserted (see `explore_w`).
-const AHEAD: usize = 6;
-const RING: usize = AHEAD + 1;
-
 /// An append-only array in fixed chunks, so that growing never copies (no reallocation peak).
 struct Chunked<T: Copy> {
     chunks: Vec<Vec<T>>,
@@ -472,10 +472,7 @@ fn explore_w<const W: usize>(net: &Net, pk: &Packing, opts: &ReachOptions) -> Re
     };
     observe(&k0);
     let mut enabled_ever = vec![false; nt];
-    // Successor buffers of the states from `cur` to `ready - 1`, indexed by state id mod RING.
-    let mut ring: Vec<Vec<(u32, [u64; W], u64)>> =
-        (0..RING).map(|_| Vec::with_capacity(nt)).collect();
-    let mut ready = 0usize;
+    let mut batch: Vec<([u64; W], u64)> = Vec::with_capacity(nt);
     let (mut edges, mut deadlocks) = (0u64, 0u64);
     let mut first_dead: Option<usize> = None;
     let mut stopped = None;
@@ -499,34 +496,27 @@ fn explore_w<const W: usize>(net: &Net, pk: &Packing, opts: &ReachOptions) -> Re
                 });
             }
         }
-        // Successors of the next few states are computed and their slots touched ahead of their
-        // insertion, so the cache misses of several states overlap with the work on this one.
-        while ready < states.len && ready <= cur + AHEAD {
-            let buf = &mut ring[ready % RING];
-            buf.clear();
-            let key = states.get(ready);
-            for t in 0..nt {
-                if code.enabled(&key, t) {
-                    let succ = code.fire(&key, t);
-                    buf.push((t as u32, succ, hash(&succ)));
-                }
+        let key = states.get(cur);
+        let mut any = false;
+        batch.clear();
+        for (t, ever) in enabled_ever.iter_mut().enumerate() {
+            if code.enabled(&key, t) {
+                any = true;
+                *ever = true;
+                let succ = code.fire(&key, t);
+                batch.push((succ, hash(&succ)));
             }
-            for &(_, _, h) in buf.iter() {
-                table.touch(h);
-            }
-            ready += 1;
         }
-        let batch = &ring[cur % RING];
         edges += batch.len() as u64;
         let grows = table.grows;
         table.reserve(batch.len());
         if table.grows != grows {
             peak_bytes = peak_bytes.max(table.transient_bytes + states.bytes() + parents.bytes());
         }
-        for &(t, _, _) in batch {
-            enabled_ever[t as usize] = true;
+        for &(_, h) in &batch {
+            table.touch(h);
         }
-        for (_, succ, h) in batch {
+        for (succ, h) in &batch {
             let id = states.len as u32;
             if table.insert_hashed(succ, *h, id) {
                 if states.len as u64 >= max_states {
@@ -539,7 +529,7 @@ fn explore_w<const W: usize>(net: &Net, pk: &Packing, opts: &ReachOptions) -> Re
                 observe(succ);
             }
         }
-        if batch.is_empty() {
+        if !any {
             deadlocks += 1;
             first_dead.get_or_insert(cur);
         }

@@ -2,6 +2,8 @@
 //! same states, edges, dead states, deadlock witness, bounds, liveness, and the same stopping
 //! point under `--max-states`.
 
+mod common;
+
 use std::path::Path;
 
 use cetratus_analysis::families::{fms, kanban};
@@ -9,6 +11,7 @@ use cetratus_analysis::invariants::DEFAULT_MAX_ROWS;
 use cetratus_analysis::reach::{explore, structural_packing, ReachOptions, ReachResult};
 use cetratus_analysis::{check, CheckOptions, Report};
 use cetratus_net::Net;
+use proptest::prelude::*;
 
 const FIXTURES: [&str; 11] = [
     "pipe/ClassicGSPN.xml",
@@ -145,5 +148,26 @@ fn parallel_check_under_max_states_equals_the_sequential_one() {
             behaviour(&net, 1, Some(max)),
             "max_states {max}"
         );
+    }
+}
+
+fn small_net() -> impl Strategy<Value = Net> {
+    (1usize..=5, 1usize..=5).prop_flat_map(|(np, nt)| {
+        (
+            proptest::collection::vec(proptest::collection::vec(0u32..=2, nt), np),
+            proptest::collection::vec(proptest::collection::vec(0u32..=2, nt), np),
+            proptest::collection::vec(0u32..=3, np),
+        )
+            .prop_map(|(pre, post, m0)| common::from_matrices(&pre, &post, &m0))
+    })
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(64))]
+
+    /// Random small nets (bounded or not), with a state limit so that none runs for long.
+    #[test]
+    fn parallel_check_of_a_random_net_equals_the_sequential_one(net in small_net()) {
+        prop_assert_eq!(behaviour(&net, 2, Some(5_000)), behaviour(&net, 1, Some(5_000)));
     }
 }

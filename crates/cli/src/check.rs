@@ -20,10 +20,11 @@ pub struct CheckArgs {
     /// Stop exploring after N states; the report is then marked partial.
     #[arg(long, value_name = "N")]
     pub max_states: Option<u64>,
-    /// Threads: with 2 or more, invariants, siphons and traps run beside the (single-threaded)
-    /// state-space exploration.
-    #[arg(long, value_name = "N", default_value_t = 1)]
-    pub threads: usize,
+    /// Threads: with 2 or more the state space is explored in parallel (same states, same ids,
+    /// same witness as one thread) and the structural analyses run beside it. Defaults to the
+    /// machine's cores.
+    #[arg(long, value_name = "N")]
+    pub threads: Option<usize>,
 }
 
 fn load(path: &Path) -> anyhow::Result<Net> {
@@ -52,7 +53,10 @@ pub fn run(args: &CheckArgs) -> anyhow::Result<()> {
     let progress = TerminalProgress::new();
     let opts = CheckOptions {
         max_states: args.max_states,
-        threads: args.threads.max(1),
+        threads: args
+            .threads
+            .unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()))
+            .max(1),
         cancel: Some(cancel),
         progress: Some(progress.callback()),
         ..CheckOptions::default()

@@ -2,7 +2,7 @@
 //! counts as the sequential explorer, with the work of each batch of states split between
 //! threads and no atomic operation on the hot path.
 //!
-//! Ownership. The visited set is split into one [`Table`] per thread by the top bits of the
+//! Ownership. The visited set is split into one `Table` per thread by the top bits of the
 //! hash: thread `o` alone reads and writes table `o`, so its tables are the sequential ones
 //! (same layout, same growth, same bytes per state).
 //!
@@ -17,6 +17,15 @@
 //! least discoverer; the owners' lists, merged by discoverer, are the new states in sequential
 //! order. States found in earlier batches have smaller discoverers than any in this batch, so the
 //! batches compose.
+//!
+//! Limits. At `max_states`, the batch's new states are cut where the sequential explorer stops,
+//! and the counts of the batch are recomputed up to that state's parent, so a partial result is
+//! the sequential one too. The cancel flag and the progress callback are served between
+//! batches. For the liveness pass the ids are not in the tables: a sequential table with ids is
+//! rebuilt from the states, in id order, after the exploration.
+//!
+//! Memory: the tables hold the same bytes per state as the sequential one; the outboxes of one
+//! batch come on top (at most `OUTBOX_BYTES`; ≈ 25 MB with their spare capacity at Kanban N=5).
 
 use cetratus_net::{Net, TransIdx};
 
@@ -29,7 +38,7 @@ use std::sync::atomic::Ordering;
 
 /// Largest batch: enough to keep the threads busy, and few enough states to check the cancel
 /// flag often.
-const MAX_BATCH: usize = 1 << 15;
+const MAX_BATCH: usize = 1 << 16;
 
 /// Bytes the outboxes of one batch may take at most (the batch is shortened for wide nets).
 const OUTBOX_BYTES: usize = 64 << 20;

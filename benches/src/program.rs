@@ -41,13 +41,24 @@ pub fn recorded_inputs(program: &Arc<Program>, scans: usize) -> Vec<Vec<Value>> 
     images
 }
 
-/// Mean ns of one full program scan (guards, enabling, firing, actions, output image), replaying
-/// the inputs of a real run on a fresh container.
+/// Mean ns of one program scan (guards, enabling, firing, actions, output image), replaying the
+/// inputs of a real run on a fresh container; scans in which nothing can fire take the quiet path.
 pub fn program_scan_ns(quick: bool) -> f64 {
+    program_scan_ns_with(quick, false)
+}
+
+/// [`program_scan_ns`] with every scan evaluated in full (no quiet path): the cost of a scan that
+/// looks at every enabled transition's guard and recomputes every action.
+pub fn program_scan_full_ns(quick: bool) -> f64 {
+    program_scan_ns_with(quick, true)
+}
+
+fn program_scan_ns_with(quick: bool, always_full: bool) -> f64 {
     let program = vernadat_program();
     let images = recorded_inputs(&program, if quick { 30_000 } else { 360_000 });
     let period = program.scan_period().as_micros() as u64;
-    let fresh = Container::new(program, 0);
+    let mut fresh = Container::new(program, 0);
+    fresh.set_always_full(always_full);
     let mut runs = Vec::new();
     for _ in 0..if quick { 5 } else { 11 } {
         let mut c = fresh.clone();

@@ -135,6 +135,39 @@ pub fn run(args: &BenchArgs) -> anyhow::Result<()> {
     }
 
     let analysis = cetratus_bench::analysis::reachability_figures(args.quick);
+    // The headline figures of the analysis issue: the slowest of Kanban and FMS.
+    let min = |f: &dyn Fn(&cetratus_bench::analysis::NetFigures) -> f64| {
+        analysis.nets.iter().map(f).fold(f64::INFINITY, f64::min)
+    };
+    let max = |f: &dyn Fn(&cetratus_bench::analysis::NetFigures) -> f64| {
+        analysis.nets.iter().map(f).fold(0.0, f64::max)
+    };
+    out.insert(
+        s("reachability_states_per_s"),
+        min(&|n| n.reachability_states_per_s).into(),
+    );
+    out.insert(
+        s("reachability_states_per_s_all_cores"),
+        min(&|n| n.reachability_states_per_s_multi).into(),
+    );
+    out.insert(
+        s("reachability_bytes_per_state"),
+        max(&|n| n.bytes_per_state).into(),
+    );
+    if !analysis.baselines.is_empty() {
+        let sp = |f: &dyn Fn(&cetratus_bench::analysis::Baseline) -> f64| {
+            analysis
+                .baselines
+                .iter()
+                .map(f)
+                .fold(f64::INFINITY, f64::min)
+        };
+        out.insert(s("python_speedup"), sp(&|b| b.speedup).into());
+        out.insert(
+            s("python_speedup_one_thread"),
+            sp(&|b| b.speedup_one_thread).into(),
+        );
+    }
     if let serde_json::Value::Object(map) = serde_json::to_value(&analysis)? {
         for (k, v) in map {
             out.insert(k, v);

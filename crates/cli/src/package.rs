@@ -370,7 +370,7 @@ fn verify(a: &VerifyArgs) -> anyhow::Result<()> {
         "package     {} {}  sha256 {}",
         m.name,
         m.version,
-        pkg.hash_hex()
+        UpdatePackage::file_hash_hex(&bytes)
     );
     println!(
         "program     {} {}  {}",

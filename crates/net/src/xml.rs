@@ -336,7 +336,9 @@ impl<'i> Builder<'i> {
             Some((p, n)) => (p, n),
             None => ("", qname),
         };
-        let namespace = match self.scope.iter().rev().find(|(p, _)| *p == prefix) {
+        // Most names have no prefix: settle those on the length, without a call to memcmp.
+        let same = |p: &str| p.len() == prefix.len() && (prefix.is_empty() || p == prefix);
+        let namespace = match self.scope.iter().rev().find(|(p, _)| same(p)) {
             Some(&(_, ns)) => ns,
             None if prefix.is_empty() => NONE,
             None if prefix == "xml" => {

@@ -151,13 +151,13 @@ fn a_package_file_says_who_signed_it_and_hashes_its_bytes() {
     assert_eq!(pkg.meta().base_program_hash, load("u1.toml").hash_hex());
     assert_eq!(pkg.program().hash_hex(), load("u2.toml").hash_hex());
     assert_eq!(pkg.program().hash_hex(), report.program_hash);
-    assert_eq!(pkg.hash_hex().len(), 64);
+    assert_eq!(UpdatePackage::file_hash_hex(&bytes).len(), 64);
     let info = ok(cetratus_program::package::inspect(&bytes));
     assert_eq!(
         info.claimed_signer.as_deref(),
         Some(s.key.key_id().as_str())
     );
-    assert_eq!(info.hash_hex, pkg.hash_hex());
+    assert_eq!(info.hash_hex, UpdatePackage::file_hash_hex(&bytes));
 }
 
 #[test]

@@ -122,6 +122,10 @@ pub fn run(args: &BenchArgs) -> anyhow::Result<()> {
         program::program_scan_ns(args.quick).into(),
     );
     out.insert(
+        s("program_scan_full_ns"),
+        program::program_scan_full_ns(args.quick).into(),
+    );
+    out.insert(
         s("program_load_us"),
         program::program_load_us(args.quick).into(),
     );

@@ -20,6 +20,12 @@ mod state;
 
 use clap::{Parser, Subcommand};
 
+// Parsing programs and packages allocates many small strings; mimalloc makes a load and an
+// update's setup measurably cheaper than the system allocator (docs/performance.md). The scan
+// itself does not allocate.
+#[global_allocator]
+static GLOBAL: mimalloc::MiMalloc = mimalloc::MiMalloc;
+
 /// Cetratus: a soft PLC whose programs are Petri nets, replaced live under quarantine.
 #[derive(Parser, Debug)]
 #[command(name = "cetratus", version, about, long_about = None)]

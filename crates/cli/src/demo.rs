@@ -340,8 +340,10 @@ pub fn scripted(files: &DemoFiles) -> anyhow::Result<DemoRecord> {
     let program = Arc::new(Program::load(&files.program)?);
     let twin = TwinKind::Vernadat.build(1);
     let io = TwinDriver::new(twin, program.inputs(), program.outputs())?;
+    let mut plc = Plc::new(program, 0);
+    plc.use_virtual_time(PERIOD_US);
     let mut r = Run {
-        plc: Plc::new(program, 0),
+        plc,
         io,
         now: 0,
         rec: Recorder {

@@ -213,7 +213,9 @@ pub fn run(args: &RunArgs) -> anyhow::Result<()> {
             (Plc::new(program.clone(), 0), None)
         }
     };
-    if args.period.is_some() {
+    if args.virtual_time {
+        plc.use_virtual_time(period_us);
+    } else if args.period.is_some() {
         plc.set_limits(cetratus_runtime::Limits::for_period_us(period_us));
     }
     // Program time resumes after the last committed cycle; `--for`, `--at` and `--press` count

@@ -23,8 +23,10 @@ const CHAINS: usize = 10;
 const KILLS_PER_CHAIN: usize = 5;
 /// The longest commit the loss bound assumes on the test machine (write, fsync, rename, fsync), at
 /// least; twice the longest commit measured is used when larger. Measured commits are printed;
-/// they take about a millisecond on an idle disk.
-const ASSUMED_COMMIT_NS: u64 = 25_000_000;
+/// they take about a millisecond on an idle disk, but a commit that follows a load also saves the
+/// new program (two files, each written, synced and read back), and the test machine is shared
+/// with other test binaries: 25 ms was exceeded by a few cycles in one run out of four.
+const ASSUMED_COMMIT_NS: u64 = 60_000_000;
 
 /// SplitMix64: a seeded, dependency-free source of kill times and schedules.
 struct Rng(u64);

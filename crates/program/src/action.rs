@@ -108,6 +108,8 @@ impl ActionState {
         outputs: &mut [Value],
         vars: &mut [Value],
     ) {
+        // A first scan always recomputes, whatever the state did before it.
+        self.quiet = false;
         self.begin();
         for (p, &m) in marking.iter().enumerate() {
             if m > 0 {
@@ -171,12 +173,22 @@ impl ActionState {
         &self.latch
     }
 
+    /// Sets one latch (an update carrying the primary's latches over); out of range is ignored.
+    pub fn set_latch(&mut self, slot: usize, on: bool) {
+        if let Some(l) = self.latch.get_mut(slot) {
+            *l = on;
+            self.settled = false;
+            self.quiet = false;
+        }
+    }
+
     /// Restores latches saved with [`ActionState::latches`]; extra or missing entries are ignored.
     pub fn set_latches(&mut self, latches: &[bool]) {
         for (l, &v) in self.latch.iter_mut().zip(latches) {
             *l = v;
         }
         self.settled = false;
+        self.quiet = false;
     }
 
     fn begin(&mut self) {

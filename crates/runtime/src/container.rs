@@ -30,6 +30,8 @@ pub struct Container {
     force_full: bool,
     // The last full scan saw the same inputs as the one before it (rise/fall were false).
     inputs_steady: bool,
+    // The first scan resumes (warm start) instead of entering every marked place.
+    resume: bool,
     // Tests compare against a container that never takes the quiet path.
     always_full: bool,
 }
@@ -106,6 +108,7 @@ impl Container {
             timed_guard,
             force_full: true,
             inputs_steady: false,
+            resume: false,
             always_full: false,
             firings: vec![0; program.net().num_transitions()],
             marking_at_start: marking,
@@ -244,7 +247,7 @@ impl Container {
                 self.place_since_us[p.index()] = None;
             }
         }
-        if self.scans == 0 {
+        if self.scans == 0 && !std::mem::take(&mut self.resume) {
             // The first scan enters every marked place: P1 and S actions of M0 take effect.
             self.actions.start(
                 program,
@@ -313,6 +316,34 @@ impl Container {
     /// False when the last scan certainly left the outputs and variables as they were.
     pub fn outputs_may_have_changed(&self) -> bool {
         !self.actions.last_was_quiet()
+    }
+
+    /// Takes over the S/R latches and the variables of `from` (the primary) through the maps
+    /// built by the Updater: `latch_map[i]` is `from`'s latch for this program's latch `i`,
+    /// `var_map[i]` `from`'s variable for variable `i`. Allocates nothing.
+    pub fn carry_from(
+        &mut self,
+        from: &Container,
+        latch_map: &[Option<u32>],
+        var_map: &[Option<u32>],
+    ) {
+        for (i, m) in latch_map.iter().enumerate() {
+            if let Some(&on) = m.and_then(|j| from.latches().get(j as usize)) {
+                self.actions.set_latch(i, on);
+            }
+        }
+        for (v, m) in self.vars.iter_mut().zip(var_map) {
+            if let Some(&x) = m.and_then(|j| from.vars.get(j as usize)) {
+                *v = x;
+            }
+        }
+        self.force_full = true;
+    }
+
+    /// The next scan resumes rather than starts: marked places are not entered again, so P1
+    /// pulses and S/R actions of the saved marking do not fire a second time (warm start).
+    pub fn resume_without_entry(&mut self) {
+        self.resume = true;
     }
 
     /// Makes every scan run in full, for comparing against the quiet path in tests.

@@ -108,6 +108,11 @@ pub struct PreparedUpdate {
     to_primary: Vec<Option<TransIdx>>,
     // Primary transition → the candidate's transition of the same id.
     from_primary: Vec<Option<TransIdx>>,
+    // The candidate's safe output values in I/O-map order, for when it is PRIMARY.
+    safe: Vec<Value>,
+    // Candidate latch / variable → the primary's of the same name, carried over at the switch.
+    latch_map: Vec<Option<u32>>,
+    var_map: Vec<Option<u32>>,
     work: u64,
 }
 
@@ -193,6 +198,18 @@ pub struct Limits {
 }
 
 impl Limits {
+    /// Limits for a run in virtual time: the install budget is one period as measured by a
+    /// [`ModelStopwatch`] (deterministic), and the wall-clock watchdog and candidate budget are
+    /// one second, so that an operating system that preempts the process does not turn a
+    /// simulation into a fault.
+    pub fn for_virtual_time(period_us: u64) -> Self {
+        Limits {
+            state_trans_timeout_ns: period_us.saturating_mul(1000),
+            candidate_budget_ns: 1_000_000_000,
+            watchdog_ns: 1_000_000_000,
+        }
+    }
+
     /// The defaults for a scan period: stateTransTimeout is one period (the paper's "within one
     /// execution cycle"); the watchdog and the candidate's budget are ten periods, so that a scan
     /// the operating system preempted once does not stop a cell or abort an update, while a
@@ -215,6 +232,9 @@ struct Quarantine {
     from_primary: Vec<Option<TransIdx>>,
     scratch_marking: Vec<Tokens>,
     scratch_since: Vec<Option<u64>>,
+    safe: Vec<Value>,
+    latch_map: Vec<Option<u32>>,
+    var_map: Vec<Option<u32>>,
     pending: Option<(SubstituteRequest, u64)>,
     started_us: u64,
 }
@@ -273,7 +293,19 @@ fn bits(values: &[Value]) -> u64 {
     })
 }
 
+/// What a [`ModelStopwatch`] charges per entry an install touches in a virtual run.
+pub const VIRTUAL_NS_PER_ENTRY: u64 = 20;
+
 impl Plc {
+    /// Makes this PLC deterministic in virtual time: the install is measured by a cost model and
+    /// the wall-clock limits are relaxed ([`Limits::for_virtual_time`]).
+    pub fn use_virtual_time(&mut self, period_us: u64) {
+        self.set_stopwatch(Box::new(ModelStopwatch {
+            ns_per_unit: VIRTUAL_NS_PER_ENTRY,
+        }));
+        self.set_limits(Limits::for_virtual_time(period_us));
+    }
+
     /// A PLC at cold start: A runs `program` from M0; its signals define the I/O map.
     pub fn new(program: Arc<Program>, now_us: u64) -> Self {
         let io_inputs: Vec<String> = program.inputs().iter().map(|s| s.name.clone()).collect();
@@ -490,6 +522,19 @@ impl Plc {
             .map(|t| cn.transition_by_id(&t.id))
             .collect();
         let np = cn.num_places();
+        let safe = safe_image(io_outputs, &program);
+        let latch_map = retained_latch_map(&program, primary);
+        let var_map = program
+            .variables()
+            .iter()
+            .map(|v| {
+                primary
+                    .variables()
+                    .iter()
+                    .position(|w| w.name == v.name && w.ty == v.ty)
+                    .map(|j| j as u32)
+            })
+            .collect();
         let work =
             (update.transform.rows() + update.transform.cols() + np + cn.num_transitions()) as u64;
         Ok(PreparedUpdate {
@@ -501,6 +546,9 @@ impl Plc {
             out_map,
             to_primary,
             from_primary,
+            safe,
+            latch_map,
+            var_map,
             work,
             meta: update.meta,
             transform: update.transform,
@@ -960,7 +1008,11 @@ impl Plc {
                 );
                 up.container
                     .set_state(&up.scratch_marking, &up.scratch_since)
-                    .map_err(|e| e.to_string())
+                    .map_err(|e| e.to_string())?;
+                // Latches and variables the program shares with the primary carry over, as the
+                // marking does: an S that latched before the update stays latched.
+                up.container.carry_from(primary, &up.latch_map, &up.var_map);
+                Ok(())
             });
         let took = self.stopwatch.stop(up.work);
         if let Err(reason) = result {
@@ -997,6 +1049,9 @@ impl Plc {
             from_primary: up.from_primary,
             scratch_marking: up.scratch_marking,
             scratch_since: up.scratch_since,
+            safe: up.safe,
+            latch_map: up.latch_map,
+            var_map: up.var_map,
             pending: None,
             started_us: now_us,
         });
@@ -1027,7 +1082,15 @@ impl Plc {
                 place_since_us: primary.place_since_us(),
                 now_us,
             };
-            let holds = guard.eval(&ctx).unwrap_or(false);
+            let holds = match guard.eval(&ctx) {
+                Ok(h) => h,
+                Err(e) => {
+                    let msg = format!("substitution given up: the condition `{text}` failed to evaluate ({e}); the candidate stays in quarantine");
+                    q.pending = None;
+                    self.event("substitute_timeout", msg, serde_json::Value::Null);
+                    return;
+                }
+            };
             if !holds {
                 if now_us >= *deadline {
                     let msg = format!("substitution given up: `{text}` did not hold within the time allowed; the candidate stays in quarantine");
@@ -1064,7 +1127,7 @@ impl Plc {
                 now_us,
                 &mut q.scratch_since,
             );
-            let cand = self.slots[c].as_mut().expect("candidate present");
+            let (primary, cand) = primary_and_candidate(&mut self.slots, self.primary);
             if let Err(e) = cand.set_state(&q.scratch_marking, &q.scratch_since) {
                 q.pending = None;
                 self.event(
@@ -1074,9 +1137,14 @@ impl Plc {
                 );
                 return;
             }
+            // Consistent with the plant by construction: the latches and variables too.
+            cand.carry_from(primary, &q.latch_map, &q.var_map);
+            self.stale[c] = true;
         }
         let meta = q.meta.clone();
         let started = q.started_us;
+        // The safe values of the program that now drives the outputs.
+        std::mem::swap(&mut self.safe, &mut q.safe);
         self.quarantine = None;
         let old = self.primary;
         self.primary = old.other();
@@ -1286,6 +1354,7 @@ impl Plc {
             .collect();
         let mut container = container;
         container.restore_retained(&vars, &cs.latches);
+        container.resume_without_entry();
         let i = primary.index();
         plc.images[i] = container.inputs().to_vec();
         plc.stale[i] = true;
@@ -1301,6 +1370,7 @@ impl Plc {
             .collect::<Result<Vec<_>, _>>()
             .map_err(|n| format!("the saved program reads input `{n}` which the I/O map lacks"))?;
         plc.out_maps[i] = map_by_name(&plc.io_outputs, prog.outputs());
+        plc.safe = safe_image(&plc.io_outputs, &prog);
         plc.slots = [None, None];
         plc.slots[i] = Some(container);
         plc.primary = primary;
@@ -1343,6 +1413,61 @@ impl Plc {
         }
         Ok(plc)
     }
+}
+
+/// The primary container and the candidate, borrowed together.
+fn primary_and_candidate(
+    slots: &mut [Option<Container>; 2],
+    primary: Slot,
+) -> (&Container, &mut Container) {
+    let [a, b] = slots;
+    let (p, c) = match primary {
+        Slot::A => (a, b),
+        Slot::B => (b, a),
+    };
+    (
+        p.as_ref().expect("primary present"),
+        c.as_mut().expect("candidate present"),
+    )
+}
+
+/// A program's safe output values in the order of the I/O map (off for outputs it lacks).
+fn safe_image(io_outputs: &[String], program: &Program) -> Vec<Value> {
+    let mut own = vec![Value::Bool(false); program.outputs().len()];
+    program.safe_outputs(&mut own);
+    io_outputs
+        .iter()
+        .map(|n| {
+            program
+                .outputs()
+                .iter()
+                .position(|s| &s.name == n)
+                .map_or(Value::Bool(false), |k| own[k])
+        })
+        .collect()
+}
+
+/// For each latch (action target) of `program`, the latch of `primary` driving the signal of the
+/// same kind and name.
+fn retained_latch_map(program: &Program, primary: &Program) -> Vec<Option<u32>> {
+    use cetratus_program::Target;
+    let name = |p: &Program, t: &Target| match *t {
+        Target::Output(i) => (0u8, p.outputs()[i as usize].name.clone()),
+        Target::Variable(i) => (1u8, p.variables()[i as usize].name.clone()),
+    };
+    let theirs: Vec<(u8, String)> = primary
+        .action_targets()
+        .iter()
+        .map(|t| name(primary, t))
+        .collect();
+    program
+        .action_targets()
+        .iter()
+        .map(|t| {
+            let mine = name(program, t);
+            theirs.iter().position(|x| *x == mine).map(|j| j as u32)
+        })
+        .collect()
 }
 
 /// A value as plain JSON.

@@ -106,22 +106,89 @@ fn after_set_state_the_first_scan_reports_its_outputs_as_changed() {
     );
 }
 
+/// A PLC on the three-place net, driven by an input image the test sets.
+struct Rig {
+    plc: Plc,
+    io: Io,
+    now: u64,
+}
+
 struct Io {
     inputs: Vec<Value>,
-    out: Vec<Value>,
 }
+
 impl Provider for Io {
     fn read_inputs(&mut self, _: u64, i: &mut [Value]) {
         i.copy_from_slice(&self.inputs);
     }
 }
+
 impl Dispatcher for Io {
-    fn write_outputs(&mut self, _: u64, o: &[Value]) {
-        self.out = o.to_vec();
+    fn write_outputs(&mut self, _: u64, _: &[Value]) {}
+}
+
+impl Rig {
+    fn new(program: &Arc<Program>) -> Self {
+        let mut plc = Plc::new(program.clone(), 0);
+        plc.set_stopwatch(Box::new(ModelStopwatch { ns_per_unit: 0 }));
+        Rig {
+            plc,
+            io: Io {
+                inputs: img(false, false),
+            },
+            now: 0,
+        }
+    }
+
+    /// `k` cycles with this input image.
+    fn run(&mut self, inputs: Vec<Value>, k: usize) {
+        self.io.inputs = inputs;
+        for _ in 0..k {
+            self.now += 10_000;
+            self.plc.cycle(self.now, &mut self.io);
+        }
+    }
+
+    /// Loads `new` with the generated transform; it is installed at the next cycle.
+    fn load(&mut self, old: &Arc<Program>, new: &Arc<Program>) {
+        let transform = StateTransform::generated(old, new, &BTreeMap::new()).expect("transform");
+        let meta = PackageMeta {
+            name: "u".into(),
+            version: "2".into(),
+            author: String::new(),
+            description: String::new(),
+            created: String::new(),
+            base_program_hash: old.hash_hex().to_string(),
+        };
+        let up = Plc::prepare(
+            old,
+            self.plc.io_inputs(),
+            self.plc.io_outputs(),
+            ResolvedUpdate {
+                program: new.clone(),
+                transform,
+                projection: Projection::generated(old.net(), new.net()),
+                meta,
+            },
+        )
+        .expect("prepared");
+        self.plc
+            .command(Command::Load(Box::new(up)))
+            .expect("load accepted");
+    }
+
+    fn substitute(&mut self) {
+        self.plc
+            .command(Command::Substitute(SubstituteRequest {
+                mode: SubstituteMode::Retransform,
+                when: None,
+                within_us: None,
+                force: false,
+            }))
+            .expect("substitute accepted");
     }
 }
 
-/// Plc: after a retransform substitution the Dispatcher writes the candidate's pre-retransform outputs.
 #[test]
 fn after_a_retransform_substitution_the_dispatcher_gets_the_new_primarys_outputs() {
     let act = "[[action]]\nplace = \"B\"\nqualifier = \"N\"\ntarget = \"o\"\n";
@@ -131,123 +198,42 @@ fn after_a_retransform_substitution_the_dispatcher_gets_the_new_primarys_outputs
         "T1 = \"x\"\nT2 = \"y && n > 5\"\nT3 = \"n > 100\"",
         act,
     );
-    let mut plc = Plc::new(old.clone(), 0);
-    plc.set_stopwatch(Box::new(ModelStopwatch { ns_per_unit: 0 }));
-    let mut io = Io {
-        inputs: img(false, false),
-        out: vec![],
-    };
-    let mut now = 0;
-    let mut step = |plc: &mut Plc, io: &mut Io, x: bool, y: bool, k: usize| {
-        for _ in 0..k {
-            now += 10_000;
-            io.inputs = img(x, y);
-            plc.cycle(now, io);
-        }
-    };
-    step(&mut plc, &mut io, false, false, 3);
-    let transform = StateTransform::generated(&old, &new, &BTreeMap::new()).unwrap();
-    let projection = Projection::generated(old.net(), new.net());
-    let meta = PackageMeta {
-        name: "u".into(),
-        version: "2".into(),
-        author: String::new(),
-        description: String::new(),
-        created: String::new(),
-        base_program_hash: old.hash_hex().to_string(),
-    };
-    let up = Plc::prepare(
-        &old,
-        plc.io_inputs(),
-        plc.io_outputs(),
-        ResolvedUpdate {
-            program: new.clone(),
-            transform,
-            projection,
-            meta,
-        },
-    )
-    .unwrap();
-    plc.command(Command::Load(Box::new(up))).unwrap();
-    step(&mut plc, &mut io, false, false, 2);
-    step(&mut plc, &mut io, true, false, 1);
-    step(&mut plc, &mut io, false, false, 3);
-    step(&mut plc, &mut io, false, true, 1);
-    step(&mut plc, &mut io, false, false, 5);
-    plc.command(Command::Substitute(SubstituteRequest {
-        mode: SubstituteMode::Retransform,
-        when: None,
-        within_us: None,
-        force: false,
-    }))
-    .unwrap();
-    step(&mut plc, &mut io, false, false, 3);
-    let c = plc.container(Slot::B).unwrap();
+    let mut r = Rig::new(&old);
+    r.run(img(false, false), 3);
+    r.load(&old, &new);
+    // The candidate drifts to B (its T2 needs n > 5); the primary goes back to A.
+    r.run(img(false, false), 2);
+    r.run(img(true, false), 1);
+    r.run(img(false, false), 3);
+    r.run(img(false, true), 1);
+    r.run(img(false, false), 5);
+    r.substitute();
+    r.run(img(false, false), 3);
+    let c = r.plc.container(Slot::B).expect("B is primary");
     assert_eq!(
-        plc.dispatched()[0],
+        r.plc.dispatched()[0],
         c.outputs()[0],
         "dispatcher out of step with the primary's own outputs"
     );
 }
 
-/// S latch set by the primary on P=B, reset on C... here: S on B, R never; token leaves B. The
-/// primary's output stays latched; the candidate installed from the primary's marking does not.
+/// S on B and no R: the token passes through B and the output stays latched, across the install
+/// and the substitution.
 #[test]
 fn a_latched_output_stays_latched_across_install_and_substitution() {
     let act = "[[action]]\nplace = \"B\"\nqualifier = \"S\"\ntarget = \"o\"\n";
     let old = program("old", "T1 = \"x\"\nT2 = \"y\"\nT3 = \"n > 100\"", act);
     let new = program("new", "T1 = \"x\"\nT2 = \"y\"\nT3 = \"n > 101\"", act);
-    let mut plc = Plc::new(old.clone(), 0);
-    plc.set_stopwatch(Box::new(ModelStopwatch { ns_per_unit: 0 }));
-    let mut io = Io {
-        inputs: img(false, false),
-        out: vec![],
-    };
-    let mut now = 0;
-    let mut step = |plc: &mut Plc, io: &mut Io, x: bool, y: bool, k: usize| {
-        for _ in 0..k {
-            now += 10_000;
-            io.inputs = img(x, y);
-            plc.cycle(now, io);
-        }
-    };
-    step(&mut plc, &mut io, true, false, 1);
-    step(&mut plc, &mut io, false, true, 1);
-    step(&mut plc, &mut io, false, false, 3);
-    let transform = StateTransform::generated(&old, &new, &BTreeMap::new()).unwrap();
-    let projection = Projection::generated(old.net(), new.net());
-    let meta = PackageMeta {
-        name: "u".into(),
-        version: "2".into(),
-        author: String::new(),
-        description: String::new(),
-        created: String::new(),
-        base_program_hash: old.hash_hex().to_string(),
-    };
-    let up = Plc::prepare(
-        &old,
-        plc.io_inputs(),
-        plc.io_outputs(),
-        ResolvedUpdate {
-            program: new.clone(),
-            transform,
-            projection,
-            meta,
-        },
-    )
-    .unwrap();
-    plc.command(Command::Load(Box::new(up))).unwrap();
-    step(&mut plc, &mut io, false, false, 3);
-    plc.command(Command::Substitute(SubstituteRequest {
-        mode: SubstituteMode::Retransform,
-        when: None,
-        within_us: None,
-        force: false,
-    }))
-    .unwrap();
-    step(&mut plc, &mut io, false, false, 3);
+    let mut r = Rig::new(&old);
+    r.run(img(true, false), 1);
+    r.run(img(false, true), 1);
+    r.run(img(false, false), 3);
+    r.load(&old, &new);
+    r.run(img(false, false), 3);
+    r.substitute();
+    r.run(img(false, false), 3);
     assert_eq!(
-        plc.dispatched()[0],
+        r.plc.dispatched()[0],
         Value::Bool(true),
         "the latched output dropped at the switch"
     );
@@ -256,67 +242,29 @@ fn a_latched_output_stays_latched_across_install_and_substitution() {
 #[test]
 fn after_substitution_a_primary_fault_drives_the_new_programs_safe_values() {
     let old = program("old", "T1 = \"x\"\nT2 = \"y\"\nT3 = \"n > 100\"", "");
-    let src_new = "[[action]]\nplace = \"B\"\nqualifier = \"N\"\ntarget = \"o\"\n";
     let new = {
-        let src = format!(
-            "[program]\nname = \"new\"\nversion = \"1\"\n\
+        let src = "[program]\nname = \"new\"\nversion = \"1\"\n\
              [[input]]\nname = \"x\"\ntype = \"bool\"\n\
              [[input]]\nname = \"y\"\ntype = \"bool\"\n\
              [[input]]\nname = \"n\"\ntype = \"int\"\n\
              [[output]]\nname = \"o\"\ntype = \"bool\"\nsafe = true\n\
-             [[variable]]\nname = \"flag\"\ntype = \"bool\"\n{src_new}\n[guards]\nT1 = \"x\"\nT2 = \"y\"\nT3 = \"100 / n > 1000\"\n");
-        Arc::new(Program::from_sources(&src, "t.toml", net()).unwrap())
+             [[variable]]\nname = \"flag\"\ntype = \"bool\"\n\
+             [[action]]\nplace = \"B\"\nqualifier = \"N\"\ntarget = \"o\"\n\
+             [guards]\nT1 = \"x\"\nT2 = \"y\"\nT3 = \"100 / n > 1000\"\n";
+        Arc::new(Program::from_sources(src, "t.toml", net()).expect("program"))
     };
-    let mut plc = Plc::new(old.clone(), 0);
-    plc.set_stopwatch(Box::new(ModelStopwatch { ns_per_unit: 0 }));
-    let mut io = Io {
-        inputs: vec![],
-        out: vec![],
-    };
-    let mut now = 0;
-    let mut step = |plc: &mut Plc, io: &mut Io, n: i64, k: usize| {
-        for _ in 0..k {
-            now += 10_000;
-            io.inputs = vec![Value::Bool(false), Value::Bool(false), Value::Int(n)];
-            plc.cycle(now, io);
-        }
-    };
-    step(&mut plc, &mut io, 1, 2);
-    let transform = StateTransform::generated(&old, &new, &BTreeMap::new()).unwrap();
-    let projection = Projection::generated(old.net(), new.net());
-    let meta = PackageMeta {
-        name: "u".into(),
-        version: "2".into(),
-        author: String::new(),
-        description: String::new(),
-        created: String::new(),
-        base_program_hash: old.hash_hex().to_string(),
-    };
-    let up = Plc::prepare(
-        &old,
-        plc.io_inputs(),
-        plc.io_outputs(),
-        ResolvedUpdate {
-            program: new.clone(),
-            transform,
-            projection,
-            meta,
-        },
-    )
-    .unwrap();
-    plc.command(Command::Load(Box::new(up))).unwrap();
-    step(&mut plc, &mut io, 1, 2);
-    plc.command(Command::Substitute(SubstituteRequest {
-        mode: SubstituteMode::Retransform,
-        when: None,
-        within_us: None,
-        force: false,
-    }))
-    .unwrap();
-    step(&mut plc, &mut io, 1, 2);
-    step(&mut plc, &mut io, 0, 2);
+    let n = |v: i64| vec![Value::Bool(false), Value::Bool(false), Value::Int(v)];
+    let mut r = Rig::new(&old);
+    r.run(n(1), 2);
+    r.load(&old, &new);
+    r.run(n(1), 2);
+    r.substitute();
+    r.run(n(1), 2);
+    // Division by zero in T3's guard: a primary fault, with the new program's safe values.
+    r.run(n(0), 2);
+    assert_eq!(r.plc.status(), cetratus_runtime::Status::Fault);
     assert_eq!(
-        plc.dispatched()[0],
+        r.plc.dispatched()[0],
         Value::Bool(true),
         "new primary's safe value"
     );

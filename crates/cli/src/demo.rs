@@ -588,6 +588,7 @@ fn live(args: &DemoArgs, files: &DemoFiles) -> anyhow::Result<()> {
         broker_url: broker_url.clone(),
         user: args.mqtt.user.clone(),
         password: args.mqtt.password.clone(),
+        signer: None,
     })?;
     let until_us = match &args.for_ {
         Some(d) => crate::duration::parse_duration_us(d)?,

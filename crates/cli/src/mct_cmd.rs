@@ -20,6 +20,9 @@ pub struct MctArgs {
     /// Broker password (or set CETRATUS_MQTT_PASSWORD).
     #[arg(long, env = "CETRATUS_MQTT_PASSWORD", hide_env_values = true)]
     password: Option<String>,
+    /// Sign the commands of the page with this operator key, for PLCs with operator keys.
+    #[arg(long)]
+    key: Option<std::path::PathBuf>,
 }
 
 /// Runs `cetratus mct` until Ctrl-C.
@@ -35,6 +38,10 @@ pub fn run(args: &MctArgs) -> anyhow::Result<()> {
         broker_url: args.broker.clone(),
         user: args.user.clone(),
         password: args.password.clone(),
+        signer: match &args.key {
+            Some(path) => Some(signer(path)?),
+            None => None,
+        },
     })?;
     println!(
         "dashboard on http://{}/ watching {}; Ctrl-C stops",
@@ -50,4 +57,32 @@ pub fn run(args: &MctArgs) -> anyhow::Result<()> {
     }
     d.stop();
     Ok(())
+}
+
+/// A signer for the dashboard's commands: an envelope over the verb, the payload's hash, the time
+/// and a nonce, with the operator key at `path`.
+fn signer(path: &std::path::Path) -> anyhow::Result<cetratus_dashboard::CommandSigner> {
+    let key = cetratus_program::KeyPair::load(path)
+        .with_context(|| format!("operator key {}", path.display()))?;
+    let key_id = key.key_id();
+    let counter = std::sync::atomic::AtomicU64::new(0);
+    Ok(cetratus_dashboard::CommandSigner(Arc::new(
+        move |verb: &str, payload: &[u8]| {
+            let n = counter.fetch_add(1, Ordering::Relaxed);
+            let nonce = format!(
+                "mct-{}-{}-{n}",
+                std::process::id(),
+                cetratus_mct::unix_now()
+            );
+            let env = cetratus_mct::sign(
+                verb,
+                payload,
+                cetratus_mct::unix_now(),
+                &nonce,
+                &key_id,
+                key.signing_key(),
+            );
+            serde_json::to_value(env).unwrap_or(serde_json::Value::Null)
+        },
+    )))
 }

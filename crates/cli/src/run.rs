@@ -263,6 +263,7 @@ pub fn run(args: &RunArgs) -> anyhow::Result<()> {
                     broker_url: broker_url.clone(),
                     user: args.mqtt.user.clone(),
                     password: args.mqtt.password.clone(),
+                    signer: None,
                 },
             )?)
         };

@@ -133,6 +133,49 @@ fn with_operator_keys_only_signed_commands_are_carried_out_and_the_audit_log_nam
         String::from_utf8_lossy(&out.stderr)
     );
 
+    // The dashboard signs the page's commands with its own operator key; without one the PLC
+    // refuses them.
+    let ask_dashboard = |key: Option<&Path>| -> String {
+        let http = free_port();
+        let mut cmd = Command::new(BIN);
+        cmd.args([
+            "mct",
+            "--http",
+            &format!("127.0.0.1:{http}"),
+            "--broker",
+            &format!("mqtt://{mqtt}"),
+        ]);
+        if let Some(k) = key {
+            cmd.args(["--key", path(k)]);
+        }
+        let _mct = Guard(
+            cmd.stdout(Stdio::null())
+                .stderr(Stdio::null())
+                .spawn()
+                .expect("start cetratus mct"),
+        );
+        let end = Instant::now() + Duration::from_secs(20);
+        let mut reply = String::new();
+        while Instant::now() < end {
+            if let Ok(mut s) = std::net::TcpStream::connect(("127.0.0.1", http)) {
+                use std::io::{Read, Write};
+                let _ = write!(s, "POST /api/ops1/exec_info HTTP/1.0\r\nHost: x\r\nContent-Type: application/json\r\nContent-Length: 2\r\n\r\n{{}}");
+                let _ = s.read_to_string(&mut reply);
+                // 503 while the dashboard is still connecting to the broker.
+                if !reply.contains(" 503 ") && !reply.is_empty() {
+                    break;
+                }
+            }
+            reply.clear();
+            std::thread::sleep(Duration::from_millis(200));
+        }
+        reply
+    };
+    let signed = ask_dashboard(Some(&key));
+    assert!(signed.contains("\"ok\":true"), "{signed}");
+    let unsigned = ask_dashboard(None);
+    assert!(unsigned.contains("unauthorised"), "{unsigned}");
+
     // The audit log says who: the operator's key id.
     let end = Instant::now() + Duration::from_secs(10);
     let mut audit = String::new();

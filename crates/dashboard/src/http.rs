@@ -50,6 +50,7 @@ pub(crate) async fn run(
     listener: std::net::TcpListener,
     broker: BrokerTarget,
     shutdown: watch::Receiver<bool>,
+    signer: Option<crate::CommandSigner>,
 ) {
     let listener = match tokio::net::TcpListener::from_std(listener) {
         Ok(l) => l,
@@ -58,7 +59,7 @@ pub(crate) async fn run(
             return;
         }
     };
-    let (hub, eventloop) = Hub::new(&broker);
+    let (hub, eventloop) = Hub::new(&broker, signer);
     let mqtt = tokio::spawn(run_mqtt(hub.clone(), eventloop, shutdown.clone()));
     let app = App {
         hub,

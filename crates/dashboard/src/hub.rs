@@ -145,6 +145,7 @@ pub(crate) struct Hub {
     reply_topic: String,
     next_correlation: AtomicU64,
     broker: String,
+    signer: Option<crate::CommandSigner>,
 }
 
 /// Unix time in milliseconds, with sub-millisecond digits, comparable with the browser's
@@ -164,7 +165,10 @@ fn failure(status: u16, code: &str, message: String) -> CommandFailure {
 
 impl Hub {
     /// The hub and the event loop to drive with [`run_mqtt`].
-    pub(crate) fn new(target: &BrokerTarget) -> (Arc<Hub>, EventLoop) {
+    pub(crate) fn new(
+        target: &BrokerTarget,
+        signer: Option<crate::CommandSigner>,
+    ) -> (Arc<Hub>, EventLoop) {
         // Unique per process and start, so two dashboards on one broker do not kick each other
         // off (a broker drops the older of two clients with the same id).
         let nonce = SystemTime::now()
@@ -191,6 +195,7 @@ impl Hub {
             reply_topic: format!("cetratus-dashboard/{client_id}/reply"),
             next_correlation: AtomicU64::new(1),
             broker: target.display(),
+            signer,
         });
         (hub, eventloop)
     }
@@ -292,9 +297,16 @@ impl Hub {
             ..PublishProperties::default()
         };
         let topic = format!("cetratus/{plc}/cmd/{verb}");
+        let payload = match &self.signer {
+            Some(sign) => {
+                serde_json::json!({ "envelope": (sign.0)(verb, body.to_string().as_bytes()) })
+                    .to_string()
+            }
+            None => body.to_string(),
+        };
         let sent = self
             .client
-            .publish_with_properties(topic, QoS::AtLeastOnce, false, body.to_string(), props)
+            .publish_with_properties(topic, QoS::AtLeastOnce, false, payload, props)
             .await;
         if let Err(e) = sent {
             self.pending().remove(&corr);

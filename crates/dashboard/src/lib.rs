@@ -15,6 +15,7 @@
 //!     broker_url: "mqtt://127.0.0.1:1883".into(),
 //!     user: None,
 //!     password: None,
+//!     signer: None,
 //! })?;
 //! println!("dashboard on http://{}/", handle.local_addr());
 //! handle.stop();
@@ -33,6 +34,19 @@ use std::thread::JoinHandle;
 
 use tokio::sync::watch;
 
+/// Signs a command for PLCs that accept only signed envelopes (operator keys): given the verb
+/// and the JSON payload's bytes, returns the envelope object to send as `{"envelope": …}`.
+#[derive(Clone)]
+pub struct CommandSigner(
+    pub std::sync::Arc<dyn Fn(&str, &[u8]) -> serde_json::Value + Send + Sync>,
+);
+
+impl std::fmt::Debug for CommandSigner {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str("CommandSigner")
+    }
+}
+
 /// Where the dashboard listens and which broker it watches.
 #[derive(Clone, Debug)]
 pub struct DashboardConfig {
@@ -44,6 +58,8 @@ pub struct DashboardConfig {
     pub user: Option<String>,
     /// Broker password (overrides the URL's).
     pub password: Option<String>,
+    /// Signs the commands the page sends, for PLCs with operator keys; `None` sends them plain.
+    pub signer: Option<CommandSigner>,
 }
 
 /// Everything that can stop the dashboard from starting.
@@ -161,7 +177,7 @@ pub fn serve(config: DashboardConfig) -> Result<DashboardHandle, DashboardError>
     let (shutdown, shutdown_rx) = watch::channel(false);
     let thread = std::thread::Builder::new()
         .name("cetratus-dashboard".into())
-        .spawn(move || rt.block_on(http::run(listener, broker, shutdown_rx)))
+        .spawn(move || rt.block_on(http::run(listener, broker, shutdown_rx, config.signer)))
         .map_err(DashboardError::Thread)?;
     Ok(DashboardHandle {
         addr,
@@ -181,6 +197,7 @@ mod tests {
             broker_url: "mqtt://127.0.0.1:9".into(),
             user: None,
             password: None,
+            signer: None,
         }
     }
 

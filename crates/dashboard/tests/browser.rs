@@ -600,6 +600,7 @@ async fn operator_loads_u1_then_substitutes_and_primary_flips_in_the_browser() {
         broker_url: format!("mqtt://127.0.0.1:{broker_port}"),
         user: None,
         password: None,
+        signer: None,
     })
     .expect("the dashboard starts");
 

@@ -37,9 +37,10 @@ use tokio::sync::watch;
 /// Signs a command for PLCs that accept only signed envelopes (operator keys): given the verb
 /// and the JSON payload's bytes, returns the envelope object to send as `{"envelope": …}`.
 #[derive(Clone)]
-pub struct CommandSigner(
-    pub std::sync::Arc<dyn Fn(&str, &[u8]) -> serde_json::Value + Send + Sync>,
-);
+pub struct CommandSigner(pub std::sync::Arc<SignFn>);
+
+/// The signing function of a [`CommandSigner`]: verb and payload bytes in, envelope out.
+pub type SignFn = dyn Fn(&str, &[u8]) -> serde_json::Value + Send + Sync;
 
 impl std::fmt::Debug for CommandSigner {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {

@@ -263,13 +263,7 @@ fn command_load(
         let base = now_base;
         let reached = run_periodic(period_us, phase_us, 1.0, &stop, &mut timing, |now, t| {
             let now = base + now;
-            node.take_commands(plc);
-            let pre = plc.drain_events();
-            node.queue_events(&pre);
-            plc.cycle(now, io);
-            let events = plc.drain_events();
-            node.after_cycle(plc, &events, t, now);
-            drop(plc.take_retired());
+            node.cycle(plc, io, t, now);
             true
         });
         now_base += reached;
@@ -452,10 +446,10 @@ fn fleet(
     // Let every PLC connect before measuring.
     std::thread::sleep(Duration::from_secs(5));
     let plcs_seen = {
-        let mut s = std::net::TcpStream::connect(("127.0.0.1", http))?;
-        write!(s, "GET /api/plcs HTTP/1.0\r\nHost: 127.0.0.1\r\n\r\n")?;
+        let mut stream = std::net::TcpStream::connect(("127.0.0.1", http))?;
+        write!(stream, "GET /api/plcs HTTP/1.0\r\nHost: 127.0.0.1\r\n\r\n")?;
         let mut body = String::new();
-        std::io::Read::read_to_string(&mut s, &mut body)?;
+        std::io::Read::read_to_string(&mut stream, &mut body)?;
         let json = body.split_once("\r\n\r\n").map_or("", |(_, b)| b);
         serde_json::from_str::<serde_json::Value>(json)
             .ok()
@@ -465,10 +459,10 @@ fn fleet(
     let cpu0 = cpu_seconds(mct.0.id())?;
     let t0 = Instant::now();
     // A stream client of the dashboard, as a browser is: latency of every io message of cell0.
-    let mut s = std::net::TcpStream::connect(("127.0.0.1", http))?;
-    s.set_read_timeout(Some(Duration::from_millis(500)))?;
-    write!(s, "GET /api/stream?plc=cell0 HTTP/1.0\r\nHost: 127.0.0.1\r\nAccept: text/event-stream\r\n\r\n")?;
-    let mut reader = BufReader::new(s);
+    let mut stream = std::net::TcpStream::connect(("127.0.0.1", http))?;
+    stream.set_read_timeout(Some(Duration::from_millis(500)))?;
+    write!(stream, "GET /api/stream?plc=cell0 HTTP/1.0\r\nHost: 127.0.0.1\r\nAccept: text/event-stream\r\n\r\n")?;
+    let mut reader = BufReader::new(stream);
     let mut lat_ms: Vec<f64> = Vec::new();
     let mut line = String::new();
     while t0.elapsed() < Duration::from_micros(for_us) {
@@ -504,21 +498,17 @@ fn fleet(
             .unwrap_or(f64::NAN)
     };
     let mut out: BTreeMap<String, serde_json::Value> = BTreeMap::new();
-    out.insert(s_("plcs"), n.into());
-    out.insert(s_("plcs_seen_by_mct"), plcs_seen.into());
-    out.insert(s_("period"), period.into());
-    out.insert(s_("seconds"), wall.into());
-    out.insert(s_("io_messages_measured"), lat_ms.len().into());
-    out.insert(s_("update_latency_ms_p50"), q(0.5).into());
-    out.insert(s_("update_latency_ms_p99"), q(0.99).into());
-    out.insert(s_("update_latency_ms_max"), q(1.0).into());
+    out.insert(s("plcs"), n.into());
+    out.insert(s("plcs_seen_by_mct"), plcs_seen.into());
+    out.insert(s("period"), period.into());
+    out.insert(s("seconds"), wall.into());
+    out.insert(s("io_messages_measured"), lat_ms.len().into());
+    out.insert(s("update_latency_ms_p50"), q(0.5).into());
+    out.insert(s("update_latency_ms_p99"), q(0.99).into());
+    out.insert(s("update_latency_ms_max"), q(1.0).into());
     out.insert(
-        s_("mct_cpu_percent_of_one_core"),
+        s("mct_cpu_percent_of_one_core"),
         (100.0 * cpu / wall).into(),
     );
     Ok(out)
-}
-
-fn s_(key: &str) -> String {
-    key.to_string()
 }

@@ -255,6 +255,23 @@ impl Node {
         }
     }
 
+    /// One cycle of a PLC on the MQTT link: the ready commands, the scan, the publications.
+    /// Returns the cycle's events (those of the commands first).
+    pub fn cycle<IO: cetratus_runtime::Provider + cetratus_runtime::Dispatcher>(
+        &mut self,
+        plc: &mut Plc,
+        io: &mut IO,
+        timing: &LoopTiming,
+        now: u64,
+    ) -> Vec<Event> {
+        self.take_commands(plc);
+        plc.cycle(now, io);
+        let events = plc.drain_events();
+        self.after_cycle(plc, &events, timing, now);
+        drop(plc.take_retired());
+        events
+    }
+
     /// Stops the preparer and the publisher.
     pub fn stop(mut self) {
         self.snap_tx = None;
@@ -290,9 +307,7 @@ pub fn run_node(
         stop,
         &mut timing,
         |now, timing| {
-            node.take_commands(&mut plc);
-            plc.cycle(now, &mut io);
-            let events = plc.drain_events();
+            let events = node.cycle(&mut plc, &mut io, timing, now);
             if echo {
                 for e in &events {
                     eprintln!(
@@ -303,8 +318,6 @@ pub fn run_node(
                     );
                 }
             }
-            node.after_cycle(&plc, &events, timing, now);
-            drop(plc.take_retired());
             true
         },
     );

@@ -296,7 +296,6 @@ pub fn run(args: &RunArgs) -> anyhow::Result<()> {
     let mut trace = Trace::new(plc.io_inputs().to_vec(), plc.io_outputs().to_vec());
     let record = args.trace.is_some() || args.svg.is_some();
     let mut violations: Vec<String> = Vec::new();
-    let mut events_all: Vec<Event> = Vec::new();
     let mut next_cmd = 0usize;
     let mut script_error: Option<anyhow::Error> = None;
     let json = args.json;
@@ -307,15 +306,15 @@ pub fn run(args: &RunArgs) -> anyhow::Result<()> {
             let now = now + base_us;
             if let Some((node, _, _)) = mct.as_mut() {
                 let who = node.take_commands(plc);
-                let events = plc.drain_events();
-                for e in &events {
+                let cmd_events = plc.drain_events();
+                for e in &cmd_events {
                     print_event(e, json);
                     if let Some(p) = persister.as_mut() {
                         p.audit(e, who.as_deref().unwrap_or("mqtt"));
                     }
                 }
-                node.queue_events(&events);
-                events_all.extend(events);
+                node.queue_events(&cmd_events);
+                events.extend(cmd_events);
             }
             // One command per cycle: each takes effect at the next cycle boundary, so the next one
             // (a substitute after a load) sees that effect, even when a late cycle makes both due.
@@ -335,7 +334,7 @@ pub fn run(args: &RunArgs) -> anyhow::Result<()> {
                     if let Some(p) = persister.as_mut() {
                         p.audit(&e, "cli");
                     }
-                    events_all.push(e);
+                    events.push(e);
                 }
             }
             plc.cycle(now, io);
@@ -358,7 +357,7 @@ pub fn run(args: &RunArgs) -> anyhow::Result<()> {
             if let Some((node, _, _)) = mct.as_mut() {
                 node.after_cycle(plc, &cycle_events, timing, now);
             }
-            events_all.extend(cycle_events);
+            events.extend(cycle_events);
             if let Some(p) = persister.as_mut() {
                 p.offer(plc);
                 // Said once: a full disk fails every commit, and the summary gives the count.
@@ -426,7 +425,6 @@ pub fn run(args: &RunArgs) -> anyhow::Result<()> {
             d.stop();
         }
     }
-    events.extend(events_all);
     if let Some(e) = script_error {
         return Err(e);
     }

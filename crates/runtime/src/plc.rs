@@ -522,7 +522,7 @@ impl Plc {
             .map(|t| cn.transition_by_id(&t.id))
             .collect();
         let np = cn.num_places();
-        let safe = safe_image(io_outputs, &program);
+        let safe = safe_image(&out_map, &program);
         let latch_map = retained_latch_map(&program, primary);
         let var_map = program
             .variables()
@@ -1370,7 +1370,7 @@ impl Plc {
             .collect::<Result<Vec<_>, _>>()
             .map_err(|n| format!("the saved program reads input `{n}` which the I/O map lacks"))?;
         plc.out_maps[i] = map_by_name(&plc.io_outputs, prog.outputs());
-        plc.safe = safe_image(&plc.io_outputs, &prog);
+        plc.safe = safe_image(&plc.out_maps[i], &prog);
         plc.slots = [None, None];
         plc.slots[i] = Some(container);
         plc.primary = primary;
@@ -1431,19 +1431,14 @@ fn primary_and_candidate(
     )
 }
 
-/// A program's safe output values in the order of the I/O map (off for outputs it lacks).
-fn safe_image(io_outputs: &[String], program: &Program) -> Vec<Value> {
+/// A program's safe output values in the order of the I/O map, through its output map (off for
+/// outputs it lacks).
+fn safe_image(out_map: &[Option<usize>], program: &Program) -> Vec<Value> {
     let mut own = vec![Value::Bool(false); program.outputs().len()];
     program.safe_outputs(&mut own);
-    io_outputs
+    out_map
         .iter()
-        .map(|n| {
-            program
-                .outputs()
-                .iter()
-                .position(|s| &s.name == n)
-                .map_or(Value::Bool(false), |k| own[k])
-        })
+        .map(|m| m.map_or(Value::Bool(false), |k| own[k]))
         .collect()
 }
 

@@ -8,7 +8,11 @@ fn main() {
     let program = cetratus_bench::program::vernadat_program();
     let images = cetratus_bench::program::recorded_inputs(&program, 100_000);
     let mut replay = Replay::new(images);
-    let mut plc = Plc::new(program, 0);
+    let mut plc = Plc::new(
+        program,
+        0,
+        cetratus_node::clock::MonotonicStopwatch::boxed(),
+    );
     if quarantine {
         let p = plc
             .update_context()

@@ -7,7 +7,8 @@ fn main() {
         )
         .expect("U.1"),
     );
-    let ctx = cetratus_runtime::Plc::new(u1, 0).update_context();
+    let ctx = cetratus_runtime::Plc::new(u1, 0, cetratus_node::clock::MonotonicStopwatch::boxed())
+        .update_context();
     let n: u32 = std::env::args()
         .nth(1)
         .and_then(|a| a.parse().ok())

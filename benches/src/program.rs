@@ -8,8 +8,10 @@ use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use cetratus_io::TwinDriver;
+use cetratus_node::clock::MonotonicStopwatch;
+use cetratus_node::periodic::run_periodic;
 use cetratus_program::{Program, Value};
-use cetratus_runtime::{Container, CycleFigures, ScanCycle};
+use cetratus_runtime::{Container, CycleFigures, LoopTiming, ScanCycle};
 use cetratus_twin::TwinKind;
 use serde::Serialize;
 
@@ -30,7 +32,10 @@ pub fn vernadat_program() -> Arc<Program> {
 pub fn recorded_inputs(program: &Arc<Program>, scans: usize) -> Vec<Vec<Value>> {
     let twin = TwinKind::Vernadat.build(1);
     let mut io = TwinDriver::new(twin, program.inputs(), program.outputs()).expect("signals match");
-    let mut cycle = ScanCycle::new(Container::new(program.clone(), 0));
+    let mut cycle = ScanCycle::new(
+        Container::new(program.clone(), 0),
+        MonotonicStopwatch::boxed(),
+    );
     let mut images = Vec::with_capacity(scans);
     let until = scans as u64 * cycle.period_us();
     cycle
@@ -101,7 +106,7 @@ pub fn twin_hour() -> HourFigures {
     let program = vernadat_program();
     let twin = TwinKind::Vernadat.build(1);
     let mut io = TwinDriver::new(twin, program.inputs(), program.outputs()).expect("signals match");
-    let mut cycle = ScanCycle::new(Container::new(program, 0));
+    let mut cycle = ScanCycle::new(Container::new(program, 0), MonotonicStopwatch::boxed());
     let t0 = Instant::now();
     cycle
         .run_virtual(0, 3_600_000_000, &mut io, |_, _, _| {})
@@ -118,17 +123,19 @@ pub fn twin_hour() -> HourFigures {
 /// Runs the Vernadat program on its twin in real time at `period_us` for `for_us` of wall time
 /// and returns the cycle figures (latency, cycle time, overruns).
 pub fn jitter(period_us: u64, for_us: u64, rt: bool) -> (CycleFigures, Option<String>) {
-    let status = rt.then(|| cetratus_runtime::rt::request(80).to_string());
+    let status = rt.then(|| cetratus_node::rt::request(80).to_string());
     let program = vernadat_program();
     let twin = TwinKind::Vernadat.build(1);
     let mut io = TwinDriver::new(twin, program.inputs(), program.outputs()).expect("signals match");
-    let mut cycle = ScanCycle::new(Container::new(program, 0));
+    let mut cycle = ScanCycle::new(Container::new(program, 0), MonotonicStopwatch::boxed());
     cycle.set_period_us(period_us);
     let stop = AtomicBool::new(false);
     // The program's timing (robot moves, machining) stays in program time, so a 1 ms period runs
     // the cell ten times as often per program second; speed 1 keeps program time = wall time.
-    cycle
-        .run_realtime(for_us, 1.0, &stop, &mut io, |_, _, _| {})
-        .expect("the Vernadat program runs without fault");
+    let mut timing = LoopTiming::default();
+    run_periodic(period_us, for_us, 1.0, &stop, &mut timing, |now, _| {
+        cycle.cycle(now, &mut io).is_ok()
+    });
+    cycle.set_timing(timing);
     (cycle.figures(), status)
 }

@@ -7,6 +7,7 @@ use std::path::Path;
 use std::sync::Arc;
 use std::time::Instant;
 
+use cetratus_node::clock::MonotonicStopwatch;
 use cetratus_program::{build_package, KeyPair, Program, StateTransform, TrustStore, Value};
 use cetratus_runtime::{Command, Container, Dispatcher, Plc, Provider};
 use serde::Serialize;
@@ -130,11 +131,11 @@ pub fn update_figures(quick: bool) -> UpdateFigures {
     let mut quarantine = Vec::new();
     for _ in 0..rounds {
         let mut replay = Replay::new(images.clone());
-        let mut plc = Plc::new(vernadat.clone(), 0);
+        let mut plc = Plc::new(vernadat.clone(), 0, MonotonicStopwatch::boxed());
         single.push(mean_cycle_ns(&mut plc, &mut replay, cycles, 0));
 
         let mut replay = Replay::new(images.clone());
-        let mut plc = Plc::new(vernadat.clone(), 0);
+        let mut plc = Plc::new(vernadat.clone(), 0, MonotonicStopwatch::boxed());
         let prepared = plc
             .update_context()
             .prepare_package(&pk.u1, &pk.trust, false, false)
@@ -162,11 +163,11 @@ pub fn update_figures(quick: bool) -> UpdateFigures {
             .expect("signals match")
         };
         let mut io = twin(&vernadat);
-        let mut plc = Plc::new(vernadat.clone(), 0);
+        let mut plc = Plc::new(vernadat.clone(), 0, MonotonicStopwatch::boxed());
         single_t.push(mean_cycle_ns(&mut plc, &mut io, cycles, 0));
 
         let mut io = twin(&vernadat);
-        let mut plc = Plc::new(vernadat.clone(), 0);
+        let mut plc = Plc::new(vernadat.clone(), 0, MonotonicStopwatch::boxed());
         let prepared = plc
             .update_context()
             .prepare_package(&pk.u1, &pk.trust, false, false)
@@ -183,7 +184,7 @@ pub fn update_figures(quick: bool) -> UpdateFigures {
     // Setup of U.2 against a PLC running U.1.
     let u1_program =
         Arc::new(Program::load(&examples_dir().join("vernadat/u1.toml")).expect("U.1 loads"));
-    let plc = Plc::new(u1_program.clone(), 0);
+    let plc = Plc::new(u1_program.clone(), 0, MonotonicStopwatch::boxed());
     let ctx = plc.update_context();
     let setup: Vec<f64> = (0..if quick { 50 } else { 300 })
         .map(|_| {

@@ -4,7 +4,7 @@ use std::collections::BTreeMap;
 
 use cetratus_bench::{measure, program};
 
-use crate::duration::parse_duration_us;
+use crate::parse_duration_us;
 
 /// Arguments of `cetratus bench`.
 #[derive(clap::Args, Debug)]
@@ -226,16 +226,20 @@ fn command_load(
     use std::sync::Arc;
     use std::time::{Duration, Instant};
 
-    use cetratus_runtime::{run_periodic, LoopTiming, Plc};
+    use cetratus_node::clock::MonotonicStopwatch;
+    use cetratus_node::link::ControlLink;
+    use cetratus_node::periodic::run_periodic;
+    use cetratus_node::{Node, NodeOptions};
+    use cetratus_runtime::{LoopTiming, Plc};
     use rumqttc::v5::mqttbytes::QoS;
 
     let program = program::vernadat_program();
-    let mut io = cetratus_io::TwinDriver::new(
+    let io = cetratus_io::TwinDriver::new(
         cetratus_twin::TwinKind::Vernadat.build(1),
         program.inputs(),
         program.outputs(),
     )?;
-    let mut plc = Plc::new(program, 0);
+    let plc = Plc::new(program, 0, MonotonicStopwatch::boxed());
     let port = std::net::TcpListener::bind("127.0.0.1:0")?
         .local_addr()?
         .port();
@@ -247,29 +251,34 @@ fn command_load(
     config.publish_period = Duration::from_millis(200);
     let (link, handle) = cetratus_mct::start(config)?;
     handle.wait_connected(Duration::from_secs(10));
-    let mut node = crate::node::Node::start(
+    let link = ControlLink::start(
         &plc,
         link,
         cetratus_program::TrustStore::empty(),
         false,
         (200_000 / period_us.max(1)).max(1),
     );
+    let opts = NodeOptions {
+        base_us: 0,
+        trust: cetratus_program::TrustStore::empty(),
+        allow_unsigned: false,
+        record_trace: false,
+        progress_every: None,
+    };
+    let mut node = Node::new(plc, io, opts).with_link(link);
     let mut now_base = 0u64;
-    let mut phase = |plc: &mut Plc,
-                     io: &mut cetratus_io::TwinDriver<cetratus_twin::Twin>,
-                     node: &mut crate::node::Node| {
+    let mut phase = |node: &mut Node<cetratus_io::TwinDriver<cetratus_twin::Twin>>| {
         let stop = AtomicBool::new(false);
         let mut timing = LoopTiming::default();
         let base = now_base;
         let reached = run_periodic(period_us, phase_us, 1.0, &stop, &mut timing, |now, t| {
-            let now = base + now;
-            node.cycle(plc, io, t, now);
+            node.step(base + now, t);
             true
         });
         now_base += reached;
         timing
     };
-    let quiet = phase(&mut plc, &mut io, &mut node);
+    let quiet = phase(&mut node);
 
     // The flood: a client on its own thread, mixed valid and invalid commands.
     let sent = Arc::new(AtomicU64::new(0));
@@ -310,10 +319,10 @@ fn command_load(
             Ok(())
         })
     };
-    let loaded = phase(&mut plc, &mut io, &mut node);
+    let loaded = phase(&mut node);
     stop_flood.store(true, Ordering::Relaxed);
     let _ = flood.join();
-    node.stop();
+    let (plc, _, _) = node.finish()?;
     handle.shutdown();
 
     let (q, l) = (quiet.latency.summary(), loaded.latency.summary());

@@ -89,7 +89,7 @@ impl Session {
         o.set_keep_alive(Duration::from_secs(10));
         o.set_max_packet_size(Some(8 << 20));
         let (client, conn) = Client::new(o, 64);
-        let deadline = Duration::from_micros(crate::duration::parse_duration_us(&opts.timeout)?);
+        let deadline = Duration::from_micros(crate::parse_duration_us(&opts.timeout)?);
         let key = match &opts.key {
             Some(p) => Some(
                 cetratus_program::KeyPair::load(p)
@@ -290,7 +290,7 @@ pub fn load(args: &LoadArgs) -> anyhow::Result<()> {
 /// `cetratus substitute`.
 pub fn substitute(args: &SubstituteArgs) -> anyhow::Result<()> {
     let within_ms = match &args.within {
-        Some(w) => Some(crate::duration::parse_duration_us(w)? / 1000),
+        Some(w) => Some(crate::parse_duration_us(w)? / 1000),
         None => None,
     };
     let mut s = Session::open(&args.opts)?;

@@ -9,16 +9,22 @@ mod client;
 mod config;
 mod convert;
 mod demo;
-mod duration;
 mod mct_cmd;
 mod mqtt_args;
-mod node;
 mod package;
 mod run;
 mod sim;
 mod state;
+mod summary;
 
 use clap::{Parser, Subcommand};
+
+/// A duration on the command line (`500ms`, `1.5s`, `2min`, `1h`; a bare number is seconds), in
+/// microseconds.
+fn parse_duration_us(text: &str) -> anyhow::Result<u64> {
+    use cetratus_program::duration::{parse_us, Bare};
+    Ok(parse_us(text, Bare::Seconds)?)
+}
 
 // Parsing programs and packages allocates many small strings; mimalloc makes a load and an
 // update's setup measurably cheaper than the system allocator (docs/performance.md). The scan

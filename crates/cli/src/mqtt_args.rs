@@ -4,6 +4,8 @@ use std::net::SocketAddr;
 
 use anyhow::Context;
 use cetratus_mct::{BrokerChoice, MqttConfig};
+use cetratus_node::config::LocalConfig;
+use cetratus_node::link::ControlLink;
 
 /// Where MQTT goes and who this PLC is.
 #[derive(clap::Args, Debug, Clone)]
@@ -39,7 +41,7 @@ impl MqttArgs {
 
     /// The MQTT configuration of a PLC node: broker accounts, plant-broker credentials and
     /// operator keys come from the local configuration; the command line overrides credentials.
-    pub fn config(&self, local: &crate::config::LocalConfig) -> anyhow::Result<MqttConfig> {
+    pub fn config(&self, local: &LocalConfig) -> anyhow::Result<MqttConfig> {
         let mut c = MqttConfig::new(&self.plc_id());
         let credentials = self
             .user
@@ -69,4 +71,89 @@ impl MqttArgs {
             .context("--mqtt takes an address such as 127.0.0.1:1883")?;
         Ok(format!("mqtt://{addr}"))
     }
+}
+
+/// The MQTT client of a PLC node, and the dashboard beside it.
+pub struct Services {
+    mqtt: cetratus_mct::MqttHandle,
+    dashboard: Option<cetratus_dashboard::DashboardHandle>,
+}
+
+impl Services {
+    /// Stops both.
+    pub fn stop(self) {
+        self.mqtt.shutdown();
+        if let Some(d) = self.dashboard {
+            d.stop();
+        }
+    }
+
+    /// Where the dashboard listens.
+    pub fn dashboard_addr(&self) -> Option<SocketAddr> {
+        self.dashboard.as_ref().map(|d| d.local_addr())
+    }
+}
+
+/// Starts MQTT (the embedded broker or a plant broker's client), the dashboard when asked, and
+/// the node's side of MQTT for `plc`. Snapshots go out about five times a second of wall time,
+/// whatever the speed.
+#[allow(clippy::too_many_arguments)]
+pub fn start_services(
+    plc: &cetratus_runtime::Plc,
+    mqtt: &MqttArgs,
+    local: &LocalConfig,
+    http: &str,
+    dashboard: bool,
+    trust: cetratus_program::TrustStore,
+    allow_unsigned: bool,
+    speed: f64,
+    period_us: u64,
+    announce: bool,
+) -> anyhow::Result<(ControlLink, Services)> {
+    let mut config = mqtt.config(local)?;
+    config.publish_period = std::time::Duration::from_millis(200);
+    let plc_id = config.plc_id.clone();
+    let (link, handle) = cetratus_mct::start(config)?;
+    let broker_url = mqtt.client_url()?;
+    let http: SocketAddr = http
+        .parse()
+        .with_context(|| format!("--http `{http}`: expected an address such as 127.0.0.1:8080"))?;
+    let dashboard = if dashboard {
+        Some(cetratus_dashboard::serve(
+            cetratus_dashboard::DashboardConfig {
+                http,
+                broker_url: broker_url.clone(),
+                user: mqtt.user.clone(),
+                password: mqtt.password.clone(),
+                signer: None,
+            },
+        )?)
+    } else {
+        None
+    };
+    if announce {
+        match &dashboard {
+            Some(d) => eprintln!(
+                "MQTT {broker_url} (topics cetratus/{plc_id}/…), dashboard http://{}/",
+                d.local_addr()
+            ),
+            None => eprintln!("MQTT {broker_url} (topics cetratus/{plc_id}/…)"),
+        }
+    }
+    let speed = if speed.is_finite() && speed > 0.0 {
+        speed
+    } else {
+        1.0
+    };
+    let publish_every = ((200_000.0 * speed) / period_us.max(1) as f64)
+        .round()
+        .max(1.0) as u64;
+    let link = ControlLink::start(plc, link, trust, allow_unsigned, publish_every);
+    Ok((
+        link,
+        Services {
+            mqtt: handle,
+            dashboard,
+        },
+    ))
 }

@@ -5,7 +5,7 @@
 use std::path::PathBuf;
 
 use anyhow::bail;
-use cetratus_runtime::persist::{Inspection, StateStore};
+use cetratus_persist::{Inspection, StateStore};
 
 /// Arguments of `cetratus state`.
 #[derive(clap::Args, Debug)]

@@ -10,7 +10,7 @@ use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
 use std::time::Duration;
 
-use cetratus_runtime::persist::{Inspection, PersistConfig, StateStore};
+use cetratus_persist::{Inspection, PersistConfig, StateStore};
 use cetratus_runtime::Status;
 
 const BIN: &str = env!("CARGO_BIN_EXE_cetratus");

@@ -7,7 +7,7 @@ mod updates;
 use std::sync::Mutex;
 
 use cetratus_program::Value;
-use cetratus_runtime::{Command, Slot, Status};
+use cetratus_runtime::{Command, EventKind, Slot, Status};
 use updates::{reference_marking, Cell, Workshop};
 
 static TURN: Mutex<()> = Mutex::new(());
@@ -29,7 +29,7 @@ fn a_candidate_that_panics_or_errors_is_aborted_and_the_primary_goes_on() {
         cell.run_for(2_000_000);
         disarm();
         assert_eq!(cell.plc.status(), Status::Idle, "{fault:?}");
-        assert!(cell.has_event("candidate_fault"), "{fault:?}");
+        assert!(cell.has_event(EventKind::CandidateFault), "{fault:?}");
         assert!(cell.plc.container(Slot::B).is_none());
         cell.run_for(5_000_000);
         assert_eq!(
@@ -51,7 +51,7 @@ fn a_primary_that_faults_drives_its_safe_values_until_reset() {
     cell.step();
     disarm();
     assert_eq!(cell.plc.status(), Status::Fault);
-    assert!(cell.has_event("primary_fault"));
+    assert!(cell.has_event(EventKind::PrimaryFault));
     let mut safe = vec![Value::Bool(true); cell.plc.io_outputs().len()];
     cell.plc.primary_program().safe_outputs(&mut safe);
     cell.run_for(500_000);
@@ -82,7 +82,7 @@ fn a_primary_scan_past_the_watchdog_is_a_primary_fault() {
     let e = cell
         .events
         .iter()
-        .find(|e| e.kind == "primary_fault")
+        .find(|e| e.kind == EventKind::PrimaryFault)
         .expect("primary_fault");
     assert!(e.message.contains("watchdog"), "{}", e.message);
 }

@@ -4,8 +4,9 @@
 mod updates;
 
 use cetratus_program::Value;
-use cetratus_runtime::plc::ModelStopwatch;
-use cetratus_runtime::{Command, Slot, Status, SubstituteMode, SubstituteRequest};
+use cetratus_runtime::{
+    Command, EventDetail, EventKind, InstallTiming, Slot, Status, SubstituteMode, SubstituteRequest,
+};
 use cetratus_twin::Plant;
 use updates::{reference_marking, Cell, Workshop};
 
@@ -75,7 +76,7 @@ fn the_paper_experiment_keeps_dispatch_on_the_primary_and_conserves_parts() {
         );
     }
     assert!(lubricated, "the candidate lubricates in quarantine");
-    assert!(cell.plc.monitor.stats[0].max_drift > 0, "the drift shows");
+    assert!(cell.plc.monitor().stats[0].max_drift > 0, "the drift shows");
     cell.substitute(SubstituteMode::Retransform, false)
         .expect("substitute accepted");
     cell.step();
@@ -139,7 +140,7 @@ fn refused_packages_leave_the_running_program_exactly_as_it_would_have_been() {
     let refusals: Vec<&str> = cell
         .events
         .iter()
-        .filter(|e| e.kind == "transform_refused")
+        .filter(|e| e.kind == EventKind::TransformRefused)
         .map(|e| e.message.as_str())
         .collect();
     assert_eq!(refusals.len(), 2, "{refusals:?}");
@@ -168,7 +169,7 @@ fn packages_whose_transform_does_not_fit_the_running_net_are_refused_even_when_f
         .plc
         .update_context()
         .prepare_package(&u1, &w.trust, false, true);
-    let e = p.err().expect("refused");
+    let e = p.err().expect("refused").to_string();
     assert!(
         e.contains("P30") || e.contains("15") || e.contains("13"),
         "names the mismatch: {e}"
@@ -183,7 +184,7 @@ fn state_trans_timeout_fires_just_below_the_install_cost_and_not_just_above() {
     let install_cost = |budget: u64| -> (Vec<cetratus_runtime::Event>, Status, Vec<u32>) {
         let mut cell = Cell::new(w.program("vernadat.toml"));
         cell.plc
-            .set_stopwatch(Box::new(ModelStopwatch { ns_per_unit: 10 }));
+            .set_install_timing(InstallTiming::Model { ns_per_entry: 10 });
         let mut l = cell.plc.limits();
         l.state_trans_timeout_ns = budget;
         cell.plc.set_limits(l);
@@ -201,22 +202,29 @@ fn state_trans_timeout_fires_just_below_the_install_cost_and_not_just_above() {
     assert_eq!(status, Status::Quarantine);
     let cost = events
         .iter()
-        .find(|e| e.kind == "quarantine_started")
-        .and_then(|e| e.detail["install_ns"].as_u64())
+        .find(|e| e.kind == EventKind::QuarantineStarted)
+        .and_then(|e| match e.detail {
+            Some(EventDetail::Install { install_ns, .. }) => Some(install_ns),
+            _ => None,
+        })
         .expect("the install reports its cost");
     let reference = reference_marking(&w, 600);
 
     let (events, status, marking) = install_cost(cost - 1);
     assert_eq!(status, Status::Idle);
     assert!(
-        events.iter().any(|e| e.kind == "state_trans_timeout"),
+        events
+            .iter()
+            .any(|e| e.kind == EventKind::StateTransTimeout),
         "{events:?}"
     );
     assert_eq!(marking, reference, "the primary never noticed");
 
     let (events, status, marking) = install_cost(cost + 1);
     assert_eq!(status, Status::Quarantine);
-    assert!(!events.iter().any(|e| e.kind == "state_trans_timeout"));
+    assert!(!events
+        .iter()
+        .any(|e| e.kind == EventKind::StateTransTimeout));
     assert_eq!(marking, reference, "the primary never noticed");
 }
 
@@ -237,7 +245,10 @@ fn one_update_at_a_time_and_every_refusal_is_an_event() {
     assert!(cell.plc.command(Command::Load(Box::new(second))).is_err());
     cell.step();
     assert_eq!(
-        cell.events.iter().filter(|e| e.kind == "refused").count(),
+        cell.events
+            .iter()
+            .filter(|e| e.kind == EventKind::Refused)
+            .count(),
         3
     );
     cell.plc
@@ -264,7 +275,7 @@ fn keep_mode_is_refused_while_the_candidate_has_drifted_unless_forced() {
     assert!(cell
         .events
         .iter()
-        .any(|e| e.kind == "refused" && e.message.contains("drift")));
+        .any(|e| e.kind == EventKind::Refused && e.message.contains("drift")));
     cell.substitute(SubstituteMode::Keep, true).expect("forced");
     cell.step();
     assert_eq!(cell.plc.primary(), Slot::B);
@@ -293,7 +304,7 @@ fn substitute_when_waits_for_its_condition_and_gives_up_after_within() {
         }))
         .expect("accepted");
     cell.run_for(3_000_000);
-    assert!(cell.has_event("substitute_timeout"));
+    assert!(cell.has_event(EventKind::SubstituteTimeout));
     assert_eq!(
         (cell.plc.primary(), cell.plc.status()),
         (Slot::A, Status::Quarantine)
@@ -319,5 +330,5 @@ fn substitute_when_waits_for_its_condition_and_gives_up_after_within() {
         waited += 1;
     }
     assert_eq!(cell.plc.primary(), Slot::B);
-    assert!(cell.has_event("substituted"));
+    assert!(cell.has_event(EventKind::Substituted));
 }

@@ -13,6 +13,7 @@
 #![warn(missing_docs)]
 
 mod action;
+pub mod duration;
 mod error;
 pub mod guard;
 mod invariant;

@@ -1,11 +1,11 @@
-//! The scan cycle: read the input image, scan, write the output image; in virtual or real time.
-
-use std::sync::atomic::{AtomicBool, Ordering};
-use std::time::{Duration, Instant};
+//! The scan cycle of one container: read the input image, scan, write the output image. The
+//! real-time loop that calls it at absolute deadlines belongs to the node (`cetratus-node`); here
+//! are the figures it fills in.
 
 use cetratus_program::Value;
 use serde::Serialize;
 
+use crate::clock::Stopwatch;
 use crate::{Container, Dispatcher, Provider, RuntimeError, ScanOutcome, Summary, TimingStats};
 
 /// Drives one container against its drivers and measures every cycle.
@@ -13,9 +13,9 @@ use crate::{Container, Dispatcher, Provider, RuntimeError, ScanOutcome, Summary,
 /// Names follow the OpenPLC v4 runtime: *scan time* is the body (read, scan, write), *cycle time*
 /// is start to start, *latency* is the actual start minus the planned start, and an *overrun* is a
 /// cycle whose body ends after the next planned start.
-#[derive(Clone, Debug)]
 pub struct ScanCycle {
     container: Container,
+    stopwatch: Box<dyn Stopwatch>,
     inputs: Vec<Value>,
     safe: Vec<Value>,
     period_us: u64,
@@ -41,14 +41,15 @@ pub struct CycleFigures {
 }
 
 impl ScanCycle {
-    /// A cycle around `container` with the program's scan period.
-    pub fn new(container: Container) -> Self {
+    /// A cycle around `container` with the program's scan period, its scans timed by `stopwatch`.
+    pub fn new(container: Container, stopwatch: Box<dyn Stopwatch>) -> Self {
         let period_us = container.program().scan_period().as_micros() as u64;
         let inputs = container.inputs().to_vec();
         let mut safe = container.outputs().to_vec();
         container.safe_outputs(&mut safe);
         ScanCycle {
             container,
+            stopwatch,
             inputs,
             safe,
             period_us: period_us.max(1),
@@ -91,14 +92,15 @@ impl ScanCycle {
         now_us: u64,
         io: &mut IO,
     ) -> Result<ScanOutcome, RuntimeError> {
-        let t0 = quanta::Instant::now();
+        let t0 = self.stopwatch.now_ns();
         io.read_inputs(now_us, &mut self.inputs);
         let result = self.container.scan(now_us, &self.inputs);
         match &result {
             Ok(_) => io.write_outputs(now_us, self.container.outputs()),
             Err(_) => io.write_outputs(now_us, &self.safe),
         }
-        self.scan.record(t0.elapsed().as_nanos() as u64);
+        let t1 = self.stopwatch.now_ns();
+        self.scan.record(t1.saturating_sub(t0));
         result
     }
 
@@ -120,39 +122,9 @@ impl ScanCycle {
         Ok(now)
     }
 
-    /// Runs cycles in real time, sleeping to absolute deadlines, until `until_us` of program time
-    /// or until `stop` is set. `speed` > 1 runs the program clock faster than the wall clock.
-    /// Returns the program time reached.
-    pub fn run_realtime<IO: Provider + Dispatcher>(
-        &mut self,
-        until_us: u64,
-        speed: f64,
-        stop: &AtomicBool,
-        io: &mut IO,
-        mut observe: impl FnMut(&ScanCycle, u64, &mut IO),
-    ) -> Result<u64, RuntimeError> {
-        let period_us = self.period_us;
-        let mut timing = std::mem::take(&mut self.timing);
-        let mut result = Ok(());
-        let reached = run_periodic(
-            period_us,
-            until_us,
-            speed,
-            stop,
-            &mut timing,
-            |now_us, _| match self.cycle(now_us, io) {
-                Ok(_) => {
-                    observe(self, now_us, io);
-                    true
-                }
-                Err(e) => {
-                    result = Err(e);
-                    false
-                }
-            },
-        );
+    /// Takes the real-time loop's figures (cycle time, latency, overruns) into [`Self::figures`].
+    pub fn set_timing(&mut self, timing: LoopTiming) {
         self.timing = timing;
-        result.map(|()| reached)
     }
 }
 
@@ -166,58 +138,4 @@ pub struct LoopTiming {
     pub latency: TimingStats,
     /// Cycles whose body ran past the next planned start.
     pub overruns: u64,
-}
-
-/// Calls `body(now_us, timing so far)` every `period_us` of program time, sleeping to absolute deadlines of the
-/// wall clock (`speed` program seconds per wall second), until `until_us`, until `stop` is set or
-/// until `body` returns false. A cycle that overruns skips the deadlines already missed instead
-/// of running a burst of late cycles. Returns the program time reached.
-pub fn run_periodic(
-    period_us: u64,
-    until_us: u64,
-    speed: f64,
-    stop: &AtomicBool,
-    timing: &mut LoopTiming,
-    mut body: impl FnMut(u64, &LoopTiming) -> bool,
-) -> u64 {
-    let speed = if speed.is_finite() && speed > 0.0 {
-        speed
-    } else {
-        1.0
-    };
-    let wall_period = Duration::from_secs_f64(period_us.max(1) as f64 / 1e6 / speed);
-    let origin = Instant::now();
-    let mut last_start: Option<Instant> = None;
-    let mut k: u64 = 0;
-    loop {
-        let now_us = k * period_us;
-        if now_us >= until_us || stop.load(Ordering::Relaxed) {
-            return now_us;
-        }
-        let planned = origin + wall_period.mul_f64(k as f64);
-        let before = Instant::now();
-        if planned > before {
-            std::thread::sleep(planned - before);
-        }
-        let start = Instant::now();
-        timing
-            .latency
-            .record(start.saturating_duration_since(planned).as_nanos() as u64);
-        if let Some(last) = last_start {
-            timing.cycle.record((start - last).as_nanos() as u64);
-        }
-        last_start = Some(start);
-        if !body(now_us, timing) {
-            return now_us;
-        }
-        let next = planned + wall_period;
-        let end = Instant::now();
-        if end > next {
-            timing.overruns += 1;
-            let behind = (end - planned).as_secs_f64() / wall_period.as_secs_f64();
-            k += behind.floor().max(1.0) as u64;
-        } else {
-            k += 1;
-        }
-    }
 }

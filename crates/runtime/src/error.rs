@@ -1,4 +1,7 @@
-//! The one error type of the runtime crate.
+//! The runtime's errors: what a scan can fail with, why a command or an update is refused, and
+//! why a saved state cannot be resumed. Each message says what, where, and what to do.
+
+use crate::Status;
 
 /// What can go wrong while running a program.
 #[derive(Debug, thiserror::Error)]
@@ -38,4 +41,117 @@ pub enum RuntimeError {
         /// Signals given.
         got: usize,
     },
+}
+
+/// Why the PLC refused a command. A refused command changes nothing.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+pub enum CommandError {
+    /// A load while the PLC is in fault.
+    #[error("load refused: the PLC is in fault; reset it first")]
+    LoadInFault,
+    /// A load while another update is under way.
+    #[error("load refused: an update is already under way (status {status}); substitute, remove or abort it first")]
+    LoadBusy {
+        /// STATUS.
+        status: Status,
+    },
+    /// A load while the previous update is on probation.
+    #[error("load refused: the last update is on probation; accept or revert it first")]
+    LoadInProbation,
+    /// A load prepared against a program that no longer runs.
+    #[error(
+        "load refused: the update was prepared against another running program; load it again"
+    )]
+    StalePreparation,
+    /// Substitute or remove with no candidate.
+    #[error("{verb} refused: no candidate in quarantine (status {status})")]
+    NoCandidate {
+        /// `substitute` or `remove`.
+        verb: &'static str,
+        /// STATUS.
+        status: Status,
+    },
+    /// A second substitution while one waits.
+    #[error("substitute refused: a substitution is already waiting; abort it first")]
+    SubstitutionWaiting,
+    /// Abort with no update under way.
+    #[error("abort refused: no update under way (status {status})")]
+    NothingToAbort {
+        /// STATUS.
+        status: Status,
+    },
+    /// Reset outside the fault state.
+    #[error("reset refused: the PLC is not in fault (status {status})")]
+    NotInFault {
+        /// STATUS.
+        status: Status,
+    },
+}
+
+/// Why an update package could not be prepared against the running program.
+#[derive(Debug, thiserror::Error)]
+pub enum PrepareError {
+    /// The package did not verify or does not fit the running program.
+    #[error("package refused: {0}")]
+    Package(#[from] cetratus_program::PackageError),
+    /// The candidate reads an input the I/O map lacks.
+    #[error("package refused: the candidate reads input `{signal}`, which the running I/O map does not provide ({available}); keep the I/O map or restart with the new program")]
+    MissingInput {
+        /// The input.
+        signal: String,
+        /// The I/O map's inputs, comma-separated.
+        available: String,
+    },
+    /// The candidate drives an output the I/O map lacks.
+    #[error("package refused: the candidate drives output `{signal}`, which the running I/O map does not have ({available})")]
+    MissingOutput {
+        /// The output.
+        signal: String,
+        /// The I/O map's outputs, comma-separated.
+        available: String,
+    },
+    /// A substitution condition does not compile against the primary.
+    #[error("substitute refused: the condition `{text}` does not compile: {source}")]
+    Condition {
+        /// The condition as written.
+        text: String,
+        /// Why.
+        source: cetratus_program::ProgramError,
+    },
+}
+
+/// Why a saved state cannot be resumed by a warm start.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+pub enum WarmStartError {
+    /// No PRIMARY in the snapshot.
+    #[error("the saved state has no PRIMARY")]
+    NoPrimary,
+    /// The PRIMARY container is empty in the snapshot.
+    #[error("the saved state has no program in the PRIMARY container")]
+    NoPrimaryProgram,
+    /// The program the snapshot names is not available.
+    #[error("the saved state refers to program {hash} which the state directory does not hold")]
+    MissingProgram {
+        /// Its hash.
+        hash: String,
+    },
+    /// The saved marking does not fit the program.
+    #[error("the saved marking has {saved} places but program {program} has {places}")]
+    Shape {
+        /// Places saved.
+        saved: usize,
+        /// The program's name.
+        program: String,
+        /// Its places.
+        places: usize,
+    },
+    /// The saved marking breaks a declared invariant.
+    #[error("the saved marking breaks an invariant: {0}")]
+    Invariant(String),
+    /// The saved state does not fit the net.
+    #[error("{0}")]
+    Net(String),
+    /// The saved program reads an input the I/O map lacks.
+    #[error("the saved program reads input `{0}` which the I/O map lacks")]
+    MissingInput(String),
 }

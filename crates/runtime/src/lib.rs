@@ -1,33 +1,51 @@
-//! The Cetratus scan engine: Provider → container → Dispatcher, once per cycle.
+//! The Cetratus scan engine and the live update: the boxes of the paper's Figure 1.
 //!
-//! Time is an argument everywhere (`now_us`, microseconds): a [`Clock`] supplies it, virtual in
-//! tests and twins, real on a machine. The [`Container`] holds one running program; its
-//! [`Container::scan`] reads an input image, runs the net as DESIGN §3 says, and leaves an output
-//! image, without allocating. [`ScanCycle`] drives containers against drivers in virtual time or
-//! in real time, where it sleeps to absolute deadlines and measures what the OpenPLC v4 runtime
-//! measures: scan time, cycle time, latency and overruns.
+//! * [`Container`]: one running program (engine, place timers, action state, I/O images), whose
+//!   [`Container::scan`] never allocates.
+//! * [`MessageRouter`]: the same inputs to both containers, only PRIMARY's outputs to the
+//!   Dispatcher, the safe values in fault.
+//! * [`Updater`]: the live-update process; its phase ([`Status`]) is a typestate that owns the
+//!   secondary container (DESIGN §4).
+//! * [`Monitor`]: `program_exec_info`, divergence and its derived cause, drift, recent cycles.
+//! * [`Plc`]: composes them and runs one cycle at a time.
+//!
+//! Time is injected three ways (module [`clock`]): program time is an argument (`now_us`),
+//! measured durations come from a [`Stopwatch`], wall-clock timestamps from a [`WallClock`].
+//! Nothing in this crate reads a clock, so the same code runs in virtual time (tests, twins,
+//! validation) and in real time.
 
-mod clock;
+pub mod clock;
 mod container;
 mod cycle;
 mod error;
+mod event;
 #[cfg(feature = "fault-injection")]
 pub mod inject;
 mod io;
 pub mod monitor;
-pub mod persist;
-pub mod plc;
-pub mod rt;
+mod phase;
+mod plc;
+mod router;
+mod snapshot;
 mod stats;
 pub mod trace;
+mod updater;
 
-pub use clock::{Clock, RealClock, VirtualClock};
-pub use container::{Blocker, Container, ScanOutcome};
-pub use cycle::{run_periodic, CycleFigures, LoopTiming, ScanCycle};
-pub use error::RuntimeError;
-pub use io::{Dispatcher, Provider};
-pub use monitor::{Slot, Status};
-pub use plc::{
-    Command, Event, Limits, Plc, PreparedUpdate, SubstituteMode, SubstituteRequest, UpdateContext,
+pub use clock::{
+    Clock, FixedWallClock, InstallTiming, ManualStopwatch, Stopwatch, VirtualClock, WallClock,
 };
+pub use container::{Blocker, Container, ScanOutcome, Slot};
+pub use cycle::{CycleFigures, LoopTiming, ScanCycle};
+pub use error::{CommandError, PrepareError, RuntimeError, WarmStartError};
+pub use event::{Event, EventDetail, EventKind};
+pub use io::{Dispatcher, Provider};
+pub use monitor::{ExecInfo, Monitor, Role, Verdict, VerdictKind, VerdictResult};
+pub use phase::Status;
+pub use plc::Plc;
+pub use router::MessageRouter;
+pub use snapshot::{ContainerSnapshot, PlcSnapshot};
 pub use stats::{Summary, TimingStats};
+pub use updater::{
+    value_json, Command, Limits, PreparedUpdate, SubstituteMode, SubstituteRequest, UpdateContext,
+    Updater, VIRTUAL_NS_PER_ENTRY,
+};

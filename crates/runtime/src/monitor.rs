@@ -5,79 +5,12 @@
 use std::collections::{BTreeMap, VecDeque};
 
 use cetratus_net::TransIdx;
+use cetratus_program::Projection;
 use serde::Serialize;
 
-use crate::{Blocker, Container, Summary, TimingStats};
-
-/// A program container: A or B.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize, serde::Deserialize)]
-pub enum Slot {
-    /// Container A (PRIMARY at boot).
-    A,
-    /// Container B.
-    B,
-}
-
-impl Slot {
-    /// The other container.
-    pub fn other(self) -> Slot {
-        match self {
-            Slot::A => Slot::B,
-            Slot::B => Slot::A,
-        }
-    }
-    /// 0 for A, 1 for B.
-    pub fn index(self) -> usize {
-        match self {
-            Slot::A => 0,
-            Slot::B => 1,
-        }
-    }
-    /// "A" or "B".
-    pub fn name(self) -> &'static str {
-        match self {
-            Slot::A => "A",
-            Slot::B => "B",
-        }
-    }
-}
-
-impl std::str::FromStr for Slot {
-    type Err = String;
-    fn from_str(s: &str) -> Result<Self, String> {
-        match s {
-            "A" | "a" => Ok(Slot::A),
-            "B" | "b" => Ok(Slot::B),
-            other => Err(format!("unknown container `{other}`; expected A or B")),
-        }
-    }
-}
-
-/// STATUS: whether an update is under way (DESIGN §4), or the PLC is in fault.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize, serde::Deserialize)]
-#[serde(rename_all = "snake_case")]
-pub enum Status {
-    /// No update under way.
-    Idle,
-    /// A package was accepted; the state transformation runs at the next cycle boundary.
-    Setup,
-    /// Both containers run; only PRIMARY's outputs are dispatched.
-    Quarantine,
-    /// The primary faulted: safe outputs until an operator resets.
-    Fault,
-}
-
-impl Status {
-    /// The lower-case name.
-    pub fn name(self) -> &'static str {
-        match self {
-            Status::Idle => "idle",
-            Status::Setup => "setup",
-            Status::Quarantine => "quarantine",
-            Status::Fault => "fault",
-        }
-    }
-}
+use crate::router::MessageRouter;
+use crate::updater::value_json;
+use crate::{Blocker, Container, Slot, Status, Summary, TimingStats};
 
 /// The derived cause of a divergence: the first transition that fired in one container and not
 /// in the other, and what blocked it in the other.
@@ -199,13 +132,60 @@ impl ProgramId {
     }
 }
 
+/// The role of a container in `program_exec_info`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Role {
+    /// It drives the outputs.
+    Primary,
+    /// It runs in quarantine, its outputs withheld.
+    Candidate,
+    /// The old program on probation after a substitution, its outputs withheld.
+    Shadow,
+}
+
+/// What a validation found (DESIGN §4): `{kind, result, reasons, figures}`.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct Verdict {
+    /// `analysis` or `twin`.
+    pub kind: VerdictKind,
+    /// `pass`, `fail` or `warn`.
+    pub result: VerdictResult,
+    /// Why, in words.
+    pub reasons: Vec<String>,
+    /// Figures by name.
+    pub figures: BTreeMap<String, f64>,
+}
+
+/// Which validation a [`Verdict`] comes from.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum VerdictKind {
+    /// The analysis gate at load.
+    Analysis,
+    /// A run on the digital twin.
+    Twin,
+}
+
+/// The outcome of a [`Verdict`].
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum VerdictResult {
+    /// Passed.
+    Pass,
+    /// Failed.
+    Fail,
+    /// Passed with findings.
+    Warn,
+}
+
 /// `program_exec_info` of one container, as published.
 #[derive(Clone, Debug, Serialize)]
 pub struct ExecInfo {
     /// The container.
     pub container: Slot,
-    /// "primary" or "candidate".
-    pub role: &'static str,
+    /// Primary, candidate or shadow.
+    pub role: Role,
     /// Its program.
     pub program: ProgramId,
     /// Scans run since it was installed.
@@ -230,8 +210,192 @@ pub struct ExecInfo {
     pub max_drift: u64,
     /// No transition enabled.
     pub deadlock: bool,
-    /// Validation verdicts (filled by the validation issue; empty for now).
-    pub verdicts: Vec<String>,
+    /// Validation verdicts.
+    pub verdicts: Vec<Verdict>,
+}
+
+/// What the Monitor compares in a quarantine cycle.
+pub(crate) struct Pair<'a> {
+    pub primary_slot: Slot,
+    pub primary: &'a Container,
+    pub candidate: &'a Container,
+    pub to_primary: &'a [Option<TransIdx>],
+    pub from_primary: &'a [Option<TransIdx>],
+    pub projection: &'a Projection,
+}
+
+impl Monitor {
+    /// One quarantine cycle: the candidate's drift, its divergence per signal, and the derived
+    /// cause of a divergence.
+    pub(crate) fn observe_quarantine(
+        &mut self,
+        pair: &Pair<'_>,
+        router: &MessageRouter,
+        cycle: u64,
+        now_us: u64,
+    ) {
+        let p = pair.primary_slot;
+        let c = p.other();
+        let (pc, cc) = (pair.primary, pair.candidate);
+        let quiet = pc.fired().is_empty() && cc.fired().is_empty();
+        let stats = &mut self.stats[c.index()];
+        // Drift only moves when a marking does.
+        let drift = if quiet && stats.drift_valid {
+            stats.drift
+        } else {
+            pair.projection.drift(cc.marking(), pc.marking())
+        };
+        stats.drift = drift;
+        stats.drift_valid = true;
+        stats.max_drift = stats.max_drift.max(drift);
+        stats.deadlocked = cc.engine().enabled().is_empty();
+
+        // Divergence per signal. Boolean images compare as bit masks: most cycles the two agree
+        // and this is one comparison.
+        let mut differs = false;
+        if router.bool_outputs() {
+            let mut diff = router.output_bits(p.index()) ^ router.output_bits(c.index());
+            differs = diff != 0;
+            while diff != 0 {
+                let k = diff.trailing_zeros() as usize;
+                stats.divergent_cycles[k] += 1;
+                diff &= diff - 1;
+            }
+        } else {
+            let outs = router
+                .outputs(p.index())
+                .iter()
+                .zip(router.outputs(c.index()));
+            for (k, (a, b)) in outs.enumerate() {
+                if a != b {
+                    stats.divergent_cycles[k] += 1;
+                    differs = true;
+                }
+            }
+        }
+        if quiet {
+            return;
+        }
+        if let Some((slot, t)) = first_difference(pair) {
+            let (other, other_t) = if slot == p {
+                (cc, pair.from_primary[t.index()])
+            } else {
+                (pc, pair.to_primary[t.index()])
+            };
+            let cause = Cause {
+                cycle,
+                time_us: now_us,
+                fired_in: slot,
+                transition: t,
+                blocked: other_t.map_or(Blocker::Absent, |u| other.blocker(u)),
+            };
+            if differs || stats.last_cause.is_none() {
+                stats.last_cause = Some(cause);
+                if stats.first_cause.is_none() {
+                    stats.first_cause = Some(cause);
+                }
+            }
+        }
+    }
+
+    /// `program_exec_info` of both containers; `role` says what the non-primary one is.
+    pub(crate) fn exec_info(
+        &self,
+        containers: [Option<&Container>; 2],
+        primary: Slot,
+        secondary_role: Role,
+        io_outputs: &[String],
+    ) -> [Option<ExecInfo>; 2] {
+        let text = |c: &Option<Cause>| {
+            c.as_ref().and_then(|cause| {
+                let fired = containers[cause.fired_in.index()]?;
+                let other = containers[cause.fired_in.other().index()]?;
+                Some(describe_cause(cause, fired, other))
+            })
+        };
+        [Slot::A, Slot::B].map(|slot| {
+            let c = containers[slot.index()]?;
+            let s = &self.stats[slot.index()];
+            let net = c.program().net();
+            let is_primary = slot == primary;
+            Some(ExecInfo {
+                container: slot,
+                role: if is_primary {
+                    Role::Primary
+                } else {
+                    secondary_role
+                },
+                program: ProgramId::of(c),
+                cycles: c.scans(),
+                scan: s.scan.summary(),
+                firings: net
+                    .transitions()
+                    .iter()
+                    .zip(c.firings())
+                    .map(|(t, &n)| (t.id.clone(), n))
+                    .collect(),
+                marking: net
+                    .places()
+                    .iter()
+                    .zip(c.marking())
+                    .map(|(p, &m)| (p.id.clone(), m))
+                    .collect(),
+                outputs: c
+                    .program()
+                    .outputs()
+                    .iter()
+                    .zip(c.outputs())
+                    .map(|(s, v)| (s.name.clone(), value_json(*v)))
+                    .collect(),
+                divergence: if is_primary {
+                    BTreeMap::new()
+                } else {
+                    io_outputs
+                        .iter()
+                        .zip(&s.divergent_cycles)
+                        .filter(|(_, &n)| n > 0)
+                        .map(|(n, &k)| (n.clone(), k))
+                        .collect()
+                },
+                first_cause: if is_primary {
+                    None
+                } else {
+                    text(&s.first_cause)
+                },
+                last_cause: if is_primary {
+                    None
+                } else {
+                    text(&s.last_cause)
+                },
+                drift: if is_primary { 0 } else { s.drift },
+                max_drift: if is_primary { 0 } else { s.max_drift },
+                deadlock: s.deadlocked,
+                verdicts: Vec::new(),
+            })
+        })
+    }
+}
+
+/// The first transition in visiting order (priority, then declaration) that fired in one
+/// container and not in the other; on a tie of rank, the primary's.
+fn first_difference(pair: &Pair<'_>) -> Option<(Slot, TransIdx)> {
+    let only = |a: &Container, b: &Container, map: &[Option<TransIdx>]| {
+        a.fired()
+            .iter()
+            .copied()
+            .filter(|t| !map[t.index()].is_some_and(|u| b.fired().contains(&u)))
+            .min_by_key(|&t| a.program().net().rank(t))
+    };
+    let (pc, cc) = (pair.primary, pair.candidate);
+    let primary = pair.primary_slot;
+    let p = only(pc, cc, pair.from_primary).map(|t| (pc.program().net().rank(t), primary, t));
+    let c = only(cc, pc, pair.to_primary).map(|t| (cc.program().net().rank(t), primary.other(), t));
+    match (p, c) {
+        (Some(a), Some(b)) => Some(if b.0 < a.0 { (b.1, b.2) } else { (a.1, a.2) }),
+        (Some(a), None) => Some((a.1, a.2)),
+        (None, Some(b)) => Some((b.1, b.2)),
+        (None, None) => None,
+    }
 }
 
 /// Describes a cause in words, with ids from both containers' nets.

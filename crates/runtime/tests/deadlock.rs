@@ -4,7 +4,7 @@ use std::sync::Arc;
 
 use cetratus_net::{ArcKind, NetBuilder, Place, Transition};
 use cetratus_program::{Program, Value};
-use cetratus_runtime::{Dispatcher, Plc, Provider};
+use cetratus_runtime::{Dispatcher, EventKind, ManualStopwatch, Plc, Provider};
 
 /// An input that toggles every cycle.
 struct Toggle(bool);
@@ -30,7 +30,7 @@ fn a_deadlocked_primary_whose_inputs_change_raises_one_alarm() {
     let net = b.build().expect("net");
     let toml = "[program]\nname = \"sink\"\nversion = \"1\"\nnet = \"sink.pnml\"\n\n[[input]]\nname = \"go\"\ntype = \"bool\"\n\n[guards]\nt = \"go\"\n";
     let program = Arc::new(Program::from_sources(toml, "sink.toml", net).expect("program"));
-    let mut plc = Plc::new(program, 0);
+    let mut plc = Plc::new(program, 0, Box::new(ManualStopwatch::new()));
     let mut io = Toggle(false);
     for k in 0..50u64 {
         plc.cycle(k * 10_000, &mut io);
@@ -38,8 +38,8 @@ fn a_deadlocked_primary_whose_inputs_change_raises_one_alarm() {
     let alarms = plc
         .drain_events()
         .into_iter()
-        .filter(|e| e.kind == "deadlock_alarm")
+        .filter(|e| e.kind == EventKind::DeadlockAlarm)
         .count();
     assert_eq!(alarms, 1, "one alarm for one deadlock episode");
-    assert!(plc.monitor.stats[0].deadlocked);
+    assert!(plc.monitor().stats[0].deadlocked);
 }

@@ -6,9 +6,9 @@ use std::sync::Arc;
 
 use cetratus_net::{ArcKind, Net, NetBuilder, Place, Transition};
 use cetratus_program::{PackageMeta, Program, Projection, ResolvedUpdate, StateTransform, Value};
-use cetratus_runtime::plc::ModelStopwatch;
 use cetratus_runtime::{
-    Command, Container, Dispatcher, Plc, Provider, Slot, SubstituteMode, SubstituteRequest,
+    Command, Container, Dispatcher, InstallTiming, ManualStopwatch, Plc, Provider, Slot,
+    SubstituteMode, SubstituteRequest, UpdateContext,
 };
 
 fn net() -> Net {
@@ -129,8 +129,8 @@ impl Dispatcher for Io {
 
 impl Rig {
     fn new(program: &Arc<Program>) -> Self {
-        let mut plc = Plc::new(program.clone(), 0);
-        plc.set_stopwatch(Box::new(ModelStopwatch { ns_per_unit: 0 }));
+        let mut plc = Plc::new(program.clone(), 0, Box::new(ManualStopwatch::new()));
+        plc.set_install_timing(InstallTiming::Model { ns_per_entry: 0 });
         Rig {
             plc,
             io: Io {
@@ -160,17 +160,17 @@ impl Rig {
             created: String::new(),
             base_program_hash: old.hash_hex().to_string(),
         };
-        let up = Plc::prepare(
-            old,
-            self.plc.io_inputs(),
-            self.plc.io_outputs(),
-            ResolvedUpdate {
-                program: new.clone(),
-                transform,
-                projection: Projection::generated(old.net(), new.net()),
-                meta,
-            },
-        )
+        let up = UpdateContext {
+            primary: old.clone(),
+            io_inputs: self.plc.io_inputs().to_vec(),
+            io_outputs: self.plc.io_outputs().to_vec(),
+        }
+        .prepare(ResolvedUpdate {
+            program: new.clone(),
+            transform,
+            projection: Projection::generated(old.net(), new.net()),
+            meta,
+        })
         .expect("prepared");
         self.plc
             .command(Command::Load(Box::new(up)))

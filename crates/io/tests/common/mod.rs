@@ -44,7 +44,13 @@ pub fn load(path: &str) -> Arc<Program> {
 pub fn connect<P: Plant>(program: &Arc<Program>, plant: P) -> (ScanCycle, TwinDriver<P>) {
     let io = TwinDriver::new(plant, program.inputs(), program.outputs())
         .expect("the example's signals are the twin's");
-    (ScanCycle::new(Container::new(program.clone(), 0)), io)
+    (
+        ScanCycle::new(
+            Container::new(program.clone(), 0),
+            cetratus_testkit::stopwatch(),
+        ),
+        io,
+    )
 }
 
 /// The index of place `id` in `program`'s marking.

@@ -9,7 +9,7 @@ use std::sync::Arc;
 
 use cetratus_io::TwinDriver;
 use cetratus_program::{build_package, KeyPair, Program, TrustStore};
-use cetratus_runtime::{Command, Plc, Slot, Status, SubstituteMode, SubstituteRequest};
+use cetratus_runtime::{Command, EventKind, Plc, Slot, Status, SubstituteMode, SubstituteRequest};
 use cetratus_twin::{Twin, TwinKind};
 
 pub const PERIOD: u64 = 10_000;
@@ -81,7 +81,7 @@ impl Cell {
             program.outputs(),
         )
         .expect("signals match the twin");
-        let mut plc = Plc::new(program, 0);
+        let mut plc = Plc::new(program, 0, cetratus_testkit::stopwatch());
         // Virtual time: a machine busy with other tests must not turn a preemption into a fault.
         plc.use_virtual_time(PERIOD);
         Cell {
@@ -123,17 +123,22 @@ impl Cell {
         let p = self
             .plc
             .update_context()
-            .prepare_package(bytes, trust, false, false)?;
-        self.plc.command(Command::Load(Box::new(p)))
+            .prepare_package(bytes, trust, false, false)
+            .map_err(|e| e.to_string())?;
+        self.plc
+            .command(Command::Load(Box::new(p)))
+            .map_err(|e| e.to_string())
     }
 
     pub fn substitute(&mut self, mode: SubstituteMode, force: bool) -> Result<(), String> {
-        self.plc.command(Command::Substitute(SubstituteRequest {
-            mode,
-            when: None,
-            within_us: None,
-            force,
-        }))
+        self.plc
+            .command(Command::Substitute(SubstituteRequest {
+                mode,
+                when: None,
+                within_us: None,
+                force,
+            }))
+            .map_err(|e| e.to_string())
     }
 
     pub fn tokens(&self, slot: Slot, ids: &[&str]) -> u32 {
@@ -144,7 +149,7 @@ impl Cell {
             .sum()
     }
 
-    pub fn has_event(&self, kind: &str) -> bool {
+    pub fn has_event(&self, kind: EventKind) -> bool {
         self.events.iter().any(|e| e.kind == kind)
     }
 }

@@ -2,7 +2,7 @@
 
 use std::fmt;
 
-use super::lexer::UNITS;
+use crate::duration::UNITS;
 
 /// A unary operator.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]

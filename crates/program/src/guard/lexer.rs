@@ -70,15 +70,6 @@ impl Tok {
     }
 }
 
-/// Duration units and their length in microseconds, longest first so printing picks the largest.
-pub(crate) const UNITS: [(&str, u64); 5] = [
-    ("h", 3_600_000_000),
-    ("min", 60_000_000),
-    ("s", 1_000_000),
-    ("ms", 1_000),
-    ("us", 1),
-];
-
 /// Splits a guard into tokens; the last one is always [`Tok::End`].
 pub(crate) fn lex(src: &str) -> Result<Vec<Token>, SyntaxError> {
     let bytes = src.as_bytes();
@@ -205,50 +196,20 @@ fn number(src: &str, start: usize) -> Result<(Tok, usize), SyntaxError> {
     }
     if unit_end > end {
         let unit = &src[end..unit_end];
-        let Some(&(_, scale)) = UNITS.iter().find(|(u, _)| *u == unit) else {
-            return Err(SyntaxError::new(
-                end,
-                format!("unknown duration unit `{unit}`; expected one of us, ms, s, min, h (e.g. `500ms`)"),
-            ));
-        };
-        if exponent {
+        if crate::duration::unit_us(unit).is_some() && exponent {
             return Err(SyntaxError::new(
                 start,
                 "a duration cannot have an exponent; write it with a smaller unit, e.g. `1500ms`",
             ));
         }
-        let too_long = || {
-            SyntaxError::new(
-                start,
-                "duration too long; the longest is about 292 000 years",
-            )
-        };
-        let whole: u64 = src[start..int_end].parse().map_err(|_| too_long())?;
-        let mut micros = whole.checked_mul(scale).ok_or_else(too_long)?;
-        if let Some((fs, fe)) = frac {
-            // Exact decimal arithmetic: the fraction must come to a whole number of microseconds.
-            let mut num: u64 = 0;
-            let mut den: u64 = 1;
-            for &d in &b[fs..fe] {
-                num = num
-                    .checked_mul(10)
-                    .and_then(|n| n.checked_add(u64::from(d - b'0')))
-                    .ok_or_else(too_long)?;
-                den = den.checked_mul(10).ok_or_else(too_long)?;
-            }
-            let scaled = u128::from(num) * u128::from(scale);
-            if scaled % u128::from(den) != 0 {
-                return Err(SyntaxError::new(
-                    start,
-                    "a duration must be a whole number of microseconds",
-                ));
-            }
-            let extra = u64::try_from(scaled / u128::from(den)).map_err(|_| too_long())?;
-            micros = micros.checked_add(extra).ok_or_else(too_long)?;
-        }
-        if micros > i64::MAX as u64 {
-            return Err(too_long());
-        }
+        let frac = frac.map_or("", |(fs, fe)| &src[fs..fe]);
+        let micros = crate::duration::micros(&src[start..int_end], frac, unit).map_err(|e| {
+            let at = match e {
+                crate::duration::DurationError::UnknownUnit(_) => end,
+                _ => start,
+            };
+            SyntaxError::new(at, e.to_string())
+        })?;
         return Ok((Tok::Duration(micros), unit_end));
     }
     let text = &src[start..end];

@@ -1,4 +1,4 @@
-//! A PLC node: the scan thread of a [`Plc`] driving a twin in real time, connected to MQTT.
+//! The node's side of the MQTT control plane: what the scan thread meets of MQTT.
 //!
 //! Three threads, joined by bounded queues; the scan thread never blocks:
 //! * the **scan thread** runs the cycle at absolute deadlines, takes ready commands with
@@ -12,35 +12,16 @@ use std::sync::atomic::AtomicBool;
 use std::sync::mpsc::{sync_channel, Receiver, SyncSender, TrySendError};
 use std::sync::Arc;
 
-use cetratus_io::TwinDriver;
 use cetratus_mct::{
     IncomingCommand, MctLink, Outgoing, ProgramInfo, Programs, Reply, Request, StateMsg,
 };
 use cetratus_program::{Program, TrustStore, Value};
-use cetratus_runtime::monitor::{CycleRecord, ExecInfo};
-use cetratus_runtime::plc::value_json;
+use cetratus_runtime::monitor::CycleRecord;
 use cetratus_runtime::{
-    run_periodic, Command, Event, LoopTiming, Plc, Slot, Status, SubstituteMode, SubstituteRequest,
-    UpdateContext,
+    value_json, Command, Event, ExecInfo, LoopTiming, Plc, Slot, Status, SubstituteMode,
+    SubstituteRequest, UpdateContext,
 };
-use cetratus_twin::Twin;
 use serde_json::{json, Value as Json};
-
-/// How a node runs.
-pub struct NodeOptions {
-    /// Program time per wall time.
-    pub speed: f64,
-    /// Stop after this much program time.
-    pub until_us: u64,
-    /// Keys trusted for packages.
-    pub trust: TrustStore,
-    /// Accept unsigned packages (local configuration only).
-    pub allow_unsigned: bool,
-    /// Publish `exec_info` and `io` every this many cycles.
-    pub publish_every: u64,
-    /// Print events to stderr.
-    pub echo_events: bool,
-}
 
 enum ToScan {
     Command(Box<Command>, IncomingCommand),
@@ -72,7 +53,7 @@ fn program_info(plc: &Plc, s: Slot) -> Option<ProgramInfo> {
 }
 
 fn state_msg(plc: &Plc, timing: &LoopTiming) -> StateMsg {
-    let scan = plc.monitor.stats[plc.primary().index()].scan.summary();
+    let scan = plc.monitor().stats[plc.primary().index()].scan.summary();
     StateMsg {
         online: true,
         primary: plc.primary().name().to_string(),
@@ -93,9 +74,9 @@ fn state_msg(plc: &Plc, timing: &LoopTiming) -> StateMsg {
     }
 }
 
-/// The scan thread's side of the node: call [`Node::take_commands`] before each cycle and
-/// [`Node::after_cycle`] after it. Neither blocks.
-pub struct Node {
+/// The scan thread's side of MQTT: call [`ControlLink::take_commands`] before each cycle and
+/// [`ControlLink::after_cycle`] after it. Neither blocks.
+pub struct ControlLink {
     to_scan_rx: Receiver<ToScan>,
     ctx_tx: SyncSender<UpdateContext>,
     snap_tx: Option<SyncSender<Snapshot>>,
@@ -111,7 +92,7 @@ pub struct Node {
     threads: Vec<std::thread::JoinHandle<()>>,
 }
 
-impl Node {
+impl ControlLink {
     /// Starts the preparer and the publisher for `plc` on `link`.
     pub fn start(
         plc: &Plc,
@@ -119,7 +100,7 @@ impl Node {
         trust: TrustStore,
         allow_unsigned: bool,
         publish_every: u64,
-    ) -> Node {
+    ) -> ControlLink {
         let MctLink { commands, outgoing } = link;
         let (to_scan_tx, to_scan_rx) = sync_channel::<ToScan>(32);
         let (ctx_tx, ctx_rx) = sync_channel::<UpdateContext>(4);
@@ -147,7 +128,7 @@ impl Node {
             .name("cetratus-publish".into())
             .spawn(move || publish_loop(snap_rx, pub_out))
             .expect("spawn the publisher");
-        Node {
+        ControlLink {
             to_scan_rx,
             ctx_tx,
             snap_tx: Some(snap_tx),
@@ -171,7 +152,10 @@ impl Node {
         while let Ok(msg) = self.to_scan_rx.try_recv() {
             match msg {
                 ToScan::Command(cmd, from) => {
-                    let r = plc.command(*cmd).map(|()| json!({"accepted": true}));
+                    let r = plc
+                        .command(*cmd)
+                        .map(|()| json!({"accepted": true}))
+                        .map_err(|e| e.to_string());
                     who = Some(
                         from.key_id
                             .as_ref()
@@ -217,7 +201,7 @@ impl Node {
         if self.first || changed || plc.cycles() % self.publish_every == 0 {
             let since = self.last_sampled;
             let samples: Vec<CycleRecord> = plc
-                .monitor
+                .monitor()
                 .recent
                 .iter()
                 .filter(|r| r.cycle >= since)
@@ -255,23 +239,6 @@ impl Node {
         }
     }
 
-    /// One cycle of a PLC on the MQTT link: the ready commands, the scan, the publications.
-    /// Returns the cycle's events (those of the commands first).
-    pub fn cycle<IO: cetratus_runtime::Provider + cetratus_runtime::Dispatcher>(
-        &mut self,
-        plc: &mut Plc,
-        io: &mut IO,
-        timing: &LoopTiming,
-        now: u64,
-    ) -> Vec<Event> {
-        self.take_commands(plc);
-        plc.cycle(now, io);
-        let events = plc.drain_events();
-        self.after_cycle(plc, &events, timing, now);
-        drop(plc.take_retired());
-        events
-    }
-
     /// Stops the preparer and the publisher.
     pub fn stop(mut self) {
         self.snap_tx = None;
@@ -280,49 +247,6 @@ impl Node {
             let _ = t.join();
         }
     }
-}
-
-/// Runs the node until `until_us` of program time or `stop`. Returns the PLC and the twin.
-pub fn run_node(
-    mut plc: Plc,
-    mut io: TwinDriver<Twin>,
-    link: MctLink,
-    opts: NodeOptions,
-    stop: &AtomicBool,
-) -> (Plc, TwinDriver<Twin>) {
-    let mut node = Node::start(
-        &plc,
-        link,
-        opts.trust,
-        opts.allow_unsigned,
-        opts.publish_every,
-    );
-    let period_us = plc.primary_program().scan_period().as_micros() as u64;
-    let echo = opts.echo_events;
-    let mut timing = LoopTiming::default();
-    run_periodic(
-        period_us,
-        opts.until_us,
-        opts.speed,
-        stop,
-        &mut timing,
-        |now, timing| {
-            let events = node.cycle(&mut plc, &mut io, timing, now);
-            if echo {
-                for e in &events {
-                    eprintln!(
-                        "{:>10.3} s  {:<20} {}",
-                        e.time_us as f64 / 1e6,
-                        e.kind,
-                        e.message
-                    );
-                }
-            }
-            true
-        },
-    );
-    node.stop();
-    (plc, io)
 }
 
 #[allow(clippy::result_large_err)]
@@ -369,6 +293,7 @@ fn prepare_loop(
         let prepared: Result<ToScan, String> = match &cmd.request {
             Request::Load { package } => c
                 .prepare_package(package, &trust, allow_unsigned, false)
+                .map_err(|e| e.to_string())
                 .map(|p| ToScan::Command(Box::new(Command::Load(Box::new(p))), cmd.clone())),
             Request::Substitute(a) => substitute(c, a)
                 .map(|s| ToScan::Command(Box::new(Command::Substitute(s)), cmd.clone())),
@@ -403,21 +328,13 @@ fn substitute(
         None => SubstituteMode::Retransform,
         Some(m) => m.parse::<SubstituteMode>()?,
     };
-    let when = match &a.when {
-        Some(text) => Some((
-            text.clone(),
-            c.primary.compile_condition(text).map_err(|e| {
-                format!("substitute refused: the condition `{text}` does not compile: {e}")
-            })?,
-        )),
-        None => None,
-    };
-    Ok(SubstituteRequest {
+    c.substitute_request(
         mode,
-        when,
-        within_us: a.within_ms.map(|ms| ms * 1000),
-        force: a.force,
-    })
+        a.when.as_deref(),
+        a.within_ms.map(|ms| ms * 1000),
+        a.force,
+    )
+    .map_err(|e| e.to_string())
 }
 
 fn named(names: &[String], values: &[Value]) -> Json {

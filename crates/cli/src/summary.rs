@@ -1,0 +1,89 @@
+//! The closing summary of `cetratus run`, as text or JSON.
+
+use cetratus_persist::PersistStats;
+use cetratus_runtime::CycleFigures;
+use serde::Serialize;
+
+/// The closing summary of a run.
+#[derive(Debug, Serialize)]
+pub struct Summary {
+    /// Program name.
+    pub program: String,
+    /// Twin name.
+    pub twin: String,
+    /// Program time run, in seconds.
+    pub seconds: f64,
+    /// Scans run.
+    pub scans: u64,
+    /// Transitions fired.
+    pub firings: u64,
+    /// Parts that left the plant finished.
+    pub parts_finished: u64,
+    /// Physical faults the twin saw, declared invariants broken, and scan errors.
+    pub faults: Vec<String>,
+    /// The twin's counters.
+    pub counters: serde_json::Value,
+    /// Scan timing figures.
+    pub scan: CycleFigures,
+    /// PRIMARY at the end.
+    pub primary: &'static str,
+    /// STATUS at the end.
+    pub status: &'static str,
+    /// The state directory, when the run kept its state.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub state_dir: Option<String>,
+    /// What the persistence thread did.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub persist: Option<PersistStats>,
+}
+
+pub fn print_summary(s: &Summary) {
+    println!(
+        "{} on the {} twin: {:.1} s of program time",
+        s.program, s.twin, s.seconds
+    );
+    println!("  scans           {}", s.scans);
+    println!("  firings         {}", s.firings);
+    println!("  parts finished  {}", s.parts_finished);
+    if let Some(obj) = s.counters.as_object() {
+        for (k, v) in obj {
+            println!("  {k:<15} {v}");
+        }
+    }
+    let f = &s.scan;
+    println!(
+        "  scan time       last {} ns, min {} ns, mean {} ns, p99 {} ns, max {} ns",
+        f.scan.last_ns, f.scan.min_ns, f.scan.mean_ns, f.scan.p99_ns, f.scan.max_ns
+    );
+    if f.cycle.count > 0 {
+        println!(
+            "  cycle time      mean {} ns, p99 {} ns, max {} ns (period {} µs)",
+            f.cycle.mean_ns, f.cycle.p99_ns, f.cycle.max_ns, f.period_us
+        );
+        println!(
+            "  latency         mean {} ns, p99 {} ns, max {} ns; overruns {}",
+            f.latency.mean_ns, f.latency.p99_ns, f.latency.max_ns, f.overruns
+        );
+    }
+    if let (Some(dir), Some(p)) = (&s.state_dir, &s.persist) {
+        println!(
+            "  state           {dir}: {} snapshots committed, {} superseded, max commit {} µs{}",
+            p.commits,
+            p.coalesced,
+            p.max_commit_us,
+            if p.errors > 0 {
+                format!(", {} write errors", p.errors)
+            } else {
+                String::new()
+            }
+        );
+    }
+    if s.faults.is_empty() {
+        println!("  faults          none");
+    } else {
+        println!("  faults          {}", s.faults.len());
+        for fault in s.faults.iter().take(20) {
+            println!("    {fault}");
+        }
+    }
+}

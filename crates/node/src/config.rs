@@ -1,0 +1,309 @@
+//! The PLC node's local configuration: a directory that only someone at the machine can change
+//! (docs/configuration.md has the whole schema).
+//!
+//! ```text
+//! <config dir>/config.toml     the settings: one schema, unknown keys refused
+//! <config dir>/trusted/*.pub   keys whose update packages this PLC accepts
+//! <config dir>/operators/*.pub keys whose commands this PLC accepts; when there is at least one,
+//!                              every MQTT command must be a signed envelope
+//! ```
+//!
+//! The directory is the one given, else `$XDG_CONFIG_HOME/cetratus`, else `~/.config/cetratus`.
+//! A missing directory is an empty configuration.
+
+use std::path::{Path, PathBuf};
+
+use cetratus_mct::OperatorKeys;
+use cetratus_program::duration::{self, Bare};
+use cetratus_program::{TrustStore, VerifyingKeyFile};
+use serde::Deserialize;
+
+/// Why the local configuration cannot be used. The PLC does not start.
+#[derive(Debug, thiserror::Error)]
+pub enum ConfigError {
+    /// `config.toml` could not be read.
+    #[error("cannot read {path}: {source}")]
+    Read {
+        /// The file.
+        path: String,
+        /// The OS error.
+        source: std::io::Error,
+    },
+    /// `config.toml` does not follow the schema.
+    #[error("{at}: {message}; fix it against docs/configuration.md")]
+    Schema {
+        /// file:line:column.
+        at: String,
+        /// What toml said.
+        message: String,
+    },
+    /// A setting has a value this version refuses.
+    #[error("{path}: {key} = \"{value}\": {reason}")]
+    Value {
+        /// The file.
+        path: String,
+        /// The key, with its section.
+        key: &'static str,
+        /// The value as written.
+        value: String,
+        /// Why, and what to write instead.
+        reason: String,
+    },
+    /// A key file does not load.
+    #[error("{what} key {path}: {source}")]
+    Key {
+        /// `trusted` or `operator`.
+        what: &'static str,
+        /// The file.
+        path: String,
+        /// Why.
+        source: Box<cetratus_program::PackageError>,
+    },
+}
+
+#[derive(Deserialize, Default)]
+#[serde(deny_unknown_fields)]
+struct File {
+    #[serde(default)]
+    allow_unsigned: bool,
+    replay_window: Option<String>,
+    #[serde(default)]
+    mqtt: MqttSection,
+    #[serde(default)]
+    io: IoSection,
+    #[serde(default)]
+    dashboard: DashboardSection,
+    #[serde(default)]
+    updates: UpdatesSection,
+}
+
+#[derive(Deserialize, Default)]
+#[serde(deny_unknown_fields)]
+struct MqttSection {
+    #[serde(default)]
+    users: Vec<User>,
+    user: Option<String>,
+    password: Option<String>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct User {
+    name: String,
+    password: String,
+}
+
+/// `[io]`: the node's I/O configuration; this version knows no key in it.
+#[derive(Deserialize, Default)]
+#[serde(deny_unknown_fields)]
+struct IoSection {}
+
+/// `[dashboard]`: accounts, sessions, TLS; this version knows no key in it.
+#[derive(Deserialize, Default)]
+#[serde(deny_unknown_fields)]
+struct DashboardSection {}
+
+/// `[updates]`: update policies.
+#[derive(Deserialize, Default)]
+#[serde(deny_unknown_fields)]
+struct UpdatesSection {
+    probation: Option<String>,
+}
+
+/// The loaded configuration.
+pub struct LocalConfig {
+    /// The directory it came from.
+    pub dir: PathBuf,
+    /// Keys trusted for update packages.
+    pub trust: TrustStore,
+    /// Accept unsigned packages.
+    pub allow_unsigned: bool,
+    /// Keys trusted for commands; `None` when there are none (commands need no signature).
+    pub operators: Option<OperatorKeys>,
+    /// Accounts of the embedded broker.
+    pub users: Vec<(String, String)>,
+    /// Credentials for a plant broker.
+    pub credentials: Option<(String, String)>,
+    /// The probation window after a substitution, in microseconds (0: none).
+    pub probation_us: u64,
+}
+
+/// The default configuration directory.
+pub fn default_dir() -> PathBuf {
+    if let Some(x) = std::env::var_os("XDG_CONFIG_HOME") {
+        return PathBuf::from(x).join("cetratus");
+    }
+    if let Some(h) = std::env::var_os("HOME") {
+        return PathBuf::from(h).join(".config/cetratus");
+    }
+    PathBuf::from(".cetratus")
+}
+
+fn keys_in(dir: &Path, what: &'static str) -> Result<Vec<VerifyingKeyFile>, ConfigError> {
+    let Ok(entries) = std::fs::read_dir(dir) else {
+        return Ok(Vec::new());
+    };
+    let mut paths: Vec<PathBuf> = entries
+        .filter_map(|e| e.ok().map(|e| e.path()))
+        .filter(|p| p.extension().is_some_and(|e| e == "pub"))
+        .collect();
+    paths.sort();
+    paths
+        .iter()
+        .map(|p| {
+            VerifyingKeyFile::load(p).map_err(|source| ConfigError::Key {
+                what,
+                path: p.display().to_string(),
+                source: Box::new(source),
+            })
+        })
+        .collect()
+}
+
+/// `file:line:column` of a byte offset of `text`.
+fn position(path: &Path, text: &str, offset: usize) -> String {
+    let offset = offset.min(text.len());
+    let line = text[..offset].matches('\n').count() + 1;
+    let col = offset - text[..offset].rfind('\n').map_or(0, |i| i + 1) + 1;
+    format!("{}:{line}:{col}", path.display())
+}
+
+impl LocalConfig {
+    /// Loads the configuration from `dir`, or from [`default_dir`].
+    pub fn load(dir: Option<&Path>) -> Result<LocalConfig, ConfigError> {
+        let dir = dir.map_or_else(default_dir, Path::to_path_buf);
+        let file_path = dir.join("config.toml");
+        let file: File = match std::fs::read_to_string(&file_path) {
+            Ok(text) => toml::from_str(&text).map_err(|e| ConfigError::Schema {
+                at: e.span().map_or_else(
+                    || file_path.display().to_string(),
+                    |s| position(&file_path, &text, s.start),
+                ),
+                message: e.message().trim_end().to_string(),
+            })?,
+            Err(e) if e.kind() == std::io::ErrorKind::NotFound => File::default(),
+            Err(source) => {
+                return Err(ConfigError::Read {
+                    path: file_path.display().to_string(),
+                    source,
+                })
+            }
+        };
+        let value_error = |key, value: &str, reason: String| ConfigError::Value {
+            path: file_path.display().to_string(),
+            key,
+            value: value.to_string(),
+            reason,
+        };
+        let trusted = dir.join("trusted");
+        let trust = if trusted.is_dir() {
+            let mut t = TrustStore::empty();
+            for k in keys_in(&trusted, "trusted")? {
+                t.add(k);
+            }
+            t
+        } else {
+            TrustStore::empty()
+        };
+        let window_s = match &file.replay_window {
+            Some(w) => {
+                duration::parse_us(w, Bare::Seconds)
+                    .map_err(|e| value_error("replay_window", w, e.to_string()))?
+                    / 1_000_000
+            }
+            None => 60,
+        };
+        let probation_us = match &file.updates.probation {
+            Some(p) => duration::parse_us(p, Bare::Seconds)
+                .map_err(|e| value_error("[updates] probation", p, e.to_string()))?,
+            None => 0,
+        };
+        if probation_us != 0 {
+            return Err(value_error(
+                "[updates] probation",
+                file.updates.probation.as_deref().unwrap_or_default(),
+                "this version has no probation window; write \"0s\" or remove the key".into(),
+            ));
+        }
+        let mut ops = OperatorKeys::new(std::time::Duration::from_secs(window_s.max(1)));
+        for k in keys_in(&dir.join("operators"), "operator")? {
+            ops.add(k.key_id(), *k.verifying_key());
+        }
+        let (_, _) = (file.io, file.dashboard);
+        Ok(LocalConfig {
+            dir,
+            trust,
+            allow_unsigned: file.allow_unsigned,
+            operators: (!ops.is_empty()).then_some(ops),
+            users: file
+                .mqtt
+                .users
+                .into_iter()
+                .map(|u| (u.name, u.password))
+                .collect(),
+            credentials: file
+                .mqtt
+                .user
+                .map(|u| (u, file.mqtt.password.unwrap_or_default())),
+            probation_us,
+        })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn dir_with(config: &str) -> PathBuf {
+        static N: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
+        let d = std::env::temp_dir().join(format!(
+            "cetratus-config-{}-{}",
+            std::process::id(),
+            N.fetch_add(1, std::sync::atomic::Ordering::Relaxed)
+        ));
+        std::fs::create_dir_all(&d).unwrap();
+        std::fs::write(d.join("config.toml"), config).unwrap();
+        d
+    }
+
+    #[test]
+    fn a_missing_directory_is_the_defaults() {
+        let c = LocalConfig::load(Some(Path::new("/nonexistent/cetratus-config"))).unwrap();
+        assert!(!c.allow_unsigned && c.operators.is_none() && c.users.is_empty());
+        assert_eq!(c.probation_us, 0);
+    }
+
+    #[test]
+    fn the_reserved_sections_may_be_present_and_empty() {
+        let d = dir_with("[io]\n[dashboard]\n[updates]\nprobation = \"0s\"\n");
+        assert!(LocalConfig::load(Some(&d)).is_ok());
+    }
+
+    #[test]
+    fn an_unknown_key_names_the_file_line_and_the_keys_known() {
+        let d = dir_with("[updates]\nprobation = \"0s\"\nhorizon = \"10min\"\n");
+        let e = LocalConfig::load(Some(&d)).err().unwrap().to_string();
+        assert!(e.contains("config.toml:3:1"), "{e}");
+        assert!(e.contains("horizon") && e.contains("probation"), "{e}");
+        assert!(e.contains("docs/configuration.md"), "{e}");
+        let d = dir_with("[io]\ndevice = 1\n");
+        assert!(LocalConfig::load(Some(&d)).is_err());
+    }
+
+    #[test]
+    fn a_probation_window_is_refused_with_what_to_write() {
+        let d = dir_with("[updates]\nprobation = \"10s\"\n");
+        let e = LocalConfig::load(Some(&d)).err().unwrap().to_string();
+        assert!(
+            e.contains("[updates] probation") && e.contains("\"0s\""),
+            "{e}"
+        );
+    }
+
+    #[test]
+    fn a_bad_replay_window_names_its_key() {
+        let d = dir_with("replay_window = \"soon\"\n");
+        let e = LocalConfig::load(Some(&d)).err().unwrap().to_string();
+        assert!(e.contains("replay_window") && e.contains("soon"), "{e}");
+    }
+}

@@ -1,0 +1,24 @@
+//! The PLC node as a library: a [`Plc`](cetratus_runtime::Plc) on its I/O, driven in virtual
+//! or real time, connected to MQTT and to its state directory.
+//!
+//! * [`Node`]: the node loop, one cycle at a time ([`Node::step`]), the same for `cetratus run`
+//!   and `cetratus demo`: commands (MQTT, scripted), the scan, the trace and invariant check,
+//!   events to the audit log, to MQTT and to the operator, publication, persistence.
+//! * [`link`]: the scan thread's side of MQTT, with the preparer thread (verifies and builds
+//!   packages, compiles conditions) and the publisher thread.
+//! * [`periodic`]: the real-time loop at absolute deadlines; [`rt`]: SCHED_FIFO and mlockall.
+//! * [`clock`]: the machine's clocks, injected into the runtime.
+//! * [`config`]: the local configuration; [`state`]: the state directory and the start from it.
+//! * [`demo`]: the Vernadat experiment of the paper, embedded.
+
+pub mod clock;
+pub mod config;
+pub mod demo;
+pub mod link;
+mod node;
+pub mod periodic;
+pub mod rt;
+pub mod script;
+pub mod state;
+
+pub use node::{Echo, Node, NodeOptions, NodeReport};

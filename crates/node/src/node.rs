@@ -1,0 +1,332 @@
+//! The node loop: one cycle of a PLC node, the same for `run` and `demo`, in virtual or real time.
+//!
+//! Each cycle, on the scan thread: the commands that are ready (from MQTT through the preparer,
+//! or from a script), the scan, the trace and the invariant check, the events (to the audit log,
+//! to MQTT and to the echo), the publication, and a snapshot offered to the persistence writer.
+//! Nothing here blocks: every other party is behind a bounded queue used with `try_send`.
+
+use std::sync::atomic::AtomicBool;
+use std::sync::mpsc::{sync_channel, SyncSender};
+use std::thread::JoinHandle;
+
+use cetratus_persist::{PersistStats, Persister};
+use cetratus_program::TrustStore;
+use cetratus_runtime::trace::Trace;
+use cetratus_runtime::{Command, CommandError, Dispatcher, Event, LoopTiming, Plc, Provider};
+
+use crate::link::ControlLink;
+use crate::periodic::run_periodic;
+use crate::script::{Script, ScriptError};
+
+/// What the node tells the operator, printed by the caller on a thread of its own (the scan
+/// thread never writes to a terminal).
+#[derive(Debug)]
+pub enum Echo {
+    /// An event of the PLC.
+    Event(Event),
+    /// Every `progress_every` cycles: the cycle count and the last committed snapshot's cycle.
+    Progress {
+        /// Cycles run.
+        cycle: u64,
+        /// Cycle of the last committed snapshot.
+        committed: Option<u64>,
+    },
+    /// Something went wrong beside the scan (the state directory cannot be written).
+    Warning(String),
+}
+
+/// How a node runs.
+pub struct NodeOptions {
+    /// Program time at which this run starts (after a warm start, past the last committed cycle).
+    pub base_us: u64,
+    /// Keys trusted for packages of the script.
+    pub trust: TrustStore,
+    /// Accept unsigned packages (local configuration only).
+    pub allow_unsigned: bool,
+    /// Record the I/O trace (`--trace`, `--svg`).
+    pub record_trace: bool,
+    /// Echo [`Echo::Progress`] every this many cycles.
+    pub progress_every: Option<u64>,
+}
+
+/// Most faults a run's report keeps; the count of the rest is still reported.
+const MAX_FAULTS: usize = 100;
+
+/// A PLC node: the PLC, its I/O, and what is connected to it.
+pub struct Node<IO> {
+    plc: Plc,
+    io: IO,
+    opts: NodeOptions,
+    persister: Option<Persister>,
+    link: Option<ControlLink>,
+    script: Script,
+    trace: Option<Trace>,
+    faults: Vec<String>,
+    faults_dropped: u64,
+    echo: Option<(SyncSender<Echo>, JoinHandle<()>)>,
+    echo_dropped: u64,
+    persist_warned: bool,
+    script_error: Option<ScriptError>,
+    timing: LoopTiming,
+}
+
+/// What a node leaves when it stops.
+pub struct NodeReport {
+    /// Declared invariants the primary broke, and the alarms (primary fault, deadlock), with
+    /// their program times.
+    pub faults: Vec<String>,
+    /// Faults beyond the first hundred.
+    pub faults_dropped: u64,
+    /// What the persistence writer did.
+    pub persist: Option<PersistStats>,
+    /// The I/O trace, when recorded.
+    pub trace: Option<Trace>,
+    /// Cycle time, latency and overruns (real time).
+    pub timing: LoopTiming,
+    /// Echo lines dropped because the printer was behind.
+    pub echo_dropped: u64,
+}
+
+impl<IO: Provider + Dispatcher> Node<IO> {
+    /// A node around `plc` and its I/O.
+    pub fn new(plc: Plc, io: IO, opts: NodeOptions) -> Self {
+        let trace = opts
+            .record_trace
+            .then(|| Trace::new(plc.io_inputs().to_vec(), plc.io_outputs().to_vec()));
+        Node {
+            plc,
+            io,
+            opts,
+            persister: None,
+            link: None,
+            script: Script::default(),
+            trace,
+            faults: Vec::new(),
+            faults_dropped: 0,
+            echo: None,
+            echo_dropped: 0,
+            persist_warned: false,
+            script_error: None,
+            timing: LoopTiming::default(),
+        }
+    }
+
+    /// Keeps the state in a directory, through its writer.
+    pub fn with_persister(mut self, p: Persister) -> Self {
+        self.persister = Some(p);
+        self
+    }
+
+    /// Connects the node to MQTT.
+    pub fn with_link(mut self, link: ControlLink) -> Self {
+        self.link = Some(link);
+        self
+    }
+
+    /// Gives scripted commands.
+    pub fn with_script(mut self, script: Script) -> Self {
+        self.script = script;
+        self
+    }
+
+    /// Echoes events, progress and warnings to `print`, on a thread of its own.
+    pub fn with_echo(mut self, mut print: impl FnMut(Echo) + Send + 'static) -> Self {
+        let (tx, rx) = sync_channel::<Echo>(1024);
+        let handle = std::thread::Builder::new()
+            .name("cetratus-echo".into())
+            .spawn(move || {
+                while let Ok(e) = rx.recv() {
+                    print(e);
+                }
+            })
+            .expect("spawn the echo thread");
+        self.echo = Some((tx, handle));
+        self
+    }
+
+    /// The PLC.
+    pub fn plc(&self) -> &Plc {
+        &self.plc
+    }
+
+    /// The I/O.
+    pub fn io(&self) -> &IO {
+        &self.io
+    }
+
+    /// The I/O, to act on the plant (press a button of a twin).
+    pub fn io_mut(&mut self) -> &mut IO {
+        &mut self.io
+    }
+
+    fn echo(&mut self, e: Echo) {
+        if let Some((tx, _)) = &self.echo {
+            if tx.try_send(e).is_err() {
+                self.echo_dropped += 1;
+            }
+        }
+    }
+
+    /// Echoes, audits and publishes events caused by `who`.
+    fn events(&mut self, events: Vec<Event>, who: &str, publish: bool) -> Vec<Event> {
+        for e in &events {
+            if let Some(p) = self.persister.as_mut() {
+                p.audit(e, who);
+            }
+            if e.kind.is_alarm() {
+                self.fault(format!("{:.3}s: {}", e.time_us as f64 / 1e6, e.message));
+            }
+        }
+        if publish {
+            if let Some(link) = self.link.as_mut() {
+                link.queue_events(&events);
+            }
+        }
+        if self.echo.is_some() {
+            for e in &events {
+                self.echo(Echo::Event(e.clone()));
+            }
+        }
+        events
+    }
+
+    fn fault(&mut self, f: String) {
+        if self.faults.len() < MAX_FAULTS {
+            self.faults.push(f);
+        } else {
+            self.faults_dropped += 1;
+        }
+    }
+
+    /// Gives the PLC a command between cycles, as the operator at the machine (`cli` in the
+    /// audit log). Returns the events it caused.
+    pub fn command(&mut self, cmd: Command) -> (Result<(), CommandError>, Vec<Event>) {
+        let r = self.plc.command(cmd);
+        let ev = self.plc.drain_events();
+        (r, self.events(ev, "cli", true))
+    }
+
+    /// One cycle at program time `now_us` (counted from this run's start). Returns the cycle's
+    /// events, or `None` when a scripted command could not be built (the run stops; see
+    /// [`Node::finish`]).
+    /// `timing` is the real-time loop's figures so far, for the publication.
+    pub fn step(&mut self, now_us: u64, timing: &LoopTiming) -> Option<Vec<Event>> {
+        let now = now_us + self.opts.base_us;
+        if let Some(link) = self.link.as_mut() {
+            let who = link.take_commands(&mut self.plc);
+            let ev = self.plc.drain_events();
+            if !ev.is_empty() {
+                let who = who.unwrap_or_else(|| "mqtt".into());
+                self.events(ev, &who, true);
+            }
+        }
+        let due = self.script.due(
+            &self.plc,
+            now,
+            self.opts.base_us,
+            &self.opts.trust,
+            self.opts.allow_unsigned,
+        );
+        match due {
+            None => {}
+            Some(Ok(cmd)) => {
+                let _ = self.command(cmd);
+            }
+            Some(Err(e)) => {
+                self.script_error = Some(e);
+                return None;
+            }
+        }
+        self.plc.cycle(now, &mut self.io);
+        if let Some(t) = self.trace.as_mut() {
+            t.observe(
+                self.plc.cycles() - 1,
+                now,
+                self.plc.inputs(),
+                self.plc.dispatched(),
+            );
+        }
+        let k = self.plc.primary_container();
+        if let Err(v) = k.program().check_invariants(k.marking()) {
+            self.fault(format!("{:.3}s: {v}", now as f64 / 1e6));
+        }
+        let ev = self.plc.drain_events();
+        let ev = self.events(ev, "plc", false);
+        if let Some(link) = self.link.as_mut() {
+            link.after_cycle(&self.plc, &ev, timing, now);
+        }
+        if let Some(p) = self.persister.as_mut() {
+            p.offer(&self.plc);
+            // Said once: a full disk fails every commit, and the report gives the count.
+            let err = (!self.persist_warned).then(|| p.take_error()).flatten();
+            let progress = self
+                .opts
+                .progress_every
+                .filter(|&n| n > 0 && self.plc.cycles() % n == 0)
+                .map(|_| p.committed_cycle());
+            if let Some(err) = err {
+                self.persist_warned = true;
+                self.echo(Echo::Warning(format!(
+                    "the state directory could not be written: {err}"
+                )));
+            }
+            if let Some(committed) = progress {
+                let cycle = self.plc.cycles();
+                self.echo(Echo::Progress { cycle, committed });
+            }
+        }
+        drop(self.plc.take_retired());
+        Some(ev)
+    }
+
+    /// Runs cycles every `period_us` of virtual time until `until_us`. Returns the time reached.
+    pub fn run_virtual(&mut self, period_us: u64, until_us: u64) -> u64 {
+        let (mut now, idle) = (0, LoopTiming::default());
+        while now < until_us && self.step(now, &idle).is_some() {
+            now += period_us;
+        }
+        now
+    }
+
+    /// Runs cycles in real time at absolute deadlines until `until_us` of program time or `stop`;
+    /// `speed` program seconds per wall second. Returns the program time reached.
+    pub fn run_realtime(
+        &mut self,
+        period_us: u64,
+        until_us: u64,
+        speed: f64,
+        stop: &AtomicBool,
+    ) -> u64 {
+        let mut timing = std::mem::take(&mut self.timing);
+        let reached = run_periodic(period_us, until_us, speed, stop, &mut timing, |now, t| {
+            self.step(now, t).is_some()
+        });
+        self.timing = timing;
+        reached
+    }
+
+    /// Stops everything connected (the last snapshot is committed) and returns the PLC, its I/O
+    /// and the report; or the error of a scripted command that stopped the run.
+    pub fn finish(mut self) -> Result<(Plc, IO, NodeReport), ScriptError> {
+        let persist = self.persister.take().map(|p| p.stop(&self.plc));
+        if let Some(link) = self.link.take() {
+            link.stop();
+        }
+        if let Some((tx, handle)) = self.echo.take() {
+            drop(tx);
+            let _ = handle.join();
+        }
+        if let Some(e) = self.script_error.take() {
+            return Err(e);
+        }
+        let report = NodeReport {
+            faults: self.faults,
+            faults_dropped: self.faults_dropped,
+            persist,
+            trace: self.trace,
+            timing: self.timing,
+            echo_dropped: self.echo_dropped,
+        };
+        Ok((self.plc, self.io, report))
+    }
+}

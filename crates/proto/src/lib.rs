@@ -1,0 +1,34 @@
+//! The Cetratus wire protocol, in one place: the MQTT topics under `cetratus/<plc-id>/`, the
+//! command verbs, PLC ids, broker URLs, and every JSON payload (docs/mqtt.md is the contract).
+//!
+//! Nothing here touches the network: the PLC (`cetratus-mct`), the dashboard and the CLI client
+//! build and read their messages with these types so that the three agree by construction.
+//!
+//! ```
+//! use cetratus_proto::{PlcId, Topics, Verb, Leaf, parse_topic};
+//! let t = Topics::new(PlcId::new("cell1")?);
+//! assert_eq!(t.cmd(Verb::Substitute), "cetratus/cell1/cmd/substitute");
+//! assert_eq!(parse_topic(t.state())?.1, Leaf::State);
+//! # Ok::<(), cetratus_proto::ProtoError>(())
+//! ```
+
+// Every public item carries a doc line (house style); the compiler keeps us honest.
+#![warn(missing_docs)]
+#![forbid(unsafe_code)]
+
+mod broker;
+mod error;
+mod names;
+mod payload;
+mod topic;
+
+pub use broker::{BrokerUrl, DEFAULT_PORT, DEFAULT_TLS_PORT};
+pub use error::ProtoError;
+pub use names::{ErrorCode, Role, Slot, StatusName, SubstituteMode, VerdictKind, VerdictResult};
+pub use payload::{
+    decode, encode, Accepted, Command, CycleFigures, ErrorBody, EventMsg, ExecInfo, ExecInfoMsg,
+    IoMsg, IoNames, LoadArgs, NetMsg, NoArgs, ProgramInfo, Programs, Reply, ReplyFields, Sample,
+    SignalValue, Signals, StateMsg, StatePayload, SubstituteArgs, TimingSummary, Verdict,
+    MAX_PAYLOAD,
+};
+pub use topic::{parse_topic, Leaf, PlcId, Topics, Verb, ALL_PLCS_FILTER, ROOT};

@@ -1,0 +1,656 @@
+//! The JSON payloads of every topic, as published today.
+//!
+//! Fields are declared in the order they appear on the wire today. Most payloads went through a
+//! `serde_json::Value` before publication, which sorts keys, so most structs list their fields
+//! alphabetically; `state` was serialised from a struct and keeps that struct's order. The one
+//! exception is `exec_info`'s `program`, which shares [`ProgramInfo`] (name, version, hash) with
+//! `state` and so comes out in that order instead of the sorted one: same JSON, other bytes.
+
+use std::collections::BTreeMap;
+use std::fmt;
+
+use serde::de::{self, Deserializer, Visitor};
+use serde::{Deserialize, Serialize, Serializer};
+use serde_json::Value;
+
+use crate::names::{ErrorCode, Role, Slot, StatusName, SubstituteMode, VerdictKind, VerdictResult};
+use crate::{ProtoError, Verb};
+
+/// Largest command payload the PLC accepts (1 MiB); a bigger one gets `too_large`.
+pub const MAX_PAYLOAD: usize = 1 << 20;
+
+/// Parses a payload of type `T`; `what` names it in the error (e.g. `state`).
+pub fn decode<T: serde::de::DeserializeOwned>(
+    what: &'static str,
+    payload: &[u8],
+) -> Result<T, ProtoError> {
+    serde_json::from_slice(payload).map_err(|source| ProtoError::Payload { what, source })
+}
+
+/// Serialises a payload (compact JSON, as published).
+pub fn encode<T: Serialize>(what: &'static str, payload: &T) -> Result<Vec<u8>, ProtoError> {
+    serde_json::to_vec(payload).map_err(|source| ProtoError::Payload { what, source })
+}
+
+/// Deserialises any JSON value, `null` included, into `Some` (a plain `Option<Value>` would turn
+/// an explicit `null` into `None` and drop it when written back).
+fn some_value<'de, D: Deserializer<'de>>(d: D) -> Result<Option<Value>, D::Error> {
+    Value::deserialize(d).map(Some)
+}
+
+// ---------------------------------------------------------------------------------------------
+// Signal values
+
+/// The value of an input or output: a bool, an int or a real.
+///
+/// A real that is not finite is written as `null` (JSON has no NaN) and read back as NaN.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum SignalValue {
+    /// A bool.
+    Bool(bool),
+    /// An int.
+    Int(i64),
+    /// A real.
+    Real(f64),
+}
+
+impl Serialize for SignalValue {
+    fn serialize<S: Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        match *self {
+            SignalValue::Bool(b) => s.serialize_bool(b),
+            SignalValue::Int(i) => s.serialize_i64(i),
+            SignalValue::Real(x) if x.is_finite() => s.serialize_f64(x),
+            SignalValue::Real(_) => s.serialize_unit(),
+        }
+    }
+}
+
+impl<'de> Deserialize<'de> for SignalValue {
+    fn deserialize<D: Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        struct V;
+        impl Visitor<'_> for V {
+            type Value = SignalValue;
+            fn expecting(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+                f.write_str("a bool, an integer, a number or null")
+            }
+            fn visit_bool<E: de::Error>(self, b: bool) -> Result<SignalValue, E> {
+                Ok(SignalValue::Bool(b))
+            }
+            fn visit_i64<E: de::Error>(self, i: i64) -> Result<SignalValue, E> {
+                Ok(SignalValue::Int(i))
+            }
+            fn visit_u64<E: de::Error>(self, u: u64) -> Result<SignalValue, E> {
+                i64::try_from(u)
+                    .map(SignalValue::Int)
+                    .map_err(|_| E::custom(format!("integer {u} is out of the int range")))
+            }
+            fn visit_f64<E: de::Error>(self, x: f64) -> Result<SignalValue, E> {
+                Ok(SignalValue::Real(x))
+            }
+            fn visit_unit<E: de::Error>(self) -> Result<SignalValue, E> {
+                Ok(SignalValue::Real(f64::NAN))
+            }
+            fn visit_none<E: de::Error>(self) -> Result<SignalValue, E> {
+                Ok(SignalValue::Real(f64::NAN))
+            }
+        }
+        d.deserialize_any(V)
+    }
+}
+
+/// Signal values by name.
+pub type Signals = BTreeMap<String, SignalValue>;
+
+// ---------------------------------------------------------------------------------------------
+// state
+
+/// A program's identity: in `state`'s `programs` and in `exec_info`'s `program`.
+#[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ProgramInfo {
+    /// Name.
+    pub name: String,
+    /// Version.
+    pub version: String,
+    /// Hex SHA-256 of the program.
+    pub hash: String,
+}
+
+/// The programs in A and B; an empty container is `null`.
+#[derive(Clone, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Programs {
+    /// Container A.
+    #[serde(rename = "A")]
+    pub a: Option<ProgramInfo>,
+    /// Container B.
+    #[serde(rename = "B")]
+    pub b: Option<ProgramInfo>,
+}
+
+impl Programs {
+    /// The program of one container.
+    pub fn get(&self, slot: Slot) -> Option<&ProgramInfo> {
+        match slot {
+            Slot::A => self.a.as_ref(),
+            Slot::B => self.b.as_ref(),
+        }
+    }
+}
+
+/// Timing statistics of a duration, in nanoseconds (all zero before the first sample).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct TimingSummary {
+    /// Samples recorded.
+    pub count: u64,
+    /// The latest sample.
+    pub last_ns: u64,
+    /// The largest sample.
+    pub max_ns: u64,
+    /// The mean.
+    pub mean_ns: u64,
+    /// The smallest sample.
+    pub min_ns: u64,
+    /// The median (upper edge of its histogram bucket).
+    pub p50_ns: u64,
+    /// The 99th percentile (upper edge of its histogram bucket).
+    pub p99_ns: u64,
+}
+
+/// The `cycle` object of `state`: the scan loop's figures.
+#[derive(Clone, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct CycleFigures {
+    /// Start-to-start time of the scan loop.
+    pub cycle: TimingSummary,
+    /// Cycles run since start.
+    pub cycles: u64,
+    /// Actual start minus planned start of each cycle.
+    pub latency: TimingSummary,
+    /// Cycles whose body ran past the next planned start.
+    pub overruns: u64,
+    /// Scan time of the primary container.
+    pub scan: TimingSummary,
+    /// Program time, in milliseconds.
+    pub time_ms: u64,
+    /// `"<name> <version>"` of the update under way; `null` when none.
+    pub update: Option<String>,
+}
+
+/// The retained `state` of a PLC that is online.
+#[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct StateMsg {
+    /// Always `true` here; see [`StatePayload::Offline`].
+    pub online: bool,
+    /// PRIMARY.
+    pub primary: Slot,
+    /// STATUS.
+    pub status: StatusName,
+    /// Programs in A and B.
+    pub programs: Programs,
+    /// The scan loop's figures.
+    pub cycle: CycleFigures,
+}
+
+/// What the retained `state` topic holds: the PLC's state, or `{"online": false}` (its last
+/// will, and what a clean shutdown publishes).
+// Not boxed: a state message is built once per publish and moved, never stored in bulk, and a
+// `Box` would only make matching on it clumsier.
+#[allow(clippy::large_enum_variant)]
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum StatePayload {
+    /// The PLC is online.
+    Online(StateMsg),
+    /// `{"online": false}`.
+    Offline,
+}
+
+impl StatePayload {
+    /// The exact bytes of the offline message (the last will).
+    pub const OFFLINE_JSON: &'static [u8] = br#"{"online":false}"#;
+
+    /// Whether the PLC is online.
+    pub fn is_online(&self) -> bool {
+        matches!(self, StatePayload::Online(_))
+    }
+}
+
+impl Serialize for StatePayload {
+    fn serialize<S: Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        #[derive(Serialize)]
+        struct Offline {
+            online: bool,
+        }
+        match self {
+            StatePayload::Online(m) => m.serialize(s),
+            StatePayload::Offline => Offline { online: false }.serialize(s),
+        }
+    }
+}
+
+impl<'de> Deserialize<'de> for StatePayload {
+    fn deserialize<D: Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        let v = Value::deserialize(d)?;
+        match v.get("online") {
+            Some(Value::Bool(false)) => match v.as_object().map(|o| o.len()) {
+                Some(1) => Ok(StatePayload::Offline),
+                _ => Err(de::Error::custom(
+                    "an offline state must be exactly {\"online\": false}",
+                )),
+            },
+            _ => serde_json::from_value(v)
+                .map(StatePayload::Online)
+                .map_err(de::Error::custom),
+        }
+    }
+}
+
+// ---------------------------------------------------------------------------------------------
+// exec_info
+
+/// A validation verdict on a candidate program.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Verdict {
+    /// Figures that go with it, by name.
+    pub figures: BTreeMap<String, f64>,
+    /// Where it comes from.
+    pub kind: VerdictKind,
+    /// Why, in words.
+    pub reasons: Vec<String>,
+    /// What it says.
+    pub result: VerdictResult,
+}
+
+/// `program_exec_info` of one container, as published.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ExecInfo {
+    /// The container.
+    pub container: Slot,
+    /// Scans run since it was installed.
+    pub cycles: u64,
+    /// No transition enabled.
+    pub deadlock: bool,
+    /// Cycles in which each output differed from the primary's (candidates only).
+    pub divergence: BTreeMap<String, u64>,
+    /// Drift from the primary through the projection (candidates only).
+    pub drift: u64,
+    /// Firings per transition id.
+    pub firings: BTreeMap<String, u64>,
+    /// The derived cause of the first divergence, in words (`null` when none).
+    pub first_cause: Option<String>,
+    /// The derived cause of the latest divergence, in words (`null` when none).
+    pub last_cause: Option<String>,
+    /// Tokens per place id.
+    pub marking: BTreeMap<String, u32>,
+    /// The largest drift seen.
+    pub max_drift: u64,
+    /// Outputs by name.
+    pub outputs: Signals,
+    /// Its program.
+    pub program: ProgramInfo,
+    /// Primary or candidate.
+    pub role: Role,
+    /// Scan time of this container.
+    pub scan: TimingSummary,
+    /// Validation verdicts.
+    pub verdicts: Vec<Verdict>,
+}
+
+/// The `exec_info` message (and the `result` of `cmd/exec_info`): `[A | null, B | null]`.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(transparent)]
+pub struct ExecInfoMsg(pub [Option<ExecInfo>; 2]);
+
+impl ExecInfoMsg {
+    /// The figures of one container (`None` when it is empty).
+    pub fn get(&self, slot: Slot) -> Option<&ExecInfo> {
+        self.0[slot.index()].as_ref()
+    }
+}
+
+// ---------------------------------------------------------------------------------------------
+// io
+
+/// The signal names of `io`, in I/O-map order (bit 0 of a sample's masks is the first name).
+#[derive(Clone, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct IoNames {
+    /// Input names.
+    pub inputs: Vec<String>,
+    /// Output names.
+    pub outputs: Vec<String>,
+}
+
+/// One cycle of the timing diagram; on the wire the array
+/// `[time_ms, PRIMARY, STATUS, inputs, outputs_a | null, outputs_b | null, dispatched]`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(from = "SampleWire", into = "SampleWire")]
+pub struct Sample {
+    /// Program time at the cycle's start, in milliseconds.
+    pub time_ms: u64,
+    /// PRIMARY during the cycle.
+    pub primary: Slot,
+    /// STATUS during the cycle.
+    pub status: StatusName,
+    /// Inputs, as a bit mask.
+    pub inputs: u64,
+    /// Outputs of A (`None` when empty), as a bit mask.
+    pub outputs_a: Option<u64>,
+    /// Outputs of B (`None` when empty), as a bit mask.
+    pub outputs_b: Option<u64>,
+    /// What reached the Dispatcher, as a bit mask.
+    pub dispatched: u64,
+}
+
+#[derive(Clone, Copy, Serialize, Deserialize)]
+struct SampleWire(u64, Slot, StatusName, u64, Option<u64>, Option<u64>, u64);
+
+impl From<SampleWire> for Sample {
+    fn from(w: SampleWire) -> Self {
+        Sample {
+            time_ms: w.0,
+            primary: w.1,
+            status: w.2,
+            inputs: w.3,
+            outputs_a: w.4,
+            outputs_b: w.5,
+            dispatched: w.6,
+        }
+    }
+}
+
+impl From<Sample> for SampleWire {
+    fn from(s: Sample) -> Self {
+        SampleWire(
+            s.time_ms,
+            s.primary,
+            s.status,
+            s.inputs,
+            s.outputs_a,
+            s.outputs_b,
+            s.dispatched,
+        )
+    }
+}
+
+/// The `io` message: the latest images by name and every cycle since the previous `io`.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct IoMsg {
+    /// Outputs that reached the Dispatcher.
+    pub dispatched: Signals,
+    /// Inputs.
+    pub inputs: Signals,
+    /// Signal names in I/O-map order.
+    pub names: IoNames,
+    /// Outputs of A (`null` when empty).
+    pub outputs_a: Option<Signals>,
+    /// Outputs of B (`null` when empty).
+    pub outputs_b: Option<Signals>,
+    /// Every cycle since the previous message.
+    pub samples: Vec<Sample>,
+    /// Program time, in milliseconds.
+    pub time_ms: u64,
+    /// Wall clock (Unix ms, with fractions) when the message left the PLC; stamped by the MQTT
+    /// side, so absent until then.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub unix_ms: Option<f64>,
+}
+
+// ---------------------------------------------------------------------------------------------
+// net
+
+/// The retained `net` message: each container's net as SVG, `null` when empty.
+#[derive(Clone, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct NetMsg {
+    /// Container A's net.
+    #[serde(rename = "A")]
+    pub a: Option<String>,
+    /// Container B's net.
+    #[serde(rename = "B")]
+    pub b: Option<String>,
+}
+
+// ---------------------------------------------------------------------------------------------
+// events
+
+/// An `events` message. Runtime events carry `cycle` and `time_us`; the control plane's own
+/// (`command_rejected`, `command_received`, and `refused` from the command preparer) do not.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct EventMsg {
+    /// Cycle index at which it happened (runtime events only).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub cycle: Option<u64>,
+    /// Figures that go with it, free-form; absent when `null`.
+    #[serde(default, skip_serializing_if = "Value::is_null")]
+    pub detail: Value,
+    /// What (snake_case), e.g. `load_accepted`, `substituted`, `command_rejected`.
+    pub kind: String,
+    /// In words: what, why, and what to do.
+    pub message: String,
+    /// Program time in microseconds (runtime events only).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub time_us: Option<u64>,
+}
+
+// ---------------------------------------------------------------------------------------------
+// replies
+
+/// The `error` object of a failed reply.
+#[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ErrorBody {
+    /// Machine-readable reason.
+    pub code: ErrorCode,
+    /// What was wrong and what to do.
+    pub message: String,
+}
+
+/// The `result` of an accepted `load`, `substitute`, `remove`, `abort` or `reset`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Accepted {
+    /// Always `true`.
+    pub accepted: bool,
+}
+
+/// A reply to a command, on the response topic (or the payload's `reply_to`).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Reply {
+    /// The command's `correlation` field, echoed when it had one (any JSON, `null` included).
+    #[serde(
+        default,
+        deserialize_with = "some_value",
+        skip_serializing_if = "Option::is_none"
+    )]
+    pub correlation: Option<Value>,
+    /// Why it failed.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub error: Option<ErrorBody>,
+    /// Whether the command was accepted.
+    pub ok: bool,
+    /// A number unique per command since the PLC started.
+    pub request_id: u64,
+    /// What the command produced on success: [`Accepted`], or for `exec_info` an
+    /// [`ExecInfoMsg`].
+    #[serde(
+        default,
+        deserialize_with = "some_value",
+        skip_serializing_if = "Option::is_none"
+    )]
+    pub result: Option<Value>,
+    /// The verb answered; the topic's last level as sent (at most 64 characters) when it was
+    /// not a known verb, so it is text rather than a [`Verb`].
+    pub verb: String,
+}
+
+impl Reply {
+    /// A success answering `verb`.
+    pub fn ok(verb: &str, request_id: u64, result: Option<Value>) -> Self {
+        Reply {
+            correlation: None,
+            error: None,
+            ok: true,
+            request_id,
+            result,
+            verb: verb.to_string(),
+        }
+    }
+
+    /// A failure answering `verb`.
+    pub fn err(verb: &str, request_id: u64, code: ErrorCode, message: impl Into<String>) -> Self {
+        Reply {
+            correlation: None,
+            error: Some(ErrorBody {
+                code,
+                message: message.into(),
+            }),
+            ok: false,
+            request_id,
+            result: None,
+            verb: verb.to_string(),
+        }
+    }
+
+    /// The same reply echoing the command's `correlation`.
+    pub fn with_correlation(mut self, correlation: Option<Value>) -> Self {
+        self.correlation = correlation;
+        self
+    }
+}
+
+// ---------------------------------------------------------------------------------------------
+// commands
+
+/// Arguments of `load`.
+#[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct LoadArgs {
+    /// The update package file, base64 (standard alphabet).
+    pub package_b64: String,
+}
+
+/// Arguments of `substitute`; every field may be left out (the CLI writes them all, `null` when
+/// not given).
+#[derive(Clone, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SubstituteArgs {
+    /// `keep` even with drift.
+    #[serde(default)]
+    pub force: bool,
+    /// `retransform` (the default) or `keep`.
+    #[serde(default)]
+    pub mode: Option<SubstituteMode>,
+    /// Wait until this predicate over the primary marking holds (guard syntax).
+    #[serde(default)]
+    pub when: Option<String>,
+    /// Give up waiting after this many milliseconds.
+    #[serde(default)]
+    pub within_ms: Option<u64>,
+}
+
+/// The arguments of `remove`, `abort`, `reset` and `exec_info`: none, `{}`.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct NoArgs {}
+
+/// A command body (what is signed in an envelope), without the reply fields.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum Command {
+    /// `load`.
+    Load(LoadArgs),
+    /// `substitute`.
+    Substitute(SubstituteArgs),
+    /// `remove`.
+    Remove,
+    /// `abort`.
+    Abort,
+    /// `reset`.
+    Reset,
+    /// `exec_info`.
+    ExecInfo,
+}
+
+impl Command {
+    /// The verb.
+    pub fn verb(&self) -> Verb {
+        match self {
+            Command::Load(_) => Verb::Load,
+            Command::Substitute(_) => Verb::Substitute,
+            Command::Remove => Verb::Remove,
+            Command::Abort => Verb::Abort,
+            Command::Reset => Verb::Reset,
+            Command::ExecInfo => Verb::ExecInfo,
+        }
+    }
+
+    /// Reads the body of `verb` (the reply fields `reply_to`, `correlation` and `envelope`
+    /// already removed); unknown fields are refused.
+    pub fn from_body(verb: Verb, body: Value) -> Result<Self, ProtoError> {
+        let what = "command";
+        let err = |source| ProtoError::Payload { what, source };
+        Ok(match verb {
+            Verb::Load => Command::Load(serde_json::from_value(body).map_err(err)?),
+            Verb::Substitute => Command::Substitute(serde_json::from_value(body).map_err(err)?),
+            other => {
+                let NoArgs {} = serde_json::from_value(body).map_err(err)?;
+                match other {
+                    Verb::Remove => Command::Remove,
+                    Verb::Abort => Command::Abort,
+                    Verb::Reset => Command::Reset,
+                    _ => Command::ExecInfo,
+                }
+            }
+        })
+    }
+
+    /// The body as JSON, as the CLI sends it.
+    pub fn to_body(&self) -> Value {
+        let v = match self {
+            Command::Load(a) => serde_json::to_value(a),
+            Command::Substitute(a) => serde_json::to_value(a),
+            _ => serde_json::to_value(NoArgs {}),
+        };
+        v.unwrap_or_else(|_| Value::Object(serde_json::Map::new()))
+    }
+}
+
+/// The fields of a command payload that say where the reply goes (MQTT 3.1.1 clients); the
+/// rest of the payload is the command body, or an `envelope` that holds it signed.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct ReplyFields {
+    /// The topic to publish the reply on (the MQTT 5 response topic wins over it).
+    pub reply_to: Option<String>,
+    /// Any JSON value, echoed in the reply.
+    pub correlation: Option<Value>,
+}
+
+impl ReplyFields {
+    /// The names of the fields that are not part of a command's arguments.
+    pub const META_FIELDS: [&'static str; 3] = ["reply_to", "correlation", "envelope"];
+
+    /// Takes `reply_to` and `correlation` out of a payload object, and `envelope` with them
+    /// (returned for the signature check), leaving the command's arguments.
+    pub fn split(body: &mut serde_json::Map<String, Value>) -> (ReplyFields, Option<Value>) {
+        let reply_to = match body.remove("reply_to") {
+            Some(Value::String(s)) => Some(s),
+            _ => None,
+        };
+        let correlation = body.remove("correlation");
+        let envelope = body.remove("envelope");
+        (
+            ReplyFields {
+                reply_to,
+                correlation,
+            },
+            envelope,
+        )
+    }
+}

@@ -1,0 +1,228 @@
+//! What happened in the PLC, for the event stream and the audit log.
+
+use serde::Serialize;
+
+use crate::updater::SubstituteMode;
+
+/// The kind of an [`Event`]. Its snake_case name is the `kind` of the `events` topic and the
+/// `what` of the audit log (docs/live-update.md lists them).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum EventKind {
+    /// A cold start: A runs the configured program from M0.
+    ColdStart,
+    /// A warm start from a saved state.
+    WarmStart,
+    /// A package was accepted; its install is due at the next cycle boundary.
+    LoadAccepted,
+    /// A command, a transform or a substitution was refused; nothing changed.
+    Refused,
+    /// A substitution was accepted and waits for its cycle boundary or its condition.
+    SubstituteAccepted,
+    /// The operator removed the candidate.
+    Removed,
+    /// The update under way was aborted.
+    Aborted,
+    /// The operator left the fault state.
+    Reset,
+    /// The candidate faulted; the update is aborted.
+    CandidateFault,
+    /// The primary faulted; safe values are driven.
+    PrimaryFault,
+    /// The update under way was discarded (primary fault, warm start).
+    UpdateDiscarded,
+    /// The primary is deadlocked while its inputs change.
+    DeadlockAlarm,
+    /// The state transformation was refused at the install.
+    TransformRefused,
+    /// The install took longer than stateTransTimeout.
+    StateTransTimeout,
+    /// The candidate was installed and runs in quarantine.
+    QuarantineStarted,
+    /// A waiting substitution was given up.
+    SubstituteTimeout,
+    /// PRIMARY flipped to the candidate.
+    Substituted,
+    /// The new primary runs with the old program as a shadow (probation).
+    ProbationStarted,
+    /// Probation ended; the update is final.
+    Accepted,
+    /// Probation failed or was reverted; PRIMARY flipped back.
+    Reverted,
+}
+
+impl EventKind {
+    /// The snake_case name.
+    pub fn name(self) -> &'static str {
+        match self {
+            EventKind::ColdStart => "cold_start",
+            EventKind::WarmStart => "warm_start",
+            EventKind::LoadAccepted => "load_accepted",
+            EventKind::Refused => "refused",
+            EventKind::SubstituteAccepted => "substitute_accepted",
+            EventKind::Removed => "removed",
+            EventKind::Aborted => "aborted",
+            EventKind::Reset => "reset",
+            EventKind::CandidateFault => "candidate_fault",
+            EventKind::PrimaryFault => "primary_fault",
+            EventKind::UpdateDiscarded => "update_discarded",
+            EventKind::DeadlockAlarm => "deadlock_alarm",
+            EventKind::TransformRefused => "transform_refused",
+            EventKind::StateTransTimeout => "state_trans_timeout",
+            EventKind::QuarantineStarted => "quarantine_started",
+            EventKind::SubstituteTimeout => "substitute_timeout",
+            EventKind::Substituted => "substituted",
+            EventKind::ProbationStarted => "probation_started",
+            EventKind::Accepted => "accepted",
+            EventKind::Reverted => "reverted",
+        }
+    }
+
+    /// Whether the event is an alarm that a run's summary counts as a fault.
+    pub fn is_alarm(self) -> bool {
+        matches!(self, EventKind::PrimaryFault | EventKind::DeadlockAlarm)
+    }
+}
+
+impl std::fmt::Display for EventKind {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.pad(self.name())
+    }
+}
+
+/// Figures that go with an event.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+#[serde(untagged)]
+pub enum EventDetail {
+    /// An install and its budget (stateTransTimeout).
+    Install {
+        /// What the install took, ns.
+        install_ns: u64,
+        /// stateTransTimeout, ns.
+        budget_ns: u64,
+    },
+    /// A substitution: the drift at the switch and the mode used.
+    Substitution {
+        /// ‖Π·M_cand + Π_base − M_primary‖₁ at the switch.
+        drift: u64,
+        /// Retransform or keep.
+        mode: SubstituteMode,
+    },
+    /// A drift that refused a substitution.
+    Drift {
+        /// The drift.
+        drift: u64,
+    },
+}
+
+/// Something that happened, for the event stream and the audit log.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct Event {
+    /// Cycle index at which it happened.
+    pub cycle: u64,
+    /// Program time in microseconds.
+    pub time_us: u64,
+    /// What.
+    pub kind: EventKind,
+    /// In words: what, why, and what to do.
+    pub message: String,
+    /// Figures that go with it (drift, install time, mode).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub detail: Option<EventDetail>,
+}
+
+/// The events of the PLC not yet drained, stamped with the current cycle and program time.
+pub(crate) struct EventLog {
+    events: Vec<Event>,
+    pub cycle: u64,
+    pub now_us: u64,
+}
+
+impl EventLog {
+    pub fn new(now_us: u64) -> Self {
+        EventLog {
+            events: Vec::with_capacity(64),
+            cycle: 0,
+            now_us,
+        }
+    }
+
+    pub fn push(&mut self, kind: EventKind, message: String, detail: Option<EventDetail>) {
+        self.events.push(Event {
+            cycle: self.cycle,
+            time_us: self.now_us,
+            kind,
+            message,
+            detail,
+        });
+    }
+
+    pub fn drain(&mut self) -> Vec<Event> {
+        std::mem::take(&mut self.events)
+    }
+
+    pub fn pending(&self) -> &[Event] {
+        &self.events
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn an_event_serializes_as_the_events_topic_has_always_carried_it() {
+        let e = Event {
+            cycle: 7,
+            time_us: 70_000,
+            kind: EventKind::Substituted,
+            message: "PRIMARY = B".into(),
+            detail: Some(EventDetail::Substitution {
+                drift: 0,
+                mode: SubstituteMode::Retransform,
+            }),
+        };
+        assert_eq!(
+            serde_json::to_value(&e).unwrap(),
+            serde_json::json!({"cycle": 7, "time_us": 70000, "kind": "substituted",
+                "message": "PRIMARY = B", "detail": {"drift": 0, "mode": "retransform"}})
+        );
+        let plain = Event {
+            detail: None,
+            kind: EventKind::StateTransTimeout,
+            ..e
+        };
+        let v = serde_json::to_value(&plain).unwrap();
+        assert_eq!(v["kind"], "state_trans_timeout");
+        assert!(v.get("detail").is_none());
+    }
+
+    #[test]
+    fn every_kind_name_is_its_serde_name() {
+        use EventKind::*;
+        for k in [
+            ColdStart,
+            WarmStart,
+            LoadAccepted,
+            Refused,
+            SubstituteAccepted,
+            Removed,
+            Aborted,
+            Reset,
+            CandidateFault,
+            PrimaryFault,
+            UpdateDiscarded,
+            DeadlockAlarm,
+            TransformRefused,
+            StateTransTimeout,
+            QuarantineStarted,
+            SubstituteTimeout,
+            Substituted,
+            ProbationStarted,
+            Accepted,
+            Reverted,
+        ] {
+            assert_eq!(serde_json::to_value(k).unwrap(), k.name());
+        }
+    }
+}

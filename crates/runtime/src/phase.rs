@@ -1,0 +1,122 @@
+//! The Updater's phase as a typestate: each phase owns exactly the data it needs, so PRIMARY,
+//! STATUS and the secondary container can never disagree (DESIGN §4).
+
+use cetratus_net::{Tokens, TransIdx};
+use cetratus_program::{PackageMeta, Projection, StateTransform, Value};
+use serde::{Deserialize, Serialize};
+
+use crate::updater::{PreparedUpdate, SubstituteRequest};
+use crate::Container;
+
+/// STATUS: whether an update is under way (DESIGN §4), or the PLC is in fault. Its JSON strings
+/// are `idle`, `setup`, `quarantine`, `probation` and `fault`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Status {
+    /// No update under way.
+    Idle,
+    /// A package was accepted; the state transformation runs at the next cycle boundary.
+    Setup,
+    /// Both containers run; only PRIMARY's outputs are dispatched.
+    Quarantine,
+    /// The new primary runs; the old program stays resident as a shadow until the window ends.
+    Probation,
+    /// The primary faulted: safe outputs until an operator resets.
+    Fault,
+}
+
+impl Status {
+    /// The lower-case name.
+    pub fn name(self) -> &'static str {
+        match self {
+            Status::Idle => "idle",
+            Status::Setup => "setup",
+            Status::Quarantine => "quarantine",
+            Status::Probation => "probation",
+            Status::Fault => "fault",
+        }
+    }
+}
+
+impl std::fmt::Display for Status {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.pad(self.name())
+    }
+}
+
+/// What an installed update keeps for the Monitor and for the substitution.
+pub(crate) struct UpdatePlan {
+    pub meta: PackageMeta,
+    pub transform: StateTransform,
+    pub projection: Projection,
+    // Candidate transition → the primary's transition of the same id.
+    pub to_primary: Vec<Option<TransIdx>>,
+    // Primary transition → the candidate's transition of the same id.
+    pub from_primary: Vec<Option<TransIdx>>,
+    // Buffers of the in-cycle transforms, sized once.
+    pub scratch_marking: Vec<Tokens>,
+    pub scratch_since: Vec<Option<u64>>,
+    // The candidate's safe output values in I/O-map order, for when it is PRIMARY.
+    pub safe: Vec<Value>,
+    // Candidate latch / variable → the primary's of the same name, carried over at the switch.
+    pub latch_map: Vec<Option<u32>>,
+    pub var_map: Vec<Option<u32>>,
+}
+
+/// A candidate running in quarantine.
+pub(crate) struct Quarantine {
+    pub candidate: Container,
+    pub plan: UpdatePlan,
+    /// A substitution waiting for its condition, with its deadline (program time).
+    pub pending: Option<(SubstituteRequest, u64)>,
+    pub started_us: u64,
+}
+
+/// The window after a substitution in which the old program stays resident as a shadow: same
+/// inputs, outputs withheld (quarantine reversed).
+pub(crate) struct Probation {
+    pub shadow: Container,
+    pub meta: PackageMeta,
+}
+
+/// The Updater's phase. `Fault` keeps the primary's last good state; leaving it needs a reset.
+pub(crate) enum Phase {
+    Idle,
+    Setup(Box<PreparedUpdate>),
+    Quarantine(Box<Quarantine>),
+    // Entered by a substitution with a probation window; none is configured in this version.
+    #[allow(dead_code)]
+    Probation(Box<Probation>),
+    Fault,
+}
+
+impl Phase {
+    pub fn status(&self) -> Status {
+        match self {
+            Phase::Idle => Status::Idle,
+            Phase::Setup(_) => Status::Setup,
+            Phase::Quarantine(_) => Status::Quarantine,
+            Phase::Probation(_) => Status::Probation,
+            Phase::Fault => Status::Fault,
+        }
+    }
+
+    /// The container beside the primary: the candidate in quarantine, the shadow in probation.
+    pub fn secondary(&self) -> Option<&Container> {
+        match self {
+            Phase::Quarantine(q) => Some(&q.candidate),
+            Phase::Probation(p) => Some(&p.shadow),
+            _ => None,
+        }
+    }
+
+    /// The package of the update under way.
+    pub fn meta(&self) -> Option<&PackageMeta> {
+        match self {
+            Phase::Setup(p) => Some(&p.plan.meta),
+            Phase::Quarantine(q) => Some(&q.plan.meta),
+            Phase::Probation(p) => Some(&p.meta),
+            _ => None,
+        }
+    }
+}

@@ -1,0 +1,245 @@
+//! The Message Router of the paper's Figure 1: it moves I/O data between the Provider, the two
+//! containers and the Dispatcher. The same inputs go to both containers, each through its own
+//! input map; only PRIMARY's outputs reach the Dispatcher; in fault, the safe values do.
+//!
+//! Images are rebuilt only when they can have changed (new inputs, a new install, a warm start),
+//! and boolean images are kept as bit masks so that the Monitor compares two containers' outputs
+//! in one instruction on most cycles. Nothing here allocates once built.
+
+use cetratus_program::{Program, Signal, Type, Value};
+
+use crate::{Container, Dispatcher, Provider};
+
+/// The I/O map and the images of both containers.
+pub struct MessageRouter {
+    io_inputs: Vec<String>,
+    io_outputs: Vec<String>,
+    inputs: Vec<Value>,
+    prev_inputs: Vec<Value>,
+    images: [Vec<Value>; 2],
+    in_maps: [Vec<usize>; 2],
+    out_maps: [Vec<Option<usize>>; 2],
+    outs: [Vec<Value>; 2],
+    in_bits: u64,
+    out_bits: [u64; 2],
+    inputs_changed: bool,
+    // Every output of the I/O map is boolean and there are at most 64: images fit a bit mask.
+    bool_outputs: bool,
+    // A container's input image or mapped outputs must be rebuilt (new install, warm start).
+    stale: [bool; 2],
+    dispatched: Vec<Value>,
+    safe: Vec<Value>,
+}
+
+/// Bit `i` set when signal `i` is true (or a nonzero integer); the first 64 signals.
+pub(crate) fn bits(values: &[Value]) -> u64 {
+    values.iter().enumerate().take(64).fold(0, |acc, (i, v)| {
+        if matches!(v, Value::Bool(true)) || matches!(v, Value::Int(x) if *x != 0) {
+            acc | (1 << i)
+        } else {
+            acc
+        }
+    })
+}
+
+/// For each name of `from`, the index of the signal of that name in `to`.
+pub(crate) fn map_by_name(from: &[String], to: &[Signal]) -> Vec<Option<usize>> {
+    from.iter()
+        .map(|n| to.iter().position(|s| &s.name == n))
+        .collect()
+}
+
+/// A program's safe output values in the order of the I/O map, through its output map (off for
+/// outputs it lacks).
+pub(crate) fn safe_image(out_map: &[Option<usize>], program: &Program) -> Vec<Value> {
+    let mut own = vec![Value::Bool(false); program.outputs().len()];
+    program.safe_outputs(&mut own);
+    out_map
+        .iter()
+        .map(|m| m.map_or(Value::Bool(false), |k| own[k]))
+        .collect()
+}
+
+impl MessageRouter {
+    /// The router of a PLC whose I/O map is `program`'s signals, with `program` in container `slot`.
+    pub fn new(program: &Program, slot: usize) -> Self {
+        let image: Vec<Value> = program.inputs().iter().map(|s| s.initial).collect();
+        let image = &image[..];
+        let io_inputs: Vec<String> = program.inputs().iter().map(|s| s.name.clone()).collect();
+        let io_outputs: Vec<String> = program.outputs().iter().map(|s| s.name.clone()).collect();
+        let n_out = io_outputs.len();
+        let out_map: Vec<Option<usize>> = (0..n_out).map(Some).collect();
+        let mut r = MessageRouter {
+            images: [Vec::new(), Vec::new()],
+            in_maps: [Vec::new(), Vec::new()],
+            out_maps: [Vec::new(), Vec::new()],
+            outs: [
+                vec![Value::Bool(false); n_out],
+                vec![Value::Bool(false); n_out],
+            ],
+            in_bits: bits(image),
+            out_bits: [0, 0],
+            inputs_changed: true,
+            bool_outputs: n_out <= 64 && program.outputs().iter().all(|s| s.ty == Type::Bool),
+            stale: [true, true],
+            inputs: image.to_vec(),
+            prev_inputs: image.to_vec(),
+            dispatched: vec![Value::Bool(false); n_out],
+            safe: safe_image(&out_map, program),
+            io_inputs,
+            io_outputs,
+        };
+        r.images[slot] = image.to_vec();
+        r.in_maps[slot] = (0..r.io_inputs.len()).collect();
+        r.out_maps[slot] = out_map;
+        r
+    }
+
+    /// Connects container `slot` running `program` through its own maps; refuses a program that
+    /// reads an input the I/O map lacks, naming it.
+    pub(crate) fn attach_by_name(
+        &mut self,
+        slot: usize,
+        program: &Program,
+        image: &[Value],
+    ) -> Result<(), String> {
+        let in_map = program
+            .inputs()
+            .iter()
+            .map(|s| {
+                self.io_inputs
+                    .iter()
+                    .position(|n| *n == s.name)
+                    .ok_or_else(|| s.name.clone())
+            })
+            .collect::<Result<Vec<_>, _>>()?;
+        let out_map = map_by_name(&self.io_outputs, program.outputs());
+        self.attach(slot, image.to_vec(), in_map, out_map);
+        Ok(())
+    }
+
+    /// Connects container `slot` through the given maps; its images are rebuilt at its next scan.
+    pub(crate) fn attach(
+        &mut self,
+        slot: usize,
+        image: Vec<Value>,
+        in_map: Vec<usize>,
+        out_map: Vec<Option<usize>>,
+    ) {
+        self.images[slot] = image;
+        self.in_maps[slot] = in_map;
+        self.out_maps[slot] = out_map;
+        self.stale[slot] = true;
+    }
+
+    /// Reads the Provider into the input image.
+    pub(crate) fn read<P: Provider + ?Sized>(&mut self, now_us: u64, io: &mut P) {
+        self.prev_inputs.copy_from_slice(&self.inputs);
+        io.read_inputs(now_us, &mut self.inputs);
+        self.inputs_changed = self.inputs != self.prev_inputs;
+        if self.inputs_changed {
+            self.in_bits = bits(&self.inputs);
+        }
+    }
+
+    /// Container `slot`'s input image, rebuilt when the inputs changed or it is stale, and whether
+    /// it is unchanged since its last scan.
+    pub(crate) fn image(&mut self, slot: usize) -> (&[Value], bool) {
+        let fresh = self.inputs_changed || self.stale[slot];
+        if fresh {
+            for (v, &j) in self.images[slot].iter_mut().zip(&self.in_maps[slot]) {
+                *v = self.inputs[j];
+            }
+        }
+        (&self.images[slot], !fresh)
+    }
+
+    /// Takes container `slot`'s outputs after its scan, in I/O-map order.
+    pub(crate) fn collect(&mut self, slot: usize, c: &Container) {
+        if c.outputs_may_have_changed() || self.stale[slot] {
+            for (o, m) in self.outs[slot].iter_mut().zip(&self.out_maps[slot]) {
+                *o = m.map_or(Value::Bool(false), |k| c.outputs()[k]);
+            }
+            self.out_bits[slot] = bits(&self.outs[slot]);
+        }
+        self.stale[slot] = false;
+    }
+
+    /// Hands PRIMARY's outputs to the Dispatcher.
+    pub(crate) fn dispatch<D: Dispatcher + ?Sized>(
+        &mut self,
+        primary: usize,
+        now_us: u64,
+        io: &mut D,
+    ) {
+        self.dispatched.copy_from_slice(&self.outs[primary]);
+        io.write_outputs(now_us, &self.dispatched);
+    }
+
+    /// Hands the safe values to the Dispatcher (fault).
+    pub(crate) fn dispatch_safe<D: Dispatcher + ?Sized>(&mut self, now_us: u64, io: &mut D) {
+        io.write_outputs(now_us, &self.safe);
+        self.dispatched.copy_from_slice(&self.safe);
+    }
+
+    /// Every image is rebuilt at the next scan (the inputs moved on while nothing scanned).
+    pub(crate) fn mark_all_stale(&mut self) {
+        self.stale = [true, true];
+    }
+
+    /// Container `slot`'s images are rebuilt at its next scan.
+    pub(crate) fn mark_stale(&mut self, slot: usize) {
+        self.stale[slot] = true;
+    }
+
+    /// Exchanges the safe values with those of the program that now drives the outputs.
+    pub(crate) fn swap_safe(&mut self, safe: &mut Vec<Value>) {
+        std::mem::swap(&mut self.safe, safe);
+    }
+
+    /// Sets the safe values.
+    pub(crate) fn set_safe(&mut self, safe: Vec<Value>) {
+        self.safe = safe;
+    }
+
+    /// Input names of the I/O map.
+    pub fn io_inputs(&self) -> &[String] {
+        &self.io_inputs
+    }
+    /// Output names of the I/O map.
+    pub fn io_outputs(&self) -> &[String] {
+        &self.io_outputs
+    }
+    /// The input image of the last cycle.
+    pub fn inputs(&self) -> &[Value] {
+        &self.inputs
+    }
+    /// The input image of the cycle before.
+    pub fn prev_inputs(&self) -> &[Value] {
+        &self.prev_inputs
+    }
+    /// The inputs changed in the last cycle.
+    pub fn inputs_changed(&self) -> bool {
+        self.inputs_changed
+    }
+    /// What the Dispatcher got in the last cycle.
+    pub fn dispatched(&self) -> &[Value] {
+        &self.dispatched
+    }
+    /// Container `slot`'s outputs in I/O-map order.
+    pub fn outputs(&self, slot: usize) -> &[Value] {
+        &self.outs[slot]
+    }
+    /// The inputs as a bit mask.
+    pub fn input_bits(&self) -> u64 {
+        self.in_bits
+    }
+    /// Container `slot`'s outputs as a bit mask.
+    pub fn output_bits(&self, slot: usize) -> u64 {
+        self.out_bits[slot]
+    }
+    /// Every output is boolean and they fit a bit mask.
+    pub fn bool_outputs(&self) -> bool {
+        self.bool_outputs
+    }
+}

@@ -1,0 +1,672 @@
+//! The Updater of the paper's Figure 1: the live-update process. It owns the [`Phase`]
+//! (STATUS and the secondary container), accepts or refuses commands between cycles, and does at
+//! the cycle boundary what they cause: the install within stateTransTimeout and the
+//! substitution.
+//!
+//! Building an update (verifying the package, resolving it against the running program, building
+//! the candidate container) happens away from the scan thread, through an [`UpdateContext`];
+//! only the install, which is bounded by the size of the transformation, runs in the cycle.
+
+use std::sync::Arc;
+
+use cetratus_program::{
+    EvalCtx, Guard, PackageMeta, Program, ResolvedUpdate, TrustStore, UpdatePackage, Value,
+};
+use serde::Serialize;
+
+use crate::clock::InstallTiming;
+use crate::error::{CommandError, PrepareError};
+use crate::event::{EventDetail, EventKind};
+use crate::monitor::ContainerStats;
+use crate::phase::{Phase, Quarantine, UpdatePlan};
+use crate::plc::Core;
+use crate::router::{map_by_name, safe_image};
+use crate::{Container, Status};
+
+/// How the candidate's marking is taken at substitution (DESIGN §4).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Default)]
+#[serde(rename_all = "snake_case")]
+pub enum SubstituteMode {
+    /// Recompute `ST·M_primary + ST_base` at the switch: consistent with the plant by construction.
+    #[default]
+    Retransform,
+    /// Keep the candidate's own marking; only when drift is 0, unless forced.
+    Keep,
+}
+
+impl SubstituteMode {
+    /// `retransform` or `keep`.
+    pub fn name(self) -> &'static str {
+        match self {
+            SubstituteMode::Retransform => "retransform",
+            SubstituteMode::Keep => "keep",
+        }
+    }
+}
+
+impl std::str::FromStr for SubstituteMode {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, String> {
+        match s {
+            "retransform" => Ok(SubstituteMode::Retransform),
+            "keep" => Ok(SubstituteMode::Keep),
+            o => Err(format!(
+                "unknown substitution mode `{o}`; expected retransform or keep"
+            )),
+        }
+    }
+}
+
+/// A substitution request, its condition compiled against the primary program.
+pub struct SubstituteRequest {
+    /// Retransform (default) or keep.
+    pub mode: SubstituteMode,
+    /// Wait until this condition over the primary holds.
+    pub when: Option<(String, Guard)>,
+    /// Give up after this long (program time) when `when` never holds.
+    pub within_us: Option<u64>,
+    /// Keep even with drift.
+    pub force: bool,
+}
+
+impl SubstituteRequest {
+    /// Substitute at the next cycle, in `mode`.
+    pub fn now(mode: SubstituteMode) -> Self {
+        SubstituteRequest {
+            mode,
+            when: None,
+            within_us: None,
+            force: false,
+        }
+    }
+}
+
+/// An update verified, resolved and built away from the scan thread, ready to install.
+pub struct PreparedUpdate {
+    base_hash: [u8; 32],
+    container: Container,
+    in_map: Vec<usize>,
+    out_map: Vec<Option<usize>>,
+    // Entries the install touches: the cost model of a virtual run charges by it.
+    work: u64,
+    pub(crate) plan: UpdatePlan,
+}
+
+impl PreparedUpdate {
+    /// The package's metadata.
+    pub fn meta(&self) -> &PackageMeta {
+        &self.plan.meta
+    }
+}
+
+/// What building an update needs from the running PLC, cloned so it can be done on any thread.
+#[derive(Clone)]
+pub struct UpdateContext {
+    /// The running primary program.
+    pub primary: Arc<Program>,
+    /// Input names of the I/O map.
+    pub io_inputs: Vec<String>,
+    /// Output names of the I/O map.
+    pub io_outputs: Vec<String>,
+}
+
+impl UpdateContext {
+    /// Verifies a package file against the trusted keys, resolves it against the running program
+    /// and builds the candidate container: everything but the in-cycle install.
+    pub fn prepare_package(
+        &self,
+        bytes: &[u8],
+        trust: &TrustStore,
+        allow_unsigned: bool,
+        force: bool,
+    ) -> Result<PreparedUpdate, PrepareError> {
+        let pkg = UpdatePackage::verify(bytes, trust, allow_unsigned)?;
+        let resolved = pkg.resolve(&self.primary, force)?;
+        self.prepare(resolved)
+    }
+
+    /// Compiles a substitution request against the primary program.
+    pub fn substitute_request(
+        &self,
+        mode: SubstituteMode,
+        when: Option<&str>,
+        within_us: Option<u64>,
+        force: bool,
+    ) -> Result<SubstituteRequest, PrepareError> {
+        let when = match when {
+            Some(text) => Some((
+                text.to_string(),
+                self.primary
+                    .compile_condition(text)
+                    .map_err(|source| PrepareError::Condition {
+                        text: text.to_string(),
+                        source,
+                    })?,
+            )),
+            None => None,
+        };
+        Ok(SubstituteRequest {
+            mode,
+            when,
+            within_us,
+            force,
+        })
+    }
+
+    /// Builds a resolved update: the candidate container, its I/O maps and the transition
+    /// correspondence used by the Monitor. Refuses a candidate whose signals the I/O map lacks.
+    pub fn prepare(&self, update: ResolvedUpdate) -> Result<PreparedUpdate, PrepareError> {
+        let primary = &*self.primary;
+        let program = update.program.clone();
+        let mut in_map = Vec::with_capacity(program.inputs().len());
+        for s in program.inputs() {
+            match self.io_inputs.iter().position(|n| *n == s.name) {
+                Some(i) => in_map.push(i),
+                None => {
+                    return Err(PrepareError::MissingInput {
+                        signal: s.name.clone(),
+                        available: self.io_inputs.join(", "),
+                    })
+                }
+            }
+        }
+        for s in program.outputs() {
+            if !self.io_outputs.contains(&s.name) {
+                return Err(PrepareError::MissingOutput {
+                    signal: s.name.clone(),
+                    available: self.io_outputs.join(", "),
+                });
+            }
+        }
+        let out_map = map_by_name(&self.io_outputs, program.outputs());
+        let (pn, cn) = (primary.net(), program.net());
+        let np = cn.num_places();
+        let work =
+            (update.transform.rows() + update.transform.cols() + np + cn.num_transitions()) as u64;
+        let plan = UpdatePlan {
+            to_primary: cn
+                .transitions()
+                .iter()
+                .map(|t| pn.transition_by_id(&t.id))
+                .collect(),
+            from_primary: pn
+                .transitions()
+                .iter()
+                .map(|t| cn.transition_by_id(&t.id))
+                .collect(),
+            scratch_marking: vec![0; np],
+            scratch_since: vec![None; np],
+            safe: safe_image(&out_map, &program),
+            latch_map: retained_latch_map(&program, primary),
+            var_map: program
+                .variables()
+                .iter()
+                .map(|v| {
+                    primary
+                        .variables()
+                        .iter()
+                        .position(|w| w.name == v.name && w.ty == v.ty)
+                        .map(|j| j as u32)
+                })
+                .collect(),
+            meta: update.meta,
+            transform: update.transform,
+            projection: update.projection,
+        };
+        Ok(PreparedUpdate {
+            base_hash: primary.hash(),
+            container: Container::new(program, 0),
+            in_map,
+            out_map,
+            work,
+            plan,
+        })
+    }
+}
+
+/// A command from the operator or the MCT.
+// Commands are few and move once; boxing the substitution would only add an allocation.
+#[allow(clippy::large_enum_variant)]
+pub enum Command {
+    /// Install a prepared update into the secondary container.
+    Load(Box<PreparedUpdate>),
+    /// Make the candidate PRIMARY.
+    Substitute(SubstituteRequest),
+    /// Drop the candidate in quarantine.
+    Remove,
+    /// Cancel whatever update is under way.
+    Abort,
+    /// Leave the fault state.
+    Reset,
+}
+
+/// Limits of the Updater and the watchdog.
+#[derive(Clone, Copy, Debug)]
+pub struct Limits {
+    /// stateTransTimeout: budget of the in-cycle install, in ns. Defaults to one scan period.
+    pub state_trans_timeout_ns: u64,
+    /// A candidate scan longer than this (ns) in quarantine aborts the update.
+    pub candidate_budget_ns: u64,
+    /// A primary scan longer than this (ns) is a primary fault.
+    pub watchdog_ns: u64,
+}
+
+impl Limits {
+    /// Limits for a run in virtual time: the install budget is one period, and the measured
+    /// watchdog and candidate budget are one second, so that an operating system that preempts
+    /// the process does not turn a simulation into a fault.
+    pub fn for_virtual_time(period_us: u64) -> Self {
+        Limits {
+            state_trans_timeout_ns: period_us.saturating_mul(1000),
+            candidate_budget_ns: 1_000_000_000,
+            watchdog_ns: 1_000_000_000,
+        }
+    }
+
+    /// The defaults for a scan period: stateTransTimeout is one period (the paper's "within one
+    /// execution cycle"); the watchdog and the candidate's budget are ten periods, so that a scan
+    /// the operating system preempted once does not stop a cell or abort an update, while a
+    /// runaway program is still caught.
+    pub fn for_period_us(period_us: u64) -> Self {
+        let ns = period_us.saturating_mul(1000);
+        Limits {
+            state_trans_timeout_ns: ns,
+            candidate_budget_ns: ns.saturating_mul(10),
+            watchdog_ns: ns.saturating_mul(10),
+        }
+    }
+}
+
+/// What a cost-model install charges per entry it touches in a virtual run.
+pub const VIRTUAL_NS_PER_ENTRY: u64 = 20;
+
+/// The Updater: the phase, and the limits it enforces.
+pub struct Updater {
+    pub(crate) phase: Phase,
+    pub(crate) limits: Limits,
+    pub(crate) install_timing: InstallTiming,
+}
+
+impl Updater {
+    pub(crate) fn new(limits: Limits) -> Self {
+        Updater {
+            phase: Phase::Idle,
+            limits,
+            install_timing: InstallTiming::Measured,
+        }
+    }
+
+    /// STATUS.
+    pub fn status(&self) -> Status {
+        self.phase.status()
+    }
+
+    /// Accepts or refuses a command; what it causes happens at the next cycle boundary.
+    pub(crate) fn command(&mut self, cmd: Command, core: &mut Core) -> Result<(), CommandError> {
+        let status = self.status();
+        match cmd {
+            Command::Load(p) => {
+                match status {
+                    Status::Idle => {}
+                    Status::Fault => return Err(CommandError::LoadInFault),
+                    Status::Probation => return Err(CommandError::LoadInProbation),
+                    status => return Err(CommandError::LoadBusy { status }),
+                }
+                if p.base_hash != core.primary.program().hash() {
+                    return Err(CommandError::StalePreparation);
+                }
+                let msg = format!(
+                    "load accepted: {} {} goes into {} at the next cycle",
+                    p.plan.meta.name,
+                    p.plan.meta.version,
+                    core.primary_slot.other().name()
+                );
+                self.phase = Phase::Setup(p);
+                core.log.push(EventKind::LoadAccepted, msg, None);
+                Ok(())
+            }
+            Command::Substitute(req) => {
+                let Phase::Quarantine(q) = &mut self.phase else {
+                    return Err(CommandError::NoCandidate {
+                        verb: "substitute",
+                        status,
+                    });
+                };
+                if q.pending.is_some() {
+                    return Err(CommandError::SubstitutionWaiting);
+                }
+                let deadline = req
+                    .within_us
+                    .map_or(u64::MAX, |w| core.log.now_us.saturating_add(w));
+                let msg = match &req.when {
+                    Some((text, _)) => format!("substitution waits for `{text}`"),
+                    None => "substitution at the next cycle".to_string(),
+                };
+                q.pending = Some((req, deadline));
+                core.log.push(EventKind::SubstituteAccepted, msg, None);
+                Ok(())
+            }
+            Command::Remove => {
+                if status != Status::Quarantine {
+                    return Err(CommandError::NoCandidate {
+                        verb: "remove",
+                        status,
+                    });
+                }
+                self.drop_candidate(
+                    core,
+                    EventKind::Removed,
+                    "the candidate was removed by the operator".into(),
+                );
+                Ok(())
+            }
+            Command::Abort => match status {
+                Status::Setup => {
+                    self.phase = Phase::Idle;
+                    core.log.push(
+                        EventKind::Aborted,
+                        "the update was aborted before its install".into(),
+                        None,
+                    );
+                    Ok(())
+                }
+                Status::Quarantine => {
+                    self.drop_candidate(
+                        core,
+                        EventKind::Aborted,
+                        "the update was aborted; the candidate is removed".into(),
+                    );
+                    Ok(())
+                }
+                status => Err(CommandError::NothingToAbort { status }),
+            },
+            Command::Reset => {
+                if status != Status::Fault {
+                    return Err(CommandError::NotInFault { status });
+                }
+                self.phase = Phase::Idle;
+                // Inputs kept changing while in fault; rebuild the images at the next scan.
+                core.router.mark_all_stale();
+                core.log.push(
+                    EventKind::Reset,
+                    "fault reset by the operator: the primary resumes from its last good state"
+                        .into(),
+                    None,
+                );
+                Ok(())
+            }
+        }
+    }
+
+    /// Empties the secondary container and goes back to idle.
+    pub(crate) fn drop_candidate(&mut self, core: &mut Core, kind: EventKind, message: String) {
+        if let Phase::Quarantine(q) = std::mem::replace(&mut self.phase, Phase::Idle) {
+            core.retired.push(q.candidate);
+        }
+        core.log.push(kind, message, None);
+    }
+
+    /// The primary faulted: an update under way is discarded and the PLC enters fault.
+    pub(crate) fn primary_fault(&mut self, core: &mut Core, message: String) {
+        match std::mem::replace(&mut self.phase, Phase::Fault) {
+            Phase::Quarantine(q) => {
+                core.retired.push(q.candidate);
+                core.log.push(
+                    EventKind::UpdateDiscarded,
+                    "the update under way is discarded because the primary faulted".into(),
+                    None,
+                );
+            }
+            Phase::Probation(p) => {
+                core.retired.push(p.shadow);
+                core.log.push(
+                    EventKind::UpdateDiscarded,
+                    "the update under way is discarded because the primary faulted".into(),
+                    None,
+                );
+            }
+            Phase::Setup(_) => core.log.push(
+                EventKind::UpdateDiscarded,
+                "the update under way is discarded because the primary faulted".into(),
+                None,
+            ),
+            Phase::Idle | Phase::Fault => {}
+        }
+        core.log.push(
+            EventKind::PrimaryFault,
+            format!("{message}; safe output values are driven until an operator resets"),
+            None,
+        );
+    }
+
+    /// What is due at the cycle boundary: an install, a substitution, a substitution's timeout.
+    pub(crate) fn boundary(&mut self, core: &mut Core) {
+        if matches!(self.phase, Phase::Setup(_)) {
+            self.install(core);
+        }
+        if matches!(self.phase, Phase::Quarantine(_)) {
+            self.try_substitute(core);
+        }
+    }
+
+    fn install(&mut self, core: &mut Core) {
+        let Phase::Setup(mut up) = std::mem::replace(&mut self.phase, Phase::Idle) else {
+            return;
+        };
+        let now_us = core.log.now_us;
+        let primary = &core.primary;
+        let start = core.stopwatch.now_ns();
+        let plan = &mut up.plan;
+        let result = plan
+            .transform
+            .apply(
+                primary.marking(),
+                up.container.program(),
+                &mut plan.scratch_marking,
+            )
+            .map_err(|e| e.to_string())
+            .and_then(|()| {
+                plan.transform.apply_timers(
+                    primary.place_since_us(),
+                    &plan.scratch_marking,
+                    now_us,
+                    &mut plan.scratch_since,
+                );
+                up.container
+                    .set_state(&plan.scratch_marking, &plan.scratch_since)
+                    .map_err(|e| e.to_string())?;
+                // Latches and variables the program shares with the primary carry over, as the
+                // marking does: an S that latched before the update stays latched.
+                up.container
+                    .carry_from(primary, &plan.latch_map, &plan.var_map);
+                Ok(())
+            });
+        let took = match self.install_timing {
+            InstallTiming::Measured => core.stopwatch.now_ns().saturating_sub(start),
+            InstallTiming::Model { ns_per_entry } => up.work.saturating_mul(ns_per_entry),
+        };
+        let budget = self.limits.state_trans_timeout_ns;
+        if let Err(reason) = result {
+            core.log.push(EventKind::TransformRefused, format!("state transformation refused: {reason}; the secondary is emptied and the primary goes on"), None);
+            return;
+        }
+        let detail = Some(EventDetail::Install {
+            install_ns: took,
+            budget_ns: budget,
+        });
+        if took > budget {
+            core.log.push(
+                EventKind::StateTransTimeout,
+                format!(
+                    "stateTransTimeout: the install took {took} ns, over its budget of {budget} ns; the update is aborted and the primary goes on"
+                ),
+                detail,
+            );
+            return;
+        }
+        let s = core.primary_slot.other();
+        let up = *up;
+        core.router.attach(
+            s.index(),
+            up.container.inputs().to_vec(),
+            up.in_map,
+            up.out_map,
+        );
+        core.monitor.stats[s.index()] = ContainerStats::new(core.router.io_outputs().len());
+        let name = format!("{} {}", up.plan.meta.name, up.plan.meta.version);
+        self.phase = Phase::Quarantine(Box::new(Quarantine {
+            candidate: up.container,
+            plan: up.plan,
+            pending: None,
+            started_us: now_us,
+        }));
+        core.log.push(
+            EventKind::QuarantineStarted,
+            format!(
+                "{name} installed in {} within one cycle; it runs in quarantine, its outputs withheld",
+                s.name()
+            ),
+            detail,
+        );
+    }
+
+    fn try_substitute(&mut self, core: &mut Core) {
+        let now_us = core.log.now_us;
+        let Phase::Quarantine(q) = &mut self.phase else {
+            return;
+        };
+        let Some((req, deadline)) = q.pending.as_ref() else {
+            return;
+        };
+        if let Some((text, guard)) = &req.when {
+            let primary = &core.primary;
+            let ctx = EvalCtx {
+                // The condition is compiled against the primary: it reads the primary's image.
+                inputs: primary.inputs(),
+                prev_inputs: primary.inputs(),
+                vars: primary.variables(),
+                marking: primary.marking(),
+                place_since_us: primary.place_since_us(),
+                now_us,
+            };
+            let holds = match guard.eval(&ctx) {
+                Ok(b) => b,
+                Err(e) => {
+                    let msg = format!("substitution given up: the condition `{text}` failed to evaluate ({e}); the candidate stays in quarantine");
+                    q.pending = None;
+                    core.log.push(EventKind::SubstituteTimeout, msg, None);
+                    return;
+                }
+            };
+            if !holds {
+                if now_us >= *deadline {
+                    let msg = format!("substitution given up: `{text}` did not hold within the time allowed; the candidate stays in quarantine");
+                    q.pending = None;
+                    core.log.push(EventKind::SubstituteTimeout, msg, None);
+                }
+                return;
+            }
+        }
+        let (mode, force) = (req.mode, req.force);
+        let c = core.primary_slot.other();
+        let drift = core.monitor.stats[c.index()].drift;
+        if mode == SubstituteMode::Keep && drift != 0 && !force {
+            q.pending = None;
+            core.log.push(EventKind::Refused, format!("substitute refused: mode keep needs drift 0 but the candidate has drifted by {drift} tokens; use retransform, or force"), Some(EventDetail::Drift { drift }));
+            return;
+        }
+        if mode == SubstituteMode::Retransform {
+            let plan = &mut q.plan;
+            let primary = &core.primary;
+            let res = plan
+                .transform
+                .apply(
+                    primary.marking(),
+                    q.candidate.program(),
+                    &mut plan.scratch_marking,
+                )
+                .map_err(|e| e.to_string());
+            if let Err(reason) = res {
+                q.pending = None;
+                core.log.push(EventKind::Refused, format!("substitute refused: the retransform failed: {reason}; the candidate stays in quarantine"), None);
+                return;
+            }
+            plan.transform.apply_timers(
+                primary.place_since_us(),
+                &plan.scratch_marking,
+                now_us,
+                &mut plan.scratch_since,
+            );
+            if let Err(e) = q
+                .candidate
+                .set_state(&plan.scratch_marking, &plan.scratch_since)
+            {
+                q.pending = None;
+                core.log
+                    .push(EventKind::Refused, format!("substitute refused: {e}"), None);
+                return;
+            }
+            // Consistent with the plant by construction: the latches and variables too.
+            q.candidate
+                .carry_from(primary, &plan.latch_map, &plan.var_map);
+            core.router.mark_stale(c.index());
+        }
+        let Phase::Quarantine(q) = std::mem::replace(&mut self.phase, Phase::Idle) else {
+            unreachable!("matched above");
+        };
+        let mut q = *q;
+        // The safe values of the program that now drives the outputs.
+        core.router.swap_safe(&mut q.plan.safe);
+        let old = core.primary_slot;
+        core.primary_slot = c;
+        let old_primary = std::mem::replace(&mut core.primary, q.candidate);
+        core.retired.push(old_primary);
+        let meta = q.plan.meta;
+        core.log.push(
+            EventKind::Substituted,
+            format!(
+                "PRIMARY = {}: {} {} drives the outputs ({} mode, drift {} at the switch, {:.1} s in quarantine); {} stops",
+                c.name(),
+                meta.name,
+                meta.version,
+                mode.name(),
+                drift,
+                now_us.saturating_sub(q.started_us) as f64 / 1e6,
+                old.name()
+            ),
+            Some(EventDetail::Substitution { drift, mode }),
+        );
+    }
+}
+
+/// For each latch (action target) of `program`, the latch of `primary` driving the signal of the
+/// same kind and name.
+fn retained_latch_map(program: &Program, primary: &Program) -> Vec<Option<u32>> {
+    use cetratus_program::Target;
+    let name = |p: &Program, t: &Target| match *t {
+        Target::Output(i) => (0u8, p.outputs()[i as usize].name.clone()),
+        Target::Variable(i) => (1u8, p.variables()[i as usize].name.clone()),
+    };
+    let theirs: Vec<(u8, String)> = primary
+        .action_targets()
+        .iter()
+        .map(|t| name(primary, t))
+        .collect();
+    program
+        .action_targets()
+        .iter()
+        .map(|t| {
+            let mine = name(program, t);
+            theirs.iter().position(|x| *x == mine).map(|j| j as u32)
+        })
+        .collect()
+}
+
+/// A value as plain JSON.
+pub fn value_json(v: Value) -> serde_json::Value {
+    match v {
+        Value::Bool(b) => b.into(),
+        Value::Int(i) => i.into(),
+        Value::Real(x) => x.into(),
+    }
+}

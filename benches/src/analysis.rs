@@ -1,7 +1,6 @@
 //! Workloads of the state-space benches: reachability speed and memory on Kanban and FMS, the
 //! Farkas invariants' time, and the plain-Python BFS baseline on the same nets.
 
-use std::path::Path;
 use std::process::Command;
 use std::time::Instant;
 
@@ -159,7 +158,7 @@ fn measure(family_name: &'static str, n: u32) -> NetFigures {
 }
 
 fn python(family_name: &str, n: u32) -> Result<(u64, f64), String> {
-    let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("../scripts/bfs_baseline.py");
+    let script = crate::embedded::bfs_baseline();
     let out = Command::new("python3")
         .arg(&script)
         .args([

@@ -5,6 +5,8 @@
 
 pub mod analysis;
 pub mod dense;
+pub mod embedded;
+pub mod harness;
 pub mod measure;
 pub mod program;
 pub mod update;

@@ -2,7 +2,6 @@
 //! the real-time jitter of the scan cycle.
 
 use std::hint::black_box;
-use std::path::{Path, PathBuf};
 use std::sync::atomic::AtomicBool;
 use std::sync::Arc;
 use std::time::{Duration, Instant};
@@ -17,10 +16,7 @@ use serde::Serialize;
 
 use crate::measure::median_ns;
 
-/// The examples directory of the source tree.
-pub fn examples_dir() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../examples")
-}
+pub use crate::embedded::examples_dir;
 
 /// The Vernadat example program.
 pub fn vernadat_program() -> Arc<Program> {

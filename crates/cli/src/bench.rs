@@ -1,8 +1,9 @@
-//! `cetratus bench`: the figures of docs/performance.md, measured on this machine.
+//! `cetratus bench`: the figures of docs/performance.md, measured on this machine by the harnesses
+//! of `cetratus-bench`.
 
 use std::collections::BTreeMap;
 
-use cetratus_bench::{measure, program};
+use cetratus_bench::harness;
 
 use crate::parse_duration_us;
 
@@ -77,7 +78,9 @@ pub fn run(args: &BenchArgs) -> anyhow::Result<()> {
         json,
     }) = &args.what
     {
-        let out = fleet(*n, period, parse_duration_us(for_)?)?;
+        let exe = std::env::current_exe()?;
+        let out = harness::fleet(&exe, *n, period, parse_duration_us(for_)?)
+            .map_err(|e| anyhow::anyhow!("{e}"))?;
         return print(&out, *json || args.json);
     }
     if let Some(What::CommandLoad {
@@ -87,7 +90,9 @@ pub fn run(args: &BenchArgs) -> anyhow::Result<()> {
         json,
     }) = &args.what
     {
-        let out = command_load(*rate, parse_duration_us(for_)?, parse_duration_us(period)?)?;
+        let out =
+            harness::command_load(*rate, parse_duration_us(for_)?, parse_duration_us(period)?)
+                .map_err(|e| anyhow::anyhow!("{e}"))?;
         return print(&out, *json || args.json);
     }
     if let Some(What::Jitter {
@@ -97,107 +102,12 @@ pub fn run(args: &BenchArgs) -> anyhow::Result<()> {
         json,
     }) = &args.what
     {
-        return jitter(period, for_, *rt, *json || args.json);
+        let out =
+            harness::jitter_figures(parse_duration_us(period)?, parse_duration_us(for_)?, *rt);
+        return print(&out, *json || args.json);
     }
-    let mut out: BTreeMap<String, serde_json::Value> = BTreeMap::new();
-    let engine = measure::engine_figures(args.quick);
-    out.insert(s("vernadat_scan_ns"), engine.vernadat_scan_ns.into());
-    out.insert(
-        s("scale_ratio_1m_vs_1k"),
-        engine.scale_ratio_1m_vs_1k.into(),
-    );
-    out.insert(s("dense_speedup_10k"), engine.dense_speedup_10k.into());
-    out.insert(s("dense_speedup_1k"), engine.dense_speedup_1k.into());
-    out.insert(
-        s("ring_scan_ns"),
-        serde_json::to_value(&engine.ring_scan_ns)?,
-    );
-    out.insert(
-        s("dense_scan_ns"),
-        serde_json::to_value(&engine.dense_scan_ns)?,
-    );
-
-    out.insert(
-        s("program_scan_ns"),
-        program::program_scan_ns(args.quick).into(),
-    );
-    out.insert(
-        s("program_scan_full_ns"),
-        program::program_scan_full_ns(args.quick).into(),
-    );
-    out.insert(
-        s("program_load_us"),
-        program::program_load_us(args.quick).into(),
-    );
-    let hour = program::twin_hour();
-    out.insert(s("twin_hour_wall_ms"), hour.wall_ms.into());
-    out.insert(s("twin_hour_parts_finished"), hour.parts_finished.into());
-
-    let update = cetratus_bench::update::update_figures(args.quick);
-    if let serde_json::Value::Object(map) = serde_json::to_value(&update)? {
-        out.extend(map);
-    }
-
-    let analysis = cetratus_bench::analysis::reachability_figures(args.quick);
-    // The headline figures of the analysis issue: the slowest of Kanban and FMS.
-    let min = |f: &dyn Fn(&cetratus_bench::analysis::NetFigures) -> f64| {
-        analysis.nets.iter().map(f).fold(f64::INFINITY, f64::min)
-    };
-    let max = |f: &dyn Fn(&cetratus_bench::analysis::NetFigures) -> f64| {
-        analysis.nets.iter().map(f).fold(0.0, f64::max)
-    };
-    out.insert(
-        s("reachability_states_per_s"),
-        min(&|n| n.reachability_states_per_s).into(),
-    );
-    out.insert(
-        s("reachability_states_per_s_all_cores"),
-        min(&|n| n.reachability_states_per_s_multi).into(),
-    );
-    out.insert(
-        s("reachability_bytes_per_state"),
-        max(&|n| n.bytes_per_state).into(),
-    );
-    if !analysis.baselines.is_empty() {
-        let sp = |f: &dyn Fn(&cetratus_bench::analysis::Baseline) -> f64| {
-            analysis
-                .baselines
-                .iter()
-                .map(f)
-                .fold(f64::INFINITY, f64::min)
-        };
-        out.insert(s("python_speedup"), sp(&|b| b.speedup).into());
-        out.insert(
-            s("python_speedup_one_thread"),
-            sp(&|b| b.speedup_one_thread).into(),
-        );
-    }
-    if let serde_json::Value::Object(map) = serde_json::to_value(&analysis)? {
-        for (k, v) in map {
-            out.insert(k, v);
-        }
-    }
+    let out = harness::all_figures(args.quick).map_err(|e| anyhow::anyhow!("{e}"))?;
     print(&out, args.json)
-}
-
-fn jitter(period: &str, for_: &str, rt: bool, json: bool) -> anyhow::Result<()> {
-    let period_us = parse_duration_us(period)?;
-    let for_us = parse_duration_us(for_)?;
-    let (figures, status) = program::jitter(period_us, for_us, rt);
-    let mut out: BTreeMap<String, serde_json::Value> = BTreeMap::new();
-    out.insert(s("period_us"), period_us.into());
-    out.insert(s("cycles"), figures.cycles.into());
-    out.insert(s("latency_p50_ns"), figures.latency.p50_ns.into());
-    out.insert(s("latency_p99_ns"), figures.latency.p99_ns.into());
-    out.insert(s("latency_max_ns"), figures.latency.max_ns.into());
-    out.insert(s("scan_p99_ns"), figures.scan.p99_ns.into());
-    out.insert(s("cycle_p99_ns"), figures.cycle.p99_ns.into());
-    out.insert(s("overruns"), figures.overruns.into());
-    out.insert(
-        s("rt"),
-        status.unwrap_or_else(|| "not requested".into()).into(),
-    );
-    print(&out, json)
 }
 
 fn print(out: &BTreeMap<String, serde_json::Value>, json: bool) -> anyhow::Result<()> {
@@ -209,315 +119,4 @@ fn print(out: &BTreeMap<String, serde_json::Value>, json: bool) -> anyhow::Resul
         }
     }
     Ok(())
-}
-
-fn s(key: &str) -> String {
-    key.to_string()
-}
-
-/// Runs the Vernadat node on an embedded broker at `period_us`, first alone for `phase_us`, then
-/// while a client sends `rate` commands per second, and reports the scan latency of both phases.
-fn command_load(
-    rate: u32,
-    phase_us: u64,
-    period_us: u64,
-) -> anyhow::Result<BTreeMap<String, serde_json::Value>> {
-    use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
-    use std::sync::Arc;
-    use std::time::{Duration, Instant};
-
-    use cetratus_node::clock::MonotonicStopwatch;
-    use cetratus_node::link::ControlLink;
-    use cetratus_node::periodic::run_periodic;
-    use cetratus_node::{Node, NodeOptions};
-    use cetratus_runtime::{LoopTiming, Plc};
-    use rumqttc::v5::mqttbytes::QoS;
-
-    let program = program::vernadat_program();
-    let io = cetratus_io::TwinDriver::new(
-        cetratus_twin::TwinKind::Vernadat.build(1),
-        program.inputs(),
-        program.outputs(),
-    )?;
-    let plc = Plc::new(program, 0, MonotonicStopwatch::boxed());
-    let port = std::net::TcpListener::bind("127.0.0.1:0")?
-        .local_addr()?
-        .port();
-    let mut config = cetratus_mct::MqttConfig::new("bench");
-    config.broker = cetratus_mct::BrokerChoice::Embedded {
-        addr: std::net::SocketAddr::from(([127, 0, 0, 1], port)),
-        users: Vec::new(),
-    };
-    config.publish_period = Duration::from_millis(200);
-    let (link, handle) = cetratus_mct::start(config)?;
-    handle.wait_connected(Duration::from_secs(10));
-    let link = ControlLink::start(
-        &plc,
-        link,
-        cetratus_program::TrustStore::empty(),
-        false,
-        (200_000 / period_us.max(1)).max(1),
-    );
-    let opts = NodeOptions {
-        base_us: 0,
-        trust: cetratus_program::TrustStore::empty(),
-        allow_unsigned: false,
-        record_trace: false,
-        progress_every: None,
-    };
-    let mut node = Node::new(plc, io, opts).with_link(link);
-    let mut now_base = 0u64;
-    let mut phase = |node: &mut Node<cetratus_io::TwinDriver<cetratus_twin::Twin>>| {
-        let stop = AtomicBool::new(false);
-        let mut timing = LoopTiming::default();
-        let base = now_base;
-        let reached = run_periodic(period_us, phase_us, 1.0, &stop, &mut timing, |now, t| {
-            node.step(base + now, t);
-            true
-        });
-        now_base += reached;
-        timing
-    };
-    let quiet = phase(&mut node);
-
-    // The flood: a client on its own thread, mixed valid and invalid commands.
-    let sent = Arc::new(AtomicU64::new(0));
-    let stop_flood = Arc::new(AtomicBool::new(false));
-    let flood = {
-        let (sent, stop_flood) = (sent.clone(), stop_flood.clone());
-        let url = format!("mqtt://127.0.0.1:{port}");
-        std::thread::spawn(move || -> anyhow::Result<()> {
-            let opts = cetratus_mct::client_options(&url, "bench-flood")?;
-            let (client, mut conn) = rumqttc::v5::Client::new(opts, 4096);
-            std::thread::spawn(move || for _ in conn.iter() {});
-            let payloads: [(&str, &[u8]); 4] = [
-                ("exec_info", b"{\"reply_to\": \"bench/replies\"}"),
-                ("load", b"\x00\x01 not json"),
-                ("frobnicate", b"{\"reply_to\": \"bench/replies\"}"),
-                (
-                    "substitute",
-                    b"{\"mode\": \"sideways\", \"reply_to\": \"bench/replies\"}",
-                ),
-            ];
-            let start = Instant::now();
-            let mut k = 0u64;
-            while !stop_flood.load(Ordering::Relaxed) {
-                let due = start + Duration::from_secs_f64(k as f64 / f64::from(rate.max(1)));
-                if let Some(wait) = due.checked_duration_since(Instant::now()) {
-                    std::thread::sleep(wait);
-                }
-                let (verb, body) = payloads[(k % 4) as usize];
-                let _ = client.try_publish(
-                    format!("cetratus/bench/cmd/{verb}"),
-                    QoS::AtMostOnce,
-                    false,
-                    body.to_vec(),
-                );
-                k += 1;
-                sent.store(k, Ordering::Relaxed);
-            }
-            Ok(())
-        })
-    };
-    let loaded = phase(&mut node);
-    stop_flood.store(true, Ordering::Relaxed);
-    let _ = flood.join();
-    let (plc, _, _) = node.finish()?;
-    handle.shutdown();
-
-    let (q, l) = (quiet.latency.summary(), loaded.latency.summary());
-    let limit = 1.2 * q.p99_ns as f64 + 20_000.0;
-    let mut out: BTreeMap<String, serde_json::Value> = BTreeMap::new();
-    out.insert(s("period_us"), period_us.into());
-    out.insert(s("phase_s"), (phase_us as f64 / 1e6).into());
-    out.insert(s("commands_sent"), sent.load(Ordering::Relaxed).into());
-    out.insert(
-        s("commands_per_s"),
-        (sent.load(Ordering::Relaxed) as f64 / (phase_us as f64 / 1e6)).into(),
-    );
-    out.insert(s("latency_p99_ns_unloaded"), q.p99_ns.into());
-    out.insert(s("latency_p99_ns_loaded"), l.p99_ns.into());
-    out.insert(s("latency_p50_ns_unloaded"), q.p50_ns.into());
-    out.insert(s("latency_p50_ns_loaded"), l.p50_ns.into());
-    out.insert(s("latency_max_ns_unloaded"), q.max_ns.into());
-    out.insert(s("latency_max_ns_loaded"), l.max_ns.into());
-    out.insert(s("overruns_unloaded"), quiet.overruns.into());
-    out.insert(s("overruns_loaded"), loaded.overruns.into());
-    out.insert(s("limit_ns"), limit.into());
-    out.insert(s("within_limit"), ((l.p99_ns as f64) <= limit).into());
-    out.insert(s("primary_status"), plc.status().name().into());
-    Ok(out)
-}
-
-/// Kills a child process when dropped.
-struct Child(std::process::Child);
-
-impl Drop for Child {
-    fn drop(&mut self) {
-        let _ = self.0.kill();
-        let _ = self.0.wait();
-    }
-}
-
-/// CPU seconds (user + system) a process has used, from /proc.
-fn cpu_seconds(pid: u32) -> anyhow::Result<f64> {
-    let stat = std::fs::read_to_string(format!("/proc/{pid}/stat"))?;
-    // Fields after the command name, which is in parentheses and may hold spaces.
-    let rest = stat.rsplit_once(')').map_or("", |(_, r)| r);
-    let f: Vec<&str> = rest.split_whitespace().collect();
-    let ticks = |i: usize| f.get(i).and_then(|v| v.parse::<f64>().ok()).unwrap_or(0.0);
-    // utime and stime are fields 14 and 15 of the whole line: 11 and 12 after the name.
-    Ok((ticks(11) + ticks(12)) / 100.0)
-}
-
-/// Starts a Mosquitto, `n` runtime processes publishing to it, and one `cetratus mct`; then
-/// measures, for `for_us` of wall time, the dashboard update latency (PLC publish → event
-/// delivered by the dashboard's stream) and the CPU the MCT uses.
-fn fleet(
-    n: usize,
-    period: &str,
-    for_us: u64,
-) -> anyhow::Result<BTreeMap<String, serde_json::Value>> {
-    use std::io::{BufRead, BufReader, Write};
-    use std::process::{Command, Stdio};
-    use std::time::{Duration, Instant};
-
-    let exe = std::env::current_exe()?;
-    let free = || -> anyhow::Result<u16> {
-        Ok(std::net::TcpListener::bind("127.0.0.1:0")?
-            .local_addr()?
-            .port())
-    };
-    let wait = |port: u16| {
-        let end = Instant::now() + Duration::from_secs(20);
-        while Instant::now() < end && std::net::TcpStream::connect(("127.0.0.1", port)).is_err() {
-            std::thread::sleep(Duration::from_millis(50));
-        }
-    };
-    let mosquitto = ["/usr/sbin/mosquitto", "/usr/bin/mosquitto"]
-        .into_iter()
-        .find(|p| std::path::Path::new(p).exists())
-        .ok_or_else(|| anyhow::anyhow!("mosquitto is missing: apt-get install mosquitto"))?;
-    let port = free()?;
-    let _broker = Child(
-        Command::new(mosquitto)
-            .args(["-p", &port.to_string()])
-            .stdout(Stdio::null())
-            .stderr(Stdio::null())
-            .spawn()?,
-    );
-    wait(port);
-    let dir = std::env::temp_dir().join(format!("cetratus-fleet-{}", std::process::id()));
-    std::fs::create_dir_all(&dir)?;
-    let program = program::examples_dir().join("vernadat/vernadat.toml");
-    let url = format!("mqtt://127.0.0.1:{port}");
-    let mut plcs = Vec::with_capacity(n);
-    for k in 0..n {
-        plcs.push(Child(
-            Command::new(&exe)
-                .arg("run")
-                .arg(&program)
-                .args([
-                    "--twin",
-                    "vernadat",
-                    "--period",
-                    period,
-                    "--for",
-                    "10h",
-                    "--no-dashboard",
-                    "--plc",
-                    &format!("cell{k}"),
-                    "--broker",
-                    &url,
-                    "--state-dir",
-                ])
-                .arg(dir.join(format!("cell{k}")))
-                .stdout(Stdio::null())
-                .stderr(Stdio::null())
-                .spawn()?,
-        ));
-    }
-    let http = free()?;
-    let mct = Child(
-        Command::new(&exe)
-            .args([
-                "mct",
-                "--http",
-                &format!("127.0.0.1:{http}"),
-                "--broker",
-                &url,
-            ])
-            .stdout(Stdio::null())
-            .stderr(Stdio::null())
-            .spawn()?,
-    );
-    wait(http);
-    // Let every PLC connect before measuring.
-    std::thread::sleep(Duration::from_secs(5));
-    let plcs_seen = {
-        let mut stream = std::net::TcpStream::connect(("127.0.0.1", http))?;
-        write!(stream, "GET /api/plcs HTTP/1.0\r\nHost: 127.0.0.1\r\n\r\n")?;
-        let mut body = String::new();
-        std::io::Read::read_to_string(&mut stream, &mut body)?;
-        let json = body.split_once("\r\n\r\n").map_or("", |(_, b)| b);
-        serde_json::from_str::<serde_json::Value>(json)
-            .ok()
-            .and_then(|v| v.as_array().map(Vec::len))
-            .unwrap_or(0)
-    };
-    let cpu0 = cpu_seconds(mct.0.id())?;
-    let t0 = Instant::now();
-    // A stream client of the dashboard, as a browser is: latency of every io message of cell0.
-    let mut stream = std::net::TcpStream::connect(("127.0.0.1", http))?;
-    stream.set_read_timeout(Some(Duration::from_millis(500)))?;
-    write!(stream, "GET /api/stream?plc=cell0 HTTP/1.0\r\nHost: 127.0.0.1\r\nAccept: text/event-stream\r\n\r\n")?;
-    let mut reader = BufReader::new(stream);
-    let mut lat_ms: Vec<f64> = Vec::new();
-    let mut line = String::new();
-    while t0.elapsed() < Duration::from_micros(for_us) {
-        line.clear();
-        match reader.read_line(&mut line) {
-            Ok(0) => break,
-            Ok(_) => {}
-            Err(_) => continue,
-        }
-        let Some(data) = line.strip_prefix("data:") else {
-            continue;
-        };
-        let Ok(v) = serde_json::from_str::<serde_json::Value>(data.trim()) else {
-            continue;
-        };
-        if let Some(sent) = v["data"]["unix_ms"].as_f64() {
-            let now = std::time::SystemTime::now()
-                .duration_since(std::time::UNIX_EPOCH)
-                .map_or(0.0, |d| d.as_secs_f64() * 1e3);
-            lat_ms.push(now - sent);
-        }
-    }
-    let wall = t0.elapsed().as_secs_f64();
-    let cpu = cpu_seconds(mct.0.id())? - cpu0;
-    drop(plcs);
-    drop(mct);
-    let _ = std::fs::remove_dir_all(&dir);
-    lat_ms.sort_by(|a, b| a.total_cmp(b));
-    let q = |p: f64| {
-        lat_ms
-            .get(((lat_ms.len() as f64 - 1.0) * p).round() as usize)
-            .copied()
-            .unwrap_or(f64::NAN)
-    };
-    let mut out: BTreeMap<String, serde_json::Value> = BTreeMap::new();
-    out.insert(s("plcs"), n.into());
-    out.insert(s("plcs_seen_by_mct"), plcs_seen.into());
-    out.insert(s("period"), period.into());
-    out.insert(s("seconds"), wall.into());
-    out.insert(s("io_messages_measured"), lat_ms.len().into());
-    out.insert(s("update_latency_ms_p50"), q(0.5).into());
-    out.insert(s("update_latency_ms_p99"), q(0.99).into());
-    out.insert(s("update_latency_ms_max"), q(1.0).into());
-    out.insert(
-        s("mct_cpu_percent_of_one_core"),
-        (100.0 * cpu / wall).into(),
-    );
-    Ok(out)
 }

@@ -3,6 +3,7 @@
 //! A thin layer of argument parsing over the library crates; every subcommand lives in its own
 //! module and returns `anyhow::Result`.
 
+#[cfg(feature = "bench")]
 mod bench;
 mod check;
 mod client;
@@ -57,6 +58,7 @@ enum Command {
     /// Show what a state directory holds and what a warm start from it would do.
     State(state::StateArgs),
     /// Measure the figures in docs/performance.md.
+    #[cfg(feature = "bench")]
     Bench(bench::BenchArgs),
     /// The dashboard on its own, watching the PLCs on a broker.
     Mct(mct_cmd::MctArgs),
@@ -88,6 +90,7 @@ fn main() -> std::process::ExitCode {
         Command::Package(a) => package::run(a),
         Command::Run(a) => run::run(a),
         Command::State(a) => state::run(a),
+        #[cfg(feature = "bench")]
         Command::Bench(a) => bench::run(a),
         Command::Mct(a) => mct_cmd::run(a),
         Command::Load(a) => client::load(a),

@@ -56,8 +56,9 @@ fn io_err(path: &Path) -> impl FnOnce(std::io::Error) -> DemoError + '_ {
     }
 }
 
-/// The Vernadat example, embedded so the demo runs from any directory.
-const FILES: [(&str, &str); 8] = [
+/// The Vernadat example (program, U.1, U.2 and their package manifests), embedded so that the
+/// demo and `cetratus bench` run from any directory.
+pub const FILES: [(&str, &str); 8] = [
     (
         "vernadat.toml",
         include_str!("../../../examples/vernadat/vernadat.toml"),

@@ -13,13 +13,13 @@ use axum::response::{IntoResponse, Response};
 use axum::routing::{get, post};
 use axum::{Json, Router};
 use base64::Engine as _;
+use cetratus_proto::{BrokerUrl, Command, LoadArgs, PlcId, Verb};
 use futures_util::Stream;
 use serde::Deserialize;
 use serde_json::{json, Value};
 use tokio::sync::{broadcast, watch};
 
-use crate::hub::{run_mqtt, unix_ms, BrokerTarget, Hub, Push};
-use crate::store::valid_plc_id;
+use crate::hub::{run_mqtt, unix_ms, Hub, Push};
 
 const INDEX_HTML: &str = include_str!("../assets/index.html");
 const APP_JS: &str = include_str!("../assets/app.js");
@@ -28,16 +28,6 @@ const STYLE_CSS: &str = include_str!("../assets/style.css");
 /// The PLC refuses command payloads over 1 MiB (docs/mqtt.md); base64 grows a package by 4/3, so
 /// this is the largest package worth forwarding.
 const MAX_PACKAGE: usize = (1 << 20) / 4 * 3 - 1024;
-
-/// The verbs a browser may send.
-const VERBS: [&str; 6] = [
-    "load",
-    "substitute",
-    "remove",
-    "abort",
-    "reset",
-    "exec_info",
-];
 
 #[derive(Clone)]
 struct App {
@@ -48,7 +38,7 @@ struct App {
 /// Serves until `shutdown` turns true, with the MQTT client on the same runtime.
 pub(crate) async fn run(
     listener: std::net::TcpListener,
-    broker: BrokerTarget,
+    broker: BrokerUrl,
     shutdown: watch::Receiver<bool>,
     signer: Option<crate::CommandSigner>,
 ) {
@@ -187,7 +177,7 @@ async fn stream(
 ) -> Sse<impl Stream<Item = Result<Event, Infallible>>> {
     // Subscribe before taking the snapshot so nothing falls between the two.
     let rx = app.hub.subscribe();
-    let plc = q.plc.filter(|p| valid_plc_id(p));
+    let plc = q.plc.filter(|p| PlcId::is_valid(p));
     let hello = {
         let fleet = app.hub.fleet();
         json!({
@@ -235,25 +225,25 @@ async fn command(
     headers: HeaderMap,
     body: Bytes,
 ) -> Response {
-    if !valid_plc_id(&plc) {
-        return error(
-            StatusCode::BAD_REQUEST,
-            "malformed",
-            format!("`{plc}` is not a PLC id (no '/', '+', '#' or control characters)"),
-        );
-    }
-    if !VERBS.contains(&verb.as_str()) {
+    let plc = match PlcId::new(plc) {
+        Ok(p) => p,
+        Err(e) => return error(StatusCode::BAD_REQUEST, "malformed", e.to_string()),
+    };
+    let Ok(verb) = verb.parse::<Verb>() else {
         return error(
             StatusCode::NOT_FOUND,
             "unknown_verb",
-            format!("`{verb}` is not a command; use one of {}", VERBS.join(", ")),
+            format!(
+                "`{verb}` is not a command; use one of {}",
+                Verb::ALL.map(Verb::as_str).join(", ")
+            ),
         );
-    }
+    };
     let is_json = headers
         .get(header::CONTENT_TYPE)
         .and_then(|v| v.to_str().ok())
         .is_some_and(|v| v.starts_with("application/json"));
-    let args = if verb == "load" && !is_json {
+    let args = if verb == Verb::Load && !is_json {
         if body.is_empty() {
             return error(
                 StatusCode::BAD_REQUEST,
@@ -272,7 +262,8 @@ async fn command(
                 ),
             );
         }
-        json!({"package_b64": base64::engine::general_purpose::STANDARD.encode(&body)})
+        let package_b64 = base64::engine::general_purpose::STANDARD.encode(&body);
+        Command::Load(LoadArgs { package_b64 }).to_body()
     } else if body.iter().all(u8::is_ascii_whitespace) {
         json!({})
     } else {
@@ -299,7 +290,12 @@ async fn command(
         .get("within_ms")
         .and_then(Value::as_u64)
         .map(|ms| Duration::from_millis(ms.saturating_add(15_000)));
-    match app.hub.command(&plc, &verb, args, timeout).await {
+    // Checked here, so that a browser learns at once what the PLC would refuse.
+    let args = match Command::from_body(verb, args) {
+        Ok(c) => c.to_body(),
+        Err(e) => return error(StatusCode::BAD_REQUEST, "malformed", e.to_string()),
+    };
+    match app.hub.command(&plc, verb, args, timeout).await {
         Ok(reply) => Json(reply).into_response(),
         Err(f) => (
             StatusCode::from_u16(f.status).unwrap_or(StatusCode::BAD_GATEWAY),

@@ -12,6 +12,8 @@ use rumqttc::v5::{AsyncClient, Event, EventLoop, MqttOptions};
 use serde_json::{json, Value};
 use tokio::sync::{broadcast, oneshot, watch};
 
+use cetratus_proto::{BrokerUrl, PlcId, ProtoError, Topics, Verb, ALL_PLCS_FILTER};
+
 use crate::store::{Fleet, Ignored, Update};
 use crate::DashboardError;
 
@@ -22,97 +24,32 @@ const MAX_PACKET: u32 = 8 << 20;
 /// How long a command waits for the PLC's reply by default.
 const REPLY_TIMEOUT: Duration = Duration::from_secs(15);
 
-/// The broker to connect to, parsed from `mqtt://[user[:password]@]host[:port]`.
-#[derive(Clone, Debug, PartialEq, Eq)]
-pub(crate) struct BrokerTarget {
-    host: String,
-    port: u16,
-    credentials: Option<(String, String)>,
-}
-
-impl BrokerTarget {
-    /// Parses the URL; `user` and `password` override the URL's.
-    pub(crate) fn parse(
-        url: &str,
-        user: Option<&str>,
-        password: Option<&str>,
-    ) -> Result<Self, DashboardError> {
-        let bad = |reason: &str| DashboardError::BrokerUrl {
-            url: url.to_string(),
-            reason: reason.to_string(),
-        };
-        let rest = if let Some(r) = url.strip_prefix("mqtt://") {
-            r
-        } else if let Some(r) = url.strip_prefix("tcp://") {
-            r
-        } else if url.starts_with("mqtts://") || url.starts_with("ssl://") {
-            return Err(bad(
-                "TLS brokers are not supported by the dashboard yet; reach the broker over a \
-                 plain `mqtt://host:port` listener on a trusted network",
-            ));
-        } else {
-            return Err(bad(
-                "write it as `mqtt://host:port`, e.g. mqtt://127.0.0.1:1883",
-            ));
-        };
-        let rest = rest.trim_end_matches('/');
-        let (userinfo, hostport) = match rest.rsplit_once('@') {
-            Some((u, h)) => (Some(u), h),
-            None => (None, rest),
-        };
-        let (host, port) = if let Some(h) = hostport.strip_prefix('[') {
-            let (h, after) = h
-                .split_once(']')
-                .ok_or_else(|| bad("an IPv6 host needs its closing `]`"))?;
-            let port = match after.strip_prefix(':') {
-                Some(p) => Some(p),
-                None if after.is_empty() => None,
-                None => return Err(bad("expected `:port` after the IPv6 host")),
-            };
-            (h, port)
-        } else {
-            match hostport.rsplit_once(':') {
-                Some((h, p)) => (h, Some(p)),
-                None => (hostport, None),
-            }
-        };
-        if host.is_empty() {
-            return Err(bad("no host; write it as `mqtt://host:port`"));
-        }
-        let port = match port {
-            None => 1883,
-            Some(p) => p
-                .parse::<u16>()
-                .map_err(|_| bad("the port must be a number from 1 to 65535"))?,
-        };
-        let mut credentials = userinfo.map(|u| match u.split_once(':') {
-            Some((n, p)) => (n.to_string(), p.to_string()),
-            None => (u.to_string(), String::new()),
-        });
-        if let Some(u) = user {
-            let p = password
-                .map(str::to_string)
-                .or_else(|| credentials.as_ref().map(|c| c.1.clone()))
-                .unwrap_or_default();
-            credentials = Some((u.to_string(), p));
-        } else if let (Some(p), Some(c)) = (password, credentials.as_mut()) {
-            c.1 = p.to_string();
-        }
-        Ok(BrokerTarget {
-            host: host.to_string(),
-            port,
-            credentials,
+/// The broker to connect to (`mqtt://[user[:password]@]host[:port]`, parsed by the one parser
+/// of the protocol); `user` and `password` override the URL's. TLS brokers are refused: the
+/// dashboard's client speaks plain MQTT.
+pub(crate) fn broker_target(
+    url: &str,
+    user: Option<&str>,
+    password: Option<&str>,
+) -> Result<BrokerUrl, DashboardError> {
+    let bad = |reason: String| DashboardError::BrokerUrl {
+        url: url.to_string(),
+        reason,
+    };
+    let u = BrokerUrl::parse(url).map_err(|e| {
+        bad(match e {
+            ProtoError::BrokerUrl { reason, .. } => reason,
+            other => other.to_string(),
         })
+    })?;
+    if u.tls() {
+        return Err(bad(
+            "TLS brokers are not supported by the dashboard yet; reach the broker over a \
+             plain `mqtt://host:port` listener on a trusted network"
+                .into(),
+        ));
     }
-
-    /// `host:port`, without credentials, for messages.
-    pub(crate) fn display(&self) -> String {
-        if self.host.contains(':') {
-            format!("mqtt://[{}]:{}", self.host, self.port)
-        } else {
-            format!("mqtt://{}:{}", self.host, self.port)
-        }
-    }
+    Ok(u.with_credentials(user, password))
 }
 
 /// What the browsers' streams receive.
@@ -166,7 +103,7 @@ fn failure(status: u16, code: &str, message: String) -> CommandFailure {
 impl Hub {
     /// The hub and the event loop to drive with [`run_mqtt`].
     pub(crate) fn new(
-        target: &BrokerTarget,
+        target: &BrokerUrl,
         signer: Option<crate::CommandSigner>,
     ) -> (Arc<Hub>, EventLoop) {
         // Unique per process and start, so two dashboards on one broker do not kick each other
@@ -175,12 +112,12 @@ impl Hub {
             .duration_since(UNIX_EPOCH)
             .map_or(0, |d| d.subsec_nanos());
         let client_id = format!("cetratus-dashboard-{}-{nonce:08x}", std::process::id());
-        let mut opts = MqttOptions::new(client_id.clone(), target.host.clone(), target.port);
+        let mut opts = MqttOptions::new(client_id.clone(), target.host(), target.port());
         opts.set_keep_alive(Duration::from_secs(10))
             .set_clean_start(true)
             .set_max_packet_size(Some(MAX_PACKET));
-        if let Some((u, p)) = &target.credentials {
-            opts.set_credentials(u.clone(), p.clone());
+        if let Some((u, p)) = target.credentials() {
+            opts.set_credentials(u, p);
         }
         let (client, eventloop) = AsyncClient::new(opts, 256);
         // Lagging browsers are cut off and reconnect with a fresh snapshot, so this only needs
@@ -194,7 +131,7 @@ impl Hub {
             client,
             reply_topic: format!("cetratus-dashboard/{client_id}/reply"),
             next_correlation: AtomicU64::new(1),
-            broker: target.display(),
+            broker: target.to_string(),
             signer,
         });
         (hub, eventloop)
@@ -267,8 +204,8 @@ impl Hub {
     /// Sends `cetratus/<plc>/cmd/<verb>` with `body` and waits for the PLC's reply.
     pub(crate) async fn command(
         &self,
-        plc: &str,
-        verb: &str,
+        plc: &PlcId,
+        verb: Verb,
         body: Value,
         timeout: Option<Duration>,
     ) -> Result<Value, CommandFailure> {
@@ -296,10 +233,10 @@ impl Hub {
             content_type: Some("application/json".into()),
             ..PublishProperties::default()
         };
-        let topic = format!("cetratus/{plc}/cmd/{verb}");
+        let topic = Topics::new(plc.clone()).cmd(verb).to_string();
         let payload = match &self.signer {
             Some(sign) => {
-                serde_json::json!({ "envelope": (sign.0)(verb, body.to_string().as_bytes()) })
+                serde_json::json!({ "envelope": (sign.0)(verb.as_str(), body.to_string().as_bytes()) })
                     .to_string()
             }
             None => body.to_string(),
@@ -356,7 +293,7 @@ pub(crate) async fn run_mqtt(
                 // try_subscribe: awaiting here could deadlock, since this task is the one that
                 // drains the request queue.
                 let subs = [
-                    ("cetratus/+/#".to_string(), QoS::AtLeastOnce),
+                    (ALL_PLCS_FILTER.to_string(), QoS::AtLeastOnce),
                     (hub.reply_topic.clone(), QoS::AtLeastOnce),
                 ];
                 for (t, q) in subs {
@@ -394,32 +331,32 @@ pub(crate) async fn run_mqtt(
 mod tests {
     use super::*;
 
-    fn parse(url: &str) -> Result<BrokerTarget, DashboardError> {
-        BrokerTarget::parse(url, None, None)
+    fn parse(url: &str) -> Result<BrokerUrl, DashboardError> {
+        broker_target(url, None, None)
     }
 
     #[test]
     fn broker_url_forms_are_understood() {
         let t = parse("mqtt://127.0.0.1:1884").expect("valid");
         assert_eq!(
-            (t.host.as_str(), t.port, t.credentials),
+            (t.host(), t.port(), t.credentials()),
             ("127.0.0.1", 1884, None)
         );
-        assert_eq!(parse("mqtt://broker").expect("valid").port, 1883);
+        assert_eq!(parse("mqtt://broker").expect("valid").port(), 1883);
         let t = parse("mqtt://alice:s3cret@plant:1883/").expect("valid");
-        assert_eq!(t.credentials, Some(("alice".into(), "s3cret".into())));
-        assert_eq!(t.display(), "mqtt://plant:1883");
+        assert_eq!(t.credentials(), Some(("alice", "s3cret")));
+        assert_eq!(t.to_string(), "mqtt://plant:1883");
         let t = parse("mqtt://[::1]:1999").expect("valid");
-        assert_eq!((t.host.as_str(), t.port), ("::1", 1999));
-        assert_eq!(t.display(), "mqtt://[::1]:1999");
+        assert_eq!((t.host(), t.port()), ("::1", 1999));
+        assert_eq!(t.to_string(), "mqtt://[::1]:1999");
     }
 
     #[test]
     fn configured_credentials_override_the_url() {
-        let t = BrokerTarget::parse("mqtt://a:b@h", Some("ops"), Some("pw")).expect("valid");
-        assert_eq!(t.credentials, Some(("ops".into(), "pw".into())));
-        let t = BrokerTarget::parse("mqtt://a:b@h", None, Some("pw")).expect("valid");
-        assert_eq!(t.credentials, Some(("a".into(), "pw".into())));
+        let t = broker_target("mqtt://a:b@h", Some("ops"), Some("pw")).expect("valid");
+        assert_eq!(t.credentials(), Some(("ops", "pw")));
+        let t = broker_target("mqtt://a:b@h", None, Some("pw")).expect("valid");
+        assert_eq!(t.credentials(), Some(("a", "pw")));
     }
 
     #[test]

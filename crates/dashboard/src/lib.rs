@@ -143,7 +143,7 @@ impl Drop for DashboardHandle {
 /// later in a log), then serves and watches the broker from its own thread. The broker need not
 /// be up: the client retries every second and the page shows the connection state.
 pub fn serve(config: DashboardConfig) -> Result<DashboardHandle, DashboardError> {
-    let broker = hub::BrokerTarget::parse(
+    let broker = hub::broker_target(
         &config.broker_url,
         config.user.as_deref(),
         config.password.as_deref(),

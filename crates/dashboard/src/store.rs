@@ -5,6 +5,7 @@
 
 use std::collections::{BTreeMap, VecDeque};
 
+use cetratus_proto::{parse_topic, Leaf};
 use serde::Serialize;
 use serde_json::{json, Map, Value};
 
@@ -53,14 +54,14 @@ impl Kind {
         }
     }
 
-    fn from_leaf(leaf: &str) -> Option<Kind> {
+    fn from_leaf(leaf: Leaf) -> Option<Kind> {
         match leaf {
-            "state" => Some(Kind::State),
-            "exec_info" => Some(Kind::ExecInfo),
-            "io" => Some(Kind::Io),
-            "events" => Some(Kind::Event),
-            "net" => Some(Kind::Net),
-            _ => None,
+            Leaf::State => Some(Kind::State),
+            Leaf::ExecInfo => Some(Kind::ExecInfo),
+            Leaf::Io => Some(Kind::Io),
+            Leaf::Events => Some(Kind::Event),
+            Leaf::Net => Some(Kind::Net),
+            Leaf::Cmd(_) => None,
         }
     }
 }
@@ -141,14 +142,6 @@ pub struct Fleet {
     plcs: BTreeMap<String, PlcView>,
 }
 
-/// A PLC id as `<plc-id>` must be to stand in a topic (and so in a URL path).
-pub fn valid_plc_id(id: &str) -> bool {
-    !id.is_empty()
-        && id.len() <= 256
-        && !id.contains(['/', '+', '#'])
-        && !id.chars().any(char::is_control)
-}
-
 /// `exec_info` may come as `{"A": …, "B": …}` or as `[A, B]`; the browser gets the object form.
 fn normalise_exec_info(v: Value) -> Result<Value, String> {
     match v {
@@ -194,12 +187,9 @@ impl Fleet {
     /// browsers. An empty payload on a retained topic (the broker's way of deleting a retained
     /// message) clears what was kept.
     pub fn apply(&mut self, topic: &str, payload: &[u8], recv_ms: f64) -> Result<Update, Ignored> {
-        let rest = topic.strip_prefix("cetratus/").ok_or(Ignored::NotOurs)?;
-        let (plc, leaf) = rest.split_once('/').ok_or(Ignored::NotOurs)?;
+        let (plc, leaf) = parse_topic(topic).map_err(|_| Ignored::NotOurs)?;
         let kind = Kind::from_leaf(leaf).ok_or(Ignored::NotOurs)?;
-        if !valid_plc_id(plc) {
-            return Err(Ignored::NotOurs);
-        }
+        let plc = plc.as_str();
         let data: Value = if payload.is_empty() {
             Value::Null
         } else {
@@ -488,10 +478,16 @@ mod tests {
     }
 
     #[test]
-    fn plc_ids_that_cannot_be_topic_levels_are_invalid() {
-        assert!(valid_plc_id("cell-1"));
-        for bad in ["", "a+b", "a#", "a\nb"] {
-            assert!(!valid_plc_id(bad), "{bad:?}");
+    fn plc_ids_that_cannot_be_topic_levels_are_not_ours() {
+        let mut f = Fleet::new();
+        for bad in [
+            "cetratus//state",
+            "cetratus/a+b/state",
+            "cetratus/a\nb/state",
+        ] {
+            assert_eq!(f.apply(bad, b"{}", 0.0), Err(Ignored::NotOurs), "{bad:?}");
         }
+        let long = format!("cetratus/{}/state", "x".repeat(257));
+        assert_eq!(f.apply(&long, b"{}", 0.0), Err(Ignored::NotOurs));
     }
 }

@@ -7,65 +7,14 @@
 use std::time::Duration;
 
 use base64::Engine as _;
-use serde::{Deserialize, Serialize};
+use cetratus_proto::{
+    Accepted, Command, ErrorBody, ErrorCode, EventMsg, PlcId, ProtoError, Reply, ReplyFields,
+    SubstituteArgs, Topics, Verb, MAX_PAYLOAD,
+};
 use serde_json::{json, Map, Value};
 
 use crate::envelope::{Envelope, OperatorKeys};
 use crate::MctError;
-
-/// Largest command payload accepted (1 MiB): a package bigger than this belongs in a file.
-pub const MAX_PAYLOAD: usize = 1 << 20;
-
-/// The command verbs, as the last topic level under `cmd/`.
-pub const VERBS: [&str; 6] = [
-    "load",
-    "remove",
-    "substitute",
-    "abort",
-    "reset",
-    "exec_info",
-];
-
-/// Why a command failed: the `error.code` of a reply.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize, Deserialize)]
-#[serde(rename_all = "snake_case")]
-pub enum ErrorCode {
-    /// Not JSON, not an object, a field of the wrong type, an unknown field, bad base64.
-    Malformed,
-    /// The payload is larger than [`MAX_PAYLOAD`].
-    TooLarge,
-    /// The topic names no known verb.
-    UnknownVerb,
-    /// Operator keys are configured and the command is unsigned or its signature is bad.
-    Unauthorised,
-    /// A signed command's nonce was already used inside the replay window.
-    Replayed,
-    /// The command asked for something only local configuration may grant (`allow_unsigned`).
-    NotAllowed,
-    /// The scan thread's command queue is full; retry.
-    Busy,
-    /// The PLC refused the command (wrong state, bad package, ...); the message says why.
-    Refused,
-    /// The PLC did not answer (it is shutting down).
-    Unavailable,
-}
-
-impl ErrorCode {
-    /// The snake_case name used in payloads.
-    pub fn name(self) -> &'static str {
-        match self {
-            ErrorCode::Malformed => "malformed",
-            ErrorCode::TooLarge => "too_large",
-            ErrorCode::UnknownVerb => "unknown_verb",
-            ErrorCode::Unauthorised => "unauthorised",
-            ErrorCode::Replayed => "replayed",
-            ErrorCode::NotAllowed => "not_allowed",
-            ErrorCode::Busy => "busy",
-            ErrorCode::Refused => "refused",
-            ErrorCode::Unavailable => "unavailable",
-        }
-    }
-}
 
 /// Where and how a reply goes: the MQTT 5 response topic and correlation data, or the MQTT 3.1.1
 /// `reply_to` and `correlation` fields of the payload.
@@ -83,73 +32,20 @@ pub struct ReplyHandle {
     pub request_id: u64,
 }
 
-/// The `error` object of a failed reply.
-#[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
-pub struct ErrorBody {
-    /// Machine-readable reason.
-    pub code: ErrorCode,
-    /// What was wrong and what to do.
-    pub message: String,
-}
+/// What a command came to: its result (for `exec_info`, the figures), or why it failed.
+pub type Outcome = Result<Option<Value>, ErrorBody>;
 
-/// A reply: `ok`, and either `result` or `error`.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-pub struct Reply {
-    /// Whether the command was accepted.
-    pub ok: bool,
-    /// What the command produced (for `exec_info`, the figures), on success.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub result: Option<Value>,
-    /// Why it failed.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub error: Option<ErrorBody>,
-}
-
-impl Reply {
-    /// Success with a result (use `Value::Null` for none).
-    pub fn ok(result: Value) -> Self {
-        Reply {
-            ok: true,
-            result: (!result.is_null()).then_some(result),
-            error: None,
-        }
-    }
-    /// Failure.
-    pub fn err(code: ErrorCode, message: impl Into<String>) -> Self {
-        Reply {
-            ok: false,
-            result: None,
-            error: Some(ErrorBody {
-                code,
-                message: message.into(),
-            }),
-        }
-    }
-    /// The PLC refused the command: `Plc::command`'s error message becomes a `refused` reply.
-    pub fn from_result(r: Result<Value, String>) -> Self {
-        match r {
-            Ok(v) => Reply::ok(v),
-            Err(m) => Reply::err(ErrorCode::Refused, m),
-        }
+/// The outcome of a command the PLC refused: `Plc::command`'s error becomes a `refused` reply.
+pub fn refused(message: impl Into<String>) -> ErrorBody {
+    ErrorBody {
+        code: ErrorCode::Refused,
+        message: message.into(),
     }
 }
 
-/// Arguments of `substitute`.
-#[derive(Clone, Debug, Default, PartialEq, Eq, Deserialize, Serialize)]
-#[serde(deny_unknown_fields)]
-pub struct SubstituteArgs {
-    /// `retransform` (default) or `keep`.
-    #[serde(default)]
-    pub mode: Option<String>,
-    /// Wait until this predicate over the primary marking holds (guard syntax).
-    #[serde(default)]
-    pub when: Option<String>,
-    /// Give up waiting after this many milliseconds.
-    #[serde(default)]
-    pub within_ms: Option<u64>,
-    /// `keep` even with drift.
-    #[serde(default)]
-    pub force: bool,
+/// The outcome of an accepted command: `{"accepted": true}`.
+pub fn accepted() -> Outcome {
+    Ok(serde_json::to_value(Accepted { accepted: true }).ok())
 }
 
 /// A command, parsed and authorised.
@@ -174,14 +70,14 @@ pub enum Request {
 
 impl Request {
     /// The verb.
-    pub fn verb(&self) -> &'static str {
+    pub fn verb(&self) -> Verb {
         match self {
-            Request::Load { .. } => "load",
-            Request::Remove => "remove",
-            Request::Substitute(_) => "substitute",
-            Request::Abort => "abort",
-            Request::Reset => "reset",
-            Request::ExecInfo => "exec_info",
+            Request::Load { .. } => Verb::Load,
+            Request::Remove => Verb::Remove,
+            Request::Substitute(_) => Verb::Substitute,
+            Request::Abort => Verb::Abort,
+            Request::Reset => Verb::Reset,
+            Request::ExecInfo => Verb::ExecInfo,
         }
     }
 }
@@ -202,52 +98,15 @@ pub struct IncomingCommand {
 #[derive(Clone, Debug, PartialEq)]
 pub struct Rejection {
     /// The error reply and where it goes; `None` when the sender gave no reply address.
-    pub reply: Option<(ReplyHandle, Reply)>,
+    pub reply: Option<(ReplyHandle, ErrorBody)>,
     /// A `command_rejected` event.
-    pub event: Value,
-}
-
-/// A program's identity in `state`.
-#[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
-pub struct ProgramInfo {
-    /// Name.
-    pub name: String,
-    /// Version.
-    pub version: String,
-    /// Hex SHA-256.
-    pub hash: String,
-}
-
-/// The programs in A and B.
-#[derive(Clone, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
-pub struct Programs {
-    /// Container A (`null` when empty).
-    #[serde(rename = "A")]
-    pub a: Option<ProgramInfo>,
-    /// Container B (`null` when empty).
-    #[serde(rename = "B")]
-    pub b: Option<ProgramInfo>,
-}
-
-/// The retained `state` message.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-pub struct StateMsg {
-    /// Always true here; the last will publishes `{"online": false}`.
-    pub online: bool,
-    /// PRIMARY: "A" or "B".
-    pub primary: String,
-    /// STATUS: "idle", "setup", "quarantine" or "fault".
-    pub status: String,
-    /// Programs in A and B.
-    pub programs: Programs,
-    /// Cycle figures (cycles, scan/cycle time summaries, overruns), as the runtime reports them.
-    pub cycle: Value,
+    pub event: EventMsg,
 }
 
 /// The control plane of one PLC: topic names, command parsing, payload formatting.
 #[derive(Debug)]
 pub struct ControlPlane {
-    prefix: String,
+    topics: Topics,
     keys: Option<OperatorKeys>,
     next_id: u64,
 }
@@ -256,38 +115,30 @@ fn valid_topic(t: &str) -> bool {
     !t.is_empty() && t.len() <= 1024 && !t.contains(['+', '#', '\0'])
 }
 
-fn rejected_event(verb: &str, code: ErrorCode, message: &str, request_id: u64) -> Value {
-    json!({
-        "kind": "command_rejected",
-        "message": format!("{verb}: {message}"),
-        "detail": {"verb": verb, "code": code, "request_id": request_id},
-    })
+fn rejected_event(verb: &str, code: ErrorCode, message: &str, request_id: u64) -> EventMsg {
+    EventMsg {
+        cycle: None,
+        time_us: None,
+        kind: "command_rejected".into(),
+        message: format!("{verb}: {message}"),
+        detail: json!({"verb": verb, "code": code, "request_id": request_id}),
+    }
 }
 
 impl ControlPlane {
     /// The control plane of PLC `plc_id`; with operator keys, every command must be signed.
     pub fn new(plc_id: &str, keys: Option<OperatorKeys>) -> Result<Self, MctError> {
-        if plc_id.is_empty()
-            || plc_id.contains(['/', '+', '#'])
-            || plc_id.chars().any(char::is_control)
-        {
-            return Err(MctError::PlcId(plc_id.to_string()));
-        }
+        let plc = PlcId::new(plc_id).map_err(|_| MctError::PlcId(plc_id.to_string()))?;
         Ok(ControlPlane {
-            prefix: format!("cetratus/{plc_id}/"),
+            topics: Topics::new(plc),
             keys: keys.filter(|k| !k.is_empty()),
             next_id: 1,
         })
     }
 
-    /// The full topic of a leaf such as `state` or `events`.
-    pub fn topic(&self, leaf: &str) -> String {
-        format!("{}{leaf}", self.prefix)
-    }
-
-    /// The subscription that receives every command.
-    pub fn command_filter(&self) -> String {
-        self.topic("cmd/+")
+    /// The topics of this PLC.
+    pub fn topics(&self) -> &Topics {
+        &self.topics
     }
 
     /// Whether commands must be signed.
@@ -307,11 +158,12 @@ impl ControlPlane {
     ) -> Result<IncomingCommand, Box<Rejection>> {
         let request_id = self.next_id;
         self.next_id += 1;
-        let verb_raw = topic
-            .strip_prefix(&self.prefix)
+        let verb_raw = self
+            .topics
+            .strip(topic)
             .and_then(|r| r.strip_prefix("cmd/"))
             .unwrap_or(topic);
-        let verb = VERBS.iter().find(|v| **v == verb_raw).copied();
+        let verb = verb_raw.parse::<Verb>().ok();
         // The reply address is read before anything else can fail, so every failure is answered.
         let parsed: Result<Value, String> = if payload.is_empty() {
             Ok(Value::Object(Map::new()))
@@ -328,7 +180,11 @@ impl ControlPlane {
             })
             .filter(|t| valid_topic(t));
         let handle = ReplyHandle {
-            verb: verb.unwrap_or(verb_raw).chars().take(64).collect(),
+            verb: verb
+                .map_or(verb_raw, |v| v.as_str())
+                .chars()
+                .take(64)
+                .collect(),
             topic: reply_to,
             correlation_data: correlation_data.map(<[u8]>::to_vec),
             correlation: obj.and_then(|o| o.get("correlation")).cloned(),
@@ -340,7 +196,7 @@ impl ControlPlane {
                 reply: handle
                     .topic
                     .is_some()
-                    .then(|| (handle.clone(), Reply::err(code, message))),
+                    .then(|| (handle.clone(), ErrorBody { code, message })),
             })
         };
         let Some(verb) = verb else {
@@ -349,7 +205,7 @@ impl ControlPlane {
                 format!(
                     "unknown verb `{}`; expected one of {}",
                     handle.verb,
-                    VERBS.join(", ")
+                    Verb::ALL.map(Verb::as_str).join(", ")
                 ),
             ));
         };
@@ -390,7 +246,7 @@ impl ControlPlane {
                 let env: Envelope = serde_json::from_value(env.clone())
                     .map_err(|e| reject(ErrorCode::Malformed, format!("bad envelope: {e}")))?;
                 let (inner, key_id) = keys
-                    .verify(verb, &env, now_unix_s)
+                    .verify(verb.as_str(), &env, now_unix_s)
                     .map_err(|(code, m)| reject(code, m))?;
                 let inner: Value = serde_json::from_slice(&inner).map_err(|e| {
                     reject(
@@ -415,7 +271,7 @@ impl ControlPlane {
                 "allow_unsigned is a local configuration setting and is never accepted from a command".into(),
             ));
         }
-        for meta in ["reply_to", "correlation", "envelope"] {
+        for meta in ReplyFields::META_FIELDS {
             body.remove(meta);
         }
         let request = Self::request(verb, body).map_err(|m| reject(ErrorCode::Malformed, m))?;
@@ -426,78 +282,56 @@ impl ControlPlane {
         })
     }
 
-    fn request(verb: &str, body: Map<String, Value>) -> Result<Request, String> {
-        let no_args = |r: Request| {
-            if let Some(k) = body.keys().next() {
-                Err(format!("`{verb}` takes no arguments; unknown field `{k}`"))
-            } else {
-                Ok(r)
+    fn request(verb: Verb, body: Map<String, Value>) -> Result<Request, String> {
+        let command = Command::from_body(verb, Value::Object(body)).map_err(|e| match e {
+            ProtoError::Payload { source, .. } if !verb.takes_arguments() => {
+                format!("`{verb}` takes no arguments: {source}")
             }
-        };
-        match verb {
-            "load" => {
-                #[derive(Deserialize)]
-                #[serde(deny_unknown_fields)]
-                struct Load {
-                    package_b64: String,
-                }
-                let l: Load = serde_json::from_value(Value::Object(body))
-                    .map_err(|e| format!("bad `load` arguments: {e}"))?;
+            ProtoError::Payload { source, .. } => format!("bad `{verb}` arguments: {source}"),
+            other => other.to_string(),
+        })?;
+        Ok(match command {
+            Command::Load(l) => {
                 let package = base64::engine::general_purpose::STANDARD
                     .decode(l.package_b64.trim())
                     .map_err(|e| format!("package_b64 is not base64: {e}"))?;
                 if package.is_empty() {
                     return Err("package_b64 is empty".into());
                 }
-                Ok(Request::Load { package })
+                Request::Load { package }
             }
-            "substitute" => {
-                let a: SubstituteArgs = serde_json::from_value(Value::Object(body))
-                    .map_err(|e| format!("bad `substitute` arguments: {e}"))?;
-                if let Some(m) = &a.mode {
-                    if m != "retransform" && m != "keep" {
-                        return Err(format!(
-                            "unknown substitution mode `{m}`; expected retransform or keep"
-                        ));
-                    }
-                }
-                Ok(Request::Substitute(a))
-            }
-            "remove" => no_args(Request::Remove),
-            "abort" => no_args(Request::Abort),
-            "reset" => no_args(Request::Reset),
-            _ => no_args(Request::ExecInfo),
-        }
-    }
-
-    /// The JSON body of a reply: `ok`, `verb`, `request_id`, `correlation` (if given), and
-    /// `result` or `error`.
-    pub fn reply_payload(handle: &ReplyHandle, reply: &Reply) -> Vec<u8> {
-        let mut v = json!({"ok": reply.ok, "verb": handle.verb, "request_id": handle.request_id});
-        if let Some(c) = &handle.correlation {
-            v["correlation"] = c.clone();
-        }
-        if let Some(r) = &reply.result {
-            v["result"] = r.clone();
-        }
-        if let Some(e) = &reply.error {
-            v["error"] = json!({"code": e.code, "message": e.message});
-        }
-        v.to_string().into_bytes()
-    }
-
-    /// The audit event of an accepted command.
-    pub fn accepted_event(cmd: &IncomingCommand) -> Value {
-        json!({
-            "kind": "command_received",
-            "message": format!("{} received", cmd.reply.verb),
-            "detail": {"verb": cmd.reply.verb, "request_id": cmd.reply.request_id, "key_id": cmd.key_id},
+            Command::Substitute(a) => Request::Substitute(a),
+            Command::Remove => Request::Remove,
+            Command::Abort => Request::Abort,
+            Command::Reset => Request::Reset,
+            Command::ExecInfo => Request::ExecInfo,
         })
     }
 
-    /// The retained payload that says the PLC is gone (the last will, and a clean shutdown).
-    pub fn offline_payload() -> Vec<u8> {
-        br#"{"online":false}"#.to_vec()
+    /// The reply to a command, as published: `ok`, `verb`, `request_id`, `correlation` (if
+    /// given), and `result` or `error`.
+    pub fn reply(handle: &ReplyHandle, outcome: &Outcome) -> Reply {
+        let reply = match outcome {
+            Ok(result) => Reply::ok(&handle.verb, handle.request_id, result.clone()),
+            Err(e) => Reply::err(&handle.verb, handle.request_id, e.code, e.message.clone()),
+        };
+        reply.with_correlation(handle.correlation.clone())
+    }
+
+    /// [`ControlPlane::reply`] as bytes.
+    pub fn reply_payload(handle: &ReplyHandle, outcome: &Outcome) -> Vec<u8> {
+        serde_json::to_vec(&Self::reply(handle, outcome)).unwrap_or_default()
+    }
+
+    /// The audit event of an accepted command.
+    pub fn accepted_event(cmd: &IncomingCommand) -> EventMsg {
+        EventMsg {
+            cycle: None,
+            time_us: None,
+            kind: "command_received".into(),
+            message: format!("{} received", cmd.reply.verb),
+            detail: json!({"verb": cmd.reply.verb, "request_id": cmd.reply.request_id, "key_id": cmd.key_id}),
+        }
     }
 }
 
@@ -520,7 +354,7 @@ mod tests {
     fn code(r: Result<IncomingCommand, Box<Rejection>>) -> ErrorCode {
         match r {
             Ok(c) => panic!("accepted: {c:?}"),
-            Err(rej) => rej.reply.expect("a reply").1.error.expect("an error").code,
+            Err(rej) => rej.reply.expect("a reply").1.code,
         }
     }
 
@@ -620,7 +454,7 @@ mod tests {
             .parse("cetratus/cell1/cmd/load", b"nope", None, None, 0)
             .expect_err("rejected");
         assert!(rej.reply.is_none());
-        assert_eq!(rej.event["kind"], "command_rejected");
+        assert_eq!(rej.event.kind, "command_rejected");
     }
 
     #[test]

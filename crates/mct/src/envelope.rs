@@ -13,8 +13,8 @@ use ed25519_dalek::{Signature, Signer as _, SigningKey, Verifier as _, Verifying
 use serde::{Deserialize, Serialize};
 use sha2::{Digest, Sha256};
 
-use crate::control::ErrorCode;
 use crate::MctError;
+use cetratus_proto::ErrorCode;
 
 /// Domain separation, so a command signature can never be mistaken for any other signature.
 const CONTEXT: &str = "cetratus-cmd-v1";

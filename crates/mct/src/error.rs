@@ -38,7 +38,7 @@ pub enum MctError {
     #[error("--mqtt (embedded broker) and --broker (plant broker) exclude each other; give one")]
     BothBrokers,
     /// The PLC id cannot be used as a topic level.
-    #[error("bad PLC id `{0}`: it must be non-empty and must not contain `/`, `+`, `#` or control characters")]
+    #[error("bad PLC id `{0}`: it must be non-empty, at most 256 bytes, and must not contain `/`, `+`, `#` or control characters")]
     PlcId(String),
     /// An operator key in the configuration is not a valid ed25519 public key.
     #[error("bad operator key `{id}`: {reason}")]

@@ -3,7 +3,7 @@
 //! Two halves:
 //! * [`ControlPlane`], transport-independent: turns `(topic, payload, response topic, correlation
 //!   data)` into a typed, authorised [`IncomingCommand`] or a [`Rejection`] holding the error reply
-//!   and the event; formats replies. Plain serde types ([`StateMsg`], [`Reply`]) describe payloads.
+//!   and the event; formats replies. The payloads are the structs of `cetratus-proto`.
 //! * [`start`] / [`spawn_mqtt`]: an MQTT 5 client (rumqttc) in its own threads, connected to the
 //!   [`EmbeddedBroker`] (rmqtt, one port for MQTT 3.1.1 and 5) or to a plant broker.
 //!
@@ -16,8 +16,8 @@
 //! loop {
 //!     // once per cycle, on the scan thread:
 //!     while let Some(cmd) = link.try_command() {
-//!         let result: Result<serde_json::Value, String> = Ok(serde_json::Value::Null); // Plc::command(...)
-//!         let _ = link.send(Outgoing::Reply(cmd.reply, Reply::from_result(result)));
+//!         let outcome = accepted(); // or Err(refused(reason)) when Plc::command refuses
+//!         let _ = link.send(Outgoing::Reply(cmd.reply, outcome));
 //!     }
 //!     // `send` never blocks: a full queue gives the message back; keep events/replies for the
 //!     // next cycle, drop periodic figures.
@@ -38,8 +38,8 @@ mod link;
 
 pub use broker::{EmbeddedBroker, BROKER_MAX_PACKET};
 pub use control::{
-    unix_now, ControlPlane, ErrorBody, ErrorCode, IncomingCommand, ProgramInfo, Programs,
-    Rejection, Reply, ReplyHandle, Request, StateMsg, SubstituteArgs, MAX_PAYLOAD, VERBS,
+    accepted, refused, unix_now, ControlPlane, IncomingCommand, Outcome, Rejection, ReplyHandle,
+    Request,
 };
 pub use envelope::{sign, signing_message, Envelope, OperatorKeys};
 pub use error::MctError;

@@ -8,16 +8,17 @@ use std::sync::Arc;
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
+use cetratus_proto::{
+    BrokerUrl, ErrorBody, ErrorCode, EventMsg, ExecInfoMsg, IoMsg, NetMsg, ProtoError, StateMsg,
+    StatePayload, Topics,
+};
 use rumqttc::v5::mqttbytes::v5::{LastWill, Packet, PublishProperties};
 use rumqttc::v5::mqttbytes::QoS;
 use rumqttc::v5::{AsyncClient, Event, EventLoop, MqttOptions};
 use rumqttc::Transport;
-use serde_json::Value;
 
 use crate::broker::{EmbeddedBroker, BROKER_MAX_PACKET};
-use crate::control::{
-    unix_now, ControlPlane, ErrorCode, IncomingCommand, Reply, ReplyHandle, StateMsg,
-};
+use crate::control::{unix_now, ControlPlane, IncomingCommand, Outcome, ReplyHandle};
 use crate::envelope::OperatorKeys;
 use crate::MctError;
 
@@ -113,18 +114,17 @@ impl MqttConfig {
 pub enum Outgoing {
     /// The retained `state`; published at once when PRIMARY, STATUS or the programs change, else
     /// at the publish period.
-    State(StateMsg),
+    State(Box<StateMsg>),
     /// `program_exec_info` of both containers; the latest is published every period.
-    ExecInfo(Value),
+    ExecInfo(Box<ExecInfoMsg>),
     /// Inputs, outputs of A and B, dispatched outputs; the latest is published every period.
-    Io(Value),
+    Io(IoMsg),
     /// An event (update lifecycle, refusals); published at once, in order.
-    Event(Value),
-    /// The nets of A and B as SVG drawings (`{"A": svg|null, "B": svg|null}`); retained, published
-    /// at once when a program changes.
-    Net(Value),
+    Event(EventMsg),
+    /// The nets of A and B as SVG drawings; retained, published at once when a program changes.
+    Net(NetMsg),
     /// The answer to a command.
-    Reply(ReplyHandle, Reply),
+    Reply(ReplyHandle, Outcome),
 }
 
 /// The scan thread's end: commands in, everything else out. Use only the non-blocking calls.
@@ -222,7 +222,7 @@ impl MqttHandle {
                         topic,
                         QoS::AtLeastOnce,
                         true,
-                        ControlPlane::offline_payload(),
+                        StatePayload::OFFLINE_JSON.to_vec(),
                     )
                     .await;
                 let _ = client.disconnect().await;
@@ -247,34 +247,26 @@ impl Drop for MqttHandle {
     }
 }
 
-/// Parses `mqtt://[user:password@]host[:port]` or `mqtts://...` into client options.
+/// Client options for a broker URL (`mqtt://[user:password@]host[:port]`, `mqtts://…`; the one
+/// parser is [`BrokerUrl`]).
 pub fn client_options(url: &str, client_id: &str) -> Result<MqttOptions, MctError> {
-    let bad = |reason: &str| MctError::BrokerUrl {
+    let u = BrokerUrl::parse(url).map_err(|e| MctError::BrokerUrl {
         url: url.to_string(),
-        reason: reason.to_string(),
-    };
-    let u = url::Url::parse(url).map_err(|e| bad(&e.to_string()))?;
-    let tls = match u.scheme() {
-        "mqtt" | "tcp" => false,
-        "mqtts" | "ssl" => true,
-        _ => return Err(bad("unknown scheme")),
-    };
-    let host = u.host_str().ok_or_else(|| bad("no host"))?;
-    let port = u.port().unwrap_or(if tls { 8883 } else { 1883 });
-    let mut o = MqttOptions::new(
-        client_id,
-        host.trim_start_matches('[').trim_end_matches(']'),
-        port,
-    );
-    if tls {
+        reason: match e {
+            ProtoError::BrokerUrl { reason, .. } => reason,
+            other => other.to_string(),
+        },
+    })?;
+    let mut o = MqttOptions::new(client_id, u.host(), u.port());
+    if u.tls() {
         // Both ring and aws-lc-rs end up in the dependency tree, so rustls cannot choose on its
         // own and would panic on the first handshake. An `Err` means a provider is already
         // installed (by us or by the embedding program), which is as good.
         let _ = rustls::crypto::ring::default_provider().install_default();
         o.set_transport(Transport::tls_with_default_config());
     }
-    if !u.username().is_empty() {
-        o.set_credentials(u.username(), u.password().unwrap_or(""));
+    if let Some((user, password)) = u.credentials() {
+        o.set_credentials(user, password);
     }
     Ok(o)
 }
@@ -326,13 +318,14 @@ pub fn spawn_mqtt(
     publish_period: Duration,
     queue_capacity: usize,
 ) -> Result<(MctLink, MqttHandle), MctError> {
-    let state_topic = control.topic("state");
+    let topics = control.topics().clone();
+    let state_topic = topics.state().to_string();
     opts.set_keep_alive(Duration::from_secs(10))
         .set_clean_start(true)
         .set_max_packet_size(Some(BROKER_MAX_PACKET))
         .set_last_will(LastWill::new(
             state_topic.clone(),
-            ControlPlane::offline_payload(),
+            StatePayload::OFFLINE_JSON.to_vec(),
             QoS::AtLeastOnce,
             true,
             None,
@@ -349,20 +342,13 @@ pub fn spawn_mqtt(
     });
     let (cmd_tx, cmd_rx) = std::sync::mpsc::sync_channel(queue_capacity);
     let (out_tx, out_rx) = std::sync::mpsc::sync_channel(queue_capacity);
-    let topics = Topics {
-        state: state_topic.clone(),
-        exec_info: control.topic("exec_info"),
-        net: control.topic("net"),
-        io: control.topic("io"),
-        events: control.topic("events"),
-    };
     let loop_task = rt.spawn(event_loop(
         eventloop,
         client.clone(),
         control,
         cmd_tx,
         shared.clone(),
-        topics.events.clone(),
+        topics.events().to_string(),
     ));
     let out_thread = {
         let (client, shared, rt) = (client.clone(), shared.clone(), rt.handle().clone());
@@ -388,14 +374,6 @@ pub fn spawn_mqtt(
     ))
 }
 
-struct Topics {
-    state: String,
-    exec_info: String,
-    io: String,
-    events: String,
-    net: String,
-}
-
 fn reply_props(handle: &ReplyHandle) -> PublishProperties {
     PublishProperties {
         correlation_data: handle.correlation_data.clone().map(Into::into),
@@ -406,9 +384,9 @@ fn reply_props(handle: &ReplyHandle) -> PublishProperties {
 
 // Runs inside the event loop task, so it must never await the client (its queue is drained by
 // this very task): try_publish, and a full queue loses the message with a log line.
-fn try_reply(client: &AsyncClient, handle: &ReplyHandle, reply: &Reply) {
+fn try_reply(client: &AsyncClient, handle: &ReplyHandle, outcome: &Outcome) {
     if let Some(topic) = &handle.topic {
-        let payload = ControlPlane::reply_payload(handle, reply);
+        let payload = ControlPlane::reply_payload(handle, outcome);
         if let Err(e) = client.try_publish_with_properties(
             topic.clone(),
             QoS::AtLeastOnce,
@@ -421,8 +399,9 @@ fn try_reply(client: &AsyncClient, handle: &ReplyHandle, reply: &Reply) {
     }
 }
 
-fn try_event(client: &AsyncClient, topic: &str, event: &Value) {
-    if let Err(e) = client.try_publish(topic, QoS::AtLeastOnce, false, event.to_string()) {
+fn try_event(client: &AsyncClient, topic: &str, event: &EventMsg) {
+    let payload = serde_json::to_vec(event).unwrap_or_default();
+    if let Err(e) = client.try_publish(topic, QoS::AtLeastOnce, false, payload) {
         log::warn!("cannot publish an event: {e}");
     }
 }
@@ -435,7 +414,7 @@ async fn event_loop(
     shared: Arc<Shared>,
     events: String,
 ) {
-    let filter = control.command_filter();
+    let filter = control.topics().command_filter().to_string();
     loop {
         match eventloop.poll().await {
             Ok(Event::Incoming(Packet::ConnAck(_))) => {
@@ -461,24 +440,25 @@ async fn event_loop(
                             Err(TrySendError::Full(cmd)) => try_reply(
                                 &client,
                                 &cmd.reply,
-                                &Reply::err(
-                                    ErrorCode::Busy,
-                                    "the PLC's command queue is full; retry in a moment",
-                                ),
+                                &Err(ErrorBody {
+                                    code: ErrorCode::Busy,
+                                    message: "the PLC's command queue is full; retry in a moment"
+                                        .into(),
+                                }),
                             ),
                             Err(TrySendError::Disconnected(cmd)) => try_reply(
                                 &client,
                                 &cmd.reply,
-                                &Reply::err(
-                                    ErrorCode::Unavailable,
-                                    "the PLC's scan loop is not running",
-                                ),
+                                &Err(ErrorBody {
+                                    code: ErrorCode::Unavailable,
+                                    message: "the PLC's scan loop is not running".into(),
+                                }),
                             ),
                         }
                     }
                     Err(rej) => {
-                        if let Some((h, r)) = &rej.reply {
-                            try_reply(&client, h, r);
+                        if let Some((h, e)) = &rej.reply {
+                            try_reply(&client, h, &Err(e.clone()));
                         }
                         try_event(&client, &events, &rej.event);
                     }
@@ -503,10 +483,10 @@ async fn event_loop(
     }
 }
 
-fn state_key(s: &StateMsg) -> (String, String, String) {
+fn state_key(s: &StateMsg) -> (cetratus_proto::Slot, cetratus_proto::StatusName, String) {
     (
-        s.primary.clone(),
-        s.status.clone(),
+        s.primary,
+        s.status,
         serde_json::to_string(&s.programs).unwrap_or_default(),
     )
 }
@@ -539,8 +519,9 @@ fn outgoing_loop(
                 log::warn!("cannot publish on {topic}: {e}");
             }
         };
-    let (mut exec_info, mut io, mut state): (Option<Value>, Option<Value>, Option<StateMsg>) =
-        (None, None, None);
+    let mut exec_info: Option<Box<ExecInfoMsg>> = None;
+    let mut io: Option<IoMsg> = None;
+    let mut state: Option<Box<StateMsg>> = None;
     let mut last_state_key = None;
     let mut next = Instant::now();
     let tick = period
@@ -552,12 +533,7 @@ fn outgoing_loop(
                 let key = state_key(&s);
                 if last_state_key.as_ref() != Some(&key) {
                     last_state_key = Some(key);
-                    publish(
-                        &topics.state,
-                        true,
-                        serde_json::to_vec(&s).unwrap_or_default(),
-                        None,
-                    );
+                    publish(topics.state(), true, to_json(&s), None);
                     state = None;
                 } else {
                     state = Some(s);
@@ -565,10 +541,8 @@ fn outgoing_loop(
             }
             Ok(Outgoing::ExecInfo(v)) => exec_info = Some(v),
             Ok(Outgoing::Io(v)) => io = Some(v),
-            Ok(Outgoing::Net(v)) => publish(&topics.net, true, v.to_string().into_bytes(), None),
-            Ok(Outgoing::Event(v)) => {
-                publish(&topics.events, false, v.to_string().into_bytes(), None)
-            }
+            Ok(Outgoing::Net(v)) => publish(topics.net(), true, to_json(&v), None),
+            Ok(Outgoing::Event(v)) => publish(topics.events(), false, to_json(&v), None),
             Ok(Outgoing::Reply(h, r)) => {
                 if let Some(t) = &h.topic {
                     publish(
@@ -586,24 +560,26 @@ fn outgoing_loop(
             next = Instant::now() + period;
             if let Some(s) = state.take() {
                 publish(
-                    &topics.state,
+                    topics.state(),
                     true,
                     serde_json::to_vec(&s).unwrap_or_default(),
                     None,
                 );
             }
             if let Some(v) = exec_info.take() {
-                publish(&topics.exec_info, false, v.to_string().into_bytes(), None);
+                publish(topics.exec_info(), false, to_json(&v), None);
             }
             if let Some(mut v) = io.take() {
                 // Stamped when it leaves, so a subscriber can measure the delivery latency.
-                if let Some(o) = v.as_object_mut() {
-                    o.insert("unix_ms".into(), Value::from(unix_ms()));
-                }
-                publish(&topics.io, false, v.to_string().into_bytes(), None);
+                v.unix_ms = Some(unix_ms());
+                publish(topics.io(), false, to_json(&v), None);
             }
         }
     }
+}
+
+fn to_json<T: serde::Serialize>(v: &T) -> Vec<u8> {
+    serde_json::to_vec(v).unwrap_or_default()
 }
 
 /// Wall-clock milliseconds since the Unix epoch.

@@ -7,7 +7,8 @@ use std::net::SocketAddr;
 use std::process::Command;
 use std::time::Duration;
 
-use cetratus_mct::{start, BrokerChoice, MqttConfig, MqttHandle, MAX_PAYLOAD};
+use cetratus_mct::{start, BrokerChoice, MqttConfig, MqttHandle};
+use cetratus_proto::MAX_PAYLOAD;
 use common::*;
 use rumqttc::v5::mqttbytes::v5::PublishProperties;
 use rumqttc::v5::mqttbytes::QoS;

@@ -189,7 +189,7 @@ fn an_unreachable_plant_broker_does_not_stop_start_and_shutdown() {
     assert!(!handle.wait_connected(Duration::from_millis(300)));
     // The scan side keeps running: sends never block.
     for _ in 0..1000 {
-        let _ = link.send(cetratus_mct::Outgoing::Io(json!({})));
+        let _ = link.send(cetratus_mct::Outgoing::Io(common::io(0)));
     }
     handle.shutdown();
 }

@@ -20,5 +20,6 @@ pub mod periodic;
 pub mod rt;
 pub mod script;
 pub mod state;
+pub mod wire;
 
 pub use node::{Echo, Node, NodeOptions, NodeReport};

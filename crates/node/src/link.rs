@@ -12,16 +12,17 @@ use std::sync::atomic::AtomicBool;
 use std::sync::mpsc::{sync_channel, Receiver, SyncSender, TrySendError};
 use std::sync::Arc;
 
-use cetratus_mct::{
-    IncomingCommand, MctLink, Outgoing, ProgramInfo, Programs, Reply, Request, StateMsg,
-};
+use cetratus_mct::{accepted, refused, IncomingCommand, MctLink, Outgoing, Request};
 use cetratus_program::{Program, TrustStore, Value};
+use cetratus_proto::{EventMsg, IoMsg, IoNames, StateMsg};
 use cetratus_runtime::monitor::CycleRecord;
 use cetratus_runtime::{
-    value_json, Command, Event, ExecInfo, LoopTiming, Plc, Slot, Status, SubstituteMode,
-    SubstituteRequest, UpdateContext,
+    Command, Event, ExecInfo, LoopTiming, Plc, Slot, Status, SubstituteMode, SubstituteRequest,
+    UpdateContext,
 };
-use serde_json::{json, Value as Json};
+use serde_json::json;
+
+use crate::wire;
 
 enum ToScan {
     Command(Box<Command>, IncomingCommand),
@@ -42,36 +43,6 @@ struct Snapshot {
     samples: Vec<CycleRecord>,
     programs: Option<[Option<ProgramAndMarking>; 2]>,
     time_us: u64,
-}
-
-fn program_info(plc: &Plc, s: Slot) -> Option<ProgramInfo> {
-    plc.container(s).map(|c| ProgramInfo {
-        name: c.program().name().to_string(),
-        version: c.program().version().to_string(),
-        hash: c.program().hash_hex().to_string(),
-    })
-}
-
-fn state_msg(plc: &Plc, timing: &LoopTiming) -> StateMsg {
-    let scan = plc.monitor().stats[plc.primary().index()].scan.summary();
-    StateMsg {
-        online: true,
-        primary: plc.primary().name().to_string(),
-        status: plc.status().name().to_string(),
-        programs: Programs {
-            a: program_info(plc, Slot::A),
-            b: program_info(plc, Slot::B),
-        },
-        cycle: json!({
-            "cycles": plc.cycles(),
-            "time_ms": plc.now_us() / 1000,
-            "scan": scan,
-            "cycle": timing.cycle.summary(),
-            "latency": timing.latency.summary(),
-            "overruns": timing.overruns,
-            "update": plc.update_meta().map(|m| format!("{} {}", m.name, m.version)),
-        }),
-    }
 }
 
 /// The scan thread's side of MQTT: call [`ControlLink::take_commands`] before each cycle and
@@ -152,22 +123,21 @@ impl ControlLink {
         while let Ok(msg) = self.to_scan_rx.try_recv() {
             match msg {
                 ToScan::Command(cmd, from) => {
-                    let r = plc
-                        .command(*cmd)
-                        .map(|()| json!({"accepted": true}))
-                        .map_err(|e| e.to_string());
+                    let outcome = match plc.command(*cmd) {
+                        Ok(()) => accepted(),
+                        Err(e) => Err(refused(e.to_string())),
+                    };
                     who = Some(
                         from.key_id
                             .as_ref()
                             .map_or("mqtt".to_string(), |k| format!("mqtt:{k}")),
                     );
-                    self.pending
-                        .push_back(Outgoing::Reply(from.reply, Reply::from_result(r)));
+                    self.pending.push_back(Outgoing::Reply(from.reply, outcome));
                 }
                 ToScan::ExecInfo(from) => {
-                    let info = serde_json::to_value(plc.exec_info()).unwrap_or(Json::Null);
+                    let info = serde_json::to_value(wire::exec_info_msg(plc)).ok();
                     self.pending
-                        .push_back(Outgoing::Reply(from.reply, Reply::ok(info)));
+                        .push_back(Outgoing::Reply(from.reply, Ok(info)));
                 }
             }
         }
@@ -177,9 +147,7 @@ impl ControlLink {
     /// Queues events (those of a command taken between cycles) for publication.
     pub fn queue_events(&mut self, events: &[Event]) {
         for e in events {
-            self.pending.push_back(Outgoing::Event(
-                serde_json::to_value(e).unwrap_or(Json::Null),
-            ));
+            self.pending.push_back(Outgoing::Event(wire::event(e)));
         }
     }
 
@@ -209,7 +177,7 @@ impl ControlLink {
                 .collect();
             self.last_sampled = plc.cycles();
             let snap = Snapshot {
-                state: state_msg(plc, timing),
+                state: wire::state(plc, timing),
                 exec_info: plc.exec_info(),
                 names_in: self.names_in.clone(),
                 names_out: self.names_out.clone(),
@@ -286,7 +254,7 @@ fn prepare_loop(
         let Some(c) = ctx.as_ref() else {
             let _ = out.send(Outgoing::Reply(
                 cmd.reply,
-                Reply::from_result(Err("the PLC is starting; try again".into())),
+                Err(refused("the PLC is starting; try again")),
             ));
             continue;
         };
@@ -309,12 +277,14 @@ fn prepare_loop(
                 }
             }
             Err(reason) => {
-                let _ = out.send(Outgoing::Event(json!({
-                    "kind": "refused",
-                    "message": reason,
-                    "detail": {"verb": cmd.request.verb(), "key_id": cmd.key_id},
-                })));
-                let _ = out.send(Outgoing::Reply(cmd.reply, Reply::from_result(Err(reason))));
+                let _ = out.send(Outgoing::Event(EventMsg {
+                    cycle: None,
+                    time_us: None,
+                    kind: "refused".into(),
+                    message: reason.clone(),
+                    detail: json!({"verb": cmd.request.verb(), "key_id": cmd.key_id}),
+                }));
+                let _ = out.send(Outgoing::Reply(cmd.reply, Err(refused(reason))));
             }
         }
     }
@@ -322,11 +292,11 @@ fn prepare_loop(
 
 fn substitute(
     c: &UpdateContext,
-    a: &cetratus_mct::SubstituteArgs,
+    a: &cetratus_proto::SubstituteArgs,
 ) -> Result<SubstituteRequest, String> {
-    let mode = match a.mode.as_deref() {
-        None => SubstituteMode::Retransform,
-        Some(m) => m.parse::<SubstituteMode>()?,
+    let mode = match a.mode {
+        None | Some(cetratus_proto::SubstituteMode::Retransform) => SubstituteMode::Retransform,
+        Some(cetratus_proto::SubstituteMode::Keep) => SubstituteMode::Keep,
     };
     c.substitute_request(
         mode,
@@ -337,60 +307,34 @@ fn substitute(
     .map_err(|e| e.to_string())
 }
 
-fn named(names: &[String], values: &[Value]) -> Json {
-    Json::Object(
-        names
-            .iter()
-            .zip(values)
-            .map(|(n, v)| (n.clone(), value_json(*v)))
-            .collect(),
-    )
-}
-
 fn publish_loop(rx: Receiver<Snapshot>, out: SyncSender<Outgoing>) {
     while let Ok(s) = rx.recv() {
-        if out.send(Outgoing::State(s.state)).is_err() {
+        if out.send(Outgoing::State(Box::new(s.state))).is_err() {
             return;
         }
-        let _ = out.send(Outgoing::ExecInfo(
-            serde_json::to_value(&s.exec_info).unwrap_or(Json::Null),
-        ));
-        let samples: Vec<Json> = s
-            .samples
-            .iter()
-            .map(|r| {
-                json!([
-                    r.time_us / 1000,
-                    r.primary.name(),
-                    r.status.name(),
-                    r.inputs,
-                    r.outputs_a,
-                    r.outputs_b,
-                    r.dispatched
-                ])
-            })
-            .collect();
-        let io = json!({
-            "time_ms": s.time_us / 1000,
-            "names": {"inputs": &*s.names_in, "outputs": &*s.names_out},
-            "inputs": named(&s.names_in, &s.inputs),
-            "outputs_a": s.outputs[0].as_ref().map(|o| named(&s.names_out, o)),
-            "outputs_b": s.outputs[1].as_ref().map(|o| named(&s.names_out, o)),
-            "dispatched": named(&s.names_out, &s.dispatched),
-            "samples": samples,
-        });
+        let info =
+            cetratus_proto::ExecInfoMsg(s.exec_info.map(|e| e.as_ref().map(wire::exec_info)));
+        let _ = out.send(Outgoing::ExecInfo(Box::new(info)));
+        let io = IoMsg {
+            dispatched: wire::signals(&s.names_out, &s.dispatched),
+            inputs: wire::signals(&s.names_in, &s.inputs),
+            names: IoNames {
+                inputs: s.names_in.to_vec(),
+                outputs: s.names_out.to_vec(),
+            },
+            outputs_a: s.outputs[0]
+                .as_ref()
+                .map(|o| wire::signals(&s.names_out, o)),
+            outputs_b: s.outputs[1]
+                .as_ref()
+                .map(|o| wire::signals(&s.names_out, o)),
+            samples: s.samples.iter().map(wire::sample).collect(),
+            time_ms: s.time_us / 1000,
+            unix_ms: None,
+        };
         let _ = out.send(Outgoing::Io(io));
         if let Some(programs) = s.programs {
-            let svg = |p: &Option<(Arc<Program>, Vec<u32>)>| {
-                p.as_ref()
-                    .map(|(prog, m)| {
-                        Json::String(cetratus_net::export::to_svg(prog.net(), Some(m)))
-                    })
-                    .unwrap_or(Json::Null)
-            };
-            let _ = out.send(Outgoing::Net(
-                json!({"A": svg(&programs[0]), "B": svg(&programs[1])}),
-            ));
+            let _ = out.send(Outgoing::Net(wire::net(&programs)));
         }
     }
 }

@@ -109,7 +109,7 @@ impl BrokerUrl {
             "mqtts" | "ssl" => true,
             other => {
                 return Err(bad(format!(
-                    "unknown scheme `{other}` (the accepted ones are mqtt, tcp, mqtts and ssl)"
+                    "unknown scheme `{other}`; write `mqtt://host:port` (the accepted schemes are mqtt, tcp, mqtts and ssl)"
                 )))
             }
         };

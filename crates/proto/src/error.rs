@@ -5,7 +5,7 @@
 pub enum ProtoError {
     /// The PLC id cannot stand as a topic level.
     #[error(
-        "bad PLC id `{id}`: {reason}; a PLC id must be non-empty and must not contain `/`, `+`, \
+        "bad PLC id `{id}`: {reason}; a PLC id must be non-empty, at most 256 bytes, and must not contain `/`, `+`, \
          `#` or control characters, e.g. `cell1` or `press-7`"
     )]
     PlcId {

@@ -100,11 +100,13 @@ names! {
 
 names! {
     /// A container's role in `exec_info`.
-    Role, "role", "primary or candidate" {
+    Role, "role", "primary, candidate or shadow" {
         /// The container whose outputs are dispatched.
         Primary = "primary",
         /// The container in quarantine.
         Candidate = "candidate",
+        /// The old program on probation after a substitution, its outputs withheld.
+        Shadow = "shadow",
     }
 }
 

@@ -13,7 +13,8 @@ pub const ROOT: &str = "cetratus";
 /// The subscription that receives every topic of every PLC (what the dashboard listens to).
 pub const ALL_PLCS_FILTER: &str = "cetratus/+/#";
 
-/// A PLC id: the `<plc-id>` topic level. Non-empty, without `/`, `+`, `#` or control characters.
+/// A PLC id: the `<plc-id>` topic level. Non-empty, at most [`PlcId::MAX_LEN`] bytes, without
+/// `/`, `+`, `#` or control characters.
 #[derive(Clone, Debug, PartialEq, Eq, PartialOrd, Ord, Hash)]
 pub struct PlcId(String);
 
@@ -23,6 +24,8 @@ impl PlcId {
         let id = id.into();
         let reason = if id.is_empty() {
             Some("it is empty")
+        } else if id.len() > Self::MAX_LEN {
+            Some("it is longer than 256 bytes")
         } else if id.contains('/') {
             Some("it contains `/`, which would split it into two topic levels")
         } else if id.contains(['+', '#']) {
@@ -41,9 +44,15 @@ impl PlcId {
         }
     }
 
+    /// The longest id, in bytes: it also names a URL path of the dashboard.
+    pub const MAX_LEN: usize = 256;
+
     /// Whether `id` would be accepted by [`PlcId::new`].
     pub fn is_valid(id: &str) -> bool {
-        !id.is_empty() && !id.contains(['/', '+', '#']) && !id.chars().any(char::is_control)
+        !id.is_empty()
+            && id.len() <= Self::MAX_LEN
+            && !id.contains(['/', '+', '#'])
+            && !id.chars().any(char::is_control)
     }
 
     /// The id as text.

@@ -12,13 +12,13 @@ use serde_json::{json, Value};
 // ------------------------------------------------------------------------------ PLC ids
 
 #[test]
-fn plc_ids_follow_todays_rule() {
+fn plc_ids_follow_the_one_rule_of_the_plc_and_the_dashboard() {
     for good in [
         "cell1",
         "press-7",
         "a.b_c",
         "Zelle ü",
-        "x".repeat(300).as_str(),
+        "x".repeat(256).as_str(),
     ] {
         let id = PlcId::new(good).expect(good);
         assert_eq!(id.as_str(), good);
@@ -31,6 +31,7 @@ fn plc_ids_follow_todays_rule() {
         ("a#", "wildcard"),
         ("a\nb", "control character"),
         ("a\u{7f}", "control character"),
+        (&"x".repeat(257), "longer than 256 bytes"),
     ] {
         let e = PlcId::new(bad).expect_err(bad).to_string();
         assert!(e.contains(why), "{bad:?}: {e}");

@@ -5,7 +5,7 @@
 use std::collections::{BTreeMap, VecDeque};
 
 use cetratus_net::TransIdx;
-use cetratus_program::Projection;
+use cetratus_program::{Projection, Value};
 use serde::Serialize;
 
 use crate::router::MessageRouter;
@@ -197,7 +197,8 @@ pub struct ExecInfo {
     /// Tokens per place id.
     pub marking: BTreeMap<String, u32>,
     /// Outputs by name.
-    pub outputs: BTreeMap<String, serde_json::Value>,
+    #[serde(serialize_with = "values_by_name")]
+    pub outputs: BTreeMap<String, Value>,
     /// Cycles in which each output differed from the primary's (candidates only).
     pub divergence: BTreeMap<String, u64>,
     /// The derived cause of the first divergence, in words.
@@ -212,6 +213,13 @@ pub struct ExecInfo {
     pub deadlock: bool,
     /// Validation verdicts.
     pub verdicts: Vec<Verdict>,
+}
+
+fn values_by_name<S: serde::Serializer>(
+    m: &BTreeMap<String, Value>,
+    s: S,
+) -> Result<S::Ok, S::Error> {
+    s.collect_map(m.iter().map(|(k, v)| (k, value_json(*v))))
 }
 
 /// What the Monitor compares in a quarantine cycle.
@@ -345,7 +353,7 @@ impl Monitor {
                     .outputs()
                     .iter()
                     .zip(c.outputs())
-                    .map(|(s, v)| (s.name.clone(), value_json(*v)))
+                    .map(|(s, v)| (s.name.clone(), *v))
                     .collect(),
                 divergence: if is_primary {
                     BTreeMap::new()

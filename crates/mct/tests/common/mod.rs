@@ -10,7 +10,10 @@ use std::sync::Arc;
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
-use cetratus_mct::{MctLink, Outgoing, ProgramInfo, Programs, Reply, Request, StateMsg};
+use cetratus_mct::{refused, MctLink, Outgoing, Request};
+use cetratus_proto::{
+    CycleFigures, IoMsg, IoNames, ProgramInfo, Programs, Slot, StateMsg, StatusName,
+};
 use rumqttc::v5::mqttbytes::v5::Packet;
 use rumqttc::v5::mqttbytes::QoS;
 use rumqttc::v5::{Client, Event, MqttOptions};
@@ -153,8 +156,8 @@ pub struct FakeScan {
 pub fn state(primary: &str, status: &str) -> StateMsg {
     StateMsg {
         online: true,
-        primary: primary.into(),
-        status: status.into(),
+        primary: primary.parse::<Slot>().expect("A or B"),
+        status: status.parse::<StatusName>().expect("a status"),
         programs: Programs {
             a: Some(ProgramInfo {
                 name: "vernadat".into(),
@@ -163,7 +166,21 @@ pub fn state(primary: &str, status: &str) -> StateMsg {
             }),
             b: None,
         },
-        cycle: json!({"cycles": 0}),
+        cycle: CycleFigures::default(),
+    }
+}
+
+/// An `io` message of program time `cycle` ms, with no signals.
+pub fn io(cycle: u64) -> IoMsg {
+    IoMsg {
+        dispatched: Default::default(),
+        inputs: Default::default(),
+        names: IoNames::default(),
+        outputs_a: None,
+        outputs_b: None,
+        samples: Vec::new(),
+        time_ms: cycle,
+        unix_ms: None,
     }
 }
 
@@ -173,20 +190,20 @@ impl FakeScan {
         let s = stop.clone();
         let thread = std::thread::spawn(move || {
             let mut answered = 0u64;
-            let _ = link.send(Outgoing::State(state("A", "idle")));
+            let _ = link.send(Outgoing::State(Box::new(state("A", "idle"))));
             let mut cycle = 0u64;
             while !s.load(Ordering::Relaxed) {
                 cycle += 1;
                 while let Some(cmd) = link.try_command() {
                     let result = match &cmd.request {
-                        Request::ExecInfo => Ok(json!({"A": {"cycles": cycle}, "B": null})),
-                        Request::Load { package } => Err(format!(
+                        Request::ExecInfo => Ok(Some(json!({"A": {"cycles": cycle}, "B": null}))),
+                        Request::Load { package } => Err(refused(format!(
                             "package of {} bytes is not a valid update package",
                             package.len()
-                        )),
-                        r => Ok(json!({"verb": r.verb()})),
+                        ))),
+                        r => Ok(Some(json!({"verb": r.verb()}))),
                     };
-                    let mut msg = Outgoing::Reply(cmd.reply, Reply::from_result(result));
+                    let mut msg = Outgoing::Reply(cmd.reply, result);
                     // A scan loop would keep it for the next cycle; the fake one retries.
                     while let Err(m) = link.send(msg) {
                         msg = m;
@@ -195,8 +212,8 @@ impl FakeScan {
                     answered += 1;
                 }
                 if cycle % 10 == 0 {
-                    let _ = link.send(Outgoing::Io(json!({"cycle": cycle})));
-                    let _ = link.send(Outgoing::ExecInfo(json!({"A": {"cycles": cycle}})));
+                    let _ = link.send(Outgoing::Io(io(cycle)));
+                    let _ = link.send(Outgoing::ExecInfo(Box::default()));
                 }
                 std::thread::sleep(Duration::from_millis(2));
             }

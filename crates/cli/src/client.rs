@@ -6,9 +6,8 @@ use std::time::{Duration, Instant};
 
 use anyhow::{bail, Context};
 use base64::Engine as _;
-use rumqttc::v5::mqttbytes::v5::{Packet, PublishProperties};
-use rumqttc::v5::mqttbytes::QoS;
-use rumqttc::v5::{Client, Connection, Event};
+use cetratus_mct::client::{Message, OperatorKey, Session, SessionConfig};
+use cetratus_proto::{Command, Leaf, PlcId, Reply, SubstituteMode};
 use serde_json::{json, Value};
 
 use crate::mqtt_args::MqttArgs;
@@ -66,178 +65,47 @@ pub struct PlainArgs {
     opts: ClientOpts,
 }
 
-struct Session {
-    client: Client,
-    conn: Connection,
-    prefix: String,
-    deadline: Duration,
-    key: Option<cetratus_program::KeyPair>,
+/// Opens a session with the PLC the options name.
+fn open(opts: &ClientOpts) -> anyhow::Result<Session> {
+    let key = match &opts.key {
+        Some(p) => {
+            let k = cetratus_program::KeyPair::load(p)
+                .with_context(|| format!("operator key {}", p.display()))?;
+            Some(OperatorKey {
+                id: k.key_id(),
+                key: k.signing_key().clone(),
+            })
+        }
+        None => None,
+    };
+    let credentials = opts
+        .mqtt
+        .user
+        .clone()
+        .map(|u| (u, opts.mqtt.password.clone().unwrap_or_default()));
+    Ok(Session::open(SessionConfig {
+        url: opts.mqtt.client_url()?,
+        credentials,
+        plc: PlcId::new(opts.mqtt.plc_id())?,
+        timeout: Duration::from_micros(crate::parse_duration_us(&opts.timeout)?),
+        key,
+    })?)
 }
 
-impl Session {
-    fn open(opts: &ClientOpts) -> anyhow::Result<Self> {
-        let url = opts.mqtt.client_url()?;
-        let id = format!(
-            "cetratus-cli-{}-{}",
-            std::process::id(),
-            Instant::now().elapsed().as_nanos()
-        );
-        let mut o = cetratus_mct::client_options(&url, &id)?;
-        if let Some(u) = &opts.mqtt.user {
-            o.set_credentials(u.clone(), opts.mqtt.password.clone().unwrap_or_default());
-        }
-        o.set_keep_alive(Duration::from_secs(10));
-        o.set_max_packet_size(Some(8 << 20));
-        let (client, conn) = Client::new(o, 64);
-        let deadline = Duration::from_micros(crate::parse_duration_us(&opts.timeout)?);
-        let key = match &opts.key {
-            Some(p) => Some(
-                cetratus_program::KeyPair::load(p)
-                    .with_context(|| format!("operator key {}", p.display()))?,
-            ),
-            None => None,
-        };
-        let mut s = Session {
-            client,
-            conn,
-            prefix: format!("cetratus/{}/", opts.mqtt.plc_id()),
-            deadline,
-            key,
-        };
-        s.wait_for(|e| matches!(e, Packet::ConnAck(_)))
-            .with_context(|| format!("cannot reach the broker at {url}; is the PLC running? (--broker URL or --mqtt ADDR)"))?;
-        Ok(s)
-    }
-
-    fn subscribe(&mut self, leaf: &str) -> anyhow::Result<()> {
-        let topic = format!("{}{leaf}", self.prefix);
-        self.client.subscribe(topic, QoS::AtLeastOnce)?;
-        self.wait_for(|p| matches!(p, Packet::SubAck(_)))
-    }
-
-    fn wait_for(&mut self, mut f: impl FnMut(&Packet) -> bool) -> anyhow::Result<()> {
-        let end = Instant::now() + self.deadline;
-        loop {
-            let left = end.saturating_duration_since(Instant::now());
-            if left.is_zero() {
-                bail!("timed out after {:?}", self.deadline);
-            }
-            match self.conn.recv_timeout(left) {
-                Ok(Ok(Event::Incoming(p))) if f(&p) => return Ok(()),
-                Ok(Ok(_)) => {}
-                Ok(Err(e)) => bail!("MQTT connection: {e}"),
-                Err(_) => bail!("timed out after {:?}", self.deadline),
-            }
-        }
-    }
-
-    /// The next message on a subscribed topic: (leaf, JSON payload).
-    fn next_message(&mut self, wait: Option<Duration>) -> anyhow::Result<Option<(String, Value)>> {
-        let end = wait.map(|w| Instant::now() + w);
-        loop {
-            let r = match end {
-                Some(end) => {
-                    let left = end.saturating_duration_since(Instant::now());
-                    if left.is_zero() {
-                        return Ok(None);
-                    }
-                    match self.conn.recv_timeout(left) {
-                        Ok(r) => r,
-                        Err(_) => return Ok(None),
-                    }
-                }
-                None => match self.conn.recv() {
-                    Ok(r) => r,
-                    Err(_) => return Ok(None),
-                },
-            };
-            match r {
-                Ok(Event::Incoming(Packet::Publish(p))) => {
-                    let topic = String::from_utf8_lossy(&p.topic).to_string();
-                    let leaf = topic
-                        .strip_prefix(&self.prefix)
-                        .unwrap_or(&topic)
-                        .to_string();
-                    let v = serde_json::from_slice(&p.payload).unwrap_or(Value::Null);
-                    return Ok(Some((leaf, v)));
-                }
-                Ok(_) => {}
-                Err(e) => bail!("MQTT connection: {e}"),
-            }
-        }
-    }
-
-    /// Sends `cmd/<verb>` with a response topic and correlation data; returns the reply.
-    fn request(&mut self, verb: &str, payload: Value) -> anyhow::Result<Value> {
-        let reply_leaf = format!("reply/cli-{}", std::process::id());
-        self.subscribe(&reply_leaf)?;
-        let corr = format!("{verb}-{}", std::process::id());
-        let props = PublishProperties {
-            response_topic: Some(format!("{}{reply_leaf}", self.prefix)),
-            correlation_data: Some(corr.clone().into_bytes().into()),
-            content_type: Some("application/json".into()),
-            ..Default::default()
-        };
-        let body = match &self.key {
-            // A signed envelope: ed25519 over the verb, the payload's hash, the time and a nonce.
-            Some(k) => {
-                let inner = serde_json::to_vec(&payload)?;
-                let nonce = format!(
-                    "{}-{}",
-                    std::process::id(),
-                    Instant::now().elapsed().as_nanos() ^ u128::from(cetratus_mct::unix_now())
-                );
-                let env = cetratus_mct::sign(
-                    verb,
-                    &inner,
-                    cetratus_mct::unix_now(),
-                    &nonce,
-                    &k.key_id(),
-                    k.signing_key(),
-                );
-                serde_json::to_vec(&json!({ "envelope": env }))?
-            }
-            None => serde_json::to_vec(&payload)?,
-        };
-        self.client.publish_with_properties(
-            format!("{}cmd/{verb}", self.prefix),
-            QoS::AtLeastOnce,
-            false,
-            body,
-            props,
-        )?;
-        let end = Instant::now() + self.deadline;
-        while Instant::now() < end {
-            if let Some((leaf, v)) = self.next_message(Some(end - Instant::now()))? {
-                if leaf == reply_leaf {
-                    return Ok(v);
-                }
-            }
-        }
-        bail!(
-            "no reply from the PLC within {:?}; check --plc and that it is running",
-            self.deadline
-        )
-    }
-}
-
-fn print_reply(verb: &str, reply: &Value, json: bool) -> anyhow::Result<()> {
+fn print_reply(reply: &Reply, json: bool) -> anyhow::Result<()> {
+    let verb = &reply.verb;
     if json {
         println!("{}", serde_json::to_string_pretty(reply)?);
     }
-    if reply["ok"] == Value::Bool(true) {
-        if !json {
-            println!("{verb}: accepted");
+    match &reply.error {
+        None if reply.ok => {
+            if !json {
+                println!("{verb}: accepted");
+            }
+            Ok(())
         }
-        Ok(())
-    } else {
-        bail!(
-            "{verb} refused: {} ({})",
-            reply["error"]["message"]
-                .as_str()
-                .unwrap_or("no reason given"),
-            reply["error"]["code"].as_str().unwrap_or("error")
-        )
+        Some(e) => bail!("{verb} refused: {} ({})", e.message, e.code),
+        None => bail!("{verb} refused: no reason given (error)"),
     }
 }
 
@@ -249,21 +117,20 @@ pub fn load(args: &LoadArgs) -> anyhow::Result<()> {
     if !quiet {
         eprintln!("read {} ({} bytes)", args.package.display(), bytes.len());
     }
-    let mut s = Session::open(&args.opts)?;
-    s.subscribe("events")?;
+    let mut s = open(&args.opts)?;
+    s.subscribe(Leaf::Events)?;
     if !quiet {
-        eprintln!("sending to {} …", s.prefix.trim_end_matches('/'));
+        eprintln!("sending to {} …", s.topics().prefix().trim_end_matches('/'));
     }
-    let payload =
-        json!({ "package_b64": base64::engine::general_purpose::STANDARD.encode(&bytes) });
-    let reply = s.request("load", payload)?;
-    print_reply("load", &reply, quiet)?;
+    let package_b64 = base64::engine::general_purpose::STANDARD.encode(&bytes);
+    let reply = s.request(&Command::Load(cetratus_proto::LoadArgs { package_b64 }))?;
+    print_reply(&reply, quiet)?;
     if !quiet {
         eprintln!("verified and accepted; waiting for the install at the next cycle boundary …");
     }
-    let end = Instant::now() + s.deadline;
+    let end = Instant::now() + s.timeout();
     while Instant::now() < end {
-        if let Some((leaf, e)) = s.next_message(Some(end - Instant::now()))? {
+        if let Some(Message { leaf, payload: e }) = s.next_message(Some(end - Instant::now()))? {
             if leaf != "events" {
                 continue;
             }
@@ -283,7 +150,7 @@ pub fn load(args: &LoadArgs) -> anyhow::Result<()> {
     }
     bail!(
         "the PLC accepted the package but did not report its install within {:?}",
-        s.deadline
+        s.timeout()
     )
 }
 
@@ -293,28 +160,36 @@ pub fn substitute(args: &SubstituteArgs) -> anyhow::Result<()> {
         Some(w) => Some(crate::parse_duration_us(w)? / 1000),
         None => None,
     };
-    let mut s = Session::open(&args.opts)?;
-    let payload = json!({ "mode": args.mode, "when": args.when, "within_ms": within_ms, "force": args.force });
-    let reply = s.request("substitute", payload)?;
-    print_reply("substitute", &reply, args.opts.json)
+    let mode = match &args.mode {
+        Some(m) => Some(m.parse::<SubstituteMode>()?),
+        None => None,
+    };
+    let mut s = open(&args.opts)?;
+    let reply = s.request(&Command::Substitute(cetratus_proto::SubstituteArgs {
+        force: args.force,
+        mode,
+        when: args.when.clone(),
+        within_ms,
+    }))?;
+    print_reply(&reply, args.opts.json)
 }
 
 /// `remove`, `abort` and `reset`.
-pub fn plain(verb: &str, args: &PlainArgs) -> anyhow::Result<()> {
-    let mut s = Session::open(&args.opts)?;
-    let reply = s.request(verb, json!({}))?;
-    print_reply(verb, &reply, args.opts.json)
+pub fn plain(command: Command, args: &PlainArgs) -> anyhow::Result<()> {
+    let mut s = open(&args.opts)?;
+    let reply = s.request(&command)?;
+    print_reply(&reply, args.opts.json)
 }
 
 /// `cetratus status`: the retained state.
 pub fn status(args: &PlainArgs) -> anyhow::Result<()> {
-    let mut s = Session::open(&args.opts)?;
-    s.subscribe("state")?;
-    let Some((_, v)) = s.next_message(Some(s.deadline))? else {
+    let mut s = open(&args.opts)?;
+    s.subscribe(Leaf::State)?;
+    let Some(Message { payload: v, .. }) = s.next_message(Some(s.timeout()))? else {
         bail!(
             "no state from {} within {:?}; check --plc",
-            s.prefix.trim_end_matches('/'),
-            s.deadline
+            s.topics().prefix().trim_end_matches('/'),
+            s.timeout()
         );
     };
     if args.opts.json {
@@ -357,10 +232,10 @@ fn print_state(v: &Value) {
 
 /// `cetratus watch`: state changes and events as they happen.
 pub fn watch(args: &PlainArgs) -> anyhow::Result<()> {
-    let mut s = Session::open(&args.opts)?;
-    s.subscribe("state")?;
-    s.subscribe("events")?;
-    while let Some((leaf, v)) = s.next_message(None)? {
+    let mut s = open(&args.opts)?;
+    s.subscribe(Leaf::State)?;
+    s.subscribe(Leaf::Events)?;
+    while let Some(Message { leaf, payload: v }) = s.next_message(None)? {
         if args.opts.json {
             println!("{}", json!({ "topic": leaf, "payload": v }));
         } else if leaf == "events" {
@@ -379,12 +254,13 @@ pub fn watch(args: &PlainArgs) -> anyhow::Result<()> {
 
 /// `cetratus exec-info`: program_exec_info of both containers.
 pub fn exec_info(args: &PlainArgs) -> anyhow::Result<()> {
-    let mut s = Session::open(&args.opts)?;
-    let reply = s.request("exec_info", json!({}))?;
-    if args.opts.json || reply["ok"] != Value::Bool(true) {
-        return print_reply("exec_info", &reply, true);
+    let mut s = open(&args.opts)?;
+    let reply = s.request(&Command::ExecInfo)?;
+    if args.opts.json || !reply.ok {
+        return print_reply(&reply, true);
     }
-    for c in reply["result"]
+    let result = reply.result.unwrap_or(Value::Null);
+    for c in result
         .as_array()
         .into_iter()
         .flatten()

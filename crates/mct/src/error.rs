@@ -59,4 +59,18 @@ pub enum MctError {
         /// What the client said.
         reason: String,
     },
+    /// The client did not get what it waited for in time.
+    #[error("timed out after {0:?}")]
+    Timeout(std::time::Duration),
+    /// The client's MQTT connection failed.
+    #[error("MQTT connection: {0}")]
+    Client(String),
+    /// The PLC did not answer a command.
+    #[error("no reply from PLC `{plc}` within {after:?}; check --plc and that it is running")]
+    NoReply {
+        /// The PLC id.
+        plc: String,
+        /// How long the client waited.
+        after: std::time::Duration,
+    },
 }

@@ -31,6 +31,7 @@
 #![warn(missing_docs)]
 
 mod broker;
+pub mod client;
 mod control;
 mod envelope;
 mod error;

@@ -1,0 +1,216 @@
+//! The client side of the control plane: one MQTT 5 session with a PLC, for the CLI commands
+//! (`load`, `substitute`, `status`, `watch`, …). Commands go out as requests with a response
+//! topic and correlation data, signed as an envelope when the operator has a key.
+
+use std::time::{Duration, Instant};
+
+use cetratus_proto::{Command, Leaf, PlcId, Reply, Topics, Verb};
+use ed25519_dalek::SigningKey;
+use rumqttc::v5::mqttbytes::v5::{Packet, PublishProperties};
+use rumqttc::v5::mqttbytes::QoS;
+use rumqttc::v5::{Client, Connection, Event};
+use serde_json::Value;
+
+use crate::{client_options, sign, unix_now, MctError};
+
+/// An operator key that signs commands: its id and the secret key.
+pub struct OperatorKey {
+    /// The key id, as the PLC's `operators/` directory knows it.
+    pub id: String,
+    /// The secret key.
+    pub key: SigningKey,
+}
+
+/// Where to reach a PLC and how long to wait for it.
+pub struct SessionConfig {
+    /// The broker URL.
+    pub url: String,
+    /// Credentials that override the URL's.
+    pub credentials: Option<(String, String)>,
+    /// The PLC.
+    pub plc: PlcId,
+    /// How long to wait for the broker, a reply, a message.
+    pub timeout: Duration,
+    /// Signs every command when given.
+    pub key: Option<OperatorKey>,
+}
+
+/// A message on one of the PLC's topics.
+pub struct Message {
+    /// The topic's leaf under `cetratus/<plc-id>/` (`state`, `events`, or the reply leaf).
+    pub leaf: String,
+    /// The payload as JSON (`null` when it is not JSON).
+    pub payload: Value,
+}
+
+/// One session with one PLC.
+pub struct Session {
+    client: Client,
+    conn: Connection,
+    topics: Topics,
+    timeout: Duration,
+    key: Option<OperatorKey>,
+    reply_leaf: Option<String>,
+}
+
+impl Session {
+    /// Connects to the broker; fails when it cannot be reached within the timeout.
+    pub fn open(config: SessionConfig) -> Result<Self, MctError> {
+        let id = format!(
+            "cetratus-cli-{}-{:x}",
+            std::process::id(),
+            unix_now() ^ u64::from(Instant::now().elapsed().subsec_nanos())
+        );
+        let mut o = client_options(&config.url, &id)?;
+        if let Some((u, p)) = &config.credentials {
+            o.set_credentials(u.clone(), p.clone());
+        }
+        o.set_keep_alive(Duration::from_secs(10));
+        o.set_max_packet_size(Some(8 << 20));
+        let (client, conn) = Client::new(o, 64);
+        let mut s = Session {
+            client,
+            conn,
+            topics: Topics::new(config.plc),
+            timeout: config.timeout,
+            key: config.key,
+            reply_leaf: None,
+        };
+        s.wait_for(|e| matches!(e, Packet::ConnAck(_)))
+            .map_err(|e| MctError::Connect {
+                url: config.url.clone(),
+                reason: format!("{e}; is the PLC running? (--broker URL or --mqtt ADDR)"),
+            })?;
+        Ok(s)
+    }
+
+    /// How long the session waits.
+    pub fn timeout(&self) -> Duration {
+        self.timeout
+    }
+
+    /// The PLC's topics.
+    pub fn topics(&self) -> &Topics {
+        &self.topics
+    }
+
+    /// Subscribes to one of the PLC's topics and waits for the broker's acknowledgement.
+    pub fn subscribe(&mut self, leaf: Leaf) -> Result<(), MctError> {
+        let topic = self.topics.leaf(leaf).to_string();
+        self.subscribe_topic(topic)
+    }
+
+    fn subscribe_topic(&mut self, topic: String) -> Result<(), MctError> {
+        self.client
+            .subscribe(topic, QoS::AtLeastOnce)
+            .map_err(|e| MctError::Client(e.to_string()))?;
+        self.wait_for(|p| matches!(p, Packet::SubAck(_)))
+    }
+
+    fn wait_for(&mut self, mut f: impl FnMut(&Packet) -> bool) -> Result<(), MctError> {
+        let end = Instant::now() + self.timeout;
+        loop {
+            let left = end.saturating_duration_since(Instant::now());
+            if left.is_zero() {
+                return Err(MctError::Timeout(self.timeout));
+            }
+            match self.conn.recv_timeout(left) {
+                Ok(Ok(Event::Incoming(p))) if f(&p) => return Ok(()),
+                Ok(Ok(_)) => {}
+                Ok(Err(e)) => return Err(MctError::Client(e.to_string())),
+                Err(_) => return Err(MctError::Timeout(self.timeout)),
+            }
+        }
+    }
+
+    /// The next message on a subscribed topic, waiting at most `wait` (`None`: for ever).
+    /// `Ok(None)` when the wait ended or the connection closed.
+    pub fn next_message(&mut self, wait: Option<Duration>) -> Result<Option<Message>, MctError> {
+        let end = wait.map(|w| Instant::now() + w);
+        loop {
+            let r = match end {
+                Some(end) => {
+                    let left = end.saturating_duration_since(Instant::now());
+                    if left.is_zero() {
+                        return Ok(None);
+                    }
+                    match self.conn.recv_timeout(left) {
+                        Ok(r) => r,
+                        Err(_) => return Ok(None),
+                    }
+                }
+                None => match self.conn.recv() {
+                    Ok(r) => r,
+                    Err(_) => return Ok(None),
+                },
+            };
+            match r {
+                Ok(Event::Incoming(Packet::Publish(p))) => {
+                    let topic = String::from_utf8_lossy(&p.topic);
+                    let leaf = self.topics.strip(&topic).unwrap_or(&topic).to_string();
+                    let payload = serde_json::from_slice(&p.payload).unwrap_or(Value::Null);
+                    return Ok(Some(Message { leaf, payload }));
+                }
+                Ok(_) => {}
+                Err(e) => return Err(MctError::Client(e.to_string())),
+            }
+        }
+    }
+
+    /// Sends a command with a response topic and correlation data, and returns the PLC's reply.
+    pub fn request(&mut self, command: &Command) -> Result<Reply, MctError> {
+        let verb = command.verb();
+        let reply_leaf = format!("reply/cli-{}", std::process::id());
+        if self.reply_leaf.as_deref() != Some(reply_leaf.as_str()) {
+            let topic = format!("{}{reply_leaf}", self.topics.prefix());
+            self.subscribe_topic(topic)?;
+            self.reply_leaf = Some(reply_leaf.clone());
+        }
+        let props = PublishProperties {
+            response_topic: Some(format!("{}{reply_leaf}", self.topics.prefix())),
+            correlation_data: Some(format!("{verb}-{}", std::process::id()).into_bytes().into()),
+            content_type: Some("application/json".into()),
+            ..Default::default()
+        };
+        let body = self.body(verb, &command.to_body())?;
+        self.client
+            .publish_with_properties(
+                self.topics.cmd(verb).to_string(),
+                QoS::AtLeastOnce,
+                false,
+                body,
+                props,
+            )
+            .map_err(|e| MctError::Client(e.to_string()))?;
+        let end = Instant::now() + self.timeout;
+        while Instant::now() < end {
+            if let Some(m) = self.next_message(Some(end - Instant::now()))? {
+                if m.leaf == reply_leaf {
+                    return serde_json::from_value(m.payload).map_err(|e| {
+                        MctError::Client(format!("the PLC's reply is malformed: {e}"))
+                    });
+                }
+            }
+        }
+        Err(MctError::NoReply {
+            plc: self.topics.plc().to_string(),
+            after: self.timeout,
+        })
+    }
+
+    /// The payload of a command: the body, or a signed envelope holding it.
+    fn body(&self, verb: Verb, body: &Value) -> Result<Vec<u8>, MctError> {
+        let inner = serde_json::to_vec(body).map_err(|e| MctError::Client(e.to_string()))?;
+        let Some(k) = &self.key else {
+            return Ok(inner);
+        };
+        // The nonce only has to be unique per key within the replay window.
+        let nanos = std::time::SystemTime::now()
+            .duration_since(std::time::UNIX_EPOCH)
+            .map_or(0, |d| d.as_nanos());
+        let nonce = format!("{}-{nanos}", std::process::id());
+        let env = sign(verb.as_str(), &inner, unix_now(), &nonce, &k.id, &k.key);
+        serde_json::to_vec(&serde_json::json!({ "envelope": env }))
+            .map_err(|e| MctError::Client(e.to_string()))
+    }
+}

@@ -13,6 +13,7 @@ mod demo;
 mod mct_cmd;
 mod mqtt_args;
 mod package;
+mod package_inspect;
 mod run;
 mod sim;
 mod state;

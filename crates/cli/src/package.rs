@@ -5,10 +5,9 @@
 use std::path::{Path, PathBuf};
 
 use anyhow::{bail, Context};
-use cetratus_program::package::{self, build_package_at, BuildReport, TransformSpec};
+use cetratus_program::package::{build_package_at, BuildReport};
 use cetratus_program::PackageError;
-use cetratus_program::{build_package, DenseMatrix, KeyPair, Program, TrustStore, UpdatePackage};
-use serde_json::json;
+use cetratus_program::{build_package, KeyPair, Program, TrustStore, UpdatePackage};
 
 /// Arguments of `cetratus package`.
 #[derive(clap::Args, Debug)]
@@ -94,7 +93,7 @@ pub fn run(args: &PackageArgs) -> anyhow::Result<()> {
     match &args.command {
         PackageCommand::Keygen(a) => keygen(a),
         PackageCommand::Build(a) => build(a),
-        PackageCommand::Inspect(a) => inspect(a),
+        PackageCommand::Inspect(a) => crate::package_inspect::inspect(a),
         PackageCommand::Verify(a) => verify(a),
     }
 }
@@ -180,168 +179,12 @@ fn print_report(r: &BuildReport) {
     }
 }
 
-fn read(path: &Path) -> anyhow::Result<Vec<u8>> {
+pub(crate) fn read(path: &Path) -> anyhow::Result<Vec<u8>> {
     std::fs::read(path).with_context(|| format!("cannot read {}", path.display()))
 }
 
-fn load_program(path: &Path) -> anyhow::Result<Program> {
+pub(crate) fn load_program(path: &Path) -> anyhow::Result<Program> {
     Program::load(path).with_context(|| format!("cannot load the program {}", path.display()))
-}
-
-fn inspect(a: &InspectArgs) -> anyhow::Result<()> {
-    let bytes = read(&a.package)?;
-    let info =
-        package::inspect(&bytes).with_context(|| format!("cannot read {}", a.package.display()))?;
-    let resolved = match &a.base {
-        None => None,
-        Some(base) => {
-            let old = load_program(base)?;
-            let matches = old.hash_hex() == info.meta.base_program_hash;
-            // Resolved as if trusted and forced: inspect shows, it never loads anything.
-            let pkg = UpdatePackage::verify(&bytes, &TrustStore::empty(), true);
-            let up = match pkg {
-                Ok(p) => p.resolve(&old, true)?,
-                Err(_) => bail!(
-                    "--base needs the package's contents; they did not read back (see `cetratus package verify`)"
-                ),
-            };
-            Some((old, matches, up))
-        }
-    };
-    if a.json {
-        let mut v = json!({
-            "file_sha256": info.hash_hex,
-            "meta": info.meta,
-            "claimed_signer": info.claimed_signer,
-            "signature_checked": false,
-            "program": {
-                "name": info.program.name(),
-                "version": info.program.version(),
-                "hash": info.program.hash_hex(),
-                "places": info.program.net().num_places(),
-                "transitions": info.program.net().num_transitions(),
-            },
-            "transform": info.transform,
-            "projection": info.projection,
-        });
-        if let Some((old, matches, up)) = &resolved {
-            v["resolved"] = json!({
-                "base": { "name": old.name(), "version": old.version(), "hash": old.hash_hex(),
-                          "is_the_packages_base": matches },
-                "transform": up.transform.to_dense(),
-                "projection": up.projection.to_dense(),
-            });
-        }
-        println!("{}", serde_json::to_string_pretty(&v)?);
-        return Ok(());
-    }
-    let m = &info.meta;
-    println!("package     {} {}", m.name, m.version);
-    if !m.author.is_empty() {
-        println!("author      {}", m.author);
-    }
-    if !m.description.is_empty() {
-        println!("description {}", m.description);
-    }
-    println!("created     {}", m.created);
-    println!("file sha256 {}", info.hash_hex);
-    match &info.claimed_signer {
-        Some(k) => println!(
-            "signed by   {k}  (not checked here; `cetratus package verify --trust DIR` checks it)"
-        ),
-        None => println!("signed by   nobody (unsigned)"),
-    }
-    let p = &info.program;
-    println!(
-        "program     {} {}  {}  ({} places, {} transitions)",
-        p.name(),
-        p.version(),
-        p.hash_hex(),
-        p.net().num_places(),
-        p.net().num_transitions()
-    );
-    println!("built for   program {}", m.base_program_hash);
-    println!();
-    match &resolved {
-        Some((old, matches, up)) => {
-            if !matches {
-                println!(
-                    "note: {} is not the program this package was built against; shown as if forced",
-                    old.name()
-                );
-            }
-            println!(
-                "state transform ({}), resolved against {} {}:",
-                info.transform.kind(),
-                old.name(),
-                old.version()
-            );
-            print!("{}", up.transform.to_dense());
-            println!();
-            let kind = info
-                .projection
-                .as_ref()
-                .map_or("generated", TransformSpec::kind);
-            println!("projection ({kind}):");
-            print!("{}", up.projection.to_dense());
-        }
-        None => {
-            println!("state transform:");
-            print_spec(&info.transform, "new", "old");
-            println!("projection:");
-            match &info.projection {
-                Some(s) => print_spec(s, "old", "new"),
-                None => println!("  generated: each place kept by id reads itself"),
-            }
-            println!("(add --base PROGRAM to see the matrices resolved against a program)");
-        }
-    }
-    Ok(())
-}
-
-/// A declared transformation, as far as it can be shown without the running program.
-fn print_spec(spec: &TransformSpec, rows: &str, cols: &str) {
-    match spec {
-        TransformSpec::Generated { removed } => {
-            println!("  generated: places kept by id keep their tokens and timers, new places start at their initial marking");
-            for (from, to) in removed {
-                println!("  removed place {from}: its tokens go to {to}");
-            }
-        }
-        TransformSpec::Dense {
-            rows: r,
-            cols: c,
-            matrix,
-            base,
-        } => {
-            println!("  dense (rows: {rows} places, columns: {cols} places)");
-            let d = DenseMatrix {
-                row_ids: r.clone(),
-                col_ids: c.clone(),
-                matrix: matrix.clone(),
-                base: base.clone().unwrap_or_else(|| vec![0; r.len()]),
-            };
-            for line in d.to_string().lines() {
-                println!("  {line}");
-            }
-        }
-        TransformSpec::Sparse {
-            entries,
-            base,
-            identity_on_kept,
-        } => {
-            println!("  sparse (to: {rows} place, from: {cols} place)");
-            if *identity_on_kept {
-                println!("  identity on every place both nets have");
-            }
-            for e in entries {
-                println!("  {} <- {}·{}", e.to, e.coef, e.from);
-            }
-            for (p, b) in base {
-                println!("  base {p} = {b}");
-            }
-        }
-    }
 }
 
 fn verify(a: &VerifyArgs) -> anyhow::Result<()> {

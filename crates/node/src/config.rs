@@ -130,13 +130,8 @@ pub struct LocalConfig {
 
 /// The default configuration directory.
 pub fn default_dir() -> PathBuf {
-    if let Some(x) = std::env::var_os("XDG_CONFIG_HOME") {
-        return PathBuf::from(x).join("cetratus");
-    }
-    if let Some(h) = std::env::var_os("HOME") {
-        return PathBuf::from(h).join(".config/cetratus");
-    }
-    PathBuf::from(".cetratus")
+    crate::dirs::xdg("XDG_CONFIG_HOME", ".config")
+        .map_or_else(|| PathBuf::from(".cetratus"), |d| d.join("cetratus"))
 }
 
 fn keys_in(dir: &Path, what: &'static str) -> Result<Vec<VerifyingKeyFile>, ConfigError> {

@@ -112,13 +112,8 @@ pub struct DemoFiles {
 /// The demo's directory: `$XDG_DATA_HOME/cetratus/demo`, `~/.local/share/cetratus/demo`, or
 /// `.cetratus-demo` here.
 pub fn default_dir() -> PathBuf {
-    if let Some(x) = std::env::var_os("XDG_DATA_HOME") {
-        return PathBuf::from(x).join("cetratus/demo");
-    }
-    if let Some(h) = std::env::var_os("HOME") {
-        return PathBuf::from(h).join(".local/share/cetratus/demo");
-    }
-    PathBuf::from(".cetratus-demo")
+    crate::dirs::xdg("XDG_DATA_HOME", ".local/share")
+        .map_or_else(|| PathBuf::from(".cetratus-demo"), |d| d.join("cetratus/demo"))
 }
 
 /// Writes the example, makes the key and builds the packages where missing; `say` is told what

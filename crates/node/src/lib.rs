@@ -14,6 +14,7 @@
 pub mod clock;
 pub mod config;
 pub mod demo;
+pub mod dirs;
 pub mod link;
 mod node;
 pub mod periodic;

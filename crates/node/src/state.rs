@@ -13,10 +13,7 @@ use cetratus_runtime::{Event, Plc, Slot, Stopwatch};
 /// The default state directory of a program: `$XDG_STATE_HOME/cetratus/<program name>`, or
 /// `~/.local/state/cetratus/<program name>`. Only a safe subset of the name's characters is kept.
 pub fn default_dir(program_name: &str) -> Option<PathBuf> {
-    let base = std::env::var_os("XDG_STATE_HOME")
-        .map(PathBuf::from)
-        .filter(|p| p.is_absolute())
-        .or_else(|| std::env::var_os("HOME").map(|h| PathBuf::from(h).join(".local/state")))?;
+    let base = crate::dirs::xdg("XDG_STATE_HOME", ".local/state")?;
     let name: String = program_name
         .chars()
         .map(|c| {

@@ -81,7 +81,31 @@ enum Command {
     ExecInfo(client::PlainArgs),
 }
 
+/// Sends the libraries' diagnostics (`tracing` events, and `log` records from rmqtt and rumqttc) to
+/// stderr, filtered by `RUST_LOG` (default `warn`).
+///
+/// Stdout and the CLI's own stderr lines are its interface and stay as they are; these lines are
+/// for an operator, so a healthy run adds none. A malformed `RUST_LOG` directive is reported and
+/// skipped rather than stopping the PLC.
+fn init_logging() {
+    use std::io::IsTerminal as _;
+    use tracing_subscriber::filter::{EnvFilter, LevelFilter};
+    let filter = EnvFilter::builder()
+        .with_default_directive(LevelFilter::WARN.into())
+        .from_env_lossy();
+    // `try_init` also installs the `log` bridge, capped at the filter's most verbose level.
+    let installed = tracing_subscriber::fmt()
+        .with_env_filter(filter)
+        .with_writer(std::io::stderr)
+        .with_ansi(std::io::stderr().is_terminal())
+        .try_init();
+    if let Err(e) = installed {
+        eprintln!("warning: diagnostics from the libraries will not be shown ({e})");
+    }
+}
+
 fn main() -> std::process::ExitCode {
+    init_logging();
     let cli = Cli::parse();
     let result = match &cli.command {
         Command::Sim(a) => sim::run(a),

@@ -82,10 +82,11 @@ pub struct Services {
 impl Services {
     /// Stops both.
     pub fn stop(self) {
-        self.mqtt.shutdown();
+        // The dashboard first: it is a client of the embedded broker, and would report losing it.
         if let Some(d) = self.dashboard {
             d.stop();
         }
+        self.mqtt.shutdown();
     }
 
     /// Where the dashboard listens.

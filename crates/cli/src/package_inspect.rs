@@ -162,4 +162,3 @@ fn print_spec(spec: &TransformSpec, rows: &str, cols: &str) {
         }
     }
 }
-

@@ -45,7 +45,7 @@ pub(crate) async fn run(
     let listener = match tokio::net::TcpListener::from_std(listener) {
         Ok(l) => l,
         Err(e) => {
-            log::error!("the dashboard cannot use its listening socket: {e}");
+            tracing::error!(error = %e, "the dashboard cannot use its listening socket");
             return;
         }
     };
@@ -79,7 +79,7 @@ pub(crate) async fn run(
     tokio::select! {
         r = axum::serve(listener, router).with_graceful_shutdown(graceful) => {
             if let Err(e) = r {
-                log::error!("the dashboard's HTTP server stopped: {e}");
+                tracing::error!(error = %e, "the dashboard's HTTP server stopped");
             }
         }
         _ = deadline => {}

@@ -171,7 +171,7 @@ impl Hub {
     fn on_publish(&self, topic: &str, payload: &[u8], props: Option<&PublishProperties>) {
         if topic == self.reply_topic {
             let Some(corr) = props.and_then(|p| p.correlation_data.as_ref()) else {
-                log::debug!("a reply without correlation data was dropped");
+                tracing::debug!("a reply without correlation data was dropped");
                 return;
             };
             let waiter = self.pending().remove(corr.as_ref());
@@ -194,9 +194,10 @@ impl Hub {
                 }
             }
             Err(Ignored::NotOurs) => {}
-            Err(Ignored::Malformed(why)) => log::warn!("ignored a message: {why}"),
+            // `why` names the topic already.
+            Err(Ignored::Malformed(why)) => tracing::warn!(reason = %why, "ignored a message"),
             Err(Ignored::TooManyPlcs) => {
-                log::warn!("ignored {topic}: too many PLC ids on this broker")
+                tracing::warn!(topic, "ignored a message: too many PLC ids on this broker")
             }
         }
     }
@@ -280,6 +281,9 @@ pub(crate) async fn run_mqtt(
     mut eventloop: EventLoop,
     mut shutdown: watch::Receiver<bool>,
 ) {
+    // One warning per outage, not one per retry: a broker that stays away for an hour would
+    // otherwise fill the log with a line a second.
+    let mut outage_reported = false;
     loop {
         if *shutdown.borrow() {
             break;
@@ -298,19 +302,30 @@ pub(crate) async fn run_mqtt(
                 ];
                 for (t, q) in subs {
                     if let Err(e) = hub.client.try_subscribe(t.clone(), q) {
-                        log::warn!("cannot subscribe to {t}: {e}");
+                        tracing::warn!(filter = %t, error = %e, "cannot subscribe");
                     }
                 }
                 hub.set_connected(true);
+                outage_reported = false;
             }
             Ok(Event::Incoming(Packet::Publish(p))) => match std::str::from_utf8(&p.topic) {
                 Ok(topic) => hub.on_publish(topic, &p.payload, p.properties.as_ref()),
-                Err(_) => log::debug!("a message with a non-UTF-8 topic was dropped"),
+                Err(_) => tracing::debug!("a message with a non-UTF-8 topic was dropped"),
             },
             Ok(_) => {}
             Err(e) => {
                 if hub.connected() {
-                    log::warn!("dashboard lost the broker {}: {e}", hub.broker);
+                    tracing::warn!(broker = %hub.broker, error = %e, "dashboard lost the broker");
+                    outage_reported = true;
+                } else if !outage_reported {
+                    tracing::warn!(
+                        broker = %hub.broker,
+                        error = %e,
+                        "dashboard cannot reach the broker; retrying every second"
+                    );
+                    outage_reported = true;
+                } else {
+                    tracing::debug!(broker = %hub.broker, error = %e, "broker still unreachable");
                 }
                 hub.set_connected(false);
                 // Fail every waiting command now rather than at its timeout.

@@ -13,6 +13,7 @@ use rmqtt::hook::{Handler, HookResult, Parameter, ReturnType, Type};
 use rmqtt::retain::{DefaultRetainStorage, RetainStorage};
 use rmqtt::server::MqttServer;
 use rmqtt::types::{AuthResult, Retain, TopicFilter, TopicName};
+use subtle::ConstantTimeEq as _;
 
 use crate::MctError;
 
@@ -52,9 +53,10 @@ impl RetainStorage for MemRetain {
 /// Checks user/password against the configured list.
 struct Users(Arc<Vec<(String, String)>>);
 
-// Compares without an early exit so the time taken does not reveal how much of a password matched.
+// Constant time in the contents, so the time taken does not reveal how much of a password
+// matched; only the length can show.
 fn same(a: &[u8], b: &[u8]) -> bool {
-    a.len() == b.len() && a.iter().zip(b).fold(0u8, |acc, (x, y)| acc | (x ^ y)) == 0
+    a.ct_eq(b).into()
 }
 
 #[async_trait]
@@ -138,7 +140,7 @@ impl EmbeddedBroker {
         });
         rt.spawn(async move {
             if let Err(e) = server.run().await {
-                log::error!("the embedded MQTT broker stopped: {e}");
+                tracing::error!(%addr, error = %e, "the embedded MQTT broker stopped");
             }
         });
         let (stop, stopped) = std::sync::mpsc::channel::<()>();
@@ -197,5 +199,22 @@ fn bind_error(addr: SocketAddr, e: rmqtt::Error) -> MctError {
             addr,
             reason: e.to_string(),
         },
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::same;
+
+    #[test]
+    fn same_is_true_only_for_equal_bytes_whatever_the_lengths() {
+        assert!(same(b"", b""));
+        assert!(same(b"secret", b"secret"));
+        assert!(!same(b"secret", b"secreT"));
+        assert!(!same(b"secret", b"xecret"));
+        assert!(!same(b"secret", b"secret!"));
+        assert!(!same(b"secret!", b"secret"));
+        assert!(!same(b"secret", b""));
+        assert!(!same(b"", b"secret"));
     }
 }

@@ -394,7 +394,7 @@ fn try_reply(client: &AsyncClient, handle: &ReplyHandle, outcome: &Outcome) {
             payload,
             reply_props(handle),
         ) {
-            log::warn!("cannot publish the reply to {topic}: {e}");
+            tracing::warn!(%topic, error = %e, "cannot publish the reply");
         }
     }
 }
@@ -402,7 +402,7 @@ fn try_reply(client: &AsyncClient, handle: &ReplyHandle, outcome: &Outcome) {
 fn try_event(client: &AsyncClient, topic: &str, event: &EventMsg) {
     let payload = serde_json::to_vec(event).unwrap_or_default();
     if let Err(e) = client.try_publish(topic, QoS::AtLeastOnce, false, payload) {
-        log::warn!("cannot publish an event: {e}");
+        tracing::warn!(topic, error = %e, "cannot publish an event");
     }
 }
 
@@ -415,15 +415,21 @@ async fn event_loop(
     events: String,
 ) {
     let filter = control.topics().command_filter().to_string();
+    // One warning per outage, not one per retry: a broker that stays away for an hour would
+    // otherwise fill the log with a line a second.
+    let mut outage_reported = false;
     loop {
         match eventloop.poll().await {
             Ok(Event::Incoming(Packet::ConnAck(_))) => {
                 if let Err(e) = client.try_subscribe(filter.clone(), QoS::AtLeastOnce) {
-                    log::warn!("cannot subscribe to {filter}: {e}");
+                    tracing::warn!(%filter, error = %e, "cannot subscribe");
                 }
             }
             Ok(Event::Incoming(Packet::SubAck(_))) => {
-                shared.connected.store(true, Ordering::Release)
+                shared.connected.store(true, Ordering::Release);
+                if std::mem::take(&mut outage_reported) {
+                    tracing::info!("MQTT connection restored");
+                }
             }
             Ok(Event::Incoming(Packet::Publish(p))) => {
                 let Ok(topic) = std::str::from_utf8(&p.topic) else {
@@ -470,7 +476,12 @@ async fn event_loop(
                 if shared.stopping.load(Ordering::Acquire) {
                     return;
                 }
-                log::warn!("MQTT connection: {e}; retrying in 1 s");
+                if outage_reported {
+                    tracing::debug!(error = %e, "MQTT connection still down; retrying in 1 s");
+                } else {
+                    tracing::warn!(error = %e, "MQTT connection lost; retrying in 1 s");
+                    outage_reported = true;
+                }
                 // In slices, so a shutdown does not wait out the whole back-off.
                 for _ in 0..20 {
                     if shared.stopping.load(Ordering::Acquire) {
@@ -516,7 +527,7 @@ fn outgoing_loop(
                 }
             });
             if let Err(e) = r {
-                log::warn!("cannot publish on {topic}: {e}");
+                tracing::warn!(topic, error = %e, "cannot publish");
             }
         };
     let mut exec_info: Option<Box<ExecInfoMsg>> = None;

@@ -10,7 +10,7 @@ use std::borrow::Cow;
 use std::collections::{HashSet, VecDeque};
 use std::fmt::Write as _;
 
-use crate::{ArcKind, Net, NodeRef, PlaceIdx, Position, Tokens, TransIdx};
+use crate::{xml_escape, ArcKind, Net, NodeRef, PlaceIdx, Position, Tokens, TransIdx};
 
 /// Radius of a place, in drawing units.
 const PLACE_R: f64 = 18.0;
@@ -354,7 +354,7 @@ fn write_svg(
     writeln!(
         w,
         "<svg xmlns=\"http://www.w3.org/2000/svg\" class=\"cetratus-net\" data-net=\"{}\" viewBox=\"{} {} {} {}\" width=\"{}\" height=\"{}\">",
-        xml(net.id()),
+        xml_escape(net.id()),
         n(vx),
         n(vy),
         n(vw),
@@ -363,7 +363,7 @@ fn write_svg(
         n(vh)
     )?;
     if let Some(name) = net.name() {
-        writeln!(w, "  <title>{}</title>", xml(name))?;
+        writeln!(w, "  <title>{}</title>", xml_escape(name))?;
     }
     writeln!(w, "  <defs>")?;
     writeln!(w, "    <marker id=\"cetratus-arrow\" viewBox=\"0 0 10 10\" refX=\"10\" refY=\"5\" markerWidth=\"8\" markerHeight=\"8\" orient=\"auto\"><path d=\"M0,0 L10,5 L0,10 z\" fill=\"#222\"/></marker>")?;
@@ -393,7 +393,7 @@ fn write_svg(
         writeln!(
             w,
             "    <path id=\"arc-{}\" class=\"{class}\" d=\"{}\" marker-end=\"url(#{marker})\"/>",
-            xml(&a.id),
+            xml_escape(&a.id),
             d.join(" ")
         )?;
         if a.weight > 1 {
@@ -417,12 +417,12 @@ fn write_svg(
         writeln!(
             w,
             "    <g id=\"place-{}\" class=\"place\" data-tokens=\"{tokens}\">",
-            xml(&p.id)
+            xml_escape(&p.id)
         )?;
         writeln!(
             w,
             "      <title>{}</title>",
-            xml(&node_title(&p.id, p.name.as_deref()))
+            xml_escape(&node_title(&p.id, p.name.as_deref()))
         )?;
         writeln!(
             w,
@@ -438,7 +438,7 @@ fn write_svg(
             "      <text class=\"label\" x=\"{}\" y=\"{}\">{}</text>",
             n(c.x),
             n(c.y + PLACE_R + 13.0),
-            xml(p.label())
+            xml_escape(p.label())
         )?;
         writeln!(w, "    </g>")?;
     }
@@ -450,12 +450,12 @@ fn write_svg(
         writeln!(
             w,
             "    <g id=\"trans-{}\" class=\"transition\">",
-            xml(&t.id)
+            xml_escape(&t.id)
         )?;
         writeln!(
             w,
             "      <title>{}</title>",
-            xml(&node_title(&t.id, t.name.as_deref()))
+            xml_escape(&node_title(&t.id, t.name.as_deref()))
         )?;
         writeln!(
             w,
@@ -470,7 +470,7 @@ fn write_svg(
             "      <text class=\"label\" x=\"{}\" y=\"{}\">{}</text>",
             n(c.x),
             n(c.y + TRANS_HH + 13.0),
-            xml(t.label())
+            xml_escape(t.label())
         )?;
         writeln!(w, "    </g>")?;
     }
@@ -554,25 +554,6 @@ fn n(v: f64) -> String {
     } else {
         format!("{r}")
     }
-}
-
-/// Escapes text or an attribute value for XML.
-fn xml(s: &str) -> Cow<'_, str> {
-    if !s.contains(['&', '<', '>', '"', '\'']) {
-        return Cow::Borrowed(s);
-    }
-    let mut out = String::with_capacity(s.len() + 8);
-    for c in s.chars() {
-        match c {
-            '&' => out.push_str("&amp;"),
-            '<' => out.push_str("&lt;"),
-            '>' => out.push_str("&gt;"),
-            '"' => out.push_str("&quot;"),
-            '\'' => out.push_str("&apos;"),
-            c => out.push(c),
-        }
-    }
-    Cow::Owned(out)
 }
 
 #[cfg(test)]

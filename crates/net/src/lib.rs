@@ -25,5 +25,11 @@ pub use net::{
     Transition,
 };
 
+/// Escapes `&`, `<`, `>`, `"` and `'` (quick-xml's `escape`), for XML text or a quoted attribute
+/// value; borrows when there is nothing to escape. The one XML escaper of the workspace.
+pub fn xml_escape(s: &str) -> std::borrow::Cow<'_, str> {
+    quick_xml::escape::escape(s)
+}
+
 /// A token count. Arithmetic on it is always checked: overflow is an error, never a wrap-around.
 pub type Tokens = u32;

@@ -849,33 +849,27 @@ fn page_id(net: &Net) -> String {
 
 /// Escapes text content; `\r` too, because XML parsers turn a raw one into `\n`.
 fn text(s: &str) -> Cow<'_, str> {
-    escape(s, false)
+    // Quotes may stay raw in text, and leaving them keeps the files as earlier versions wrote them.
+    char_refs(quick_xml::escape::partial_escape(s), &['\r'])
 }
 
 /// Escapes an attribute value; whitespace too, because parsers turn raw tabs and newlines into spaces.
 fn attr(s: &str) -> Cow<'_, str> {
-    escape(s, true)
+    char_refs(crate::xml_escape(s), &['\t', '\n', '\r'])
 }
 
-fn escape(s: &str, in_attr: bool) -> Cow<'_, str> {
-    let needs = |c: char| {
-        matches!(c, '&' | '<' | '>' | '\r') || (in_attr && matches!(c, '"' | '\'' | '\t' | '\n'))
-    };
-    if !s.contains(needs) {
-        return Cow::Borrowed(s);
+/// Writes each of `chars` in `s` as a numeric character reference (`&#13;`), which a parser
+/// gives back as that character instead of normalising it.
+fn char_refs<'a>(s: Cow<'a, str>, chars: &[char]) -> Cow<'a, str> {
+    if !s.contains(chars) {
+        return s;
     }
     let mut out = String::with_capacity(s.len() + 8);
     for c in s.chars() {
-        match c {
-            '&' => out.push_str("&amp;"),
-            '<' => out.push_str("&lt;"),
-            '>' => out.push_str("&gt;"),
-            '\r' => out.push_str("&#13;"),
-            '"' if in_attr => out.push_str("&quot;"),
-            '\'' if in_attr => out.push_str("&apos;"),
-            '\t' if in_attr => out.push_str("&#9;"),
-            '\n' if in_attr => out.push_str("&#10;"),
-            c => out.push(c),
+        if chars.contains(&c) {
+            let _ = write!(out, "&#{};", u32::from(c));
+        } else {
+            out.push(c);
         }
     }
     Cow::Owned(out)
@@ -884,6 +878,14 @@ fn escape(s: &str, in_attr: bool) -> Cow<'_, str> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn text_keeps_quotes_and_attributes_write_whitespace_as_character_references() {
+        let s = "a&<>\"'\t\n\r";
+        assert_eq!(text(s), "a&amp;&lt;&gt;\"'\t\n&#13;");
+        assert_eq!(attr(s), "a&amp;&lt;&gt;&quot;&apos;&#9;&#10;&#13;");
+        assert!(matches!(attr("plain text"), Cow::Borrowed(_)));
+    }
 
     #[test]
     fn counts_accept_plain_numbers_and_pipe_token_lists() {

@@ -1,6 +1,8 @@
 //! parse ∘ print = id: any net Cetratus can build survives PNML writing and reading, order included.
 
-use cetratus_net::{pnml, ArcKind, Net, NetBuilder, Place, Position, ToolSpecific, Transition};
+use cetratus_net::{
+    pnml, xml_escape, ArcKind, Net, NetBuilder, Place, Position, ToolSpecific, Transition,
+};
 use proptest::prelude::*;
 
 /// Text with the characters XML must escape, and spaces and newlines inside.
@@ -12,24 +14,14 @@ fn position() -> impl Strategy<Value = Option<Position>> {
     prop::option::of((-1.0e6..1.0e6f64, -1.0e6..1.0e6f64).prop_map(|(x, y)| Position { x, y }))
 }
 
-fn escape(s: &str) -> String {
-    s.replace('&', "&amp;")
-        .replace('<', "&lt;")
-        .replace('>', "&gt;")
-        .replace('"', "&quot;")
-        .replace('\r', "&#13;")
-        .replace('\n', "&#10;")
-        .replace('\t', "&#9;")
-}
-
 fn toolspecific() -> impl Strategy<Value = Vec<ToolSpecific>> {
     prop::collection::vec(("[a-z]{1,8}", "[0-9.]{1,4}", label()), 0..3).prop_map(|v| {
         v.into_iter()
             .map(|(tool, version, data)| ToolSpecific {
                 xml: format!(
                     "<toolspecific tool=\"{tool}\" version=\"{version}\">\n  <data v=\"{}\">{}</data>\n</toolspecific>",
-                    escape(&data),
-                    escape(&data)
+                    xml_escape(&data),
+                    xml_escape(&data)
                 ),
                 tool,
                 version,

@@ -112,8 +112,10 @@ pub struct DemoFiles {
 /// The demo's directory: `$XDG_DATA_HOME/cetratus/demo`, `~/.local/share/cetratus/demo`, or
 /// `.cetratus-demo` here.
 pub fn default_dir() -> PathBuf {
-    crate::dirs::xdg("XDG_DATA_HOME", ".local/share")
-        .map_or_else(|| PathBuf::from(".cetratus-demo"), |d| d.join("cetratus/demo"))
+    crate::dirs::xdg("XDG_DATA_HOME", ".local/share").map_or_else(
+        || PathBuf::from(".cetratus-demo"),
+        |d| d.join("cetratus/demo"),
+    )
 }
 
 /// Writes the example, makes the key and builds the packages where missing; `say` is told what

@@ -17,6 +17,7 @@ use ed25519_dalek::{Signature, Signer, SigningKey, VerifyingKey};
 use serde::{Deserialize, Serialize};
 use sha2::{Digest, Sha256};
 use toml::Spanned;
+use zeroize::Zeroizing;
 
 use crate::source::{NetOnly, Origin};
 use crate::transform::{DenseMatrix, Projection, StateTransform, TransformError};
@@ -624,6 +625,10 @@ impl VerifyingKeyFile {
 }
 
 /// An Ed25519 signing key and its key id.
+///
+/// The secret does not outlive the value: `SigningKey` wipes itself when dropped (ed25519-dalek's
+/// `zeroize` feature), and every buffer that holds the seed on the way to or from a key file
+/// (`save`, `load`, `try_generate`) is wiped too.
 pub struct KeyPair {
     key: SigningKey,
 }
@@ -657,14 +662,16 @@ impl KeyPair {
 
     /// A fresh key from the operating system's random source, or why there is none.
     pub fn try_generate() -> Result<Self, PackageError> {
-        let mut seed = [0u8; 32];
-        getrandom::fill(&mut seed).map_err(|e| PackageError::Key {
+        // `Zeroizing` rather than a final `fill(0)`: the compiler may drop a store to memory that is
+        // never read again, and an early return would skip it.
+        let mut seed = Zeroizing::new([0u8; 32]);
+        getrandom::fill(seed.as_mut()).map_err(|e| PackageError::Key {
             path: "<new key>".into(),
             message: format!("the operating system gave no random bytes ({e})"),
         })?;
-        let key = SigningKey::from_bytes(&seed);
-        seed.fill(0);
-        Ok(KeyPair { key })
+        Ok(KeyPair {
+            key: SigningKey::from_bytes(&seed),
+        })
     }
 
     /// The key id: the first 8 bytes of SHA-256 of the public key, in hex.
@@ -691,11 +698,16 @@ impl KeyPair {
     /// Writes the secret key to `path` (mode 0600 on Unix) and the public key to `path.pub`;
     /// refuses to overwrite either, since losing a secret key strands every PLC that trusts it.
     pub fn save(&self, path: &Path) -> Result<(), PackageError> {
-        let secret = format!(
+        let seed_b64 = Zeroizing::new(B64.encode(Zeroizing::new(self.key.to_bytes())));
+        // One buffer large enough from the start (the file is under 200 bytes), so that no
+        // reallocation leaves a copy of the seed behind; wiped when dropped.
+        let mut secret = Zeroizing::new(String::with_capacity(256));
+        let _ = write!(
+            secret,
             "# Cetratus secret signing key: keep it private, never copy it to a PLC.\n\
              {SECRET_HEADER}\nkey-id {}\ned25519-seed {}\n",
             self.key_id(),
-            B64.encode(self.key.to_bytes())
+            seed_b64.as_str()
         );
         let public_path = Self::public_path(path);
         for p in [path, public_path.as_path()] {
@@ -713,14 +725,16 @@ impl KeyPair {
     /// Reads a secret key file.
     pub fn load(path: &Path) -> Result<Self, PackageError> {
         let label = path.display().to_string();
+        // `read_to_string` sizes its buffer from the file's length, so the text is read into one
+        // allocation, which is wiped on drop; the fields borrow from it rather than copy it.
         let text = std::fs::read_to_string(path).map_err(|source| PackageError::Io {
             path: label.clone(),
             source,
         })?;
+        let text = Zeroizing::new(text);
         let fields = key_fields(&text, &label, SECRET_HEADER)?;
-        let mut seed = field_bytes::<32>(&fields, "ed25519-seed", &label)?;
+        let seed = field_bytes::<32>(&fields, "ed25519-seed", &label)?;
         let key = SigningKey::from_bytes(&seed);
-        seed.fill(0);
         check_key_id(&fields, &key_id_of(&key.verifying_key()), &label)?;
         Ok(KeyPair { key })
     }
@@ -758,11 +772,12 @@ fn key_err(label: &str, message: impl Into<String>) -> PackageError {
 }
 
 /// The `name value` lines of a key file after its header; `#` lines and blank lines are comments.
-fn key_fields(
-    text: &str,
+/// Borrowed from `text`, so that a secret key's seed is not copied out of its wiped buffer.
+fn key_fields<'t>(
+    text: &'t str,
     label: &str,
     header: &str,
-) -> Result<BTreeMap<String, String>, PackageError> {
+) -> Result<BTreeMap<&'t str, &'t str>, PackageError> {
     let mut lines = text
         .lines()
         .map(str::trim)
@@ -785,37 +800,43 @@ fn key_fields(
     let mut fields = BTreeMap::new();
     for l in lines {
         let (k, v) = l.split_once(char::is_whitespace).unwrap_or((l, ""));
-        fields.insert(k.to_string(), v.trim().to_string());
+        fields.insert(k, v.trim());
     }
     Ok(fields)
 }
 
+/// The base64 field `name`, decoded to exactly `N` bytes, in buffers that are wiped on drop since
+/// the field may be a secret seed.
 fn field_bytes<const N: usize>(
-    fields: &BTreeMap<String, String>,
+    fields: &BTreeMap<&str, &str>,
     name: &str,
     label: &str,
-) -> Result<[u8; N], PackageError> {
+) -> Result<Zeroizing<[u8; N]>, PackageError> {
     let v = fields
         .get(name)
         .ok_or_else(|| key_err(label, format!("no `{name}` line")))?;
-    let raw = B64
-        .decode(v)
-        .map_err(|_| key_err(label, format!("`{name}` is not base64")))?;
-    raw.as_slice().try_into().map_err(|_| {
-        key_err(
+    let raw = Zeroizing::new(
+        B64.decode(v)
+            .map_err(|_| key_err(label, format!("`{name}` is not base64")))?,
+    );
+    let mut out = Zeroizing::new([0u8; N]);
+    if raw.len() != N {
+        return Err(key_err(
             label,
             format!("`{name}` must be {N} bytes, found {}", raw.len()),
-        )
-    })
+        ));
+    }
+    out.copy_from_slice(&raw);
+    Ok(out)
 }
 
 fn check_key_id(
-    fields: &BTreeMap<String, String>,
+    fields: &BTreeMap<&str, &str>,
     actual: &str,
     label: &str,
 ) -> Result<(), PackageError> {
     match fields.get("key-id") {
-        Some(id) if id == actual => Ok(()),
+        Some(&id) if id == actual => Ok(()),
         Some(id) => Err(key_err(
             label,
             format!(
@@ -1105,6 +1126,13 @@ mod tests {
         let store = TrustStore::load_dir(dir.path()).unwrap_or_else(|e| panic!("{e}"));
         assert_eq!(store.key_ids().collect::<Vec<_>>(), [k.key_id().as_str()]);
         assert!(k.save(&path).is_err(), "refuses to overwrite a key");
+        let len = std::fs::metadata(&path)
+            .unwrap_or_else(|e| panic!("{e}"))
+            .len();
+        assert!(
+            len < 256,
+            "{len} bytes: `save` must reserve more for its wiped buffer"
+        );
         #[cfg(unix)]
         {
             use std::os::unix::fs::PermissionsExt;
@@ -1114,6 +1142,28 @@ mod tests {
                 .mode();
             assert_eq!(mode & 0o777, 0o600);
         }
+    }
+
+    #[test]
+    fn a_key_pair_wipes_its_secret_when_dropped() {
+        // Compiles only while ed25519-dalek's `zeroize` feature is on: `SigningKey` is then
+        // `ZeroizeOnDrop`, and `KeyPair` holds nothing else secret.
+        fn wiped_on_drop<T: zeroize::ZeroizeOnDrop>() {}
+        wiped_on_drop::<SigningKey>();
+    }
+
+    #[test]
+    fn a_secret_key_of_the_wrong_length_is_refused_with_its_length() {
+        let text = format!(
+            "{SECRET_HEADER}\nkey-id 00\ned25519-seed {}\n",
+            B64.encode([1u8; 31])
+        );
+        let fields = key_fields(&text, "x.key", SECRET_HEADER).unwrap_or_else(|e| panic!("{e}"));
+        let err = field_bytes::<32>(&fields, "ed25519-seed", "x.key").unwrap_err();
+        assert!(
+            err.to_string().contains("must be 32 bytes, found 31"),
+            "{err}"
+        );
     }
 
     #[test]

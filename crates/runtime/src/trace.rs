@@ -3,6 +3,7 @@
 
 use std::fmt::Write as _;
 
+use cetratus_net::xml_escape;
 use cetratus_program::Value;
 use serde::Serialize;
 
@@ -274,11 +275,4 @@ impl TimingDiagram {
         s.push_str("</svg>\n");
         s
     }
-}
-
-fn xml_escape(s: &str) -> String {
-    s.replace('&', "&amp;")
-        .replace('<', "&lt;")
-        .replace('>', "&gt;")
-        .replace('"', "&quot;")
 }

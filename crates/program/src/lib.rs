@@ -17,6 +17,7 @@ pub mod duration;
 mod error;
 pub mod guard;
 mod invariant;
+pub mod keys;
 pub mod package;
 mod program;
 mod source;

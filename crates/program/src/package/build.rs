@@ -1,0 +1,256 @@
+//! Building a package from its manifest (`*.package.toml`): load both programs, resolve the
+//! transformation and the projection, sign.
+
+use super::*;
+
+/// The package manifest (`*.package.toml`).
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct Manifest {
+    package: ManifestPackage,
+    #[serde(default)]
+    transform: TransformSpec,
+    #[serde(default)]
+    projection: Option<TransformSpec>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct ManifestPackage {
+    name: Spanned<String>,
+    version: Spanned<String>,
+    #[serde(default)]
+    author: String,
+    #[serde(default)]
+    description: String,
+    program: Spanned<String>,
+    base: Spanned<String>,
+}
+
+/// What [`build_package`] made, for printing.
+#[derive(Clone, Debug)]
+pub struct BuildReport {
+    /// The metadata written.
+    pub meta: PackageMeta,
+    /// Name of the new program.
+    pub program_name: String,
+    /// Version of the new program.
+    pub program_version: String,
+    /// [`Program::hash_hex`] of the new program.
+    pub program_hash: String,
+    /// Name and version of the base program.
+    pub base_program: String,
+    /// `generated`, `dense` or `sparse`.
+    pub transform_kind: &'static str,
+    /// The transformation resolved against the base program (rows: new places; columns: old).
+    pub transform: DenseMatrix,
+    /// `generated` when the manifest declares none, else its kind.
+    pub projection_kind: &'static str,
+    /// The projection resolved against the base program (rows: old places; columns: new).
+    pub projection: DenseMatrix,
+    /// The key id that signed it, `None` when unsigned.
+    pub signer: Option<String>,
+    /// Things that do not stop the build but deserve a look.
+    pub warnings: Vec<String>,
+}
+
+/// Builds a package from a manifest, signed with `key` (unsigned when `None`), stamped with the
+/// current time.
+pub fn build_package(
+    manifest_path: &Path,
+    key: Option<&KeyPair>,
+) -> Result<(Vec<u8>, BuildReport), PackageError> {
+    // The one clock read of this crate, on the tooling side: packages are built by people, not
+    // by the scan engine, and the time only goes into `created`.
+    let now = std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map_or(0, |d| d.as_secs());
+    build_package_at(manifest_path, key, now)
+}
+
+/// [`build_package`] with `created` set from seconds since the Unix epoch, for reproducible
+/// builds (e.g. from `SOURCE_DATE_EPOCH`).
+pub fn build_package_at(
+    manifest_path: &Path,
+    key: Option<&KeyPair>,
+    created_unix_secs: u64,
+) -> Result<(Vec<u8>, BuildReport), PackageError> {
+    let label = manifest_path.display().to_string();
+    let text = std::fs::read_to_string(manifest_path).map_err(|source| PackageError::Io {
+        path: label.clone(),
+        source,
+    })?;
+    let o = Origin::new(&text, &label);
+    let at = |offset: usize, message: String| PackageError::Manifest {
+        pos: o.pos(offset),
+        message,
+    };
+    let m: Manifest = toml::from_str(&text).map_err(|e| {
+        at(
+            e.span().map_or(0, |s| s.start),
+            e.message().trim_end().to_string(),
+        )
+    })?;
+    for (field, v) in [("name", &m.package.name), ("version", &m.package.version)] {
+        if v.get_ref().trim().is_empty() {
+            return Err(at(
+                v.span().start,
+                format!("the package {field} is empty; give one"),
+            ));
+        }
+    }
+    let dir = manifest_path.parent().unwrap_or_else(|| Path::new(""));
+    let in_manifest = |e: PackageError, v: &Spanned<String>| match e {
+        PackageError::Io { path, source } => at(
+            v.span().start,
+            format!("cannot read `{path}`: {source}; paths are relative to the manifest"),
+        ),
+        other => other,
+    };
+    let (program_toml, program_pnml) = program_sources(&dir.join(m.package.program.get_ref()))
+        .map_err(|e| in_manifest(e, &m.package.program))?;
+    let base_path = dir.join(m.package.base.get_ref());
+    if !base_path.is_file() {
+        return Err(at(
+            m.package.base.span().start,
+            format!(
+                "cannot read the base program `{}`; paths are relative to the manifest",
+                base_path.display()
+            ),
+        ));
+    }
+    let base = Program::load(&base_path)?;
+
+    let meta = PackageMeta {
+        name: m.package.name.get_ref().clone(),
+        version: m.package.version.get_ref().clone(),
+        author: m.package.author.clone(),
+        description: m.package.description.clone(),
+        created: humantime::format_rfc3339_seconds(
+            std::time::UNIX_EPOCH + std::time::Duration::from_secs(created_unix_secs),
+        )
+        .to_string(),
+        base_program_hash: base.hash_hex().to_string(),
+    };
+    let payload = Payload {
+        format: PAYLOAD_FORMAT.to_string(),
+        meta: meta.clone(),
+        program_toml,
+        program_pnml,
+        transform: m.transform.clone(),
+        projection: m.projection.clone(),
+    };
+    // The program is taken from the payload, as the PLC will load it, so that what is resolved
+    // here is what runs there.
+    let new = load_embedded(&payload)?;
+    let manifest_err = |section, source| PackageError::ManifestTransform {
+        path: label.clone(),
+        section,
+        source: Box::new(source),
+    };
+    let transform = resolve_transform(&payload.transform, &base, &new)
+        .map_err(|e| manifest_err("transform", e))?;
+    let projection = resolve_projection(payload.projection.as_ref(), &base, &new)
+        .map_err(|e| manifest_err("projection", e))?;
+
+    let mut warnings = Vec::new();
+    let m0 = base.net().initial_marking();
+    let mut out = vec![0; transform.rows()];
+    if let Err(e) = transform.apply(m0.as_slice(), &new, &mut out) {
+        warnings.push(format!(
+            "applied to the initial marking of the base program, the transform is refused: {e}"
+        ));
+    }
+
+    let payload_bytes = serde_json::to_vec(&payload).map_err(|e| PackageError::Malformed {
+        reason: format!("cannot serialize the payload ({e})"),
+    })?;
+    let signature = key.map(|k| SignatureBlock {
+        key_id: k.key_id(),
+        ed25519: B64.encode(k.sign(&payload_bytes).to_bytes()),
+    });
+    let envelope = Envelope {
+        format: PACKAGE_FORMAT.to_string(),
+        payload: B64.encode(&payload_bytes),
+        signature,
+    };
+    let mut bytes = serde_json::to_vec_pretty(&envelope).map_err(|e| PackageError::Malformed {
+        reason: format!("cannot serialize the package ({e})"),
+    })?;
+    bytes.push(b'\n');
+
+    let report = BuildReport {
+        meta,
+        program_name: new.name().to_string(),
+        program_version: new.version().to_string(),
+        program_hash: new.hash_hex().to_string(),
+        base_program: format!("{} {}", base.name(), base.version()),
+        transform_kind: payload.transform.kind(),
+        transform: transform.to_dense(),
+        projection_kind: payload
+            .projection
+            .as_ref()
+            .map_or("generated", TransformSpec::kind),
+        projection: projection.to_dense(),
+        signer: key.map(KeyPair::key_id),
+        warnings,
+    };
+    Ok((bytes, report))
+}
+
+/// The program TOML text and PNML text of a program file: a `.toml` naming its net, or a
+/// `.pnml` carrying the program.
+fn program_sources(path: &Path) -> Result<(String, String), PackageError> {
+    let label = path.display().to_string();
+    let read = |p: &Path| {
+        std::fs::read_to_string(p).map_err(|source| PackageError::Io {
+            path: p.display().to_string(),
+            source,
+        })
+    };
+    let text = read(path)?;
+    let is_pnml = path
+        .extension()
+        .and_then(|e| e.to_str())
+        .is_some_and(|e| e.eq_ignore_ascii_case("pnml") || e.eq_ignore_ascii_case("xml"));
+    if is_pnml {
+        let program = Program::from_pnml_text(&text, &label)?;
+        return Ok((program.source().to_string(), text));
+    }
+    // Loading first reports any problem of the program with its own file positions.
+    Program::load(path)?;
+    let head: NetOnly = toml::from_str(&text).map_err(|e| ProgramError::File {
+        path: label.clone(),
+        message: e.message().to_string(),
+    })?;
+    let Some(net) = head.program.net else {
+        return Err(ProgramError::File {
+            path: label,
+            message: "`[program]` has no `net = \"….pnml\"`".into(),
+        }
+        .into());
+    };
+    let net_path = path
+        .parent()
+        .unwrap_or_else(|| Path::new(""))
+        .join(net.get_ref());
+    Ok((text, read(&net_path)?))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn created_is_rfc3339_utc_to_the_second() {
+        let t = |s| {
+            humantime::format_rfc3339_seconds(
+                std::time::UNIX_EPOCH + std::time::Duration::from_secs(s),
+            )
+            .to_string()
+        };
+        assert_eq!(t(0), "1970-01-01T00:00:00Z");
+        assert_eq!(t(951_782_400), "2000-02-29T00:00:00Z");
+        assert_eq!(t(1_700_000_000), "2023-11-14T22:13:20Z");
+    }
+}

@@ -1,0 +1,144 @@
+//! Unit tests of `transform`.
+
+use super::*;
+use cetratus_net::{NetBuilder, Place};
+
+fn net(places: &[(&str, Tokens)]) -> Net {
+    let mut b = NetBuilder::new("n");
+    for &(id, m) in places {
+        b.add_place(Place::new(id, m))
+            .unwrap_or_else(|e| panic!("{e}"));
+    }
+    b.build().unwrap_or_else(|e| panic!("{e}"))
+}
+
+fn program(places: &[(&str, Tokens)], invariants: &[&str]) -> Program {
+    let mut src = String::from("[program]\nname = \"t\"\nversion = \"1\"\n");
+    for i in invariants {
+        src.push_str(&format!("[[invariant]]\nexpr = \"{i}\"\n"));
+    }
+    Program::from_sources(&src, "t.toml", net(places)).unwrap_or_else(|e| panic!("{e}"))
+}
+
+fn s(v: &[&str]) -> Vec<String> {
+    v.iter().map(|x| x.to_string()).collect()
+}
+
+#[test]
+fn generated_keeps_kept_places_and_starts_new_ones_at_their_initial_marking() {
+    let old = program(&[("A", 1), ("B", 0)], &[]);
+    let new = program(&[("B", 0), ("C", 2), ("A", 0)], &[]);
+    let st =
+        StateTransform::generated(&old, &new, &BTreeMap::new()).unwrap_or_else(|e| panic!("{e}"));
+    assert_eq!((st.rows(), st.cols()), (3, 2));
+    let mut out = [0; 3];
+    st.apply(&[5, 7], &new, &mut out)
+        .unwrap_or_else(|e| panic!("{e}"));
+    assert_eq!(out, [7, 2, 5]);
+}
+
+#[test]
+fn a_removed_place_with_tokens_and_no_destination_is_refused_by_name() {
+    let old = program(&[("A", 1), ("X", 0)], &[]);
+    let new = program(&[("A", 1)], &[]);
+    let st =
+        StateTransform::generated(&old, &new, &BTreeMap::new()).unwrap_or_else(|e| panic!("{e}"));
+    let mut out = [9];
+    let err = st.apply(&[1, 2], &new, &mut out).unwrap_err();
+    assert!(err.to_string().contains("`X`"), "{err}");
+    assert_eq!(out, [9], "nothing written");
+    st.apply(&[1, 0], &new, &mut out)
+        .unwrap_or_else(|e| panic!("{e}"));
+    assert_eq!(out, [1]);
+}
+
+#[test]
+fn a_removed_place_sends_its_tokens_where_the_package_says() {
+    let old = program(&[("A", 1), ("X", 0)], &[]);
+    let new = program(&[("A", 1)], &[]);
+    let removed = BTreeMap::from([("X".to_string(), "A".to_string())]);
+    let st = StateTransform::generated(&old, &new, &removed).unwrap_or_else(|e| panic!("{e}"));
+    let mut out = [0];
+    st.apply(&[1, 2], &new, &mut out)
+        .unwrap_or_else(|e| panic!("{e}"));
+    assert_eq!(out, [3]);
+}
+
+#[test]
+fn removed_must_name_a_place_that_is_really_removed() {
+    let old = program(&[("A", 1), ("X", 0)], &[]);
+    let new = program(&[("A", 1)], &[]);
+    let kept = BTreeMap::from([("A".to_string(), "A".to_string())]);
+    assert!(matches!(
+        StateTransform::generated(&old, &new, &kept),
+        Err(TransformError::RemovedIsKept { .. })
+    ));
+    let nowhere = BTreeMap::from([("X".to_string(), "Z".to_string())]);
+    assert!(matches!(
+        StateTransform::generated(&old, &new, &nowhere),
+        Err(TransformError::RemovedTargetUnknown { .. })
+    ));
+    let unknown = BTreeMap::from([("Q".to_string(), "A".to_string())]);
+    assert!(matches!(
+        StateTransform::generated(&old, &new, &unknown),
+        Err(TransformError::RemovedUnknown { .. })
+    ));
+}
+
+#[test]
+fn sparse_refuses_unknown_places_and_duplicates() {
+    let old = net(&[("A", 0)]);
+    let new = net(&[("A", 0), ("B", 0)]);
+    let e = |t: &str, f: &str| (t.to_string(), f.to_string(), 1);
+    let none = BTreeMap::new();
+    let err = StateTransform::sparse(&old, &new, &[e("Z", "A")], &none).unwrap_err();
+    assert!(err.to_string().contains("`Z`") && err.to_string().contains("new net"));
+    let err = StateTransform::sparse(&old, &new, &[e("A", "B")], &none).unwrap_err();
+    assert!(err.to_string().contains("`B`") && err.to_string().contains("running"));
+    let err = StateTransform::sparse(&old, &new, &[e("A", "A"), e("A", "A")], &none);
+    assert!(matches!(err, Err(TransformError::DuplicateEntry { .. })));
+    let bad_base = BTreeMap::from([("Q".to_string(), 1)]);
+    assert!(StateTransform::sparse(&old, &new, &[], &bad_base).is_err());
+}
+
+#[test]
+fn timers_of_kept_places_carry_over_and_new_marked_places_start_now() {
+    let old = program(&[("A", 1), ("B", 0)], &[]);
+    let new = program(&[("A", 0), ("N", 1), ("B", 0)], &[]);
+    let st =
+        StateTransform::generated(&old, &new, &BTreeMap::new()).unwrap_or_else(|e| panic!("{e}"));
+    let mut m = [0; 3];
+    st.apply(&[1, 0], &new, &mut m)
+        .unwrap_or_else(|e| panic!("{e}"));
+    let mut since = [Some(7); 3];
+    st.apply_timers(&[Some(100), None], &m, 500, &mut since);
+    assert_eq!(since, [Some(100), Some(500), None]);
+}
+
+#[test]
+fn the_dense_form_prints_aligned_with_place_ids() {
+    let old = net(&[("A", 0), ("LONG", 0)]);
+    let new = net(&[("A", 0)]);
+    let st = StateTransform::dense(
+        &old,
+        &new,
+        &s(&["A"]),
+        &s(&["A", "LONG"]),
+        &[vec![1, -12]],
+        &[3],
+    )
+    .unwrap_or_else(|e| panic!("{e}"));
+    let text = st.to_dense().to_string();
+    assert_eq!(text, "  A LONG | base\nA 1  -12 |    3\n");
+}
+
+#[test]
+fn drift_counts_every_token_of_difference() {
+    let old = net(&[("A", 0), ("B", 0)]);
+    let new = net(&[("B", 0), ("C", 0)]);
+    let pi = Projection::generated(&old, &new);
+    assert_eq!((pi.rows(), pi.cols()), (2, 2));
+    // A reads nothing (0 vs 2), B reads B (1 vs 4).
+    assert_eq!(pi.drift(&[1, 9], &[2, 4]), 5);
+    assert_eq!(pi.drift(&[4, 9], &[0, 4]), 0);
+}

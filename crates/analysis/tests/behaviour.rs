@@ -121,7 +121,7 @@ fn the_progress_callback_sees_the_state_space_grow() {
 
 #[test]
 fn two_threads_give_the_same_report_as_one() {
-    let net = common::vernadat();
+    let net = cetratus_testkit::nets::vernadat();
     let one = check(&net, &CheckOptions::default());
     let two = check(
         &net,

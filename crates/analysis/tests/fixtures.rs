@@ -1,16 +1,10 @@
 //! Every shared fixture gives the states, edges and deadlocks listed in the fixtures README.
 
-use std::path::Path;
-
 use cetratus_analysis::{check, CheckOptions, Report};
+use cetratus_testkit::nets;
 
 fn report(rel: &str) -> Report {
-    let path = Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../../../shared/fixtures")
-        .join(rel);
-    let net =
-        cetratus_net::pnml::read_file(&path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
-    check(&net, &CheckOptions::default())
+    check(&nets::fixture(rel), &CheckOptions::default())
 }
 
 fn counts(rel: &str) -> (u64, u64, u64) {

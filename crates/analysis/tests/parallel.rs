@@ -4,13 +4,12 @@
 
 mod common;
 
-use std::path::Path;
-
 use cetratus_analysis::families::{fms, kanban};
 use cetratus_analysis::invariants::DEFAULT_MAX_ROWS;
 use cetratus_analysis::reach::{explore, structural_packing, ReachOptions, ReachResult};
 use cetratus_analysis::{check, CheckOptions, Report};
 use cetratus_net::Net;
+use cetratus_testkit::nets;
 use proptest::prelude::*;
 
 const FIXTURES: [&str; 11] = [
@@ -26,13 +25,6 @@ const FIXTURES: [&str; 11] = [
     "mcc/FMS-PT-00002.pnml",
     "crafted/nested-pages.pnml",
 ];
-
-fn fixture(rel: &str) -> Net {
-    let path = Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../../../shared/fixtures")
-        .join(rel);
-    cetratus_net::pnml::read_file(&path).unwrap_or_else(|e| panic!("{}: {e}", path.display()))
-}
 
 /// The report without what legitimately differs between runs (time, memory).
 fn behaviour(net: &Net, threads: usize, max_states: Option<u64>) -> Report {
@@ -69,7 +61,7 @@ fn explored(net: &Net, threads: usize, max_states: Option<u64>, liveness: bool) 
 #[test]
 fn parallel_check_of_every_fixture_equals_the_sequential_one() {
     for rel in FIXTURES {
-        let net = fixture(rel);
+        let net = nets::fixture(rel);
         let one = behaviour(&net, 1, None);
         for threads in [2, 3] {
             assert_eq!(
@@ -83,7 +75,7 @@ fn parallel_check_of_every_fixture_equals_the_sequential_one() {
 
 #[test]
 fn parallel_witness_of_philosophers_is_the_sequential_shortest_one() {
-    let net = fixture("mcc/Philosophers-PT-000005.pnml");
+    let net = nets::fixture("mcc/Philosophers-PT-000005.pnml");
     let one = behaviour(&net, 1, None);
     let two = behaviour(&net, 2, None);
     assert!(one.deadlock_witness.is_some());
@@ -141,7 +133,7 @@ fn parallel_exploration_stops_at_max_states_where_the_sequential_one_stops() {
 
 #[test]
 fn parallel_check_under_max_states_equals_the_sequential_one() {
-    let net = fixture("mcc/Philosophers-PT-000005.pnml");
+    let net = nets::fixture("mcc/Philosophers-PT-000005.pnml");
     for max in [0, 10, 100, 242, 243] {
         assert_eq!(
             behaviour(&net, 2, Some(max)),

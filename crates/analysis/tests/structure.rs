@@ -169,7 +169,7 @@ fn p_semiflows_of_small_nets_are_minimal_and_complete() {
 
 #[test]
 fn vernadat_cell_has_the_four_p_invariants_of_the_design() {
-    let net = common::vernadat();
+    let net = cetratus_testkit::nets::vernadat();
     let r = check(&net, &CheckOptions::default());
     let invs = r.p_invariants.expect("computed");
     let consts = r.p_invariant_constants.expect("computed");

@@ -5,110 +5,44 @@
 
 use std::net::TcpListener;
 use std::path::{Path, PathBuf};
-use std::process::{Child, Command, Output, Stdio};
+use std::process::{Command, Output, Stdio};
 use std::time::{Duration, Instant};
 
+use cetratus_testkit::mqtt::{self, Mosquitto};
+use cetratus_testkit::ports::{free_port, wait_for_port};
+use cetratus_testkit::process::ChildGuard;
 use serde_json::Value;
 
 const BIN: &str = env!("CARGO_BIN_EXE_cetratus");
 
-fn free_port() -> u16 {
-    TcpListener::bind("127.0.0.1:0")
-        .and_then(|l| l.local_addr())
-        .map(|a| a.port())
-        .expect("a free port")
-}
-
-fn tool(name: &str) -> String {
-    for dir in ["/usr/bin", "/usr/sbin", "/usr/local/bin", "/usr/local/sbin"] {
-        let p = Path::new(dir).join(name);
-        if p.exists() {
-            return p.display().to_string();
-        }
-    }
-    panic!("`{name}` is missing: install the Debian packages mosquitto and mosquitto-clients (./scripts/test does)");
-}
-
-/// A child process killed when the test ends, pass or fail.
-struct Proc(Child);
-
-impl Drop for Proc {
-    fn drop(&mut self) {
-        let _ = self.0.kill();
-        let _ = self.0.wait();
-    }
-}
-
-fn mosquitto(port: u16) -> Proc {
-    let child = Command::new(tool("mosquitto"))
-        .args(["-p", &port.to_string()])
-        .stdout(Stdio::null())
-        .stderr(Stdio::null())
-        .spawn()
-        .expect("start mosquitto");
-    wait_port(port);
-    Proc(child)
-}
-
-fn wait_port(port: u16) {
-    let end = Instant::now() + Duration::from_secs(10);
-    while Instant::now() < end {
-        if std::net::TcpStream::connect(("127.0.0.1", port)).is_ok() {
-            return;
-        }
-        std::thread::sleep(Duration::from_millis(50));
-    }
-    panic!("nothing listens on port {port}");
-}
-
 /// `cetratus demo` in real time at speed 10, its MQTT on `broker_args`.
-fn demo(dir: &Path, plc: &str, broker_args: &[String]) -> Proc {
-    let child = Command::new(BIN)
-        .args([
-            "demo",
-            "--speed",
-            "10",
-            "--http",
-            "127.0.0.1:0",
-            "--for",
-            "30min",
-            "--plc",
-            plc,
-            "--dir",
-        ])
-        .arg(dir)
-        .args(broker_args)
-        .stdout(Stdio::null())
-        .stderr(Stdio::null())
-        .spawn()
-        .expect("start cetratus demo");
-    Proc(child)
-}
-
-fn sub_one(port: u16, topic: &str, secs: u32) -> Option<Value> {
-    let out = Command::new(tool("mosquitto_sub"))
-        .args([
-            "-h",
-            "127.0.0.1",
-            "-p",
-            &port.to_string(),
-            "-t",
-            topic,
-            "-C",
-            "1",
-            "-W",
-            &secs.to_string(),
-        ])
-        .output()
-        .expect("run mosquitto_sub");
-    serde_json::from_slice(&out.stdout).ok()
+fn demo(dir: &Path, plc: &str, broker_args: &[String]) -> ChildGuard {
+    ChildGuard::spawn(
+        Command::new(BIN)
+            .args([
+                "demo",
+                "--speed",
+                "10",
+                "--http",
+                "127.0.0.1:0",
+                "--for",
+                "30min",
+                "--plc",
+                plc,
+                "--dir",
+            ])
+            .arg(dir)
+            .args(broker_args)
+            .stdout(Stdio::null())
+            .stderr(Stdio::null()),
+    )
 }
 
 fn wait_state(port: u16, plc: &str, pred: impl Fn(&Value) -> bool) -> Value {
     let end = Instant::now() + Duration::from_secs(30);
     let mut last = Value::Null;
     while Instant::now() < end {
-        if let Some(v) = sub_one(port, &format!("cetratus/{plc}/state"), 2) {
+        if let Some(v) = mqtt::sub_one(port, &format!("cetratus/{plc}/state"), 2, false) {
             if pred(&v) {
                 return v;
             }
@@ -120,49 +54,9 @@ fn wait_state(port: u16, plc: &str, pred: impl Fn(&Value) -> bool) -> Value {
 }
 
 /// MQTT 3.1.1: `mosquitto_pub` with a `reply_to` field, `mosquitto_sub` on that topic.
-fn request_v311(port: u16, plc: &str, verb: &str, mut payload: Value) -> Value {
+fn request_v311(port: u16, plc: &str, verb: &str, payload: Value) -> Value {
     let reply = format!("test/reply/{}/{verb}/{}", std::process::id(), free_port());
-    payload["reply_to"] = Value::String(reply.clone());
-    let sub = Command::new(tool("mosquitto_sub"))
-        .args([
-            "-h",
-            "127.0.0.1",
-            "-p",
-            &port.to_string(),
-            "-t",
-            &reply,
-            "-C",
-            "1",
-            "-W",
-            "15",
-        ])
-        .stdout(Stdio::piped())
-        .spawn()
-        .expect("run mosquitto_sub");
-    std::thread::sleep(Duration::from_millis(400));
-    let file = tempfile::NamedTempFile::new().expect("temp file");
-    std::fs::write(file.path(), payload.to_string()).expect("write payload");
-    let st = Command::new(tool("mosquitto_pub"))
-        .args([
-            "-h",
-            "127.0.0.1",
-            "-p",
-            &port.to_string(),
-            "-t",
-            &format!("cetratus/{plc}/cmd/{verb}"),
-            "-f",
-        ])
-        .arg(file.path())
-        .status()
-        .expect("run mosquitto_pub");
-    assert!(st.success());
-    let out = sub.wait_with_output().expect("mosquitto_sub output");
-    serde_json::from_slice(&out.stdout).unwrap_or_else(|_| {
-        panic!(
-            "no JSON reply to {verb}: {:?}",
-            String::from_utf8_lossy(&out.stdout)
-        )
-    })
+    mqtt::request_v311(port, &format!("cetratus/{plc}/cmd/{verb}"), payload, &reply)
 }
 
 /// MQTT 5 request/reply with `mosquitto_rr`: the response topic and correlation data properties.
@@ -170,7 +64,7 @@ fn request_v311(port: u16, plc: &str, verb: &str, mut payload: Value) -> Value {
 /// holds no NUL byte and stays under the kernel's 128 KiB limit for one argument.
 fn request_v5(port: u16, plc: &str, verb: &str, payload: &[u8]) -> Output {
     use std::os::unix::ffi::OsStrExt;
-    Command::new(tool("mosquitto_rr"))
+    Command::new(mqtt::tool("mosquitto_rr"))
         .args([
             "-h",
             "127.0.0.1",
@@ -350,8 +244,8 @@ fn base64_encode(bytes: &[u8]) -> String {
 #[test]
 fn the_runtime_on_a_real_mosquitto_answers_mosquitto_clients_and_paho() {
     let pk = packages();
-    let port = free_port();
-    let _broker = mosquitto(port);
+    let broker = Mosquitto::start();
+    let port = broker.port();
     let _plc = demo(
         pk.path(),
         "mosq1",
@@ -369,7 +263,7 @@ fn the_runtime_on_its_embedded_broker_answers_mosquitto_clients_and_paho() {
         "emb1",
         &["--mqtt".into(), format!("127.0.0.1:{port}")],
     );
-    wait_port(port);
+    wait_for_port(port, "the embedded broker", Duration::from_secs(10));
     scenario(port, "emb1", pk.path());
 }
 

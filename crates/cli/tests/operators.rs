@@ -2,28 +2,14 @@
 //! envelope; an unsigned one is refused, a signed one is carried out, and the audit log records
 //! which key gave it.
 
-use std::net::TcpListener;
 use std::path::Path;
-use std::process::{Child, Command, Output, Stdio};
+use std::process::{Command, Output, Stdio};
 use std::time::{Duration, Instant};
 
+use cetratus_testkit::ports::{free_port, wait_for_port};
+use cetratus_testkit::process::ChildGuard;
+
 const BIN: &str = env!("CARGO_BIN_EXE_cetratus");
-
-fn free_port() -> u16 {
-    TcpListener::bind("127.0.0.1:0")
-        .and_then(|l| l.local_addr())
-        .map(|a| a.port())
-        .expect("a free port")
-}
-
-struct Guard(Child);
-
-impl Drop for Guard {
-    fn drop(&mut self) {
-        let _ = self.0.kill();
-        let _ = self.0.wait();
-    }
-}
 
 fn cetratus(args: &[&str]) -> Output {
     Command::new(BIN).args(args).output().expect("run cetratus")
@@ -73,7 +59,7 @@ fn with_operator_keys_only_signed_commands_are_carried_out_and_the_audit_log_nam
     let port = free_port();
     let state = work.path().join("state");
     let mqtt = format!("127.0.0.1:{port}");
-    let _plc = Guard(
+    let _plc = ChildGuard::spawn(
         Command::new(BIN)
             .arg("run")
             .arg(pk.join("vernadat.toml"))
@@ -98,14 +84,9 @@ fn with_operator_keys_only_signed_commands_are_carried_out_and_the_audit_log_nam
                 path(&state),
             ])
             .stdout(Stdio::null())
-            .stderr(Stdio::null())
-            .spawn()
-            .expect("start cetratus run"),
+            .stderr(Stdio::null()),
     );
-    let end = Instant::now() + Duration::from_secs(20);
-    while std::net::TcpStream::connect(("127.0.0.1", port)).is_err() && Instant::now() < end {
-        std::thread::sleep(Duration::from_millis(50));
-    }
+    wait_for_port(port, "the PLC's embedded broker", Duration::from_secs(20));
     let client = |extra: &[&str]| {
         let mut a = vec!["--plc", "ops1", "--mqtt", &mqtt];
         a.extend_from_slice(extra);
@@ -148,12 +129,7 @@ fn with_operator_keys_only_signed_commands_are_carried_out_and_the_audit_log_nam
         if let Some(k) = key {
             cmd.args(["--key", path(k)]);
         }
-        let _mct = Guard(
-            cmd.stdout(Stdio::null())
-                .stderr(Stdio::null())
-                .spawn()
-                .expect("start cetratus mct"),
-        );
+        let _mct = ChildGuard::spawn(cmd.stdout(Stdio::null()).stderr(Stdio::null()));
         let end = Instant::now() + Duration::from_secs(20);
         let mut reply = String::new();
         while Instant::now() < end {

@@ -6,95 +6,26 @@
 //! Needs Debian's `chromium`, `chromium-driver` and `mosquitto`; it fails (never skips) when they
 //! are missing. Artifacts (a screenshot, the latency figures) go to `target/test-artifacts/`.
 
-use std::net::{SocketAddr, TcpListener, TcpStream};
-use std::path::{Path, PathBuf};
-use std::process::{Child, Command, Stdio};
+use std::net::SocketAddr;
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
 
 use base64::Engine as _;
 use cetratus_dashboard::{serve, DashboardConfig};
-use fantoccini::{Client, ClientBuilder, Locator};
+use cetratus_testkit::browser::{require_chromium, Browser};
+use cetratus_testkit::mqtt::Mosquitto;
+use cetratus_testkit::{nets, paths};
 use rumqttc::v5::mqttbytes::v5::{Packet, PublishProperties};
 use rumqttc::v5::mqttbytes::QoS;
 use rumqttc::v5::{AsyncClient, Event, MqttOptions};
 use serde_json::{json, Value};
 
-const CHROMIUM: &str = "/usr/bin/chromium";
-const CHROMEDRIVER: &str = "/usr/bin/chromedriver";
 const PLC: &str = "fake1";
-
-fn free_port() -> u16 {
-    TcpListener::bind("127.0.0.1:0")
-        .and_then(|l| l.local_addr())
-        .map(|a| a.port())
-        .expect("a free loopback port")
-}
-
-fn wait_port(port: u16, what: &str) {
-    let end = Instant::now() + Duration::from_secs(15);
-    while Instant::now() < end {
-        if TcpStream::connect(("127.0.0.1", port)).is_ok() {
-            return;
-        }
-        std::thread::sleep(Duration::from_millis(50));
-    }
-    panic!("{what} did not listen on 127.0.0.1:{port} within 15 s");
-}
 
 fn unix_ms() -> f64 {
     SystemTime::now()
         .duration_since(UNIX_EPOCH)
         .map_or(0.0, |d| d.as_secs_f64() * 1000.0)
-}
-
-/// A child process killed when the test ends, pass or fail.
-struct Guard(Child);
-
-impl Drop for Guard {
-    fn drop(&mut self) {
-        let _ = self.0.kill();
-        let _ = self.0.wait();
-    }
-}
-
-fn find_program(name: &str, fallback: &str) -> Option<PathBuf> {
-    let from_path = std::env::var_os("PATH").and_then(|paths| {
-        std::env::split_paths(&paths)
-            .map(|d| d.join(name))
-            .find(|p| p.is_file())
-    });
-    from_path.or_else(|| Some(PathBuf::from(fallback)).filter(|p| p.is_file()))
-}
-
-fn require(path: &str, package: &str) {
-    assert!(
-        Path::new(path).is_file(),
-        "{path} is missing: install the browser test's dependencies with \
-         `apt-get install -y chromium chromium-driver mosquitto` (CI installs them); the \
-         dashboard's browser test does not skip (missing: Debian package `{package}`)"
-    );
-}
-
-fn artifacts_dir() -> PathBuf {
-    let target = std::env::var_os("CARGO_TARGET_DIR")
-        .map(PathBuf::from)
-        .unwrap_or_else(|| Path::new(env!("CARGO_MANIFEST_DIR")).join("../../target"));
-    let dir = target.join("test-artifacts");
-    std::fs::create_dir_all(&dir).expect("target/test-artifacts can be created");
-    dir
-}
-
-fn scratch_dir() -> PathBuf {
-    let nanos = SystemTime::now()
-        .duration_since(UNIX_EPOCH)
-        .map_or(0, |d| d.subsec_nanos());
-    let dir = std::env::temp_dir().join(format!(
-        "cetratus-dashboard-test-{}-{nanos}",
-        std::process::id()
-    ));
-    std::fs::create_dir_all(&dir).expect("a scratch directory");
-    dir
 }
 
 // ---- the fake PLC -----------------------------------------------------------------------------
@@ -106,10 +37,7 @@ struct NetDrawing {
 
 impl NetDrawing {
     fn load(file: &str) -> Self {
-        let path = Path::new(env!("CARGO_MANIFEST_DIR"))
-            .join("../../examples/vernadat")
-            .join(file);
-        let net = cetratus_net::pnml::read_file(&path).expect("the example net parses");
+        let net = nets::example(&format!("vernadat/{file}"));
         let m0 = net.initial_marking().as_slice().to_vec();
         NetDrawing { net, m0 }
     }
@@ -427,148 +355,9 @@ async fn run_fake_plc(broker_port: u16, package: Vec<u8>) -> Arc<FakePlc> {
     plc
 }
 
-// ---- the browser ------------------------------------------------------------------------------
+// ---- the figures ------------------------------------------------------------------------------
 
-async fn js(c: &Client, script: &str) -> Value {
-    c.execute(script, Vec::new())
-        .await
-        .unwrap_or_else(|e| panic!("script failed: {e}\n{script}"))
-}
-
-async fn text_of(c: &Client, id: &str) -> String {
-    let v = js(
-        c,
-        &format!("const e = document.getElementById('{id}'); return e ? e.textContent : null;"),
-    )
-    .await;
-    v.as_str().unwrap_or("").trim().to_string()
-}
-
-async fn wait_text(c: &Client, id: &str, want: &str, within: Duration) {
-    let end = Instant::now() + within;
-    let mut seen = String::new();
-    while Instant::now() < end {
-        seen = text_of(c, id).await;
-        if seen == want {
-            return;
-        }
-        tokio::time::sleep(Duration::from_millis(50)).await;
-    }
-    let reply = text_of(c, "reply").await;
-    panic!("#{id} is {seen:?}, not {want:?}, after {within:?} (#reply: {reply:?})");
-}
-
-/// Clicks `button`, then the in-page confirmation's `confirm-yes`.
-async fn click_and_confirm(c: &Client, button: &str) {
-    c.find(Locator::Id(button))
-        .await
-        .expect("button")
-        .click()
-        .await
-        .expect("click");
-    let yes = c
-        .wait()
-        .at_most(Duration::from_secs(5))
-        .for_element(Locator::Css("#confirm:not([hidden]) #confirm-yes"))
-        .await
-        .expect("the confirmation dialog opens");
-    yes.click().await.expect("confirm");
-}
-
-/// The token counts of container `slot`'s net, as the DOM shows them.
-async fn tokens(c: &Client, slot: &str) -> String {
-    js(
-        c,
-        &format!(
-            "return [...document.querySelectorAll('#net-{slot} .place')]
-               .map(p => p.id + '=' + p.getAttribute('data-tokens') + ':' + p.querySelector('.tokens').childElementCount)
-               .join(',');"
-        ),
-    )
-    .await
-    .as_str()
-    .unwrap_or("")
-    .to_string()
-}
-
-async fn timing(c: &Client) -> (u64, String, String) {
-    let v = js(
-        c,
-        "const t = document.getElementById('timing');
-         return [Number(t.dataset.samples || 0), t.dataset.lastTime || '', t.innerHTML];",
-    )
-    .await;
-    (
-        v[0].as_u64().unwrap_or(0),
-        v[1].as_str().unwrap_or("").to_string(),
-        v[2].as_str().unwrap_or("").to_string(),
-    )
-}
-
-fn start_chromedriver() -> (Guard, u16) {
-    let port = free_port();
-    let child = Command::new(CHROMEDRIVER)
-        .arg(format!("--port={port}"))
-        .stdout(Stdio::null())
-        .stderr(Stdio::null())
-        .spawn()
-        .unwrap_or_else(|e| panic!("cannot start {CHROMEDRIVER}: {e}"));
-    let guard = Guard(child);
-    wait_port(port, "chromedriver");
-    (guard, port)
-}
-
-async fn browser(driver_port: u16, profile: &Path) -> Client {
-    let args = [
-        "--headless".to_string(),
-        "--no-sandbox".into(),
-        "--disable-gpu".into(),
-        "--disable-quic".into(),
-        "--no-first-run".into(),
-        "--disable-background-networking".into(),
-        "--disable-component-update".into(),
-        "--disable-sync".into(),
-        "--window-size=1400,1800".into(),
-        format!("--user-data-dir={}", profile.display()),
-    ];
-    let mut caps = serde_json::Map::new();
-    caps.insert(
-        "goog:chromeOptions".into(),
-        json!({"binary": CHROMIUM, "args": args}),
-    );
-    ClientBuilder::new(hyper_util::client::legacy::connect::HttpConnector::new())
-        .capabilities(caps)
-        .connect(&format!("http://127.0.0.1:{driver_port}"))
-        .await
-        .expect("chromedriver starts a Chromium session")
-}
-
-fn start_mosquitto(dir: &Path) -> (Guard, u16) {
-    let bin = find_program("mosquitto", "/usr/sbin/mosquitto").unwrap_or_else(|| {
-        panic!(
-            "mosquitto is missing: install it with `apt-get install -y mosquitto` (CI installs \
-             it); the dashboard's browser test does not skip"
-        )
-    });
-    let port = free_port();
-    let conf = dir.join("mosquitto.conf");
-    std::fs::write(
-        &conf,
-        format!("listener {port} 127.0.0.1\nallow_anonymous true\npersistence false\n"),
-    )
-    .expect("mosquitto.conf");
-    let child = Command::new(bin)
-        .arg("-c")
-        .arg(&conf)
-        .stdout(Stdio::null())
-        .stderr(Stdio::null())
-        .spawn()
-        .expect("mosquitto starts");
-    let guard = Guard(child);
-    wait_port(port, "mosquitto");
-    (guard, port)
-}
-
+/// Count, quantiles and extremes of a list of latencies.
 fn stats(v: &Value) -> Value {
     let mut xs: Vec<f64> = v
         .as_array()
@@ -584,14 +373,14 @@ fn stats(v: &Value) -> Value {
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn operator_loads_u1_then_substitutes_and_primary_flips_in_the_browser() {
-    require(CHROMIUM, "chromium");
-    require(CHROMEDRIVER, "chromium-driver");
+    require_chromium();
     let started = Instant::now();
-    let dir = scratch_dir();
-    let (_broker, broker_port) = start_mosquitto(&dir);
+    let dir = tempfile::tempdir().expect("a temporary directory");
+    let broker = Mosquitto::start();
+    let broker_port = broker.port();
 
     let package = b"CPKG fake U.1 package for the browser test\n".to_vec();
-    let package_path = dir.join("u1.cpkg");
+    let package_path = dir.path().join("u1.cpkg");
     std::fs::write(&package_path, &package).expect("u1.cpkg");
     let _plc = run_fake_plc(broker_port, package).await;
 
@@ -604,36 +393,29 @@ async fn operator_loads_u1_then_substitutes_and_primary_flips_in_the_browser() {
     })
     .expect("the dashboard starts");
 
-    let (_driver, driver_port) = start_chromedriver();
-    let c = browser(driver_port, &dir.join("chromium-profile")).await;
+    let c = Browser::start().await;
     c.goto(&dashboard.url()).await.expect("the page loads");
 
     // The PLC is found on its own and its retained state is shown.
-    wait_text(&c, "primary", "A", Duration::from_secs(15)).await;
-    wait_text(&c, "status", "idle", Duration::from_secs(5)).await;
-    let options = js(
-        &c,
-        "return [...document.getElementById('plc-select').options].map(o => o.value);",
-    )
-    .await;
+    c.wait_text("primary", "A", Duration::from_secs(15)).await;
+    c.wait_text("status", "idle", Duration::from_secs(5)).await;
+    let options = c
+        .js("return [...document.getElementById('plc-select').options].map(o => o.value);")
+        .await;
     assert_eq!(options, json!([PLC]));
 
     // Live: the diagram scrolls with new samples and the tokens move.
-    let (n1, time1, svg1) = timing(&c).await;
-    let tok1 = tokens(&c, "A").await;
-    assert!(tok1.contains("place-P10="), "net A is drawn: {tok1}");
-    let mut tokens_changed = false;
-    let end = Instant::now() + Duration::from_secs(5);
-    while Instant::now() < end && !tokens_changed {
-        tokio::time::sleep(Duration::from_millis(100)).await;
-        tokens_changed = tokens(&c, "A").await != tok1;
-    }
-    assert!(tokens_changed, "the tokens of net A never moved: {tok1}");
+    let t1 = c.timing().await;
+    let drawn = c.wait_tokens_move("A", Duration::from_secs(5)).await;
+    assert!(drawn.contains("place-P10="), "net A is drawn: {drawn}");
     tokio::time::sleep(Duration::from_millis(600)).await;
-    let (n2, time2, svg2) = timing(&c).await;
-    assert!(n2 > n1, "the timing diagram gained samples ({n1} -> {n2})");
-    assert_ne!(time1, time2, "the timing diagram shows newer samples");
-    assert_ne!(svg1, svg2, "the timing diagram was redrawn");
+    let t2 = c.timing().await;
+    t2.assert_scrolled_since(&t1);
+    assert_ne!(
+        t1.last_time, t2.last_time,
+        "the timing diagram shows newer samples"
+    );
+    let svg2 = &t2.svg;
     for lane in ["PE", "CM1", "outputs A", "dispatched"] {
         assert!(
             svg2.contains(lane),
@@ -643,28 +425,23 @@ async fn operator_loads_u1_then_substitutes_and_primary_flips_in_the_browser() {
     }
 
     // Load U.1 through the page.
-    c.find(Locator::Id("package-file"))
-        .await
-        .expect("file input")
-        .send_keys(&package_path.display().to_string())
-        .await
-        .expect("choose the package");
-    click_and_confirm(&c, "load").await;
-    wait_text(&c, "status", "quarantine", Duration::from_secs(10)).await;
-    let reply = js(&c, "return document.getElementById('reply').dataset.ok;").await;
+    c.load_package(&package_path).await;
+    c.wait_text("status", "quarantine", Duration::from_secs(10))
+        .await;
+    let reply = c
+        .js("return document.getElementById('reply').dataset.ok;")
+        .await;
     assert_eq!(reply, json!("true"), "the load reply is shown as ok");
-    let b = js(&c, "return !!document.querySelector('#net-B svg .place');").await;
-    assert_eq!(
-        b,
-        json!(true),
+    assert!(
+        c.net_drawn("B").await,
         "the candidate's net is drawn in container B"
     );
 
     // Substitute: PRIMARY flips.
-    click_and_confirm(&c, "substitute").await;
-    wait_text(&c, "primary", "B", Duration::from_secs(10)).await;
-    wait_text(&c, "status", "idle", Duration::from_secs(5)).await;
-    let events = text_of(&c, "events").await;
+    c.click_and_confirm("substitute").await;
+    c.wait_text("primary", "B", Duration::from_secs(10)).await;
+    c.wait_text("status", "idle", Duration::from_secs(5)).await;
+    let events = c.text_of("events").await;
     assert!(
         events.contains("substitute") && events.contains("load"),
         "{events}"
@@ -672,10 +449,10 @@ async fn operator_loads_u1_then_substitutes_and_primary_flips_in_the_browser() {
     // Let the diagram show the candidate's lanes and the flip for a moment before the picture.
     tokio::time::sleep(Duration::from_millis(1500)).await;
 
-    let dir_out = artifacts_dir();
+    let dir_out = paths::artifacts_dir();
     let png = c.screenshot().await.expect("screenshot");
     std::fs::write(dir_out.join("dashboard.png"), &png).expect("screenshot written");
-    let lat = js(&c, "return window.cetratusLatency;").await;
+    let lat = c.js("return window.cetratusLatency;").await;
     let figures = json!({
         "what": "update latency in ms: MQTT message at the dashboard -> DOM updated (dom), -> next frame (frame); fake PLC's publish -> DOM (publish)",
         "dom": stats(&lat["dom"]),
@@ -694,7 +471,6 @@ async fn operator_loads_u1_then_substitutes_and_primary_flips_in_the_browser() {
         "latency was measured"
     );
 
-    c.close().await.expect("the browser closes");
+    c.close().await;
     dashboard.stop();
-    let _ = std::fs::remove_dir_all(&dir);
 }

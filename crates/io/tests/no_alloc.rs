@@ -1,50 +1,14 @@
 //! A running scan cycle never touches the heap (ARCHITECTURE: "a scan never allocates"): reading
 //! the twin's inputs, scanning the program and writing the outputs back.
-//!
-//! Proving it needs a counting global allocator, and a `GlobalAlloc` impl is `unsafe` by definition;
-//! the workspace denies unsafe code, so this test file alone allows it, for this allocator only.
-#![allow(unsafe_code)]
 
 mod common;
 
-use std::alloc::{GlobalAlloc, Layout, System};
-use std::cell::Cell;
-
+use cetratus_testkit::CountingAlloc;
 use cetratus_twin::{FestoStation, Plant, VernadatCell};
 use common::{connect, load, FESTO, VERNADAT};
 
-thread_local! {
-    // Const-initialised and without a destructor, so touching it never allocates. Per thread, so
-    // that tests running beside this one are not counted.
-    static ALLOCATIONS: Cell<u64> = const { Cell::new(0) };
-}
-
-struct Counting;
-
-// SAFETY: delegates to the system allocator unchanged; only counts calls on the current thread.
-unsafe impl GlobalAlloc for Counting {
-    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
-        ALLOCATIONS.with(|c| c.set(c.get() + 1));
-        // SAFETY: same contract as the caller's.
-        unsafe { System.alloc(layout) }
-    }
-    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
-        // SAFETY: same contract as the caller's.
-        unsafe { System.dealloc(ptr, layout) }
-    }
-    unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
-        ALLOCATIONS.with(|c| c.set(c.get() + 1));
-        // SAFETY: same contract as the caller's.
-        unsafe { System.realloc(ptr, layout, new_size) }
-    }
-}
-
 #[global_allocator]
-static GLOBAL: Counting = Counting;
-
-fn allocations() -> u64 {
-    ALLOCATIONS.with(Cell::get)
-}
+static ALLOC: CountingAlloc = CountingAlloc::new();
 
 /// Warm-up cycles, so that anything built lazily on first use is built before counting.
 const WARM_UP: u64 = 500;
@@ -62,12 +26,12 @@ fn allocations_while_scanning<P: Plant>(path: &str, plant: P) -> u64 {
         now += period;
     }
     let fired_before: u64 = cycle.container().firings().iter().sum();
-    let before = allocations();
+    let before = ALLOC.allocations();
     for _ in 0..COUNTED {
         cycle.cycle(now, &mut io).expect("no scan error");
         now += period;
     }
-    let counted = allocations() - before;
+    let counted = ALLOC.allocations() - before;
     let fired: u64 = cycle.container().firings().iter().sum::<u64>() - fired_before;
     // A plant standing still would prove nothing about firing, timers and actions.
     assert!(fired > 100, "only {fired} firings in the counted cycles");

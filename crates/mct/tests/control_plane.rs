@@ -123,36 +123,18 @@ fn a_paho_mqtt5_client_does_request_reply_against_the_plc() {
 #[test]
 fn an_mqtt311_command_with_reply_to_gets_a_reply_on_the_embedded_broker() {
     let (handle, scan, addr) = plc("cell311");
-    let mut o = rumqttc::MqttOptions::new(unique("v311"), "127.0.0.1", addr.port());
-    o.set_keep_alive(Duration::from_secs(5));
-    let (c, mut conn) = rumqttc::Client::new(o, 16);
-    let (tx, rx) = std::sync::mpsc::channel();
-    std::thread::spawn(move || {
-        for ev in conn.iter() {
-            match ev {
-                Ok(rumqttc::Event::Incoming(rumqttc::Packet::Publish(p))) => {
-                    let _ = tx.send((p.topic, p.payload.to_vec()));
-                }
-                Ok(rumqttc::Event::Incoming(rumqttc::Packet::SubAck(_))) => {
-                    let _ = tx.send(("$suback".into(), vec![]));
-                }
-                Ok(_) => {}
-                Err(_) => break,
-            }
-        }
-    });
-    c.subscribe("ops/reply", rumqttc::QoS::AtLeastOnce)
-        .expect("subscribe");
-    next_matching(&rx, T, |(t, _)| t == "$suback").expect("suback");
+    let c = v311(addr);
+    c.subscribe("ops/reply");
     let cmd = json!({"reply_to": "ops/reply", "correlation": "abc-7"});
-    c.publish(
-        "cetratus/cell311/cmd/remove",
-        rumqttc::QoS::AtLeastOnce,
-        false,
-        cmd.to_string(),
-    )
-    .expect("publish");
-    let (_, payload) = next_matching(&rx, T, |(t, _)| t == "ops/reply").expect("a reply");
+    c.client
+        .publish(
+            "cetratus/cell311/cmd/remove",
+            rumqttc::QoS::AtLeastOnce,
+            false,
+            cmd.to_string(),
+        )
+        .expect("publish");
+    let payload = c.next_on("ops/reply", T).expect("a reply");
     let body: Value = serde_json::from_slice(&payload).expect("JSON");
     assert_eq!(body["ok"], true);
     assert_eq!(body["correlation"], "abc-7");

@@ -39,28 +39,10 @@ fn embedded_broker_serves_mqtt311_and_mqtt5_clients_on_one_port() {
     let addr = broker.addr();
     let five = v5(addr, None);
     five.subscribe("mix/#");
-    let mut o = rumqttc::MqttOptions::new(unique("v311"), addr.ip().to_string(), addr.port());
-    o.set_keep_alive(Duration::from_secs(5));
-    let (c311, mut conn) = rumqttc::Client::new(o, 16);
-    let (tx, rx) = std::sync::mpsc::channel();
-    std::thread::spawn(move || {
-        for ev in conn.iter() {
-            match ev {
-                Ok(rumqttc::Event::Incoming(rumqttc::Packet::Publish(p))) => {
-                    let _ = tx.send((p.topic, p.payload.to_vec()));
-                }
-                Ok(rumqttc::Event::Incoming(rumqttc::Packet::SubAck(_))) => {
-                    let _ = tx.send(("$suback".into(), vec![]));
-                }
-                Ok(_) => {}
-                Err(_) => break,
-            }
-        }
-    });
-    c311.subscribe("back/#", rumqttc::QoS::AtLeastOnce)
-        .expect("subscribe");
-    next_matching(&rx, T, |(t, _)| t == "$suback").expect("MQTT 3.1.1 suback");
-    c311.publish("mix/a", rumqttc::QoS::AtLeastOnce, false, "from 3.1.1")
+    let c311 = v311(addr);
+    c311.subscribe("back/#");
+    c311.client
+        .publish("mix/a", rumqttc::QoS::AtLeastOnce, false, "from 3.1.1")
         .expect("publish");
     assert_eq!(
         five.next_on("mix/a", T).expect("3.1.1 → 5").payload,
@@ -69,7 +51,7 @@ fn embedded_broker_serves_mqtt311_and_mqtt5_clients_on_one_port() {
     five.client
         .publish("back/b", QoS::AtLeastOnce, false, "from 5")
         .expect("publish");
-    let (_, payload) = next_matching(&rx, T, |(t, _)| t == "back/b").expect("5 → 3.1.1");
+    let payload = c311.next_on("back/b", T).expect("5 → 3.1.1");
     assert_eq!(payload, b"from 5");
 }
 

@@ -1,18 +1,12 @@
 //! DOT and SVG pictures of nets, checked structurally.
 
 use cetratus_net::export::{layout, to_dot, to_svg};
-use cetratus_net::{pnml, Net};
-
-const FIXTURES: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../../../shared/fixtures");
-
-fn read(rel: &str) -> Net {
-    let path = std::path::Path::new(FIXTURES).join(rel);
-    pnml::read_file(&path).unwrap_or_else(|e| panic!("{rel}: {e}"))
-}
+use cetratus_net::pnml;
+use cetratus_testkit::nets;
 
 #[test]
 fn dot_shows_places_as_circles_with_tokens_and_weights_as_labels() {
-    let net = read("crafted/nested-pages.pnml");
+    let net = nets::fixture("crafted/nested-pages.pnml");
     let dot = to_dot(&net, None);
     assert!(dot.starts_with("digraph \"Producer and consumer on nested pages\" {"));
     assert!(dot.contains("\"p:free\" [shape=circle, width=0.5, fixedsize=true, label=\"3\", xlabel=\"free slots\"];"), "{dot}");
@@ -27,7 +21,7 @@ fn dot_shows_places_as_circles_with_tokens_and_weights_as_labels() {
 
 #[test]
 fn dot_marks_inhibitor_arcs_with_an_odot_head() {
-    let dot = to_dot(&read("pipe5/inhibitorArc.xml"), None);
+    let dot = to_dot(&nets::fixture("pipe5/inhibitorArc.xml"), None);
     assert!(
         dot.contains("\"p:P0\" -> \"t:T0\" [arrowhead=odot];"),
         "{dot}"
@@ -36,7 +30,7 @@ fn dot_marks_inhibitor_arcs_with_an_odot_head() {
 
 #[test]
 fn dot_shows_the_given_marking_instead_of_the_initial_one() {
-    let net = read("pipe5/simpleNet.xml");
+    let net = nets::fixture("pipe5/simpleNet.xml");
     let dot = to_dot(&net, Some(&[0, 7]));
     assert!(
         dot.contains("\"p:P1\" [shape=circle, width=0.5, fixedsize=true, label=\"7\""),
@@ -71,7 +65,7 @@ fn svg_of_every_fixture_is_well_formed_and_names_every_node() {
         "mcc/FMS-PT-00002.pnml",
         "crafted/nested-pages.pnml",
     ] {
-        let net = read(rel);
+        let net = nets::fixture(rel);
         let svg = to_svg(&net, None);
         let doc = roxmltree::Document::parse(&svg).unwrap_or_else(|e| panic!("{rel}: {e}\n{svg}"));
         for (i, p) in net.places().iter().enumerate() {
@@ -107,7 +101,7 @@ fn svg_of_every_fixture_is_well_formed_and_names_every_node() {
 
 #[test]
 fn svg_draws_tokens_as_dots_or_a_count_and_inhibitors_with_a_circle() {
-    let net = read("pipe5/inhibitorArc.xml");
+    let net = nets::fixture("pipe5/inhibitorArc.xml");
     let svg = to_svg(&net, Some(&[9]));
     assert!(svg.contains("data-tokens=\"9\""));
     assert!(svg.contains("<text class=\"count\""), "{svg}");
@@ -126,13 +120,13 @@ fn svg_draws_tokens_as_dots_or_a_count_and_inhibitors_with_a_circle() {
 
 #[test]
 fn svg_labels_weights_above_one() {
-    let svg = to_svg(&read("crafted/nested-pages.pnml"), None);
+    let svg = to_svg(&nets::fixture("crafted/nested-pages.pnml"), None);
     assert_eq!(svg.matches("<text class=\"weight\"").count(), 2, "{svg}");
 }
 
 #[test]
 fn file_positions_are_used_when_every_node_has_a_distinct_one() {
-    let net = read("pipe/ClassicGSPN.xml");
+    let net = nets::fixture("pipe/ClassicGSPN.xml");
     let lay = layout(&net);
     for (p, at) in net.places().iter().zip(&lay.places) {
         assert_eq!(Some(*at), p.position);
@@ -142,7 +136,7 @@ fn file_positions_are_used_when_every_node_has_a_distinct_one() {
 #[test]
 fn a_layout_is_computed_when_the_file_stacks_every_node_on_one_spot() {
     // The contest's Philosophers file puts every node at (100, 100).
-    let net = read("mcc/Philosophers-PT-000005.pnml");
+    let net = nets::fixture("mcc/Philosophers-PT-000005.pnml");
     let lay = layout(&net);
     let mut spots: Vec<(i64, i64)> = lay
         .places
@@ -157,7 +151,7 @@ fn a_layout_is_computed_when_the_file_stacks_every_node_on_one_spot() {
 
 #[test]
 fn a_net_without_positions_gets_a_layout_too() {
-    let net = read("crafted/nested-pages.pnml");
+    let net = nets::fixture("crafted/nested-pages.pnml");
     let lay = layout(&net);
     assert_eq!(lay.places.len(), 6);
     assert_eq!(lay.transitions.len(), 4);

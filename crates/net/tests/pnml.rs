@@ -1,11 +1,10 @@
 //! PNML reading and writing seen from outside: the shared fixtures, round trips, and bad input.
 
 use std::collections::{HashMap, VecDeque};
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 use cetratus_net::{pnml, ArcKind, Net, NetError, NodeRef, Tokens, TransIdx};
-
-const FIXTURES: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../../../shared/fixtures");
+use cetratus_testkit::{nets, paths};
 
 /// Every fixture with its places, transitions, arcs, and the README's reachable states and edges.
 const ALL: &[(&str, usize, usize, usize, usize, usize)] = &[
@@ -21,17 +20,6 @@ const ALL: &[(&str, usize, usize, usize, usize, usize)] = &[
     ("mcc/FMS-PT-00002.pnml", 22, 20, 50, 3444, 16311),
     ("crafted/nested-pages.pnml", 6, 4, 12, 12, 18),
 ];
-
-fn fixture(rel: &str) -> PathBuf {
-    Path::new(FIXTURES).join(rel)
-}
-
-fn read(rel: &str) -> Net {
-    match pnml::read_file(&fixture(rel)) {
-        Ok(net) => net,
-        Err(e) => panic!("{rel}: {e}"),
-    }
-}
 
 fn marking_of(net: &Net, id: &str) -> Tokens {
     let p = net
@@ -83,7 +71,7 @@ fn syntax(err: NetError) -> (cetratus_net::SourcePos, String) {
 #[test]
 fn every_fixture_reads_with_the_expected_size() {
     for &(rel, places, transitions, arcs, _, _) in ALL {
-        let net = read(rel);
+        let net = nets::fixture(rel);
         assert_eq!(net.num_places(), places, "{rel} places");
         assert_eq!(net.num_transitions(), transitions, "{rel} transitions");
         assert_eq!(net.arcs().len(), arcs, "{rel} arcs");
@@ -93,14 +81,14 @@ fn every_fixture_reads_with_the_expected_size() {
 #[test]
 fn every_fixture_has_the_state_space_the_readme_gives() {
     for &(rel, _, _, _, states, edges) in ALL {
-        assert_eq!(state_space(&read(rel)), (states, edges), "{rel}");
+        assert_eq!(state_space(&nets::fixture(rel)), (states, edges), "{rel}");
     }
 }
 
 #[test]
 fn every_fixture_survives_a_write_read_round_trip() {
     for &(rel, ..) in ALL {
-        let net = read(rel);
+        let net = nets::fixture(rel);
         let text = pnml::write_string(&net);
         let again = pnml::read_str(&text, "round-trip.pnml")
             .unwrap_or_else(|e| panic!("{rel}: written PNML does not read back: {e}\n{text}"));
@@ -115,7 +103,7 @@ fn every_fixture_survives_a_write_read_round_trip() {
 
 #[test]
 fn writing_to_a_file_and_reading_it_back_gives_the_same_net() {
-    let net = read("crafted/nested-pages.pnml");
+    let net = nets::fixture("crafted/nested-pages.pnml");
     let path = std::env::temp_dir().join(format!("cetratus-net-{}.pnml", std::process::id()));
     pnml::write_file(&net, &path).expect("temp file is writable");
     let again = pnml::read_file(&path);
@@ -125,7 +113,7 @@ fn writing_to_a_file_and_reading_it_back_gives_the_same_net() {
 
 #[test]
 fn nested_pages_flatten_in_document_order() {
-    let net = read("crafted/nested-pages.pnml");
+    let net = nets::fixture("crafted/nested-pages.pnml");
     let places: Vec<&str> = net.places().iter().map(|p| p.id.as_str()).collect();
     assert_eq!(
         places,
@@ -148,7 +136,7 @@ fn nested_pages_flatten_in_document_order() {
 
 #[test]
 fn reference_nodes_resolve_through_chains_to_the_real_node() {
-    let net = read("crafted/nested-pages.pnml");
+    let net = nets::fixture("crafted/nested-pages.pnml");
     let buffer = NodeRef::Place(net.place_by_id("buffer").unwrap());
     let take = NodeRef::Transition(net.transition_by_id("take").unwrap());
     // buf_ref_c -> buf_ref_p -> buffer, and take_ref -> take.
@@ -163,7 +151,7 @@ fn reference_nodes_resolve_through_chains_to_the_real_node() {
 
 #[test]
 fn pipe_inhibitor_arc_with_empty_inscription_has_weight_one() {
-    let net = read("pipe5/inhibitorArc.xml");
+    let net = nets::fixture("pipe5/inhibitorArc.xml");
     let a = &net.arcs()[0];
     assert_eq!(a.kind, ArcKind::Inhibitor);
     assert_eq!(a.weight, 1);
@@ -175,7 +163,7 @@ fn pipe_inhibitor_arc_with_empty_inscription_has_weight_one() {
 
 #[test]
 fn pipe5_default_token_class_counts_are_read_as_plain_counts() {
-    let net = read("pipe5/petriNet.xml");
+    let net = nets::fixture("pipe5/petriNet.xml");
     assert_eq!(net.initial_marking().0, vec![1, 0]);
     assert!(net
         .arcs()
@@ -188,25 +176,25 @@ fn pipe5_default_token_class_counts_are_read_as_plain_counts() {
 
 #[test]
 fn pipe_markings_and_arc_bend_points_are_kept() {
-    let net = read("pipe/ProducerConsumer.xml");
+    let net = nets::fixture("pipe/ProducerConsumer.xml");
     assert_eq!(marking_of(&net, "P0"), 1);
     assert_eq!(marking_of(&net, "P7"), 3);
-    let simple = read("pipe5/simpleNet.xml");
+    let simple = nets::fixture("pipe5/simpleNet.xml");
     assert_eq!(simple.initial_marking().0, vec![2, 0]);
     // Two arcpath points are the two ends, so there is no bend.
     assert!(simple.arcs().iter().all(|a| a.path.is_empty()));
-    let dining = read("pipe/DiningPhilosophers.xml");
+    let dining = nets::fixture("pipe/DiningPhilosophers.xml");
     assert!(dining.arcs().iter().any(|a| !a.path.is_empty()));
 }
 
 #[test]
 fn iso_markings_positions_and_arc_paths_are_kept() {
-    let net = read("mcc/Philosophers-PT-000005.pnml");
+    let net = nets::fixture("mcc/Philosophers-PT-000005.pnml");
     assert_eq!(marking_of(&net, "Think_1"), 1);
     assert_eq!(marking_of(&net, "Fork_5"), 1);
     assert_eq!(marking_of(&net, "Eat_1"), 0);
     assert_eq!(net.initial_marking().total(), 10);
-    let fms = read("mcc/FMS-PT-00002.pnml");
+    let fms = nets::fixture("mcc/FMS-PT-00002.pnml");
     assert_eq!(fms.name(), Some("FMS-PT-00002"));
     let bent = arc(&fms, "cId1090461383811578710155");
     assert_eq!(bent.path.len(), 2);
@@ -215,7 +203,7 @@ fn iso_markings_positions_and_arc_paths_are_kept() {
 
 #[test]
 fn net_level_toolspecific_is_kept_verbatim() {
-    let net = read("mcc/Philosophers-PT-000005.pnml");
+    let net = nets::fixture("mcc/Philosophers-PT-000005.pnml");
     let ts = net.toolspecific();
     assert_eq!(ts.len(), 1);
     assert_eq!(
@@ -266,8 +254,8 @@ fn capacities_priorities_and_inhibitors_survive_in_cetratus_toolspecific() {
 
 #[test]
 fn dialects_are_told_apart_by_namespace() {
-    let iso = std::fs::read_to_string(fixture("mcc/FMS-PT-00002.pnml")).unwrap();
-    let pipe = std::fs::read_to_string(fixture("pipe5/simpleNet.xml")).unwrap();
+    let iso = std::fs::read_to_string(paths::fixture("mcc/FMS-PT-00002.pnml")).unwrap();
+    let pipe = std::fs::read_to_string(paths::fixture("pipe5/simpleNet.xml")).unwrap();
     assert_eq!(pnml::detect_dialect(&iso), Some(pnml::Dialect::Iso));
     assert_eq!(pnml::detect_dialect(&pipe), Some(pnml::Dialect::Pipe));
     assert_eq!(pnml::detect_dialect("<pnml"), None);

@@ -1,17 +1,7 @@
 //! Load errors say file:line:column and what was expected.
 
-use std::path::Path;
-
-use cetratus_net::Net;
 use cetratus_program::Program;
-
-fn vernadat() -> Net {
-    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../examples/vernadat/vernadat.pnml");
-    match cetratus_net::pnml::read_file(&path) {
-        Ok(n) => n,
-        Err(e) => panic!("{e}"),
-    }
-}
+use cetratus_testkit::nets;
 
 const HEAD: &str = r#"[program]
 name = "t"
@@ -29,7 +19,7 @@ type = "bool"
 
 /// Loads HEAD + `rest` and returns the error message (empty when it loads).
 fn error(rest: &str) -> String {
-    match Program::from_sources(&format!("{HEAD}{rest}"), "prog.toml", vernadat()) {
+    match Program::from_sources(&format!("{HEAD}{rest}"), "prog.toml", nets::vernadat()) {
         Ok(_) => String::new(),
         Err(e) => e.to_string(),
     }
@@ -141,7 +131,7 @@ fn a_signal_named_like_a_place_is_refused() {
 #[test]
 fn an_unknown_policy_lists_the_choices() {
     let src = "[program]\nname = \"t\"\nversion = \"1\"\npolicy = \"random\"\n";
-    let msg = Program::from_sources(src, "prog.toml", vernadat())
+    let msg = Program::from_sources(src, "prog.toml", nets::vernadat())
         .err()
         .map(|e| e.to_string())
         .unwrap_or_default();

@@ -4,24 +4,12 @@ use std::path::{Path, PathBuf};
 
 use cetratus_net::{Engine, Policy, TransIdx};
 use cetratus_program::{Program, Type, Value};
-
-fn example(name: &str) -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../../examples/vernadat")
-        .join(name)
-}
+use cetratus_testkit::{paths, programs};
 
 fn data(name: &str) -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR"))
         .join("tests/data")
         .join(name)
-}
-
-fn load(path: &Path) -> Program {
-    match Program::load(path) {
-        Ok(p) => p,
-        Err(e) => panic!("{e}"),
-    }
 }
 
 fn ids(p: &Program) -> (Vec<String>, Vec<String>) {
@@ -34,7 +22,7 @@ fn ids(p: &Program) -> (Vec<String>, Vec<String>) {
 
 #[test]
 fn the_vernadat_program_loads_with_places_and_transitions_in_design_order() {
-    let p = load(&example("vernadat.toml"));
+    let p = programs::example("vernadat/vernadat.toml");
     let (places, transitions) = ids(&p);
     assert_eq!(
         places,
@@ -64,7 +52,7 @@ fn the_vernadat_program_loads_with_places_and_transitions_in_design_order() {
 
 #[test]
 fn guardless_transitions_are_t14_and_t24() {
-    let p = load(&example("vernadat.toml"));
+    let p = programs::example("vernadat/vernadat.toml");
     let net = p.net();
     let without: Vec<&str> = (0..net.num_transitions() as u32)
         .map(TransIdx)
@@ -77,7 +65,7 @@ fn guardless_transitions_are_t14_and_t24() {
 #[test]
 fn every_example_keeps_its_invariants_at_m0_and_they_are_p_invariants() {
     for f in ["vernadat.toml", "u1.toml", "u2.toml"] {
-        let p = load(&example(f));
+        let p = programs::example(&format!("vernadat/{f}"));
         let m0 = p.net().initial_marking();
         assert_eq!(p.check_invariants(m0.as_slice()), Ok(()), "{f}");
         for inv in p.invariants() {
@@ -93,8 +81,8 @@ fn every_example_keeps_its_invariants_at_m0_and_they_are_p_invariants() {
 
 #[test]
 fn u1_is_the_same_net_with_two_more_free_slots() {
-    let a = load(&example("vernadat.toml"));
-    let b = load(&example("u1.toml"));
+    let a = programs::example("vernadat/vernadat.toml");
+    let b = programs::example("vernadat/u1.toml");
     assert_eq!(ids(&a), ids(&b));
     assert_eq!(b.net().initial_marking().as_slice()[0], 6);
     assert_eq!(b.invariants()[1].constant(), 9);
@@ -103,7 +91,7 @@ fn u1_is_the_same_net_with_two_more_free_slots() {
 
 #[test]
 fn u2_appends_the_lubrication_places_and_transitions() {
-    let p = load(&example("u2.toml"));
+    let p = programs::example("vernadat/u2.toml");
     let (places, transitions) = ids(&p);
     assert_eq!(&places[13..], ["P30", "P31"]);
     assert_eq!(&transitions[10..], ["T30", "T31"]);
@@ -117,16 +105,18 @@ fn u2_appends_the_lubrication_places_and_transitions() {
 
 #[test]
 fn the_hash_is_stable_across_loads() {
-    let a = load(&example("vernadat.toml"));
-    let b = load(&example("vernadat.toml"));
+    let a = programs::example("vernadat/vernadat.toml");
+    let b = programs::example("vernadat/vernadat.toml");
     assert_eq!(a.hash(), b.hash());
     assert_eq!(a.hash_hex().len(), 64);
 }
 
 #[test]
 fn a_pnml_file_carrying_the_program_loads_like_the_toml() {
-    let toml = std::fs::read_to_string(example("vernadat.toml")).unwrap_or_default();
-    let pnml = std::fs::read_to_string(example("vernadat.pnml")).unwrap_or_default();
+    let toml =
+        std::fs::read_to_string(paths::example("vernadat/vernadat.toml")).unwrap_or_default();
+    let pnml =
+        std::fs::read_to_string(paths::example("vernadat/vernadat.pnml")).unwrap_or_default();
     let body: String = toml
         .lines()
         .filter(|l| !l.starts_with("net ="))
@@ -141,8 +131,8 @@ fn a_pnml_file_carrying_the_program_loads_like_the_toml() {
     std::fs::create_dir_all(&dir).unwrap_or_default();
     let path = dir.join("embedded.pnml");
     std::fs::write(&path, &embedded).unwrap_or_default();
-    let p = load(&path);
-    let q = load(&example("vernadat.toml"));
+    let p = programs::load(&path);
+    let q = programs::example("vernadat/vernadat.toml");
     assert_eq!(ids(&p), ids(&q));
     assert_eq!(p.invariants().len(), 4);
     assert_eq!(p.net().num_places(), 13);
@@ -167,7 +157,7 @@ fn a_pnml_file_carrying_the_program_loads_like_the_toml() {
 
 #[test]
 fn a_pnml_file_without_a_program_is_refused_with_a_hint() {
-    let err = Program::load(&example("vernadat.pnml"))
+    let err = Program::load(&paths::example("vernadat/vernadat.pnml"))
         .err()
         .map(|e| e.to_string())
         .unwrap_or_default();
@@ -176,7 +166,7 @@ fn a_pnml_file_without_a_program_is_refused_with_a_hint() {
 
 #[test]
 fn the_broken_program_loads_but_its_buffer_invariant_breaks_when_t13_fires() {
-    let p = load(&data("vernadat-broken.toml"));
+    let p = programs::load(&data("vernadat-broken.toml"));
     let buffer = &p.invariants()[1];
     let t13 = p.net().transition_by_id("T13");
     assert_eq!(
@@ -200,7 +190,7 @@ fn the_broken_program_loads_but_its_buffer_invariant_breaks_when_t13_fires() {
 
 #[test]
 fn the_cell_runs_with_its_guards_and_keeps_its_invariants_at_every_scan() {
-    let p = load(&example("u2.toml"));
+    let p = programs::example("vernadat/u2.toml");
     let mut engine = Engine::new(p.net().clone());
     let inputs = vec![Value::Bool(true); p.inputs().len()];
     let mut since: Vec<Option<u64>> = engine

@@ -1,49 +1,14 @@
 //! `Program::eval_guard`, `Program::check_invariants`, `ActionState::apply`,
 //! `StateTransform::apply` and `Projection::drift` never allocate.
-//!
-//! Counting allocations needs a `#[global_allocator]`, and implementing `GlobalAlloc` is an
-//! `unsafe impl`: this one test file therefore allows unsafe code. The allocator only forwards
-//! to the system allocator and counts.
-#![allow(unsafe_code)]
 
 mod common;
 
-use std::alloc::{GlobalAlloc, Layout, System};
-use std::cell::Cell;
-
 use cetratus_net::{PlaceIdx, TransIdx};
 use cetratus_program::{ActionState, EvalCtx, Value};
-
-struct Counting;
-
-thread_local! {
-    // Per thread, so allocations of the test harness's other threads do not count.
-    static ALLOCATIONS: Cell<u64> = const { Cell::new(0) };
-}
-
-// SAFETY: every method forwards to `System` with the caller's arguments unchanged.
-unsafe impl GlobalAlloc for Counting {
-    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
-        ALLOCATIONS.with(|c| c.set(c.get() + 1));
-        unsafe { System.alloc(layout) }
-    }
-    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
-        unsafe { System.dealloc(ptr, layout) }
-    }
-    unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
-        ALLOCATIONS.with(|c| c.set(c.get() + 1));
-        unsafe { System.realloc(ptr, layout, new_size) }
-    }
-}
+use cetratus_testkit::CountingAlloc;
 
 #[global_allocator]
-static GLOBAL: Counting = Counting;
-
-fn allocations_during(f: impl FnOnce()) -> u64 {
-    let before = ALLOCATIONS.with(Cell::get);
-    f();
-    ALLOCATIONS.with(Cell::get) - before
-}
+static ALLOC: CountingAlloc = CountingAlloc::new();
 
 #[test]
 fn evaluating_guards_and_applying_actions_does_not_allocate() {
@@ -78,7 +43,7 @@ fn evaluating_guards_and_applying_actions_does_not_allocate() {
 
     let mut results = [Ok(false), Ok(false)];
     let mut inv = Ok(());
-    let n = allocations_during(|| {
+    let n = ALLOC.during(|| {
         for _ in 0..100 {
             results[0] = p.eval_guard(TransIdx(0), &ctx);
             results[1] = p.eval_guard(TransIdx(1), &ctx);
@@ -106,18 +71,11 @@ fn evaluating_guards_and_applying_actions_does_not_allocate() {
 
 #[test]
 fn applying_a_state_transform_and_measuring_drift_does_not_allocate() {
+    use cetratus_program::{Projection, StateTransform};
     use std::collections::BTreeMap;
-    use std::path::Path;
 
-    use cetratus_program::{Program, Projection, StateTransform};
-
-    let example = |name: &str| {
-        let path = Path::new(env!("CARGO_MANIFEST_DIR"))
-            .join("../../examples/vernadat")
-            .join(name);
-        Program::load(&path).unwrap_or_else(|e| panic!("{e}"))
-    };
-    let (old, new) = (example("u1.toml"), example("u2.toml"));
+    let old = cetratus_testkit::programs::example("vernadat/u1.toml");
+    let new = cetratus_testkit::programs::example("vernadat/u2.toml");
     let st =
         StateTransform::generated(&old, &new, &BTreeMap::new()).unwrap_or_else(|e| panic!("{e}"));
     let pi = Projection::generated(old.net(), new.net());
@@ -127,7 +85,7 @@ fn applying_a_state_transform_and_measuring_drift_does_not_allocate() {
     let mut since_new = [None; 15];
     let mut result = Ok(());
     let mut drift = u64::MAX;
-    let n = allocations_during(|| {
+    let n = ALLOC.during(|| {
         for _ in 0..100 {
             result = st.apply(m_old.as_slice(), &new, &mut m_new);
             st.apply_timers(&since_old, &m_new, 1_000, &mut since_new);

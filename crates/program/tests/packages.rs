@@ -11,20 +11,11 @@ use cetratus_program::package::{build_package_at, PackageError};
 use cetratus_program::{
     build_package, KeyPair, Program, StateTransform, TransformError, TrustStore, UpdatePackage,
 };
+use cetratus_testkit::{paths, programs};
 
 const IDS: [&str; 13] = [
     "H", "B", "R", "P10", "P11", "P12", "P13", "P14", "P20", "P21", "P22", "P23", "P24",
 ];
-
-fn example(name: &str) -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../../examples/vernadat")
-        .join(name)
-}
-
-fn load(name: &str) -> Program {
-    Program::load(&example(name)).unwrap_or_else(|e| panic!("{e}"))
-}
 
 fn ok<T, E: std::fmt::Display>(r: Result<T, E>) -> T {
     r.unwrap_or_else(|e| panic!("{e}"))
@@ -67,8 +58,10 @@ impl Signer {
 fn u1_manifest(dir: &Path, transform: &str) -> PathBuf {
     let text = format!(
         "[package]\nname = \"t\"\nversion = \"1\"\nprogram = {:?}\nbase = {:?}\n{transform}",
-        example("u1.toml").display().to_string(),
-        example("vernadat.toml").display().to_string(),
+        paths::example("vernadat/u1.toml").display().to_string(),
+        paths::example("vernadat/vernadat.toml")
+            .display()
+            .to_string(),
     );
     let path = dir.join("t.package.toml");
     ok(std::fs::write(&path, text));
@@ -78,12 +71,12 @@ fn u1_manifest(dir: &Path, transform: &str) -> PathBuf {
 #[test]
 fn u1_dense_transform_gives_h_plus_two_with_other_places_equal() {
     let s = Signer::new();
-    let (bytes, report) = s.build(&example("u1.package.toml"));
+    let (bytes, report) = s.build(&paths::example("vernadat/u1.package.toml"));
     assert_eq!(report.transform_kind, "dense");
     assert!(report.warnings.is_empty(), "{:?}", report.warnings);
     let pkg = ok(UpdatePackage::verify(&bytes, &s.trust(), false));
     assert_eq!(pkg.signer(), Some(s.key.key_id().as_str()));
-    let old = load("vernadat.toml");
+    let old = programs::example("vernadat/vernadat.toml");
     let up = ok(pkg.resolve(&old, false));
     assert_eq!((up.transform.rows(), up.transform.cols()), (13, 13));
 
@@ -110,7 +103,7 @@ fn u1_dense_transform_gives_h_plus_two_with_other_places_equal() {
 #[test]
 fn u2_generated_transform_is_the_identity_over_a_zero_block() {
     let s = Signer::new();
-    let (bytes, report) = s.build(&example("u2.package.toml"));
+    let (bytes, report) = s.build(&paths::example("vernadat/u2.package.toml"));
     assert_eq!(report.transform_kind, "generated");
     let mut expected = identity(13);
     expected.extend([vec![0; 13], vec![0; 13]]);
@@ -122,7 +115,7 @@ fn u2_generated_transform_is_the_identity_over_a_zero_block() {
     assert_eq!(report.transform.row_ids, rows);
 
     let pkg = ok(UpdatePackage::verify(&bytes, &s.trust(), false));
-    let old = load("u1.toml");
+    let old = programs::example("vernadat/u1.toml");
     let up = ok(pkg.resolve(&old, false));
     assert_eq!(up.transform.to_dense(), report.transform);
     assert_eq!((up.transform.rows(), up.transform.cols()), (15, 13));
@@ -144,12 +137,18 @@ fn u2_generated_transform_is_the_identity_over_a_zero_block() {
 #[test]
 fn a_package_file_says_who_signed_it_and_hashes_its_bytes() {
     let s = Signer::new();
-    let (bytes, report) = s.build(&example("u2.package.toml"));
+    let (bytes, report) = s.build(&paths::example("vernadat/u2.package.toml"));
     let pkg = ok(UpdatePackage::verify(&bytes, &s.trust(), false));
     assert_eq!(pkg.meta().name, "U.2 lubrication");
     assert_eq!(pkg.meta().created, "2023-11-14T22:13:20Z");
-    assert_eq!(pkg.meta().base_program_hash, load("u1.toml").hash_hex());
-    assert_eq!(pkg.program().hash_hex(), load("u2.toml").hash_hex());
+    assert_eq!(
+        pkg.meta().base_program_hash,
+        programs::example("vernadat/u1.toml").hash_hex()
+    );
+    assert_eq!(
+        pkg.program().hash_hex(),
+        programs::example("vernadat/u2.toml").hash_hex()
+    );
     assert_eq!(pkg.program().hash_hex(), report.program_hash);
     assert_eq!(UpdatePackage::file_hash_hex(&bytes).len(), 64);
     let info = ok(cetratus_program::package::inspect(&bytes));
@@ -163,7 +162,7 @@ fn a_package_file_says_who_signed_it_and_hashes_its_bytes() {
 #[test]
 fn a_tampered_package_is_refused() {
     let s = Signer::new();
-    let (bytes, _) = s.build(&example("u1.package.toml"));
+    let (bytes, _) = s.build(&paths::example("vernadat/u1.package.toml"));
     let mut doc: serde_json::Value = ok(serde_json::from_slice(&bytes));
     let b64 = base64::engine::general_purpose::STANDARD;
     let mut payload = ok(b64.decode(doc["payload"].as_str().unwrap_or_default()));
@@ -186,7 +185,7 @@ fn a_tampered_package_is_refused() {
 #[test]
 fn a_truncated_package_is_refused() {
     let s = Signer::new();
-    let (bytes, _) = s.build(&example("u1.package.toml"));
+    let (bytes, _) = s.build(&paths::example("vernadat/u1.package.toml"));
     for len in [0, 1, bytes.len() / 2, bytes.len() - 3] {
         let err = UpdatePackage::verify(&bytes[..len], &s.trust(), false).unwrap_err();
         assert!(matches!(err, PackageError::Malformed { .. }), "{err}");
@@ -196,7 +195,10 @@ fn a_truncated_package_is_refused() {
 
 #[test]
 fn an_unsigned_package_is_refused_unless_allowed() {
-    let (bytes, report) = ok(build_package(&example("u2.package.toml"), None));
+    let (bytes, report) = ok(build_package(
+        &paths::example("vernadat/u2.package.toml"),
+        None,
+    ));
     assert_eq!(report.signer, None);
     let err = UpdatePackage::verify(&bytes, &TrustStore::empty(), false).unwrap_err();
     assert!(matches!(err, PackageError::Unsigned), "{err}");
@@ -207,7 +209,7 @@ fn an_unsigned_package_is_refused_unless_allowed() {
 #[test]
 fn a_package_signed_by_an_unknown_key_is_refused() {
     let s = Signer::new();
-    let (bytes, _) = s.build(&example("u1.package.toml"));
+    let (bytes, _) = s.build(&paths::example("vernadat/u1.package.toml"));
     let other = Signer::new();
     for trust in [TrustStore::empty(), other.trust()] {
         let err = UpdatePackage::verify(&bytes, &trust, true).unwrap_err();
@@ -219,10 +221,10 @@ fn a_package_signed_by_an_unknown_key_is_refused() {
 #[test]
 fn a_package_built_against_another_program_is_refused_unless_forced() {
     let s = Signer::new();
-    let (bytes, _) = s.build(&example("u2.package.toml"));
+    let (bytes, _) = s.build(&paths::example("vernadat/u2.package.toml"));
     let pkg = ok(UpdatePackage::verify(&bytes, &s.trust(), false));
     // U.2 follows U.1; the cell still running the initial program is another program.
-    let initial = load("vernadat.toml");
+    let initial = programs::example("vernadat/vernadat.toml");
     let err = pkg.resolve(&initial, false).unwrap_err();
     assert!(matches!(err, PackageError::BaseMismatch { .. }), "{err}");
     assert!(err.to_string().contains(initial.hash_hex()), "{err}");
@@ -232,7 +234,10 @@ fn a_package_built_against_another_program_is_refused_unless_forced() {
 
 #[test]
 fn wrong_dimensions_are_refused_naming_them() {
-    let (old, new) = (load("vernadat.toml"), load("u1.toml"));
+    let (old, new) = (
+        programs::example("vernadat/vernadat.toml"),
+        programs::example("vernadat/u1.toml"),
+    );
     let (on, nn) = (old.net(), new.net());
     let short: Vec<String> = ids()[..12].to_vec();
     let err = StateTransform::dense(on, nn, &short, &ids(), &identity(12), &[0; 12]).unwrap_err();
@@ -266,7 +271,10 @@ fn wrong_dimensions_are_refused_naming_them() {
 
 #[test]
 fn wrong_place_ids_are_refused_naming_them() {
-    let (old, new) = (load("vernadat.toml"), load("u1.toml"));
+    let (old, new) = (
+        programs::example("vernadat/vernadat.toml"),
+        programs::example("vernadat/u1.toml"),
+    );
     let (on, nn) = (old.net(), new.net());
     let mut swapped = ids();
     swapped.swap(0, 1);
@@ -279,7 +287,7 @@ fn wrong_place_ids_are_refused_naming_them() {
     let err = StateTransform::dense(on, nn, &ids(), &swapped, &identity(13), &[0; 13]).unwrap_err();
     assert!(err.to_string().contains("column 1"), "{err}");
 
-    let u2 = load("u2.toml");
+    let u2 = programs::example("vernadat/u2.toml");
     let err =
         StateTransform::dense(on, u2.net(), &ids(), &ids(), &identity(13), &[0; 13]).unwrap_err();
     assert!(matches!(err, TransformError::Dimensions { .. }), "{err}");
@@ -287,7 +295,10 @@ fn wrong_place_ids_are_refused_naming_them() {
 
 #[test]
 fn a_negative_result_is_refused_and_nothing_is_written() {
-    let (old, new) = (load("vernadat.toml"), load("u1.toml"));
+    let (old, new) = (
+        programs::example("vernadat/vernadat.toml"),
+        programs::example("vernadat/u1.toml"),
+    );
     let mut base = [0i64; 13];
     base[1] = -5; // B has 3 parts
     let st = ok(StateTransform::dense(
@@ -334,7 +345,10 @@ fn a_count_above_a_capacity_of_the_new_net_is_refused() {
 
 #[test]
 fn a_broken_invariant_of_the_new_program_is_refused_naming_it() {
-    let (old, new) = (load("vernadat.toml"), load("u1.toml"));
+    let (old, new) = (
+        programs::example("vernadat/vernadat.toml"),
+        programs::example("vernadat/u1.toml"),
+    );
     let mut base = [0i64; 13];
     base[0] = 1; // one slot instead of two: H + B + P14 = 8, U.1 declares 9
     let st = ok(StateTransform::dense(
@@ -377,7 +391,10 @@ fn a_sparse_transform_in_a_manifest_resolves_like_the_dense_one() {
         "[transform]\nkind = \"sparse\"\nidentity_on_kept = true\nbase = { H = 2 }\n",
     );
     let (_, sparse) = ok(build_package(&m, None));
-    let (_, dense) = ok(build_package(&example("u1.package.toml"), None));
+    let (_, dense) = ok(build_package(
+        &paths::example("vernadat/u1.package.toml"),
+        None,
+    ));
     assert_eq!(sparse.transform, dense.transform);
     assert_eq!(dense.projection_kind, "sparse");
     assert_eq!(dense.projection.base[0], -2);

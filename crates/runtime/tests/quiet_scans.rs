@@ -2,7 +2,6 @@
 //! nothing: two containers, one that never takes the quiet path, stay identical scan by scan on
 //! random input sequences, for a program with plain guards and one with timer guards.
 
-use std::path::Path;
 use std::sync::Arc;
 
 use cetratus_program::{Program, Value};
@@ -10,10 +9,9 @@ use cetratus_runtime::Container;
 use proptest::prelude::*;
 
 fn program(name: &str) -> Arc<Program> {
-    let path = Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../../examples/vernadat")
-        .join(name);
-    Arc::new(Program::load(&path).expect("example loads"))
+    Arc::new(cetratus_testkit::programs::example(&format!(
+        "vernadat/{name}"
+    )))
 }
 
 proptest! {

@@ -4,33 +4,12 @@
 use std::collections::BTreeMap;
 use std::sync::Arc;
 
-use cetratus_net::{ArcKind, Net, NetBuilder, Place, Transition};
 use cetratus_program::{PackageMeta, Program, Projection, ResolvedUpdate, StateTransform, Value};
 use cetratus_runtime::{
     Command, Container, Dispatcher, InstallTiming, ManualStopwatch, Plc, Provider, Slot,
     SubstituteMode, SubstituteRequest, UpdateContext,
 };
-
-fn net() -> Net {
-    let mut b = NetBuilder::new("small");
-    for (id, m) in [("A", 1), ("B", 0), ("C", 2)] {
-        b.add_place(Place::new(id, m)).unwrap();
-    }
-    for id in ["T1", "T2", "T3"] {
-        b.add_transition(Transition::new(id)).unwrap();
-    }
-    for (id, s, t) in [
-        ("a1", "A", "T1"),
-        ("a2", "T1", "B"),
-        ("a3", "B", "T2"),
-        ("a4", "T2", "A"),
-        ("a5", "C", "T3"),
-        ("a6", "T3", "C"),
-    ] {
-        b.add_arc(id, s, t, 1, ArcKind::Normal).unwrap();
-    }
-    b.build().unwrap()
-}
+use cetratus_testkit::nets;
 
 fn program(name: &str, guards: &str, extra: &str) -> Arc<Program> {
     let src = format!(
@@ -42,7 +21,7 @@ fn program(name: &str, guards: &str, extra: &str) -> Arc<Program> {
          [[variable]]\nname = \"flag\"\ntype = \"bool\"\n\
          {extra}\n[guards]\n{guards}\n"
     );
-    Arc::new(Program::from_sources(&src, "t.toml", net()).unwrap_or_else(|e| panic!("{e}")))
+    Arc::new(Program::from_sources(&src, "t.toml", nets::small()).unwrap_or_else(|e| panic!("{e}")))
 }
 
 fn img(x: bool, y: bool) -> Vec<Value> {
@@ -251,7 +230,7 @@ fn after_substitution_a_primary_fault_drives_the_new_programs_safe_values() {
              [[variable]]\nname = \"flag\"\ntype = \"bool\"\n\
              [[action]]\nplace = \"B\"\nqualifier = \"N\"\ntarget = \"o\"\n\
              [guards]\nT1 = \"x\"\nT2 = \"y\"\nT3 = \"100 / n > 1000\"\n";
-        Arc::new(Program::from_sources(src, "t.toml", net()).expect("program"))
+        Arc::new(Program::from_sources(src, "t.toml", nets::small()).expect("program"))
     };
     let n = |v: i64| vec![Value::Bool(false), Value::Bool(false), Value::Int(v)];
     let mut r = Rig::new(&old);

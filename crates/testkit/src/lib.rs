@@ -1,10 +1,37 @@
-//! What the test suites of the workspace share: a real stopwatch, the counting allocator, the
-//! browser and MQTT helpers, and the Vernadat net. A dev-dependency only; nothing ships it.
+//! What the test suites of the workspace share: the counting allocator, free ports and child
+//! processes, a Mosquitto broker and its command-line clients, headless Chromium, the example
+//! nets and programs, and a real stopwatch. A dev-dependency only; nothing ships it, and the
+//! architecture test checks that no crate depends on it otherwise.
+//!
+//! The parts that pull in heavy crates sit behind features (`nets`, `programs`, `stopwatch`,
+//! `browser`), so that a suite compiles only what it uses.
+//!
+//! # Where the Vernadat net lives
+//!
+//! The bare Vernadat net is built in code exactly once, in `cetratus_bench::workloads::vernadat`:
+//! `cetratus bench` ships it, and shipped code cannot depend on this dev-only crate. This crate
+//! cannot depend on the bench crate either (only the binary may), so the tests get the same net
+//! from the example the project already publishes, `examples/vernadat/vernadat.pnml`, through
+//! `nets::vernadat`. A test of the bench crate checks that its builder and that file are the
+//! same net, place for place and arc for arc, so the two cannot drift apart.
 
-use cetratus_runtime::Stopwatch;
+#[cfg(feature = "browser")]
+pub mod browser;
+pub mod counting;
+pub mod mqtt;
+#[cfg(feature = "nets")]
+pub mod nets;
+pub mod paths;
+pub mod ports;
+pub mod process;
+#[cfg(feature = "programs")]
+pub mod programs;
+
+pub use counting::CountingAlloc;
 
 /// The machine's stopwatch, as a PLC node uses it: tests of the watchdog and the candidate's
 /// budget need real durations.
-pub fn stopwatch() -> Box<dyn Stopwatch> {
+#[cfg(feature = "stopwatch")]
+pub fn stopwatch() -> Box<dyn cetratus_runtime::Stopwatch> {
     cetratus_node::clock::MonotonicStopwatch::boxed()
 }

@@ -34,10 +34,7 @@ pub const VERNADAT_BROKEN: &str = concat!(
 
 /// Loads a program file, naming it in the panic message if it does not load.
 pub fn load(path: &str) -> Arc<Program> {
-    match Program::load(Path::new(path)) {
-        Ok(p) => Arc::new(p),
-        Err(e) => panic!("{path} should load: {e}"),
-    }
+    Arc::new(cetratus_testkit::programs::load(Path::new(path)))
 }
 
 /// A scan cycle for `program` from its initial marking, and the twin wired to its signals by name.

@@ -1,9 +1,8 @@
-//! Shared test helpers: free ports, MQTT clients that collect what they receive, a fake scan loop
+//! Shared test helpers: MQTT 5 and 3.1.1 clients that collect what they receive, a fake scan loop
 //! answering commands through the MctLink, and a real mosquitto on a free port.
 #![allow(dead_code)]
 
-use std::net::{SocketAddr, TcpListener, TcpStream};
-use std::process::{Child, Command, Stdio};
+use std::net::SocketAddr;
 use std::sync::atomic::{AtomicBool, AtomicU32, Ordering};
 use std::sync::mpsc::{Receiver, RecvTimeoutError};
 use std::sync::Arc;
@@ -19,11 +18,8 @@ use rumqttc::v5::mqttbytes::QoS;
 use rumqttc::v5::{Client, Event, MqttOptions};
 use serde_json::{json, Value};
 
-/// A port nobody listens on right now.
-pub fn free_addr() -> SocketAddr {
-    let l = TcpListener::bind("127.0.0.1:0").expect("bind 127.0.0.1:0");
-    l.local_addr().expect("local addr")
-}
+pub use cetratus_testkit::mqtt::Mosquitto;
+pub use cetratus_testkit::ports::free_addr;
 
 /// A received MQTT 5 publish.
 #[derive(Debug, Clone)]
@@ -147,6 +143,53 @@ pub fn next_matching<T>(
     }
 }
 
+/// An MQTT 3.1.1 client whose event loop runs in a thread and forwards `(topic, payload)`.
+pub struct V311 {
+    pub client: rumqttc::Client,
+    pub rx: Receiver<(String, Vec<u8>)>,
+}
+
+/// The topic under which [`V311`] reports a SUBACK, so that `subscribe` can wait for it.
+const SUBACK: &str = "$suback";
+
+/// A client connected to the broker at `addr` with MQTT 3.1.1.
+pub fn v311(addr: SocketAddr) -> V311 {
+    let mut o = rumqttc::MqttOptions::new(unique("v311"), addr.ip().to_string(), addr.port());
+    o.set_keep_alive(Duration::from_secs(5));
+    let (client, mut conn) = rumqttc::Client::new(o, 16);
+    let (tx, rx) = std::sync::mpsc::channel();
+    std::thread::spawn(move || {
+        for ev in conn.iter() {
+            match ev {
+                Ok(rumqttc::Event::Incoming(rumqttc::Packet::Publish(p))) => {
+                    let _ = tx.send((p.topic, p.payload.to_vec()));
+                }
+                Ok(rumqttc::Event::Incoming(rumqttc::Packet::SubAck(_))) => {
+                    let _ = tx.send((SUBACK.into(), vec![]));
+                }
+                Ok(_) => {}
+                Err(_) => break,
+            }
+        }
+    });
+    V311 { client, rx }
+}
+
+impl V311 {
+    /// Subscribes at QoS 1 and waits for the broker's SUBACK.
+    pub fn subscribe(&self, filter: &str) {
+        self.client
+            .subscribe(filter, rumqttc::QoS::AtLeastOnce)
+            .expect("subscribe");
+        next_matching(&self.rx, Duration::from_secs(5), |(t, _)| t == SUBACK)
+            .expect("MQTT 3.1.1 suback");
+    }
+    /// The payload of the next publish on `topic`, skipping others.
+    pub fn next_on(&self, topic: &str, timeout: Duration) -> Option<Vec<u8>> {
+        next_matching(&self.rx, timeout, |(t, _)| t == topic).map(|(_, p)| p)
+    }
+}
+
 /// A stand-in for the lead's scan loop: polls commands without blocking and answers them.
 pub struct FakeScan {
     stop: Arc<AtomicBool>,
@@ -233,76 +276,11 @@ impl FakeScan {
     }
 }
 
-/// A mosquitto broker on a free port, killed on drop.
-pub struct Mosquitto {
-    pub addr: SocketAddr,
-    child: Child,
-    dir: std::path::PathBuf,
-}
-
-pub fn have(cmd: &str) -> bool {
-    Command::new("sh")
-        .arg("-c")
-        .arg(format!("command -v {cmd} || test -x /usr/sbin/{cmd}"))
-        .stdout(Stdio::null())
-        .status()
-        .map(|s| s.success())
-        .unwrap_or(false)
-}
-
-pub fn mosquitto_bin() -> String {
-    if Command::new("sh")
-        .arg("-c")
-        .arg("command -v mosquitto")
-        .stdout(Stdio::null())
-        .status()
-        .map(|s| s.success())
-        .unwrap_or(false)
-    {
-        "mosquitto".into()
-    } else {
-        "/usr/sbin/mosquitto".into()
+/// A mosquitto on a free port, or `None`, said loudly, when mosquitto or its clients are missing.
+pub fn mosquitto() -> Option<Mosquitto> {
+    if !cetratus_testkit::mqtt::installed() {
+        eprintln!("\n!!!!!!!! SKIPPED: mosquitto, mosquitto_sub or mosquitto_pub missing (apt-get install -y mosquitto mosquitto-clients) !!!!!!!!\n");
+        return None;
     }
-}
-
-impl Mosquitto {
-    pub fn start() -> Option<Self> {
-        if !have("mosquitto") || !have("mosquitto_sub") || !have("mosquitto_pub") {
-            eprintln!("\n!!!!!!!! SKIPPED: mosquitto, mosquitto_sub or mosquitto_pub missing (apt-get install -y mosquitto mosquitto-clients) !!!!!!!!\n");
-            return None;
-        }
-        let addr = free_addr();
-        let dir = std::env::temp_dir().join(unique("cetratus-mosquitto"));
-        std::fs::create_dir_all(&dir).expect("temp dir");
-        let conf = dir.join("mosquitto.conf");
-        std::fs::write(
-            &conf,
-            format!(
-                "listener {} 127.0.0.1\nallow_anonymous true\npersistence false\n",
-                addr.port()
-            ),
-        )
-        .expect("write conf");
-        let child = Command::new(mosquitto_bin())
-            .arg("-c")
-            .arg(&conf)
-            .stdout(Stdio::null())
-            .stderr(Stdio::null())
-            .spawn()
-            .expect("spawn mosquitto");
-        let end = Instant::now() + Duration::from_secs(5);
-        while TcpStream::connect(addr).is_err() {
-            assert!(Instant::now() < end, "mosquitto did not start on {addr}");
-            std::thread::sleep(Duration::from_millis(20));
-        }
-        Some(Mosquitto { addr, child, dir })
-    }
-}
-
-impl Drop for Mosquitto {
-    fn drop(&mut self) {
-        let _ = self.child.kill();
-        let _ = self.child.wait();
-        let _ = std::fs::remove_dir_all(&self.dir);
-    }
+    Some(Mosquitto::start())
 }

@@ -239,7 +239,6 @@ fn program_sources(path: &Path) -> Result<(String, String), PackageError> {
 
 #[cfg(test)]
 mod tests {
-    use super::*;
 
     #[test]
     fn created_is_rfc3339_utc_to_the_second() {

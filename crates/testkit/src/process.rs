@@ -1,0 +1,63 @@
+//! The programs a test runs beside itself: finding them, and stopping them when the test ends.
+
+use std::path::PathBuf;
+use std::process::{Child, Command};
+
+/// A child process, killed and reaped when the guard drops, so that a failing test does not
+/// leave a broker, a driver or a PLC running.
+#[derive(Debug)]
+pub struct ChildGuard(Child);
+
+impl ChildGuard {
+    /// Guards a process that is already running.
+    pub fn new(child: Child) -> Self {
+        ChildGuard(child)
+    }
+
+    /// Starts `cmd` and guards it.
+    ///
+    /// # Panics
+    ///
+    /// When the program cannot be started, naming it.
+    pub fn spawn(cmd: &mut Command) -> Self {
+        match cmd.spawn() {
+            Ok(child) => ChildGuard(child),
+            Err(e) => panic!("cannot start {:?}: {e}", cmd.get_program()),
+        }
+    }
+}
+
+impl Drop for ChildGuard {
+    fn drop(&mut self) {
+        let _ = self.0.kill();
+        let _ = self.0.wait();
+    }
+}
+
+/// Where the program `name` is installed: on `PATH`, or in an `sbin` directory, which Debian
+/// keeps off an ordinary user's `PATH` although it installs Mosquitto there.
+pub fn find_program(name: &str) -> Option<PathBuf> {
+    let on_path = std::env::var_os("PATH")
+        .map(|paths| std::env::split_paths(&paths).collect::<Vec<_>>())
+        .unwrap_or_default();
+    on_path
+        .into_iter()
+        .chain(["/usr/local/sbin", "/usr/sbin", "/sbin"].map(PathBuf::from))
+        .map(|dir| dir.join(name))
+        .find(|p| p.is_file())
+}
+
+/// Where the program `name` is installed.
+///
+/// # Panics
+///
+/// When it is not, saying which Debian package installs it: the tests that talk to real
+/// programs fail rather than skip, so that a green run means they ran.
+pub fn require_program(name: &str, package: &str) -> PathBuf {
+    find_program(name).unwrap_or_else(|| {
+        panic!(
+            "`{name}` is missing: install the Debian package `{package}` \
+             (`apt-get install -y {package}`; ./scripts/test does)"
+        )
+    })
+}

@@ -1,0 +1,350 @@
+//! The architecture, checked: which workspace crate may depend on which (read from
+//! `cargo metadata`), and how long a source file may grow. ARCHITECTURE.md explains the rules;
+//! the table below is their one machine-readable copy.
+
+use std::collections::BTreeSet;
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+use serde_json::Value;
+
+/// Where a reader finds the dependency rules and their reasons.
+const DEPENDENCY_RULES: &str = "ARCHITECTURE.md, section Dependency rules";
+/// Where a reader finds the size rules and their reasons.
+const SIZE_RULES: &str = "ARCHITECTURE.md, section Invariants, \"Files stay readable\"";
+
+/// The workspace crates a crate may have as normal or build dependencies.
+enum Allowed {
+    /// These at most.
+    Only(&'static [&'static str]),
+    /// Any but these.
+    AnyBut(&'static [&'static str]),
+}
+
+use Allowed::{AnyBut, Only};
+
+/// One row per workspace crate. A new crate fails the test until it has a row here and a line
+/// in ARCHITECTURE.md.
+const RULES: &[(&str, Allowed)] = &[
+    ("cetratus-net", Only(&[])),
+    ("cetratus-twin", Only(&[])),
+    ("cetratus-proto", Only(&[])),
+    ("cetratus-analysis", Only(&["cetratus-net"])),
+    ("cetratus-program", Only(&["cetratus-net"])),
+    (
+        "cetratus-runtime",
+        Only(&["cetratus-net", "cetratus-program"]),
+    ),
+    (
+        "cetratus-persist",
+        Only(&["cetratus-net", "cetratus-program", "cetratus-runtime"]),
+    ),
+    (
+        "cetratus-io",
+        Only(&[
+            "cetratus-net",
+            "cetratus-program",
+            "cetratus-runtime",
+            "cetratus-twin",
+        ]),
+    ),
+    ("cetratus-mct", Only(&["cetratus-proto"])),
+    (
+        "cetratus-dashboard",
+        Only(&["cetratus-proto", "cetratus-mct", "cetratus-net"]),
+    ),
+    (
+        "cetratus-node",
+        AnyBut(&[
+            "cetratus-cli",
+            "cetratus-dashboard",
+            "cetratus-bench",
+            "cetratus-testkit",
+        ]),
+    ),
+    (
+        "cetratus-bench",
+        AnyBut(&["cetratus-cli", "cetratus-testkit"]),
+    ),
+    ("cetratus-testkit", AnyBut(&["cetratus-cli"])),
+    ("cetratus-cli", AnyBut(&["cetratus-testkit"])),
+];
+
+/// The binary: the only crate allowed what follows.
+const BINARY: &str = "cetratus-cli";
+/// Crates, of the workspace or not, that only the binary may have as normal dependencies.
+const ONLY_FOR_THE_BINARY: &[&str] = &["cetratus-dashboard", "cetratus-bench", "anyhow"];
+/// Crates every other crate may have as dev-dependencies only.
+const DEV_ONLY: &[&str] = &["cetratus-testkit"];
+
+/// The most lines of a file of the binary, which only parses arguments and calls libraries.
+const BINARY_FILE_LINES: usize = 400;
+/// The most lines of any other source file, unless its header gives the reason.
+const FILE_LINES: usize = 900;
+/// How a file over [`FILE_LINES`] starts the line, within its first ten, that says why.
+const SIZE_REASON: &str = "//! Over 900 lines because";
+
+/// A workspace crate and its dependencies by package name.
+struct Package {
+    name: String,
+    /// Normal and build dependencies: what the crate's code may use.
+    deps: BTreeSet<String>,
+    /// Dev-dependencies: what only its tests, examples and benches may use.
+    dev_deps: BTreeSet<String>,
+}
+
+fn workspace_root() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../..")
+}
+
+/// The workspace's crates, from `cargo metadata --no-deps` (no resolution, no network).
+fn packages() -> Vec<Package> {
+    let cargo = std::env::var_os("CARGO").unwrap_or_else(|| "cargo".into());
+    let out = Command::new(&cargo)
+        .args([
+            "metadata",
+            "--format-version",
+            "1",
+            "--no-deps",
+            "--manifest-path",
+        ])
+        .arg(workspace_root().join("Cargo.toml"))
+        .output()
+        .unwrap_or_else(|e| panic!("cannot run {cargo:?} metadata: {e}"));
+    assert!(
+        out.status.success(),
+        "cargo metadata failed: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let meta: Value = serde_json::from_slice(&out.stdout).expect("cargo metadata prints JSON");
+    let packages = meta["packages"].as_array().expect("a list of packages");
+    packages
+        .iter()
+        .map(|p| {
+            let mut pkg = Package {
+                name: p["name"].as_str().expect("a package name").to_string(),
+                deps: BTreeSet::new(),
+                dev_deps: BTreeSet::new(),
+            };
+            for d in p["dependencies"]
+                .as_array()
+                .expect("a list of dependencies")
+            {
+                let name = d["name"].as_str().expect("a dependency name").to_string();
+                // `kind` is null for normal dependencies, "build" or "dev" otherwise.
+                if d["kind"] == "dev" {
+                    pkg.dev_deps.insert(name);
+                } else {
+                    pkg.deps.insert(name);
+                }
+            }
+            pkg
+        })
+        .collect()
+}
+
+/// Every way the dependencies of `packages` break the rules, one sentence each.
+fn dependency_violations(packages: &[Package]) -> Vec<String> {
+    let members: BTreeSet<&str> = packages.iter().map(|p| p.name.as_str()).collect();
+    let mut out = Vec::new();
+    for (name, _) in RULES {
+        if !members.contains(name) {
+            out.push(format!(
+                "the rules name {name}, which is not a workspace crate: remove its row"
+            ));
+        }
+    }
+    for p in packages {
+        let name = p.name.as_str();
+        let Some((_, allowed)) = RULES.iter().find(|(n, _)| *n == name) else {
+            out.push(format!(
+                "{name} has no dependency rule: add its row to the table of this test and its \
+                 line to {DEPENDENCY_RULES}"
+            ));
+            continue;
+        };
+        for dep in p.deps.iter().filter(|d| members.contains(d.as_str())) {
+            let ok = match allowed {
+                Only(list) => list.contains(&dep.as_str()),
+                AnyBut(list) => !list.contains(&dep.as_str()) && dep != name,
+            };
+            if !ok {
+                out.push(format!(
+                    "{name} depends on {dep}, which {DEPENDENCY_RULES} forbids ({name} may \
+                     depend on {})",
+                    describe(allowed)
+                ));
+            }
+        }
+        for dep in p.deps.iter().map(String::as_str) {
+            if name != BINARY && ONLY_FOR_THE_BINARY.contains(&dep) {
+                out.push(format!(
+                    "{name} depends on {dep}, which {DEPENDENCY_RULES} allows only to the binary, \
+                     {BINARY}"
+                ));
+            }
+            if DEV_ONLY.contains(&dep) {
+                out.push(format!(
+                    "{name} depends on {dep} outside [dev-dependencies]; {DEPENDENCY_RULES} \
+                     allows it only there"
+                ));
+            }
+        }
+    }
+    out
+}
+
+fn describe(allowed: &Allowed) -> String {
+    match allowed {
+        Only([]) => "no workspace crate".to_string(),
+        Only(list) => format!("only {}", list.join(", ")),
+        AnyBut(list) => format!("any workspace crate but {}", list.join(", ")),
+    }
+}
+
+#[test]
+fn every_crate_depends_only_on_what_the_dependency_rules_allow() {
+    let packages = packages();
+    let violations = dependency_violations(&packages);
+    assert!(
+        violations.is_empty(),
+        "{} dependency rule(s) broken:\n  {}",
+        violations.len(),
+        violations.join("\n  ")
+    );
+}
+
+#[test]
+fn dev_dependencies_are_read_apart_from_normal_ones() {
+    // Guards the check above against reading the metadata wrongly: were dev-dependencies mixed
+    // in with normal ones, or dropped, the rules would pass or fail for the wrong reason.
+    let packages = packages();
+    let io = packages
+        .iter()
+        .find(|p| p.name == "cetratus-io")
+        .expect("cetratus-io is a workspace crate");
+    assert!(
+        io.dev_deps.contains("cetratus-testkit"),
+        "{:?}",
+        io.dev_deps
+    );
+    assert!(!io.deps.contains("cetratus-testkit"), "{:?}", io.deps);
+    assert!(io.deps.contains("cetratus-runtime"), "{:?}", io.deps);
+}
+
+#[test]
+fn a_forbidden_edge_is_reported_with_the_crate_the_edge_and_where_the_rule_is_written() {
+    let package = |name: &str, deps: &[&str]| Package {
+        name: name.to_string(),
+        deps: deps.iter().map(|d| d.to_string()).collect(),
+        dev_deps: BTreeSet::new(),
+    };
+    let all = [
+        package("cetratus-dashboard", &["cetratus-runtime", "anyhow"]),
+        package("cetratus-runtime", &["cetratus-net", "cetratus-testkit"]),
+        package("cetratus-net", &[]),
+        package("cetratus-testkit", &[]),
+        package("cetratus-newcomer", &[]),
+    ];
+    let found: Vec<String> = dependency_violations(&all)
+        .into_iter()
+        .filter(|m| !m.contains("which is not a workspace crate"))
+        .collect();
+    let expected = [
+        "cetratus-dashboard depends on cetratus-runtime, which",
+        "cetratus-dashboard depends on anyhow, which",
+        "cetratus-runtime depends on cetratus-testkit, which",
+        "cetratus-runtime depends on cetratus-testkit outside [dev-dependencies]",
+        "cetratus-newcomer has no dependency rule",
+    ];
+    assert_eq!(found.len(), expected.len(), "{found:#?}");
+    for (message, start) in found.iter().zip(expected) {
+        assert!(
+            message.starts_with(start),
+            "{message:?} should start {start:?}"
+        );
+        assert!(message.contains(DEPENDENCY_RULES), "{message:?}");
+    }
+}
+
+/// Every `.rs` file under `dir`, recursively, in path order.
+fn rust_files(dir: &Path) -> Vec<PathBuf> {
+    let mut out = Vec::new();
+    let mut stack = vec![dir.to_path_buf()];
+    while let Some(d) = stack.pop() {
+        let entries =
+            std::fs::read_dir(&d).unwrap_or_else(|e| panic!("cannot list {}: {e}", d.display()));
+        for entry in entries {
+            let path = entry.expect("a directory entry").path();
+            if path.is_dir() {
+                stack.push(path);
+            } else if path.extension().is_some_and(|e| e == "rs") {
+                out.push(path);
+            }
+        }
+    }
+    out.sort();
+    out
+}
+
+/// The `src/` directory of every crate, and of the benches.
+fn source_dirs() -> Vec<PathBuf> {
+    let root = workspace_root();
+    let crates = std::fs::read_dir(root.join("crates")).expect("crates/ lists");
+    let mut dirs: Vec<PathBuf> = crates
+        .map(|e| e.expect("a directory entry").path().join("src"))
+        .filter(|p| p.is_dir())
+        .collect();
+    dirs.push(root.join("benches/src"));
+    dirs.sort();
+    dirs
+}
+
+/// `path` relative to the workspace, for messages.
+fn shown(path: &Path) -> String {
+    let root = workspace_root();
+    path.strip_prefix(&root)
+        .unwrap_or(path)
+        .display()
+        .to_string()
+}
+
+fn read(path: &Path) -> String {
+    std::fs::read_to_string(path).unwrap_or_else(|e| panic!("cannot read {}: {e}", path.display()))
+}
+
+#[test]
+fn no_file_of_the_binary_is_over_400_lines() {
+    let offenders: Vec<String> = rust_files(&workspace_root().join("crates/cli/src"))
+        .iter()
+        .map(|p| (shown(p), read(p).lines().count()))
+        .filter(|(_, n)| *n > BINARY_FILE_LINES)
+        .map(|(p, n)| format!("{p}: {n} lines"))
+        .collect();
+    assert!(
+        offenders.is_empty(),
+        "files of the binary over {BINARY_FILE_LINES} lines ({SIZE_RULES}: move the logic \
+         into a library crate):\n  {}",
+        offenders.join("\n  ")
+    );
+}
+
+#[test]
+fn no_source_file_is_over_900_lines_unless_its_header_says_why() {
+    let offenders: Vec<String> = source_dirs()
+        .iter()
+        .flat_map(|d| rust_files(d))
+        .filter_map(|p| {
+            let text = read(&p);
+            let lines = text.lines().count();
+            let reasoned = text.lines().take(10).any(|l| l.starts_with(SIZE_REASON));
+            (lines > FILE_LINES && !reasoned).then(|| format!("{}: {lines} lines", shown(&p)))
+        })
+        .collect();
+    assert!(
+        offenders.is_empty(),
+        "source files over {FILE_LINES} lines without a `{SIZE_REASON} …` line in their first \
+         ten ({SIZE_RULES}: split them, or say why they must stay whole):\n  {}",
+        offenders.join("\n  ")
+    );
+}

@@ -13,7 +13,8 @@ const BFS_BASELINE: &str = include_str!("../../scripts/bfs_baseline.py");
 pub fn root() -> &'static Path {
     static ROOT: OnceLock<PathBuf> = OnceLock::new();
     ROOT.get_or_init(|| {
-        let root = std::env::temp_dir().join(format!("cetratus-bench-{}", std::process::id()));
+        let root =
+            std::env::temp_dir().join(format!("cetratus-bench-files-{}", std::process::id()));
         let write = |rel: &str, text: &str| {
             let path = root.join(rel);
             if let Some(dir) = path.parent() {
@@ -50,5 +51,11 @@ mod tests {
         let p = cetratus_program::Program::load(&examples_dir().join("vernadat/vernadat.toml"));
         assert!(p.is_ok(), "{:?}", p.err());
         assert!(bfs_baseline().is_file());
+    }
+
+    #[test]
+    fn building_the_packages_leaves_the_embedded_examples_in_place() {
+        let _ = crate::update::packages();
+        assert!(examples_dir().join("vernadat/vernadat.toml").is_file());
     }
 }

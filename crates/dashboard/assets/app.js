@@ -321,7 +321,9 @@
     for (const s of [...signals].sort()) row(`divergence ${s} (cycles)`, (x) => (x.divergence || {})[s] ?? 0, 'num');
     row('first cause', (x) => x.first_cause ?? '–');
     row('last cause', (x) => x.last_cause ?? '–');
-    row('verdicts', (x) => (x.verdicts || []).join('; ') || '–');
+    // A verdict is {kind, result, reasons, figures} (docs/mqtt.md).
+    row('verdicts', (x) => (x.verdicts || []).map((v) =>
+      `${v.kind} ${v.result}${(v.reasons || []).length ? ': ' + v.reasons.join(', ') : ''}`).join('; ') || '–');
 
     const table = $('exec-info');
     table.textContent = '';

@@ -1,37 +1,10 @@
-//! The machine's clocks, injected into the runtime (which reads none of its own).
+//! The machine's clocks, injected into the runtime (which reads none of its own). Program time
+//! needs none here: in real time, each cycle's program time is its planned start on the periodic
+//! schedule ([`crate::periodic`]); in virtual time a `VirtualClock` advances by the period.
 
-use std::time::Instant;
-
-use cetratus_runtime::{Clock, Stopwatch};
+use cetratus_runtime::Stopwatch;
 
 pub use cetratus_persist::SystemWallClock;
-
-/// Program time from the machine's monotonic clock, zero at creation.
-#[derive(Clone, Debug)]
-pub struct RealClock {
-    start: Instant,
-}
-
-impl RealClock {
-    /// A clock whose zero is now.
-    pub fn new() -> Self {
-        RealClock {
-            start: Instant::now(),
-        }
-    }
-}
-
-impl Default for RealClock {
-    fn default() -> Self {
-        Self::new()
-    }
-}
-
-impl Clock for RealClock {
-    fn now_us(&self) -> u64 {
-        self.start.elapsed().as_micros() as u64
-    }
-}
 
 /// Measured durations from the CPU's time-stamp counter (a few nanoseconds a reading), zero at
 /// creation.

@@ -12,7 +12,9 @@ use std::thread::JoinHandle;
 use cetratus_persist::{PersistStats, Persister};
 use cetratus_program::TrustStore;
 use cetratus_runtime::trace::Trace;
-use cetratus_runtime::{Command, CommandError, Dispatcher, Event, LoopTiming, Plc, Provider};
+use cetratus_runtime::{
+    Clock, Command, CommandError, Dispatcher, Event, LoopTiming, Plc, Provider, VirtualClock,
+};
 
 use crate::link::ControlLink;
 use crate::periodic::run_periodic;
@@ -281,11 +283,11 @@ impl<IO: Provider + Dispatcher> Node<IO> {
 
     /// Runs cycles every `period_us` of virtual time until `until_us`. Returns the time reached.
     pub fn run_virtual(&mut self, period_us: u64, until_us: u64) -> u64 {
-        let (mut now, idle) = (0, LoopTiming::default());
-        while now < until_us && self.step(now, &idle).is_some() {
-            now += period_us;
+        let (mut clock, idle) = (VirtualClock::new(), LoopTiming::default());
+        while clock.now_us() < until_us && self.step(clock.now_us(), &idle).is_some() {
+            clock.advance_us(period_us);
         }
-        now
+        clock.now_us()
     }
 
     /// Runs cycles in real time at absolute deadlines until `until_us` of program time or `stop`;

@@ -52,6 +52,30 @@ pub enum EventKind {
 }
 
 impl EventKind {
+    /// Every kind, in declaration order.
+    pub const ALL: [EventKind; 20] = [
+        EventKind::ColdStart,
+        EventKind::WarmStart,
+        EventKind::LoadAccepted,
+        EventKind::Refused,
+        EventKind::SubstituteAccepted,
+        EventKind::Removed,
+        EventKind::Aborted,
+        EventKind::Reset,
+        EventKind::CandidateFault,
+        EventKind::PrimaryFault,
+        EventKind::UpdateDiscarded,
+        EventKind::DeadlockAlarm,
+        EventKind::TransformRefused,
+        EventKind::StateTransTimeout,
+        EventKind::QuarantineStarted,
+        EventKind::SubstituteTimeout,
+        EventKind::Substituted,
+        EventKind::ProbationStarted,
+        EventKind::Accepted,
+        EventKind::Reverted,
+    ];
+
     /// The snake_case name.
     pub fn name(self) -> &'static str {
         match self {
@@ -199,29 +223,7 @@ mod tests {
 
     #[test]
     fn every_kind_name_is_its_serde_name() {
-        use EventKind::*;
-        for k in [
-            ColdStart,
-            WarmStart,
-            LoadAccepted,
-            Refused,
-            SubstituteAccepted,
-            Removed,
-            Aborted,
-            Reset,
-            CandidateFault,
-            PrimaryFault,
-            UpdateDiscarded,
-            DeadlockAlarm,
-            TransformRefused,
-            StateTransTimeout,
-            QuarantineStarted,
-            SubstituteTimeout,
-            Substituted,
-            ProbationStarted,
-            Accepted,
-            Reverted,
-        ] {
+        for k in EventKind::ALL {
             assert_eq!(serde_json::to_value(k).unwrap(), k.name());
         }
     }

@@ -34,7 +34,12 @@ def main():
     args = ap.parse_args()
 
     correlation = uuid.uuid4().bytes
-    reply_topic = "mct/replies/" + uuid.uuid4().hex
+    # A PLC replies only under its own reply level: cetratus/<plc>/reply/...
+    levels = args.topic.split("/")
+    if len(levels) < 4 or levels[0] != "cetratus" or levels[2] != "cmd":
+        print("--topic must be cetratus/<plc>/cmd/<verb>", file=sys.stderr)
+        sys.exit(2)
+    reply_topic = "cetratus/%s/reply/py-%s" % (levels[1], uuid.uuid4().hex)
     got = {}
     done = threading.Event()
     subscribed = threading.Event()

@@ -185,12 +185,18 @@ pub fn command_load(rate: u32, phase_us: u64, period_us: u64) -> Result<Figures,
             let (client, mut conn) = rumqttc::v5::Client::new(opts, 4096);
             std::thread::spawn(move || for _ in conn.iter() {});
             let payloads: [(&str, &[u8]); 4] = [
-                ("exec_info", b"{\"reply_to\": \"bench/replies\"}"),
+                (
+                    "exec_info",
+                    b"{\"reply_to\": \"cetratus/bench/reply/flood\"}",
+                ),
                 ("load", b"\x00\x01 not json"),
-                ("frobnicate", b"{\"reply_to\": \"bench/replies\"}"),
+                (
+                    "frobnicate",
+                    b"{\"reply_to\": \"cetratus/bench/reply/flood\"}",
+                ),
                 (
                     "substitute",
-                    b"{\"mode\": \"sideways\", \"reply_to\": \"bench/replies\"}",
+                    b"{\"mode\": \"sideways\", \"reply_to\": \"cetratus/bench/reply/flood\"}",
                 ),
             ];
             let start = Instant::now();

@@ -128,18 +128,16 @@ fn live(args: &DemoArgs, files: &DemoFiles) -> anyhow::Result<()> {
     let mut trust = files.trust.clone();
     trust.merge(&local.trust);
     let period_us = plc.primary_program().scan_period().as_micros() as u64;
-    let (link, services) = crate::mqtt_args::start_services(
+    let (link, services) =
+        crate::mqtt_args::start_services(&args.mqtt, &local, &args.http, true, false)?;
+    let link = crate::mqtt_args::control_link(
+        link,
         &plc,
-        &args.mqtt,
-        &local,
-        &args.http,
-        true,
         trust.clone(),
         local.allow_unsigned,
         args.speed,
         period_us,
-        false,
-    )?;
+    );
     let speed = if args.speed.is_finite() && args.speed > 0.0 {
         args.speed
     } else {

@@ -59,29 +59,29 @@ pub fn run(args: &MctArgs) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// A signer for the dashboard's commands: an envelope over the verb, the payload's hash, the time
-/// and a nonce, with the operator key at `path`.
+/// A signer for the dashboard's commands: a version-2 envelope (the PLC, the verb, the payload's
+/// hash, the correlation data, the time and a nonce) with the operator key at `path`.
 fn signer(path: &std::path::Path) -> anyhow::Result<cetratus_dashboard::CommandSigner> {
     let key = cetratus_program::KeyPair::load(path)
         .with_context(|| format!("operator key {}", path.display()))?;
     let key_id = key.key_id();
     let counter = std::sync::atomic::AtomicU64::new(0);
     Ok(cetratus_dashboard::CommandSigner(Arc::new(
-        move |verb: &str, payload: &[u8]| {
+        move |r: &cetratus_dashboard::SignRequest<'_>| {
             let n = counter.fetch_add(1, Ordering::Relaxed);
             let nonce = format!(
                 "mct-{}-{}-{n}",
                 std::process::id(),
                 cetratus_mct::unix_now()
             );
-            let env = cetratus_mct::sign(
-                verb,
-                payload,
-                cetratus_mct::unix_now(),
-                &nonce,
-                &key_id,
-                key.signing_key(),
-            );
+            let signed = cetratus_mct::Signed {
+                plc: r.plc,
+                verb: r.verb,
+                correlation: r.correlation,
+                timestamp: cetratus_mct::unix_now(),
+                nonce: &nonce,
+            };
+            let env = cetratus_mct::sign(&signed, r.payload, &key_id, key.signing_key());
             serde_json::to_value(env).unwrap_or(serde_json::Value::Null)
         },
     )))

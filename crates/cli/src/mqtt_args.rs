@@ -3,7 +3,7 @@
 use std::net::SocketAddr;
 
 use anyhow::Context;
-use cetratus_mct::{BrokerChoice, MqttConfig};
+use cetratus_mct::{BrokerChoice, MctLink, MqttConfig};
 use cetratus_node::config::LocalConfig;
 use cetratus_node::link::ControlLink;
 
@@ -95,22 +95,16 @@ impl Services {
     }
 }
 
-/// Starts MQTT (the embedded broker or a plant broker's client), the dashboard when asked, and
-/// the node's side of MQTT for `plc`. Snapshots go out about five times a second of wall time,
-/// whatever the speed.
-#[allow(clippy::too_many_arguments)]
+/// Starts MQTT (the embedded broker or a plant broker's client) and the dashboard when asked.
+/// Called before the state directory is opened, so that a taken port stops a start before it
+/// leaves any trace.
 pub fn start_services(
-    plc: &cetratus_runtime::Plc,
     mqtt: &MqttArgs,
     local: &LocalConfig,
     http: &str,
     dashboard: bool,
-    trust: cetratus_program::TrustStore,
-    allow_unsigned: bool,
-    speed: f64,
-    period_us: u64,
     announce: bool,
-) -> anyhow::Result<(ControlLink, Services)> {
+) -> anyhow::Result<(MctLink, Services)> {
     let mut config = mqtt.config(local)?;
     config.publish_period = std::time::Duration::from_millis(200);
     let plc_id = config.plc_id.clone();
@@ -141,6 +135,25 @@ pub fn start_services(
             None => eprintln!("MQTT {broker_url} (topics cetratus/{plc_id}/…)"),
         }
     }
+    Ok((
+        link,
+        Services {
+            mqtt: handle,
+            dashboard,
+        },
+    ))
+}
+
+/// The node's side of MQTT for `plc`. Snapshots go out about five times a second of wall time,
+/// whatever the speed.
+pub fn control_link(
+    link: MctLink,
+    plc: &cetratus_runtime::Plc,
+    trust: cetratus_program::TrustStore,
+    allow_unsigned: bool,
+    speed: f64,
+    period_us: u64,
+) -> ControlLink {
     let speed = if speed.is_finite() && speed > 0.0 {
         speed
     } else {
@@ -149,12 +162,5 @@ pub fn start_services(
     let publish_every = ((200_000.0 * speed) / period_us.max(1) as f64)
         .round()
         .max(1.0) as u64;
-    let link = ControlLink::start(plc, link, trust, allow_unsigned, publish_every);
-    Ok((
-        link,
-        Services {
-            mqtt: handle,
-            dashboard,
-        },
-    ))
+    ControlLink::start(plc, link, trust, allow_unsigned, publish_every)
 }

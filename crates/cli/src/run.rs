@@ -137,6 +137,19 @@ pub fn run(args: &RunArgs) -> anyhow::Result<()> {
         Some(p) => parse_duration_us(p)?.max(1),
         None => program.scan_period().as_micros() as u64,
     };
+    // Real-time runs are watched and commanded over MQTT, with the dashboard beside them; their
+    // ports are taken before anything is written, so a start that cannot bind leaves no trace.
+    let mqtt = if !args.virtual_time && !args.no_mct {
+        Some(crate::mqtt_args::start_services(
+            &args.mqtt,
+            &local,
+            &args.http,
+            !args.no_dashboard,
+            !args.json,
+        )?)
+    } else {
+        None
+    };
     // A virtual run is a simulation and keeps no state unless asked to.
     let state_dir = match (&args.state_dir, args.virtual_time) {
         (Some(d), _) => Some(d.clone()),
@@ -220,21 +233,16 @@ pub fn run(args: &RunArgs) -> anyhow::Result<()> {
             committed.map_or(-1, |c| c as i64)
         ),
     });
-    // Real-time runs are watched and commanded over MQTT, with the dashboard beside them.
     let mut services = None;
-    if !args.virtual_time && !args.no_mct {
-        let (link, s) = crate::mqtt_args::start_services(
+    if let Some((link, s)) = mqtt {
+        let link = crate::mqtt_args::control_link(
+            link,
             node.plc(),
-            &args.mqtt,
-            &local,
-            &args.http,
-            !args.no_dashboard,
             trust.clone(),
             allow_unsigned,
             args.speed,
             period_us,
-            !args.json,
-        )?;
+        );
         node = node.with_link(link);
         services = Some(s);
     }

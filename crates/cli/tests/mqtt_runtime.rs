@@ -55,7 +55,11 @@ fn wait_state(port: u16, plc: &str, pred: impl Fn(&Value) -> bool) -> Value {
 
 /// MQTT 3.1.1: `mosquitto_pub` with a `reply_to` field, `mosquitto_sub` on that topic.
 fn request_v311(port: u16, plc: &str, verb: &str, payload: Value) -> Value {
-    let reply = format!("test/reply/{}/{verb}/{}", std::process::id(), free_port());
+    let reply = format!(
+        "cetratus/{plc}/reply/test-{}-{verb}-{}",
+        std::process::id(),
+        free_port()
+    );
     mqtt::request_v311(port, &format!("cetratus/{plc}/cmd/{verb}"), payload, &reply)
 }
 
@@ -74,7 +78,11 @@ fn request_v5(port: u16, plc: &str, verb: &str, payload: &[u8]) -> Output {
             &format!("cetratus/{plc}/cmd/{verb}"),
             "-e",
         ])
-        .arg(format!("test/rr/{}/{}", std::process::id(), free_port()))
+        .arg(format!(
+            "cetratus/{plc}/reply/rr-{}-{}",
+            std::process::id(),
+            free_port()
+        ))
         .args(["-W", "15", "-m"])
         .arg(std::ffi::OsStr::from_bytes(payload))
         .output()

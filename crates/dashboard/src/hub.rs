@@ -79,7 +79,9 @@ pub(crate) struct Hub {
     connected: AtomicBool,
     pending: Mutex<HashMap<Vec<u8>, oneshot::Sender<Value>>>,
     client: AsyncClient,
-    reply_topic: String,
+    // The last levels of the reply topics, `reply/dashboard-<process>-<nonce>`, under each PLC's
+    // own reply level: the only place a PLC replies to.
+    reply_leaf: String,
     next_correlation: AtomicU64,
     broker: String,
     signer: Option<crate::CommandSigner>,
@@ -129,7 +131,7 @@ impl Hub {
             connected: AtomicBool::new(false),
             pending: Mutex::new(HashMap::new()),
             client,
-            reply_topic: format!("cetratus-dashboard/{client_id}/reply"),
+            reply_leaf: format!("reply/dashboard-{}-{nonce:08x}", std::process::id()),
             next_correlation: AtomicU64::new(1),
             broker: target.to_string(),
             signer,
@@ -169,7 +171,11 @@ impl Hub {
     }
 
     fn on_publish(&self, topic: &str, payload: &[u8], props: Option<&PublishProperties>) {
-        if topic == self.reply_topic {
+        let is_reply = topic.starts_with("cetratus/")
+            && topic
+                .strip_suffix(self.reply_leaf.as_str())
+                .is_some_and(|t| t.ends_with('/'));
+        if is_reply {
             let Some(corr) = props.and_then(|p| p.correlation_data.as_ref()) else {
                 tracing::debug!("a reply without correlation data was dropped");
                 return;
@@ -228,17 +234,24 @@ impl Hub {
             .into_bytes();
         let (tx, rx) = oneshot::channel();
         self.pending().insert(corr.clone(), tx);
+        let topics = Topics::new(plc.clone());
         let props = PublishProperties {
-            response_topic: Some(self.reply_topic.clone()),
+            response_topic: Some(format!("{}{}", topics.prefix(), self.reply_leaf)),
             correlation_data: Some(corr.clone().into()),
             content_type: Some("application/json".into()),
             ..PublishProperties::default()
         };
-        let topic = Topics::new(plc.clone()).cmd(verb).to_string();
+        let topic = topics.cmd(verb).to_string();
         let payload = match &self.signer {
             Some(sign) => {
-                serde_json::json!({ "envelope": (sign.0)(verb.as_str(), body.to_string().as_bytes()) })
-                    .to_string()
+                let body = body.to_string();
+                let request = crate::SignRequest {
+                    plc: plc.as_str(),
+                    verb: verb.as_str(),
+                    correlation: &corr,
+                    payload: body.as_bytes(),
+                };
+                serde_json::json!({ "envelope": (sign.0)(&request) }).to_string()
             }
             None => body.to_string(),
         };
@@ -296,10 +309,8 @@ pub(crate) async fn run_mqtt(
             Ok(Event::Incoming(Packet::ConnAck(_))) => {
                 // try_subscribe: awaiting here could deadlock, since this task is the one that
                 // drains the request queue.
-                let subs = [
-                    (ALL_PLCS_FILTER.to_string(), QoS::AtLeastOnce),
-                    (hub.reply_topic.clone(), QoS::AtLeastOnce),
-                ];
+                // The PLCs' replies come under `cetratus/<plc>/reply/…`, in this subscription.
+                let subs = [(ALL_PLCS_FILTER.to_string(), QoS::AtLeastOnce)];
                 for (t, q) in subs {
                     if let Err(e) = hub.client.try_subscribe(t.clone(), q) {
                         tracing::warn!(filter = %t, error = %e, "cannot subscribe");

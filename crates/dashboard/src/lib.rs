@@ -39,8 +39,21 @@ use tokio::sync::watch;
 #[derive(Clone)]
 pub struct CommandSigner(pub std::sync::Arc<SignFn>);
 
-/// The signing function of a [`CommandSigner`]: verb and payload bytes in, envelope out.
-pub type SignFn = dyn Fn(&str, &[u8]) -> serde_json::Value + Send + Sync;
+/// What a [`CommandSigner`] signs: the command and what it is bound to.
+#[derive(Clone, Copy, Debug)]
+pub struct SignRequest<'a> {
+    /// The PLC the command is for.
+    pub plc: &'a str,
+    /// The verb.
+    pub verb: &'a str,
+    /// The request's MQTT 5 correlation data.
+    pub correlation: &'a [u8],
+    /// The command's JSON body.
+    pub payload: &'a [u8],
+}
+
+/// The signing function of a [`CommandSigner`]: a request in, an envelope out.
+pub type SignFn = dyn Fn(&SignRequest<'_>) -> serde_json::Value + Send + Sync;
 
 impl std::fmt::Debug for CommandSigner {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {

@@ -118,6 +118,9 @@ impl EmbeddedBroker {
                 rmqtt::net::Builder::new()
                     .name("cetratus")
                     .laddr(addr)
+                    // A restart must not wait for the last run's connections to leave TIME_WAIT;
+                    // a live listener on the port is still refused.
+                    .reuseaddr(Some(true))
                     .max_packet_size(BROKER_MAX_PACKET)
                     .allow_anonymous(anonymous)
                     .bind()

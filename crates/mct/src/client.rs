@@ -11,7 +11,7 @@ use rumqttc::v5::mqttbytes::QoS;
 use rumqttc::v5::{Client, Connection, Event};
 use serde_json::Value;
 
-use crate::{client_options, sign, unix_now, MctError};
+use crate::{client_options, sign, unix_now, MctError, Signed};
 
 /// An operator key that signs commands: its id and the secret key.
 pub struct OperatorKey {
@@ -166,13 +166,14 @@ impl Session {
             self.subscribe_topic(topic)?;
             self.reply_leaf = Some(reply_leaf.clone());
         }
+        let correlation = format!("{verb}-{}", unique()).into_bytes();
+        let body = self.body(verb, &correlation, &command.to_body())?;
         let props = PublishProperties {
             response_topic: Some(format!("{}{reply_leaf}", self.topics.prefix())),
-            correlation_data: Some(format!("{verb}-{}", std::process::id()).into_bytes().into()),
+            correlation_data: Some(correlation.into()),
             content_type: Some("application/json".into()),
             ..Default::default()
         };
-        let body = self.body(verb, &command.to_body())?;
         self.client
             .publish_with_properties(
                 self.topics.cmd(verb).to_string(),
@@ -198,19 +199,33 @@ impl Session {
         })
     }
 
-    /// The payload of a command: the body, or a signed envelope holding it.
-    fn body(&self, verb: Verb, body: &Value) -> Result<Vec<u8>, MctError> {
+    /// The payload of a command: the body, or a signed envelope holding it, bound to this PLC
+    /// and to the request's correlation data.
+    fn body(&self, verb: Verb, correlation: &[u8], body: &Value) -> Result<Vec<u8>, MctError> {
         let inner = serde_json::to_vec(body).map_err(|e| MctError::Client(e.to_string()))?;
         let Some(k) = &self.key else {
             return Ok(inner);
         };
         // The nonce only has to be unique per key within the replay window.
-        let nanos = std::time::SystemTime::now()
-            .duration_since(std::time::UNIX_EPOCH)
-            .map_or(0, |d| d.as_nanos());
-        let nonce = format!("{}-{nanos}", std::process::id());
-        let env = sign(verb.as_str(), &inner, unix_now(), &nonce, &k.id, &k.key);
+        let nonce = unique();
+        let signed = Signed {
+            plc: self.topics.plc().as_str(),
+            verb: verb.as_str(),
+            correlation,
+            timestamp: unix_now(),
+            nonce: &nonce,
+        };
+        let env = sign(&signed, &inner, &k.id, &k.key);
         serde_json::to_vec(&serde_json::json!({ "envelope": env }))
             .map_err(|e| MctError::Client(e.to_string()))
     }
+}
+
+/// A string unique to this process and instant: the process id and the nanoseconds of the wall
+/// clock.
+fn unique() -> String {
+    let nanos = std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map_or(0, |d| d.as_nanos());
+    format!("{}-{nanos}", std::process::id())
 }

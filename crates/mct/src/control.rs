@@ -13,7 +13,7 @@ use cetratus_proto::{
 };
 use serde_json::{json, Map, Value};
 
-use crate::envelope::{Envelope, OperatorKeys};
+use crate::envelope::{parse_envelope, OperatorKeys};
 use crate::MctError;
 
 /// Where and how a reply goes: the MQTT 5 response topic and correlation data, or the MQTT 3.1.1
@@ -171,14 +171,19 @@ impl ControlPlane {
             serde_json::from_slice(payload).map_err(|e| e.to_string())
         };
         let obj = parsed.as_ref().ok().and_then(Value::as_object);
-        let reply_to = response_topic
-            .map(str::to_string)
-            .or_else(|| {
-                obj.and_then(|o| o.get("reply_to"))
-                    .and_then(Value::as_str)
-                    .map(str::to_string)
-            })
-            .filter(|t| valid_topic(t));
+        let asked = response_topic.map(str::to_string).or_else(|| {
+            obj.and_then(|o| o.get("reply_to"))
+                .and_then(Value::as_str)
+                .map(str::to_string)
+        });
+        // Replies go only under this PLC's own `reply/` level: a command cannot make the PLC
+        // publish on another PLC's topics, or anywhere else.
+        let reply_prefix = format!("{}reply/", self.topics.prefix());
+        let foreign_reply = asked
+            .as_ref()
+            .filter(|t| !(t.starts_with(&reply_prefix) && t.len() > reply_prefix.len()))
+            .cloned();
+        let reply_to = asked.filter(|t| valid_topic(t) && foreign_reply.is_none());
         let handle = ReplyHandle {
             verb: verb
                 .map_or(verb_raw, |v| v.as_str())
@@ -199,6 +204,16 @@ impl ControlPlane {
                     .then(|| (handle.clone(), ErrorBody { code, message })),
             })
         };
+        if let Some(t) = foreign_reply {
+            return Err(reject(
+                ErrorCode::NotAllowed,
+                format!(
+                    "the reply topic `{}` is not under `{reply_prefix}`; this PLC replies only \
+                     there: ask for a reply on `{reply_prefix}<your client>`",
+                    t.chars().take(128).collect::<String>()
+                ),
+            ));
+        }
         let Some(verb) = verb else {
             return Err(reject(
                 ErrorCode::UnknownVerb,
@@ -243,10 +258,35 @@ impl ControlPlane {
                             .into(),
                     ));
                 };
-                let env: Envelope = serde_json::from_value(env.clone())
-                    .map_err(|e| reject(ErrorCode::Malformed, format!("bad envelope: {e}")))?;
+                if let Some(k) = obj
+                    .keys()
+                    .find(|k| !ReplyFields::META_FIELDS.contains(&k.as_str()))
+                {
+                    return Err(reject(
+                        ErrorCode::NotAllowed,
+                        format!(
+                            "`{}` stands outside the signed envelope; with operator keys every \
+                             argument must be inside the signed payload",
+                            k.chars().take(64).collect::<String>()
+                        ),
+                    ));
+                }
+                let env = parse_envelope(env).map_err(|(code, m)| reject(code, m))?;
+                // What the signature binds the command to: MQTT 5 correlation data, or the
+                // compact JSON of an MQTT 3.1.1 client's `correlation` field.
+                let correlation = match (&handle.correlation_data, &handle.correlation) {
+                    (Some(data), _) => data.clone(),
+                    (None, Some(c)) => c.to_string().into_bytes(),
+                    (None, None) => Vec::new(),
+                };
                 let (inner, key_id) = keys
-                    .verify(verb.as_str(), &env, now_unix_s)
+                    .verify(
+                        self.topics.plc().as_str(),
+                        verb.as_str(),
+                        &correlation,
+                        &env,
+                        now_unix_s,
+                    )
                     .map_err(|(code, m)| reject(code, m))?;
                 let inner: Value = serde_json::from_slice(&inner).map_err(|e| {
                     reject(
@@ -347,6 +387,9 @@ pub fn unix_now() -> u64 {
 mod tests {
     use super::*;
 
+    /// A reply topic this PLC accepts.
+    const R: &str = "cetratus/cell1/reply/test";
+
     fn cp() -> ControlPlane {
         ControlPlane::new("cell1", None).expect("valid id")
     }
@@ -360,7 +403,8 @@ mod tests {
 
     #[test]
     fn a_load_with_reply_to_parses_into_the_package_bytes() {
-        let p = br#"{"package_b64":"aGVsbG8=","reply_to":"me/r","correlation":42}"#;
+        let p =
+            br#"{"package_b64":"aGVsbG8=","reply_to":"cetratus/cell1/reply/me","correlation":42}"#;
         let c = cp()
             .parse("cetratus/cell1/cmd/load", p, None, None, 0)
             .expect("accepted");
@@ -370,7 +414,7 @@ mod tests {
                 package: b"hello".to_vec()
             }
         );
-        assert_eq!(c.reply.topic.as_deref(), Some("me/r"));
+        assert_eq!(c.reply.topic.as_deref(), Some("cetratus/cell1/reply/me"));
         assert_eq!(c.reply.correlation, Some(json!(42)));
     }
 
@@ -379,19 +423,19 @@ mod tests {
         let c = cp()
             .parse(
                 "cetratus/cell1/cmd/abort",
-                br#"{"reply_to":"x"}"#,
-                Some("v5/r"),
+                br#"{"reply_to":"cetratus/cell1/reply/x"}"#,
+                Some("cetratus/cell1/reply/v5"),
                 Some(b"c1"),
                 0,
             )
             .expect("accepted");
-        assert_eq!(c.reply.topic.as_deref(), Some("v5/r"));
+        assert_eq!(c.reply.topic.as_deref(), Some("cetratus/cell1/reply/v5"));
         assert_eq!(c.reply.correlation_data.as_deref(), Some(&b"c1"[..]));
     }
 
     #[test]
     fn bad_commands_get_the_right_error_codes() {
-        let r = Some("r");
+        let r = Some(R);
         assert_eq!(
             code(cp().parse("cetratus/cell1/cmd/explode", b"{}", r, None, 0)),
             ErrorCode::UnknownVerb
@@ -443,7 +487,7 @@ mod tests {
     fn allow_unsigned_from_a_command_is_never_accepted() {
         let p = br#"{"package_b64":"aGVsbG8=","allow_unsigned":true}"#;
         assert_eq!(
-            code(cp().parse("cetratus/cell1/cmd/load", p, Some("r"), None, 0)),
+            code(cp().parse("cetratus/cell1/cmd/load", p, Some(R), None, 0)),
             ErrorCode::NotAllowed
         );
     }
@@ -464,19 +508,123 @@ mod tests {
         keys.add("op", sk.verifying_key());
         let mut cp = ControlPlane::new("cell1", Some(keys)).expect("valid id");
         assert_eq!(
-            code(cp.parse("cetratus/cell1/cmd/abort", b"{}", Some("r"), None, 100)),
+            code(cp.parse("cetratus/cell1/cmd/abort", b"{}", Some(R), None, 100)),
             ErrorCode::Unauthorised
         );
-        let env = crate::envelope::sign("abort", b"{}", 100, "n-123456", "op", &sk);
+        let signed = crate::Signed {
+            plc: "cell1",
+            verb: "abort",
+            correlation: b"corr-1",
+            timestamp: 100,
+            nonce: "n-123456",
+        };
+        let env = crate::envelope::sign(&signed, b"{}", "op", &sk);
         let payload = serde_json::to_vec(&json!({"envelope": env})).expect("serialisable");
+        // The same envelope, sent to another PLC or with other correlation data, is refused.
+        let mut other = ControlPlane::new("cell2", cp.keys.clone()).expect("valid id");
+        assert_eq!(
+            code(other.parse(
+                "cetratus/cell2/cmd/abort",
+                &payload,
+                Some("cetratus/cell2/reply/x"),
+                Some(b"corr-1"),
+                100
+            )),
+            ErrorCode::Unauthorised
+        );
+        assert_eq!(
+            code(cp.parse(
+                "cetratus/cell1/cmd/abort",
+                &payload,
+                Some(R),
+                Some(b"corr-2"),
+                100
+            )),
+            ErrorCode::Unauthorised
+        );
         let c = cp
-            .parse("cetratus/cell1/cmd/abort", &payload, Some("r"), None, 100)
+            .parse(
+                "cetratus/cell1/cmd/abort",
+                &payload,
+                Some(R),
+                Some(b"corr-1"),
+                100,
+            )
             .expect("accepted");
         assert_eq!(c.key_id.as_deref(), Some("op"));
         assert_eq!(
-            code(cp.parse("cetratus/cell1/cmd/abort", &payload, Some("r"), None, 100)),
+            code(cp.parse(
+                "cetratus/cell1/cmd/abort",
+                &payload,
+                Some(R),
+                Some(b"corr-1"),
+                100
+            )),
             ErrorCode::Replayed
         );
+    }
+
+    #[test]
+    fn a_reply_topic_outside_this_plcs_reply_level_is_refused_and_not_answered() {
+        for foreign in [
+            "ops/r",
+            "cetratus/cell2/reply/x",
+            "cetratus/cell1/state",
+            "cetratus/cell1/reply/",
+        ] {
+            let rej = cp()
+                .parse("cetratus/cell1/cmd/abort", b"{}", Some(foreign), None, 0)
+                .expect_err(foreign);
+            assert!(rej.reply.is_none(), "{foreign}");
+            assert_eq!(rej.event.detail["code"], "not_allowed", "{foreign}");
+        }
+        let p = br#"{"reply_to":"cetratus/cell2/reply/x"}"#;
+        assert!(cp()
+            .parse("cetratus/cell1/cmd/abort", p, None, None, 0)
+            .is_err());
+    }
+
+    #[test]
+    fn with_operator_keys_arguments_outside_the_envelope_and_v1_envelopes_are_refused() {
+        let sk = ed25519_dalek::SigningKey::from_bytes(&[5u8; 32]);
+        let mut keys = OperatorKeys::new(Duration::from_secs(30));
+        keys.add("op", sk.verifying_key());
+        let mut cp = ControlPlane::new("cell1", Some(keys)).expect("valid id");
+        let signed = crate::Signed {
+            plc: "cell1",
+            verb: "substitute",
+            correlation: b"",
+            timestamp: 100,
+            nonce: "n-654321",
+        };
+        let env = crate::envelope::sign(&signed, b"{}", "op", &sk);
+        let outside = json!({"envelope": env, "force": true});
+        let payload = serde_json::to_vec(&outside).expect("serialisable");
+        assert_eq!(
+            code(cp.parse(
+                "cetratus/cell1/cmd/substitute",
+                &payload,
+                Some(R),
+                None,
+                100
+            )),
+            ErrorCode::NotAllowed
+        );
+        let mut v1 = serde_json::to_value(&env).expect("serialisable");
+        v1.as_object_mut().expect("object").remove("v");
+        let payload = serde_json::to_vec(&json!({"envelope": v1})).expect("serialisable");
+        let rej = cp
+            .parse(
+                "cetratus/cell1/cmd/substitute",
+                &payload,
+                Some(R),
+                None,
+                100,
+            )
+            .expect_err("v1");
+        let (_, e) = rej.reply.expect("a reply");
+        assert_eq!(e.code, ErrorCode::Unauthorised);
+        assert!(e.message.contains("upgrade"), "{}", e.message);
     }
 
     #[test]

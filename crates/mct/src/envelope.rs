@@ -1,9 +1,13 @@
-//! Signed command envelopes: ed25519 over (verb, SHA-256 of the payload, timestamp, nonce), checked
-//! against the configured operator keys inside a replay window.
+//! Signed command envelopes, version 2: ed25519 over the domain tag `cetratus-cmd-v2`, the PLC id,
+//! the verb, the SHA-256 of the payload, the MQTT correlation data, the timestamp and a nonce,
+//! checked against the configured operator keys inside a replay window.
 //!
 //! A signed command is published as `{"envelope": {...}}` (plus `reply_to`/`correlation` for MQTT
-//! 3.1.1 clients). The signature covers the verb, so a signed `remove` cannot be replayed as a
-//! `substitute`, and the nonce, so the same command cannot be replayed inside the window.
+//! 3.1.1 clients, and nothing else: arguments go inside the signed payload). What is signed
+//! decides what cannot be reused: the PLC id, so a command for one PLC does not replay to another;
+//! the verb, so a signed `remove` cannot become a `substitute`; the correlation data, so a
+//! captured command cannot be re-sent to steer someone else's pending request; the nonce, tracked
+//! per key, so the same command cannot be replayed inside the window.
 
 use std::collections::{BTreeMap, HashMap};
 use std::time::Duration;
@@ -17,12 +21,17 @@ use crate::MctError;
 use cetratus_proto::ErrorCode;
 
 /// Domain separation, so a command signature can never be mistaken for any other signature.
-const CONTEXT: &str = "cetratus-cmd-v1";
+const CONTEXT: &str = "cetratus-cmd-v2";
+
+/// The envelope version this PLC signs and accepts.
+pub const ENVELOPE_VERSION: u32 = 2;
 
 /// A signed command as it travels in the `envelope` field.
 #[derive(Clone, Debug, Serialize, Deserialize, PartialEq, Eq)]
 #[serde(deny_unknown_fields)]
 pub struct Envelope {
+    /// The envelope version: 2.
+    pub v: u32,
     /// Which operator key signed it.
     pub key_id: String,
     /// The command's JSON body, base64 (standard alphabet): the exact bytes that were hashed.
@@ -35,30 +44,70 @@ pub struct Envelope {
     pub signature: String,
 }
 
-/// The bytes an operator signs.
-pub fn signing_message(verb: &str, payload: &[u8], timestamp: u64, nonce: &str) -> Vec<u8> {
+/// What a signature binds a command to, besides its payload.
+#[derive(Clone, Copy, Debug)]
+pub struct Signed<'a> {
+    /// The PLC the command is for.
+    pub plc: &'a str,
+    /// The verb.
+    pub verb: &'a str,
+    /// The MQTT 5 correlation data of the request (empty when there is none; an MQTT 3.1.1 client
+    /// signs the compact JSON of its `correlation` field).
+    pub correlation: &'a [u8],
+    /// Unix time of signing, in seconds.
+    pub timestamp: u64,
+    /// The nonce.
+    pub nonce: &'a str,
+}
+
+/// The bytes an operator signs: one field a line, binary fields in hex.
+pub fn signing_message(s: &Signed<'_>, payload: &[u8]) -> Vec<u8> {
     let digest = hex::encode(Sha256::digest(payload));
-    format!("{CONTEXT}\n{verb}\n{digest}\n{timestamp}\n{nonce}").into_bytes()
+    let correlation = hex::encode(s.correlation);
+    format!(
+        "{CONTEXT}\n{}\n{}\n{digest}\n{correlation}\n{}\n{}",
+        s.plc, s.verb, s.timestamp, s.nonce
+    )
+    .into_bytes()
 }
 
 /// Signs a command body: what an operator tool (or a test) does.
-pub fn sign(
-    verb: &str,
-    payload: &[u8],
-    timestamp: u64,
-    nonce: &str,
-    key_id: &str,
-    key: &SigningKey,
-) -> Envelope {
+pub fn sign(s: &Signed<'_>, payload: &[u8], key_id: &str, key: &SigningKey) -> Envelope {
     let b64 = base64::engine::general_purpose::STANDARD;
-    let sig = key.sign(&signing_message(verb, payload, timestamp, nonce));
+    let sig = key.sign(&signing_message(s, payload));
     Envelope {
+        v: ENVELOPE_VERSION,
         key_id: key_id.to_string(),
         payload_b64: b64.encode(payload),
-        timestamp,
-        nonce: nonce.to_string(),
+        timestamp: s.timestamp,
+        nonce: s.nonce.to_string(),
         signature: b64.encode(sig.to_bytes()),
     }
+}
+
+/// Reads the `envelope` field of a command: a version-2 envelope, or a refusal that says what to
+/// do (a version-1 envelope comes from a client that must be upgraded).
+pub fn parse_envelope(v: &serde_json::Value) -> Result<Envelope, (ErrorCode, String)> {
+    match v.get("v").and_then(serde_json::Value::as_u64) {
+        None => {
+            return Err((
+                ErrorCode::Unauthorised,
+                "this is a version-1 command envelope, which this PLC refuses: it does not name \
+                 the PLC, so it could be replayed to another; upgrade the client (cetratus, the \
+                 dashboard) so that it signs version-2 envelopes"
+                    .into(),
+            ))
+        }
+        Some(n) if n != u64::from(ENVELOPE_VERSION) => {
+            return Err((
+                ErrorCode::Unauthorised,
+                format!("envelope version {n} is not known here; this PLC accepts version {ENVELOPE_VERSION}"),
+            ))
+        }
+        Some(_) => {}
+    }
+    serde_json::from_value(v.clone())
+        .map_err(|e| (ErrorCode::Malformed, format!("bad envelope: {e}")))
 }
 
 /// The operator keys and the nonces seen inside the replay window.
@@ -66,8 +115,10 @@ pub fn sign(
 pub struct OperatorKeys {
     keys: BTreeMap<String, VerifyingKey>,
     window_s: u64,
-    // Nonce → timestamp; pruned as the window moves so it stays small.
-    seen: HashMap<String, u64>,
+    // (key id, nonce) → timestamp: nonces are tracked per key, and pruned as the window moves. Only
+    // verified commands add to it, so its size is bounded by what trusted operators sent within
+    // one window.
+    seen: HashMap<(String, String), u64>,
 }
 
 impl OperatorKeys {
@@ -106,10 +157,13 @@ impl OperatorKeys {
         self.keys.is_empty()
     }
 
-    /// Checks an envelope for `verb` at Unix time `now_s`; returns the signed body and the key id.
+    /// Checks an envelope for `verb` to PLC `plc` with the request's `correlation` data, at Unix
+    /// time `now_s`; returns the signed body and the key id.
     pub fn verify(
         &mut self,
+        plc: &str,
         verb: &str,
+        correlation: &[u8],
         env: &Envelope,
         now_s: u64,
     ) -> Result<(Vec<u8>, String), (ErrorCode, String)> {
@@ -139,20 +193,26 @@ impl OperatorKeys {
             .map_err(|e| unauth(format!("signature is not base64: {e}")))?;
         let sig =
             Signature::from_slice(&sig_bytes).map_err(|e| unauth(format!("bad signature: {e}")))?;
-        key.verify(
-            &signing_message(verb, &payload, env.timestamp, &env.nonce),
-            &sig,
-        )
-        .map_err(|_| {
-            unauth(format!(
-                "the signature does not verify with key `{}` for verb `{verb}`",
-                env.key_id
-            ))
-        })?;
+        let signed = Signed {
+            plc,
+            verb,
+            correlation,
+            timestamp: env.timestamp,
+            nonce: &env.nonce,
+        };
+        key.verify(&signing_message(&signed, &payload), &sig)
+            .map_err(|_| {
+                unauth(format!(
+                    "the signature does not verify with key `{}` for verb `{verb}` to PLC `{plc}` \
+                     with this correlation data",
+                    env.key_id
+                ))
+            })?;
         // Only a verified command may consume a nonce, so forgeries cannot burn someone else's nonces.
         let window = self.window_s;
         self.seen.retain(|_, ts| ts.abs_diff(now_s) <= window);
-        if self.seen.contains_key(&env.nonce) {
+        let seen = (env.key_id.clone(), env.nonce.clone());
+        if self.seen.contains_key(&seen) {
             return Err((
                 ErrorCode::Replayed,
                 format!(
@@ -161,7 +221,7 @@ impl OperatorKeys {
                 ),
             ));
         }
-        self.seen.insert(env.nonce.clone(), env.timestamp);
+        self.seen.insert(seen, env.timestamp);
         Ok((payload, env.key_id.clone()))
     }
 }
@@ -177,12 +237,22 @@ mod tests {
         (k, sk)
     }
 
+    fn signed<'a>(verb: &'a str, ts: u64, nonce: &'a str) -> Signed<'a> {
+        Signed {
+            plc: "cell1",
+            verb,
+            correlation: b"c-1",
+            timestamp: ts,
+            nonce,
+        }
+    }
+
     #[test]
     fn a_signed_command_verifies_and_yields_its_body_and_key_id() {
         let (mut k, sk) = keys();
-        let env = sign("remove", b"{}", 1000, "nonce-0001", "op1", &sk);
+        let env = sign(&signed("remove", 1000, "nonce-0001"), b"{}", "op1", &sk);
         assert_eq!(
-            k.verify("remove", &env, 1010),
+            k.verify("cell1", "remove", b"c-1", &env, 1010),
             Ok((b"{}".to_vec(), "op1".to_string()))
         );
     }
@@ -190,20 +260,55 @@ mod tests {
     #[test]
     fn a_replayed_nonce_is_refused() {
         let (mut k, sk) = keys();
-        let env = sign("abort", b"{}", 1000, "nonce-0002", "op1", &sk);
-        assert!(k.verify("abort", &env, 1000).is_ok());
+        let env = sign(&signed("abort", 1000, "nonce-0002"), b"{}", "op1", &sk);
+        assert!(k.verify("cell1", "abort", b"c-1", &env, 1000).is_ok());
         assert_eq!(
-            k.verify("abort", &env, 1001).map_err(|e| e.0),
+            k.verify("cell1", "abort", b"c-1", &env, 1001)
+                .map_err(|e| e.0),
             Err(ErrorCode::Replayed)
+        );
+    }
+
+    #[test]
+    fn nonces_are_tracked_per_key() {
+        let (mut k, sk) = keys();
+        let other = SigningKey::from_bytes(&[8u8; 32]);
+        k.add("op2", other.verifying_key());
+        let a = sign(&signed("abort", 1000, "nonce-same"), b"{}", "op1", &sk);
+        let b = sign(&signed("abort", 1000, "nonce-same"), b"{}", "op2", &other);
+        assert!(k.verify("cell1", "abort", b"c-1", &a, 1000).is_ok());
+        assert!(k.verify("cell1", "abort", b"c-1", &b, 1000).is_ok());
+    }
+
+    #[test]
+    fn a_command_signed_for_another_plc_is_refused() {
+        let (mut k, sk) = keys();
+        let env = sign(&signed("remove", 1000, "nonce-0007"), b"{}", "op1", &sk);
+        assert_eq!(
+            k.verify("cell2", "remove", b"c-1", &env, 1000)
+                .map_err(|e| e.0),
+            Err(ErrorCode::Unauthorised)
+        );
+    }
+
+    #[test]
+    fn a_command_resent_with_other_correlation_data_is_refused() {
+        let (mut k, sk) = keys();
+        let env = sign(&signed("remove", 1000, "nonce-0008"), b"{}", "op1", &sk);
+        assert_eq!(
+            k.verify("cell1", "remove", b"c-2", &env, 1000)
+                .map_err(|e| e.0),
+            Err(ErrorCode::Unauthorised)
         );
     }
 
     #[test]
     fn a_signature_for_another_verb_is_refused() {
         let (mut k, sk) = keys();
-        let env = sign("remove", b"{}", 1000, "nonce-0003", "op1", &sk);
+        let env = sign(&signed("remove", 1000, "nonce-0003"), b"{}", "op1", &sk);
         assert_eq!(
-            k.verify("substitute", &env, 1000).map_err(|e| e.0),
+            k.verify("cell1", "substitute", b"c-1", &env, 1000)
+                .map_err(|e| e.0),
             Err(ErrorCode::Unauthorised)
         );
     }
@@ -212,17 +317,16 @@ mod tests {
     fn a_tampered_payload_is_refused() {
         let (mut k, sk) = keys();
         let mut env = sign(
-            "substitute",
+            &signed("substitute", 1000, "nonce-0004"),
             br#"{"mode":"retransform"}"#,
-            1000,
-            "nonce-0004",
             "op1",
             &sk,
         );
         env.payload_b64 =
             base64::engine::general_purpose::STANDARD.encode(br#"{"mode":"keep","force":true}"#);
         assert_eq!(
-            k.verify("substitute", &env, 1000).map_err(|e| e.0),
+            k.verify("cell1", "substitute", b"c-1", &env, 1000)
+                .map_err(|e| e.0),
             Err(ErrorCode::Unauthorised)
         );
     }
@@ -230,9 +334,10 @@ mod tests {
     #[test]
     fn a_stale_timestamp_is_refused() {
         let (mut k, sk) = keys();
-        let env = sign("reset", b"{}", 1000, "nonce-0005", "op1", &sk);
+        let env = sign(&signed("reset", 1000, "nonce-0005"), b"{}", "op1", &sk);
         assert_eq!(
-            k.verify("reset", &env, 1031).map_err(|e| e.0),
+            k.verify("cell1", "reset", b"c-1", &env, 1031)
+                .map_err(|e| e.0),
             Err(ErrorCode::Unauthorised)
         );
     }
@@ -241,10 +346,28 @@ mod tests {
     fn an_unknown_key_is_refused() {
         let (mut k, _) = keys();
         let other = SigningKey::from_bytes(&[9u8; 32]);
-        let env = sign("reset", b"{}", 1000, "nonce-0006", "mallory", &other);
+        let env = sign(
+            &signed("reset", 1000, "nonce-0006"),
+            b"{}",
+            "mallory",
+            &other,
+        );
         assert_eq!(
-            k.verify("reset", &env, 1000).map_err(|e| e.0),
+            k.verify("cell1", "reset", b"c-1", &env, 1000)
+                .map_err(|e| e.0),
             Err(ErrorCode::Unauthorised)
+        );
+    }
+
+    #[test]
+    fn a_version_1_envelope_is_refused_with_what_to_do() {
+        let v1 = serde_json::json!({"key_id": "op1", "payload_b64": "e30=", "timestamp": 1,
+            "nonce": "nonce-0009", "signature": "AA=="});
+        let (code, message) = parse_envelope(&v1).unwrap_err();
+        assert_eq!(code, ErrorCode::Unauthorised);
+        assert!(
+            message.contains("version-1") && message.contains("upgrade"),
+            "{message}"
         );
     }
 

@@ -42,7 +42,9 @@ pub use control::{
     accepted, refused, unix_now, ControlPlane, IncomingCommand, Outcome, Rejection, ReplyHandle,
     Request,
 };
-pub use envelope::{sign, signing_message, Envelope, OperatorKeys};
+pub use envelope::{
+    parse_envelope, sign, signing_message, Envelope, OperatorKeys, Signed, ENVELOPE_VERSION,
+};
 pub use error::MctError;
 pub use link::{
     client_options, spawn_mqtt, start, BrokerChoice, MctLink, MqttConfig, MqttHandle, Outgoing,

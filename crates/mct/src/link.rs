@@ -435,6 +435,15 @@ async fn event_loop(
                 let Ok(topic) = std::str::from_utf8(&p.topic) else {
                     continue;
                 };
+                if p.retain {
+                    // A command acts when it is sent, never again from the broker's store: a
+                    // retained one would run at every start and every reconnect.
+                    tracing::warn!(
+                        topic,
+                        "a retained command was ignored; clear it with an empty retained message"
+                    );
+                    continue;
+                }
                 let props = p.properties.as_ref();
                 let response_topic = props.and_then(|pr| pr.response_topic.as_deref());
                 let correlation = props.and_then(|pr| pr.correlation_data.as_deref());

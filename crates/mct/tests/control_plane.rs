@@ -52,12 +52,12 @@ fn request(
 fn an_mqtt5_command_gets_its_reply_with_the_correlation_data() {
     let (handle, scan, addr) = plc("cell1");
     let c = v5(addr, None);
-    c.subscribe("me/replies");
+    c.subscribe("cetratus/cell1/reply/me");
     let got = request(
         &c,
         "cetratus/cell1/cmd/exec_info",
         "{}",
-        "me/replies",
+        "cetratus/cell1/reply/me",
         b"corr-1",
     );
     assert_eq!(got.correlation.as_deref(), Some(&b"corr-1"[..]));
@@ -69,7 +69,7 @@ fn an_mqtt5_command_gets_its_reply_with_the_correlation_data() {
         &c,
         "cetratus/cell1/cmd/load",
         r#"{"package_b64":"aGVsbG8="}"#,
-        "me/replies",
+        "cetratus/cell1/reply/me",
         b"corr-2",
     )
     .json();
@@ -124,8 +124,8 @@ fn a_paho_mqtt5_client_does_request_reply_against_the_plc() {
 fn an_mqtt311_command_with_reply_to_gets_a_reply_on_the_embedded_broker() {
     let (handle, scan, addr) = plc("cell311");
     let c = v311(addr);
-    c.subscribe("ops/reply");
-    let cmd = json!({"reply_to": "ops/reply", "correlation": "abc-7"});
+    c.subscribe("cetratus/cell311/reply/ops");
+    let cmd = json!({"reply_to": "cetratus/cell311/reply/ops", "correlation": "abc-7"});
     c.client
         .publish(
             "cetratus/cell311/cmd/remove",
@@ -134,7 +134,7 @@ fn an_mqtt311_command_with_reply_to_gets_a_reply_on_the_embedded_broker() {
             cmd.to_string(),
         )
         .expect("publish");
-    let payload = c.next_on("ops/reply", T).expect("a reply");
+    let payload = c.next_on("cetratus/cell311/reply/ops", T).expect("a reply");
     let body: Value = serde_json::from_slice(&payload).expect("JSON");
     assert_eq!(body["ok"], true);
     assert_eq!(body["correlation"], "abc-7");
@@ -147,7 +147,7 @@ fn an_mqtt311_command_with_reply_to_gets_a_reply_on_the_embedded_broker() {
 fn fuzzed_commands_all_get_error_replies_and_the_responder_keeps_working() {
     let (handle, scan, addr) = plc("fuzz");
     let c = v5(addr, None);
-    c.subscribe("fz/r");
+    c.subscribe("cetratus/fuzz/reply/fz");
     c.subscribe("cetratus/fuzz/events");
     // A deterministic generator: the same fuzz on every run.
     let mut x: u64 = 0x9e37_79b9_7f4a_7c15;
@@ -217,7 +217,13 @@ fn fuzzed_commands_all_get_error_replies_and_the_responder_keeps_working() {
     ));
     for (i, (topic, payload, code)) in cases.iter().enumerate() {
         let corr = format!("c{i}");
-        let got = request(&c, topic, payload.clone(), "fz/r", corr.as_bytes());
+        let got = request(
+            &c,
+            topic,
+            payload.clone(),
+            "cetratus/fuzz/reply/fz",
+            corr.as_bytes(),
+        );
         assert_eq!(
             got.correlation.as_deref(),
             Some(corr.as_bytes()),
@@ -234,7 +240,14 @@ fn fuzzed_commands_all_get_error_replies_and_the_responder_keeps_working() {
         g.topic == "cetratus/fuzz/events" && g.json()["kind"] == "command_rejected"
     });
     assert!(ev.is_some(), "rejections are published as events");
-    let fine = request(&c, "cetratus/fuzz/cmd/abort", "{}", "fz/r", b"after").json();
+    let fine = request(
+        &c,
+        "cetratus/fuzz/cmd/abort",
+        "{}",
+        "cetratus/fuzz/reply/fz",
+        b"after",
+    )
+    .json();
     assert_eq!(fine["ok"], true, "the responder still works: {fine}");
     scan.stop();
     handle.shutdown();

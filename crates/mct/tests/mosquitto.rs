@@ -57,7 +57,7 @@ fn mosquitto_pub_command_with_reply_to_gets_a_reply() {
         m.port(),
         "cetratus/plant2/cmd/reset",
         json!({"correlation": 99}),
-        "ops/plant2/reply",
+        "cetratus/plant2/reply/ops",
     );
     assert_eq!(body["ok"], true);
     assert_eq!(body["verb"], "reset");
@@ -72,14 +72,14 @@ fn mosquitto_pub_of_a_malformed_command_gets_an_error_reply_and_an_event() {
     let (handle, scan) = plc("plant3", &m);
     let sub = mqtt::Sub::start(
         m.port(),
-        &["ops/plant3/reply", "cetratus/plant3/events"],
+        &["cetratus/plant3/reply/ops", "cetratus/plant3/events"],
         2,
         10,
     );
     mqtt::publish(
         m.port(),
         "cetratus/plant3/cmd/substitute",
-        br#"{"reply_to":"ops/plant3/reply","mode":"teleport"}"#,
+        br#"{"reply_to":"cetratus/plant3/reply/ops","mode":"teleport"}"#,
     );
     let lines = sub.messages();
     assert!(

@@ -49,6 +49,22 @@ pub enum ConfigError {
         /// Why, and what to write instead.
         reason: String,
     },
+    /// A directory of keys cannot be read, or is not a directory.
+    #[error("{path}: cannot read the key directory: {reason}; fix its permissions or remove it")]
+    Unreadable {
+        /// The directory.
+        path: String,
+        /// Why.
+        reason: String,
+    },
+    /// Someone other than its owner may change the configuration.
+    #[error("{path} is writable by others (mode {mode:o}), so anyone on this machine could trust their own keys; run `chmod go-w {path}`")]
+    WritableByOthers {
+        /// The file or directory.
+        path: String,
+        /// Its permission bits.
+        mode: u32,
+    },
     /// A key file does not load.
     #[error("{what} key {path}: {source}")]
     Key {
@@ -134,9 +150,25 @@ pub fn default_dir() -> PathBuf {
         .map_or_else(|| PathBuf::from(".cetratus"), |d| d.join("cetratus"))
 }
 
+/// The key files of `dir`; an absent directory holds none. A directory that cannot be read, or a
+/// file in its place, is an error: for `operators/`, treating it as empty would silently turn
+/// command authentication off.
 fn keys_in(dir: &Path, what: &'static str) -> Result<Vec<VerifyingKeyFile>, ConfigError> {
-    let Ok(entries) = std::fs::read_dir(dir) else {
-        return Ok(Vec::new());
+    let entries = match std::fs::read_dir(dir) {
+        Ok(e) => e,
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound && !dir.is_symlink() => {
+            return Ok(Vec::new())
+        }
+        Err(e) => {
+            return Err(ConfigError::Unreadable {
+                path: dir.display().to_string(),
+                reason: if dir.exists() && !dir.is_dir() {
+                    "it is not a directory".into()
+                } else {
+                    e.to_string()
+                },
+            })
+        }
     };
     let mut paths: Vec<PathBuf> = entries
         .filter_map(|e| e.ok().map(|e| e.path()))
@@ -153,6 +185,24 @@ fn keys_in(dir: &Path, what: &'static str) -> Result<Vec<VerifyingKeyFile>, Conf
             })
         })
         .collect()
+}
+
+/// Refuses a configuration file or directory that its group or others may write: the local
+/// configuration decides which keys are trusted, so only its owner may change it.
+fn check_not_writable_by_others(path: &Path) -> Result<(), ConfigError> {
+    use std::os::unix::fs::PermissionsExt;
+    let Ok(meta) = std::fs::metadata(path) else {
+        return Ok(());
+    };
+    let mode = meta.permissions().mode() & 0o7777;
+    // A sticky directory (like /tmp) still lets others write; it is no exception.
+    if mode & 0o022 != 0 {
+        return Err(ConfigError::WritableByOthers {
+            path: path.display().to_string(),
+            mode,
+        });
+    }
+    Ok(())
 }
 
 /// `file:line:column` of a byte offset of `text`.
@@ -190,16 +240,18 @@ impl LocalConfig {
             value: value.to_string(),
             reason,
         };
-        let trusted = dir.join("trusted");
-        let trust = if trusted.is_dir() {
-            let mut t = TrustStore::empty();
-            for k in keys_in(&trusted, "trusted")? {
-                t.add(k);
-            }
-            t
-        } else {
-            TrustStore::empty()
-        };
+        for path in [
+            dir.clone(),
+            file_path.clone(),
+            dir.join("trusted"),
+            dir.join("operators"),
+        ] {
+            check_not_writable_by_others(&path)?;
+        }
+        let mut trust = TrustStore::empty();
+        for k in keys_in(&dir.join("trusted"), "trusted")? {
+            trust.add(k);
+        }
         let window_s = match &file.replay_window {
             Some(w) => {
                 duration::parse_us(w, Bare::Seconds)
@@ -257,8 +309,48 @@ mod tests {
             N.fetch_add(1, std::sync::atomic::Ordering::Relaxed)
         ));
         std::fs::create_dir_all(&d).unwrap();
+        owner_only(&d);
         std::fs::write(d.join("config.toml"), config).unwrap();
+        use std::os::unix::fs::PermissionsExt;
+        std::fs::set_permissions(
+            d.join("config.toml"),
+            std::fs::Permissions::from_mode(0o600),
+        )
+        .unwrap();
         d
+    }
+
+    fn owner_only(d: &Path) {
+        use std::os::unix::fs::PermissionsExt;
+        std::fs::set_permissions(d, std::fs::Permissions::from_mode(0o700)).unwrap();
+    }
+
+    #[test]
+    fn an_operators_path_that_is_a_file_or_unreadable_stops_the_start() {
+        let d = dir_with("");
+        std::fs::write(d.join("operators"), "not a directory").unwrap();
+        let e = LocalConfig::load(Some(&d)).err().unwrap().to_string();
+        assert!(
+            e.contains("operators") && e.contains("not a directory"),
+            "{e}"
+        );
+    }
+
+    #[test]
+    fn a_configuration_others_can_write_is_refused() {
+        use std::os::unix::fs::PermissionsExt;
+        let d = dir_with("");
+        std::fs::set_permissions(&d, std::fs::Permissions::from_mode(0o777)).unwrap();
+        let e = LocalConfig::load(Some(&d)).err().unwrap().to_string();
+        assert!(
+            e.contains("writable by others") && e.contains("chmod go-w"),
+            "{e}"
+        );
+        owner_only(&d);
+        std::fs::create_dir(d.join("operators")).unwrap();
+        std::fs::set_permissions(d.join("operators"), std::fs::Permissions::from_mode(0o775))
+            .unwrap();
+        assert!(LocalConfig::load(Some(&d)).is_err());
     }
 
     #[test]

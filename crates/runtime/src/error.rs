@@ -111,7 +111,7 @@ pub enum PrepareError {
         available: String,
     },
     /// A substitution condition does not compile against the primary.
-    #[error("substitute refused: the condition `{text}` does not compile: {source}")]
+    #[error("substitute refused: the condition `{}` does not compile: {source}", excerpt(.text))]
     Condition {
         /// The condition as written.
         text: String,
@@ -154,4 +154,14 @@ pub enum WarmStartError {
     /// The saved program reads an input the I/O map lacks.
     #[error("the saved program reads input `{0}` which the I/O map lacks")]
     MissingInput(String),
+}
+
+/// The start of a text quoted in a message: a condition that came over the network may be
+/// megabytes long, and the reply that refuses it need not carry it back.
+fn excerpt(text: &str) -> std::borrow::Cow<'_, str> {
+    const SHOWN: usize = 120;
+    match text.char_indices().nth(SHOWN) {
+        None => text.into(),
+        Some((end, _)) => format!("{}… ({} bytes in all)", &text[..end], text.len()).into(),
+    }
 }

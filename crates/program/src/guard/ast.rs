@@ -148,8 +148,9 @@ impl Expr {
         }
     }
 
-    /// The longest chain of nested operations: the parser's recursion depth and the evaluator's
-    /// stack depth are bounded by it.
+    /// The depth of the tree, a leaf counting one: the evaluator's stack depth is bounded by it,
+    /// and every recursive walk of the tree (this one too) recurses this deep. The parser builds
+    /// no tree deeper than [`MAX_DEPTH`](super::MAX_DEPTH).
     pub fn nesting(&self) -> usize {
         match &self.kind {
             ExprKind::Call(_, e) | ExprKind::Unary(_, e) => 1 + e.nesting(),

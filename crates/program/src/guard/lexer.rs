@@ -72,6 +72,12 @@ impl Tok {
 
 /// Splits a guard into tokens; the last one is always [`Tok::End`].
 pub(crate) fn lex(src: &str) -> Result<Vec<Token>, SyntaxError> {
+    lex_at_most(src, usize::MAX)
+}
+
+/// [`lex`], refusing a text of more than `limit` tokens (not counting [`Tok::End`]) as soon as
+/// it gets there, so a huge text costs no more than the limit.
+pub(crate) fn lex_at_most(src: &str, limit: usize) -> Result<Vec<Token>, SyntaxError> {
     let bytes = src.as_bytes();
     let mut out = Vec::new();
     let mut i = 0;
@@ -81,6 +87,14 @@ pub(crate) fn lex(src: &str) -> Result<Vec<Token>, SyntaxError> {
         if c.is_ascii_whitespace() {
             i += 1;
             continue;
+        }
+        if out.len() == limit {
+            return Err(SyntaxError::new(
+                start,
+                format!(
+                    "the expression is too long: more than {limit} tokens, the limit (each name, number, operator and parenthesis counts one); shorten it, e.g. by spreading the condition over more transitions"
+                ),
+            ));
         }
         let two = |a: u8, b: u8| c == a && bytes.get(i + 1) == Some(&b);
         let (kind, len) = if two(b'&', b'&') {

@@ -11,7 +11,7 @@ mod parser;
 use std::fmt;
 
 pub use ast::{BinOp, Expr, ExprKind, Func, UnOp};
-pub use parser::{parse, MAX_NESTING};
+pub use parser::{parse, MAX_DEPTH, MAX_NESTING, MAX_TOKENS};
 
 pub(crate) use ast::write_duration;
 

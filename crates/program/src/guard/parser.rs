@@ -1,5 +1,12 @@
 //! The recursive-descent guard parser.
 //!
+//! Every walk over a guard's tree (the type checker and compiler, the printer, `Clone`,
+//! `PartialEq`, `Drop`) recurses once per level, so the parser bounds the tree: at most
+//! [`MAX_TOKENS`] tokens, and at most [`MAX_DEPTH`] levels counting every operator, since a flat
+//! chain `a && b && …` parses into a left-nested tree as deep as it is long. Its own recursion is
+//! bounded by [`MAX_NESTING`]: binary chains are loops, only parentheses, unary operators and
+//! calls recurse.
+//!
 //! ```text
 //! expr    := and ( "||" and )*
 //! and     := cmp ( "&&" cmp )*
@@ -13,16 +20,28 @@
 //! ```
 
 use super::ast::{BinOp, Expr, ExprKind, Func, UnOp};
-use super::lexer::{lex, Tok, Token};
+use super::lexer::{lex_at_most, Tok, Token};
 use super::SyntaxError;
 
 /// Deepest nesting of parentheses, unary operators and calls the parser accepts; keeps its
 /// recursion bounded whatever the input.
 pub const MAX_NESTING: usize = 48;
 
+/// Most tokens (names, numbers, operators, parentheses) a guard may have.
+pub const MAX_TOKENS: usize = 1024;
+
+/// Deepest syntax tree a guard may have ([`Expr::nesting`]): every operator counts, so a chain
+/// `a && b && …` of n terms is n deep. The compiler's frame is about 5 KB in a debug build, so
+/// this keeps a guard's compilation under 1 MB of stack, half of what a thread gets by default.
+pub const MAX_DEPTH: usize = 128;
+
+/// A parsed subtree and its depth ([`Expr::nesting`]), carried up so that no node is ever built
+/// deeper than [`MAX_DEPTH`].
+type Parsed = (Expr, usize);
+
 /// Parses a guard.
 pub fn parse(src: &str) -> Result<Expr, SyntaxError> {
-    let toks = lex(src)?;
+    let toks = lex_at_most(src, MAX_TOKENS)?;
     let mut p = Parser {
         toks,
         i: 0,
@@ -31,7 +50,7 @@ pub fn parse(src: &str) -> Result<Expr, SyntaxError> {
     if p.peek() == &Tok::End {
         return Err(SyntaxError::new(0, "empty guard; write a condition such as `PE` or `B > 0`, or leave the transition without a guard"));
     }
-    let e = p.expr()?;
+    let (e, _) = p.expr()?;
     match p.peek() {
         Tok::End => Ok(e),
         Tok::Assign => Err(p.error_here("`=` is not a comparison; use `==`")),
@@ -93,20 +112,37 @@ impl Parser {
         Ok(())
     }
 
+    /// A node over a subtree of depth `below`, refused when it would be deeper than
+    /// [`MAX_DEPTH`]; `pos` is the node's operator, where the error points.
+    fn node(&self, kind: ExprKind, pos: usize, below: usize) -> Result<Parsed, SyntaxError> {
+        let depth = below + 1;
+        if depth > MAX_DEPTH {
+            return Err(SyntaxError::new(
+                pos,
+                format!(
+                    "the expression is too deep: more than {MAX_DEPTH} levels, the limit (a chain such as `a && b && …` is one level deeper per term); group a long chain with parentheses, as in `(a && b) && (c && d)`, or spread the condition over more transitions"
+                ),
+            ));
+        }
+        Ok((Expr { kind, pos }, depth))
+    }
+
     fn binary_level(
         &mut self,
-        next: fn(&mut Parser) -> Result<Expr, SyntaxError>,
+        next: fn(&mut Parser) -> Result<Parsed, SyntaxError>,
         op_of: fn(&Tok) -> Option<BinOp>,
         chain: bool,
-    ) -> Result<Expr, SyntaxError> {
+    ) -> Result<Parsed, SyntaxError> {
         let mut left = next(self)?;
         while let Some(op) = op_of(self.peek()) {
             let pos = self.bump().offset;
-            let right = next(self)?;
-            left = Expr {
-                kind: ExprKind::Binary(op, Box::new(left), Box::new(right)),
+            let (right, right_depth) = next(self)?;
+            let below = left.1.max(right_depth);
+            left = self.node(
+                ExprKind::Binary(op, Box::new(left.0), Box::new(right)),
                 pos,
-            };
+                below,
+            )?;
             if !chain {
                 if op_of(self.peek()).is_some() {
                     return Err(self.error_here(
@@ -119,7 +155,7 @@ impl Parser {
         Ok(left)
     }
 
-    fn expr(&mut self) -> Result<Expr, SyntaxError> {
+    fn expr(&mut self) -> Result<Parsed, SyntaxError> {
         self.binary_level(
             Parser::and,
             |t| (*t == Tok::OrOr).then_some(BinOp::Or),
@@ -127,7 +163,7 @@ impl Parser {
         )
     }
 
-    fn and(&mut self) -> Result<Expr, SyntaxError> {
+    fn and(&mut self) -> Result<Parsed, SyntaxError> {
         self.binary_level(
             Parser::cmp,
             |t| (*t == Tok::AndAnd).then_some(BinOp::And),
@@ -135,7 +171,7 @@ impl Parser {
         )
     }
 
-    fn cmp(&mut self) -> Result<Expr, SyntaxError> {
+    fn cmp(&mut self) -> Result<Parsed, SyntaxError> {
         self.binary_level(
             Parser::sum,
             |t| match t {
@@ -151,7 +187,7 @@ impl Parser {
         )
     }
 
-    fn sum(&mut self) -> Result<Expr, SyntaxError> {
+    fn sum(&mut self) -> Result<Parsed, SyntaxError> {
         self.binary_level(
             Parser::product,
             |t| match t {
@@ -163,7 +199,7 @@ impl Parser {
         )
     }
 
-    fn product(&mut self) -> Result<Expr, SyntaxError> {
+    fn product(&mut self) -> Result<Parsed, SyntaxError> {
         self.binary_level(
             Parser::unary,
             |t| match t {
@@ -175,7 +211,7 @@ impl Parser {
         )
     }
 
-    fn unary(&mut self) -> Result<Expr, SyntaxError> {
+    fn unary(&mut self) -> Result<Parsed, SyntaxError> {
         let op = match self.peek() {
             Tok::Bang => UnOp::Not,
             Tok::Minus => UnOp::Neg,
@@ -183,12 +219,9 @@ impl Parser {
         };
         self.enter()?;
         let pos = self.bump().offset;
-        let e = self.unary()?;
+        let (e, below) = self.unary()?;
         self.depth -= 1;
-        Ok(Expr {
-            kind: ExprKind::Unary(op, Box::new(e)),
-            pos,
-        })
+        self.node(ExprKind::Unary(op, Box::new(e)), pos, below)
     }
 
     fn name_arg(&mut self, func: &str) -> Result<String, SyntaxError> {
@@ -208,7 +241,7 @@ impl Parser {
         Ok(name)
     }
 
-    fn atom(&mut self) -> Result<Expr, SyntaxError> {
+    fn atom(&mut self) -> Result<Parsed, SyntaxError> {
         let pos = self.offset();
         let tok = self.bump();
         let kind = match tok.kind {
@@ -235,10 +268,10 @@ impl Parser {
                         let func = if name == "real" { Func::Real } else { Func::Int };
                         self.bump();
                         self.enter()?;
-                        let e = self.expr()?;
+                        let (e, below) = self.expr()?;
                         self.depth -= 1;
                         self.expect(Tok::RParen, &format!("`)` to close `{name}(`"))?;
-                        ExprKind::Call(func, Box::new(e))
+                        return self.node(ExprKind::Call(func, Box::new(e)), pos, below);
                     }
                     _ if call => {
                         return Err(SyntaxError::new(
@@ -275,6 +308,6 @@ impl Parser {
                 ))
             }
         };
-        Ok(Expr { kind, pos })
+        Ok((Expr { kind, pos }, 1))
     }
 }

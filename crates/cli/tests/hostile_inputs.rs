@@ -4,7 +4,9 @@
 //!
 //! * a guard of 20,000 terms (the guard compiler recursed once per term and overflowed the
 //!   stack) in `check`, `sim`, `run` and `package inspect`, and as the condition of a
-//!   `substitute` command sent over MQTT to a running PLC.
+//!   `substitute` command sent over MQTT to a running PLC;
+//! * a PNML file whose one 100 KB internal entity is used 20,000 times (2 GB once expanded, which
+//!   the reader tried to allocate).
 
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output, Stdio};
@@ -12,6 +14,7 @@ use std::time::{Duration, Instant};
 
 use base64::engine::general_purpose::STANDARD as B64;
 use base64::Engine as _;
+use cetratus_net::pnml::MAX_ENTITY_EXPANSION;
 use cetratus_program::guard::MAX_TOKENS;
 use cetratus_testkit::mqtt;
 use cetratus_testkit::paths::example;
@@ -203,4 +206,53 @@ fn a_substitute_condition_of_twenty_thousand_terms_gets_an_error_reply_and_the_p
         "cetratus/cell1/reply/t2",
     );
     assert_eq!(info["ok"], true, "{info}");
+}
+
+/// An ISO PNML net of one place whose name (`in_text`) or tool-specific attribute uses a 100 KB
+/// internal entity 20,000 times.
+fn entity_bomb(in_text: bool) -> String {
+    let refs = "&big;".repeat(20_000);
+    let place = if in_text {
+        format!("<place id=\"p\"><name><text>{refs}</text></name></place>")
+    } else {
+        format!("<place id=\"p\"><toolspecific tool=\"{refs}\" version=\"1\"/></place>")
+    };
+    format!(
+        "<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n\
+         <!DOCTYPE pnml [\n<!ENTITY big \"{}\">\n]>\n\
+         <pnml xmlns=\"http://www.pnml.org/version-2009/grammar/pnml\">\n\
+         <net id=\"n\" type=\"http://www.pnml.org/version-2009/grammar/ptnet\"><page id=\"pg\">\n\
+         {place}\n</page></net></pnml>\n",
+        "x".repeat(100_000)
+    )
+}
+
+#[test]
+fn a_pnml_entity_that_expands_to_gigabytes_is_refused_naming_the_limit() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let limit = MAX_ENTITY_EXPANSION.to_string();
+    for (name, in_text) in [("text.pnml", true), ("attribute.pnml", false)] {
+        let file = dir.path().join(name);
+        std::fs::write(&file, entity_bomb(in_text)).expect("write");
+        let out_file = dir.path().join("out.pnml");
+        for args in [
+            vec!["check", path(&file)],
+            vec![
+                "convert",
+                path(&file),
+                "--to",
+                "pnml",
+                "-o",
+                path(&out_file),
+            ],
+        ] {
+            let what = format!("{} on {name}", args[0]);
+            let err = refused(&what, &cetratus(&args), &[name, "entit", &limit]);
+            assert!(
+                err.len() < 2000,
+                "{what}: the message quotes the input: {}",
+                tail(&err)
+            );
+        }
+    }
 }

@@ -23,7 +23,9 @@ use std::borrow::Cow;
 use std::fmt::Write as _;
 use std::path::Path;
 
-use crate::xml::{Document, Node};
+use crate::xml::{Document, ErrorKind, Node};
+
+pub use crate::xml::MAX_ENTITY_EXPANSION;
 
 use crate::{
     ArcKind, Net, NetBuilder, NetError, NodeRef, Place, Position, SourcePos, Tokens, ToolSpecific,
@@ -89,10 +91,13 @@ pub fn read_str(text: &str, file_label: &str) -> Result<Net, NetError> {
                 line,
                 column,
             },
-            message: format!(
-                "not well-formed XML: {}; fix the XML (an editor that checks XML helps)",
-                e.message
-            ),
+            message: match e.kind {
+                ErrorKind::Malformed => format!(
+                    "not well-formed XML: {}; fix the XML (an editor that checks XML helps)",
+                    e.message
+                ),
+                ErrorKind::TooLarge => e.message,
+            },
         }
     })?;
     let root = doc.root_element();

@@ -7,6 +7,7 @@
 //! when an error is reported.
 
 use std::borrow::Cow;
+use std::cell::Cell;
 use std::ops::Range;
 
 use quick_xml::escape::resolve_predefined_entity;
@@ -14,6 +15,7 @@ use quick_xml::events::attributes::Attribute;
 use quick_xml::events::{BytesRef, Event};
 use quick_xml::name::QName;
 use quick_xml::XmlVersion;
+use rustc_hash::FxHashMap;
 
 /// Marks a missing link (no parent, child, sibling or namespace).
 const NONE: u32 = u32::MAX;
@@ -21,11 +23,26 @@ const NONE: u32 = u32::MAX;
 /// The namespace the `xml` prefix is bound to without a declaration.
 const XML_NS: &str = "http://www.w3.org/XML/1998/namespace";
 
+/// Most bytes the internal entities of a document (`<!ENTITY name "text">`) may expand to, all
+/// references together. An entity cannot refer to another, so nothing grows exponentially, but
+/// one 100 KB entity used 20,000 times is 2 GB: the count keeps the expanded text within this.
+pub const MAX_ENTITY_EXPANSION: usize = 1 << 20;
+
 /// A parse failure: a byte offset into the input and what was wrong there.
 #[derive(Debug)]
 pub(crate) struct Error {
     pub offset: usize,
     pub message: String,
+    pub kind: ErrorKind,
+}
+
+/// Why a document was refused.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) enum ErrorKind {
+    /// It is not well-formed XML, or uses XML this reader does not support.
+    Malformed,
+    /// It is well-formed but goes over a limit of the reader.
+    TooLarge,
 }
 
 struct Element<'i> {
@@ -185,7 +202,9 @@ struct Builder<'i> {
     /// `xmlns=""` undeclares the default namespace).
     scope: Vec<(&'i str, u32)>,
     /// Entities declared in the internal DTD subset, with their replacement text.
-    entities: Vec<(&'i str, &'i str)>,
+    entities: FxHashMap<&'i str, &'i str>,
+    /// Bytes the declared entities have expanded to so far, against [`MAX_ENTITY_EXPANSION`].
+    expanded: Cell<usize>,
 }
 
 impl<'i> Builder<'i> {
@@ -202,7 +221,8 @@ impl<'i> Builder<'i> {
             },
             stack: Vec::with_capacity(16),
             scope: Vec::new(),
-            entities: Vec::new(),
+            entities: FxHashMap::default(),
+            expanded: Cell::new(0),
         }
     }
 
@@ -210,7 +230,24 @@ impl<'i> Builder<'i> {
         Err(Error {
             offset,
             message: message.into(),
+            kind: ErrorKind::Malformed,
         })
+    }
+
+    /// The error for entities that expanded past [`MAX_ENTITY_EXPANSION`].
+    fn too_much_expansion<T>(offset: usize) -> Result<T, Error> {
+        Err(Error {
+            offset,
+            message: format!(
+                "the internal entities of this file expand to more than {MAX_ENTITY_EXPANSION} bytes in all, the limit, by this point; write the text out rather than through entities"
+            ),
+            kind: ErrorKind::TooLarge,
+        })
+    }
+
+    /// Whether the expansion has gone past [`MAX_ENTITY_EXPANSION`].
+    fn over_expansion_limit(&self) -> bool {
+        self.expanded.get() > MAX_ENTITY_EXPANSION
     }
 
     fn run(mut self) -> Result<Document<'i>, Error> {
@@ -401,8 +438,15 @@ impl<'i> Builder<'i> {
             key: QName(key.as_bytes()),
             value: Cow::Borrowed(raw.as_bytes()),
         };
-        attr.normalized_value_with(XmlVersion::Implicit1_0, 1, |name| self.entity(name))
-            .or_else(|e| Self::fail(start, format!("bad value of attribute `{key}`: {e}")))
+        let value = attr.normalized_value_with(XmlVersion::Implicit1_0, 1, |name| {
+            // Past the limit the value is not built any further: the reference is refused, and
+            // the error below says why.
+            self.entity(name).filter(|_| !self.over_expansion_limit())
+        });
+        if self.over_expansion_limit() {
+            return Self::too_much_expansion(start);
+        }
+        value.or_else(|e| Self::fail(start, format!("bad value of attribute `{key}`: {e}")))
     }
 
     /// Ends the open element at an end tag spanning `start..end`.
@@ -462,6 +506,7 @@ impl<'i> Builder<'i> {
         }
         let name = r.decode().or_else(|e| Self::fail(start, e.to_string()))?;
         match self.entity(&name) {
+            Some(_) if self.over_expansion_limit() => Self::too_much_expansion(start),
             Some(text) => Ok(Cow::Borrowed(text)),
             None => Self::fail(
                 start,
@@ -470,13 +515,14 @@ impl<'i> Builder<'i> {
         }
     }
 
-    /// The replacement text of a predefined or internally declared entity.
+    /// The replacement text of a predefined or internally declared entity; a declared one
+    /// counts towards [`MAX_ENTITY_EXPANSION`].
     fn entity(&self, name: &str) -> Option<&'i str> {
         resolve_predefined_entity(name).or_else(|| {
-            self.entities
-                .iter()
-                .find(|(n, _)| *n == name)
-                .map(|&(_, v)| v)
+            let text = *self.entities.get(name)?;
+            self.expanded
+                .set(self.expanded.get().saturating_add(text.len()));
+            Some(text)
         })
     }
 
@@ -506,7 +552,8 @@ impl<'i> Builder<'i> {
                     format!("the entity `{name}` holds markup or references, which Cetratus does not expand"),
                 );
             }
-            self.entities.push((name, value));
+            // The first declaration of an entity binds it (XML 1.0 §4.2).
+            self.entities.entry(name).or_insert(value);
             rest = &rest[1 + len..];
         }
         Ok(())
@@ -594,6 +641,43 @@ mod tests {
         );
         assert_eq!(root.descendants().count(), 4);
         assert_eq!(doc.text_pos_at(kids[0].range().start), (2, 18));
+    }
+
+    #[test]
+    fn declared_entities_expand_up_to_the_limit_in_text_and_attributes() {
+        let kb = "x".repeat(1000);
+        let doc = |uses: usize, in_text: bool| {
+            let refs = "&e;".repeat(uses);
+            let body = if in_text {
+                format!("<r>{refs}</r>")
+            } else {
+                format!("<r a=\"{refs}\"/>")
+            };
+            format!("<!DOCTYPE r [<!ENTITY e \"{kb}\">]>{body}")
+        };
+        let fits = MAX_ENTITY_EXPANSION / kb.len();
+        for in_text in [true, false] {
+            let input = doc(fits, in_text);
+            let parsed = Document::parse(&input).expect("within the limit");
+            let root = parsed.root_element();
+            let value = if in_text {
+                root.text()
+            } else {
+                root.attribute("a")
+            };
+            assert_eq!(value.map(str::len), Some(fits * kb.len()));
+            let input = doc(fits + 1, in_text);
+            let err = Document::parse(&input).err().expect("over the limit");
+            assert_eq!(err.kind, ErrorKind::TooLarge);
+            assert!(err.message.contains(&MAX_ENTITY_EXPANSION.to_string()));
+        }
+    }
+
+    #[test]
+    fn the_first_declaration_of_an_entity_binds_it() {
+        let input = "<!DOCTYPE r [<!ENTITY e \"one\"><!ENTITY e \"two\">]><r>&e;</r>";
+        let doc = Document::parse(input).expect("well-formed");
+        assert_eq!(doc.root_element().text(), Some("one"));
     }
 
     #[test]

@@ -6,7 +6,9 @@
 //!   stack) in `check`, `sim`, `run` and `package inspect`, and as the condition of a
 //!   `substitute` command sent over MQTT to a running PLC;
 //! * a PNML file whose one 100 KB internal entity is used 20,000 times (2 GB once expanded, which
-//!   the reader tried to allocate).
+//!   the reader tried to allocate);
+//! * program, package manifest and configuration TOML files that are not UTF-8 (a program was
+//!   read as Latin-1 before, silently).
 
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output, Stdio};
@@ -255,4 +257,90 @@ fn a_pnml_entity_that_expands_to_gigabytes_is_refused_naming_the_limit() {
             );
         }
     }
+}
+
+/// `text` with its first `é` written as the single Latin-1 byte 0xE9, and that byte's offset.
+fn latin1(text: &str) -> (Vec<u8>, usize) {
+    let at = text.find('é').expect("an é to encode");
+    let mut bytes = text.as_bytes()[..at].to_vec();
+    bytes.push(0xE9);
+    bytes.extend_from_slice(&text.as_bytes()[at + 'é'.len_utf8()..]);
+    (bytes, at)
+}
+
+#[test]
+fn toml_files_that_are_not_utf8_are_refused_naming_the_file_and_the_byte() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    for f in ["vernadat.pnml", "u1.pnml", "u1.toml"] {
+        std::fs::copy(example(&format!("vernadat/{f}")), dir.path().join(f)).expect("copy");
+    }
+    // The program: `check`, `sim` and `run` read it.
+    let toml = std::fs::read_to_string(example("vernadat/vernadat.toml")).expect("read");
+    let line = "description = \"Two machines sharing a 7-slot buffer, served by one robot\"";
+    assert!(toml.contains(line), "the example's description moved");
+    let (bytes, at) = latin1(&toml.replace(line, "description = \"Café cell\""));
+    let program = dir.path().join("vernadat.toml");
+    std::fs::write(&program, bytes).expect("write");
+    let offset = format!("byte offset {at}");
+    let needles = ["vernadat.toml:", "not UTF-8", offset.as_str()];
+    for args in [
+        vec!["check", path(&program)],
+        vec!["sim", path(&program)],
+        vec![
+            "run",
+            path(&program),
+            "--twin",
+            "vernadat",
+            "--virtual",
+            "--for",
+            "1s",
+        ],
+    ] {
+        refused(&args.join(" "), &cetratus(&args), &needles);
+    }
+
+    // A package manifest.
+    let manifest = std::fs::read_to_string(example("vernadat/u1.package.toml")).expect("read");
+    let (bytes, at) = latin1(&manifest.replacen("Cetratus examples", "Cetratus café", 1));
+    let manifest = dir.path().join("u1.package.toml");
+    std::fs::write(&manifest, bytes).expect("write");
+    let out = cetratus(&[
+        "package",
+        "build",
+        path(&manifest),
+        "--unsigned",
+        "-o",
+        path(&dir.path().join("u1.cpkg")),
+    ]);
+    refused(
+        "package build",
+        &out,
+        &[
+            "u1.package.toml:",
+            "not UTF-8",
+            &format!("byte offset {at}"),
+        ],
+    );
+
+    // The local configuration.
+    let config = dir.path().join("config");
+    std::fs::create_dir_all(&config).expect("mkdir");
+    let (bytes, at) = latin1("# Café\n");
+    std::fs::write(config.join("config.toml"), bytes).expect("write");
+    let out = cetratus(&[
+        "run",
+        path(&example("vernadat/vernadat.toml")),
+        "--twin",
+        "vernadat",
+        "--virtual",
+        "--for",
+        "1s",
+        "--config",
+        path(&config),
+    ]);
+    refused(
+        "run --config",
+        &out,
+        &["config.toml:", "not UTF-8", &format!("byte offset {at}")],
+    );
 }

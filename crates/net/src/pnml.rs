@@ -62,6 +62,12 @@ pub fn read_file(path: &Path) -> Result<Net, NetError> {
 
 /// Reads PNML from raw bytes (UTF-8, or ISO-8859-1 as PIPE writes); `file_label` names it in errors.
 pub fn read_bytes(bytes: &[u8], file_label: &str) -> Result<Net, NetError> {
+    read_str(&decode(bytes, file_label)?, file_label)
+}
+
+/// The text of a PNML file: UTF-8, or else ISO-8859-1 (which PIPE writes and declares); UTF-16
+/// is refused. `file_label` names it in errors.
+pub fn decode<'b>(bytes: &'b [u8], file_label: &str) -> Result<Cow<'b, str>, NetError> {
     if bytes.starts_with(&[0xFE, 0xFF]) || bytes.starts_with(&[0xFF, 0xFE]) {
         return Err(NetError::Syntax {
             pos: SourcePos {
@@ -72,12 +78,11 @@ pub fn read_bytes(bytes: &[u8], file_label: &str) -> Result<Net, NetError> {
             message: "the file is encoded in UTF-16; save it as UTF-8 or ISO-8859-1".to_string(),
         });
     }
-    let text = match std::str::from_utf8(bytes) {
+    Ok(match std::str::from_utf8(bytes) {
         Ok(s) => Cow::Borrowed(s),
         // PIPE declares and writes ISO-8859-1, whose every byte is the code point of the same value.
         Err(_) => Cow::Owned(bytes.iter().map(|&b| char::from(b)).collect()),
-    };
-    read_str(&text, file_label)
+    })
 }
 
 /// Reads PNML text of either dialect; `file_label` names the source in error positions.

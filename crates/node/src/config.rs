@@ -29,6 +29,9 @@ pub enum ConfigError {
         /// The OS error.
         source: std::io::Error,
     },
+    /// `config.toml` is not UTF-8.
+    #[error("{0}")]
+    NotUtf8(cetratus_program::NotUtf8),
     /// `config.toml` does not follow the schema.
     #[error("{at}: {message}; fix it against docs/configuration.md")]
     Schema {
@@ -218,14 +221,18 @@ impl LocalConfig {
     pub fn load(dir: Option<&Path>) -> Result<LocalConfig, ConfigError> {
         let dir = dir.map_or_else(default_dir, Path::to_path_buf);
         let file_path = dir.join("config.toml");
-        let file: File = match std::fs::read_to_string(&file_path) {
-            Ok(text) => toml::from_str(&text).map_err(|e| ConfigError::Schema {
-                at: e.span().map_or_else(
-                    || file_path.display().to_string(),
-                    |s| position(&file_path, &text, s.start),
-                ),
-                message: e.message().trim_end().to_string(),
-            })?,
+        let file: File = match std::fs::read(&file_path) {
+            Ok(bytes) => {
+                let text = cetratus_program::toml_text(bytes, &file_path.display().to_string())
+                    .map_err(ConfigError::NotUtf8)?;
+                toml::from_str(&text).map_err(|e| ConfigError::Schema {
+                    at: e.span().map_or_else(
+                        || file_path.display().to_string(),
+                        |s| position(&file_path, &text, s.start),
+                    ),
+                    message: e.message().trim_end().to_string(),
+                })?
+            }
             Err(e) if e.kind() == std::io::ErrorKind::NotFound => File::default(),
             Err(source) => {
                 return Err(ConfigError::Read {

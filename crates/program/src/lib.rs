@@ -35,6 +35,7 @@ pub use package::{
     TrustStore, UpdatePackage, VerifyingKeyFile,
 };
 pub use program::{Program, DEFAULT_SCAN_PERIOD, TOOL};
+pub use source::{toml_text, NotUtf8};
 pub use transform::{DenseMatrix, Projection, StateTransform, TransformError};
 pub use value::{Signal, Type, Value};
 

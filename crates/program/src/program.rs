@@ -61,18 +61,16 @@ impl Program {
             path: label.clone(),
             source,
         })?;
-        let text = match String::from_utf8(bytes) {
-            Ok(s) => s,
-            // PIPE writes ISO-8859-1, whose every byte is the code point of the same value.
-            Err(e) => e.into_bytes().iter().map(|&b| char::from(b)).collect(),
-        };
         let is_pnml = path
             .extension()
             .and_then(|e| e.to_str())
             .is_some_and(|e| e.eq_ignore_ascii_case("pnml") || e.eq_ignore_ascii_case("xml"));
         if is_pnml {
+            // PIPE writes ISO-8859-1, and says so in the XML declaration.
+            let text = cetratus_net::pnml::decode(&bytes, &label)?;
             return Self::from_pnml_text(&text, &label);
         }
+        let text = crate::toml_text(bytes, &label)?;
         let origin = Origin::new(&text, &label);
         // Parsed once: the same document names the net and declares the interpretation.
         let doc: Doc = toml::from_str(&text).map_err(|e| toml_error(&origin, &e))?;

@@ -1,6 +1,7 @@
 //! The program file (TOML): its schema and the mapping of byte offsets to file:line:column.
 
 use std::collections::BTreeMap;
+use std::fmt;
 
 use cetratus_net::SourcePos;
 use serde::Deserialize;
@@ -84,6 +85,61 @@ pub(crate) struct NetOnly {
 #[derive(Debug, Deserialize)]
 pub(crate) struct NetOnlySection {
     pub net: Option<Spanned<String>>,
+}
+
+/// A TOML file that is not UTF-8: where its first byte that is not.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct NotUtf8 {
+    /// The file, line and column of the byte.
+    pub pos: SourcePos,
+    /// Its offset in the file, from 0.
+    pub offset: usize,
+    /// The byte.
+    pub byte: u8,
+}
+
+impl NotUtf8 {
+    /// What is wrong and what to do, without the position.
+    pub fn message(&self) -> String {
+        format!(
+            "the file is not UTF-8: the byte 0x{:02X} at byte offset {} is not valid UTF-8 (text in Latin-1 or a Windows code page?); a TOML file must be UTF-8, so save it as UTF-8",
+            self.byte, self.offset
+        )
+    }
+}
+
+impl fmt::Display for NotUtf8 {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "{}: {}", self.pos, self.message())
+    }
+}
+
+impl std::error::Error for NotUtf8 {}
+
+impl From<NotUtf8> for ProgramError {
+    fn from(e: NotUtf8) -> Self {
+        ProgramError::At {
+            message: e.message(),
+            pos: e.pos,
+        }
+    }
+}
+
+/// The text of a TOML file (a program, a package manifest, a configuration; `label` names it in
+/// the error). TOML is UTF-8 by definition, so any other byte is an error rather than a guess: a
+/// PNML file may be ISO-8859-1, as its XML declaration says, but a TOML file has no declaration.
+pub fn toml_text(bytes: Vec<u8>, label: &str) -> Result<String, NotUtf8> {
+    String::from_utf8(bytes).map_err(|e| {
+        let offset = e.utf8_error().valid_up_to();
+        let bytes = e.as_bytes();
+        // Everything before the offset is valid UTF-8, so it maps to a line and a column.
+        let before = std::str::from_utf8(&bytes[..offset]).unwrap_or_default();
+        NotUtf8 {
+            pos: Origin::new(before, label).pos(offset),
+            offset,
+            byte: bytes.get(offset).copied().unwrap_or_default(),
+        }
+    })
 }
 
 /// Where a program text lives: its label and, when it is embedded in another file, the line and
@@ -229,6 +285,22 @@ mod tests {
         };
         assert_eq!((o.pos(0).line, o.pos(0).column), (10, 5));
         assert_eq!((o.pos(2).line, o.pos(2).column), (11, 1));
+    }
+
+    #[test]
+    fn a_toml_text_that_is_not_utf8_names_the_byte_and_its_position() {
+        let e = toml_text(b"a = 1\nb = \"caf\xE9\"\n".to_vec(), "f.toml").err();
+        let e = e.expect("Latin-1 is refused");
+        assert_eq!((e.offset, e.byte), (14, 0xE9));
+        assert_eq!((e.pos.line, e.pos.column), (2, 9));
+        assert!(e
+            .to_string()
+            .starts_with("f.toml:2:9: the file is not UTF-8"));
+        assert!(e.to_string().contains("byte offset 14"));
+        assert_eq!(
+            toml_text("é = 1".into(), "f.toml").ok().as_deref(),
+            Some("é = 1")
+        );
     }
 
     #[test]

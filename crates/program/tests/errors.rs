@@ -137,3 +137,32 @@ fn an_unknown_policy_lists_the_choices() {
         .unwrap_or_default();
     assert_at(&msg, 4, 10, "single-last");
 }
+
+#[test]
+fn a_program_file_that_is_not_utf8_is_refused_while_its_latin1_net_loads() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    // The net in ISO-8859-1, as PIPE writes it: its name holds an é as the byte 0xE9.
+    let pnml = std::fs::read_to_string(cetratus_testkit::paths::example("vernadat/vernadat.pnml"))
+        .expect("read the example net")
+        .replacen("encoding=\"UTF-8\"", "encoding=\"ISO-8859-1\"", 1)
+        .replacen("Vernadat cell", "Vernadat cell \u{e9}", 1);
+    let latin1: Vec<u8> = pnml.chars().map(|c| c as u32 as u8).collect();
+    std::fs::write(dir.path().join("net.pnml"), latin1).expect("write the net");
+    let toml = "[program]\nname = \"t\"\nversion = \"1\"\nnet = \"net.pnml\"\n";
+    std::fs::write(dir.path().join("prog.toml"), toml).expect("write the program");
+    let p = Program::load(&dir.path().join("prog.toml")).expect("a Latin-1 net loads");
+    assert_eq!(p.net().name(), Some("Vernadat cell \u{e9}"));
+
+    let mut bytes = toml.as_bytes().to_vec();
+    bytes.extend_from_slice(b"description = \"caf\xE9\"\n");
+    std::fs::write(dir.path().join("prog.toml"), bytes).expect("write the program");
+    let msg = Program::load(&dir.path().join("prog.toml"))
+        .err()
+        .map(|e| e.to_string())
+        .unwrap_or_default();
+    assert!(
+        msg.contains("prog.toml:5:19: the file is not UTF-8"),
+        "{msg}"
+    );
+    assert!(msg.contains("byte offset 70"), "{msg}");
+}

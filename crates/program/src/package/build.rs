@@ -76,9 +76,13 @@ pub fn build_package_at(
     created_unix_secs: u64,
 ) -> Result<(Vec<u8>, BuildReport), PackageError> {
     let label = manifest_path.display().to_string();
-    let text = std::fs::read_to_string(manifest_path).map_err(|source| PackageError::Io {
+    let bytes = std::fs::read(manifest_path).map_err(|source| PackageError::Io {
         path: label.clone(),
         source,
+    })?;
+    let text = crate::toml_text(bytes, &label).map_err(|e| PackageError::Manifest {
+        message: e.message(),
+        pos: e.pos,
     })?;
     let o = Origin::new(&text, &label);
     let at = |offset: usize, message: String| PackageError::Manifest {
@@ -208,15 +212,20 @@ fn program_sources(path: &Path) -> Result<(String, String), PackageError> {
             source,
         })
     };
-    let text = read(path)?;
     let is_pnml = path
         .extension()
         .and_then(|e| e.to_str())
         .is_some_and(|e| e.eq_ignore_ascii_case("pnml") || e.eq_ignore_ascii_case("xml"));
     if is_pnml {
+        let text = read(path)?;
         let program = Program::from_pnml_text(&text, &label)?;
         return Ok((program.source().to_string(), text));
     }
+    let bytes = std::fs::read(path).map_err(|source| PackageError::Io {
+        path: label.clone(),
+        source,
+    })?;
+    let text = crate::toml_text(bytes, &label).map_err(ProgramError::from)?;
     // Loading first reports any problem of the program with its own file positions.
     Program::load(path)?;
     let head: NetOnly = toml::from_str(&text).map_err(|e| ProgramError::File {

@@ -6,6 +6,7 @@
 pub mod analysis;
 pub mod dense;
 pub mod embedded;
+pub mod fuzz;
 pub mod harness;
 pub mod measure;
 pub mod program;

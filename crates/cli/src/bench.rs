@@ -52,6 +52,22 @@ enum What {
         #[arg(long)]
         json: bool,
     },
+    /// Fuzz every reader of outside input (PNML, guards, programs, packages, state.json, MQTT
+    /// commands); inputs that make one panic are kept in the corpus directory.
+    Fuzz {
+        /// How long per reader, wall time.
+        #[arg(long = "for", default_value = "60s")]
+        for_: String,
+        /// Seed of the mutations (a round is reproducible from it).
+        #[arg(long, default_value_t = 1)]
+        seed: u64,
+        /// Where to keep the inputs that crash a reader.
+        #[arg(long)]
+        corpus: Option<std::path::PathBuf>,
+        /// Print one JSON object.
+        #[arg(long)]
+        json: bool,
+    },
     /// Real-time jitter of the scan cycle: the Vernadat program on its twin at a fixed period.
     Jitter {
         /// The scan period.
@@ -94,6 +110,31 @@ pub fn run(args: &BenchArgs) -> anyhow::Result<()> {
             harness::command_load(*rate, parse_duration_us(for_)?, parse_duration_us(period)?)
                 .map_err(|e| anyhow::anyhow!("{e}"))?;
         return print(&out, *json || args.json);
+    }
+    if let Some(What::Fuzz {
+        for_,
+        seed,
+        corpus,
+        json,
+    }) = &args.what
+    {
+        let budget = std::time::Duration::from_micros(parse_duration_us(for_)?);
+        let rounds = cetratus_bench::fuzz::all(budget, *seed, corpus.as_deref());
+        let out: BTreeMap<String, serde_json::Value> = rounds
+            .iter()
+            .map(|(t, r)| {
+                (
+                    t.name().to_string(),
+                    serde_json::to_value(r).unwrap_or_default(),
+                )
+            })
+            .collect();
+        print(&out, *json || args.json)?;
+        let panics: u64 = rounds.values().map(|r| r.panics).sum();
+        if panics > 0 {
+            anyhow::bail!("{panics} inputs made a reader panic; they are in the corpus directory");
+        }
+        return Ok(());
     }
     if let Some(What::Jitter {
         period,

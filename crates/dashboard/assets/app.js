@@ -206,29 +206,69 @@
   }
 
   // ---- nets ------------------------------------------------------------------------------------
-  // The drawing comes from the broker, which anyone on the cell network may publish to: parse it
-  // as SVG and strip anything that could run script before it enters the page.
-  function safeSvg(text) {
+  // The drawing comes from the broker, which anyone on the cell network may publish to. It is
+  // never put into the page: it is read (by an inert parser) as a list of shapes, and the page
+  // draws those shapes itself, element by element, from an allow-list of SVG shapes and of
+  // attributes whose values are checked (numbers, path data, class names, the ids the net's
+  // export writes). No style, script, link, foreign content or event handler can get through,
+  // because nothing that is not on the list is ever created (docs/dashboard.md).
+  const SVGNS = 'http://www.w3.org/2000/svg';
+  const NUM = /^-?(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?(px|%)?$/;
+  const NUMS = /^[-+0-9.eE ,]{0,20000}$/;
+  const PATH = /^[MmLlHhVvCcSsQqTtAaZz0-9.eE ,+-]{0,20000}$/;
+  const CLASS = /^[A-Za-z0-9 _-]{0,100}$/;
+  const ID = /^(place|trans|arc|cetratus)-[A-Za-z0-9_.:-]{1,200}$/;
+  const COLOUR = /^(#[0-9A-Fa-f]{3,8}|none|[a-z]{3,20})$/;
+  const MARKER = /^url\(#cetratus-[A-Za-z0-9_-]{1,60}\)$/;
+  const TEXT = /^[ -~]{0,200}$/;
+  const check = (re) => (v) => re.test(v);
+  const ATTRS = {
+    x: check(NUM), y: check(NUM), cx: check(NUM), cy: check(NUM), r: check(NUM),
+    rx: check(NUM), ry: check(NUM), x1: check(NUM), y1: check(NUM), x2: check(NUM), y2: check(NUM),
+    width: check(NUM), height: check(NUM), 'stroke-width': check(NUM),
+    refX: check(NUM), refY: check(NUM), markerWidth: check(NUM), markerHeight: check(NUM),
+    viewBox: check(NUMS), points: check(NUMS), d: check(PATH),
+    orient: (v) => v === 'auto' || NUM.test(v),
+    class: check(CLASS), id: check(ID), fill: check(COLOUR), stroke: check(COLOUR),
+    'marker-end': check(MARKER), 'marker-start': check(MARKER),
+    'text-anchor': (v) => v === 'start' || v === 'middle' || v === 'end',
+    'data-tokens': check(/^\d{1,10}$/), 'data-net': check(TEXT),
+  };
+  const SHAPES = new Set(['svg', 'g', 'defs', 'marker', 'path', 'circle', 'rect', 'ellipse', 'line',
+    'polyline', 'polygon', 'text', 'tspan', 'title']);
+  const HAS_TEXT = new Set(['text', 'tspan', 'title']);
+  const MAX_SHAPES = 200000;
+
+  function drawNet(text) {
     const doc = new DOMParser().parseFromString(text, 'image/svg+xml');
     const root = doc.documentElement;
-    if (!root || root.nodeName !== 'svg' || doc.getElementsByTagName('parsererror').length) return null;
-    for (const bad of root.querySelectorAll('script, foreignObject, iframe, a')) bad.remove();
-    for (const el of [root, ...root.querySelectorAll('*')]) {
-      for (const attr of [...el.attributes]) {
-        const n = attr.name.toLowerCase();
-        if (n.startsWith('on') || ((n === 'href' || n === 'xlink:href') && !attr.value.startsWith('#'))) {
-          el.removeAttribute(attr.name);
+    if (!root || root.namespaceURI !== SVGNS || root.localName !== 'svg' ||
+        doc.getElementsByTagName('parsererror').length) return null;
+    let budget = MAX_SHAPES;
+    const copy = (from) => {
+      const to = document.createElementNS(SVGNS, from.localName);
+      for (const a of from.attributes) {
+        const ok = a.namespaceURI === null && Object.prototype.hasOwnProperty.call(ATTRS, a.name);
+        if (ok && ATTRS[a.name](a.value)) to.setAttribute(a.name, a.value);
+      }
+      for (const c of from.childNodes) {
+        if (c.nodeType === Node.TEXT_NODE && HAS_TEXT.has(from.localName)) {
+          to.appendChild(document.createTextNode(c.data));
+        } else if (c.nodeType === Node.ELEMENT_NODE && c.namespaceURI === SVGNS &&
+                   SHAPES.has(c.localName) && c.localName !== 'svg' && --budget > 0) {
+          to.appendChild(copy(c));
         }
       }
-    }
-    return document.importNode(root, true);
+      return to;
+    };
+    return copy(root);
   }
 
   function renderNets(n) {
     for (const x of ['A', 'B']) {
       const box = $('net-' + x).querySelector('.net');
       const text = n && typeof n[x] === 'string' ? n[x] : null;
-      const svg = text ? safeSvg(text) : null;
+      const svg = text ? drawNet(text) : null;
       box.textContent = svg ? '' : 'empty';
       if (svg) box.appendChild(svg);
     }
@@ -239,7 +279,6 @@
   const D = 6.5;
   const DICE = [[], [[0, 0]], [[-D, 0], [D, 0]], [[0, -D], [-D, D * 0.8], [D, D * 0.8]],
     [[-D, -D], [D, -D], [-D, D], [D, D]], [[-D, -D], [D, -D], [0, 0], [-D, D], [D, D]]];
-  const SVGNS = 'http://www.w3.org/2000/svg';
 
   function drawTokens(g, n) {
     const c = g.querySelector('circle.node');

@@ -41,6 +41,7 @@ pub(crate) async fn run(
     broker: BrokerUrl,
     shutdown: watch::Receiver<bool>,
     signer: Option<crate::CommandSigner>,
+    token: String,
 ) {
     let listener = match tokio::net::TcpListener::from_std(listener) {
         Ok(l) => l,
@@ -49,7 +50,7 @@ pub(crate) async fn run(
             return;
         }
     };
-    let (hub, eventloop) = Hub::new(&broker, signer);
+    let (hub, eventloop) = Hub::new(&broker, signer, &token);
     let mqtt = tokio::spawn(run_mqtt(hub.clone(), eventloop, shutdown.clone()));
     let app = App {
         hub,
@@ -87,11 +88,20 @@ pub(crate) async fn run(
     let _ = tokio::time::timeout(Duration::from_secs(1), mqtt).await;
 }
 
+/// What the page may load and run: its own files only. No inline script or style, so that
+/// markup that slipped into the page could neither run nor restyle it (defence in depth: the
+/// page never inserts markup from the broker).
+const CSP: &str = "default-src 'self'; script-src 'self'; style-src 'self'; img-src 'self' data:; \
+                   connect-src 'self'; object-src 'none'; base-uri 'none'; form-action 'self'; \
+                   frame-ancestors 'none'";
+
 fn asset(content_type: &'static str, body: &'static str) -> Response {
     (
         [
             (header::CONTENT_TYPE, content_type),
             (header::CACHE_CONTROL, "no-cache"),
+            (header::CONTENT_SECURITY_POLICY, CSP),
+            (header::X_CONTENT_TYPE_OPTIONS, "nosniff"),
         ],
         body,
     )
@@ -152,6 +162,9 @@ struct Feed {
     queue: VecDeque<Event>,
     rx: broadcast::Receiver<Push>,
     shutdown: watch::Receiver<bool>,
+    // Set when updates were not pushed: the stream ends, and the browser reconnects to a
+    // fresh snapshot.
+    restart: bool,
 }
 
 impl Feed {
@@ -159,11 +172,13 @@ impl Feed {
         match p {
             Push::Plcs(list) => self.queue.push_back(sse("plcs", &list)),
             Push::Broker(up) => self.queue.push_back(broker_event(&self.hub, up)),
-            Push::Plc(u) if self.plc.as_deref() == Some(u.plc.as_str()) => {
+            Push::Plc(p) if self.plc.as_deref() == Some(p.update.plc.as_str()) => {
+                let u = &p.update;
                 let data = json!({"plc": u.plc, "recv_ms": u.recv_ms, "data": u.data});
                 self.queue.push_back(sse(u.kind.name(), &data));
             }
             Push::Plc(_) => {}
+            Push::Restart => self.restart = true,
         }
     }
 }
@@ -195,6 +210,7 @@ async fn stream(
         queue,
         rx,
         shutdown: app.shutdown.clone(),
+        restart: false,
     };
     let s = futures_util::stream::unfold(feed, |mut f| async move {
         loop {
@@ -203,6 +219,9 @@ async fn stream(
             }
             if let Some(e) = f.queue.pop_front() {
                 return Some((Ok(e), f));
+            }
+            if f.restart {
+                return None;
             }
             tokio::select! {
                 r = f.rx.recv() => match r {

@@ -1,22 +1,39 @@
 //! The MQTT side: one rumqttc MQTT 5 client that feeds the [`Fleet`] and the browsers' streams,
 //! and sends the browsers' commands as requests with a response topic and correlation data.
+//!
+//! A reply is trusted only when both its topic and its correlation data are the ones the command
+//! named: the topic is under the PLC's own reply namespace, `cetratus/<plc>/reply/dashboard-<t>`
+//! with `t` random per dashboard connection, and the correlation data is 16 random bytes per
+//! command, so that nobody can answer a command by guessing.
 
 use std::collections::HashMap;
-use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex, MutexGuard};
 use std::time::{Duration, SystemTime, UNIX_EPOCH};
 
+use cetratus_mct::budget::{worth_logging, Budget, Permit};
 use rumqttc::v5::mqttbytes::v5::{Packet, PublishProperties};
 use rumqttc::v5::mqttbytes::QoS;
 use rumqttc::v5::{AsyncClient, Event, EventLoop, MqttOptions};
 use serde_json::{json, Value};
 use tokio::sync::{broadcast, oneshot, watch};
 
-use cetratus_proto::{BrokerUrl, PlcId, ProtoError, Topics, Verb, ALL_PLCS_FILTER};
+use cetratus_proto::{BrokerUrl, Leaf, PlcId, ProtoError, Topics, Verb, ROOT};
 
-use crate::store::{Fleet, Ignored, Update};
+use crate::store::{value_bytes, Fleet, Ignored, Update};
 use crate::DashboardError;
 
+/// Bytes of updates that may wait for the browsers' streams at once. A browser that falls behind
+/// holds every update it has not read yet; past this budget, streams start over from a fresh
+/// snapshot instead.
+const PUSH_BYTES: usize = 32 << 20;
+
+/// `n` random bytes as lowercase hex, from the operating system.
+pub(crate) fn random_hex(n: usize) -> Result<String, getrandom::Error> {
+    let mut b = vec![0u8; n];
+    getrandom::fill(&mut b)?;
+    Ok(b.iter().map(|x| format!("{x:02x}")).collect())
+}
 /// Largest MQTT packet taken from the broker: a `net` message carries two SVG drawings, far over
 /// rumqttc's 10 KiB default.
 const MAX_PACKET: u32 = 8 << 20;
@@ -52,15 +69,26 @@ pub(crate) fn broker_target(
     Ok(u.with_credentials(user, password))
 }
 
+/// An update on its way to the browsers, holding its share of [`PUSH_BYTES`] until every
+/// stream has read it.
+#[derive(Debug)]
+pub(crate) struct Pushed {
+    /// The update.
+    pub(crate) update: Update,
+    _permit: Permit,
+}
+
 /// What the browsers' streams receive.
 #[derive(Clone, Debug)]
 pub(crate) enum Push {
     /// A message of one PLC.
-    Plc(Arc<Update>),
+    Plc(Arc<Pushed>),
     /// The PLC list changed.
     Plcs(Value),
     /// The broker connection went up or down.
     Broker(bool),
+    /// Updates were not pushed (the streams are behind): start over from a fresh snapshot.
+    Restart,
 }
 
 /// A command that could not be answered by the PLC: the HTTP status and the reply body.
@@ -77,14 +105,19 @@ pub(crate) struct Hub {
     fleet: Mutex<Fleet>,
     tx: broadcast::Sender<Push>,
     connected: AtomicBool,
-    pending: Mutex<HashMap<Vec<u8>, oneshot::Sender<Value>>>,
+    pending: Mutex<HashMap<Vec<u8>, Waiter>>,
     client: AsyncClient,
-    // The last levels of the reply topics, `reply/dashboard-<process>-<nonce>`, under each PLC's
-    // own reply level: the only place a PLC replies to.
-    reply_leaf: String,
-    next_correlation: AtomicU64,
+    /// `/reply/dashboard-<random>`: the end of every reply topic of this connection.
+    reply_suffix: String,
+    pushes: Budget,
     broker: String,
     signer: Option<crate::CommandSigner>,
+}
+
+/// A command waiting for its reply: the topic the reply must come on, and who waits.
+struct Waiter {
+    topic: String,
+    tx: oneshot::Sender<Value>,
 }
 
 /// Unix time in milliseconds, with sub-millisecond digits, comparable with the browser's
@@ -103,10 +136,12 @@ fn failure(status: u16, code: &str, message: String) -> CommandFailure {
 }
 
 impl Hub {
-    /// The hub and the event loop to drive with [`run_mqtt`].
+    /// The hub and the event loop to drive with [`run_mqtt`]; `token` (random, per connection)
+    /// names its reply topics.
     pub(crate) fn new(
         target: &BrokerUrl,
         signer: Option<crate::CommandSigner>,
+        token: &str,
     ) -> (Arc<Hub>, EventLoop) {
         // Unique per process and start, so two dashboards on one broker do not kick each other
         // off (a broker drops the older of two clients with the same id).
@@ -131,8 +166,8 @@ impl Hub {
             connected: AtomicBool::new(false),
             pending: Mutex::new(HashMap::new()),
             client,
-            reply_leaf: format!("reply/dashboard-{}-{nonce:08x}", std::process::id()),
-            next_correlation: AtomicU64::new(1),
+            reply_suffix: format!("/reply/dashboard-{token}"),
+            pushes: Budget::new(PUSH_BYTES),
             broker: target.to_string(),
             signer,
         });
@@ -145,7 +180,7 @@ impl Hub {
         self.fleet.lock().unwrap_or_else(|e| e.into_inner())
     }
 
-    fn pending(&self) -> MutexGuard<'_, HashMap<Vec<u8>, oneshot::Sender<Value>>> {
+    fn pending(&self) -> MutexGuard<'_, HashMap<Vec<u8>, Waiter>> {
         self.pending.lock().unwrap_or_else(|e| e.into_inner())
     }
 
@@ -170,31 +205,55 @@ impl Hub {
         }
     }
 
-    fn on_publish(&self, topic: &str, payload: &[u8], props: Option<&PublishProperties>) {
-        let is_reply = topic.starts_with("cetratus/")
-            && topic
-                .strip_suffix(self.reply_leaf.as_str())
-                .is_some_and(|t| t.ends_with('/'));
-        if is_reply {
-            let Some(corr) = props.and_then(|p| p.correlation_data.as_ref()) else {
-                tracing::debug!("a reply without correlation data was dropped");
-                return;
-            };
-            let waiter = self.pending().remove(corr.as_ref());
-            if let Some(w) = waiter {
-                let reply = serde_json::from_slice(payload).unwrap_or_else(|e| {
-                    json!({"ok": false, "error": {"code": "malformed",
-                        "message": format!("the PLC's reply is not JSON: {e}")}})
-                });
-                let _ = w.send(reply);
+    /// The reply topic of this connection for commands to `plc`.
+    fn reply_topic(&self, plc: &PlcId) -> String {
+        format!("{ROOT}/{plc}{}", self.reply_suffix)
+    }
+
+    /// The subscriptions: what the page shows of every PLC, and the replies to this connection.
+    fn filters(&self) -> Vec<String> {
+        Leaf::PUBLISHED
+            .iter()
+            .map(|leaf| format!("{ROOT}/+/{}", leaf.as_str()))
+            .chain(std::iter::once(format!("{ROOT}/+{}", self.reply_suffix)))
+            .collect()
+    }
+
+    /// Resolves the command waiting for this reply, if its correlation data and its topic are
+    /// both the ones the command named; anything else is dropped.
+    fn on_reply(&self, topic: &str, payload: &[u8], props: Option<&PublishProperties>) {
+        let Some(corr) = props.and_then(|p| p.correlation_data.as_ref()) else {
+            tracing::debug!(topic, "a reply without correlation data was dropped");
+            return;
+        };
+        let waiter = {
+            let mut pending = self.pending();
+            match pending.get(corr.as_ref()) {
+                Some(w) if w.topic == topic => pending.remove(corr.as_ref()),
+                _ => None,
             }
+        };
+        let Some(w) = waiter else {
+            tracing::debug!(topic, "a reply that answers no command of ours was dropped");
+            return;
+        };
+        let reply = serde_json::from_slice(payload).unwrap_or_else(|e| {
+            json!({"ok": false, "error": {"code": "malformed",
+                "message": format!("the PLC's reply is not JSON: {e}")}})
+        });
+        let _ = w.tx.send(reply);
+    }
+
+    fn on_publish(&self, topic: &str, payload: &[u8], props: Option<&PublishProperties>) {
+        if topic.ends_with(&self.reply_suffix) {
+            self.on_reply(topic, payload, props);
             return;
         }
         let result = self.fleet().apply(topic, payload, unix_ms());
         match result {
             Ok(update) => {
                 let list = update.list_changed.then(|| self.fleet().list());
-                let _ = self.tx.send(Push::Plc(Arc::new(update)));
+                self.push(update);
                 if let Some(l) = list {
                     let _ = self.tx.send(Push::Plcs(l));
                 }
@@ -204,6 +263,44 @@ impl Hub {
             Err(Ignored::Malformed(why)) => tracing::warn!(reason = %why, "ignored a message"),
             Err(Ignored::TooManyPlcs) => {
                 tracing::warn!(topic, "ignored a message: too many PLC ids on this broker")
+            }
+            Err(Ignored::TooLarge { kind, bytes }) => {
+                let n = self.fleet().dropped().too_large;
+                if worth_logging(n) {
+                    tracing::warn!(
+                        topic,
+                        bytes,
+                        limit = kind.max_bytes(),
+                        refused = n,
+                        "ignored a message larger than its kind allows"
+                    );
+                }
+            }
+        }
+    }
+
+    /// Sends an update to the streams, within [`PUSH_BYTES`]; when they are that far behind,
+    /// tells them to start over instead.
+    fn push(&self, update: Update) {
+        if self.tx.receiver_count() == 0 {
+            return;
+        }
+        match self.pushes.try_take(value_bytes(&update.data)) {
+            Some(permit) => {
+                let _ = self.tx.send(Push::Plc(Arc::new(Pushed {
+                    update,
+                    _permit: permit,
+                })));
+            }
+            None => {
+                let n = self.pushes.refused();
+                if worth_logging(n) {
+                    tracing::warn!(
+                        refused = n,
+                        "browsers are behind; their streams start over from a snapshot"
+                    );
+                }
+                let _ = self.tx.send(Push::Restart);
             }
         }
     }
@@ -227,21 +324,32 @@ impl Hub {
                 ),
             ));
         }
-        let corr = self
-            .next_correlation
-            .fetch_add(1, Ordering::Relaxed)
-            .to_string()
-            .into_bytes();
+        let corr = match random_hex(16) {
+            Ok(c) => c.into_bytes(),
+            Err(e) => {
+                return Err(failure(
+                    503,
+                    "unavailable",
+                    format!("no random correlation id for the command: {e}"),
+                ))
+            }
+        };
+        let reply_topic = self.reply_topic(plc);
         let (tx, rx) = oneshot::channel();
-        self.pending().insert(corr.clone(), tx);
-        let topics = Topics::new(plc.clone());
+        self.pending().insert(
+            corr.clone(),
+            Waiter {
+                topic: reply_topic.clone(),
+                tx,
+            },
+        );
         let props = PublishProperties {
-            response_topic: Some(format!("{}{}", topics.prefix(), self.reply_leaf)),
+            response_topic: Some(reply_topic),
             correlation_data: Some(corr.clone().into()),
             content_type: Some("application/json".into()),
             ..PublishProperties::default()
         };
-        let topic = topics.cmd(verb).to_string();
+        let topic = Topics::new(plc.clone()).cmd(verb).to_string();
         let payload = match &self.signer {
             Some(sign) => {
                 let body = body.to_string();
@@ -309,10 +417,8 @@ pub(crate) async fn run_mqtt(
             Ok(Event::Incoming(Packet::ConnAck(_))) => {
                 // try_subscribe: awaiting here could deadlock, since this task is the one that
                 // drains the request queue.
-                // The PLCs' replies come under `cetratus/<plc>/reply/…`, in this subscription.
-                let subs = [(ALL_PLCS_FILTER.to_string(), QoS::AtLeastOnce)];
-                for (t, q) in subs {
-                    if let Err(e) = hub.client.try_subscribe(t.clone(), q) {
+                for t in hub.filters() {
+                    if let Err(e) = hub.client.try_subscribe(t.clone(), QoS::AtLeastOnce) {
                         tracing::warn!(filter = %t, error = %e, "cannot subscribe");
                     }
                 }
@@ -375,6 +481,48 @@ mod tests {
         let t = parse("mqtt://[::1]:1999").expect("valid");
         assert_eq!((t.host(), t.port()), ("::1", 1999));
         assert_eq!(t.to_string(), "mqtt://[::1]:1999");
+    }
+
+    #[test]
+    fn a_reply_resolves_a_command_only_with_its_correlation_data_on_its_topic() {
+        let target = parse("mqtt://127.0.0.1:9").expect("valid");
+        let (hub, _el) = Hub::new(&target, None, "00ff");
+        let plc = PlcId::new("cell1").expect("an id");
+        let topic = hub.reply_topic(&plc);
+        assert_eq!(topic, "cetratus/cell1/reply/dashboard-00ff");
+        assert!(hub
+            .filters()
+            .contains(&"cetratus/+/reply/dashboard-00ff".to_string()));
+        assert!(
+            !hub.filters().iter().any(|f| f.ends_with('#')),
+            "no command is received"
+        );
+        let (tx, mut rx) = oneshot::channel();
+        let corr = random_hex(16).expect("random bytes");
+        assert_eq!(corr.len(), 32);
+        hub.pending().insert(
+            corr.clone().into_bytes(),
+            Waiter {
+                topic: topic.clone(),
+                tx,
+            },
+        );
+        let props = |c: &str| PublishProperties {
+            correlation_data: Some(c.as_bytes().to_vec().into()),
+            ..PublishProperties::default()
+        };
+        let forged = br#"{"ok": true, "forged": true}"#;
+        // A guessed id on the right topic; the right id on another PLC's reply topic.
+        hub.on_publish(&topic, forged, Some(&props("1")));
+        hub.on_publish(
+            "cetratus/other/reply/dashboard-00ff",
+            forged,
+            Some(&props(&corr)),
+        );
+        hub.on_publish(&topic, forged, None);
+        assert!(rx.try_recv().is_err(), "nothing resolved the command");
+        hub.on_publish(&topic, br#"{"ok": true}"#, Some(&props(&corr)));
+        assert_eq!(rx.try_recv().expect("resolved"), json!({"ok": true}));
     }
 
     #[test]

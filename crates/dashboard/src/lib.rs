@@ -112,6 +112,9 @@ pub enum DashboardError {
     /// The dashboard's thread or runtime could not be started.
     #[error("cannot start the dashboard's thread: {0}")]
     Thread(#[source] std::io::Error),
+    /// The operating system gave no random bytes for the reply topic.
+    #[error("cannot start the dashboard: no random bytes from the operating system ({0})")]
+    Random(String),
 }
 
 /// The running dashboard; stops it when dropped.
@@ -161,6 +164,9 @@ pub fn serve(config: DashboardConfig) -> Result<DashboardHandle, DashboardError>
         config.user.as_deref(),
         config.password.as_deref(),
     )?;
+    // Names this connection's reply topics; random, so that nobody can answer its commands
+    // by guessing where the replies go.
+    let token = hub::random_hex(16).map_err(|e| DashboardError::Random(e.to_string()))?;
     let listener = std::net::TcpListener::bind(config.http).map_err(|source| {
         if source.kind() == std::io::ErrorKind::AddrInUse {
             let mut suggestion = config.http;
@@ -191,7 +197,15 @@ pub fn serve(config: DashboardConfig) -> Result<DashboardHandle, DashboardError>
     let (shutdown, shutdown_rx) = watch::channel(false);
     let thread = std::thread::Builder::new()
         .name("cetratus-dashboard".into())
-        .spawn(move || rt.block_on(http::run(listener, broker, shutdown_rx, config.signer)))
+        .spawn(move || {
+            rt.block_on(http::run(
+                listener,
+                broker,
+                shutdown_rx,
+                config.signer,
+                token,
+            ))
+        })
         .map_err(DashboardError::Thread)?;
     Ok(DashboardHandle {
         addr,

@@ -2,6 +2,14 @@
 //!
 //! Nothing here touches the network or a clock (the receive time is passed in), so the state
 //! keeping is tested without a broker.
+//!
+//! Anyone on the broker can publish under any PLC id, so what is kept is bounded in bytes, not
+//! only in messages: a message over its kind's limit ([`Kind::max_bytes`]) is refused before it
+//! is parsed; each PLC keeps at most [`IO_HISTORY_BYTES`] of `io` and [`EVENT_HISTORY_BYTES`] of
+//! events, oldest dropped first; and the whole fleet at most [`FLEET_BYTES`], taken back from the
+//! PLC that holds the most. Bytes are those a parsed message takes in memory
+//! ([`value_bytes`], an estimate), and every message refused or dropped is counted
+//! ([`Fleet::dropped`]).
 
 use std::collections::{BTreeMap, VecDeque};
 
@@ -14,13 +22,20 @@ use serde_json::{json, Map, Value};
 /// diagram at once.
 pub const IO_HISTORY: usize = 1024;
 
-/// How many bytes of `io` payload are kept per PLC: the runtime's `io` carries the Monitor's ring
+/// How many bytes of `io` are kept per PLC: the runtime's `io` carries the Monitor's ring
 /// buffer since the last publish (hundreds of samples at high speed), so a count alone would let
 /// one PLC hold tens of megabytes and send them to every browser that connects.
 pub const IO_HISTORY_BYTES: usize = 4 << 20;
 
 /// How many events are kept per PLC for a browser that connects later.
 pub const EVENT_HISTORY: usize = 200;
+
+/// How many bytes of events are kept per PLC.
+pub const EVENT_HISTORY_BYTES: usize = 1 << 20;
+
+/// How many bytes the whole fleet keeps: past it the PLC that holds the most gives back its
+/// oldest history, then its drawings and figures (never its `state`).
+pub const FLEET_BYTES: usize = 64 << 20;
 
 /// How many PLC ids are kept at most: anyone on the broker can invent ids, and the dashboard must
 /// not grow without bound because of it.
@@ -54,6 +69,19 @@ impl Kind {
         }
     }
 
+    /// The largest message of this kind that is taken, in bytes as received. A PLC's `state`
+    /// and events are a few hundred bytes; `exec_info` and `net` grow with the net (a marking
+    /// per place, an SVG drawing), `io` with the samples since the last publish.
+    pub fn max_bytes(self) -> usize {
+        match self {
+            Kind::State => 64 << 10,
+            Kind::Event => 64 << 10,
+            Kind::Io => 1 << 20,
+            Kind::ExecInfo => 4 << 20,
+            Kind::Net => 4 << 20,
+        }
+    }
+
     fn from_leaf(leaf: Leaf) -> Option<Kind> {
         match leaf {
             Leaf::State => Some(Kind::State),
@@ -74,6 +102,22 @@ pub struct Stamped {
     pub recv_ms: f64,
     /// The payload, normalised (see [`Fleet::apply`]).
     pub data: Value,
+    /// What it takes in memory ([`value_bytes`]).
+    #[serde(skip)]
+    pub bytes: usize,
+}
+
+/// About how many bytes a JSON value takes in memory: its strings, plus a fixed cost per value
+/// and per key. An estimate, used to bound what is kept; it walks the value, once, when it
+/// arrives.
+pub fn value_bytes(v: &Value) -> usize {
+    const NODE: usize = 32;
+    NODE + match v {
+        Value::Null | Value::Bool(_) | Value::Number(_) => 0,
+        Value::String(s) => s.len(),
+        Value::Array(a) => a.iter().map(value_bytes).sum(),
+        Value::Object(o) => o.iter().map(|(k, v)| NODE + k.len() + value_bytes(v)).sum(),
+    }
 }
 
 /// One change, as pushed to the browsers.
@@ -104,14 +148,17 @@ pub struct PlcView {
     pub net: Option<Stamped>,
     /// The latest `io` samples, oldest first.
     pub io: VecDeque<Stamped>,
-    /// The payload size of each entry of `io`, for [`IO_HISTORY_BYTES`].
-    #[serde(skip)]
-    io_sizes: VecDeque<usize>,
-    /// Their sum.
-    #[serde(skip)]
-    io_bytes: usize,
     /// The latest events, oldest first.
     pub events: VecDeque<Stamped>,
+    /// Bytes of `io` kept.
+    #[serde(skip)]
+    io_bytes: usize,
+    /// Bytes of events kept.
+    #[serde(skip)]
+    event_bytes: usize,
+    /// Bytes kept in all.
+    #[serde(skip)]
+    bytes: usize,
 }
 
 impl PlcView {
@@ -123,6 +170,107 @@ impl PlcView {
             .and_then(Value::as_bool)
             .unwrap_or(false)
     }
+
+    /// Bytes this PLC keeps.
+    pub fn bytes(&self) -> usize {
+        self.bytes
+    }
+
+    fn slot(&mut self, kind: Kind) -> Option<&mut Option<Stamped>> {
+        match kind {
+            Kind::State => Some(&mut self.state),
+            Kind::ExecInfo => Some(&mut self.exec_info),
+            Kind::Net => Some(&mut self.net),
+            Kind::Io | Kind::Event => None,
+        }
+    }
+
+    /// Replaces the latest value of a kind; returns the bytes it gave back.
+    fn set_latest(&mut self, kind: Kind, value: Option<Stamped>) -> usize {
+        let added = value.as_ref().map_or(0, |v| v.bytes);
+        let old = self
+            .slot(kind)
+            .and_then(|slot| std::mem::replace(slot, value))
+            .map_or(0, |v| v.bytes);
+        self.bytes = self.bytes - old + added;
+        old
+    }
+
+    /// Adds to a history and drops its oldest entries past the PLC's bounds; returns the number
+    /// of entries dropped and their bytes.
+    fn push_history(&mut self, kind: Kind, item: Stamped) -> (u64, usize) {
+        let (q, held, max_len, max_bytes) = match kind {
+            Kind::Io => (
+                &mut self.io,
+                &mut self.io_bytes,
+                IO_HISTORY,
+                IO_HISTORY_BYTES,
+            ),
+            _ => (
+                &mut self.events,
+                &mut self.event_bytes,
+                EVENT_HISTORY,
+                EVENT_HISTORY_BYTES,
+            ),
+        };
+        *held += item.bytes;
+        self.bytes += item.bytes;
+        q.push_back(item);
+        let (mut n, mut freed) = (0, 0);
+        // The newest is always kept: it is no larger than its kind's limit.
+        while (q.len() > max_len || *held > max_bytes) && q.len() > 1 {
+            if let Some(old) = q.pop_front() {
+                *held -= old.bytes;
+                self.bytes -= old.bytes;
+                freed += old.bytes;
+                n += 1;
+            }
+        }
+        (n, freed)
+    }
+
+    /// Gives back the oldest history entry, or else the larger of the drawings and the figures
+    /// (the `state` is kept: it is small and says whether the PLC is online). Returns the bytes
+    /// given back, 0 when there is nothing left to give.
+    fn evict_one(&mut self) -> usize {
+        let oldest_io = self.io.front().map(|s| s.recv_ms);
+        let oldest_event = self.events.front().map(|s| s.recv_ms);
+        let from_io = match (oldest_io, oldest_event) {
+            (Some(a), Some(b)) => a <= b,
+            (Some(_), None) => true,
+            (None, Some(_)) => false,
+            (None, None) => {
+                let net = self.net.as_ref().map_or(0, |s| s.bytes);
+                let info = self.exec_info.as_ref().map_or(0, |s| s.bytes);
+                let kind = if net >= info {
+                    Kind::Net
+                } else {
+                    Kind::ExecInfo
+                };
+                return self.set_latest(kind, None);
+            }
+        };
+        let (q, held) = if from_io {
+            (&mut self.io, &mut self.io_bytes)
+        } else {
+            (&mut self.events, &mut self.event_bytes)
+        };
+        let freed = q.pop_front().map_or(0, |s| s.bytes);
+        *held -= freed;
+        self.bytes -= freed;
+        freed
+    }
+}
+
+/// What the fleet refused or dropped since it started.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize)]
+pub struct Dropped {
+    /// Messages over their kind's limit, refused unread.
+    pub too_large: u64,
+    /// Entries dropped to keep a PLC's histories within their bounds.
+    pub history: u64,
+    /// Entries and values dropped to keep the fleet within [`FLEET_BYTES`].
+    pub fleet: u64,
 }
 
 /// Why a message was not taken.
@@ -134,12 +282,21 @@ pub enum Ignored {
     Malformed(String),
     /// [`MAX_PLCS`] ids are known already.
     TooManyPlcs,
+    /// The message is larger than its kind's limit ([`Kind::max_bytes`]).
+    TooLarge {
+        /// Its kind.
+        kind: Kind,
+        /// Its size.
+        bytes: usize,
+    },
 }
 
 /// Every PLC seen, by id.
 #[derive(Clone, Debug, Default)]
 pub struct Fleet {
     plcs: BTreeMap<String, PlcView>,
+    bytes: usize,
+    dropped: Dropped,
 }
 
 /// `exec_info` may come as `{"A": …, "B": …}` or as `[A, B]`; the browser gets the object form.
@@ -170,13 +327,6 @@ fn type_name(v: &Value) -> &'static str {
     }
 }
 
-fn push_bounded(q: &mut VecDeque<Stamped>, item: Stamped, cap: usize) {
-    if q.len() >= cap {
-        q.pop_front();
-    }
-    q.push_back(item);
-}
-
 impl Fleet {
     /// An empty fleet.
     pub fn new() -> Self {
@@ -190,6 +340,13 @@ impl Fleet {
         let (plc, leaf) = parse_topic(topic).map_err(|_| Ignored::NotOurs)?;
         let kind = Kind::from_leaf(leaf).ok_or(Ignored::NotOurs)?;
         let plc = plc.as_str();
+        if payload.len() > kind.max_bytes() {
+            self.dropped.too_large += 1;
+            return Err(Ignored::TooLarge {
+                kind,
+                bytes: payload.len(),
+            });
+        }
         let data: Value = if payload.is_empty() {
             Value::Null
         } else {
@@ -211,42 +368,35 @@ impl Fleet {
         if is_new && self.plcs.len() >= MAX_PLCS {
             return Err(Ignored::TooManyPlcs);
         }
+        if data.is_null() && matches!(kind, Kind::Io | Kind::Event) {
+            return Err(Ignored::Malformed(format!("{topic}: empty payload")));
+        }
+        let bytes = if data.is_null() {
+            0
+        } else {
+            value_bytes(&data)
+        };
         let view = self.plcs.entry(plc.to_string()).or_default();
         let was_online = view.online();
+        let before = view.bytes;
         let stamped = Stamped {
             recv_ms,
             data: data.clone(),
+            bytes,
         };
-        let slot_value = (!data.is_null()).then_some(stamped.clone());
         match kind {
-            Kind::State => view.state = slot_value,
-            Kind::ExecInfo => view.exec_info = slot_value,
-            Kind::Net => view.net = slot_value,
-            Kind::Io => {
-                if data.is_null() {
-                    return Err(Ignored::Malformed(format!("{topic}: empty payload")));
-                }
-                let size = payload.len();
-                view.io.push_back(stamped);
-                view.io_sizes.push_back(size);
-                view.io_bytes += size;
-                while (view.io.len() > IO_HISTORY || view.io_bytes > IO_HISTORY_BYTES)
-                    && view.io.len() > 1
-                {
-                    view.io.pop_front();
-                    if let Some(old) = view.io_sizes.pop_front() {
-                        view.io_bytes = view.io_bytes.saturating_sub(old);
-                    }
-                }
+            Kind::State | Kind::ExecInfo | Kind::Net => {
+                view.set_latest(kind, (!data.is_null()).then_some(stamped));
             }
-            Kind::Event => {
-                if data.is_null() {
-                    return Err(Ignored::Malformed(format!("{topic}: empty payload")));
-                }
-                push_bounded(&mut view.events, stamped, EVENT_HISTORY);
+            Kind::Io | Kind::Event => {
+                let (n, _) = view.push_history(kind, stamped);
+                self.dropped.history += n;
             }
         }
-        let list_changed = is_new || was_online != view.online();
+        let online = view.online();
+        self.bytes = self.bytes + view.bytes - before;
+        self.keep_within(FLEET_BYTES, plc);
+        let list_changed = is_new || was_online != online;
         Ok(Update {
             plc: plc.to_string(),
             kind,
@@ -254,6 +404,39 @@ impl Fleet {
             data,
             list_changed,
         })
+    }
+
+    /// Gives back bytes, from the PLC that holds the most, until the fleet holds at most `limit`.
+    /// `newest` (the PLC just written) gives back last, so what just arrived is kept.
+    fn keep_within(&mut self, limit: usize, newest: &str) {
+        while self.bytes > limit {
+            let victim = self
+                .plcs
+                .iter()
+                .filter(|(id, v)| id.as_str() != newest && v.bytes > 0)
+                .max_by_key(|(_, v)| v.bytes)
+                .map_or_else(|| newest.to_string(), |(id, _)| id.clone());
+            let Some(view) = self.plcs.get_mut(&victim) else {
+                return;
+            };
+            let freed = view.evict_one();
+            if freed == 0 {
+                // Only `state`s are left: they are bounded by the number of PLCs.
+                return;
+            }
+            self.bytes -= freed;
+            self.dropped.fleet += 1;
+        }
+    }
+
+    /// Bytes the whole fleet keeps.
+    pub fn bytes(&self) -> usize {
+        self.bytes
+    }
+
+    /// What was refused or dropped so far.
+    pub fn dropped(&self) -> Dropped {
+        self.dropped
     }
 
     /// The PLC ids with their `online` flag, in id order.
@@ -385,6 +568,88 @@ mod tests {
                 .expect("taken");
         }
         assert_eq!(f.get("c").expect("kept").events.len(), EVENT_HISTORY);
+    }
+
+    #[test]
+    fn a_message_over_its_kinds_limit_is_refused_unread_and_counted() {
+        let mut f = Fleet::new();
+        for kind in ["state", "events", "io", "exec_info", "net"] {
+            let topic = format!("cetratus/c/{kind}");
+            let (_, leaf) = parse_topic(&topic).expect("a topic");
+            let limit = Kind::from_leaf(leaf).expect("a kind").max_bytes();
+            // Not even JSON: refused for its size before anything reads it.
+            let big = vec![b'x'; limit + 1];
+            assert!(
+                matches!(f.apply(&topic, &big, 0.0), Err(Ignored::TooLarge { bytes, .. }) if bytes == limit + 1),
+                "{kind}"
+            );
+        }
+        assert_eq!(f.dropped().too_large, 5);
+        assert!(f.get("c").is_none(), "nothing was kept");
+    }
+
+    #[test]
+    fn events_are_bounded_in_bytes_and_keep_the_newest() {
+        let mut f = Fleet::new();
+        let pad = "e".repeat(50_000);
+        for i in 0..100 {
+            let p = json!({"kind": "x", "message": pad, "cycle": i});
+            f.apply("cetratus/c/events", p.to_string().as_bytes(), i as f64)
+                .expect("taken");
+        }
+        let v = f.get("c").expect("kept");
+        let held: usize = v.events.iter().map(|s| value_bytes(&s.data)).sum();
+        assert!(held <= EVENT_HISTORY_BYTES, "{held}");
+        assert!(
+            v.events.len() >= EVENT_HISTORY_BYTES / 50_200,
+            "{}",
+            v.events.len()
+        );
+        assert_eq!(
+            v.events.back().map(|s| s.data["cycle"].clone()),
+            Some(json!(99))
+        );
+        assert_eq!(
+            f.dropped().history as usize + v.events.len(),
+            100,
+            "every event is kept or counted"
+        );
+    }
+
+    #[test]
+    fn the_fleet_is_bounded_in_bytes_and_the_biggest_plc_gives_back_first() {
+        let mut f = Fleet::new();
+        f.apply("cetratus/good/state", &state("A", "idle"), 0.0)
+            .expect("taken");
+        let net = json!({"A": "n".repeat(3 << 20), "B": null}).to_string();
+        let info = json!({"A": {"marking": "m".repeat(3 << 20)}, "B": null}).to_string();
+        // Many ids, each with a drawing and figures of 3 MiB: far more than the fleet keeps.
+        for i in 0..40 {
+            f.apply(&format!("cetratus/x{i}/net"), net.as_bytes(), 1.0)
+                .expect("taken");
+            f.apply(&format!("cetratus/x{i}/exec_info"), info.as_bytes(), 1.0)
+                .expect("taken");
+            assert!(f.bytes() <= FLEET_BYTES, "{} after {i}", f.bytes());
+        }
+        let held: usize = f.plcs.values().map(PlcView::bytes).sum();
+        assert_eq!(held, f.bytes(), "the count agrees with what is kept");
+        assert!(f.dropped().fleet > 0);
+        // The small PLC kept its state; the newest drawing is there.
+        assert!(f.get("good").is_some_and(PlcView::online));
+        assert!(f.get("x39").and_then(|v| v.net.as_ref()).is_some());
+    }
+
+    #[test]
+    fn a_retained_net_replaced_many_times_holds_only_the_latest() {
+        let mut f = Fleet::new();
+        for i in 0..50 {
+            let net = json!({"A": format!("{i}{}", "n".repeat(2 << 20)), "B": null}).to_string();
+            f.apply("cetratus/c/net", net.as_bytes(), 0.0)
+                .expect("taken");
+        }
+        assert!(f.bytes() < 3 << 20, "{}", f.bytes());
+        f.apply("cetratus/c/net", b"", 1.0).expect("taken");
+        assert_eq!(f.bytes(), 0);
     }
 
     #[test]

@@ -31,6 +31,7 @@
 #![warn(missing_docs)]
 
 mod broker;
+pub mod budget;
 pub mod client;
 mod control;
 mod envelope;

@@ -10,7 +10,7 @@ use crate::ProtoError;
 /// The first topic level of everything Cetratus publishes or listens to.
 pub const ROOT: &str = "cetratus";
 
-/// The subscription that receives every topic of every PLC (what the dashboard listens to).
+/// The subscription that receives every topic of every PLC, commands and replies included.
 pub const ALL_PLCS_FILTER: &str = "cetratus/+/#";
 
 /// A PLC id: the `<plc-id>` topic level. Non-empty, at most [`PlcId::MAX_LEN`] bytes, without

@@ -1,11 +1,22 @@
 //! The embedded broker: rmqtt in its own thread and Tokio runtime, one TCP port for MQTT 3.1.1
 //! and MQTT 5 clients (rmqtt reads the protocol level of each CONNECT and picks the codec),
 //! retained messages kept in memory, last wills, and user/password from configuration.
+//!
+//! It runs inside the PLC's process, so what it keeps for others is the PLC's memory: retained
+//! messages are bounded in bytes ([`RETAINED_BYTES`]), the messages queued for a slow subscriber
+//! in count ([`SESSION_QUEUE`], [`SESSION_INFLIGHT`]), the clients in number ([`MAX_CLIENTS`]),
+//! and commands in the bytes per second they may arrive at ([`COMMAND_INGRESS_BYTES_PER_S`]):
+//! rmqtt hands a message to each subscriber's session through an unbounded channel, so a
+//! subscriber that reads slower than others publish (the PLC parsing 1 MiB commands) would have
+//! the difference kept here.
 
+use std::collections::HashMap;
 use std::net::SocketAddr;
-use std::sync::Arc;
+use std::num::NonZeroU16;
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::{Arc, Mutex};
 use std::thread::JoinHandle;
-use std::time::Duration;
+use std::time::{Duration, Instant};
 
 use async_trait::async_trait;
 use rmqtt::context::ServerContext;
@@ -22,9 +33,158 @@ use crate::MctError;
 /// connection.
 pub const BROKER_MAX_PACKET: u32 = 4 << 20;
 
+/// Bytes of retained messages (topics and payloads) the embedded broker keeps for everyone
+/// together. A PLC retains two messages (`state` and `net`); anyone else on the port could retain
+/// a message of [`BROKER_MAX_PACKET`] bytes on as many topics as they like.
+pub const RETAINED_BYTES: usize = 32 << 20;
+
+/// Messages queued for one subscriber that does not read fast enough (rmqtt's default is 1000:
+/// 4 GB of 4 MiB messages); past it the broker drops them for that subscriber.
+pub const SESSION_QUEUE: usize = 64;
+
+/// QoS 1 and 2 messages in flight to one subscriber (rmqtt's default).
+pub const SESSION_INFLIGHT: u16 = 16;
+
+/// Clients connected at once: a PLC, its dashboard, operators and a few tools.
+pub const MAX_CLIENTS: usize = 256;
+
+/// Bytes per second of commands (`cetratus/<id>/cmd/…`) the broker takes from all clients
+/// together: sixteen full-size packages a second, far more than operators send, and less than
+/// the PLC's MQTT client reads even in a debug build.
+pub const COMMAND_INGRESS_BYTES_PER_S: f64 = 16.0 * (1 << 20) as f64;
+
+/// Bytes of commands that may arrive at once before [`COMMAND_INGRESS_BYTES_PER_S`] applies.
+pub const COMMAND_INGRESS_BURST: f64 = 2.0 * BROKER_MAX_PACKET as f64;
+
+/// A token bucket in bytes: `rate` per second, at most `burst` saved up.
+struct Bucket {
+    tokens: f64,
+    at: Instant,
+    rate: f64,
+    burst: f64,
+}
+
+impl Bucket {
+    fn new(rate: f64, burst: f64, now: Instant) -> Self {
+        Bucket {
+            tokens: burst,
+            at: now,
+            rate,
+            burst,
+        }
+    }
+
+    /// Takes `bytes` at `now`, or refuses (and takes nothing).
+    fn take(&mut self, bytes: f64, now: Instant) -> bool {
+        let dt = now.saturating_duration_since(self.at).as_secs_f64();
+        self.tokens = (self.tokens + dt * self.rate).min(self.burst);
+        self.at = now;
+        if bytes <= self.tokens {
+            self.tokens -= bytes;
+            true
+        } else {
+            false
+        }
+    }
+}
+
+/// The user property the embedded broker sets on a command it passed on without its payload
+/// (it came faster than [`COMMAND_INGRESS_BYTES_PER_S`]): the PLC answers it `busy`.
+pub const TURNED_AWAY_PROPERTY: &str = "cetratus-turned-away";
+
+/// Passes on commands that arrive faster than [`COMMAND_INGRESS_BYTES_PER_S`] without their
+/// payload, marked with [`TURNED_AWAY_PROPERTY`]: the PLC still learns where to answer `busy`,
+/// and the broker keeps nothing for it.
+struct CommandIngress {
+    bucket: Mutex<Bucket>,
+    refused: AtomicU64,
+}
+
+#[async_trait]
+impl Handler for CommandIngress {
+    async fn hook(&self, param: &Parameter, acc: Option<HookResult>) -> ReturnType {
+        let Parameter::MessagePublish(_, _, publish) = param else {
+            return (true, acc);
+        };
+        let is_command = matches!(
+            cetratus_proto::parse_topic(&publish.topic),
+            Ok((_, cetratus_proto::Leaf::Cmd(_)))
+        );
+        if !is_command {
+            return (true, acc);
+        }
+        let bytes = (publish.payload.len() + publish.topic.len()) as f64;
+        let taken = self
+            .bucket
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .take(bytes, Instant::now());
+        if taken {
+            return (true, acc);
+        }
+        let n = self.refused.fetch_add(1, Ordering::Relaxed) + 1;
+        if crate::budget::worth_logging(n) {
+            tracing::warn!(
+                topic = %publish.topic,
+                refused = n,
+                "commands arrive faster than {COMMAND_INGRESS_BYTES_PER_S} bytes/s; the embedded \
+                 broker passed one on without its payload, to be answered busy"
+            );
+        }
+        let mut stripped = (*publish).clone();
+        drop(std::mem::take(&mut stripped.inner.payload));
+        stripped
+            .inner
+            .properties
+            .get_or_insert_with(Default::default)
+            .user_properties
+            .push((TURNED_AWAY_PROPERTY.into(), "rate".into()));
+        (false, Some(HookResult::Publish(stripped)))
+    }
+}
+
+/// What the retained messages hold, by topic, in bytes.
+#[derive(Default)]
+struct RetainedBytes {
+    by_topic: HashMap<String, usize>,
+    total: usize,
+}
+
 /// rmqtt's default retain storage only logs (retention lives in a plugin configured from files);
-/// the same tree, enabled, is all a single PLC needs.
-struct MemRetain(DefaultRetainStorage);
+/// the same tree, enabled, is all a single PLC needs, bounded in bytes.
+struct MemRetain {
+    tree: DefaultRetainStorage,
+    bytes: Mutex<RetainedBytes>,
+    refused: AtomicU64,
+}
+
+impl MemRetain {
+    fn new() -> Self {
+        MemRetain {
+            tree: DefaultRetainStorage::new(),
+            bytes: Mutex::new(RetainedBytes::default()),
+            refused: AtomicU64::new(0),
+        }
+    }
+
+    /// Books `size` bytes for `topic` (0 deletes it); false when that would pass
+    /// [`RETAINED_BYTES`]. Replacing a topic's message gives its old bytes back first.
+    fn book(&self, topic: &str, size: usize) -> bool {
+        let mut b = self.bytes.lock().unwrap_or_else(|e| e.into_inner());
+        let old = b.by_topic.get(topic).copied().unwrap_or(0);
+        let after = b.total - old + size;
+        if size > 0 && after > RETAINED_BYTES {
+            return false;
+        }
+        b.total = after;
+        if size == 0 {
+            b.by_topic.remove(topic);
+        } else {
+            b.by_topic.insert(topic.to_string(), size);
+        }
+        true
+    }
+}
 
 #[async_trait]
 impl RetainStorage for MemRetain {
@@ -37,16 +197,36 @@ impl RetainStorage for MemRetain {
         retain: Retain,
         expiry: Option<Duration>,
     ) -> rmqtt::Result<()> {
-        self.0.set_with_timeout(topic, retain, expiry).await
+        let payload = retain.publish.payload.len();
+        let size = if payload == 0 {
+            0
+        } else {
+            // The topic is stored twice (the tree's levels and the message) beside the payload.
+            payload + 2 * topic.len() + 256
+        };
+        if !self.book(topic, size) {
+            let n = self.refused.fetch_add(1, Ordering::Relaxed) + 1;
+            if crate::budget::worth_logging(n) {
+                tracing::warn!(
+                    %topic,
+                    bytes = payload,
+                    refused = n,
+                    "the embedded broker keeps at most {RETAINED_BYTES} bytes of retained \
+                     messages; this one is delivered but not retained"
+                );
+            }
+            return Ok(());
+        }
+        self.tree.set_with_timeout(topic, retain, expiry).await
     }
     async fn get(&self, filter: &TopicFilter) -> rmqtt::Result<Vec<(TopicName, Retain)>> {
-        self.0.get_message(filter).await
+        self.tree.get_message(filter).await
     }
     async fn count(&self) -> isize {
-        self.0.count().await
+        self.tree.count().await
     }
     async fn max(&self) -> isize {
-        self.0.max().await
+        self.tree.max().await
     }
 }
 
@@ -122,6 +302,9 @@ impl EmbeddedBroker {
                     // a live listener on the port is still refused.
                     .reuseaddr(Some(true))
                     .max_packet_size(BROKER_MAX_PACKET)
+                    .max_mqueue_len(SESSION_QUEUE)
+                    .max_inflight(NonZeroU16::new(SESSION_INFLIGHT).unwrap_or(NonZeroU16::MIN))
+                    .max_connections(MAX_CLIENTS)
                     .allow_anonymous(anonymous)
                     .bind()
                     .and_then(|l| l.tcp())
@@ -130,13 +313,22 @@ impl EmbeddedBroker {
         let users = Arc::new(users);
         let server = rt.block_on(async move {
             let scx = ServerContext::new().build().await;
-            *scx.extends.retain_mut().await = Box::new(MemRetain(DefaultRetainStorage::new()));
+            *scx.extends.retain_mut().await = Box::new(MemRetain::new());
+            let reg = scx.extends.hook_mgr().register();
             if !users.is_empty() {
-                let reg = scx.extends.hook_mgr().register();
                 reg.add(Type::ClientAuthenticate, Box::new(Users(users)))
                     .await;
-                reg.start().await;
             }
+            let ingress = CommandIngress {
+                bucket: Mutex::new(Bucket::new(
+                    COMMAND_INGRESS_BYTES_PER_S,
+                    COMMAND_INGRESS_BURST,
+                    Instant::now(),
+                )),
+                refused: AtomicU64::new(0),
+            };
+            reg.add(Type::MessagePublish, Box::new(ingress)).await;
+            reg.start().await;
             MqttServer::new(scx)
                 .listener_by_id(listener, addr.port())
                 .build()
@@ -207,7 +399,41 @@ fn bind_error(addr: SocketAddr, e: rmqtt::Error) -> MctError {
 
 #[cfg(test)]
 mod tests {
-    use super::same;
+    use super::{same, Bucket, MemRetain, RETAINED_BYTES};
+    use std::time::{Duration, Instant};
+
+    #[test]
+    fn the_bucket_passes_a_burst_then_its_rate() {
+        let t0 = Instant::now();
+        let mut b = Bucket::new(100.0, 300.0, t0);
+        assert!(b.take(300.0, t0), "the burst");
+        assert!(!b.take(1.0, t0), "nothing left");
+        assert!(
+            !b.take(60.0, t0 + Duration::from_millis(500)),
+            "50 came back, not 60"
+        );
+        assert!(b.take(100.0, t0 + Duration::from_secs(1)));
+        // Saved up to the burst, not beyond.
+        assert!(!b.take(301.0, t0 + Duration::from_secs(100)));
+        assert!(b.take(300.0, t0 + Duration::from_secs(100)));
+    }
+
+    #[test]
+    fn retained_bytes_are_bounded_and_a_replacement_gives_the_old_bytes_back() {
+        let r = MemRetain::new();
+        let big = RETAINED_BYTES / 4;
+        for k in 0..4 {
+            assert!(r.book(&format!("t/{k}"), big), "{k}");
+        }
+        assert!(!r.book("t/4", 1), "the budget is spent");
+        assert!(
+            r.book("t/0", big - 10),
+            "a replacement fits in its own bytes"
+        );
+        assert!(r.book("t/4", 10));
+        assert!(r.book("t/1", 0), "a deletion always passes");
+        assert!(r.book("t/5", big));
+    }
 
     #[test]
     fn same_is_true_only_for_equal_bytes_whatever_the_lengths() {

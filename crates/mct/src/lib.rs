@@ -7,8 +7,11 @@
 //! * [`start`] / [`spawn_mqtt`]: an MQTT 5 client (rumqttc) in its own threads, connected to the
 //!   [`EmbeddedBroker`] (rmqtt, one port for MQTT 3.1.1 and 5) or to a plant broker.
 //!
-//! The scan thread meets MQTT only through [`MctLink`], two bounded `sync_channel`s, and only with
-//! non-blocking calls:
+//! The scan thread meets MQTT only through [`MctLink`], two bounded queues, and only with
+//! non-blocking calls. Every queue on the way in is bounded in bytes as well as in entries
+//! ([`budget`], [`CommandQueue`], [`UNREAD_BYTES`], [`COMMAND_QUEUE_BYTES`], and in the embedded
+//! broker); a command that does not fit is answered `busy`, so what others send never decides
+//! the PLC's memory:
 //!
 //! ```no_run
 //! # use cetratus_mct::*;
@@ -36,9 +39,10 @@ pub mod client;
 mod control;
 mod envelope;
 mod error;
+mod inbound;
 mod link;
 
-pub use broker::{EmbeddedBroker, BROKER_MAX_PACKET};
+pub use broker::{EmbeddedBroker, BROKER_MAX_PACKET, TURNED_AWAY_PROPERTY};
 pub use control::{
     accepted, refused, unix_now, ControlPlane, IncomingCommand, Outcome, Rejection, ReplyHandle,
     Request,
@@ -47,8 +51,9 @@ pub use envelope::{
     parse_envelope, sign, signing_message, Envelope, OperatorKeys, Signed, ENVELOPE_VERSION,
 };
 pub use error::MctError;
+pub use inbound::{CommandQueue, UNREAD_BYTES};
 pub use link::{
-    client_options, spawn_mqtt, start, BrokerChoice, MctLink, MqttConfig, MqttHandle, Outgoing,
-    DEFAULT_MQTT_ADDR,
+    client_options, spawn_mqtt, start, BrokerChoice, LinkStats, MctLink, MqttConfig, MqttHandle,
+    Outgoing, COMMAND_QUEUE_BYTES, DEFAULT_MQTT_ADDR,
 };
 pub use rumqttc::v5::MqttOptions;

@@ -2,25 +2,31 @@
 //! to a plant broker, exchanging with the scan thread only through bounded queues.
 
 use std::net::SocketAddr;
-use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::mpsc::{Receiver, RecvTimeoutError, SyncSender, TrySendError};
 use std::sync::Arc;
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
 use cetratus_proto::{
-    BrokerUrl, ErrorBody, ErrorCode, EventMsg, ExecInfoMsg, IoMsg, NetMsg, ProtoError, StateMsg,
-    StatePayload, Topics,
+    BrokerUrl, EventMsg, ExecInfoMsg, IoMsg, NetMsg, ProtoError, StateMsg, StatePayload, Topics,
 };
-use rumqttc::v5::mqttbytes::v5::{LastWill, Packet, PublishProperties};
+use rumqttc::v5::mqttbytes::v5::{LastWill, PublishProperties};
 use rumqttc::v5::mqttbytes::QoS;
-use rumqttc::v5::{AsyncClient, Event, EventLoop, MqttOptions};
+use rumqttc::v5::{AsyncClient, MqttOptions};
 use rumqttc::Transport;
 
 use crate::broker::{EmbeddedBroker, BROKER_MAX_PACKET};
-use crate::control::{unix_now, ControlPlane, IncomingCommand, Outcome, ReplyHandle};
+use crate::budget::{worth_logging, Budget};
+use crate::control::{ControlPlane, IncomingCommand, Outcome, ReplyHandle};
 use crate::envelope::OperatorKeys;
+use crate::inbound::{control_loop, event_loop, CommandQueue};
 use crate::MctError;
+
+/// How many bytes of commands may wait for the PLC at once (their packages, reply addresses and
+/// correlation data): four commands of the 1 MiB maximum. Past it a command is answered `busy`,
+/// so the PLC's memory does not grow with what others send.
+pub const COMMAND_QUEUE_BYTES: usize = 4 << 20;
 
 /// The default address of the embedded broker: loopback only, so nothing outside the machine can
 /// command the PLC unless the operator says so.
@@ -89,8 +95,10 @@ pub struct MqttConfig {
     pub publish_period: Duration,
     /// Operator keys; when set, every command must be a signed envelope.
     pub operator_keys: Option<OperatorKeys>,
-    /// Capacity of each of the two queues to and from the scan thread.
+    /// Capacity of each of the two queues to and from the scan thread, in entries.
     pub queue_capacity: usize,
+    /// Bytes of commands that may wait at once ([`COMMAND_QUEUE_BYTES`]); see [`CommandQueue`].
+    pub command_bytes: usize,
 }
 
 impl MqttConfig {
@@ -105,6 +113,7 @@ impl MqttConfig {
             publish_period: Duration::from_millis(500),
             operator_keys: None,
             queue_capacity: 256,
+            command_bytes: COMMAND_QUEUE_BYTES,
         }
     }
 }
@@ -125,13 +134,74 @@ pub enum Outgoing {
     Net(NetMsg),
     /// The answer to a command.
     Reply(ReplyHandle, Outcome),
+    /// The answer to `exec_info`: the figures are shared with other answers and turned into
+    /// JSON on the MQTT thread, so a flood of requests costs neither copies nor the scan thread.
+    ExecInfoReply(ReplyHandle, Arc<ExecInfoMsg>),
+}
+
+impl Outgoing {
+    /// About how many bytes the message holds beyond its own size, for queues bounded in bytes.
+    /// Periodic figures are counted by their scalar parts only: they are replaced, not queued.
+    pub fn approx_bytes(&self) -> usize {
+        const BASE: usize = 128;
+        BASE + match self {
+            Outgoing::Event(e) => e.kind.len() + e.message.len() + approx_json(&e.detail),
+            Outgoing::Reply(h, r) => {
+                handle_bytes(h)
+                    + match r {
+                        Ok(v) => v.as_ref().map_or(0, approx_json),
+                        Err(e) => e.message.len(),
+                    }
+            }
+            Outgoing::ExecInfoReply(h, _) => handle_bytes(h),
+            Outgoing::Net(n) => {
+                n.a.as_ref().map_or(0, String::len) + n.b.as_ref().map_or(0, String::len)
+            }
+            Outgoing::State(_) | Outgoing::ExecInfo(_) | Outgoing::Io(_) => 0,
+        }
+    }
+}
+
+pub(crate) fn handle_bytes(h: &ReplyHandle) -> usize {
+    h.verb.len()
+        + h.topic.as_ref().map_or(0, String::len)
+        + h.correlation_data.as_ref().map_or(0, Vec::len)
+        + h.correlation.as_ref().map_or(0, approx_json)
+}
+
+/// About the size of a JSON value in memory; walks it, so use it on small values only.
+fn approx_json(v: &serde_json::Value) -> usize {
+    use serde_json::Value;
+    match v {
+        Value::Null | Value::Bool(_) | Value::Number(_) => 16,
+        Value::String(s) => 24 + s.len(),
+        Value::Array(a) => 24 + a.iter().map(approx_json).sum::<usize>(),
+        Value::Object(o) => {
+            24 + o
+                .iter()
+                .map(|(k, v)| 24 + k.len() + approx_json(v))
+                .sum::<usize>()
+        }
+    }
+}
+
+/// What the MQTT side turned away or lost, since it started.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct LinkStats {
+    /// Commands answered `busy` because a queue was full (in entries or in bytes).
+    pub commands_busy: u64,
+    /// Commands dropped unanswered: they came too fast to be read, and named no reply topic
+    /// outside their payload (or too many waited for their `busy` answer already).
+    pub commands_dropped: u64,
+    /// Replies and events that could not be handed to the MQTT client (its queue was full).
+    pub messages_lost: u64,
 }
 
 /// The scan thread's end: commands in, everything else out. Use only the non-blocking calls.
 #[derive(Debug)]
 pub struct MctLink {
     /// Commands, parsed and authorised; read with `try_recv` once per cycle.
-    pub commands: Receiver<IncomingCommand>,
+    pub commands: CommandQueue,
     /// Everything the PLC publishes; write with `try_send` (see [`MctLink::send`]).
     pub outgoing: SyncSender<Outgoing>,
 }
@@ -139,7 +209,7 @@ pub struct MctLink {
 impl MctLink {
     /// The next command, if any; never blocks.
     pub fn try_command(&self) -> Option<IncomingCommand> {
-        self.commands.try_recv().ok()
+        self.commands.try_recv()
     }
     /// Queues a message without blocking; gives it back when the queue is full (or MQTT is gone),
     /// so the caller can keep an event or a reply for the next cycle and drop periodic data.
@@ -153,9 +223,28 @@ impl MctLink {
     }
 }
 
-struct Shared {
-    connected: AtomicBool,
-    stopping: AtomicBool,
+/// What the MQTT threads share.
+pub(crate) struct Shared {
+    pub(crate) connected: AtomicBool,
+    pub(crate) stopping: AtomicBool,
+    pub(crate) commands_busy: AtomicU64,
+    pub(crate) commands_dropped: AtomicU64,
+    pub(crate) messages_lost: AtomicU64,
+}
+
+impl Shared {
+    /// Counts a message the client's queue had no room for, and says so now and then.
+    pub(crate) fn lost(&self, what: &str, topic: &str, error: &dyn std::fmt::Display) {
+        let n = self.messages_lost.fetch_add(1, Ordering::Relaxed) + 1;
+        if worth_logging(n) {
+            tracing::warn!(
+                topic,
+                error = %error,
+                lost = n,
+                "cannot publish {what}: the MQTT client's queue is full"
+            );
+        }
+    }
 }
 
 /// The MQTT threads (and the embedded broker); stops them when dropped.
@@ -166,6 +255,7 @@ pub struct MqttHandle {
     rt: Option<tokio::runtime::Runtime>,
     loop_task: Option<tokio::task::JoinHandle<()>>,
     out_thread: Option<JoinHandle<()>>,
+    control_thread: Option<JoinHandle<()>>,
     broker: Option<EmbeddedBroker>,
     url: String,
 }
@@ -202,6 +292,14 @@ impl MqttHandle {
     pub fn url(&self) -> &str {
         &self.url
     }
+    /// What was turned away or lost so far.
+    pub fn stats(&self) -> LinkStats {
+        LinkStats {
+            commands_busy: self.shared.commands_busy.load(Ordering::Relaxed),
+            commands_dropped: self.shared.commands_dropped.load(Ordering::Relaxed),
+            messages_lost: self.shared.messages_lost.load(Ordering::Relaxed),
+        }
+    }
     /// Publishes `{"online": false}` on `state`, disconnects and stops the threads and the broker.
     pub fn shutdown(mut self) {
         self.stop();
@@ -234,6 +332,10 @@ impl MqttHandle {
                 let _ = t.join();
             }
             rt.shutdown_timeout(Duration::from_millis(200));
+            // The event loop is gone with the runtime, and with it the control thread's input.
+            if let Some(t) = self.control_thread.take() {
+                let _ = t.join();
+            }
         }
         if let Some(b) = self.broker.take() {
             b.stop();
@@ -303,6 +405,7 @@ pub fn start(config: MqttConfig) -> Result<(MctLink, MqttHandle), MctError> {
         &mut opts,
         config.publish_period,
         config.queue_capacity.max(1),
+        Budget::new(config.command_bytes),
     )?;
     let mut handle = handle;
     handle.broker = broker;
@@ -311,12 +414,14 @@ pub fn start(config: MqttConfig) -> Result<(MctLink, MqttHandle), MctError> {
 }
 
 /// Runs the MQTT client for `control` with `opts` in its own threads (a Tokio runtime for the
-/// event loop, a thread for outgoing messages) and returns the two queue ends.
+/// event loop, a thread for outgoing messages) and returns the two queue ends. Commands wait in a
+/// queue of `queue_capacity` entries and `command_bytes` bytes ([`CommandQueue`]).
 pub fn spawn_mqtt(
     control: ControlPlane,
     opts: &mut MqttOptions,
     publish_period: Duration,
     queue_capacity: usize,
+    command_bytes: Budget,
 ) -> Result<(MctLink, MqttHandle), MctError> {
     let topics = control.topics().clone();
     let state_topic = topics.state().to_string();
@@ -339,17 +444,28 @@ pub fn spawn_mqtt(
     let shared = Arc::new(Shared {
         connected: AtomicBool::new(false),
         stopping: AtomicBool::new(false),
+        commands_busy: AtomicU64::new(0),
+        commands_dropped: AtomicU64::new(0),
+        messages_lost: AtomicU64::new(0),
     });
     let (cmd_tx, cmd_rx) = std::sync::mpsc::sync_channel(queue_capacity);
     let (out_tx, out_rx) = std::sync::mpsc::sync_channel(queue_capacity);
+    let (inbound_tx, inbound_rx) = std::sync::mpsc::channel();
     let loop_task = rt.spawn(event_loop(
         eventloop,
         client.clone(),
-        control,
-        cmd_tx,
+        control.topics().command_filter().to_string(),
+        inbound_tx,
         shared.clone(),
-        topics.events().to_string(),
     ));
+    let control_thread = {
+        let (client, shared) = (client.clone(), shared.clone());
+        std::thread::Builder::new()
+            .name("cetratus-mqtt-control".into())
+            .spawn(move || {
+                control_loop(inbound_rx, client, control, (cmd_tx, command_bytes), shared)
+            })?
+    };
     let out_thread = {
         let (client, shared, rt) = (client.clone(), shared.clone(), rt.handle().clone());
         std::thread::Builder::new()
@@ -358,7 +474,7 @@ pub fn spawn_mqtt(
     };
     Ok((
         MctLink {
-            commands: cmd_rx,
+            commands: CommandQueue(cmd_rx),
             outgoing: out_tx,
         },
         MqttHandle {
@@ -368,138 +484,18 @@ pub fn spawn_mqtt(
             rt: Some(rt),
             loop_task: Some(loop_task),
             out_thread: Some(out_thread),
+            control_thread: Some(control_thread),
             broker: None,
             url: String::new(),
         },
     ))
 }
 
-fn reply_props(handle: &ReplyHandle) -> PublishProperties {
+pub(crate) fn reply_props(handle: &ReplyHandle) -> PublishProperties {
     PublishProperties {
         correlation_data: handle.correlation_data.clone().map(Into::into),
         content_type: Some("application/json".into()),
         ..Default::default()
-    }
-}
-
-// Runs inside the event loop task, so it must never await the client (its queue is drained by
-// this very task): try_publish, and a full queue loses the message with a log line.
-fn try_reply(client: &AsyncClient, handle: &ReplyHandle, outcome: &Outcome) {
-    if let Some(topic) = &handle.topic {
-        let payload = ControlPlane::reply_payload(handle, outcome);
-        if let Err(e) = client.try_publish_with_properties(
-            topic.clone(),
-            QoS::AtLeastOnce,
-            false,
-            payload,
-            reply_props(handle),
-        ) {
-            tracing::warn!(%topic, error = %e, "cannot publish the reply");
-        }
-    }
-}
-
-fn try_event(client: &AsyncClient, topic: &str, event: &EventMsg) {
-    let payload = serde_json::to_vec(event).unwrap_or_default();
-    if let Err(e) = client.try_publish(topic, QoS::AtLeastOnce, false, payload) {
-        tracing::warn!(topic, error = %e, "cannot publish an event");
-    }
-}
-
-async fn event_loop(
-    mut eventloop: EventLoop,
-    client: AsyncClient,
-    mut control: ControlPlane,
-    commands: SyncSender<IncomingCommand>,
-    shared: Arc<Shared>,
-    events: String,
-) {
-    let filter = control.topics().command_filter().to_string();
-    // One warning per outage, not one per retry: a broker that stays away for an hour would
-    // otherwise fill the log with a line a second.
-    let mut outage_reported = false;
-    loop {
-        match eventloop.poll().await {
-            Ok(Event::Incoming(Packet::ConnAck(_))) => {
-                if let Err(e) = client.try_subscribe(filter.clone(), QoS::AtLeastOnce) {
-                    tracing::warn!(%filter, error = %e, "cannot subscribe");
-                }
-            }
-            Ok(Event::Incoming(Packet::SubAck(_))) => {
-                shared.connected.store(true, Ordering::Release);
-                if std::mem::take(&mut outage_reported) {
-                    tracing::info!("MQTT connection restored");
-                }
-            }
-            Ok(Event::Incoming(Packet::Publish(p))) => {
-                let Ok(topic) = std::str::from_utf8(&p.topic) else {
-                    continue;
-                };
-                if p.retain {
-                    // A command acts when it is sent, never again from the broker's store: a
-                    // retained one would run at every start and every reconnect.
-                    tracing::warn!(
-                        topic,
-                        "a retained command was ignored; clear it with an empty retained message"
-                    );
-                    continue;
-                }
-                let props = p.properties.as_ref();
-                let response_topic = props.and_then(|pr| pr.response_topic.as_deref());
-                let correlation = props.and_then(|pr| pr.correlation_data.as_deref());
-                match control.parse(topic, &p.payload, response_topic, correlation, unix_now()) {
-                    Ok(cmd) => {
-                        try_event(&client, &events, &ControlPlane::accepted_event(&cmd));
-                        match commands.try_send(cmd) {
-                            Ok(()) => {}
-                            Err(TrySendError::Full(cmd)) => try_reply(
-                                &client,
-                                &cmd.reply,
-                                &Err(ErrorBody {
-                                    code: ErrorCode::Busy,
-                                    message: "the PLC's command queue is full; retry in a moment"
-                                        .into(),
-                                }),
-                            ),
-                            Err(TrySendError::Disconnected(cmd)) => try_reply(
-                                &client,
-                                &cmd.reply,
-                                &Err(ErrorBody {
-                                    code: ErrorCode::Unavailable,
-                                    message: "the PLC's scan loop is not running".into(),
-                                }),
-                            ),
-                        }
-                    }
-                    Err(rej) => {
-                        if let Some((h, e)) = &rej.reply {
-                            try_reply(&client, h, &Err(e.clone()));
-                        }
-                        try_event(&client, &events, &rej.event);
-                    }
-                }
-            }
-            Ok(_) => {}
-            Err(e) => {
-                shared.connected.store(false, Ordering::Release);
-                if shared.stopping.load(Ordering::Acquire) {
-                    return;
-                }
-                if outage_reported {
-                    tracing::debug!(error = %e, "MQTT connection still down; retrying in 1 s");
-                } else {
-                    tracing::warn!(error = %e, "MQTT connection lost; retrying in 1 s");
-                    outage_reported = true;
-                }
-                // In slices, so a shutdown does not wait out the whole back-off.
-                for _ in 0..20 {
-                    if shared.stopping.load(Ordering::Acquire) {
-                        return;
-                    }
-                    tokio::time::sleep(Duration::from_millis(50)).await;
-                }
-            }
-        }
     }
 }
 
@@ -565,6 +561,17 @@ fn outgoing_loop(
             Ok(Outgoing::Event(v)) => publish(topics.events(), false, to_json(&v), None),
             Ok(Outgoing::Reply(h, r)) => {
                 if let Some(t) = &h.topic {
+                    publish(
+                        t,
+                        false,
+                        ControlPlane::reply_payload(&h, &r),
+                        Some(reply_props(&h)),
+                    );
+                }
+            }
+            Ok(Outgoing::ExecInfoReply(h, info)) => {
+                if let Some(t) = &h.topic {
+                    let r = Ok(serde_json::to_value(&*info).ok());
                     publish(
                         t,
                         false,

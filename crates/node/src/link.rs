@@ -5,16 +5,25 @@
 //!   `try_recv`, and hands snapshots and events on with `try_send`;
 //! * the **preparer** turns MQTT commands into runtime commands: it verifies and builds update
 //!   packages and compiles `substitute --when` conditions, away from the scan thread;
-//! * the **publisher** turns snapshots into `state`, `exec_info`, `io` and `net` messages.
+//! * the **publisher** turns snapshots into `state`, `exec_info`, `io` and `net` messages, and
+//!   answers `exec_info` requests from the latest snapshot: the scan thread never sees them.
+//!
+//! Every queue is bounded by what it may hold, not only by its number of entries: the commands
+//! by their bytes (in `cetratus-mct`), the `exec_info` requests by [`EXEC_INFO_QUEUE`], the
+//! messages the scan thread keeps for a busy MQTT client by [`PENDING_BYTES`]. A full queue
+//! answers `busy` or drops the message, and counts it ([`LinkCounters`]).
 
 use std::collections::VecDeque;
 use std::sync::atomic::AtomicBool;
-use std::sync::mpsc::{sync_channel, Receiver, SyncSender, TrySendError};
+use std::sync::mpsc::{channel, sync_channel, Receiver, Sender, SyncSender, TrySendError};
 use std::sync::Arc;
 
-use cetratus_mct::{accepted, refused, IncomingCommand, MctLink, Outgoing, Request};
+use cetratus_mct::budget::{worth_logging, Budget, Permit};
+use cetratus_mct::{accepted, refused, IncomingCommand, MctLink, Outgoing, ReplyHandle, Request};
 use cetratus_program::{Program, TrustStore, Value};
-use cetratus_proto::{EventMsg, IoMsg, IoNames, StateMsg};
+use cetratus_proto::{
+    within_error, ErrorBody, ErrorCode, EventMsg, ExecInfoMsg, IoMsg, IoNames, StateMsg,
+};
 use cetratus_runtime::monitor::CycleRecord;
 use cetratus_runtime::{
     Command, Event, ExecInfo, LoopTiming, Plc, Slot, Status, SubstituteMode, SubstituteRequest,
@@ -24,9 +33,35 @@ use serde_json::json;
 
 use crate::wire;
 
-enum ToScan {
-    Command(Box<Command>, IncomingCommand),
-    ExecInfo(IncomingCommand),
+/// `exec_info` requests that may wait for the publisher; past them a request is answered
+/// `busy`.
+pub const EXEC_INFO_QUEUE: usize = 64;
+
+/// Bytes of events and replies the scan thread keeps while the MQTT client is behind. Past half
+/// of it the scan thread takes no new command (the queues before it fill up and answer `busy`);
+/// past all of it an event is dropped, and counted.
+pub const PENDING_BYTES: usize = 1 << 20;
+
+/// A command, prepared, for the scan thread.
+struct Ready {
+    command: Box<Command>,
+    from: IncomingCommand,
+}
+
+/// What the publisher is given: snapshots from the scan thread, `exec_info` requests from the
+/// preparer. Each holds a permit of its queue's budget until the publisher is done with it.
+enum ToPublisher {
+    Snapshot(Box<Snapshot>, Permit),
+    ExecInfo(ReplyHandle, Permit),
+}
+
+/// What the MQTT side of a node turned away or dropped.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct LinkCounters {
+    /// Events and replies dropped because the MQTT client was behind ([`PENDING_BYTES`]).
+    pub dropped: u64,
+    /// Snapshots not published because the publisher was behind (the next one carries on).
+    pub snapshots_skipped: u64,
 }
 
 /// A program with the marking to draw it with.
@@ -48,11 +83,15 @@ struct Snapshot {
 /// The scan thread's side of MQTT: call [`ControlLink::take_commands`] before each cycle and
 /// [`ControlLink::after_cycle`] after it. Neither blocks.
 pub struct ControlLink {
-    to_scan_rx: Receiver<ToScan>,
+    to_scan_rx: Receiver<Ready>,
     ctx_tx: SyncSender<UpdateContext>,
-    snap_tx: Option<SyncSender<Snapshot>>,
+    snap_tx: Option<Sender<ToPublisher>>,
+    snapshots: Budget,
     outgoing: SyncSender<Outgoing>,
-    pending: VecDeque<Outgoing>,
+    pending: VecDeque<(Outgoing, usize)>,
+    pending_bytes: usize,
+    counters: LinkCounters,
+    net_due: bool,
     names_in: Arc<Vec<String>>,
     names_out: Arc<Vec<String>>,
     last_key: (Slot, Status, String, String),
@@ -73,26 +112,25 @@ impl ControlLink {
         publish_every: u64,
     ) -> ControlLink {
         let MctLink { commands, outgoing } = link;
-        let (to_scan_tx, to_scan_rx) = sync_channel::<ToScan>(32);
+        let (to_scan_tx, to_scan_rx) = sync_channel::<Ready>(32);
         let (ctx_tx, ctx_rx) = sync_channel::<UpdateContext>(4);
-        let (snap_tx, snap_rx) = sync_channel::<Snapshot>(2);
+        // Unbounded as a channel, bounded by the permits its messages carry.
+        let (snap_tx, snap_rx) = channel::<ToPublisher>();
         let _ = ctx_tx.try_send(plc.update_context());
-        let prep_out = outgoing.clone();
+        let prep = Preparer {
+            ctx_rx,
+            to_scan: to_scan_tx,
+            to_publisher: snap_tx.clone(),
+            exec_info: Budget::new(EXEC_INFO_QUEUE),
+            out: outgoing.clone(),
+            trust,
+            allow_unsigned,
+        };
         let done = Arc::new(AtomicBool::new(false));
         let prep_done = done.clone();
         let preparer = std::thread::Builder::new()
             .name("cetratus-prepare".into())
-            .spawn(move || {
-                prepare_loop(
-                    commands,
-                    ctx_rx,
-                    to_scan_tx,
-                    prep_out,
-                    trust,
-                    allow_unsigned,
-                    prep_done,
-                )
-            })
+            .spawn(move || prep.run(commands, prep_done))
             .expect("spawn the preparer");
         let pub_out = outgoing.clone();
         let publisher = std::thread::Builder::new()
@@ -103,8 +141,12 @@ impl ControlLink {
             to_scan_rx,
             ctx_tx,
             snap_tx: Some(snap_tx),
+            snapshots: Budget::new(2),
             outgoing,
             pending: VecDeque::with_capacity(256),
+            pending_bytes: 0,
+            counters: LinkCounters::default(),
+            net_due: true,
             names_in: Arc::new(plc.io_inputs().to_vec()),
             names_out: Arc::new(plc.io_outputs().to_vec()),
             last_key: (Slot::A, Status::Idle, String::new(), String::new()),
@@ -117,38 +159,57 @@ impl ControlLink {
     }
 
     /// Gives the PLC the commands that are ready. Returns who sent the last one, for the audit
-    /// log (`mqtt` or `mqtt:<key id>`), when there was one.
+    /// log (`mqtt` or `mqtt:<key id>`), when there was one. While the replies and events of
+    /// earlier commands still wait for the MQTT client, no new command is taken.
     pub fn take_commands(&mut self, plc: &mut Plc) -> Option<String> {
         let mut who = None;
-        while let Ok(msg) = self.to_scan_rx.try_recv() {
-            match msg {
-                ToScan::Command(cmd, from) => {
-                    let outcome = match plc.command(*cmd) {
-                        Ok(()) => accepted(),
-                        Err(e) => Err(refused(e.to_string())),
-                    };
-                    who = Some(
-                        from.key_id
-                            .as_ref()
-                            .map_or("mqtt".to_string(), |k| format!("mqtt:{k}")),
-                    );
-                    self.pending.push_back(Outgoing::Reply(from.reply, outcome));
-                }
-                ToScan::ExecInfo(from) => {
-                    let info = serde_json::to_value(wire::exec_info_msg(plc)).ok();
-                    self.pending
-                        .push_back(Outgoing::Reply(from.reply, Ok(info)));
-                }
-            }
+        while self.pending_bytes < PENDING_BYTES / 2 {
+            let Ok(Ready { command, from }) = self.to_scan_rx.try_recv() else {
+                break;
+            };
+            let outcome = match plc.command(*command) {
+                Ok(()) => accepted(),
+                Err(e) => Err(refused(e.to_string())),
+            };
+            who = Some(
+                from.key_id
+                    .as_ref()
+                    .map_or("mqtt".to_string(), |k| format!("mqtt:{k}")),
+            );
+            self.queue(Outgoing::Reply(from.reply, outcome));
         }
         who
+    }
+
+    /// Keeps a message for the MQTT client, or drops it (counted) when [`PENDING_BYTES`] are
+    /// kept already.
+    fn queue(&mut self, m: Outgoing) {
+        let size = m.approx_bytes();
+        if self.pending_bytes + size > PENDING_BYTES {
+            self.counters.dropped += 1;
+            if worth_logging(self.counters.dropped) {
+                tracing::warn!(
+                    dropped = self.counters.dropped,
+                    kept = self.pending_bytes,
+                    "the MQTT client is behind: an event or reply of the PLC was dropped"
+                );
+            }
+            return;
+        }
+        self.pending_bytes += size;
+        self.pending.push_back((m, size));
     }
 
     /// Queues events (those of a command taken between cycles) for publication.
     pub fn queue_events(&mut self, events: &[Event]) {
         for e in events {
-            self.pending.push_back(Outgoing::Event(wire::event(e)));
+            self.queue(Outgoing::Event(wire::event(e)));
         }
+    }
+
+    /// What was dropped or skipped so far.
+    pub fn counters(&self) -> LinkCounters {
+        self.counters
     }
 
     /// Publishes the cycle's events, and a snapshot when one is due or something changed.
@@ -165,8 +226,21 @@ impl ControlLink {
                 let _ = self.ctx_tx.try_send(plc.update_context());
             }
             self.last_key = key;
+            self.net_due = true;
         }
-        if self.first || changed || plc.cycles() % self.publish_every == 0 {
+        let due = self.first || changed || plc.cycles() % self.publish_every == 0;
+        // Taken before the snapshot is built: when the publisher is behind, the scan thread
+        // does not copy what would be dropped.
+        let permit = if due {
+            let p = self.snapshots.try_take(1);
+            if p.is_none() {
+                self.counters.snapshots_skipped += 1;
+            }
+            p
+        } else {
+            None
+        };
+        if let (Some(permit), Some(tx)) = (permit, &self.snap_tx) {
             let since = self.last_sampled;
             let samples: Vec<CycleRecord> = plc
                 .monitor()
@@ -185,7 +259,7 @@ impl ControlLink {
                 outputs: [Slot::A, Slot::B].map(|s| plc.outputs_of(s).map(<[Value]>::to_vec)),
                 dispatched: plc.dispatched().to_vec(),
                 samples,
-                programs: (self.first || changed).then(|| {
+                programs: self.net_due.then(|| {
                     [Slot::A, Slot::B].map(|s| {
                         plc.container(s)
                             .map(|c| (c.program().clone(), c.marking().to_vec()))
@@ -194,16 +268,19 @@ impl ControlLink {
                 time_us: now,
             };
             self.first = false;
-            if let Some(tx) = &self.snap_tx {
-                // When the publisher is behind this snapshot is dropped; the next one carries on.
-                let _ = tx.try_send(snap);
+            if tx
+                .send(ToPublisher::Snapshot(Box::new(snap), permit))
+                .is_ok()
+            {
+                self.net_due = false;
             }
         }
-        while let Some(m) = self.pending.pop_front() {
+        while let Some((m, size)) = self.pending.pop_front() {
             if let Err(back) = try_out(&self.outgoing, m) {
-                self.pending.push_front(back);
+                self.pending.push_front((back, size));
                 break;
             }
+            self.pending_bytes -= size;
         }
     }
 
@@ -224,67 +301,105 @@ fn try_out(tx: &SyncSender<Outgoing>, m: Outgoing) -> Result<(), Outgoing> {
     })
 }
 
-fn prepare_loop(
-    commands: Receiver<IncomingCommand>,
+/// The preparer thread: MQTT commands in, prepared commands out to the scan thread,
+/// `exec_info` requests out to the publisher.
+struct Preparer {
     ctx_rx: Receiver<UpdateContext>,
-    to_scan: SyncSender<ToScan>,
+    to_scan: SyncSender<Ready>,
+    to_publisher: Sender<ToPublisher>,
+    exec_info: Budget,
     out: SyncSender<Outgoing>,
     trust: TrustStore,
     allow_unsigned: bool,
-    done: Arc<AtomicBool>,
-) {
-    let mut ctx: Option<UpdateContext> = None;
-    loop {
-        let cmd = match commands.recv_timeout(std::time::Duration::from_millis(200)) {
-            Ok(c) => c,
-            Err(std::sync::mpsc::RecvTimeoutError::Timeout) => {
-                if done.load(std::sync::atomic::Ordering::Acquire) {
-                    return;
+}
+
+impl Preparer {
+    fn run(self, commands: cetratus_mct::CommandQueue, done: Arc<AtomicBool>) {
+        let mut ctx: Option<UpdateContext> = None;
+        loop {
+            let cmd = match commands.recv_timeout(std::time::Duration::from_millis(200)) {
+                Ok(c) => c,
+                Err(std::sync::mpsc::RecvTimeoutError::Timeout) => {
+                    if done.load(std::sync::atomic::Ordering::Acquire) {
+                        return;
+                    }
+                    while let Ok(c) = self.ctx_rx.try_recv() {
+                        ctx = Some(c);
+                    }
+                    continue;
                 }
-                while let Ok(c) = ctx_rx.try_recv() {
-                    ctx = Some(c);
-                }
+                Err(_) => return,
+            };
+            while let Ok(c) = self.ctx_rx.try_recv() {
+                ctx = Some(c);
+            }
+            if cmd.request == Request::ExecInfo {
+                self.exec_info(cmd.reply);
                 continue;
             }
-            Err(_) => return,
-        };
-        while let Ok(c) = ctx_rx.try_recv() {
-            ctx = Some(c);
-        }
-        let Some(c) = ctx.as_ref() else {
-            let _ = out.send(Outgoing::Reply(
-                cmd.reply,
-                Err(refused("the PLC is starting; try again")),
-            ));
-            continue;
-        };
-        let prepared: Result<ToScan, String> = match &cmd.request {
-            Request::Load { package } => c
-                .prepare_package(package, &trust, allow_unsigned, false)
-                .map_err(|e| e.to_string())
-                .map(|p| ToScan::Command(Box::new(Command::Load(Box::new(p))), cmd.clone())),
-            Request::Substitute(a) => substitute(c, a)
-                .map(|s| ToScan::Command(Box::new(Command::Substitute(s)), cmd.clone())),
-            Request::Remove => Ok(ToScan::Command(Box::new(Command::Remove), cmd.clone())),
-            Request::Abort => Ok(ToScan::Command(Box::new(Command::Abort), cmd.clone())),
-            Request::Reset => Ok(ToScan::Command(Box::new(Command::Reset), cmd.clone())),
-            Request::ExecInfo => Ok(ToScan::ExecInfo(cmd.clone())),
-        };
-        match prepared {
-            Ok(m) => {
-                if to_scan.send(m).is_err() {
-                    return;
+            let Some(c) = ctx.as_ref() else {
+                let _ = self.out.send(Outgoing::Reply(
+                    cmd.reply,
+                    Err(refused("the PLC is starting; try again")),
+                ));
+                continue;
+            };
+            let prepared: Result<Box<Command>, String> = match &cmd.request {
+                Request::Load { package } => c
+                    .prepare_package(package, &self.trust, self.allow_unsigned, false)
+                    .map_err(|e| e.to_string())
+                    .map(|p| Box::new(Command::Load(Box::new(p)))),
+                Request::Substitute(a) => {
+                    substitute(c, a).map(|s| Box::new(Command::Substitute(s)))
+                }
+                Request::Remove => Ok(Box::new(Command::Remove)),
+                Request::Abort => Ok(Box::new(Command::Abort)),
+                Request::Reset => Ok(Box::new(Command::Reset)),
+                Request::ExecInfo => continue,
+            };
+            match prepared {
+                Ok(command) => {
+                    // Blocks while the scan thread is behind, so the command queue before this
+                    // thread fills up and answers `busy`.
+                    if self.to_scan.send(Ready { command, from: cmd }).is_err() {
+                        return;
+                    }
+                }
+                Err(reason) => {
+                    let _ = self.out.send(Outgoing::Event(EventMsg {
+                        cycle: None,
+                        time_us: None,
+                        kind: "refused".into(),
+                        message: reason.clone(),
+                        detail: json!({"verb": cmd.request.verb(), "key_id": cmd.key_id}),
+                    }));
+                    let _ = self
+                        .out
+                        .send(Outgoing::Reply(cmd.reply, Err(refused(reason))));
                 }
             }
-            Err(reason) => {
-                let _ = out.send(Outgoing::Event(EventMsg {
-                    cycle: None,
-                    time_us: None,
-                    kind: "refused".into(),
-                    message: reason.clone(),
-                    detail: json!({"verb": cmd.request.verb(), "key_id": cmd.key_id}),
-                }));
-                let _ = out.send(Outgoing::Reply(cmd.reply, Err(refused(reason))));
+        }
+    }
+
+    /// Hands an `exec_info` request to the publisher, or answers `busy` when
+    /// [`EXEC_INFO_QUEUE`] requests wait already.
+    fn exec_info(&self, reply: ReplyHandle) {
+        match self.exec_info.try_take(1) {
+            Some(permit) => {
+                let _ = self.to_publisher.send(ToPublisher::ExecInfo(reply, permit));
+            }
+            None => {
+                let n = self.exec_info.refused();
+                if worth_logging(n) {
+                    tracing::warn!(busy = n, "exec_info requests come faster than answered");
+                }
+                let busy = ErrorBody {
+                    code: ErrorCode::Busy,
+                    message: format!(
+                        "{EXEC_INFO_QUEUE} exec_info requests wait already; retry in a moment"
+                    ),
+                };
+                let _ = self.out.send(Outgoing::Reply(reply, Err(busy)));
             }
         }
     }
@@ -298,23 +413,54 @@ fn substitute(
         None | Some(cetratus_proto::SubstituteMode::Retransform) => SubstituteMode::Retransform,
         Some(cetratus_proto::SubstituteMode::Keep) => SubstituteMode::Keep,
     };
+    // The protocol refuses a longer wait already; checked again here, where the multiplication
+    // is, so that no path can make it overflow.
+    if let Some(e) = a.within_ms.and_then(within_error) {
+        return Err(e);
+    }
     c.substitute_request(
         mode,
         a.when.as_deref(),
-        a.within_ms.map(|ms| ms * 1000),
+        a.within_ms.map(|ms| ms.saturating_mul(1000)),
         a.force,
     )
     .map_err(|e| e.to_string())
 }
 
-fn publish_loop(rx: Receiver<Snapshot>, out: SyncSender<Outgoing>) {
-    while let Ok(s) = rx.recv() {
+fn publish_loop(rx: Receiver<ToPublisher>, out: SyncSender<Outgoing>) {
+    // The figures of the latest snapshot, shared by every `exec_info` answer until the next.
+    let mut latest: Option<Arc<ExecInfoMsg>> = None;
+    // Requests that came before the first snapshot, bounded by their permits.
+    let mut early: Vec<(ReplyHandle, Permit)> = Vec::new();
+    while let Ok(msg) = rx.recv() {
+        let (s, _permit) = match msg {
+            ToPublisher::ExecInfo(reply, permit) => {
+                match &latest {
+                    Some(info) => {
+                        if out
+                            .send(Outgoing::ExecInfoReply(reply, info.clone()))
+                            .is_err()
+                        {
+                            return;
+                        }
+                    }
+                    None => early.push((reply, permit)),
+                }
+                continue;
+            }
+            ToPublisher::Snapshot(s, permit) => (s, permit),
+        };
         if out.send(Outgoing::State(Box::new(s.state))).is_err() {
             return;
         }
-        let info =
-            cetratus_proto::ExecInfoMsg(s.exec_info.map(|e| e.as_ref().map(wire::exec_info)));
-        let _ = out.send(Outgoing::ExecInfo(Box::new(info)));
+        let info = Arc::new(ExecInfoMsg(
+            s.exec_info.map(|e| e.as_ref().map(wire::exec_info)),
+        ));
+        let _ = out.send(Outgoing::ExecInfo(Box::new((*info).clone())));
+        for (reply, _permit) in early.drain(..) {
+            let _ = out.send(Outgoing::ExecInfoReply(reply, info.clone()));
+        }
+        latest = Some(info);
         let io = IoMsg {
             dispatched: wire::signals(&s.names_out, &s.dispatched),
             inputs: wire::signals(&s.names_in, &s.inputs),

@@ -16,9 +16,9 @@ use cetratus_runtime::{
     Clock, Command, CommandError, Dispatcher, Event, LoopTiming, Plc, Provider, VirtualClock,
 };
 
-use crate::link::ControlLink;
+use crate::link::{ControlLink, LinkCounters};
 use crate::periodic::run_periodic;
-use crate::script::{Script, ScriptError};
+use crate::script::{Pace, Script, ScriptError};
 
 /// What the node tells the operator, printed by the caller on a thread of its own (the scan
 /// thread never writes to a terminal).
@@ -70,6 +70,7 @@ pub struct Node<IO> {
     persist_warned: bool,
     script_error: Option<ScriptError>,
     timing: LoopTiming,
+    pace: Pace,
 }
 
 /// What a node leaves when it stops.
@@ -87,6 +88,8 @@ pub struct NodeReport {
     pub timing: LoopTiming,
     /// Echo lines dropped because the printer was behind.
     pub echo_dropped: u64,
+    /// What the MQTT side dropped because the client was behind (with MQTT only).
+    pub link: Option<LinkCounters>,
 }
 
 impl<IO: Provider + Dispatcher> Node<IO> {
@@ -110,6 +113,7 @@ impl<IO: Provider + Dispatcher> Node<IO> {
             persist_warned: false,
             script_error: None,
             timing: LoopTiming::default(),
+            pace: Pace::Virtual,
         }
     }
 
@@ -125,10 +129,17 @@ impl<IO: Provider + Dispatcher> Node<IO> {
         self
     }
 
-    /// Gives scripted commands.
+    /// Gives scripted commands; their packages must be signed by the keys of the options.
     pub fn with_script(mut self, script: Script) -> Self {
-        self.script = script;
+        self.script = script.trusting(self.opts.trust.clone(), self.opts.allow_unsigned);
         self
+    }
+
+    /// Whether a scripted load that is due but not prepared yet is waited for (virtual time,
+    /// the default) or applied when ready (real time). [`Node::run_virtual`] and
+    /// [`Node::run_realtime`] set it.
+    pub fn set_pace(&mut self, pace: Pace) {
+        self.pace = pace;
     }
 
     /// Echoes events, progress and warnings to `print`, on a thread of its own.
@@ -222,13 +233,9 @@ impl<IO: Provider + Dispatcher> Node<IO> {
                 self.events(ev, &who, true);
             }
         }
-        let due = self.script.due(
-            &self.plc,
-            now,
-            self.opts.base_us,
-            &self.opts.trust,
-            self.opts.allow_unsigned,
-        );
+        let due = self
+            .script
+            .due(&self.plc, now, self.opts.base_us, self.pace);
         match due {
             None => {}
             Some(Ok(cmd)) => {
@@ -284,6 +291,7 @@ impl<IO: Provider + Dispatcher> Node<IO> {
     /// Runs cycles every `period_us` of virtual time until `until_us`. Returns the time reached.
     pub fn run_virtual(&mut self, period_us: u64, until_us: u64) -> u64 {
         let (mut clock, idle) = (VirtualClock::new(), LoopTiming::default());
+        self.pace = Pace::Virtual;
         while clock.now_us() < until_us && self.step(clock.now_us(), &idle).is_some() {
             clock.advance_us(period_us);
         }
@@ -300,6 +308,7 @@ impl<IO: Provider + Dispatcher> Node<IO> {
         stop: &AtomicBool,
     ) -> u64 {
         let mut timing = std::mem::take(&mut self.timing);
+        self.pace = Pace::Real;
         let reached = run_periodic(period_us, until_us, speed, stop, &mut timing, |now, t| {
             self.step(now, t).is_some()
         });
@@ -311,9 +320,11 @@ impl<IO: Provider + Dispatcher> Node<IO> {
     /// and the report; or the error of a scripted command that stopped the run.
     pub fn finish(mut self) -> Result<(Plc, IO, NodeReport), ScriptError> {
         let persist = self.persister.take().map(|p| p.stop(&self.plc));
-        if let Some(link) = self.link.take() {
+        let link = self.link.take().map(|link| {
+            let counters = link.counters();
             link.stop();
-        }
+            counters
+        });
         if let Some((tx, handle)) = self.echo.take() {
             drop(tx);
             let _ = handle.join();
@@ -328,6 +339,7 @@ impl<IO: Provider + Dispatcher> Node<IO> {
             trace: self.trace,
             timing: self.timing,
             echo_dropped: self.echo_dropped,
+            link,
         };
         Ok((self.plc, self.io, report))
     }

@@ -1,9 +1,26 @@
 //! Scripted operator commands at program times (`run --at "10s load u1.cpkg"`): the paper's
 //! experiment, replayed without anyone at the keyboard.
+//!
+//! A scripted package is read, verified and built on a thread of its own (the script's
+//! preparer), never on the scan thread: a package of a million places takes seconds to build.
+//! The next load of the script is prepared ahead, against the primary running at the time, and
+//! prepared again if the primary has changed by the time it is due. When the load is due:
+//! * in virtual time ([`Pace::Virtual`]) the loop waits for its preparation, so it is applied at
+//!   the cycle its time names, however long the preparation took: a virtual run is the same
+//!   every time;
+//! * in real time ([`Pace::Real`]) the scan goes on, and the load is applied at the first cycle
+//!   boundary at or after its time at which it is ready.
+//!
+//! Either way the install itself happens at a cycle boundary, within stateTransTimeout (the
+//! runtime's `Updater`).
+
+use std::sync::mpsc::{sync_channel, Receiver, SyncSender};
 
 use cetratus_program::duration::{self, Bare};
 use cetratus_program::TrustStore;
-use cetratus_runtime::{Command, Plc, SubstituteMode, SubstituteRequest};
+use cetratus_runtime::{
+    Command, Plc, PreparedUpdate, SubstituteMode, SubstituteRequest, UpdateContext,
+};
 
 /// Why a script cannot be run.
 #[derive(Debug, thiserror::Error)]
@@ -38,12 +55,131 @@ struct Scripted {
     verb: Verb,
 }
 
+/// How the loop treats a scripted load that is due but not yet prepared.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Pace {
+    /// Virtual time: wait for the preparation, so the load takes effect at its own cycle.
+    #[default]
+    Virtual,
+    /// Real time: go on scanning, and apply the load at the first boundary once it is ready.
+    Real,
+}
+
+/// A package to prepare: the script item, the file, and the running PLC's context.
+struct Job {
+    item: usize,
+    path: String,
+    ctx: UpdateContext,
+}
+
+/// A prepared package (or why it cannot be), and the primary it was prepared against.
+struct Done {
+    item: usize,
+    base: [u8; 32],
+    result: Result<PreparedUpdate, String>,
+}
+
+/// The script's preparer thread, started with the first load to prepare.
+struct Preparer {
+    jobs: SyncSender<Job>,
+    done: Receiver<Done>,
+    // At most one job at a time; `true` while it runs.
+    busy: bool,
+    // The newest result, until it is used or found stale.
+    ready: Option<Done>,
+}
+
+impl Preparer {
+    fn start(trust: TrustStore, allow_unsigned: bool) -> Self {
+        let (jobs, job_rx) = sync_channel::<Job>(1);
+        let (done_tx, done) = sync_channel::<Done>(1);
+        // Detached: it ends when the script (and so `jobs`) is dropped, after the job under way.
+        let _ = std::thread::Builder::new()
+            .name("cetratus-script".into())
+            .spawn(move || {
+                while let Ok(Job { item, path, ctx }) = job_rx.recv() {
+                    let result = std::fs::read(&path)
+                        .map_err(|e| format!("cannot read {path}: {e}"))
+                        .and_then(|bytes| {
+                            ctx.prepare_package(&bytes, &trust, allow_unsigned, false)
+                                .map_err(|e| format!("{path}: {e}"))
+                        });
+                    let base = ctx.primary.hash();
+                    if done_tx.send(Done { item, base, result }).is_err() {
+                        return;
+                    }
+                }
+            });
+        Preparer {
+            jobs,
+            done,
+            busy: false,
+            ready: None,
+        }
+    }
+
+    /// Takes a finished job's result, waiting for it when `wait`.
+    fn collect(&mut self, wait: bool) {
+        if !self.busy {
+            return;
+        }
+        let got = if wait {
+            self.done.recv().ok()
+        } else {
+            self.done.try_recv().ok()
+        };
+        if let Some(d) = got {
+            self.busy = false;
+            self.ready = Some(d);
+        } else if wait {
+            // The thread is gone (it could not be started): nothing more will come.
+            self.busy = false;
+        }
+    }
+
+    /// The result for `item` prepared against the primary `base`, if there is one.
+    fn take(&mut self, item: usize, base: [u8; 32]) -> Option<Result<PreparedUpdate, String>> {
+        match &self.ready {
+            Some(d) if d.item == item && d.base == base => self.ready.take().map(|d| d.result),
+            _ => None,
+        }
+    }
+
+    /// Starts preparing `item` against the running PLC, unless a job runs or its result for
+    /// this primary is there already.
+    fn ensure(&mut self, item: usize, path: &str, plc: &Plc) {
+        let base = plc.primary_program().hash();
+        let fresh = matches!(&self.ready, Some(d) if d.item == item && d.base == base);
+        if self.busy || fresh {
+            return;
+        }
+        self.ready = None;
+        let job = Job {
+            item,
+            path: path.to_string(),
+            ctx: plc.update_context(),
+        };
+        self.busy = self.jobs.try_send(job).is_ok();
+    }
+}
+
 /// Commands in order of their time; one is given per cycle, so that each takes effect at the
 /// next cycle boundary and the next one (a substitute after a load) sees that effect.
-#[derive(Clone, Debug, Default)]
+#[derive(Default)]
 pub struct Script {
     items: Vec<Scripted>,
     next: usize,
+    preparer: Option<Preparer>,
+    trust: Option<(TrustStore, bool)>,
+}
+
+impl std::fmt::Debug for Script {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Script")
+            .field("items", &self.items)
+            .field("next", &self.next)
+            .finish()
+    }
 }
 
 impl Script {
@@ -83,38 +219,90 @@ impl Script {
             v.push(Scripted { at_us, verb });
         }
         v.sort_by_key(|s| s.at_us);
-        Ok(Script { items: v, next: 0 })
+        Ok(Script {
+            items: v,
+            next: 0,
+            preparer: None,
+            trust: None,
+        })
     }
 
-    /// The command due at program time `now_us` (counted from `base_us`), built against `plc`:
-    /// a package is read, verified and prepared here, between cycles.
+    /// The keys a scripted package must be signed with (and whether unsigned ones are taken).
+    pub fn trusting(mut self, trust: TrustStore, allow_unsigned: bool) -> Self {
+        self.trust = Some((trust, allow_unsigned));
+        self
+    }
+
+    /// The command due at program time `now_us` (counted from `base_us`), built against `plc`.
+    /// A package is prepared on the script's preparer thread; see [`Pace`] for what happens when
+    /// it is due before it is ready. Costs the scan thread a comparison of hashes per cycle.
     pub fn due(
         &mut self,
         plc: &Plc,
         now_us: u64,
         base_us: u64,
-        trust: &TrustStore,
-        allow_unsigned: bool,
+        pace: Pace,
     ) -> Option<Result<Command, ScriptError>> {
-        let s = self.items.get(self.next)?;
-        if s.at_us.saturating_add(base_us) > now_us {
+        let Script {
+            items,
+            next,
+            preparer,
+            trust,
+        } = self;
+        let s = items.get(*next)?;
+        let due = s.at_us.saturating_add(base_us) <= now_us;
+        let plain = match &s.verb {
+            Verb::Load(_) => None,
+            Verb::Substitute(mode) => Some(Command::Substitute(SubstituteRequest::now(*mode))),
+            Verb::Remove => Some(Command::Remove),
+            Verb::Abort => Some(Command::Abort),
+            Verb::Reset => Some(Command::Reset),
+        };
+        if let Some(c) = plain {
+            return due.then(|| {
+                *next += 1;
+                Ok(c)
+            });
+        }
+        let Verb::Load(path) = &s.verb else {
+            return None;
+        };
+        let item = *next;
+        let prep = preparer.get_or_insert_with(|| {
+            let (t, unsigned) = trust.clone().unwrap_or((TrustStore::empty(), false));
+            Preparer::start(t, unsigned)
+        });
+        if !due {
+            // Prepared ahead, against the primary running now.
+            prep.collect(false);
+            prep.ensure(item, path, plc);
             return None;
         }
-        self.next += 1;
-        Some(match &s.verb {
-            Verb::Load(path) => std::fs::read(path)
-                .map_err(|e| ScriptError::Command(format!("cannot read {path}: {e}")))
-                .and_then(|bytes| {
-                    plc.update_context()
-                        .prepare_package(&bytes, trust, allow_unsigned, false)
+        let base = plc.primary_program().hash();
+        loop {
+            prep.collect(pace == Pace::Virtual);
+            if let Some(result) = prep.take(item, base) {
+                *next += 1;
+                return Some(
+                    result
                         .map(|p| Command::Load(Box::new(p)))
-                        .map_err(|e| ScriptError::Command(format!("{path}: {e}")))
-                }),
-            Verb::Substitute(mode) => Ok(Command::Substitute(SubstituteRequest::now(*mode))),
-            Verb::Remove => Ok(Command::Remove),
-            Verb::Abort => Ok(Command::Abort),
-            Verb::Reset => Ok(Command::Reset),
-        })
+                        .map_err(ScriptError::Command),
+                );
+            }
+            // Not prepared, or prepared against a primary that has changed since.
+            prep.ensure(item, path, plc);
+            match pace {
+                Pace::Real => return None,
+                Pace::Virtual if prep.busy => continue,
+                Pace::Virtual => {
+                    *next += 1;
+                    return Some(Err(ScriptError::Command(format!(
+                        "{path}: the package could not be prepared (the script's preparer \
+                         thread did not start)"
+                    ))));
+                }
+            }
+        }
     }
 }
 

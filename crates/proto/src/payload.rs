@@ -19,6 +19,29 @@ use crate::{ProtoError, Verb};
 /// Largest command payload the PLC accepts (1 MiB); a bigger one gets `too_large`.
 pub const MAX_PAYLOAD: usize = 1 << 20;
 
+/// Longest a substitution may wait for its condition (`within_ms`): 24 h. A longer wait is
+/// surely a mistake, and the microseconds of a larger number would not fit in 64 bits.
+pub const MAX_WITHIN_MS: u64 = 24 * 3_600_000;
+
+/// Why a `within` (in milliseconds) cannot be used; `None` when it can.
+pub fn within_error(ms: u64) -> Option<String> {
+    (ms > MAX_WITHIN_MS).then(|| {
+        format!(
+            "within_ms = {ms} is over the maximum of {MAX_WITHIN_MS} ms (24 h); give a shorter \
+             wait, or none to wait until the candidate is removed"
+        )
+    })
+}
+
+/// Reads `within_ms`, refusing a value over [`MAX_WITHIN_MS`].
+fn bounded_within<'de, D: Deserializer<'de>>(d: D) -> Result<Option<u64>, D::Error> {
+    let v = Option::<u64>::deserialize(d)?;
+    match v.and_then(within_error) {
+        Some(e) => Err(de::Error::custom(e)),
+        None => Ok(v),
+    }
+}
+
 /// Parses a payload of type `T`; `what` names it in the error (e.g. `state`).
 pub fn decode<T: serde::de::DeserializeOwned>(
     what: &'static str,
@@ -551,8 +574,8 @@ pub struct SubstituteArgs {
     /// Wait until this predicate over the primary marking holds (guard syntax).
     #[serde(default)]
     pub when: Option<String>,
-    /// Give up waiting after this many milliseconds.
-    #[serde(default)]
+    /// Give up waiting after this many milliseconds (at most [`MAX_WITHIN_MS`]).
+    #[serde(default, deserialize_with = "bounded_within")]
     pub within_ms: Option<u64>,
 }
 
@@ -652,5 +675,33 @@ impl ReplyFields {
             },
             envelope,
         )
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_within_over_24_hours_is_refused_with_the_maximum_named() {
+        let ok = Command::from_body(
+            Verb::Substitute,
+            serde_json::json!({"within_ms": MAX_WITHIN_MS}),
+        );
+        assert!(ok.is_ok(), "{ok:?}");
+        for ms in [MAX_WITHIN_MS + 1, u64::MAX / 1000 + 1, u64::MAX] {
+            let e = Command::from_body(Verb::Substitute, serde_json::json!({"within_ms": ms}))
+                .expect_err("refused")
+                .to_string();
+            assert!(e.contains("within_ms") && e.contains("24 h"), "{e}");
+        }
+        let none = Command::from_body(Verb::Substitute, serde_json::json!({"within_ms": null}));
+        assert!(matches!(
+            none,
+            Ok(Command::Substitute(SubstituteArgs {
+                within_ms: None,
+                ..
+            }))
+        ));
     }
 }

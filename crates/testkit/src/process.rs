@@ -14,6 +14,11 @@ impl ChildGuard {
         ChildGuard(child)
     }
 
+    /// The process id, to watch the process from outside (its memory in `/proc`).
+    pub fn id(&self) -> u32 {
+        self.0.id()
+    }
+
     /// Starts `cmd` and guards it.
     ///
     /// # Panics

@@ -1,0 +1,181 @@
+//! What the MQTT tests of the binary share: an MQTT 5 client that sends commands with a response
+//! topic and correlation data, and collects the replies.
+
+#![allow(dead_code)]
+
+use std::collections::BTreeMap;
+use std::process::{Command, Stdio};
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{Arc, Mutex};
+use std::time::{Duration, Instant};
+
+use cetratus_testkit::ports::{free_port, wait_for_port};
+use cetratus_testkit::process::ChildGuard;
+use rumqttc::v5::mqttbytes::v5::{Packet, PublishProperties};
+use rumqttc::v5::mqttbytes::QoS;
+use rumqttc::v5::{Client, Event, MqttOptions};
+use serde_json::Value;
+
+const BIN: &str = env!("CARGO_BIN_EXE_cetratus");
+
+/// `cetratus run` of the Vernadat example in real time, on its embedded broker and with its
+/// dashboard, with a state directory and an empty configuration of its own.
+pub struct RunningPlc {
+    /// The process.
+    pub process: ChildGuard,
+    /// The embedded broker's port.
+    pub mqtt: u16,
+    /// The dashboard's port.
+    pub http: u16,
+    /// The state directory.
+    pub state: tempfile::TempDir,
+    _config: tempfile::TempDir,
+}
+
+impl RunningPlc {
+    /// Starts the PLC `plc` with `extra` arguments and waits until its broker and dashboard
+    /// listen.
+    pub fn start(plc: &str, extra: &[&str]) -> Self {
+        let state = tempfile::tempdir().expect("a state directory");
+        let config = tempfile::tempdir().expect("an empty configuration directory");
+        let (mqtt, http) = (free_port(), free_port());
+        let program = concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/../../examples/vernadat/vernadat.toml"
+        );
+        let process = ChildGuard::spawn(
+            Command::new(BIN)
+                .args(["run", program, "--twin", "vernadat", "--plc", plc])
+                .args(["--mqtt", &format!("127.0.0.1:{mqtt}")])
+                .args(["--http", &format!("127.0.0.1:{http}")])
+                .arg("--state-dir")
+                .arg(state.path())
+                .arg("--config")
+                .arg(config.path())
+                .args(extra)
+                .stdout(Stdio::null())
+                .stderr(Stdio::null()),
+        );
+        wait_for_port(mqtt, "the embedded broker", Duration::from_secs(30));
+        wait_for_port(http, "the embedded dashboard", Duration::from_secs(30));
+        RunningPlc {
+            process,
+            mqtt,
+            http,
+            state,
+            _config: config,
+        }
+    }
+}
+
+/// Where a PLC's replies to this client go: under the PLC's own reply namespace.
+pub fn reply_topic(plc: &str) -> String {
+    format!("cetratus/{plc}/reply/test-{}", std::process::id())
+}
+
+/// The replies seen, by correlation data.
+pub type Replies = Arc<Mutex<BTreeMap<Vec<u8>, Value>>>;
+
+/// An MQTT 5 client subscribed to [`reply_topic`], and the replies it receives.
+pub fn client(port: u16, id: &str, plc: &str) -> (Client, Replies) {
+    let mut opts = MqttOptions::new(id, "127.0.0.1", port);
+    opts.set_max_packet_size(Some(8 << 20));
+    opts.set_keep_alive(Duration::from_secs(30));
+    let (client, mut conn) = Client::new(opts, 64);
+    let replies: Replies = Arc::default();
+    let subscribed = Arc::new(AtomicBool::new(false));
+    let (r, sub) = (replies.clone(), subscribed.clone());
+    std::thread::spawn(move || {
+        for ev in conn.iter() {
+            match ev {
+                Ok(Event::Incoming(Packet::SubAck(_))) => sub.store(true, Ordering::Release),
+                Ok(Event::Incoming(Packet::Publish(p))) => {
+                    let corr = p
+                        .properties
+                        .and_then(|pr| pr.correlation_data)
+                        .map(|c| c.to_vec())
+                        .unwrap_or_default();
+                    let v = serde_json::from_slice(&p.payload).unwrap_or(Value::Null);
+                    r.lock().expect("replies").insert(corr, v);
+                }
+                Ok(_) => {}
+                Err(_) => std::thread::sleep(Duration::from_millis(50)),
+            }
+        }
+    });
+    client
+        .subscribe(reply_topic(plc), QoS::AtLeastOnce)
+        .expect("subscribe to the replies");
+    wait_for(
+        "the subscription to the replies",
+        Duration::from_secs(10),
+        || subscribed.load(Ordering::Acquire),
+    );
+    (client, replies)
+}
+
+/// Sends `verb` to `plc` at QoS 0 with a response topic and correlation data `corr`.
+pub fn request(client: &Client, plc: &str, verb: &str, corr: &[u8], payload: Vec<u8>) {
+    let props = PublishProperties {
+        response_topic: Some(reply_topic(plc)),
+        correlation_data: Some(corr.to_vec().into()),
+        ..PublishProperties::default()
+    };
+    client
+        .publish_with_properties(
+            format!("cetratus/{plc}/cmd/{verb}"),
+            QoS::AtMostOnce,
+            false,
+            payload,
+            props,
+        )
+        .expect("the client queues a command");
+}
+
+/// Waits until `ok`, or panics saying `what` did not happen.
+pub fn wait_for(what: &str, within: Duration, mut ok: impl FnMut() -> bool) {
+    let end = Instant::now() + within;
+    while Instant::now() < end {
+        if ok() {
+            return;
+        }
+        std::thread::sleep(Duration::from_millis(50));
+    }
+    panic!("{what} within {within:?}");
+}
+
+/// Waits until the reply with correlation data `corr` is in, and returns it.
+pub fn reply(replies: &Replies, corr: &[u8], within: Duration) -> Value {
+    let mut got = None;
+    wait_for(
+        &format!("a reply to `{}`", String::from_utf8_lossy(corr)),
+        within,
+        || {
+            got = replies.lock().expect("replies").get(corr).cloned();
+            got.is_some()
+        },
+    );
+    got.unwrap_or(Value::Null)
+}
+
+/// Sends `exec_info` to `plc` once a second until it answers (a command sent before the PLC has
+/// subscribed is lost), and returns the answer.
+pub fn first_answer(client: &Client, replies: &Replies, plc: &str, within: Duration) -> Value {
+    let end = Instant::now() + within;
+    for k in 0u32.. {
+        let corr = format!("hello-{k}").into_bytes();
+        request(client, plc, "exec_info", &corr, b"{}".to_vec());
+        let until = Instant::now() + Duration::from_secs(1);
+        while Instant::now() < until {
+            if let Some(v) = replies.lock().expect("replies").get(&corr) {
+                return v.clone();
+            }
+            std::thread::sleep(Duration::from_millis(20));
+        }
+        assert!(
+            Instant::now() < end,
+            "`{plc}` did not answer within {within:?}"
+        );
+    }
+    Value::Null
+}

@@ -1,0 +1,176 @@
+//! Scripted loads (`run --at "10s load PKG"`): the package is read, verified and built away from
+//! the scan thread, and a virtual run stays deterministic: the load takes effect at the cycle its
+//! time names, whatever the preparation took.
+
+use std::io::{BufRead, BufReader, Write};
+use std::path::{Path, PathBuf};
+use std::process::{Command, Stdio};
+use std::sync::mpsc;
+use std::time::{Duration, Instant};
+
+use cetratus_testkit::process::ChildGuard;
+use serde_json::Value;
+
+const BIN: &str = env!("CARGO_BIN_EXE_cetratus");
+
+/// The demo's files: the program, U.1 and U.2 signed, the key that signed them, and an empty
+/// configuration directory (`config/`), so that the machine's own configuration plays no part.
+fn demo_files() -> tempfile::TempDir {
+    let dir = tempfile::tempdir().expect("a temporary directory");
+    std::fs::create_dir(dir.path().join("config")).expect("a configuration directory");
+    let out = Command::new(BIN)
+        .args(["demo", "--scripted", "--json", "--dir"])
+        .arg(dir.path())
+        .output()
+        .expect("cetratus demo runs");
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    dir
+}
+
+fn p(path: &Path) -> String {
+    path.display().to_string()
+}
+
+/// The audit log's records as `(cycle, time_us, what)`, in order.
+fn audit(state: &Path) -> Vec<(u64, u64, String)> {
+    std::fs::read_to_string(state.join("audit.jsonl"))
+        .expect("the audit log")
+        .lines()
+        .map(|l| serde_json::from_str::<Value>(l).expect("an audit record"))
+        .map(|r| {
+            (
+                r["cycle"].as_u64().unwrap_or(0),
+                r["time_us"].as_u64().unwrap_or(0),
+                r["what"].as_str().unwrap_or("").to_string(),
+            )
+        })
+        .collect()
+}
+
+#[test]
+fn a_virtual_run_with_scripted_loads_gives_the_same_event_cycles_every_time() {
+    let demo = demo_files();
+    let d = demo.path();
+    let runs: Vec<Vec<(u64, u64, String)>> = (0..3)
+        .map(|_| {
+            let state = tempfile::tempdir().expect("a state directory");
+            let out = Command::new(BIN)
+                .arg("run")
+                .arg(d.join("vernadat.toml"))
+                .args(["--twin", "vernadat", "--virtual", "--for", "40s", "--json"])
+                .args(["--trust", &p(&d.join("trusted"))])
+                .args(["--config", &p(&d.join("config"))])
+                .args(["--at", &format!("10s load {}", p(&d.join("u1.cpkg")))])
+                .args(["--at", "20s substitute"])
+                .args(["--at", &format!("25s load {}", p(&d.join("u2.cpkg")))])
+                .arg("--state-dir")
+                .arg(state.path())
+                .output()
+                .expect("cetratus run");
+            assert!(
+                out.status.success(),
+                "{}",
+                String::from_utf8_lossy(&out.stderr)
+            );
+            audit(state.path())
+        })
+        .collect();
+    let installs: Vec<&(u64, u64, String)> = runs[0]
+        .iter()
+        .filter(|(_, _, what)| what == "quarantine_started")
+        .collect();
+    assert_eq!(installs.len(), 2, "{:?}", runs[0]);
+    // The time of each `--at` names the cycle: the load is taken at the boundary before the
+    // cycle of 10 s (and of 25 s), and installed in it, at the 10 ms period.
+    assert_eq!(
+        (installs[0].0, installs[0].1),
+        (1000, 10_000_000),
+        "{:?}",
+        runs[0]
+    );
+    assert_eq!(
+        (installs[1].0, installs[1].1),
+        (2500, 25_000_000),
+        "{:?}",
+        runs[0]
+    );
+    assert_eq!(runs[0], runs[1]);
+    assert_eq!(runs[0], runs[2]);
+}
+
+#[test]
+fn a_scripted_load_whose_file_cannot_be_read_yet_does_not_stop_the_scans() {
+    // A named pipe blocks whoever opens it until a writer comes: if the scan thread read the
+    // package, the scans would stop at the load's time.
+    let demo = demo_files();
+    let d = demo.path();
+    let fifo: PathBuf = d.join("late.cpkg");
+    let made = Command::new("mkfifo")
+        .arg(&fifo)
+        .status()
+        .expect("mkfifo runs");
+    assert!(made.success());
+    let state = tempfile::tempdir().expect("a state directory");
+    let mut child = Command::new(BIN)
+        .arg("run")
+        .arg(d.join("vernadat.toml"))
+        .args(["--twin", "vernadat", "--no-mct", "--for", "10min"])
+        .args(["--trust", &p(&d.join("trusted"))])
+        .args(["--config", &p(&d.join("config"))])
+        .args(["--at", &format!("200ms load {}", p(&fifo))])
+        .args(["--progress", "10"])
+        .arg("--state-dir")
+        .arg(state.path())
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("cetratus run starts");
+    let stderr = child.stderr.take().expect("stderr");
+    let _guard = ChildGuard::new(child);
+    let (tx, rx) = mpsc::channel::<String>();
+    std::thread::spawn(move || {
+        for line in BufReader::new(stderr).lines().map_while(Result::ok) {
+            if tx.send(line).is_err() {
+                return;
+            }
+        }
+    });
+    let wait_line = |what: &str, ok: &dyn Fn(&str) -> bool| {
+        let end = Instant::now() + Duration::from_secs(30);
+        let mut seen = Vec::new();
+        while let Some(left) = end.checked_duration_since(Instant::now()) {
+            match rx.recv_timeout(left) {
+                Ok(l) if ok(&l) => return,
+                Ok(l) => seen.push(l),
+                Err(_) => break,
+            }
+        }
+        panic!("{what}; the run said:\n{}", seen.join("\n"));
+    };
+    let cycle_at_least = |n: u64| {
+        move |l: &str| {
+            l.strip_prefix("progress cycle=")
+                .and_then(|r| r.split_whitespace().next())
+                .and_then(|c| c.parse::<u64>().ok())
+                .is_some_and(|c| c >= n)
+        }
+    };
+    // The load is due at cycle 20; the scans go on well past it while the file waits.
+    wait_line(
+        "the scans went on past the load's time",
+        &cycle_at_least(150),
+    );
+    let package = std::fs::read(d.join("u1.cpkg")).expect("u1.cpkg");
+    std::fs::OpenOptions::new()
+        .write(true)
+        .open(&fifo)
+        .and_then(|mut f| f.write_all(&package))
+        .expect("the package goes through the pipe");
+    wait_line("the package, once read, is loaded", &|l| {
+        l.contains("quarantine_started")
+    });
+}

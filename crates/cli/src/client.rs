@@ -48,7 +48,7 @@ pub struct SubstituteArgs {
     /// Wait until this condition over the primary holds, e.g. `P10 == 1 && P20 == 1`.
     #[arg(long)]
     when: Option<String>,
-    /// Give up waiting after this long, e.g. `30s`.
+    /// Give up waiting after this long, e.g. `30s` (at most `24h`).
     #[arg(long)]
     within: Option<String>,
     /// Keep the candidate's marking even with drift.
@@ -157,7 +157,15 @@ pub fn load(args: &LoadArgs) -> anyhow::Result<()> {
 /// `cetratus substitute`.
 pub fn substitute(args: &SubstituteArgs) -> anyhow::Result<()> {
     let within_ms = match &args.within {
-        Some(w) => Some(crate::parse_duration_us(w)? / 1000),
+        Some(w) => {
+            let us = crate::parse_duration_us(w)
+                .map_err(|e| anyhow::anyhow!("--within {w}: {e}; the longest wait is 24 h"))?;
+            let ms = us / 1000;
+            if ms > cetratus_proto::MAX_WITHIN_MS {
+                bail!("--within {w} is longer than the longest wait, 24 h; give a shorter one");
+            }
+            Some(ms)
+        }
         None => None,
     };
     let mode = match &args.mode {

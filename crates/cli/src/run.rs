@@ -198,7 +198,7 @@ pub fn run(args: &RunArgs) -> anyhow::Result<()> {
     // Program time resumes after the last committed cycle; `--for`, `--at` and `--press` count
     // from the start of this run.
     let base_us = if plc.cycles() > 0 {
-        plc.now_us() + period_us
+        plc.now_us().saturating_add(period_us)
     } else {
         0
     };
@@ -275,6 +275,12 @@ pub fn run(args: &RunArgs) -> anyhow::Result<()> {
         s.stop();
     }
     let (plc, io, report) = finished?;
+    if let Some(c) = report.link.filter(|c| c.dropped > 0) {
+        eprintln!(
+            "warning: {} events and replies were not published: the MQTT client was behind",
+            c.dropped
+        );
+    }
     if let (Some(stats), Some(dir)) = (&report.persist, &state_dir) {
         if let Some(err) = &stats.last_error {
             eprintln!(

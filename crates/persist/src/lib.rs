@@ -41,6 +41,12 @@ pub(crate) const AUDIT_FILE: &str = "audit.jsonl";
 pub(crate) const PROGRAMS_DIR: &str = "programs";
 pub(crate) const LOCK_FILE: &str = "lock";
 
+/// The largest commit number, cycle count or program time (µs) a state file may hold: 2⁵³ − 1,
+/// the largest integer every JSON reader keeps exact. In program time that is 285 years; at a
+/// 1 ms period as many years of cycles times a thousand. A larger one was not written by a PLC,
+/// and counting on from it would wrap.
+pub const MAX_COUNTER: u64 = (1 << 53) - 1;
+
 /// Everything that can go wrong with a state directory (this module's own error type: the
 /// scan engine's `RuntimeError` never meets a disk).
 #[derive(Debug, thiserror::Error)]
@@ -104,6 +110,16 @@ pub enum PersistError {
         dir: String,
         /// Why.
         reason: String,
+    },
+    /// A counter of `state.json` is past [`MAX_COUNTER`]: counting on from it would wrap.
+    #[error("{path}: {field} = {value} is past the largest value a PLC writes ({MAX_COUNTER}); the state file was edited or damaged; start with --cold to replace it (the programs and the audit log are kept)")]
+    Counter {
+        /// The file.
+        path: String,
+        /// `seq`, `cycle` or `time_us`.
+        field: &'static str,
+        /// What it holds.
+        value: u64,
     },
     /// A stored program loads, but to another hash than its name: the files were altered.
     #[error("program file {path} loads to hash {got}, not the {hash} its name says; it was altered; start with --cold")]

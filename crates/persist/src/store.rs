@@ -238,12 +238,24 @@ impl StateStore {
                 found: format.to_string(),
             });
         }
-        serde_json::from_value(head)
-            .map(Some)
-            .map_err(|e| PersistError::Malformed {
+        let state: StateFile =
+            serde_json::from_value(head).map_err(|e| PersistError::Malformed {
                 path: path.display().to_string(),
                 reason: e.to_string(),
-            })
+            })?;
+        let counters = [
+            ("seq", state.seq),
+            ("cycle", state.snapshot.cycle),
+            ("time_us", state.snapshot.time_us),
+        ];
+        if let Some(&(field, value)) = counters.iter().find(|(_, v)| *v > MAX_COUNTER) {
+            return Err(PersistError::Counter {
+                path: path.display().to_string(),
+                field,
+                value,
+            });
+        }
+        Ok(Some(state))
     }
 
     /// The snapshot of `state.json`, if there is one.
@@ -357,7 +369,8 @@ impl StateStore {
                 });
             }
         }
-        let seq = self.seq + 1;
+        // `seq` was read through `load_state`, so far below the top; saturating all the same.
+        let seq = self.seq.saturating_add(1);
         self.buf.clear();
         let file = StateFileRef {
             format: STATE_FORMAT,

@@ -361,7 +361,9 @@ impl Plc {
             dispatched,
         };
         self.core.monitor.record(r);
-        self.core.log.cycle += 1;
+        // A warm start refuses a cycle count near the top; a count that got there anyway stops
+        // rather than wraps to 0.
+        self.core.log.cycle = self.core.log.cycle.saturating_add(1);
         if let Some(ns) = took_ns {
             self.cycle_stats.record(ns);
         }

@@ -1,6 +1,7 @@
 //! The measuring harnesses behind `cetratus bench`: the full run of every figure, the real-time
-//! jitter, the command flood against a running node, and a fleet of PLC processes watched by one
-//! MCT. Each returns its figures as one JSON object by name.
+//! jitter, the command flood against a running node, the floods of what others can send (one
+//! kind after another, against an unloaded phase of the same run), and a fleet of PLC processes
+//! watched by one MCT. Each returns its figures as one JSON object by name.
 
 use std::collections::BTreeMap;
 
@@ -246,6 +247,314 @@ pub fn command_load(rate: u32, phase_us: u64, period_us: u64) -> Result<Figures,
     out.insert(s("limit_ns"), limit.into());
     out.insert(s("within_limit"), ((l.p99_ns as f64) <= limit).into());
     out.insert(s("primary_status"), plc.status().name().into());
+    Ok(out)
+}
+
+/// What a flood sends, one kind per phase of [`flood`].
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum FloodKind {
+    /// Bytes that are not JSON, on `cmd/load` and on verbs that do not exist.
+    Garbage,
+    /// A real signed package (U.1) from a key the PLC does not trust: verified, then refused.
+    RefusedLoads,
+    /// `exec_info` requests.
+    ExecInfo,
+    /// `load` commands of just under 1 MiB (random bytes, refused).
+    LargePayloads,
+    /// 32 KiB events on another PLC's `events` topic, for the embedded dashboard to keep.
+    EventSpam,
+}
+
+impl FloodKind {
+    /// Every kind, in the order a run floods them.
+    pub const ALL: [FloodKind; 5] = [
+        FloodKind::Garbage,
+        FloodKind::RefusedLoads,
+        FloodKind::ExecInfo,
+        FloodKind::LargePayloads,
+        FloodKind::EventSpam,
+    ];
+
+    /// Its name in the figures.
+    pub fn name(self) -> &'static str {
+        match self {
+            FloodKind::Garbage => "garbage",
+            FloodKind::RefusedLoads => "refused_loads",
+            FloodKind::ExecInfo => "exec_info",
+            FloodKind::LargePayloads => "large_payloads",
+            FloodKind::EventSpam => "event_spam",
+        }
+    }
+
+    /// The messages it sends, in turn: topic and payload.
+    fn messages(self, plc: &str, u1: &[u8]) -> Vec<(String, Vec<u8>)> {
+        use base64::Engine as _;
+        let cmd = |verb: &str| format!("cetratus/{plc}/cmd/{verb}");
+        let b64 = |bytes: &[u8]| base64::engine::general_purpose::STANDARD.encode(bytes);
+        match self {
+            FloodKind::Garbage => vec![
+                (cmd("load"), noise(300, 1)),
+                (cmd("frobnicate"), b"{}".to_vec()),
+                (cmd("substitute"), b"{\"mode\": \"sideways\"}".to_vec()),
+                (cmd("load"), b"{\"package_b64\": 42".to_vec()),
+            ],
+            FloodKind::RefusedLoads => {
+                vec![(
+                    cmd("load"),
+                    format!("{{\"package_b64\":\"{}\"}}", b64(u1)).into_bytes(),
+                )]
+            }
+            FloodKind::ExecInfo => vec![(cmd("exec_info"), b"{}".to_vec())],
+            FloodKind::LargePayloads => {
+                let body = format!("{{\"package_b64\":\"{}\"}}", b64(&noise(760_000, 2)));
+                vec![(cmd("load"), body.into_bytes())]
+            }
+            FloodKind::EventSpam => {
+                let body = serde_json::json!({"kind": "spam", "message": "s".repeat(32 << 10)});
+                vec![(
+                    "cetratus/other/events".to_string(),
+                    body.to_string().into_bytes(),
+                )]
+            }
+        }
+    }
+}
+
+/// `n` bytes that look random, the same for a seed (SplitMix64).
+fn noise(n: usize, seed: u64) -> Vec<u8> {
+    let mut x = seed;
+    (0..n)
+        .map(|_| {
+            x = x.wrapping_add(0x9E37_79B9_7F4A_7C15);
+            let mut z = x;
+            z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+            z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+            (z ^ (z >> 31)) as u8
+        })
+        .collect()
+}
+
+/// This process's resident memory, in KiB.
+fn rss_kib() -> u64 {
+    std::fs::read_to_string("/proc/self/status")
+        .ok()
+        .and_then(|s| {
+            s.lines()
+                .find_map(|l| l.strip_prefix("VmRSS:"))
+                .and_then(|v| v.split_whitespace().next())
+                .and_then(|v| v.parse().ok())
+        })
+        .unwrap_or(0)
+}
+
+/// Runs the Vernadat node as `cetratus run` does (embedded broker, dashboard, MQTT link) at
+/// `period_us`: first alone for `phase_us`, then for `phase_us` under each [`FloodKind`] in turn,
+/// sent by a client as fast as it can. Reports, per phase, the scan latency (p50, p99, max),
+/// overruns and the peak resident memory of the process, and what the flood came to (messages
+/// sent, replies by code, commands answered `busy`). The process holds the flooding client too,
+/// so its peak memory is an upper bound on the PLC's.
+pub fn flood(phase_us: u64, period_us: u64) -> Result<Figures, BenchError> {
+    use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+    use std::sync::{Arc, Mutex};
+    use std::time::Duration;
+
+    use cetratus_node::clock::MonotonicStopwatch;
+    use cetratus_node::link::ControlLink;
+    use cetratus_node::periodic::run_periodic;
+    use cetratus_node::{Node, NodeOptions};
+    use cetratus_runtime::{LoopTiming, Plc};
+    use rumqttc::v5::mqttbytes::v5::{Packet, PublishProperties};
+    use rumqttc::v5::mqttbytes::QoS;
+
+    const PLC: &str = "bench";
+    let free = || -> Result<std::net::SocketAddr, BenchError> {
+        Ok(std::net::TcpListener::bind("127.0.0.1:0")?.local_addr()?)
+    };
+    let program = program::vernadat_program();
+    let io = cetratus_io::TwinDriver::new(
+        cetratus_twin::TwinKind::Vernadat.build(1),
+        program.inputs(),
+        program.outputs(),
+    )?;
+    let plc = Plc::new(program, 0, MonotonicStopwatch::boxed());
+    let mqtt = free()?;
+    let mut config = cetratus_mct::MqttConfig::new(PLC);
+    config.broker = cetratus_mct::BrokerChoice::Embedded {
+        addr: mqtt,
+        users: Vec::new(),
+    };
+    config.publish_period = Duration::from_millis(200);
+    let (link, handle) = cetratus_mct::start(config)?;
+    handle.wait_connected(Duration::from_secs(10));
+    let dashboard = cetratus_dashboard::serve(cetratus_dashboard::DashboardConfig {
+        http: free()?,
+        broker_url: format!("mqtt://{mqtt}"),
+        user: None,
+        password: None,
+        signer: None,
+    })?;
+    let link = ControlLink::start(
+        &plc,
+        link,
+        cetratus_program::TrustStore::empty(),
+        false,
+        (200_000 / period_us.max(1)).max(1),
+    );
+    let opts = NodeOptions {
+        base_us: 0,
+        trust: cetratus_program::TrustStore::empty(),
+        allow_unsigned: false,
+        record_trace: false,
+        progress_every: None,
+    };
+    let mut node = Node::new(plc, io, opts).with_link(link);
+
+    // The flooding client, and the replies it gets, by error code.
+    let mut opts = cetratus_mct::client_options(&format!("mqtt://{mqtt}"), "bench-flood")?;
+    opts.set_max_packet_size(Some(cetratus_mct::BROKER_MAX_PACKET));
+    let (client, mut conn) = rumqttc::v5::Client::new(opts, 16);
+    let codes: Arc<Mutex<BTreeMap<String, u64>>> = Arc::default();
+    {
+        let codes = codes.clone();
+        std::thread::spawn(move || {
+            for ev in conn.iter() {
+                if let Ok(rumqttc::v5::Event::Incoming(Packet::Publish(p))) = ev {
+                    let v: serde_json::Value =
+                        serde_json::from_slice(&p.payload).unwrap_or_default();
+                    let code = v["error"]["code"].as_str().unwrap_or("ok").to_string();
+                    *codes
+                        .lock()
+                        .unwrap_or_else(|e| e.into_inner())
+                        .entry(code)
+                        .or_default() += 1;
+                }
+            }
+        });
+    }
+    let replies = format!("cetratus/{PLC}/reply/bench-flood");
+    client.subscribe(replies.clone(), QoS::AtMostOnce)?;
+    let u1 = crate::update::packages().u1;
+
+    let mut now_base = 0u64;
+    let mut phase = |node: &mut Node<_>, kind: Option<FloodKind>, length_us: u64| {
+        let stop = Arc::new(AtomicBool::new(false));
+        let peak = Arc::new(AtomicU64::new(rss_kib()));
+        let sampler = {
+            let (stop, peak) = (stop.clone(), peak.clone());
+            std::thread::spawn(move || {
+                while !stop.load(Ordering::Relaxed) {
+                    peak.fetch_max(rss_kib(), Ordering::Relaxed);
+                    std::thread::sleep(Duration::from_millis(20));
+                }
+            })
+        };
+        let sent = Arc::new(AtomicU64::new(0));
+        let flooder = kind.map(|kind| {
+            let (stop, sent, client) = (stop.clone(), sent.clone(), client.clone());
+            let messages = kind.messages(PLC, &u1);
+            let props = PublishProperties {
+                response_topic: Some(replies.clone()),
+                correlation_data: Some(b"flood".to_vec().into()),
+                ..PublishProperties::default()
+            };
+            std::thread::spawn(move || {
+                for (topic, payload) in messages.iter().cycle() {
+                    if stop.load(Ordering::Relaxed) {
+                        return;
+                    }
+                    let r = if topic.contains("/cmd/") {
+                        client.publish_with_properties(
+                            topic.clone(),
+                            QoS::AtMostOnce,
+                            false,
+                            payload.clone(),
+                            props.clone(),
+                        )
+                    } else {
+                        client.publish(topic.clone(), QoS::AtMostOnce, false, payload.clone())
+                    };
+                    if r.is_err() {
+                        return;
+                    }
+                    sent.fetch_add(1, Ordering::Relaxed);
+                }
+            })
+        });
+        let mut timing = LoopTiming::default();
+        let base = now_base;
+        let never = AtomicBool::new(false);
+        let reached = run_periodic(period_us, length_us, 1.0, &never, &mut timing, |now, t| {
+            node.step(base + now, t);
+            true
+        });
+        now_base += reached;
+        stop.store(true, Ordering::Relaxed);
+        if let Some(f) = flooder {
+            let _ = f.join();
+        }
+        let _ = sampler.join();
+        (
+            timing,
+            peak.load(Ordering::Relaxed),
+            sent.load(Ordering::Relaxed),
+        )
+    };
+    let summary = |t: &LoopTiming| t.latency.summary();
+    let (quiet, quiet_peak, _) = phase(&mut node, None, phase_us);
+    let q = summary(&quiet);
+    let limit = 1.2 * q.p99_ns as f64 + 20_000.0;
+    let mut out = Figures::new();
+    out.insert(s("period_us"), period_us.into());
+    out.insert(s("phase_s"), (phase_us as f64 / 1e6).into());
+    out.insert(s("unloaded_latency_p99_ns"), q.p99_ns.into());
+    out.insert(s("unloaded_latency_max_ns"), q.max_ns.into());
+    out.insert(s("unloaded_overruns"), quiet.overruns.into());
+    out.insert(s("unloaded_peak_rss_mib"), (quiet_peak / 1024).into());
+    out.insert(s("limit_ns"), limit.into());
+    let mut all_within = true;
+    for kind in FloodKind::ALL {
+        // Lets what the last flood left in the queues drain, and the allocator give memory back;
+        // the scans go on meanwhile, unmeasured.
+        phase(&mut node, None, 3_000_000);
+        codes.lock().unwrap_or_else(|e| e.into_inner()).clear();
+        let busy0 = handle.stats().commands_busy;
+        let (t, peak, sent) = phase(&mut node, Some(kind), phase_us);
+        std::thread::sleep(Duration::from_millis(500));
+        let l = summary(&t);
+        let within = (l.p99_ns as f64) <= limit;
+        all_within &= within && peak < 256 * 1024;
+        let replies = codes.lock().unwrap_or_else(|e| e.into_inner()).clone();
+        out.insert(
+            kind.name().to_string(),
+            serde_json::json!({
+                "sent": sent,
+                "sent_per_s": sent as f64 / (phase_us as f64 / 1e6),
+                "latency_p50_ns": l.p50_ns,
+                "latency_p99_ns": l.p99_ns,
+                "latency_max_ns": l.max_ns,
+                "overruns": t.overruns,
+                "within_limit": within,
+                "peak_rss_mib": peak / 1024,
+                "busy": handle.stats().commands_busy - busy0,
+                "replies": replies,
+            }),
+        );
+    }
+    let (plc, _, report) = node.finish()?;
+    dashboard.stop();
+    let stats = handle.stats();
+    handle.shutdown();
+    out.insert(s("all_within_targets"), all_within.into());
+    out.insert(s("primary_status"), plc.status().name().into());
+    out.insert(
+        s("dropped"),
+        serde_json::json!({
+            "commands_busy": stats.commands_busy,
+            "commands_dropped": stats.commands_dropped,
+            "mqtt_client_lost": stats.messages_lost,
+            "plc_events_dropped": report.link.map_or(0, |c| c.dropped),
+        }),
+    );
     Ok(out)
 }
 

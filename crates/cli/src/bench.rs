@@ -68,6 +68,19 @@ enum What {
         #[arg(long)]
         json: bool,
     },
+    /// Scan latency and peak memory while others flood the PLC: garbage, refused loads,
+    /// exec_info, 1 MiB payloads and event spam, one kind per phase, against an unloaded phase.
+    Flood {
+        /// Length of each phase (unloaded, then one per kind), wall time.
+        #[arg(long = "for", default_value = "60s")]
+        for_: String,
+        /// The scan period.
+        #[arg(long, default_value = "1ms")]
+        period: String,
+        /// Print one JSON object.
+        #[arg(long)]
+        json: bool,
+    },
     /// Real-time jitter of the scan cycle: the Vernadat program on its twin at a fixed period.
     Jitter {
         /// The scan period.
@@ -135,6 +148,11 @@ pub fn run(args: &BenchArgs) -> anyhow::Result<()> {
             anyhow::bail!("{panics} inputs made a reader panic; they are in the corpus directory");
         }
         return Ok(());
+    }
+    if let Some(What::Flood { for_, period, json }) = &args.what {
+        let out = harness::flood(parse_duration_us(for_)?, parse_duration_us(period)?)
+            .map_err(|e| anyhow::anyhow!("{e}"))?;
+        return print(&out, *json || args.json);
     }
     if let Some(What::Jitter {
         period,

@@ -5,10 +5,10 @@
 //! It runs inside the PLC's process, so what it keeps for others is the PLC's memory: retained
 //! messages are bounded in bytes ([`RETAINED_BYTES`]), the messages queued for a slow subscriber
 //! in count ([`SESSION_QUEUE`], [`SESSION_INFLIGHT`]), the clients in number ([`MAX_CLIENTS`]),
-//! and commands in the bytes per second they may arrive at ([`COMMAND_INGRESS_BYTES_PER_S`]):
-//! rmqtt hands a message to each subscriber's session through an unbounded channel, so a
-//! subscriber that reads slower than others publish (the PLC parsing 1 MiB commands) would have
-//! the difference kept here.
+//! and what others publish in bytes per second ([`INGRESS_BYTES_PER_S`]): rmqtt hands a message
+//! to each subscriber's session through an unbounded channel, so a subscriber that reads slower
+//! than others publish (the PLC parsing 1 MiB commands, the dashboard parsing events) would have
+//! the difference kept here. The PLC's own client is not limited: what it publishes is its own.
 
 use std::collections::HashMap;
 use std::net::SocketAddr;
@@ -48,13 +48,13 @@ pub const SESSION_INFLIGHT: u16 = 16;
 /// Clients connected at once: a PLC, its dashboard, operators and a few tools.
 pub const MAX_CLIENTS: usize = 256;
 
-/// Bytes per second of commands (`cetratus/<id>/cmd/…`) the broker takes from all clients
-/// together: sixteen full-size packages a second, far more than operators send, and less than
-/// the PLC's MQTT client reads even in a debug build.
-pub const COMMAND_INGRESS_BYTES_PER_S: f64 = 16.0 * (1 << 20) as f64;
+/// Bytes per second the broker takes from all clients together but the PLC's own: sixteen
+/// full-size packages a second, far more than operators and dashboards send, and less than the
+/// PLC's MQTT client and its dashboard read even in a debug build.
+pub const INGRESS_BYTES_PER_S: f64 = 16.0 * (1 << 20) as f64;
 
-/// Bytes of commands that may arrive at once before [`COMMAND_INGRESS_BYTES_PER_S`] applies.
-pub const COMMAND_INGRESS_BURST: f64 = 2.0 * BROKER_MAX_PACKET as f64;
+/// Bytes that may arrive at once before [`INGRESS_BYTES_PER_S`] applies.
+pub const INGRESS_BURST: f64 = 2.0 * BROKER_MAX_PACKET as f64;
 
 /// A token bucket in bytes: `rate` per second, at most `burst` saved up.
 struct Bucket {
@@ -89,29 +89,24 @@ impl Bucket {
 }
 
 /// The user property the embedded broker sets on a command it passed on without its payload
-/// (it came faster than [`COMMAND_INGRESS_BYTES_PER_S`]): the PLC answers it `busy`.
+/// (it came faster than [`INGRESS_BYTES_PER_S`]): the PLC answers it `busy`.
 pub const TURNED_AWAY_PROPERTY: &str = "cetratus-turned-away";
 
-/// Passes on commands that arrive faster than [`COMMAND_INGRESS_BYTES_PER_S`] without their
-/// payload, marked with [`TURNED_AWAY_PROPERTY`]: the PLC still learns where to answer `busy`,
-/// and the broker keeps nothing for it.
-struct CommandIngress {
+/// Limits what clients other than the PLC's own publish to [`INGRESS_BYTES_PER_S`]. A command
+/// over it is passed on without its payload, marked with [`TURNED_AWAY_PROPERTY`], so that the
+/// PLC still learns where to answer `busy`; any other message over it is refused (dropped; an
+/// MQTT 5 sender at QoS 1 hears `not authorized` with the reason).
+struct Ingress {
+    own_client: Option<String>,
     bucket: Mutex<Bucket>,
     refused: AtomicU64,
 }
 
-#[async_trait]
-impl Handler for CommandIngress {
-    async fn hook(&self, param: &Parameter, acc: Option<HookResult>) -> ReturnType {
-        let Parameter::MessagePublish(_, _, publish) = param else {
-            return (true, acc);
-        };
-        let is_command = matches!(
-            cetratus_proto::parse_topic(&publish.topic),
-            Ok((_, cetratus_proto::Leaf::Cmd(_)))
-        );
-        if !is_command {
-            return (true, acc);
+impl Ingress {
+    /// Charges `publish` from `client` to the bucket; false when over.
+    fn admit(&self, client: &str, publish: &rmqtt::types::Publish) -> bool {
+        if self.own_client.as_deref() == Some(client) {
+            return true;
         }
         let bytes = (publish.payload.len() + publish.topic.len()) as f64;
         let taken = self
@@ -119,27 +114,71 @@ impl Handler for CommandIngress {
             .lock()
             .unwrap_or_else(|e| e.into_inner())
             .take(bytes, Instant::now());
-        if taken {
-            return (true, acc);
+        if !taken {
+            let n = self.refused.fetch_add(1, Ordering::Relaxed) + 1;
+            if crate::budget::worth_logging(n) {
+                tracing::warn!(
+                    topic = %publish.topic,
+                    client,
+                    refused = n,
+                    "others publish faster than {INGRESS_BYTES_PER_S} bytes/s; the embedded \
+                     broker turned a message away"
+                );
+            }
         }
-        let n = self.refused.fetch_add(1, Ordering::Relaxed) + 1;
-        if crate::budget::worth_logging(n) {
-            tracing::warn!(
-                topic = %publish.topic,
-                refused = n,
-                "commands arrive faster than {COMMAND_INGRESS_BYTES_PER_S} bytes/s; the embedded \
-                 broker passed one on without its payload, to be answered busy"
-            );
+        taken
+    }
+}
+
+fn is_command(publish: &rmqtt::types::Publish) -> bool {
+    matches!(
+        cetratus_proto::parse_topic(&publish.topic),
+        Ok((_, cetratus_proto::Leaf::Cmd(_)))
+    )
+}
+
+#[async_trait]
+impl Handler for Ingress {
+    async fn hook(&self, param: &Parameter, acc: Option<HookResult>) -> ReturnType {
+        match param {
+            // Before the ACL check: a command is charged here, and stripped when over.
+            Parameter::MessagePublish(_, from, publish) if is_command(publish) => {
+                if self.admit(&from.id.client_id, publish) {
+                    return (true, acc);
+                }
+                let mut stripped = (*publish).clone();
+                drop(std::mem::take(&mut stripped.inner.payload));
+                stripped
+                    .inner
+                    .properties
+                    .get_or_insert_with(Default::default)
+                    .user_properties
+                    .push((TURNED_AWAY_PROPERTY.into(), "rate".into()));
+                (false, Some(HookResult::Publish(stripped)))
+            }
+            // Anything else is charged at the ACL check, where it can be refused.
+            Parameter::MessagePublishCheckAcl(session, publish) if !is_command(publish) => {
+                if self.admit(&session.id.client_id, publish) {
+                    return (true, acc);
+                }
+                let refused = rmqtt::types::PublishAclResult::rejected(
+                    false,
+                    Some("the embedded broker takes at most 16 MiB/s from others; retry".into()),
+                );
+                (false, Some(HookResult::PublishAclResult(refused)))
+            }
+            _ => (true, acc),
         }
-        let mut stripped = (*publish).clone();
-        drop(std::mem::take(&mut stripped.inner.payload));
-        stripped
-            .inner
-            .properties
-            .get_or_insert_with(Default::default)
-            .user_properties
-            .push((TURNED_AWAY_PROPERTY.into(), "rate".into()));
-        (false, Some(HookResult::Publish(stripped)))
+    }
+}
+
+/// One handler registered for several hook types.
+struct Shared<H>(Arc<H>);
+
+#[async_trait]
+impl<H: Handler> Handler for Shared<H> {
+    async fn hook(&self, param: &Parameter, acc: Option<HookResult>) -> ReturnType {
+        self.0.hook(param, acc).await
     }
 }
 
@@ -282,6 +321,16 @@ impl EmbeddedBroker {
     /// Starts a broker on `addr`; with a non-empty `users`, clients must log in as one of them.
     /// Port 0 picks a free port (see [`EmbeddedBroker::addr`]).
     pub fn start(addr: SocketAddr, users: Vec<(String, String)>) -> Result<Self, MctError> {
+        Self::start_for(addr, users, None)
+    }
+
+    /// [`EmbeddedBroker::start`] for the PLC whose MQTT client connects as `own_client`: what
+    /// that client publishes is not limited to [`INGRESS_BYTES_PER_S`].
+    pub fn start_for(
+        addr: SocketAddr,
+        users: Vec<(String, String)>,
+        own_client: Option<&str>,
+    ) -> Result<Self, MctError> {
         let addr = if addr.port() == 0 {
             free_port(addr)?
         } else {
@@ -293,6 +342,7 @@ impl EmbeddedBroker {
             .enable_all()
             .build()?;
         let anonymous = users.is_empty();
+        let own_client = own_client.map(str::to_string);
         let listener = rt
             .block_on(async {
                 rmqtt::net::Builder::new()
@@ -319,15 +369,19 @@ impl EmbeddedBroker {
                 reg.add(Type::ClientAuthenticate, Box::new(Users(users)))
                     .await;
             }
-            let ingress = CommandIngress {
+            let ingress = Arc::new(Ingress {
+                own_client,
                 bucket: Mutex::new(Bucket::new(
-                    COMMAND_INGRESS_BYTES_PER_S,
-                    COMMAND_INGRESS_BURST,
+                    INGRESS_BYTES_PER_S,
+                    INGRESS_BURST,
                     Instant::now(),
                 )),
                 refused: AtomicU64::new(0),
-            };
-            reg.add(Type::MessagePublish, Box::new(ingress)).await;
+            });
+            reg.add(Type::MessagePublish, Box::new(Shared(ingress.clone())))
+                .await;
+            reg.add(Type::MessagePublishCheckAcl, Box::new(Shared(ingress)))
+                .await;
             reg.start().await;
             MqttServer::new(scx)
                 .listener_by_id(listener, addr.port())

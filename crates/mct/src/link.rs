@@ -380,7 +380,7 @@ pub fn start(config: MqttConfig) -> Result<(MctLink, MqttHandle), MctError> {
     let client_id = format!("cetratus-{}", config.plc_id);
     let (broker, mut opts, url) = match &config.broker {
         BrokerChoice::Embedded { addr, users } => {
-            let b = EmbeddedBroker::start(*addr, users.clone())?;
+            let b = EmbeddedBroker::start_for(*addr, users.clone(), Some(&client_id))?;
             let url = format!("mqtt://{}", b.addr());
             let mut o = client_options(&url, &client_id)?;
             if let Some((u, p)) = users.first() {

@@ -3,7 +3,6 @@
 //! signature, a retained command, a reply sent elsewhere, and a local configuration that would
 //! silently turn authentication off.
 
-use std::io::{BufRead, BufReader};
 use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
 use std::sync::mpsc;
@@ -12,7 +11,7 @@ use std::time::Duration;
 use cetratus_mct::{sign, Signed};
 use cetratus_testkit::mqtt::{self, Mosquitto, Sub};
 use cetratus_testkit::ports::free_port;
-use cetratus_testkit::process::ChildGuard;
+use cetratus_testkit::process::{stderr_lines, ChildGuard};
 use serde_json::{json, Value};
 
 const BIN: &str = env!("CARGO_BIN_EXE_cetratus");
@@ -69,13 +68,7 @@ fn plc(id: &str, broker: &str, cfg: &Path, state: &Path) -> (ChildGuard, mpsc::R
         .stderr(Stdio::piped())
         .spawn()
         .expect("the PLC starts");
-    let stderr = child.stderr.take().expect("stderr");
-    let (tx, rx) = mpsc::channel();
-    std::thread::spawn(move || {
-        for line in BufReader::new(stderr).lines().map_while(Result::ok) {
-            let _ = tx.send(line);
-        }
-    });
+    let rx = stderr_lines(&mut child);
     (ChildGuard::new(child), rx)
 }
 

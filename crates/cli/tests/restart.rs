@@ -2,7 +2,6 @@
 //! snapshot, and a restart on the same port starts at once, even while the last run's
 //! connections linger in TIME_WAIT.
 
-use std::io::{BufRead, BufReader};
 use std::path::Path;
 use std::process::{Child, Command, Stdio};
 use std::sync::mpsc;
@@ -10,7 +9,7 @@ use std::time::{Duration, Instant};
 
 use cetratus_testkit::mqtt;
 use cetratus_testkit::ports::{free_port, wait_for_port};
-use cetratus_testkit::process::ChildGuard;
+use cetratus_testkit::process::{stderr_lines, ChildGuard};
 
 const BIN: &str = env!("CARGO_BIN_EXE_cetratus");
 
@@ -38,13 +37,7 @@ fn start(state: &Path, cfg: &Path, port: u16) -> (Child, mpsc::Receiver<String>)
         .stderr(Stdio::piped())
         .spawn()
         .expect("the PLC starts");
-    let stderr = child.stderr.take().expect("stderr");
-    let (tx, rx) = mpsc::channel();
-    std::thread::spawn(move || {
-        for line in BufReader::new(stderr).lines().map_while(Result::ok) {
-            let _ = tx.send(line);
-        }
-    });
+    let rx = stderr_lines(&mut child);
     (child, rx)
 }
 

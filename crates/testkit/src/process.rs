@@ -66,3 +66,26 @@ pub fn require_program(name: &str, package: &str) -> PathBuf {
         )
     })
 }
+
+/// The lines a child writes to its piped standard error, as they come, read on a thread of their
+/// own so that the child never blocks on a full pipe.
+///
+/// # Panics
+///
+/// When the child's standard error is not piped.
+pub fn stderr_lines(child: &mut std::process::Child) -> std::sync::mpsc::Receiver<String> {
+    use std::io::BufRead;
+    let stderr = child.stderr.take().expect("a piped standard error");
+    let (tx, rx) = std::sync::mpsc::channel();
+    std::thread::spawn(move || {
+        for line in std::io::BufReader::new(stderr)
+            .lines()
+            .map_while(Result::ok)
+        {
+            if tx.send(line).is_err() {
+                return;
+            }
+        }
+    });
+    rx
+}

@@ -286,8 +286,16 @@ impl FloodKind {
         }
     }
 
-    /// The messages it sends, in turn: topic and payload.
-    fn messages(self, plc: &str, u1: &[u8]) -> Vec<(String, Vec<u8>)> {
+    /// The messages it sends, in turn: topic and payload (shared, so that sending one costs the
+    /// flooding client no copy: a flood from another machine would not use this one's CPU).
+    fn messages(self, plc: &str, u1: &[u8]) -> Vec<(String, bytes::Bytes)> {
+        self.payloads(plc, u1)
+            .into_iter()
+            .map(|(t, p)| (t, bytes::Bytes::from(p)))
+            .collect()
+    }
+
+    fn payloads(self, plc: &str, u1: &[u8]) -> Vec<(String, Vec<u8>)> {
         use base64::Engine as _;
         let cmd = |verb: &str| format!("cetratus/{plc}/cmd/{verb}");
         let b64 = |bytes: &[u8]| base64::engine::general_purpose::STANDARD.encode(bytes);
@@ -352,8 +360,9 @@ fn rss_kib() -> u64 {
 /// sent by a client as fast as it can. Reports, per phase, the scan latency (p50, p99, max),
 /// overruns and the peak resident memory of the process, and what the flood came to (messages
 /// sent, replies by code, commands answered `busy`). The process holds the flooding client too,
-/// so its peak memory is an upper bound on the PLC's.
-pub fn flood(phase_us: u64, period_us: u64) -> Result<Figures, BenchError> {
+/// so its peak memory is an upper bound on the PLC's. With `rt` the scan thread asks for
+/// SCHED_FIFO (as `cetratus run --rt` does); the flooding client never runs real-time.
+pub fn flood(phase_us: u64, period_us: u64, rt: bool) -> Result<Figures, BenchError> {
     use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
     use std::sync::{Arc, Mutex};
     use std::time::Duration;
@@ -442,6 +451,7 @@ pub fn flood(phase_us: u64, period_us: u64) -> Result<Figures, BenchError> {
         let sampler = {
             let (stop, peak) = (stop.clone(), peak.clone());
             std::thread::spawn(move || {
+                cetratus_node::rt::normal();
                 while !stop.load(Ordering::Relaxed) {
                     peak.fetch_max(rss_kib(), Ordering::Relaxed);
                     std::thread::sleep(Duration::from_millis(20));
@@ -458,6 +468,7 @@ pub fn flood(phase_us: u64, period_us: u64) -> Result<Figures, BenchError> {
                 ..PublishProperties::default()
             };
             std::thread::spawn(move || {
+                cetratus_node::rt::normal();
                 for (topic, payload) in messages.iter().cycle() {
                     if stop.load(Ordering::Relaxed) {
                         return;
@@ -499,6 +510,8 @@ pub fn flood(phase_us: u64, period_us: u64) -> Result<Figures, BenchError> {
             sent.load(Ordering::Relaxed),
         )
     };
+    // Every thread of the node is running by now, so only the scan thread is real-time.
+    let rt_status = rt.then(|| cetratus_node::rt::request(80).to_string());
     let summary = |t: &LoopTiming| t.latency.summary();
     let (quiet, quiet_peak, _) = phase(&mut node, None, phase_us);
     let q = summary(&quiet);
@@ -545,6 +558,10 @@ pub fn flood(phase_us: u64, period_us: u64) -> Result<Figures, BenchError> {
     let stats = handle.stats();
     handle.shutdown();
     out.insert(s("all_within_targets"), all_within.into());
+    out.insert(
+        s("rt"),
+        rt_status.unwrap_or_else(|| "not requested".into()).into(),
+    );
     out.insert(s("primary_status"), plc.status().name().into());
     out.insert(
         s("dropped"),

@@ -77,6 +77,9 @@ enum What {
         /// The scan period.
         #[arg(long, default_value = "1ms")]
         period: String,
+        /// Ask for SCHED_FIFO and mlockall for the scan thread, as `run --rt` does.
+        #[arg(long)]
+        rt: bool,
         /// Print one JSON object.
         #[arg(long)]
         json: bool,
@@ -149,8 +152,14 @@ pub fn run(args: &BenchArgs) -> anyhow::Result<()> {
         }
         return Ok(());
     }
-    if let Some(What::Flood { for_, period, json }) = &args.what {
-        let out = harness::flood(parse_duration_us(for_)?, parse_duration_us(period)?)
+    if let Some(What::Flood {
+        for_,
+        period,
+        rt,
+        json,
+    }) = &args.what
+    {
+        let out = harness::flood(parse_duration_us(for_)?, parse_duration_us(period)?, *rt)
             .map_err(|e| anyhow::anyhow!("{e}"))?;
         return print(&out, *json || args.json);
     }

@@ -66,3 +66,22 @@ pub fn request(priority: u8) -> RtStatus {
     }
     status
 }
+
+/// Gives up real-time scheduling on the calling thread: a thread inherits its creator's policy,
+/// so a helper started by a SCHED_FIFO scan thread would otherwise compete with it at its
+/// priority. Does nothing where real-time scheduling was never granted.
+pub fn normal() {
+    #[cfg(target_os = "linux")]
+    {
+        use thread_priority::{
+            set_thread_priority_and_policy, thread_native_id, NormalThreadSchedulePolicy,
+            ThreadPriority, ThreadSchedulePolicy,
+        };
+        // Nice 0, as a thread gets by default.
+        let _ = set_thread_priority_and_policy(
+            thread_native_id(),
+            ThreadPriority::Os(thread_priority::ThreadPriorityOsValue::default()),
+            ThreadSchedulePolicy::Normal(NormalThreadSchedulePolicy::Other),
+        );
+    }
+}

@@ -97,6 +97,7 @@ impl Preparer {
         let _ = std::thread::Builder::new()
             .name("cetratus-script".into())
             .spawn(move || {
+                crate::rt::normal();
                 while let Ok(Job { item, path, ctx }) = job_rx.recv() {
                     let result = std::fs::read(&path)
                         .map_err(|e| format!("cannot read {path}: {e}"))
@@ -228,7 +229,12 @@ impl Script {
     }
 
     /// The keys a scripted package must be signed with (and whether unsigned ones are taken).
+    /// Starts the preparer thread when the script loads a package: here, before the run, so that
+    /// it does not inherit the scan thread's real-time priority (`--rt`).
     pub fn trusting(mut self, trust: TrustStore, allow_unsigned: bool) -> Self {
+        if self.items.iter().any(|s| matches!(s.verb, Verb::Load(_))) {
+            self.preparer = Some(Preparer::start(trust.clone(), allow_unsigned));
+        }
         self.trust = Some((trust, allow_unsigned));
         self
     }

@@ -355,14 +355,24 @@ fn rss_kib() -> u64 {
         .unwrap_or(0)
 }
 
-/// Runs the Vernadat node as `cetratus run` does (embedded broker, dashboard, MQTT link) at
+/// Whatever runs beside the PLC while it is flooded (the dashboard, in `cetratus bench flood`),
+/// given the broker's URL; it stops when dropped. The caller provides it: the dashboard is the
+/// binary's to start, not this crate's.
+pub type Beside<'a> = &'a dyn Fn(&str) -> Result<Box<dyn std::any::Any>, BenchError>;
+
+/// Runs the Vernadat node as `cetratus run` does (embedded broker, `beside` it the dashboard, MQTT link) at
 /// `period_us`: first alone for `phase_us`, then for `phase_us` under each [`FloodKind`] in turn,
 /// sent by a client as fast as it can. Reports, per phase, the scan latency (p50, p99, max),
 /// overruns and the peak resident memory of the process, and what the flood came to (messages
 /// sent, replies by code, commands answered `busy`). The process holds the flooding client too,
 /// so its peak memory is an upper bound on the PLC's. With `rt` the scan thread asks for
 /// SCHED_FIFO (as `cetratus run --rt` does); the flooding client never runs real-time.
-pub fn flood(phase_us: u64, period_us: u64, rt: bool) -> Result<Figures, BenchError> {
+pub fn flood(
+    phase_us: u64,
+    period_us: u64,
+    rt: bool,
+    beside: Beside<'_>,
+) -> Result<Figures, BenchError> {
     use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
     use std::sync::{Arc, Mutex};
     use std::time::Duration;
@@ -395,13 +405,7 @@ pub fn flood(phase_us: u64, period_us: u64, rt: bool) -> Result<Figures, BenchEr
     config.publish_period = Duration::from_millis(200);
     let (link, handle) = cetratus_mct::start(config)?;
     handle.wait_connected(Duration::from_secs(10));
-    let dashboard = cetratus_dashboard::serve(cetratus_dashboard::DashboardConfig {
-        http: free()?,
-        broker_url: format!("mqtt://{mqtt}"),
-        user: None,
-        password: None,
-        signer: None,
-    })?;
+    let dashboard = beside(&format!("mqtt://{mqtt}"))?;
     let link = ControlLink::start(
         &plc,
         link,
@@ -554,7 +558,7 @@ pub fn flood(phase_us: u64, period_us: u64, rt: bool) -> Result<Figures, BenchEr
         );
     }
     let (plc, _, report) = node.finish()?;
-    dashboard.stop();
+    drop(dashboard);
     let stats = handle.stats();
     handle.shutdown();
     out.insert(s("all_within_targets"), all_within.into());

@@ -159,8 +159,25 @@ pub fn run(args: &BenchArgs) -> anyhow::Result<()> {
         json,
     }) = &args.what
     {
-        let out = harness::flood(parse_duration_us(for_)?, parse_duration_us(period)?, *rt)
-            .map_err(|e| anyhow::anyhow!("{e}"))?;
+        // The dashboard beside the PLC, as `cetratus run` starts it.
+        let dashboard = |broker: &str| -> Result<Box<dyn std::any::Any>, harness::BenchError> {
+            Ok(Box::new(cetratus_dashboard::serve(
+                cetratus_dashboard::DashboardConfig {
+                    http: std::net::SocketAddr::from(([127, 0, 0, 1], 0)),
+                    broker_url: broker.to_string(),
+                    user: None,
+                    password: None,
+                    signer: None,
+                },
+            )?))
+        };
+        let out = harness::flood(
+            parse_duration_us(for_)?,
+            parse_duration_us(period)?,
+            *rt,
+            &dashboard,
+        )
+        .map_err(|e| anyhow::anyhow!("{e}"))?;
         return print(&out, *json || args.json);
     }
     if let Some(What::Jitter {

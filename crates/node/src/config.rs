@@ -33,7 +33,7 @@ pub enum ConfigError {
     #[error("{0}")]
     NotUtf8(cetratus_program::NotUtf8),
     /// `config.toml` does not follow the schema.
-    #[error("{at}: {message}; fix it against docs/configuration.md")]
+    #[error("{at}: {message}; remove the key, or fix its spelling or value against docs/configuration.md")]
     Schema {
         /// file:line:column.
         at: String,

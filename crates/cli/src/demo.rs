@@ -144,7 +144,7 @@ fn live(args: &DemoArgs, files: &DemoFiles) -> anyhow::Result<()> {
         1.0
     };
     let plc_id = args.mqtt.plc_id();
-    let broker_url = args.mqtt.client_url()?;
+    let broker_url = services.broker_url().to_string();
     println!(
         "Cetratus demo: the Vernadat cell runs in real time (speed {speed}) with its digital twin."
     );

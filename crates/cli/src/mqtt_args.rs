@@ -77,6 +77,7 @@ impl MqttArgs {
 pub struct Services {
     mqtt: cetratus_mct::MqttHandle,
     dashboard: Option<cetratus_dashboard::DashboardHandle>,
+    broker_url: String,
 }
 
 impl Services {
@@ -87,6 +88,11 @@ impl Services {
             d.stop();
         }
         self.mqtt.shutdown();
+    }
+
+    /// The URL clients reach the broker at.
+    pub fn broker_url(&self) -> &str {
+        &self.broker_url
     }
 
     /// Where the dashboard listens.
@@ -109,7 +115,11 @@ pub fn start_services(
     config.publish_period = std::time::Duration::from_millis(200);
     let plc_id = config.plc_id.clone();
     let (link, handle) = cetratus_mct::start(config)?;
-    let broker_url = mqtt.client_url()?;
+    // The embedded broker's own address: with `--mqtt 127.0.0.1:0` it picked its port itself.
+    let broker_url = match handle.broker_addr() {
+        Some(addr) => format!("mqtt://{addr}"),
+        None => mqtt.client_url()?,
+    };
     let http: SocketAddr = http
         .parse()
         .with_context(|| format!("--http `{http}`: expected an address such as 127.0.0.1:8080"))?;
@@ -140,6 +150,7 @@ pub fn start_services(
         Services {
             mqtt: handle,
             dashboard,
+            broker_url,
         },
     ))
 }

@@ -114,19 +114,23 @@ pub fn jitter_figures(period_us: u64, for_us: u64, rt: bool) -> Figures {
     out
 }
 
-/// Runs the Vernadat node on an embedded broker at `period_us`, first alone for `phase_us`, then
-/// while a client sends `rate` commands per second, and reports the scan latency of both phases.
-pub fn command_load(rate: u32, phase_us: u64, period_us: u64) -> Result<Figures, BenchError> {
-    use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
-    use std::sync::Arc;
-    use std::time::{Duration, Instant};
-
+/// The Vernadat PLC on its twin as `cetratus run` has it: an embedded broker on `addr`, the node's
+/// MQTT link, and snapshots published five times a second.
+fn vernadat_node(
+    plc_id: &str,
+    addr: std::net::SocketAddr,
+    period_us: u64,
+) -> Result<
+    (
+        cetratus_node::Node<cetratus_io::TwinDriver<cetratus_twin::Twin>>,
+        cetratus_mct::MqttHandle,
+    ),
+    BenchError,
+> {
     use cetratus_node::clock::MonotonicStopwatch;
     use cetratus_node::link::ControlLink;
-    use cetratus_node::periodic::run_periodic;
     use cetratus_node::{Node, NodeOptions};
-    use cetratus_runtime::{LoopTiming, Plc};
-    use rumqttc::v5::mqttbytes::QoS;
+    use std::time::Duration;
 
     let program = program::vernadat_program();
     let io = cetratus_io::TwinDriver::new(
@@ -134,13 +138,10 @@ pub fn command_load(rate: u32, phase_us: u64, period_us: u64) -> Result<Figures,
         program.inputs(),
         program.outputs(),
     )?;
-    let plc = Plc::new(program, 0, MonotonicStopwatch::boxed());
-    let port = std::net::TcpListener::bind("127.0.0.1:0")?
-        .local_addr()?
-        .port();
-    let mut config = cetratus_mct::MqttConfig::new("bench");
+    let plc = cetratus_runtime::Plc::new(program, 0, MonotonicStopwatch::boxed());
+    let mut config = cetratus_mct::MqttConfig::new(plc_id);
     config.broker = cetratus_mct::BrokerChoice::Embedded {
-        addr: std::net::SocketAddr::from(([127, 0, 0, 1], port)),
+        addr,
         users: Vec::new(),
     };
     config.publish_period = Duration::from_millis(200);
@@ -160,7 +161,29 @@ pub fn command_load(rate: u32, phase_us: u64, period_us: u64) -> Result<Figures,
         record_trace: false,
         progress_every: None,
     };
-    let mut node = Node::new(plc, io, opts).with_link(link);
+    Ok((Node::new(plc, io, opts).with_link(link), handle))
+}
+
+/// Runs the Vernadat node on an embedded broker at `period_us`, first alone for `phase_us`, then
+/// while a client sends `rate` commands per second, and reports the scan latency of both phases.
+pub fn command_load(rate: u32, phase_us: u64, period_us: u64) -> Result<Figures, BenchError> {
+    use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+    use std::sync::Arc;
+    use std::time::{Duration, Instant};
+
+    use cetratus_node::periodic::run_periodic;
+    use cetratus_node::Node;
+    use cetratus_runtime::LoopTiming;
+    use rumqttc::v5::mqttbytes::QoS;
+
+    let port = std::net::TcpListener::bind("127.0.0.1:0")?
+        .local_addr()?
+        .port();
+    let (mut node, handle) = vernadat_node(
+        "bench",
+        std::net::SocketAddr::from(([127, 0, 0, 1], port)),
+        period_us,
+    )?;
     let mut now_base = 0u64;
     let mut phase = |node: &mut Node<cetratus_io::TwinDriver<cetratus_twin::Twin>>| {
         let stop = AtomicBool::new(false);
@@ -377,11 +400,9 @@ pub fn flood(
     use std::sync::{Arc, Mutex};
     use std::time::Duration;
 
-    use cetratus_node::clock::MonotonicStopwatch;
-    use cetratus_node::link::ControlLink;
     use cetratus_node::periodic::run_periodic;
-    use cetratus_node::{Node, NodeOptions};
-    use cetratus_runtime::{LoopTiming, Plc};
+    use cetratus_node::Node;
+    use cetratus_runtime::LoopTiming;
     use rumqttc::v5::mqttbytes::v5::{Packet, PublishProperties};
     use rumqttc::v5::mqttbytes::QoS;
 
@@ -389,38 +410,9 @@ pub fn flood(
     let free = || -> Result<std::net::SocketAddr, BenchError> {
         Ok(std::net::TcpListener::bind("127.0.0.1:0")?.local_addr()?)
     };
-    let program = program::vernadat_program();
-    let io = cetratus_io::TwinDriver::new(
-        cetratus_twin::TwinKind::Vernadat.build(1),
-        program.inputs(),
-        program.outputs(),
-    )?;
-    let plc = Plc::new(program, 0, MonotonicStopwatch::boxed());
     let mqtt = free()?;
-    let mut config = cetratus_mct::MqttConfig::new(PLC);
-    config.broker = cetratus_mct::BrokerChoice::Embedded {
-        addr: mqtt,
-        users: Vec::new(),
-    };
-    config.publish_period = Duration::from_millis(200);
-    let (link, handle) = cetratus_mct::start(config)?;
-    handle.wait_connected(Duration::from_secs(10));
+    let (mut node, handle) = vernadat_node(PLC, mqtt, period_us)?;
     let dashboard = beside(&format!("mqtt://{mqtt}"))?;
-    let link = ControlLink::start(
-        &plc,
-        link,
-        cetratus_program::TrustStore::empty(),
-        false,
-        (200_000 / period_us.max(1)).max(1),
-    );
-    let opts = NodeOptions {
-        base_us: 0,
-        trust: cetratus_program::TrustStore::empty(),
-        allow_unsigned: false,
-        record_trace: false,
-        progress_every: None,
-    };
-    let mut node = Node::new(plc, io, opts).with_link(link);
 
     // The flooding client, and the replies it gets, by error code.
     let mut opts = cetratus_mct::client_options(&format!("mqtt://{mqtt}"), "bench-flood")?;

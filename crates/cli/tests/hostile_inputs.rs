@@ -7,6 +7,8 @@
 //!   `substitute` command sent over MQTT to a running PLC;
 //! * a PNML file whose one 100 KB internal entity is used 20,000 times (2 GB once expanded, which
 //!   the reader tried to allocate);
+//! * PNML files of one element with a million attributes, or a million namespace prefixes in
+//!   scope (the reader searched both lists linearly, 10¹² steps: hours of CPU);
 //! * program, package manifest and configuration TOML files that are not UTF-8 (a program was
 //!   read as Latin-1 before, silently).
 
@@ -255,6 +257,78 @@ fn a_pnml_entity_that_expands_to_gigabytes_is_refused_naming_the_limit() {
                 "{what}: the message quotes the input: {}",
                 tail(&err)
             );
+        }
+    }
+}
+
+/// `cetratus check FILE`, killed if it has not ended within `limit`: a reader that is quadratic
+/// in its input takes hours on the files below, a linear one well under a second.
+fn check_within(file: &Path, limit: Duration) -> Output {
+    let mut child = Command::new(BIN)
+        .args(["check", path(file)])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("cetratus runs");
+    let started = Instant::now();
+    while child.try_wait().expect("wait").is_none() {
+        if started.elapsed() > limit {
+            child.kill().ok();
+            panic!(
+                "`cetratus check {}` was still reading after {limit:?}",
+                file.display()
+            );
+        }
+        std::thread::sleep(Duration::from_millis(50));
+    }
+    child.wait_with_output().expect("output")
+}
+
+/// A PNML root whose `attributes` (a million of them) precede one net of one place.
+fn pnml_with_root_attributes(attributes: &str, children: &str) -> String {
+    format!(
+        "<pnml xmlns=\"http://www.pnml.org/version-2009/grammar/pnml\"{attributes}>{children}\n\
+         <net id=\"n\" type=\"http://www.pnml.org/version-2009/grammar/ptnet\"><page id=\"pg\">\
+         <place id=\"p\"/></page></net></pnml>\n"
+    )
+}
+
+#[test]
+fn pnml_files_with_a_million_attributes_or_prefixes_are_read_in_linear_time() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    const N: usize = 1_000_000;
+    let attributes: String = (0..N).map(|i| format!(" a{i}=\"v\"")).collect();
+    let prefixes: String = (0..N).map(|i| format!(" xmlns:p{i}=\"u\"")).collect();
+    let children = "<x/>".repeat(N);
+    let cases = [
+        (
+            "attributes.pnml",
+            pnml_with_root_attributes(&attributes, ""),
+        ),
+        (
+            "prefixes.pnml",
+            pnml_with_root_attributes(&prefixes, &children),
+        ),
+        (
+            "duplicate.pnml",
+            pnml_with_root_attributes(&format!("{attributes} a7=\"again\""), ""),
+        ),
+    ];
+    for (name, text) in cases {
+        let file = dir.path().join(name);
+        std::fs::write(&file, text).expect("write");
+        let out = check_within(&file, Duration::from_secs(120));
+        if name == "duplicate.pnml" {
+            refused(name, &out, &[name, "`a7` appears twice"]);
+        } else {
+            let stdout = String::from_utf8_lossy(&out.stdout);
+            assert!(
+                out.status.success(),
+                "{name}: {:?}\n{}",
+                out.status,
+                tail(&String::from_utf8_lossy(&out.stderr))
+            );
+            assert!(stdout.contains("1 place"), "{name}: {stdout}");
         }
     }
 }

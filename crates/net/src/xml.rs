@@ -15,7 +15,7 @@ use quick_xml::events::attributes::Attribute;
 use quick_xml::events::{BytesRef, Event};
 use quick_xml::name::QName;
 use quick_xml::XmlVersion;
-use rustc_hash::FxHashMap;
+use rustc_hash::{FxHashMap, FxHashSet};
 
 /// Marks a missing link (no parent, child, sibling or namespace).
 const NONE: u32 = u32::MAX;
@@ -27,6 +27,10 @@ const XML_NS: &str = "http://www.w3.org/XML/1998/namespace";
 /// references together. An entity cannot refer to another, so nothing grows exponentially, but
 /// one 100 KB entity used 20,000 times is 2 GB: the count keeps the expanded text within this.
 pub const MAX_ENTITY_EXPANSION: usize = 1 << 20;
+
+/// Up to this many attributes, an element's duplicates are found by a scan; beyond it, by a
+/// set, so that one element with a million attributes costs a million steps and not 10¹².
+const SCANNED_ATTRIBUTES: usize = 16;
 
 /// A parse failure: a byte offset into the input and what was wrong there.
 #[derive(Debug)]
@@ -198,9 +202,16 @@ struct Builder<'i> {
     input: &'i str,
     doc: Document<'i>,
     stack: Vec<Open<'i>>,
-    /// In-scope prefix bindings, innermost last: (prefix, index into namespaces or NONE when
-    /// `xmlns=""` undeclares the default namespace).
-    scope: Vec<(&'i str, u32)>,
+    /// The prefixes bound by the open elements, innermost last, so that closing an element
+    /// can undo its bindings.
+    scope: Vec<&'i str>,
+    /// For each prefix, the namespaces it is bound to by the open elements, innermost last: an
+    /// index into namespaces, or NONE when `xmlns=""` undeclares the default namespace. A map
+    /// rather than a search of `scope`, whose length the input controls.
+    bound: FxHashMap<&'i str, Vec<u32>>,
+    /// The attribute names of the element being opened, once it has more than
+    /// [`SCANNED_ATTRIBUTES`] of them.
+    seen: FxHashSet<&'i str>,
     /// Entities declared in the internal DTD subset, with their replacement text.
     entities: FxHashMap<&'i str, &'i str>,
     /// Bytes the declared entities have expanded to so far, against [`MAX_ENTITY_EXPANSION`].
@@ -221,6 +232,8 @@ impl<'i> Builder<'i> {
             },
             stack: Vec::with_capacity(16),
             scope: Vec::new(),
+            bound: FxHashMap::default(),
+            seen: FxHashSet::default(),
             entities: FxHashMap::default(),
             expanded: Cell::new(0),
         }
@@ -357,14 +370,12 @@ impl<'i> Builder<'i> {
                     self.doc.namespaces.push(value);
                     (self.doc.namespaces.len() - 1) as u32
                 };
-                self.scope.push((prefix, ns));
+                self.scope.push(prefix);
+                self.bound.entry(prefix).or_default().push(ns);
                 bindings += 1;
                 continue;
             }
-            if self.doc.attributes[attr_start..]
-                .iter()
-                .any(|(n, _)| *n == key)
-            {
+            if self.is_duplicate(attr_start, key) {
                 return Self::fail(start, format!("the attribute `{key}` appears twice"));
             }
             self.doc.attributes.push((key, value));
@@ -373,10 +384,8 @@ impl<'i> Builder<'i> {
             Some((p, n)) => (p, n),
             None => ("", qname),
         };
-        // Most names have no prefix: settle those on the length, without a call to memcmp.
-        let same = |p: &str| p.len() == prefix.len() && (prefix.is_empty() || p == prefix);
-        let namespace = match self.scope.iter().rev().find(|(p, _)| same(p)) {
-            Some(&(_, ns)) => ns,
+        let namespace = match self.bound.get(prefix).and_then(|stack| stack.last()) {
+            Some(&ns) => ns,
             None if prefix.is_empty() => NONE,
             None if prefix == "xml" => {
                 self.doc.namespaces.push(Cow::Borrowed(XML_NS));
@@ -421,6 +430,23 @@ impl<'i> Builder<'i> {
             self.stack.push(open);
         }
         Ok(())
+    }
+
+    /// Whether `key` is already among the attributes of the element being opened, which start
+    /// at `attr_start`.
+    fn is_duplicate(&mut self, attr_start: usize, key: &'i str) -> bool {
+        let so_far = &self.doc.attributes[attr_start..];
+        if so_far.len() < SCANNED_ATTRIBUTES {
+            // Only when needed: clearing costs the set's capacity, which a big element grew.
+            if !self.seen.is_empty() {
+                self.seen.clear();
+            }
+            return so_far.iter().any(|(n, _)| *n == key);
+        }
+        if self.seen.is_empty() {
+            self.seen.extend(so_far.iter().map(|(n, _)| *n));
+        }
+        !self.seen.insert(key)
     }
 
     /// Decodes an attribute value: entities, character references and the whitespace that XML
@@ -470,7 +496,11 @@ impl<'i> Builder<'i> {
         let el = &mut self.doc.elements[open.id as usize];
         el.range.end = end;
         el.last_descendant = last;
-        self.scope.truncate(self.scope.len() - open.bindings);
+        for prefix in self.scope.drain(self.scope.len() - open.bindings..) {
+            if let Some(stack) = self.bound.get_mut(prefix) {
+                stack.pop();
+            }
+        }
     }
 
     /// Ends the text run of the innermost open element: a child came.
@@ -641,6 +671,45 @@ mod tests {
         );
         assert_eq!(root.descendants().count(), 4);
         assert_eq!(doc.text_pos_at(kids[0].range().start), (2, 18));
+    }
+
+    #[test]
+    fn a_rebound_prefix_holds_inside_its_element_and_reverts_after_it() {
+        let input = "<r xmlns:p=\"urn:1\" xmlns=\"urn:d\"><p:a xmlns:p=\"urn:2\" xmlns=\"\"><p:b/><c/></p:a><p:d/><e/></r>";
+        let doc = Document::parse(input).expect("well-formed");
+        let namespaces: Vec<_> = doc
+            .root_element()
+            .descendants()
+            .map(|n| (n.name(), n.namespace()))
+            .collect();
+        assert_eq!(
+            namespaces,
+            [
+                ("r", Some("urn:d")),
+                ("a", Some("urn:2")),
+                ("b", Some("urn:2")),
+                ("c", None),
+                ("d", Some("urn:1")),
+                ("e", Some("urn:d")),
+            ]
+        );
+        let err = Document::parse("<r><a xmlns:p=\"urn:1\"/><p:b/></r>").err();
+        assert!(err.expect("out of scope").message.contains("`p`"));
+    }
+
+    #[test]
+    fn duplicate_attributes_are_found_on_small_and_large_elements_alike() {
+        let many: String = (0..40).map(|i| format!(" a{i}=\"v\"")).collect();
+        let ok = format!("<r><x{many}/><y a1=\"1\" a2=\"2\"/><z{many}/></r>");
+        assert!(Document::parse(&ok).is_ok());
+        for bad in [
+            format!("<r><x{many} a20=\"again\"/></r>"),
+            format!("<r><x{many}/><y a1=\"1\" a1=\"2\"/></r>"),
+            "<r a=\"1\" a=\"2\"/>".to_owned(),
+        ] {
+            let err = Document::parse(&bad).err().expect("a duplicate");
+            assert!(err.message.contains("appears twice"), "{}", err.message);
+        }
     }
 
     #[test]

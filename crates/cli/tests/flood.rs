@@ -14,6 +14,7 @@ use std::time::{Duration, Instant};
 
 use base64::Engine as _;
 use rumqttc::v5::mqttbytes::QoS;
+use serde_json::Value;
 
 /// The PLC's resident memory may not pass this, whatever is sent to it.
 const RSS_BOUND_KB: u64 = 256 * 1024;
@@ -138,9 +139,8 @@ fn a_flood_of_large_commands_and_events_leaves_the_plcs_memory_bounded_and_it_an
     let after = reply(&replies, b"after", Duration::from_secs(30));
     let peak = sampler.peak_kb();
 
-    let replies = replies.lock().expect("replies");
     let mut codes: BTreeMap<String, usize> = BTreeMap::new();
-    for (k, v) in replies.iter() {
+    for (k, v) in replies.lock().expect("replies").iter() {
         if k.starts_with(b"load-") {
             let code = v["error"]["code"].as_str().unwrap_or("ok").to_string();
             *codes.entry(code).or_default() += 1;
@@ -165,5 +165,26 @@ fn a_flood_of_large_commands_and_events_leaves_the_plcs_memory_bounded_and_it_an
         codes.keys().all(|c| c == "busy" || c == "refused"),
         "every load is refused or turned away busy: {codes:?}"
     );
+
+    // The PLC counts what it turned away where operators look: in its retained `state` (which
+    // this client's collector files under the empty correlation data).
+    let busy = codes.get("busy").copied().unwrap_or(0) as u64;
+    flood
+        .subscribe(format!("cetratus/{PLC}/state"), QoS::AtLeastOnce)
+        .expect("subscribe to the state");
+    let mut control = Value::Null;
+    common::wait_for(
+        "a state that counts the commands answered busy",
+        Duration::from_secs(30),
+        || {
+            control = replies
+                .lock()
+                .expect("replies")
+                .get(b"".as_slice())
+                .map_or(Value::Null, |state| state["control"].clone());
+            control["commands_busy"].as_u64().unwrap_or(0) >= busy
+        },
+    );
+    eprintln!("state.control after the flood: {control}");
     drop(plc);
 }

@@ -54,6 +54,6 @@ pub use error::MctError;
 pub use inbound::{CommandQueue, UNREAD_BYTES};
 pub use link::{
     client_options, spawn_mqtt, start, BrokerChoice, LinkStats, MctLink, MqttConfig, MqttHandle,
-    Outgoing, COMMAND_QUEUE_BYTES, DEFAULT_MQTT_ADDR,
+    Outgoing, StatsReader, COMMAND_QUEUE_BYTES, DEFAULT_MQTT_ADDR,
 };
 pub use rumqttc::v5::MqttOptions;

@@ -204,6 +204,23 @@ pub struct MctLink {
     pub commands: CommandQueue,
     /// Everything the PLC publishes; write with `try_send` (see [`MctLink::send`]).
     pub outgoing: SyncSender<Outgoing>,
+    /// What the MQTT side has turned away or lost so far, for the PLC's `state`.
+    pub stats: StatsReader,
+}
+
+/// Reads the MQTT side's [`LinkStats`] from another thread: three relaxed atomic loads.
+#[derive(Clone, Debug)]
+pub struct StatsReader(Arc<Shared>);
+
+impl StatsReader {
+    /// What was turned away or lost so far.
+    pub fn read(&self) -> LinkStats {
+        LinkStats {
+            commands_busy: self.0.commands_busy.load(Ordering::Relaxed),
+            commands_dropped: self.0.commands_dropped.load(Ordering::Relaxed),
+            messages_lost: self.0.messages_lost.load(Ordering::Relaxed),
+        }
+    }
 }
 
 impl MctLink {
@@ -224,6 +241,7 @@ impl MctLink {
 }
 
 /// What the MQTT threads share.
+#[derive(Debug)]
 pub(crate) struct Shared {
     pub(crate) connected: AtomicBool,
     pub(crate) stopping: AtomicBool,
@@ -294,11 +312,7 @@ impl MqttHandle {
     }
     /// What was turned away or lost so far.
     pub fn stats(&self) -> LinkStats {
-        LinkStats {
-            commands_busy: self.shared.commands_busy.load(Ordering::Relaxed),
-            commands_dropped: self.shared.commands_dropped.load(Ordering::Relaxed),
-            messages_lost: self.shared.messages_lost.load(Ordering::Relaxed),
-        }
+        StatsReader(self.shared.clone()).read()
     }
     /// Publishes `{"online": false}` on `state`, disconnects and stops the threads and the broker.
     pub fn shutdown(mut self) {
@@ -476,6 +490,7 @@ pub fn spawn_mqtt(
         MctLink {
             commands: CommandQueue(cmd_rx),
             outgoing: out_tx,
+            stats: StatsReader(shared.clone()),
         },
         MqttHandle {
             shared,

@@ -19,10 +19,13 @@ use std::sync::mpsc::{channel, sync_channel, Receiver, Sender, SyncSender, TrySe
 use std::sync::Arc;
 
 use cetratus_mct::budget::{worth_logging, Budget, Permit};
-use cetratus_mct::{accepted, refused, IncomingCommand, MctLink, Outgoing, ReplyHandle, Request};
+use cetratus_mct::{
+    accepted, refused, IncomingCommand, MctLink, Outgoing, ReplyHandle, Request, StatsReader,
+};
 use cetratus_program::{Program, TrustStore, Value};
 use cetratus_proto::{
-    within_error, ErrorBody, ErrorCode, EventMsg, ExecInfoMsg, IoMsg, IoNames, StateMsg,
+    within_error, ControlCounters, ErrorBody, ErrorCode, EventMsg, ExecInfoMsg, IoMsg, IoNames,
+    StateMsg,
 };
 use cetratus_runtime::monitor::CycleRecord;
 use cetratus_runtime::{
@@ -100,6 +103,7 @@ pub struct ControlLink {
     publish_every: u64,
     done: Arc<AtomicBool>,
     threads: Vec<std::thread::JoinHandle<()>>,
+    mqtt_stats: StatsReader,
 }
 
 impl ControlLink {
@@ -111,7 +115,11 @@ impl ControlLink {
         allow_unsigned: bool,
         publish_every: u64,
     ) -> ControlLink {
-        let MctLink { commands, outgoing } = link;
+        let MctLink {
+            commands,
+            outgoing,
+            stats,
+        } = link;
         let (to_scan_tx, to_scan_rx) = sync_channel::<Ready>(32);
         let (ctx_tx, ctx_rx) = sync_channel::<UpdateContext>(4);
         // Unbounded as a channel, bounded by the permits its messages carry.
@@ -155,6 +163,7 @@ impl ControlLink {
             publish_every: publish_every.max(1),
             done,
             threads: vec![preparer, publisher],
+            mqtt_stats: stats,
         }
     }
 
@@ -212,6 +221,18 @@ impl ControlLink {
         self.counters
     }
 
+    /// What the whole control plane turned away or dropped so far, for `state`.
+    fn control_counters(&self) -> ControlCounters {
+        let mqtt = self.mqtt_stats.read();
+        ControlCounters {
+            commands_busy: mqtt.commands_busy,
+            commands_dropped: mqtt.commands_dropped,
+            messages_lost: mqtt.messages_lost,
+            events_dropped: self.counters.dropped,
+            snapshots_skipped: self.counters.snapshots_skipped,
+        }
+    }
+
     /// Publishes the cycle's events, and a snapshot when one is due or something changed.
     pub fn after_cycle(&mut self, plc: &Plc, events: &[Event], timing: &LoopTiming, now: u64) {
         self.queue_events(events);
@@ -250,8 +271,10 @@ impl ControlLink {
                 .copied()
                 .collect();
             self.last_sampled = plc.cycles();
+            let mut state = wire::state(plc, timing);
+            state.control = self.control_counters();
             let snap = Snapshot {
-                state: wire::state(plc, timing),
+                state,
                 exec_info: plc.exec_info(),
                 names_in: self.names_in.clone(),
                 names_out: self.names_out.clone(),

@@ -26,9 +26,9 @@ pub use broker::{BrokerUrl, DEFAULT_PORT, DEFAULT_TLS_PORT};
 pub use error::ProtoError;
 pub use names::{ErrorCode, Role, Slot, StatusName, SubstituteMode, VerdictKind, VerdictResult};
 pub use payload::{
-    decode, encode, within_error, Accepted, Command, CycleFigures, ErrorBody, EventMsg, ExecInfo,
-    ExecInfoMsg, IoMsg, IoNames, LoadArgs, NetMsg, NoArgs, ProgramInfo, Programs, Reply,
-    ReplyFields, Sample, SignalValue, Signals, StateMsg, StatePayload, SubstituteArgs,
-    TimingSummary, Verdict, MAX_PAYLOAD, MAX_WITHIN_MS,
+    decode, encode, within_error, Accepted, Command, ControlCounters, CycleFigures, ErrorBody,
+    EventMsg, ExecInfo, ExecInfoMsg, IoMsg, IoNames, LoadArgs, NetMsg, NoArgs, ProgramInfo,
+    Programs, Reply, ReplyFields, Sample, SignalValue, Signals, StateMsg, StatePayload,
+    SubstituteArgs, TimingSummary, Verdict, MAX_PAYLOAD, MAX_WITHIN_MS,
 };
 pub use topic::{parse_topic, Leaf, PlcId, Topics, Verb, ALL_PLCS_FILTER, ROOT};

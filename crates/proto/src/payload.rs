@@ -201,6 +201,24 @@ pub struct CycleFigures {
     pub update: Option<String>,
 }
 
+/// The `control` object of `state`: what the PLC's control plane turned away or dropped since it
+/// started, so that a flood shows where it is seen and not only in the PLC's log.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ControlCounters {
+    /// Commands answered `busy` because a queue was full, in entries or in bytes.
+    pub commands_busy: u64,
+    /// Commands dropped unanswered: they came faster than they could be read.
+    pub commands_dropped: u64,
+    /// Events and replies of the PLC that the MQTT client had no room for.
+    pub messages_lost: u64,
+    /// Events and replies dropped before the MQTT client because it was behind.
+    pub events_dropped: u64,
+    /// `state`, `io` and `exec_info` publications skipped because the publisher was behind
+    /// (the next one carries on).
+    pub snapshots_skipped: u64,
+}
+
 /// The retained `state` of a PLC that is online.
 #[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -215,6 +233,9 @@ pub struct StateMsg {
     pub programs: Programs,
     /// The scan loop's figures.
     pub cycle: CycleFigures,
+    /// What the control plane turned away or dropped; absent from PLCs older than it.
+    #[serde(default)]
+    pub control: ControlCounters,
 }
 
 /// What the retained `state` topic holds: the PLC's state, or `{"online": false}` (its last

@@ -210,6 +210,7 @@ pub fn state(primary: &str, status: &str) -> StateMsg {
             b: None,
         },
         cycle: CycleFigures::default(),
+        control: Default::default(),
     }
 }
 

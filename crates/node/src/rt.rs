@@ -1,9 +1,19 @@
-//! Real-time scheduling on request: SCHED_FIFO for the scan thread and locked memory.
+//! Real-time scheduling on request: SCHED_FIFO for the scan thread, locked memory, and a CPU of
+//! the scan thread's own.
 //!
-//! Both need privileges most machines do not grant by default. Where the machine refuses, the
-//! caller gets the reason and goes on without them.
+//! SCHED_FIFO and locked memory need privileges most machines do not grant by default. Where the
+//! machine refuses, the caller gets the reason and goes on without them.
+//!
+//! SCHED_FIFO alone lets the scan thread preempt the process's other threads, but not the kernel
+//! work they cause on its CPU: copying a 1 MiB MQTT payload out of a socket, or mapping and
+//! unmapping its buffer, runs to its end before the scan thread gets the CPU back. With two or
+//! more CPUs, [`request`] therefore gives the scan thread the last CPU the process may use, and
+//! moves every other thread of the process to the others. A thread started later by the scan
+//! thread inherits its CPU and priority: it calls [`normal`] first, which gives it back both.
 
 use std::fmt;
+#[cfg(target_os = "linux")]
+use std::sync::OnceLock;
 
 /// What `--rt` obtained.
 #[derive(Clone, Debug, Default)]
@@ -12,6 +22,8 @@ pub struct RtStatus {
     pub fifo: bool,
     /// All current and future pages are locked in memory.
     pub mlockall: bool,
+    /// The CPU the scan thread has to itself, when the process may use two or more.
+    pub cpu: Option<usize>,
     /// Why something was refused.
     pub warnings: Vec<String>,
 }
@@ -20,14 +32,23 @@ impl fmt::Display for RtStatus {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         write!(
             f,
-            "SCHED_FIFO {}, mlockall {}",
+            "SCHED_FIFO {}, mlockall {}, ",
             if self.fifo { "on" } else { "off" },
             if self.mlockall { "on" } else { "off" }
-        )
+        )?;
+        match self.cpu {
+            Some(cpu) => write!(f, "CPU {cpu} to itself"),
+            None => write!(f, "no CPU to itself"),
+        }
     }
 }
 
-/// Asks for SCHED_FIFO at `priority` (1..=99) on the calling thread and for mlockall.
+/// The CPUs of every thread but the scan thread, once [`request`] gave the scan thread its own.
+#[cfg(target_os = "linux")]
+static OTHERS: OnceLock<nix::sched::CpuSet> = OnceLock::new();
+
+/// Asks for SCHED_FIFO at `priority` (1..=99) on the calling thread and for mlockall, and gives
+/// the calling thread a CPU of its own (see the module's doc).
 pub fn request(priority: u8) -> RtStatus {
     let mut status = RtStatus::default();
     #[cfg(target_os = "linux")]
@@ -56,6 +77,10 @@ pub fn request(priority: u8) -> RtStatus {
                 "mlockall refused ({e}); raise the memlock limit (ulimit -l) or grant CAP_IPC_LOCK"
             )),
         }
+        match isolate() {
+            Ok(cpu) => status.cpu = Some(cpu),
+            Err(why) => status.warnings.push(why),
+        }
     }
     #[cfg(not(target_os = "linux"))]
     {
@@ -67,12 +92,60 @@ pub fn request(priority: u8) -> RtStatus {
     status
 }
 
-/// Gives up real-time scheduling on the calling thread: a thread inherits its creator's policy,
-/// so a helper started by a SCHED_FIFO scan thread would otherwise compete with it at its
-/// priority. Does nothing where real-time scheduling was never granted.
+/// Gives the calling thread the last CPU the process may use, and moves every other thread of
+/// the process to the rest; returns that CPU, or why not.
+#[cfg(target_os = "linux")]
+fn isolate() -> Result<usize, String> {
+    use nix::sched::{sched_getaffinity, sched_setaffinity, CpuSet};
+    use nix::unistd::{gettid, Pid};
+    let me = gettid();
+    let allowed =
+        sched_getaffinity(me).map_err(|e| format!("cannot read the CPU affinity ({e})"))?;
+    let cpus: Vec<usize> = (0..CpuSet::count())
+        .filter(|&c| allowed.is_set(c).unwrap_or(false))
+        .collect();
+    let [_, .., scan] = cpus[..] else {
+        return Err(
+            "the process may use one CPU only: the scan thread shares it with the others"
+                .to_string(),
+        );
+    };
+    let mut own = CpuSet::new();
+    let mut others = allowed;
+    own.set(scan)
+        .and_then(|()| others.unset(scan))
+        .map_err(|e| format!("CPU {scan}: {e}"))?;
+    sched_setaffinity(me, &own)
+        .map_err(|e| format!("cannot pin the scan thread to CPU {scan} ({e})"))?;
+    let _ = OTHERS.set(others);
+    // Twice: a thread that another one started while the first pass ran has its creator's old
+    // CPUs.
+    for _ in 0..2 {
+        let Ok(tasks) = std::fs::read_dir("/proc/self/task") else {
+            break;
+        };
+        for tid in tasks
+            .flatten()
+            .filter_map(|t| t.file_name().to_str()?.parse::<i32>().ok())
+        {
+            if tid != me.as_raw() {
+                // A thread that ended meanwhile is no error.
+                let _ = sched_setaffinity(Pid::from_raw(tid), &others);
+            }
+        }
+    }
+    Ok(scan)
+}
+
+/// Gives up real-time scheduling on the calling thread: a thread inherits its creator's policy
+/// and CPU, so a helper started by a SCHED_FIFO scan thread would otherwise compete with it at its
+/// priority, on its CPU. Does nothing where real-time scheduling was never granted.
 pub fn normal() {
     #[cfg(target_os = "linux")]
     {
+        if let Some(others) = OTHERS.get() {
+            let _ = nix::sched::sched_setaffinity(nix::unistd::gettid(), others);
+        }
         use thread_priority::{
             set_thread_priority_and_policy, thread_native_id, NormalThreadSchedulePolicy,
             ThreadPriority, ThreadSchedulePolicy,

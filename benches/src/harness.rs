@@ -571,6 +571,34 @@ pub fn flood(
     Ok(out)
 }
 
+/// Reads the one-time login link `cetratus mct` prints on its first line of output, opens it
+/// on the dashboard at port `http`, and returns the session's `Cookie` header line.
+fn dashboard_login(mct: &mut std::process::Child, http: u16) -> Result<String, BenchError> {
+    use std::io::{BufRead, BufReader, Read, Write};
+    let out = mct
+        .stdout
+        .take()
+        .ok_or_else(|| BenchError::from("`cetratus mct` has no piped output"))?;
+    let mut line = String::new();
+    BufReader::new(out).read_line(&mut line)?;
+    let path = line
+        .split_whitespace()
+        .find_map(|w| w.find("/login?token=").map(|i| w[i..].to_string()))
+        .ok_or_else(|| BenchError::from(format!("`cetratus mct` printed no login link: {line}")))?;
+    let mut stream = std::net::TcpStream::connect(("127.0.0.1", http))?;
+    write!(stream, "GET {path} HTTP/1.0\r\nHost: 127.0.0.1\r\n\r\n")?;
+    let mut head = String::new();
+    stream.read_to_string(&mut head)?;
+    head.lines()
+        .find_map(|l| {
+            l.strip_prefix("set-cookie: ")
+                .or_else(|| l.strip_prefix("Set-Cookie: "))
+        })
+        .and_then(|c| c.split(';').next())
+        .map(|c| format!("Cookie: {c}"))
+        .ok_or_else(|| BenchError::from(format!("the login link did not log in: {head}")))
+}
+
 /// Kills a child process when dropped.
 struct Child(std::process::Child);
 
@@ -661,7 +689,7 @@ pub fn fleet(
         ));
     }
     let http = free()?;
-    let mct = Child(
+    let mut mct = Child(
         Command::new(exe)
             .args([
                 "mct",
@@ -670,16 +698,20 @@ pub fn fleet(
                 "--broker",
                 &url,
             ])
-            .stdout(Stdio::null())
+            .stdout(Stdio::piped())
             .stderr(Stdio::null())
             .spawn()?,
     );
     wait(http);
+    let cookie = dashboard_login(&mut mct.0, http)?;
     // Let every PLC connect before measuring.
     std::thread::sleep(Duration::from_secs(5));
     let plcs_seen = {
         let mut stream = std::net::TcpStream::connect(("127.0.0.1", http))?;
-        write!(stream, "GET /api/plcs HTTP/1.0\r\nHost: 127.0.0.1\r\n\r\n")?;
+        write!(
+            stream,
+            "GET /api/plcs HTTP/1.0\r\nHost: 127.0.0.1\r\n{cookie}\r\n\r\n"
+        )?;
         let mut body = String::new();
         std::io::Read::read_to_string(&mut stream, &mut body)?;
         let json = body.split_once("\r\n\r\n").map_or("", |(_, b)| b);
@@ -693,7 +725,7 @@ pub fn fleet(
     // A stream client of the dashboard, as a browser is: latency of every io message of cell0.
     let mut stream = std::net::TcpStream::connect(("127.0.0.1", http))?;
     stream.set_read_timeout(Some(Duration::from_millis(500)))?;
-    write!(stream, "GET /api/stream?plc=cell0 HTTP/1.0\r\nHost: 127.0.0.1\r\nAccept: text/event-stream\r\n\r\n")?;
+    write!(stream, "GET /api/stream?plc=cell0 HTTP/1.0\r\nHost: 127.0.0.1\r\n{cookie}\r\nAccept: text/event-stream\r\n\r\n")?;
     let mut reader = BufReader::new(stream);
     let mut lat_ms: Vec<f64> = Vec::new();
     let mut line = String::new();

@@ -168,6 +168,7 @@ pub fn run(args: &BenchArgs) -> anyhow::Result<()> {
                     user: None,
                     password: None,
                     signer: None,
+                    access: cetratus_dashboard::AccessConfig::default(),
                 },
             )?))
         };

@@ -148,8 +148,9 @@ fn live(args: &DemoArgs, files: &DemoFiles) -> anyhow::Result<()> {
     println!(
         "Cetratus demo: the Vernadat cell runs in real time (speed {speed}) with its digital twin."
     );
-    if let Some(addr) = services.dashboard_addr() {
-        println!("  dashboard   http://{addr}/");
+    if let Some(url) = services.dashboard_login_url()? {
+        println!("  dashboard   {url}");
+        println!("              (a one-time link: it logs one browser in)");
     }
     println!("  MQTT        {broker_url}, topics cetratus/{plc_id}/…");
     println!(

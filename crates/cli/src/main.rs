@@ -63,6 +63,8 @@ enum Command {
     Bench(bench::BenchArgs),
     /// The dashboard on its own, watching the PLCs on a broker.
     Mct(mct_cmd::MctArgs),
+    /// Read a password from stdin and print its argon2 hash, for `[dashboard] accounts`.
+    HashPassword,
     /// Send an update package to a PLC and follow it into quarantine.
     Load(client::LoadArgs),
     /// Make the candidate in quarantine PRIMARY.
@@ -118,6 +120,7 @@ fn main() -> std::process::ExitCode {
         #[cfg(feature = "bench")]
         Command::Bench(a) => bench::run(a),
         Command::Mct(a) => mct_cmd::run(a),
+        Command::HashPassword => mct_cmd::hash_password(),
         Command::Load(a) => client::load(a),
         Command::Substitute(a) => client::substitute(a),
         Command::Remove(a) => client::plain(cetratus_proto::Command::Remove, a),

@@ -23,6 +23,9 @@ pub struct MctArgs {
     /// Sign the commands of the page with this operator key, for PLCs with operator keys.
     #[arg(long)]
     key: Option<std::path::PathBuf>,
+    /// The local configuration directory, for its `[dashboard]` accounts.
+    #[arg(long)]
+    config: Option<std::path::PathBuf>,
 }
 
 /// Runs `cetratus mct` until Ctrl-C.
@@ -42,10 +45,13 @@ pub fn run(args: &MctArgs) -> anyhow::Result<()> {
             Some(path) => Some(signer(path)?),
             None => None,
         },
+        access: crate::mqtt_args::access_config(&cetratus_node::config::LocalConfig::load(
+            args.config.as_deref(),
+        )?),
     })?;
     println!(
-        "dashboard on http://{}/ watching {}; Ctrl-C stops",
-        d.local_addr(),
+        "dashboard on {} watching {}; Ctrl-C stops",
+        d.login_url()?,
         args.broker
     );
     let stop = Arc::new(AtomicBool::new(false));
@@ -56,6 +62,28 @@ pub fn run(args: &MctArgs) -> anyhow::Result<()> {
         std::thread::sleep(std::time::Duration::from_millis(100));
     }
     d.stop();
+    Ok(())
+}
+
+/// `cetratus hash-password`: the first line of stdin (without its line end), hashed for
+/// `[[dashboard.accounts]] password_hash`.
+pub fn hash_password() -> anyhow::Result<()> {
+    use std::io::IsTerminal as _;
+    if std::io::stdin().is_terminal() {
+        eprintln!("password (shown as typed; pipe it in to keep it off the screen):");
+    }
+    let mut line = String::new();
+    std::io::stdin()
+        .read_line(&mut line)
+        .context("cannot read the password from stdin")?;
+    let password = line.trim_end_matches(['\n', '\r']);
+    anyhow::ensure!(
+        !password.is_empty(),
+        "no password on stdin: write it on the first line, e.g. `cetratus hash-password < file`"
+    );
+    let hash = cetratus_dashboard::hash_password(password)
+        .map_err(|e| anyhow::anyhow!("cannot hash the password: {e}"))?;
+    println!("{hash}");
     Ok(())
 }
 

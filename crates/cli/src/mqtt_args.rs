@@ -95,9 +95,12 @@ impl Services {
         &self.broker_url
     }
 
-    /// Where the dashboard listens.
-    pub fn dashboard_addr(&self) -> Option<SocketAddr> {
-        self.dashboard.as_ref().map(|d| d.local_addr())
+    /// A new one-time login link to the dashboard, when it runs.
+    pub fn dashboard_login_url(&self) -> anyhow::Result<Option<String>> {
+        Ok(match &self.dashboard {
+            Some(d) => Some(d.login_url()?),
+            None => None,
+        })
     }
 }
 
@@ -131,6 +134,7 @@ pub fn start_services(
                 user: mqtt.user.clone(),
                 password: mqtt.password.clone(),
                 signer: None,
+                access: access_config(local),
             },
         )?)
     } else {
@@ -139,8 +143,8 @@ pub fn start_services(
     if announce {
         match &dashboard {
             Some(d) => eprintln!(
-                "MQTT {broker_url} (topics cetratus/{plc_id}/…), dashboard http://{}/",
-                d.local_addr()
+                "MQTT {broker_url} (topics cetratus/{plc_id}/…), dashboard {}",
+                d.login_url()?
             ),
             None => eprintln!("MQTT {broker_url} (topics cetratus/{plc_id}/…)"),
         }
@@ -153,6 +157,21 @@ pub fn start_services(
             broker_url,
         },
     ))
+}
+
+/// Who may log in to the dashboard, from the `[dashboard]` section of the local configuration.
+pub fn access_config(local: &LocalConfig) -> cetratus_dashboard::AccessConfig {
+    cetratus_dashboard::AccessConfig {
+        accounts: local
+            .dashboard_accounts
+            .iter()
+            .map(|(name, hash)| cetratus_dashboard::Account {
+                name: name.clone(),
+                password_hash: hash.clone(),
+            })
+            .collect(),
+        hosts: local.dashboard_hosts.clone(),
+    }
 }
 
 /// The node's side of MQTT for `plc`. Snapshots go out about five times a second of wall time,

@@ -8,7 +8,7 @@ use std::time::Duration;
 use cetratus_testkit::browser::{require_chromium, Browser};
 use cetratus_testkit::paths::artifacts_dir;
 use cetratus_testkit::ports::{free_port, wait_for_port};
-use cetratus_testkit::process::ChildGuard;
+use cetratus_testkit::process::{login_link, stdout_lines, ChildGuard};
 
 const BIN: &str = env!("CARGO_BIN_EXE_cetratus");
 
@@ -17,7 +17,7 @@ async fn an_operator_loads_u1_in_the_browser_sees_quarantine_substitutes_and_pri
     require_chromium();
     let dir = tempfile::tempdir().expect("temp dir");
     let (mqtt, http) = (free_port(), free_port());
-    let _demo = ChildGuard::spawn(
+    let mut demo = ChildGuard::spawn(
         Command::new(BIN)
             .args(["demo", "--speed", "20", "--plc", "web1", "--for", "2h"])
             .args([
@@ -28,14 +28,18 @@ async fn an_operator_loads_u1_in_the_browser_sees_quarantine_substitutes_and_pri
                 "--dir",
             ])
             .arg(dir.path())
-            .stdout(Stdio::null())
+            .stdout(Stdio::piped())
             .stderr(Stdio::null()),
     );
     wait_for_port(http, "the dashboard", Duration::from_secs(30));
+    // As a newcomer does: the one-time link the demo printed logs the browser in.
+    let link = login_link(&stdout_lines(&mut demo.0), Duration::from_secs(30));
+    assert!(
+        link.starts_with(&format!("http://127.0.0.1:{http}/login?token=")),
+        "{link}"
+    );
     let c = Browser::start().await;
-    c.goto(&format!("http://127.0.0.1:{http}/"))
-        .await
-        .expect("the page loads");
+    c.goto(&link).await.expect("the page loads");
 
     c.wait_text("primary", "A", Duration::from_secs(30)).await;
     c.wait_text("status", "idle", Duration::from_secs(5)).await;

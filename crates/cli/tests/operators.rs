@@ -7,7 +7,7 @@ use std::process::{Command, Output, Stdio};
 use std::time::{Duration, Instant};
 
 use cetratus_testkit::ports::{free_port, wait_for_port};
-use cetratus_testkit::process::ChildGuard;
+use cetratus_testkit::process::{login_link, stdout_lines, ChildGuard};
 
 const BIN: &str = env!("CARGO_BIN_EXE_cetratus");
 
@@ -129,20 +129,31 @@ fn with_operator_keys_only_signed_commands_are_carried_out_and_the_audit_log_nam
         if let Some(k) = key {
             cmd.args(["--key", path(k)]);
         }
-        let _mct = ChildGuard::spawn(cmd.stdout(Stdio::null()).stderr(Stdio::null()));
+        let mut mct = ChildGuard::spawn(cmd.stdout(Stdio::piped()).stderr(Stdio::null()));
+        let cookie = cetratus_testkit::http::login(&login_link(
+            &stdout_lines(&mut mct.0),
+            Duration::from_secs(20),
+        ));
+        let addr = std::net::SocketAddr::from(([127, 0, 0, 1], http));
         let end = Instant::now() + Duration::from_secs(20);
         let mut reply = String::new();
         while Instant::now() < end {
-            if let Ok(mut s) = std::net::TcpStream::connect(("127.0.0.1", http)) {
-                use std::io::{Read, Write};
-                let _ = write!(s, "POST /api/ops1/exec_info HTTP/1.0\r\nHost: x\r\nContent-Type: application/json\r\nContent-Length: 2\r\n\r\n{{}}");
-                let _ = s.read_to_string(&mut reply);
-                // 503 while the dashboard is still connecting to the broker.
-                if !reply.contains(" 503 ") && !reply.is_empty() {
-                    break;
-                }
+            let r = cetratus_testkit::http::request(
+                addr,
+                "POST",
+                "/api/ops1/exec_info",
+                &[
+                    &format!("Host: {addr}"),
+                    "Content-Type: application/json",
+                    &cookie,
+                ],
+                b"{}",
+            );
+            reply = format!("{}\r\n\r\n{}", r.head, r.body);
+            // 503 while the dashboard is still connecting to the broker.
+            if r.status != 503 && r.status != 0 {
+                break;
             }
-            reply.clear();
             std::thread::sleep(Duration::from_millis(200));
         }
         reply

@@ -6,8 +6,9 @@ use std::sync::Arc;
 use std::time::Duration;
 
 use axum::body::Bytes;
-use axum::extract::{DefaultBodyLimit, Path, Query, State};
-use axum::http::{header, HeaderMap, StatusCode};
+use axum::extract::{ConnectInfo, DefaultBodyLimit, Path, Query, Request, State};
+use axum::http::{header, HeaderMap, Method, StatusCode};
+use axum::middleware::{self, Next};
 use axum::response::sse::{Event, KeepAlive, Sse};
 use axum::response::{IntoResponse, Response};
 use axum::routing::{get, post};
@@ -19,9 +20,12 @@ use serde::Deserialize;
 use serde_json::{json, Value};
 use tokio::sync::{broadcast, watch};
 
+use crate::access::{self, Access, LoginError};
 use crate::hub::{run_mqtt, unix_ms, Hub, Push};
 
 const INDEX_HTML: &str = include_str!("../assets/index.html");
+const LOGIN_HTML: &str = include_str!("../assets/login.html");
+const LOGIN_JS: &str = include_str!("../assets/login.js");
 const APP_JS: &str = include_str!("../assets/app.js");
 const STYLE_CSS: &str = include_str!("../assets/style.css");
 
@@ -32,6 +36,7 @@ const MAX_PACKAGE: usize = (1 << 20) / 4 * 3 - 1024;
 #[derive(Clone)]
 struct App {
     hub: Arc<Hub>,
+    access: Arc<Access>,
     shutdown: watch::Receiver<bool>,
 }
 
@@ -42,6 +47,7 @@ pub(crate) async fn run(
     shutdown: watch::Receiver<bool>,
     signer: Option<crate::CommandSigner>,
     token: String,
+    access: Arc<Access>,
 ) {
     let listener = match tokio::net::TcpListener::from_std(listener) {
         Ok(l) => l,
@@ -54,18 +60,25 @@ pub(crate) async fn run(
     let mqtt = tokio::spawn(run_mqtt(hub.clone(), eventloop, shutdown.clone()));
     let app = App {
         hub,
+        access,
         shutdown: shutdown.clone(),
     };
     let router = Router::new()
         .route("/", get(index))
+        .route("/login", get(login_link))
         .route("/app.js", get(app_js))
+        .route("/login.js", get(login_js))
         .route("/style.css", get(style_css))
+        .route("/api/login", post(login))
+        .route("/api/logout", post(logout))
         .route("/api/plcs", get(plcs))
         .route("/api/plc/{plc}", get(snapshot))
         .route("/api/stream", get(stream))
         .route("/api/{plc}/{verb}", post(command))
+        .layer(middleware::from_fn_with_state(app.clone(), guard))
         .layer(DefaultBodyLimit::max(2 << 20))
-        .with_state(app);
+        .with_state(app)
+        .into_make_service_with_connect_info::<std::net::SocketAddr>();
     let mut stop = shutdown.clone();
     let graceful = async move {
         let _ = stop.wait_for(|s| *s).await;
@@ -108,8 +121,150 @@ fn asset(content_type: &'static str, body: &'static str) -> Response {
         .into_response()
 }
 
-async fn index() -> Response {
-    asset("text/html; charset=utf-8", INDEX_HTML)
+/// Every request: the `Host` (and a POST's `Origin`) must be the dashboard's own; every `/api/`
+/// request but the login needs a session.
+async fn guard(State(app): State<App>, req: Request, next: Next) -> Response {
+    let post = req.method() == Method::POST;
+    if let Err(why) = app.access.check_origin(req.headers(), post) {
+        return error(StatusCode::FORBIDDEN, "not_allowed", why);
+    }
+    let path = req.uri().path();
+    if path.starts_with("/api/")
+        && path != "/api/login"
+        && app.access.account(req.headers()).is_none()
+    {
+        return error(
+            StatusCode::UNAUTHORIZED,
+            "unauthorised",
+            "log in first: open the login link that `cetratus run`, `demo` or `mct` printed, or \
+             log in with an account of the `[dashboard]` configuration"
+                .into(),
+        );
+    }
+    next.run(req).await
+}
+
+/// The page, or the login page for a browser without a session.
+async fn index(State(app): State<App>, headers: HeaderMap) -> Response {
+    if app.access.account(&headers).is_some() {
+        asset("text/html; charset=utf-8", INDEX_HTML)
+    } else {
+        asset("text/html; charset=utf-8", LOGIN_HTML)
+    }
+}
+
+async fn login_js() -> Response {
+    asset("text/javascript; charset=utf-8", LOGIN_JS)
+}
+
+#[derive(Deserialize)]
+struct LinkQuery {
+    token: String,
+}
+
+/// `GET /login?token=…`: a one-time login link; on to the page with a session.
+async fn login_link(State(app): State<App>, Query(q): Query<LinkQuery>) -> Response {
+    match app.access.redeem(&q.token) {
+        Some(session) => (
+            StatusCode::SEE_OTHER,
+            [
+                (header::SET_COOKIE, access::set_cookie(&session)),
+                (header::LOCATION, "/".to_string()),
+                (header::CACHE_CONTROL, "no-store".to_string()),
+            ],
+        )
+            .into_response(),
+        None => (
+            StatusCode::FORBIDDEN,
+            [(header::CONTENT_TYPE, "text/plain; charset=utf-8")],
+            "This login link was used already or has expired: each link logs in once. Log in \
+             with an account of the [dashboard] configuration, or restart the PLC (or the \
+             dashboard) for a new link.\n",
+        )
+            .into_response(),
+    }
+}
+
+#[derive(Deserialize)]
+struct Credentials {
+    account: String,
+    password: String,
+}
+
+/// `POST /api/login` with `{"account": …, "password": …}`.
+async fn login(
+    State(app): State<App>,
+    ConnectInfo(peer): ConnectInfo<std::net::SocketAddr>,
+    headers: HeaderMap,
+    body: Bytes,
+) -> Response {
+    if let Err(r) = require_type(&headers, &["application/json"]) {
+        return r;
+    }
+    let Ok(c) = serde_json::from_slice::<Credentials>(&body) else {
+        return error(
+            StatusCode::BAD_REQUEST,
+            "malformed",
+            "send {\"account\": …, \"password\": …}".into(),
+        );
+    };
+    if c.account.len() > access::MAX_NAME || c.password.len() > 1024 {
+        return error(
+            StatusCode::UNAUTHORIZED,
+            "unauthorised",
+            "wrong account name or password".into(),
+        );
+    }
+    match app.access.login(peer.ip(), c.account, c.password).await {
+        Ok(session) => (
+            [(header::SET_COOKIE, access::set_cookie(&session))],
+            Json(json!({"ok": true})),
+        )
+            .into_response(),
+        Err(LoginError::TooMany) => error(
+            StatusCode::TOO_MANY_REQUESTS,
+            "busy",
+            "too many login attempts; wait a few seconds".into(),
+        ),
+        Err(LoginError::Wrong) => error(
+            StatusCode::UNAUTHORIZED,
+            "unauthorised",
+            "wrong account name or password".into(),
+        ),
+    }
+}
+
+/// `POST /api/logout`.
+async fn logout(State(app): State<App>, headers: HeaderMap) -> Response {
+    app.access.logout(&headers);
+    (
+        [(header::SET_COOKIE, access::clear_cookie())],
+        Json(json!({"ok": true})),
+    )
+        .into_response()
+}
+
+/// Refuses a body whose `Content-Type` is not one of `types`: a form or `text/plain`, which a
+/// page of another site may send without asking, never reaches a handler.
+#[allow(clippy::result_large_err)]
+fn require_type(headers: &HeaderMap, types: &[&str]) -> Result<(), Response> {
+    let given = headers
+        .get(header::CONTENT_TYPE)
+        .and_then(|v| v.to_str().ok())
+        .unwrap_or("");
+    let essence = given.split(';').next().unwrap_or("").trim();
+    if types.iter().any(|t| essence.eq_ignore_ascii_case(t)) {
+        return Ok(());
+    }
+    Err(error(
+        StatusCode::UNSUPPORTED_MEDIA_TYPE,
+        "malformed",
+        format!(
+            "the body's Content-Type is `{}`; send {}",
+            given.escape_debug(),
+            types.join(" or ")
+        ),
+    ))
 }
 
 async fn app_js() -> Response {
@@ -258,6 +413,14 @@ async fn command(
             ),
         );
     };
+    let types: &[&str] = if verb == Verb::Load {
+        &["application/json", "application/octet-stream"]
+    } else {
+        &["application/json"]
+    };
+    if let Err(r) = require_type(&headers, types) {
+        return r;
+    }
     let is_json = headers
         .get(header::CONTENT_TYPE)
         .and_then(|v| v.to_str().ok())

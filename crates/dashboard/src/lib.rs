@@ -16,8 +16,9 @@
 //!     user: None,
 //!     password: None,
 //!     signer: None,
+//!     access: AccessConfig::default(),
 //! })?;
-//! println!("dashboard on http://{}/", handle.local_addr());
+//! println!("dashboard on {}", handle.login_url()?);
 //! handle.stop();
 //! # Ok::<(), DashboardError>(())
 //! ```
@@ -25,12 +26,16 @@
 // Every public item carries a doc line (house style); the compiler keeps us honest.
 #![warn(missing_docs)]
 
+pub mod access;
 mod http;
 mod hub;
 pub mod store;
 
 use std::net::SocketAddr;
+use std::sync::Arc;
 use std::thread::JoinHandle;
+
+pub use access::{hash_password, AccessConfig, AccessError, Account};
 
 use tokio::sync::watch;
 
@@ -74,6 +79,8 @@ pub struct DashboardConfig {
     pub password: Option<String>,
     /// Signs the commands the page sends, for PLCs with operator keys; `None` sends them plain.
     pub signer: Option<CommandSigner>,
+    /// Who may log in, and under which host names the dashboard is reached.
+    pub access: AccessConfig,
 }
 
 /// Everything that can stop the dashboard from starting.
@@ -112,15 +119,19 @@ pub enum DashboardError {
     /// The dashboard's thread or runtime could not be started.
     #[error("cannot start the dashboard's thread: {0}")]
     Thread(#[source] std::io::Error),
-    /// The operating system gave no random bytes for the reply topic.
+    /// The operating system gave no random bytes for the reply topic or a login link.
     #[error("cannot start the dashboard: no random bytes from the operating system ({0})")]
     Random(String),
+    /// The accounts cannot be used.
+    #[error(transparent)]
+    Access(#[from] AccessError),
 }
 
 /// The running dashboard; stops it when dropped.
 #[derive(Debug)]
 pub struct DashboardHandle {
     addr: SocketAddr,
+    access: Arc<access::Access>,
     shutdown: watch::Sender<bool>,
     thread: Option<JoinHandle<()>>,
 }
@@ -134,6 +145,16 @@ impl DashboardHandle {
     /// The page's URL, `http://<local_addr>/`.
     pub fn url(&self) -> String {
         format!("http://{}/", self.addr)
+    }
+
+    /// A new one-time login link, `http://<local_addr>/login?token=…`: it logs one browser in,
+    /// once, within a day (docs/dashboard.md, *Access*).
+    pub fn login_url(&self) -> Result<String, DashboardError> {
+        let token = self
+            .access
+            .new_link()
+            .map_err(|e| DashboardError::Random(e.to_string()))?;
+        Ok(format!("http://{}/login?token={token}", self.addr))
     }
 
     /// Closes the browsers' streams, stops the HTTP server and disconnects from the broker.
@@ -167,6 +188,7 @@ pub fn serve(config: DashboardConfig) -> Result<DashboardHandle, DashboardError>
     // Names this connection's reply topics; random, so that nobody can answer its commands
     // by guessing where the replies go.
     let token = hub::random_hex(16).map_err(|e| DashboardError::Random(e.to_string()))?;
+    let access = Arc::new(access::Access::new(config.access)?);
     let listener = std::net::TcpListener::bind(config.http).map_err(|source| {
         if source.kind() == std::io::ErrorKind::AddrInUse {
             let mut suggestion = config.http;
@@ -195,6 +217,7 @@ pub fn serve(config: DashboardConfig) -> Result<DashboardHandle, DashboardError>
         .build()
         .map_err(DashboardError::Thread)?;
     let (shutdown, shutdown_rx) = watch::channel(false);
+    let served = access.clone();
     let thread = std::thread::Builder::new()
         .name("cetratus-dashboard".into())
         .spawn(move || {
@@ -204,11 +227,13 @@ pub fn serve(config: DashboardConfig) -> Result<DashboardHandle, DashboardError>
                 shutdown_rx,
                 config.signer,
                 token,
+                served,
             ))
         })
         .map_err(DashboardError::Thread)?;
     Ok(DashboardHandle {
         addr,
+        access,
         shutdown,
         thread: Some(thread),
     })
@@ -226,6 +251,7 @@ mod tests {
             user: None,
             password: None,
             signer: None,
+            access: AccessConfig::default(),
         }
     }
 
@@ -246,12 +272,15 @@ mod tests {
         use std::io::{Read, Write};
         let h = serve(config("127.0.0.1:0".parse().expect("addr"))).expect("starts");
         let mut s = std::net::TcpStream::connect(h.local_addr()).expect("connects");
-        s.write_all(b"GET / HTTP/1.1\r\nHost: x\r\nConnection: close\r\n\r\n")
+        s.write_all(b"GET / HTTP/1.1\r\nHost: 127.0.0.1\r\nConnection: close\r\n\r\n")
             .expect("writes");
         let mut body = String::new();
         s.read_to_string(&mut body).expect("reads");
         assert!(body.starts_with("HTTP/1.1 200"), "{body}");
-        assert!(body.contains("id=\"primary\""));
+        assert!(
+            body.contains("id=\"login-form\""),
+            "the login page, without a session"
+        );
         h.stop();
     }
 

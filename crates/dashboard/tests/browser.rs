@@ -11,7 +11,7 @@ use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
 
 use base64::Engine as _;
-use cetratus_dashboard::{serve, DashboardConfig};
+use cetratus_dashboard::{serve, AccessConfig, DashboardConfig};
 use cetratus_testkit::browser::{require_chromium, Browser};
 use cetratus_testkit::mqtt::Mosquitto;
 use cetratus_testkit::{nets, paths};
@@ -390,11 +390,14 @@ async fn operator_loads_u1_then_substitutes_and_primary_flips_in_the_browser() {
         user: None,
         password: None,
         signer: None,
+        access: AccessConfig::default(),
     })
     .expect("the dashboard starts");
 
     let c = Browser::start().await;
-    c.goto(&dashboard.url()).await.expect("the page loads");
+    // As an operator does: the one-time link the dashboard printed logs the browser in.
+    let link = dashboard.login_url().expect("a login link");
+    c.goto(&link).await.expect("the page loads");
 
     // The PLC is found on its own and its retained state is shown.
     c.wait_text("primary", "A", Duration::from_secs(15)).await;

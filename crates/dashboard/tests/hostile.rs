@@ -9,8 +9,9 @@ use std::io::{Read, Write};
 use std::net::SocketAddr;
 use std::time::{Duration, Instant};
 
-use cetratus_dashboard::{serve, DashboardConfig, DashboardHandle};
+use cetratus_dashboard::{serve, AccessConfig, DashboardConfig, DashboardHandle};
 use cetratus_testkit::browser::{require_chromium, Browser};
+use cetratus_testkit::http;
 use cetratus_testkit::mqtt::Mosquitto;
 use rumqttc::v5::mqttbytes::v5::{Packet, PublishProperties};
 use rumqttc::v5::mqttbytes::QoS;
@@ -26,6 +27,7 @@ fn dashboard(broker: &Mosquitto) -> DashboardHandle {
         user: None,
         password: None,
         signer: None,
+        access: AccessConfig::default(),
     })
     .expect("the dashboard starts")
 }
@@ -97,7 +99,9 @@ async fn a_hostile_retained_net_neither_restyles_the_page_nor_runs_script() {
     .await;
     let dash = dashboard(&broker);
     let c = Browser::start().await;
-    c.goto(&dash.url()).await.expect("the page loads");
+    c.goto(&dash.login_url().expect("a login link"))
+        .await
+        .expect("the page loads");
     c.wait_text("status", "idle", Duration::from_secs(15)).await;
     c.wait_text("primary", "A", Duration::from_secs(5)).await;
     // The drawing arrives with the snapshot; give it a moment to be drawn and to try.
@@ -160,24 +164,21 @@ async fn a_hostile_retained_net_neither_restyles_the_page_nor_runs_script() {
     dash.stop();
 }
 
-/// `POST /api/<plc>/<verb>` with a JSON body, over a plain TCP connection; the status and body.
-fn post(addr: SocketAddr, path: &str, body: &str) -> (u16, Value) {
-    let mut s = std::net::TcpStream::connect(addr).expect("the dashboard accepts");
-    write!(
-        s,
-        "POST {path} HTTP/1.0\r\nHost: x\r\nContent-Type: application/json\r\nContent-Length: {}\r\n\r\n{body}",
-        body.len()
-    )
-    .expect("the request is sent");
-    let mut text = String::new();
-    s.read_to_string(&mut text).expect("the response is read");
-    let status = text
-        .split_whitespace()
-        .nth(1)
-        .and_then(|c| c.parse().ok())
-        .unwrap_or(0);
-    let body = text.split_once("\r\n\r\n").map_or("", |(_, b)| b);
-    (status, serde_json::from_str(body).unwrap_or(Value::Null))
+/// `POST /api/<plc>/<verb>` with a JSON body and the session `cookie`, over a plain TCP
+/// connection; the status and body.
+fn post(addr: SocketAddr, cookie: &str, path: &str, body: &str) -> (u16, Value) {
+    let r = http::request(
+        addr,
+        "POST",
+        path,
+        &[
+            &format!("Host: {addr}"),
+            "Content-Type: application/json",
+            cookie,
+        ],
+        body.as_bytes(),
+    );
+    (r.status, r.json())
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
@@ -228,12 +229,235 @@ async fn a_forged_reply_with_a_guessed_correlation_id_does_not_answer_a_command(
     });
     // No PLC answers: the command must time out, whatever the forger sends.
     let addr = dash.local_addr();
+    let cookie = http::login(&dash.login_url().expect("a login link"));
     tokio::time::sleep(Duration::from_millis(1500)).await;
-    let (status, body) =
-        tokio::task::spawn_blocking(move || post(addr, &format!("/api/{PLC}/abort"), "{}"))
-            .await
-            .expect("the request runs");
+    let (status, body) = tokio::task::spawn_blocking(move || {
+        post(addr, &cookie, &format!("/api/{PLC}/abort"), "{}")
+    })
+    .await
+    .expect("the request runs");
     assert_eq!(status, 504, "a forged reply answered the command: {body}");
     assert_ne!(body["result"]["forged"], true, "{body}");
+    dash.stop();
+}
+
+/// Serves `page` to every request on a port of its own: the attacker's site.
+fn attacker_site(page: String) -> SocketAddr {
+    let listener = std::net::TcpListener::bind("127.0.0.1:0").expect("a port");
+    let addr = listener.local_addr().expect("addr");
+    std::thread::spawn(move || {
+        for stream in listener.incoming().flatten() {
+            let mut s = stream;
+            let mut buf = [0u8; 4096];
+            let _ = s.read(&mut buf);
+            let _ = write!(
+                s,
+                "HTTP/1.0 200 OK\r\nContent-Type: text/html\r\nContent-Length: {}\r\n\r\n{page}",
+                page.len()
+            );
+        }
+    });
+    addr
+}
+
+/// Counts the commands that reach the broker for [`PLC`].
+async fn count_commands(broker: &Mosquitto) -> std::sync::Arc<std::sync::atomic::AtomicUsize> {
+    let seen = std::sync::Arc::new(std::sync::atomic::AtomicUsize::new(0));
+    let (watcher, mut el) = mqtt_client(broker, "watcher");
+    watcher
+        .subscribe(format!("cetratus/{PLC}/cmd/#"), QoS::AtLeastOnce)
+        .await
+        .expect("subscribe");
+    let s = seen.clone();
+    tokio::spawn(async move {
+        let _keep = watcher;
+        loop {
+            match el.poll().await {
+                Ok(Event::Incoming(Packet::Publish(_))) => {
+                    s.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+                }
+                Ok(_) => {}
+                Err(_) => tokio::time::sleep(Duration::from_millis(100)).await,
+            }
+        }
+    });
+    seen
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_page_of_another_origin_cannot_send_commands_through_a_logged_in_browser() {
+    require_chromium();
+    let broker = Mosquitto::start();
+    let dash = dashboard(&broker);
+    let seen = count_commands(&broker).await;
+    let c = Browser::start().await;
+    c.goto(&dash.login_url().expect("a login link"))
+        .await
+        .expect("the page loads");
+    let want = format!("broker mqtt://127.0.0.1:{}: connected", broker.port());
+    c.wait_text("broker", &want, Duration::from_secs(15)).await;
+    // The attacker's page, on the same host but another port (so the browser does send the
+    // SameSite cookie: ports do not make sites): a text/plain form whose body parses as JSON, a
+    // no-cors fetch, and a form-encoded post.
+    let target = format!("http://{}/api/{PLC}/abort", dash.local_addr());
+    let page = format!(
+        r#"<!doctype html><html><body>
+<form id="f" method="POST" action="{target}" enctype="text/plain" target="sink"><input name='{{"x":"' value='"}}'></form>
+<form id="g" method="POST" action="{target}" target="sink2"><input name="mode" value="keep"></form>
+<iframe name="sink"></iframe><iframe name="sink2"></iframe>
+<script>
+fetch("{target}", {{method: "POST", mode: "no-cors", credentials: "include", body: "{{}}"}});
+fetch("{target}", {{method: "POST", mode: "no-cors", credentials: "include", headers: {{"Content-Type": "text/plain"}}, body: "{{}}"}});
+document.getElementById("f").submit();
+document.getElementById("g").submit();
+window.done = true;
+</script></body></html>"#
+    );
+    let site = attacker_site(page);
+    c.goto(&format!("http://{site}/"))
+        .await
+        .expect("the attacker's page loads");
+    let end = Instant::now() + Duration::from_secs(10);
+    while c.js("return window.done === true").await != Value::Bool(true) && Instant::now() < end {
+        tokio::time::sleep(Duration::from_millis(100)).await;
+    }
+    // Time for the requests to go out and, if they got through, for the command to reach MQTT.
+    tokio::time::sleep(Duration::from_secs(3)).await;
+    assert_eq!(
+        seen.load(std::sync::atomic::Ordering::Relaxed),
+        0,
+        "a page of another origin sent a command through the operator's browser"
+    );
+    // The operator's own page still commands (the session is good): its abort reaches MQTT.
+    c.goto(&dash.url()).await.expect("the page loads");
+    c.wait_text("broker", &want, Duration::from_secs(15)).await;
+    let cookie = http::login(&dash.login_url().expect("a login link"));
+    let addr = dash.local_addr();
+    tokio::task::spawn_blocking(move || post(addr, &cookie, &format!("/api/{PLC}/abort"), "{}"))
+        .await
+        .expect("the request runs");
+    assert!(
+        seen.load(std::sync::atomic::Ordering::Relaxed) >= 1,
+        "the dashboard's own command went out"
+    );
+    c.close().await;
+    dash.stop();
+}
+
+#[test]
+fn api_requests_need_a_session_the_dashboards_own_host_and_origin_and_json() {
+    let broker = Mosquitto::start();
+    let dash = dashboard(&broker);
+    let addr = dash.local_addr();
+    let host = format!("Host: {addr}");
+    let cookie = http::login(&dash.login_url().expect("a login link"));
+    let json = "Content-Type: application/json";
+    let abort = format!("/api/{PLC}/abort");
+    let cases: [(&str, Vec<&str>, u16, &str); 6] = [
+        ("no session", vec![&host, json], 401, "log in"),
+        (
+            "text/plain",
+            vec![&host, &cookie, "Content-Type: text/plain"],
+            415,
+            "application/json",
+        ),
+        (
+            "a form",
+            vec![
+                &host,
+                &cookie,
+                "Content-Type: application/x-www-form-urlencoded",
+            ],
+            415,
+            "application/json",
+        ),
+        (
+            "another origin",
+            vec![&host, &cookie, json, "Origin: http://evil.example"],
+            403,
+            "evil.example",
+        ),
+        (
+            "a rebound name",
+            vec!["Host: evil.example:8080", &cookie, json],
+            403,
+            "[dashboard]",
+        ),
+        (
+            "cross-site",
+            vec![&host, &cookie, json, "Sec-Fetch-Site: cross-site"],
+            403,
+            "cross-site",
+        ),
+    ];
+    for (what, headers, status, needle) in cases {
+        let r = http::request(addr, "POST", &abort, &headers, b"{}");
+        assert_eq!(r.status, status, "{what}: {}", r.body);
+        assert!(r.body.contains(needle), "{what}: {}", r.body);
+    }
+    let r = http::request(addr, "GET", "/api/plcs", &[&host], b"");
+    assert_eq!(r.status, 401, "reading needs a session too: {}", r.body);
+    let r = http::request(addr, "GET", "/api/plcs", &[&host, &cookie], b"");
+    assert_eq!(r.status, 200, "{}", r.body);
+    // A link logs in once.
+    let link = dash.login_url().expect("a login link");
+    http::login(&link);
+    let path = &link[link.find("/login").expect("path")..];
+    let again = http::request(addr, "GET", path, &[&host], b"");
+    assert_eq!(again.status, 403, "{}", again.body);
+    assert!(again.body.contains("used already"), "{}", again.body);
+    dash.stop();
+}
+
+#[test]
+fn guessing_passwords_is_rate_limited_and_never_logs_in() {
+    let broker = Mosquitto::start();
+    let hash = cetratus_dashboard::hash_password("correct horse").expect("hash");
+    let dash = serve(DashboardConfig {
+        http: SocketAddr::from(([127, 0, 0, 1], 0)),
+        broker_url: format!("mqtt://127.0.0.1:{}", broker.port()),
+        user: None,
+        password: None,
+        signer: None,
+        access: AccessConfig {
+            accounts: vec![cetratus_dashboard::Account {
+                name: "ops".into(),
+                password_hash: hash,
+            }],
+            hosts: vec![],
+        },
+    })
+    .expect("the dashboard starts");
+    let addr = dash.local_addr();
+    let host = format!("Host: {addr}");
+    let login = |password: &str| {
+        let body = json!({"account": "ops", "password": password}).to_string();
+        http::request(
+            addr,
+            "POST",
+            "/api/login",
+            &[&host, "Content-Type: application/json"],
+            body.as_bytes(),
+        )
+    };
+    let ok = login("correct horse");
+    assert_eq!(ok.status, 200, "{}", ok.body);
+    assert!(
+        ok.header("set-cookie")
+            .is_some_and(|c| c.contains("HttpOnly") && c.contains("SameSite=Strict")),
+        "{}",
+        ok.head
+    );
+    let statuses: Vec<u16> = (0..12)
+        .map(|k| login(&format!("guess{k}")).status)
+        .collect();
+    assert!(
+        statuses.iter().all(|s| *s == 401 || *s == 429),
+        "{statuses:?}"
+    );
+    assert!(
+        statuses.contains(&429),
+        "guesses are rate-limited: {statuses:?}"
+    );
     dash.stop();
 }

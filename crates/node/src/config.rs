@@ -117,10 +117,23 @@ struct User {
 #[serde(deny_unknown_fields)]
 struct IoSection {}
 
-/// `[dashboard]`: accounts, sessions, TLS; this version knows no key in it.
+/// `[dashboard]`: who may log in to the dashboard, and the host names it is reached under.
 #[derive(Deserialize, Default)]
 #[serde(deny_unknown_fields)]
-struct DashboardSection {}
+struct DashboardSection {
+    #[serde(default)]
+    accounts: Vec<DashboardAccount>,
+    #[serde(default)]
+    hosts: Vec<String>,
+}
+
+/// `[[dashboard.accounts]]`: a name and the argon2 hash of its password.
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct DashboardAccount {
+    name: String,
+    password_hash: String,
+}
 
 /// `[updates]`: update policies.
 #[derive(Deserialize, Default)]
@@ -145,6 +158,11 @@ pub struct LocalConfig {
     pub credentials: Option<(String, String)>,
     /// The probation window after a substitution, in microseconds (0: none).
     pub probation_us: u64,
+    /// Dashboard accounts: (name, argon2 hash of the password as a PHC string); the dashboard
+    /// checks them when it starts.
+    pub dashboard_accounts: Vec<(String, String)>,
+    /// Host names the dashboard is reached under, besides IP addresses and `localhost`.
+    pub dashboard_hosts: Vec<String>,
 }
 
 /// The default configuration directory.
@@ -283,8 +301,15 @@ impl LocalConfig {
         for k in keys_in(&dir.join("operators"), "operator")? {
             ops.add(k.key_id(), *k.verifying_key());
         }
-        let (_, _) = (file.io, file.dashboard);
+        let _ = file.io;
         Ok(LocalConfig {
+            dashboard_accounts: file
+                .dashboard
+                .accounts
+                .into_iter()
+                .map(|a| (a.name, a.password_hash))
+                .collect(),
+            dashboard_hosts: file.dashboard.hosts,
             dir,
             trust,
             allow_unsigned: file.allow_unsigned,

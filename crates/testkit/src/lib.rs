@@ -18,6 +18,7 @@
 #[cfg(feature = "browser")]
 pub mod browser;
 pub mod counting;
+pub mod http;
 pub mod mqtt;
 #[cfg(feature = "nets")]
 pub mod nets;

@@ -6,7 +6,7 @@ use std::process::{Child, Command};
 /// A child process, killed and reaped when the guard drops, so that a failing test does not
 /// leave a broker, a driver or a PLC running.
 #[derive(Debug)]
-pub struct ChildGuard(Child);
+pub struct ChildGuard(pub Child);
 
 impl ChildGuard {
     /// Guards a process that is already running.
@@ -88,4 +88,50 @@ pub fn stderr_lines(child: &mut std::process::Child) -> std::sync::mpsc::Receive
         }
     });
     rx
+}
+
+/// The lines a child writes to its piped standard output, as [`stderr_lines`] reads standard
+/// error.
+///
+/// # Panics
+///
+/// When the child's standard output is not piped.
+pub fn stdout_lines(child: &mut std::process::Child) -> std::sync::mpsc::Receiver<String> {
+    use std::io::BufRead;
+    let stdout = child.stdout.take().expect("a piped standard output");
+    let (tx, rx) = std::sync::mpsc::channel();
+    std::thread::spawn(move || {
+        for line in std::io::BufReader::new(stdout)
+            .lines()
+            .map_while(Result::ok)
+        {
+            if tx.send(line).is_err() {
+                return;
+            }
+        }
+    });
+    rx
+}
+
+/// Waits up to `within` for a line of `lines` that holds a dashboard login link, and returns
+/// the link; panics with the lines seen.
+pub fn login_link(
+    lines: &std::sync::mpsc::Receiver<String>,
+    within: std::time::Duration,
+) -> String {
+    let end = std::time::Instant::now() + within;
+    let mut seen = Vec::new();
+    while let Some(left) = end.checked_duration_since(std::time::Instant::now()) {
+        match lines.recv_timeout(left) {
+            Ok(line) => match crate::http::login_link_in(&line) {
+                Some(link) => return link,
+                None => seen.push(line),
+            },
+            Err(_) => break,
+        }
+    }
+    panic!(
+        "no dashboard login link within {within:?}; the output was:\n{}",
+        seen.join("\n")
+    )
 }

@@ -1,6 +1,12 @@
 //! The Festo processing station: rotary indexing table, hole tester, drill with clamp, ejector.
 //!
 //! The signal semantics are described in the crate documentation.
+//!
+//! A part is defective with probability `defect_ppm` parts per million, drawn when the upstream
+//! station hands it over, from a stream of its own: the seed decides which parts are defective, and
+//! jitter (drawn from another stream) does not change that choice. A defective part lies upside
+//! down: the tester's probe stops on its closed bottom, never reaches its lower end and never
+//! reports the test passed.
 
 use serde::{Deserialize, Serialize};
 
@@ -12,8 +18,11 @@ use crate::{
 /// The twin's name.
 pub const NAME: &str = "festo";
 
+/// Mixed into the seed for the stream that decides which parts are defective.
+const DEFECT_STREAM: u64 = 0xD3FE_C7D3_FEC7_0001;
+
 /// Input names, in image order.
-pub const INPUT_NAMES: [&str; 13] = [
+pub const INPUT_NAMES: [&str; 15] = [
     "START",
     "STOP",
     "RESET",
@@ -27,16 +36,20 @@ pub const INPUT_NAMES: [&str; 13] = [
     "DRILL_DOWN",
     "PART_AT_EJECT",
     "EJECTOR_OUT",
+    "TEST_OK",
+    "REJECTOR_OUT",
 ];
 
 /// Output names, in image order.
-pub const OUTPUT_NAMES: [&str; 6] = [
+pub const OUTPUT_NAMES: [&str; 8] = [
     "TABLE_MOTOR",
     "TESTER_SOLENOID",
     "CLAMP",
     "DRILL_MOTOR",
     "DRILL_FEED_DOWN",
     "EJECTOR",
+    "REJECTOR",
+    "REJECT_BIN_FULL",
 ];
 
 /// The operator buttons, in input order.
@@ -85,6 +98,10 @@ pub mod input {
     pub const PART_AT_EJECT: usize = 11;
     /// The ejector is fully out.
     pub const EJECTOR_OUT: usize = 12;
+    /// The test result: the part under the tester passed the hole test.
+    pub const TEST_OK: usize = 13;
+    /// The rejector is fully out: the part under the tester went into the reject bin.
+    pub const REJECTOR_OUT: usize = 14;
 }
 
 /// Indices of the outputs in the output image.
@@ -101,6 +118,10 @@ pub mod output {
     pub const DRILL_FEED_DOWN: usize = 4;
     /// Push the part off the table.
     pub const EJECTOR: usize = 5;
+    /// Push the part under the tester into the reject bin.
+    pub const REJECTOR: usize = 6;
+    /// The lamp that asks the operator to empty the reject bin.
+    pub const REJECT_BIN_FULL: usize = 7;
 }
 
 /// Physical parameters of the station; every duration is in microseconds of virtual time.
@@ -121,6 +142,10 @@ pub struct FestoParams {
     pub drill_up_us: u64,
     /// Time for the ejector to push fully out.
     pub eject_us: u64,
+    /// Time for the rejector to push fully out.
+    pub reject_us: u64,
+    /// How many parts in a million arrive defective (0: none; 50 000 is 5 %).
+    pub defect_ppm: u32,
     /// Period of part arrivals upstream; the first arrives at time 0.
     pub arrival_interval_us: u64,
     /// How long [`Plant::press`] holds a button.
@@ -139,6 +164,8 @@ impl Default for FestoParams {
             drill_down_us: 2 * SECOND_US,
             drill_up_us: 500_000,
             eject_us: 500_000,
+            reject_us: 500_000,
+            defect_ppm: 0,
             arrival_interval_us: 5 * SECOND_US,
             press_us: 200_000,
             jitter_us: 0,
@@ -170,14 +197,25 @@ impl FestoParams {
         if self.arrival_interval_us == 0 {
             return bad("arrival_interval_us", "must be positive");
         }
+        if self.defect_ppm > PPM {
+            return bad(
+                "defect_ppm",
+                "is a share in parts per million: at most 1 000 000 (every part defective)",
+            );
+        }
         Ok(())
     }
 }
 
+/// One million: the unit of [`FestoParams::defect_ppm`].
+pub const PPM: u32 = 1_000_000;
+
 /// A part on the table, with what has been done to it.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 struct Part {
+    defective: bool,
     tested: bool,
+    passed: bool,
     drilled: bool,
 }
 
@@ -185,8 +223,12 @@ struct Part {
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 enum Stroke {
     Retracted,
-    Extending { done_at: u64 },
+    Extending {
+        done_at: u64,
+    },
     Extended,
+    /// Stopped short of its end by an obstacle (the probe on a defective part).
+    Blocked,
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -313,15 +355,21 @@ enum Event {
     Clamp,
     Feed,
     Ejector,
+    Rejector,
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
 struct Tally {
     supplied: u64,
+    defective: u64,
     tested: u64,
+    rejected: u64,
+    rejected_good: u64,
     drilled: u64,
+    good: u64,
     ejected: u64,
     ejected_incomplete: u64,
+    ejected_defective: u64,
 }
 
 /// The Festo processing station's digital twin.
@@ -329,6 +377,7 @@ struct Tally {
 pub struct FestoStation {
     params: FestoParams,
     rng: SplitMix64,
+    defects: SplitMix64,
     now: u64,
     nests: [Option<Part>; NESTS],
     table: Table,
@@ -337,6 +386,7 @@ pub struct FestoStation {
     drill_motor: bool,
     feed: Feed,
     ejector: Actuator,
+    rejector: Actuator,
     waiting: u64,
     next_arrival: u64,
     /// Per button, the interval `[from, until)` of its scheduled press.
@@ -364,6 +414,8 @@ impl FestoStation {
         Self {
             params,
             rng: SplitMix64::new(seed),
+            // A stream of its own, so that jitter draws never shift which parts are defective.
+            defects: SplitMix64::new(seed ^ DEFECT_STREAM),
             now: 0,
             nests: [None; NESTS],
             table: Table {
@@ -380,6 +432,7 @@ impl FestoStation {
                 at: 0,
             },
             ejector: Actuator::new(),
+            rejector: Actuator::new(),
             waiting: 0,
             next_arrival: 0,
             presses: [None; 3],
@@ -405,6 +458,20 @@ impl FestoStation {
 
     fn next_event(&self) -> (u64, Event) {
         let p = &self.params;
+        // The feed wins ties: handling another event first would move the feed to its end, and
+        // the feed's own event, which drills the part, would then never come.
+        if let Some(t) = self.feed.due(p).filter(|&t| t <= self.next_arrival) {
+            let others = [
+                self.table.due(p),
+                self.tester.due(),
+                self.clamp.due(),
+                self.ejector.due(),
+                self.rejector.due(),
+            ];
+            if others.into_iter().flatten().all(|o| t <= o) {
+                return (t, Event::Feed);
+            }
+        }
         let mut best = (self.next_arrival, Event::Arrival);
         for (t, ev) in [
             (self.table.due(p), Event::Table),
@@ -412,6 +479,7 @@ impl FestoStation {
             (self.clamp.due(), Event::Clamp),
             (self.feed.due(p), Event::Feed),
             (self.ejector.due(), Event::Ejector),
+            (self.rejector.due(), Event::Rejector),
         ] {
             // Strictly earlier only: ties go to the event listed first, which keeps the order fixed.
             if let Some(t) = t.filter(|&t| t < best.0) {
@@ -452,15 +520,7 @@ impl FestoStation {
                 self.nests.rotate_right(1);
                 self.table.progress = 0;
             }
-            Event::Tester => {
-                self.tester.stroke = Stroke::Extended;
-                if let Some(part) = &mut self.nests[position::TEST] {
-                    if !part.tested {
-                        part.tested = true;
-                        self.tally.tested += 1;
-                    }
-                }
-            }
+            Event::Tester => self.probe_reaches_part(),
             Event::Clamp => self.clamp.stroke = Stroke::Extended,
             Event::Feed => {
                 if self.feed.pos == self.params.drill_down_us && self.feed.down {
@@ -470,11 +530,55 @@ impl FestoStation {
             Event::Ejector => {
                 self.ejector.stroke = Stroke::Extended;
                 if let Some(part) = self.nests[position::EJECT].take() {
-                    self.tally.ejected += 1;
+                    let t = &mut self.tally;
+                    t.ejected += 1;
+                    if part.defective {
+                        t.ejected_defective += 1;
+                    }
                     if !(part.tested && part.drilled) {
-                        self.tally.ejected_incomplete += 1;
+                        t.ejected_incomplete += 1;
+                    } else if !part.defective {
+                        t.good += 1;
                     }
                 }
+            }
+            Event::Rejector => self.reject(t),
+        }
+    }
+
+    /// The probe's stroke ends: at its lower end in a good part's hole (or an empty nest), or on
+    /// the closed bottom of a defective part, short of its end.
+    fn probe_reaches_part(&mut self) {
+        let defective = self.nests[position::TEST].is_some_and(|p| p.defective);
+        self.tester.stroke = if defective {
+            Stroke::Blocked
+        } else {
+            Stroke::Extended
+        };
+        if let Some(part) = self.nests[position::TEST].as_mut() {
+            if !part.tested {
+                part.tested = true;
+                part.passed = !part.defective;
+                self.tally.tested += 1;
+            }
+        }
+    }
+
+    /// The rejector is fully out: the part under the tester falls into the reject bin.
+    fn reject(&mut self, t: u64) {
+        self.rejector.stroke = Stroke::Extended;
+        if self.tester.engaged() {
+            self.faults.push(
+                FaultKind::RejectUnderProbe,
+                t,
+                "the rejector pushed against the tester's probe; the part under it stays",
+            );
+            return;
+        }
+        if let Some(part) = self.nests[position::TEST].take() {
+            self.tally.rejected += 1;
+            if !part.defective {
+                self.tally.rejected_good += 1;
             }
         }
     }
@@ -509,11 +613,15 @@ impl FestoStation {
             && self.table.in_position(t, &self.params)
         {
             self.waiting -= 1;
+            let defective = self.defects.below(u64::from(PPM)) < u64::from(self.params.defect_ppm);
             self.nests[position::INPUT] = Some(Part {
+                defective,
                 tested: false,
+                passed: false,
                 drilled: false,
             });
             self.tally.supplied += 1;
+            self.tally.defective += u64::from(defective);
         }
     }
 
@@ -527,6 +635,8 @@ impl FestoStation {
             Some("the table turned while the drill was not up")
         } else if self.ejector.engaged() {
             Some("the table turned while the ejector was out")
+        } else if self.rejector.engaged() {
+            Some("the table turned while the rejector was out")
         } else {
             None
         }
@@ -588,6 +698,13 @@ impl FestoStation {
             &mut self.rng,
             jitter,
         );
+        self.rejector.set(
+            now,
+            out(outputs, output::REJECTOR),
+            p.reject_us,
+            &mut self.rng,
+            jitter,
+        );
         self.place_waiting_part(now);
         self.check_engagement(now);
     }
@@ -646,6 +763,8 @@ impl Plant for FestoStation {
             feed == p.drill_down_us,
             at(position::EJECT),
             self.ejector.extended(),
+            in_pos && self.nests[position::TEST].is_some_and(|p| p.passed),
+            self.rejector.extended(),
         ];
         for (slot, v) in buf.iter_mut().zip(values) {
             *slot = v;
@@ -665,12 +784,18 @@ impl Plant for FestoStation {
     }
 
     fn counters(&self) -> Counters {
+        let t = &self.tally;
         Counters::from_pairs(&[
-            ("parts_supplied", self.tally.supplied),
-            ("parts_tested", self.tally.tested),
-            ("parts_drilled", self.tally.drilled),
-            ("parts_ejected", self.tally.ejected),
-            ("parts_ejected_incomplete", self.tally.ejected_incomplete),
+            ("parts_supplied", t.supplied),
+            ("parts_defective", t.defective),
+            ("parts_tested", t.tested),
+            ("parts_rejected", t.rejected),
+            ("parts_rejected_good", t.rejected_good),
+            ("parts_drilled", t.drilled),
+            ("parts_good", t.good),
+            ("parts_ejected", t.ejected),
+            ("parts_ejected_incomplete", t.ejected_incomplete),
+            ("parts_ejected_defective", t.ejected_defective),
             ("parts_waiting", self.waiting),
         ])
     }
@@ -705,13 +830,13 @@ mod tests {
     use super::*;
 
     /// Steps to `t_ms` with the listed outputs on, returns the input image.
-    fn drive(st: &mut FestoStation, t_ms: u64, on: &[usize]) -> [bool; 13] {
-        let mut outs = [false; 6];
+    fn drive(st: &mut FestoStation, t_ms: u64, on: &[usize]) -> [bool; 15] {
+        let mut outs = [false; 8];
         for &o in on {
             outs[o] = true;
         }
         st.step(t_ms * 1_000, &outs);
-        let mut ins = [false; 13];
+        let mut ins = [false; 15];
         st.inputs(&mut ins);
         ins
     }
@@ -869,6 +994,111 @@ mod tests {
         let c = st.counters();
         assert_eq!(c.get("parts_supplied"), Some(1));
         assert_eq!(c.get("parts_waiting"), Some(2));
+    }
+
+    /// A station whose every part is defective, with a part under the tester at `t_ms`.
+    fn defective_part_under_the_tester(t_ms: &mut u64) -> FestoStation {
+        let params = FestoParams {
+            defect_ppm: PPM,
+            ..FestoParams::default()
+        };
+        let mut st = FestoStation::new(params, 0).expect("valid parameters");
+        drive(&mut st, 0, &[]);
+        index(&mut st, t_ms);
+        assert!(drive(&mut st, *t_ms, &[])[PART_AT_TEST]);
+        st
+    }
+
+    #[test]
+    fn the_probe_stops_on_a_defective_part_and_the_test_never_passes() {
+        let mut t = 0;
+        let mut st = defective_part_under_the_tester(&mut t);
+        let i = drive(&mut st, t + 10, &[TESTER_SOLENOID]);
+        assert!(!i[TESTER_DOWN] && !i[TEST_OK]);
+        let i = drive(&mut st, t + 3_000, &[TESTER_SOLENOID]);
+        assert!(
+            !i[TESTER_DOWN] && !i[TEST_OK],
+            "the probe rests on the part"
+        );
+        assert_eq!(st.counters().get("parts_tested"), Some(1));
+        assert_eq!(st.counters().get("parts_defective"), Some(1));
+    }
+
+    #[test]
+    fn a_good_part_passes_the_test_and_keeps_its_result_after_the_probe_lifts() {
+        let mut st = FestoStation::with_defaults(0);
+        drive(&mut st, 0, &[]);
+        let mut t = 0;
+        index(&mut st, &mut t);
+        drive(&mut st, t, &[TESTER_SOLENOID]);
+        let i = drive(&mut st, t + 500, &[TESTER_SOLENOID]);
+        assert!(i[TESTER_DOWN] && i[TEST_OK]);
+        let i = drive(&mut st, t + 510, &[]);
+        assert!(!i[TESTER_DOWN] && i[TEST_OK]);
+    }
+
+    #[test]
+    fn the_rejector_pushes_the_part_under_the_tester_into_the_reject_bin() {
+        let mut t = 0;
+        let mut st = defective_part_under_the_tester(&mut t);
+        drive(&mut st, t + 10, &[TESTER_SOLENOID]);
+        drive(&mut st, t + 1_010, &[REJECTOR]);
+        assert!(!drive(&mut st, t + 1_500, &[REJECTOR])[REJECTOR_OUT]);
+        let i = drive(&mut st, t + 1_510, &[REJECTOR]);
+        assert!(i[REJECTOR_OUT] && !i[PART_AT_TEST]);
+        let c = st.counters();
+        assert_eq!(c.get("parts_rejected"), Some(1));
+        assert_eq!(c.get("parts_rejected_good"), Some(0));
+        assert!(st.faults().is_empty(), "faults: {:?}", st.faults());
+    }
+
+    #[test]
+    fn rejecting_with_the_probe_down_is_a_fault_and_the_part_stays() {
+        let mut t = 0;
+        let mut st = defective_part_under_the_tester(&mut t);
+        drive(&mut st, t + 10, &[TESTER_SOLENOID]);
+        drive(&mut st, t + 1_010, &[TESTER_SOLENOID, REJECTOR]);
+        let i = drive(&mut st, t + 1_600, &[TESTER_SOLENOID, REJECTOR]);
+        assert!(i[PART_AT_TEST]);
+        assert_eq!(kinds(&st), vec![FaultKind::RejectUnderProbe]);
+    }
+
+    #[test]
+    fn turning_the_table_with_the_rejector_out_is_a_fault() {
+        let mut st = FestoStation::with_defaults(0);
+        drive(&mut st, 0, &[REJECTOR]);
+        drive(&mut st, 600, &[REJECTOR, TABLE_MOTOR]);
+        assert_eq!(kinds(&st), vec![FaultKind::TableTurnWhileEngaged]);
+    }
+
+    #[test]
+    fn a_defect_share_over_one_million_parts_per_million_is_refused() {
+        let params = FestoParams {
+            defect_ppm: PPM + 1,
+            ..FestoParams::default()
+        };
+        assert!(matches!(
+            FestoStation::new(params, 0),
+            Err(TwinError::InvalidParameter {
+                name: "defect_ppm",
+                ..
+            })
+        ));
+    }
+
+    #[test]
+    fn a_part_is_drilled_when_the_drill_bottoms_out_as_the_next_part_arrives() {
+        let mut st = FestoStation::with_defaults(0);
+        drive(&mut st, 0, &[]);
+        let mut t = 0;
+        index(&mut st, &mut t);
+        index(&mut st, &mut t);
+        assert!(t < 2_800 && drive(&mut st, t, &[])[PART_AT_DRILL]);
+        drive(&mut st, 2_800, &[CLAMP]);
+        // Fed from 3 s, the drill reaches the bottom at 5 s, when the second part arrives.
+        drive(&mut st, 3_000, &[CLAMP, DRILL_MOTOR, DRILL_FEED_DOWN]);
+        drive(&mut st, 5_010, &[CLAMP, DRILL_MOTOR, DRILL_FEED_DOWN]);
+        assert_eq!(st.counters().get("parts_drilled"), Some(1));
     }
 
     #[test]

@@ -149,7 +149,7 @@ use std::str::FromStr;
 
 use serde::{Serialize, Serializer};
 
-pub use festo::{FestoParams, FestoStation};
+pub use festo::{FestoParams, FestoStation, PPM};
 pub use vernadat::{VernadatCell, VernadatParams};
 
 /// One second of virtual time, in the microseconds every twin counts in.
@@ -411,6 +411,24 @@ pub enum TwinError {
         /// The buttons it has, comma-separated.
         known: String,
     },
+    /// A defect rate that is not a share between 0 and 1.
+    #[error("invalid defect rate `{text}`: {reason}; write a percentage (`5%`), a fraction (`0.05`) or parts per million (`50000ppm`)")]
+    InvalidDefectRate {
+        /// The text given.
+        text: String,
+        /// What is wrong with it.
+        reason: &'static str,
+    },
+    /// The twin has no such setting.
+    #[error("twin `{twin}` has no setting `{setting}`: {reason}")]
+    UnsupportedSetting {
+        /// The twin.
+        twin: &'static str,
+        /// The setting.
+        setting: &'static str,
+        /// Why, and what to do.
+        reason: &'static str,
+    },
     /// A parameter is out of range.
     #[error("invalid parameter `{name}` of twin `{twin}`: {reason}")]
     InvalidParameter {
@@ -456,6 +474,60 @@ impl TwinKind {
     pub fn boxed(self, seed: u64) -> Box<dyn Plant> {
         Box::new(self.build(seed))
     }
+
+    /// A twin of this kind with default parameters changed by `settings`; refuses a setting the
+    /// twin does not have (the Vernadat cell makes no defective parts).
+    pub fn configure(self, settings: &TwinSettings) -> Result<Twin, TwinError> {
+        match self {
+            Self::Vernadat if settings.defect_ppm > 0 => Err(TwinError::UnsupportedSetting {
+                twin: vernadat::NAME,
+                setting: "defect rate",
+                reason: "the Vernadat cell makes no defective parts; leave the defect rate out",
+            }),
+            Self::Vernadat => Ok(self.build(settings.seed)),
+            Self::Festo => {
+                let params = FestoParams {
+                    defect_ppm: settings.defect_ppm,
+                    ..FestoParams::default()
+                };
+                Ok(Twin::Festo(FestoStation::new(params, settings.seed)?))
+            }
+        }
+    }
+}
+
+/// What a twin chosen by name can be given from outside (`cetratus run --seed --defect-rate`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct TwinSettings {
+    /// The seed of the twin's randomness (jitter, defective parts).
+    pub seed: u64,
+    /// Defective parts per million supplied (Festo station only).
+    pub defect_ppm: u32,
+}
+
+/// Parses a defect rate into parts per million: `5%`, `0.05` or `50000ppm`, between 0 and 1.
+pub fn parse_defect_rate(text: &str) -> Result<u32, TwinError> {
+    let bad = |reason| TwinError::InvalidDefectRate {
+        text: text.to_owned(),
+        reason,
+    };
+    let t = text.trim();
+    let (number, per) = if let Some(n) = t.strip_suffix('%') {
+        (n, 100.0)
+    } else if let Some(n) = t.strip_suffix("ppm") {
+        (n, f64::from(festo::PPM))
+    } else {
+        (t, 1.0)
+    };
+    let value: f64 = number
+        .trim()
+        .parse()
+        .map_err(|_| bad("it is not a number"))?;
+    if !value.is_finite() || value < 0.0 || value > per {
+        return Err(bad("a defect rate lies between 0 and 1 (0 % and 100 %)"));
+    }
+    // In range by the check above, so the cast neither wraps nor saturates.
+    Ok((value / per * f64::from(festo::PPM)).round() as u32)
 }
 
 impl FromStr for TwinKind {
@@ -601,6 +673,40 @@ mod tests {
             "lathe".parse::<TwinKind>(),
             Err(TwinError::UnknownTwin { .. })
         ));
+    }
+
+    #[test]
+    fn defect_rates_are_read_as_percentages_fractions_or_parts_per_million() {
+        assert_eq!(parse_defect_rate("5%"), Ok(50_000));
+        assert_eq!(parse_defect_rate("0.05"), Ok(50_000));
+        assert_eq!(parse_defect_rate("50000ppm"), Ok(50_000));
+        assert_eq!(parse_defect_rate("0"), Ok(0));
+        assert_eq!(parse_defect_rate("100%"), Ok(PPM));
+        for bad in ["", "five", "-1%", "101%", "1.5", "NaN"] {
+            assert!(
+                matches!(
+                    parse_defect_rate(bad),
+                    Err(TwinError::InvalidDefectRate { .. })
+                ),
+                "{bad:?} was accepted"
+            );
+        }
+    }
+
+    #[test]
+    fn a_defect_rate_is_refused_for_the_vernadat_cell_and_given_to_the_festo_station() {
+        let settings = TwinSettings {
+            seed: 1,
+            defect_ppm: 50_000,
+        };
+        assert!(matches!(
+            TwinKind::Vernadat.configure(&settings),
+            Err(TwinError::UnsupportedSetting { .. })
+        ));
+        match TwinKind::Festo.configure(&settings) {
+            Ok(Twin::Festo(st)) => assert_eq!(st.params().defect_ppm, 50_000),
+            other => panic!("expected a Festo station, got {other:?}"),
+        }
     }
 
     #[test]

@@ -38,8 +38,8 @@ pub struct RunArgs {
     #[arg(long, default_value_t = 1)]
     seed: u64,
     /// Share of defective parts the Festo station is supplied: `5%`, `0.05` or `50000ppm`.
-    #[arg(long = "defect-rate", default_value = "0")]
-    defect_rate: String,
+    #[arg(long = "defect-rate", value_name = "RATE", default_value = "0", value_parser = parse_defect_rate)]
+    defect_ppm: u32,
     /// Press a twin button at a time, e.g. `START@0.1s` (repeatable). The Festo station gets
     /// `RESET@100ms` and `START@500ms` when none is given.
     #[arg(long = "press")]
@@ -112,8 +112,7 @@ pub fn run(args: &RunArgs) -> anyhow::Result<()> {
     };
     let settings = TwinSettings {
         seed: args.seed,
-        defect_ppm: parse_defect_rate(&args.defect_rate)
-            .map_err(|e| anyhow::anyhow!("--defect-rate: {e}"))?,
+        defect_ppm: args.defect_ppm,
     };
     let twin = kind
         .configure(&settings)

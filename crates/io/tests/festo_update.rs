@@ -78,13 +78,20 @@ fn reject_counting_runs_in_quarantine_with_its_lamp_withheld_then_substitutes_an
     cell.load(&f1, &w.trust).expect("F.1 accepted");
     cell.step();
     assert_eq!(cell.plc.status(), Status::Quarantine);
-    assert_eq!(cell.tokens(Slot::B, &["BinFree"]), 5, "the bin starts empty");
+    assert_eq!(
+        cell.tokens(Slot::B, &["BinFree"]),
+        5,
+        "the bin starts empty"
+    );
     let rejected_at_load = counter(&cell, "parts_rejected");
 
     // The candidate counts the rejects it sees; when the fifth fills its bin it lights its lamp,
     // which the Message Router withholds from the plant.
     step_until(&mut cell, 600 * SECOND, "the candidate's bin fills", |c| {
-        assert!(!on(c.plc.dispatched(), lamp), "a candidate's lamp is withheld");
+        assert!(
+            !on(c.plc.dispatched(), lamp),
+            "a candidate's lamp is withheld"
+        );
         on(c.plc.outputs_of(Slot::B).expect("B in quarantine"), lamp)
     });
     assert_eq!(counter(&cell, "parts_rejected") - rejected_at_load, 5);

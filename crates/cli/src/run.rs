@@ -344,7 +344,10 @@ pub fn run(args: &RunArgs) -> anyhow::Result<()> {
         }
         if let Some(path) = &args.svg {
             let title = format!("{} on the {} twin", program.name(), kind);
-            std::fs::write(path, trace.diagram(&title).to_svg())
+            let mut diagram = trace.diagram(&title);
+            // In virtual time every scan is one period: the axis can number the scan steps.
+            diagram.scan_period_us = args.virtual_time.then_some(period_us);
+            std::fs::write(path, diagram.to_svg())
                 .with_context(|| format!("cannot write {}", path.display()))?;
         }
     }

@@ -13,7 +13,7 @@ use cetratus_program::Program;
 use cetratus_runtime::{CycleFigures, Plc};
 
 use crate::summary::{print_summary, Summary};
-use cetratus_twin::{Plant, TwinKind};
+use cetratus_twin::{parse_defect_rate, Plant, TwinKind, TwinSettings};
 
 use crate::parse_duration_us;
 
@@ -34,11 +34,14 @@ pub struct RunArgs {
     /// In real time, how many times faster than the wall clock the program clock runs.
     #[arg(long, default_value_t = 1.0)]
     speed: f64,
-    /// Seed of the twin's randomness.
+    /// Seed of the twin's randomness (jitter, which parts are defective).
     #[arg(long, default_value_t = 1)]
     seed: u64,
+    /// Share of defective parts the Festo station is supplied: `5%`, `0.05` or `50000ppm`.
+    #[arg(long = "defect-rate", value_name = "RATE", default_value = "0", value_parser = parse_defect_rate)]
+    defect_ppm: u32,
     /// Press a twin button at a time, e.g. `START@0.1s` (repeatable). The Festo station gets
-    /// `START@100ms` when none is given.
+    /// `RESET@100ms` and `START@500ms` when none is given.
     #[arg(long = "press")]
     press: Vec<String>,
     /// Write the I/O trace: `.csv` or `.json`.
@@ -107,7 +110,14 @@ pub fn run(args: &RunArgs) -> anyhow::Result<()> {
         (None, true) => bail!("a virtual run needs a length: add --for, e.g. --for 1h"),
         (None, false) => u64::MAX,
     };
-    let mut io = TwinDriver::new(kind.build(args.seed), program.inputs(), program.outputs())?;
+    let settings = TwinSettings {
+        seed: args.seed,
+        defect_ppm: args.defect_ppm,
+    };
+    let twin = kind
+        .configure(&settings)
+        .map_err(|e| anyhow::anyhow!("--twin {kind}: {e}"))?;
+    let mut io = TwinDriver::new(twin, program.inputs(), program.outputs())?;
     let script = Script::parse(&args.at)?;
     let local = args.config.load()?;
     let trust = match &args.trust {
@@ -204,7 +214,7 @@ pub fn run(args: &RunArgs) -> anyhow::Result<()> {
     };
     let mut presses = args.press.clone();
     if presses.is_empty() && kind == TwinKind::Festo {
-        presses.push("START@100ms".to_string());
+        presses.extend(["RESET@100ms".to_string(), "START@500ms".to_string()]);
     }
     for p in &presses {
         let (button, at) = p.split_once('@').unwrap_or((p.as_str(), "0s"));
@@ -303,7 +313,7 @@ pub fn run(args: &RunArgs) -> anyhow::Result<()> {
     let counters = io.plant().counters();
     let parts_finished = counters
         .get("parts_finished")
-        .or_else(|| counters.get("parts_ejected"))
+        .or_else(|| counters.get("parts_good"))
         .unwrap_or(0);
     let summary = Summary {
         program: program.name().to_string(),
@@ -312,6 +322,7 @@ pub fn run(args: &RunArgs) -> anyhow::Result<()> {
         scans: plc.cycles(),
         firings: plc.primary_container().firings().iter().sum(),
         parts_finished,
+        twin_faults: io.plant().faults().len() as u64 + io.plant().faults_dropped(),
         faults,
         counters: serde_json::to_value(counters)?,
         scan: figures,
@@ -333,7 +344,10 @@ pub fn run(args: &RunArgs) -> anyhow::Result<()> {
         }
         if let Some(path) = &args.svg {
             let title = format!("{} on the {} twin", program.name(), kind);
-            std::fs::write(path, trace.diagram(&title).to_svg())
+            let mut diagram = trace.diagram(&title);
+            // In virtual time every scan is one period: the axis can number the scan steps.
+            diagram.scan_period_us = args.virtual_time.then_some(period_us);
+            std::fs::write(path, diagram.to_svg())
                 .with_context(|| format!("cannot write {}", path.display()))?;
         }
     }

@@ -19,6 +19,8 @@ pub struct Summary {
     pub firings: u64,
     /// Parts that left the plant finished.
     pub parts_finished: u64,
+    /// Physical faults the twin saw (those it kept and those it only counted).
+    pub twin_faults: u64,
     /// Physical faults the twin saw, declared invariants broken, and scan errors.
     pub faults: Vec<String>,
     /// The twin's counters.

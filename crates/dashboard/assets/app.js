@@ -527,7 +527,8 @@
         for (const [a, b] of shades) {
           out.push(`<rect class="diverge" x="${a.toFixed(1)}" y="${y}" width="${Math.max(1, b - a).toFixed(1)}" height="${laneH}"/>`);
         }
-        if (d) out.push(`<path class="sig" d="${d.trim()}"/>`);
+        // data-level: the level at the right edge, for whoever reads the page (tests, tools).
+        if (d) out.push(`<path class="sig" data-signal="${esc(name)}" data-level="${level === top ? 1 : 0}" d="${d.trim()}"/>`);
         y += laneH;
       }
       out.push('</g>');

@@ -11,7 +11,9 @@ use cetratus_runtime::trace::Trace;
 use cetratus_twin::{
     FaultKind, FestoParams, FestoStation, Plant, VernadatCell, VernadatParams, SECOND_US,
 };
-use common::{connect, counter, load, place, FESTO, HOUR_US, VERNADAT, VERNADAT_BROKEN};
+use common::{
+    connect, counter, load, place, start_festo, FESTO, HOUR_US, VERNADAT, VERNADAT_BROKEN,
+};
 
 /// The twin's faults, one per line, for an assertion message.
 fn faults_of<P: Plant>(plant: &P) -> String {
@@ -79,7 +81,7 @@ fn vernadat_program_runs_an_hour_without_fault_and_keeps_its_four_invariants_aft
 fn festo_program_runs_an_hour_without_fault_and_tests_drills_and_ejects_every_part() {
     let program = load(FESTO);
     let mut station = FestoStation::with_defaults(1);
-    station.press("START", 100_000).expect("START is a button");
+    start_festo(&mut station);
     let (mut cycle, mut io) = connect(&program, station);
     let mut violation: Option<String> = None;
     cycle
@@ -206,7 +208,7 @@ fn two_runs_with_the_same_seed_produce_identical_traces_and_another_seed_does_no
             ..FestoParams::default()
         };
         let mut st = FestoStation::new(params, seed).expect("valid parameters");
-        st.press("START", 100_000).expect("START is a button");
+        start_festo(&mut st);
         st
     };
     let a = trace_of(&festo, station(7), TEN_MINUTES);

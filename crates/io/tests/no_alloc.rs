@@ -5,7 +5,7 @@ mod common;
 
 use cetratus_testkit::CountingAlloc;
 use cetratus_twin::{FestoStation, Plant, VernadatCell};
-use common::{connect, load, FESTO, VERNADAT};
+use common::{connect, load, start_festo, FESTO, VERNADAT};
 
 #[global_allocator]
 static ALLOC: CountingAlloc = CountingAlloc::new();
@@ -50,6 +50,6 @@ fn scanning_the_vernadat_program_against_its_twin_never_allocates() {
 #[test]
 fn scanning_the_festo_program_against_its_twin_never_allocates() {
     let mut station = FestoStation::with_defaults(1);
-    station.press("START", 100_000).expect("START is a button");
+    start_festo(&mut station);
     assert_eq!(allocations_while_scanning(FESTO, station), 0);
 }

@@ -14,7 +14,7 @@ use cetratus_io::TwinDriver;
 use cetratus_program::{
     build_package, KeyPair, PackageError, Program, ProgramError, TrustStore, Value,
 };
-use cetratus_runtime::trace::{Lane, TimingDiagram};
+use cetratus_runtime::trace::{Lane, LaneValue, TimingDiagram};
 use cetratus_runtime::{
     Command, Event, EventKind, LoopTiming, Plc, Slot, SubstituteMode, SubstituteRequest,
 };
@@ -435,41 +435,53 @@ pub fn scripted(files: &DemoFiles) -> Result<DemoRecord, DemoError> {
     })
 }
 
-/// The SVG timing diagram of a scripted run (the paper's Fig. 7).
+/// The SVG timing diagram of a scripted run (the paper's Fig. 7): PRIMARY and STATUS as lanes,
+/// then inputs, the outputs of A and of B (absent while the container is empty) and the dispatched
+/// outputs; time in seconds and in scan steps.
 pub fn diagram(rec: &DemoRecord, end_ms: f64) -> TimingDiagram {
     let mut d = TimingDiagram::new(
-        "Vernadat cell: U.1 then U.2, live (inputs, outputs of A and B, dispatched)",
+        "Vernadat cell: U.1 then U.2, live (PRIMARY, STATUS, inputs, outputs of A and B, dispatched)",
         (end_ms * 1e3) as u64,
     );
+    d.scan_period_us = Some(PERIOD_US);
     let Some(first) = rec.steps.first() else {
         return d;
     };
-    let lane = |group: &str, name: &str, pick: &dyn Fn(&Step) -> Option<bool>| Lane {
+    let at = |s: &Step| (s.time_ms * 1e3) as u64;
+    let lane = |group: &str, name: &str, pick: &dyn Fn(&Step) -> LaneValue| Lane {
         label: name.to_string(),
         group: group.to_string(),
-        changes: rec
-            .steps
-            .iter()
-            .map(|s| ((s.time_ms * 1e3) as u64, pick(s).unwrap_or(false)))
-            .collect(),
+        changes: rec.steps.iter().map(|s| (at(s), pick(s))).collect(),
     };
+    let level = |v: Option<bool>| LaneValue::Level(v.unwrap_or(false));
+    // An empty container has no outputs at all: drawn as absent, not as every output off.
+    let of = |o: &Option<BTreeMap<String, bool>>, n: &str| {
+        o.as_ref().map_or(LaneValue::Absent, |o| {
+            LaneValue::Level(o.get(n).copied().unwrap_or(false))
+        })
+    };
+    d.lanes.push(lane("update", "PRIMARY", &|s| {
+        LaneValue::Text(s.primary.name().to_string())
+    }));
+    d.lanes.push(lane("update", "STATUS", &|s| {
+        LaneValue::Text(s.status.to_string())
+    }));
     for n in first.inputs.keys() {
         d.lanes
-            .push(lane("inputs", n, &|s| s.inputs.get(n).copied()));
-    }
-    for n in first.dispatched.keys() {
-        d.lanes.push(lane("outputs of A", n, &|s| {
-            s.outputs_a.as_ref().and_then(|o| o.get(n).copied())
-        }));
-    }
-    for n in first.dispatched.keys() {
-        d.lanes.push(lane("outputs of B", n, &|s| {
-            s.outputs_b.as_ref().and_then(|o| o.get(n).copied())
-        }));
+            .push(lane("inputs", n, &|s| level(s.inputs.get(n).copied())));
     }
     for n in first.dispatched.keys() {
         d.lanes
-            .push(lane("dispatched", n, &|s| s.dispatched.get(n).copied()));
+            .push(lane("outputs of A", n, &|s| of(&s.outputs_a, n)));
+    }
+    for n in first.dispatched.keys() {
+        d.lanes
+            .push(lane("outputs of B", n, &|s| of(&s.outputs_b, n)));
+    }
+    for n in first.dispatched.keys() {
+        d.lanes.push(lane("dispatched", n, &|s| {
+            level(s.dispatched.get(n).copied())
+        }));
     }
     for e in &rec.events {
         if matches!(

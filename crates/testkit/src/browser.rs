@@ -214,6 +214,35 @@ impl Browser {
         panic!("the tokens of net {slot} never moved in {within:?}: {before}");
     }
 
+    /// The level at the right edge of `signal`'s lane in `group` (`inputs`, `A`, `B` or
+    /// `dispatched`) of the dashboard's timing diagram; `None` while that lane is not drawn.
+    pub async fn lane_level(&self, group: &str, signal: &str) -> Option<bool> {
+        self.js(&format!(
+            "const p = document.querySelector('#timing .g-{group} path[data-signal=\"{signal}\"]');
+             return p ? p.dataset.level === '1' : null;"
+        ))
+        .await
+        .as_bool()
+    }
+
+    /// Waits until `signal`'s lane in `group` of the timing diagram is at `level`.
+    ///
+    /// # Panics
+    ///
+    /// After `within`, with the level it read last.
+    pub async fn wait_lane_level(&self, group: &str, signal: &str, level: bool, within: Duration) {
+        let end = Instant::now() + within;
+        let mut seen = None;
+        while Instant::now() < end {
+            seen = self.lane_level(group, signal).await;
+            if seen == Some(level) {
+                return;
+            }
+            tokio::time::sleep(Duration::from_millis(100)).await;
+        }
+        panic!("{signal} in the {group} lanes is {seen:?}, not {level}, after {within:?}");
+    }
+
     /// The dashboard's timing diagram as it is now.
     pub async fn timing(&self) -> Timing {
         let v = self

@@ -1,6 +1,12 @@
 //! The Festo processing station: rotary indexing table, hole tester, drill with clamp, ejector.
 //!
 //! The signal semantics are described in the crate documentation.
+//!
+//! A part is defective with probability `defect_ppm` parts per million, drawn when the upstream
+//! station hands it over, from a stream of its own: the seed decides which parts are defective, and
+//! jitter (drawn from another stream) does not change that choice. A defective part lies upside
+//! down: the tester's probe stops on its closed bottom, never reaches its lower end and never
+//! reports the test passed.
 
 use serde::{Deserialize, Serialize};
 
@@ -12,8 +18,11 @@ use crate::{
 /// The twin's name.
 pub const NAME: &str = "festo";
 
+/// Mixed into the seed for the stream that decides which parts are defective.
+const DEFECT_STREAM: u64 = 0xD3FE_C7D3_FEC7_0001;
+
 /// Input names, in image order.
-pub const INPUT_NAMES: [&str; 13] = [
+pub const INPUT_NAMES: [&str; 15] = [
     "START",
     "STOP",
     "RESET",
@@ -27,16 +36,20 @@ pub const INPUT_NAMES: [&str; 13] = [
     "DRILL_DOWN",
     "PART_AT_EJECT",
     "EJECTOR_OUT",
+    "TEST_OK",
+    "REJECTOR_OUT",
 ];
 
 /// Output names, in image order.
-pub const OUTPUT_NAMES: [&str; 6] = [
+pub const OUTPUT_NAMES: [&str; 8] = [
     "TABLE_MOTOR",
     "TESTER_SOLENOID",
     "CLAMP",
     "DRILL_MOTOR",
     "DRILL_FEED_DOWN",
     "EJECTOR",
+    "REJECTOR",
+    "REJECT_BIN_FULL",
 ];
 
 /// The operator buttons, in input order.
@@ -85,6 +98,10 @@ pub mod input {
     pub const PART_AT_EJECT: usize = 11;
     /// The ejector is fully out.
     pub const EJECTOR_OUT: usize = 12;
+    /// The test result: the part under the tester passed the hole test.
+    pub const TEST_OK: usize = 13;
+    /// The rejector is fully out: the part under the tester went into the reject bin.
+    pub const REJECTOR_OUT: usize = 14;
 }
 
 /// Indices of the outputs in the output image.
@@ -101,6 +118,10 @@ pub mod output {
     pub const DRILL_FEED_DOWN: usize = 4;
     /// Push the part off the table.
     pub const EJECTOR: usize = 5;
+    /// Push the part under the tester into the reject bin.
+    pub const REJECTOR: usize = 6;
+    /// The lamp that asks the operator to empty the reject bin.
+    pub const REJECT_BIN_FULL: usize = 7;
 }
 
 /// Physical parameters of the station; every duration is in microseconds of virtual time.
@@ -121,6 +142,10 @@ pub struct FestoParams {
     pub drill_up_us: u64,
     /// Time for the ejector to push fully out.
     pub eject_us: u64,
+    /// Time for the rejector to push fully out.
+    pub reject_us: u64,
+    /// How many parts in a million arrive defective (0: none; 50 000 is 5 %).
+    pub defect_ppm: u32,
     /// Period of part arrivals upstream; the first arrives at time 0.
     pub arrival_interval_us: u64,
     /// How long [`Plant::press`] holds a button.
@@ -139,6 +164,8 @@ impl Default for FestoParams {
             drill_down_us: 2 * SECOND_US,
             drill_up_us: 500_000,
             eject_us: 500_000,
+            reject_us: 500_000,
+            defect_ppm: 0,
             arrival_interval_us: 5 * SECOND_US,
             press_us: 200_000,
             jitter_us: 0,
@@ -170,14 +197,25 @@ impl FestoParams {
         if self.arrival_interval_us == 0 {
             return bad("arrival_interval_us", "must be positive");
         }
+        if self.defect_ppm > PPM {
+            return bad(
+                "defect_ppm",
+                "is a share in parts per million: at most 1 000 000 (every part defective)",
+            );
+        }
         Ok(())
     }
 }
 
+/// One million: the unit of [`FestoParams::defect_ppm`].
+pub const PPM: u32 = 1_000_000;
+
 /// A part on the table, with what has been done to it.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 struct Part {
+    defective: bool,
     tested: bool,
+    passed: bool,
     drilled: bool,
 }
 
@@ -185,8 +223,12 @@ struct Part {
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 enum Stroke {
     Retracted,
-    Extending { done_at: u64 },
+    Extending {
+        done_at: u64,
+    },
     Extended,
+    /// Stopped short of its end by an obstacle (the probe on a defective part).
+    Blocked,
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -313,15 +355,21 @@ enum Event {
     Clamp,
     Feed,
     Ejector,
+    Rejector,
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
 struct Tally {
     supplied: u64,
+    defective: u64,
     tested: u64,
+    rejected: u64,
+    rejected_good: u64,
     drilled: u64,
+    good: u64,
     ejected: u64,
     ejected_incomplete: u64,
+    ejected_defective: u64,
 }
 
 /// The Festo processing station's digital twin.
@@ -329,6 +377,7 @@ struct Tally {
 pub struct FestoStation {
     params: FestoParams,
     rng: SplitMix64,
+    defects: SplitMix64,
     now: u64,
     nests: [Option<Part>; NESTS],
     table: Table,
@@ -337,6 +386,7 @@ pub struct FestoStation {
     drill_motor: bool,
     feed: Feed,
     ejector: Actuator,
+    rejector: Actuator,
     waiting: u64,
     next_arrival: u64,
     /// Per button, the interval `[from, until)` of its scheduled press.
@@ -364,6 +414,8 @@ impl FestoStation {
         Self {
             params,
             rng: SplitMix64::new(seed),
+            // A stream of its own, so that jitter draws never shift which parts are defective.
+            defects: SplitMix64::new(seed ^ DEFECT_STREAM),
             now: 0,
             nests: [None; NESTS],
             table: Table {
@@ -380,6 +432,7 @@ impl FestoStation {
                 at: 0,
             },
             ejector: Actuator::new(),
+            rejector: Actuator::new(),
             waiting: 0,
             next_arrival: 0,
             presses: [None; 3],
@@ -405,6 +458,20 @@ impl FestoStation {
 
     fn next_event(&self) -> (u64, Event) {
         let p = &self.params;
+        // The feed wins ties: handling another event first would move the feed to its end, and
+        // the feed's own event, which drills the part, would then never come.
+        if let Some(t) = self.feed.due(p).filter(|&t| t <= self.next_arrival) {
+            let others = [
+                self.table.due(p),
+                self.tester.due(),
+                self.clamp.due(),
+                self.ejector.due(),
+                self.rejector.due(),
+            ];
+            if others.into_iter().flatten().all(|o| t <= o) {
+                return (t, Event::Feed);
+            }
+        }
         let mut best = (self.next_arrival, Event::Arrival);
         for (t, ev) in [
             (self.table.due(p), Event::Table),
@@ -412,6 +479,7 @@ impl FestoStation {
             (self.clamp.due(), Event::Clamp),
             (self.feed.due(p), Event::Feed),
             (self.ejector.due(), Event::Ejector),
+            (self.rejector.due(), Event::Rejector),
         ] {
             // Strictly earlier only: ties go to the event listed first, which keeps the order fixed.
             if let Some(t) = t.filter(|&t| t < best.0) {
@@ -452,15 +520,7 @@ impl FestoStation {
                 self.nests.rotate_right(1);
                 self.table.progress = 0;
             }
-            Event::Tester => {
-                self.tester.stroke = Stroke::Extended;
-                if let Some(part) = &mut self.nests[position::TEST] {
-                    if !part.tested {
-                        part.tested = true;
-                        self.tally.tested += 1;
-                    }
-                }
-            }
+            Event::Tester => self.probe_reaches_part(),
             Event::Clamp => self.clamp.stroke = Stroke::Extended,
             Event::Feed => {
                 if self.feed.pos == self.params.drill_down_us && self.feed.down {
@@ -470,11 +530,55 @@ impl FestoStation {
             Event::Ejector => {
                 self.ejector.stroke = Stroke::Extended;
                 if let Some(part) = self.nests[position::EJECT].take() {
-                    self.tally.ejected += 1;
+                    let t = &mut self.tally;
+                    t.ejected += 1;
+                    if part.defective {
+                        t.ejected_defective += 1;
+                    }
                     if !(part.tested && part.drilled) {
-                        self.tally.ejected_incomplete += 1;
+                        t.ejected_incomplete += 1;
+                    } else if !part.defective {
+                        t.good += 1;
                     }
                 }
+            }
+            Event::Rejector => self.reject(t),
+        }
+    }
+
+    /// The probe's stroke ends: at its lower end in a good part's hole (or an empty nest), or on
+    /// the closed bottom of a defective part, short of its end.
+    fn probe_reaches_part(&mut self) {
+        let defective = self.nests[position::TEST].is_some_and(|p| p.defective);
+        self.tester.stroke = if defective {
+            Stroke::Blocked
+        } else {
+            Stroke::Extended
+        };
+        if let Some(part) = self.nests[position::TEST].as_mut() {
+            if !part.tested {
+                part.tested = true;
+                part.passed = !part.defective;
+                self.tally.tested += 1;
+            }
+        }
+    }
+
+    /// The rejector is fully out: the part under the tester falls into the reject bin.
+    fn reject(&mut self, t: u64) {
+        self.rejector.stroke = Stroke::Extended;
+        if self.tester.engaged() {
+            self.faults.push(
+                FaultKind::RejectUnderProbe,
+                t,
+                "the rejector pushed against the tester's probe; the part under it stays",
+            );
+            return;
+        }
+        if let Some(part) = self.nests[position::TEST].take() {
+            self.tally.rejected += 1;
+            if !part.defective {
+                self.tally.rejected_good += 1;
             }
         }
     }
@@ -509,11 +613,15 @@ impl FestoStation {
             && self.table.in_position(t, &self.params)
         {
             self.waiting -= 1;
+            let defective = self.defects.below(u64::from(PPM)) < u64::from(self.params.defect_ppm);
             self.nests[position::INPUT] = Some(Part {
+                defective,
                 tested: false,
+                passed: false,
                 drilled: false,
             });
             self.tally.supplied += 1;
+            self.tally.defective += u64::from(defective);
         }
     }
 
@@ -527,6 +635,8 @@ impl FestoStation {
             Some("the table turned while the drill was not up")
         } else if self.ejector.engaged() {
             Some("the table turned while the ejector was out")
+        } else if self.rejector.engaged() {
+            Some("the table turned while the rejector was out")
         } else {
             None
         }
@@ -588,6 +698,13 @@ impl FestoStation {
             &mut self.rng,
             jitter,
         );
+        self.rejector.set(
+            now,
+            out(outputs, output::REJECTOR),
+            p.reject_us,
+            &mut self.rng,
+            jitter,
+        );
         self.place_waiting_part(now);
         self.check_engagement(now);
     }
@@ -646,6 +763,8 @@ impl Plant for FestoStation {
             feed == p.drill_down_us,
             at(position::EJECT),
             self.ejector.extended(),
+            in_pos && self.nests[position::TEST].is_some_and(|p| p.passed),
+            self.rejector.extended(),
         ];
         for (slot, v) in buf.iter_mut().zip(values) {
             *slot = v;
@@ -665,12 +784,18 @@ impl Plant for FestoStation {
     }
 
     fn counters(&self) -> Counters {
+        let t = &self.tally;
         Counters::from_pairs(&[
-            ("parts_supplied", self.tally.supplied),
-            ("parts_tested", self.tally.tested),
-            ("parts_drilled", self.tally.drilled),
-            ("parts_ejected", self.tally.ejected),
-            ("parts_ejected_incomplete", self.tally.ejected_incomplete),
+            ("parts_supplied", t.supplied),
+            ("parts_defective", t.defective),
+            ("parts_tested", t.tested),
+            ("parts_rejected", t.rejected),
+            ("parts_rejected_good", t.rejected_good),
+            ("parts_drilled", t.drilled),
+            ("parts_good", t.good),
+            ("parts_ejected", t.ejected),
+            ("parts_ejected_incomplete", t.ejected_incomplete),
+            ("parts_ejected_defective", t.ejected_defective),
             ("parts_waiting", self.waiting),
         ])
     }
@@ -699,189 +824,4 @@ impl Plant for FestoStation {
 }
 
 #[cfg(test)]
-mod tests {
-    use super::input::*;
-    use super::output::*;
-    use super::*;
-
-    /// Steps to `t_ms` with the listed outputs on, returns the input image.
-    fn drive(st: &mut FestoStation, t_ms: u64, on: &[usize]) -> [bool; 13] {
-        let mut outs = [false; 6];
-        for &o in on {
-            outs[o] = true;
-        }
-        st.step(t_ms * 1_000, &outs);
-        let mut ins = [false; 13];
-        st.inputs(&mut ins);
-        ins
-    }
-
-    fn kinds(st: &FestoStation) -> Vec<FaultKind> {
-        st.faults().iter().map(|f| f.kind).collect()
-    }
-
-    /// Indexes the table once, stopping on the cam; starts and ends at `t_ms`.
-    fn index(st: &mut FestoStation, t_ms: &mut u64) {
-        let mut left = false;
-        loop {
-            *t_ms += 10;
-            let i = drive(st, *t_ms, &[TABLE_MOTOR]);
-            if !i[TABLE_IN_POS] {
-                left = true;
-            } else if left {
-                break;
-            }
-        }
-        *t_ms += 10;
-        drive(st, *t_ms, &[]);
-    }
-
-    #[test]
-    fn the_first_part_is_placed_at_the_input_at_once() {
-        let mut st = FestoStation::with_defaults(0);
-        let i = drive(&mut st, 0, &[]);
-        assert!(i[PART_AT_INPUT] && i[TABLE_IN_POS] && i[DRILL_UP]);
-        assert_eq!(st.counters().get("parts_supplied"), Some(1));
-    }
-
-    #[test]
-    fn one_index_takes_one_second_and_moves_the_part_to_the_tester() {
-        let mut st = FestoStation::with_defaults(0);
-        drive(&mut st, 0, &[]);
-        let mut t = 0;
-        index(&mut st, &mut t);
-        assert_eq!(
-            t, 1_020,
-            "motor on at 10 ms, in position at 1 010 ms, off 10 ms later"
-        );
-        let i = drive(&mut st, t + 10, &[]);
-        assert!(i[PART_AT_TEST] && i[TABLE_IN_POS] && !i[PART_AT_INPUT]);
-    }
-
-    #[test]
-    fn a_table_left_running_passes_the_position() {
-        let mut st = FestoStation::with_defaults(0);
-        drive(&mut st, 0, &[TABLE_MOTOR]);
-        assert!(drive(&mut st, 1_050, &[TABLE_MOTOR])[TABLE_IN_POS]);
-        assert!(!drive(&mut st, 1_150, &[TABLE_MOTOR])[TABLE_IN_POS]);
-    }
-
-    #[test]
-    fn turning_the_table_with_the_tester_down_is_a_fault() {
-        let mut st = FestoStation::with_defaults(0);
-        drive(&mut st, 0, &[TESTER_SOLENOID]);
-        drive(&mut st, 600, &[TESTER_SOLENOID]);
-        drive(&mut st, 610, &[TESTER_SOLENOID, TABLE_MOTOR]);
-        drive(&mut st, 620, &[TESTER_SOLENOID, TABLE_MOTOR]);
-        assert_eq!(kinds(&st), vec![FaultKind::TableTurnWhileEngaged]);
-        assert_eq!(
-            st.faults()[0].message,
-            "the table turned while the tester was down"
-        );
-    }
-
-    #[test]
-    fn turning_the_table_before_the_drill_is_up_is_a_fault() {
-        let mut st = FestoStation::with_defaults(0);
-        drive(&mut st, 0, &[DRILL_FEED_DOWN]);
-        drive(&mut st, 500, &[]);
-        drive(&mut st, 510, &[TABLE_MOTOR]);
-        assert_eq!(kinds(&st), vec![FaultKind::TableTurnWhileEngaged]);
-    }
-
-    #[test]
-    fn drilling_without_clamp_is_a_fault_and_leaves_the_part_undrilled() {
-        let mut st = FestoStation::with_defaults(0);
-        drive(&mut st, 0, &[]);
-        let mut t = 0;
-        index(&mut st, &mut t);
-        index(&mut st, &mut t);
-        assert!(drive(&mut st, t, &[])[PART_AT_DRILL]);
-        drive(&mut st, t + 10, &[DRILL_MOTOR, DRILL_FEED_DOWN]);
-        let i = drive(&mut st, t + 2_010, &[DRILL_MOTOR, DRILL_FEED_DOWN]);
-        assert!(i[DRILL_DOWN]);
-        assert_eq!(kinds(&st), vec![FaultKind::DrillWithoutClamp]);
-        assert_eq!(st.counters().get("parts_drilled"), Some(0));
-    }
-
-    #[test]
-    fn drilling_with_the_spindle_stopped_is_a_fault() {
-        let mut st = FestoStation::with_defaults(0);
-        drive(&mut st, 0, &[]);
-        let mut t = 0;
-        index(&mut st, &mut t);
-        index(&mut st, &mut t);
-        drive(&mut st, t, &[CLAMP]);
-        drive(&mut st, t + 300, &[CLAMP, DRILL_FEED_DOWN]);
-        drive(&mut st, t + 2_300, &[CLAMP, DRILL_FEED_DOWN]);
-        assert_eq!(kinds(&st), vec![FaultKind::DrillMotorOff]);
-    }
-
-    #[test]
-    fn opening_the_clamp_with_the_drill_in_the_part_is_a_fault() {
-        let mut st = FestoStation::with_defaults(0);
-        drive(&mut st, 0, &[]);
-        let mut t = 0;
-        index(&mut st, &mut t);
-        index(&mut st, &mut t);
-        drive(&mut st, t, &[CLAMP]);
-        drive(&mut st, t + 300, &[CLAMP, DRILL_MOTOR, DRILL_FEED_DOWN]);
-        drive(&mut st, t + 1_000, &[DRILL_MOTOR, DRILL_FEED_DOWN]);
-        assert_eq!(kinds(&st), vec![FaultKind::DrillWithoutClamp]);
-    }
-
-    #[test]
-    fn engaging_a_module_between_positions_is_a_fault() {
-        let mut st = FestoStation::with_defaults(0);
-        drive(&mut st, 0, &[TABLE_MOTOR]);
-        drive(&mut st, 500, &[]);
-        drive(&mut st, 510, &[EJECTOR]);
-        assert_eq!(kinds(&st), vec![FaultKind::EngagedOutOfPosition]);
-    }
-
-    #[test]
-    fn the_drill_feed_goes_down_in_two_seconds_and_up_in_half_a_second() {
-        let mut st = FestoStation::with_defaults(0);
-        drive(&mut st, 0, &[DRILL_FEED_DOWN]);
-        assert!(!drive(&mut st, 1_999, &[DRILL_FEED_DOWN])[DRILL_DOWN]);
-        let i = drive(&mut st, 2_000, &[]);
-        assert!(i[DRILL_DOWN] && !i[DRILL_UP]);
-        assert!(!drive(&mut st, 2_499, &[])[DRILL_UP]);
-        assert!(drive(&mut st, 2_500, &[])[DRILL_UP]);
-    }
-
-    #[test]
-    fn a_pressed_button_is_held_for_the_press_time() {
-        let mut st = FestoStation::with_defaults(0);
-        st.press("start", 1_000_000)
-            .expect("the station has a start button");
-        assert!(!drive(&mut st, 990, &[])[START]);
-        assert!(drive(&mut st, 1_000, &[])[START]);
-        assert!(drive(&mut st, 1_190, &[])[START]);
-        assert!(!drive(&mut st, 1_200, &[])[START]);
-        assert!(st.press("emergency", 0).is_err());
-    }
-
-    #[test]
-    fn parts_wait_upstream_while_the_input_nest_is_full() {
-        let mut st = FestoStation::with_defaults(0);
-        drive(&mut st, 10_000, &[]);
-        let c = st.counters();
-        assert_eq!(c.get("parts_supplied"), Some(1));
-        assert_eq!(c.get("parts_waiting"), Some(2));
-    }
-
-    #[test]
-    fn invalid_parameters_are_rejected_with_the_parameter_named() {
-        let params = FestoParams {
-            in_position_window_us: 2 * SECOND_US,
-            ..FestoParams::default()
-        };
-        match FestoStation::new(params, 0) {
-            Err(TwinError::InvalidParameter { name, .. }) => {
-                assert_eq!(name, "in_position_window_us")
-            }
-            other => panic!("expected an invalid parameter, got {other:?}"),
-        }
-    }
-}
+mod tests;

@@ -6,9 +6,10 @@
 //!
 //! * **driven by virtual time.** Time is an argument (`now_us`, microseconds since the twin was built),
 //!   never read from a clock, so a twin runs a virtual hour in milliseconds and a test is repeatable;
-//! * **deterministic.** The only randomness is optional jitter on durations, drawn from the crate's own
-//!   [`rng::SplitMix64`] so that a seed gives the same stream forever, whatever a dependency does. With
-//!   the default parameters the jitter is zero and the seed has no effect;
+//! * **deterministic.** The only randomness is optional jitter on durations and the Festo station's
+//!   defective parts, drawn from the crate's own [`rng::SplitMix64`] so that a seed gives the same
+//!   stream forever, whatever a dependency does. With the default parameters there is neither jitter
+//!   nor a defective part, and the seed has no effect;
 //! * **forkable.** Twins are `Clone`: a fork taken mid-run and driven like the original stays identical
 //!   to it, which is how a candidate program can be tried from the live plant's state;
 //! * **honest about physics.** Misuse of the machine (two robot moves at once, a part pushed into a full
@@ -90,6 +91,8 @@
 //! | `DRILL_DOWN`    | the drill feed is at its lower end, `drill_down_us` (2 s) of feed below the top |
 //! | `PART_AT_EJECT` | the table is in position and the nest at the ejector holds a part |
 //! | `EJECTOR_OUT`   | the ejector is fully out, `eject_us` (0.5 s) after EJECTOR came on; the part has left |
+//! | `TEST_OK`       | the test result: the table is in position and the part under the tester passed the hole test (from the moment the probe reached the bottom of its hole until the part leaves) |
+//! | `REJECTOR_OUT`  | the rejector is fully out, `reject_us` (0.5 s) after REJECTOR came on; the part under the tester has gone into the reject bin |
 //!
 //! Outputs, in order:
 //!
@@ -101,20 +104,34 @@
 //! | `DRILL_MOTOR`     | spins the drill |
 //! | `DRILL_FEED_DOWN` | feeds the drill down; off feeds it up, in `drill_up_us` (0.5 s) for the whole travel |
 //! | `EJECTOR`         | pushes the part at the ejector off the table; off retracts it at once |
+//! | `REJECTOR`        | pushes the part under the tester into the reject bin; off retracts it at once |
+//! | `REJECT_BIN_FULL` | a lamp asking the operator to empty the reject bin; the twin has no use for it |
 //!
 //! A part arrives upstream every `arrival_interval_us` (5 s, the first at time 0). The upstream station
 //! puts it into the input nest when that nest is empty and the table stands in position with its motor
 //! off; until then it waits. A part is tested when the probe reaches down on it, drilled when the feed
 //! reaches its lower end on it while it is clamped and the drill spins, ejected when the ejector is fully
-//! out. A hand-coded program that tests, drills and ejects in parallel and then indexes ejects 718
-//! parts in a virtual hour (`tests/festo_program.rs`). Faults: [`FaultKind::TableTurnWhileEngaged`] (the motor runs while the tester is down, the
-//! clamp closed, the drill below its top or the ejector out), [`FaultKind::EngagedOutOfPosition`]
+//! out, rejected when the rejector is fully out while the probe is up.
+//!
+//! A part is defective with probability `defect_ppm` parts per million (0 by default; 50 000 is 5 %),
+//! drawn when it is put into the input nest from a stream of its own, so that the seed alone decides
+//! which parts are defective. A defective part lies upside down: the probe stops on its closed
+//! bottom, so `TESTER_DOWN` and `TEST_OK` never come, and a program finds out by a timeout. A
+//! hand-coded program that tests (rejecting on a 1 s timeout), drills and ejects in parallel and then
+//! indexes ejects 718 parts in a virtual hour without defects (`tests/festo_program.rs`).
+//!
+//! Faults: [`FaultKind::TableTurnWhileEngaged`] (the motor runs while the tester is down, the
+//! clamp closed, the drill below its top, the ejector or the rejector out), [`FaultKind::EngagedOutOfPosition`]
 //! (a module engaged while the table stands between positions), [`FaultKind::DrillWithoutClamp`] (the
 //! drill reaches an unclamped part, or the clamp opens with the drill in the part),
-//! [`FaultKind::DrillMotorOff`] (the drill is fed into a part with the spindle stopped).
+//! [`FaultKind::DrillMotorOff`] (the drill is fed into a part with the spindle stopped),
+//! [`FaultKind::RejectUnderProbe`] (the rejector pushes while the probe is down; the part stays).
 //!
-//! Counters: `parts_supplied`, `parts_tested`, `parts_drilled`, `parts_ejected`,
-//! `parts_ejected_incomplete` (ejected without having been both tested and drilled), `parts_waiting`.
+//! Counters: `parts_supplied`, `parts_defective` (of those supplied), `parts_tested`,
+//! `parts_rejected`, `parts_rejected_good` (good parts thrown into the reject bin), `parts_drilled`,
+//! `parts_good` (ejected good, tested and drilled), `parts_ejected`, `parts_ejected_incomplete`
+//! (ejected without having been both tested and drilled), `parts_ejected_defective` (defective
+//! parts that went downstream), `parts_waiting`.
 //!
 //! # Choosing a twin by name
 //!
@@ -132,7 +149,7 @@ use std::str::FromStr;
 
 use serde::{Serialize, Serializer};
 
-pub use festo::{FestoParams, FestoStation};
+pub use festo::{FestoParams, FestoStation, PPM};
 pub use vernadat::{VernadatCell, VernadatParams};
 
 /// One second of virtual time, in the microseconds every twin counts in.
@@ -142,7 +159,7 @@ pub const SECOND_US: u64 = 1_000_000;
 pub const FAULT_LOG_CAPACITY: usize = 1024;
 
 /// The most counters a twin reports.
-pub const MAX_COUNTERS: usize = 8;
+pub const MAX_COUNTERS: usize = 12;
 
 /// A simulated plant that a PLC program drives through its I/O images.
 pub trait Plant: Send {
@@ -207,6 +224,8 @@ pub enum FaultKind {
     DrillWithoutClamp,
     /// The drill was fed into a part with its spindle stopped.
     DrillMotorOff,
+    /// The rejector pushed a part while the tester's probe was down on it.
+    RejectUnderProbe,
     /// An output image had the wrong length.
     ImageSize,
     /// Virtual time went backwards.
@@ -228,6 +247,7 @@ impl FaultKind {
             Self::EngagedOutOfPosition => "engaged_out_of_position",
             Self::DrillWithoutClamp => "drill_without_clamp",
             Self::DrillMotorOff => "drill_motor_off",
+            Self::RejectUnderProbe => "reject_under_probe",
             Self::ImageSize => "image_size",
             Self::ClockRegression => "clock_regression",
         }
@@ -391,6 +411,24 @@ pub enum TwinError {
         /// The buttons it has, comma-separated.
         known: String,
     },
+    /// A defect rate that is not a share between 0 and 1.
+    #[error("invalid defect rate `{text}`: {reason}; write a percentage (`5%`), a fraction (`0.05`) or parts per million (`50000ppm`)")]
+    InvalidDefectRate {
+        /// The text given.
+        text: String,
+        /// What is wrong with it.
+        reason: &'static str,
+    },
+    /// The twin has no such setting.
+    #[error("twin `{twin}` has no setting `{setting}`: {reason}")]
+    UnsupportedSetting {
+        /// The twin.
+        twin: &'static str,
+        /// The setting.
+        setting: &'static str,
+        /// Why, and what to do.
+        reason: &'static str,
+    },
     /// A parameter is out of range.
     #[error("invalid parameter `{name}` of twin `{twin}`: {reason}")]
     InvalidParameter {
@@ -436,6 +474,60 @@ impl TwinKind {
     pub fn boxed(self, seed: u64) -> Box<dyn Plant> {
         Box::new(self.build(seed))
     }
+
+    /// A twin of this kind with default parameters changed by `settings`; refuses a setting the
+    /// twin does not have (the Vernadat cell makes no defective parts).
+    pub fn configure(self, settings: &TwinSettings) -> Result<Twin, TwinError> {
+        match self {
+            Self::Vernadat if settings.defect_ppm > 0 => Err(TwinError::UnsupportedSetting {
+                twin: vernadat::NAME,
+                setting: "defect rate",
+                reason: "the Vernadat cell makes no defective parts; leave the defect rate out",
+            }),
+            Self::Vernadat => Ok(self.build(settings.seed)),
+            Self::Festo => {
+                let params = FestoParams {
+                    defect_ppm: settings.defect_ppm,
+                    ..FestoParams::default()
+                };
+                Ok(Twin::Festo(FestoStation::new(params, settings.seed)?))
+            }
+        }
+    }
+}
+
+/// What a twin chosen by name can be given from outside (`cetratus run --seed --defect-rate`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct TwinSettings {
+    /// The seed of the twin's randomness (jitter, defective parts).
+    pub seed: u64,
+    /// Defective parts per million supplied (Festo station only).
+    pub defect_ppm: u32,
+}
+
+/// Parses a defect rate into parts per million: `5%`, `0.05` or `50000ppm`, between 0 and 1.
+pub fn parse_defect_rate(text: &str) -> Result<u32, TwinError> {
+    let bad = |reason| TwinError::InvalidDefectRate {
+        text: text.to_owned(),
+        reason,
+    };
+    let t = text.trim();
+    let (number, per) = if let Some(n) = t.strip_suffix('%') {
+        (n, 100.0)
+    } else if let Some(n) = t.strip_suffix("ppm") {
+        (n, f64::from(festo::PPM))
+    } else {
+        (t, 1.0)
+    };
+    let value: f64 = number
+        .trim()
+        .parse()
+        .map_err(|_| bad("it is not a number"))?;
+    if !value.is_finite() || value < 0.0 || value > per {
+        return Err(bad("a defect rate lies between 0 and 1 (0 % and 100 %)"));
+    }
+    // In range by the check above, so the cast neither wraps nor saturates.
+    Ok((value / per * f64::from(festo::PPM)).round() as u32)
 }
 
 impl FromStr for TwinKind {
@@ -581,6 +673,40 @@ mod tests {
             "lathe".parse::<TwinKind>(),
             Err(TwinError::UnknownTwin { .. })
         ));
+    }
+
+    #[test]
+    fn defect_rates_are_read_as_percentages_fractions_or_parts_per_million() {
+        assert_eq!(parse_defect_rate("5%"), Ok(50_000));
+        assert_eq!(parse_defect_rate("0.05"), Ok(50_000));
+        assert_eq!(parse_defect_rate("50000ppm"), Ok(50_000));
+        assert_eq!(parse_defect_rate("0"), Ok(0));
+        assert_eq!(parse_defect_rate("100%"), Ok(PPM));
+        for bad in ["", "five", "-1%", "101%", "1.5", "NaN"] {
+            assert!(
+                matches!(
+                    parse_defect_rate(bad),
+                    Err(TwinError::InvalidDefectRate { .. })
+                ),
+                "{bad:?} was accepted"
+            );
+        }
+    }
+
+    #[test]
+    fn a_defect_rate_is_refused_for_the_vernadat_cell_and_given_to_the_festo_station() {
+        let settings = TwinSettings {
+            seed: 1,
+            defect_ppm: 50_000,
+        };
+        assert!(matches!(
+            TwinKind::Vernadat.configure(&settings),
+            Err(TwinError::UnsupportedSetting { .. })
+        ));
+        match TwinKind::Festo.configure(&settings) {
+            Ok(Twin::Festo(st)) => assert_eq!(st.params().defect_ppm, 50_000),
+            other => panic!("expected a Festo station, got {other:?}"),
+        }
     }
 
     #[test]

@@ -66,3 +66,14 @@ pub fn counter<P: Plant>(plant: &P, name: &str) -> u64 {
         .get(name)
         .unwrap_or_else(|| panic!("the {} twin counts {name}", plant.name()))
 }
+
+/// Presses the Festo station's RESET at 100 ms (the table is brought to a position) and START at
+/// 500 ms, as an operator does at power on.
+pub fn start_festo<P: Plant>(station: &mut P) {
+    station
+        .press("RESET", 100_000)
+        .expect("RESET is a button of the station");
+    station
+        .press("START", 500_000)
+        .expect("START is a button of the station");
+}

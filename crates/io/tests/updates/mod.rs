@@ -1,5 +1,6 @@
-//! A workshop for update tests: a temporary copy of the Vernadat example with a trusted signing
-//! key, and a cell (PLC + twin) that checks the Message Router's law on every cycle.
+//! A workshop for update tests: a temporary copy of an example (the Vernadat cell unless told
+//! otherwise) with a trusted signing key, and a cell (PLC + twin) that checks the Message Router's
+//! law on every cycle.
 
 // Each test crate uses a different part of this module.
 #![allow(dead_code)]
@@ -14,6 +15,7 @@ use cetratus_twin::{Twin, TwinKind};
 
 pub const PERIOD: u64 = 10_000;
 pub const EXAMPLES: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../../examples/vernadat");
+pub const FESTO_EXAMPLES: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../../examples/festo");
 
 /// A temporary copy of the Vernadat example, a signing key that the trust store trusts, and the
 /// packages built from manifests in it.
@@ -25,8 +27,13 @@ pub struct Workshop {
 
 impl Workshop {
     pub fn new() -> Self {
+        Self::of(EXAMPLES)
+    }
+
+    /// A workshop with the programs and manifests of the example directory `examples`.
+    pub fn of(examples: &str) -> Self {
         let dir = tempfile::tempdir().expect("temp dir");
-        for entry in std::fs::read_dir(EXAMPLES).expect("examples dir") {
+        for entry in std::fs::read_dir(examples).expect("examples dir") {
             let path = entry.expect("entry").path();
             if path.extension().is_some_and(|e| e == "toml" || e == "pnml") {
                 std::fs::copy(&path, dir.path().join(path.file_name().expect("name")))
@@ -75,12 +82,13 @@ pub struct Cell {
 
 impl Cell {
     pub fn new(program: Arc<Program>) -> Self {
-        let io = TwinDriver::new(
-            TwinKind::Vernadat.build(1),
-            program.inputs(),
-            program.outputs(),
-        )
-        .expect("signals match the twin");
+        Self::with_twin(program, TwinKind::Vernadat.build(1))
+    }
+
+    /// A cell whose plant is `twin`.
+    pub fn with_twin(program: Arc<Program>, twin: Twin) -> Self {
+        let io = TwinDriver::new(twin, program.inputs(), program.outputs())
+            .expect("signals match the twin");
         let mut plc = Plc::new(program, 0, cetratus_testkit::stopwatch());
         // Virtual time: a machine busy with other tests must not turn a preemption into a fault.
         plc.use_virtual_time(PERIOD);

@@ -273,6 +273,10 @@ pub struct FestoProgram {
     running: bool,
     phase: Phase,
     testing: bool,
+    probe_since: u64,
+    rejecting: bool,
+    /// Parts pushed into the reject bin.
+    pub rejects: u64,
     drill: Drill,
     ejecting: bool,
     motor: bool,
@@ -286,6 +290,9 @@ impl Default for FestoProgram {
             running: false,
             phase: Phase::Ready,
             testing: false,
+            probe_since: 0,
+            rejecting: false,
+            rejects: 0,
             drill: Drill::Idle,
             ejecting: false,
             motor: false,
@@ -295,7 +302,7 @@ impl Default for FestoProgram {
 }
 
 impl Controller for FestoProgram {
-    fn scan(&mut self, _now: u64, i: &[bool], o: &mut [bool]) {
+    fn scan(&mut self, now: u64, i: &[bool], o: &mut [bool]) {
         if i[fi::START] {
             self.running = true;
         }
@@ -311,6 +318,7 @@ impl Controller for FestoProgram {
                     || i[fi::PART_AT_EJECT];
                 if self.running && i[fi::TABLE_IN_POS] && any_part {
                     self.testing = i[fi::PART_AT_TEST];
+                    self.probe_since = now;
                     self.drill = if i[fi::PART_AT_DRILL] {
                         Drill::Clamping
                     } else {
@@ -321,8 +329,15 @@ impl Controller for FestoProgram {
                 }
             }
             Phase::Working => {
-                if self.testing && i[fi::TESTER_DOWN] {
+                if self.testing && i[fi::TEST_OK] {
                     self.testing = false;
+                } else if self.testing && now - self.probe_since >= SECOND_US {
+                    // The probe never reached the bottom of a hole: reject the part.
+                    self.testing = false;
+                    self.rejecting = true;
+                } else if self.rejecting && i[fi::REJECTOR_OUT] {
+                    self.rejecting = false;
+                    self.rejects += 1;
                 }
                 self.drill = match self.drill {
                     Drill::Clamping if i[fi::CLAMPED] => Drill::Drilling,
@@ -333,7 +348,7 @@ impl Controller for FestoProgram {
                 if self.ejecting && i[fi::EJECTOR_OUT] {
                     self.ejecting = false;
                 }
-                if !self.testing && self.drill == Drill::Idle && !self.ejecting {
+                if !self.testing && !self.rejecting && self.drill == Drill::Idle && !self.ejecting {
                     self.motor = true;
                     self.phase = Phase::Leaving;
                 }
@@ -358,5 +373,6 @@ impl Controller for FestoProgram {
         o[fo::DRILL_MOTOR] = matches!(self.drill, Drill::Drilling | Drill::Rising);
         o[fo::DRILL_FEED_DOWN] = self.drill == Drill::Drilling;
         o[fo::EJECTOR] = self.ejecting;
+        o[fo::REJECTOR] = self.rejecting;
     }
 }

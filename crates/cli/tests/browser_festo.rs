@@ -1,0 +1,101 @@
+//! Update F.1 of the Festo station in a real browser: `cetratus run` drives the station's twin in
+//! real time (20 times faster than the wall clock, one defective part in five) with the embedded
+//! broker and the dashboard; the operator loads F.1 through the page, substitutes it, and sees its
+//! new output, REJECT_BIN_FULL, reach the plant in the timing diagram.
+
+use std::process::{Command, Stdio};
+use std::time::Duration;
+
+use cetratus_testkit::browser::{require_chromium, Browser};
+use cetratus_testkit::paths::{artifacts_dir, example};
+use cetratus_testkit::ports::{free_port, wait_for_port};
+use cetratus_testkit::process::ChildGuard;
+
+const BIN: &str = env!("CARGO_BIN_EXE_cetratus");
+const LAMP: &str = "REJECT_BIN_FULL";
+
+/// Runs `cetratus` with `args` to its end, failing with its stderr.
+fn cetratus(args: &[&std::ffi::OsStr]) {
+    let out = Command::new(BIN).args(args).output().expect("run cetratus");
+    assert!(
+        out.status.success(),
+        "cetratus {args:?}: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn an_operator_loads_f1_substitutes_it_and_the_dashboard_shows_the_reject_bin_lamp_lit() {
+    require_chromium();
+    let dir = tempfile::tempdir().expect("temp dir");
+    let key = dir.path().join("f1.key");
+    let package = dir.path().join("f1.cpkg");
+    let trusted = dir.path().join("trusted");
+    std::fs::create_dir_all(&trusted).expect("trusted dir");
+    cetratus(&[
+        "package".as_ref(),
+        "keygen".as_ref(),
+        "--out".as_ref(),
+        key.as_os_str(),
+    ]);
+    std::fs::copy(dir.path().join("f1.key.pub"), trusted.join("f1.pub")).expect("trust the key");
+    let manifest = example("festo/f1.package.toml");
+    cetratus(&[
+        "package".as_ref(),
+        "build".as_ref(),
+        manifest.as_os_str(),
+        "--key".as_ref(),
+        key.as_os_str(),
+        "-o".as_ref(),
+        package.as_os_str(),
+    ]);
+
+    let (mqtt, http) = (free_port(), free_port());
+    let _plc = ChildGuard::spawn(
+        Command::new(BIN)
+            .arg("run")
+            .arg(example("festo/festo.toml"))
+            .args(["--twin", "festo", "--speed", "20", "--for", "2h"])
+            .args(["--defect-rate", "20%", "--seed", "4", "--plc", "festo1"])
+            .args(["--mqtt", &format!("127.0.0.1:{mqtt}")])
+            .args(["--http", &format!("127.0.0.1:{http}")])
+            .arg("--trust")
+            .arg(&trusted)
+            .arg("--state-dir")
+            .arg(dir.path().join("state"))
+            .stdout(Stdio::null())
+            .stderr(Stdio::null()),
+    );
+    wait_for_port(http, "the dashboard", Duration::from_secs(30));
+    let c = Browser::start().await;
+    c.goto(&format!("http://127.0.0.1:{http}/"))
+        .await
+        .expect("the page loads");
+    c.wait_text("primary", "A", Duration::from_secs(30)).await;
+    c.wait_text("status", "idle", Duration::from_secs(5)).await;
+    // festo.toml declares the lamp and drives it with no action: it is drawn, and off.
+    c.wait_lane_level("dispatched", LAMP, false, Duration::from_secs(20))
+        .await;
+
+    c.load_package(&package).await;
+    c.wait_text("status", "quarantine", Duration::from_secs(20))
+        .await;
+    assert!(c.net_drawn("B").await, "F.1's net is drawn in container B");
+    // In quarantine the candidate counts rejects; its lamp is withheld from the plant.
+    tokio::time::sleep(Duration::from_secs(2)).await;
+    assert_eq!(
+        c.lane_level("dispatched", LAMP).await,
+        Some(false),
+        "a candidate's output is withheld"
+    );
+
+    c.click_and_confirm("substitute").await;
+    c.wait_text("primary", "B", Duration::from_secs(20)).await;
+    // Five rejects after the switch (about 25 parts, two virtual minutes) light the lamp.
+    c.wait_lane_level("dispatched", LAMP, true, Duration::from_secs(60))
+        .await;
+    let png = c.screenshot().await.expect("screenshot");
+    std::fs::write(artifacts_dir().join("festo-f1-dashboard.png"), &png)
+        .expect("screenshot written");
+    c.close().await;
+}

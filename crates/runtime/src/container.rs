@@ -32,6 +32,10 @@ pub struct Container {
     inputs_steady: bool,
     // The first scan resumes (warm start) instead of entering every marked place.
     resume: bool,
+    // `inputs` holds an image seen before (by this container, or handed over from the program
+    // that ran before it): the next scan's rise/fall compare against it. False only until the
+    // first scan of a container that has no past, where no edge is seen.
+    edge_memory: bool,
     // Tests compare against a container that never takes the quiet path.
     always_full: bool,
 }
@@ -109,6 +113,7 @@ impl Container {
             force_full: true,
             inputs_steady: false,
             resume: false,
+            edge_memory: false,
             always_full: false,
             firings: vec![0; program.net().num_transitions()],
             marking_at_start: marking,
@@ -192,13 +197,14 @@ impl Container {
             return Ok(self.quiet_scan(now_us));
         }
         self.force_full = false;
-        if self.scans == 0 {
-            // No edge on the first scan: rise/fall compare against the same image.
-            self.prev_inputs.copy_from_slice(inputs);
-        } else {
+        if self.edge_memory {
             self.prev_inputs.copy_from_slice(&self.inputs);
+        } else {
+            // No past: rise/fall compare against the same image, so the first scan sees no edge.
+            self.prev_inputs.copy_from_slice(inputs);
         }
         self.inputs.copy_from_slice(inputs);
+        self.edge_memory = true;
         self.inputs_steady = self.prev_inputs == self.inputs;
 
         let program = &*self.program;
@@ -337,6 +343,18 @@ impl Container {
                 *v = x;
             }
         }
+        self.force_full = true;
+    }
+
+    /// Continues edge detection from `previous`, the input image (in this program's input order)
+    /// that the program running before this one saw in its last scan: the next scan's
+    /// `rise`/`fall` compare against it, so an edge in the cycle of an install or a substitution
+    /// is seen rather than lost. Allocates nothing; values past this program's inputs are ignored.
+    pub fn continue_edges_from(&mut self, previous: impl IntoIterator<Item = Value>) {
+        for (v, p) in self.inputs.iter_mut().zip(previous) {
+            *v = p;
+        }
+        self.edge_memory = true;
         self.force_full = true;
     }
 

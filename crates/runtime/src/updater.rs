@@ -506,16 +506,19 @@ impl Updater {
         }
         let s = core.primary_slot.other();
         let up = *up;
+        let mut candidate = up.container;
         core.router.attach(
             s.index(),
-            up.container.inputs().to_vec(),
+            candidate.inputs().to_vec(),
             up.in_map,
             up.out_map,
         );
+        // The candidate's first scan sees the edges of this cycle, as the primary's does.
+        candidate.continue_edges_from(core.router.last_inputs_for(s.index()));
         core.monitor.stats[s.index()] = ContainerStats::new(core.router.io_outputs().len());
         let name = format!("{} {}", up.plan.meta.name, up.plan.meta.version);
         self.phase = Phase::Quarantine(Box::new(Quarantine {
-            candidate: up.container,
+            candidate,
             plan: up.plan,
             pending: None,
             started_us: now_us,
@@ -611,6 +614,10 @@ impl Updater {
                 .carry_from(primary, &plan.latch_map, &plan.var_map);
             core.router.mark_stale(c.index());
         }
+        // The new primary's edge memory continues from the inputs the old primary saw in its
+        // last scan, so that an edge in the switch cycle is not lost.
+        q.candidate
+            .continue_edges_from(core.router.last_inputs_for(c.index()));
         let Phase::Quarantine(q) = std::mem::replace(&mut self.phase, Phase::Idle) else {
             unreachable!("matched above");
         };

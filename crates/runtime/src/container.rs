@@ -40,6 +40,12 @@ pub struct Container {
     always_full: bool,
 }
 
+/// Why a guard stopped a scan: its evaluation failed, or the scan ran out of its work budget.
+enum Stop {
+    Guard(cetratus_program::EvalError),
+    Budget,
+}
+
 /// Why a transition did not fire in a container's last scan.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Blocker {
@@ -187,6 +193,20 @@ impl Container {
         inputs: &[Value],
         unchanged: bool,
     ) -> Result<ScanOutcome, RuntimeError> {
+        self.scan_within(now_us, inputs, unchanged, u64::MAX)
+    }
+
+    /// [`Container::scan_hinted`] stopped midway once it has done `work_budget` units of work:
+    /// each guard evaluation is one unit, and each guard that holds one more (the firing it
+    /// allows). A stopped scan is rolled back like a failed one ([`RuntimeError::WorkBudget`]).
+    /// This bounds a runaway scan by what it does, not by a clock.
+    pub fn scan_within(
+        &mut self,
+        now_us: u64,
+        inputs: &[Value],
+        unchanged: bool,
+        work_budget: u64,
+    ) -> Result<ScanOutcome, RuntimeError> {
         if inputs.len() != self.inputs.len() {
             return Err(RuntimeError::InputImage {
                 expected: self.inputs.len(),
@@ -217,9 +237,18 @@ impl Container {
             now_us,
         };
         let policy = program.policy();
+        let mut work = 0u64;
         let result = self
             .engine
-            .scan(policy, |t| program.eval_guard(t, &ctx))
+            .scan(policy, |t| {
+                work += 1;
+                if work > work_budget {
+                    return Err(Stop::Budget);
+                }
+                let holds = program.eval_guard(t, &ctx).map_err(Stop::Guard)?;
+                work += u64::from(holds);
+                Ok(holds)
+            })
             .map(|f| f.len());
         if result.is_err() {
             // The failing guard must fail again on the next scan, not be skipped as quiet.
@@ -227,10 +256,22 @@ impl Container {
         }
         let fired = match result {
             Ok(n) => n,
-            Err(FireError::Guard { transition, error }) => {
+            Err(FireError::Guard {
+                transition,
+                error: Stop::Guard(error),
+            }) => {
                 return Err(RuntimeError::Guard {
                     transition: program.net().transition(transition).id.clone(),
                     message: error.to_string(),
+                })
+            }
+            Err(FireError::Guard {
+                transition,
+                error: Stop::Budget,
+            }) => {
+                return Err(RuntimeError::WorkBudget {
+                    budget: work_budget,
+                    transition: program.net().transition(transition).id.clone(),
                 })
             }
             Err(FireError::Overflow { transition, place }) => {

@@ -195,6 +195,7 @@ pub fn run(args: &RunArgs) -> anyhow::Result<()> {
     } else if args.period.is_some() {
         plc.set_limits(cetratus_runtime::Limits::for_period_us(period_us));
     }
+    plc.set_limits(local.limits(plc.limits()));
     // Program time resumes after the last committed cycle; `--for`, `--at` and `--press` count
     // from the start of this run.
     let base_us = if plc.cycles() > 0 {

@@ -30,6 +30,9 @@ pub struct Container {
     force_full: bool,
     // The last full scan saw the same inputs as the one before it (rise/fall were false).
     inputs_steady: bool,
+    // The next scan is the first from the present state (a new container, an install, a
+    // retransform): it enters every marked place, and is never quiet.
+    fresh_state: bool,
     // The first scan resumes (warm start) instead of entering every marked place.
     resume: bool,
     // `inputs` holds an image seen before (by this container, or handed over from the program
@@ -118,6 +121,7 @@ impl Container {
             timed_guard,
             force_full: true,
             inputs_steady: false,
+            fresh_state: true,
             resume: false,
             edge_memory: false,
             always_full: false,
@@ -163,7 +167,8 @@ impl Container {
     pub fn firings(&self) -> &[u64] {
         &self.firings
     }
-    /// Scans run.
+    /// Scans run since the container was built (an install or a retransform does not restart
+    /// the count, as it does not restart [`Container::firings`]).
     pub fn scans(&self) -> u64 {
         self.scans
     }
@@ -294,7 +299,7 @@ impl Container {
                 self.place_since_us[p.index()] = None;
             }
         }
-        if self.scans == 0 && !std::mem::take(&mut self.resume) {
+        if std::mem::take(&mut self.fresh_state) && !std::mem::take(&mut self.resume) {
             // The first scan enters every marked place: P1 and S actions of M0 take effect.
             self.actions.start(
                 program,
@@ -330,7 +335,7 @@ impl Container {
     fn is_quiet(&self, inputs: &[Value], unchanged: bool) -> bool {
         !self.always_full
             && !self.force_full
-            && self.scans > 0
+            && !self.fresh_state
             && self.engine.fired().is_empty()
             && self.actions.last_was_quiet()
             && self.inputs_steady
@@ -426,7 +431,8 @@ impl Container {
         self.engine.set_marking(marking)?;
         self.marking_at_start.copy_from_slice(marking);
         self.place_since_us.copy_from_slice(place_since_us);
-        self.scans = 0;
+        // `scans` goes on, as `firings` do: the Monitor counts both since the install.
+        self.fresh_state = true;
         self.force_full = true;
         Ok(())
     }

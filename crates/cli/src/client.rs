@@ -2,11 +2,11 @@
 //! and `exec-info`, spoken over MQTT 5 request/reply to a PLC.
 
 use std::path::PathBuf;
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
 use anyhow::{bail, Context};
 use base64::Engine as _;
-use cetratus_mct::client::{Message, OperatorKey, Session, SessionConfig};
+use cetratus_mct::client::{Message, OperatorKey, Outcome, Session, SessionConfig};
 use cetratus_proto::{Command, Leaf, PlcId, Reply, SubstituteMode};
 use serde_json::{json, Value};
 
@@ -109,6 +109,62 @@ fn print_reply(reply: &Reply, json: bool) -> anyhow::Result<()> {
     }
 }
 
+/// A command the PLC accepted whose outcome did not come within `--timeout`; the binary exits
+/// with [`StillPending::EXIT_CODE`] (docs/operations.md).
+#[derive(Debug)]
+pub struct StillPending(String);
+
+impl StillPending {
+    /// The exit code of a command still pending.
+    pub const EXIT_CODE: u8 = 3;
+}
+
+impl std::fmt::Display for StillPending {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(&self.0)
+    }
+}
+
+impl std::error::Error for StillPending {}
+
+/// Sends `command`, waits for its outcome event and prints it: success when it took effect, an
+/// error when it was refused or failed, [`StillPending`] when `--timeout` ran out first.
+fn send_and_follow(s: &mut Session, command: &Command, json: bool) -> anyhow::Result<()> {
+    let verb = command.verb();
+    let outcome = s.command(command)?;
+    let (name, reply, event) = match &outcome {
+        Outcome::Refused(r) => ("refused", r, None),
+        Outcome::Done { reply, event } => ("done", reply, Some(event)),
+        Outcome::Failed { reply, event } => ("failed", reply, Some(event)),
+        Outcome::Pending { reply } => ("pending", reply, None),
+        Outcome::Replied(r) => ("done", r, None),
+    };
+    if json {
+        let out = json!({ "verb": verb.as_str(), "outcome": name, "reply": reply, "event": event });
+        println!("{}", serde_json::to_string_pretty(&out)?);
+    }
+    match outcome {
+        Outcome::Refused(r) => match r.error {
+            Some(e) => bail!("{verb} refused: {} ({})", e.message, e.code),
+            None => bail!("{verb} refused: no reason given (error)"),
+        },
+        Outcome::Done { event, .. } => {
+            if !json {
+                println!("{verb}: {}: {}", event.kind, event.message);
+            }
+            Ok(())
+        }
+        Outcome::Failed { event, .. } => bail!("{verb} failed: {}: {}", event.kind, event.message),
+        Outcome::Pending { .. } => Err(StillPending(format!(
+            "{verb} accepted, and still pending after {:?}: no outcome yet; follow it with \
+             `cetratus watch`, or cancel the update with `cetratus abort`",
+            s.timeout()
+        ))
+        .into()),
+        Outcome::Replied(_) => Ok(()),
+    }
+}
+
 /// `cetratus load PKG`: sends the package and follows the update until quarantine or refusal.
 pub fn load(args: &LoadArgs) -> anyhow::Result<()> {
     let bytes = std::fs::read(&args.package)
@@ -118,43 +174,18 @@ pub fn load(args: &LoadArgs) -> anyhow::Result<()> {
         eprintln!("read {} ({} bytes)", args.package.display(), bytes.len());
     }
     let mut s = open(&args.opts)?;
-    s.subscribe(Leaf::Events)?;
     if !quiet {
-        eprintln!("sending to {} …", s.topics().prefix().trim_end_matches('/'));
+        eprintln!(
+            "sending to {} and waiting for the install at the next cycle boundary …",
+            s.topics().prefix().trim_end_matches('/')
+        );
     }
     let package_b64 = base64::engine::general_purpose::STANDARD.encode(&bytes);
-    let reply = s.request(&Command::Load(cetratus_proto::LoadArgs { package_b64 }))?;
-    print_reply(&reply, quiet)?;
-    if !quiet {
-        eprintln!("verified and accepted; waiting for the install at the next cycle boundary …");
-    }
-    let end = Instant::now() + s.timeout();
-    while Instant::now() < end {
-        if let Some(Message { leaf, payload: e }) = s.next_message(Some(end - Instant::now()))? {
-            if leaf != "events" {
-                continue;
-            }
-            let kind = e["kind"].as_str().unwrap_or("");
-            let msg = e["message"].as_str().unwrap_or("");
-            match kind {
-                "quarantine_started" => {
-                    if !quiet {
-                        println!("{msg}");
-                    }
-                    return Ok(());
-                }
-                "state_trans_timeout" | "transform_refused" | "refused" => bail!("{msg}"),
-                _ => {}
-            }
-        }
-    }
-    bail!(
-        "the PLC accepted the package but did not report its install within {:?}",
-        s.timeout()
-    )
+    let command = Command::Load(cetratus_proto::LoadArgs { package_b64 });
+    send_and_follow(&mut s, &command, quiet)
 }
 
-/// `cetratus substitute`.
+/// `cetratus substitute`: waits until the substitution happens, is refused or gives up.
 pub fn substitute(args: &SubstituteArgs) -> anyhow::Result<()> {
     let within_ms = match &args.within {
         Some(w) => {
@@ -173,20 +204,19 @@ pub fn substitute(args: &SubstituteArgs) -> anyhow::Result<()> {
         None => None,
     };
     let mut s = open(&args.opts)?;
-    let reply = s.request(&Command::Substitute(cetratus_proto::SubstituteArgs {
+    let command = Command::Substitute(cetratus_proto::SubstituteArgs {
         force: args.force,
         mode,
         when: args.when.clone(),
         within_ms,
-    }))?;
-    print_reply(&reply, args.opts.json)
+    });
+    send_and_follow(&mut s, &command, args.opts.json)
 }
 
-/// `remove`, `abort` and `reset`.
+/// `remove`, `abort` and `reset`: each waits for its event (`removed`, `aborted`, `reset`).
 pub fn plain(command: Command, args: &PlainArgs) -> anyhow::Result<()> {
     let mut s = open(&args.opts)?;
-    let reply = s.request(&command)?;
-    print_reply(&reply, args.opts.json)
+    send_and_follow(&mut s, &command, args.opts.json)
 }
 
 /// `cetratus status`: the retained state.

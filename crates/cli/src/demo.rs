@@ -118,8 +118,9 @@ fn live(args: &DemoArgs, files: &DemoFiles) -> anyhow::Result<()> {
         program.inputs(),
         program.outputs(),
     )?;
-    let plc = Plc::new(program, 0, MonotonicStopwatch::boxed());
+    let mut plc = Plc::new(program, 0, MonotonicStopwatch::boxed());
     let local = args.config.load()?;
+    plc.set_limits(local.limits(plc.limits()));
     let until_us = match &args.for_ {
         Some(d) => crate::parse_duration_us(d)?,
         None => u64::MAX,

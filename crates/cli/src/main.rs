@@ -132,6 +132,10 @@ fn main() -> std::process::ExitCode {
     };
     match result {
         Ok(()) => std::process::ExitCode::SUCCESS,
+        Err(e) if e.is::<client::StillPending>() => {
+            eprintln!("pending: {e:#}");
+            std::process::ExitCode::from(client::StillPending::EXIT_CODE)
+        }
         Err(e) => {
             eprintln!("error: {e:#}");
             std::process::ExitCode::FAILURE

@@ -1,7 +1,7 @@
 //! `cetratus package inspect`: what a package holds, shown without trusting or loading it.
 
-use anyhow::{bail, Context};
-use cetratus_program::{package, DenseMatrix, TransformSpec, TrustStore, UpdatePackage};
+use anyhow::Context;
+use cetratus_program::{package, DenseMatrix, TransformSpec};
 use serde_json::json;
 
 use crate::package::{load_program, read, InspectArgs};
@@ -16,14 +16,14 @@ pub fn inspect(a: &InspectArgs) -> anyhow::Result<()> {
         Some(base) => {
             let old = load_program(base)?;
             let matches = old.hash_hex() == info.meta.base_program_hash;
-            // Resolved as if trusted and forced: inspect shows, it never loads anything.
-            let pkg = UpdatePackage::verify(&bytes, &TrustStore::empty(), true);
-            let up = match pkg {
-                Ok(p) => p.resolve(&old, true)?,
-                Err(_) => bail!(
-                    "--base needs the package's contents; they did not read back (see `cetratus package verify`)"
-                ),
-            };
+            // Resolved as if forced, whoever signed it: inspect shows, it never loads anything.
+            let up = info.resolve_for_display(&old).with_context(|| {
+                format!(
+                    "{} does not resolve against {}",
+                    a.package.display(),
+                    base.display()
+                )
+            })?;
             Some((old, matches, up))
         }
     };
@@ -47,8 +47,8 @@ pub fn inspect(a: &InspectArgs) -> anyhow::Result<()> {
             v["resolved"] = json!({
                 "base": { "name": old.name(), "version": old.version(), "hash": old.hash_hex(),
                           "is_the_packages_base": matches },
-                "transform": up.transform.to_dense(),
-                "projection": up.projection.to_dense(),
+                "transform": up.0.to_dense(),
+                "projection": up.1.to_dense(),
             });
         }
         println!("{}", serde_json::to_string_pretty(&v)?);
@@ -95,14 +95,14 @@ pub fn inspect(a: &InspectArgs) -> anyhow::Result<()> {
                 old.name(),
                 old.version()
             );
-            print!("{}", up.transform.to_dense());
+            print!("{}", up.0.to_dense());
             println!();
             let kind = info
                 .projection
                 .as_ref()
                 .map_or("generated", TransformSpec::kind);
             println!("projection ({kind}):");
-            print!("{}", up.projection.to_dense());
+            print!("{}", up.1.to_dense());
         }
         None => {
             println!("state transform:");

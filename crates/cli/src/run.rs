@@ -2,17 +2,17 @@
 
 use std::path::PathBuf;
 use std::sync::atomic::AtomicBool;
-use std::sync::Arc;
+use std::sync::{Arc, Mutex};
 
 use anyhow::{bail, Context};
 use cetratus_io::TwinDriver;
 use cetratus_node::clock::MonotonicStopwatch;
 use cetratus_node::script::Script;
-use cetratus_node::{state, Echo, Node, NodeOptions};
+use cetratus_node::{state, wire, Echo, Node, NodeOptions};
 use cetratus_program::Program;
 use cetratus_runtime::{CycleFigures, Plc};
 
-use crate::summary::{print_summary, Summary};
+use crate::summary::{print_summary, Summary, MAX_EVENTS};
 use cetratus_twin::{parse_defect_rate, Plant, TwinKind, TwinSettings};
 
 use crate::parse_duration_us;
@@ -205,6 +205,7 @@ pub fn run(args: &RunArgs) -> anyhow::Result<()> {
     } else if args.period.is_some() {
         plc.set_limits(cetratus_runtime::Limits::for_period_us(period_us));
     }
+    plc.set_limits(local.limits(plc.limits()));
     // Program time resumes after the last committed cycle; `--for`, `--at` and `--press` count
     // from the start of this run.
     let base_us = if plc.cycles() > 0 {
@@ -235,8 +236,24 @@ pub fn run(args: &RunArgs) -> anyhow::Result<()> {
         node = node.with_persister(p);
     }
     let json = args.json;
+    // Kept for the JSON summary; on the echo thread, never on the scan thread.
+    let events = Arc::new(Mutex::new((
+        start_events.iter().map(wire::event).collect(),
+        0,
+    )));
+    let kept = events.clone();
     node = node.with_echo(move |e| match e {
-        Echo::Event(e) => print_event(&e, json),
+        Echo::Event(e) => {
+            print_event(&e, json);
+            if let Ok(mut k) = kept.lock() {
+                let (list, left_out): &mut (Vec<_>, u64) = &mut k;
+                if list.len() < MAX_EVENTS {
+                    list.push(wire::event(&e));
+                } else {
+                    *left_out += 1;
+                }
+            }
+        }
         Echo::Warning(w) => eprintln!("warning: {w}"),
         Echo::Progress { cycle, committed } => eprintln!(
             "progress cycle={cycle} committed={}",
@@ -315,7 +332,14 @@ pub fn run(args: &RunArgs) -> anyhow::Result<()> {
         .get("parts_finished")
         .or_else(|| counters.get("parts_good"))
         .unwrap_or(0);
+    let (events, left_out) = std::mem::take(
+        &mut *events
+            .lock()
+            .map_err(|_| anyhow::anyhow!("the event list was poisoned"))?,
+    );
     let summary = Summary {
+        events,
+        events_left_out: left_out + report.echo_dropped,
         program: program.name().to_string(),
         twin: kind.to_string(),
         seconds: reached_us as f64 / 1e6,

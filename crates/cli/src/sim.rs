@@ -16,9 +16,10 @@ pub struct SimArgs {
     /// How many scans to play; the game also stops at a deadlock.
     #[arg(long, default_value_t = 20)]
     steps: u64,
-    /// Firing policy: step, single-last, single-first or single-priority.
-    #[arg(long, default_value = "step")]
-    policy: Policy,
+    /// Firing policy: step, single-last, single-first or single-priority. Default: the
+    /// program's own policy when the file is (or carries) a program, else step.
+    #[arg(long)]
+    policy: Option<Policy>,
     /// Print one JSON object instead of text.
     #[arg(long)]
     json: bool,
@@ -42,13 +43,27 @@ struct Report<'a> {
 
 /// Loads the net of a PNML file or of a program file.
 pub fn load_net(path: &std::path::Path) -> anyhow::Result<Net> {
+    Ok(load_net_and_policy(path)?.0)
+}
+
+/// The net of a PNML file or of a program file, with the program's firing policy when the file
+/// is a program or a PNML file that carries one.
+fn load_net_and_policy(path: &std::path::Path) -> anyhow::Result<(Net, Option<Policy>)> {
     let is_program = path.extension().is_some_and(|e| e == "toml");
     if is_program {
         let program = cetratus_program::Program::load(path)?;
-        Ok((**program.net()).clone())
-    } else {
-        Ok(cetratus_net::pnml::read_file(path)?)
+        return Ok(((**program.net()).clone(), Some(program.policy())));
     }
+    let net = cetratus_net::pnml::read_file(path)?;
+    if net
+        .toolspecific()
+        .iter()
+        .any(|t| t.tool == cetratus_program::TOOL)
+    {
+        let program = cetratus_program::Program::load(path)?;
+        return Ok((net, Some(program.policy())));
+    }
+    Ok((net, None))
 }
 
 fn marking_map<'a>(net: &'a Net, m: &[u32]) -> BTreeMap<&'a str, u32> {
@@ -61,8 +76,9 @@ fn marking_map<'a>(net: &'a Net, m: &[u32]) -> BTreeMap<&'a str, u32> {
 
 /// Runs `cetratus sim`.
 pub fn run(args: &SimArgs) -> anyhow::Result<()> {
-    let net =
-        load_net(&args.file).with_context(|| format!("cannot load {}", args.file.display()))?;
+    let (net, own) = load_net_and_policy(&args.file)
+        .with_context(|| format!("cannot load {}", args.file.display()))?;
+    let policy = args.policy.or(own).unwrap_or_default();
     let net = Arc::new(net);
     let mut engine = Engine::new(net.clone());
     let mut steps = Vec::new();
@@ -73,13 +89,13 @@ pub fn run(args: &SimArgs) -> anyhow::Result<()> {
             net.name().unwrap_or(net.id()),
             net.num_places(),
             net.num_transitions(),
-            args.policy
+            policy
         );
         println!("M0  {}", render(&net, engine.marking()));
     }
     for step in 1..=args.steps {
         let fired: Vec<&str> = engine
-            .scan(args.policy, |_| Ok::<bool, std::convert::Infallible>(true))
+            .scan(policy, |_| Ok::<bool, std::convert::Infallible>(true))
             .map_err(|e| anyhow::anyhow!("scan {step}: {e}"))?
             .iter()
             .map(|&t| net.transition(t).id.as_str())
@@ -107,7 +123,7 @@ pub fn run(args: &SimArgs) -> anyhow::Result<()> {
     if args.json {
         let report = Report {
             net: net.id(),
-            policy: args.policy.to_string(),
+            policy: policy.to_string(),
             initial: marking_map(&net, net.initial_marking().as_slice()),
             steps,
             deadlock,

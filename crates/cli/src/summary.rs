@@ -37,7 +37,14 @@ pub struct Summary {
     /// What the persistence thread did.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub persist: Option<PersistStats>,
+    /// The run's events, in order, as on the `events` topic (the first [`MAX_EVENTS`]).
+    pub events: Vec<cetratus_proto::EventMsg>,
+    /// Events left out of `events`: past [`MAX_EVENTS`], or dropped while the printer was behind.
+    pub events_left_out: u64,
 }
+
+/// How many events a summary keeps.
+pub const MAX_EVENTS: usize = 10_000;
 
 pub fn print_summary(s: &Summary) {
     println!(

@@ -61,6 +61,7 @@ async fn an_operator_loads_u1_in_the_browser_sees_quarantine_substitutes_and_pri
     c.load_package(&u1).await;
     c.wait_text("status", "quarantine", Duration::from_secs(20))
         .await;
+    wait_reply(&c, "load: quarantine_started").await;
     assert!(
         c.net_drawn("B").await,
         "the candidate's net is drawn in container B"
@@ -70,10 +71,26 @@ async fn an_operator_loads_u1_in_the_browser_sees_quarantine_substitutes_and_pri
 
     c.click_and_confirm("substitute").await;
     c.wait_text("primary", "B", Duration::from_secs(20)).await;
+    // The page says what happened, as `cetratus substitute` does, not only that it was accepted.
+    wait_reply(&c, "substitute: substituted: PRIMARY = B").await;
     c.wait_text("status", "idle", Duration::from_secs(10)).await;
     tokio::time::sleep(Duration::from_millis(1500)).await;
 
     let png = c.screenshot().await.expect("screenshot");
     std::fs::write(artifacts_dir().join("demo-dashboard.png"), &png).expect("screenshot written");
     c.close().await;
+}
+
+/// Waits until the dashboard's reply line starts with `want`.
+async fn wait_reply(c: &Browser, want: &str) {
+    let end = std::time::Instant::now() + Duration::from_secs(20);
+    let mut seen = String::new();
+    while std::time::Instant::now() < end {
+        seen = c.text_of("reply").await;
+        if seen.starts_with(want) {
+            return;
+        }
+        tokio::time::sleep(Duration::from_millis(50)).await;
+    }
+    panic!("the reply line reads {seen:?}, not {want:?}…");
 }

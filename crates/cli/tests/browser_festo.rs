@@ -9,7 +9,7 @@ use std::time::Duration;
 use cetratus_testkit::browser::{require_chromium, Browser};
 use cetratus_testkit::paths::{artifacts_dir, example};
 use cetratus_testkit::ports::{free_port, wait_for_port};
-use cetratus_testkit::process::ChildGuard;
+use cetratus_testkit::process::{login_link, stderr_lines, ChildGuard};
 
 const BIN: &str = env!("CARGO_BIN_EXE_cetratus");
 const LAMP: &str = "REJECT_BIN_FULL";
@@ -51,7 +51,7 @@ async fn an_operator_loads_f1_substitutes_it_and_the_dashboard_shows_the_reject_
     ]);
 
     let (mqtt, http) = (free_port(), free_port());
-    let _plc = ChildGuard::spawn(
+    let mut plc = ChildGuard::spawn(
         Command::new(BIN)
             .arg("run")
             .arg(example("festo/festo.toml"))
@@ -64,13 +64,13 @@ async fn an_operator_loads_f1_substitutes_it_and_the_dashboard_shows_the_reject_
             .arg("--state-dir")
             .arg(dir.path().join("state"))
             .stdout(Stdio::null())
-            .stderr(Stdio::null()),
+            .stderr(Stdio::piped()),
     );
     wait_for_port(http, "the dashboard", Duration::from_secs(30));
+    // The one-time login link `run` printed logs the browser in.
+    let link = login_link(&stderr_lines(&mut plc.0), Duration::from_secs(30));
     let c = Browser::start().await;
-    c.goto(&format!("http://127.0.0.1:{http}/"))
-        .await
-        .expect("the page loads");
+    c.goto(&link).await.expect("the page loads");
     c.wait_text("primary", "A", Duration::from_secs(30)).await;
     c.wait_text("status", "idle", Duration::from_secs(5)).await;
     // festo.toml declares the lamp and drives it with no action: it is drawn, and off.

@@ -174,3 +174,51 @@ fn a_scripted_load_whose_file_cannot_be_read_yet_does_not_stop_the_scans() {
         l.contains("quarantine_started")
     });
 }
+
+#[test]
+fn a_json_run_summary_lists_the_runs_events_in_order() {
+    let demo = demo_files();
+    let d = demo.path();
+    let out = Command::new(BIN)
+        .arg("run")
+        .arg(d.join("vernadat.toml"))
+        .args(["--twin", "vernadat", "--virtual", "--for", "25s", "--json"])
+        .args(["--trust", &p(&d.join("trusted"))])
+        .args(["--config", &p(&d.join("config"))])
+        .args(["--at", &format!("10s load {}", p(&d.join("u1.cpkg")))])
+        .args(["--at", "20s substitute"])
+        .output()
+        .expect("cetratus run");
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let summary: Value = serde_json::from_slice(&out.stdout).expect("one JSON summary");
+    let kinds: Vec<&str> = summary["events"]
+        .as_array()
+        .unwrap_or_else(|| panic!("the summary has events: {summary}"))
+        .iter()
+        .map(|e| e["kind"].as_str().unwrap_or(""))
+        .collect();
+    assert_eq!(
+        kinds,
+        [
+            "cold_start",
+            "load_accepted",
+            "quarantine_started",
+            "substitute_accepted",
+            "substituted"
+        ],
+        "{summary}"
+    );
+    let substituted = &summary["events"][4];
+    assert_eq!(substituted["time_us"], 20_000_000, "{substituted}");
+    assert!(
+        substituted["message"]
+            .as_str()
+            .is_some_and(|m| m.contains("PRIMARY = B")),
+        "{substituted}"
+    );
+    assert_eq!(summary["events_left_out"], 0);
+}

@@ -11,6 +11,10 @@
   let plcList = [];
   let view = fresh();
   let pendingAction = null;
+  // The events that end each verb (`hello.endings`, from the protocol), and the command whose
+  // outcome the page waits for: a reply only says the PLC accepted it.
+  let endings = {};
+  let awaiting = null;
 
   function fresh() {
     return { state: null, exec: null, io: [], firings: { A: {}, B: {} }, clock: null };
@@ -63,6 +67,7 @@
   }
 
   function onHello(h) {
+    endings = h.endings || {};
     setBroker(h.broker);
     setPlcs(h.plcs);
     const s = h.snapshot;
@@ -85,7 +90,7 @@
       case 'net': renderNets(msg.data); updateTokens(); break;
       case 'exec_info': view.exec = msg.data; renderExec(); updateTokens(); break;
       case 'io': addIo(msg); renderTiming(); break;
-      case 'event': addEvent(msg); break;
+      case 'event': addEvent(msg); settle(msg.data || {}); break;
     }
     measured(msg);
   }
@@ -590,17 +595,42 @@
     r.dataset.ok = ok === null ? '' : String(ok);
   }
 
+  // Shows how the awaited command ended, once its reply and an event that ends it are both in
+  // (the event may come first).
+  function settle(e) {
+    const a = awaiting;
+    if (!a || a.plc !== plc) return;
+    const how = (endings[a.verb] || {})[e.kind];
+    if (how && !a.event) a.event = Object.assign({ how }, e);
+    if (!a.replied || !a.event) return;
+    awaiting = null;
+    const done = a.event.how === 'done';
+    const what = `${a.event.kind}: ${a.event.message || ''}`;
+    showReply(done ? `${a.verb}: ${what}` : `${a.verb} failed: ${what}`, done);
+  }
+
   async function send(verb, body, contentType) {
     const target = plc;
+    const follow = Object.keys(endings[verb] || {}).length > 0;
+    awaiting = follow ? { verb, plc: target, replied: false, event: null } : null;
     showReply(`${verb}: sent to ${target}, waiting for the reply…`, null);
     try {
       const r = await fetch(`/api/${encodeURIComponent(target)}/${verb}`, {
         method: 'POST', headers: { 'Content-Type': contentType }, body,
       });
       const j = await r.json();
-      if (j.ok) showReply(`${verb}: ok` + (j.result !== undefined ? ' ' + JSON.stringify(j.result) : ''), true);
-      else showReply(`${verb} failed: ` + (j.error ? `${j.error.code}: ${j.error.message}` : `HTTP ${r.status}`), false);
+      if (!j.ok) {
+        if (awaiting && awaiting.verb === verb) awaiting = null;
+        showReply(`${verb} refused: ` + (j.error ? `${j.error.code}: ${j.error.message}` : `HTTP ${r.status}`), false);
+      } else if (follow && awaiting && awaiting.verb === verb) {
+        awaiting.replied = true;
+        showReply(`${verb}: accepted, waiting for its outcome…`, null);
+        settle({});
+      } else {
+        showReply(`${verb}: ok` + (j.result !== undefined ? ' ' + JSON.stringify(j.result) : ''), true);
+      }
     } catch (err) {
+      awaiting = null;
       showReply(`${verb} failed: ${err}`, false);
     }
   }

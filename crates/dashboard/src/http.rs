@@ -338,6 +338,23 @@ impl Feed {
     }
 }
 
+/// For each verb, the event kinds that end an accepted command and how (`done`, `failed`): the
+/// page shows a command's outcome, not only the PLC's acceptance.
+fn endings() -> Value {
+    Verb::ALL
+        .iter()
+        .map(|v| {
+            let kinds = v
+                .endings()
+                .iter()
+                .map(|(k, e)| ((*k).to_string(), json!(e)))
+                .collect::<serde_json::Map<_, _>>();
+            (v.as_str().to_string(), Value::Object(kinds))
+        })
+        .collect::<serde_json::Map<_, _>>()
+        .into()
+}
+
 /// `GET /api/stream?plc=ID`: a `hello` event with the PLC list, the broker state and a snapshot of
 /// the chosen PLC, then every change. A browser that falls behind is cut off; `EventSource`
 /// reconnects by itself and gets a fresh snapshot.
@@ -355,6 +372,7 @@ async fn stream(
             "broker": {"connected": app.hub.connected(), "url": app.hub.broker()},
             "snapshot": plc.as_deref().map(|p| fleet.snapshot(p)),
             "now_ms": unix_ms(),
+            "endings": endings(),
         })
     };
     let mut queue = VecDeque::new();

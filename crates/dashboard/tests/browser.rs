@@ -295,7 +295,12 @@ impl FakePlc {
             self.publish(
                 "events",
                 false,
-                json!({"cycle": tick * 20, "time_us": tick * 200_000, "kind": verb,
+                json!({"cycle": tick * 20, "time_us": tick * 200_000,
+                       "kind": match verb {
+                           "load" => "quarantine_started",
+                           "substitute" => "substituted",
+                           other => other,
+                       },
                        "message": format!("{verb} done"), "detail": args.get("mode")}),
             )
             .await;
@@ -434,7 +439,12 @@ async fn operator_loads_u1_then_substitutes_and_primary_flips_in_the_browser() {
     let reply = c
         .js("return document.getElementById('reply').dataset.ok;")
         .await;
-    assert_eq!(reply, json!("true"), "the load reply is shown as ok");
+    assert_eq!(reply, json!("true"), "the load's outcome is shown as ok");
+    let reply = c.text_of("reply").await;
+    assert!(
+        reply.starts_with("load: quarantine_started"),
+        "the page shows the outcome, not only the acceptance: {reply}"
+    );
     assert!(
         c.net_drawn("B").await,
         "the candidate's net is drawn in container B"

@@ -2,9 +2,10 @@
 //! (`load`, `substitute`, `status`, `watch`, …). Commands go out as requests with a response
 //! topic and correlation data, signed as an envelope when the operator has a key.
 
+use std::collections::VecDeque;
 use std::time::{Duration, Instant};
 
-use cetratus_proto::{Command, Leaf, PlcId, Reply, Topics, Verb};
+use cetratus_proto::{Command, Ending, EventMsg, Leaf, PlcId, Reply, Topics, Verb};
 use ed25519_dalek::SigningKey;
 use rumqttc::v5::mqttbytes::v5::{Packet, PublishProperties};
 use rumqttc::v5::mqttbytes::QoS;
@@ -43,6 +44,40 @@ pub struct Message {
     pub payload: Value,
 }
 
+/// How a command sent with [`Session::command`] ended, as far as the session saw it.
+#[derive(Debug)]
+pub enum Outcome {
+    /// The PLC refused the command in its reply; nothing changed.
+    Refused(Reply),
+    /// Accepted, and the event that completes it arrived (`substituted`, `removed`, …).
+    Done {
+        /// The PLC's reply.
+        reply: Reply,
+        /// The event.
+        event: EventMsg,
+    },
+    /// Accepted, then an event ended it without its effect: refused at the cycle boundary, its
+    /// condition given up, or the update it acted on ended otherwise.
+    Failed {
+        /// The PLC's reply.
+        reply: Reply,
+        /// The event.
+        event: EventMsg,
+    },
+    /// Accepted, and no event ended it within the session's timeout: it may still happen (a
+    /// substitution waiting for its `--when`).
+    Pending {
+        /// The PLC's reply.
+        reply: Reply,
+    },
+    /// Accepted; the reply is the whole outcome (`exec_info`).
+    Replied(Reply),
+}
+
+/// Messages that arrived while waiting for a reply, kept for [`Session::next_message`]; beyond
+/// this many the oldest are dropped.
+const HELD: usize = 256;
+
 /// One session with one PLC.
 pub struct Session {
     client: Client,
@@ -51,6 +86,8 @@ pub struct Session {
     timeout: Duration,
     key: Option<OperatorKey>,
     reply_leaf: Option<String>,
+    events: bool,
+    held: VecDeque<Message>,
 }
 
 impl Session {
@@ -75,6 +112,8 @@ impl Session {
             timeout: config.timeout,
             key: config.key,
             reply_leaf: None,
+            events: false,
+            held: VecDeque::new(),
         };
         s.wait_for(|e| matches!(e, Packet::ConnAck(_)))
             .map_err(|e| MctError::Connect {
@@ -126,6 +165,13 @@ impl Session {
     /// The next message on a subscribed topic, waiting at most `wait` (`None`: for ever).
     /// `Ok(None)` when the wait ended or the connection closed.
     pub fn next_message(&mut self, wait: Option<Duration>) -> Result<Option<Message>, MctError> {
+        if let Some(m) = self.held.pop_front() {
+            return Ok(Some(m));
+        }
+        self.receive(wait)
+    }
+
+    fn receive(&mut self, wait: Option<Duration>) -> Result<Option<Message>, MctError> {
         let end = wait.map(|w| Instant::now() + w);
         loop {
             let r = match end {
@@ -185,18 +231,67 @@ impl Session {
             .map_err(|e| MctError::Client(e.to_string()))?;
         let end = Instant::now() + self.timeout;
         while Instant::now() < end {
-            if let Some(m) = self.next_message(Some(end - Instant::now()))? {
+            if let Some(m) = self.receive(Some(end - Instant::now()))? {
                 if m.leaf == reply_leaf {
                     return serde_json::from_value(m.payload).map_err(|e| {
                         MctError::Client(format!("the PLC's reply is malformed: {e}"))
                     });
                 }
+                // An event may come before the reply; it is kept for whoever reads next.
+                if self.held.len() == HELD {
+                    self.held.pop_front();
+                }
+                self.held.push_back(m);
             }
         }
         Err(MctError::NoReply {
             plc: self.topics.plc().to_string(),
             after: self.timeout,
         })
+    }
+
+    /// Sends a command and, once the PLC accepts it, waits for the event that ends it
+    /// ([`Verb::endings`]), all within the session's timeout. Events are followed from before the
+    /// command is sent, so an outcome that comes at once is not missed.
+    pub fn command(&mut self, command: &Command) -> Result<Outcome, MctError> {
+        let verb = command.verb();
+        if verb.endings().is_empty() {
+            let reply = self.request(command)?;
+            return Ok(if reply.ok {
+                Outcome::Replied(reply)
+            } else {
+                Outcome::Refused(reply)
+            });
+        }
+        if !self.events {
+            self.subscribe(Leaf::Events)?;
+            self.events = true;
+        }
+        let end = Instant::now() + self.timeout;
+        let reply = self.request(command)?;
+        if !reply.ok {
+            return Ok(Outcome::Refused(reply));
+        }
+        loop {
+            let left = end.saturating_duration_since(Instant::now());
+            if left.is_zero() {
+                return Ok(Outcome::Pending { reply });
+            }
+            let Some(m) = self.next_message(Some(left))? else {
+                return Ok(Outcome::Pending { reply });
+            };
+            if m.leaf != "events" {
+                continue;
+            }
+            let Ok(event) = serde_json::from_value::<EventMsg>(m.payload) else {
+                continue;
+            };
+            match verb.ending(&event.kind) {
+                Some(Ending::Done) => return Ok(Outcome::Done { reply, event }),
+                Some(Ending::Failed) => return Ok(Outcome::Failed { reply, event }),
+                None => {}
+            }
+        }
     }
 
     /// The payload of a command: the body, or a signed envelope holding it, bound to this PLC

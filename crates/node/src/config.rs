@@ -16,6 +16,7 @@ use std::path::{Path, PathBuf};
 use cetratus_mct::OperatorKeys;
 use cetratus_program::duration::{self, Bare};
 use cetratus_program::{TrustStore, VerifyingKeyFile};
+use cetratus_runtime::Limits;
 use serde::Deserialize;
 
 /// Why the local configuration cannot be used. The PLC does not start.
@@ -140,6 +141,8 @@ struct DashboardAccount {
 #[serde(deny_unknown_fields)]
 struct UpdatesSection {
     probation: Option<String>,
+    state_trans_timeout: Option<String>,
+    candidate_work_budget: Option<u64>,
 }
 
 /// The loaded configuration.
@@ -163,6 +166,12 @@ pub struct LocalConfig {
     pub dashboard_accounts: Vec<(String, String)>,
     /// Host names the dashboard is reached under, besides IP addresses and `localhost`.
     pub dashboard_hosts: Vec<String>,
+    /// stateTransTimeout, the budget of an update's in-cycle install, in microseconds; `None`:
+    /// one scan period.
+    pub state_trans_timeout_us: Option<u64>,
+    /// The work budget of a candidate scan (guard evaluations and firings); `None`: the default
+    /// for the scan period.
+    pub candidate_work_budget: Option<u64>,
 }
 
 /// The default configuration directory.
@@ -297,6 +306,28 @@ impl LocalConfig {
                 "this version has no probation window; write \"0s\" or remove the key".into(),
             ));
         }
+        let state_trans_timeout_us = match &file.updates.state_trans_timeout {
+            Some(t) => {
+                let us = duration::parse_us(t, Bare::Seconds)
+                    .map_err(|e| value_error("[updates] state_trans_timeout", t, e.to_string()))?;
+                if us == 0 {
+                    return Err(value_error(
+                        "[updates] state_trans_timeout",
+                        t,
+                        "no install can take 0 µs; give a duration such as \"10ms\", or remove the key for one scan period".into(),
+                    ));
+                }
+                Some(us)
+            }
+            None => None,
+        };
+        if let Some(0) = file.updates.candidate_work_budget {
+            return Err(value_error(
+                "[updates] candidate_work_budget",
+                "0",
+                "a candidate could not evaluate a single guard; give a positive number, or remove the key for the default".into(),
+            ));
+        }
         let mut ops = OperatorKeys::new(std::time::Duration::from_secs(window_s.max(1)));
         for k in keys_in(&dir.join("operators"), "operator")? {
             ops.add(k.key_id(), *k.verifying_key());
@@ -325,7 +356,22 @@ impl LocalConfig {
                 .user
                 .map(|u| (u, file.mqtt.password.unwrap_or_default())),
             probation_us,
+            state_trans_timeout_us,
+            candidate_work_budget: file.updates.candidate_work_budget,
         })
+    }
+
+    /// `limits` with what `[updates]` sets: stateTransTimeout and the candidate's work budget.
+    pub fn limits(&self, limits: Limits) -> Limits {
+        Limits {
+            state_trans_timeout_ns: self
+                .state_trans_timeout_us
+                .map_or(limits.state_trans_timeout_ns, |us| us.saturating_mul(1000)),
+            candidate_work_budget: self
+                .candidate_work_budget
+                .unwrap_or(limits.candidate_work_budget),
+            ..limits
+        }
     }
 }
 
@@ -417,6 +463,37 @@ mod tests {
             e.contains("[updates] probation") && e.contains("\"0s\""),
             "{e}"
         );
+    }
+
+    #[test]
+    fn state_trans_timeout_and_the_candidate_work_budget_replace_the_limits_of_the_period() {
+        let period = Limits::for_period_us(10_000);
+        let d =
+            dir_with("[updates]\nstate_trans_timeout = \"25ms\"\ncandidate_work_budget = 500\n");
+        let c = LocalConfig::load(Some(&d)).unwrap();
+        let l = c.limits(period);
+        assert_eq!(l.state_trans_timeout_ns, 25_000_000);
+        assert_eq!(l.candidate_work_budget, 500);
+        assert_eq!(l.watchdog_ns, period.watchdog_ns);
+        let c = LocalConfig::load(Some(Path::new("/nonexistent/cetratus-config"))).unwrap();
+        assert_eq!(
+            c.limits(period).state_trans_timeout_ns,
+            10_000_000,
+            "one period"
+        );
+    }
+
+    #[test]
+    fn a_zero_state_trans_timeout_or_work_budget_is_refused_with_what_to_write() {
+        let d = dir_with("[updates]\nstate_trans_timeout = \"0s\"\n");
+        let e = LocalConfig::load(Some(&d)).err().unwrap().to_string();
+        assert!(
+            e.contains("[updates] state_trans_timeout") && e.contains("10ms"),
+            "{e}"
+        );
+        let d = dir_with("[updates]\ncandidate_work_budget = 0\n");
+        let e = LocalConfig::load(Some(&d)).err().unwrap().to_string();
+        assert!(e.contains("[updates] candidate_work_budget"), "{e}");
     }
 
     #[test]

@@ -366,6 +366,21 @@ pub struct UnverifiedPackage {
     pub hash_hex: String,
 }
 
+impl UnverifiedPackage {
+    /// The state transform and the projection the package declares, resolved against `old` as
+    /// [`UpdatePackage::resolve`] would with `force`: for showing the matrices. The signature is
+    /// not checked, so no [`ResolvedUpdate`] comes out of it: nothing here can be loaded.
+    pub fn resolve_for_display(
+        &self,
+        old: &Program,
+    ) -> Result<(StateTransform, Projection), PackageError> {
+        Ok((
+            resolve_transform(&self.transform, old, &self.program)?,
+            resolve_projection(self.projection.as_ref(), old, &self.program)?,
+        ))
+    }
+}
+
 /// Reads a package without checking its signature: for showing what it claims, never for
 /// loading it.
 pub fn inspect(bytes: &[u8]) -> Result<UnverifiedPackage, PackageError> {

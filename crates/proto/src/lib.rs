@@ -19,12 +19,14 @@
 mod broker;
 mod error;
 mod names;
+mod outcome;
 mod payload;
 mod topic;
 
 pub use broker::{BrokerUrl, DEFAULT_PORT, DEFAULT_TLS_PORT};
 pub use error::ProtoError;
 pub use names::{ErrorCode, Role, Slot, StatusName, SubstituteMode, VerdictKind, VerdictResult};
+pub use outcome::Ending;
 pub use payload::{
     decode, encode, within_error, Accepted, Command, ControlCounters, CycleFigures, ErrorBody,
     EventMsg, ExecInfo, ExecInfoMsg, IoMsg, IoNames, LoadArgs, NetMsg, NoArgs, ProgramInfo,

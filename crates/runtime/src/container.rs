@@ -30,10 +30,23 @@ pub struct Container {
     force_full: bool,
     // The last full scan saw the same inputs as the one before it (rise/fall were false).
     inputs_steady: bool,
+    // The next scan is the first from the present state (a new container, an install, a
+    // retransform): it enters every marked place, and is never quiet.
+    fresh_state: bool,
     // The first scan resumes (warm start) instead of entering every marked place.
     resume: bool,
+    // `inputs` holds an image seen before (by this container, or handed over from the program
+    // that ran before it): the next scan's rise/fall compare against it. False only until the
+    // first scan of a container that has no past, where no edge is seen.
+    edge_memory: bool,
     // Tests compare against a container that never takes the quiet path.
     always_full: bool,
+}
+
+/// Why a guard stopped a scan: its evaluation failed, or the scan ran out of its work budget.
+enum Stop {
+    Guard(cetratus_program::EvalError),
+    Budget,
 }
 
 /// Why a transition did not fire in a container's last scan.
@@ -108,7 +121,9 @@ impl Container {
             timed_guard,
             force_full: true,
             inputs_steady: false,
+            fresh_state: true,
             resume: false,
+            edge_memory: false,
             always_full: false,
             firings: vec![0; program.net().num_transitions()],
             marking_at_start: marking,
@@ -152,7 +167,8 @@ impl Container {
     pub fn firings(&self) -> &[u64] {
         &self.firings
     }
-    /// Scans run.
+    /// Scans run since the container was built (an install or a retransform does not restart
+    /// the count, as it does not restart [`Container::firings`]).
     pub fn scans(&self) -> u64 {
         self.scans
     }
@@ -182,6 +198,20 @@ impl Container {
         inputs: &[Value],
         unchanged: bool,
     ) -> Result<ScanOutcome, RuntimeError> {
+        self.scan_within(now_us, inputs, unchanged, u64::MAX)
+    }
+
+    /// [`Container::scan_hinted`] stopped midway once it has done `work_budget` units of work:
+    /// each guard evaluation is one unit, and each guard that holds one more (the firing it
+    /// allows). A stopped scan is rolled back like a failed one ([`RuntimeError::WorkBudget`]).
+    /// This bounds a runaway scan by what it does, not by a clock.
+    pub fn scan_within(
+        &mut self,
+        now_us: u64,
+        inputs: &[Value],
+        unchanged: bool,
+        work_budget: u64,
+    ) -> Result<ScanOutcome, RuntimeError> {
         if inputs.len() != self.inputs.len() {
             return Err(RuntimeError::InputImage {
                 expected: self.inputs.len(),
@@ -192,13 +222,14 @@ impl Container {
             return Ok(self.quiet_scan(now_us));
         }
         self.force_full = false;
-        if self.scans == 0 {
-            // No edge on the first scan: rise/fall compare against the same image.
-            self.prev_inputs.copy_from_slice(inputs);
-        } else {
+        if self.edge_memory {
             self.prev_inputs.copy_from_slice(&self.inputs);
+        } else {
+            // No past: rise/fall compare against the same image, so the first scan sees no edge.
+            self.prev_inputs.copy_from_slice(inputs);
         }
         self.inputs.copy_from_slice(inputs);
+        self.edge_memory = true;
         self.inputs_steady = self.prev_inputs == self.inputs;
 
         let program = &*self.program;
@@ -211,9 +242,18 @@ impl Container {
             now_us,
         };
         let policy = program.policy();
+        let mut work = 0u64;
         let result = self
             .engine
-            .scan(policy, |t| program.eval_guard(t, &ctx))
+            .scan(policy, |t| {
+                work += 1;
+                if work > work_budget {
+                    return Err(Stop::Budget);
+                }
+                let holds = program.eval_guard(t, &ctx).map_err(Stop::Guard)?;
+                work += u64::from(holds);
+                Ok(holds)
+            })
             .map(|f| f.len());
         if result.is_err() {
             // The failing guard must fail again on the next scan, not be skipped as quiet.
@@ -221,10 +261,22 @@ impl Container {
         }
         let fired = match result {
             Ok(n) => n,
-            Err(FireError::Guard { transition, error }) => {
+            Err(FireError::Guard {
+                transition,
+                error: Stop::Guard(error),
+            }) => {
                 return Err(RuntimeError::Guard {
                     transition: program.net().transition(transition).id.clone(),
                     message: error.to_string(),
+                })
+            }
+            Err(FireError::Guard {
+                transition,
+                error: Stop::Budget,
+            }) => {
+                return Err(RuntimeError::WorkBudget {
+                    budget: work_budget,
+                    transition: program.net().transition(transition).id.clone(),
                 })
             }
             Err(FireError::Overflow { transition, place }) => {
@@ -247,7 +299,7 @@ impl Container {
                 self.place_since_us[p.index()] = None;
             }
         }
-        if self.scans == 0 && !std::mem::take(&mut self.resume) {
+        if std::mem::take(&mut self.fresh_state) && !std::mem::take(&mut self.resume) {
             // The first scan enters every marked place: P1 and S actions of M0 take effect.
             self.actions.start(
                 program,
@@ -283,7 +335,7 @@ impl Container {
     fn is_quiet(&self, inputs: &[Value], unchanged: bool) -> bool {
         !self.always_full
             && !self.force_full
-            && self.scans > 0
+            && !self.fresh_state
             && self.engine.fired().is_empty()
             && self.actions.last_was_quiet()
             && self.inputs_steady
@@ -340,6 +392,18 @@ impl Container {
         self.force_full = true;
     }
 
+    /// Continues edge detection from `previous`, the input image (in this program's input order)
+    /// that the program running before this one saw in its last scan: the next scan's
+    /// `rise`/`fall` compare against it, so an edge in the cycle of an install or a substitution
+    /// is seen rather than lost. Allocates nothing; values past this program's inputs are ignored.
+    pub fn continue_edges_from(&mut self, previous: impl IntoIterator<Item = Value>) {
+        for (v, p) in self.inputs.iter_mut().zip(previous) {
+            *v = p;
+        }
+        self.edge_memory = true;
+        self.force_full = true;
+    }
+
     /// The next scan resumes rather than starts: marked places are not entered again, so P1
     /// pulses and S/R actions of the saved marking do not fire a second time (warm start).
     pub fn resume_without_entry(&mut self) {
@@ -367,7 +431,8 @@ impl Container {
         self.engine.set_marking(marking)?;
         self.marking_at_start.copy_from_slice(marking);
         self.place_since_us.copy_from_slice(place_since_us);
-        self.scans = 0;
+        // `scans` goes on, as `firings` do: the Monitor counts both since the install.
+        self.fresh_state = true;
         self.force_full = true;
         Ok(())
     }

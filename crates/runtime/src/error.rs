@@ -30,6 +30,15 @@ pub enum RuntimeError {
         /// The watchdog time.
         limit_us: u64,
     },
+    /// A scan ran out of its work budget (guard evaluations and firings) and was stopped
+    /// midway; it was rolled back.
+    #[error("the scan was stopped at transition `{transition}` after {budget} guard evaluations and firings, its work budget; the program does more work in one scan than the PLC allows a candidate; make its scans do less, or raise the candidate work budget")]
+    WorkBudget {
+        /// The budget that ran out.
+        budget: u64,
+        /// The transition whose guard was next.
+        transition: String,
+    },
     /// A fault injected on purpose by a test (feature `fault-injection`).
     #[error("injected fault: {0}")]
     Injected(String),

@@ -2,8 +2,8 @@
 //! [`MessageRouter`], the [`Updater`] and the [`Monitor`], advanced one cycle at a time.
 //!
 //! [`Plc::cycle`] runs one cycle at program time `now`: first what is due at the cycle boundary
-//! (an update's install, a substitution), then the Provider, the containers, the Dispatcher and
-//! the Monitor. Commands ([`Plc::command`]) are accepted or refused between cycles; everything
+//! (an update's install, a substitution), then the Provider, the primary, the Dispatcher, and only
+//! then the candidate and the Monitor, so a candidate never delays the plant's outputs. Commands ([`Plc::command`]) are accepted or refused between cycles; everything
 //! they cause happens at the next boundary, so nothing is ever half-applied.
 
 use std::panic::{catch_unwind, AssertUnwindSafe};
@@ -241,13 +241,14 @@ impl Plc {
             return;
         }
 
-        // One reading before the primary and one after each container: the scans are timed back
-        // to back, so the stopwatch is read once per container plus once.
+        // One reading before the primary, one after it, and in quarantine one after the
+        // Dispatcher and one after the candidate.
         let t0 = self.core.stopwatch.now_ns();
         let mut mark = t0;
         let core = &mut self.core;
         let p = core.primary_slot;
-        if let Err(e) = scan_slot(core, None, p, now_us, &mut mark, &self.updater.limits) {
+        let limits = self.updater.limits;
+        if let Err(e) = scan_slot(core, None, p, now_us, &mut mark, &limits) {
             core.router.dispatch_safe(now_us, io);
             self.updater
                 .primary_fault(core, format!("primary {} faulted: {e}", p.name()));
@@ -255,11 +256,32 @@ impl Plc {
             return;
         }
 
-        // Candidate, isolated: an error, a panic, an invalid marking or an overrun aborts the
-        // update.
+        // Dispatcher: PRIMARY's outputs only, before the candidate runs, so that the time the
+        // candidate takes never delays the plant's outputs.
+        core.router.dispatch(p.index(), now_us, io);
+
+        // Deadlock alarm: no transition enabled while the inputs change.
+        let deadlocked = core.primary.engine().enabled().is_empty();
+        core.monitor.stats[p.index()].deadlocked = deadlocked;
+        if !deadlocked {
+            self.deadlock_alarmed = false;
+        } else if !self.deadlock_alarmed && core.router.inputs() != core.router.prev_inputs() {
+            self.deadlock_alarmed = true;
+            core.log.push(
+                EventKind::DeadlockAlarm,
+                format!(
+                    "primary {} is deadlocked: no transition is enabled while its inputs change",
+                    p.name()
+                ),
+                None,
+            );
+        }
+
+        // Candidate, isolated: an error, a panic, an invalid marking, a scan stopped by its work
+        // budget or one that overran its time budget aborts the update after its scan.
         if let Phase::Quarantine(q) = &mut self.updater.phase {
             let c = p.other();
-            let limits = self.updater.limits;
+            mark = core.stopwatch.now_ns();
             let outcome = catch_unwind(AssertUnwindSafe(|| {
                 scan_slot(core, Some(&mut q.candidate), c, now_us, &mut mark, &limits)
             }));
@@ -313,27 +335,6 @@ impl Plc {
                         .observe_quarantine(&pair, &core.router, cycle, now_us);
                 }
             }
-        }
-
-        // Dispatcher: PRIMARY's outputs only.
-        let core = &mut self.core;
-        core.router.dispatch(p.index(), now_us, io);
-
-        // Deadlock alarm: no transition enabled while the inputs change.
-        let deadlocked = core.primary.engine().enabled().is_empty();
-        core.monitor.stats[p.index()].deadlocked = deadlocked;
-        if !deadlocked {
-            self.deadlock_alarmed = false;
-        } else if !self.deadlock_alarmed && core.router.inputs() != core.router.prev_inputs() {
-            self.deadlock_alarmed = true;
-            core.log.push(
-                EventKind::DeadlockAlarm,
-                format!(
-                    "primary {} is deadlocked: no transition is enabled while its inputs change",
-                    p.name()
-                ),
-                None,
-            );
         }
         self.end_cycle(now_us, Some(mark.saturating_sub(t0)));
     }
@@ -401,15 +402,15 @@ fn scan_slot(
 ) -> Result<(), RuntimeError> {
     let i = slot.index();
     let is_primary = candidate.is_none();
-    let c = match candidate {
-        Some(c) => c,
-        None => &mut core.primary,
+    let (c, work_budget) = match candidate {
+        Some(c) => (c, limits.candidate_work_budget),
+        None => (&mut core.primary, u64::MAX),
     };
     #[cfg(feature = "fault-injection")]
     crate::inject::before_scan(c.program().name(), c.program().version())?;
     // The image is rebuilt only when the inputs changed, so the container need not compare.
     let (image, unchanged) = core.router.image(i);
-    let r = c.scan_hinted(now_us, image, unchanged);
+    let r = c.scan_within(now_us, image, unchanged, work_budget);
     let end = core.stopwatch.now_ns();
     let took = end.saturating_sub(*mark);
     *mark = end;

@@ -182,6 +182,12 @@ impl MessageRouter {
         self.dispatched.copy_from_slice(&self.safe);
     }
 
+    /// The input image of the last cycle as container `slot` reads it, through its input map:
+    /// what a program that takes over from another continues its edge detection from.
+    pub(crate) fn last_inputs_for(&self, slot: usize) -> impl Iterator<Item = Value> + '_ {
+        self.in_maps[slot].iter().map(|&j| self.inputs[j])
+    }
+
     /// Every image is rebuilt at the next scan (the inputs moved on while nothing scanned).
     pub(crate) fn mark_all_stale(&mut self) {
         self.stale = [true, true];

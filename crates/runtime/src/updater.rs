@@ -245,8 +245,12 @@ pub enum Command {
 pub struct Limits {
     /// stateTransTimeout: budget of the in-cycle install, in ns. Defaults to one scan period.
     pub state_trans_timeout_ns: u64,
-    /// A candidate scan longer than this (ns) in quarantine aborts the update.
+    /// A candidate scan longer than this (ns) in quarantine aborts the update, after the scan.
     pub candidate_budget_ns: u64,
+    /// A candidate scan is stopped midway, and the update aborted, once it has done this many
+    /// units of work: guard evaluations plus guards that held (DESIGN §2: a runaway candidate
+    /// must not take the primary's time). Counted, not timed, so a virtual run decides the same.
+    pub candidate_work_budget: u64,
     /// A primary scan longer than this (ns) is a primary fault.
     pub watchdog_ns: u64,
 }
@@ -259,8 +263,16 @@ impl Limits {
         Limits {
             state_trans_timeout_ns: period_us.saturating_mul(1000),
             candidate_budget_ns: 1_000_000_000,
+            candidate_work_budget: Self::work_budget_for_period_us(period_us),
             watchdog_ns: 1_000_000_000,
         }
+    }
+
+    /// The default work budget of a candidate scan: ten units per microsecond of the period
+    /// (100 000 for 10 ms), far above what a net that fits its period needs, far below what a
+    /// runaway scan would do.
+    pub fn work_budget_for_period_us(period_us: u64) -> u64 {
+        period_us.saturating_mul(10).max(1000)
     }
 
     /// The defaults for a scan period: stateTransTimeout is one period (the paper's "within one
@@ -272,6 +284,7 @@ impl Limits {
         Limits {
             state_trans_timeout_ns: ns,
             candidate_budget_ns: ns.saturating_mul(10),
+            candidate_work_budget: Self::work_budget_for_period_us(period_us),
             watchdog_ns: ns.saturating_mul(10),
         }
     }
@@ -506,16 +519,19 @@ impl Updater {
         }
         let s = core.primary_slot.other();
         let up = *up;
+        let mut candidate = up.container;
         core.router.attach(
             s.index(),
-            up.container.inputs().to_vec(),
+            candidate.inputs().to_vec(),
             up.in_map,
             up.out_map,
         );
+        // The candidate's first scan sees the edges of this cycle, as the primary's does.
+        candidate.continue_edges_from(core.router.last_inputs_for(s.index()));
         core.monitor.stats[s.index()] = ContainerStats::new(core.router.io_outputs().len());
         let name = format!("{} {}", up.plan.meta.name, up.plan.meta.version);
         self.phase = Phase::Quarantine(Box::new(Quarantine {
-            candidate: up.container,
+            candidate,
             plan: up.plan,
             pending: None,
             started_us: now_us,
@@ -611,6 +627,10 @@ impl Updater {
                 .carry_from(primary, &plan.latch_map, &plan.var_map);
             core.router.mark_stale(c.index());
         }
+        // The new primary's edge memory continues from the inputs the old primary saw in its
+        // last scan, so that an edge in the switch cycle is not lost.
+        q.candidate
+            .continue_edges_from(core.router.last_inputs_for(c.index()));
         let Phase::Quarantine(q) = std::mem::replace(&mut self.phase, Phase::Idle) else {
             unreachable!("matched above");
         };

@@ -248,3 +248,35 @@ fn after_substitution_a_primary_fault_drives_the_new_programs_safe_values() {
         "new primary's safe value"
     );
 }
+
+/// exec_info counts a container's cycles and its firings over the same window: since its
+/// install, across the retransform at the substitution.
+#[test]
+fn after_a_retransform_the_new_primarys_cycles_and_firings_count_over_the_same_window() {
+    let act = "[[action]]\nplace = \"B\"\nqualifier = \"N\"\ntarget = \"o\"\n";
+    let old = program("old", "T1 = \"x\"\nT2 = \"y\"\nT3 = \"n > 100\"", act);
+    let new = program("new", "T1 = \"x\"\nT2 = \"y\"\nT3 = \"n > 101\"", act);
+    let mut r = Rig::new(&old);
+    r.run(img(false, false), 3);
+    r.load(&old, &new);
+    let (mut scans, mut fired) = (0u64, 0u64);
+    for k in 0..40 {
+        if k == 20 {
+            r.substitute();
+        }
+        r.io.inputs = img(k % 4 == 1, k % 4 == 3);
+        r.now += 10_000;
+        r.plc.cycle(r.now, &mut r.io);
+        let b = r.plc.container(Slot::B).expect("B is installed");
+        scans += 1;
+        fired += b.fired().len() as u64;
+    }
+    assert_eq!(r.plc.primary(), Slot::B, "substituted");
+    let info = r.plc.exec_info()[1].clone().expect("B's exec_info");
+    let counted: u64 = info.firings.values().sum();
+    assert_eq!(
+        (info.cycles, counted),
+        (scans, fired),
+        "cycles and firings since B's install"
+    );
+}

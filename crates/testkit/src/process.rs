@@ -82,9 +82,9 @@ pub fn stderr_lines(child: &mut std::process::Child) -> std::sync::mpsc::Receive
             .lines()
             .map_while(Result::ok)
         {
-            if tx.send(line).is_err() {
-                return;
-            }
+            // Read on when nobody listens any more: a child whose pipe closed would fail on
+            // its next line (and Rust's `println!` panics then).
+            let _ = tx.send(line);
         }
     });
     rx
@@ -105,9 +105,9 @@ pub fn stdout_lines(child: &mut std::process::Child) -> std::sync::mpsc::Receive
             .lines()
             .map_while(Result::ok)
         {
-            if tx.send(line).is_err() {
-                return;
-            }
+            // Read on when nobody listens any more: a child whose pipe closed would fail on
+            // its next line (and Rust's `println!` panics then).
+            let _ = tx.send(line);
         }
     });
     rx

@@ -1,0 +1,123 @@
+//! The client commands report what their command caused, not only that the PLC accepted it:
+//! `substitute`, `remove` and `abort` wait for their outcome event, print it, exit non-zero when
+//! it is a refusal, and exit 3 when a waiting substitution outlasts `--timeout`.
+
+mod common;
+
+use std::process::{Command, Output};
+
+use common::RunningPlc;
+
+const BIN: &str = env!("CARGO_BIN_EXE_cetratus");
+
+/// The demo's signed U.1 and the directory of the key that signed it.
+fn demo_files() -> tempfile::TempDir {
+    let dir = tempfile::tempdir().expect("a temporary directory");
+    let out = Command::new(BIN)
+        .args(["demo", "--scripted", "--json", "--dir"])
+        .arg(dir.path())
+        .output()
+        .expect("cetratus demo runs");
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    dir
+}
+
+struct Client {
+    plc: &'static str,
+    mqtt: String,
+}
+
+impl Client {
+    fn run(&self, args: &[&str]) -> Output {
+        Command::new(BIN)
+            .args(args)
+            .args(["--plc", self.plc, "--mqtt", &self.mqtt])
+            .output()
+            .expect("the client runs")
+    }
+}
+
+fn text(out: &Output) -> String {
+    format!(
+        "exit {:?}\nstdout: {}\nstderr: {}",
+        out.status.code(),
+        String::from_utf8_lossy(&out.stdout),
+        String::from_utf8_lossy(&out.stderr)
+    )
+}
+
+#[test]
+fn substitute_remove_and_abort_wait_for_their_outcome_and_exit_by_it() {
+    let files = demo_files();
+    let trusted = files.path().join("trusted").display().to_string();
+    let u1 = files.path().join("u1.cpkg").display().to_string();
+    let plc = RunningPlc::start("outcomes1", &["--trust", &trusted]);
+    let c = Client {
+        plc: "outcomes1",
+        mqtt: format!("127.0.0.1:{}", plc.mqtt),
+    };
+
+    let out = c.run(&["load", &u1]);
+    assert_eq!(out.status.code(), Some(0), "{}", text(&out));
+
+    // A condition that never holds: still pending when the client stops waiting.
+    let out = c.run(&[
+        "substitute",
+        "--when",
+        "P10 == 5",
+        "--within",
+        "1h",
+        "--timeout",
+        "2s",
+    ]);
+    assert_eq!(out.status.code(), Some(3), "{}", text(&out));
+    assert!(text(&out).contains("still pending"), "{}", text(&out));
+
+    // Abort takes the waiting substitution with the candidate.
+    let out = c.run(&["abort"]);
+    assert_eq!(out.status.code(), Some(0), "{}", text(&out));
+    assert!(
+        String::from_utf8_lossy(&out.stdout).contains("abort: aborted:"),
+        "{}",
+        text(&out)
+    );
+
+    // A condition that fails to evaluate: the substitution is given up at the boundary, and
+    // the client says so with a non-zero exit.
+    let out = c.run(&["load", &u1]);
+    assert_eq!(out.status.code(), Some(0), "{}", text(&out));
+    let out = c.run(&["substitute", "--when", "P10 / (P10 - P10) > 0"]);
+    assert_eq!(out.status.code(), Some(1), "{}", text(&out));
+    assert!(
+        text(&out).contains("substitute failed: substitute_timeout"),
+        "{}",
+        text(&out)
+    );
+
+    // Remove: the candidate is gone when the client returns.
+    let out = c.run(&["remove", "--json"]);
+    assert_eq!(out.status.code(), Some(0), "{}", text(&out));
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).expect("one JSON object");
+    assert_eq!(v["outcome"], "done", "{v}");
+    assert_eq!(v["event"]["kind"], "removed", "{v}");
+
+    // A plain substitution: done when PRIMARY has flipped.
+    let out = c.run(&["load", &u1]);
+    assert_eq!(out.status.code(), Some(0), "{}", text(&out));
+    let out = c.run(&["substitute"]);
+    assert_eq!(out.status.code(), Some(0), "{}", text(&out));
+    assert!(
+        String::from_utf8_lossy(&out.stdout).contains("substitute: substituted: PRIMARY = B"),
+        "{}",
+        text(&out)
+    );
+
+    // Refused in the reply: nothing to remove.
+    let out = c.run(&["remove"]);
+    assert_eq!(out.status.code(), Some(1), "{}", text(&out));
+    assert!(text(&out).contains("remove refused"), "{}", text(&out));
+}

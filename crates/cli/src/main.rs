@@ -15,6 +15,7 @@ mod mqtt_args;
 mod package;
 mod package_inspect;
 mod run;
+mod run_io;
 mod sim;
 mod state;
 mod summary;
@@ -54,8 +55,8 @@ enum Command {
     Demo(demo::DemoArgs),
     /// Build, inspect and verify update packages; make signing keys.
     Package(package::PackageArgs),
-    /// Run a program against a digital twin, in virtual or real time.
-    Run(run::RunArgs),
+    /// Run a program against a digital twin, field I/O or both, in virtual or real time.
+    Run(Box<run::RunArgs>),
     /// Show what a state directory holds and what a warm start from it would do.
     State(state::StateArgs),
     /// Measure the figures in docs/performance.md.

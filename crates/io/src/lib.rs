@@ -6,7 +6,10 @@
 
 pub mod address;
 pub mod config;
+pub mod field;
 pub mod map;
+mod modbus;
+pub mod plant;
 
 use cetratus_program::{Signal, Type, Value};
 use cetratus_runtime::{Dispatcher, Provider};

@@ -5,11 +5,13 @@
 //!   their default Modbus map; [`map`] binds a program's signals to devices.
 
 pub mod address;
+pub mod bank;
 pub mod config;
 pub mod field;
 pub mod map;
 mod modbus;
 pub mod plant;
+pub mod twin_serve;
 
 use cetratus_program::{Signal, Type, Value};
 use cetratus_runtime::{Dispatcher, Provider};
@@ -61,6 +63,14 @@ pub enum IoError {
         signal: String,
         /// Why, and what to do.
         why: String,
+    },
+    /// A server could not listen.
+    #[error("cannot listen on {addr}: {reason}; choose another address or port")]
+    Listen {
+        /// The address.
+        addr: String,
+        /// The OS error.
+        reason: String,
     },
     /// An I/O thread could not be started.
     #[error("cannot start an I/O thread: {0}")]

@@ -15,9 +15,11 @@ mod mqtt_args;
 mod package;
 mod package_inspect;
 mod run;
+mod run_io;
 mod sim;
 mod state;
 mod summary;
+mod twin_cmd;
 
 use clap::{Parser, Subcommand};
 
@@ -54,8 +56,10 @@ enum Command {
     Demo(demo::DemoArgs),
     /// Build, inspect and verify update packages; make signing keys.
     Package(package::PackageArgs),
-    /// Run a program against a digital twin, in virtual or real time.
-    Run(run::RunArgs),
+    /// Run a program against a digital twin, field I/O or both, in virtual or real time.
+    Run(Box<run::RunArgs>),
+    /// Digital twins as processes of their own: `twin serve vernadat --modbus 127.0.0.1:15020`.
+    Twin(twin_cmd::TwinArgs),
     /// Show what a state directory holds and what a warm start from it would do.
     State(state::StateArgs),
     /// Measure the figures in docs/performance.md.
@@ -117,6 +121,7 @@ fn main() -> std::process::ExitCode {
         Command::Package(a) => package::run(a),
         Command::Run(a) => run::run(a),
         Command::State(a) => state::run(a),
+        Command::Twin(a) => twin_cmd::run(a),
         #[cfg(feature = "bench")]
         Command::Bench(a) => bench::run(a),
         Command::Mct(a) => mct_cmd::run(a),

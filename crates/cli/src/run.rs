@@ -1,11 +1,10 @@
-//! `cetratus run`: a program against a digital twin, in virtual or real time.
+//! `cetratus run`: a program against a digital twin, field I/O or both, in virtual or real time.
 
 use std::path::PathBuf;
 use std::sync::atomic::AtomicBool;
 use std::sync::{Arc, Mutex};
 
 use anyhow::{bail, Context};
-use cetratus_io::TwinDriver;
 use cetratus_node::clock::MonotonicStopwatch;
 use cetratus_node::script::Script;
 use cetratus_node::{state, wire, Echo, Node, NodeOptions};
@@ -13,7 +12,7 @@ use cetratus_program::Program;
 use cetratus_runtime::{CycleFigures, Plc};
 
 use crate::summary::{print_summary, Summary, MAX_EVENTS};
-use cetratus_twin::{parse_defect_rate, Plant, TwinKind, TwinSettings};
+use cetratus_twin::{parse_defect_rate, TwinKind, TwinSettings};
 
 use crate::parse_duration_us;
 
@@ -22,9 +21,12 @@ use crate::parse_duration_us;
 pub struct RunArgs {
     /// The program: a TOML program file, or a PNML file that carries its program.
     program: PathBuf,
-    /// The plant to drive: a digital twin.
+    /// The plant to drive: a digital twin (a run has --twin, --io, or both).
     #[arg(long, value_parser = ["vernadat", "festo"])]
-    twin: String,
+    twin: Option<String>,
+    /// The field I/O configuration (docs/io.md); instead of the local configuration's `[io]`.
+    #[arg(long = "io", value_name = "IO.toml")]
+    io: Option<PathBuf>,
     /// Run in virtual time: as fast as the machine goes, deterministic.
     #[arg(long = "virtual")]
     virtual_time: bool,
@@ -104,7 +106,6 @@ pub fn run(args: &RunArgs) -> anyhow::Result<()> {
         Program::load(&args.program)
             .with_context(|| format!("cannot load {}", args.program.display()))?,
     );
-    let kind: TwinKind = args.twin.parse().map_err(|e| anyhow::anyhow!("{e}"))?;
     let until_us = match (&args.for_, args.virtual_time) {
         (Some(d), _) => parse_duration_us(d)?,
         (None, true) => bail!("a virtual run needs a length: add --for, e.g. --for 1h"),
@@ -114,10 +115,6 @@ pub fn run(args: &RunArgs) -> anyhow::Result<()> {
         seed: args.seed,
         defect_ppm: args.defect_ppm,
     };
-    let twin = kind
-        .configure(&settings)
-        .map_err(|e| anyhow::anyhow!("--twin {kind}: {e}"))?;
-    let mut io = TwinDriver::new(twin, program.inputs(), program.outputs())?;
     let script = Script::parse(&args.at)?;
     let local = args.config.load()?;
     let trust = match &args.trust {
@@ -147,6 +144,16 @@ pub fn run(args: &RunArgs) -> anyhow::Result<()> {
         Some(p) => parse_duration_us(p)?.max(1),
         None => program.scan_period().as_micros() as u64,
     };
+    let crate::run_io::Opened { mut io, kind } = crate::run_io::open(
+        &program,
+        args.twin.as_deref(),
+        &settings,
+        args.io.as_deref(),
+        local.io.as_ref(),
+        args.virtual_time,
+        period_us,
+    )?;
+    let plant = kind.map_or("field I/O".to_string(), |k| format!("{k} twin"));
     // Real-time runs are watched and commanded over MQTT, with the dashboard beside them; their
     // ports are taken before anything is written, so a start that cannot bind leaves no trace.
     let mqtt = if !args.virtual_time && !args.no_mct {
@@ -214,16 +221,10 @@ pub fn run(args: &RunArgs) -> anyhow::Result<()> {
         0
     };
     let mut presses = args.press.clone();
-    if presses.is_empty() && kind == TwinKind::Festo {
+    if presses.is_empty() && kind == Some(TwinKind::Festo) {
         presses.extend(["RESET@100ms".to_string(), "START@500ms".to_string()]);
     }
-    for p in &presses {
-        let (button, at) = p.split_once('@').unwrap_or((p.as_str(), "0s"));
-        let at_us = parse_duration_us(at)?;
-        io.plant_mut()
-            .press(button, at_us.saturating_add(base_us))
-            .map_err(|e| anyhow::anyhow!("--press {p}: {e}"))?;
-    }
+    crate::run_io::press(&mut io, &presses, base_us)?;
     let opts = NodeOptions {
         base_us,
         trust: trust.clone(),
@@ -289,13 +290,17 @@ pub fn run(args: &RunArgs) -> anyhow::Result<()> {
         }
         if !args.json {
             eprintln!(
-                "running {} on the {} twin in real time (speed {}); Ctrl-C stops",
+                "running {} on the {plant} in real time (speed {}); Ctrl-C stops",
                 program.name(),
-                kind,
                 args.speed
             );
         }
-        node.run_realtime(period_us, until_us, args.speed, &stop)
+        let reached = node.run_realtime(period_us, until_us, args.speed, &stop);
+        // On a stop, the field gets its safe values before anything else is shut down.
+        if let Some(f) = node.io_mut().field_mut() {
+            f.stop();
+        }
+        reached
     };
     let finished = node.finish();
     if let Some(s) = services {
@@ -316,7 +321,8 @@ pub fn run(args: &RunArgs) -> anyhow::Result<()> {
             );
         }
     }
-    let mut faults: Vec<String> = io.plant().faults().iter().map(|f| f.to_string()).collect();
+    let plant_report = crate::run_io::report(&io)?;
+    let mut faults = plant_report.faults;
     faults.extend(report.faults);
     let scan = plc.monitor().stats[plc.primary().index()].scan.summary();
     let figures = CycleFigures {
@@ -327,11 +333,6 @@ pub fn run(args: &RunArgs) -> anyhow::Result<()> {
         latency: report.timing.latency.summary(),
         overruns: report.timing.overruns,
     };
-    let counters = io.plant().counters();
-    let parts_finished = counters
-        .get("parts_finished")
-        .or_else(|| counters.get("parts_good"))
-        .unwrap_or(0);
     let (events, left_out) = std::mem::take(
         &mut *events
             .lock()
@@ -341,14 +342,15 @@ pub fn run(args: &RunArgs) -> anyhow::Result<()> {
         events,
         events_left_out: left_out + report.echo_dropped,
         program: program.name().to_string(),
-        twin: kind.to_string(),
+        twin: kind.map_or_else(String::new, |k| k.to_string()),
         seconds: reached_us as f64 / 1e6,
         scans: plc.cycles(),
         firings: plc.primary_container().firings().iter().sum(),
-        parts_finished,
-        twin_faults: io.plant().faults().len() as u64 + io.plant().faults_dropped(),
+        parts_finished: plant_report.parts_finished,
+        twin_faults: plant_report.twin_faults,
         faults,
-        counters: serde_json::to_value(counters)?,
+        counters: plant_report.counters,
+        io: plant_report.io,
         scan: figures,
         primary: plc.primary().name(),
         status: plc.status().name(),
@@ -367,7 +369,7 @@ pub fn run(args: &RunArgs) -> anyhow::Result<()> {
                 .with_context(|| format!("cannot write {}", path.display()))?;
         }
         if let Some(path) = &args.svg {
-            let title = format!("{} on the {} twin", program.name(), kind);
+            let title = format!("{} on the {plant}", program.name());
             let mut diagram = trace.diagram(&title);
             // In virtual time every scan is one period: the axis can number the scan steps.
             diagram.scan_period_us = args.virtual_time.then_some(period_us);

@@ -9,7 +9,7 @@ use serde::Serialize;
 pub struct Summary {
     /// Program name.
     pub program: String,
-    /// Twin name.
+    /// Twin name (empty without a twin).
     pub twin: String,
     /// Program time run, in seconds.
     pub seconds: f64,
@@ -25,6 +25,9 @@ pub struct Summary {
     pub faults: Vec<String>,
     /// The twin's counters.
     pub counters: serde_json::Value,
+    /// Every field device's figures, with field I/O.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub io: Option<Vec<cetratus_io::field::DeviceStatus>>,
     /// Scan timing figures.
     pub scan: CycleFigures,
     /// PRIMARY at the end.
@@ -47,9 +50,14 @@ pub struct Summary {
 pub const MAX_EVENTS: usize = 10_000;
 
 pub fn print_summary(s: &Summary) {
+    let plant = if s.twin.is_empty() {
+        "field I/O".to_string()
+    } else {
+        format!("{} twin", s.twin)
+    };
     println!(
-        "{} on the {} twin: {:.1} s of program time",
-        s.program, s.twin, s.seconds
+        "{} on the {plant}: {:.1} s of program time",
+        s.program, s.seconds
     );
     println!("  scans           {}", s.scans);
     println!("  firings         {}", s.firings);
@@ -85,6 +93,21 @@ pub fn print_summary(s: &Summary) {
             } else {
                 String::new()
             }
+        );
+    }
+    for d in s.io.iter().flatten() {
+        println!(
+            "  device {:<8} {:?}, {} reads, {} writes, {} errors, {} exceptions, {} reconnects{}",
+            d.name,
+            d.quality,
+            d.reads,
+            d.writes,
+            d.errors,
+            d.exceptions,
+            d.reconnects,
+            d.last_error
+                .as_ref()
+                .map_or(String::new(), |e| format!("; last error: {e}"))
         );
     }
     if s.faults.is_empty() {

@@ -1,7 +1,17 @@
 //! I/O drivers behind the runtime's [`Provider`] and [`Dispatcher`] traits.
 //!
-//! The first driver is the simulated plant: [`TwinDriver`] connects a program's signals, by name,
-//! to a digital twin's signals.
+//! * [`TwinDriver`] connects a program's signals, by name, to a digital twin's signals.
+//! * [`config`] is the node's I/O configuration (docs/io.md); [`address`] the IEC addresses and
+//!   their default Modbus map; [`map`] binds a program's signals to devices.
+
+pub mod address;
+pub mod bank;
+pub mod config;
+pub mod field;
+pub mod map;
+mod modbus;
+pub mod plant;
+pub mod twin_serve;
 
 use cetratus_program::{Signal, Type, Value};
 use cetratus_runtime::{Dispatcher, Provider};
@@ -30,6 +40,41 @@ pub enum IoError {
         /// The plant's outputs, comma-separated.
         available: String,
     },
+    /// The I/O configuration is wrong at a place in its file.
+    #[error("{at}: {message}")]
+    Config {
+        /// `file:line:column`.
+        at: String,
+        /// What is wrong and what to do.
+        message: String,
+    },
+    /// The I/O configuration could not be read.
+    #[error("cannot read the I/O configuration {path}: {source}")]
+    Read {
+        /// The file.
+        path: String,
+        /// The OS error.
+        source: std::io::Error,
+    },
+    /// A program signal does not fit the I/O configuration.
+    #[error("signal `{signal}`: {why}")]
+    Unmapped {
+        /// The signal.
+        signal: String,
+        /// Why, and what to do.
+        why: String,
+    },
+    /// A server could not listen.
+    #[error("cannot listen on {addr}: {reason}; choose another address or port")]
+    Listen {
+        /// The address.
+        addr: String,
+        /// The OS error.
+        reason: String,
+    },
+    /// An I/O thread could not be started.
+    #[error("cannot start an I/O thread: {0}")]
+    Thread(String),
     /// A simulated signal is not boolean.
     #[error(
         "signal `{signal}` is declared {ty} but the twin's signals are bool; declare it as bool"

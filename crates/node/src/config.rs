@@ -33,6 +33,9 @@ pub enum ConfigError {
     /// `config.toml` is not UTF-8.
     #[error("{0}")]
     NotUtf8(cetratus_program::NotUtf8),
+    /// The `[io]` section is wrong (docs/io.md).
+    #[error("{0}")]
+    Io(cetratus_io::IoError),
     /// `config.toml` does not follow the schema.
     #[error("{at}: {message}; remove the key, or fix its spelling or value against docs/configuration.md")]
     Schema {
@@ -113,9 +116,9 @@ struct User {
     password: String,
 }
 
-/// `[io]`: the node's I/O configuration; this version knows no key in it.
+/// `[io]`: the node's I/O configuration, read and checked by `cetratus_io::config` from the
+/// file's text (so that its errors keep their lines).
 #[derive(Deserialize, Default)]
-#[serde(deny_unknown_fields)]
 struct IoSection {}
 
 /// `[dashboard]`: who may log in to the dashboard, and the host names it is reached under.
@@ -172,6 +175,8 @@ pub struct LocalConfig {
     /// The work budget of a candidate scan (guard evaluations and firings); `None`: the default
     /// for the scan period.
     pub candidate_work_budget: Option<u64>,
+    /// The node's I/O configuration from `[io]`, when it names a device or a server.
+    pub io: Option<cetratus_io::config::IoConfig>,
 }
 
 /// The default configuration directory.
@@ -248,17 +253,24 @@ impl LocalConfig {
     pub fn load(dir: Option<&Path>) -> Result<LocalConfig, ConfigError> {
         let dir = dir.map_or_else(default_dir, Path::to_path_buf);
         let file_path = dir.join("config.toml");
+        let mut io = None;
         let file: File = match std::fs::read(&file_path) {
             Ok(bytes) => {
                 let text = cetratus_program::toml_text(bytes, &file_path.display().to_string())
                     .map_err(ConfigError::NotUtf8)?;
-                toml::from_str(&text).map_err(|e| ConfigError::Schema {
+                let file = toml::from_str(&text).map_err(|e| ConfigError::Schema {
                     at: e.span().map_or_else(
                         || file_path.display().to_string(),
                         |s| position(&file_path, &text, s.start),
                     ),
                     message: e.message().trim_end().to_string(),
-                })?
+                })?;
+                io = cetratus_io::config::IoConfig::from_local(
+                    &file_path.display().to_string(),
+                    &text,
+                )
+                .map_err(ConfigError::Io)?;
+                file
             }
             Err(e) if e.kind() == std::io::ErrorKind::NotFound => File::default(),
             Err(source) => {
@@ -333,6 +345,7 @@ impl LocalConfig {
             ops.add(k.key_id(), *k.verifying_key());
         }
         let _ = file.io;
+        let io_from_file = io;
         Ok(LocalConfig {
             dashboard_accounts: file
                 .dashboard
@@ -358,6 +371,7 @@ impl LocalConfig {
             probation_us,
             state_trans_timeout_us,
             candidate_work_budget: file.updates.candidate_work_budget,
+            io: io_from_file,
         })
     }
 

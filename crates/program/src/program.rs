@@ -423,6 +423,14 @@ impl Program {
         invariant::check(&self.invariants, marking)
     }
 
+    /// Writes each input's safe value (or its type's zero when it declares none) into `out`: what
+    /// the field I/O gives the program for an input whose device is silent.
+    pub fn safe_inputs(&self, out: &mut [Value]) {
+        for (o, s) in out.iter_mut().zip(self.inputs()) {
+            *o = s.safe.unwrap_or(s.ty.zero());
+        }
+    }
+
     /// Writes each output's safe value (or its type's zero when it declares none) into `out`.
     pub fn safe_outputs(&self, out: &mut [Value]) {
         for (o, s) in out.iter_mut().zip(&self.outputs) {
@@ -536,8 +544,8 @@ fn signal(
     }
     let safe = match (&d.safe, kind) {
         (None, _) => None,
-        (Some(v), Kind::Output) => Some(literal(o, v, ty, "safe")?),
-        (Some(v), _) => return Err(misplaced("safe", v.span(), "outputs")),
+        (Some(v), Kind::Output | Kind::Input) => Some(literal(o, v, ty, "safe")?),
+        (Some(v), _) => return Err(misplaced("safe", v.span(), "inputs and outputs")),
     };
     let initial = match (&d.initial, kind) {
         (None, _) => ty.zero(),

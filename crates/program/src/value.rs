@@ -110,7 +110,8 @@ pub struct Signal {
     pub address: Option<String>,
     /// Free text for people.
     pub description: String,
-    /// Outputs only: the value sent when the PLC faults, if declared.
+    /// Inputs and outputs: the value an output is sent when the PLC faults, and the value an
+    /// input takes when its field device is silent (docs/io.md), if declared.
     pub safe: Option<Value>,
     /// The value at start: the variable's `initial`, else the type's zero.
     pub initial: Value,

@@ -1,0 +1,147 @@
+//! The plant of `cetratus run`: the twin, the field I/O (`--io`, or the local configuration's
+//! `[io]`), or both.
+
+use std::path::Path;
+
+use anyhow::{bail, Context};
+use cetratus_io::config::IoConfig;
+use cetratus_io::field::{DeviceStatus, FieldIo};
+use cetratus_io::map::FieldMap;
+use cetratus_io::plant::PlantIo;
+use cetratus_io::TwinDriver;
+use cetratus_program::Program;
+use cetratus_twin::{Plant, TwinKind, TwinSettings};
+
+use crate::parse_duration_us;
+
+/// What the run is connected to.
+pub struct Opened {
+    /// The I/O.
+    pub io: PlantIo,
+    /// The twin, when there is one.
+    pub kind: Option<TwinKind>,
+}
+
+/// Opens the run's I/O. `io_file` is `--io`; `local_io` the local configuration's `[io]`.
+pub fn open(
+    program: &Program,
+    twin: Option<&str>,
+    settings: &TwinSettings,
+    io_file: Option<&Path>,
+    local_io: Option<&IoConfig>,
+    virtual_time: bool,
+    period_us: u64,
+) -> anyhow::Result<Opened> {
+    let kind: Option<TwinKind> = match twin {
+        Some(t) => Some(t.parse().map_err(|e| anyhow::anyhow!("{e}"))?),
+        None => None,
+    };
+    let config = match io_file {
+        Some(p) => Some(IoConfig::load(p)?),
+        // A simulation never reaches for the node's field devices.
+        None if virtual_time => None,
+        None => local_io.cloned(),
+    };
+    if virtual_time {
+        if kind.is_none() {
+            bail!("a virtual run needs a twin to simulate the plant: add --twin vernadat or --twin festo");
+        }
+        if let Some(c) = &config {
+            bail!(
+                "{}: a virtual run cannot use network I/O (its time runs faster than any device's); run in real time, or leave --io out",
+                c.file
+            );
+        }
+    }
+    let twin = match kind {
+        Some(k) => {
+            let t = k
+                .configure(settings)
+                .map_err(|e| anyhow::anyhow!("--twin {k}: {e}"))?;
+            Some(TwinDriver::new(t, program.inputs(), program.outputs())?)
+        }
+        None => None,
+    };
+    let field = match &config {
+        Some(c) => {
+            let map = FieldMap::bind(c, program.inputs(), program.outputs(), kind.is_some())
+                .with_context(|| {
+                    format!("the program does not fit the I/O configuration {}", c.file)
+                })?;
+            let field = FieldIo::start(c, map, period_us)?;
+            let missing = field.wait_first_image(c.start_timeout_us);
+            if !missing.is_empty() {
+                eprintln!(
+                    "warning: no complete input image from {} within {} µs; the first scans run on the safe values of their inputs",
+                    missing.join(", "),
+                    c.start_timeout_us
+                );
+            }
+            Some(field)
+        }
+        None => None,
+    };
+    let io = PlantIo::new(twin, field).ok_or_else(|| {
+        anyhow::anyhow!("nothing to run against: give --twin vernadat|festo, --io IO.toml, or both (or an [io] section in the local configuration)")
+    })?;
+    Ok(Opened { io, kind })
+}
+
+/// Schedules the `--press BUTTON@TIME` presses of the twin (program time from `base_us`).
+pub fn press(io: &mut PlantIo, presses: &[String], base_us: u64) -> anyhow::Result<()> {
+    if presses.is_empty() {
+        return Ok(());
+    }
+    let Some(t) = io.twin_mut() else {
+        bail!("--press needs a twin; with field I/O, press the machine's own buttons");
+    };
+    for p in presses {
+        let (button, at) = p.split_once('@').unwrap_or((p.as_str(), "0s"));
+        let at_us = parse_duration_us(at)?;
+        t.plant_mut()
+            .press(button, at_us.saturating_add(base_us))
+            .map_err(|e| anyhow::anyhow!("--press {p}: {e}"))?;
+    }
+    Ok(())
+}
+
+/// What the plant says at the end of a run.
+pub struct PlantReport {
+    /// Parts finished (good parts for the Festo station); 0 without a twin.
+    pub parts_finished: u64,
+    /// Physical faults the twin saw.
+    pub twin_faults: u64,
+    /// Their descriptions.
+    pub faults: Vec<String>,
+    /// The twin's counters.
+    pub counters: serde_json::Value,
+    /// Every field device's figures.
+    pub io: Option<Vec<DeviceStatus>>,
+}
+
+/// The plant's end-of-run figures.
+pub fn report(io: &PlantIo) -> anyhow::Result<PlantReport> {
+    let mut r = PlantReport {
+        parts_finished: 0,
+        twin_faults: 0,
+        faults: Vec::new(),
+        counters: serde_json::Value::Object(Default::default()),
+        io: io.field().map(|f| f.status()),
+    };
+    if let Some(t) = io.twin() {
+        let plant = t.plant();
+        r.faults = plant.faults().iter().map(|f| f.to_string()).collect();
+        let counters = plant.counters();
+        r.parts_finished = counters
+            .get("parts_finished")
+            .or_else(|| counters.get("parts_good"))
+            .unwrap_or(0);
+        r.twin_faults = plant.faults().len() as u64 + plant.faults_dropped();
+        r.counters = serde_json::to_value(counters)?;
+    }
+    if io.field().is_some_and(|f| f.faulted()) {
+        r.faults
+            .push("field I/O: a device with the `fault` stale policy went silent; outputs were held at their safe values".into());
+    }
+    Ok(r)
+}

@@ -1,0 +1,120 @@
+//! `cetratus twin serve`: a digital twin as a Modbus TCP device, for a PLC in another process.
+
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
+
+use anyhow::Context;
+use cetratus_io::twin_serve::{serve, TwinMap};
+use cetratus_twin::{parse_defect_rate, Plant, TwinKind, TwinSettings};
+
+use crate::parse_duration_us;
+
+/// Arguments of `cetratus twin`.
+#[derive(clap::Args, Debug)]
+pub struct TwinArgs {
+    #[command(subcommand)]
+    command: TwinCommand,
+}
+
+#[derive(clap::Subcommand, Debug)]
+enum TwinCommand {
+    /// Run a twin as a Modbus TCP device, at the addresses its example program declares.
+    Serve(ServeArgs),
+}
+
+/// Arguments of `cetratus twin serve`.
+#[derive(clap::Args, Debug)]
+pub struct ServeArgs {
+    /// The twin.
+    #[arg(value_parser = ["vernadat", "festo"])]
+    twin: String,
+    /// Where the Modbus device listens, e.g. `127.0.0.1:15020`.
+    #[arg(long)]
+    modbus: Option<String>,
+    /// Print the address map and stop.
+    #[arg(long)]
+    print_map: bool,
+    /// How long to run (e.g. `1min`); forever by default, Ctrl-C stops.
+    #[arg(long = "for")]
+    for_: Option<String>,
+    /// Print the closing summary as one JSON object.
+    #[arg(long)]
+    json: bool,
+    /// Seed of the twin's randomness.
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+    /// Share of defective parts the Festo station is supplied.
+    #[arg(long = "defect-rate", value_name = "RATE", default_value = "0", value_parser = parse_defect_rate)]
+    defect_ppm: u32,
+    /// Press a twin button at a time, e.g. `START@0.5s` (repeatable); the Festo station gets
+    /// `RESET@100ms` and `START@500ms` when none is given.
+    #[arg(long = "press")]
+    press: Vec<String>,
+}
+
+/// Runs `cetratus twin`.
+pub fn run(args: &TwinArgs) -> anyhow::Result<()> {
+    let TwinCommand::Serve(a) = &args.command;
+    let kind: TwinKind = a.twin.parse().map_err(|e| anyhow::anyhow!("{e}"))?;
+    let settings = TwinSettings {
+        seed: a.seed,
+        defect_ppm: a.defect_ppm,
+    };
+    let mut twin = kind
+        .configure(&settings)
+        .map_err(|e| anyhow::anyhow!("{kind}: {e}"))?;
+    let map = TwinMap::for_example(kind, &twin)?;
+    if a.print_map {
+        print!("{}", map.print());
+        return Ok(());
+    }
+    let Some(listen) = &a.modbus else {
+        anyhow::bail!(
+            "give the address to serve on, e.g. --modbus 127.0.0.1:15020 (or --print-map)"
+        );
+    };
+    let listen = listen.parse().with_context(|| {
+        format!("--modbus {listen}: write an IP address and a port, e.g. 127.0.0.1:15020")
+    })?;
+    let mut presses = a.press.clone();
+    if presses.is_empty() && kind == TwinKind::Festo {
+        presses.extend(["RESET@100ms".to_string(), "START@500ms".to_string()]);
+    }
+    for p in &presses {
+        let (button, at) = p.split_once('@').unwrap_or((p.as_str(), "0s"));
+        twin.press(button, parse_duration_us(at)?)
+            .map_err(|e| anyhow::anyhow!("--press {p}: {e}"))?;
+    }
+    let until_us = match &a.for_ {
+        Some(d) => parse_duration_us(d)?,
+        None => u64::MAX,
+    };
+    let stop = Arc::new(AtomicBool::new(false));
+    let s = stop.clone();
+    ctrlc::set_handler(move || s.store(true, Ordering::Relaxed))
+        .context("cannot install the Ctrl-C handler")?;
+    let json = a.json;
+    let report = serve(twin, &map, listen, until_us, &stop, |addr| {
+        if !json {
+            eprintln!("the {kind} twin serves Modbus TCP on {addr}; Ctrl-C stops");
+        }
+    })?;
+    if json {
+        println!("{}", serde_json::to_string_pretty(&report)?);
+    } else {
+        println!(
+            "{} twin: {:.1} s, {} parts finished, {} faults; Modbus: {} requests, {} exceptions, {} connections refused",
+            report.twin,
+            report.seconds,
+            report.parts_finished,
+            report.twin_faults,
+            report.modbus.requests,
+            report.modbus.exceptions,
+            report.modbus.refused
+        );
+        for f in report.faults.iter().take(20) {
+            println!("  {f}");
+        }
+    }
+    Ok(())
+}

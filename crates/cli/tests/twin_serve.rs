@@ -1,0 +1,122 @@
+//! `cetratus twin serve`: the twin as a Modbus TCP device in a process of its own, driven by
+//! `cetratus run --io` in another (virtual commissioning), and what a hostile client gets from it.
+
+use std::process::{Command, Stdio};
+use std::time::Duration;
+
+use cetratus_testkit::paths::{example, workspace_root};
+use cetratus_testkit::ports::{free_port, wait_for_port};
+use cetratus_testkit::process::ChildGuard;
+use serde_json::Value;
+
+const BIN: &str = env!("CARGO_BIN_EXE_cetratus");
+
+/// Waits for a guarded process and parses the JSON it printed.
+fn json_of(mut child: ChildGuard) -> Value {
+    let mut text = String::new();
+    if let Some(mut out) = child.0.stdout.take() {
+        std::io::Read::read_to_string(&mut out, &mut text).expect("read stdout");
+    }
+    let _ = child.0.wait();
+    serde_json::from_str(&text).unwrap_or_else(|e| panic!("not JSON ({e}): {text}"))
+}
+
+fn peer(args: &[&str]) -> String {
+    let out = Command::new("python3")
+        .arg(workspace_root().join("scripts/modbus_peer.py"))
+        .args(args)
+        .output()
+        .expect("run the pymodbus client");
+    String::from_utf8_lossy(&out.stdout).trim().to_string()
+}
+
+#[test]
+fn twin_serve_prints_the_addresses_the_example_program_declares() {
+    let out = Command::new(BIN)
+        .args(["twin", "serve", "festo", "--print-map"])
+        .output()
+        .unwrap();
+    let map = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        map.contains("START             %IX0.0    discrete input 0"),
+        "{map}"
+    );
+    assert!(map.contains("TABLE_MOTOR       %QX0.0    coil 0"), "{map}");
+}
+
+#[test]
+fn a_flood_of_connections_is_refused_past_the_limit_and_bad_requests_get_exceptions() {
+    let port = free_port();
+    let twin = ChildGuard::spawn(
+        Command::new(BIN)
+            .args(["twin", "serve", "vernadat", "--for", "4s", "--json"])
+            .args(["--modbus", &format!("127.0.0.1:{port}")])
+            .stdout(Stdio::piped())
+            .stderr(Stdio::null()),
+    );
+    wait_for_port(port, "the twin's Modbus server", Duration::from_secs(30));
+    peer(&["flood", &port.to_string(), "100"]);
+    // Past the table, a write to a coil that is not there, and a wrong unit id.
+    assert!(peer(&["read", &port.to_string(), "di", "0", "64"]).starts_with("exception"));
+    assert!(peer(&["write", &port.to_string(), "coils", "500", "1"]).starts_with("exception"));
+    assert!(
+        peer(&["read", &port.to_string(), "di", "0", "8", "--unit", "9"]).starts_with("exception")
+    );
+    // The server still answers.
+    let di = peer(&["read", &port.to_string(), "di", "0", "8"]);
+    assert_eq!(di.split(',').count(), 8, "{di}");
+    let s = json_of(twin);
+    assert!(s["modbus"]["refused"].as_u64().unwrap() >= 80, "{s}");
+    assert!(s["modbus"]["exceptions"].as_u64().unwrap() >= 3, "{s}");
+}
+
+/// The one real-time run of this suite: a minute of the cell with the PLC and the twin in two
+/// processes, compared with the in-process twin.
+#[test]
+fn a_minute_with_the_twin_in_its_own_process_finishes_as_many_parts_as_in_process() {
+    let port = free_port();
+    let dir = tempfile::tempdir().unwrap();
+    let io = dir.path().join("io-modbus.toml");
+    let text = std::fs::read_to_string(example("vernadat/io-modbus.toml")).unwrap();
+    std::fs::write(&io, text.replace("15020", &port.to_string())).unwrap();
+    let twin = ChildGuard::spawn(
+        Command::new(BIN)
+            .args(["twin", "serve", "vernadat", "--for", "60s", "--json"])
+            .args(["--modbus", &format!("127.0.0.1:{port}")])
+            .stdout(Stdio::piped())
+            .stderr(Stdio::null()),
+    );
+    wait_for_port(port, "the twin's Modbus server", Duration::from_secs(30));
+    // The PLC outlives the twin, so that the twin never sees its outputs go safe mid-move.
+    let _plc = ChildGuard::spawn(
+        Command::new(BIN)
+            .arg("run")
+            .arg(example("vernadat/vernadat.toml"))
+            .arg("--io")
+            .arg(&io)
+            .args(["--no-mct", "--cold", "--json"])
+            .arg("--state-dir")
+            .arg(dir.path().join("state"))
+            .arg("--config")
+            .arg(dir.path().join("config"))
+            .stdout(Stdio::null())
+            .stderr(Stdio::null()),
+    );
+    let served = json_of(twin);
+    let in_process = Command::new(BIN)
+        .arg("run")
+        .arg(example("vernadat/vernadat.toml"))
+        .args(["--twin", "vernadat", "--virtual", "--for", "60s", "--json"])
+        .output()
+        .unwrap();
+    let in_process: Value = serde_json::from_slice(&in_process.stdout).unwrap();
+    let (two, one) = (
+        served["parts_finished"].as_i64().unwrap(),
+        in_process["parts_finished"].as_i64().unwrap(),
+    );
+    assert!(
+        one > 0 && (two - one).abs() <= 1,
+        "two processes {two}, in process {one}"
+    );
+    assert_eq!(served["twin_faults"], 0, "{served}");
+}

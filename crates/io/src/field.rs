@@ -1,0 +1,355 @@
+//! Field I/O: the double-buffered process image between the scan thread and the I/O threads.
+//!
+//! Each field device has an I/O thread of its own ([`crate::modbus`]) that does all the network
+//! work. The threads and the scan meet in one shared image behind a mutex that is only ever held
+//! to copy a few values. The scan thread never waits for it: it uses `try_lock`, and when an I/O
+//! thread holds it, the scan keeps its own copy of the inputs (the front buffer) and offers its
+//! outputs again in the next cycle. It wakes the I/O threads after dispatch with `try_send` on
+//! a queue of one. Nothing a device sends causes work on the scan thread beyond copying the
+//! decoded values of the channels the configuration declares.
+//!
+//! Staleness is counted by the scan, in cycles: a device that has not completed a read since the
+//! last cycle has missed it. After `stale_after` missed cycles its inputs follow the device's
+//! policy: hold the last values, take the safe values, or fault (safe values in, safe values out,
+//! until the run is restarted).
+
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::mpsc::{sync_channel, SyncSender, TrySendError};
+use std::sync::{Arc, Mutex, MutexGuard, TryLockError};
+use std::thread::JoinHandle;
+use std::time::{Duration, Instant};
+
+use cetratus_program::Value;
+use cetratus_runtime::{Dispatcher, Provider};
+use serde::Serialize;
+
+use crate::config::{Device, IoConfig, StalePolicy};
+use crate::map::FieldMap;
+use crate::IoError;
+
+/// What a device's inputs are worth this cycle.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Quality {
+    /// No complete read yet: the inputs are their safe values.
+    Initial,
+    /// Read in time.
+    Good,
+    /// Missed cycles, fewer than `stale_after`: the last values are used.
+    Late,
+    /// `stale_after` cycles or more without a read: the device's stale policy applies.
+    Stale,
+}
+
+/// How an I/O thread's connection stands.
+#[derive(Clone, Debug, PartialEq, Eq, Serialize, Default)]
+#[serde(rename_all = "snake_case")]
+pub enum Link {
+    /// Not connected yet.
+    #[default]
+    Connecting,
+    /// Connected.
+    Up,
+    /// Lost, or never made: the thread retries with backoff.
+    Down,
+}
+
+/// The figures of one device, for the run summary, exec_info and the dashboard.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct DeviceStatus {
+    /// The device's name.
+    pub name: String,
+    /// Its inputs' quality in the last cycle.
+    pub quality: Quality,
+    /// Its connection.
+    pub link: Link,
+    /// Cycles in a row without a complete read.
+    pub missed_cycles: u64,
+    /// Complete reads.
+    pub reads: u64,
+    /// Requests that failed or timed out.
+    pub errors: u64,
+    /// Modbus exception responses.
+    pub exceptions: u64,
+    /// Connections made after the first.
+    pub reconnects: u64,
+    /// Output writes.
+    pub writes: u64,
+    /// The last error, for people.
+    pub last_error: Option<String>,
+}
+
+/// The image the I/O threads and the scan thread share.
+#[derive(Debug)]
+pub(crate) struct Shared {
+    /// The inputs as the devices last read them (I/O-map order).
+    pub inputs: Vec<Value>,
+    /// Per device: complete reads so far, and what the thread reports.
+    pub devices: Vec<DeviceStatus>,
+    /// The outputs to write (I/O-map order) and their generation, bumped on change.
+    pub outputs: Vec<Value>,
+    pub outputs_gen: u64,
+}
+
+/// Locks the shared image from an I/O thread; a panic elsewhere does not stop the I/O.
+pub(crate) fn lock(shared: &Mutex<Shared>) -> MutexGuard<'_, Shared> {
+    shared.lock().unwrap_or_else(|p| p.into_inner())
+}
+
+/// What the scan thread tells an I/O thread.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) enum Kick {
+    /// A cycle was dispatched: write the outputs if due, then read the inputs for the next.
+    Cycle,
+    /// Write the safe outputs and stop.
+    Stop,
+}
+
+/// The field I/O of a node: a [`Provider`] and a [`Dispatcher`] over the process image.
+pub struct FieldIo {
+    map: Arc<FieldMap>,
+    devices: Vec<Device>,
+    shared: Arc<Mutex<Shared>>,
+    front: Vec<Value>,
+    seen: Vec<u64>,
+    missed: Vec<u64>,
+    quality: Vec<Quality>,
+    last_out: Vec<Value>,
+    out_pending: bool,
+    fault: bool,
+    contended: u64,
+    kicks: Vec<SyncSender<Kick>>,
+    threads: Vec<JoinHandle<()>>,
+    stopped: Arc<AtomicBool>,
+}
+
+impl FieldIo {
+    /// Starts one I/O thread per device of `config`. `period_us` is how often a thread polls
+    /// when no cycle wakes it (before the first scan).
+    pub fn start(config: &IoConfig, map: FieldMap, period_us: u64) -> Result<FieldIo, IoError> {
+        let map = Arc::new(map);
+        let shared = Arc::new(Mutex::new(Shared {
+            inputs: map.safe_inputs.clone(),
+            devices: config
+                .devices
+                .iter()
+                .map(|d| DeviceStatus {
+                    name: d.name.clone(),
+                    quality: Quality::Initial,
+                    link: Link::Connecting,
+                    missed_cycles: 0,
+                    reads: 0,
+                    errors: 0,
+                    exceptions: 0,
+                    reconnects: 0,
+                    writes: 0,
+                    last_error: None,
+                })
+                .collect(),
+            outputs: map.safe_outputs.clone(),
+            outputs_gen: 1,
+        }));
+        let stopped = Arc::new(AtomicBool::new(false));
+        let mut kicks = Vec::new();
+        let mut threads = Vec::new();
+        for (d, dev) in config.devices.iter().enumerate() {
+            let (tx, rx) = sync_channel(1);
+            let worker = crate::modbus::DeviceThread::new(
+                d,
+                dev.clone(),
+                map.clone(),
+                shared.clone(),
+                period_us,
+            );
+            let handle = std::thread::Builder::new()
+                .name(format!("cetratus-io-{d}"))
+                .spawn(move || worker.run(rx))
+                .map_err(|e| IoError::Thread(e.to_string()))?;
+            kicks.push(tx);
+            threads.push(handle);
+        }
+        let n = config.devices.len();
+        Ok(FieldIo {
+            front: map.safe_inputs.clone(),
+            last_out: map.safe_outputs.clone(),
+            map,
+            devices: config.devices.clone(),
+            shared,
+            seen: vec![0; n],
+            missed: vec![0; n],
+            quality: vec![Quality::Initial; n],
+            out_pending: false,
+            fault: false,
+            contended: 0,
+            kicks,
+            threads,
+            stopped,
+        })
+    }
+
+    /// Waits (before the first scan, never in one) until every device that serves an input has
+    /// completed a read, or `timeout_us` passes. Returns the devices still missing, whose inputs
+    /// start at their safe values.
+    pub fn wait_first_image(&self, timeout_us: u64) -> Vec<String> {
+        let deadline = Instant::now() + Duration::from_micros(timeout_us);
+        let needed: Vec<usize> = (0..self.devices.len())
+            .filter(|&d| {
+                self.map
+                    .inputs
+                    .iter()
+                    .any(|c| c.on.is_some_and(|o| o.0 == d))
+            })
+            .collect();
+        loop {
+            let missing: Vec<String> = {
+                let s = lock(&self.shared);
+                needed
+                    .iter()
+                    .filter(|&&d| s.devices[d].reads == 0)
+                    .map(|&d| self.devices[d].name.clone())
+                    .collect()
+            };
+            if missing.is_empty() || Instant::now() >= deadline {
+                return missing;
+            }
+            std::thread::sleep(Duration::from_millis(2));
+        }
+    }
+
+    /// Every device's figures (off the scan thread: it locks the image).
+    pub fn status(&self) -> Vec<DeviceStatus> {
+        let mut s = lock(&self.shared).devices.clone();
+        for (d, st) in s.iter_mut().enumerate() {
+            st.quality = self.quality[d];
+            st.missed_cycles = self.missed[d];
+        }
+        s
+    }
+
+    /// Whether a device with the `fault` policy went stale: the field I/O is in its safe state.
+    pub fn faulted(&self) -> bool {
+        self.fault
+    }
+
+    /// Cycles in which the scan found the image held by an I/O thread and kept its copy.
+    pub fn contended(&self) -> u64 {
+        self.contended
+    }
+
+    /// Writes the safe outputs to every connected device and stops the I/O threads (Ctrl-C,
+    /// SIGTERM, the end of a run). Waits for them: this is not the scan thread.
+    pub fn stop(&mut self) {
+        if self.stopped.swap(true, Ordering::SeqCst) {
+            return;
+        }
+        {
+            let mut s = lock(&self.shared);
+            s.outputs.clone_from(&self.map.safe_outputs);
+            s.outputs_gen += 1;
+        }
+        for k in &self.kicks {
+            let _ = k.send(Kick::Stop);
+        }
+        for t in self.threads.drain(..) {
+            let _ = t.join();
+        }
+    }
+
+    fn take_inputs(&mut self) {
+        match self.shared.try_lock() {
+            Ok(s) => {
+                for (d, st) in s.devices.iter().enumerate() {
+                    if st.reads != self.seen[d] {
+                        self.seen[d] = st.reads;
+                        self.missed[d] = 0;
+                    } else {
+                        self.missed[d] = self.missed[d].saturating_add(1);
+                    }
+                }
+                for c in &self.map.inputs {
+                    self.front[c.signal] = s.inputs[c.signal];
+                }
+            }
+            Err(TryLockError::WouldBlock) => self.contended += 1,
+            Err(TryLockError::Poisoned(p)) => {
+                let s = p.into_inner();
+                for c in &self.map.inputs {
+                    self.front[c.signal] = s.inputs[c.signal];
+                }
+            }
+        }
+        for (d, dev) in self.devices.iter().enumerate() {
+            self.quality[d] = if self.seen[d] == 0 {
+                Quality::Initial
+            } else if self.missed[d] <= 1 {
+                // A read that lands just after a cycle start is on time for the next one.
+                Quality::Good
+            } else if self.missed[d] < u64::from(dev.stale_after) {
+                Quality::Late
+            } else {
+                if dev.stale == StalePolicy::Fault {
+                    self.fault = true;
+                }
+                Quality::Stale
+            };
+        }
+    }
+}
+
+impl Provider for FieldIo {
+    fn read_inputs(&mut self, _now_us: u64, inputs: &mut [Value]) {
+        self.take_inputs();
+        for c in &self.map.inputs {
+            let Some(slot) = inputs.get_mut(c.signal) else {
+                continue;
+            };
+            *slot = match c.on {
+                Some((d, _, _)) => {
+                    let use_safe = self.fault
+                        || self.quality[d] == Quality::Initial
+                        || (self.quality[d] == Quality::Stale
+                            && self.devices[d].stale != StalePolicy::Hold);
+                    if use_safe {
+                        self.map.safe_inputs[c.signal]
+                    } else {
+                        self.front[c.signal]
+                    }
+                }
+                None => self.front[c.signal],
+            };
+        }
+    }
+}
+
+impl Dispatcher for FieldIo {
+    fn write_outputs(&mut self, _now_us: u64, outputs: &[Value]) {
+        let wanted: &[Value] = if self.fault {
+            &self.map.safe_outputs
+        } else {
+            outputs
+        };
+        if self.out_pending || wanted != &self.last_out[..] {
+            if let Ok(mut s) = self.shared.try_lock() {
+                let n = s.outputs.len().min(wanted.len());
+                s.outputs[..n].copy_from_slice(&wanted[..n]);
+                s.outputs_gen += 1;
+                let m = self.last_out.len().min(wanted.len());
+                self.last_out[..m].copy_from_slice(&wanted[..m]);
+                self.out_pending = false;
+            } else {
+                self.out_pending = true;
+                self.contended += 1;
+            }
+        }
+        for k in &self.kicks {
+            // A thread still busy with the last cycle is not queued a second one.
+            if let Err(TrySendError::Disconnected(_)) = k.try_send(Kick::Cycle) {}
+        }
+    }
+}
+
+impl Drop for FieldIo {
+    fn drop(&mut self) {
+        self.stop();
+    }
+}

@@ -1,0 +1,117 @@
+#!/usr/bin/env python3
+"""A real Modbus TCP peer for the tests, on pymodbus.
+
+  modbus_peer.py device PORT [--unit U] [--di 1,0,1] [--size N] [--delay-ms MS]
+      a remote I/O device: discrete inputs as given, coils, input and holding registers;
+      reads past `size` entries get an exception; every answer waits `delay-ms`.
+  modbus_peer.py read PORT TABLE ADDRESS COUNT [--unit U]
+      prints the values read, comma-separated (TABLE: coils, di, ir, hr).
+  modbus_peer.py write PORT TABLE ADDRESS VALUE [--unit U]
+      writes one coil (0/1) or holding register; prints `ok` or the exception.
+  modbus_peer.py flood PORT N
+      opens N connections at once and holds them for a second; prints how many were accepted.
+"""
+import argparse
+import asyncio
+import logging
+import socket
+import sys
+import time
+
+logging.getLogger("pymodbus").setLevel(logging.ERROR)
+
+
+def device(args):
+    from pymodbus.datastore import (ModbusDeviceContext, ModbusSequentialDataBlock,
+                                    ModbusServerContext)
+    from pymodbus.server import StartAsyncTcpServer
+
+    di = [v == "1" for v in args.di.split(",")] if args.di else []
+    di += [False] * (args.size - len(di))
+    ctx = ModbusDeviceContext(
+        di=ModbusSequentialDataBlock(1, di[: args.size]),
+        co=ModbusSequentialDataBlock(1, [False] * args.size),
+        ir=ModbusSequentialDataBlock(1, [0] * args.size),
+        hr=ModbusSequentialDataBlock(1, [0] * args.size),
+    )
+    server = ModbusServerContext(devices={args.unit: ctx}, single=False)
+
+    async def main():
+        kwargs = {}
+        if args.delay_ms:
+            delay = args.delay_ms / 1000
+
+            def trace_pdu(sending, pdu):
+                if sending:
+                    time.sleep(delay)
+                return pdu
+
+            kwargs["trace_pdu"] = trace_pdu
+        print("ready", flush=True)
+        await StartAsyncTcpServer(server, address=("127.0.0.1", args.port), **kwargs)
+
+    asyncio.run(main())
+
+
+def client(args):
+    from pymodbus.client import ModbusTcpClient
+
+    c = ModbusTcpClient("127.0.0.1", port=args.port, timeout=2)
+    if not c.connect():
+        print("cannot connect", file=sys.stderr)
+        sys.exit(2)
+    return c
+
+
+def read(args):
+    c = client(args)
+    fn = {"coils": c.read_coils, "di": c.read_discrete_inputs,
+          "ir": c.read_input_registers, "hr": c.read_holding_registers}[args.table]
+    r = fn(args.address, count=args.count, device_id=args.unit)
+    if r.isError():
+        print(f"exception {r}")
+        sys.exit(1)
+    vals = r.bits[: args.count] if args.table in ("coils", "di") else r.registers
+    print(",".join(str(int(v)) for v in vals))
+
+
+def write(args):
+    c = client(args)
+    if args.table == "coils":
+        r = c.write_coil(args.address, bool(args.value), device_id=args.unit)
+    else:
+        r = c.write_register(args.address, args.value, device_id=args.unit)
+    print(f"exception {r}" if r.isError() else "ok")
+
+
+def flood(args):
+    socks = []
+    for _ in range(args.n):
+        try:
+            socks.append(socket.create_connection(("127.0.0.1", args.port), timeout=1))
+        except OSError:
+            pass
+    time.sleep(1)
+    print(len(socks))
+
+
+p = argparse.ArgumentParser()
+sub = p.add_subparsers(dest="cmd", required=True)
+d = sub.add_parser("device")
+d.add_argument("port", type=int)
+d.add_argument("--unit", type=int, default=1)
+d.add_argument("--di", default="")
+d.add_argument("--size", type=int, default=64)
+d.add_argument("--delay-ms", type=int, default=0)
+for name in ("read", "write"):
+    r = sub.add_parser(name)
+    r.add_argument("port", type=int)
+    r.add_argument("table", choices=["coils", "di", "ir", "hr"])
+    r.add_argument("address", type=int)
+    r.add_argument("count" if name == "read" else "value", type=int)
+    r.add_argument("--unit", type=int, default=1)
+f = sub.add_parser("flood")
+f.add_argument("port", type=int)
+f.add_argument("n", type=int)
+a = p.parse_args()
+{"device": device, "read": read, "write": write, "flood": flood}[a.cmd](a)

@@ -53,7 +53,7 @@ fn io_file(dir: &Path, port: u16, extra: &str) -> PathBuf {
     std::fs::write(
         &path,
         format!(
-            "start_timeout = \"1s\"\n[[device]]\nname = \"cell\"\ntransport = \"modbus-tcp\"\naddress = \"127.0.0.1:{port}\"\ntimeout = \"50ms\"\nreconnect_min = \"50ms\"\nreconnect_max = \"200ms\"\nserves = [{{ from = \"%IX0.0\", to = \"%IX0.7\" }}, {{ from = \"%QX0.0\", to = \"%QX0.7\" }}]\n{extra}"
+            "start_timeout = \"1s\"\n[[device]]\nname = \"cell\"\ntransport = \"modbus-tcp\"\naddress = \"127.0.0.1:{port}\"\ntimeout = \"500ms\"\nreconnect_min = \"50ms\"\nreconnect_max = \"200ms\"\nserves = [{{ from = \"%IX0.0\", to = \"%IX0.7\" }}, {{ from = \"%QX0.0\", to = \"%QX0.7\" }}]\n{extra}"
         ),
     )
     .expect("write io.toml");
@@ -193,7 +193,7 @@ fn a_device_that_answers_late_goes_stale_and_its_inputs_take_their_safe_values()
     let text = std::fs::read_to_string(&io).unwrap();
     std::fs::write(
         &io,
-        text.replace("timeout = \"50ms\"", "timeout = \"20ms\""),
+        text.replace("timeout = \"500ms\"", "timeout = \"20ms\""),
     )
     .unwrap();
     let s = summary(&run(&io, dir.path(), "1s").output().unwrap());

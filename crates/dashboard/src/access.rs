@@ -24,9 +24,9 @@ use std::net::IpAddr;
 use std::sync::Mutex;
 use std::time::{Duration, Instant};
 
-use argon2::password_hash::{PasswordHash, PasswordHashString, PasswordVerifier};
-use argon2::Argon2;
 use axum::http::{header, HeaderMap};
+pub use cetratus_mct::password::hash_password;
+use cetratus_mct::password::HashedPassword;
 
 /// The name of the session cookie.
 pub const COOKIE: &str = "cetratus_session";
@@ -159,14 +159,14 @@ struct Limits {
 
 /// The dashboard's accounts, sessions and login links.
 pub(crate) struct Access {
-    accounts: HashMap<String, PasswordHashString>,
+    accounts: HashMap<String, HashedPassword>,
     hosts: Vec<String>,
     sessions: Mutex<HashMap<String, Session>>,
     links: Mutex<HashMap<String, Instant>>,
     limits: Mutex<Limits>,
     /// Checked when the account does not exist, so that a wrong name costs what a wrong
     /// password does and timing does not tell which names exist.
-    decoy: PasswordHashString,
+    decoy: HashedPassword,
 }
 
 impl std::fmt::Debug for Access {
@@ -199,16 +199,8 @@ impl Access {
             if a.name == LOCAL_ACCOUNT {
                 return Err(AccessError::Reserved);
             }
-            let hash = PasswordHash::new(&a.password_hash)
-                .map_err(|e| e.to_string())
-                .and_then(|h| {
-                    if h.algorithm.as_str().starts_with("argon2") {
-                        Ok(h.serialize())
-                    } else {
-                        Err(format!("the algorithm is `{}`", h.algorithm))
-                    }
-                })
-                .map_err(|reason| AccessError::BadHash {
+            let hash =
+                HashedPassword::parse(&a.password_hash).map_err(|reason| AccessError::BadHash {
                     name: a.name.clone(),
                     reason,
                 })?;
@@ -216,11 +208,7 @@ impl Access {
                 return Err(AccessError::Duplicate(a.name));
             }
         }
-        let decoy = PasswordHash::new(
-            "$argon2id$v=19$m=19456,t=2,p=1$c29tZXNhbHRzb21lc2FsdA$0XzFlcxA4ud8sQUEA0Mh3kydlsDtqHZ2d9LV1Fm5bfg",
-        )
-        .map(|h| h.serialize())
-        .expect("the decoy hash is a valid PHC string");
+        let decoy = HashedPassword::decoy();
         Ok(Access {
             accounts,
             hosts: config
@@ -290,9 +278,7 @@ impl Access {
         let ok = tokio::task::spawn_blocking(move || {
             let known = access.accounts.get(&checked_name);
             let hash = known.unwrap_or(&access.decoy);
-            let right = Argon2::default()
-                .verify_password(password.as_bytes(), &hash.password_hash())
-                .is_ok();
+            let right = hash.verify(password.as_bytes());
             right && known.is_some()
         })
         .await
@@ -440,18 +426,6 @@ pub(crate) fn set_cookie(token: &str) -> String {
 /// The `Set-Cookie` value that ends a session in the browser.
 pub(crate) fn clear_cookie() -> String {
     format!("{COOKIE}=; Path=/; HttpOnly; SameSite=Strict; Max-Age=0")
-}
-
-/// The argon2id hash of `password` with a fresh salt, as a PHC string.
-pub fn hash_password(password: &str) -> Result<String, String> {
-    use argon2::password_hash::{PasswordHasher, SaltString};
-    let mut salt = [0u8; 16];
-    getrandom::fill(&mut salt).map_err(|e| e.to_string())?;
-    let salt = SaltString::encode_b64(&salt).map_err(|e| e.to_string())?;
-    Argon2::default()
-        .hash_password(password.as_bytes(), &salt)
-        .map(|h| h.to_string())
-        .map_err(|e| e.to_string())
 }
 
 #[cfg(test)]

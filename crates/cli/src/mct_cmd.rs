@@ -108,6 +108,7 @@ fn signer(path: &std::path::Path) -> anyhow::Result<cetratus_dashboard::CommandS
                 correlation: r.correlation,
                 timestamp: cetratus_mct::unix_now(),
                 nonce: &nonce,
+                account: Some(r.account),
             };
             let env = cetratus_mct::sign(&signed, r.payload, &key_id, key.signing_key());
             serde_json::to_value(env).unwrap_or(serde_json::Value::Null)

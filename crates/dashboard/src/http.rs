@@ -495,7 +495,15 @@ async fn command(
         Ok(c) => c.to_body(),
         Err(e) => return error(StatusCode::BAD_REQUEST, "malformed", e.to_string()),
     };
-    match app.hub.command(&plc, verb, args, timeout).await {
+    // The guard let only sessions through; the account is who the signed command names.
+    let Some(account) = app.access.account(&headers) else {
+        return error(
+            StatusCode::UNAUTHORIZED,
+            "unauthorised",
+            "log in first".into(),
+        );
+    };
+    match app.hub.command(&plc, verb, args, timeout, &account).await {
         Ok(reply) => Json(reply).into_response(),
         Err(f) => (
             StatusCode::from_u16(f.status).unwrap_or(StatusCode::BAD_GATEWAY),

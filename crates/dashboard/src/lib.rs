@@ -55,6 +55,9 @@ pub struct SignRequest<'a> {
     pub correlation: &'a [u8],
     /// The command's JSON body.
     pub payload: &'a [u8],
+    /// The account of the session that asked for it (`local` for a login link), signed into
+    /// the envelope so the PLC's audit log names the operator and not only the key.
+    pub account: &'a str,
 }
 
 /// The signing function of a [`CommandSigner`]: a request in, an envelope out.

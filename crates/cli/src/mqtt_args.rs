@@ -159,6 +159,7 @@ pub fn start_services(
                 password,
                 signer: None,
                 access: access_config(local),
+                tls: dashboard_tls(local),
             },
         )?)
     } else {
@@ -181,6 +182,14 @@ pub fn start_services(
             broker_url,
         },
     ))
+}
+
+/// The dashboard's TLS certificate and key, from the `[dashboard]` section.
+pub fn dashboard_tls(local: &LocalConfig) -> Option<cetratus_dashboard::DashboardTls> {
+    local
+        .dashboard_tls
+        .clone()
+        .map(|(cert, key)| cetratus_dashboard::DashboardTls { cert, key })
 }
 
 /// Who may log in to the dashboard, from the `[dashboard]` section of the local configuration.

@@ -167,6 +167,8 @@ pub(crate) struct Access {
     /// Checked when the account does not exist, so that a wrong name costs what a wrong
     /// password does and timing does not tell which names exist.
     decoy: HashedPassword,
+    /// The page is served over TLS: cookies are `Secure`, and an `Origin` must be `https://`.
+    secure: bool,
 }
 
 impl std::fmt::Debug for Access {
@@ -190,7 +192,7 @@ pub(crate) enum LoginError {
 
 impl Access {
     /// Checks and keeps the configuration.
-    pub(crate) fn new(config: AccessConfig) -> Result<Self, AccessError> {
+    pub(crate) fn new(config: AccessConfig, secure: bool) -> Result<Self, AccessError> {
         let mut accounts = HashMap::new();
         for a in config.accounts {
             if !valid_name(&a.name) {
@@ -223,6 +225,7 @@ impl Access {
                 by_addr: HashMap::new(),
             }),
             decoy,
+            secure,
         })
     }
 
@@ -353,6 +356,13 @@ impl Access {
         }
     }
 
+    /// The `Set-Cookie` value of a new session: `Secure` when the page is served over TLS, so
+    /// the browser never sends it in clear.
+    pub(crate) fn set_cookie(&self, token: &str) -> String {
+        let secure = if self.secure { "; Secure" } else { "" };
+        format!("{COOKIE}={token}; Path=/; HttpOnly; SameSite=Strict{secure}")
+    }
+
     /// Checks `Host` (every request) and, for a POST, `Origin`; returns what is wrong.
     pub(crate) fn check_origin(&self, headers: &HeaderMap, post: bool) -> Result<(), String> {
         let Some(host) = headers.get(header::HOST).and_then(|h| h.to_str().ok()) else {
@@ -374,9 +384,9 @@ impl Access {
         }
         if let Some(origin) = headers.get(header::ORIGIN) {
             let origin = origin.to_str().unwrap_or("");
+            let scheme = if self.secure { "https://" } else { "http://" };
             let same = origin
-                .strip_prefix("http://")
-                .or_else(|| origin.strip_prefix("https://"))
+                .strip_prefix(scheme)
                 .is_some_and(|o| o.eq_ignore_ascii_case(host));
             if !same {
                 return Err(format!(
@@ -418,11 +428,6 @@ fn session_cookie(headers: &HeaderMap) -> Option<&str> {
         .filter(|v| v.len() == 64 && v.bytes().all(|b| b.is_ascii_hexdigit()))
 }
 
-/// The `Set-Cookie` value that holds a session.
-pub(crate) fn set_cookie(token: &str) -> String {
-    format!("{COOKIE}={token}; Path=/; HttpOnly; SameSite=Strict")
-}
-
 /// The `Set-Cookie` value that ends a session in the browser.
 pub(crate) fn clear_cookie() -> String {
     format!("{COOKIE}=; Path=/; HttpOnly; SameSite=Strict; Max-Age=0")
@@ -434,13 +439,16 @@ mod tests {
     use axum::http::HeaderValue;
 
     fn access(hosts: &[&str]) -> Access {
-        Access::new(AccessConfig {
-            accounts: vec![Account {
-                name: "ops".into(),
-                password_hash: hash_password("right horse").expect("hash"),
-            }],
-            hosts: hosts.iter().map(|h| h.to_string()).collect(),
-        })
+        Access::new(
+            AccessConfig {
+                accounts: vec![Account {
+                    name: "ops".into(),
+                    password_hash: hash_password("right horse").expect("hash"),
+                }],
+                hosts: hosts.iter().map(|h| h.to_string()).collect(),
+            },
+            false,
+        )
         .expect("a valid configuration")
     }
 
@@ -496,13 +504,16 @@ mod tests {
     #[test]
     fn bad_accounts_are_refused_with_what_to_do() {
         let bad = |name: &str, hash: &str| {
-            Access::new(AccessConfig {
-                accounts: vec![Account {
-                    name: name.into(),
-                    password_hash: hash.into(),
-                }],
-                hosts: vec![],
-            })
+            Access::new(
+                AccessConfig {
+                    accounts: vec![Account {
+                        name: name.into(),
+                        password_hash: hash.into(),
+                    }],
+                    hosts: vec![],
+                },
+                false,
+            )
             .map(|_| ())
             .expect_err("refused")
             .to_string()

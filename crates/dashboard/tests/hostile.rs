@@ -28,6 +28,7 @@ fn dashboard(broker: &Mosquitto) -> DashboardHandle {
         password: None,
         signer: None,
         access: AccessConfig::default(),
+        tls: None,
     })
     .expect("the dashboard starts")
 }
@@ -426,6 +427,7 @@ fn guessing_passwords_is_rate_limited_and_never_logs_in() {
             }],
             hosts: vec![],
         },
+        tls: None,
     })
     .expect("the dashboard starts");
     let addr = dash.local_addr();

@@ -140,10 +140,7 @@ fn vernadat_node(
     )?;
     let plc = cetratus_runtime::Plc::new(program, 0, MonotonicStopwatch::boxed());
     let mut config = cetratus_mct::MqttConfig::new(plc_id);
-    config.broker = cetratus_mct::BrokerChoice::Embedded {
-        addr,
-        users: Vec::new(),
-    };
+    config.broker = cetratus_mct::BrokerChoice::Embedded(cetratus_mct::BrokerSettings::open(addr));
     config.publish_period = Duration::from_millis(200);
     let (link, handle) = cetratus_mct::start(config)?;
     handle.wait_connected(Duration::from_secs(10));

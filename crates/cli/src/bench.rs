@@ -169,6 +169,7 @@ pub fn run(args: &BenchArgs) -> anyhow::Result<()> {
                     password: None,
                     signer: None,
                     access: cetratus_dashboard::AccessConfig::default(),
+                    tls: None,
                 },
             )?))
         };

@@ -36,6 +36,7 @@ pub fn run(args: &MctArgs) -> anyhow::Result<()> {
             args.http
         )
     })?;
+    let local = cetratus_node::config::LocalConfig::load(args.config.as_deref())?;
     let d = cetratus_dashboard::serve(cetratus_dashboard::DashboardConfig {
         http,
         broker_url: args.broker.clone(),
@@ -45,9 +46,8 @@ pub fn run(args: &MctArgs) -> anyhow::Result<()> {
             Some(path) => Some(signer(path)?),
             None => None,
         },
-        access: crate::mqtt_args::access_config(&cetratus_node::config::LocalConfig::load(
-            args.config.as_deref(),
-        )?),
+        access: crate::mqtt_args::access_config(&local),
+        tls: crate::mqtt_args::dashboard_tls(&local),
     })?;
     println!(
         "dashboard on {} watching {}; Ctrl-C stops",
@@ -108,6 +108,7 @@ fn signer(path: &std::path::Path) -> anyhow::Result<cetratus_dashboard::CommandS
                 correlation: r.correlation,
                 timestamp: cetratus_mct::unix_now(),
                 nonce: &nonce,
+                account: Some(r.account),
             };
             let env = cetratus_mct::sign(&signed, r.payload, &key_id, key.signing_key());
             serde_json::to_value(env).unwrap_or(serde_json::Value::Null)

@@ -52,6 +52,7 @@ impl MqttArgs {
             self.mqtt.as_deref(),
             self.broker.as_deref(),
             local.users.clone(),
+            local.mqtt_tls.clone(),
             credentials,
         )?;
         c.operator_keys = local.operators.clone();
@@ -120,9 +121,32 @@ pub fn start_services(
     let (link, handle) = cetratus_mct::start(config)?;
     // The embedded broker's own address: with `--mqtt 127.0.0.1:0` it picked its port itself.
     let broker_url = match handle.broker_addr() {
+        Some(addr) if local.mqtt_tls.is_some() => format!("mqtts://{addr}"),
         Some(addr) => format!("mqtt://{addr}"),
         None => mqtt.client_url()?,
     };
+    // The dashboard beside an embedded broker logs in with the login the broker drew for it, on
+    // its loopback port; beside a plant broker, with the PLC's own credentials.
+    let (dashboard_url, user, password) =
+        match (handle.broker_local_addr(), handle.dashboard_login()) {
+            (Some(addr), Some(login)) => (
+                format!("mqtt://{addr}"),
+                Some(login.user),
+                Some(login.password),
+            ),
+            _ => {
+                let creds = mqtt
+                    .user
+                    .clone()
+                    .map(|u| (u, mqtt.password.clone()))
+                    .or_else(|| local.credentials.clone().map(|(u, p)| (u, Some(p))));
+                (
+                    broker_url.clone(),
+                    creds.as_ref().map(|c| c.0.clone()),
+                    creds.and_then(|c| c.1),
+                )
+            }
+        };
     let http: SocketAddr = http
         .parse()
         .with_context(|| format!("--http `{http}`: expected an address such as 127.0.0.1:8080"))?;
@@ -130,11 +154,12 @@ pub fn start_services(
         Some(cetratus_dashboard::serve(
             cetratus_dashboard::DashboardConfig {
                 http,
-                broker_url: broker_url.clone(),
-                user: mqtt.user.clone(),
-                password: mqtt.password.clone(),
+                broker_url: dashboard_url,
+                user,
+                password,
                 signer: None,
                 access: access_config(local),
+                tls: dashboard_tls(local),
             },
         )?)
     } else {
@@ -157,6 +182,14 @@ pub fn start_services(
             broker_url,
         },
     ))
+}
+
+/// The dashboard's TLS certificate and key, from the `[dashboard]` section.
+pub fn dashboard_tls(local: &LocalConfig) -> Option<cetratus_dashboard::DashboardTls> {
+    local
+        .dashboard_tls
+        .clone()
+        .map(|(cert, key)| cetratus_dashboard::DashboardTls { cert, key })
 }
 
 /// Who may log in to the dashboard, from the `[dashboard]` section of the local configuration.

@@ -100,6 +100,7 @@ fn envelope(
         correlation: corr.as_bytes(),
         timestamp: cetratus_mct::unix_now(),
         nonce,
+        account: None,
     };
     serde_json::to_value(sign(&signed, body, &k.key_id(), k.signing_key())).expect("JSON")
 }

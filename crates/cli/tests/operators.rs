@@ -116,7 +116,7 @@ fn with_operator_keys_only_signed_commands_are_carried_out_and_the_audit_log_nam
 
     // The dashboard signs the page's commands with its own operator key; without one the PLC
     // refuses them.
-    let ask_dashboard = |key: Option<&Path>| -> String {
+    let ask_dashboard = |key: Option<&Path>, verb: &str| -> String {
         let http = free_port();
         let mut cmd = Command::new(BIN);
         cmd.args([
@@ -141,7 +141,7 @@ fn with_operator_keys_only_signed_commands_are_carried_out_and_the_audit_log_nam
             let r = cetratus_testkit::http::request(
                 addr,
                 "POST",
-                "/api/ops1/exec_info",
+                &format!("/api/ops1/{verb}"),
                 &[
                     &format!("Host: {addr}"),
                     "Content-Type: application/json",
@@ -158,9 +158,9 @@ fn with_operator_keys_only_signed_commands_are_carried_out_and_the_audit_log_nam
         }
         reply
     };
-    let signed = ask_dashboard(Some(&key));
+    let signed = ask_dashboard(Some(&key), "exec_info");
     assert!(signed.contains("\"ok\":true"), "{signed}");
-    let unsigned = ask_dashboard(None);
+    let unsigned = ask_dashboard(None, "exec_info");
     assert!(unsigned.contains("unauthorised"), "{unsigned}");
 
     // The audit log says who: the operator's key id.
@@ -178,4 +178,21 @@ fn with_operator_keys_only_signed_commands_are_carried_out_and_the_audit_log_nam
         .find(|l| l.contains("load_accepted"))
         .unwrap_or_else(|| panic!("no load_accepted in the audit log:\n{audit}"));
     assert!(line.contains(&format!("mqtt:{key_id}")), "{line}");
+
+    // A command from the page names the key and the session's account (`local`: a login link).
+    let aborted = ask_dashboard(Some(&key), "abort");
+    assert!(aborted.contains("\"ok\":true"), "{aborted}");
+    let end = Instant::now() + Duration::from_secs(10);
+    while Instant::now() < end {
+        audit = std::fs::read_to_string(state.join("audit.jsonl")).unwrap_or_default();
+        if audit.contains("\"aborted\"") {
+            break;
+        }
+        std::thread::sleep(Duration::from_millis(100));
+    }
+    let line = audit
+        .lines()
+        .find(|l| l.contains("\"aborted\""))
+        .unwrap_or_else(|| panic!("no aborted in the audit log:\n{audit}"));
+    assert!(line.contains(&format!("\"mqtt:{key_id}/local\"")), "{line}");
 }

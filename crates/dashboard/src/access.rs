@@ -24,9 +24,9 @@ use std::net::IpAddr;
 use std::sync::Mutex;
 use std::time::{Duration, Instant};
 
-use argon2::password_hash::{PasswordHash, PasswordHashString, PasswordVerifier};
-use argon2::Argon2;
 use axum::http::{header, HeaderMap};
+pub use cetratus_mct::password::hash_password;
+use cetratus_mct::password::HashedPassword;
 
 /// The name of the session cookie.
 pub const COOKIE: &str = "cetratus_session";
@@ -159,14 +159,16 @@ struct Limits {
 
 /// The dashboard's accounts, sessions and login links.
 pub(crate) struct Access {
-    accounts: HashMap<String, PasswordHashString>,
+    accounts: HashMap<String, HashedPassword>,
     hosts: Vec<String>,
     sessions: Mutex<HashMap<String, Session>>,
     links: Mutex<HashMap<String, Instant>>,
     limits: Mutex<Limits>,
     /// Checked when the account does not exist, so that a wrong name costs what a wrong
     /// password does and timing does not tell which names exist.
-    decoy: PasswordHashString,
+    decoy: HashedPassword,
+    /// The page is served over TLS: cookies are `Secure`, and an `Origin` must be `https://`.
+    secure: bool,
 }
 
 impl std::fmt::Debug for Access {
@@ -190,7 +192,7 @@ pub(crate) enum LoginError {
 
 impl Access {
     /// Checks and keeps the configuration.
-    pub(crate) fn new(config: AccessConfig) -> Result<Self, AccessError> {
+    pub(crate) fn new(config: AccessConfig, secure: bool) -> Result<Self, AccessError> {
         let mut accounts = HashMap::new();
         for a in config.accounts {
             if !valid_name(&a.name) {
@@ -199,16 +201,8 @@ impl Access {
             if a.name == LOCAL_ACCOUNT {
                 return Err(AccessError::Reserved);
             }
-            let hash = PasswordHash::new(&a.password_hash)
-                .map_err(|e| e.to_string())
-                .and_then(|h| {
-                    if h.algorithm.as_str().starts_with("argon2") {
-                        Ok(h.serialize())
-                    } else {
-                        Err(format!("the algorithm is `{}`", h.algorithm))
-                    }
-                })
-                .map_err(|reason| AccessError::BadHash {
+            let hash =
+                HashedPassword::parse(&a.password_hash).map_err(|reason| AccessError::BadHash {
                     name: a.name.clone(),
                     reason,
                 })?;
@@ -216,11 +210,7 @@ impl Access {
                 return Err(AccessError::Duplicate(a.name));
             }
         }
-        let decoy = PasswordHash::new(
-            "$argon2id$v=19$m=19456,t=2,p=1$c29tZXNhbHRzb21lc2FsdA$0XzFlcxA4ud8sQUEA0Mh3kydlsDtqHZ2d9LV1Fm5bfg",
-        )
-        .map(|h| h.serialize())
-        .expect("the decoy hash is a valid PHC string");
+        let decoy = HashedPassword::decoy();
         Ok(Access {
             accounts,
             hosts: config
@@ -235,6 +225,7 @@ impl Access {
                 by_addr: HashMap::new(),
             }),
             decoy,
+            secure,
         })
     }
 
@@ -281,7 +272,7 @@ impl Access {
         name: String,
         password: String,
     ) -> Result<String, LoginError> {
-        if !self.may_try(from) {
+        if !self.may_try(from, Instant::now()) {
             tracing::warn!(%from, account = %name.escape_debug(), "dashboard login refused: too many attempts");
             return Err(LoginError::TooMany);
         }
@@ -290,9 +281,7 @@ impl Access {
         let ok = tokio::task::spawn_blocking(move || {
             let known = access.accounts.get(&checked_name);
             let hash = known.unwrap_or(&access.decoy);
-            let right = Argon2::default()
-                .verify_password(password.as_bytes(), &hash.password_hash())
-                .is_ok();
+            let right = hash.verify(password.as_bytes());
             right && known.is_some()
         })
         .await
@@ -305,8 +294,8 @@ impl Access {
         self.open_session(&name).ok_or(LoginError::Wrong)
     }
 
-    fn may_try(&self, from: IpAddr) -> bool {
-        let now = Instant::now();
+    /// Whether a login attempt from `from` at `now` is within the rate limits; takes its token.
+    fn may_try(&self, from: IpAddr, now: Instant) -> bool {
         let mut limits = self.limits.lock().unwrap_or_else(|e| e.into_inner());
         if limits.by_addr.len() >= MAX_TRACKED_ADDRS && !limits.by_addr.contains_key(&from) {
             limits.by_addr.clear();
@@ -367,6 +356,13 @@ impl Access {
         }
     }
 
+    /// The `Set-Cookie` value of a new session: `Secure` when the page is served over TLS, so
+    /// the browser never sends it in clear.
+    pub(crate) fn set_cookie(&self, token: &str) -> String {
+        let secure = if self.secure { "; Secure" } else { "" };
+        format!("{COOKIE}={token}; Path=/; HttpOnly; SameSite=Strict{secure}")
+    }
+
     /// Checks `Host` (every request) and, for a POST, `Origin`; returns what is wrong.
     pub(crate) fn check_origin(&self, headers: &HeaderMap, post: bool) -> Result<(), String> {
         let Some(host) = headers.get(header::HOST).and_then(|h| h.to_str().ok()) else {
@@ -388,9 +384,9 @@ impl Access {
         }
         if let Some(origin) = headers.get(header::ORIGIN) {
             let origin = origin.to_str().unwrap_or("");
+            let scheme = if self.secure { "https://" } else { "http://" };
             let same = origin
-                .strip_prefix("http://")
-                .or_else(|| origin.strip_prefix("https://"))
+                .strip_prefix(scheme)
                 .is_some_and(|o| o.eq_ignore_ascii_case(host));
             if !same {
                 return Err(format!(
@@ -432,26 +428,9 @@ fn session_cookie(headers: &HeaderMap) -> Option<&str> {
         .filter(|v| v.len() == 64 && v.bytes().all(|b| b.is_ascii_hexdigit()))
 }
 
-/// The `Set-Cookie` value that holds a session.
-pub(crate) fn set_cookie(token: &str) -> String {
-    format!("{COOKIE}={token}; Path=/; HttpOnly; SameSite=Strict")
-}
-
 /// The `Set-Cookie` value that ends a session in the browser.
 pub(crate) fn clear_cookie() -> String {
     format!("{COOKIE}=; Path=/; HttpOnly; SameSite=Strict; Max-Age=0")
-}
-
-/// The argon2id hash of `password` with a fresh salt, as a PHC string.
-pub fn hash_password(password: &str) -> Result<String, String> {
-    use argon2::password_hash::{PasswordHasher, SaltString};
-    let mut salt = [0u8; 16];
-    getrandom::fill(&mut salt).map_err(|e| e.to_string())?;
-    let salt = SaltString::encode_b64(&salt).map_err(|e| e.to_string())?;
-    Argon2::default()
-        .hash_password(password.as_bytes(), &salt)
-        .map(|h| h.to_string())
-        .map_err(|e| e.to_string())
 }
 
 #[cfg(test)]
@@ -460,13 +439,16 @@ mod tests {
     use axum::http::HeaderValue;
 
     fn access(hosts: &[&str]) -> Access {
-        Access::new(AccessConfig {
-            accounts: vec![Account {
-                name: "ops".into(),
-                password_hash: hash_password("right horse").expect("hash"),
-            }],
-            hosts: hosts.iter().map(|h| h.to_string()).collect(),
-        })
+        Access::new(
+            AccessConfig {
+                accounts: vec![Account {
+                    name: "ops".into(),
+                    password_hash: hash_password("right horse").expect("hash"),
+                }],
+                hosts: hosts.iter().map(|h| h.to_string()).collect(),
+            },
+            false,
+        )
         .expect("a valid configuration")
     }
 
@@ -492,43 +474,65 @@ mod tests {
     }
 
     #[test]
-    fn only_a_right_password_opens_a_session_and_guessing_is_rate_limited() {
+    fn only_a_right_password_opens_a_session() {
         let a = std::sync::Arc::new(access(&[]));
         let rt = tokio::runtime::Builder::new_current_thread()
             .enable_all()
             .build()
             .expect("runtime");
-        let ip: IpAddr = "192.0.2.7".parse().expect("ip");
+        let ip = |k: u8| IpAddr::from([192, 0, 2, k]);
         rt.block_on(async {
-            let ok = a.login(ip, "ops".into(), "right horse".into()).await;
-            let token = ok.expect("the right password");
+            let token = a
+                .login(ip(1), "ops".into(), "right horse".into())
+                .await
+                .expect("the right password");
             let h = headers(&[("cookie", &format!("{COOKIE}={token}"))]);
             assert_eq!(a.account(&h).as_deref(), Some("ops"));
-            let mut results = Vec::new();
-            for _ in 0..6 {
-                results.push(a.login(ip, "ops".into(), "wrong".into()).await);
-            }
-            assert_eq!(results[0], Err(LoginError::Wrong));
-            assert!(results.contains(&Err(LoginError::TooMany)), "{results:?}");
-            let nobody = a.login(
-                "192.0.2.8".parse().expect("ip"),
-                "nobody".into(),
-                "right horse".into(),
-            );
-            assert_eq!(nobody.await, Err(LoginError::Wrong));
+            let wrong = a.login(ip(2), "ops".into(), "wrong".into()).await;
+            assert_eq!(wrong, Err(LoginError::Wrong));
+            let nobody = a.login(ip(3), "nobody".into(), "right horse".into()).await;
+            assert_eq!(nobody, Err(LoginError::Wrong));
         });
+    }
+
+    #[test]
+    fn guessing_is_limited_per_address_and_for_everyone_and_the_limit_refills() {
+        let a = access(&[]);
+        let t0 = Instant::now();
+        let one = IpAddr::from([192, 0, 2, 1]);
+        let tries: Vec<bool> = (0..6).map(|_| a.may_try(one, t0)).collect();
+        assert_eq!(
+            tries,
+            [true, true, true, true, false, false],
+            "a burst of 4 per address"
+        );
+        let others: Vec<bool> = (10..30)
+            .map(|k| a.may_try(IpAddr::from([192, 0, 2, k]), t0))
+            .collect();
+        let allowed = others.iter().filter(|ok| **ok).count();
+        assert_eq!(
+            allowed, 4,
+            "a burst of 8 for everyone, 4 of it used already: {others:?}"
+        );
+        assert!(
+            a.may_try(one, t0 + Duration::from_secs(2)),
+            "one more after 2 s"
+        );
     }
 
     #[test]
     fn bad_accounts_are_refused_with_what_to_do() {
         let bad = |name: &str, hash: &str| {
-            Access::new(AccessConfig {
-                accounts: vec![Account {
-                    name: name.into(),
-                    password_hash: hash.into(),
-                }],
-                hosts: vec![],
-            })
+            Access::new(
+                AccessConfig {
+                    accounts: vec![Account {
+                        name: name.into(),
+                        password_hash: hash.into(),
+                    }],
+                    hosts: vec![],
+                },
+                false,
+            )
             .map(|_| ())
             .expect_err("refused")
             .to_string()

@@ -40,6 +40,28 @@ struct App {
     shutdown: watch::Receiver<bool>,
 }
 
+/// The address a request came from, over TCP or TLS.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Peer(std::net::SocketAddr);
+
+impl
+    axum::extract::connect_info::Connected<axum::serve::IncomingStream<'_, tokio::net::TcpListener>>
+    for Peer
+{
+    fn connect_info(s: axum::serve::IncomingStream<'_, tokio::net::TcpListener>) -> Self {
+        Peer(*s.remote_addr())
+    }
+}
+
+impl
+    axum::extract::connect_info::Connected<axum::serve::IncomingStream<'_, crate::tls::TlsListener>>
+    for Peer
+{
+    fn connect_info(s: axum::serve::IncomingStream<'_, crate::tls::TlsListener>) -> Self {
+        Peer(*s.remote_addr())
+    }
+}
+
 /// Serves until `shutdown` turns true, with the MQTT client on the same runtime.
 pub(crate) async fn run(
     listener: std::net::TcpListener,
@@ -48,6 +70,7 @@ pub(crate) async fn run(
     signer: Option<crate::CommandSigner>,
     token: String,
     access: Arc<Access>,
+    tls: Option<tokio_rustls::TlsAcceptor>,
 ) {
     let listener = match tokio::net::TcpListener::from_std(listener) {
         Ok(l) => l,
@@ -78,7 +101,7 @@ pub(crate) async fn run(
         .layer(middleware::from_fn_with_state(app.clone(), guard))
         .layer(DefaultBodyLimit::max(2 << 20))
         .with_state(app)
-        .into_make_service_with_connect_info::<std::net::SocketAddr>();
+        .into_make_service_with_connect_info::<Peer>();
     let mut stop = shutdown.clone();
     let graceful = async move {
         let _ = stop.wait_for(|s| *s).await;
@@ -90,12 +113,28 @@ pub(crate) async fn run(
         let _ = stop.wait_for(|s| *s).await;
         tokio::time::sleep(Duration::from_secs(2)).await;
     };
-    tokio::select! {
-        r = axum::serve(listener, router).with_graceful_shutdown(graceful) => {
-            if let Err(e) = r {
-                tracing::error!(error = %e, "the dashboard's HTTP server stopped");
+    let served = async move {
+        let r = match tls {
+            None => {
+                axum::serve(listener, router)
+                    .with_graceful_shutdown(graceful)
+                    .await
             }
+            Some(acceptor) => match crate::tls::TlsListener::start(listener, acceptor) {
+                Ok(l) => {
+                    axum::serve(l, router)
+                        .with_graceful_shutdown(graceful)
+                        .await
+                }
+                Err(e) => Err(e),
+            },
+        };
+        if let Err(e) = r {
+            tracing::error!(error = %e, "the dashboard's HTTP server stopped");
         }
+    };
+    tokio::select! {
+        _ = served => {}
         _ = deadline => {}
     }
     let _ = tokio::time::timeout(Duration::from_secs(1), mqtt).await;
@@ -168,7 +207,7 @@ async fn login_link(State(app): State<App>, Query(q): Query<LinkQuery>) -> Respo
         Some(session) => (
             StatusCode::SEE_OTHER,
             [
-                (header::SET_COOKIE, access::set_cookie(&session)),
+                (header::SET_COOKIE, app.access.set_cookie(&session)),
                 (header::LOCATION, "/".to_string()),
                 (header::CACHE_CONTROL, "no-store".to_string()),
             ],
@@ -194,7 +233,7 @@ struct Credentials {
 /// `POST /api/login` with `{"account": …, "password": …}`.
 async fn login(
     State(app): State<App>,
-    ConnectInfo(peer): ConnectInfo<std::net::SocketAddr>,
+    ConnectInfo(Peer(peer)): ConnectInfo<Peer>,
     headers: HeaderMap,
     body: Bytes,
 ) -> Response {
@@ -217,7 +256,7 @@ async fn login(
     }
     match app.access.login(peer.ip(), c.account, c.password).await {
         Ok(session) => (
-            [(header::SET_COOKIE, access::set_cookie(&session))],
+            [(header::SET_COOKIE, app.access.set_cookie(&session))],
             Json(json!({"ok": true})),
         )
             .into_response(),
@@ -495,7 +534,15 @@ async fn command(
         Ok(c) => c.to_body(),
         Err(e) => return error(StatusCode::BAD_REQUEST, "malformed", e.to_string()),
     };
-    match app.hub.command(&plc, verb, args, timeout).await {
+    // The guard let only sessions through; the account is who the signed command names.
+    let Some(account) = app.access.account(&headers) else {
+        return error(
+            StatusCode::UNAUTHORIZED,
+            "unauthorised",
+            "log in first".into(),
+        );
+    };
+    match app.hub.command(&plc, verb, args, timeout, &account).await {
         Ok(reply) => Json(reply).into_response(),
         Err(f) => (
             StatusCode::from_u16(f.status).unwrap_or(StatusCode::BAD_GATEWAY),

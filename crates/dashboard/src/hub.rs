@@ -312,6 +312,7 @@ impl Hub {
         verb: Verb,
         body: Value,
         timeout: Option<Duration>,
+        account: &str,
     ) -> Result<Value, CommandFailure> {
         if !self.connected() {
             return Err(failure(
@@ -358,6 +359,7 @@ impl Hub {
                     verb: verb.as_str(),
                     correlation: &corr,
                     payload: body.as_bytes(),
+                    account,
                 };
                 serde_json::json!({ "envelope": (sign.0)(&request) }).to_string()
             }

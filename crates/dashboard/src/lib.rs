@@ -17,6 +17,7 @@
 //!     password: None,
 //!     signer: None,
 //!     access: AccessConfig::default(),
+//!     tls: None,
 //! })?;
 //! println!("dashboard on {}", handle.login_url()?);
 //! handle.stop();
@@ -30,12 +31,14 @@ pub mod access;
 mod http;
 mod hub;
 pub mod store;
+pub mod tls;
 
 use std::net::SocketAddr;
 use std::sync::Arc;
 use std::thread::JoinHandle;
 
 pub use access::{hash_password, AccessConfig, AccessError, Account};
+pub use tls::DashboardTls;
 
 use tokio::sync::watch;
 
@@ -55,6 +58,9 @@ pub struct SignRequest<'a> {
     pub correlation: &'a [u8],
     /// The command's JSON body.
     pub payload: &'a [u8],
+    /// The account of the session that asked for it (`local` for a login link), signed into
+    /// the envelope so the PLC's audit log names the operator and not only the key.
+    pub account: &'a str,
 }
 
 /// The signing function of a [`CommandSigner`]: a request in, an envelope out.
@@ -81,6 +87,8 @@ pub struct DashboardConfig {
     pub signer: Option<CommandSigner>,
     /// Who may log in, and under which host names the dashboard is reached.
     pub access: AccessConfig,
+    /// TLS for the page; required when `http` is not a loopback address.
+    pub tls: Option<DashboardTls>,
 }
 
 /// Everything that can stop the dashboard from starting.
@@ -125,12 +133,30 @@ pub enum DashboardError {
     /// The accounts cannot be used.
     #[error(transparent)]
     Access(#[from] AccessError),
+    /// The dashboard would listen beyond loopback without TLS.
+    #[error(
+        "the dashboard would serve {addr}, beyond this machine, without TLS: its login and session \
+         cookie would cross the network in clear; set `tls_cert` and `tls_key` in [dashboard] of \
+         the local configuration (docs/security.md), or listen on loopback with \
+         `--http 127.0.0.1:{port}`", port = addr.port()
+    )]
+    Exposed {
+        /// The address asked for.
+        addr: SocketAddr,
+    },
+    /// The TLS certificate or key cannot be used.
+    #[error(
+        "cannot serve the dashboard with TLS: {0}; check `tls_cert` (the certificate chain, PEM) \
+         and `tls_key` (its private key, PEM) in [dashboard] of the local configuration"
+    )]
+    Tls(String),
 }
 
 /// The running dashboard; stops it when dropped.
 #[derive(Debug)]
 pub struct DashboardHandle {
     addr: SocketAddr,
+    scheme: &'static str,
     access: Arc<access::Access>,
     shutdown: watch::Sender<bool>,
     thread: Option<JoinHandle<()>>,
@@ -142,9 +168,9 @@ impl DashboardHandle {
         self.addr
     }
 
-    /// The page's URL, `http://<local_addr>/`.
+    /// The page's URL, `http://<local_addr>/` (`https://` under TLS).
     pub fn url(&self) -> String {
-        format!("http://{}/", self.addr)
+        format!("{}://{}/", self.scheme, self.addr)
     }
 
     /// A new one-time login link, `http://<local_addr>/login?token=…`: it logs one browser in,
@@ -154,7 +180,10 @@ impl DashboardHandle {
             .access
             .new_link()
             .map_err(|e| DashboardError::Random(e.to_string()))?;
-        Ok(format!("http://{}/login?token={token}", self.addr))
+        Ok(format!(
+            "{}://{}/login?token={token}",
+            self.scheme, self.addr
+        ))
     }
 
     /// Closes the browsers' streams, stops the HTTP server and disconnects from the broker.
@@ -188,7 +217,15 @@ pub fn serve(config: DashboardConfig) -> Result<DashboardHandle, DashboardError>
     // Names this connection's reply topics; random, so that nobody can answer its commands
     // by guessing where the replies go.
     let token = hub::random_hex(16).map_err(|e| DashboardError::Random(e.to_string()))?;
-    let access = Arc::new(access::Access::new(config.access)?);
+    if !config.http.ip().is_loopback() && config.tls.is_none() {
+        return Err(DashboardError::Exposed { addr: config.http });
+    }
+    let acceptor = match &config.tls {
+        Some(t) => Some(t.acceptor().map_err(DashboardError::Tls)?),
+        None => None,
+    };
+    let scheme = if acceptor.is_some() { "https" } else { "http" };
+    let access = Arc::new(access::Access::new(config.access, acceptor.is_some())?);
     let listener = std::net::TcpListener::bind(config.http).map_err(|source| {
         if source.kind() == std::io::ErrorKind::AddrInUse {
             let mut suggestion = config.http;
@@ -228,11 +265,13 @@ pub fn serve(config: DashboardConfig) -> Result<DashboardHandle, DashboardError>
                 config.signer,
                 token,
                 served,
+                acceptor,
             ))
         })
         .map_err(DashboardError::Thread)?;
     Ok(DashboardHandle {
         addr,
+        scheme,
         access,
         shutdown,
         thread: Some(thread),
@@ -252,6 +291,7 @@ mod tests {
             password: None,
             signer: None,
             access: AccessConfig::default(),
+            tls: None,
         }
     }
 

@@ -396,6 +396,7 @@ async fn operator_loads_u1_then_substitutes_and_primary_flips_in_the_browser() {
         password: None,
         signer: None,
         access: AccessConfig::default(),
+        tls: None,
     })
     .expect("the dashboard starts");
 

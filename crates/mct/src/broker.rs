@@ -1,6 +1,11 @@
 //! The embedded broker: rmqtt in its own thread and Tokio runtime, one TCP port for MQTT 3.1.1
 //! and MQTT 5 clients (rmqtt reads the protocol level of each CONNECT and picks the codec),
-//! retained messages kept in memory, last wills, and user/password from configuration.
+//! retained messages kept in memory, last wills, accounts with argon2 password hashes and an ACL
+//! ([`crate::acl`]), and TLS from the local configuration.
+//!
+//! With TLS the broker listens twice: on the configured address with TLS, and on a loopback port
+//! of its own without it, for the clients of its own process (the PLC's client, the dashboard of
+//! `run`), which log in with secrets drawn at start. The ACL and the logins apply on both.
 //!
 //! It runs inside the PLC's process, so what it keeps for others is the PLC's memory: retained
 //! messages are bounded in bytes ([`RETAINED_BYTES`]), the messages queued for a slow subscriber
@@ -9,6 +14,10 @@
 //! to each subscriber's session through an unbounded channel, so a subscriber that reads slower
 //! than others publish (the PLC parsing 1 MiB commands, the dashboard parsing events) would have
 //! the difference kept here. The PLC's own client is not limited: what it publishes is its own.
+//!
+//! An account's password is checked with argon2 on one blocking thread at a time, at most
+//! [`LOGINS_PER_S`] a second: a flood of wrong passwords costs a core at most and never the
+//! internal logins, which compare a random secret.
 
 use std::collections::HashMap;
 use std::net::SocketAddr;
@@ -18,15 +27,14 @@ use std::sync::{Arc, Mutex};
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
+use crate::acl::{Acl, BrokerSettings, Checked, Login, Who, PLC_USER};
+use crate::MctError;
 use async_trait::async_trait;
 use rmqtt::context::ServerContext;
 use rmqtt::hook::{Handler, HookResult, Parameter, ReturnType, Type};
 use rmqtt::retain::{DefaultRetainStorage, RetainStorage};
 use rmqtt::server::MqttServer;
 use rmqtt::types::{AuthResult, Retain, TopicFilter, TopicName};
-use subtle::ConstantTimeEq as _;
-
-use crate::MctError;
 
 /// Largest MQTT packet the embedded broker accepts: above the 1 MiB command limit, so an
 /// oversized command reaches the control plane and gets a `too_large` reply instead of a dropped
@@ -55,6 +63,13 @@ pub const INGRESS_BYTES_PER_S: f64 = 16.0 * (1 << 20) as f64;
 
 /// Bytes that may arrive at once before [`INGRESS_BYTES_PER_S`] applies.
 pub const INGRESS_BURST: f64 = 2.0 * BROKER_MAX_PACKET as f64;
+
+/// Account logins whose password the broker checks per second, for all clients together; past
+/// it (and [`LOGIN_BURST`]) a login is refused without being checked.
+pub const LOGINS_PER_S: f64 = 8.0;
+
+/// Account logins that may arrive at once before [`LOGINS_PER_S`] applies.
+pub const LOGIN_BURST: f64 = 16.0;
 
 /// A token bucket in bytes: `rate` per second, at most `burst` saved up.
 struct Bucket {
@@ -97,15 +112,16 @@ pub const TURNED_AWAY_PROPERTY: &str = "cetratus-turned-away";
 /// PLC still learns where to answer `busy`; any other message over it is refused (dropped; an
 /// MQTT 5 sender at QoS 1 hears `not authorized` with the reason).
 struct Ingress {
-    own_client: Option<String>,
     bucket: Mutex<Bucket>,
     refused: AtomicU64,
 }
 
 impl Ingress {
-    /// Charges `publish` from `client` to the bucket; false when over.
-    fn admit(&self, client: &str, publish: &rmqtt::types::Publish) -> bool {
-        if self.own_client.as_deref() == Some(client) {
+    /// Charges `publish` from the client `client`, logged in as `user`, to the bucket; false when
+    /// over.
+    fn admit(&self, client: &str, user: &str, publish: &rmqtt::types::Publish) -> bool {
+        // The user name, not the client id that anyone may claim: the PLC's login is checked.
+        if user == PLC_USER {
             return true;
         }
         let bytes = (publish.payload.len() + publish.topic.len()) as f64;
@@ -143,7 +159,7 @@ impl Handler for Ingress {
         match param {
             // Before the ACL check: a command is charged here, and stripped when over.
             Parameter::MessagePublish(_, from, publish) if is_command(publish) => {
-                if self.admit(&from.id.client_id, publish) {
+                if self.admit(&from.id.client_id, from.id.username_ref(), publish) {
                     return (true, acc);
                 }
                 let mut stripped = (*publish).clone();
@@ -158,7 +174,7 @@ impl Handler for Ingress {
             }
             // Anything else is charged at the ACL check, where it can be refused.
             Parameter::MessagePublishCheckAcl(session, publish) if !is_command(publish) => {
-                if self.admit(&session.id.client_id, publish) {
+                if self.admit(&session.id.client_id, session.id.username_ref(), publish) {
                     return (true, acc);
                 }
                 let refused = rmqtt::types::PublishAclResult::rejected(
@@ -269,42 +285,95 @@ impl RetainStorage for MemRetain {
     }
 }
 
-/// Checks user/password against the configured list.
-struct Users(Arc<Vec<(String, String)>>);
-
-// Constant time in the contents, so the time taken does not reveal how much of a password
-// matched; only the length can show.
-fn same(a: &[u8], b: &[u8]) -> bool {
-    a.ct_eq(b).into()
+/// Checks logins: the internal ones against their secrets at once, an account's password with
+/// argon2 on a blocking thread, one at a time and at most [`LOGINS_PER_S`] a second.
+struct Auth {
+    acl: Arc<Acl>,
+    one_at_a_time: tokio::sync::Semaphore,
+    rate: Mutex<Bucket>,
 }
 
 #[async_trait]
-impl Handler for Users {
+impl Handler for Auth {
     async fn hook(&self, param: &Parameter, acc: Option<HookResult>) -> ReturnType {
         let Parameter::ClientAuthenticate(info) = param else {
             return (true, acc);
         };
-        let user = info
-            .username()
-            .map(|u| u.as_bytes().to_vec())
-            .unwrap_or_default();
+        let user = info.username().map(|u| u.to_string()).unwrap_or_default();
         let pass = info.password().map(|p| p.to_vec()).unwrap_or_default();
-        let ok = self
-            .0
-            .iter()
-            .any(|(u, p)| same(u.as_bytes(), &user) & same(p.as_bytes(), &pass));
-        let r = if ok {
-            AuthResult::Allow(false, None)
+        let from = info.id().remote_addr;
+        let allow = AuthResult::Allow(false, None);
+        let hash = match self.acl.check(&user, &pass) {
+            Checked::Internal | Checked::Anonymous => {
+                return (false, Some(HookResult::AuthResult(allow)))
+            }
+            Checked::Refused => {
+                tracing::warn!(?from, user = %user.escape_debug(), "MQTT login refused: wrong secret for an internal login");
+                let r = AuthResult::BadUsernameOrPassword;
+                return (false, Some(HookResult::AuthResult(r)));
+            }
+            Checked::Account(h) => Some(h.clone()),
+            Checked::Unknown => None,
+        };
+        let taken = self
+            .rate
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .take(1.0, Instant::now());
+        if !taken {
+            tracing::warn!(?from, user = %user.escape_debug(), "MQTT login refused: more than {LOGINS_PER_S} logins a second");
+            return (
+                false,
+                Some(HookResult::AuthResult(AuthResult::NotAuthorized)),
+            );
+        }
+        let known = hash.is_some();
+        let hash = hash.unwrap_or_else(|| self.acl.decoy().clone());
+        let right = match self.one_at_a_time.acquire().await {
+            Ok(_permit) => tokio::task::spawn_blocking(move || hash.verify(&pass))
+                .await
+                .unwrap_or(false),
+            Err(_) => false,
+        };
+        let r = if right && known {
+            tracing::info!(?from, user = %user, "MQTT login");
+            allow
         } else {
+            tracing::warn!(?from, user = %user.escape_debug(), "MQTT login failed: wrong user name or password");
             AuthResult::BadUsernameOrPassword
         };
         (false, Some(HookResult::AuthResult(r)))
     }
 }
 
+/// Refuses what a client may not publish ([`Acl::may_publish`]), before anything is charged.
+struct PublishAcl(Arc<Acl>);
+
+#[async_trait]
+impl Handler for PublishAcl {
+    async fn hook(&self, param: &Parameter, acc: Option<HookResult>) -> ReturnType {
+        let Parameter::MessagePublishCheckAcl(session, publish) = param else {
+            return (true, acc);
+        };
+        let who = self.0.who(session.id.username.as_deref());
+        match self.0.may_publish(who, &publish.topic) {
+            Ok(()) => (true, acc),
+            Err(why) => {
+                if who != Who::Anonymous || !self.0.anonymous() {
+                    tracing::warn!(topic = %publish.topic, user = %session.id.username_ref(), "the embedded broker refused a publish: {why}");
+                }
+                let refused = rmqtt::types::PublishAclResult::rejected(false, Some(why.into()));
+                (false, Some(HookResult::PublishAclResult(refused)))
+            }
+        }
+    }
+}
+
 /// A running embedded broker; stops when dropped.
 pub struct EmbeddedBroker {
     addr: SocketAddr,
+    local: SocketAddr,
+    acl: Arc<Acl>,
     stop: Option<std::sync::mpsc::Sender<()>>,
     thread: Option<JoinHandle<()>>,
 }
@@ -313,64 +382,112 @@ impl std::fmt::Debug for EmbeddedBroker {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.debug_struct("EmbeddedBroker")
             .field("addr", &self.addr)
+            .field("local", &self.local)
             .finish()
     }
 }
 
+/// One rmqtt listener on `addr`, with TLS when `tls` names its files.
+async fn listener(
+    addr: SocketAddr,
+    anonymous: bool,
+    tls: Option<&crate::acl::BrokerTls>,
+) -> Result<rmqtt::net::Listener, MctError> {
+    let b = rmqtt::net::Builder::new()
+        .name("cetratus")
+        .laddr(addr)
+        // A restart must not wait for the last run's connections to leave TIME_WAIT; a live
+        // listener on the port is still refused.
+        .reuseaddr(Some(true))
+        .max_packet_size(BROKER_MAX_PACKET)
+        .max_mqueue_len(SESSION_QUEUE)
+        .max_inflight(NonZeroU16::new(SESSION_INFLIGHT).unwrap_or(NonZeroU16::MIN))
+        .max_connections(MAX_CLIENTS)
+        .handshake_timeout(Duration::from_secs(10))
+        .allow_anonymous(anonymous);
+    match tls {
+        None => b
+            .bind()
+            .and_then(|l| l.tcp())
+            .map_err(|e| bind_error(addr, e)),
+        Some(t) => {
+            // rmqtt reads the files itself and says little about which one failed: check first.
+            for (what, path) in [("tls_cert", &t.cert), ("tls_key", &t.key)] {
+                std::fs::metadata(path).map_err(|e| MctError::Tls {
+                    addr,
+                    reason: format!("{what} {}: {e}", path.display()),
+                })?;
+            }
+            let l = b
+                .tls_cert(Some(t.cert.display().to_string()))
+                .tls_key(Some(t.key.display().to_string()))
+                .bind()
+                .map_err(|e| bind_error(addr, e))?;
+            l.tls().map_err(|e| MctError::Tls {
+                addr,
+                reason: format!("{e:#}"),
+            })
+        }
+    }
+}
+
 impl EmbeddedBroker {
-    /// Starts a broker on `addr`; with a non-empty `users`, clients must log in as one of them.
+    /// Starts an anonymous broker on `addr` for the PLC `plc`: loopback only, anyone may command.
     /// Port 0 picks a free port (see [`EmbeddedBroker::addr`]).
-    pub fn start(addr: SocketAddr, users: Vec<(String, String)>) -> Result<Self, MctError> {
-        Self::start_for(addr, users, None)
+    pub fn start(addr: SocketAddr, plc: &str) -> Result<Self, MctError> {
+        Self::start_with(BrokerSettings::open(addr), plc)
     }
 
-    /// [`EmbeddedBroker::start`] for the PLC whose MQTT client connects as `own_client`: what
-    /// that client publishes is not limited to [`INGRESS_BYTES_PER_S`].
-    pub fn start_for(
-        addr: SocketAddr,
-        users: Vec<(String, String)>,
-        own_client: Option<&str>,
-    ) -> Result<Self, MctError> {
-        let addr = if addr.port() == 0 {
-            free_port(addr)?
+    /// Starts a broker for the PLC `plc` with accounts and TLS as `settings` say. Beyond loopback
+    /// it refuses to start without TLS and accounts ([`MctError::Exposed`]).
+    pub fn start_with(settings: BrokerSettings, plc: &str) -> Result<Self, MctError> {
+        settings.check_exposure()?;
+        let acl = Arc::new(Acl::new(plc, &settings.accounts)?);
+        let anonymous = acl.anonymous();
+        let addr = if settings.addr.port() == 0 {
+            free_port(settings.addr)?
         } else {
-            addr
+            settings.addr
         };
         let rt = tokio::runtime::Builder::new_multi_thread()
             .worker_threads(2)
             .thread_name("cetratus-mqtt-broker")
             .enable_all()
             .build()?;
-        let anonymous = users.is_empty();
-        let own_client = own_client.map(str::to_string);
-        let listener = rt
-            .block_on(async {
-                rmqtt::net::Builder::new()
-                    .name("cetratus")
-                    .laddr(addr)
-                    // A restart must not wait for the last run's connections to leave TIME_WAIT;
-                    // a live listener on the port is still refused.
-                    .reuseaddr(Some(true))
-                    .max_packet_size(BROKER_MAX_PACKET)
-                    .max_mqueue_len(SESSION_QUEUE)
-                    .max_inflight(NonZeroU16::new(SESSION_INFLIGHT).unwrap_or(NonZeroU16::MIN))
-                    .max_connections(MAX_CLIENTS)
-                    .allow_anonymous(anonymous)
-                    .bind()
-                    .and_then(|l| l.tcp())
-            })
-            .map_err(|e| bind_error(addr, e))?;
-        let users = Arc::new(users);
+        let tls = settings.tls.as_ref();
+        let public = rt.block_on(listener(addr, anonymous, tls))?;
+        // With TLS, the process's own clients come in on loopback, without it.
+        let own = match tls {
+            Some(_) => {
+                let local = free_port(SocketAddr::from(([127, 0, 0, 1], 0)))?;
+                Some((local, rt.block_on(listener(local, anonymous, None))?))
+            }
+            None => None,
+        };
+        let local = own.as_ref().map_or(addr, |(a, _)| *a);
+        let hooks = acl.clone();
         let server = rt.block_on(async move {
             let scx = ServerContext::new().build().await;
             *scx.extends.retain_mut().await = Box::new(MemRetain::new());
             let reg = scx.extends.hook_mgr().register();
-            if !users.is_empty() {
-                reg.add(Type::ClientAuthenticate, Box::new(Users(users)))
-                    .await;
-            }
+            reg.add(
+                Type::ClientAuthenticate,
+                Box::new(Auth {
+                    acl: hooks.clone(),
+                    one_at_a_time: tokio::sync::Semaphore::new(1),
+                    rate: Mutex::new(Bucket::new(LOGINS_PER_S, LOGIN_BURST, Instant::now())),
+                }),
+            )
+            .await;
+            // rmqtt runs a type's hooks from the highest priority down: the ACL before the
+            // ingress budget, so a refused publish is not charged.
+            reg.add_priority(
+                Type::MessagePublishCheckAcl,
+                10,
+                Box::new(PublishAcl(hooks)),
+            )
+            .await;
             let ingress = Arc::new(Ingress {
-                own_client,
                 bucket: Mutex::new(Bucket::new(
                     INGRESS_BYTES_PER_S,
                     INGRESS_BURST,
@@ -383,9 +500,11 @@ impl EmbeddedBroker {
             reg.add(Type::MessagePublishCheckAcl, Box::new(Shared(ingress)))
                 .await;
             reg.start().await;
-            MqttServer::new(scx)
-                .listener_by_id(listener, addr.port())
-                .build()
+            let mut server = MqttServer::new(scx).listener_by_id(public, addr.port());
+            if let Some((local, l)) = own {
+                server = server.listener_by_id(l, local.port());
+            }
+            server.build()
         });
         rt.spawn(async move {
             if let Err(e) = server.run().await {
@@ -402,9 +521,27 @@ impl EmbeddedBroker {
             })?;
         Ok(EmbeddedBroker {
             addr,
+            local,
+            acl,
             stop: Some(stop),
             thread: Some(thread),
         })
+    }
+
+    /// Where the clients of this process connect, without TLS: a loopback port of its own when
+    /// the broker serves TLS, else [`EmbeddedBroker::addr`].
+    pub fn local_addr(&self) -> SocketAddr {
+        self.local
+    }
+
+    /// The login of the PLC's own client, drawn at start.
+    pub fn plc_login(&self) -> &Login {
+        self.acl.plc_login()
+    }
+
+    /// The login of the dashboard in the PLC's process, drawn at start.
+    pub fn dashboard_login(&self) -> &Login {
+        self.acl.dashboard_login()
     }
 
     /// The address it listens on.
@@ -453,7 +590,7 @@ fn bind_error(addr: SocketAddr, e: rmqtt::Error) -> MctError {
 
 #[cfg(test)]
 mod tests {
-    use super::{same, Bucket, MemRetain, RETAINED_BYTES};
+    use super::{Bucket, MemRetain, RETAINED_BYTES};
     use std::time::{Duration, Instant};
 
     #[test]
@@ -487,17 +624,5 @@ mod tests {
         assert!(r.book("t/4", 10));
         assert!(r.book("t/1", 0), "a deletion always passes");
         assert!(r.book("t/5", big));
-    }
-
-    #[test]
-    fn same_is_true_only_for_equal_bytes_whatever_the_lengths() {
-        assert!(same(b"", b""));
-        assert!(same(b"secret", b"secret"));
-        assert!(!same(b"secret", b"secreT"));
-        assert!(!same(b"secret", b"xecret"));
-        assert!(!same(b"secret", b"secret!"));
-        assert!(!same(b"secret!", b"secret"));
-        assert!(!same(b"secret", b""));
-        assert!(!same(b"", b"secret"));
     }
 }

@@ -309,6 +309,7 @@ impl Session {
             correlation,
             timestamp: unix_now(),
             nonce: &nonce,
+            account: None,
         };
         let env = sign(&signed, &inner, &k.id, &k.key);
         serde_json::to_vec(&serde_json::json!({ "envelope": env }))

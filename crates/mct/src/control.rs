@@ -91,6 +91,8 @@ pub struct IncomingCommand {
     pub reply: ReplyHandle,
     /// The operator key that signed it, for the audit log (`None` when keys are not configured).
     pub key_id: Option<String>,
+    /// The account the signer acted for, as the signed envelope names it (a dashboard login).
+    pub account: Option<String>,
 }
 
 /// A command turned down before reaching the PLC: the reply (if the sender said where) and the
@@ -248,8 +250,8 @@ impl ControlPlane {
             }
             (Ok(_), Some(o)) => o.clone(),
         };
-        let (mut body, key_id) = match self.keys.as_mut() {
-            None => (obj, None),
+        let (mut body, key_id, account) = match self.keys.as_mut() {
+            None => (obj, None, None),
             Some(keys) => {
                 let Some(env) = obj.get("envelope") else {
                     return Err(reject(
@@ -279,7 +281,7 @@ impl ControlPlane {
                     (None, Some(c)) => c.to_string().into_bytes(),
                     (None, None) => Vec::new(),
                 };
-                let (inner, key_id) = keys
+                let (inner, key_id, account) = keys
                     .verify(
                         self.topics.plc().as_str(),
                         verb.as_str(),
@@ -295,7 +297,7 @@ impl ControlPlane {
                     )
                 })?;
                 match inner {
-                    Value::Object(o) => (o, Some(key_id)),
+                    Value::Object(o) => (o, Some(key_id), account),
                     _ => {
                         return Err(reject(
                             ErrorCode::Malformed,
@@ -319,6 +321,7 @@ impl ControlPlane {
             request,
             reply: handle,
             key_id,
+            account,
         })
     }
 
@@ -365,12 +368,17 @@ impl ControlPlane {
 
     /// The audit event of an accepted command.
     pub fn accepted_event(cmd: &IncomingCommand) -> EventMsg {
+        let mut detail = json!({"verb": cmd.reply.verb, "request_id": cmd.reply.request_id, "key_id": cmd.key_id});
+        // Only a signed envelope that names an account adds it, so the older form stands.
+        if let (Some(a), Some(d)) = (&cmd.account, detail.as_object_mut()) {
+            d.insert("account".into(), json!(a));
+        }
         EventMsg {
             cycle: None,
             time_us: None,
             kind: "command_received".into(),
             message: format!("{} received", cmd.reply.verb),
-            detail: json!({"verb": cmd.reply.verb, "request_id": cmd.reply.request_id, "key_id": cmd.key_id}),
+            detail,
         }
     }
 }
@@ -517,6 +525,7 @@ mod tests {
             correlation: b"corr-1",
             timestamp: 100,
             nonce: "n-123456",
+            account: None,
         };
         let env = crate::envelope::sign(&signed, b"{}", "op", &sk);
         let payload = serde_json::to_vec(&json!({"envelope": env})).expect("serialisable");
@@ -596,6 +605,7 @@ mod tests {
             correlation: b"",
             timestamp: 100,
             nonce: "n-654321",
+            account: None,
         };
         let env = crate::envelope::sign(&signed, b"{}", "op", &sk);
         let outside = json!({"envelope": env, "force": true});

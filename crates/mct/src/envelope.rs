@@ -8,6 +8,12 @@
 //! the verb, so a signed `remove` cannot become a `substitute`; the correlation data, so a
 //! captured command cannot be re-sent to steer someone else's pending request; the nonce, tracked
 //! per key, so the same command cannot be replayed inside the window.
+//!
+//! An envelope may also name the `account` of the operator the signing tool acted for (the
+//! dashboard signs with one key for every logged-in operator). It is signed as one more line,
+//! `account:<name>`, after the nonce; an envelope without it signs exactly what version 2 always
+//! signed, so envelopes of older clients stay valid. Neither the nonce nor the account may hold a
+//! line end, so no two envelopes sign the same bytes.
 
 use std::collections::{BTreeMap, HashMap};
 use std::time::Duration;
@@ -42,6 +48,10 @@ pub struct Envelope {
     pub nonce: String,
     /// The ed25519 signature of [`signing_message`], base64.
     pub signature: String,
+    /// The account the signing tool acted for (a dashboard login), signed; absent for a tool
+    /// that signs for its own key only.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub account: Option<String>,
 }
 
 /// What a signature binds a command to, besides its payload.
@@ -58,17 +68,31 @@ pub struct Signed<'a> {
     pub timestamp: u64,
     /// The nonce.
     pub nonce: &'a str,
+    /// The account the command is signed for, if any: 1 to 64 letters, digits, `.`, `_`, `-`.
+    pub account: Option<&'a str>,
+}
+
+/// Whether `name` may stand as an envelope's account: what dashboard accounts are named.
+pub fn valid_account(name: &str) -> bool {
+    (1..=64).contains(&name.len())
+        && name
+            .bytes()
+            .all(|b| b.is_ascii_alphanumeric() || matches!(b, b'.' | b'_' | b'-'))
 }
 
 /// The bytes an operator signs: one field a line, binary fields in hex.
 pub fn signing_message(s: &Signed<'_>, payload: &[u8]) -> Vec<u8> {
     let digest = hex::encode(Sha256::digest(payload));
     let correlation = hex::encode(s.correlation);
-    format!(
+    let mut m = format!(
         "{CONTEXT}\n{}\n{}\n{digest}\n{correlation}\n{}\n{}",
         s.plc, s.verb, s.timestamp, s.nonce
-    )
-    .into_bytes()
+    );
+    if let Some(a) = s.account {
+        m.push_str("\naccount:");
+        m.push_str(a);
+    }
+    m.into_bytes()
 }
 
 /// Signs a command body: what an operator tool (or a test) does.
@@ -82,6 +106,7 @@ pub fn sign(s: &Signed<'_>, payload: &[u8], key_id: &str, key: &SigningKey) -> E
         timestamp: s.timestamp,
         nonce: s.nonce.to_string(),
         signature: b64.encode(sig.to_bytes()),
+        account: s.account.map(str::to_string),
     }
 }
 
@@ -109,6 +134,9 @@ pub fn parse_envelope(v: &serde_json::Value) -> Result<Envelope, (ErrorCode, Str
     serde_json::from_value(v.clone())
         .map_err(|e| (ErrorCode::Malformed, format!("bad envelope: {e}")))
 }
+
+/// What a verified envelope yields: the signed body, the key id and the account it names.
+pub type Verified = (Vec<u8>, String, Option<String>);
 
 /// The operator keys and the nonces seen inside the replay window.
 #[derive(Debug, Clone)]
@@ -158,7 +186,7 @@ impl OperatorKeys {
     }
 
     /// Checks an envelope for `verb` to PLC `plc` with the request's `correlation` data, at Unix
-    /// time `now_s`; returns the signed body and the key id.
+    /// time `now_s`; returns the signed body, the key id and the account it names.
     pub fn verify(
         &mut self,
         plc: &str,
@@ -166,14 +194,25 @@ impl OperatorKeys {
         correlation: &[u8],
         env: &Envelope,
         now_s: u64,
-    ) -> Result<(Vec<u8>, String), (ErrorCode, String)> {
+    ) -> Result<Verified, (ErrorCode, String)> {
         let unauth = |m: String| (ErrorCode::Unauthorised, m);
         let key = self
             .keys
             .get(&env.key_id)
             .ok_or_else(|| unauth(format!("unknown operator key `{}`", env.key_id)))?;
-        if !(8..=64).contains(&env.nonce.len()) {
-            return Err(unauth("the nonce must be 8 to 64 characters".into()));
+        if !(8..=64).contains(&env.nonce.len()) || !env.nonce.bytes().all(|b| b.is_ascii_graphic())
+        {
+            return Err(unauth(
+                "the nonce must be 8 to 64 printable ASCII characters".into(),
+            ));
+        }
+        if let Some(a) = &env.account {
+            if !valid_account(a) {
+                return Err(unauth(
+                    "the envelope's account must be 1 to 64 letters, digits, `.`, `_` or `-`"
+                        .into(),
+                ));
+            }
         }
         if env.timestamp.abs_diff(now_s) > self.window_s {
             return Err(unauth(format!(
@@ -199,6 +238,7 @@ impl OperatorKeys {
             correlation,
             timestamp: env.timestamp,
             nonce: &env.nonce,
+            account: env.account.as_deref(),
         };
         key.verify(&signing_message(&signed, &payload), &sig)
             .map_err(|_| {
@@ -222,7 +262,7 @@ impl OperatorKeys {
             ));
         }
         self.seen.insert(seen, env.timestamp);
-        Ok((payload, env.key_id.clone()))
+        Ok((payload, env.key_id.clone(), env.account.clone()))
     }
 }
 
@@ -244,6 +284,7 @@ mod tests {
             correlation: b"c-1",
             timestamp: ts,
             nonce,
+            account: None,
         }
     }
 
@@ -253,8 +294,43 @@ mod tests {
         let env = sign(&signed("remove", 1000, "nonce-0001"), b"{}", "op1", &sk);
         assert_eq!(
             k.verify("cell1", "remove", b"c-1", &env, 1010),
-            Ok((b"{}".to_vec(), "op1".to_string()))
+            Ok((b"{}".to_vec(), "op1".to_string(), None))
         );
+    }
+
+    #[test]
+    fn the_account_is_signed_and_cannot_be_changed_added_or_removed() {
+        let (mut k, sk) = keys();
+        let s = Signed {
+            account: Some("alice"),
+            ..signed("abort", 1000, "nonce-acct-1")
+        };
+        let env = sign(&s, b"{}", "op1", &sk);
+        assert_eq!(
+            k.verify("cell1", "abort", b"c-1", &env, 1000),
+            Ok((b"{}".to_vec(), "op1".to_string(), Some("alice".to_string())))
+        );
+        let s = Signed {
+            account: Some("alice"),
+            ..signed("abort", 1000, "nonce-acct-2")
+        };
+        let mut changed = sign(&s, b"{}", "op1", &sk);
+        changed.account = Some("bob".into());
+        let mut removed = changed.clone();
+        removed.account = None;
+        let mut added = sign(&signed("abort", 1000, "nonce-acct-3"), b"{}", "op1", &sk);
+        added.account = Some("alice".into());
+        for env in [changed, removed, added] {
+            assert_eq!(
+                k.verify("cell1", "abort", b"c-1", &env, 1000)
+                    .map_err(|e| e.0),
+                Err(ErrorCode::Unauthorised),
+                "{env:?}"
+            );
+        }
+        let mut newline = sign(&signed("abort", 1000, "nonce-acct-4"), b"{}", "op1", &sk);
+        newline.account = Some("a\nb".into());
+        assert!(k.verify("cell1", "abort", b"c-1", &newline, 1000).is_err());
     }
 
     #[test]

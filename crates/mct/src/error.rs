@@ -23,6 +23,44 @@ pub enum MctError {
         /// What the broker said.
         reason: String,
     },
+    /// The embedded broker would listen beyond loopback without what that needs.
+    #[error(
+        "the embedded MQTT broker would listen on {addr}, beyond this machine, without {missing}: \
+         anyone on the network could read and command the PLC; set `tls_cert` and `tls_key` and at \
+         least one account in `[mqtt] users` of the local configuration (docs/security.md), or \
+         listen on loopback with `--mqtt 127.0.0.1:{port}`", port = addr.port()
+    )]
+    Exposed {
+        /// The address asked for.
+        addr: SocketAddr,
+        /// What is missing: TLS, accounts, or both.
+        missing: &'static str,
+    },
+    /// An account of `[mqtt] users` cannot be used.
+    #[error("[mqtt] users: the account `{name}`: {reason}")]
+    Account {
+        /// The account's name as written (at most 64 characters of it).
+        name: String,
+        /// What is wrong and what to write instead.
+        reason: String,
+    },
+    /// The embedded broker's TLS certificate or key cannot be used.
+    #[error(
+        "cannot start the embedded MQTT broker with TLS on {addr}: {reason}; check `tls_cert` and \
+         `tls_key` in [mqtt] of the local configuration (PEM files: the certificate chain, and its \
+         private key)"
+    )]
+    Tls {
+        /// The address asked for.
+        addr: SocketAddr,
+        /// What rustls or the file system said.
+        reason: String,
+    },
+    /// The operating system gave no random bytes for the internal logins.
+    #[error(
+        "cannot start the embedded MQTT broker: no random bytes from the operating system ({0})"
+    )]
+    Random(String),
     /// `--broker` is not a usable URL.
     #[error("bad broker URL `{url}`: {reason}; expected mqtt://host:port or mqtts://host:port")]
     BrokerUrl {

@@ -33,6 +33,7 @@
 // Every public item carries a doc line (house style); the compiler keeps us honest.
 #![warn(missing_docs)]
 
+pub mod acl;
 mod broker;
 pub mod budget;
 pub mod client;
@@ -41,8 +42,12 @@ mod envelope;
 mod error;
 mod inbound;
 mod link;
+pub mod password;
 
-pub use broker::{EmbeddedBroker, BROKER_MAX_PACKET, TURNED_AWAY_PROPERTY};
+pub use acl::{BrokerAccount, BrokerSettings, BrokerTls, Login, DASHBOARD_USER, PLC_USER};
+pub use broker::{
+    EmbeddedBroker, BROKER_MAX_PACKET, LOGINS_PER_S, LOGIN_BURST, TURNED_AWAY_PROPERTY,
+};
 pub use control::{
     accepted, refused, unix_now, ControlPlane, IncomingCommand, Outcome, Rejection, ReplyHandle,
     Request,

@@ -16,6 +16,7 @@ use rumqttc::v5::mqttbytes::QoS;
 use rumqttc::v5::{AsyncClient, MqttOptions};
 use rumqttc::Transport;
 
+use crate::acl::{BrokerAccount, BrokerSettings, BrokerTls, Login};
 use crate::broker::{EmbeddedBroker, BROKER_MAX_PACKET};
 use crate::budget::{worth_logging, Budget};
 use crate::control::{ControlPlane, IncomingCommand, Outcome, ReplyHandle};
@@ -35,13 +36,9 @@ pub const DEFAULT_MQTT_ADDR: &str = "127.0.0.1:1883";
 /// Which broker the PLC talks through.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub enum BrokerChoice {
-    /// Start the embedded broker on `addr` (`--mqtt ADDR`); with `users`, clients must log in.
-    Embedded {
-        /// Listening address; port 0 picks a free port.
-        addr: SocketAddr,
-        /// Accepted user/password pairs; the PLC's own client logs in as the first.
-        users: Vec<(String, String)>,
-    },
+    /// Start the embedded broker (`--mqtt ADDR`), with the accounts and TLS of the local
+    /// configuration; the PLC's own client logs in with a secret drawn at start.
+    Embedded(BrokerSettings),
     /// Connect to a plant broker (`--broker mqtt://host:port` or `mqtts://host:port`).
     External {
         /// `mqtt://host[:port]` or `mqtts://host[:port]`; `user:password@` in the URL is accepted.
@@ -55,11 +52,13 @@ pub enum BrokerChoice {
 
 impl BrokerChoice {
     /// The choice made by the CLI flags `--mqtt ADDR` and `--broker URL` (neither: the embedded
-    /// broker on [`DEFAULT_MQTT_ADDR`]); users and credentials come from the configuration file.
+    /// broker on [`DEFAULT_MQTT_ADDR`]); accounts, TLS and credentials come from the
+    /// configuration file.
     pub fn from_cli(
         mqtt: Option<&str>,
         broker: Option<&str>,
-        users: Vec<(String, String)>,
+        accounts: Vec<BrokerAccount>,
+        tls: Option<BrokerTls>,
         credentials: Option<(String, String)>,
     ) -> Result<Self, MctError> {
         match (mqtt, broker) {
@@ -78,7 +77,11 @@ impl BrokerChoice {
             (m, None) => {
                 let a = m.unwrap_or(DEFAULT_MQTT_ADDR);
                 let addr = a.parse().map_err(|_| MctError::MqttAddr(a.to_string()))?;
-                Ok(BrokerChoice::Embedded { addr, users })
+                Ok(BrokerChoice::Embedded(BrokerSettings {
+                    addr,
+                    accounts,
+                    tls,
+                }))
             }
         }
     }
@@ -106,10 +109,10 @@ impl MqttConfig {
     pub fn new(plc_id: &str) -> Self {
         MqttConfig {
             plc_id: plc_id.to_string(),
-            broker: BrokerChoice::Embedded {
-                addr: SocketAddr::from(([127, 0, 0, 1], 1883)),
-                users: Vec::new(),
-            },
+            broker: BrokerChoice::Embedded(BrokerSettings::open(SocketAddr::from((
+                [127, 0, 0, 1],
+                1883,
+            )))),
             publish_period: Duration::from_millis(500),
             operator_keys: None,
             queue_capacity: 256,
@@ -306,6 +309,15 @@ impl MqttHandle {
     pub fn broker_addr(&self) -> Option<SocketAddr> {
         self.broker.as_ref().map(EmbeddedBroker::addr)
     }
+    /// Where clients of this process reach the embedded broker without TLS (a loopback port of
+    /// its own when it serves TLS), when it runs.
+    pub fn broker_local_addr(&self) -> Option<SocketAddr> {
+        self.broker.as_ref().map(EmbeddedBroker::local_addr)
+    }
+    /// The login of the dashboard in this process at the embedded broker, when it runs.
+    pub fn dashboard_login(&self) -> Option<Login> {
+        self.broker.as_ref().map(|b| b.dashboard_login().clone())
+    }
     /// The broker URL the client uses.
     pub fn url(&self) -> &str {
         &self.url
@@ -393,13 +405,12 @@ pub fn start(config: MqttConfig) -> Result<(MctLink, MqttHandle), MctError> {
     let control = ControlPlane::new(&config.plc_id, config.operator_keys.clone())?;
     let client_id = format!("cetratus-{}", config.plc_id);
     let (broker, mut opts, url) = match &config.broker {
-        BrokerChoice::Embedded { addr, users } => {
-            let b = EmbeddedBroker::start_for(*addr, users.clone(), Some(&client_id))?;
-            let url = format!("mqtt://{}", b.addr());
+        BrokerChoice::Embedded(settings) => {
+            let b = EmbeddedBroker::start_with(settings.clone(), &config.plc_id)?;
+            let url = format!("mqtt://{}", b.local_addr());
             let mut o = client_options(&url, &client_id)?;
-            if let Some((u, p)) = users.first() {
-                o.set_credentials(u, p);
-            }
+            let login = b.plc_login();
+            o.set_credentials(&login.user, &login.password);
             (Some(b), o, url)
         }
         BrokerChoice::External {
@@ -638,27 +649,27 @@ mod tests {
     #[test]
     fn cli_flags_choose_the_broker() {
         assert!(matches!(
-            BrokerChoice::from_cli(None, None, vec![], None),
-            Ok(BrokerChoice::Embedded { addr, .. }) if addr.to_string() == DEFAULT_MQTT_ADDR
+            BrokerChoice::from_cli(None, None, vec![], None, None),
+            Ok(BrokerChoice::Embedded(s)) if s.addr.to_string() == DEFAULT_MQTT_ADDR
         ));
         assert!(matches!(
-            BrokerChoice::from_cli(Some("0.0.0.0:1884"), None, vec![], None),
-            Ok(BrokerChoice::Embedded { addr, .. }) if addr.port() == 1884
+            BrokerChoice::from_cli(Some("0.0.0.0:1884"), None, vec![], None, None),
+            Ok(BrokerChoice::Embedded(s)) if s.addr.port() == 1884
         ));
         assert!(matches!(
-            BrokerChoice::from_cli(None, Some("mqtts://plant:8883"), vec![], None),
+            BrokerChoice::from_cli(None, Some("mqtts://plant:8883"), vec![], None, None),
             Ok(BrokerChoice::External { .. })
         ));
         assert!(matches!(
-            BrokerChoice::from_cli(Some("localhost"), None, vec![], None),
+            BrokerChoice::from_cli(Some("localhost"), None, vec![], None, None),
             Err(MctError::MqttAddr(_))
         ));
         assert!(matches!(
-            BrokerChoice::from_cli(None, Some("http://x"), vec![], None),
+            BrokerChoice::from_cli(None, Some("http://x"), vec![], None, None),
             Err(MctError::BrokerUrl { .. })
         ));
         assert!(matches!(
-            BrokerChoice::from_cli(Some("a"), Some("b"), vec![], None),
+            BrokerChoice::from_cli(Some("a"), Some("b"), vec![], None, None),
             Err(MctError::BothBrokers)
         ));
     }

@@ -18,10 +18,7 @@ const T: Duration = Duration::from_secs(10);
 
 fn plc(id: &str) -> (MqttHandle, FakeScan, SocketAddr) {
     let mut cfg = MqttConfig::new(id);
-    cfg.broker = BrokerChoice::Embedded {
-        addr: free_addr(),
-        users: vec![],
-    };
+    cfg.broker = BrokerChoice::Embedded(cetratus_mct::BrokerSettings::open(free_addr()));
     cfg.publish_period = Duration::from_millis(50);
     let (link, handle) = start(cfg).expect("start");
     assert!(handle.wait_connected(T), "the PLC client did not connect");

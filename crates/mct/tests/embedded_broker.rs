@@ -1,11 +1,13 @@
 //! The embedded broker, seen from MQTT clients: MQTT 5 request/reply properties, MQTT 3.1.1 and 5
-//! on one port, retained messages, last wills, passwords, and a taken port.
+//! on one port, retained messages, last wills, hashed passwords, the ACL, TLS, and a taken port.
 
 mod common;
 
+use std::net::{Ipv4Addr, SocketAddrV4};
 use std::time::Duration;
 
-use cetratus_mct::{EmbeddedBroker, MctError};
+use cetratus_mct::password::hash_password;
+use cetratus_mct::{BrokerAccount, BrokerSettings, BrokerTls, EmbeddedBroker, MctError};
 use common::*;
 use rumqttc::v5::mqttbytes::v5::{LastWill, PublishProperties};
 use rumqttc::v5::mqttbytes::QoS;
@@ -14,7 +16,7 @@ const T: Duration = Duration::from_secs(5);
 
 #[test]
 fn embedded_broker_forwards_mqtt5_response_topic_and_correlation_data() {
-    let broker = EmbeddedBroker::start(free_addr(), vec![]).expect("broker");
+    let broker = EmbeddedBroker::start(free_addr(), "cell1").expect("broker");
     let sub = v5(broker.addr(), None);
     sub.subscribe("req/#");
     let publisher = v5(broker.addr(), None);
@@ -35,7 +37,7 @@ fn embedded_broker_forwards_mqtt5_response_topic_and_correlation_data() {
 
 #[test]
 fn embedded_broker_serves_mqtt311_and_mqtt5_clients_on_one_port() {
-    let broker = EmbeddedBroker::start(free_addr(), vec![]).expect("broker");
+    let broker = EmbeddedBroker::start(free_addr(), "cell1").expect("broker");
     let addr = broker.addr();
     let five = v5(addr, None);
     five.subscribe("mix/#");
@@ -57,7 +59,7 @@ fn embedded_broker_serves_mqtt311_and_mqtt5_clients_on_one_port() {
 
 #[test]
 fn embedded_broker_keeps_retained_messages_and_publishes_last_wills() {
-    let broker = EmbeddedBroker::start(free_addr(), vec![]).expect("broker");
+    let broker = EmbeddedBroker::start(free_addr(), "cell1").expect("broker");
     let publisher = v5(broker.addr(), None);
     publisher
         .client
@@ -96,8 +98,14 @@ fn embedded_broker_keeps_retained_messages_and_publishes_last_wills() {
 
 #[test]
 fn embedded_broker_accepts_configured_users_and_refuses_a_wrong_password() {
-    let broker =
-        EmbeddedBroker::start(free_addr(), vec![("op".into(), "s3cret".into())]).expect("broker");
+    let broker = EmbeddedBroker::start_with(
+        BrokerSettings {
+            accounts: vec![account("op", "s3cret", &[])],
+            ..BrokerSettings::open(free_addr())
+        },
+        "cell1",
+    )
+    .expect("broker");
     let good = v5(broker.addr(), Some(("op", "s3cret")));
     good.subscribe("a/b");
     let (client, mut conn) = rumqttc::v5::Client::new(
@@ -124,9 +132,178 @@ fn embedded_broker_accepts_configured_users_and_refuses_a_wrong_password() {
 fn a_taken_port_gives_an_error_that_says_how_to_choose_another() {
     let holder = std::net::TcpListener::bind("127.0.0.1:0").expect("bind");
     let addr = holder.local_addr().expect("addr");
-    let err = EmbeddedBroker::start(addr, vec![]).expect_err("port is taken");
+    let err = EmbeddedBroker::start(addr, "cell1").expect_err("port is taken");
     assert!(matches!(err, MctError::PortTaken { .. }), "{err:?}");
     let msg = err.to_string();
     assert!(msg.contains("--mqtt 127.0.0.1:1884"), "{msg}");
     assert!(msg.contains("--broker mqtt://"), "{msg}");
+}
+
+fn account(name: &str, password: &str, plcs: &[&str]) -> BrokerAccount {
+    BrokerAccount {
+        name: name.into(),
+        password_hash: hash_password(password).expect("hashes"),
+        plcs: plcs.iter().map(|p| p.to_string()).collect(),
+    }
+}
+
+/// A broker for `cell1` whose accounts are `ops` (may command cell1) and `other` (may command
+/// cell2 only); both passwords are `pw`.
+fn broker_with_accounts(tls: Option<BrokerTls>) -> EmbeddedBroker {
+    EmbeddedBroker::start_with(
+        BrokerSettings {
+            addr: free_addr(),
+            accounts: vec![
+                account("ops", "pw", &["cell1"]),
+                account("other", "pw", &["cell2"]),
+            ],
+            tls,
+        },
+        "cell1",
+    )
+    .expect("broker")
+}
+
+#[test]
+fn an_account_commands_only_its_plcs_and_nobody_but_the_plc_publishes_its_state() {
+    let broker = broker_with_accounts(None);
+    let watcher = v5(broker.addr(), Some(("ops", "pw")));
+    watcher.subscribe("cetratus/#");
+    let intruder = v5(broker.addr(), Some(("other", "pw")));
+    // The attack: an account of the plant commands a PLC it was not given, and forges the PLC's
+    // state, events and a reply.
+    for (topic, payload) in [
+        ("cetratus/cell1/cmd/abort", "{}"),
+        ("cetratus/cell1/state", r#"{"online":true,"primary":"B"}"#),
+        ("cetratus/cell1/events", r#"{"kind":"substituted"}"#),
+        ("cetratus/cell1/reply/dashboard-x", r#"{"ok":true}"#),
+    ] {
+        intruder
+            .client
+            .publish(topic, QoS::AtLeastOnce, true, payload)
+            .expect("publish");
+    }
+    intruder
+        .client
+        .publish(
+            "cetratus/cell2/cmd/abort",
+            QoS::AtLeastOnce,
+            false,
+            "allowed",
+        )
+        .expect("publish");
+    let allowed = watcher
+        .next_on("cetratus/cell2/cmd/abort", T)
+        .expect("a command for its own PLC passes");
+    assert_eq!(allowed.payload, b"allowed");
+    let seen: Vec<String> = watcher.rx.try_iter().map(|g| g.topic).collect();
+    assert!(seen.is_empty(), "the broker passed on {seen:?}");
+    // Nothing of it was retained either.
+    let late = v5(broker.addr(), Some(("ops", "pw")));
+    late.subscribe("cetratus/cell1/#");
+    assert!(late
+        .next_on("cetratus/cell1/state", Duration::from_millis(500))
+        .is_none());
+    // The account that may command cell1 does.
+    let ops = v5(broker.addr(), Some(("ops", "pw")));
+    ops.client
+        .publish(
+            "cetratus/cell1/cmd/exec_info",
+            QoS::AtLeastOnce,
+            false,
+            "{}",
+        )
+        .expect("publish");
+    assert!(watcher.next_on("cetratus/cell1/cmd/exec_info", T).is_some());
+}
+
+#[test]
+fn a_client_that_claims_the_plcs_own_login_is_refused() {
+    let broker = broker_with_accounts(None);
+    for user in [cetratus_mct::PLC_USER, cetratus_mct::DASHBOARD_USER] {
+        let mut o =
+            rumqttc::v5::MqttOptions::new(unique("claim"), "127.0.0.1", broker.addr().port());
+        o.set_credentials(user, "guess");
+        let (_client, mut conn) = rumqttc::v5::Client::new(o, 4);
+        let first = conn.iter().next().expect("an event");
+        assert!(first.is_err(), "{user} with a guessed secret got {first:?}");
+    }
+    let login = broker.plc_login().clone();
+    let plc = v5(broker.local_addr(), Some((&login.user, &login.password)));
+    let watcher = v5(broker.addr(), Some(("ops", "pw")));
+    watcher.subscribe("cetratus/cell1/state");
+    plc.client
+        .publish("cetratus/cell1/state", QoS::AtLeastOnce, false, "{}")
+        .expect("publish");
+    assert!(
+        watcher.next_on("cetratus/cell1/state", T).is_some(),
+        "the PLC publishes its state"
+    );
+}
+
+#[test]
+fn beyond_loopback_the_broker_refuses_to_start_without_tls_and_accounts() {
+    let err = EmbeddedBroker::start(SocketAddrV4::new(Ipv4Addr::UNSPECIFIED, 0).into(), "cell1")
+        .expect_err("exposed");
+    assert!(matches!(err, MctError::Exposed { .. }), "{err:?}");
+    let msg = err.to_string();
+    assert!(
+        msg.contains("0.0.0.0:0") && msg.contains("tls_cert") && msg.contains("[mqtt] users"),
+        "{msg}"
+    );
+}
+
+#[test]
+fn with_tls_the_broker_speaks_only_tls_on_its_port_and_checks_the_login() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let cert = rcgen::generate_simple_self_signed(vec!["localhost".into()]).expect("cert");
+    let (cert_pem, key_pem) = (cert.cert.pem(), cert.key_pair.serialize_pem());
+    std::fs::write(dir.path().join("cert.pem"), &cert_pem).expect("write");
+    std::fs::write(dir.path().join("key.pem"), &key_pem).expect("write");
+    let broker = broker_with_accounts(Some(BrokerTls {
+        cert: dir.path().join("cert.pem"),
+        key: dir.path().join("key.pem"),
+    }));
+    assert_ne!(
+        broker.addr(),
+        broker.local_addr(),
+        "a loopback port of its own"
+    );
+    let port = broker.addr().port();
+    // Plain MQTT on the TLS port gets nowhere.
+    let mut o = rumqttc::v5::MqttOptions::new(unique("plain"), "127.0.0.1", port);
+    o.set_credentials("ops", "pw");
+    let (_c, mut conn) = rumqttc::v5::Client::new(o, 4);
+    assert!(
+        conn.iter().next().expect("an event").is_err(),
+        "plain MQTT on the TLS port"
+    );
+    // TLS with the broker's certificate works, and the login is still checked.
+    let tls = |password: &str| {
+        let mut o = rumqttc::v5::MqttOptions::new(unique("tls"), "localhost", port);
+        o.set_credentials("ops", password);
+        o.set_transport(rumqttc::Transport::tls(
+            cert_pem.clone().into_bytes(),
+            None,
+            None,
+        ));
+        o
+    };
+    let _ = rustls::crypto::ring::default_provider().install_default();
+    let (_c, mut conn) = rumqttc::v5::Client::new(tls("wrong"), 4);
+    assert!(
+        conn.iter().next().expect("an event").is_err(),
+        "a wrong password over TLS"
+    );
+    let ok = v5_with(tls("pw"));
+    ok.subscribe("cetratus/cell1/cmd/#");
+    ok.client
+        .publish(
+            "cetratus/cell1/cmd/exec_info",
+            QoS::AtLeastOnce,
+            false,
+            "{}",
+        )
+        .expect("publish");
+    assert!(ok.next_on("cetratus/cell1/cmd/exec_info", T).is_some());
 }

@@ -13,7 +13,7 @@
 
 use std::path::{Path, PathBuf};
 
-use cetratus_mct::OperatorKeys;
+use cetratus_mct::{BrokerAccount, BrokerTls, OperatorKeys};
 use cetratus_program::duration::{self, Bare};
 use cetratus_program::{TrustStore, VerifyingKeyFile};
 use cetratus_runtime::Limits;
@@ -107,13 +107,20 @@ struct MqttSection {
     users: Vec<User>,
     user: Option<String>,
     password: Option<String>,
+    tls_cert: Option<PathBuf>,
+    tls_key: Option<PathBuf>,
 }
 
+/// `[[mqtt.users]]`: an account of the embedded broker.
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
 struct User {
     name: String,
-    password: String,
+    password_hash: Option<String>,
+    /// Earlier versions kept the password in clear; refused with what to write instead.
+    password: Option<toml::Value>,
+    #[serde(default)]
+    plcs: Vec<String>,
 }
 
 /// `[io]`: the node's I/O configuration, read and checked by `cetratus_io::config` from the
@@ -129,6 +136,8 @@ struct DashboardSection {
     accounts: Vec<DashboardAccount>,
     #[serde(default)]
     hosts: Vec<String>,
+    tls_cert: Option<PathBuf>,
+    tls_key: Option<PathBuf>,
 }
 
 /// `[[dashboard.accounts]]`: a name and the argon2 hash of its password.
@@ -158,8 +167,12 @@ pub struct LocalConfig {
     pub allow_unsigned: bool,
     /// Keys trusted for commands; `None` when there are none (commands need no signature).
     pub operators: Option<OperatorKeys>,
-    /// Accounts of the embedded broker.
-    pub users: Vec<(String, String)>,
+    /// Accounts of the embedded broker, with their password hashes and the PLCs they may command.
+    pub users: Vec<BrokerAccount>,
+    /// The embedded broker's TLS certificate and key, resolved against the directory.
+    pub mqtt_tls: Option<BrokerTls>,
+    /// The dashboard's TLS certificate and key (PEM), resolved against the directory.
+    pub dashboard_tls: Option<(PathBuf, PathBuf)>,
     /// Credentials for a plant broker.
     pub credentials: Option<(String, String)>,
     /// The probation window after a substitution, in microseconds (0: none).
@@ -346,7 +359,59 @@ impl LocalConfig {
         }
         let _ = file.io;
         let io_from_file = io;
+        let mut users = Vec::with_capacity(file.mqtt.users.len());
+        for u in file.mqtt.users {
+            let hash = match (u.password_hash, u.password) {
+                (Some(h), None) => h,
+                (_, Some(_)) => {
+                    return Err(value_error(
+                        "[[mqtt.users]] name",
+                        &u.name,
+                        "passwords are stored as hashes: replace `password = …` with \
+                         `password_hash = …`, the output of `echo -n 'PASSWORD' | cetratus \
+                         hash-password`"
+                            .into(),
+                    ))
+                }
+                (None, None) => {
+                    return Err(value_error(
+                        "[[mqtt.users]] name",
+                        &u.name,
+                        "the account has no `password_hash`; add the output of \
+                         `cetratus hash-password`"
+                            .into(),
+                    ))
+                }
+            };
+            users.push(BrokerAccount {
+                name: u.name,
+                password_hash: hash,
+                plcs: u.plcs,
+            });
+        }
+        let pair = |section: &'static str, cert: Option<PathBuf>, key: Option<PathBuf>| match (
+            cert, key,
+        ) {
+            (None, None) => Ok(None),
+            (Some(c), Some(k)) => Ok(Some((dir.join(c), dir.join(k)))),
+            (c, _) => Err(value_error(
+                section,
+                if c.is_some() { "tls_cert" } else { "tls_key" },
+                "TLS needs both `tls_cert` (the certificate chain, PEM) and `tls_key` (its \
+                 private key, PEM); give both, or neither"
+                    .into(),
+            )),
+        };
+        let mqtt_tls = pair("[mqtt] tls", file.mqtt.tls_cert, file.mqtt.tls_key)?
+            .map(|(cert, key)| BrokerTls { cert, key });
+        let dashboard_tls = pair(
+            "[dashboard] tls",
+            file.dashboard.tls_cert,
+            file.dashboard.tls_key,
+        )?;
         Ok(LocalConfig {
+            mqtt_tls,
+            dashboard_tls,
             dashboard_accounts: file
                 .dashboard
                 .accounts
@@ -358,12 +423,7 @@ impl LocalConfig {
             trust,
             allow_unsigned: file.allow_unsigned,
             operators: (!ops.is_empty()).then_some(ops),
-            users: file
-                .mqtt
-                .users
-                .into_iter()
-                .map(|u| (u.name, u.password))
-                .collect(),
+            users,
             credentials: file
                 .mqtt
                 .user

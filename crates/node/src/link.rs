@@ -168,7 +168,8 @@ impl ControlLink {
     }
 
     /// Gives the PLC the commands that are ready. Returns who sent the last one, for the audit
-    /// log (`mqtt` or `mqtt:<key id>`), when there was one. While the replies and events of
+    /// log (`mqtt`, `mqtt:<key id>`, or `mqtt:<key id>/<account>` when the signed envelope names
+    /// the operator's account), when there was one. While the replies and events of
     /// earlier commands still wait for the MQTT client, no new command is taken.
     pub fn take_commands(&mut self, plc: &mut Plc) -> Option<String> {
         let mut who = None;
@@ -180,11 +181,11 @@ impl ControlLink {
                 Ok(()) => accepted(),
                 Err(e) => Err(refused(e.to_string())),
             };
-            who = Some(
-                from.key_id
-                    .as_ref()
-                    .map_or("mqtt".to_string(), |k| format!("mqtt:{k}")),
-            );
+            who = Some(match (&from.key_id, &from.account) {
+                (Some(k), Some(a)) => format!("mqtt:{k}/{a}"),
+                (Some(k), None) => format!("mqtt:{k}"),
+                (None, _) => "mqtt".to_string(),
+            });
             self.queue(Outgoing::Reply(from.reply, outcome));
         }
         who

@@ -19,7 +19,8 @@ pub struct AuditRecord {
     pub cycle: u64,
     /// Program time, microseconds.
     pub time_us: u64,
-    /// Who caused it: `cli`, `mqtt:<key id>`, `plc` (the PLC itself), `local` (start-up).
+    /// Who caused it: `cli`, `mqtt:<key id>`, `mqtt:<key id>/<account>` (a dashboard operator),
+    /// `plc` (the PLC itself), `local` (start-up).
     pub who: String,
     /// The event kind, e.g. `load_accepted`, `substituted`, `warm_start`, `update_discarded`.
     pub what: String,

@@ -72,6 +72,16 @@ pub fn v5_with(o: MqttOptions) -> V5 {
     let dead = Arc::new(AtomicBool::new(false));
     let d = dead.clone();
     let thread = std::thread::spawn(move || {
+        // The first poll runs to its end: cutting it short (as the loop's timeout does) would
+        // drop a connection whose login takes longer, and start another.
+        match conn.recv() {
+            Ok(Ok(_)) => {}
+            Ok(Err(e)) => {
+                eprintln!("mqtt client: {e}");
+                return;
+            }
+            Err(_) => return,
+        }
         while !d.load(Ordering::Relaxed) {
             let ev = match conn.recv_timeout(Duration::from_millis(50)) {
                 Ok(ev) => ev,
@@ -92,7 +102,10 @@ pub fn v5_with(o: MqttOptions) -> V5 {
                     let _ = stx.send(());
                 }
                 Ok(_) => {}
-                Err(_) => break,
+                Err(e) => {
+                    eprintln!("mqtt client: {e}");
+                    break;
+                }
             }
         }
     });
@@ -168,7 +181,10 @@ pub fn v311(addr: SocketAddr) -> V311 {
                     let _ = tx.send((SUBACK.into(), vec![]));
                 }
                 Ok(_) => {}
-                Err(_) => break,
+                Err(e) => {
+                    eprintln!("mqtt client: {e}");
+                    break;
+                }
             }
         }
     });

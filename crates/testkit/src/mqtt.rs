@@ -60,15 +60,22 @@ impl Mosquitto {
     ///
     /// When Mosquitto is not installed (saying what to install) or does not start.
     pub fn start() -> Self {
+        Self::start_with("allow_anonymous true\npersistence false\n")
+    }
+
+    /// Starts a broker with the configuration lines `settings` (which must not name a
+    /// listener) on a free loopback port, and waits until it accepts connections.
+    ///
+    /// # Panics
+    ///
+    /// As [`Mosquitto::start`].
+    pub fn start_with(settings: &str) -> Self {
         let bin = tool("mosquitto");
         let port = free_port();
         let dir = tempfile::tempdir().expect("a temporary directory for mosquitto.conf");
         let conf = dir.path().join("mosquitto.conf");
-        std::fs::write(
-            &conf,
-            format!("listener {port} 127.0.0.1\nallow_anonymous true\npersistence false\n"),
-        )
-        .expect("mosquitto.conf is written");
+        std::fs::write(&conf, format!("listener {port} 127.0.0.1\n{settings}"))
+            .expect("mosquitto.conf is written");
         let process = ChildGuard::spawn(
             Command::new(bin)
                 .arg("-c")

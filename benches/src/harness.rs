@@ -283,16 +283,19 @@ pub enum FloodKind {
     LargePayloads,
     /// 32 KiB events on another PLC's `events` topic, for the embedded dashboard to keep.
     EventSpam,
+    /// Dashboard logins with wrong passwords, over HTTP (not MQTT), as fast as they are answered.
+    Logins,
 }
 
 impl FloodKind {
     /// Every kind, in the order a run floods them.
-    pub const ALL: [FloodKind; 5] = [
+    pub const ALL: [FloodKind; 6] = [
         FloodKind::Garbage,
         FloodKind::RefusedLoads,
         FloodKind::ExecInfo,
         FloodKind::LargePayloads,
         FloodKind::EventSpam,
+        FloodKind::Logins,
     ];
 
     /// Its name in the figures.
@@ -303,6 +306,7 @@ impl FloodKind {
             FloodKind::ExecInfo => "exec_info",
             FloodKind::LargePayloads => "large_payloads",
             FloodKind::EventSpam => "event_spam",
+            FloodKind::Logins => "dashboard_logins",
         }
     }
 
@@ -344,6 +348,7 @@ impl FloodKind {
                     body.to_string().into_bytes(),
                 )]
             }
+            FloodKind::Logins => Vec::new(),
         }
     }
 }
@@ -375,10 +380,56 @@ fn rss_kib() -> u64 {
         .unwrap_or(0)
 }
 
+/// What [`Beside`] starts: something that stops when dropped, and the dashboard's HTTP address
+/// with an account name whose password the login flood gets wrong.
+pub type BesideParts = (
+    Box<dyn std::any::Any>,
+    Option<(std::net::SocketAddr, String)>,
+);
+
 /// Whatever runs beside the PLC while it is flooded (the dashboard, in `cetratus bench flood`),
-/// given the broker's URL; it stops when dropped. The caller provides it: the dashboard is the
-/// binary's to start, not this crate's.
-pub type Beside<'a> = &'a dyn Fn(&str) -> Result<Box<dyn std::any::Any>, BenchError>;
+/// given the broker's URL. The caller provides it: the dashboard is the binary's to start, not
+/// this crate's.
+pub type Beside<'a> = &'a dyn Fn(&str) -> Result<BesideParts, BenchError>;
+
+/// Posts logins with a wrong password for `account` to the dashboard at `addr` until `stop`,
+/// one connection per attempt as a script would; counts the answers by HTTP status.
+fn login_flood(
+    addr: std::net::SocketAddr,
+    account: &str,
+    stop: &std::sync::atomic::AtomicBool,
+    sent: &std::sync::atomic::AtomicU64,
+    codes: &std::sync::Mutex<BTreeMap<String, u64>>,
+) {
+    use std::io::{Read, Write};
+    use std::sync::atomic::Ordering;
+    let body = serde_json::json!({"account": account, "password": "wrong"}).to_string();
+    let request = format!(
+        "POST /api/login HTTP/1.0\r\nHost: {addr}\r\nContent-Type: application/json\r\nContent-Length: {}\r\n\r\n{body}",
+        body.len()
+    );
+    let mut answer = Vec::with_capacity(1024);
+    while !stop.load(Ordering::Relaxed) {
+        let Ok(mut s) = std::net::TcpStream::connect(addr) else {
+            continue;
+        };
+        answer.clear();
+        if s.write_all(request.as_bytes()).is_err() || s.read_to_end(&mut answer).is_err() {
+            continue;
+        }
+        sent.fetch_add(1, Ordering::Relaxed);
+        let status = String::from_utf8_lossy(&answer[..answer.len().min(12)])
+            .split_whitespace()
+            .nth(1)
+            .unwrap_or("?")
+            .to_string();
+        *codes
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .entry(format!("http_{status}"))
+            .or_default() += 1;
+    }
+}
 
 /// Runs the Vernadat node as `cetratus run` does (embedded broker, `beside` it the dashboard, MQTT link) at
 /// `period_us`: first alone for `phase_us`, then for `phase_us` under each [`FloodKind`] in turn,
@@ -409,7 +460,7 @@ pub fn flood(
     };
     let mqtt = free()?;
     let (mut node, handle) = vernadat_node(PLC, mqtt, period_us)?;
-    let dashboard = beside(&format!("mqtt://{mqtt}"))?;
+    let (dashboard, login_target) = beside(&format!("mqtt://{mqtt}"))?;
 
     // The flooding client, and the replies it gets, by error code.
     let mut opts = cetratus_mct::client_options(&format!("mqtt://{mqtt}"), "bench-flood")?;
@@ -452,7 +503,23 @@ pub fn flood(
             })
         };
         let sent = Arc::new(AtomicU64::new(0));
-        let flooder = kind.map(|kind| {
+        let login_flooder = match (kind, &login_target) {
+            (Some(FloodKind::Logins), Some((addr, account))) => {
+                let (stop, sent, codes, addr, account) = (
+                    stop.clone(),
+                    sent.clone(),
+                    codes.clone(),
+                    *addr,
+                    account.clone(),
+                );
+                Some(std::thread::spawn(move || {
+                    cetratus_node::rt::normal();
+                    login_flood(addr, &account, &stop, &sent, &codes);
+                }))
+            }
+            _ => None,
+        };
+        let flooder = kind.filter(|k| *k != FloodKind::Logins).map(|kind| {
             let (stop, sent, client) = (stop.clone(), sent.clone(), client.clone());
             let messages = kind.messages(PLC, &u1);
             let props = PublishProperties {
@@ -494,6 +561,9 @@ pub fn flood(
         now_base += reached;
         stop.store(true, Ordering::Relaxed);
         if let Some(f) = flooder {
+            let _ = f.join();
+        }
+        if let Some(f) = login_flooder {
             let _ = f.join();
         }
         let _ = sampler.join();

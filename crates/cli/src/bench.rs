@@ -160,18 +160,27 @@ pub fn run(args: &BenchArgs) -> anyhow::Result<()> {
     }) = &args.what
     {
         // The dashboard beside the PLC, as `cetratus run` starts it.
-        let dashboard = |broker: &str| -> Result<Box<dyn std::any::Any>, harness::BenchError> {
-            Ok(Box::new(cetratus_dashboard::serve(
-                cetratus_dashboard::DashboardConfig {
-                    http: std::net::SocketAddr::from(([127, 0, 0, 1], 0)),
-                    broker_url: broker.to_string(),
-                    user: None,
-                    password: None,
-                    signer: None,
-                    access: cetratus_dashboard::AccessConfig::default(),
-                    tls: None,
+        // The dashboard beside the PLC, as `cetratus run` starts it, with one account for the
+        // login flood to get wrong.
+        let dashboard = |broker: &str| -> Result<harness::BesideParts, harness::BenchError> {
+            let hash = cetratus_dashboard::hash_password("bench-secret")?;
+            let d = cetratus_dashboard::serve(cetratus_dashboard::DashboardConfig {
+                http: std::net::SocketAddr::from(([127, 0, 0, 1], 0)),
+                broker_url: broker.to_string(),
+                user: None,
+                password: None,
+                signer: None,
+                access: cetratus_dashboard::AccessConfig {
+                    accounts: vec![cetratus_dashboard::Account {
+                        name: "ops".into(),
+                        password_hash: hash,
+                    }],
+                    ..cetratus_dashboard::AccessConfig::default()
                 },
-            )?))
+                tls: None,
+            })?;
+            let addr = d.local_addr();
+            Ok((Box::new(d), Some((addr, "ops".to_string()))))
         };
         let out = harness::flood(
             parse_duration_us(for_)?,

@@ -164,6 +164,8 @@ pub(crate) struct Access {
     sessions: Mutex<HashMap<String, Session>>,
     links: Mutex<HashMap<String, Instant>>,
     limits: Mutex<Limits>,
+    /// Login attempts refused unchecked because they came too fast, since the start.
+    refused: std::sync::atomic::AtomicU64,
     /// Checked when the account does not exist, so that a wrong name costs what a wrong
     /// password does and timing does not tell which names exist.
     decoy: HashedPassword,
@@ -224,6 +226,7 @@ impl Access {
                 all: Bucket::full(LOGIN_BURST, Instant::now()),
                 by_addr: HashMap::new(),
             }),
+            refused: std::sync::atomic::AtomicU64::new(0),
             decoy,
             secure,
         })
@@ -273,7 +276,15 @@ impl Access {
         password: String,
     ) -> Result<String, LoginError> {
         if !self.may_try(from, Instant::now()) {
-            tracing::warn!(%from, account = %name.escape_debug(), "dashboard login refused: too many attempts");
+            // Counted, and logged on the 1st, 2nd, 4th… refusal: a flood of guesses must not
+            // become a flood of log lines.
+            let n = self
+                .refused
+                .fetch_add(1, std::sync::atomic::Ordering::Relaxed)
+                + 1;
+            if cetratus_mct::budget::worth_logging(n) {
+                tracing::warn!(%from, account = %name.escape_debug(), refused = n, "dashboard login refused: too many attempts");
+            }
             return Err(LoginError::TooMany);
         }
         let access = self.clone();

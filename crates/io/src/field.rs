@@ -300,22 +300,19 @@ impl Provider for FieldIo {
     fn read_inputs(&mut self, _now_us: u64, inputs: &mut [Value]) {
         self.take_inputs();
         for c in &self.map.inputs {
+            // An input no device serves comes from the twin or from the server's clients.
+            let Some((d, _, _)) = c.on else { continue };
             let Some(slot) = inputs.get_mut(c.signal) else {
                 continue;
             };
-            *slot = match c.on {
-                Some((d, _, _)) => {
-                    let use_safe = self.fault
-                        || self.quality[d] == Quality::Initial
-                        || (self.quality[d] == Quality::Stale
-                            && self.devices[d].stale != StalePolicy::Hold);
-                    if use_safe {
-                        self.map.safe_inputs[c.signal]
-                    } else {
-                        self.front[c.signal]
-                    }
-                }
-                None => self.front[c.signal],
+            let use_safe = self.fault
+                || self.quality[d] == Quality::Initial
+                || (self.quality[d] == Quality::Stale
+                    && self.devices[d].stale != StalePolicy::Hold);
+            *slot = if use_safe {
+                self.map.safe_inputs[c.signal]
+            } else {
+                self.front[c.signal]
             };
         }
     }

@@ -267,7 +267,7 @@ pub fn run(args: &RunArgs) -> anyhow::Result<()> {
     });
     let mut services = None;
     if let Some((link, s)) = mqtt {
-        let link = crate::mqtt_args::control_link(
+        let mut link = crate::mqtt_args::control_link(
             link,
             node.plc(),
             trust.clone(),
@@ -275,6 +275,9 @@ pub fn run(args: &RunArgs) -> anyhow::Result<()> {
             args.speed,
             period_us,
         );
+        if let Some(f) = node.io().field() {
+            link.set_input_quality(f.status_reader());
+        }
         node = node.with_link(link);
         services = Some(s);
     }

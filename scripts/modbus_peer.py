@@ -10,6 +10,14 @@
       writes one coil (0/1) or holding register; prints `ok` or the exception.
   modbus_peer.py flood PORT N
       opens N connections at once and holds them for a second; prints how many were accepted.
+  modbus_peer.py session PORT OP... [--source IP]
+      one client connection (from IP, when given) that runs each OP in turn and prints one line
+      for each: `read:TABLE:ADDRESS:COUNT` prints the values, `write:TABLE:ADDRESS:VALUE`
+      prints `ok`, `wait:TABLE:ADDRESS:VALUE` reads until the value is there (30 s at most) and
+      prints `ok` or `timeout LAST`, `unit:U` addresses unit U from then on, and
+      `raw:FUNCTION:ADDRESS:COUNT` sends a read frame that pymodbus would refuse to send (on a
+      connection of its own) and prints `ok` or the exception. A refused request prints
+      `exception CODE`.
 """
 import argparse
 import asyncio
@@ -56,7 +64,9 @@ def device(args):
 def client(args):
     from pymodbus.client import ModbusTcpClient
 
-    c = ModbusTcpClient("127.0.0.1", port=args.port, timeout=2)
+    source = getattr(args, "source", None)
+    c = ModbusTcpClient("127.0.0.1", port=args.port, timeout=5,
+                        source_address=(source, 0) if source else None)
     if not c.connect():
         print("cannot connect", file=sys.stderr)
         sys.exit(2)
@@ -95,6 +105,63 @@ def flood(args):
     print(len(socks))
 
 
+def session(args):
+    c = client(args)
+    unit = 1
+
+    def read_one(table, address, count):
+        fn = {"coils": c.read_coils, "di": c.read_discrete_inputs,
+              "ir": c.read_input_registers, "hr": c.read_holding_registers}[table]
+        try:
+            r = fn(address, count=count, device_id=unit)
+        except Exception as e:  # a closed connection, a timeout
+            return f"error {type(e).__name__}"
+        if r.isError():
+            return f"exception {getattr(r, 'exception_code', r)}"
+        vals = r.bits[:count] if table in ("coils", "di") else r.registers
+        return ",".join(str(int(v)) for v in vals)
+
+    for op in args.ops:
+        kind, *rest = op.split(":")
+        if kind == "unit":
+            unit = int(rest[0])
+            print("ok", flush=True)
+        elif kind == "read":
+            print(read_one(rest[0], int(rest[1]), int(rest[2])), flush=True)
+        elif kind == "write":
+            table, address, value = rest[0], int(rest[1]), int(rest[2])
+            try:
+                if table == "coils":
+                    r = c.write_coil(address, bool(value), device_id=unit)
+                else:
+                    r = c.write_register(address, value, device_id=unit)
+                print(f"exception {getattr(r, 'exception_code', r)}" if r.isError() else "ok",
+                      flush=True)
+            except Exception as e:
+                print(f"error {type(e).__name__}", flush=True)
+        elif kind == "raw":
+            fc, address, count = int(rest[0]), int(rest[1]), int(rest[2])
+            with socket.create_connection(("127.0.0.1", args.port), timeout=5) as raw:
+                pdu = bytes([fc]) + address.to_bytes(2, "big") + count.to_bytes(2, "big")
+                raw.sendall((1).to_bytes(2, "big") + b"\0\0" + (len(pdu) + 1).to_bytes(2, "big")
+                            + bytes([unit]) + pdu)
+                answer = raw.recv(300)
+            if len(answer) >= 9 and answer[7] == fc | 0x80:
+                print(f"exception {answer[8]}", flush=True)
+            else:
+                print("ok" if len(answer) > 8 else "error no answer", flush=True)
+        elif kind == "wait":
+            table, address, value = rest[0], int(rest[1]), rest[2]
+            end = time.monotonic() + 30
+            last = read_one(table, address, 1)
+            while last != value and time.monotonic() < end:
+                time.sleep(0.02)
+                last = read_one(table, address, 1)
+            print("ok" if last == value else f"timeout {last}", flush=True)
+        else:
+            print(f"unknown op {op}", flush=True)
+
+
 p = argparse.ArgumentParser()
 sub = p.add_subparsers(dest="cmd", required=True)
 d = sub.add_parser("device")
@@ -113,5 +180,9 @@ for name in ("read", "write"):
 f = sub.add_parser("flood")
 f.add_argument("port", type=int)
 f.add_argument("n", type=int)
+s = sub.add_parser("session")
+s.add_argument("port", type=int)
+s.add_argument("ops", nargs="+")
+s.add_argument("--source")
 a = p.parse_args()
-{"device": device, "read": read, "write": write, "flood": flood}[a.cmd](a)
+{"device": device, "read": read, "write": write, "flood": flood, "session": session}[a.cmd](a)

@@ -184,7 +184,7 @@ fn live(args: &DemoArgs, files: &DemoFiles) -> anyhow::Result<()> {
     };
     let mut node = Node::new(plc, io, opts).with_link(link).with_echo(|e| {
         if let Echo::Event(e) = e {
-            crate::run::print_event(&e, false);
+            crate::summary::print_event(&e, false);
         }
     });
     node.run_realtime(period_us, until_us, speed, &stop);

@@ -11,7 +11,7 @@ use cetratus_node::{state, wire, Echo, Node, NodeOptions};
 use cetratus_program::Program;
 use cetratus_runtime::{CycleFigures, Plc};
 
-use crate::summary::{print_summary, Summary, MAX_EVENTS};
+use crate::summary::{print_event, print_summary, Summary, MAX_EVENTS};
 use cetratus_twin::{parse_defect_rate, TwinKind, TwinSettings};
 
 use crate::parse_duration_us;
@@ -232,7 +232,11 @@ pub fn run(args: &RunArgs) -> anyhow::Result<()> {
         record_trace: args.trace.is_some() || args.svg.is_some(),
         progress_every: args.progress,
     };
+    let status_board = io.server().map(|s| s.status_board());
     let mut node = Node::new(plc, io, opts).with_script(script);
+    if let Some(mut board) = status_board {
+        node = node.with_observer(move |plc| board.show(plc));
+    }
     if let Some(p) = persister {
         node = node.with_persister(p);
     }
@@ -263,7 +267,7 @@ pub fn run(args: &RunArgs) -> anyhow::Result<()> {
     });
     let mut services = None;
     if let Some((link, s)) = mqtt {
-        let link = crate::mqtt_args::control_link(
+        let mut link = crate::mqtt_args::control_link(
             link,
             node.plc(),
             trust.clone(),
@@ -271,6 +275,9 @@ pub fn run(args: &RunArgs) -> anyhow::Result<()> {
             args.speed,
             period_us,
         );
+        if let Some(f) = node.io().field() {
+            link.set_input_quality(f.status_reader());
+        }
         node = node.with_link(link);
         services = Some(s);
     }
@@ -351,6 +358,7 @@ pub fn run(args: &RunArgs) -> anyhow::Result<()> {
         faults,
         counters: plant_report.counters,
         io: plant_report.io,
+        modbus_server: plant_report.server,
         scan: figures,
         primary: plc.primary().name(),
         status: plc.status().name(),
@@ -383,16 +391,4 @@ pub fn run(args: &RunArgs) -> anyhow::Result<()> {
         print_summary(&summary);
     }
     Ok(())
-}
-
-/// Prints an event as one line of stderr (not in `--json` runs).
-pub fn print_event(e: &cetratus_runtime::Event, json: bool) {
-    if !json {
-        eprintln!(
-            "{:>10.3} s  {:<20} {}",
-            e.time_us as f64 / 1e6,
-            e.kind,
-            e.message
-        );
-    }
 }

@@ -1,13 +1,15 @@
 //! The plant of `cetratus run`: the twin, the field I/O (`--io`, or the local configuration's
-//! `[io]`), or both.
+//! `[io]`), or both, and the PLC's Modbus server when the I/O configuration has a `[server]`.
 
 use std::path::Path;
 
 use anyhow::{bail, Context};
+use cetratus_io::bank::BankCounters;
 use cetratus_io::config::IoConfig;
 use cetratus_io::field::{DeviceStatus, FieldIo};
 use cetratus_io::map::FieldMap;
 use cetratus_io::plant::PlantIo;
+use cetratus_io::server::ImageServer;
 use cetratus_io::TwinDriver;
 use cetratus_program::Program;
 use cetratus_twin::{Plant, TwinKind, TwinSettings};
@@ -62,29 +64,59 @@ pub fn open(
         }
         None => None,
     };
-    let field = match &config {
+    let (field, server) = match &config {
         Some(c) => {
             let map = FieldMap::bind(c, program.inputs(), program.outputs(), kind.is_some())
                 .with_context(|| {
                     format!("the program does not fit the I/O configuration {}", c.file)
                 })?;
-            let field = FieldIo::start(c, map, period_us)?;
-            let missing = field.wait_first_image(c.start_timeout_us);
-            if !missing.is_empty() {
-                eprintln!(
-                    "warning: no complete input image from {} within {} µs; the first scans run on the safe values of their inputs",
-                    missing.join(", "),
-                    c.start_timeout_us
-                );
-            }
-            Some(field)
+            let server = match &c.server {
+                Some(s) => {
+                    let server = ImageServer::start(s, &map)
+                        .with_context(|| format!("the Modbus server of {}", c.file))?;
+                    eprintln!(
+                        "Modbus server of the process image on {} (writes from {})",
+                        server.addr(),
+                        if s.write_from.is_empty() {
+                            "nobody".to_string()
+                        } else {
+                            s.write_from
+                                .iter()
+                                .map(|a| a.to_string())
+                                .collect::<Vec<_>>()
+                                .join(", ")
+                        }
+                    );
+                    Some(server)
+                }
+                None => None,
+            };
+            (start_field(c, map, period_us)?, server)
         }
-        None => None,
+        None => (None, None),
     };
-    let io = PlantIo::new(twin, field).ok_or_else(|| {
+    let io = PlantIo::new(twin, field, server).ok_or_else(|| {
         anyhow::anyhow!("nothing to run against: give --twin vernadat|festo, --io IO.toml, or both (or an [io] section in the local configuration)")
     })?;
     Ok(Opened { io, kind })
+}
+
+/// Starts the field devices' I/O threads and waits for the first input image; `None` when the
+/// configuration has no device (a server only).
+fn start_field(c: &IoConfig, map: FieldMap, period_us: u64) -> anyhow::Result<Option<FieldIo>> {
+    if c.devices.is_empty() {
+        return Ok(None);
+    }
+    let field = FieldIo::start(c, map, period_us)?;
+    let missing = field.wait_first_image(c.start_timeout_us);
+    if !missing.is_empty() {
+        eprintln!(
+            "warning: no complete input image from {} within {} µs; the first scans run on the safe values of their inputs",
+            missing.join(", "),
+            c.start_timeout_us
+        );
+    }
+    Ok(Some(field))
 }
 
 /// Schedules the `--press BUTTON@TIME` presses of the twin (program time from `base_us`).
@@ -117,6 +149,8 @@ pub struct PlantReport {
     pub counters: serde_json::Value,
     /// Every field device's figures.
     pub io: Option<Vec<DeviceStatus>>,
+    /// What the PLC's Modbus server did.
+    pub server: Option<BankCounters>,
 }
 
 /// The plant's end-of-run figures.
@@ -127,6 +161,7 @@ pub fn report(io: &PlantIo) -> anyhow::Result<PlantReport> {
         faults: Vec::new(),
         counters: serde_json::Value::Object(Default::default()),
         io: io.field().map(|f| f.status()),
+        server: io.server().map(|s| s.counters()),
     };
     if let Some(t) = io.twin() {
         let plant = t.plant();

@@ -28,6 +28,9 @@ pub struct Summary {
     /// Every field device's figures, with field I/O.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub io: Option<Vec<cetratus_io::field::DeviceStatus>>,
+    /// What the PLC's Modbus server did, when it had one.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub modbus_server: Option<cetratus_io::bank::BankCounters>,
     /// Scan timing figures.
     pub scan: CycleFigures,
     /// PRIMARY at the end.
@@ -110,6 +113,12 @@ pub fn print_summary(s: &Summary) {
                 .map_or(String::new(), |e| format!("; last error: {e}"))
         );
     }
+    if let Some(m) = &s.modbus_server {
+        println!(
+            "  modbus server   {} requests, {} exceptions, {} connections refused",
+            m.requests, m.exceptions, m.refused
+        );
+    }
     if s.faults.is_empty() {
         println!("  faults          none");
     } else {
@@ -117,5 +126,17 @@ pub fn print_summary(s: &Summary) {
         for fault in s.faults.iter().take(20) {
             println!("    {fault}");
         }
+    }
+}
+
+/// Prints an event as one line of stderr (not in `--json` runs).
+pub fn print_event(e: &cetratus_runtime::Event, json: bool) {
+    if !json {
+        eprintln!(
+            "{:>10.3} s  {:<20} {}",
+            e.time_us as f64 / 1e6,
+            e.kind,
+            e.message
+        );
     }
 }

@@ -280,3 +280,48 @@ fn a_virtual_run_needs_a_twin_and_refuses_network_io() {
         .unwrap();
     assert!(String::from_utf8_lossy(&out.stderr).contains("nothing to run against"));
 }
+
+#[test]
+fn exec_info_reports_the_quality_of_each_devices_inputs() {
+    let (port, silent, mqtt) = (free_port(), free_port(), free_port());
+    let dir = tempfile::tempdir().unwrap();
+    let _device = device(port, &[]);
+    // A second device, for outputs only, that nobody answers for.
+    let extra = format!("[[device]]\nname = \"valves\"\ntransport = \"modbus-tcp\"\naddress = \"127.0.0.1:{silent}\"\nserves = [{{ from = \"%QX1.0\", to = \"%QX1.7\" }}]\n");
+    let io = io_file(dir.path(), port, &extra);
+    let mut c = Command::new(BIN);
+    c.arg("run")
+        .arg(example("vernadat/vernadat.toml"))
+        .arg("--io")
+        .arg(&io)
+        .args(["--for", "60s", "--cold", "--plc", "cell1", "--no-dashboard"])
+        .arg("--state-dir")
+        .arg(dir.path().join("state"))
+        .arg("--config")
+        .arg(dir.path().join("config"))
+        .args(["--mqtt", &format!("127.0.0.1:{mqtt}")])
+        .stdout(Stdio::null())
+        .stderr(Stdio::null());
+    let _plc = ChildGuard::spawn(&mut c);
+    wait_for_port(mqtt, "the embedded broker", Duration::from_secs(60));
+    let end = Instant::now() + Duration::from_secs(60);
+    let quality = loop {
+        let out = Command::new(BIN)
+            .args(["exec-info", "--broker", &format!("mqtt://127.0.0.1:{mqtt}")])
+            .args(["--plc", "cell1", "--json"])
+            .output()
+            .expect("run cetratus exec-info");
+        let reply: Value = serde_json::from_slice(&out.stdout).unwrap_or(Value::Null);
+        let q = reply["result"][0]["input_quality"].clone();
+        if q[0]["quality"] == "good" || Instant::now() > end {
+            break q;
+        }
+        std::thread::sleep(Duration::from_millis(200));
+    };
+    assert_eq!(quality[0]["device"], "cell", "{quality}");
+    assert_eq!(quality[0]["quality"], "good", "{quality}");
+    assert_eq!(quality[0]["link"], "up", "{quality}");
+    assert_eq!(quality[1]["device"], "valves", "{quality}");
+    assert_eq!(quality[1]["quality"], "initial", "{quality}");
+    assert_ne!(quality[1]["link"], "up", "{quality}");
+}

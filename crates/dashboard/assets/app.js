@@ -361,6 +361,15 @@
     row('drift', (x) => x.drift, 'num');
     row('max drift', (x) => x.max_drift, 'num');
     row('deadlock', (x) => (x.deadlock ? 'yes' : 'no'));
+    // Field I/O: the quality of each device's inputs (docs/io.md, Quality), the same for both.
+    const devices = new Set([...((a && a.input_quality) || []), ...((b && b.input_quality) || [])]
+      .map((q) => q.device));
+    for (const d of [...devices].sort()) {
+      row(`input quality ${d}`, (x) => {
+        const q = (x.input_quality || []).find((y) => y.device === d);
+        return q ? `${q.quality} (link ${q.link}, ${q.missed_cycles} missed)` : '–';
+      });
+    }
     const signals = new Set([...Object.keys((a && a.divergence) || {}), ...Object.keys((b && b.divergence) || {})]);
     for (const s of [...signals].sort()) row(`divergence ${s} (cycles)`, (x) => (x.divergence || {})[s] ?? 0, 'num');
     row('first cause', (x) => x.first_cause ?? '–');

@@ -1,13 +1,18 @@
 //! A Modbus TCP server over a bank of bits and registers (tokio-modbus's `Service`), on a thread
 //! of its own: what `cetratus twin serve` is to a PLC.
 //!
-//! Every request is checked before it touches the bank: the function, the unit id, and that the
-//! whole range lies in the table. Anything else is answered with a Modbus exception; nothing a
-//! client sends panics or grows memory (a frame is at most 260 bytes, and connections beyond the
-//! limit are closed at once).
+//! Every request is checked before it touches the bank: the function, the unit id, the quantity
+//! (at most what one frame carries: 2000 bits or 125 registers read, 1968 bits or 123 registers
+//! written), that the whole range lies in the table, and, for a write, that the client may write
+//! and that every entry written is writable. Anything else is answered with a Modbus exception;
+//! nothing a client sends panics or grows memory (a frame is at most 260 bytes, and connections
+//! beyond the limit are closed at once).
+//!
+//! The PLC's own server ([`crate::server`]) is this server with a write policy: only some coils
+//! and registers are writable, and only from an allow-list of addresses.
 
 use std::future::{ready, Ready};
-use std::net::SocketAddr;
+use std::net::{IpAddr, SocketAddr};
 use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::{Arc, Mutex, MutexGuard};
 
@@ -28,8 +33,50 @@ pub struct Bank {
     pub input_registers: Vec<u16>,
     /// Holding registers.
     pub holding_registers: Vec<u16>,
+    /// Which coils and holding registers clients may write; all of them when `None`.
+    pub writable: Option<Writable>,
     /// Requests answered, exceptions sent, connections refused.
     pub counters: BankCounters,
+}
+
+/// The coils and holding registers a client may write, one flag per entry of each table.
+#[derive(Debug, Default, Clone, PartialEq, Eq)]
+pub struct Writable {
+    /// Per coil.
+    pub coils: Vec<bool>,
+    /// Per holding register.
+    pub holding_registers: Vec<bool>,
+}
+
+/// Which clients may write.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum WriteFrom {
+    /// Every client (a simulated device, such as a twin).
+    Anyone,
+    /// Only clients at these addresses; the others read only.
+    Only(Vec<IpAddr>),
+}
+
+impl WriteFrom {
+    /// Whether a client at `ip` may write.
+    pub fn allows(&self, ip: IpAddr) -> bool {
+        match self {
+            WriteFrom::Anyone => true,
+            // An IPv4 client of a dual-stack listener arrives as ::ffff:a.b.c.d.
+            WriteFrom::Only(list) => list.contains(&ip.to_canonical()),
+        }
+    }
+}
+
+/// How a server is reached and who may do what.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct ServeOptions {
+    /// The unit id it answers to (0 and 255 always reach it too).
+    pub unit: u8,
+    /// Clients served at once; further connections are closed at once.
+    pub max_connections: usize,
+    /// Who may write.
+    pub write_from: WriteFrom,
 }
 
 /// What the server did.
@@ -48,61 +95,136 @@ pub fn lock(bank: &Mutex<Bank>) -> MutexGuard<'_, Bank> {
     bank.lock().unwrap_or_else(|p| p.into_inner())
 }
 
-fn range(len: usize, at: u16, n: usize) -> Result<std::ops::Range<usize>, ExceptionCode> {
+/// Bits one read may ask for (Modbus Application Protocol 1.1b3, 6.1 and 6.2).
+const MAX_READ_BITS: usize = 2000;
+/// Registers one read may ask for (6.3, 6.4).
+const MAX_READ_REGISTERS: usize = 125;
+/// Coils one write may carry (6.11).
+const MAX_WRITE_BITS: usize = 1968;
+/// Registers one write may carry (6.12).
+const MAX_WRITE_REGISTERS: usize = 123;
+
+/// The entries `at .. at + n` of a table of `len`, for a request that may carry at most `max`:
+/// a quantity out of bounds is an illegal value, a range outside the table an illegal address.
+fn range(
+    len: usize,
+    at: u16,
+    n: usize,
+    max: usize,
+) -> Result<std::ops::Range<usize>, ExceptionCode> {
+    if n == 0 || n > max {
+        return Err(ExceptionCode::IllegalDataValue);
+    }
     let start = usize::from(at);
     match start.checked_add(n) {
-        Some(end) if n > 0 && end <= len => Ok(start..end),
+        Some(end) if end <= len => Ok(start..end),
         _ => Err(ExceptionCode::IllegalDataAddress),
     }
 }
 
+/// Whether every entry of `r` is writable (`None`: the whole table is).
+fn writable(mask: Option<&[bool]>, r: &std::ops::Range<usize>) -> Result<(), ExceptionCode> {
+    match mask {
+        Some(m) if !m.get(r.clone()).is_some_and(|m| m.iter().all(|&w| w)) => {
+            Err(ExceptionCode::IllegalDataAddress)
+        }
+        _ => Ok(()),
+    }
+}
+
 impl Bank {
-    /// Answers one request.
-    pub fn answer(&mut self, req: &Request<'_>) -> Result<Response, ExceptionCode> {
-        let r = match req {
-            Request::ReadDiscreteInputs(at, n) => {
-                range(self.discrete_inputs.len(), *at, usize::from(*n))
-                    .map(|r| Response::ReadDiscreteInputs(self.discrete_inputs[r].to_vec()))
-            }
-            Request::ReadCoils(at, n) => range(self.coils.len(), *at, usize::from(*n))
-                .map(|r| Response::ReadCoils(self.coils[r].to_vec())),
-            Request::ReadInputRegisters(at, n) => {
-                range(self.input_registers.len(), *at, usize::from(*n))
-                    .map(|r| Response::ReadInputRegisters(self.input_registers[r].to_vec()))
-            }
-            Request::ReadHoldingRegisters(at, n) => {
-                range(self.holding_registers.len(), *at, usize::from(*n))
-                    .map(|r| Response::ReadHoldingRegisters(self.holding_registers[r].to_vec()))
-            }
-            Request::WriteSingleCoil(at, v) => range(self.coils.len(), *at, 1).map(|r| {
-                self.coils[r.start] = *v;
-                Response::WriteSingleCoil(*at, *v)
-            }),
-            Request::WriteMultipleCoils(at, vs) => {
-                range(self.coils.len(), *at, vs.len()).map(|r| {
-                    self.coils[r].copy_from_slice(vs);
-                    Response::WriteMultipleCoils(*at, vs.len() as u16)
-                })
-            }
-            Request::WriteSingleRegister(at, v) => {
-                range(self.holding_registers.len(), *at, 1).map(|r| {
-                    self.holding_registers[r.start] = *v;
-                    Response::WriteSingleRegister(*at, *v)
-                })
-            }
-            Request::WriteMultipleRegisters(at, vs) => {
-                range(self.holding_registers.len(), *at, vs.len()).map(|r| {
-                    self.holding_registers[r].copy_from_slice(vs);
-                    Response::WriteMultipleRegisters(*at, vs.len() as u16)
-                })
-            }
-            _ => Err(ExceptionCode::IllegalFunction),
-        };
+    /// Answers one request from a client that may write (`may_write`) or only read.
+    pub fn answer(
+        &mut self,
+        req: &Request<'_>,
+        may_write: bool,
+    ) -> Result<Response, ExceptionCode> {
+        let r = self.answer_unchecked(req, may_write);
         match &r {
             Ok(_) => self.counters.requests += 1,
             Err(_) => self.counters.exceptions += 1,
         }
         r
+    }
+
+    fn answer_unchecked(
+        &mut self,
+        req: &Request<'_>,
+        may_write: bool,
+    ) -> Result<Response, ExceptionCode> {
+        let is_write = matches!(
+            req,
+            Request::WriteSingleCoil(..)
+                | Request::WriteMultipleCoils(..)
+                | Request::WriteSingleRegister(..)
+                | Request::WriteMultipleRegisters(..)
+        );
+        if is_write && !may_write {
+            // This client reads only: the function is not one it may use.
+            return Err(ExceptionCode::IllegalFunction);
+        }
+        let coils_mask = self.writable.as_ref().map(|w| w.coils.as_slice());
+        let regs_mask = self
+            .writable
+            .as_ref()
+            .map(|w| w.holding_registers.as_slice());
+        match req {
+            Request::ReadDiscreteInputs(at, n) => {
+                let r = range(
+                    self.discrete_inputs.len(),
+                    *at,
+                    usize::from(*n),
+                    MAX_READ_BITS,
+                )?;
+                Ok(Response::ReadDiscreteInputs(
+                    self.discrete_inputs[r].to_vec(),
+                ))
+            }
+            Request::ReadCoils(at, n) => {
+                let r = range(self.coils.len(), *at, usize::from(*n), MAX_READ_BITS)?;
+                Ok(Response::ReadCoils(self.coils[r].to_vec()))
+            }
+            Request::ReadInputRegisters(at, n) => {
+                let len = self.input_registers.len();
+                let r = range(len, *at, usize::from(*n), MAX_READ_REGISTERS)?;
+                Ok(Response::ReadInputRegisters(
+                    self.input_registers[r].to_vec(),
+                ))
+            }
+            Request::ReadHoldingRegisters(at, n) => {
+                let len = self.holding_registers.len();
+                let r = range(len, *at, usize::from(*n), MAX_READ_REGISTERS)?;
+                Ok(Response::ReadHoldingRegisters(
+                    self.holding_registers[r].to_vec(),
+                ))
+            }
+            Request::WriteSingleCoil(at, v) => {
+                let r = range(self.coils.len(), *at, 1, 1)?;
+                writable(coils_mask, &r)?;
+                self.coils[r.start] = *v;
+                Ok(Response::WriteSingleCoil(*at, *v))
+            }
+            Request::WriteMultipleCoils(at, vs) => {
+                let r = range(self.coils.len(), *at, vs.len(), MAX_WRITE_BITS)?;
+                writable(coils_mask, &r)?;
+                self.coils[r].copy_from_slice(vs);
+                Ok(Response::WriteMultipleCoils(*at, vs.len() as u16))
+            }
+            Request::WriteSingleRegister(at, v) => {
+                let r = range(self.holding_registers.len(), *at, 1, 1)?;
+                writable(regs_mask, &r)?;
+                self.holding_registers[r.start] = *v;
+                Ok(Response::WriteSingleRegister(*at, *v))
+            }
+            Request::WriteMultipleRegisters(at, vs) => {
+                let len = self.holding_registers.len();
+                let r = range(len, *at, vs.len(), MAX_WRITE_REGISTERS)?;
+                writable(regs_mask, &r)?;
+                self.holding_registers[r].copy_from_slice(vs);
+                Ok(Response::WriteMultipleRegisters(*at, vs.len() as u16))
+            }
+            _ => Err(ExceptionCode::IllegalFunction),
+        }
     }
 }
 
@@ -110,6 +232,7 @@ impl Bank {
 struct BankService {
     bank: Arc<Mutex<Bank>>,
     unit: u8,
+    may_write: bool,
     open: Arc<AtomicUsize>,
 }
 
@@ -132,7 +255,7 @@ impl Service for BankService {
             bank.counters.exceptions += 1;
             return ready(Err(ExceptionCode::GatewayTargetDevice));
         }
-        ready(bank.answer(&req.request))
+        ready(bank.answer(&req.request, self.may_write))
     }
 }
 
@@ -145,14 +268,17 @@ pub struct BankServer {
 }
 
 impl BankServer {
-    /// Listens on `addr` for at most `max_connections` clients at once, serving `bank` as unit
-    /// `unit`.
+    /// Listens on `addr`, serving `bank` as `options` say.
     pub fn start(
         addr: SocketAddr,
         bank: Arc<Mutex<Bank>>,
-        unit: u8,
-        max_connections: usize,
+        options: ServeOptions,
     ) -> Result<BankServer, IoError> {
+        let ServeOptions {
+            unit,
+            max_connections,
+            write_from,
+        } = options;
         let listener = std::net::TcpListener::bind(addr).map_err(|e| IoError::Listen {
             addr: addr.to_string(),
             reason: e.to_string(),
@@ -183,15 +309,21 @@ impl BankServer {
                     };
                     let server = Server::new(listener);
                     let open = Arc::new(AtomicUsize::new(0));
-                    let on_connected = |stream, peer| {
+                    let on_connected = |stream, peer: SocketAddr| {
                         let (bank, open) = (bank.clone(), open.clone());
+                        let may_write = write_from.allows(peer.ip());
                         async move {
                             if open.load(Ordering::SeqCst) >= max_connections {
                                 lock(&bank).counters.refused += 1;
                                 return Ok(None);
                             }
                             open.fetch_add(1, Ordering::SeqCst);
-                            let svc = std::cell::Cell::new(Some(BankService { bank, unit, open }));
+                            let svc = std::cell::Cell::new(Some(BankService {
+                                bank,
+                                unit,
+                                may_write,
+                                open,
+                            }));
                             accept_tcp_connection(stream, peer, |_| Ok(svc.take()))
                         }
                     };
@@ -241,32 +373,33 @@ mod tests {
             coils: vec![false; 8],
             ..Bank::default()
         };
+        let mut ask = |r: Request<'_>| b.answer(&r, true);
         assert_eq!(
-            b.answer(&Request::ReadDiscreteInputs(0, 8)),
+            ask(Request::ReadDiscreteInputs(0, 8)),
             Ok(Response::ReadDiscreteInputs(vec![true; 8]))
         );
         assert_eq!(
-            b.answer(&Request::ReadDiscreteInputs(1, 8)),
+            ask(Request::ReadDiscreteInputs(1, 8)),
             Err(ExceptionCode::IllegalDataAddress)
         );
         assert_eq!(
-            b.answer(&Request::ReadDiscreteInputs(u16::MAX, u16::MAX)),
+            ask(Request::ReadDiscreteInputs(u16::MAX, 2)),
             Err(ExceptionCode::IllegalDataAddress)
         );
         assert_eq!(
-            b.answer(&Request::ReadCoils(0, 0)),
+            ask(Request::ReadCoils(0, 0)),
+            Err(ExceptionCode::IllegalDataValue)
+        );
+        assert_eq!(
+            ask(Request::WriteSingleRegister(0, 1)),
             Err(ExceptionCode::IllegalDataAddress)
         );
         assert_eq!(
-            b.answer(&Request::WriteSingleRegister(0, 1)),
-            Err(ExceptionCode::IllegalDataAddress)
-        );
-        assert_eq!(
-            b.answer(&Request::ReportServerId),
+            ask(Request::ReportServerId),
             Err(ExceptionCode::IllegalFunction)
         );
         assert_eq!(
-            b.answer(&Request::WriteMultipleCoils(6, vec![true, true].into())),
+            ask(Request::WriteMultipleCoils(6, vec![true, true].into())),
             Ok(Response::WriteMultipleCoils(6, 2))
         );
         assert_eq!(&b.coils[5..], &[false, true, true]);
@@ -278,5 +411,61 @@ mod tests {
                 refused: 0
             }
         );
+    }
+
+    #[test]
+    fn a_read_longer_than_one_frame_carries_is_an_illegal_value_not_a_malformed_answer() {
+        let mut b = Bank {
+            holding_registers: vec![0; 1000],
+            coils: vec![false; 4000],
+            ..Bank::default()
+        };
+        assert_eq!(
+            b.answer(&Request::ReadHoldingRegisters(0, 126), false),
+            Err(ExceptionCode::IllegalDataValue)
+        );
+        assert_eq!(
+            b.answer(&Request::ReadCoils(0, 2001), false),
+            Err(ExceptionCode::IllegalDataValue)
+        );
+        assert!(b
+            .answer(&Request::ReadHoldingRegisters(0, 125), false)
+            .is_ok());
+        assert!(b.answer(&Request::ReadCoils(0, 2000), false).is_ok());
+    }
+
+    #[test]
+    fn writes_reach_only_writable_entries_and_only_from_clients_that_may_write() {
+        let mut b = Bank {
+            holding_registers: vec![0; 4],
+            writable: Some(Writable {
+                coils: Vec::new(),
+                holding_registers: vec![false, true, true, false],
+            }),
+            ..Bank::default()
+        };
+        assert_eq!(
+            b.answer(&Request::WriteSingleRegister(1, 7), false),
+            Err(ExceptionCode::IllegalFunction)
+        );
+        assert_eq!(
+            b.answer(&Request::WriteSingleRegister(0, 7), true),
+            Err(ExceptionCode::IllegalDataAddress)
+        );
+        assert_eq!(
+            b.answer(
+                &Request::WriteMultipleRegisters(1, vec![8, 9, 10].into()),
+                true
+            ),
+            Err(ExceptionCode::IllegalDataAddress)
+        );
+        assert_eq!(
+            b.answer(&Request::WriteMultipleRegisters(1, vec![8, 9].into()), true),
+            Ok(Response::WriteMultipleRegisters(1, 2))
+        );
+        assert_eq!(b.holding_registers, [0, 8, 9, 0]);
+        let only = WriteFrom::Only(vec!["127.0.0.1".parse().unwrap()]);
+        assert!(only.allows("::ffff:127.0.0.1".parse().unwrap()));
+        assert!(!only.allows("127.0.0.2".parse().unwrap()));
     }
 }

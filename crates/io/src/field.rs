@@ -105,6 +105,18 @@ pub(crate) enum Kick {
     Stop,
 }
 
+/// Reads every device's figures, quality included, from another thread than the scan's (the
+/// publisher of `exec_info`): it locks the image for the copy, and the scan never waits for it.
+#[derive(Clone)]
+pub struct StatusReader(Arc<Mutex<Shared>>);
+
+impl StatusReader {
+    /// Every device's figures as of the last cycle.
+    pub fn read(&self) -> Vec<DeviceStatus> {
+        lock(&self.0).devices.clone()
+    }
+}
+
 /// The field I/O of a node: a [`Provider`] and a [`Dispatcher`] over the process image.
 pub struct FieldIo {
     map: Arc<FieldMap>,
@@ -226,6 +238,11 @@ impl FieldIo {
         s
     }
 
+    /// A reader of every device's figures for another thread.
+    pub fn status_reader(&self) -> StatusReader {
+        StatusReader(self.shared.clone())
+    }
+
     /// Whether a device with the `fault` policy went stale: the field I/O is in its safe state.
     pub fn faulted(&self) -> bool {
         self.fault
@@ -293,6 +310,14 @@ impl FieldIo {
                 Quality::Stale
             };
         }
+        // For readers on other threads; a cycle in which an I/O thread holds the image shows
+        // them one cycle late.
+        if let Ok(mut s) = self.shared.try_lock() {
+            for (d, st) in s.devices.iter_mut().enumerate() {
+                st.quality = self.quality[d];
+                st.missed_cycles = self.missed[d];
+            }
+        }
     }
 }
 
@@ -300,22 +325,19 @@ impl Provider for FieldIo {
     fn read_inputs(&mut self, _now_us: u64, inputs: &mut [Value]) {
         self.take_inputs();
         for c in &self.map.inputs {
+            // An input no device serves comes from the twin or from the server's clients.
+            let Some((d, _, _)) = c.on else { continue };
             let Some(slot) = inputs.get_mut(c.signal) else {
                 continue;
             };
-            *slot = match c.on {
-                Some((d, _, _)) => {
-                    let use_safe = self.fault
-                        || self.quality[d] == Quality::Initial
-                        || (self.quality[d] == Quality::Stale
-                            && self.devices[d].stale != StalePolicy::Hold);
-                    if use_safe {
-                        self.map.safe_inputs[c.signal]
-                    } else {
-                        self.front[c.signal]
-                    }
-                }
-                None => self.front[c.signal],
+            let use_safe = self.fault
+                || self.quality[d] == Quality::Initial
+                || (self.quality[d] == Quality::Stale
+                    && self.devices[d].stale != StalePolicy::Hold);
+            *slot = if use_safe {
+                self.map.safe_inputs[c.signal]
+            } else {
+                self.front[c.signal]
             };
         }
     }

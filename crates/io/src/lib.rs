@@ -3,6 +3,7 @@
 //! * [`TwinDriver`] connects a program's signals, by name, to a digital twin's signals.
 //! * [`config`] is the node's I/O configuration (docs/io.md); [`address`] the IEC addresses and
 //!   their default Modbus map; [`map`] binds a program's signals to devices.
+//! * [`server`] is the PLC's own Modbus server, over [`bank`].
 
 pub mod address;
 pub mod bank;
@@ -11,6 +12,7 @@ pub mod field;
 pub mod map;
 mod modbus;
 pub mod plant;
+pub mod server;
 pub mod twin_serve;
 
 use cetratus_program::{Signal, Type, Value};

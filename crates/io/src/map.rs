@@ -87,6 +87,12 @@ impl FieldMap {
                     why: format!("the twin provides every input, but device `{}` serves {} too; remove the device's input range or --twin", config.devices[c.on.map_or(0, |o| o.0)].name, c.address),
                 });
             }
+            if c.hmi_writable && twin_provides_inputs {
+                return Err(IoError::Unmapped {
+                    signal: s.name.clone(),
+                    why: format!("{} is marked hmi_writable but the twin provides every input; an input has one source", c.address),
+                });
+            }
             if c.hmi_writable && c.on.is_some() {
                 return Err(IoError::Unmapped {
                     signal: s.name.clone(),

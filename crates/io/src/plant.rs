@@ -1,23 +1,39 @@
-//! The I/O of a run: a digital twin in process, the field, or both (the twin as the plant, with
-//! the process image served to SCADA beside it).
+//! The I/O of a run: a digital twin in process, the field, or both, and the PLC's own Modbus
+//! server beside them (the process image for HMIs and SCADA).
 
 use cetratus_program::Value;
 use cetratus_runtime::{Dispatcher, Provider};
 use cetratus_twin::Twin;
 
 use crate::field::FieldIo;
+use crate::server::ImageServer;
 use crate::TwinDriver;
 
-/// A twin, field I/O, or both, as one [`Provider`] and [`Dispatcher`].
+/// A twin, field I/O and the server, each optional, as one [`Provider`] and [`Dispatcher`]:
+/// inputs from the twin, then the field devices, then what HMIs wrote.
 pub struct PlantIo {
     twin: Option<TwinDriver<Twin>>,
     field: Option<FieldIo>,
+    server: Option<ImageServer>,
 }
 
 impl PlantIo {
-    /// The I/O of a run; `None` when it has neither a twin nor field I/O.
-    pub fn new(twin: Option<TwinDriver<Twin>>, field: Option<FieldIo>) -> Option<PlantIo> {
-        (twin.is_some() || field.is_some()).then_some(PlantIo { twin, field })
+    /// The I/O of a run; `None` when it has no twin, no field I/O and no server.
+    pub fn new(
+        twin: Option<TwinDriver<Twin>>,
+        field: Option<FieldIo>,
+        server: Option<ImageServer>,
+    ) -> Option<PlantIo> {
+        (twin.is_some() || field.is_some() || server.is_some()).then_some(PlantIo {
+            twin,
+            field,
+            server,
+        })
+    }
+
+    /// The PLC's Modbus server, when the run has one.
+    pub fn server(&self) -> Option<&ImageServer> {
+        self.server.as_ref()
     }
 
     /// The twin driver, when the run has a twin.
@@ -49,6 +65,9 @@ impl Provider for PlantIo {
         if let Some(f) = self.field.as_mut() {
             f.read_inputs(now_us, inputs);
         }
+        if let Some(s) = self.server.as_mut() {
+            s.read_inputs(now_us, inputs);
+        }
     }
 }
 
@@ -59,6 +78,9 @@ impl Dispatcher for PlantIo {
         }
         if let Some(f) = self.field.as_mut() {
             f.write_outputs(now_us, outputs);
+        }
+        if let Some(s) = self.server.as_mut() {
+            s.write_outputs(now_us, outputs);
         }
     }
 }

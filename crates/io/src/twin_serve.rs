@@ -17,7 +17,7 @@ use cetratus_twin::{Plant, Twin, TwinKind};
 use serde::Deserialize;
 
 use crate::address::{IecAddress, Table};
-use crate::bank::{lock, Bank, BankCounters, BankServer};
+use crate::bank::{lock, Bank, BankCounters, BankServer, ServeOptions, WriteFrom};
 use crate::IoError;
 
 const VERNADAT: &str = include_str!("../../../examples/vernadat/vernadat.toml");
@@ -150,7 +150,15 @@ pub fn serve(
         coils: vec![false; size(&map.outputs)],
         ..Bank::default()
     }));
-    let server = BankServer::start(listen, bank.clone(), 1, 16)?;
+    let server = BankServer::start(
+        listen,
+        bank.clone(),
+        ServeOptions {
+            unit: 1,
+            max_connections: 16,
+            write_from: WriteFrom::Anyone,
+        },
+    )?;
     on_listen(server.addr);
     let mut outputs = vec![false; map.outputs.len()];
     let mut inputs = vec![false; map.inputs.len()];

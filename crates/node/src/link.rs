@@ -16,7 +16,7 @@
 use std::collections::VecDeque;
 use std::sync::atomic::AtomicBool;
 use std::sync::mpsc::{channel, sync_channel, Receiver, Sender, SyncSender, TrySendError};
-use std::sync::Arc;
+use std::sync::{Arc, Mutex};
 
 use cetratus_mct::budget::{worth_logging, Budget, Permit};
 use cetratus_mct::{
@@ -35,6 +35,7 @@ use cetratus_runtime::{
 use serde_json::json;
 
 use crate::wire;
+use cetratus_io::field::StatusReader;
 
 /// `exec_info` requests that may wait for the publisher; past them a request is answered
 /// `busy`.
@@ -104,7 +105,11 @@ pub struct ControlLink {
     done: Arc<AtomicBool>,
     threads: Vec<std::thread::JoinHandle<()>>,
     mqtt_stats: StatsReader,
+    quality: QualitySource,
 }
+
+/// Where the publisher reads the field devices' input quality, once the node has field I/O.
+type QualitySource = Arc<Mutex<Option<StatusReader>>>;
 
 impl ControlLink {
     /// Starts the preparer and the publisher for `plc` on `link`.
@@ -141,9 +146,11 @@ impl ControlLink {
             .spawn(move || prep.run(commands, prep_done))
             .expect("spawn the preparer");
         let pub_out = outgoing.clone();
+        let quality: QualitySource = Arc::new(Mutex::new(None));
+        let pub_quality = quality.clone();
         let publisher = std::thread::Builder::new()
             .name("cetratus-publish".into())
-            .spawn(move || publish_loop(snap_rx, pub_out))
+            .spawn(move || publish_loop(snap_rx, pub_out, pub_quality))
             .expect("spawn the publisher");
         ControlLink {
             to_scan_rx,
@@ -164,7 +171,14 @@ impl ControlLink {
             done,
             threads: vec![preparer, publisher],
             mqtt_stats: stats,
+            quality,
         }
+    }
+
+    /// Shows the field devices' input quality in `exec_info`, read by the publisher from
+    /// `reader` (never by the scan thread).
+    pub fn set_input_quality(&mut self, reader: StatusReader) {
+        *self.quality.lock().unwrap_or_else(|p| p.into_inner()) = Some(reader);
     }
 
     /// Gives the PLC the commands that are ready. Returns who sent the last one, for the audit
@@ -451,7 +465,7 @@ fn substitute(
     .map_err(|e| e.to_string())
 }
 
-fn publish_loop(rx: Receiver<ToPublisher>, out: SyncSender<Outgoing>) {
+fn publish_loop(rx: Receiver<ToPublisher>, out: SyncSender<Outgoing>, quality: QualitySource) {
     // The figures of the latest snapshot, shared by every `exec_info` answer until the next.
     let mut latest: Option<Arc<ExecInfoMsg>> = None;
     // Requests that came before the first snapshot, bounded by their permits.
@@ -477,9 +491,19 @@ fn publish_loop(rx: Receiver<ToPublisher>, out: SyncSender<Outgoing>) {
         if out.send(Outgoing::State(Box::new(s.state))).is_err() {
             return;
         }
-        let info = Arc::new(ExecInfoMsg(
-            s.exec_info.map(|e| e.as_ref().map(wire::exec_info)),
-        ));
+        let devices = quality
+            .lock()
+            .unwrap_or_else(|p| p.into_inner())
+            .as_ref()
+            .map(|r| wire::input_quality(&r.read()))
+            .unwrap_or_default();
+        let info = Arc::new(ExecInfoMsg(s.exec_info.map(|e| {
+            e.as_ref().map(|e| {
+                let mut w = wire::exec_info(e);
+                w.input_quality.clone_from(&devices);
+                w
+            })
+        })));
         let _ = out.send(Outgoing::ExecInfo(Box::new((*info).clone())));
         for (reply, _permit) in early.drain(..) {
             let _ = out.send(Outgoing::ExecInfoReply(reply, info.clone()));

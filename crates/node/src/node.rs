@@ -51,6 +51,9 @@ pub struct NodeOptions {
     pub progress_every: Option<u64>,
 }
 
+/// What [`Node::with_observer`] is given.
+type Observer = Box<dyn FnMut(&Plc) + Send>;
+
 /// Most faults a run's report keeps; the count of the rest is still reported.
 const MAX_FAULTS: usize = 100;
 
@@ -71,6 +74,7 @@ pub struct Node<IO> {
     script_error: Option<ScriptError>,
     timing: LoopTiming,
     pace: Pace,
+    observer: Option<Observer>,
 }
 
 /// What a node leaves when it stops.
@@ -114,6 +118,7 @@ impl<IO: Provider + Dispatcher> Node<IO> {
             script_error: None,
             timing: LoopTiming::default(),
             pace: Pace::Virtual,
+            observer: None,
         }
     }
 
@@ -132,6 +137,13 @@ impl<IO: Provider + Dispatcher> Node<IO> {
     /// Gives scripted commands; their packages must be signed by the keys of the options.
     pub fn with_script(mut self, script: Script) -> Self {
         self.script = script.trusting(self.opts.trust.clone(), self.opts.allow_unsigned);
+        self
+    }
+
+    /// Calls `observe` on the scan thread after every cycle, with the PLC as the cycle left it
+    /// (the Modbus server's status registers). It must not block: use `try_lock`/`try_send`.
+    pub fn with_observer(mut self, observe: impl FnMut(&Plc) + Send + 'static) -> Self {
+        self.observer = Some(Box::new(observe));
         self
     }
 
@@ -254,6 +266,9 @@ impl<IO: Provider + Dispatcher> Node<IO> {
                 self.plc.inputs(),
                 self.plc.dispatched(),
             );
+        }
+        if let Some(observe) = self.observer.as_mut() {
+            observe(&self.plc);
         }
         let k = self.plc.primary_container();
         if let Err(v) = k.program().check_invariants(k.marking()) {

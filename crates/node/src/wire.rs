@@ -106,6 +106,7 @@ pub fn exec_info(e: &ExecInfo) -> proto::ExecInfo {
         drift: e.drift,
         firings: e.firings.clone(),
         first_cause: e.first_cause.clone(),
+        input_quality: Vec::new(),
         last_cause: e.last_cause.clone(),
         marking: e.marking.clone(),
         max_drift: e.max_drift,
@@ -123,6 +124,29 @@ pub fn exec_info(e: &ExecInfo) -> proto::ExecInfo {
         scan: timing(e.scan),
         verdicts: e.verdicts.iter().map(verdict).collect(),
     }
+}
+
+/// The quality of each field device's inputs on the wire.
+pub fn input_quality(devices: &[cetratus_io::field::DeviceStatus]) -> Vec<proto::InputQuality> {
+    use cetratus_io::field::{Link, Quality};
+    devices
+        .iter()
+        .map(|d| proto::InputQuality {
+            device: d.name.clone(),
+            link: match d.link {
+                Link::Connecting => proto::LinkState::Connecting,
+                Link::Up => proto::LinkState::Up,
+                Link::Down => proto::LinkState::Down,
+            },
+            missed_cycles: d.missed_cycles,
+            quality: match d.quality {
+                Quality::Initial => proto::Quality::Initial,
+                Quality::Good => proto::Quality::Good,
+                Quality::Late => proto::Quality::Late,
+                Quality::Stale => proto::Quality::Stale,
+            },
+        })
+        .collect()
 }
 
 /// Both containers' `program_exec_info`.

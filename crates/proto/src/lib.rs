@@ -29,8 +29,8 @@ pub use names::{ErrorCode, Role, Slot, StatusName, SubstituteMode, VerdictKind, 
 pub use outcome::Ending;
 pub use payload::{
     decode, encode, within_error, Accepted, Command, ControlCounters, CycleFigures, ErrorBody,
-    EventMsg, ExecInfo, ExecInfoMsg, IoMsg, IoNames, LoadArgs, NetMsg, NoArgs, ProgramInfo,
-    Programs, Reply, ReplyFields, Sample, SignalValue, Signals, StateMsg, StatePayload,
-    SubstituteArgs, TimingSummary, Verdict, MAX_PAYLOAD, MAX_WITHIN_MS,
+    EventMsg, ExecInfo, ExecInfoMsg, InputQuality, IoMsg, IoNames, LinkState, LoadArgs, NetMsg,
+    NoArgs, ProgramInfo, Programs, Quality, Reply, ReplyFields, Sample, SignalValue, Signals,
+    StateMsg, StatePayload, SubstituteArgs, TimingSummary, Verdict, MAX_PAYLOAD, MAX_WITHIN_MS,
 };
 pub use topic::{parse_topic, Leaf, PlcId, Topics, Verb, ALL_PLCS_FILTER, ROOT};

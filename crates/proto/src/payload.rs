@@ -326,6 +326,10 @@ pub struct ExecInfo {
     pub firings: BTreeMap<String, u64>,
     /// The derived cause of the first divergence, in words (`null` when none).
     pub first_cause: Option<String>,
+    /// The quality of the inputs it scanned, per field device (absent without field I/O, and
+    /// from PLCs that predate it).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub input_quality: Vec<InputQuality>,
     /// The derived cause of the latest divergence, in words (`null` when none).
     pub last_cause: Option<String>,
     /// Tokens per place id.
@@ -342,6 +346,46 @@ pub struct ExecInfo {
     pub scan: TimingSummary,
     /// Validation verdicts.
     pub verdicts: Vec<Verdict>,
+}
+
+/// What one field device's inputs were worth in the last cycle (docs/io.md, *Quality*).
+#[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct InputQuality {
+    /// The device's name in the I/O configuration.
+    pub device: String,
+    /// Its connection.
+    pub link: LinkState,
+    /// Cycles in a row without a complete read.
+    pub missed_cycles: u64,
+    /// Its inputs' quality.
+    pub quality: Quality,
+}
+
+/// The quality of a device's inputs.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Quality {
+    /// No complete read yet: the inputs are their safe values.
+    Initial,
+    /// Read in time.
+    Good,
+    /// Missed cycles, fewer than the device's `stale_after`: the last values are used.
+    Late,
+    /// `stale_after` cycles or more without a read: the device's stale policy applies.
+    Stale,
+}
+
+/// How the connection to a field device stands.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum LinkState {
+    /// Not connected yet.
+    Connecting,
+    /// Connected.
+    Up,
+    /// Lost, or never made: retried with backoff.
+    Down,
 }
 
 /// The `exec_info` message (and the `result` of `cmd/exec_info`): `[A | null, B | null]`.

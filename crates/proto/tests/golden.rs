@@ -158,6 +158,18 @@ fn typed_fields_hold_what_the_plc_said() {
     assert!(b.verdicts.is_empty());
     let e: ExecInfoMsg = round_trip("exec_info.json", false);
     assert!(e.get(Slot::B).is_none());
+    assert!(e.get(Slot::A).expect("A").input_quality.is_empty());
+    let e: ExecInfoMsg = round_trip("exec_info_field_io.json", false);
+    let q = &e.get(Slot::A).expect("A").input_quality;
+    assert_eq!(q.len(), 1);
+    assert_eq!(
+        (q[0].device.as_str(), q[0].quality, q[0].link),
+        (
+            "cell",
+            cetratus_proto::Quality::Good,
+            cetratus_proto::LinkState::Up
+        )
+    );
     let io: IoMsg = round_trip("io.json", true);
     assert!(io.outputs_b.is_none());
     assert!(io.unix_ms.is_some());

@@ -34,7 +34,8 @@ pub struct ServeArgs {
     /// Print the address map and stop.
     #[arg(long)]
     print_map: bool,
-    /// How long to run (e.g. `1min`); forever by default, Ctrl-C stops.
+    /// How long to run (e.g. `1min`), counted from the first request; forever by default,
+    /// Ctrl-C stops.
     #[arg(long = "for")]
     for_: Option<String>,
     /// Print the closing summary as one JSON object.

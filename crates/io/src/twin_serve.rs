@@ -133,7 +133,7 @@ pub struct ServeReport {
 }
 
 /// Serves `twin` on `listen` until `until_us` of twin time or `stop`; `on_listen` is told the
-/// address once the server listens.
+/// address once the server listens. Twin time starts at the first request a client makes.
 pub fn serve(
     mut twin: Twin,
     map: &TwinMap,
@@ -162,6 +162,19 @@ pub fn serve(
     on_listen(server.addr);
     let mut outputs = vec![false; map.outputs.len()];
     let mut inputs = vec![false; map.inputs.len()];
+    // The plant's clock starts with its controller's first request: a twin that ran ahead of a
+    // PLC still starting would not be the plant that PLC meets. Until then it shows its
+    // initial sensors.
+    twin.inputs(&mut inputs);
+    {
+        let mut b = lock(&bank);
+        for (v, (_, _, n)) in inputs.iter().zip(&map.inputs) {
+            b.discrete_inputs[usize::from(*n)] = *v;
+        }
+    }
+    while lock(&bank).counters.requests == 0 && !stop.load(Ordering::Relaxed) {
+        std::thread::sleep(Duration::from_millis(1));
+    }
     let start = Instant::now();
     let mut now_us = 0;
     while now_us < until_us && !stop.load(Ordering::Relaxed) {

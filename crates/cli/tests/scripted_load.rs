@@ -66,6 +66,7 @@ fn a_virtual_run_with_scripted_loads_gives_the_same_event_cycles_every_time() {
                 .args(["--config", &p(&d.join("config"))])
                 .args(["--at", &format!("10s load {}", p(&d.join("u1.cpkg")))])
                 .args(["--at", "20s substitute"])
+                .args(["--at", "22s accept"])
                 .args(["--at", &format!("25s load {}", p(&d.join("u2.cpkg")))])
                 .arg("--state-dir")
                 .arg(state.path())
@@ -208,7 +209,8 @@ fn a_json_run_summary_lists_the_runs_events_in_order() {
             "load_accepted",
             "quarantine_started",
             "substitute_accepted",
-            "substituted"
+            "substituted",
+            "probation_started"
         ],
         "{summary}"
     );

@@ -145,6 +145,9 @@ struct UpdatesSection {
     candidate_work_budget: Option<u64>,
 }
 
+/// The probation window when `[updates] probation` is absent: a minute.
+pub const DEFAULT_PROBATION_US: u64 = 60_000_000;
+
 /// The loaded configuration.
 pub struct LocalConfig {
     /// The directory it came from.
@@ -297,15 +300,8 @@ impl LocalConfig {
         let probation_us = match &file.updates.probation {
             Some(p) => duration::parse_us(p, Bare::Seconds)
                 .map_err(|e| value_error("[updates] probation", p, e.to_string()))?,
-            None => 0,
+            None => DEFAULT_PROBATION_US,
         };
-        if probation_us != 0 {
-            return Err(value_error(
-                "[updates] probation",
-                file.updates.probation.as_deref().unwrap_or_default(),
-                "this version has no probation window; write \"0s\" or remove the key".into(),
-            ));
-        }
         let state_trans_timeout_us = match &file.updates.state_trans_timeout {
             Some(t) => {
                 let us = duration::parse_us(t, Bare::Seconds)
@@ -361,9 +357,11 @@ impl LocalConfig {
         })
     }
 
-    /// `limits` with what `[updates]` sets: stateTransTimeout and the candidate's work budget.
+    /// `limits` with what `[updates]` sets: stateTransTimeout, the candidate's work budget and
+    /// the probation window.
     pub fn limits(&self, limits: Limits) -> Limits {
         Limits {
+            probation_us: self.probation_us,
             state_trans_timeout_ns: self
                 .state_trans_timeout_us
                 .map_or(limits.state_trans_timeout_ns, |us| us.saturating_mul(1000)),
@@ -435,7 +433,7 @@ mod tests {
     fn a_missing_directory_is_the_defaults() {
         let c = LocalConfig::load(Some(Path::new("/nonexistent/cetratus-config"))).unwrap();
         assert!(!c.allow_unsigned && c.operators.is_none() && c.users.is_empty());
-        assert_eq!(c.probation_us, 0);
+        assert_eq!(c.probation_us, 60_000_000, "a minute of probation");
     }
 
     #[test]
@@ -456,13 +454,20 @@ mod tests {
     }
 
     #[test]
-    fn a_probation_window_is_refused_with_what_to_write() {
-        let d = dir_with("[updates]\nprobation = \"10s\"\n");
+    fn the_probation_window_is_read_and_0s_turns_it_off() {
+        for (text, us) in [
+            ("\"10s\"", 10_000_000),
+            ("\"0s\"", 0),
+            ("\"2min\"", 120_000_000),
+        ] {
+            let d = dir_with(&format!("[updates]\nprobation = {text}\n"));
+            let c = LocalConfig::load(Some(&d)).unwrap();
+            assert_eq!(c.probation_us, us, "{text}");
+            assert_eq!(c.limits(Limits::for_period_us(10_000)).probation_us, us);
+        }
+        let d = dir_with("[updates]\nprobation = \"soon\"\n");
         let e = LocalConfig::load(Some(&d)).err().unwrap().to_string();
-        assert!(
-            e.contains("[updates] probation") && e.contains("\"0s\""),
-            "{e}"
-        );
+        assert!(e.contains("[updates] probation"), "{e}");
     }
 
     #[test]

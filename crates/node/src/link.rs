@@ -378,6 +378,8 @@ impl Preparer {
                 Request::Remove => Ok(Box::new(Command::Remove)),
                 Request::Abort => Ok(Box::new(Command::Abort)),
                 Request::Reset => Ok(Box::new(Command::Reset)),
+                Request::Revert => Ok(Box::new(Command::Revert)),
+                Request::Accept => Ok(Box::new(Command::Accept)),
                 Request::ExecInfo => continue,
             };
             match prepared {

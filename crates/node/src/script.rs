@@ -46,6 +46,8 @@ enum Verb {
     Remove,
     Abort,
     Reset,
+    Revert,
+    Accept,
 }
 
 /// One scripted command.
@@ -210,9 +212,11 @@ impl Script {
                 ("remove", _) => Verb::Remove,
                 ("abort", _) => Verb::Abort,
                 ("reset", _) => Verb::Reset,
+                ("revert", _) => Verb::Revert,
+                ("accept", _) => Verb::Accept,
                 (other, _) => {
                     return Err(syntax(format!(
-                    "unknown command `{other}`; expected load, substitute, remove, abort or reset"
+                    "unknown command `{other}`; expected load, substitute, remove, abort, reset, revert or accept"
                 )))
                 }
             };
@@ -263,6 +267,8 @@ impl Script {
             Verb::Remove => Some(Command::Remove),
             Verb::Abort => Some(Command::Abort),
             Verb::Reset => Some(Command::Reset),
+            Verb::Revert => Some(Command::Revert),
+            Verb::Accept => Some(Command::Accept),
         };
         if let Some(c) = plain {
             return due.then(|| {

@@ -600,7 +600,7 @@ pub struct SubstituteArgs {
     pub within_ms: Option<u64>,
 }
 
-/// The arguments of `remove`, `abort`, `reset` and `exec_info`: none, `{}`.
+/// The arguments of `remove`, `abort`, `reset`, `exec_info`, `revert` and `accept`: none, `{}`.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct NoArgs {}
@@ -620,6 +620,10 @@ pub enum Command {
     Reset,
     /// `exec_info`.
     ExecInfo,
+    /// `revert`.
+    Revert,
+    /// `accept`.
+    Accept,
 }
 
 impl Command {
@@ -632,6 +636,8 @@ impl Command {
             Command::Abort => Verb::Abort,
             Command::Reset => Verb::Reset,
             Command::ExecInfo => Verb::ExecInfo,
+            Command::Revert => Verb::Revert,
+            Command::Accept => Verb::Accept,
         }
     }
 
@@ -649,6 +655,8 @@ impl Command {
                     Verb::Remove => Command::Remove,
                     Verb::Abort => Command::Abort,
                     Verb::Reset => Command::Reset,
+                    Verb::Revert => Command::Revert,
+                    Verb::Accept => Command::Accept,
                     _ => Command::ExecInfo,
                 }
             }

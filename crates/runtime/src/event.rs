@@ -114,6 +114,45 @@ impl std::fmt::Display for EventKind {
     }
 }
 
+/// Why a probation ended in a revert.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum RevertReason {
+    /// The new primary faulted (guard error, overflow, watchdog).
+    Fault,
+    /// The new primary stalled (a watched place held too long, or no firing for too long).
+    Stall,
+    /// The new primary broke an invariant its program declares.
+    Invariant,
+    /// A validation of the new primary failed.
+    Verdict,
+    /// The operator reverted.
+    Operator,
+}
+
+impl RevertReason {
+    /// The snake_case name.
+    pub fn name(self) -> &'static str {
+        match self {
+            RevertReason::Fault => "fault",
+            RevertReason::Stall => "stall",
+            RevertReason::Invariant => "invariant",
+            RevertReason::Verdict => "verdict",
+            RevertReason::Operator => "operator",
+        }
+    }
+}
+
+/// Where the old program's marking came from at a revert.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum RevertMarking {
+    /// The projection of the new primary's marking, `Π·M + Π_base`.
+    Projection,
+    /// The shadow's own marking, because the projected one broke an invariant of the old program.
+    Shadow,
+}
+
 /// Figures that go with an event.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize)]
 #[serde(untagged)]
@@ -131,6 +170,20 @@ pub enum EventDetail {
         drift: u64,
         /// Retransform or keep.
         mode: SubstituteMode,
+    },
+    /// A revert: why, the cycle the cause was seen in, and where the marking came from.
+    Revert {
+        /// Fault, stall, invariant, verdict or operator.
+        reason: RevertReason,
+        /// The cycle in which the cause was seen; the revert's own cycle is the event's.
+        detected_cycle: u64,
+        /// Projection or shadow.
+        marking: RevertMarking,
+    },
+    /// A probation window opened: when it ends if nothing reverts it.
+    Probation {
+        /// Program time at which the update becomes final, µs.
+        ends_us: u64,
     },
     /// A drift that refused a substitution.
     Drift {

@@ -230,6 +230,8 @@ pub(crate) struct Pair<'a> {
     pub to_primary: &'a [Option<TransIdx>],
     pub from_primary: &'a [Option<TransIdx>],
     pub projection: &'a Projection,
+    /// The secondary is the old program on probation: the projection reads the primary.
+    pub shadow: bool,
 }
 
 impl Monitor {
@@ -250,6 +252,8 @@ impl Monitor {
         // Drift only moves when a marking does.
         let drift = if quiet && stats.drift_valid {
             stats.drift
+        } else if pair.shadow {
+            pair.projection.drift(pc.marking(), cc.marking())
         } else {
             pair.projection.drift(cc.marking(), pc.marking())
         };

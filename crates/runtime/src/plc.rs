@@ -13,7 +13,7 @@ use cetratus_program::{PackageMeta, Program, Value};
 
 use crate::clock::{InstallTiming, Stopwatch};
 use crate::error::CommandError;
-use crate::event::{Event, EventKind, EventLog};
+use crate::event::{Event, EventKind, EventLog, RevertReason};
 use crate::monitor::{CycleRecord, ExecInfo, Monitor, Pair, Role};
 use crate::phase::Phase;
 use crate::router::{bits, MessageRouter};
@@ -248,19 +248,135 @@ impl Plc {
         let core = &mut self.core;
         let p = core.primary_slot;
         let limits = self.updater.limits;
-        if let Err(e) = scan_slot(core, None, p, now_us, &mut mark, &limits) {
-            core.router.dispatch_safe(now_us, io);
-            self.updater
-                .primary_fault(core, format!("primary {} faulted: {e}", p.name()));
-            self.end_cycle(now_us, None);
-            return;
+        let in_probation = matches!(self.updater.phase, Phase::Probation(_));
+        let scanned = scan_slot(core, None, p, now_us, &mut mark, &limits);
+        if let Err(e) = &scanned {
+            let why = format!("primary {} faulted: {e}", p.name());
+            if !in_probation {
+                core.router.dispatch_safe(now_us, io);
+                self.updater.primary_fault(core, why);
+                self.end_cycle(now_us, None);
+                return;
+            }
+            // In probation the fault is a cause to revert, and the old program takes over at
+            // the next boundary. For this one cycle the outputs hold their last values (the
+            // failed scan was rolled back): safe values would stop a machine mid-cut for one
+            // cycle. The shadow scans on, so that its own marking stays current should the
+            // projection be refused.
+            core.router.dispatch(p.index(), now_us, io);
+            self.updater.request_revert(core, RevertReason::Fault, why);
+        } else {
+            // Dispatcher: PRIMARY's outputs only, before the candidate runs, so that the time
+            // the candidate takes never delays the plant's outputs.
+            core.router.dispatch(p.index(), now_us, io);
+            self.deadlock_alarm(p);
+            let core = &mut self.core;
+            // A new primary on probation that breaks an invariant its program declares is
+            // reverted; the marking only changes when something fires.
+            if in_probation && !core.primary.fired().is_empty() {
+                if let Err(v) = core
+                    .primary
+                    .program()
+                    .check_invariants(core.primary.marking())
+                {
+                    self.updater.request_revert(
+                        core,
+                        RevertReason::Invariant,
+                        format!("primary {} reached an invalid marking: {v}", p.name()),
+                    );
+                }
+            }
         }
+        let core = &mut self.core;
 
-        // Dispatcher: PRIMARY's outputs only, before the candidate runs, so that the time the
-        // candidate takes never delays the plant's outputs.
-        core.router.dispatch(p.index(), now_us, io);
+        // The secondary, isolated: the candidate in quarantine or the shadow in probation. An
+        // error, a panic, an invalid marking, a scan stopped by its work budget or one that
+        // overran its time budget takes it out of service after its scan.
+        let (secondary, plan, shadow) = match &mut self.updater.phase {
+            Phase::Quarantine(q) => (&mut q.candidate, &q.plan, false),
+            Phase::Probation(pr) => (&mut pr.shadow, &pr.plan, true),
+            _ => {
+                self.end_cycle(now_us, Some(mark.saturating_sub(t0)));
+                return;
+            }
+        };
+        let c = p.other();
+        let role = if shadow { "shadow" } else { "candidate" };
+        mark = core.stopwatch.now_ns();
+        let outcome = catch_unwind(AssertUnwindSafe(|| {
+            scan_slot(core, Some(&mut *secondary), c, now_us, &mut mark, &limits)
+        }));
+        let took = core.monitor.stats[c.index()].scan.summary_last();
+        let fault = match outcome {
+            Err(panic) => Some(format!(
+                "{role} panicked: {}",
+                panic
+                    .downcast_ref::<&str>()
+                    .map(|s| s.to_string())
+                    .or_else(|| panic.downcast_ref::<String>().cloned())
+                    .unwrap_or_else(|| "unknown panic".into())
+            )),
+            Ok(Err(e)) => Some(format!("{role} faulted: {e}")),
+            Ok(Ok(())) => {
+                // The marking only changes when something fires.
+                let broken = (!secondary.fired().is_empty())
+                    .then(|| {
+                        secondary
+                            .program()
+                            .check_invariants(secondary.marking())
+                            .err()
+                    })
+                    .flatten();
+                if let Some(v) = broken {
+                    Some(format!("{role} reached an invalid marking: {v}"))
+                } else if took > limits.candidate_budget_ns {
+                    Some(format!(
+                        "{role} scan took {} µs, over its budget of {} µs",
+                        took / 1000,
+                        limits.candidate_budget_ns / 1000
+                    ))
+                } else {
+                    None
+                }
+            }
+        };
+        if fault.is_none() {
+            // In probation the shadow is the old program: its transitions map onto the new
+            // primary's the other way round, and the projection reads the primary's marking.
+            let (to_primary, from_primary) = if shadow {
+                (&plan.from_primary, &plan.to_primary)
+            } else {
+                (&plan.to_primary, &plan.from_primary)
+            };
+            let pair = Pair {
+                primary_slot: p,
+                primary: &core.primary,
+                candidate: secondary,
+                to_primary,
+                from_primary,
+                projection: &plan.projection,
+                shadow,
+            };
+            let cycle = core.log.cycle;
+            core.monitor
+                .observe_quarantine(&pair, &core.router, cycle, now_us);
+        }
+        match fault {
+            Some(reason) if shadow => self.updater.drop_shadow(core, reason),
+            Some(reason) => self.updater.drop_candidate(
+                core,
+                EventKind::CandidateFault,
+                format!("{reason}; the update is aborted and the primary goes on"),
+            ),
+            None => {}
+        }
+        self.end_cycle(now_us, Some(mark.saturating_sub(t0)));
+    }
 
-        // Deadlock alarm: no transition enabled while the inputs change.
+    /// Deadlock alarm: no transition of the primary enabled while the inputs change; once per
+    /// episode.
+    fn deadlock_alarm(&mut self, p: Slot) {
+        let core = &mut self.core;
         let deadlocked = core.primary.engine().enabled().is_empty();
         core.monitor.stats[p.index()].deadlocked = deadlocked;
         if !deadlocked {
@@ -276,67 +392,6 @@ impl Plc {
                 None,
             );
         }
-
-        // Candidate, isolated: an error, a panic, an invalid marking, a scan stopped by its work
-        // budget or one that overran its time budget aborts the update after its scan.
-        if let Phase::Quarantine(q) = &mut self.updater.phase {
-            let c = p.other();
-            mark = core.stopwatch.now_ns();
-            let outcome = catch_unwind(AssertUnwindSafe(|| {
-                scan_slot(core, Some(&mut q.candidate), c, now_us, &mut mark, &limits)
-            }));
-            let took = core.monitor.stats[c.index()].scan.summary_last();
-            let fault = match outcome {
-                Err(panic) => Some(format!(
-                    "candidate panicked: {}",
-                    panic
-                        .downcast_ref::<&str>()
-                        .map(|s| s.to_string())
-                        .or_else(|| panic.downcast_ref::<String>().cloned())
-                        .unwrap_or_else(|| "unknown panic".into())
-                )),
-                Ok(Err(e)) => Some(format!("candidate faulted: {e}")),
-                Ok(Ok(())) => {
-                    let cand = &q.candidate;
-                    // The marking only changes when something fires.
-                    let broken = (!cand.fired().is_empty())
-                        .then(|| cand.program().check_invariants(cand.marking()).err())
-                        .flatten();
-                    if let Some(v) = broken {
-                        Some(format!("candidate reached an invalid marking: {v}"))
-                    } else if took > limits.candidate_budget_ns {
-                        Some(format!(
-                            "candidate scan took {} µs, over its budget of {} µs",
-                            took / 1000,
-                            limits.candidate_budget_ns / 1000
-                        ))
-                    } else {
-                        None
-                    }
-                }
-            };
-            match fault {
-                Some(reason) => self.updater.drop_candidate(
-                    core,
-                    EventKind::CandidateFault,
-                    format!("{reason}; the update is aborted and the primary goes on"),
-                ),
-                None => {
-                    let pair = Pair {
-                        primary_slot: p,
-                        primary: &core.primary,
-                        candidate: &q.candidate,
-                        to_primary: &q.plan.to_primary,
-                        from_primary: &q.plan.from_primary,
-                        projection: &q.plan.projection,
-                    };
-                    let cycle = core.log.cycle;
-                    core.monitor
-                        .observe_quarantine(&pair, &core.router, cycle, now_us);
-                }
-            }
-        }
-        self.end_cycle(now_us, Some(mark.saturating_sub(t0)));
     }
 
     fn end_cycle(&mut self, now_us: u64, took_ns: Option<u64>) {

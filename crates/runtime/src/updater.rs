@@ -16,9 +16,9 @@ use serde::Serialize;
 
 use crate::clock::InstallTiming;
 use crate::error::{CommandError, PrepareError};
-use crate::event::{EventDetail, EventKind};
+use crate::event::{EventDetail, EventKind, RevertReason};
 use crate::monitor::ContainerStats;
-use crate::phase::{Phase, Quarantine, UpdatePlan};
+use crate::phase::{Ending, Phase, Probation, Quarantine, UpdatePlan};
 use crate::plc::Core;
 use crate::router::{map_by_name, safe_image};
 use crate::{Container, Status};
@@ -209,6 +209,20 @@ impl UpdateContext {
                         .map(|j| j as u32)
                 })
                 .collect(),
+            back_latch_map: retained_latch_map(primary, &program),
+            back_var_map: primary
+                .variables()
+                .iter()
+                .map(|v| {
+                    program
+                        .variables()
+                        .iter()
+                        .position(|w| w.name == v.name && w.ty == v.ty)
+                        .map(|j| j as u32)
+                })
+                .collect(),
+            back_marking: vec![0; pn.num_places()],
+            back_since: vec![None; pn.num_places()],
             meta: update.meta,
             transform: update.transform,
             projection: update.projection,
@@ -238,6 +252,10 @@ pub enum Command {
     Abort,
     /// Leave the fault state.
     Reset,
+    /// End probation by flipping PRIMARY back to the old program.
+    Revert,
+    /// End probation early: the update is final.
+    Accept,
 }
 
 /// Limits of the Updater and the watchdog.
@@ -253,6 +271,9 @@ pub struct Limits {
     pub candidate_work_budget: u64,
     /// A primary scan longer than this (ns) is a primary fault.
     pub watchdog_ns: u64,
+    /// The probation window after a substitution, in µs of program time; 0: none, the old
+    /// program stops at the switch.
+    pub probation_us: u64,
 }
 
 impl Limits {
@@ -265,6 +286,7 @@ impl Limits {
             candidate_budget_ns: 1_000_000_000,
             candidate_work_budget: Self::work_budget_for_period_us(period_us),
             watchdog_ns: 1_000_000_000,
+            probation_us: 0,
         }
     }
 
@@ -286,6 +308,7 @@ impl Limits {
             candidate_budget_ns: ns.saturating_mul(10),
             candidate_work_budget: Self::work_budget_for_period_us(period_us),
             watchdog_ns: ns.saturating_mul(10),
+            probation_us: 0,
         }
     }
 }
@@ -393,6 +416,29 @@ impl Updater {
                 }
                 status => Err(CommandError::NothingToAbort { status }),
             },
+            Command::Revert | Command::Accept => {
+                let verb = if matches!(cmd, Command::Revert) {
+                    "revert"
+                } else {
+                    "accept"
+                };
+                let cycle = core.log.cycle;
+                let Phase::Probation(p) = &mut self.phase else {
+                    return Err(CommandError::NotInProbation { verb, status });
+                };
+                if p.ending.is_some() {
+                    return Err(CommandError::ProbationEnding { verb });
+                }
+                p.ending = Some(match cmd {
+                    Command::Revert => Ending::Revert {
+                        reason: RevertReason::Operator,
+                        detected_cycle: cycle,
+                        why: "the operator reverted".into(),
+                    },
+                    _ => Ending::Accept,
+                });
+                Ok(())
+            }
             Command::Reset => {
                 if status != Status::Fault {
                     return Err(CommandError::NotInFault { status });
@@ -452,8 +498,12 @@ impl Updater {
         );
     }
 
-    /// What is due at the cycle boundary: an install, a substitution, a substitution's timeout.
+    /// What is due at the cycle boundary: an install, a substitution, a substitution's timeout,
+    /// the end of probation (window over, accept or revert).
     pub(crate) fn boundary(&mut self, core: &mut Core) {
+        if matches!(self.phase, Phase::Probation(_)) {
+            self.end_probation(core);
+        }
         if matches!(self.phase, Phase::Setup(_)) {
             self.install(core);
         }
@@ -640,22 +690,52 @@ impl Updater {
         let old = core.primary_slot;
         core.primary_slot = c;
         let old_primary = std::mem::replace(&mut core.primary, q.candidate);
-        core.retired.push(old_primary);
-        let meta = q.plan.meta;
+        let window = self.limits.probation_us;
+        let fate = if window == 0 {
+            "stops"
+        } else {
+            "stays as a shadow"
+        };
+        let text = format!(
+            "PRIMARY = {}: {} {} drives the outputs ({} mode, drift {} at the switch, {:.1} s in quarantine); {} {fate}",
+            c.name(),
+            q.plan.meta.name,
+            q.plan.meta.version,
+            mode.name(),
+            drift,
+            now_us.saturating_sub(q.started_us) as f64 / 1e6,
+            old.name(),
+        );
         core.log.push(
             EventKind::Substituted,
-            format!(
-                "PRIMARY = {}: {} {} drives the outputs ({} mode, drift {} at the switch, {:.1} s in quarantine); {} stops",
-                c.name(),
-                meta.name,
-                meta.version,
-                mode.name(),
-                drift,
-                now_us.saturating_sub(q.started_us) as f64 / 1e6,
-                old.name()
-            ),
+            text,
             Some(EventDetail::Substitution { drift, mode }),
         );
+        if window == 0 {
+            core.retired.push(old_primary);
+            return;
+        }
+        // Quarantine reversed: the old program runs on the same inputs, its outputs withheld.
+        let ends_us = now_us.saturating_add(window);
+        core.monitor.stats[old.index()] = ContainerStats::new(core.router.io_outputs().len());
+        core.log.push(
+            EventKind::ProbationStarted,
+            format!(
+                "probation for {:.1} s: {} runs the old program as a shadow; the PLC reverts to it if {} {} faults, stalls or breaks an invariant, or on `revert`; `accept` ends probation",
+                window as f64 / 1e6,
+                old.name(),
+                q.plan.meta.name,
+                q.plan.meta.version,
+            ),
+            Some(EventDetail::Probation { ends_us }),
+        );
+        self.phase = Phase::Probation(Box::new(Probation {
+            shadow: old_primary,
+            plan: q.plan,
+            started_us: now_us,
+            ends_us,
+            ending: None,
+        }));
     }
 }
 

@@ -363,6 +363,7 @@
     row('drift', (x) => x.drift, 'num');
     row('max drift', (x) => x.max_drift, 'num');
     row('deadlock', (x) => (x.deadlock ? 'yes' : 'no'));
+    row('stall', (x) => (x.stall ? 'yes' : 'no'));
     const signals = new Set([...Object.keys((a && a.divergence) || {}), ...Object.keys((b && b.divergence) || {})]);
     for (const s of [...signals].sort()) row(`divergence ${s} (cycles)`, (x) => (x.divergence || {})[s] ?? 0, 'num');
     row('first cause', (x) => x.first_cause ?? '–');

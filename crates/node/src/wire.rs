@@ -102,6 +102,7 @@ pub fn exec_info(e: &ExecInfo) -> proto::ExecInfo {
         container: slot(e.container),
         cycles: e.cycles,
         deadlock: e.deadlock,
+        stall: e.stall,
         divergence: e.divergence.clone(),
         drift: e.drift,
         firings: e.firings.clone(),

@@ -318,6 +318,9 @@ pub struct ExecInfo {
     pub cycles: u64,
     /// No transition enabled.
     pub deadlock: bool,
+    /// The stall watchdog sees a stall (the primary only); absent when false.
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub stall: bool,
     /// Cycles in which each output differed from the primary's (candidates only).
     pub divergence: BTreeMap<String, u64>,
     /// Drift from the primary through the projection (candidates only).

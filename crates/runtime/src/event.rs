@@ -49,11 +49,13 @@ pub enum EventKind {
     Accepted,
     /// Probation failed or was reverted; PRIMARY flipped back.
     Reverted,
+    /// The primary stalls: a watched place marked too long, or no firing too long.
+    StallAlarm,
 }
 
 impl EventKind {
     /// Every kind, in declaration order.
-    pub const ALL: [EventKind; 20] = [
+    pub const ALL: [EventKind; 21] = [
         EventKind::ColdStart,
         EventKind::WarmStart,
         EventKind::LoadAccepted,
@@ -74,6 +76,7 @@ impl EventKind {
         EventKind::ProbationStarted,
         EventKind::Accepted,
         EventKind::Reverted,
+        EventKind::StallAlarm,
     ];
 
     /// The snake_case name.
@@ -99,12 +102,16 @@ impl EventKind {
             EventKind::ProbationStarted => "probation_started",
             EventKind::Accepted => "accepted",
             EventKind::Reverted => "reverted",
+            EventKind::StallAlarm => "stall_alarm",
         }
     }
 
     /// Whether the event is an alarm that a run's summary counts as a fault.
     pub fn is_alarm(self) -> bool {
-        matches!(self, EventKind::PrimaryFault | EventKind::DeadlockAlarm)
+        matches!(
+            self,
+            EventKind::PrimaryFault | EventKind::DeadlockAlarm | EventKind::StallAlarm
+        )
     }
 }
 
@@ -179,6 +186,11 @@ pub enum EventDetail {
         detected_cycle: u64,
         /// Projection or shadow.
         marking: RevertMarking,
+    },
+    /// A stall: how long the place has been marked, or how long nothing fired, µs.
+    Stall {
+        /// The dwell or the time without a firing.
+        waited_us: u64,
     },
     /// A probation window opened: when it ends if nothing reverts it.
     Probation {

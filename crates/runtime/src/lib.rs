@@ -31,6 +31,7 @@ mod snapshot;
 mod stats;
 pub mod trace;
 mod updater;
+mod watchdog;
 
 pub use clock::{
     Clock, FixedWallClock, InstallTiming, ManualStopwatch, Stopwatch, VirtualClock, WallClock,

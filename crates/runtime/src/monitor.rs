@@ -68,6 +68,8 @@ pub struct ContainerStats {
     pub drift_valid: bool,
     /// No transition enabled after the last scan.
     pub deadlocked: bool,
+    /// The stall watchdog sees a stall (primaries only).
+    pub stalled: bool,
 }
 
 impl ContainerStats {
@@ -211,6 +213,9 @@ pub struct ExecInfo {
     pub max_drift: u64,
     /// No transition enabled.
     pub deadlock: bool,
+    /// The stall watchdog sees a stall (the primary only); left out when false.
+    #[serde(skip_serializing_if = "std::ops::Not::not")]
+    pub stall: bool,
     /// Validation verdicts.
     pub verdicts: Vec<Verdict>,
 }
@@ -382,6 +387,7 @@ impl Monitor {
                 drift: if is_primary { 0 } else { s.drift },
                 max_drift: if is_primary { 0 } else { s.max_drift },
                 deadlock: s.deadlocked,
+                stall: is_primary && s.stalled,
                 verdicts: Vec::new(),
             })
         })

@@ -13,11 +13,12 @@ use cetratus_program::{PackageMeta, Program, Value};
 
 use crate::clock::{InstallTiming, Stopwatch};
 use crate::error::CommandError;
-use crate::event::{Event, EventKind, EventLog, RevertReason};
+use crate::event::{Event, EventDetail, EventKind, EventLog, RevertReason};
 use crate::monitor::{CycleRecord, ExecInfo, Monitor, Pair, Role};
 use crate::phase::Phase;
 use crate::router::{bits, MessageRouter};
 use crate::updater::{Command, Limits, UpdateContext, Updater, VIRTUAL_NS_PER_ENTRY};
+use crate::watchdog::{Stall, StallWatch};
 use crate::{Container, Dispatcher, Provider, RuntimeError, Slot, Status, TimingStats};
 
 /// The running side of the PLC, which the Updater changes at cycle boundaries: PRIMARY and its
@@ -38,6 +39,9 @@ pub struct Plc {
     core: Core,
     updater: Updater,
     deadlock_alarmed: bool,
+    // The stall watchdog of the primary, and the container it watches.
+    stall: StallWatch,
+    stall_slot: Slot,
     cycle_stats: TimingStats,
 }
 
@@ -88,6 +92,8 @@ impl Plc {
                 retired: Vec::with_capacity(2),
             },
             deadlock_alarmed: false,
+            stall: StallWatch::new(now_us),
+            stall_slot: slot,
             cycle_stats: TimingStats::new(),
         }
     }
@@ -270,6 +276,7 @@ impl Plc {
             // the candidate takes never delays the plant's outputs.
             core.router.dispatch(p.index(), now_us, io);
             self.deadlock_alarm(p);
+            self.stall_watchdog(p, now_us);
             let core = &mut self.core;
             // A new primary on probation that breaks an invariant its program declares is
             // reverted; the marking only changes when something fires.
@@ -392,6 +399,31 @@ impl Plc {
                 None,
             );
         }
+    }
+
+    /// Stall watchdog: a watched place marked too long, or no firing too long while one is
+    /// marked; an alarm once per episode, and a cause to revert during probation.
+    fn stall_watchdog(&mut self, p: Slot, now_us: u64) {
+        if self.stall_slot != p {
+            self.stall.restart(now_us);
+            self.stall_slot = p;
+        }
+        let core = &mut self.core;
+        if let Some(stall) = self.stall.check(&core.primary, now_us) {
+            let why = format!(
+                "primary {} stalls: {}",
+                p.name(),
+                StallWatch::describe(stall, &core.primary)
+            );
+            let (Stall::Dwell { dwell_us: us, .. } | Stall::NoFiring { idle_us: us, .. }) = stall;
+            core.log.push(
+                EventKind::StallAlarm,
+                why.clone(),
+                Some(EventDetail::Stall { waited_us: us }),
+            );
+            self.updater.request_revert(core, RevertReason::Stall, why);
+        }
+        core.monitor.stats[p.index()].stalled = self.stall.stalled();
     }
 
     fn end_cycle(&mut self, now_us: u64, took_ns: Option<u64>) {

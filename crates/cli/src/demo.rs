@@ -136,6 +136,7 @@ fn live(args: &DemoArgs, files: &DemoFiles) -> anyhow::Result<()> {
         &plc,
         trust.clone(),
         local.allow_unsigned,
+        local.gate,
         args.speed,
         period_us,
     );
@@ -181,6 +182,7 @@ fn live(args: &DemoArgs, files: &DemoFiles) -> anyhow::Result<()> {
         allow_unsigned: local.allow_unsigned,
         record_trace: false,
         progress_every: None,
+        gate: local.gate,
     };
     let mut node = Node::new(plc, io, opts).with_link(link).with_echo(|e| {
         if let Echo::Event(e) = e {

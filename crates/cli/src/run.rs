@@ -230,6 +230,7 @@ pub fn run(args: &RunArgs) -> anyhow::Result<()> {
         allow_unsigned,
         record_trace: args.trace.is_some() || args.svg.is_some(),
         progress_every: args.progress,
+        gate: local.gate,
     };
     let mut node = Node::new(plc, io, opts).with_script(script);
     if let Some(p) = persister {
@@ -267,6 +268,7 @@ pub fn run(args: &RunArgs) -> anyhow::Result<()> {
             node.plc(),
             trust.clone(),
             allow_unsigned,
+            local.gate,
             args.speed,
             period_us,
         );

@@ -140,8 +140,23 @@ fn revert_and_accept_end_probation_wait_for_their_outcome_and_exit_by_it() {
     assert_eq!(out.status.code(), Some(1), "{}", text(&out));
     assert!(text(&out).contains("revert refused"), "{}", text(&out));
 
-    // Revert: the old program drives the outputs again when the client returns.
-    assert_eq!(c.run(&["load", &u1]).status.code(), Some(0));
+    // Revert: the old program drives the outputs again when the client returns. The load's
+    // reply carries the analysis gate's verdict, and so does the candidate's exec_info.
+    let out = c.run(&["load", &u1, "--json"]);
+    assert_eq!(out.status.code(), Some(0), "{}", text(&out));
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).expect("one JSON object");
+    let verdict = &v["reply"]["result"]["verdicts"][0];
+    assert_eq!(
+        (verdict["kind"].as_str(), verdict["result"].as_str()),
+        (Some("analysis"), Some("pass")),
+        "{v}"
+    );
+    let out = c.run(&["exec-info", "--json"]);
+    let info: serde_json::Value = serde_json::from_slice(&out.stdout).expect("exec_info");
+    assert_eq!(
+        info["result"][1]["verdicts"][0]["kind"], "analysis",
+        "{info}"
+    );
     let out = c.run(&["substitute"]);
     assert!(
         stdout(&out).contains("A stays as a shadow"),

@@ -17,6 +17,8 @@ use cetratus_mct::OperatorKeys;
 use cetratus_program::duration::{self, Bare};
 use cetratus_program::{TrustStore, VerifyingKeyFile};
 use cetratus_runtime::Limits;
+
+use crate::gate::GatePolicy;
 use serde::Deserialize;
 
 /// Why the local configuration cannot be used. The PLC does not start.
@@ -143,6 +145,11 @@ struct UpdatesSection {
     probation: Option<String>,
     state_trans_timeout: Option<String>,
     candidate_work_budget: Option<u64>,
+    gate_max_states: Option<u64>,
+    gate_time: Option<String>,
+    gate_deadlock: Option<String>,
+    gate_lost_transitions: Option<String>,
+    gate_broken_invariants: Option<String>,
 }
 
 /// The probation window when `[updates] probation` is absent: a minute.
@@ -175,6 +182,8 @@ pub struct LocalConfig {
     /// The work budget of a candidate scan (guard evaluations and firings); `None`: the default
     /// for the scan period.
     pub candidate_work_budget: Option<u64>,
+    /// The analysis gate at load: its budget and what each finding does.
+    pub gate: GatePolicy,
 }
 
 /// The default configuration directory.
@@ -324,6 +333,7 @@ impl LocalConfig {
                 "a candidate could not evaluate a single guard; give a positive number, or remove the key for the default".into(),
             ));
         }
+        let gate = gate_policy(&file.updates, value_error)?;
         let mut ops = OperatorKeys::new(std::time::Duration::from_secs(window_s.max(1)));
         for k in keys_in(&dir.join("operators"), "operator")? {
             ops.add(k.key_id(), *k.verifying_key());
@@ -354,6 +364,7 @@ impl LocalConfig {
             probation_us,
             state_trans_timeout_us,
             candidate_work_budget: file.updates.candidate_work_budget,
+            gate,
         })
     }
 
@@ -373,9 +384,51 @@ impl LocalConfig {
     }
 }
 
+/// `[updates] gate_*`: the analysis gate's budget and policy.
+fn gate_policy(
+    u: &UpdatesSection,
+    value_error: impl Fn(&'static str, &str, String) -> ConfigError,
+) -> Result<GatePolicy, ConfigError> {
+    let mut g = GatePolicy::default();
+    if let Some(n) = u.gate_max_states {
+        if n == 0 {
+            return Err(value_error(
+                "[updates] gate_max_states",
+                "0",
+                "the gate could not look at a single state; give a positive number, or remove the key for 200000".into(),
+            ));
+        }
+        g.max_states = n;
+    }
+    if let Some(t) = &u.gate_time {
+        let us = duration::parse_us(t, Bare::Seconds)
+            .map_err(|e| value_error("[updates] gate_time", t, e.to_string()))?;
+        g.time = std::time::Duration::from_micros(us);
+    }
+    for (key, value, slot) in [
+        ("[updates] gate_deadlock", &u.gate_deadlock, &mut g.deadlock),
+        (
+            "[updates] gate_lost_transitions",
+            &u.gate_lost_transitions,
+            &mut g.lost_transitions,
+        ),
+        (
+            "[updates] gate_broken_invariants",
+            &u.gate_broken_invariants,
+            &mut g.broken_invariants,
+        ),
+    ] {
+        if let Some(v) = value {
+            *slot = v.parse().map_err(|e: String| value_error(key, v, e))?;
+        }
+    }
+    Ok(g)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::gate::Severity;
 
     fn dir_with(config: &str) -> PathBuf {
         static N: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
@@ -451,6 +504,25 @@ mod tests {
         assert!(e.contains("docs/configuration.md"), "{e}");
         let d = dir_with("[io]\ndevice = 1\n");
         assert!(LocalConfig::load(Some(&d)).is_err());
+    }
+
+    #[test]
+    fn the_gate_policy_is_read_and_a_wrong_value_names_its_key() {
+        let c = LocalConfig::load(Some(&dir_with("[updates]\n"))).unwrap();
+        assert_eq!(c.gate, GatePolicy::default());
+        let d = dir_with(
+            "[updates]\ngate_deadlock = \"refuse\"\ngate_max_states = 50\ngate_time = \"100ms\"\n",
+        );
+        let c = LocalConfig::load(Some(&d)).unwrap();
+        assert_eq!(c.gate.deadlock, Severity::Refuse);
+        assert_eq!(c.gate.lost_transitions, Severity::Warn);
+        assert_eq!((c.gate.max_states, c.gate.time.as_millis()), (50, 100));
+        let d = dir_with("[updates]\ngate_lost_transitions = \"block\"\n");
+        let e = LocalConfig::load(Some(&d)).err().unwrap().to_string();
+        assert!(
+            e.contains("gate_lost_transitions") && e.contains("\"refuse\""),
+            "{e}"
+        );
     }
 
     #[test]

@@ -49,6 +49,8 @@ pub struct NodeOptions {
     pub record_trace: bool,
     /// Echo [`Echo::Progress`] every this many cycles.
     pub progress_every: Option<u64>,
+    /// The analysis gate of the script's loads.
+    pub gate: crate::gate::GatePolicy,
 }
 
 /// Most faults a run's report keeps; the count of the rest is still reported.
@@ -131,7 +133,11 @@ impl<IO: Provider + Dispatcher> Node<IO> {
 
     /// Gives scripted commands; their packages must be signed by the keys of the options.
     pub fn with_script(mut self, script: Script) -> Self {
-        self.script = script.trusting(self.opts.trust.clone(), self.opts.allow_unsigned);
+        self.script = script.trusting(
+            self.opts.trust.clone(),
+            self.opts.allow_unsigned,
+            self.opts.gate,
+        );
         self
     }
 

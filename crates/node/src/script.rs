@@ -16,6 +16,7 @@
 
 use std::sync::mpsc::{sync_channel, Receiver, SyncSender};
 
+use crate::gate::{self, GatePolicy};
 use cetratus_program::duration::{self, Bare};
 use cetratus_program::TrustStore;
 use cetratus_runtime::{
@@ -92,7 +93,7 @@ struct Preparer {
 }
 
 impl Preparer {
-    fn start(trust: TrustStore, allow_unsigned: bool) -> Self {
+    fn start(trust: TrustStore, allow_unsigned: bool, gate: GatePolicy) -> Self {
         let (jobs, job_rx) = sync_channel::<Job>(1);
         let (done_tx, done) = sync_channel::<Done>(1);
         // Detached: it ends when the script (and so `jobs`) is dropped, after the job under way.
@@ -106,6 +107,16 @@ impl Preparer {
                         .and_then(|bytes| {
                             ctx.prepare_package(&bytes, &trust, allow_unsigned, false)
                                 .map_err(|e| format!("{path}: {e}"))
+                        })
+                        .and_then(|mut p| {
+                            // The analysis gate, here on the script's thread as on the MQTT
+                            // preparer's: never on the scan thread.
+                            let g = gate::run(&ctx, &p, &gate);
+                            if let Some(refusal) = g.refusal {
+                                return Err(format!("{path}: {refusal}"));
+                            }
+                            p.add_verdict(g.verdict);
+                            Ok(p)
                         });
                     let base = ctx.primary.hash();
                     if done_tx.send(Done { item, base, result }).is_err() {
@@ -174,6 +185,7 @@ pub struct Script {
     next: usize,
     preparer: Option<Preparer>,
     trust: Option<(TrustStore, bool)>,
+    gate: GatePolicy,
 }
 
 impl std::fmt::Debug for Script {
@@ -229,15 +241,17 @@ impl Script {
             next: 0,
             preparer: None,
             trust: None,
+            gate: GatePolicy::default(),
         })
     }
 
     /// The keys a scripted package must be signed with (and whether unsigned ones are taken).
     /// Starts the preparer thread when the script loads a package: here, before the run, so that
     /// it does not inherit the scan thread's real-time priority (`--rt`).
-    pub fn trusting(mut self, trust: TrustStore, allow_unsigned: bool) -> Self {
+    pub fn trusting(mut self, trust: TrustStore, allow_unsigned: bool, gate: GatePolicy) -> Self {
+        self.gate = gate;
         if self.items.iter().any(|s| matches!(s.verb, Verb::Load(_))) {
-            self.preparer = Some(Preparer::start(trust.clone(), allow_unsigned));
+            self.preparer = Some(Preparer::start(trust.clone(), allow_unsigned, gate));
         }
         self.trust = Some((trust, allow_unsigned));
         self
@@ -258,6 +272,7 @@ impl Script {
             next,
             preparer,
             trust,
+            gate,
         } = self;
         let s = items.get(*next)?;
         let due = s.at_us.saturating_add(base_us) <= now_us;
@@ -282,7 +297,7 @@ impl Script {
         let item = *next;
         let prep = preparer.get_or_insert_with(|| {
             let (t, unsigned) = trust.clone().unwrap_or((TrustStore::empty(), false));
-            Preparer::start(t, unsigned)
+            Preparer::start(t, unsigned, *gate)
         });
         if !due {
             // Prepared ahead, against the primary running now.

@@ -80,7 +80,8 @@ fn role(r: Role) -> proto::Role {
     }
 }
 
-fn verdict(v: &Verdict) -> proto::Verdict {
+/// A verdict on the wire.
+pub fn verdict(v: &Verdict) -> proto::Verdict {
     proto::Verdict {
         figures: v.figures.clone(),
         kind: match v.kind {

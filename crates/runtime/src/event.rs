@@ -51,11 +51,13 @@ pub enum EventKind {
     Reverted,
     /// The primary stalls: a watched place marked too long, or no firing too long.
     StallAlarm,
+    /// A validation's verdict on an update (the analysis gate at load, a twin run).
+    Verdict,
 }
 
 impl EventKind {
     /// Every kind, in declaration order.
-    pub const ALL: [EventKind; 21] = [
+    pub const ALL: [EventKind; 22] = [
         EventKind::ColdStart,
         EventKind::WarmStart,
         EventKind::LoadAccepted,
@@ -77,6 +79,7 @@ impl EventKind {
         EventKind::Accepted,
         EventKind::Reverted,
         EventKind::StallAlarm,
+        EventKind::Verdict,
     ];
 
     /// The snake_case name.
@@ -103,6 +106,7 @@ impl EventKind {
             EventKind::Accepted => "accepted",
             EventKind::Reverted => "reverted",
             EventKind::StallAlarm => "stall_alarm",
+            EventKind::Verdict => "verdict",
         }
     }
 
@@ -186,6 +190,13 @@ pub enum EventDetail {
         detected_cycle: u64,
         /// Projection or shadow.
         marking: RevertMarking,
+    },
+    /// A verdict: which validation and its result.
+    Verdict {
+        /// Analysis or twin.
+        kind: crate::monitor::VerdictKind,
+        /// Pass, warn or fail.
+        result: crate::monitor::VerdictResult,
     },
     /// A stall: how long the place has been marked, or how long nothing fired, µs.
     Stall {

@@ -169,6 +169,16 @@ pub enum VerdictKind {
     Twin,
 }
 
+impl VerdictKind {
+    /// `analysis` or `twin`.
+    pub fn name(self) -> &'static str {
+        match self {
+            VerdictKind::Analysis => "analysis",
+            VerdictKind::Twin => "twin",
+        }
+    }
+}
+
 /// The outcome of a [`Verdict`].
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
 #[serde(rename_all = "snake_case")]
@@ -179,6 +189,17 @@ pub enum VerdictResult {
     Fail,
     /// Passed with findings.
     Warn,
+}
+
+impl VerdictResult {
+    /// `pass`, `fail` or `warn`.
+    pub fn name(self) -> &'static str {
+        match self {
+            VerdictResult::Pass => "pass",
+            VerdictResult::Fail => "fail",
+            VerdictResult::Warn => "warn",
+        }
+    }
 }
 
 /// `program_exec_info` of one container, as published.

@@ -66,6 +66,8 @@ pub(crate) struct UpdatePlan {
     // primary's latch / variable → the candidate's of the same name, and buffers of the
     // projection into the primary's place space.
     pub back_latch_map: Vec<Option<u32>>,
+    // What validation said of the update's program, for its exec_info.
+    pub verdicts: Vec<crate::monitor::Verdict>,
     pub back_var_map: Vec<Option<u32>>,
     pub back_marking: Vec<Tokens>,
     pub back_since: Vec<Option<u64>>,

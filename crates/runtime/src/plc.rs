@@ -117,6 +117,7 @@ impl Plc {
             primary: self.primary_program().clone(),
             io_inputs: self.core.router.io_inputs().to_vec(),
             io_outputs: self.core.router.io_outputs().to_vec(),
+            primary_marking: self.core.primary.marking().to_vec(),
         }
     }
 
@@ -463,12 +464,23 @@ impl Plc {
             Phase::Probation(_) => Role::Shadow,
             _ => Role::Candidate,
         };
-        self.core.monitor.exec_info(
+        let mut info = self.core.monitor.exec_info(
             [self.container(Slot::A), self.container(Slot::B)],
             self.core.primary_slot,
             role,
             self.core.router.io_outputs(),
-        )
+        );
+        // The verdicts belong to the update's program: the candidate, or the new primary.
+        let p = self.core.primary_slot;
+        let (slot, plan) = match &self.updater.phase {
+            Phase::Quarantine(q) => (p.other(), &q.plan),
+            Phase::Probation(pr) => (p, &pr.plan),
+            _ => return info,
+        };
+        if let Some(e) = info[slot.index()].as_mut() {
+            e.verdicts = plan.verdicts.clone();
+        }
+        info
     }
 
     /// Enters fault (a warm start of a PLC that was in fault).

@@ -10,14 +10,15 @@
 use std::sync::Arc;
 
 use cetratus_program::{
-    EvalCtx, Guard, PackageMeta, Program, ResolvedUpdate, TrustStore, UpdatePackage, Value,
+    EvalCtx, Guard, PackageMeta, Program, ResolvedUpdate, StateTransform, TrustStore,
+    UpdatePackage, Value,
 };
 use serde::Serialize;
 
 use crate::clock::InstallTiming;
 use crate::error::{CommandError, PrepareError};
 use crate::event::{EventDetail, EventKind, RevertReason};
-use crate::monitor::ContainerStats;
+use crate::monitor::{ContainerStats, Verdict};
 use crate::phase::{Ending, Phase, Probation, Quarantine, UpdatePlan};
 use crate::plc::Core;
 use crate::router::{map_by_name, safe_image};
@@ -97,6 +98,23 @@ impl PreparedUpdate {
     pub fn meta(&self) -> &PackageMeta {
         &self.plan.meta
     }
+    /// The candidate's program.
+    pub fn program(&self) -> &Arc<Program> {
+        self.container.program()
+    }
+    /// The state transformation the install will apply.
+    pub fn transform(&self) -> &StateTransform {
+        &self.plan.transform
+    }
+    /// Attaches a validation verdict: published in the `exec_info` of the update's program and
+    /// as a `verdict` event when the load is accepted.
+    pub fn add_verdict(&mut self, v: Verdict) {
+        self.plan.verdicts.push(v);
+    }
+    /// The verdicts attached so far.
+    pub fn verdicts(&self) -> &[Verdict] {
+        &self.plan.verdicts
+    }
 }
 
 /// What building an update needs from the running PLC, cloned so it can be done on any thread.
@@ -108,6 +126,8 @@ pub struct UpdateContext {
     pub io_inputs: Vec<String>,
     /// Output names of the I/O map.
     pub io_outputs: Vec<String>,
+    /// The primary's marking when the context was taken (the analysis gate starts from it).
+    pub primary_marking: Vec<cetratus_net::Tokens>,
 }
 
 impl UpdateContext {
@@ -221,6 +241,7 @@ impl UpdateContext {
                         .map(|j| j as u32)
                 })
                 .collect(),
+            verdicts: Vec::new(),
             back_marking: vec![0; pn.num_places()],
             back_since: vec![None; pn.num_places()],
             meta: update.meta,
@@ -357,8 +378,29 @@ impl Updater {
                     p.plan.meta.version,
                     core.primary_slot.other().name()
                 );
-                self.phase = Phase::Setup(p);
                 core.log.push(EventKind::LoadAccepted, msg, None);
+                for v in &p.plan.verdicts {
+                    core.log.push(
+                        EventKind::Verdict,
+                        format!(
+                            "{} verdict on {} {}: {}{}",
+                            v.kind.name(),
+                            p.plan.meta.name,
+                            p.plan.meta.version,
+                            v.result.name(),
+                            if v.reasons.is_empty() {
+                                String::new()
+                            } else {
+                                format!(": {}", v.reasons.join("; "))
+                            }
+                        ),
+                        Some(EventDetail::Verdict {
+                            kind: v.kind,
+                            result: v.result,
+                        }),
+                    );
+                }
+                self.phase = Phase::Setup(p);
                 Ok(())
             }
             Command::Substitute(req) => {

@@ -143,6 +143,7 @@ impl Rig {
             primary: old.clone(),
             io_inputs: self.plc.io_inputs().to_vec(),
             io_outputs: self.plc.io_outputs().to_vec(),
+            primary_marking: self.plc.primary_container().marking().to_vec(),
         }
         .prepare(ResolvedUpdate {
             program: new.clone(),

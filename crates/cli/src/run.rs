@@ -213,17 +213,8 @@ pub fn run(args: &RunArgs) -> anyhow::Result<()> {
     } else {
         0
     };
-    let mut presses = args.press.clone();
-    if presses.is_empty() && kind == TwinKind::Festo {
-        presses.extend(["RESET@100ms".to_string(), "START@500ms".to_string()]);
-    }
-    for p in &presses {
-        let (button, at) = p.split_once('@').unwrap_or((p.as_str(), "0s"));
-        let at_us = parse_duration_us(at)?;
-        io.plant_mut()
-            .press(button, at_us.saturating_add(base_us))
-            .map_err(|e| anyhow::anyhow!("--press {p}: {e}"))?;
-    }
+    cetratus_node::script::press_buttons(io.plant_mut(), &args.press, base_us)
+        .map_err(|e| anyhow::anyhow!(e))?;
     let opts = NodeOptions {
         base_us,
         trust: trust.clone(),
@@ -232,7 +223,9 @@ pub fn run(args: &RunArgs) -> anyhow::Result<()> {
         progress_every: args.progress,
         gate: local.gate,
     };
-    let mut node = Node::new(plc, io, opts).with_script(script);
+    let mut node = Node::new(plc, io, opts)
+        .with_script(script)
+        .with_twin_validation(local.validation, period_us);
     if let Some(p) = persister {
         node = node.with_persister(p);
     }

@@ -207,6 +207,7 @@ fn a_json_run_summary_lists_the_runs_events_in_order() {
         [
             "cold_start",
             "load_accepted",
+            "verdict",
             "quarantine_started",
             "substitute_accepted",
             "substituted",
@@ -214,7 +215,7 @@ fn a_json_run_summary_lists_the_runs_events_in_order() {
         ],
         "{summary}"
     );
-    let substituted = &summary["events"][4];
+    let substituted = &summary["events"][5];
     assert_eq!(substituted["time_us"], 20_000_000, "{substituted}");
     assert!(
         substituted["message"]
@@ -337,6 +338,71 @@ fn the_analysis_gate_reports_at_load_and_refuses_a_deadlocking_package_when_told
         events
             .iter()
             .any(|(k, m)| k == "verdict" && m.ends_with(": pass")),
+        "{events:?}"
+    );
+}
+
+#[test]
+fn twin_validation_gives_verdicts_in_quarantine_and_probation_and_require_verdict_holds_substitution(
+) {
+    let demo = demo_files();
+    let d = demo.path();
+    let config = |name: &str, text: &str| {
+        let dir = d.join(name);
+        std::fs::create_dir(&dir).expect("a configuration directory");
+        std::fs::write(dir.join("config.toml"), text).expect("config.toml");
+        dir
+    };
+    let run = |config: &Path| {
+        Command::new(BIN)
+            .arg("run")
+            .arg(d.join("vernadat.toml"))
+            .args(["--twin", "vernadat", "--virtual", "--for", "25s", "--json"])
+            .args(["--trust", &p(&d.join("trusted"))])
+            .args(["--config", &p(config)])
+            .args(["--at", &format!("10s load {}", p(&d.join("u1.cpkg")))])
+            .args(["--at", "20s substitute"])
+            .output()
+            .expect("cetratus run")
+    };
+
+    let fork = config(
+        "fork",
+        "[updates]\nvalidation = \"fork\"\nhorizon = \"2min\"\nrequire_verdict = true\n",
+    );
+    let events = summary_events(&run(&fork));
+    let twin: Vec<&(String, String)> = events
+        .iter()
+        .filter(|(k, m)| k == "verdict" && m.starts_with("twin verdict"))
+        .collect();
+    assert_eq!(
+        twin.len(),
+        2,
+        "one in quarantine, one in probation: {events:?}"
+    );
+    assert!(twin.iter().all(|(_, m)| m.contains(": pass")), "{twin:?}");
+    let order: Vec<&str> = events.iter().map(|(k, _)| k.as_str()).collect();
+    let q = order
+        .iter()
+        .position(|k| *k == "quarantine_started")
+        .expect("quarantine");
+    let s = order
+        .iter()
+        .position(|k| *k == "substituted")
+        .expect("substituted: the verdict passed");
+    assert!(q < s, "{order:?}");
+
+    // Without validation, a PLC that requires a verdict refuses the substitution.
+    let strict = config("strict", "[updates]\nrequire_verdict = true\n");
+    let events = summary_events(&run(&strict));
+    assert!(
+        !events.iter().any(|(k, _)| k == "substituted"),
+        "{events:?}"
+    );
+    assert!(
+        events
+            .iter()
+            .any(|(k, m)| k == "refused" && m.contains("requires a passing twin verdict")),
         "{events:?}"
     );
 }

@@ -19,6 +19,7 @@ use cetratus_program::{TrustStore, VerifyingKeyFile};
 use cetratus_runtime::Limits;
 
 use crate::gate::GatePolicy;
+use crate::validate::{ValidationMode, ValidationPolicy};
 use serde::Deserialize;
 
 /// Why the local configuration cannot be used. The PLC does not start.
@@ -150,6 +151,12 @@ struct UpdatesSection {
     gate_deadlock: Option<String>,
     gate_lost_transitions: Option<String>,
     gate_broken_invariants: Option<String>,
+    validation: Option<String>,
+    validation_twin: Option<String>,
+    horizon: Option<String>,
+    throughput_share: Option<f64>,
+    #[serde(default)]
+    require_verdict: bool,
 }
 
 /// The probation window when `[updates] probation` is absent: a minute.
@@ -184,6 +191,10 @@ pub struct LocalConfig {
     pub candidate_work_budget: Option<u64>,
     /// The analysis gate at load: its budget and what each finding does.
     pub gate: GatePolicy,
+    /// Twin validation: the mode, the horizon and the throughput share.
+    pub validation: ValidationPolicy,
+    /// A substitution needs a passing twin verdict.
+    pub require_verdict: bool,
 }
 
 /// The default configuration directory.
@@ -333,6 +344,7 @@ impl LocalConfig {
                 "a candidate could not evaluate a single guard; give a positive number, or remove the key for the default".into(),
             ));
         }
+        let validation = validation_policy(&file.updates, &value_error)?;
         let gate = gate_policy(&file.updates, value_error)?;
         let mut ops = OperatorKeys::new(std::time::Duration::from_secs(window_s.max(1)));
         for k in keys_in(&dir.join("operators"), "operator")? {
@@ -365,6 +377,8 @@ impl LocalConfig {
             state_trans_timeout_us,
             candidate_work_budget: file.updates.candidate_work_budget,
             gate,
+            validation,
+            require_verdict: file.updates.require_verdict,
         })
     }
 
@@ -373,6 +387,7 @@ impl LocalConfig {
     pub fn limits(&self, limits: Limits) -> Limits {
         Limits {
             probation_us: self.probation_us,
+            require_verdict: self.require_verdict,
             state_trans_timeout_ns: self
                 .state_trans_timeout_us
                 .map_or(limits.state_trans_timeout_ns, |us| us.saturating_mul(1000)),
@@ -382,6 +397,63 @@ impl LocalConfig {
             ..limits
         }
     }
+}
+
+/// `[updates] validation`, `validation_twin`, `horizon`, `throughput_share`.
+fn validation_policy(
+    u: &UpdatesSection,
+    value_error: &impl Fn(&'static str, &str, String) -> ConfigError,
+) -> Result<ValidationPolicy, ConfigError> {
+    let mut v = ValidationPolicy::default();
+    let twin = match &u.validation_twin {
+        None => None,
+        Some(t) => Some(
+            t.parse::<cetratus_twin::TwinKind>()
+                .map_err(|e| value_error("[updates] validation_twin", t, e.to_string()))?,
+        ),
+    };
+    v.mode = match (u.validation.as_deref(), twin) {
+        (None | Some("off"), _) => ValidationMode::Off,
+        (Some("fork"), _) => ValidationMode::Fork,
+        (Some("commission"), Some(kind)) => ValidationMode::Commission(kind),
+        (Some("commission"), None) => {
+            return Err(value_error(
+                "[updates] validation",
+                "commission",
+                "commissioning runs fresh twins of a model: name it with validation_twin = \"vernadat\" or \"festo\"".into(),
+            ))
+        }
+        (Some(other), _) => {
+            return Err(value_error(
+                "[updates] validation",
+                other,
+                "write \"off\", \"fork\" or \"commission\"".into(),
+            ))
+        }
+    };
+    if let Some(h) = &u.horizon {
+        let us = duration::parse_us(h, Bare::Seconds)
+            .map_err(|e| value_error("[updates] horizon", h, e.to_string()))?;
+        if us == 0 {
+            return Err(value_error(
+                "[updates] horizon",
+                h,
+                "a validation over no plant time says nothing; give one such as \"10min\"".into(),
+            ));
+        }
+        v.horizon_us = us;
+    }
+    if let Some(share) = u.throughput_share {
+        if !(0.0..=1.0).contains(&share) {
+            return Err(value_error(
+                "[updates] throughput_share",
+                &share.to_string(),
+                "a share is between 0 and 1, e.g. 0.9 for 90 %".into(),
+            ));
+        }
+        v.throughput_share = share;
+    }
+    Ok(v)
 }
 
 /// `[updates] gate_*`: the analysis gate's budget and policy.
@@ -497,13 +569,43 @@ mod tests {
 
     #[test]
     fn an_unknown_key_names_the_file_line_and_the_keys_known() {
-        let d = dir_with("[updates]\nprobation = \"0s\"\nhorizon = \"10min\"\n");
+        let d = dir_with("[updates]\nprobation = \"0s\"\nhorizn = \"10min\"\n");
         let e = LocalConfig::load(Some(&d)).err().unwrap().to_string();
         assert!(e.contains("config.toml:3:1"), "{e}");
-        assert!(e.contains("horizon") && e.contains("probation"), "{e}");
+        assert!(e.contains("horizn") && e.contains("probation"), "{e}");
         assert!(e.contains("docs/configuration.md"), "{e}");
         let d = dir_with("[io]\ndevice = 1\n");
         assert!(LocalConfig::load(Some(&d)).is_err());
+    }
+
+    #[test]
+    fn the_validation_settings_are_read_and_commission_needs_a_twin() {
+        let c = LocalConfig::load(Some(&dir_with("[updates]\n"))).unwrap();
+        assert_eq!(c.validation, ValidationPolicy::default());
+        assert!(!c.require_verdict);
+        let d = dir_with(
+            "[updates]\nvalidation = \"commission\"\nvalidation_twin = \"festo\"\nhorizon = \"2min\"\nthroughput_share = 0.8\nrequire_verdict = true\n",
+        );
+        let c = LocalConfig::load(Some(&d)).unwrap();
+        assert_eq!(
+            c.validation.mode,
+            ValidationMode::Commission(cetratus_twin::TwinKind::Festo)
+        );
+        assert_eq!(
+            (c.validation.horizon_us, c.validation.throughput_share),
+            (120_000_000, 0.8)
+        );
+        assert!(c.limits(Limits::for_period_us(10_000)).require_verdict);
+        let e = LocalConfig::load(Some(&dir_with("[updates]\nvalidation = \"commission\"\n")))
+            .err()
+            .unwrap()
+            .to_string();
+        assert!(e.contains("validation_twin"), "{e}");
+        let e = LocalConfig::load(Some(&dir_with("[updates]\nthroughput_share = 90\n")))
+            .err()
+            .unwrap()
+            .to_string();
+        assert!(e.contains("between 0 and 1"), "{e}");
     }
 
     #[test]

@@ -22,6 +22,7 @@ use cetratus_program::TrustStore;
 use cetratus_runtime::{
     Command, Plc, PreparedUpdate, SubstituteMode, SubstituteRequest, UpdateContext,
 };
+use cetratus_twin::{Plant, Twin};
 
 /// Why a script cannot be run.
 #[derive(Debug, thiserror::Error)]
@@ -331,6 +332,29 @@ impl Script {
             }
         }
     }
+}
+
+/// Presses the twin's buttons as `--press BUTTON@TIME` asks (a bare button is pressed at 0 s),
+/// times counted from `base_us`. A station that has RESET and START buttons and is given no
+/// press gets `RESET@100ms` and `START@500ms`, so that it runs as it does for an operator.
+pub fn press_buttons(plant: &mut Twin, presses: &[String], base_us: u64) -> Result<(), String> {
+    let defaults = ["RESET@100ms".to_string(), "START@500ms".to_string()];
+    let buttons = plant.buttons();
+    let presses = if presses.is_empty() && buttons.contains(&"RESET") && buttons.contains(&"START")
+    {
+        &defaults[..]
+    } else {
+        presses
+    };
+    for p in presses {
+        let (button, at) = p.split_once('@').unwrap_or((p.as_str(), "0s"));
+        let at_us =
+            duration::parse_us(at, Bare::Seconds).map_err(|e| format!("--press {p}: {e}"))?;
+        plant
+            .press(button, at_us.saturating_add(base_us))
+            .map_err(|e| format!("--press {p}: {e}"))?;
+    }
+    Ok(())
 }
 
 #[cfg(test)]

@@ -14,7 +14,7 @@ use cetratus_program::{PackageMeta, Program, Value};
 use crate::clock::{InstallTiming, Stopwatch};
 use crate::error::CommandError;
 use crate::event::{Event, EventDetail, EventKind, EventLog, RevertReason};
-use crate::monitor::{CycleRecord, ExecInfo, Monitor, Pair, Role};
+use crate::monitor::{CycleRecord, ExecInfo, Monitor, Pair, Role, Verdict, VerdictResult};
 use crate::phase::Phase;
 use crate::router::{bits, MessageRouter};
 use crate::updater::{Command, Limits, UpdateContext, Updater, VIRTUAL_NS_PER_ENTRY};
@@ -481,6 +481,63 @@ impl Plc {
             e.verdicts = plan.verdicts.clone();
         }
         info
+    }
+
+    /// The update under way as resolved against the program it replaces (the candidate's in
+    /// quarantine, the new primary's in probation), for a validation run on a fork.
+    pub fn resolved_update(&self) -> Option<cetratus_program::ResolvedUpdate> {
+        let (program, plan) = match &self.updater.phase {
+            Phase::Quarantine(q) => (q.candidate.program(), &q.plan),
+            Phase::Probation(p) => (self.core.primary.program(), &p.plan),
+            _ => return None,
+        };
+        Some(cetratus_program::ResolvedUpdate {
+            program: program.clone(),
+            transform: plan.transform.clone(),
+            projection: plan.projection.clone(),
+            meta: plan.meta.clone(),
+        })
+    }
+
+    /// Attaches a verdict on the update under way, when its program is still `program_hash`
+    /// (in quarantine or probation), with a `verdict` event. A failing verdict during probation
+    /// reverts at the next cycle boundary. Returns whether it was attached.
+    pub fn add_verdict(&mut self, program_hash: &[u8; 32], verdict: Verdict) -> bool {
+        let core = &mut self.core;
+        let (program, plan, probation) = match &mut self.updater.phase {
+            Phase::Quarantine(q) => (q.candidate.program().clone(), &mut q.plan, false),
+            Phase::Probation(p) => (core.primary.program().clone(), &mut p.plan, true),
+            _ => return false,
+        };
+        if program.hash() != *program_hash {
+            return false;
+        }
+        let text = format!(
+            "{} verdict on {} {}: {}{}",
+            verdict.kind.name(),
+            plan.meta.name,
+            plan.meta.version,
+            verdict.result.name(),
+            if verdict.reasons.is_empty() {
+                String::new()
+            } else {
+                format!(": {}", verdict.reasons.join("; "))
+            }
+        );
+        let detail = Some(EventDetail::Verdict {
+            kind: verdict.kind,
+            result: verdict.result,
+        });
+        let failed = verdict.result == VerdictResult::Fail;
+        // The latest verdict of a kind replaces the earlier one.
+        plan.verdicts.retain(|v| v.kind != verdict.kind);
+        plan.verdicts.push(verdict);
+        core.log.push(EventKind::Verdict, text.clone(), detail);
+        if probation && failed {
+            self.updater
+                .request_revert(core, RevertReason::Verdict, text);
+        }
+        true
     }
 
     /// Enters fault (a warm start of a PLC that was in fault).

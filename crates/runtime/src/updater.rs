@@ -18,7 +18,7 @@ use serde::Serialize;
 use crate::clock::InstallTiming;
 use crate::error::{CommandError, PrepareError};
 use crate::event::{EventDetail, EventKind, RevertReason};
-use crate::monitor::{ContainerStats, Verdict};
+use crate::monitor::{ContainerStats, Verdict, VerdictKind, VerdictResult};
 use crate::phase::{Ending, Phase, Probation, Quarantine, UpdatePlan};
 use crate::plc::Core;
 use crate::router::{map_by_name, safe_image};
@@ -295,6 +295,8 @@ pub struct Limits {
     /// The probation window after a substitution, in µs of program time; 0: none, the old
     /// program stops at the switch.
     pub probation_us: u64,
+    /// A substitution is refused unless the latest twin verdict on the candidate passed.
+    pub require_verdict: bool,
 }
 
 impl Limits {
@@ -308,6 +310,7 @@ impl Limits {
             candidate_work_budget: Self::work_budget_for_period_us(period_us),
             watchdog_ns: 1_000_000_000,
             probation_us: 0,
+            require_verdict: false,
         }
     }
 
@@ -330,6 +333,7 @@ impl Limits {
             candidate_work_budget: Self::work_budget_for_period_us(period_us),
             watchdog_ns: ns.saturating_mul(10),
             probation_us: 0,
+            require_verdict: false,
         }
     }
 }
@@ -412,6 +416,22 @@ impl Updater {
                 };
                 if q.pending.is_some() {
                     return Err(CommandError::SubstitutionWaiting);
+                }
+                if self.limits.require_verdict {
+                    let twin = q.plan.verdicts.iter().find(|v| v.kind == VerdictKind::Twin);
+                    match twin.map(|v| v.result) {
+                        Some(VerdictResult::Pass) | Some(VerdictResult::Warn) => {}
+                        Some(VerdictResult::Fail) => {
+                            return Err(CommandError::VerdictRequired {
+                                have: "a failing twin verdict",
+                            })
+                        }
+                        None => {
+                            return Err(CommandError::VerdictRequired {
+                                have: "no twin verdict yet",
+                            })
+                        }
+                    }
                 }
                 let deadline = req
                     .within_us

@@ -128,6 +128,7 @@ fn vernadat_node(
     BenchError,
 > {
     use cetratus_node::clock::MonotonicStopwatch;
+    use cetratus_node::gate::GatePolicy;
     use cetratus_node::link::ControlLink;
     use cetratus_node::{Node, NodeOptions};
     use std::time::Duration;
@@ -149,6 +150,7 @@ fn vernadat_node(
         link,
         cetratus_program::TrustStore::empty(),
         false,
+        GatePolicy::default(),
         (200_000 / period_us.max(1)).max(1),
     );
     let opts = NodeOptions {
@@ -157,6 +159,7 @@ fn vernadat_node(
         allow_unsigned: false,
         record_trace: false,
         progress_every: None,
+        gate: GatePolicy::default(),
     };
     Ok((Node::new(plc, io, opts).with_link(link), handle))
 }

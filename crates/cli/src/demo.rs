@@ -136,6 +136,7 @@ fn live(args: &DemoArgs, files: &DemoFiles) -> anyhow::Result<()> {
         &plc,
         trust.clone(),
         local.allow_unsigned,
+        local.gate,
         args.speed,
         period_us,
     );
@@ -181,8 +182,10 @@ fn live(args: &DemoArgs, files: &DemoFiles) -> anyhow::Result<()> {
         allow_unsigned: local.allow_unsigned,
         record_trace: false,
         progress_every: None,
+        gate: local.gate,
     };
-    let mut node = Node::new(plc, io, opts).with_link(link).with_echo(|e| {
+    let node = Node::new(plc, io, opts).with_twin_validation(local.validation, period_us);
+    let mut node = node.with_link(link).with_echo(|e| {
         if let Echo::Event(e) = e {
             crate::summary::print_event(&e, false);
         }

@@ -79,6 +79,10 @@ enum Command {
     Abort(client::PlainArgs),
     /// Leave the fault state.
     Reset(client::PlainArgs),
+    /// On probation: flip PRIMARY back to the old program.
+    Revert(client::PlainArgs),
+    /// On probation: end it now; the update is final.
+    Accept(client::PlainArgs),
     /// PRIMARY, STATUS and the programs of a PLC.
     Status(client::PlainArgs),
     /// Follow a PLC's state and events.
@@ -131,6 +135,8 @@ fn main() -> std::process::ExitCode {
         Command::Remove(a) => client::plain(cetratus_proto::Command::Remove, a),
         Command::Abort(a) => client::plain(cetratus_proto::Command::Abort, a),
         Command::Reset(a) => client::plain(cetratus_proto::Command::Reset, a),
+        Command::Revert(a) => client::plain(cetratus_proto::Command::Revert, a),
+        Command::Accept(a) => client::plain(cetratus_proto::Command::Accept, a),
         Command::Status(a) => client::status(a),
         Command::Watch(a) => client::watch(a),
         Command::ExecInfo(a) => client::exec_info(a),

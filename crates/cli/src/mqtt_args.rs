@@ -214,6 +214,7 @@ pub fn control_link(
     plc: &cetratus_runtime::Plc,
     trust: cetratus_program::TrustStore,
     allow_unsigned: bool,
+    gate: cetratus_node::gate::GatePolicy,
     speed: f64,
     period_us: u64,
 ) -> ControlLink {
@@ -225,5 +226,5 @@ pub fn control_link(
     let publish_every = ((200_000.0 * speed) / period_us.max(1) as f64)
         .round()
         .max(1.0) as u64;
-    ControlLink::start(plc, link, trust, allow_unsigned, publish_every)
+    ControlLink::start(plc, link, trust, allow_unsigned, gate, publish_every)
 }

@@ -231,9 +231,14 @@ pub fn run(args: &RunArgs) -> anyhow::Result<()> {
         allow_unsigned,
         record_trace: args.trace.is_some() || args.svg.is_some(),
         progress_every: args.progress,
+        gate: local.gate,
     };
     let status_board = io.server().map(|s| s.status_board());
-    let mut node = Node::new(plc, io, opts).with_script(script);
+    let mut node = Node::new(plc, io, opts)
+        .with_script(script)
+        .with_validation(local.validation, period_us, |io| {
+            io.twin().map(|t| t.plant().clone())
+        });
     if let Some(mut board) = status_board {
         node = node.with_observer(move |plc| board.show(plc));
     }
@@ -272,6 +277,7 @@ pub fn run(args: &RunArgs) -> anyhow::Result<()> {
             node.plc(),
             trust.clone(),
             allow_unsigned,
+            local.gate,
             args.speed,
             period_us,
         );

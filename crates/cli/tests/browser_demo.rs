@@ -1,6 +1,7 @@
 //! The whole system in a real browser: `cetratus demo` (the Vernadat cell in real time, its twin,
 //! the embedded broker and the dashboard), driven in headless Chromium through ChromeDriver. The
-//! operator uploads U.1 through the page, sees quarantine, substitutes, and sees PRIMARY flip.
+//! operator uploads U.1 through the page, sees quarantine, substitutes, sees PRIMARY flip and
+//! probation, and accepts the update.
 
 use std::process::{Command, Stdio};
 use std::time::Duration;
@@ -73,6 +74,12 @@ async fn an_operator_loads_u1_in_the_browser_sees_quarantine_substitutes_and_pri
     c.wait_text("primary", "B", Duration::from_secs(20)).await;
     // The page says what happened, as `cetratus substitute` does, not only that it was accepted.
     wait_reply(&c, "substitute: substituted: PRIMARY = B").await;
+    // A minute of probation by default: the old program runs on in A as a shadow, and the
+    // operator ends probation with the page's Accept.
+    c.wait_text("status", "probation", Duration::from_secs(10))
+        .await;
+    c.click_and_confirm("accept").await;
+    wait_reply(&c, "accept: accepted:").await;
     c.wait_text("status", "idle", Duration::from_secs(10)).await;
     tokio::time::sleep(Duration::from_millis(1500)).await;
 

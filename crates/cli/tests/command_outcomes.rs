@@ -121,3 +121,74 @@ fn substitute_remove_and_abort_wait_for_their_outcome_and_exit_by_it() {
     assert_eq!(out.status.code(), Some(1), "{}", text(&out));
     assert!(text(&out).contains("remove refused"), "{}", text(&out));
 }
+
+#[test]
+fn revert_and_accept_end_probation_wait_for_their_outcome_and_exit_by_it() {
+    let files = demo_files();
+    let trusted = files.path().join("trusted").display().to_string();
+    let u1 = files.path().join("u1.cpkg").display().to_string();
+    // No `[updates] probation` in the configuration: a minute of probation by default.
+    let plc = RunningPlc::start("outcomes2", &["--trust", &trusted]);
+    let c = Client {
+        plc: "outcomes2",
+        mqtt: format!("127.0.0.1:{}", plc.mqtt),
+    };
+    let stdout = |out: &Output| String::from_utf8_lossy(&out.stdout).to_string();
+
+    // Nothing on probation yet.
+    let out = c.run(&["revert"]);
+    assert_eq!(out.status.code(), Some(1), "{}", text(&out));
+    assert!(text(&out).contains("revert refused"), "{}", text(&out));
+
+    // Revert: the old program drives the outputs again when the client returns. The load's
+    // reply carries the analysis gate's verdict, and so does the candidate's exec_info.
+    let out = c.run(&["load", &u1, "--json"]);
+    assert_eq!(out.status.code(), Some(0), "{}", text(&out));
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).expect("one JSON object");
+    let verdict = &v["reply"]["result"]["verdicts"][0];
+    assert_eq!(
+        (verdict["kind"].as_str(), verdict["result"].as_str()),
+        (Some("analysis"), Some("pass")),
+        "{v}"
+    );
+    let out = c.run(&["exec-info", "--json"]);
+    let info: serde_json::Value = serde_json::from_slice(&out.stdout).expect("exec_info");
+    assert_eq!(
+        info["result"][1]["verdicts"][0]["kind"], "analysis",
+        "{info}"
+    );
+    let out = c.run(&["substitute"]);
+    assert!(
+        stdout(&out).contains("A stays as a shadow"),
+        "{}",
+        text(&out)
+    );
+    let out = c.run(&["status", "--json"]);
+    let state: serde_json::Value = serde_json::from_slice(&out.stdout).expect("the state");
+    assert_eq!(
+        (state["primary"].as_str(), state["status"].as_str()),
+        (Some("B"), Some("probation")),
+        "{state}"
+    );
+    let out = c.run(&["revert", "--json"]);
+    assert_eq!(out.status.code(), Some(0), "{}", text(&out));
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).expect("one JSON object");
+    assert_eq!(v["event"]["kind"], "reverted", "{v}");
+    assert_eq!(v["event"]["detail"]["reason"], "operator", "{v}");
+    assert!(
+        v["event"]["message"]
+            .as_str()
+            .is_some_and(|m| m.starts_with("PRIMARY = A")),
+        "{v}"
+    );
+
+    // The same package loads again against the old program; accept makes it final.
+    assert_eq!(c.run(&["load", &u1]).status.code(), Some(0));
+    assert_eq!(c.run(&["substitute"]).status.code(), Some(0));
+    let out = c.run(&["accept"]);
+    assert_eq!(out.status.code(), Some(0), "{}", text(&out));
+    assert!(stdout(&out).contains("accept: accepted:"), "{}", text(&out));
+    let out = c.run(&["accept"]);
+    assert_eq!(out.status.code(), Some(1), "{}", text(&out));
+    assert!(text(&out).contains("accept refused"), "{}", text(&out));
+}

@@ -201,6 +201,12 @@ fn scenario(port: u16, plc: &str, dir: &Path) {
         serde_json::json!({"mode": "retransform"}),
     );
     assert_eq!(r["ok"], true, "{r}");
+    // The old program stays as a shadow for the default minute of probation; `accept` ends it.
+    wait_state(port, plc, |v| {
+        v["primary"] == "B" && v["status"] == "probation"
+    });
+    let r = request_v311(port, plc, "accept", serde_json::json!({}));
+    assert_eq!(r["ok"], true, "{r}");
     wait_state(port, plc, |v| v["primary"] == "B" && v["status"] == "idle");
     let info = request_v311(port, plc, "exec_info", serde_json::json!({}));
     assert_eq!(

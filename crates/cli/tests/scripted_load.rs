@@ -66,6 +66,7 @@ fn a_virtual_run_with_scripted_loads_gives_the_same_event_cycles_every_time() {
                 .args(["--config", &p(&d.join("config"))])
                 .args(["--at", &format!("10s load {}", p(&d.join("u1.cpkg")))])
                 .args(["--at", "20s substitute"])
+                .args(["--at", "22s accept"])
                 .args(["--at", &format!("25s load {}", p(&d.join("u2.cpkg")))])
                 .arg("--state-dir")
                 .arg(state.path())
@@ -206,13 +207,15 @@ fn a_json_run_summary_lists_the_runs_events_in_order() {
         [
             "cold_start",
             "load_accepted",
+            "verdict",
             "quarantine_started",
             "substitute_accepted",
-            "substituted"
+            "substituted",
+            "probation_started"
         ],
         "{summary}"
     );
-    let substituted = &summary["events"][4];
+    let substituted = &summary["events"][5];
     assert_eq!(substituted["time_us"], 20_000_000, "{substituted}");
     assert!(
         substituted["message"]
@@ -221,4 +224,185 @@ fn a_json_run_summary_lists_the_runs_events_in_order() {
         "{substituted}"
     );
     assert_eq!(summary["events_left_out"], 0);
+}
+
+/// The kinds and messages of the events in a `run --json` summary.
+fn summary_events(out: &std::process::Output) -> Vec<(String, String)> {
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let summary: Value = serde_json::from_slice(&out.stdout).expect("one JSON summary");
+    summary["events"]
+        .as_array()
+        .unwrap_or_else(|| panic!("the summary has events: {summary}"))
+        .iter()
+        .map(|e| {
+            (
+                e["kind"].as_str().unwrap_or("").to_string(),
+                e["message"].as_str().unwrap_or("").to_string(),
+            )
+        })
+        .collect()
+}
+
+#[test]
+fn the_analysis_gate_reports_at_load_and_refuses_a_deadlocking_package_when_told_to() {
+    let demo = demo_files();
+    let d = demo.path();
+    // U.1 without T24: machine 2's part is never unloaded, and the cell comes to a dead stop.
+    let net = std::fs::read_to_string(d.join("u1.pnml")).expect("u1.pnml");
+    let start = net.find("<transition id=\"T24\">").expect("T24");
+    let end = start + net[start..].find("</transition>").expect("end") + "</transition>".len();
+    let mut cut = format!("{}{}", &net[..start], &net[end..]);
+    for arc in [
+        "P23-T24\" source=\"P23\" target=\"T24\"/>",
+        "R-T24\" source=\"R\" target=\"T24\"/>",
+        "T24-P24\" source=\"T24\" target=\"P24\"/>",
+    ] {
+        cut = cut.replace(&format!("<arc id=\"{arc}"), "");
+    }
+    std::fs::write(d.join("u1.pnml"), cut).expect("write");
+    let built = Command::new(BIN)
+        .args(["package", "build"])
+        .arg(d.join("u1.package.toml"))
+        .arg("--key")
+        .arg(d.join("demo.key"))
+        .arg("-o")
+        .arg(d.join("stuck.cpkg"))
+        .output()
+        .expect("cetratus package build");
+    assert!(
+        built.status.success(),
+        "{}",
+        String::from_utf8_lossy(&built.stderr)
+    );
+    let strict = d.join("strict");
+    std::fs::create_dir(&strict).expect("a configuration directory");
+    std::fs::write(
+        strict.join("config.toml"),
+        "[updates]\ngate_deadlock = \"refuse\"\n",
+    )
+    .expect("config.toml");
+    let run = |config: &Path, package: &str| {
+        Command::new(BIN)
+            .arg("run")
+            .arg(d.join("vernadat.toml"))
+            .args(["--twin", "vernadat", "--virtual", "--for", "12s", "--json"])
+            .args(["--trust", &p(&d.join("trusted"))])
+            .args(["--config", &p(config)])
+            .args(["--at", &format!("10s load {}", p(&d.join(package)))])
+            .output()
+            .expect("cetratus run")
+    };
+
+    // By default a finding is a warning: the load goes on, and the verdict is an event.
+    let events = summary_events(&run(&d.join("config"), "stuck.cpkg"));
+    let verdict = events
+        .iter()
+        .find(|(k, _)| k == "verdict")
+        .unwrap_or_else(|| panic!("{events:?}"));
+    assert!(
+        verdict.1.starts_with("analysis verdict on U.1"),
+        "{}",
+        verdict.1
+    );
+    assert!(verdict.1.contains(": warn: deadlock"), "{}", verdict.1);
+    assert!(
+        events.iter().any(|(k, _)| k == "quarantine_started"),
+        "{events:?}"
+    );
+
+    // With `gate_deadlock = "refuse"` the package is refused before the scan thread sees it; a
+    // scripted load that is refused ends the run, as any scripted package that cannot load.
+    let out = run(&strict, "stuck.cpkg");
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains("refused by the analysis gate: deadlock"),
+        "{err}"
+    );
+    assert!(
+        err.contains("a shortest firing sequence to one: T10"),
+        "{err}"
+    );
+    assert!(
+        !err.contains("lost transitions"),
+        "only deadlocks refuse: {err}"
+    );
+
+    // The intact U.1 passes, under the same policy.
+    let events = summary_events(&run(&strict, "u1.cpkg"));
+    assert!(
+        events
+            .iter()
+            .any(|(k, m)| k == "verdict" && m.ends_with(": pass")),
+        "{events:?}"
+    );
+}
+
+#[test]
+fn twin_validation_gives_verdicts_in_quarantine_and_probation_and_require_verdict_holds_substitution(
+) {
+    let demo = demo_files();
+    let d = demo.path();
+    let config = |name: &str, text: &str| {
+        let dir = d.join(name);
+        std::fs::create_dir(&dir).expect("a configuration directory");
+        std::fs::write(dir.join("config.toml"), text).expect("config.toml");
+        dir
+    };
+    let run = |config: &Path| {
+        Command::new(BIN)
+            .arg("run")
+            .arg(d.join("vernadat.toml"))
+            .args(["--twin", "vernadat", "--virtual", "--for", "25s", "--json"])
+            .args(["--trust", &p(&d.join("trusted"))])
+            .args(["--config", &p(config)])
+            .args(["--at", &format!("10s load {}", p(&d.join("u1.cpkg")))])
+            .args(["--at", "20s substitute"])
+            .output()
+            .expect("cetratus run")
+    };
+
+    let fork = config(
+        "fork",
+        "[updates]\nvalidation = \"fork\"\nhorizon = \"2min\"\nrequire_verdict = true\n",
+    );
+    let events = summary_events(&run(&fork));
+    let twin: Vec<&(String, String)> = events
+        .iter()
+        .filter(|(k, m)| k == "verdict" && m.starts_with("twin verdict"))
+        .collect();
+    assert_eq!(
+        twin.len(),
+        2,
+        "one in quarantine, one in probation: {events:?}"
+    );
+    assert!(twin.iter().all(|(_, m)| m.contains(": pass")), "{twin:?}");
+    let order: Vec<&str> = events.iter().map(|(k, _)| k.as_str()).collect();
+    let q = order
+        .iter()
+        .position(|k| *k == "quarantine_started")
+        .expect("quarantine");
+    let s = order
+        .iter()
+        .position(|k| *k == "substituted")
+        .expect("substituted: the verdict passed");
+    assert!(q < s, "{order:?}");
+
+    // Without validation, a PLC that requires a verdict refuses the substitution.
+    let strict = config("strict", "[updates]\nrequire_verdict = true\n");
+    let events = summary_events(&run(&strict));
+    assert!(
+        !events.iter().any(|(k, _)| k == "substituted"),
+        "{events:?}"
+    );
+    assert!(
+        events
+            .iter()
+            .any(|(k, m)| k == "refused" && m.contains("requires a passing twin verdict")),
+        "{events:?}"
+    );
 }

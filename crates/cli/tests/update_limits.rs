@@ -35,7 +35,7 @@ fn demo_files(config: &str) -> tempfile::TempDir {
 }
 
 /// The audit log's `(what, detail)` of a virtual run loading U.1 at 10 s, substituting it at
-/// 20 s and loading U.2 at 25 s.
+/// 20 s, accepting it at 22 s and loading U.2 at 25 s.
 fn run_updates(d: &Path) -> Vec<(String, Value)> {
     let state = tempfile::tempdir().expect("a state directory");
     let p = |x: &Path| x.display().to_string();
@@ -47,6 +47,7 @@ fn run_updates(d: &Path) -> Vec<(String, Value)> {
         .args(["--config", &p(&d.join("config"))])
         .args(["--at", &format!("10s load {}", p(&d.join("u1.cpkg")))])
         .args(["--at", "20s substitute"])
+        .args(["--at", "22s accept"])
         .args(["--at", &format!("25s load {}", p(&d.join("u2.cpkg")))])
         .arg("--state-dir")
         .arg(state.path())

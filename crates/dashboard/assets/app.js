@@ -208,6 +208,8 @@
     $('remove').disabled = !(up && s === 'quarantine');
     $('abort').disabled = !(up && (s === 'setup' || s === 'quarantine'));
     $('reset').disabled = !(up && s === 'fault');
+    $('accept').disabled = !(up && s === 'probation');
+    $('revert').disabled = !(up && s === 'probation');
   }
 
   // ---- nets ------------------------------------------------------------------------------------
@@ -361,6 +363,7 @@
     row('drift', (x) => x.drift, 'num');
     row('max drift', (x) => x.max_drift, 'num');
     row('deadlock', (x) => (x.deadlock ? 'yes' : 'no'));
+    row('stall', (x) => (x.stall ? 'yes' : 'no'));
     // Field I/O: the quality of each device's inputs (docs/io.md, Quality), the same for both.
     const devices = new Set([...((a && a.input_quality) || []), ...((b && b.input_quality) || [])]
       .map((q) => q.device));
@@ -653,8 +656,13 @@
   $('substitute').addEventListener('click', () => {
     const mode = $('substitute-mode').value;
     ask(`Substitute on ${plc} (mode ${mode})? The candidate becomes PRIMARY and drives the ` +
-      `outputs; the old program stops.`, () => send('substitute', JSON.stringify({ mode }), 'application/json'));
+      `outputs; the old program stays as a shadow for the probation window, if one is configured.`,
+      () => send('substitute', JSON.stringify({ mode }), 'application/json'));
   });
+  $('accept').addEventListener('click', () => ask(`Accept the update on ${plc}? Probation ends and ` +
+    `the old program stops: it can no longer take over.`, () => send('accept', '{}', 'application/json')));
+  $('revert').addEventListener('click', () => ask(`Revert ${plc} to the old program? It drives the ` +
+    `outputs again at the next cycle.`, () => send('revert', '{}', 'application/json')));
   $('remove').addEventListener('click', () => ask(`Remove the candidate from ${plc}? PRIMARY keeps running.`,
     () => send('remove', '{}', 'application/json')));
   $('abort').addEventListener('click', () => ask(`Abort the update under way on ${plc}?`,

@@ -66,6 +66,10 @@ pub enum Request {
     Reset,
     /// Reply with both containers' `program_exec_info`.
     ExecInfo,
+    /// End probation by flipping PRIMARY back to the old program.
+    Revert,
+    /// End probation early: the update is final.
+    Accept,
 }
 
 impl Request {
@@ -78,6 +82,8 @@ impl Request {
             Request::Abort => Verb::Abort,
             Request::Reset => Verb::Reset,
             Request::ExecInfo => Verb::ExecInfo,
+            Request::Revert => Verb::Revert,
+            Request::Accept => Verb::Accept,
         }
     }
 }
@@ -348,6 +354,8 @@ impl ControlPlane {
             Command::Abort => Request::Abort,
             Command::Reset => Request::Reset,
             Command::ExecInfo => Request::ExecInfo,
+            Command::Revert => Request::Revert,
+            Command::Accept => Request::Accept,
         })
     }
 

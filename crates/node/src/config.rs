@@ -17,6 +17,9 @@ use cetratus_mct::{BrokerAccount, BrokerTls, OperatorKeys};
 use cetratus_program::duration::{self, Bare};
 use cetratus_program::{TrustStore, VerifyingKeyFile};
 use cetratus_runtime::Limits;
+
+use crate::gate::GatePolicy;
+use crate::validate::{ValidationMode, ValidationPolicy};
 use serde::Deserialize;
 
 /// Why the local configuration cannot be used. The PLC does not start.
@@ -155,7 +158,21 @@ struct UpdatesSection {
     probation: Option<String>,
     state_trans_timeout: Option<String>,
     candidate_work_budget: Option<u64>,
+    gate_max_states: Option<u64>,
+    gate_time: Option<String>,
+    gate_deadlock: Option<String>,
+    gate_lost_transitions: Option<String>,
+    gate_broken_invariants: Option<String>,
+    validation: Option<String>,
+    validation_twin: Option<String>,
+    horizon: Option<String>,
+    throughput_share: Option<f64>,
+    #[serde(default)]
+    require_verdict: bool,
 }
+
+/// The probation window when `[updates] probation` is absent: a minute.
+pub const DEFAULT_PROBATION_US: u64 = 60_000_000;
 
 /// The loaded configuration.
 pub struct LocalConfig {
@@ -190,6 +207,12 @@ pub struct LocalConfig {
     pub candidate_work_budget: Option<u64>,
     /// The node's I/O configuration from `[io]`, when it names a device or a server.
     pub io: Option<cetratus_io::config::IoConfig>,
+    /// The analysis gate at load: its budget and what each finding does.
+    pub gate: GatePolicy,
+    /// Twin validation: the mode, the horizon and the throughput share.
+    pub validation: ValidationPolicy,
+    /// A substitution needs a passing twin verdict.
+    pub require_verdict: bool,
 }
 
 /// The default configuration directory.
@@ -322,15 +345,8 @@ impl LocalConfig {
         let probation_us = match &file.updates.probation {
             Some(p) => duration::parse_us(p, Bare::Seconds)
                 .map_err(|e| value_error("[updates] probation", p, e.to_string()))?,
-            None => 0,
+            None => DEFAULT_PROBATION_US,
         };
-        if probation_us != 0 {
-            return Err(value_error(
-                "[updates] probation",
-                file.updates.probation.as_deref().unwrap_or_default(),
-                "this version has no probation window; write \"0s\" or remove the key".into(),
-            ));
-        }
         let state_trans_timeout_us = match &file.updates.state_trans_timeout {
             Some(t) => {
                 let us = duration::parse_us(t, Bare::Seconds)
@@ -353,6 +369,8 @@ impl LocalConfig {
                 "a candidate could not evaluate a single guard; give a positive number, or remove the key for the default".into(),
             ));
         }
+        let validation = validation_policy(&file.updates, &value_error)?;
+        let gate = gate_policy(&file.updates, value_error)?;
         let mut ops = OperatorKeys::new(std::time::Duration::from_secs(window_s.max(1)));
         for k in keys_in(&dir.join("operators"), "operator")? {
             ops.add(k.key_id(), *k.verifying_key());
@@ -432,12 +450,18 @@ impl LocalConfig {
             state_trans_timeout_us,
             candidate_work_budget: file.updates.candidate_work_budget,
             io: io_from_file,
+            gate,
+            validation,
+            require_verdict: file.updates.require_verdict,
         })
     }
 
-    /// `limits` with what `[updates]` sets: stateTransTimeout and the candidate's work budget.
+    /// `limits` with what `[updates]` sets: stateTransTimeout, the candidate's work budget and
+    /// the probation window.
     pub fn limits(&self, limits: Limits) -> Limits {
         Limits {
+            probation_us: self.probation_us,
+            require_verdict: self.require_verdict,
             state_trans_timeout_ns: self
                 .state_trans_timeout_us
                 .map_or(limits.state_trans_timeout_ns, |us| us.saturating_mul(1000)),
@@ -449,9 +473,108 @@ impl LocalConfig {
     }
 }
 
+/// `[updates] validation`, `validation_twin`, `horizon`, `throughput_share`.
+fn validation_policy(
+    u: &UpdatesSection,
+    value_error: &impl Fn(&'static str, &str, String) -> ConfigError,
+) -> Result<ValidationPolicy, ConfigError> {
+    let mut v = ValidationPolicy::default();
+    let twin = match &u.validation_twin {
+        None => None,
+        Some(t) => Some(
+            t.parse::<cetratus_twin::TwinKind>()
+                .map_err(|e| value_error("[updates] validation_twin", t, e.to_string()))?,
+        ),
+    };
+    v.mode = match (u.validation.as_deref(), twin) {
+        (None | Some("off"), _) => ValidationMode::Off,
+        (Some("fork"), _) => ValidationMode::Fork,
+        (Some("commission"), Some(kind)) => ValidationMode::Commission(kind),
+        (Some("commission"), None) => {
+            return Err(value_error(
+                "[updates] validation",
+                "commission",
+                "commissioning runs fresh twins of a model: name it with validation_twin = \"vernadat\" or \"festo\"".into(),
+            ))
+        }
+        (Some(other), _) => {
+            return Err(value_error(
+                "[updates] validation",
+                other,
+                "write \"off\", \"fork\" or \"commission\"".into(),
+            ))
+        }
+    };
+    if let Some(h) = &u.horizon {
+        let us = duration::parse_us(h, Bare::Seconds)
+            .map_err(|e| value_error("[updates] horizon", h, e.to_string()))?;
+        if us == 0 {
+            return Err(value_error(
+                "[updates] horizon",
+                h,
+                "a validation over no plant time says nothing; give one such as \"10min\"".into(),
+            ));
+        }
+        v.horizon_us = us;
+    }
+    if let Some(share) = u.throughput_share {
+        if !(0.0..=1.0).contains(&share) {
+            return Err(value_error(
+                "[updates] throughput_share",
+                &share.to_string(),
+                "a share is between 0 and 1, e.g. 0.9 for 90 %".into(),
+            ));
+        }
+        v.throughput_share = share;
+    }
+    Ok(v)
+}
+
+/// `[updates] gate_*`: the analysis gate's budget and policy.
+fn gate_policy(
+    u: &UpdatesSection,
+    value_error: impl Fn(&'static str, &str, String) -> ConfigError,
+) -> Result<GatePolicy, ConfigError> {
+    let mut g = GatePolicy::default();
+    if let Some(n) = u.gate_max_states {
+        if n == 0 {
+            return Err(value_error(
+                "[updates] gate_max_states",
+                "0",
+                "the gate could not look at a single state; give a positive number, or remove the key for 200000".into(),
+            ));
+        }
+        g.max_states = n;
+    }
+    if let Some(t) = &u.gate_time {
+        let us = duration::parse_us(t, Bare::Seconds)
+            .map_err(|e| value_error("[updates] gate_time", t, e.to_string()))?;
+        g.time = std::time::Duration::from_micros(us);
+    }
+    for (key, value, slot) in [
+        ("[updates] gate_deadlock", &u.gate_deadlock, &mut g.deadlock),
+        (
+            "[updates] gate_lost_transitions",
+            &u.gate_lost_transitions,
+            &mut g.lost_transitions,
+        ),
+        (
+            "[updates] gate_broken_invariants",
+            &u.gate_broken_invariants,
+            &mut g.broken_invariants,
+        ),
+    ] {
+        if let Some(v) = value {
+            *slot = v.parse().map_err(|e: String| value_error(key, v, e))?;
+        }
+    }
+    Ok(g)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::gate::Severity;
 
     fn dir_with(config: &str) -> PathBuf {
         static N: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
@@ -509,7 +632,7 @@ mod tests {
     fn a_missing_directory_is_the_defaults() {
         let c = LocalConfig::load(Some(Path::new("/nonexistent/cetratus-config"))).unwrap();
         assert!(!c.allow_unsigned && c.operators.is_none() && c.users.is_empty());
-        assert_eq!(c.probation_us, 0);
+        assert_eq!(c.probation_us, 60_000_000, "a minute of probation");
     }
 
     #[test]
@@ -520,23 +643,79 @@ mod tests {
 
     #[test]
     fn an_unknown_key_names_the_file_line_and_the_keys_known() {
-        let d = dir_with("[updates]\nprobation = \"0s\"\nhorizon = \"10min\"\n");
+        let d = dir_with("[updates]\nprobation = \"0s\"\nhorizn = \"10min\"\n");
         let e = LocalConfig::load(Some(&d)).err().unwrap().to_string();
         assert!(e.contains("config.toml:3:1"), "{e}");
-        assert!(e.contains("horizon") && e.contains("probation"), "{e}");
+        assert!(e.contains("horizn") && e.contains("probation"), "{e}");
         assert!(e.contains("docs/configuration.md"), "{e}");
         let d = dir_with("[io]\ndevice = 1\n");
         assert!(LocalConfig::load(Some(&d)).is_err());
     }
 
     #[test]
-    fn a_probation_window_is_refused_with_what_to_write() {
-        let d = dir_with("[updates]\nprobation = \"10s\"\n");
+    fn the_validation_settings_are_read_and_commission_needs_a_twin() {
+        let c = LocalConfig::load(Some(&dir_with("[updates]\n"))).unwrap();
+        assert_eq!(c.validation, ValidationPolicy::default());
+        assert!(!c.require_verdict);
+        let d = dir_with(
+            "[updates]\nvalidation = \"commission\"\nvalidation_twin = \"festo\"\nhorizon = \"2min\"\nthroughput_share = 0.8\nrequire_verdict = true\n",
+        );
+        let c = LocalConfig::load(Some(&d)).unwrap();
+        assert_eq!(
+            c.validation.mode,
+            ValidationMode::Commission(cetratus_twin::TwinKind::Festo)
+        );
+        assert_eq!(
+            (c.validation.horizon_us, c.validation.throughput_share),
+            (120_000_000, 0.8)
+        );
+        assert!(c.limits(Limits::for_period_us(10_000)).require_verdict);
+        let e = LocalConfig::load(Some(&dir_with("[updates]\nvalidation = \"commission\"\n")))
+            .err()
+            .unwrap()
+            .to_string();
+        assert!(e.contains("validation_twin"), "{e}");
+        let e = LocalConfig::load(Some(&dir_with("[updates]\nthroughput_share = 90\n")))
+            .err()
+            .unwrap()
+            .to_string();
+        assert!(e.contains("between 0 and 1"), "{e}");
+    }
+
+    #[test]
+    fn the_gate_policy_is_read_and_a_wrong_value_names_its_key() {
+        let c = LocalConfig::load(Some(&dir_with("[updates]\n"))).unwrap();
+        assert_eq!(c.gate, GatePolicy::default());
+        let d = dir_with(
+            "[updates]\ngate_deadlock = \"refuse\"\ngate_max_states = 50\ngate_time = \"100ms\"\n",
+        );
+        let c = LocalConfig::load(Some(&d)).unwrap();
+        assert_eq!(c.gate.deadlock, Severity::Refuse);
+        assert_eq!(c.gate.lost_transitions, Severity::Warn);
+        assert_eq!((c.gate.max_states, c.gate.time.as_millis()), (50, 100));
+        let d = dir_with("[updates]\ngate_lost_transitions = \"block\"\n");
         let e = LocalConfig::load(Some(&d)).err().unwrap().to_string();
         assert!(
-            e.contains("[updates] probation") && e.contains("\"0s\""),
+            e.contains("gate_lost_transitions") && e.contains("\"refuse\""),
             "{e}"
         );
+    }
+
+    #[test]
+    fn the_probation_window_is_read_and_0s_turns_it_off() {
+        for (text, us) in [
+            ("\"10s\"", 10_000_000),
+            ("\"0s\"", 0),
+            ("\"2min\"", 120_000_000),
+        ] {
+            let d = dir_with(&format!("[updates]\nprobation = {text}\n"));
+            let c = LocalConfig::load(Some(&d)).unwrap();
+            assert_eq!(c.probation_us, us, "{text}");
+            assert_eq!(c.limits(Limits::for_period_us(10_000)).probation_us, us);
+        }
+        let d = dir_with("[updates]\nprobation = \"soon\"\n");
+        let e = LocalConfig::load(Some(&d)).err().unwrap().to_string();
+        assert!(e.contains("[updates] probation"), "{e}");
     }
 
     #[test]

@@ -347,6 +347,7 @@ pub fn scripted(files: &DemoFiles) -> Result<DemoRecord, DemoError> {
         allow_unsigned: false,
         record_trace: false,
         progress_every: None,
+        gate: crate::gate::GatePolicy::default(),
     };
     let mut r = Run {
         node: Node::new(plc, io, opts),

@@ -8,6 +8,8 @@
 //!   packages, compiles conditions) and the publisher thread.
 //! * [`periodic`]: the real-time loop at absolute deadlines; [`rt`]: SCHED_FIFO and mlockall.
 //! * [`clock`]: the machine's clocks, injected into the runtime.
+//! * [`gate`]: the analysis gate at load, run by the preparers; [`validate`]: twin validation
+//!   of an update on forked or fresh twins, on a thread of its own.
 //! * [`config`]: the local configuration; [`state`]: the state directory and the start from it.
 //! * [`demo`]: the Vernadat experiment of the paper, embedded.
 
@@ -15,12 +17,14 @@ pub mod clock;
 pub mod config;
 pub mod demo;
 pub mod dirs;
+pub mod gate;
 pub mod link;
 mod node;
 pub mod periodic;
 pub mod rt;
 pub mod script;
 pub mod state;
+pub mod validate;
 pub mod wire;
 
 pub use node::{Echo, Node, NodeOptions, NodeReport};

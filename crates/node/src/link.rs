@@ -34,6 +34,7 @@ use cetratus_runtime::{
 };
 use serde_json::json;
 
+use crate::gate::{self, GatePolicy};
 use crate::wire;
 use cetratus_io::field::StatusReader;
 
@@ -50,6 +51,8 @@ pub const PENDING_BYTES: usize = 1 << 20;
 struct Ready {
     command: Box<Command>,
     from: IncomingCommand,
+    // What the reply says besides `accepted` (a load's verdicts), built off the scan thread.
+    extra: Option<serde_json::Value>,
 }
 
 /// What the publisher is given: snapshots from the scan thread, `exec_info` requests from the
@@ -118,6 +121,7 @@ impl ControlLink {
         link: MctLink,
         trust: TrustStore,
         allow_unsigned: bool,
+        gate: GatePolicy,
         publish_every: u64,
     ) -> ControlLink {
         let MctLink {
@@ -138,6 +142,7 @@ impl ControlLink {
             out: outgoing.clone(),
             trust,
             allow_unsigned,
+            gate,
         };
         let done = Arc::new(AtomicBool::new(false));
         let prep_done = done.clone();
@@ -188,12 +193,18 @@ impl ControlLink {
     pub fn take_commands(&mut self, plc: &mut Plc) -> Option<String> {
         let mut who = None;
         while self.pending_bytes < PENDING_BYTES / 2 {
-            let Ok(Ready { command, from }) = self.to_scan_rx.try_recv() else {
+            let Ok(Ready {
+                command,
+                from,
+                extra,
+            }) = self.to_scan_rx.try_recv()
+            else {
                 break;
             };
-            let outcome = match plc.command(*command) {
-                Ok(()) => accepted(),
-                Err(e) => Err(refused(e.to_string())),
+            let outcome = match (plc.command(*command), extra) {
+                (Ok(()), None) => accepted(),
+                (Ok(()), Some(extra)) => Ok(Some(extra)),
+                (Err(e), _) => Err(refused(e.to_string())),
             };
             who = Some(match (&from.key_id, &from.account) {
                 (Some(k), Some(a)) => format!("mqtt:{k}/{a}"),
@@ -277,6 +288,9 @@ impl ControlLink {
             None
         };
         if let (Some(permit), Some(tx)) = (permit, &self.snap_tx) {
+            // The preparer's context follows the primary's marking at the publication rate: the
+            // analysis gate starts from it.
+            let _ = self.ctx_tx.try_send(plc.update_context());
             let since = self.last_sampled;
             let samples: Vec<CycleRecord> = plc
                 .monitor()
@@ -349,6 +363,7 @@ struct Preparer {
     out: SyncSender<Outgoing>,
     trust: TrustStore,
     allow_unsigned: bool,
+    gate: GatePolicy,
 }
 
 impl Preparer {
@@ -382,24 +397,43 @@ impl Preparer {
                 ));
                 continue;
             };
+            let mut extra = None;
             let prepared: Result<Box<Command>, String> = match &cmd.request {
                 Request::Load { package } => c
                     .prepare_package(package, &self.trust, self.allow_unsigned, false)
                     .map_err(|e| e.to_string())
-                    .map(|p| Box::new(Command::Load(Box::new(p)))),
+                    .and_then(|mut p| {
+                        let gate = gate::run(c, &p, &self.gate);
+                        if let Some(refusal) = gate.refusal {
+                            return Err(refusal);
+                        }
+                        extra = Some(json!({
+                            "accepted": true,
+                            "verdicts": [wire::verdict(&gate.verdict)],
+                        }));
+                        p.add_verdict(gate.verdict);
+                        Ok(Box::new(Command::Load(Box::new(p))))
+                    }),
                 Request::Substitute(a) => {
                     substitute(c, a).map(|s| Box::new(Command::Substitute(s)))
                 }
                 Request::Remove => Ok(Box::new(Command::Remove)),
                 Request::Abort => Ok(Box::new(Command::Abort)),
                 Request::Reset => Ok(Box::new(Command::Reset)),
+                Request::Revert => Ok(Box::new(Command::Revert)),
+                Request::Accept => Ok(Box::new(Command::Accept)),
                 Request::ExecInfo => continue,
             };
             match prepared {
                 Ok(command) => {
                     // Blocks while the scan thread is behind, so the command queue before this
                     // thread fills up and answers `busy`.
-                    if self.to_scan.send(Ready { command, from: cmd }).is_err() {
+                    let ready = Ready {
+                        command,
+                        from: cmd,
+                        extra,
+                    };
+                    if self.to_scan.send(ready).is_err() {
                         return;
                     }
                 }

@@ -10,15 +10,19 @@ use std::sync::mpsc::{sync_channel, SyncSender};
 use std::thread::JoinHandle;
 
 use cetratus_persist::{PersistStats, Persister};
-use cetratus_program::TrustStore;
+use cetratus_program::{TrustStore, Value};
 use cetratus_runtime::trace::Trace;
 use cetratus_runtime::{
-    Clock, Command, CommandError, Dispatcher, Event, LoopTiming, Plc, Provider, VirtualClock,
+    Clock, Command, CommandError, Dispatcher, Event, EventKind, LoopTiming, Plc, PlcSnapshot,
+    Provider, VirtualClock,
 };
 
 use crate::link::{ControlLink, LinkCounters};
 use crate::periodic::run_periodic;
 use crate::script::{Pace, Script, ScriptError};
+use crate::validate::{self, Start, ValidationMode, ValidationPolicy, Validator};
+use cetratus_io::TwinDriver;
+use cetratus_twin::Twin;
 
 /// What the node tells the operator, printed by the caller on a thread of its own (the scan
 /// thread never writes to a terminal).
@@ -49,6 +53,8 @@ pub struct NodeOptions {
     pub record_trace: bool,
     /// Echo [`Echo::Progress`] every this many cycles.
     pub progress_every: Option<u64>,
+    /// The analysis gate of the script's loads.
+    pub gate: crate::gate::GatePolicy,
 }
 
 /// What [`Node::with_observer`] is given.
@@ -75,6 +81,14 @@ pub struct Node<IO> {
     timing: LoopTiming,
     pace: Pace,
     observer: Option<Observer>,
+    validation: Option<NodeValidation<IO>>,
+}
+
+/// The node's twin validation: the thread, and how to fork the twin of this kind of I/O.
+struct NodeValidation<IO> {
+    validator: Validator,
+    fork: fn(&IO) -> Option<Twin>,
+    period_us: u64,
 }
 
 /// What a node leaves when it stops.
@@ -119,6 +133,72 @@ impl<IO: Provider + Dispatcher> Node<IO> {
             timing: LoopTiming::default(),
             pace: Pace::Virtual,
             observer: None,
+            validation: None,
+        }
+    }
+
+    /// Validates every update on twins (docs/live-update.md, *Twin validation*): when it enters
+    /// quarantine and again when it is substituted into probation, on a thread of its own; the
+    /// verdict goes to the PLC. `fork` forks the twin of this I/O (fork mode).
+    pub fn with_validation(
+        mut self,
+        policy: ValidationPolicy,
+        period_us: u64,
+        fork: fn(&IO) -> Option<Twin>,
+    ) -> Self {
+        if policy.mode != ValidationMode::Off {
+            self.validation = Some(NodeValidation {
+                validator: Validator::start(policy),
+                fork,
+                period_us,
+            });
+        }
+        self
+    }
+
+    /// Starts a validation when the cycle's events put an update into quarantine or probation,
+    /// and hands a finished verdict to the PLC. In virtual time it waits for the verdict, so that
+    /// it lands at the same cycle on every run.
+    fn validation_step(&mut self, events: &[Event]) {
+        let Some(v) = self.validation.as_ref() else {
+            return;
+        };
+        let due = events.iter().any(|e| {
+            e.kind == EventKind::QuarantineStarted || e.kind == EventKind::ProbationStarted
+        });
+        let mut submitted = false;
+        if due {
+            let start = match v.validator.policy.mode {
+                ValidationMode::Commission(kind) => Some(Start::Commission(kind)),
+                ValidationMode::Fork => (v.fork)(&self.io).map(|twin| {
+                    let mut snapshot = Box::<PlcSnapshot>::default();
+                    self.plc.snapshot_into(&mut snapshot);
+                    let names = self.plc.io_outputs().iter();
+                    let dispatched = names
+                        .zip(self.plc.dispatched())
+                        .map(|(n, v)| (n.clone(), matches!(v, Value::Bool(true))))
+                        .collect();
+                    Start::Fork {
+                        snapshot,
+                        twin: Box::new(twin),
+                        dispatched,
+                    }
+                }),
+                ValidationMode::Off => None,
+            };
+            if let Some(job) =
+                start.and_then(|s| validate::job_for(&self.plc, s, v.validator.policy, v.period_us))
+            {
+                submitted = v.validator.submit(job);
+            }
+        }
+        let done = if submitted && self.pace == Pace::Virtual {
+            v.validator.wait_done()
+        } else {
+            v.validator.try_done()
+        };
+        if let Some(d) = done {
+            self.plc.add_verdict(&d.program_hash, d.verdict);
         }
     }
 
@@ -136,7 +216,11 @@ impl<IO: Provider + Dispatcher> Node<IO> {
 
     /// Gives scripted commands; their packages must be signed by the keys of the options.
     pub fn with_script(mut self, script: Script) -> Self {
-        self.script = script.trusting(self.opts.trust.clone(), self.opts.allow_unsigned);
+        self.script = script.trusting(
+            self.opts.trust.clone(),
+            self.opts.allow_unsigned,
+            self.opts.gate,
+        );
         self
     }
 
@@ -275,6 +359,7 @@ impl<IO: Provider + Dispatcher> Node<IO> {
             self.fault(format!("{:.3}s: {v}", now as f64 / 1e6));
         }
         let ev = self.plc.drain_events();
+        self.validation_step(&ev);
         let ev = self.events(ev, "plc", false);
         if let Some(link) = self.link.as_mut() {
             link.after_cycle(&self.plc, &ev, timing, now);
@@ -357,5 +442,12 @@ impl<IO: Provider + Dispatcher> Node<IO> {
             link,
         };
         Ok((self.plc, self.io, report))
+    }
+}
+
+impl Node<TwinDriver<Twin>> {
+    /// [`Node::with_validation`] for a node on an in-process twin, which fork mode forks.
+    pub fn with_twin_validation(self, policy: ValidationPolicy, period_us: u64) -> Self {
+        self.with_validation(policy, period_us, |io| Some(io.plant().clone()))
     }
 }

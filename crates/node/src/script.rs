@@ -16,11 +16,13 @@
 
 use std::sync::mpsc::{sync_channel, Receiver, SyncSender};
 
+use crate::gate::{self, GatePolicy};
 use cetratus_program::duration::{self, Bare};
 use cetratus_program::TrustStore;
 use cetratus_runtime::{
     Command, Plc, PreparedUpdate, SubstituteMode, SubstituteRequest, UpdateContext,
 };
+use cetratus_twin::{Plant, Twin};
 
 /// Why a script cannot be run.
 #[derive(Debug, thiserror::Error)]
@@ -46,6 +48,8 @@ enum Verb {
     Remove,
     Abort,
     Reset,
+    Revert,
+    Accept,
 }
 
 /// One scripted command.
@@ -90,7 +94,7 @@ struct Preparer {
 }
 
 impl Preparer {
-    fn start(trust: TrustStore, allow_unsigned: bool) -> Self {
+    fn start(trust: TrustStore, allow_unsigned: bool, gate: GatePolicy) -> Self {
         let (jobs, job_rx) = sync_channel::<Job>(1);
         let (done_tx, done) = sync_channel::<Done>(1);
         // Detached: it ends when the script (and so `jobs`) is dropped, after the job under way.
@@ -104,6 +108,16 @@ impl Preparer {
                         .and_then(|bytes| {
                             ctx.prepare_package(&bytes, &trust, allow_unsigned, false)
                                 .map_err(|e| format!("{path}: {e}"))
+                        })
+                        .and_then(|mut p| {
+                            // The analysis gate, here on the script's thread as on the MQTT
+                            // preparer's: never on the scan thread.
+                            let g = gate::run(&ctx, &p, &gate);
+                            if let Some(refusal) = g.refusal {
+                                return Err(format!("{path}: {refusal}"));
+                            }
+                            p.add_verdict(g.verdict);
+                            Ok(p)
                         });
                     let base = ctx.primary.hash();
                     if done_tx.send(Done { item, base, result }).is_err() {
@@ -172,6 +186,7 @@ pub struct Script {
     next: usize,
     preparer: Option<Preparer>,
     trust: Option<(TrustStore, bool)>,
+    gate: GatePolicy,
 }
 
 impl std::fmt::Debug for Script {
@@ -210,9 +225,11 @@ impl Script {
                 ("remove", _) => Verb::Remove,
                 ("abort", _) => Verb::Abort,
                 ("reset", _) => Verb::Reset,
+                ("revert", _) => Verb::Revert,
+                ("accept", _) => Verb::Accept,
                 (other, _) => {
                     return Err(syntax(format!(
-                    "unknown command `{other}`; expected load, substitute, remove, abort or reset"
+                    "unknown command `{other}`; expected load, substitute, remove, abort, reset, revert or accept"
                 )))
                 }
             };
@@ -225,15 +242,17 @@ impl Script {
             next: 0,
             preparer: None,
             trust: None,
+            gate: GatePolicy::default(),
         })
     }
 
     /// The keys a scripted package must be signed with (and whether unsigned ones are taken).
     /// Starts the preparer thread when the script loads a package: here, before the run, so that
     /// it does not inherit the scan thread's real-time priority (`--rt`).
-    pub fn trusting(mut self, trust: TrustStore, allow_unsigned: bool) -> Self {
+    pub fn trusting(mut self, trust: TrustStore, allow_unsigned: bool, gate: GatePolicy) -> Self {
+        self.gate = gate;
         if self.items.iter().any(|s| matches!(s.verb, Verb::Load(_))) {
-            self.preparer = Some(Preparer::start(trust.clone(), allow_unsigned));
+            self.preparer = Some(Preparer::start(trust.clone(), allow_unsigned, gate));
         }
         self.trust = Some((trust, allow_unsigned));
         self
@@ -254,6 +273,7 @@ impl Script {
             next,
             preparer,
             trust,
+            gate,
         } = self;
         let s = items.get(*next)?;
         let due = s.at_us.saturating_add(base_us) <= now_us;
@@ -263,6 +283,8 @@ impl Script {
             Verb::Remove => Some(Command::Remove),
             Verb::Abort => Some(Command::Abort),
             Verb::Reset => Some(Command::Reset),
+            Verb::Revert => Some(Command::Revert),
+            Verb::Accept => Some(Command::Accept),
         };
         if let Some(c) = plain {
             return due.then(|| {
@@ -276,7 +298,7 @@ impl Script {
         let item = *next;
         let prep = preparer.get_or_insert_with(|| {
             let (t, unsigned) = trust.clone().unwrap_or((TrustStore::empty(), false));
-            Preparer::start(t, unsigned)
+            Preparer::start(t, unsigned, *gate)
         });
         if !due {
             // Prepared ahead, against the primary running now.
@@ -310,6 +332,29 @@ impl Script {
             }
         }
     }
+}
+
+/// Presses the twin's buttons as `--press BUTTON@TIME` asks (a bare button is pressed at 0 s),
+/// times counted from `base_us`. A station that has RESET and START buttons and is given no
+/// press gets `RESET@100ms` and `START@500ms`, so that it runs as it does for an operator.
+pub fn press_buttons(plant: &mut Twin, presses: &[String], base_us: u64) -> Result<(), String> {
+    let defaults = ["RESET@100ms".to_string(), "START@500ms".to_string()];
+    let buttons = plant.buttons();
+    let presses = if presses.is_empty() && buttons.contains(&"RESET") && buttons.contains(&"START")
+    {
+        &defaults[..]
+    } else {
+        presses
+    };
+    for p in presses {
+        let (button, at) = p.split_once('@').unwrap_or((p.as_str(), "0s"));
+        let at_us =
+            duration::parse_us(at, Bare::Seconds).map_err(|e| format!("--press {p}: {e}"))?;
+        plant
+            .press(button, at_us.saturating_add(base_us))
+            .map_err(|e| format!("--press {p}: {e}"))?;
+    }
+    Ok(())
 }
 
 #[cfg(test)]

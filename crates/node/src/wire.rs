@@ -80,7 +80,8 @@ fn role(r: Role) -> proto::Role {
     }
 }
 
-fn verdict(v: &Verdict) -> proto::Verdict {
+/// A verdict on the wire.
+pub fn verdict(v: &Verdict) -> proto::Verdict {
     proto::Verdict {
         figures: v.figures.clone(),
         kind: match v.kind {
@@ -102,6 +103,7 @@ pub fn exec_info(e: &ExecInfo) -> proto::ExecInfo {
         container: slot(e.container),
         cycles: e.cycles,
         deadlock: e.deadlock,
+        stall: e.stall,
         divergence: e.divergence.clone(),
         drift: e.drift,
         firings: e.firings.clone(),

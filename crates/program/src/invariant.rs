@@ -29,6 +29,12 @@ impl Invariant {
         self.constant
     }
 
+    /// The same invariant resolved against another net (an update's), by place id; `None` when
+    /// that net lacks one of its places.
+    pub fn on_net(&self, net: &Net) -> Option<Invariant> {
+        Invariant::parse(&self.expr, net).ok()
+    }
+
     /// The left-hand side at a marking; places beyond the marking's length count as empty.
     pub fn weighted_sum(&self, marking: &[Tokens]) -> i128 {
         self.terms

@@ -34,7 +34,7 @@ pub use package::{
     build_package, BuildReport, KeyPair, PackageError, PackageMeta, ResolvedUpdate, TransformSpec,
     TrustStore, UpdatePackage, VerifyingKeyFile,
 };
-pub use program::{Program, DEFAULT_SCAN_PERIOD, TOOL};
+pub use program::{Program, Watchdog, DEFAULT_SCAN_PERIOD, TOOL};
 pub use source::{toml_text, NotUtf8};
 pub use transform::{DenseMatrix, Projection, StateTransform, TransformError};
 pub use value::{Signal, Type, Value};

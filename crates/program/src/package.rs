@@ -131,6 +131,10 @@ pub struct PackageMeta {
     pub created: String,
     /// [`Program::hash_hex`] of the program the package was built against.
     pub base_program_hash: String,
+    /// The update changes the cell's throughput on purpose: a twin validation does not judge
+    /// the candidate's throughput against the primary's. Absent (false) in older packages.
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub changes_throughput: bool,
 }
 
 /// A transformation or projection as the manifest declares it, before it meets the nets.

@@ -22,6 +22,16 @@ pub const TOOL: &str = "cetratus";
 /// The scan period when the file does not set one.
 pub const DEFAULT_SCAN_PERIOD: Duration = Duration::from_millis(10);
 
+/// A place's maximum dwell time (`[[watchdog]]`): the primary stalls when the place stays marked
+/// longer, counted from the scan in which it became marked.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Watchdog {
+    /// The watched place.
+    pub place: PlaceIdx,
+    /// Its maximum dwell time, µs.
+    pub max_us: u64,
+}
+
 /// A PLC program: a net and its interpretation (signals, guards, actions, invariants).
 ///
 /// A `Program` that exists has resolved every name, type-checked and compiled every guard, and
@@ -47,6 +57,8 @@ pub struct Program {
     place_action_start: Vec<u32>,
     place_actions: Vec<u32>,
     invariants: Vec<Invariant>,
+    watchdogs: Vec<Watchdog>,
+    no_firing_us: Option<u64>,
     source: String,
     // Computed on first use: loading a program does not need its identity, an update does.
     hash: std::sync::OnceLock<([u8; 32], String)>,
@@ -285,7 +297,11 @@ impl Program {
             invariants.push(inv);
         }
 
+        let (watchdogs, no_firing_us) = watchdogs(&o, &doc, &net)?;
+
         Ok(Program {
+            watchdogs,
+            no_firing_us,
             name: p.name.get_ref().clone(),
             version: p.version.get_ref().clone(),
             description: p.description.clone(),
@@ -370,6 +386,17 @@ impl Program {
             message: format!("column {}: {}", e.offset + 1, e.message),
         })
     }
+    /// The places' maximum dwell times (`[[watchdog]]`), in declaration order.
+    pub fn watchdogs(&self) -> &[Watchdog] {
+        &self.watchdogs
+    }
+
+    /// `[stall] no_firing`: the primary stalls when nothing fires for this long (µs) while a
+    /// watched place is marked.
+    pub fn no_firing_us(&self) -> Option<u64> {
+        self.no_firing_us
+    }
+
     /// The declared invariants, in declaration order.
     pub fn invariants(&self) -> &[Invariant] {
         &self.invariants
@@ -694,4 +721,58 @@ fn hash(text: &str, net: &Net) -> [u8; 32] {
         }]);
     }
     h.finalize().into()
+}
+
+/// The `[[watchdog]]` places and `[stall] no_firing`, resolved against the net.
+fn watchdogs(
+    o: &Origin,
+    doc: &Doc,
+    net: &Net,
+) -> Result<(Vec<Watchdog>, Option<u64>), ProgramError> {
+    let duration = |s: &Spanned<String>, what: &str| -> Result<u64, ProgramError> {
+        let us = crate::guard::parse_duration(s.get_ref())
+            .map_err(|e| o.err(o.in_string(s, e.offset), e.message))?;
+        if us == 0 {
+            return Err(o.err(
+                s.span().start,
+                format!("{what} must be longer than 0; e.g. \"10s\""),
+            ));
+        }
+        Ok(us)
+    };
+    let mut out: Vec<Watchdog> = Vec::with_capacity(doc.watchdog.len());
+    for decl in &doc.watchdog {
+        let d = decl.get_ref();
+        let id = d.place.get_ref();
+        let place = net.place_by_id(id).ok_or_else(|| {
+            o.err(
+                d.place.span().start,
+                format!("[[watchdog]] place `{id}` is not a place of the net; give a place id"),
+            )
+        })?;
+        if out.iter().any(|w| w.place == place) {
+            return Err(o.err(
+                d.place.span().start,
+                format!("place `{id}` has a [[watchdog]] already; give each place one maximum"),
+            ));
+        }
+        out.push(Watchdog {
+            place,
+            max_us: duration(&d.max, "a [[watchdog]] max")?,
+        });
+    }
+    let no_firing = match &doc.stall {
+        None => None,
+        Some(s) => {
+            let nf = &s.get_ref().no_firing;
+            if out.is_empty() {
+                return Err(o.err(
+                    nf.span().start,
+                    "[stall] no_firing watches the [[watchdog]] places, and there are none; add a [[watchdog]] for each place that must not wait, or remove [stall]",
+                ));
+            }
+            Some(duration(nf, "[stall] no_firing")?)
+        }
+    };
+    Ok((out, no_firing))
 }

@@ -26,6 +26,9 @@ pub(crate) struct Doc {
     pub action: Vec<Spanned<ActionDecl>>,
     #[serde(default)]
     pub invariant: Vec<Spanned<InvariantDecl>>,
+    #[serde(default)]
+    pub watchdog: Vec<Spanned<WatchdogDecl>>,
+    pub stall: Option<Spanned<StallDecl>>,
 }
 
 /// `[program]`.
@@ -73,6 +76,21 @@ pub(crate) struct ActionDecl {
 #[serde(deny_unknown_fields)]
 pub(crate) struct InvariantDecl {
     pub expr: Spanned<String>,
+}
+
+/// `[[watchdog]]`: a place's maximum dwell time.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(crate) struct WatchdogDecl {
+    pub place: Spanned<String>,
+    pub max: Spanned<String>,
+}
+
+/// `[stall]`: the program-wide stall condition.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(crate) struct StallDecl {
+    pub no_firing: Spanned<String>,
 }
 
 /// Just the net file name, read before the rest so the net can be loaded first.

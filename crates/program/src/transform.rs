@@ -343,6 +343,95 @@ impl Linear {
         self.entries.iter().any(|&(k, _)| k == c)
     }
 
+    /// `y = A·x + b` into `out`, only when every check passes against the program of the rows'
+    /// net: no negative count, no overflow, no count above a capacity, no dropped place with
+    /// tokens, and every invariant of `new`. Never allocates on success.
+    fn apply_checked(
+        &self,
+        what: &'static str,
+        must_be_empty: &[PlaceIdx],
+        old_marking: &[Tokens],
+        new: &Program,
+        out: &mut [Tokens],
+    ) -> Result<(), TransformError> {
+        let len = |which, expected, found| TransformError::MarkingLength {
+            what,
+            which,
+            expected,
+            found,
+        };
+        if old_marking.len() != self.cols() {
+            return Err(len("old marking", self.cols(), old_marking.len()));
+        }
+        let net = new.net();
+        if net.num_places() != self.rows() {
+            return Err(len("new program", self.rows(), net.num_places()));
+        }
+        if out.len() != self.rows() {
+            return Err(len("output marking", self.rows(), out.len()));
+        }
+        for &p in must_be_empty {
+            let tokens = old_marking[p.index()];
+            if tokens > 0 {
+                return Err(TransformError::RemovedNotEmpty {
+                    place: self.col_ids[p.index()].clone(),
+                    tokens,
+                });
+            }
+        }
+        for r in 0..self.rows() {
+            let v = self.row_tokens(r, old_marking)?;
+            if let Some(cap) = net.capacity(PlaceIdx(r as u32)) {
+                if v > cap {
+                    return Err(TransformError::AboveCapacity {
+                        place: self.row_ids[r].clone(),
+                        value: u64::from(v),
+                        capacity: cap,
+                    });
+                }
+            }
+        }
+        // The invariants are checked on rows computed again, not on `out`, so that a refusal
+        // leaves the caller's buffer as it was.
+        for (index, inv) in new.invariants().iter().enumerate() {
+            let mut actual = 0i128;
+            for &(p, w) in inv.terms() {
+                let v = self.row_tokens(p.index(), old_marking)?;
+                actual = actual.saturating_add(i128::from(w) * i128::from(v));
+            }
+            if actual != i128::from(inv.constant()) {
+                return Err(TransformError::Invariant {
+                    violation: InvariantViolation {
+                        index,
+                        expr: inv.expr().into(),
+                        actual,
+                        expected: inv.constant(),
+                    },
+                });
+            }
+        }
+        for (r, o) in out.iter_mut().enumerate() {
+            *o = self.row_tokens(r, old_marking)?;
+        }
+        Ok(())
+    }
+
+    /// Row r as a token count, or why it is not one.
+    #[inline]
+    fn row_tokens(&self, r: usize, old: &[Tokens]) -> Result<Tokens, TransformError> {
+        let v = self.eval(r, old);
+        if v < 0 {
+            return Err(TransformError::Negative {
+                place: self.row_ids[r].clone(),
+                value: v,
+            });
+        }
+        Tokens::try_from(v).map_err(|_| TransformError::Overflow {
+            place: self.row_ids[r].clone(),
+            value: v,
+        })
+    }
+
     fn to_dense(&self) -> DenseMatrix {
         let mut matrix = vec![vec![0i64; self.cols()]; self.rows()];
         for (r, row) in matrix.iter_mut().enumerate() {
@@ -512,82 +601,8 @@ impl StateTransform {
         new: &Program,
         out: &mut [Tokens],
     ) -> Result<(), TransformError> {
-        let len = |which, expected, found| TransformError::MarkingLength {
-            what: ST,
-            which,
-            expected,
-            found,
-        };
-        if old_marking.len() != self.cols() {
-            return Err(len("old marking", self.cols(), old_marking.len()));
-        }
-        let net = new.net();
-        if net.num_places() != self.rows() {
-            return Err(len("new program", self.rows(), net.num_places()));
-        }
-        if out.len() != self.rows() {
-            return Err(len("output marking", self.rows(), out.len()));
-        }
-        for &p in &self.must_be_empty {
-            let tokens = old_marking[p.index()];
-            if tokens > 0 {
-                return Err(TransformError::RemovedNotEmpty {
-                    place: self.map.col_ids[p.index()].clone(),
-                    tokens,
-                });
-            }
-        }
-        for r in 0..self.rows() {
-            let v = self.row_tokens(r, old_marking)?;
-            if let Some(cap) = net.capacity(PlaceIdx(r as u32)) {
-                if v > cap {
-                    return Err(TransformError::AboveCapacity {
-                        place: self.map.row_ids[r].clone(),
-                        value: u64::from(v),
-                        capacity: cap,
-                    });
-                }
-            }
-        }
-        // The invariants are checked on rows computed again, not on `out`, so that a refusal
-        // leaves the caller's buffer as it was.
-        for (index, inv) in new.invariants().iter().enumerate() {
-            let mut actual = 0i128;
-            for &(p, w) in inv.terms() {
-                let v = self.row_tokens(p.index(), old_marking)?;
-                actual = actual.saturating_add(i128::from(w) * i128::from(v));
-            }
-            if actual != i128::from(inv.constant()) {
-                return Err(TransformError::Invariant {
-                    violation: InvariantViolation {
-                        index,
-                        expr: inv.expr().into(),
-                        actual,
-                        expected: inv.constant(),
-                    },
-                });
-            }
-        }
-        for (r, o) in out.iter_mut().enumerate() {
-            *o = self.row_tokens(r, old_marking)?;
-        }
-        Ok(())
-    }
-
-    /// Row r as a token count, or why it is not one.
-    #[inline]
-    fn row_tokens(&self, r: usize, old: &[Tokens]) -> Result<Tokens, TransformError> {
-        let v = self.map.eval(r, old);
-        if v < 0 {
-            return Err(TransformError::Negative {
-                place: self.map.row_ids[r].clone(),
-                value: v,
-            });
-        }
-        Tokens::try_from(v).map_err(|_| TransformError::Overflow {
-            place: self.map.row_ids[r].clone(),
-            value: v,
-        })
+        self.map
+            .apply_checked(ST, &self.must_be_empty, old_marking, new, out)
     }
 
     /// The timers (start of marking, µs) of the new marking: a kept place that was marked keeps
@@ -599,19 +614,7 @@ impl StateTransform {
         now_us: u64,
         out: &mut [Option<u64>],
     ) {
-        for (r, o) in out.iter_mut().enumerate() {
-            let marked = new_marking.get(r).is_some_and(|&m| m > 0);
-            *o = if marked {
-                self.timer_from
-                    .get(r)
-                    .copied()
-                    .flatten()
-                    .and_then(|q| old_since.get(q.index()).copied().flatten())
-                    .or(Some(now_us))
-            } else {
-                None
-            };
-        }
+        carry_timers(&self.timer_from, old_since, new_marking, now_us, out);
     }
 
     /// The matrix and base in dense form, with the place ids of rows (new) and columns (old).
@@ -620,11 +623,36 @@ impl StateTransform {
     }
 }
 
+/// Timers of a target marking: a marked place with a source place (`from`) that has a timer
+/// keeps it, any other marked place starts at `now_us`, an empty place has none.
+fn carry_timers(
+    from: &[Option<PlaceIdx>],
+    source_since: &[Option<u64>],
+    target: &[Tokens],
+    now_us: u64,
+    out: &mut [Option<u64>],
+) {
+    for (r, o) in out.iter_mut().enumerate() {
+        let marked = target.get(r).is_some_and(|&m| m > 0);
+        *o = if marked {
+            from.get(r)
+                .copied()
+                .flatten()
+                .and_then(|q| source_since.get(q.index()).copied().flatten())
+                .or(Some(now_us))
+        } else {
+            None
+        };
+    }
+}
+
 /// A projection `Π·M_cand + Π_base` of a candidate (new) marking into the old net's place space,
 /// against which the primary's marking is compared to measure drift.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Projection {
     map: Linear,
+    /// Per old place, the new place of the same id, whose timer it takes back at a revert.
+    timer_from: Vec<Option<PlaceIdx>>,
 }
 
 impl Projection {
@@ -639,9 +667,11 @@ impl Projection {
                 None => Vec::new(),
             })
             .collect();
-        Projection {
-            map: Linear::from_rows(rows, vec![0; old.num_places()], old, new),
-        }
+        Self::from_map(
+            Linear::from_rows(rows, vec![0; old.num_places()], old, new),
+            old,
+            new,
+        )
     }
 
     /// An explicit projection from a dense `|P_old| × |P_new|` matrix whose row ids are the old
@@ -659,9 +689,8 @@ impl Projection {
             row_net: OLD,
             col_net: NEW,
         };
-        Ok(Projection {
-            map: Linear::dense(role, old, new, row_ids, col_ids, matrix, base)?,
-        })
+        let map = Linear::dense(role, old, new, row_ids, col_ids, matrix, base)?;
+        Ok(Self::from_map(map, old, new))
     }
 
     /// An explicit projection from `(old place, new place, coefficient)` entries and a base keyed
@@ -677,9 +706,17 @@ impl Projection {
             row_net: OLD,
             col_net: NEW,
         };
-        Ok(Projection {
-            map: Linear::sparse(role, old, new, entries, base)?,
-        })
+        let map = Linear::sparse(role, old, new, entries, base)?;
+        Ok(Self::from_map(map, old, new))
+    }
+
+    fn from_map(map: Linear, old: &Net, new: &Net) -> Self {
+        let timer_from = old
+            .places()
+            .iter()
+            .map(|p| new.place_by_id(&p.id))
+            .collect();
+        Projection { map, timer_from }
     }
 
     /// Places of the old net.
@@ -690,6 +727,31 @@ impl Projection {
     /// Places of the new net.
     pub fn cols(&self) -> usize {
         self.map.cols()
+    }
+
+    /// `M_old = Π·M_new + Π_base`, the marking a revert gives the old program back, written into
+    /// `out` only when it is a marking of `old`: no negative count, no overflow, no count above
+    /// a capacity, and every invariant `old` declares holds. Never allocates on success, so it
+    /// can run at a cycle boundary on the scan thread.
+    pub fn apply(
+        &self,
+        new_marking: &[Tokens],
+        old: &Program,
+        out: &mut [Tokens],
+    ) -> Result<(), TransformError> {
+        self.map.apply_checked(PROJ, &[], new_marking, old, out)
+    }
+
+    /// The timers (start of marking, µs) of a projected marking: an old place kept by id that
+    /// is marked takes the timer of its new place, any other marked place starts at `now_us`.
+    pub fn apply_timers(
+        &self,
+        new_since: &[Option<u64>],
+        old_marking: &[Tokens],
+        now_us: u64,
+        out: &mut [Option<u64>],
+    ) {
+        carry_timers(&self.timer_from, new_since, old_marking, now_us, out);
     }
 
     /// Drift `‖Π·M_cand + Π_base − M_primary‖₁`, saturating at `u64::MAX`; a primary place

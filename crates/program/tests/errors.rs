@@ -166,3 +166,36 @@ fn a_program_file_that_is_not_utf8_is_refused_while_its_latin1_net_loads() {
     );
     assert!(msg.contains("byte offset 70"), "{msg}");
 }
+
+#[test]
+fn watchdogs_resolve_their_places_and_refuse_unknown_places_zero_times_and_doubles() {
+    let ok = format!(
+        "{HEAD}[[watchdog]]\nplace = \"P11\"\nmax = \"10s\"\n[[watchdog]]\nplace = \"P21\"\nmax = \"500ms\"\n[stall]\nno_firing = \"30s\"\n"
+    );
+    let p = Program::from_sources(&ok, "prog.toml", nets::vernadat()).expect("loads");
+    let net = p.net();
+    let got: Vec<(String, u64)> = p
+        .watchdogs()
+        .iter()
+        .map(|w| (net.place(w.place).id.clone(), w.max_us))
+        .collect();
+    assert_eq!(
+        got,
+        [
+            ("P11".to_string(), 10_000_000),
+            ("P21".to_string(), 500_000)
+        ]
+    );
+    assert_eq!(p.no_firing_us(), Some(30_000_000));
+
+    let msg = error("[[watchdog]]\nplace = \"P99\"\nmax = \"10s\"\n");
+    assert_at(&msg, 14, 9, "`P99` is not a place");
+    let msg = error("[[watchdog]]\nplace = \"P11\"\nmax = \"0s\"\n");
+    assert_at(&msg, 15, 7, "longer than 0");
+    let msg = error(
+        "[[watchdog]]\nplace = \"P11\"\nmax = \"1s\"\n[[watchdog]]\nplace = \"P11\"\nmax = \"2s\"\n",
+    );
+    assert_at(&msg, 17, 9, "has a [[watchdog]] already");
+    let msg = error("[stall]\nno_firing = \"30s\"\n");
+    assert_at(&msg, 14, 13, "there are none");
+}

@@ -16,7 +16,7 @@ pub enum ProtoError {
     },
     /// The last topic level under `cmd/` is not a known verb.
     #[error(
-        "unknown verb `{0}`; expected one of load, remove, substitute, abort, reset, exec_info"
+        "unknown verb `{0}`; expected one of load, remove, substitute, abort, reset, exec_info, revert, accept"
     )]
     UnknownVerb(String),
     /// A name (slot, status, role, error code, ...) is not one of the known ones.

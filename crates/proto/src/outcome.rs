@@ -48,6 +48,10 @@ impl Verb {
             Verb::Abort => &[("aborted", Ending::Done)],
             Verb::Reset => &[("reset", Ending::Done)],
             Verb::ExecInfo => &[],
+            // Probation can also end by itself before the command's boundary: a revert the PLC
+            // decided ends an `accept`, the window's end ends a `revert`.
+            Verb::Revert => &[("reverted", Ending::Done), ("accepted", Ending::Failed)],
+            Verb::Accept => &[("accepted", Ending::Done), ("reverted", Ending::Failed)],
         }
     }
 

@@ -318,6 +318,9 @@ pub struct ExecInfo {
     pub cycles: u64,
     /// No transition enabled.
     pub deadlock: bool,
+    /// The stall watchdog sees a stall (the primary only); absent when false.
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub stall: bool,
     /// Cycles in which each output differed from the primary's (candidates only).
     pub divergence: BTreeMap<String, u64>,
     /// Drift from the primary through the projection (candidates only).
@@ -644,7 +647,7 @@ pub struct SubstituteArgs {
     pub within_ms: Option<u64>,
 }
 
-/// The arguments of `remove`, `abort`, `reset` and `exec_info`: none, `{}`.
+/// The arguments of `remove`, `abort`, `reset`, `exec_info`, `revert` and `accept`: none, `{}`.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct NoArgs {}
@@ -664,6 +667,10 @@ pub enum Command {
     Reset,
     /// `exec_info`.
     ExecInfo,
+    /// `revert`.
+    Revert,
+    /// `accept`.
+    Accept,
 }
 
 impl Command {
@@ -676,6 +683,8 @@ impl Command {
             Command::Abort => Verb::Abort,
             Command::Reset => Verb::Reset,
             Command::ExecInfo => Verb::ExecInfo,
+            Command::Revert => Verb::Revert,
+            Command::Accept => Verb::Accept,
         }
     }
 
@@ -693,6 +702,8 @@ impl Command {
                     Verb::Remove => Command::Remove,
                     Verb::Abort => Command::Abort,
                     Verb::Reset => Command::Reset,
+                    Verb::Revert => Command::Revert,
+                    Verb::Accept => Command::Accept,
                     _ => Command::ExecInfo,
                 }
             }

@@ -127,17 +127,23 @@ pub enum Verb {
     Reset,
     /// Reply with both containers' `program_exec_info`.
     ExecInfo,
+    /// End probation by flipping PRIMARY back to the old program.
+    Revert,
+    /// End probation early: the update is final.
+    Accept,
 }
 
 impl Verb {
     /// Every verb, in the order the error messages list them.
-    pub const ALL: [Verb; 6] = [
+    pub const ALL: [Verb; 8] = [
         Verb::Load,
         Verb::Remove,
         Verb::Substitute,
         Verb::Abort,
         Verb::Reset,
         Verb::ExecInfo,
+        Verb::Revert,
+        Verb::Accept,
     ];
 
     /// The position in [`Verb::ALL`].
@@ -149,6 +155,8 @@ impl Verb {
             Verb::Abort => 3,
             Verb::Reset => 4,
             Verb::ExecInfo => 5,
+            Verb::Revert => 6,
+            Verb::Accept => 7,
         }
     }
 
@@ -161,6 +169,8 @@ impl Verb {
             Verb::Abort => "abort",
             Verb::Reset => "reset",
             Verb::ExecInfo => "exec_info",
+            Verb::Revert => "revert",
+            Verb::Accept => "accept",
         }
     }
 
@@ -173,6 +183,8 @@ impl Verb {
             Verb::Abort => "cmd/abort",
             Verb::Reset => "cmd/reset",
             Verb::ExecInfo => "cmd/exec_info",
+            Verb::Revert => "cmd/revert",
+            Verb::Accept => "cmd/accept",
         }
     }
 
@@ -315,7 +327,7 @@ pub struct Topics {
     io: String,
     net: String,
     events: String,
-    commands: [String; 6],
+    commands: [String; Verb::ALL.len()],
     command_filter: String,
     all: String,
 }

@@ -64,7 +64,9 @@ fn verbs_are_todays_strings() {
             "substitute",
             "abort",
             "reset",
-            "exec_info"
+            "exec_info",
+            "revert",
+            "accept"
         ]
     );
     for v in Verb::ALL {

@@ -89,6 +89,26 @@ pub enum CommandError {
         /// STATUS.
         status: Status,
     },
+    /// A substitution without a passing twin verdict while the PLC requires one.
+    #[error("substitute refused: this PLC requires a passing twin verdict on the candidate ([updates] require_verdict) and has {have}; wait for the `verdict` event, or remove the candidate")]
+    VerdictRequired {
+        /// What it has instead.
+        have: &'static str,
+    },
+    /// Revert or accept outside probation.
+    #[error("{verb} refused: no update is on probation (status {status}); {verb} applies after a substitution, while the old program runs as a shadow")]
+    NotInProbation {
+        /// `revert` or `accept`.
+        verb: &'static str,
+        /// STATUS.
+        status: Status,
+    },
+    /// Revert or accept when the end of probation is already decided.
+    #[error("{verb} refused: probation already ends at the next cycle (a revert or accept is due); wait for its event")]
+    ProbationEnding {
+        /// `revert` or `accept`.
+        verb: &'static str,
+    },
     /// Reset outside the fault state.
     #[error("reset refused: the PLC is not in fault (status {status})")]
     NotInFault {

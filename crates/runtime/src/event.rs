@@ -49,11 +49,15 @@ pub enum EventKind {
     Accepted,
     /// Probation failed or was reverted; PRIMARY flipped back.
     Reverted,
+    /// The primary stalls: a watched place marked too long, or no firing too long.
+    StallAlarm,
+    /// A validation's verdict on an update (the analysis gate at load, a twin run).
+    Verdict,
 }
 
 impl EventKind {
     /// Every kind, in declaration order.
-    pub const ALL: [EventKind; 20] = [
+    pub const ALL: [EventKind; 22] = [
         EventKind::ColdStart,
         EventKind::WarmStart,
         EventKind::LoadAccepted,
@@ -74,6 +78,8 @@ impl EventKind {
         EventKind::ProbationStarted,
         EventKind::Accepted,
         EventKind::Reverted,
+        EventKind::StallAlarm,
+        EventKind::Verdict,
     ];
 
     /// The snake_case name.
@@ -99,12 +105,17 @@ impl EventKind {
             EventKind::ProbationStarted => "probation_started",
             EventKind::Accepted => "accepted",
             EventKind::Reverted => "reverted",
+            EventKind::StallAlarm => "stall_alarm",
+            EventKind::Verdict => "verdict",
         }
     }
 
     /// Whether the event is an alarm that a run's summary counts as a fault.
     pub fn is_alarm(self) -> bool {
-        matches!(self, EventKind::PrimaryFault | EventKind::DeadlockAlarm)
+        matches!(
+            self,
+            EventKind::PrimaryFault | EventKind::DeadlockAlarm | EventKind::StallAlarm
+        )
     }
 }
 
@@ -112,6 +123,45 @@ impl std::fmt::Display for EventKind {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.pad(self.name())
     }
+}
+
+/// Why a probation ended in a revert.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum RevertReason {
+    /// The new primary faulted (guard error, overflow, watchdog).
+    Fault,
+    /// The new primary stalled (a watched place held too long, or no firing for too long).
+    Stall,
+    /// The new primary broke an invariant its program declares.
+    Invariant,
+    /// A validation of the new primary failed.
+    Verdict,
+    /// The operator reverted.
+    Operator,
+}
+
+impl RevertReason {
+    /// The snake_case name.
+    pub fn name(self) -> &'static str {
+        match self {
+            RevertReason::Fault => "fault",
+            RevertReason::Stall => "stall",
+            RevertReason::Invariant => "invariant",
+            RevertReason::Verdict => "verdict",
+            RevertReason::Operator => "operator",
+        }
+    }
+}
+
+/// Where the old program's marking came from at a revert.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum RevertMarking {
+    /// The projection of the new primary's marking, `Π·M + Π_base`.
+    Projection,
+    /// The shadow's own marking, because the projected one broke an invariant of the old program.
+    Shadow,
 }
 
 /// Figures that go with an event.
@@ -131,6 +181,32 @@ pub enum EventDetail {
         drift: u64,
         /// Retransform or keep.
         mode: SubstituteMode,
+    },
+    /// A revert: why, the cycle the cause was seen in, and where the marking came from.
+    Revert {
+        /// Fault, stall, invariant, verdict or operator.
+        reason: RevertReason,
+        /// The cycle in which the cause was seen; the revert's own cycle is the event's.
+        detected_cycle: u64,
+        /// Projection or shadow.
+        marking: RevertMarking,
+    },
+    /// A verdict: which validation and its result.
+    Verdict {
+        /// Analysis or twin.
+        kind: crate::monitor::VerdictKind,
+        /// Pass, warn or fail.
+        result: crate::monitor::VerdictResult,
+    },
+    /// A stall: how long the place has been marked, or how long nothing fired, µs.
+    Stall {
+        /// The dwell or the time without a firing.
+        waited_us: u64,
+    },
+    /// A probation window opened: when it ends if nothing reverts it.
+    Probation {
+        /// Program time at which the update becomes final, µs.
+        ends_us: u64,
     },
     /// A drift that refused a substitution.
     Drift {

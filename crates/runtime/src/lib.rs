@@ -25,11 +25,13 @@ mod io;
 pub mod monitor;
 mod phase;
 mod plc;
+mod probation;
 mod router;
 mod snapshot;
 mod stats;
 pub mod trace;
 mod updater;
+mod watchdog;
 
 pub use clock::{
     Clock, FixedWallClock, InstallTiming, ManualStopwatch, Stopwatch, VirtualClock, WallClock,
@@ -37,7 +39,7 @@ pub use clock::{
 pub use container::{Blocker, Container, ScanOutcome, Slot};
 pub use cycle::{CycleFigures, LoopTiming, ScanCycle};
 pub use error::{CommandError, PrepareError, RuntimeError, WarmStartError};
-pub use event::{Event, EventDetail, EventKind};
+pub use event::{Event, EventDetail, EventKind, RevertMarking, RevertReason};
 pub use io::{Dispatcher, Provider};
 pub use monitor::{ExecInfo, Monitor, Role, Verdict, VerdictKind, VerdictResult};
 pub use phase::Status;

@@ -68,6 +68,8 @@ pub struct ContainerStats {
     pub drift_valid: bool,
     /// No transition enabled after the last scan.
     pub deadlocked: bool,
+    /// The stall watchdog sees a stall (primaries only).
+    pub stalled: bool,
 }
 
 impl ContainerStats {
@@ -167,6 +169,16 @@ pub enum VerdictKind {
     Twin,
 }
 
+impl VerdictKind {
+    /// `analysis` or `twin`.
+    pub fn name(self) -> &'static str {
+        match self {
+            VerdictKind::Analysis => "analysis",
+            VerdictKind::Twin => "twin",
+        }
+    }
+}
+
 /// The outcome of a [`Verdict`].
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
 #[serde(rename_all = "snake_case")]
@@ -177,6 +189,17 @@ pub enum VerdictResult {
     Fail,
     /// Passed with findings.
     Warn,
+}
+
+impl VerdictResult {
+    /// `pass`, `fail` or `warn`.
+    pub fn name(self) -> &'static str {
+        match self {
+            VerdictResult::Pass => "pass",
+            VerdictResult::Fail => "fail",
+            VerdictResult::Warn => "warn",
+        }
+    }
 }
 
 /// `program_exec_info` of one container, as published.
@@ -211,6 +234,9 @@ pub struct ExecInfo {
     pub max_drift: u64,
     /// No transition enabled.
     pub deadlock: bool,
+    /// The stall watchdog sees a stall (the primary only); left out when false.
+    #[serde(skip_serializing_if = "std::ops::Not::not")]
+    pub stall: bool,
     /// Validation verdicts.
     pub verdicts: Vec<Verdict>,
 }
@@ -230,6 +256,8 @@ pub(crate) struct Pair<'a> {
     pub to_primary: &'a [Option<TransIdx>],
     pub from_primary: &'a [Option<TransIdx>],
     pub projection: &'a Projection,
+    /// The secondary is the old program on probation: the projection reads the primary.
+    pub shadow: bool,
 }
 
 impl Monitor {
@@ -250,6 +278,8 @@ impl Monitor {
         // Drift only moves when a marking does.
         let drift = if quiet && stats.drift_valid {
             stats.drift
+        } else if pair.shadow {
+            pair.projection.drift(pc.marking(), cc.marking())
         } else {
             pair.projection.drift(cc.marking(), pc.marking())
         };
@@ -378,6 +408,7 @@ impl Monitor {
                 drift: if is_primary { 0 } else { s.drift },
                 max_drift: if is_primary { 0 } else { s.max_drift },
                 deadlock: s.deadlocked,
+                stall: is_primary && s.stalled,
                 verdicts: Vec::new(),
             })
         })

@@ -5,6 +5,7 @@ use cetratus_net::{Tokens, TransIdx};
 use cetratus_program::{PackageMeta, Projection, StateTransform, Value};
 use serde::{Deserialize, Serialize};
 
+use crate::event::RevertReason;
 use crate::updater::{PreparedUpdate, SubstituteRequest};
 use crate::Container;
 
@@ -61,6 +62,15 @@ pub(crate) struct UpdatePlan {
     // Candidate latch / variable → the primary's of the same name, carried over at the switch.
     pub latch_map: Vec<Option<u32>>,
     pub var_map: Vec<Option<u32>>,
+    // The way back, for a revert in probation, sized once away from the scan thread: the
+    // primary's latch / variable → the candidate's of the same name, and buffers of the
+    // projection into the primary's place space.
+    pub back_latch_map: Vec<Option<u32>>,
+    // What validation said of the update's program, for its exec_info.
+    pub verdicts: Vec<crate::monitor::Verdict>,
+    pub back_var_map: Vec<Option<u32>>,
+    pub back_marking: Vec<Tokens>,
+    pub back_since: Vec<Option<u64>>,
 }
 
 /// A candidate running in quarantine.
@@ -76,7 +86,27 @@ pub(crate) struct Quarantine {
 /// inputs, outputs withheld (quarantine reversed).
 pub(crate) struct Probation {
     pub shadow: Container,
-    pub meta: PackageMeta,
+    /// The update's plan; its safe values are the shadow's since the switch.
+    pub plan: UpdatePlan,
+    pub started_us: u64,
+    /// Program time at which the window is over and the update final.
+    pub ends_us: u64,
+    /// How probation ends at the next cycle boundary, once decided.
+    pub ending: Option<Ending>,
+}
+
+/// How a probation ends at the next cycle boundary.
+pub(crate) enum Ending {
+    /// The update is final: accepted by the operator.
+    Accept,
+    /// PRIMARY flips back to the shadow.
+    Revert {
+        reason: RevertReason,
+        /// The cycle in which the cause was seen (for the revert latency).
+        detected_cycle: u64,
+        /// What was seen, in words.
+        why: String,
+    },
 }
 
 /// The Updater's phase. `Fault` keeps the primary's last good state; leaving it needs a reset.
@@ -84,8 +114,6 @@ pub(crate) enum Phase {
     Idle,
     Setup(Box<PreparedUpdate>),
     Quarantine(Box<Quarantine>),
-    // Entered by a substitution with a probation window; none is configured in this version.
-    #[allow(dead_code)]
     Probation(Box<Probation>),
     Fault,
 }
@@ -115,7 +143,7 @@ impl Phase {
         match self {
             Phase::Setup(p) => Some(&p.plan.meta),
             Phase::Quarantine(q) => Some(&q.plan.meta),
-            Phase::Probation(p) => Some(&p.meta),
+            Phase::Probation(p) => Some(&p.plan.meta),
             _ => None,
         }
     }

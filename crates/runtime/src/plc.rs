@@ -13,11 +13,12 @@ use cetratus_program::{PackageMeta, Program, Value};
 
 use crate::clock::{InstallTiming, Stopwatch};
 use crate::error::CommandError;
-use crate::event::{Event, EventKind, EventLog};
-use crate::monitor::{CycleRecord, ExecInfo, Monitor, Pair, Role};
+use crate::event::{Event, EventDetail, EventKind, EventLog, RevertReason};
+use crate::monitor::{CycleRecord, ExecInfo, Monitor, Pair, Role, Verdict, VerdictResult};
 use crate::phase::Phase;
 use crate::router::{bits, MessageRouter};
 use crate::updater::{Command, Limits, UpdateContext, Updater, VIRTUAL_NS_PER_ENTRY};
+use crate::watchdog::{Stall, StallWatch};
 use crate::{Container, Dispatcher, Provider, RuntimeError, Slot, Status, TimingStats};
 
 /// The running side of the PLC, which the Updater changes at cycle boundaries: PRIMARY and its
@@ -38,6 +39,9 @@ pub struct Plc {
     core: Core,
     updater: Updater,
     deadlock_alarmed: bool,
+    // The stall watchdog of the primary, and the container it watches.
+    stall: StallWatch,
+    stall_slot: Slot,
     cycle_stats: TimingStats,
 }
 
@@ -88,6 +92,8 @@ impl Plc {
                 retired: Vec::with_capacity(2),
             },
             deadlock_alarmed: false,
+            stall: StallWatch::new(now_us),
+            stall_slot: slot,
             cycle_stats: TimingStats::new(),
         }
     }
@@ -111,6 +117,7 @@ impl Plc {
             primary: self.primary_program().clone(),
             io_inputs: self.core.router.io_inputs().to_vec(),
             io_outputs: self.core.router.io_outputs().to_vec(),
+            primary_marking: self.core.primary.marking().to_vec(),
         }
     }
 
@@ -248,19 +255,136 @@ impl Plc {
         let core = &mut self.core;
         let p = core.primary_slot;
         let limits = self.updater.limits;
-        if let Err(e) = scan_slot(core, None, p, now_us, &mut mark, &limits) {
-            core.router.dispatch_safe(now_us, io);
-            self.updater
-                .primary_fault(core, format!("primary {} faulted: {e}", p.name()));
-            self.end_cycle(now_us, None);
-            return;
+        let in_probation = matches!(self.updater.phase, Phase::Probation(_));
+        let scanned = scan_slot(core, None, p, now_us, &mut mark, &limits);
+        if let Err(e) = &scanned {
+            let why = format!("primary {} faulted: {e}", p.name());
+            if !in_probation {
+                core.router.dispatch_safe(now_us, io);
+                self.updater.primary_fault(core, why);
+                self.end_cycle(now_us, None);
+                return;
+            }
+            // In probation the fault is a cause to revert, and the old program takes over at
+            // the next boundary. For this one cycle the outputs hold their last values (the
+            // failed scan was rolled back): safe values would stop a machine mid-cut for one
+            // cycle. The shadow scans on, so that its own marking stays current should the
+            // projection be refused.
+            core.router.dispatch(p.index(), now_us, io);
+            self.updater.request_revert(core, RevertReason::Fault, why);
+        } else {
+            // Dispatcher: PRIMARY's outputs only, before the candidate runs, so that the time
+            // the candidate takes never delays the plant's outputs.
+            core.router.dispatch(p.index(), now_us, io);
+            self.deadlock_alarm(p);
+            self.stall_watchdog(p, now_us);
+            let core = &mut self.core;
+            // A new primary on probation that breaks an invariant its program declares is
+            // reverted; the marking only changes when something fires.
+            if in_probation && !core.primary.fired().is_empty() {
+                if let Err(v) = core
+                    .primary
+                    .program()
+                    .check_invariants(core.primary.marking())
+                {
+                    self.updater.request_revert(
+                        core,
+                        RevertReason::Invariant,
+                        format!("primary {} reached an invalid marking: {v}", p.name()),
+                    );
+                }
+            }
         }
+        let core = &mut self.core;
 
-        // Dispatcher: PRIMARY's outputs only, before the candidate runs, so that the time the
-        // candidate takes never delays the plant's outputs.
-        core.router.dispatch(p.index(), now_us, io);
+        // The secondary, isolated: the candidate in quarantine or the shadow in probation. An
+        // error, a panic, an invalid marking, a scan stopped by its work budget or one that
+        // overran its time budget takes it out of service after its scan.
+        let (secondary, plan, shadow) = match &mut self.updater.phase {
+            Phase::Quarantine(q) => (&mut q.candidate, &q.plan, false),
+            Phase::Probation(pr) => (&mut pr.shadow, &pr.plan, true),
+            _ => {
+                self.end_cycle(now_us, Some(mark.saturating_sub(t0)));
+                return;
+            }
+        };
+        let c = p.other();
+        let role = if shadow { "shadow" } else { "candidate" };
+        mark = core.stopwatch.now_ns();
+        let outcome = catch_unwind(AssertUnwindSafe(|| {
+            scan_slot(core, Some(&mut *secondary), c, now_us, &mut mark, &limits)
+        }));
+        let took = core.monitor.stats[c.index()].scan.summary_last();
+        let fault = match outcome {
+            Err(panic) => Some(format!(
+                "{role} panicked: {}",
+                panic
+                    .downcast_ref::<&str>()
+                    .map(|s| s.to_string())
+                    .or_else(|| panic.downcast_ref::<String>().cloned())
+                    .unwrap_or_else(|| "unknown panic".into())
+            )),
+            Ok(Err(e)) => Some(format!("{role} faulted: {e}")),
+            Ok(Ok(())) => {
+                // The marking only changes when something fires.
+                let broken = (!secondary.fired().is_empty())
+                    .then(|| {
+                        secondary
+                            .program()
+                            .check_invariants(secondary.marking())
+                            .err()
+                    })
+                    .flatten();
+                if let Some(v) = broken {
+                    Some(format!("{role} reached an invalid marking: {v}"))
+                } else if took > limits.candidate_budget_ns {
+                    Some(format!(
+                        "{role} scan took {} µs, over its budget of {} µs",
+                        took / 1000,
+                        limits.candidate_budget_ns / 1000
+                    ))
+                } else {
+                    None
+                }
+            }
+        };
+        if fault.is_none() {
+            // In probation the shadow is the old program: its transitions map onto the new
+            // primary's the other way round, and the projection reads the primary's marking.
+            let (to_primary, from_primary) = if shadow {
+                (&plan.from_primary, &plan.to_primary)
+            } else {
+                (&plan.to_primary, &plan.from_primary)
+            };
+            let pair = Pair {
+                primary_slot: p,
+                primary: &core.primary,
+                candidate: secondary,
+                to_primary,
+                from_primary,
+                projection: &plan.projection,
+                shadow,
+            };
+            let cycle = core.log.cycle;
+            core.monitor
+                .observe_quarantine(&pair, &core.router, cycle, now_us);
+        }
+        match fault {
+            Some(reason) if shadow => self.updater.drop_shadow(core, reason),
+            Some(reason) => self.updater.drop_candidate(
+                core,
+                EventKind::CandidateFault,
+                format!("{reason}; the update is aborted and the primary goes on"),
+            ),
+            None => {}
+        }
+        self.end_cycle(now_us, Some(mark.saturating_sub(t0)));
+    }
 
-        // Deadlock alarm: no transition enabled while the inputs change.
+    /// Deadlock alarm: no transition of the primary enabled while the inputs change; once per
+    /// episode.
+    fn deadlock_alarm(&mut self, p: Slot) {
+        let core = &mut self.core;
         let deadlocked = core.primary.engine().enabled().is_empty();
         core.monitor.stats[p.index()].deadlocked = deadlocked;
         if !deadlocked {
@@ -276,67 +400,31 @@ impl Plc {
                 None,
             );
         }
+    }
 
-        // Candidate, isolated: an error, a panic, an invalid marking, a scan stopped by its work
-        // budget or one that overran its time budget aborts the update after its scan.
-        if let Phase::Quarantine(q) = &mut self.updater.phase {
-            let c = p.other();
-            mark = core.stopwatch.now_ns();
-            let outcome = catch_unwind(AssertUnwindSafe(|| {
-                scan_slot(core, Some(&mut q.candidate), c, now_us, &mut mark, &limits)
-            }));
-            let took = core.monitor.stats[c.index()].scan.summary_last();
-            let fault = match outcome {
-                Err(panic) => Some(format!(
-                    "candidate panicked: {}",
-                    panic
-                        .downcast_ref::<&str>()
-                        .map(|s| s.to_string())
-                        .or_else(|| panic.downcast_ref::<String>().cloned())
-                        .unwrap_or_else(|| "unknown panic".into())
-                )),
-                Ok(Err(e)) => Some(format!("candidate faulted: {e}")),
-                Ok(Ok(())) => {
-                    let cand = &q.candidate;
-                    // The marking only changes when something fires.
-                    let broken = (!cand.fired().is_empty())
-                        .then(|| cand.program().check_invariants(cand.marking()).err())
-                        .flatten();
-                    if let Some(v) = broken {
-                        Some(format!("candidate reached an invalid marking: {v}"))
-                    } else if took > limits.candidate_budget_ns {
-                        Some(format!(
-                            "candidate scan took {} µs, over its budget of {} µs",
-                            took / 1000,
-                            limits.candidate_budget_ns / 1000
-                        ))
-                    } else {
-                        None
-                    }
-                }
-            };
-            match fault {
-                Some(reason) => self.updater.drop_candidate(
-                    core,
-                    EventKind::CandidateFault,
-                    format!("{reason}; the update is aborted and the primary goes on"),
-                ),
-                None => {
-                    let pair = Pair {
-                        primary_slot: p,
-                        primary: &core.primary,
-                        candidate: &q.candidate,
-                        to_primary: &q.plan.to_primary,
-                        from_primary: &q.plan.from_primary,
-                        projection: &q.plan.projection,
-                    };
-                    let cycle = core.log.cycle;
-                    core.monitor
-                        .observe_quarantine(&pair, &core.router, cycle, now_us);
-                }
-            }
+    /// Stall watchdog: a watched place marked too long, or no firing too long while one is
+    /// marked; an alarm once per episode, and a cause to revert during probation.
+    fn stall_watchdog(&mut self, p: Slot, now_us: u64) {
+        if self.stall_slot != p {
+            self.stall.restart(now_us);
+            self.stall_slot = p;
         }
-        self.end_cycle(now_us, Some(mark.saturating_sub(t0)));
+        let core = &mut self.core;
+        if let Some(stall) = self.stall.check(&core.primary, now_us) {
+            let why = format!(
+                "primary {} stalls: {}",
+                p.name(),
+                StallWatch::describe(stall, &core.primary)
+            );
+            let (Stall::Dwell { dwell_us: us, .. } | Stall::NoFiring { idle_us: us, .. }) = stall;
+            core.log.push(
+                EventKind::StallAlarm,
+                why.clone(),
+                Some(EventDetail::Stall { waited_us: us }),
+            );
+            self.updater.request_revert(core, RevertReason::Stall, why);
+        }
+        core.monitor.stats[p.index()].stalled = self.stall.stalled();
     }
 
     fn end_cycle(&mut self, now_us: u64, took_ns: Option<u64>) {
@@ -376,12 +464,80 @@ impl Plc {
             Phase::Probation(_) => Role::Shadow,
             _ => Role::Candidate,
         };
-        self.core.monitor.exec_info(
+        let mut info = self.core.monitor.exec_info(
             [self.container(Slot::A), self.container(Slot::B)],
             self.core.primary_slot,
             role,
             self.core.router.io_outputs(),
-        )
+        );
+        // The verdicts belong to the update's program: the candidate, or the new primary.
+        let p = self.core.primary_slot;
+        let (slot, plan) = match &self.updater.phase {
+            Phase::Quarantine(q) => (p.other(), &q.plan),
+            Phase::Probation(pr) => (p, &pr.plan),
+            _ => return info,
+        };
+        if let Some(e) = info[slot.index()].as_mut() {
+            e.verdicts = plan.verdicts.clone();
+        }
+        info
+    }
+
+    /// The update under way as resolved against the program it replaces (the candidate's in
+    /// quarantine, the new primary's in probation), for a validation run on a fork.
+    pub fn resolved_update(&self) -> Option<cetratus_program::ResolvedUpdate> {
+        let (program, plan) = match &self.updater.phase {
+            Phase::Quarantine(q) => (q.candidate.program(), &q.plan),
+            Phase::Probation(p) => (self.core.primary.program(), &p.plan),
+            _ => return None,
+        };
+        Some(cetratus_program::ResolvedUpdate {
+            program: program.clone(),
+            transform: plan.transform.clone(),
+            projection: plan.projection.clone(),
+            meta: plan.meta.clone(),
+        })
+    }
+
+    /// Attaches a verdict on the update under way, when its program is still `program_hash`
+    /// (in quarantine or probation), with a `verdict` event. A failing verdict during probation
+    /// reverts at the next cycle boundary. Returns whether it was attached.
+    pub fn add_verdict(&mut self, program_hash: &[u8; 32], verdict: Verdict) -> bool {
+        let core = &mut self.core;
+        let (program, plan, probation) = match &mut self.updater.phase {
+            Phase::Quarantine(q) => (q.candidate.program().clone(), &mut q.plan, false),
+            Phase::Probation(p) => (core.primary.program().clone(), &mut p.plan, true),
+            _ => return false,
+        };
+        if program.hash() != *program_hash {
+            return false;
+        }
+        let text = format!(
+            "{} verdict on {} {}: {}{}",
+            verdict.kind.name(),
+            plan.meta.name,
+            plan.meta.version,
+            verdict.result.name(),
+            if verdict.reasons.is_empty() {
+                String::new()
+            } else {
+                format!(": {}", verdict.reasons.join("; "))
+            }
+        );
+        let detail = Some(EventDetail::Verdict {
+            kind: verdict.kind,
+            result: verdict.result,
+        });
+        let failed = verdict.result == VerdictResult::Fail;
+        // The latest verdict of a kind replaces the earlier one.
+        plan.verdicts.retain(|v| v.kind != verdict.kind);
+        plan.verdicts.push(verdict);
+        core.log.push(EventKind::Verdict, text.clone(), detail);
+        if probation && failed {
+            self.updater
+                .request_revert(core, RevertReason::Verdict, text);
+        }
+        true
     }
 
     /// Enters fault (a warm start of a PLC that was in fault).

@@ -10,15 +10,16 @@
 use std::sync::Arc;
 
 use cetratus_program::{
-    EvalCtx, Guard, PackageMeta, Program, ResolvedUpdate, TrustStore, UpdatePackage, Value,
+    EvalCtx, Guard, PackageMeta, Program, ResolvedUpdate, StateTransform, TrustStore,
+    UpdatePackage, Value,
 };
 use serde::Serialize;
 
 use crate::clock::InstallTiming;
 use crate::error::{CommandError, PrepareError};
-use crate::event::{EventDetail, EventKind};
-use crate::monitor::ContainerStats;
-use crate::phase::{Phase, Quarantine, UpdatePlan};
+use crate::event::{EventDetail, EventKind, RevertReason};
+use crate::monitor::{ContainerStats, Verdict, VerdictKind, VerdictResult};
+use crate::phase::{Ending, Phase, Probation, Quarantine, UpdatePlan};
 use crate::plc::Core;
 use crate::router::{map_by_name, safe_image};
 use crate::{Container, Status};
@@ -97,6 +98,23 @@ impl PreparedUpdate {
     pub fn meta(&self) -> &PackageMeta {
         &self.plan.meta
     }
+    /// The candidate's program.
+    pub fn program(&self) -> &Arc<Program> {
+        self.container.program()
+    }
+    /// The state transformation the install will apply.
+    pub fn transform(&self) -> &StateTransform {
+        &self.plan.transform
+    }
+    /// Attaches a validation verdict: published in the `exec_info` of the update's program and
+    /// as a `verdict` event when the load is accepted.
+    pub fn add_verdict(&mut self, v: Verdict) {
+        self.plan.verdicts.push(v);
+    }
+    /// The verdicts attached so far.
+    pub fn verdicts(&self) -> &[Verdict] {
+        &self.plan.verdicts
+    }
 }
 
 /// What building an update needs from the running PLC, cloned so it can be done on any thread.
@@ -108,6 +126,8 @@ pub struct UpdateContext {
     pub io_inputs: Vec<String>,
     /// Output names of the I/O map.
     pub io_outputs: Vec<String>,
+    /// The primary's marking when the context was taken (the analysis gate starts from it).
+    pub primary_marking: Vec<cetratus_net::Tokens>,
 }
 
 impl UpdateContext {
@@ -209,6 +229,21 @@ impl UpdateContext {
                         .map(|j| j as u32)
                 })
                 .collect(),
+            back_latch_map: retained_latch_map(primary, &program),
+            back_var_map: primary
+                .variables()
+                .iter()
+                .map(|v| {
+                    program
+                        .variables()
+                        .iter()
+                        .position(|w| w.name == v.name && w.ty == v.ty)
+                        .map(|j| j as u32)
+                })
+                .collect(),
+            verdicts: Vec::new(),
+            back_marking: vec![0; pn.num_places()],
+            back_since: vec![None; pn.num_places()],
             meta: update.meta,
             transform: update.transform,
             projection: update.projection,
@@ -238,6 +273,10 @@ pub enum Command {
     Abort,
     /// Leave the fault state.
     Reset,
+    /// End probation by flipping PRIMARY back to the old program.
+    Revert,
+    /// End probation early: the update is final.
+    Accept,
 }
 
 /// Limits of the Updater and the watchdog.
@@ -253,6 +292,11 @@ pub struct Limits {
     pub candidate_work_budget: u64,
     /// A primary scan longer than this (ns) is a primary fault.
     pub watchdog_ns: u64,
+    /// The probation window after a substitution, in µs of program time; 0: none, the old
+    /// program stops at the switch.
+    pub probation_us: u64,
+    /// A substitution is refused unless the latest twin verdict on the candidate passed.
+    pub require_verdict: bool,
 }
 
 impl Limits {
@@ -265,6 +309,8 @@ impl Limits {
             candidate_budget_ns: 1_000_000_000,
             candidate_work_budget: Self::work_budget_for_period_us(period_us),
             watchdog_ns: 1_000_000_000,
+            probation_us: 0,
+            require_verdict: false,
         }
     }
 
@@ -286,6 +332,8 @@ impl Limits {
             candidate_budget_ns: ns.saturating_mul(10),
             candidate_work_budget: Self::work_budget_for_period_us(period_us),
             watchdog_ns: ns.saturating_mul(10),
+            probation_us: 0,
+            require_verdict: false,
         }
     }
 }
@@ -334,8 +382,29 @@ impl Updater {
                     p.plan.meta.version,
                     core.primary_slot.other().name()
                 );
-                self.phase = Phase::Setup(p);
                 core.log.push(EventKind::LoadAccepted, msg, None);
+                for v in &p.plan.verdicts {
+                    core.log.push(
+                        EventKind::Verdict,
+                        format!(
+                            "{} verdict on {} {}: {}{}",
+                            v.kind.name(),
+                            p.plan.meta.name,
+                            p.plan.meta.version,
+                            v.result.name(),
+                            if v.reasons.is_empty() {
+                                String::new()
+                            } else {
+                                format!(": {}", v.reasons.join("; "))
+                            }
+                        ),
+                        Some(EventDetail::Verdict {
+                            kind: v.kind,
+                            result: v.result,
+                        }),
+                    );
+                }
+                self.phase = Phase::Setup(p);
                 Ok(())
             }
             Command::Substitute(req) => {
@@ -347,6 +416,22 @@ impl Updater {
                 };
                 if q.pending.is_some() {
                     return Err(CommandError::SubstitutionWaiting);
+                }
+                if self.limits.require_verdict {
+                    let twin = q.plan.verdicts.iter().find(|v| v.kind == VerdictKind::Twin);
+                    match twin.map(|v| v.result) {
+                        Some(VerdictResult::Pass) | Some(VerdictResult::Warn) => {}
+                        Some(VerdictResult::Fail) => {
+                            return Err(CommandError::VerdictRequired {
+                                have: "a failing twin verdict",
+                            })
+                        }
+                        None => {
+                            return Err(CommandError::VerdictRequired {
+                                have: "no twin verdict yet",
+                            })
+                        }
+                    }
                 }
                 let deadline = req
                     .within_us
@@ -393,6 +478,29 @@ impl Updater {
                 }
                 status => Err(CommandError::NothingToAbort { status }),
             },
+            Command::Revert | Command::Accept => {
+                let verb = if matches!(cmd, Command::Revert) {
+                    "revert"
+                } else {
+                    "accept"
+                };
+                let cycle = core.log.cycle;
+                let Phase::Probation(p) = &mut self.phase else {
+                    return Err(CommandError::NotInProbation { verb, status });
+                };
+                if p.ending.is_some() {
+                    return Err(CommandError::ProbationEnding { verb });
+                }
+                p.ending = Some(match cmd {
+                    Command::Revert => Ending::Revert {
+                        reason: RevertReason::Operator,
+                        detected_cycle: cycle,
+                        why: "the operator reverted".into(),
+                    },
+                    _ => Ending::Accept,
+                });
+                Ok(())
+            }
             Command::Reset => {
                 if status != Status::Fault {
                     return Err(CommandError::NotInFault { status });
@@ -452,8 +560,12 @@ impl Updater {
         );
     }
 
-    /// What is due at the cycle boundary: an install, a substitution, a substitution's timeout.
+    /// What is due at the cycle boundary: an install, a substitution, a substitution's timeout,
+    /// the end of probation (window over, accept or revert).
     pub(crate) fn boundary(&mut self, core: &mut Core) {
+        if matches!(self.phase, Phase::Probation(_)) {
+            self.end_probation(core);
+        }
         if matches!(self.phase, Phase::Setup(_)) {
             self.install(core);
         }
@@ -640,22 +752,52 @@ impl Updater {
         let old = core.primary_slot;
         core.primary_slot = c;
         let old_primary = std::mem::replace(&mut core.primary, q.candidate);
-        core.retired.push(old_primary);
-        let meta = q.plan.meta;
+        let window = self.limits.probation_us;
+        let fate = if window == 0 {
+            "stops"
+        } else {
+            "stays as a shadow"
+        };
+        let text = format!(
+            "PRIMARY = {}: {} {} drives the outputs ({} mode, drift {} at the switch, {:.1} s in quarantine); {} {fate}",
+            c.name(),
+            q.plan.meta.name,
+            q.plan.meta.version,
+            mode.name(),
+            drift,
+            now_us.saturating_sub(q.started_us) as f64 / 1e6,
+            old.name(),
+        );
         core.log.push(
             EventKind::Substituted,
-            format!(
-                "PRIMARY = {}: {} {} drives the outputs ({} mode, drift {} at the switch, {:.1} s in quarantine); {} stops",
-                c.name(),
-                meta.name,
-                meta.version,
-                mode.name(),
-                drift,
-                now_us.saturating_sub(q.started_us) as f64 / 1e6,
-                old.name()
-            ),
+            text,
             Some(EventDetail::Substitution { drift, mode }),
         );
+        if window == 0 {
+            core.retired.push(old_primary);
+            return;
+        }
+        // Quarantine reversed: the old program runs on the same inputs, its outputs withheld.
+        let ends_us = now_us.saturating_add(window);
+        core.monitor.stats[old.index()] = ContainerStats::new(core.router.io_outputs().len());
+        core.log.push(
+            EventKind::ProbationStarted,
+            format!(
+                "probation for {:.1} s: {} runs the old program as a shadow; the PLC reverts to it if {} {} faults, stalls or breaks an invariant, or on `revert`; `accept` ends probation",
+                window as f64 / 1e6,
+                old.name(),
+                q.plan.meta.name,
+                q.plan.meta.version,
+            ),
+            Some(EventDetail::Probation { ends_us }),
+        );
+        self.phase = Phase::Probation(Box::new(Probation {
+            shadow: old_primary,
+            plan: q.plan,
+            started_us: now_us,
+            ends_us,
+            ending: None,
+        }));
     }
 }
 

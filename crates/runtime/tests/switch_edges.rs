@@ -63,6 +63,7 @@ fn load_itself(plc: &mut Plc, p: &Arc<Program>) {
         description: String::new(),
         created: String::new(),
         base_program_hash: p.hash_hex().to_string(),
+        changes_throughput: false,
     };
     let up = plc
         .update_context()

@@ -153,6 +153,7 @@ impl Rig {
             description: String::new(),
             created: String::new(),
             base_program_hash: old.hash_hex().to_string(),
+            changes_throughput: false,
         };
         let up = self
             .plc

@@ -138,11 +138,13 @@ impl Rig {
             description: String::new(),
             created: String::new(),
             base_program_hash: old.hash_hex().to_string(),
+            changes_throughput: false,
         };
         let up = UpdateContext {
             primary: old.clone(),
             io_inputs: self.plc.io_inputs().to_vec(),
             io_outputs: self.plc.io_outputs().to_vec(),
+            primary_marking: self.plc.primary_container().marking().to_vec(),
         }
         .prepare(ResolvedUpdate {
             program: new.clone(),

@@ -562,6 +562,15 @@ impl Twin {
         Ok(name.parse::<TwinKind>()?.build(seed))
     }
 
+    /// The counter that measures the plant's production, for throughput: finished parts of the
+    /// Vernadat cell, good parts of the Festo station.
+    pub fn production_counter(&self) -> &'static str {
+        match self {
+            Self::Vernadat(_) => "parts_finished",
+            Self::Festo(_) => "parts_good",
+        }
+    }
+
     /// Which kind of twin this is.
     pub fn kind(&self) -> TwinKind {
         match self {

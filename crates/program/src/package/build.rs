@@ -25,6 +25,8 @@ struct ManifestPackage {
     description: String,
     program: Spanned<String>,
     base: Spanned<String>,
+    #[serde(default)]
+    changes_throughput: bool,
 }
 
 /// What [`build_package`] made, for printing.
@@ -135,6 +137,7 @@ pub fn build_package_at(
         )
         .to_string(),
         base_program_hash: base.hash_hex().to_string(),
+        changes_throughput: m.package.changes_throughput,
     };
     let payload = Payload {
         format: PAYLOAD_FORMAT.to_string(),

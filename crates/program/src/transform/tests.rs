@@ -142,3 +142,48 @@ fn drift_counts_every_token_of_difference() {
     assert_eq!(pi.drift(&[1, 9], &[2, 4]), 5);
     assert_eq!(pi.drift(&[4, 9], &[0, 4]), 0);
 }
+
+#[test]
+fn a_projection_gives_the_old_program_a_marking_and_its_timers_back_by_place_id() {
+    let old = program(&[("A", 1), ("B", 0)], &["A + B = 1"]);
+    let new = program(&[("B", 0), ("C", 0), ("A", 1)], &["A + B + C = 1"]);
+    let proj = Projection::sparse(
+        old.net(),
+        new.net(),
+        &[
+            ("A".into(), "A".into(), 1),
+            ("B".into(), "B".into(), 1),
+            ("B".into(), "C".into(), 1),
+        ],
+        &BTreeMap::new(),
+    )
+    .unwrap_or_else(|e| panic!("{e}"));
+    let mut out = [9; 2];
+    proj.apply(&[0, 1, 0], &old, &mut out)
+        .unwrap_or_else(|e| panic!("{e}"));
+    assert_eq!(out, [0, 1], "C is projected onto B");
+    let mut since = [None; 2];
+    proj.apply_timers(&[None, Some(40), None], &out, 100, &mut since);
+    assert_eq!(
+        since,
+        [None, Some(100)],
+        "B was empty in the new net: its timer starts now"
+    );
+    proj.apply(&[1, 0, 0], &old, &mut out)
+        .unwrap_or_else(|e| panic!("{e}"));
+    proj.apply_timers(&[Some(40), None, None], &out, 100, &mut since);
+    assert_eq!(since, [None, Some(40)], "B keeps the timer of B");
+}
+
+#[test]
+fn a_projection_that_breaks_an_invariant_of_the_old_program_is_refused_and_writes_nothing() {
+    let old = program(&[("A", 1), ("B", 0)], &["A + B = 1"]);
+    let new = program(&[("A", 1), ("B", 0), ("C", 0)], &[]);
+    let proj = Projection::generated(old.net(), new.net());
+    let mut out = [7; 2];
+    let e = proj
+        .apply(&[1, 1, 0], &old, &mut out)
+        .expect_err("A + B = 2 breaks the old invariant");
+    assert!(e.to_string().contains("A + B"), "{e}");
+    assert_eq!(out, [7, 7]);
+}

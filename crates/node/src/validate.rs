@@ -1,0 +1,477 @@
+//! Twin validation (docs/live-update.md, *Twin validation*): the candidate and the program it
+//! replaces run ahead side by side, each on its own twin, in virtual time over a horizon, and a
+//! verdict says whether the candidate may drive the plant.
+//!
+//! * **fork**: the PLC runs against an in-process twin. The twin is forked at its current state
+//!   and the PLC's state is taken as a snapshot; the baseline resumes the program that drives the
+//!   plant now, the candidate run resumes it too and takes the update through its install and a
+//!   retransform substitution at once, as the PLC would.
+//! * **commission**: any PLC whose configuration names a twin model. Both programs start from
+//!   their initial markings on fresh twins.
+//!
+//! A verdict passes when the candidate causes no twin fault, no primary fault, no deadlock alarm
+//! and no stall alarm, and its throughput (the twin's production counter) is at least the
+//! configured share of the baseline's, unless the package declares that it changes throughput.
+//! Output divergence is reported, not judged. Both runs are the real `Plc` on the real twin, so a
+//! verdict is deterministic for a given state. Runs on a thread of the node, never the scan
+//! thread.
+
+use std::collections::BTreeMap;
+use std::sync::mpsc::{sync_channel, Receiver, SyncSender};
+use std::sync::Arc;
+use std::time::Instant;
+
+use cetratus_io::TwinDriver;
+use cetratus_program::{Program, ResolvedUpdate, Value};
+use cetratus_runtime::{
+    Command, Dispatcher, EventKind, ManualStopwatch, Plc, PlcSnapshot, Slot, Status,
+    SubstituteMode, SubstituteRequest, Verdict, VerdictKind, VerdictResult,
+};
+use cetratus_twin::{Plant, Twin, TwinKind};
+
+/// Where the twins of a validation come from.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum ValidationMode {
+    /// No twin validation.
+    #[default]
+    Off,
+    /// Fork the in-process twin the PLC runs against.
+    Fork,
+    /// Fresh twins of this kind, both programs from their initial markings.
+    Commission(TwinKind),
+}
+
+/// The twin validation's settings (`[updates]` of the local configuration).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ValidationPolicy {
+    /// Fork, commission or off.
+    pub mode: ValidationMode,
+    /// Plant time each run covers, µs.
+    pub horizon_us: u64,
+    /// The least share of the baseline's production the candidate must reach.
+    pub throughput_share: f64,
+}
+
+impl Default for ValidationPolicy {
+    fn default() -> Self {
+        ValidationPolicy {
+            mode: ValidationMode::Off,
+            horizon_us: 600_000_000,
+            throughput_share: 0.9,
+        }
+    }
+}
+
+/// What a validation starts from.
+pub enum Start {
+    /// Fork mode: the PLC's state and its twin, forked now.
+    Fork {
+        /// The PLC's state at the fork.
+        snapshot: Box<PlcSnapshot>,
+        /// The twin, forked at the same moment.
+        twin: Box<Twin>,
+        /// What the PLC dispatched in its last cycle, by output name: what the twin was last
+        /// told, which the forks' drivers start from.
+        dispatched: Vec<(String, bool)>,
+    },
+    /// Commission mode: fresh twins of this kind.
+    Commission(TwinKind),
+}
+
+/// One validation to run: the baseline program, the update, and where to start.
+pub struct Job {
+    /// The program the update replaces (the baseline).
+    pub baseline: Arc<Program>,
+    /// The update, resolved against the baseline.
+    pub update: ResolvedUpdate,
+    /// In fork mode, the slot of the PLC that runs the baseline now, and whether the update is
+    /// already primary (probation): then the candidate run resumes the new primary as it is.
+    pub baseline_slot: Slot,
+    /// The update is already primary (probation).
+    pub on_probation: bool,
+    /// Fork or commission.
+    pub start: Start,
+    /// Period of the scans, µs.
+    pub period_us: u64,
+    /// Horizon and throughput share.
+    pub policy: ValidationPolicy,
+}
+
+/// What one run on a twin came to.
+#[derive(Debug, Default)]
+struct RunFigures {
+    produced: u64,
+    twin_faults: Vec<String>,
+    alarms: Vec<String>,
+}
+
+/// Runs `plc` on `twin` for the horizon from `from_us`, gathering what the verdict needs, and
+/// calling `each` with the dispatched outputs of every cycle.
+fn run(
+    plc: &mut Plc,
+    io: &mut TwinDriver<Twin>,
+    from_us: u64,
+    job: &Job,
+    mut each: impl FnMut(&[cetratus_program::Value]),
+) -> RunFigures {
+    let counter = io.plant().production_counter();
+    let produced0 = io.plant().counters().get(counter).unwrap_or(0);
+    let faults0 = io.plant().faults().len();
+    let mut f = RunFigures::default();
+    let end = from_us.saturating_add(job.policy.horizon_us);
+    let mut now = from_us;
+    while now < end {
+        plc.cycle(now, io);
+        each(plc.dispatched());
+        for e in plc.drain_events() {
+            if matches!(
+                e.kind,
+                EventKind::PrimaryFault | EventKind::DeadlockAlarm | EventKind::StallAlarm
+            ) && f.alarms.len() < 4
+            {
+                f.alarms.push(format!(
+                    "{} at {:.1} s: {}",
+                    e.kind,
+                    now.saturating_sub(from_us) as f64 / 1e6,
+                    e.message
+                ));
+            }
+        }
+        drop(plc.take_retired());
+        now += job.period_us;
+    }
+    f.produced = io
+        .plant()
+        .counters()
+        .get(counter)
+        .unwrap_or(0)
+        .saturating_sub(produced0);
+    f.twin_faults = io.plant().faults()[faults0.min(io.plant().faults().len())..]
+        .iter()
+        .take(4)
+        .map(|x| x.to_string())
+        .collect();
+    f
+}
+
+/// A PLC resumed from `snap` with `slot` as PRIMARY, in virtual time.
+fn resume(
+    snap: &PlcSnapshot,
+    slot: Slot,
+    programs: &[&Arc<Program>],
+    period_us: u64,
+) -> Option<Plc> {
+    let mut s = snap.clone();
+    s.primary = Some(slot);
+    s.status = Some(Status::Idle);
+    let hash = s.containers[slot.index()].as_ref()?.program_hash.clone();
+    let program = programs.iter().find(|p| p.hash_hex() == hash)?;
+    let mut plc = Plc::warm_start(
+        &s,
+        |h| {
+            programs
+                .iter()
+                .find(|p| p.hash_hex() == h)
+                .map(|p| (*p).clone())
+        },
+        (*program).clone(),
+        Box::new(ManualStopwatch::new()),
+    )
+    .ok()?;
+    plc.use_virtual_time(period_us);
+    let _ = plc.drain_events();
+    Some(plc)
+}
+
+/// Takes `plc` through the install of `update` and a retransform substitution, as the PLC would:
+/// two cycles. Returns why it did not get there.
+fn apply_update(
+    plc: &mut Plc,
+    io: &mut TwinDriver<Twin>,
+    update: &ResolvedUpdate,
+    now: &mut u64,
+    period_us: u64,
+) -> Result<(), String> {
+    let prepared = plc
+        .update_context()
+        .prepare(update.clone())
+        .map_err(|e| e.to_string())?;
+    plc.command(Command::Load(Box::new(prepared)))
+        .map_err(|e| e.to_string())?;
+    plc.cycle(*now, io);
+    *now += period_us;
+    plc.command(Command::Substitute(SubstituteRequest::now(
+        SubstituteMode::Retransform,
+    )))
+    .map_err(|e| e.to_string())?;
+    plc.cycle(*now, io);
+    *now += period_us;
+    let events = plc.drain_events();
+    drop(plc.take_retired());
+    if events.iter().any(|e| e.kind == EventKind::Substituted) {
+        Ok(())
+    } else {
+        Err(events
+            .iter()
+            .rev()
+            .find(|e| {
+                matches!(
+                    e.kind,
+                    EventKind::Refused
+                        | EventKind::TransformRefused
+                        | EventKind::StateTransTimeout
+                        | EventKind::CandidateFault
+                )
+            })
+            .map_or("the update did not take".to_string(), |e| e.message.clone()))
+    }
+}
+
+/// Runs a validation and returns its verdict.
+pub fn validate(job: &Job) -> Verdict {
+    let t0 = Instant::now();
+    let fail = |reason: String| Verdict {
+        kind: VerdictKind::Twin,
+        result: VerdictResult::Fail,
+        reasons: vec![reason],
+        figures: BTreeMap::new(),
+    };
+    let candidate = &job.update.program;
+    let programs = [&job.baseline, candidate];
+    let driver = |twin: Twin, p: &Program| TwinDriver::new(twin, p.inputs(), p.outputs());
+    // (baseline PLC, its twin, candidate PLC, its twin, program time to start from)
+    let setup = match &job.start {
+        Start::Fork { snapshot, twin, .. } => {
+            let from = snapshot.time_us.saturating_add(job.period_us);
+            let Some(base) = resume(snapshot, job.baseline_slot, &programs, job.period_us) else {
+                return fail("the PLC's state could not be resumed on a fork".into());
+            };
+            let cand_slot = if job.on_probation {
+                job.baseline_slot.other()
+            } else {
+                job.baseline_slot
+            };
+            let Some(cand) = resume(snapshot, cand_slot, &programs, job.period_us) else {
+                return fail("the candidate's state could not be resumed on a fork".into());
+            };
+            (base, (**twin).clone(), cand, (**twin).clone(), from)
+        }
+        Start::Commission(kind) => {
+            let mut base = Plc::new(job.baseline.clone(), 0, Box::new(ManualStopwatch::new()));
+            base.use_virtual_time(job.period_us);
+            let mut cand = Plc::new(candidate.clone(), 0, Box::new(ManualStopwatch::new()));
+            cand.use_virtual_time(job.period_us);
+            let mut twins = [kind.build(1), kind.build(1)];
+            for t in &mut twins {
+                // A station that needs its buttons gets them as `cetratus run` gives them.
+                if t.buttons().contains(&"RESET") && t.buttons().contains(&"START") {
+                    let _ = t.press("RESET", 100_000);
+                    let _ = t.press("START", 500_000);
+                }
+            }
+            let [a, b] = twins;
+            (base, a, cand, b, 0)
+        }
+    };
+    let (mut base, base_twin, mut cand, cand_twin, from) = setup;
+    // Each driver follows the I/O map of its PLC: the program it started with.
+    let cand_map = match job.start {
+        Start::Fork { .. } if !job.on_probation => &job.baseline,
+        _ => candidate,
+    };
+    let (Ok(mut base_io), Ok(mut cand_io)) = (
+        driver(base_twin, &job.baseline),
+        driver(cand_twin, cand_map),
+    ) else {
+        return fail("the programs' signals do not match the twin's".into());
+    };
+    // A new driver has told the plant nothing yet; it starts from what the PLC last dispatched,
+    // or the fork's first step would read as every command withdrawn at once.
+    if let Start::Fork {
+        snapshot,
+        dispatched,
+        ..
+    } = &job.start
+    {
+        for (io, program) in [(&mut base_io, &job.baseline), (&mut cand_io, cand_map)] {
+            let values: Vec<Value> = program
+                .outputs()
+                .iter()
+                .map(|o| Value::Bool(dispatched.iter().any(|(n, on)| *n == o.name && *on)))
+                .collect();
+            io.write_outputs(snapshot.time_us, &values);
+        }
+    }
+    let mut cand_from = from;
+    if matches!(job.start, Start::Fork { .. }) && !job.on_probation {
+        if let Err(why) = apply_update(
+            &mut cand,
+            &mut cand_io,
+            &job.update,
+            &mut cand_from,
+            job.period_us,
+        ) {
+            return fail(format!("the update does not take on the fork: {why}"));
+        }
+    }
+    let mut outputs: Vec<u64> =
+        Vec::with_capacity((job.policy.horizon_us / job.period_us.max(1)) as usize);
+    let bits = |v: &[cetratus_program::Value]| {
+        v.iter().enumerate().take(64).fold(0u64, |acc, (i, x)| {
+            if matches!(x, cetratus_program::Value::Bool(true)) {
+                acc | (1 << i)
+            } else {
+                acc
+            }
+        })
+    };
+    let b = run(&mut base, &mut base_io, from, job, |d| {
+        outputs.push(bits(d))
+    });
+    let mut i = 0usize;
+    let mut divergent = 0u64;
+    let c = run(&mut cand, &mut cand_io, cand_from, job, |d| {
+        if outputs.get(i).is_some_and(|&o| o != bits(d)) {
+            divergent += 1;
+        }
+        i += 1;
+    });
+    let mut reasons = Vec::new();
+    for f in &c.twin_faults {
+        reasons.push(format!("twin fault: {f}"));
+    }
+    for a in &c.alarms {
+        reasons.push(a.clone());
+    }
+    let share = if b.produced == 0 {
+        1.0
+    } else {
+        c.produced as f64 / b.produced as f64
+    };
+    let throughput_ok = job.update.meta.changes_throughput || share >= job.policy.throughput_share;
+    if !throughput_ok {
+        reasons.push(format!(
+            "throughput: the candidate produced {} parts in {:.0} s of plant time, {:.0} % of the {} of the program it replaces, below the {:.0} % required",
+            c.produced,
+            job.policy.horizon_us as f64 / 1e6,
+            share * 100.0,
+            b.produced,
+            job.policy.throughput_share * 100.0
+        ));
+    }
+    let passed = reasons.is_empty();
+    if job.update.meta.changes_throughput {
+        reasons.push("the package declares that it changes throughput: not judged".into());
+    }
+    if !b.twin_faults.is_empty() || !b.alarms.is_empty() {
+        reasons.push(format!(
+            "the program it replaces also had trouble on its fork: {}",
+            b.twin_faults
+                .iter()
+                .chain(&b.alarms)
+                .cloned()
+                .collect::<Vec<_>>()
+                .join("; ")
+        ));
+    }
+    let mut figures = BTreeMap::new();
+    figures.insert("horizon_s".into(), job.policy.horizon_us as f64 / 1e6);
+    figures.insert("parts_baseline".into(), b.produced as f64);
+    figures.insert("parts_candidate".into(), c.produced as f64);
+    figures.insert("throughput_share".into(), share);
+    figures.insert("divergent_cycles".into(), divergent as f64);
+    figures.insert("twin_faults".into(), c.twin_faults.len() as f64);
+    figures.insert("alarms".into(), c.alarms.len() as f64);
+    figures.insert("validation_ms".into(), t0.elapsed().as_secs_f64() * 1e3);
+    Verdict {
+        kind: VerdictKind::Twin,
+        result: if passed {
+            VerdictResult::Pass
+        } else {
+            VerdictResult::Fail
+        },
+        reasons,
+        figures,
+    }
+}
+
+/// A finished validation: the verdict and the program it is about.
+pub struct Done {
+    /// [`Program::hash`] of the update's program.
+    pub program_hash: [u8; 32],
+    /// The verdict.
+    pub verdict: Verdict,
+}
+
+/// The node's validation thread: one job at a time; a job that comes while one runs replaces
+/// the one waiting.
+pub struct Validator {
+    jobs: SyncSender<Job>,
+    done: Receiver<Done>,
+    /// The settings.
+    pub policy: ValidationPolicy,
+}
+
+impl Validator {
+    /// Starts the thread.
+    pub fn start(policy: ValidationPolicy) -> Self {
+        let (jobs, rx) = sync_channel::<Job>(1);
+        let (tx, done) = sync_channel::<Done>(4);
+        let _ = std::thread::Builder::new()
+            .name("cetratus-validate".into())
+            .spawn(move || {
+                crate::rt::normal();
+                while let Ok(job) = rx.recv() {
+                    let verdict = validate(&job);
+                    let program_hash = job.update.program.hash();
+                    if tx
+                        .send(Done {
+                            program_hash,
+                            verdict,
+                        })
+                        .is_err()
+                    {
+                        return;
+                    }
+                }
+            });
+        Validator { jobs, done, policy }
+    }
+
+    /// Hands a job over without waiting; false when one is already waiting.
+    pub fn submit(&self, job: Job) -> bool {
+        self.jobs.try_send(job).is_ok()
+    }
+
+    /// A finished validation, if any, without waiting.
+    pub fn try_done(&self) -> Option<Done> {
+        self.done.try_recv().ok()
+    }
+
+    /// Waits for a finished validation (virtual time: a run is deterministic only when the
+    /// verdict comes at a cycle the run decides).
+    pub fn wait_done(&self) -> Option<Done> {
+        self.done.recv().ok()
+    }
+}
+
+/// The job that validates the update under way on `plc`, starting from `start`.
+pub fn job_for(plc: &Plc, start: Start, policy: ValidationPolicy, period_us: u64) -> Option<Job> {
+    let update = plc.resolved_update()?;
+    let on_probation = plc.status() == Status::Probation;
+    let baseline_slot = if on_probation {
+        plc.primary().other()
+    } else {
+        plc.primary()
+    };
+    let baseline = plc.container(baseline_slot)?.program().clone();
+    Some(Job {
+        baseline,
+        update,
+        baseline_slot,
+        on_probation,
+        start,
+        period_us,
+        policy,
+    })
+}

@@ -1,0 +1,288 @@
+//! Twin validation on the real PLC and the real twins, in virtual time: U.1 forked from a running
+//! Vernadat cell passes; a candidate that stalls, or that slows machine 2 down, fails unless its
+//! package says it changes throughput; F.1 commissioned on fresh Festo twins passes; a verdict
+//! that fails during probation reverts.
+
+use std::path::Path;
+use std::sync::Arc;
+
+use cetratus_io::TwinDriver;
+use cetratus_node::validate::{self, Start, ValidationMode, ValidationPolicy};
+use cetratus_program::{build_package, Program, TrustStore};
+use cetratus_runtime::{
+    Command, EventKind, ManualStopwatch, Plc, PlcSnapshot, RevertReason, Slot, Status,
+    SubstituteMode, SubstituteRequest, VerdictResult,
+};
+use cetratus_twin::{Twin, TwinKind};
+
+const VERNADAT: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../../examples/vernadat");
+const FESTO: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../../examples/festo");
+const PERIOD: u64 = 10_000;
+
+fn workshop(example: &str) -> tempfile::TempDir {
+    let dir = tempfile::tempdir().expect("a temporary directory");
+    for entry in std::fs::read_dir(example).expect("the example") {
+        let path = entry.expect("an entry").path();
+        if path.extension().is_some_and(|e| e == "toml" || e == "pnml") {
+            let name = path.file_name().expect("a name");
+            std::fs::copy(&path, dir.path().join(name)).expect("copy");
+        }
+    }
+    dir
+}
+
+/// Replaces `from` by `to` in `file` of the workshop.
+fn edit(dir: &Path, file: &str, from: &str, to: &str) {
+    let text = std::fs::read_to_string(dir.join(file)).expect("the file");
+    assert!(text.contains(from), "{from} in {file}");
+    std::fs::write(dir.join(file), text.replace(from, to)).expect("write");
+}
+
+struct Cell {
+    plc: Plc,
+    io: TwinDriver<Twin>,
+    now: u64,
+}
+
+impl Cell {
+    fn new(program: Arc<Program>) -> Self {
+        let io = TwinDriver::new(
+            TwinKind::Vernadat.build(1),
+            program.inputs(),
+            program.outputs(),
+        )
+        .expect("the signals match");
+        let mut plc = Plc::new(program, 0, Box::new(ManualStopwatch::new()));
+        plc.use_virtual_time(PERIOD);
+        Cell { plc, io, now: 0 }
+    }
+    fn run_for(&mut self, us: u64) {
+        let end = self.now + us;
+        while self.now < end {
+            self.plc.cycle(self.now, &mut self.io);
+            drop(self.plc.take_retired());
+            self.now += PERIOD;
+        }
+    }
+    fn load(&mut self, dir: &Path, manifest: &str) {
+        let (bytes, _) = build_package(&dir.join(manifest), None).expect("the package builds");
+        let p = self
+            .plc
+            .update_context()
+            .prepare_package(&bytes, &TrustStore::empty(), true, false)
+            .expect("prepared");
+        self.plc
+            .command(Command::Load(Box::new(p)))
+            .expect("accepted");
+        self.run_for(PERIOD);
+        assert_eq!(self.plc.status(), Status::Quarantine);
+    }
+    /// The validation of the update under way, forked now.
+    fn fork_job(&self, policy: ValidationPolicy) -> validate::Job {
+        let mut snap = PlcSnapshot::default();
+        self.plc.snapshot_into(&mut snap);
+        let dispatched = self
+            .plc
+            .io_outputs()
+            .iter()
+            .zip(self.plc.dispatched())
+            .map(|(n, v)| (n.clone(), matches!(v, cetratus_program::Value::Bool(true))))
+            .collect();
+        let start = Start::Fork {
+            snapshot: Box::new(snap),
+            twin: Box::new(self.io.plant().clone()),
+            dispatched,
+        };
+        validate::job_for(&self.plc, start, policy, PERIOD).expect("an update under way")
+    }
+}
+
+fn policy(horizon_s: u64) -> ValidationPolicy {
+    ValidationPolicy {
+        mode: ValidationMode::Fork,
+        horizon_us: horizon_s * 1_000_000,
+        ..ValidationPolicy::default()
+    }
+}
+
+#[test]
+fn u1_forked_from_a_running_cell_passes_over_ten_minutes_of_plant_time() {
+    let dir = workshop(VERNADAT);
+    let mut cell = Cell::new(Arc::new(
+        Program::load(&dir.path().join("vernadat.toml")).expect("program"),
+    ));
+    cell.run_for(20_000_000);
+    cell.load(dir.path(), "u1.package.toml");
+    let before = (cell.plc.cycles(), cell.io.plant().clone());
+    let v = validate::validate(&cell.fork_job(ValidationPolicy {
+        mode: ValidationMode::Fork,
+        ..ValidationPolicy::default()
+    }));
+    assert_eq!(v.result, VerdictResult::Pass, "{v:?}");
+    assert!(
+        v.reasons.is_empty(),
+        "neither run had trouble on its fork: {v:?}"
+    );
+    assert_eq!(v.figures["horizon_s"], 600.0);
+    let (base, cand) = (v.figures["parts_baseline"], v.figures["parts_candidate"]);
+    assert!(
+        (60.0..=76.0).contains(&base),
+        "M2 bounds 10 min at 75 parts: {base}"
+    );
+    // The candidate's run starts two cycles later (install, switch): a part may fall on either
+    // side of the horizon.
+    assert!(
+        cand + 1.0 >= base,
+        "two more buffer slots make as many parts: {cand} < {base}"
+    );
+    assert_eq!(
+        (cell.plc.cycles(), cell.io.plant().clone()),
+        before,
+        "the PLC and its twin are untouched"
+    );
+}
+
+#[test]
+fn a_candidate_that_stalls_on_its_fork_fails_with_the_stall() {
+    let dir = workshop(VERNADAT);
+    edit(
+        dir.path(),
+        "u1.toml",
+        "T11 = \"FCM1\"",
+        "T11 = \"FCM1 && P11.t >= 3600s\"",
+    );
+    let mut cell = Cell::new(Arc::new(
+        Program::load(&dir.path().join("vernadat.toml")).expect("program"),
+    ));
+    cell.run_for(5_000_000);
+    cell.load(dir.path(), "u1.package.toml");
+    let v = validate::validate(&cell.fork_job(policy(120)));
+    assert_eq!(v.result, VerdictResult::Fail, "{v:?}");
+    let text = v.reasons.join("\n");
+    assert!(text.contains("stall_alarm"), "{text}");
+    assert!(
+        text.contains("throughput"),
+        "it makes nothing either: {text}"
+    );
+}
+
+#[test]
+fn a_candidate_that_slows_machine_2_fails_on_throughput_unless_its_package_says_so() {
+    let dir = workshop(VERNADAT);
+    // M2 is loaded 5 s after the robot brought the part: 12 s a part instead of 8.
+    edit(
+        dir.path(),
+        "u1.toml",
+        "T21 = \"FCM2\"",
+        "T21 = \"FCM2 && P22.t >= 5s\"",
+    );
+    let mut cell = Cell::new(Arc::new(
+        Program::load(&dir.path().join("vernadat.toml")).expect("program"),
+    ));
+    cell.run_for(5_000_000);
+    cell.load(dir.path(), "u1.package.toml");
+    let v = validate::validate(&cell.fork_job(policy(300)));
+    assert_eq!(v.result, VerdictResult::Fail, "{v:?}");
+    assert!(v.figures["throughput_share"] < 0.8, "{v:?}");
+    assert!(
+        v.reasons.join("\n").contains("below the 90 % required"),
+        "{v:?}"
+    );
+
+    edit(
+        dir.path(),
+        "u1.package.toml",
+        "base = \"vernadat.toml\"",
+        "base = \"vernadat.toml\"\nchanges_throughput = true",
+    );
+    let mut cell = Cell::new(Arc::new(
+        Program::load(&dir.path().join("vernadat.toml")).expect("program"),
+    ));
+    cell.run_for(5_000_000);
+    cell.load(dir.path(), "u1.package.toml");
+    let v = validate::validate(&cell.fork_job(policy(300)));
+    assert_eq!(v.result, VerdictResult::Pass, "{v:?}");
+    assert!(v.reasons.join("\n").contains("changes throughput"), "{v:?}");
+}
+
+#[test]
+fn f1_commissioned_on_fresh_festo_twins_passes() {
+    let dir = workshop(FESTO);
+    let base = Arc::new(Program::load(&dir.path().join("festo.toml")).expect("program"));
+    let (bytes, _) = build_package(&dir.path().join("f1.package.toml"), None).expect("F.1");
+    let plc = Plc::new(base.clone(), 0, Box::new(ManualStopwatch::new()));
+    plc.update_context()
+        .prepare_package(&bytes, &TrustStore::empty(), true, false)
+        .expect("F.1 fits the Festo program");
+    let pkg = cetratus_program::UpdatePackage::verify(&bytes, &TrustStore::empty(), true)
+        .expect("verifies");
+    let update = pkg.resolve(&base, false).expect("resolves");
+    let job = validate::Job {
+        baseline: base,
+        update,
+        baseline_slot: Slot::A,
+        on_probation: false,
+        start: Start::Commission(TwinKind::Festo),
+        period_us: PERIOD,
+        policy: ValidationPolicy {
+            mode: ValidationMode::Commission(TwinKind::Festo),
+            horizon_us: 300_000_000,
+            ..ValidationPolicy::default()
+        },
+    };
+    let v = validate::validate(&job);
+    assert_eq!(v.result, VerdictResult::Pass, "{v:?}");
+    assert!(v.figures["parts_baseline"] >= 50.0, "{v:?}");
+}
+
+#[test]
+fn a_failing_verdict_during_probation_reverts_at_the_next_cycle() {
+    let dir = workshop(VERNADAT);
+    edit(
+        dir.path(),
+        "u1.toml",
+        "T21 = \"FCM2\"",
+        "T21 = \"FCM2 && P22.t >= 5s\"",
+    );
+    let mut cell = Cell::new(Arc::new(
+        Program::load(&dir.path().join("vernadat.toml")).expect("program"),
+    ));
+    let mut limits = cell.plc.limits();
+    limits.probation_us = 600_000_000;
+    cell.plc.set_limits(limits);
+    cell.run_for(5_000_000);
+    cell.load(dir.path(), "u1.package.toml");
+    cell.plc
+        .command(Command::Substitute(SubstituteRequest::now(
+            SubstituteMode::Retransform,
+        )))
+        .expect("substitute");
+    cell.run_for(PERIOD);
+    assert_eq!(cell.plc.status(), Status::Probation);
+    let job = cell.fork_job(policy(300));
+    assert!(job.on_probation);
+    let hash = job.update.program.hash();
+    let v = validate::validate(&job);
+    assert_eq!(v.result, VerdictResult::Fail, "{v:?}");
+    let _ = cell.plc.drain_events();
+    assert!(cell.plc.add_verdict(&hash, v));
+    let detected = cell.plc.cycles();
+    cell.run_for(PERIOD);
+    let events = cell.plc.drain_events();
+    let reverted = events
+        .iter()
+        .find(|e| e.kind == EventKind::Reverted)
+        .unwrap_or_else(|| panic!("{events:#?}"));
+    assert!(
+        matches!(
+            reverted.detail,
+            Some(cetratus_runtime::EventDetail::Revert {
+                reason: RevertReason::Verdict,
+                detected_cycle,
+                ..
+            }) if detected_cycle == detected
+        ),
+        "{reverted:?}"
+    );
+    assert_eq!(cell.plc.primary(), Slot::A);
+}

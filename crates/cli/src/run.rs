@@ -225,7 +225,8 @@ pub fn run(args: &RunArgs) -> anyhow::Result<()> {
     };
     let mut node = Node::new(plc, io, opts)
         .with_script(script)
-        .with_twin_validation(local.validation, period_us);
+        .with_twin_validation(local.validation, period_us)
+        .with_auto_substitute(local.auto_substitute.clone());
     if let Some(p) = persister {
         node = node.with_persister(p);
     }

@@ -107,6 +107,8 @@ pub struct ControlLink {
     done: Arc<AtomicBool>,
     threads: Vec<std::thread::JoinHandle<()>>,
     mqtt_stats: StatsReader,
+    // The operator key that signed the last accepted load (auto substitution checks it).
+    load_key: Option<String>,
 }
 
 impl ControlLink {
@@ -169,6 +171,7 @@ impl ControlLink {
             done,
             threads: vec![preparer, publisher],
             mqtt_stats: stats,
+            load_key: None,
         }
     }
 
@@ -186,11 +189,15 @@ impl ControlLink {
             else {
                 break;
             };
+            let is_load = matches!(*command, Command::Load(_));
             let outcome = match (plc.command(*command), extra) {
                 (Ok(()), None) => accepted(),
                 (Ok(()), Some(extra)) => Ok(Some(extra)),
                 (Err(e), _) => Err(refused(e.to_string())),
             };
+            if is_load && outcome.is_ok() {
+                self.load_key = from.key_id.clone();
+            }
             who = Some(
                 from.key_id
                     .as_ref()
@@ -199,6 +206,12 @@ impl ControlLink {
             self.queue(Outgoing::Reply(from.reply, outcome));
         }
         who
+    }
+
+    /// The operator key that signed the last load the PLC accepted (`None` without operator
+    /// keys, or for a load from elsewhere).
+    pub fn load_key(&self) -> Option<&str> {
+        self.load_key.as_deref()
     }
 
     /// Keeps a message for the MQTT client, or drops it (counted) when [`PENDING_BYTES`] are

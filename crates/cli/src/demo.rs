@@ -184,7 +184,9 @@ fn live(args: &DemoArgs, files: &DemoFiles) -> anyhow::Result<()> {
         progress_every: None,
         gate: local.gate,
     };
-    let node = Node::new(plc, io, opts).with_twin_validation(local.validation, period_us);
+    let node = Node::new(plc, io, opts)
+        .with_twin_validation(local.validation, period_us)
+        .with_auto_substitute(local.auto_substitute.clone());
     let mut node = node.with_link(link).with_echo(|e| {
         if let Echo::Event(e) = e {
             crate::summary::print_event(&e, false);

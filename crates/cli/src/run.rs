@@ -238,7 +238,8 @@ pub fn run(args: &RunArgs) -> anyhow::Result<()> {
         .with_script(script)
         .with_validation(local.validation, period_us, |io| {
             io.twin().map(|t| t.plant().clone())
-        });
+        })
+        .with_auto_substitute(local.auto_substitute.clone());
     if let Some(mut board) = status_board {
         node = node.with_observer(move |plc| board.show(plc));
     }

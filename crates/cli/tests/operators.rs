@@ -196,3 +196,130 @@ fn with_operator_keys_only_signed_commands_are_carried_out_and_the_audit_log_nam
         .unwrap_or_else(|| panic!("no aborted in the audit log:\n{audit}"));
     assert!(line.contains(&format!("\"mqtt:{key_id}/local\"")), "{line}");
 }
+
+/// A new operator key: its secret file and its key id.
+fn operator_key(dir: &Path, name: &str, cfg: &Path) -> (std::path::PathBuf, String) {
+    let key = dir.join(format!("{name}.key"));
+    let out = cetratus(&["package", "keygen", "--out", path(&key)]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let public = dir.join(format!("{name}.key.pub"));
+    std::fs::copy(&public, cfg.join(format!("operators/{name}.pub"))).expect("copy");
+    let id = std::fs::read_to_string(&public)
+        .expect("pub")
+        .lines()
+        .find_map(|l| {
+            l.strip_prefix("key-id")
+                .map(|r| r.trim_start_matches([':', ' ', '=']).trim().to_string())
+        })
+        .expect("a key-id line");
+    (key, id)
+}
+
+#[test]
+fn auto_substitute_on_pass_substitutes_only_loads_signed_by_an_allowed_operator_key() {
+    let work = tempfile::tempdir().expect("temp dir");
+    let pk = work.path().join("pk");
+    let out = cetratus(&["demo", "--scripted", "--json", "--dir", path(&pk)]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let cfg = work.path().join("config");
+    std::fs::create_dir_all(cfg.join("trusted")).expect("mkdir");
+    std::fs::create_dir_all(cfg.join("operators")).expect("mkdir");
+    std::fs::copy(pk.join("trusted/demo.pub"), cfg.join("trusted/demo.pub")).expect("copy");
+    let (alice, alice_id) = operator_key(work.path(), "alice", &cfg);
+    let (bob, _) = operator_key(work.path(), "bob", &cfg);
+    std::fs::write(
+        cfg.join("config.toml"),
+        format!(
+            "[updates]\nvalidation = \"fork\"\nhorizon = \"1min\"\nauto_substitute = \"on-pass\"\nauto_substitute_keys = [\"{alice_id}\"]\n"
+        ),
+    )
+    .expect("config.toml");
+    let port = free_port();
+    let mqtt = format!("127.0.0.1:{port}");
+    let _plc = ChildGuard::spawn(
+        Command::new(BIN)
+            .arg("run")
+            .arg(pk.join("vernadat.toml"))
+            .args([
+                "--twin", "vernadat", "--speed", "10", "--for", "1h", "--plc", "auto1",
+            ])
+            .args([
+                "--http",
+                "127.0.0.1:0",
+                "--mqtt",
+                &mqtt,
+                "--config",
+                path(&cfg),
+            ])
+            .arg("--state-dir")
+            .arg(work.path().join("state"))
+            .stdout(Stdio::null())
+            .stderr(Stdio::null()),
+    );
+    wait_for_port(port, "the PLC's embedded broker", Duration::from_secs(20));
+    let run = |args: &[&str], key: &Path| {
+        Command::new(BIN)
+            .args(args)
+            .args(["--plc", "auto1", "--mqtt", &mqtt, "--key", path(key)])
+            .output()
+            .expect("the client")
+    };
+    let state = || -> serde_json::Value {
+        let out = Command::new(BIN)
+            .args(["status", "--json", "--plc", "auto1", "--mqtt", &mqtt])
+            .output()
+            .expect("status");
+        serde_json::from_slice(&out.stdout).unwrap_or_default()
+    };
+    let u1 = pk.join("u1.cpkg");
+    let wait_primary = |want: &str, within: Duration| -> serde_json::Value {
+        let end = Instant::now() + within;
+        loop {
+            let s = state();
+            if s["primary"] == want || Instant::now() > end {
+                return s;
+            }
+            std::thread::sleep(Duration::from_millis(200));
+        }
+    };
+
+    // Bob's load passes validation but is not substituted: his key is not allowed.
+    let out = run(&["load", path(&u1)], &bob);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let s = wait_primary("B", Duration::from_secs(6));
+    assert_eq!(
+        (s["primary"].as_str(), s["status"].as_str()),
+        (Some("A"), Some("quarantine")),
+        "{s}"
+    );
+    let info = run(&["exec-info", "--json"], &bob);
+    let info: serde_json::Value = serde_json::from_slice(&info.stdout).expect("exec_info");
+    let twin = info["result"][1]["verdicts"]
+        .as_array()
+        .and_then(|v| v.iter().find(|x| x["kind"] == "twin").cloned())
+        .unwrap_or_else(|| panic!("a twin verdict: {info}"));
+    assert_eq!(twin["result"], "pass", "{twin}");
+    assert!(run(&["abort"], &bob).status.success());
+
+    // Alice's: substituted by the PLC itself once the verdict passes.
+    let out = run(&["load", path(&u1)], &alice);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let s = wait_primary("B", Duration::from_secs(20));
+    assert_eq!(s["primary"], "B", "{s}");
+}

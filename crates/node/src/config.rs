@@ -19,7 +19,7 @@ use cetratus_program::{TrustStore, VerifyingKeyFile};
 use cetratus_runtime::Limits;
 
 use crate::gate::GatePolicy;
-use crate::validate::{ValidationMode, ValidationPolicy};
+use crate::validate::{AutoSubstitute, ValidationMode, ValidationPolicy};
 use serde::Deserialize;
 
 /// Why the local configuration cannot be used. The PLC does not start.
@@ -169,6 +169,9 @@ struct UpdatesSection {
     throughput_share: Option<f64>,
     #[serde(default)]
     require_verdict: bool,
+    auto_substitute: Option<String>,
+    #[serde(default)]
+    auto_substitute_keys: Vec<String>,
 }
 
 /// The probation window when `[updates] probation` is absent: a minute.
@@ -213,6 +216,9 @@ pub struct LocalConfig {
     pub validation: ValidationPolicy,
     /// A substitution needs a passing twin verdict.
     pub require_verdict: bool,
+    /// `auto_substitute = "on-pass"`: the operator key ids whose loads the PLC substitutes by
+    /// itself on a passing twin verdict; `None` when off.
+    pub auto_substitute: Option<AutoSubstitute>,
 }
 
 /// The default configuration directory.
@@ -370,6 +376,33 @@ impl LocalConfig {
             ));
         }
         let validation = validation_policy(&file.updates, &value_error)?;
+        let auto_substitute = match file.updates.auto_substitute.as_deref() {
+            None | Some("off") => None,
+            Some("on-pass") if file.updates.auto_substitute_keys.is_empty() => {
+                return Err(value_error(
+                    "[updates] auto_substitute",
+                    "on-pass",
+                    "name the operator keys whose loads may be substituted by the PLC itself: auto_substitute_keys = [\"<key id>\"]".into(),
+                ))
+            }
+            Some("on-pass") if validation.mode == ValidationMode::Off => {
+                return Err(value_error(
+                    "[updates] auto_substitute",
+                    "on-pass",
+                    "a substitution on a passing verdict needs twin validation: set validation = \"fork\" or \"commission\"".into(),
+                ))
+            }
+            Some("on-pass") => Some(AutoSubstitute {
+                keys: file.updates.auto_substitute_keys.clone(),
+            }),
+            Some(other) => {
+                return Err(value_error(
+                    "[updates] auto_substitute",
+                    other,
+                    "write \"off\" or \"on-pass\"".into(),
+                ))
+            }
+        };
         let gate = gate_policy(&file.updates, value_error)?;
         let mut ops = OperatorKeys::new(std::time::Duration::from_secs(window_s.max(1)));
         for k in keys_in(&dir.join("operators"), "operator")? {
@@ -453,6 +486,7 @@ impl LocalConfig {
             gate,
             validation,
             require_verdict: file.updates.require_verdict,
+            auto_substitute,
         })
     }
 
@@ -680,6 +714,29 @@ mod tests {
             .unwrap()
             .to_string();
         assert!(e.contains("between 0 and 1"), "{e}");
+    }
+
+    #[test]
+    fn auto_substitute_needs_its_keys_and_a_validation() {
+        let ok = "[updates]\nvalidation = \"fork\"\nauto_substitute = \"on-pass\"\nauto_substitute_keys = [\"0011223344556677\"]\n";
+        let c = LocalConfig::load(Some(&dir_with(ok))).unwrap();
+        assert_eq!(
+            c.auto_substitute,
+            Some(AutoSubstitute {
+                keys: vec!["0011223344556677".into()]
+            })
+        );
+        for bad in [
+            "[updates]\nvalidation = \"fork\"\nauto_substitute = \"on-pass\"\n",
+            "[updates]\nauto_substitute = \"on-pass\"\nauto_substitute_keys = [\"00\"]\n",
+            "[updates]\nauto_substitute = \"always\"\n",
+        ] {
+            let e = LocalConfig::load(Some(&dir_with(bad)))
+                .err()
+                .unwrap()
+                .to_string();
+            assert!(e.contains("[updates] auto_substitute"), "{e}");
+        }
     }
 
     #[test]

@@ -109,6 +109,8 @@ pub struct ControlLink {
     threads: Vec<std::thread::JoinHandle<()>>,
     mqtt_stats: StatsReader,
     quality: QualitySource,
+    // The operator key that signed the last accepted load (auto substitution checks it).
+    load_key: Option<String>,
 }
 
 /// Where the publisher reads the field devices' input quality, once the node has field I/O.
@@ -177,6 +179,7 @@ impl ControlLink {
             threads: vec![preparer, publisher],
             mqtt_stats: stats,
             quality,
+            load_key: None,
         }
     }
 
@@ -201,11 +204,15 @@ impl ControlLink {
             else {
                 break;
             };
+            let is_load = matches!(*command, Command::Load(_));
             let outcome = match (plc.command(*command), extra) {
                 (Ok(()), None) => accepted(),
                 (Ok(()), Some(extra)) => Ok(Some(extra)),
                 (Err(e), _) => Err(refused(e.to_string())),
             };
+            if is_load && outcome.is_ok() {
+                self.load_key = from.key_id.clone();
+            }
             who = Some(match (&from.key_id, &from.account) {
                 (Some(k), Some(a)) => format!("mqtt:{k}/{a}"),
                 (Some(k), None) => format!("mqtt:{k}"),
@@ -214,6 +221,12 @@ impl ControlLink {
             self.queue(Outgoing::Reply(from.reply, outcome));
         }
         who
+    }
+
+    /// The operator key that signed the last load the PLC accepted (`None` without operator
+    /// keys, or for a load from elsewhere).
+    pub fn load_key(&self) -> Option<&str> {
+        self.load_key.as_deref()
     }
 
     /// Keeps a message for the MQTT client, or drops it (counted) when [`PENDING_BYTES`] are

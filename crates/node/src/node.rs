@@ -14,13 +14,13 @@ use cetratus_program::{TrustStore, Value};
 use cetratus_runtime::trace::Trace;
 use cetratus_runtime::{
     Clock, Command, CommandError, Dispatcher, Event, EventKind, LoopTiming, Plc, PlcSnapshot,
-    Provider, VirtualClock,
+    Provider, Status, SubstituteMode, SubstituteRequest, VerdictResult, VirtualClock,
 };
 
 use crate::link::{ControlLink, LinkCounters};
 use crate::periodic::run_periodic;
 use crate::script::{Pace, Script, ScriptError};
-use crate::validate::{self, Start, ValidationMode, ValidationPolicy, Validator};
+use crate::validate::{self, AutoSubstitute, Start, ValidationMode, ValidationPolicy, Validator};
 use cetratus_io::TwinDriver;
 use cetratus_twin::Twin;
 
@@ -89,6 +89,7 @@ struct NodeValidation<IO> {
     validator: Validator,
     fork: fn(&IO) -> Option<Twin>,
     period_us: u64,
+    auto: Option<AutoSubstitute>,
 }
 
 /// What a node leaves when it stops.
@@ -151,6 +152,7 @@ impl<IO: Provider + Dispatcher> Node<IO> {
                 validator: Validator::start(policy),
                 fork,
                 period_us,
+                auto: None,
             });
         }
         self
@@ -197,9 +199,36 @@ impl<IO: Provider + Dispatcher> Node<IO> {
         } else {
             v.validator.try_done()
         };
-        if let Some(d) = done {
-            self.plc.add_verdict(&d.program_hash, d.verdict);
+        let Some(d) = done else {
+            return;
+        };
+        let passed = d.verdict.result == VerdictResult::Pass;
+        let attached = self.plc.add_verdict(&d.program_hash, d.verdict);
+        // Substitutes by itself only a load that an allowed operator key signed.
+        let key = self.link.as_ref().and_then(|l| l.load_key());
+        let allowed = v
+            .auto
+            .as_ref()
+            .zip(key)
+            .is_some_and(|(a, k)| a.keys.iter().any(|x| x == k));
+        if attached && passed && allowed && self.plc.status() == Status::Quarantine {
+            let who = format!("auto:{}", key.unwrap_or_default());
+            let r = self.plc.command(Command::Substitute(SubstituteRequest::now(
+                SubstituteMode::Retransform,
+            )));
+            let ev = self.plc.drain_events();
+            self.events(ev, &who, true);
+            let _ = r;
         }
+    }
+
+    /// `auto_substitute = "on-pass"`: substitutes a candidate whose twin verdict passes, when an
+    /// operator key of `auto` signed its load. Needs [`Node::with_validation`] first.
+    pub fn with_auto_substitute(mut self, auto: Option<AutoSubstitute>) -> Self {
+        if let Some(v) = self.validation.as_mut() {
+            v.auto = auto;
+        }
+        self
     }
 
     /// Keeps the state in a directory, through its writer.

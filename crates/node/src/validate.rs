@@ -52,6 +52,14 @@ pub struct ValidationPolicy {
     pub throughput_share: f64,
 }
 
+/// `auto_substitute = "on-pass"`: the operator key ids whose loads the PLC substitutes by itself
+/// when the twin verdict in quarantine passes.
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct AutoSubstitute {
+    /// Key ids (`cetratus package keygen` prints them; the `key-id` line of a `.pub` file).
+    pub keys: Vec<String>,
+}
+
 impl Default for ValidationPolicy {
     fn default() -> Self {
         ValidationPolicy {

@@ -704,3 +704,6 @@ pub fn duration(text: &str) -> Result<u64, StError> {
     }
     Ok(us)
 }
+
+#[cfg(test)]
+mod tests;

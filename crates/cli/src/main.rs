@@ -10,6 +10,7 @@ mod client;
 mod config;
 mod convert;
 mod demo;
+mod import;
 mod mct_cmd;
 mod mqtt_args;
 mod package;
@@ -52,6 +53,8 @@ enum Command {
     Convert(convert::ConvertArgs),
     /// Analyse a net: invariants, reachability, deadlocks, boundedness, liveness.
     Check(check::CheckArgs),
+    /// Write a program from another tool's file: `import plcopen CHART.xml -o DIR`.
+    Import(import::ImportArgs),
     /// The paper's U.1/U.2 live-update experiment on the Vernadat cell.
     Demo(demo::DemoArgs),
     /// Build, inspect and verify update packages; make signing keys.
@@ -121,6 +124,7 @@ fn main() -> std::process::ExitCode {
         Command::Sim(a) => sim::run(a),
         Command::Convert(a) => convert::run(a),
         Command::Check(a) => check::run(a),
+        Command::Import(a) => import::run(a),
         Command::Demo(a) => demo::run(a),
         Command::Package(a) => package::run(a),
         Command::Run(a) => run::run(a),

@@ -14,7 +14,7 @@ pub mod export;
 mod marking;
 mod net;
 pub mod pnml;
-mod xml;
+pub mod xml;
 
 pub use csr::Csr;
 pub use engine::{Engine, FireError, Policy, SingleRule};

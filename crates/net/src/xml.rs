@@ -1,4 +1,10 @@
-//! A small read-only XML tree for the PNML reader, built from quick-xml's event stream.
+//! A small read-only XML tree, built from quick-xml's event stream: the one hardened XML reader
+//! of the workspace (the PNML reader here, the PLCopen importer in `cetratus-sfc`).
+//!
+//! It bounds what a document can cost: internal entities expand to at most
+//! [`MAX_ENTITY_EXPANSION`] bytes in all, external entities are never fetched, duplicate
+//! attributes and namespace prefixes are found in time linear in their number, and the tree is
+//! built with an explicit stack, so nesting depth costs memory, never call stack.
 //!
 //! PNML files are small and the reader looks at each element a few times, so a tree is the
 //! simplest thing to read from; building our own keeps it to what the reader needs (elements,
@@ -34,15 +40,18 @@ const SCANNED_ATTRIBUTES: usize = 16;
 
 /// A parse failure: a byte offset into the input and what was wrong there.
 #[derive(Debug)]
-pub(crate) struct Error {
+pub struct Error {
+    /// Byte offset into the input where the problem was found.
     pub offset: usize,
+    /// What was wrong, for people.
     pub message: String,
+    /// Malformed or too large.
     pub kind: ErrorKind,
 }
 
 /// Why a document was refused.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub(crate) enum ErrorKind {
+pub enum ErrorKind {
     /// It is not well-formed XML, or uses XML this reader does not support.
     Malformed,
     /// It is well-formed but goes over a limit of the reader.
@@ -68,7 +77,7 @@ struct Element<'i> {
 }
 
 /// A parsed XML document.
-pub(crate) struct Document<'i> {
+pub struct Document<'i> {
     input: &'i str,
     elements: Vec<Element<'i>>,
     /// (qualified name, value); namespace declarations are not attributes.
@@ -78,7 +87,7 @@ pub(crate) struct Document<'i> {
 
 /// An element of a [`Document`].
 #[derive(Clone, Copy)]
-pub(crate) struct Node<'a, 'i> {
+pub struct Node<'a, 'i> {
     doc: &'a Document<'i>,
     id: u32,
 }

@@ -31,6 +31,7 @@ const RULES: &[(&str, Allowed)] = &[
     ("cetratus-proto", Only(&[])),
     ("cetratus-analysis", Only(&["cetratus-net"])),
     ("cetratus-program", Only(&["cetratus-net"])),
+    ("cetratus-sfc", Only(&["cetratus-net", "cetratus-program"])),
     (
         "cetratus-runtime",
         Only(&["cetratus-net", "cetratus-program"]),

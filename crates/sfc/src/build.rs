@@ -1,0 +1,529 @@
+//! A chart and its POU become a Cetratus net and program TOML (the mapping of docs/sfc.md).
+
+use std::collections::HashSet;
+use std::fmt::Write as _;
+
+use cetratus_net::{ArcKind, Net, NetBuilder, Place, Transition as NetTransition};
+use cetratus_program::guard::{Expr, ExprKind};
+
+use crate::chart::{ActionRef, Chart, Qualifier};
+use crate::pou::{Body, Pou, VarKind};
+use crate::source::Source;
+use crate::st::{self, Names, Resolved, StError, Stmt, Ty};
+use crate::SfcError;
+
+/// The structural net of a chart: steps as places (initial steps marked), transitions as
+/// transitions with their left-to-right priorities, jumps as arcs to their target. Refuses a
+/// network (a connected part of the chart) with no initial step or with two.
+pub(crate) fn net(source: &Source, chart: &Chart) -> Result<(Net, Vec<String>), SfcError> {
+    check_networks(source, chart)?;
+    let mut used: HashSet<String> = chart
+        .steps
+        .iter()
+        .map(|s| s.name.to_ascii_lowercase())
+        .collect();
+    let mut fresh = |base: String| {
+        let mut id = base;
+        while !used.insert(id.to_ascii_lowercase()) {
+            id.push('_');
+        }
+        id
+    };
+    let mut b = NetBuilder::new(chart.pou.clone());
+    b.name(chart.pou.clone());
+    for s in &chart.steps {
+        let mut p = Place::new(s.name.clone(), u32::from(s.initial));
+        p.name = Some(s.name.clone());
+        b.add_place(p).map_err(|e| net_err(source, e))?;
+    }
+    // Left to right: among the transitions that leave a step, the leftmost has the highest
+    // priority (IEC 61131-3: the first true branch from the left wins).
+    let mut priority = vec![0i32; chart.transitions.len()];
+    for s in 0..chart.steps.len() {
+        let mut leaving: Vec<usize> = (0..chart.transitions.len())
+            .filter(|&t| chart.transitions[t].from.contains(&s))
+            .collect();
+        leaving.sort_by(|&a, &b| {
+            chart.transitions[a]
+                .x
+                .total_cmp(&chart.transitions[b].x)
+                .then(a.cmp(&b))
+        });
+        let n = leaving.len() as i32;
+        for (rank, &t) in leaving.iter().enumerate() {
+            priority[t] = priority[t].max(n - rank as i32);
+        }
+    }
+    let mut ids = Vec::with_capacity(chart.transitions.len());
+    for (i, t) in chart.transitions.iter().enumerate() {
+        let base = match &t.name {
+            Some(n) if !n.trim().is_empty() => n.trim().to_string(),
+            _ => format!("T{}", t.local_id),
+        };
+        let id = fresh(base);
+        let mut nt = NetTransition::new(id.clone());
+        nt.priority = priority[i];
+        b.add_transition(nt).map_err(|e| net_err(source, e))?;
+        for &s in &t.from {
+            let arc = fresh(format!("{id}_from_{}", chart.steps[s].name));
+            b.add_arc(&arc, &chart.steps[s].name, &id, 1, ArcKind::Normal)
+                .map_err(|e| net_err(source, e))?;
+        }
+        for &s in &t.to {
+            let arc = fresh(format!("{id}_to_{}", chart.steps[s].name));
+            b.add_arc(&arc, &id, &chart.steps[s].name, 1, ArcKind::Normal)
+                .map_err(|e| net_err(source, e))?;
+        }
+        ids.push(id);
+    }
+    Ok((b.build().map_err(|e| net_err(source, e))?, ids))
+}
+
+fn net_err(source: &Source, e: cetratus_net::NetError) -> SfcError {
+    SfcError::Net {
+        file: source.label.to_string(),
+        source: e,
+    }
+}
+
+/// Every network (steps connected through transitions) has exactly one initial step.
+fn check_networks(source: &Source, chart: &Chart) -> Result<(), SfcError> {
+    let n = chart.steps.len();
+    let mut parent: Vec<usize> = (0..n).collect();
+    fn find(parent: &mut [usize], mut x: usize) -> usize {
+        while parent[x] != x {
+            parent[x] = parent[parent[x]];
+            x = parent[x];
+        }
+        x
+    }
+    for t in &chart.transitions {
+        let all: Vec<usize> = t.from.iter().chain(&t.to).copied().collect();
+        for w in all.windows(2) {
+            let (a, b) = (find(&mut parent, w[0]), find(&mut parent, w[1]));
+            parent[a] = b;
+        }
+    }
+    let mut initial: Vec<Option<usize>> = vec![None; n];
+    for (i, s) in chart.steps.iter().enumerate() {
+        if !s.initial {
+            continue;
+        }
+        let root = find(&mut parent, i);
+        if let Some(first) = initial[root] {
+            return Err(SfcError::Chart {
+                pos: source.pos(s.at),
+                pou: chart.pou.clone(),
+                message: format!(
+                    "steps `{}` and `{}` are both initial steps of one network; a network has one initial step (IEC 61131-3), make one of them a plain step",
+                    chart.steps[first].name, s.name
+                ),
+            });
+        }
+        initial[root] = Some(i);
+    }
+    for i in 0..n {
+        let root = find(&mut parent, i);
+        if initial[root].is_none() {
+            return Err(SfcError::Chart {
+                pos: source.pos(chart.steps[i].at),
+                pou: chart.pou.clone(),
+                message: format!(
+                    "step `{}` is in a network with no initial step; mark the network's first step initial",
+                    chart.steps[i].name
+                ),
+            });
+        }
+        initial[root] = initial[root].or(Some(i));
+    }
+    Ok(())
+}
+
+/// A signal of the generated program.
+struct Signal {
+    name: String,
+    kind: VarKind,
+    ty: Ty,
+    address: Option<String>,
+    initial: Option<String>,
+}
+
+/// Resolves names in a condition or an action body.
+struct Scope<'c> {
+    signals: &'c [Signal],
+    unusable: &'c [(String, String)],
+    chart: &'c Chart,
+    in_condition: bool,
+}
+
+impl Names for Scope<'_> {
+    fn resolve(&self, name: &str) -> Option<Resolved> {
+        if let Some(s) = self.chart.step_index(name) {
+            return Some(Resolved::Step(self.chart.steps[s].name.clone()));
+        }
+        if let Some(s) = self
+            .signals
+            .iter()
+            .find(|s| s.name.eq_ignore_ascii_case(name))
+        {
+            if self.in_condition && s.kind == VarKind::Output {
+                return Some(Resolved::Unusable(format!(
+                    "`{}` is a VAR_OUTPUT, and Cetratus conditions read inputs and variables only; declare it in VAR and copy it to an output",
+                    s.name
+                )));
+            }
+            return Some(Resolved::Var(s.name.clone(), s.ty));
+        }
+        self.unusable
+            .iter()
+            .find(|(n, _)| n.eq_ignore_ascii_case(name))
+            .map(|(_, why)| Resolved::Unusable(why.clone()))
+    }
+}
+
+/// The program TOML of a chart, whose net has the transition ids `ids`; `notes` gathers what was
+/// read but not imported.
+pub(crate) fn program_toml(
+    source: &Source,
+    pou: &Pou,
+    chart: &Chart,
+    ids: &[String],
+    net_file: &str,
+    notes: &mut Vec<String>,
+) -> Result<String, SfcError> {
+    let st_err = |base: usize, e: StError| match e.construct {
+        Some(construct) => SfcError::Unsupported {
+            pos: source.pos(base + e.offset),
+            pou: pou.name.clone(),
+            construct,
+            message: e.message,
+        },
+        None => SfcError::St {
+            pos: source.pos(base + e.offset),
+            pou: pou.name.clone(),
+            message: e.message,
+        },
+    };
+    // Signals.
+    let mut signals: Vec<Signal> = Vec::new();
+    let mut unusable: Vec<(String, String)> = Vec::new();
+    for v in &pou.variables {
+        let clash = signals.iter().any(|s| s.name.eq_ignore_ascii_case(&v.name))
+            || chart.step_index(&v.name).is_some();
+        if clash {
+            return Err(SfcError::Chart {
+                pos: source.pos(v.at),
+                pou: pou.name.clone(),
+                message: format!(
+                    "the name `{}` is declared twice among the POU's variables and steps (IEC names are case-insensitive); rename one",
+                    v.name
+                ),
+            });
+        }
+        let ty = match v.ty.to_ascii_uppercase().as_str() {
+            "BOOL" => Ty::Bool,
+            "SINT" | "INT" | "DINT" | "LINT" | "USINT" | "UINT" | "UDINT" | "ULINT" | "BYTE"
+            | "WORD" | "DWORD" | "LWORD" => Ty::Int,
+            "REAL" | "LREAL" => Ty::Real,
+            other => {
+                let why = format!(
+                    "`{}` has the type {other}, outside the subset (BOOL, integer types, REAL, LREAL)",
+                    v.name
+                );
+                notes.push(format!(
+                    "{}: variable not imported: {why}",
+                    source.pos(v.at)
+                ));
+                unusable.push((v.name.clone(), why));
+                continue;
+            }
+        };
+        signals.push(Signal {
+            name: v.name.clone(),
+            kind: v.kind,
+            ty,
+            address: v.address.clone(),
+            initial: v.initial.clone(),
+        });
+    }
+
+    let mut out = String::new();
+    let _ = writeln!(
+        out,
+        "# Imported from {} (PLCopen TC6 XML), POU {}.",
+        file_name(source.label),
+        pou.name
+    );
+    let _ = writeln!(out, "[program]");
+    let _ = writeln!(out, "name = {}", q(&pou.name));
+    let _ = writeln!(out, "version = \"1\"");
+    let _ = writeln!(
+        out,
+        "description = {}",
+        q(&format!("SFC {} of {}", pou.name, file_name(source.label)))
+    );
+    let _ = writeln!(out, "net = {}", q(net_file));
+    for (kind, section) in [
+        (VarKind::Input, "input"),
+        (VarKind::Output, "output"),
+        (VarKind::Local, "variable"),
+    ] {
+        for s in signals.iter().filter(|s| s.kind == kind) {
+            let _ = writeln!(out, "\n[[{section}]]");
+            let _ = writeln!(out, "name = {}", q(&s.name));
+            let ty = match s.ty {
+                Ty::Bool => "bool",
+                Ty::Int => "int",
+                _ => "real",
+            };
+            let _ = writeln!(out, "type = \"{ty}\"");
+            if let Some(a) = &s.address {
+                let _ = writeln!(out, "address = {}", q(a));
+            }
+            if let (VarKind::Local, Some(init)) = (kind, &s.initial) {
+                if let Some(v) = initial_value(s.ty, init) {
+                    let _ = writeln!(out, "initial = {v}");
+                }
+            }
+        }
+    }
+
+    // Guards.
+    let cond_scope = Scope {
+        signals: &signals,
+        unusable: &unusable,
+        chart,
+        in_condition: true,
+    };
+    let mut guards = String::new();
+    for (t, id) in chart.transitions.iter().zip(ids) {
+        let (text, at, negated) = match &t.condition {
+            crate::chart::Condition::St { text, at, negated } => (text, *at, *negated),
+            crate::chart::Condition::Unsupported { form, at } => {
+                return Err(SfcError::Unsupported {
+                    pos: source.pos(*at),
+                    pou: pou.name.clone(),
+                    construct: form.clone(),
+                    message: format!(
+                        "the condition of transition {id} must be Structured Text (inline, in an inVariable box, or a named transition's ST body)"
+                    ),
+                })
+            }
+        };
+        let mut e = st::condition(text, &cond_scope).map_err(|e| st_err(at, e))?;
+        if negated {
+            e = Expr::new(ExprKind::Unary(
+                cetratus_program::guard::UnOp::Not,
+                Box::new(e),
+            ));
+        }
+        if e.kind == ExprKind::Bool(true) {
+            continue;
+        }
+        let _ = writeln!(guards, "{id} = {}", q(&e.to_string()));
+    }
+    if !guards.is_empty() {
+        let _ = write!(out, "\n[guards]\n{guards}");
+    }
+
+    // Actions.
+    let body_scope = Scope {
+        signals: &signals,
+        unusable: &unusable,
+        chart,
+        in_condition: false,
+    };
+    let mut actions: Vec<(String, String, String, Option<u64>)> = Vec::new();
+    for a in &chart.associations {
+        let step = chart.steps[a.step].name.clone();
+        if let Some(ind) = &a.indicator {
+            notes.push(format!("{}: the indicator variable `{ind}` is not imported (it has no effect on execution)", source.pos(a.at)));
+        }
+        let unsupported = |construct: String, message: &str| SfcError::Unsupported {
+            pos: source.pos(a.at),
+            pou: pou.name.clone(),
+            construct,
+            message: message.to_string(),
+        };
+        let duration = if a.qualifier.is_timed() {
+            let Some(d) = &a.duration else {
+                return Err(SfcError::Chart {
+                    pos: source.pos(a.at),
+                    pou: pou.name.clone(),
+                    message: format!(
+                        "the qualifier {} needs a duration; add duration=\"T#…\"",
+                        a.qualifier
+                    ),
+                });
+            };
+            Some(st::duration(d).map_err(|e| st_err(a.at, e))?)
+        } else {
+            None
+        };
+        // What the association runs: a Boolean variable, or a body.
+        let body: (String, usize) = match &a.action {
+            ActionRef::Reference(name) => {
+                if let Some(named) = pou
+                    .actions
+                    .iter()
+                    .find(|n| n.name.eq_ignore_ascii_case(name))
+                {
+                    match &named.body {
+                        Body::St { text, at } => (text.clone(), *at),
+                        Body::Other { language, .. } => {
+                            return Err(unsupported(
+                                format!("the action `{name}` with a {language} body"),
+                                "action bodies must be Structured Text (a nested chart or FBD/LD body is not imported)",
+                            ))
+                        }
+                    }
+                } else {
+                    match body_scope.resolve(name) {
+                        Some(Resolved::Var(v, Ty::Bool)) => {
+                            let q = match a.qualifier {
+                                Qualifier::N => "N",
+                                Qualifier::S => "S",
+                                Qualifier::R => "R",
+                                Qualifier::P | Qualifier::P1 => "P1",
+                                Qualifier::P0 => "P0",
+                                Qualifier::L => "L",
+                                Qualifier::D => "D",
+                                other => {
+                                    return Err(unsupported(
+                                        format!("the qualifier {other}"),
+                                        "Cetratus actions have N, S, R, P, P0, P1, L and D so far",
+                                    ))
+                                }
+                            };
+                            actions.push((step, q.to_string(), v, duration));
+                            continue;
+                        }
+                        Some(Resolved::Var(v, ty)) => {
+                            return Err(unsupported(
+                                format!("the {} variable `{v}` as an action", ty.iec()),
+                                "a variable named as an action must be BOOL",
+                            ))
+                        }
+                        _ => {
+                            return Err(SfcError::Chart {
+                                pos: source.pos(a.at),
+                                pou: pou.name.clone(),
+                                message: format!("the action `{name}` is neither an action of the POU nor a BOOL variable; declare it"),
+                            })
+                        }
+                    }
+                }
+            }
+            ActionRef::Inline(Body::St { text, at }) => (text.clone(), *at),
+            ActionRef::Inline(Body::Other { language, .. }) => {
+                return Err(unsupported(
+                    format!("an inline {language} action"),
+                    "action bodies must be Structured Text",
+                ))
+            }
+        };
+        let stmts = st::body(&body.0, &body_scope).map_err(|e| st_err(body.1, e))?;
+        for s in &stmts {
+            match s {
+                Stmt::Assign { target, ty: Ty::Bool, value: Expr { kind: ExprKind::Bool(v), .. }, .. } => {
+                    // A body that stores a constant keeps it after the step: under N, P, P1 and
+                    // S it is a set (TRUE) or a reset (FALSE) when the step is entered; under R
+                    // it stops a stored body, whose assignments already took effect.
+                    match a.qualifier {
+                        Qualifier::N | Qualifier::P | Qualifier::P1 | Qualifier::S => {
+                            let q = if *v { "S" } else { "R" };
+                            actions.push((step.clone(), q.to_string(), target.clone(), None));
+                        }
+                        Qualifier::R => {}
+                        other => {
+                            return Err(unsupported(
+                                format!("the qualifier {other} on an action body"),
+                                "bodies run under N, S, R, P and P1 so far",
+                            ))
+                        }
+                    }
+                }
+                Stmt::Assign { target, at, .. } => {
+                    return Err(SfcError::Unsupported {
+                        pos: source.pos(body.1 + at),
+                        pou: pou.name.clone(),
+                        construct: format!("the assignment of a computed value to `{target}`"),
+                        message: "action bodies that compute values need the statement executor, which this version does not have; only constant BOOL assignments (x := TRUE;) are imported".into(),
+                    })
+                }
+                Stmt::If { at, .. } => {
+                    return Err(SfcError::Unsupported {
+                        pos: source.pos(body.1 + at),
+                        pou: pou.name.clone(),
+                        construct: "IF in an action body".into(),
+                        message: "action bodies with IF need the statement executor, which this version does not have".into(),
+                    })
+                }
+            }
+        }
+    }
+    for (step, q, target, duration) in &actions {
+        let _ = writeln!(out, "\n[[action]]");
+        let _ = writeln!(out, "place = {}", cetratus_q(step));
+        let _ = writeln!(out, "qualifier = \"{q}\"");
+        let _ = writeln!(out, "target = {}", cetratus_q(target));
+        if let Some(d) = duration {
+            let _ = writeln!(out, "duration = \"{d}us\"");
+        }
+    }
+    for (name, count) in &chart.ignored_vendor_data {
+        notes.push(format!(
+            "{}: vendor data `{name}` ({count}×) is not read; it holds editor settings the mapping does not use",
+            source.label
+        ));
+    }
+    Ok(out)
+}
+
+fn cetratus_q(s: &str) -> String {
+    q(s)
+}
+
+/// The last path component of a label, so the program does not depend on where the file was.
+fn file_name(label: &str) -> &str {
+    label.rsplit(['/', '\\']).next().unwrap_or(label)
+}
+
+/// A TOML basic string.
+fn q(s: &str) -> String {
+    let mut out = String::with_capacity(s.len() + 2);
+    out.push('"');
+    for c in s.chars() {
+        match c {
+            '"' => out.push_str("\\\""),
+            '\\' => out.push_str("\\\\"),
+            '\n' => out.push_str("\\n"),
+            '\t' => out.push_str("\\t"),
+            c if c.is_control() => {
+                let _ = write!(out, "\\u{:04X}", c as u32);
+            }
+            c => out.push(c),
+        }
+    }
+    out.push('"');
+    out
+}
+
+/// A TOML value for a declared initial value, when it is a plain literal of the type.
+fn initial_value(ty: Ty, text: &str) -> Option<String> {
+    let t = text.trim();
+    match ty {
+        Ty::Bool => match t.to_ascii_uppercase().as_str() {
+            "TRUE" | "1" => Some("true".into()),
+            "FALSE" | "0" => Some("false".into()),
+            _ => None,
+        },
+        Ty::Int => t.parse::<i64>().ok().map(|n| n.to_string()),
+        Ty::Real => t
+            .parse::<f64>()
+            .ok()
+            .filter(|r| r.is_finite())
+            .map(|r| format!("{r:?}")),
+        Ty::Time => None,
+    }
+}

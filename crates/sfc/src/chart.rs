@@ -1,0 +1,623 @@
+//! One SFC body read into a chart: steps, transitions with their source and target steps,
+//! divergences, jumps and action associations, as the PLCopen file draws them.
+//!
+//! PLCopen links elements backwards: each element names, in `connectionPointIn/connection`, the
+//! elements it follows. A transition's source steps are found by walking back through
+//! divergences and convergences, its target steps by walking forward (through a reverse index)
+//! until steps or jumps. Both walks keep a visited set, so each costs at most the chart's size,
+//! and neither recurses.
+
+use std::collections::HashMap;
+
+use cetratus_net::xml::Node;
+
+use crate::pou::{Body, Pou};
+use crate::source::{body_text, child, children, Source};
+use crate::SfcError;
+
+/// A step.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Step {
+    /// Its name.
+    pub name: String,
+    /// Whether it is an initial step.
+    pub initial: bool,
+    /// Byte offset of its element.
+    pub at: usize,
+}
+
+/// How a transition's condition is written.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Condition {
+    /// A Structured Text expression: inline, in an `<inVariable>` box (CODESYS, TwinCAT), or the
+    /// body of a named transition.
+    St {
+        /// The expression.
+        text: String,
+        /// Byte offset of its text.
+        at: usize,
+        /// Negated by the `<inVariable negated="true">` that holds it.
+        negated: bool,
+    },
+    /// A form Cetratus does not import (FBD or LD network, IL, a function-call body).
+    Unsupported {
+        /// The form, as the README of the fixtures names it.
+        form: String,
+        /// Byte offset of the condition.
+        at: usize,
+    },
+}
+
+impl Condition {
+    /// The form's name: `inline ST`, `inVariable`, `reference (ST body)`, `FBD network`, …
+    pub fn form(&self) -> &str {
+        match self {
+            Condition::St { .. } => "ST",
+            Condition::Unsupported { form, .. } => form,
+        }
+    }
+}
+
+/// A transition.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Transition {
+    /// Its `localId`.
+    pub local_id: String,
+    /// Its `name`, if it has one.
+    pub name: Option<String>,
+    /// Source steps, by index into [`Chart::steps`], in order of first appearance.
+    pub from: Vec<usize>,
+    /// Target steps.
+    pub to: Vec<usize>,
+    /// Its condition.
+    pub condition: Condition,
+    /// Graphical x position (0 when the file gives none).
+    pub x: f64,
+    /// Byte offset of its element.
+    pub at: usize,
+}
+
+/// An action qualifier of IEC 61131-3.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub enum Qualifier {
+    /// Non-stored.
+    N,
+    /// Set (stored).
+    S,
+    /// Reset.
+    R,
+    /// Pulse.
+    P,
+    /// Pulse, falling edge.
+    P0,
+    /// Pulse, rising edge.
+    P1,
+    /// Time limited.
+    L,
+    /// Time delayed.
+    D,
+    /// Stored and time delayed.
+    SD,
+    /// Delayed and stored.
+    DS,
+    /// Stored and time limited.
+    SL,
+}
+
+impl Qualifier {
+    /// Parses a qualifier as written in the `qualifier` attribute.
+    pub fn parse(s: &str) -> Option<Qualifier> {
+        Some(match s {
+            "N" => Qualifier::N,
+            "S" => Qualifier::S,
+            "R" => Qualifier::R,
+            "P" => Qualifier::P,
+            "P0" => Qualifier::P0,
+            "P1" => Qualifier::P1,
+            "L" => Qualifier::L,
+            "D" => Qualifier::D,
+            "SD" => Qualifier::SD,
+            "DS" => Qualifier::DS,
+            "SL" => Qualifier::SL,
+            _ => return None,
+        })
+    }
+
+    /// Whether the qualifier takes a duration.
+    pub fn is_timed(self) -> bool {
+        matches!(
+            self,
+            Qualifier::L | Qualifier::D | Qualifier::SD | Qualifier::DS | Qualifier::SL
+        )
+    }
+}
+
+impl std::fmt::Display for Qualifier {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        std::fmt::Debug::fmt(self, f)
+    }
+}
+
+/// What an action association runs.
+#[derive(Clone, Debug, PartialEq)]
+pub enum ActionRef {
+    /// A named action of the POU, or a Boolean variable (`<reference name="…"/>`).
+    Reference(String),
+    /// A body written in the association itself (`<inline>`).
+    Inline(Body),
+}
+
+/// An action association: a step, a qualifier and what it runs.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Association {
+    /// The step, by index into [`Chart::steps`].
+    pub step: usize,
+    /// The qualifier (`N` when the attribute is absent, the schema default).
+    pub qualifier: Qualifier,
+    /// The duration as written, for timed qualifiers.
+    pub duration: Option<String>,
+    /// The indicator variable, if any.
+    pub indicator: Option<String>,
+    /// What it runs.
+    pub action: ActionRef,
+    /// Byte offset of the `<action>` element.
+    pub at: usize,
+}
+
+/// An SFC chart read from one `<SFC>` element.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Chart {
+    /// The POU.
+    pub pou: String,
+    /// `body`, or `action NAME` for a chart in a named action.
+    pub location: String,
+    /// Steps in document order.
+    pub steps: Vec<Step>,
+    /// Transitions in document order.
+    pub transitions: Vec<Transition>,
+    /// Number of `<selectionDivergence>` elements.
+    pub selection_divergences: usize,
+    /// Number of `<selectionConvergence>` elements.
+    pub selection_convergences: usize,
+    /// Number of `<simultaneousDivergence>` elements.
+    pub simultaneous_divergences: usize,
+    /// Number of `<simultaneousConvergence>` elements.
+    pub simultaneous_convergences: usize,
+    /// The targets of the `<jumpStep>` elements, in document order.
+    pub jumps: Vec<String>,
+    /// Number of `<actionBlock>` elements.
+    pub action_blocks: usize,
+    /// Action associations in document order.
+    pub associations: Vec<Association>,
+    /// Vendor data (`addData`) that the importer does not read, by data name, with a count.
+    pub ignored_vendor_data: Vec<(String, usize)>,
+}
+
+impl Chart {
+    /// The index of a step by name (IEC names are case-insensitive).
+    pub fn step_index(&self, name: &str) -> Option<usize> {
+        self.steps
+            .iter()
+            .position(|s| s.name.eq_ignore_ascii_case(name))
+    }
+}
+
+/// The kinds of SFC element that carry the sequence.
+#[derive(Clone, Copy, PartialEq, Eq, Debug)]
+enum Kind {
+    Step,
+    Transition,
+    Jump,
+    /// Divergences and convergences: walked through.
+    Branch,
+    /// Anything else (action blocks, condition boxes, comments).
+    Other,
+}
+
+/// Reads one `<SFC>` element of `pou`.
+pub(crate) fn read(
+    source: &Source,
+    pou: &Pou,
+    location: &str,
+    sfc: Node,
+) -> Result<Chart, SfcError> {
+    let chart_err = |at: usize, message: String| SfcError::Chart {
+        pos: source.pos(at),
+        pou: pou.name.clone(),
+        message,
+    };
+    let elements: Vec<Node> = sfc.children().collect();
+    let mut by_id: HashMap<&str, usize> = HashMap::with_capacity(elements.len());
+    let mut kinds = Vec::with_capacity(elements.len());
+    let mut chart = Chart {
+        pou: pou.name.clone(),
+        location: location.to_string(),
+        steps: Vec::new(),
+        transitions: Vec::new(),
+        selection_divergences: 0,
+        selection_convergences: 0,
+        simultaneous_divergences: 0,
+        simultaneous_convergences: 0,
+        jumps: Vec::new(),
+        action_blocks: 0,
+        associations: Vec::new(),
+        ignored_vendor_data: Vec::new(),
+    };
+    // Element index -> step index.
+    let mut step_of: HashMap<usize, usize> = HashMap::new();
+    for (i, e) in elements.iter().enumerate() {
+        let kind = match e.name() {
+            "step" => Kind::Step,
+            "transition" => Kind::Transition,
+            "jumpStep" => Kind::Jump,
+            "selectionDivergence" => {
+                chart.selection_divergences += 1;
+                Kind::Branch
+            }
+            "selectionConvergence" => {
+                chart.selection_convergences += 1;
+                Kind::Branch
+            }
+            "simultaneousDivergence" => {
+                chart.simultaneous_divergences += 1;
+                Kind::Branch
+            }
+            "simultaneousConvergence" => {
+                chart.simultaneous_convergences += 1;
+                Kind::Branch
+            }
+            "macroStep" => {
+                return Err(SfcError::Unsupported {
+                    pos: source.pos(e.range().start),
+                    pou: pou.name.clone(),
+                    construct: "a macro step".into(),
+                    message: "expand the macro step into its steps in the editor before exporting"
+                        .into(),
+                })
+            }
+            "actionBlock" => {
+                chart.action_blocks += 1;
+                Kind::Other
+            }
+            _ => Kind::Other,
+        };
+        if let Some(id) = e.attribute("localId") {
+            if by_id.insert(id, i).is_some() && kind != Kind::Other {
+                return Err(chart_err(
+                    e.range().start,
+                    format!("two elements have localId {id}; every element needs its own id"),
+                ));
+            }
+        }
+        if kind == Kind::Step {
+            let name = e.attribute("name").unwrap_or("").trim().to_string();
+            if name.is_empty() {
+                return Err(chart_err(
+                    e.range().start,
+                    "a step has no name; name every step".into(),
+                ));
+            }
+            if chart.step_index(&name).is_some() {
+                return Err(chart_err(
+                    e.range().start,
+                    format!(
+                        "two steps are named `{name}` (IEC names are case-insensitive); rename one"
+                    ),
+                ));
+            }
+            step_of.insert(i, chart.steps.len());
+            chart.steps.push(Step {
+                name,
+                initial: e.attribute("initialStep") == Some("true"),
+                at: e.range().start,
+            });
+        }
+        if kind == Kind::Jump {
+            chart
+                .jumps
+                .push(e.attribute("targetName").unwrap_or("").to_string());
+        }
+        kinds.push(kind);
+    }
+
+    // Inputs per element (the elements it follows) and the reverse index.
+    let mut inputs: Vec<Vec<usize>> = vec![Vec::new(); elements.len()];
+    let mut outputs: Vec<Vec<usize>> = vec![Vec::new(); elements.len()];
+    for (i, e) in elements.iter().enumerate() {
+        if kinds[i] == Kind::Other {
+            continue;
+        }
+        for cp in children(*e, "connectionPointIn") {
+            for c in children(cp, "connection") {
+                let Some(r) = c.attribute("refLocalId") else {
+                    continue;
+                };
+                let Some(&j) = by_id.get(r) else {
+                    return Err(chart_err(
+                        c.range().start,
+                        format!("a connection refers to localId {r}, which no element of this chart has"),
+                    ));
+                };
+                inputs[i].push(j);
+                outputs[j].push(i);
+            }
+        }
+    }
+
+    let steps = chart.steps.clone();
+    let named_step = |name: &str, at: usize| -> Result<usize, SfcError> {
+        steps.iter().position(|s| s.name.eq_ignore_ascii_case(name.trim())).ok_or_else(|| {
+            chart_err(
+                at,
+                format!("the jump goes to `{name}`, which is no step of this chart; name an existing step"),
+            )
+        })
+    };
+
+    let mut seen = vec![u32::MAX; elements.len()];
+    for (i, e) in elements.iter().enumerate() {
+        if kinds[i] != Kind::Transition {
+            continue;
+        }
+        let stamp = i as u32;
+        let at = e.range().start;
+        // Walk back to the source steps.
+        let mut from = Vec::new();
+        let mut stack: Vec<usize> = inputs[i].clone();
+        while let Some(j) = stack.pop() {
+            if seen[j] == stamp {
+                continue;
+            }
+            seen[j] = stamp;
+            match kinds[j] {
+                Kind::Step => push_unique(&mut from, step_of[&j]),
+                Kind::Branch => stack.extend(inputs[j].iter().copied()),
+                Kind::Transition | Kind::Jump | Kind::Other => {
+                    return Err(chart_err(
+                        at,
+                        format!(
+                            "the transition follows a <{}> (localId {}), not a step; a transition must follow steps",
+                            elements[j].name(),
+                            elements[j].attribute("localId").unwrap_or("?")
+                        ),
+                    ))
+                }
+            }
+        }
+        // Walk forward to the target steps.
+        let mut to = Vec::new();
+        let mut stack: Vec<usize> = outputs[i].clone();
+        while let Some(j) = stack.pop() {
+            if seen[j] == stamp {
+                continue;
+            }
+            seen[j] = stamp;
+            match kinds[j] {
+                Kind::Step => push_unique(&mut to, step_of[&j]),
+                Kind::Jump => {
+                    let target = elements[j].attribute("targetName").unwrap_or("");
+                    push_unique(&mut to, named_step(target, elements[j].range().start)?);
+                }
+                Kind::Branch => stack.extend(outputs[j].iter().copied()),
+                Kind::Transition | Kind::Other => {
+                    return Err(chart_err(
+                        at,
+                        "the transition is followed by another transition; put a step between them"
+                            .into(),
+                    ))
+                }
+            }
+        }
+        if from.is_empty() {
+            return Err(chart_err(
+                at,
+                "the transition has no source step; connect it below a step".into(),
+            ));
+        }
+        if to.is_empty() {
+            return Err(chart_err(
+                at,
+                "the transition has no target; connect a step or a jump below it".into(),
+            ));
+        }
+        // Steps in the order the chart declares them, so the net does not depend on the walk.
+        from.sort_unstable();
+        to.sort_unstable();
+        let x = child(*e, "position")
+            .and_then(|p| p.attribute("x"))
+            .and_then(|x| x.trim().parse::<f64>().ok())
+            .filter(|x| x.is_finite())
+            .unwrap_or(0.0);
+        let condition = condition(source, pou, &elements, &by_id, *e)?;
+        chart.transitions.push(Transition {
+            local_id: e.attribute("localId").unwrap_or("").to_string(),
+            name: e.attribute("name").map(str::to_string),
+            from,
+            to,
+            condition,
+            x,
+            at,
+        });
+    }
+    for j in elements.iter().filter(|e| e.name() == "jumpStep") {
+        named_step(j.attribute("targetName").unwrap_or(""), j.range().start)?;
+    }
+
+    // Action associations.
+    for (i, e) in elements.iter().enumerate() {
+        if e.name() != "actionBlock" {
+            continue;
+        }
+        let step = children(*e, "connectionPointIn")
+            .flat_map(|cp| children(cp, "connection"))
+            .filter_map(|c| by_id.get(c.attribute("refLocalId")?).copied())
+            .find_map(|j| step_of.get(&j).copied());
+        let Some(step) = step else {
+            return Err(chart_err(
+                elements[i].range().start,
+                "the action block is not connected to a step; connect it to one".into(),
+            ));
+        };
+        for a in children(*e, "action") {
+            let at = a.range().start;
+            let qualifier = match a.attribute("qualifier") {
+                None => Qualifier::N,
+                Some(q) => Qualifier::parse(q.trim()).ok_or_else(|| {
+                    chart_err(
+                        at,
+                        format!("unknown action qualifier `{q}`; IEC 61131-3 has N, S, R, P, P0, P1, L, D, SD, DS and SL"),
+                    )
+                })?,
+            };
+            let action = if let Some(r) = child(a, "reference") {
+                ActionRef::Reference(r.attribute("name").unwrap_or("").to_string())
+            } else if let Some(lang) = child(a, "inline").and_then(|i| i.children().next()) {
+                match (lang.name(), body_text(source, lang)) {
+                    ("ST", Some((text, at))) => ActionRef::Inline(Body::St { text, at }),
+                    (other, _) => ActionRef::Inline(Body::Other {
+                        language: other.to_string(),
+                        at: lang.range().start,
+                    }),
+                }
+            } else {
+                return Err(chart_err(
+                    at,
+                    "the action names no action and has no inline body; add one".into(),
+                ));
+            };
+            let nonempty = |v: Option<&str>| {
+                v.map(str::trim)
+                    .filter(|s| !s.is_empty())
+                    .map(str::to_string)
+            };
+            chart.associations.push(Association {
+                step,
+                qualifier,
+                duration: nonempty(a.attribute("duration")),
+                indicator: nonempty(a.attribute("indicator")),
+                action,
+                at,
+            });
+        }
+    }
+
+    // Vendor data that is not read: noted, not silently dropped.
+    let mut ignored: Vec<(String, usize)> = Vec::new();
+    for d in sfc.descendants().filter(|n| n.name() == "data") {
+        let name = d.attribute("name").unwrap_or("").to_string();
+        match ignored.iter_mut().find(|(n, _)| *n == name) {
+            Some((_, c)) => *c += 1,
+            None => ignored.push((name, 1)),
+        }
+    }
+    chart.ignored_vendor_data = ignored;
+    Ok(chart)
+}
+
+fn push_unique(v: &mut Vec<usize>, x: usize) {
+    if !v.contains(&x) {
+        v.push(x);
+    }
+}
+
+/// Reads a transition's condition.
+fn condition(
+    source: &Source,
+    pou: &Pou,
+    elements: &[Node],
+    by_id: &HashMap<&str, usize>,
+    transition: Node,
+) -> Result<Condition, SfcError> {
+    let at = transition.range().start;
+    let unsupported = |form: &str, at: usize| Condition::Unsupported {
+        form: form.to_string(),
+        at,
+    };
+    let Some(cond) = child(transition, "condition") else {
+        return Err(SfcError::Chart {
+            pos: source.pos(at),
+            pou: pou.name.clone(),
+            message: "the transition has no condition; give it one (TRUE if it should always fire)"
+                .into(),
+        });
+    };
+    let Some(form) = cond.children().next() else {
+        return Ok(unsupported("an empty condition", cond.range().start));
+    };
+    let at = form.range().start;
+    Ok(match form.name() {
+        "inline" => match form.children().next() {
+            Some(lang) if lang.name() == "ST" => match body_text(source, lang) {
+                Some((text, at)) => Condition::St {
+                    text,
+                    at,
+                    negated: false,
+                },
+                None => unsupported("an empty inline ST condition", at),
+            },
+            Some(lang) => unsupported(&format!("an inline {} condition", lang.name()), at),
+            None => unsupported("an empty inline condition", at),
+        },
+        "reference" => {
+            let name = form.attribute("name").unwrap_or("");
+            match pou
+                .transitions
+                .iter()
+                .find(|t| t.name.eq_ignore_ascii_case(name))
+            {
+                Some(t) => match &t.body {
+                    Body::St { text, at } => {
+                        // A transition body in ST is `transition_name := expr;` or, as some
+                        // editors write it, `:= expr;`; both are assignments, not expressions.
+                        if text.trim_start().starts_with(":=") {
+                            unsupported(
+                                &format!("the function-call form `:= …` of the body of transition {name}"),
+                                *at,
+                            )
+                        } else {
+                            Condition::St {
+                                text: text.clone(),
+                                at: *at,
+                                negated: false,
+                            }
+                        }
+                    }
+                    Body::Other { language, at } => unsupported(
+                        &format!("the {language} body of transition {name}"),
+                        *at,
+                    ),
+                },
+                None => {
+                    return Err(SfcError::Chart {
+                        pos: source.pos(at),
+                        pou: pou.name.clone(),
+                        message: format!(
+                            "the condition refers to transition `{name}`, which the POU does not declare"
+                        ),
+                    })
+                }
+            }
+        }
+        "connectionPointIn" => {
+            let target = children(form, "connection")
+                .filter_map(|c| by_id.get(c.attribute("refLocalId")?).copied())
+                .next();
+            match target.map(|j| elements[j]) {
+                Some(v) if v.name() == "inVariable" => match child(v, "expression") {
+                    Some(e) => Condition::St {
+                        text: e.text().unwrap_or("").to_string(),
+                        at: e.range().start + "<expression>".len(),
+                        negated: v.attribute("negated") == Some("true"),
+                    },
+                    None => unsupported("an <inVariable> with no expression", v.range().start),
+                },
+                Some(v) if matches!(v.name(), "contact" | "leftPowerRail" | "coil") => {
+                    unsupported("an LD network condition", v.range().start)
+                }
+                Some(v) => unsupported("an FBD network condition", v.range().start),
+                None => unsupported("a condition wired to nothing", at),
+            }
+        }
+        other => unsupported(&format!("a <{other}> condition"), at),
+    })
+}

@@ -1,0 +1,162 @@
+//! IEC 61131-3 Sequential Function Charts from PLCopen TC6 XML, as Cetratus programs.
+//!
+//! [`charts`] reads every SFC chart of a PLCopen file as drawn ([`Chart`]); [`import_str`] turns
+//! the chart of one POU into a net and a program TOML by the mapping of docs/sfc.md: steps become
+//! places, transitions transitions, a selection divergence a conflict resolved left to right
+//! through priorities, simultaneous branches fork and join transitions, jumps arcs to their
+//! target, conditions guards (through the Structured Text subset of [`st`]) and action
+//! associations the program's actions. The XML is read with the net crate's hardened reader
+//! ([`cetratus_net::xml`]); the file is bounded in bytes and elements, and no walk over it
+//! recurses.
+//!
+//! The same file always gives the same net and TOML text, so the same program hash.
+
+#![warn(missing_docs)]
+
+mod build;
+mod chart;
+mod error;
+mod pou;
+mod source;
+pub mod st;
+
+use cetratus_net::Net;
+use cetratus_program::Program;
+
+pub use chart::{ActionRef, Association, Chart, Condition, Qualifier, Step, Transition};
+pub use error::SfcError;
+pub use pou::{Body, Named, VarKind, Variable};
+pub use source::{is_plcopen, MAX_ELEMENTS, MAX_FILE_BYTES, NAMESPACES};
+
+use source::Source;
+
+/// A chart imported as a Cetratus program.
+#[derive(Debug)]
+pub struct Imported {
+    /// The chart as drawn.
+    pub chart: Chart,
+    /// The program's net.
+    pub net: Net,
+    /// The program's TOML text (its `net =` names the PNML file to write beside it).
+    pub toml: String,
+    /// The program, loaded from `net` and `toml`.
+    pub program: Program,
+    /// What was read but not imported, one line each (vendor data, indicators, variables of
+    /// other types): nothing is left out silently.
+    pub notes: Vec<String>,
+}
+
+/// Every SFC chart of a PLCopen file, as drawn: the body of each SFC POU, then the SFC bodies of
+/// its named actions. `label` names the file in messages.
+pub fn charts(text: &str, label: &str) -> Result<Vec<Chart>, SfcError> {
+    let text = text.strip_prefix('\u{feff}').unwrap_or(text);
+    let source = Source { label, text };
+    let doc = source.parse()?;
+    let mut out = Vec::new();
+    for pou in pou::pous(&source, &doc) {
+        for (location, sfc) in pou::sfc_bodies(&pou) {
+            out.push(chart::read(&source, &pou, &location, sfc)?);
+        }
+    }
+    Ok(out)
+}
+
+/// The structural net of a chart read from `text` (guards and actions left out): what
+/// [`import_str`] builds, for analysis of charts that do not import as programs.
+pub fn chart_net(text: &str, label: &str, chart: &Chart) -> Result<Net, SfcError> {
+    let text = text.strip_prefix('\u{feff}').unwrap_or(text);
+    let source = Source { label, text };
+    Ok(build::net(&source, chart)?.0)
+}
+
+/// Imports the SFC POU `pou` (or the file's only SFC POU when `None`) of a PLCopen file as a
+/// program whose TOML names `net_file` as its net.
+pub fn import_str(
+    text: &str,
+    label: &str,
+    pou: Option<&str>,
+    net_file: &str,
+) -> Result<Imported, SfcError> {
+    let text = text.strip_prefix('\u{feff}').unwrap_or(text);
+    let source = Source { label, text };
+    let doc = source.parse()?;
+    let pous = pou::pous(&source, &doc);
+    let with_sfc: Vec<&pou::Pou> = pous
+        .iter()
+        .filter(|p| {
+            pou::sfc_bodies(p)
+                .first()
+                .is_some_and(|(loc, _)| loc == "body")
+        })
+        .collect();
+    let names = || {
+        with_sfc
+            .iter()
+            .map(|p| p.name.as_str())
+            .collect::<Vec<_>>()
+            .join(", ")
+    };
+    let chosen = match pou {
+        Some(name) => with_sfc
+            .iter()
+            .find(|p| p.name.eq_ignore_ascii_case(name))
+            .ok_or_else(|| SfcError::Pou {
+                file: label.to_string(),
+                message: format!(
+                    "no POU `{name}` with an SFC body; the file's SFC POUs are: {}",
+                    if with_sfc.is_empty() {
+                        "none".to_string()
+                    } else {
+                        names()
+                    }
+                ),
+            })?,
+        None => match with_sfc.as_slice() {
+            [one] => one,
+            [] => {
+                return Err(SfcError::Pou {
+                    file: label.to_string(),
+                    message: "the file has no POU with an SFC body; export the SFC POU".into(),
+                })
+            }
+            _ => {
+                return Err(SfcError::Pou {
+                    file: label.to_string(),
+                    message: format!(
+                        "the file has several SFC POUs ({}); name one with --pou",
+                        names()
+                    ),
+                })
+            }
+        },
+    };
+    let mut notes = Vec::new();
+    if chosen.in_add_data {
+        notes.push(format!(
+            "{label}: POU `{}` read from project-level addData (TwinCAT)",
+            chosen.name
+        ));
+    }
+    let (_, sfc) = pou::sfc_bodies(chosen)
+        .into_iter()
+        .next()
+        .ok_or_else(|| SfcError::Pou {
+            file: label.to_string(),
+            message: format!("POU `{}` has no SFC body", chosen.name),
+        })?;
+    let chart = chart::read(&source, chosen, "body", sfc)?;
+    let (net, ids) = build::net(&source, &chart)?;
+    let toml = build::program_toml(&source, chosen, &chart, &ids, net_file, &mut notes)?;
+    let program =
+        Program::from_sources(&toml, label, net.clone()).map_err(|e| SfcError::Program {
+            file: label.to_string(),
+            source: e,
+        })?;
+    Ok(Imported {
+        chart,
+        net,
+        toml,
+        program,
+        notes,
+    })
+}

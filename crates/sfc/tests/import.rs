@@ -1,0 +1,100 @@
+//! Importing the fixture charts as programs: what imports, what is refused, and how each
+//! refusal names the construct, its POU and its line:column.
+
+use cetratus_sfc::SfcError;
+use cetratus_testkit::paths::fixture;
+
+fn read(rel: &str) -> String {
+    let path = fixture(rel);
+    std::fs::read_to_string(&path).unwrap_or_else(|e| {
+        panic!(
+            "cannot read {}: {e}; the fixtures live in ../shared/fixtures",
+            path.display()
+        )
+    })
+}
+
+fn import(file: &str, pou: Option<&str>) -> Result<cetratus_sfc::Imported, SfcError> {
+    cetratus_sfc::import_str(&read(&format!("plcopen/{file}")), file, pou, "chart.pnml")
+}
+
+#[test]
+fn the_twincat_charts_import_as_programs_with_their_conditions_as_guards() {
+    let one = import("twincat-sfc-evolution-1.xml", None).expect("imports");
+    let p = &one.program;
+    assert_eq!(p.name(), "Main");
+    assert_eq!(p.net().num_places(), 2);
+    assert_eq!(p.net().initial_marking().as_slice(), &[1, 0]);
+    assert!(one.toml.contains("T2 = \"Condition_1\""), "{}", one.toml);
+    let six = import("twincat-sfc-evolution-6.xml", Some("main")).expect("imports");
+    // The action ACT writes `changed`; the variable is declared `Changed`: one name, IEC case.
+    assert!(six.toml.contains("target = \"Changed\""), "{}", six.toml);
+    assert!(six
+        .notes
+        .iter()
+        .any(|n| n.contains("project-level addData")));
+}
+
+#[test]
+fn importing_the_same_file_twice_gives_the_same_program_hash() {
+    let a = import("twincat-sfc-evolution-6.xml", None).expect("imports");
+    let b = import("twincat-sfc-evolution-6.xml", None).expect("imports");
+    assert_eq!(a.program.hash(), b.program.hash());
+    assert_eq!(a.toml, b.toml);
+    let other = import("twincat-sfc-evolution-1.xml", None).expect("imports");
+    assert_ne!(a.program.hash(), other.program.hash());
+}
+
+#[test]
+fn refusals_name_the_construct_the_pou_and_the_line_and_column() {
+    let cases = [
+        (
+            "beremiz-first-steps.xml",
+            Some("CounterSFC"),
+            "beremiz-first-steps.xml:782:39",
+            "computed value to `Cnt`",
+        ),
+        (
+            "iec-checker-example.xml",
+            Some("SFCTest"),
+            "iec-checker-example.xml:504:",
+            "function-call form",
+        ),
+        (
+            "beremiz-svghmi-traffic-light.xml",
+            None,
+            "beremiz-svghmi-traffic-light.xml:",
+            "FBD body of transition STOP",
+        ),
+        (
+            "codesys-nested-sfc.xml",
+            None,
+            "codesys-nested-sfc.xml:190:61",
+            "computed value to `i`",
+        ),
+    ];
+    for (file, pou, at, construct) in cases {
+        let err = import(file, pou).expect_err(file);
+        let text = err.to_string();
+        assert!(matches!(err, SfcError::Unsupported { .. }), "{text}");
+        assert!(text.starts_with(at), "{text}");
+        assert!(text.contains(construct), "{text}");
+        assert!(text.contains("in POU `"), "{text}");
+    }
+}
+
+#[test]
+fn a_file_with_several_sfc_pous_needs_a_name_and_an_unknown_name_lists_them() {
+    let text = read("plcopen/beremiz-first-steps.xml");
+    let err =
+        cetratus_sfc::import_str(&text, "f.xml", Some("Nope"), "n.pnml").expect_err("no such POU");
+    assert!(err.to_string().contains("CounterSFC"), "{err}");
+}
+
+#[test]
+fn a_pnml_file_is_not_taken_for_plcopen() {
+    let pnml = read("mcc/TokenRing-PT-005.pnml");
+    assert!(!cetratus_sfc::is_plcopen(&pnml));
+    let err = cetratus_sfc::import_str(&pnml, "t.pnml", None, "n.pnml").expect_err("not PLCopen");
+    assert!(err.to_string().contains("not PLCopen TC6 XML"), "{err}");
+}

@@ -1,0 +1,79 @@
+//! Online change between two versions of a chart: the state transform generated from place ids
+//! carries the active steps over by name, new steps start inactive, step times are kept, and a
+//! removed step that is active refuses the change.
+
+use std::collections::BTreeMap;
+
+use cetratus_program::{Program, StateTransform};
+use cetratus_testkit::paths::fixture;
+
+fn program(file: &str) -> Program {
+    let path = fixture(&format!("plcopen/{file}"));
+    let text = std::fs::read_to_string(&path).unwrap_or_else(|e| {
+        panic!(
+            "cannot read {}: {e}; the fixtures live in ../shared/fixtures",
+            path.display()
+        )
+    });
+    cetratus_sfc::import_str(&text, file, None, "Main.pnml")
+        .expect("imports")
+        .program
+}
+
+/// The marking of `p` with one token on each named step.
+fn marking(p: &Program, active: &[&str]) -> Vec<u32> {
+    p.net()
+        .places()
+        .iter()
+        .map(|s| u32::from(active.contains(&s.id.as_str())))
+        .collect()
+}
+
+#[test]
+fn the_active_step_of_version_1_stays_active_in_version_6_and_new_steps_start_inactive() {
+    let (v1, v6) = (
+        program("twincat-sfc-evolution-1.xml"),
+        program("twincat-sfc-evolution-6.xml"),
+    );
+    let st = StateTransform::generated(&v1, &v6, &BTreeMap::new()).expect("a transform");
+    let mut out = vec![0; v6.net().num_places()];
+    for active in ["Start", "Step1"] {
+        st.apply(&marking(&v1, &[active]), &v6, &mut out)
+            .expect("applies");
+        assert_eq!(
+            out,
+            marking(&v6, &[active]),
+            "{active} carries over by name"
+        );
+    }
+    // Step1 active since 2 s: its time is kept, so `Step1.T` goes on counting.
+    let since = [None, Some(2_000_000)];
+    let mut timers = vec![None; v6.net().num_places()];
+    st.apply(&marking(&v1, &["Step1"]), &v6, &mut out)
+        .expect("applies");
+    st.apply_timers(&since, &out, 5_000_000, &mut timers);
+    let step1 = v6.net().place_by_id("Step1").expect("Step1").index();
+    assert_eq!(timers[step1], Some(2_000_000));
+}
+
+#[test]
+fn going_back_to_version_1_while_a_removed_parallel_step_is_active_is_refused() {
+    let (v1, v6) = (
+        program("twincat-sfc-evolution-1.xml"),
+        program("twincat-sfc-evolution-6.xml"),
+    );
+    let st = StateTransform::generated(&v6, &v1, &BTreeMap::new()).expect("a transform");
+    let mut out = vec![0; v1.net().num_places()];
+    st.apply(&marking(&v6, &["Step1"]), &v1, &mut out)
+        .expect("Step1 is kept");
+    assert_eq!(out, marking(&v1, &["Step1"]));
+    let err = st
+        .apply(&marking(&v6, &["Step2", "Step3"]), &v1, &mut out)
+        .expect_err("Step2 and Step3 are removed while active");
+    assert!(err.to_string().contains("Step2"), "{err}");
+    // With a mapping for the removed step (a package's `removed` table), its token goes there.
+    let map = BTreeMap::from([("Step2".to_string(), "Step1".to_string())]);
+    let st = StateTransform::generated(&v6, &v1, &map).expect("a transform");
+    assert!(st.apply(&marking(&v6, &["Step2"]), &v1, &mut out).is_ok());
+    assert_eq!(out, marking(&v1, &["Step1"]));
+}

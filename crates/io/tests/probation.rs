@@ -14,6 +14,8 @@ use cetratus_runtime::{
 use cetratus_twin::Plant;
 use updates::{Cell, Workshop};
 
+/// Held by every test of this file: a fault armed by one test (`inject::arm`) hits every scan of
+/// the program it names, in any thread of this process, so the tests take turns.
 static TURN: Mutex<()> = Mutex::new(());
 
 const WINDOW_US: u64 = 5_000_000;
@@ -57,6 +59,7 @@ fn parts(cell: &Cell) -> u64 {
 
 #[test]
 fn a_substitution_with_a_window_keeps_the_old_program_as_a_shadow_until_the_window_ends() {
+    let _turn = TURN.lock().unwrap_or_else(|e| e.into_inner());
     let w = Workshop::new();
     let mut cell = on_probation(&w, &w.package("u1.package.toml"), 2_000_000);
     assert_eq!(
@@ -92,6 +95,7 @@ fn a_substitution_with_a_window_keeps_the_old_program_as_a_shadow_until_the_wind
 
 #[test]
 fn accept_ends_probation_at_the_next_cycle_and_no_load_is_taken_before() {
+    let _turn = TURN.lock().unwrap_or_else(|e| e.into_inner());
     let w = Workshop::new();
     let u1 = w.package("u1.package.toml");
     let mut cell = on_probation(&w, &u1, 2_000_000);
@@ -133,6 +137,7 @@ fn accept_ends_probation_at_the_next_cycle_and_no_load_is_taken_before() {
 
 #[test]
 fn revert_gives_the_old_program_the_projected_marking_and_the_outputs_in_the_same_cycle() {
+    let _turn = TURN.lock().unwrap_or_else(|e| e.into_inner());
     let w = Workshop::new();
     let mut cell = on_probation(&w, &w.package("u1.package.toml"), 2_000_000);
     cell.run_for(1_000_000);
@@ -196,6 +201,7 @@ fn revert_gives_the_old_program_the_projected_marking_and_the_outputs_in_the_sam
 
 #[test]
 fn a_revert_keeps_the_shadows_own_marking_when_the_projected_one_breaks_the_old_invariants() {
+    let _turn = TURN.lock().unwrap_or_else(|e| e.into_inner());
     let w = Workshop::new();
     let window = 600_000_000;
     let mut cell = on_probation_for(&w, &w.package("u1.package.toml"), 2_000_000, window);
@@ -282,6 +288,7 @@ fn a_new_primary_that_faults_on_probation_is_reverted_at_the_next_cycle() {
 
 #[test]
 fn a_new_primary_that_breaks_a_declared_invariant_on_probation_is_reverted() {
+    let _turn = TURN.lock().unwrap_or_else(|e| e.into_inner());
     let w = Workshop::new();
     // A U.1 that declares a wrong invariant: H + B = 9 holds until a part leaves M1 for the
     // buffer (T13 takes a free slot and P14 holds the part).

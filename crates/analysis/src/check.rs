@@ -2,13 +2,18 @@
 
 use std::sync::atomic::AtomicBool;
 use std::sync::Arc;
-use std::time::Instant;
+use std::time::Duration;
 
 use cetratus_net::{Net, PlaceIdx, TransIdx};
 
+use crate::budget::{
+    Clock, Deadline, PartialReason, DEFAULT_MAX_MEMORY, DEFAULT_MAX_STATES, DEFAULT_TIMEOUT,
+};
 use crate::classify::classify;
 use crate::coverability::{karp_miller, OMEGA};
-use crate::invariants::{p_semiflows, structural_bounds, t_semiflows, Semiflow, DEFAULT_MAX_ROWS};
+use crate::invariants::{
+    p_semiflows_within, structural_bounds_within, t_semiflows_within, Semiflow, DEFAULT_MAX_ROWS,
+};
 use crate::reach::{explore, Packing, ReachOptions, ReachResult, Stop};
 use crate::report::{Bound, Named, Report, Timings};
 use crate::siphons::{holds_marked_trap, minimal_siphons, minimal_traps, MinimalSets, SetLimits};
@@ -23,6 +28,8 @@ pub struct Progress {
     pub edges: u64,
     /// States expanded (the BFS cursor).
     pub expanded: u64,
+    /// Bytes the state space holds, as counted for `max_memory`.
+    pub bytes: u64,
 }
 
 /// A progress callback, called from the exploring thread every few thousand states.
@@ -31,8 +38,15 @@ pub type ProgressFn = Arc<dyn Fn(Progress) + Send + Sync>;
 /// Options of [`check`].
 #[derive(Clone)]
 pub struct CheckOptions {
-    /// Stop exploring after this many states; the report is then partial.
+    /// Stop exploring after this many states; the report is then partial (`max_states`).
     pub max_states: Option<u64>,
+    /// Stop before the state space would hold more than this many bytes (`max_memory`).
+    pub max_memory: Option<u64>,
+    /// Stop when this much time has passed on `clock` (`timeout`); needs a clock.
+    pub timeout: Option<Duration>,
+    /// The clock of the time budget and of the report's timings. The analysis reads no clock
+    /// of its own: without one, there is no time budget and every timing is 0.
+    pub clock: Option<Arc<dyn Clock>>,
     /// Threads to use. With 2 or more, the invariants, siphons and traps are computed beside the
     /// state-space exploration, and the exploration itself runs on this many threads (same
     /// states, ids, counts and witness as on one thread).
@@ -52,7 +66,10 @@ pub struct CheckOptions {
 impl Default for CheckOptions {
     fn default() -> Self {
         CheckOptions {
-            max_states: None,
+            max_states: Some(DEFAULT_MAX_STATES),
+            max_memory: Some(DEFAULT_MAX_MEMORY),
+            timeout: Some(DEFAULT_TIMEOUT),
+            clock: None,
             threads: 1,
             cancel: None,
             progress: None,
@@ -63,8 +80,19 @@ impl Default for CheckOptions {
     }
 }
 
-fn ms(t: Instant) -> f64 {
-    t.elapsed().as_secs_f64() * 1e3
+/// Milliseconds on the options' clock since `since` (0 without a clock).
+fn ms(opts: &CheckOptions, since: Duration) -> f64 {
+    now(opts).saturating_sub(since).as_secs_f64() * 1e3
+}
+
+/// The Farkas tableaux share the memory budget with the state space.
+fn tableau_bytes(opts: &CheckOptions) -> usize {
+    opts.max_memory
+        .map_or(usize::MAX, |m| usize::try_from(m).unwrap_or(usize::MAX))
+}
+
+fn now(opts: &CheckOptions) -> Duration {
+    opts.clock.as_ref().map_or(Duration::ZERO, |c| c.elapsed())
 }
 
 struct Structural {
@@ -77,11 +105,11 @@ struct Structural {
 }
 
 fn structural(net: &Net, opts: &CheckOptions) -> Structural {
-    let t0 = Instant::now();
-    let p = p_semiflows(net, opts.farkas_max_rows);
-    let t = t_semiflows(net, opts.farkas_max_rows);
-    let invariants_ms = ms(t0);
-    let t1 = Instant::now();
+    let t0 = now(opts);
+    let p = p_semiflows_within(net, opts.farkas_max_rows, tableau_bytes(opts));
+    let t = t_semiflows_within(net, opts.farkas_max_rows, tableau_bytes(opts));
+    let invariants_ms = ms(opts, t0);
+    let t1 = now(opts);
     let siphons = minimal_siphons(net, opts.set_limits);
     let traps = minimal_traps(net, opts.set_limits);
     Structural {
@@ -90,7 +118,7 @@ fn structural(net: &Net, opts: &CheckOptions) -> Structural {
         siphons,
         traps,
         invariants_ms,
-        siphons_ms: ms(t1),
+        siphons_ms: ms(opts, t1),
     }
 }
 
@@ -107,8 +135,14 @@ fn behaviour(
     opts: &CheckOptions,
     notes: &mut Vec<String>,
 ) -> Behaviour {
+    let deadline = match (&opts.clock, opts.timeout) {
+        (Some(c), Some(t)) => Some(Deadline::after(c.clone(), t)),
+        _ => None,
+    };
     let ropts = ReachOptions {
         max_states: opts.max_states,
+        max_memory: opts.max_memory,
+        deadline,
         cancel: opts.cancel.clone(),
         progress: opts.progress.clone(),
         liveness: true,
@@ -158,7 +192,7 @@ fn named_flow(net: &Net, s: &Semiflow, places: bool) -> Named<i64> {
 /// Runs every analysis on `net` and reports. Never fails: what could not be computed is `null` in
 /// the report and explained in its notes.
 pub fn check(net: &Net, opts: &CheckOptions) -> Report {
-    let t0 = Instant::now();
+    let t0 = now(opts);
     let np = net.num_places();
     let nt = net.num_transitions();
     let pid = |p: usize| net.places()[p].id.clone();
@@ -167,7 +201,7 @@ pub fn check(net: &Net, opts: &CheckOptions) -> Report {
     let mut warnings: Vec<String> = Vec::new();
     let classification = classify(net);
     let incidence = (np * nt <= 10_000).then(|| Incidence::of(net));
-    let sb = structural_bounds(net, opts.farkas_max_rows);
+    let sb = structural_bounds_within(net, opts.farkas_max_rows, tableau_bytes(opts));
     let known: Vec<Option<u64>> = match &sb {
         Ok(b) => b
             .iter()
@@ -189,15 +223,15 @@ pub fn check(net: &Net, opts: &CheckOptions) -> Report {
         }
     };
     let structurally_bounded = sb.as_ref().ok().map(|b| b.iter().all(Option::is_some));
-    let structure_ms = ms(t0);
+    let structure_ms = ms(opts, t0);
 
-    let tb = Instant::now();
+    let tb = now(opts);
     let (st, beh, behaviour_ms) = if opts.threads >= 2 && opts.behaviour {
         std::thread::scope(|s| {
             let h = s.spawn(|| structural(net, opts));
             let mut n = Vec::new();
             let b = behaviour(net, &known, opts, &mut n);
-            let bms = ms(tb);
+            let bms = ms(opts, tb);
             // A panic in the structural thread is a bug; surface it rather than hide it.
             let st = match h.join() {
                 Ok(st) => st,
@@ -208,13 +242,13 @@ pub fn check(net: &Net, opts: &CheckOptions) -> Report {
         })
     } else {
         let st = structural(net, opts);
-        let tb = Instant::now();
+        let tb = now(opts);
         let b = if opts.behaviour {
             behaviour(net, &known, opts, &mut notes)
         } else {
             Behaviour::None("behaviour not requested".into())
         };
-        (st, b, ms(tb))
+        (st, b, ms(opts, tb))
     };
 
     let p_invariants = match &st.p {
@@ -342,20 +376,29 @@ pub fn check(net: &Net, opts: &CheckOptions) -> Report {
             behaviour_ms,
         },
     };
-    let stop_reason = |s: &Stop| match s {
-        Stop::MaxStates(n) => format!(
-            "stopped after {n} states (--max-states); counts are lower bounds and liveness, \
-             reversibility and exact bounds are not decided"
-        ),
-        Stop::Cancelled => "cancelled (Ctrl-C); counts are lower bounds and liveness, \
-                            reversibility and exact bounds are not decided"
-            .into(),
+    let stop_note = |s: &Stop| {
+        let what = match s {
+            Stop::MaxStates(n) => format!("stopped after {n} states (raise --max-states)"),
+            Stop::MaxMemory(b) => format!(
+                "stopped before the state space would hold more than {b} bytes (raise \
+                 --max-memory)"
+            ),
+            Stop::Timeout => "stopped when the time budget ran out (raise --timeout)".into(),
+            Stop::Cancelled => "cancelled (Ctrl-C)".into(),
+        };
+        format!(
+            "{what}; counts are lower bounds and liveness, reversibility and exact bounds are \
+             not decided"
+        )
     };
     match beh {
         Behaviour::None(why) => {
             if opts.behaviour {
                 report.partial = true;
-                report.partial_reason = Some(why);
+                report.partial_reason = Some(PartialReason::NotExplored);
+                report
+                    .notes
+                    .push(format!("the state space was not explored: {why}"));
             }
         }
         Behaviour::Reach(r) => {
@@ -381,10 +424,25 @@ pub fn check(net: &Net, opts: &CheckOptions) -> Report {
             match &r.stopped {
                 Some(s) => {
                     report.partial = true;
-                    report.partial_reason = Some(stop_reason(s));
+                    report.partial_reason = Some(s.reason());
+                    report.notes.push(stop_note(s));
                 }
                 None => {
                     report.safe = Some(r.max_tokens.iter().all(|&m| m <= 1));
+                    if let Some(s) = &r.liveness_stopped {
+                        report.partial = true;
+                        report.partial_reason = Some(s.reason());
+                        report.notes.push(format!(
+                            "every state was explored, but the liveness pass {}",
+                            match s {
+                                Stop::MaxMemory(b) => format!(
+                                    "would have held more than {b} bytes (raise --max-memory)"
+                                ),
+                                Stop::Timeout => "ran out of time (raise --timeout)".into(),
+                                _ => "was stopped".into(),
+                            }
+                        ));
+                    }
                     if let Some(l) = &r.liveness {
                         report.live = Some(l.live);
                         report.non_live_transitions = l.non_live.iter().map(|&t| tid(t)).collect();
@@ -448,7 +506,8 @@ pub fn check(net: &Net, opts: &CheckOptions) -> Report {
             }
             if let Some(s) = &km.stopped {
                 report.partial = true;
-                report.partial_reason = Some(stop_reason(s));
+                report.partial_reason = Some(s.reason());
+                report.notes.push(stop_note(s));
             }
         }
     }

@@ -9,9 +9,6 @@
 //! explored exactly, not declared ω), and an ω place fails every inhibitor test. With either
 //! feature the unbounded places reported are a best effort, and the report says so.
 
-use std::collections::HashMap;
-use std::sync::atomic::Ordering;
-
 use cetratus_net::{Net, PlaceIdx, TransIdx};
 
 use crate::reach::{ReachOptions, Stop};
@@ -69,7 +66,101 @@ fn fire(net: &Net, t: TransIdx, m: &[u64]) -> Vec<u64> {
     out
 }
 
-/// Builds the Karp–Miller graph of `net`, within `opts.max_states` nodes.
+/// Nodes in chunks that never move (no reallocation peak), each row the node's counts followed by
+/// its parent and the transition that made it, packed into one `u64`.
+struct Nodes {
+    width: usize,
+    chunks: Vec<Vec<u64>>,
+    len: usize,
+}
+
+const NODE_CHUNK: usize = 4096;
+const NO_PARENT: u64 = u64::MAX;
+
+impl Nodes {
+    fn row(&self, i: usize) -> &[u64] {
+        let c = &self.chunks[i / NODE_CHUNK];
+        let o = (i % NODE_CHUNK) * self.width;
+        &c[o..o + self.width]
+    }
+    fn marking(&self, i: usize) -> &[u64] {
+        let r = self.row(i);
+        &r[..r.len() - 1]
+    }
+    /// `(parent, transition)`, `None` for the root.
+    fn parent(&self, i: usize) -> Option<(usize, u32)> {
+        let link = self.row(i)[self.width - 1];
+        (link != NO_PARENT).then_some(((link >> 32) as usize, link as u32))
+    }
+    fn push(&mut self, m: &[u64], link: u64) {
+        if self.len % NODE_CHUNK == 0 {
+            self.chunks
+                .push(Vec::with_capacity(NODE_CHUNK * self.width));
+        }
+        if let Some(c) = self.chunks.last_mut() {
+            c.extend_from_slice(m);
+            c.push(link);
+        }
+        self.len += 1;
+    }
+    fn bytes(&self) -> usize {
+        self.chunks.len() * NODE_CHUNK * self.width * 8
+    }
+}
+
+fn hash_marking(m: &[u64]) -> u64 {
+    let mut h = 0x243F_6A88_85A3_08D3u64;
+    for &w in m {
+        h = (h ^ w).wrapping_mul(0x9E37_79B9_7F4A_7C15);
+        h ^= h >> 32;
+    }
+    h
+}
+
+/// Open addressing over node ids (`u32::MAX` empty), load at most 3/4.
+struct Seen {
+    slots: Vec<u32>,
+    len: usize,
+}
+
+impl Seen {
+    fn find(&self, nodes: &Nodes, m: &[u64]) -> Result<u32, usize> {
+        let mask = self.slots.len() - 1;
+        let mut i = hash_marking(m) as usize & mask;
+        loop {
+            match self.slots[i] {
+                u32::MAX => return Err(i),
+                id if nodes.marking(id as usize) == m => return Ok(id),
+                _ => i = (i + 1) & mask,
+            }
+        }
+    }
+    /// Bytes held while growing for one more id (old and new slots), or now.
+    fn bytes_to_fit_one(&self) -> usize {
+        if (self.len + 1) * 4 > self.slots.len() * 3 {
+            self.slots.len() * 3 * 4
+        } else {
+            self.slots.len() * 4
+        }
+    }
+    fn insert(&mut self, nodes: &Nodes, id: u32) {
+        if (self.len + 1) * 4 > self.slots.len() * 3 {
+            let cap = self.slots.len() * 2;
+            let old = std::mem::replace(&mut self.slots, vec![u32::MAX; cap]);
+            for x in old.into_iter().filter(|&x| x != u32::MAX) {
+                if let Err(i) = self.find(nodes, nodes.marking(x as usize)) {
+                    self.slots[i] = x;
+                }
+            }
+        }
+        if let Err(i) = self.find(nodes, nodes.marking(id as usize)) {
+            self.slots[i] = id;
+            self.len += 1;
+        }
+    }
+}
+
+/// Builds the Karp–Miller graph of `net`, within the options' states, bytes and time.
 pub fn karp_miller(net: &Net, opts: &ReachOptions) -> Coverability {
     let np = net.num_places();
     let nt = net.num_transitions();
@@ -85,62 +176,85 @@ pub fn karp_miller(net: &Net, opts: &ReachOptions) -> Coverability {
             net.capacity(p).is_some() || !net.inhibited(p).is_empty()
         })
         .collect();
-    let mut nodes: Vec<Vec<u64>> = vec![m0.clone()];
-    let mut parent: Vec<(u32, u32)> = vec![(u32::MAX, 0)];
-    let mut seen: HashMap<Vec<u64>, u32> = HashMap::new();
-    seen.insert(m0, 0);
-    let max_states = opts.max_states.unwrap_or(u64::from(u32::MAX - 1));
+    let accelerable = frozen.iter().any(|f| !f);
+    let mut nodes = Nodes {
+        width: np + 1,
+        chunks: Vec::new(),
+        len: 0,
+    };
+    nodes.push(&m0, NO_PARENT);
+    let mut seen = Seen {
+        slots: vec![u32::MAX; 1 << 10],
+        len: 0,
+    };
+    seen.insert(&nodes, 0);
+    let max_states = opts
+        .max_states
+        .unwrap_or(u64::from(u32::MAX - 1))
+        .min(u64::from(u32::MAX - 1));
     let (mut edges, mut dead) = (0u64, 0u64);
     let mut first_dead = None;
     let mut stopped = None;
     let mut cur = 0usize;
-    'bfs: while cur < nodes.len() {
-        if cur & 0xFFF == 0 && cur > 0 {
-            if opts
-                .cancel
-                .as_ref()
-                .is_some_and(|c| c.load(Ordering::Relaxed))
-            {
-                stopped = Some(Stop::Cancelled);
+    let mut m: Vec<u64> = Vec::with_capacity(np);
+    'bfs: while cur < nodes.len {
+        // Acceleration walks the ancestors, so a node can cost its depth: check often.
+        if cur & 0xFF == 0 && cur > 0 {
+            if let Some(s) = opts.interrupted() {
+                stopped = Some(s);
                 break;
             }
             if let Some(p) = &opts.progress {
                 p(Progress {
-                    states: nodes.len() as u64,
+                    states: nodes.len as u64,
                     edges,
                     expanded: cur as u64,
+                    bytes: (nodes.bytes() + seen.slots.len() * 4) as u64,
                 });
             }
         }
+        m.clear();
+        m.extend_from_slice(nodes.marking(cur));
         let mut any = false;
         for ti in 0..nt {
             let t = TransIdx(ti as u32);
-            if !enabled(net, t, &nodes[cur]) {
+            if !enabled(net, t, &m) {
                 continue;
             }
             any = true;
             edges += 1;
-            let mut succ = fire(net, t, &nodes[cur]);
-            let mut a = cur as u32;
-            while a != u32::MAX {
-                let anc = &nodes[a as usize];
-                if anc.iter().zip(&succ).all(|(x, y)| x <= y) && *anc != succ {
+            let mut succ = fire(net, t, &m);
+            // Only places that are not frozen are accelerated: with none, the walk is skipped
+            // (it would make a long chain of states cost its length squared).
+            let mut a = accelerable.then_some(cur);
+            while let Some(ai) = a {
+                let anc = nodes.marking(ai);
+                if anc.iter().zip(&succ).all(|(x, y)| x <= y) && *anc != succ[..] {
                     for p in 0..np {
                         if anc[p] < succ[p] && !frozen[p] {
                             succ[p] = OMEGA;
                         }
                     }
                 }
-                a = parent[a as usize].0;
+                a = nodes.parent(ai).map(|(p, _)| p);
             }
-            if !seen.contains_key(&succ) {
-                if nodes.len() as u64 >= max_states {
+            if seen.find(&nodes, &succ).is_err() {
+                if nodes.len as u64 >= max_states {
                     stopped = Some(Stop::MaxStates(max_states));
                     break 'bfs;
                 }
-                seen.insert(succ.clone(), nodes.len() as u32);
-                nodes.push(succ);
-                parent.push((cur as u32, ti as u32));
+                let chunk = if nodes.len % NODE_CHUNK == 0 {
+                    NODE_CHUNK * nodes.width * 8
+                } else {
+                    0
+                };
+                if let Err(s) = opts.within_memory(nodes.bytes() + chunk + seen.bytes_to_fit_one())
+                {
+                    stopped = Some(s);
+                    break 'bfs;
+                }
+                nodes.push(&succ, (cur as u64) << 32 | ti as u64);
+                seen.insert(&nodes, nodes.len as u32 - 1);
             }
         }
         if !any {
@@ -150,23 +264,23 @@ pub fn karp_miller(net: &Net, opts: &ReachOptions) -> Coverability {
         cur += 1;
     }
     let mut max_tokens = vec![0u64; np];
-    for m in &nodes {
-        for (x, &v) in max_tokens.iter_mut().zip(m) {
+    for i in 0..nodes.len {
+        for (x, &v) in max_tokens.iter_mut().zip(nodes.marking(i)) {
             *x = (*x).max(v);
         }
     }
     let dead_witness = first_dead.map(|d| {
         let mut path = Vec::new();
         let mut v = d;
-        while parent[v].0 != u32::MAX {
-            path.push(TransIdx(parent[v].1));
-            v = parent[v].0 as usize;
+        while let Some((p, t)) = nodes.parent(v) {
+            path.push(TransIdx(t));
+            v = p;
         }
         path.reverse();
         path
     });
     Coverability {
-        nodes: nodes.len() as u64,
+        nodes: nodes.len as u64,
         edges,
         dead,
         dead_witness,

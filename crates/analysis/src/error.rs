@@ -25,6 +25,14 @@ pub enum AnalysisError {
         /// Bits supported.
         max: usize,
     },
+    /// A size given on the command line could not be read.
+    #[error("cannot read the size {text:?}: {why} (e.g. 4GiB, 512MiB or 1000000)")]
+    BadSize {
+        /// The text given.
+        text: String,
+        /// What is wrong with it.
+        why: String,
+    },
     /// A generated net could not be built.
     #[error(transparent)]
     Net(#[from] cetratus_net::NetError),

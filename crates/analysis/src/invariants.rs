@@ -7,7 +7,7 @@
 
 use cetratus_net::Net;
 
-use crate::{AnalysisError, Incidence};
+use crate::AnalysisError;
 
 /// A semiflow as sparse `(index, weight)` pairs, weights > 0, indices increasing. The index is a
 /// place index for P-semiflows and a transition index for T-semiflows.
@@ -35,10 +35,22 @@ impl Semiflow {
 /// The default cap on the number of rows the Farkas tableau may hold.
 pub const DEFAULT_MAX_ROWS: usize = 50_000;
 
+/// One row of the tableau `[A | I]`, both parts sparse (sorted `(index, value)`, no zeros), so
+/// that a net of many places holds a few numbers per row rather than places + transitions.
 struct Row {
-    lhs: Vec<i64>,
-    rhs: Vec<i64>,
-    support: Vec<u64>,
+    lhs: Vec<(u32, i64)>,
+    rhs: Vec<(u32, i64)>,
+}
+
+impl Row {
+    fn at(&self, j: u32) -> i64 {
+        self.lhs
+            .binary_search_by_key(&j, |e| e.0)
+            .map_or(0, |k| self.lhs[k].1)
+    }
+    fn bytes(&self) -> usize {
+        (self.lhs.capacity() + self.rhs.capacity()) * 16 + std::mem::size_of::<Row>()
+    }
 }
 
 fn gcd(mut a: i128, mut b: i128) -> i128 {
@@ -52,46 +64,118 @@ fn gcd(mut a: i128, mut b: i128) -> i128 {
     a
 }
 
-fn is_subset(a: &[u64], b: &[u64]) -> bool {
-    a.iter().zip(b).all(|(x, y)| x & !y == 0)
+/// `small ⊆ big`, both sorted by index.
+fn is_subset(small: &[(u32, i64)], big: &[(u32, i64)]) -> bool {
+    if small.len() > big.len() {
+        return false;
+    }
+    let mut k = 0;
+    for &(i, _) in small {
+        match big[k..].binary_search_by_key(&i, |e| e.0) {
+            Ok(x) => k += x + 1,
+            Err(_) => return false,
+        }
+    }
+    true
 }
 
-fn popcount(a: &[u64]) -> u32 {
-    a.iter().map(|w| w.count_ones()).sum()
+fn same_support(a: &[(u32, i64)], b: &[(u32, i64)]) -> bool {
+    a.len() == b.len() && a.iter().zip(b).all(|(x, y)| x.0 == y.0)
 }
 
-/// All minimal-support `x ≥ 0, x ≠ 0` with `x·A = 0`, for `A` given by rows (each of length `m`).
-///
-/// `what` names the computation in errors. Rows beyond `max_rows` abandon the computation with
-/// [`AnalysisError::Limit`].
+/// `a·x + b·y` over two sparse vectors, checked; the gcd of the result folded into `g`.
+fn combine(
+    a: i128,
+    x: &[(u32, i64)],
+    b: i128,
+    y: &[(u32, i64)],
+    g: &mut i128,
+) -> Option<Vec<(u32, i128)>> {
+    let mut out = Vec::with_capacity(x.len() + y.len());
+    let (mut i, mut k) = (0, 0);
+    while i < x.len() || k < y.len() {
+        let (idx, u, v) = match (x.get(i), y.get(k)) {
+            (Some(&(xi, xv)), Some(&(yi, _))) if xi < yi => {
+                i += 1;
+                (xi, xv, 0)
+            }
+            (Some(&(xi, _)), Some(&(yi, yv))) if yi < xi => {
+                k += 1;
+                (yi, 0, yv)
+            }
+            (Some(&(xi, xv)), Some(&(_, yv))) => {
+                i += 1;
+                k += 1;
+                (xi, xv, yv)
+            }
+            (Some(&(xi, xv)), None) => {
+                i += 1;
+                (xi, xv, 0)
+            }
+            (None, Some(&(yi, yv))) => {
+                k += 1;
+                (yi, 0, yv)
+            }
+            (None, None) => break,
+        };
+        let r = a
+            .checked_mul(i128::from(u))?
+            .checked_add(b.checked_mul(i128::from(v))?)?;
+        if r != 0 {
+            *g = gcd(*g, r);
+            out.push((idx, r));
+        }
+    }
+    Some(out)
+}
+
+/// All minimal-support `x ≥ 0, x ≠ 0` with `x·A = 0`, for `A` given by dense rows (each of
+/// length `m`). See [`farkas_sparse`].
 pub fn farkas(
     a: &[Vec<i64>],
     m: usize,
     max_rows: usize,
     what: &'static str,
 ) -> Result<Vec<Semiflow>, AnalysisError> {
-    let n = a.len();
-    let words = n.div_ceil(64).max(1);
+    let sparse: Vec<Vec<(u32, i64)>> = a
+        .iter()
+        .map(|r| {
+            r.iter()
+                .enumerate()
+                .filter(|e| *e.1 != 0)
+                .map(|(j, &v)| (j as u32, v))
+                .collect()
+        })
+        .collect();
+    farkas_sparse(&sparse, m, max_rows, usize::MAX, what)
+}
+
+/// All minimal-support `x ≥ 0, x ≠ 0` with `x·A = 0`, for `A` given by sparse rows (sorted
+/// `(column, value)` pairs, columns below `m`).
+///
+/// `what` names the computation in errors. More than `max_rows` rows, or a tableau holding more
+/// than `max_bytes`, abandons the computation with [`AnalysisError::Limit`].
+pub fn farkas_sparse(
+    a: &[Vec<(u32, i64)>],
+    m: usize,
+    max_rows: usize,
+    max_bytes: usize,
+    what: &'static str,
+) -> Result<Vec<Semiflow>, AnalysisError> {
     let mut rows: Vec<Row> = a
         .iter()
         .enumerate()
-        .map(|(i, r)| {
-            let mut rhs = vec![0; n];
-            rhs[i] = 1;
-            let mut support = vec![0u64; words];
-            support[i / 64] |= 1 << (i % 64);
-            Row {
-                lhs: r.clone(),
-                rhs,
-                support,
-            }
+        .map(|(i, r)| Row {
+            lhs: r.clone(),
+            rhs: vec![(i as u32, 1)],
         })
         .collect();
+    let mut bytes: usize = rows.iter().map(Row::bytes).sum();
     let overflow = || AnalysisError::Overflow { what };
-    for j in 0..m {
+    for j in 0..m as u32 {
         let (mut pos, mut neg, mut zero) = (Vec::new(), Vec::new(), Vec::new());
         for r in rows.drain(..) {
-            match r.lhs[j].signum() {
+            match r.at(j).signum() {
                 1 => pos.push(r),
                 -1 => neg.push(r),
                 _ => zero.push(r),
@@ -101,53 +185,41 @@ pub fn farkas(
         let mut next = zero;
         for p in &pos {
             for q in &neg {
-                let support: Vec<u64> = p
-                    .support
-                    .iter()
-                    .zip(&q.support)
-                    .map(|(x, y)| x | y)
-                    .collect();
+                let (a, b) = (i128::from(-q.at(j)), i128::from(p.at(j)));
+                let mut g = 0i128;
+                let rhs = combine(a, &p.rhs, b, &q.rhs, &mut g).ok_or_else(overflow)?;
                 // A combination whose support contains a surviving row's support cannot be minimal.
-                if next[..kept]
-                    .iter()
-                    .any(|z| is_subset(&z.support, &support) && z.support != support)
-                {
+                let support: Vec<(u32, i64)> = rhs.iter().map(|&(i, _)| (i, 0)).collect();
+                if next[..kept].iter().any(|z| {
+                    z.rhs.len() < support.len()
+                        && z.rhs[0].0 >= support[0].0
+                        && is_subset(&z.rhs, &support)
+                }) {
                     continue;
                 }
-                let a = i128::from(-q.lhs[j]);
-                let b = i128::from(p.lhs[j]);
-                let combine = |x: i64, y: i64| -> Option<i128> {
-                    a.checked_mul(i128::from(x))?
-                        .checked_add(b.checked_mul(i128::from(y))?)
-                };
-                let mut lhs = Vec::with_capacity(m);
-                let mut rhs = Vec::with_capacity(n);
-                let mut g = 0i128;
-                for (&x, &y) in p.lhs.iter().zip(&q.lhs) {
-                    let v = combine(x, y).ok_or_else(overflow)?;
-                    g = gcd(g, v);
-                    lhs.push(v);
-                }
-                for (&x, &y) in p.rhs.iter().zip(&q.rhs) {
-                    let v = combine(x, y).ok_or_else(overflow)?;
-                    g = gcd(g, v);
-                    rhs.push(v);
-                }
+                let lhs = combine(a, &p.lhs, b, &q.lhs, &mut g).ok_or_else(overflow)?;
                 let g = g.max(1);
-                let shrink = |v: Vec<i128>| -> Result<Vec<i64>, AnalysisError> {
+                let shrink = |v: Vec<(u32, i128)>| -> Result<Vec<(u32, i64)>, AnalysisError> {
                     v.into_iter()
-                        .map(|x| i64::try_from(x / g).map_err(|_| overflow()))
+                        .map(|(i, x)| Ok((i, i64::try_from(x / g).map_err(|_| overflow())?)))
                         .collect()
                 };
-                next.push(Row {
+                let row = Row {
                     lhs: shrink(lhs)?,
                     rhs: shrink(rhs)?,
-                    support,
-                });
+                };
+                bytes += row.bytes();
+                next.push(row);
                 if next.len() > max_rows {
                     return Err(AnalysisError::Limit {
                         what,
                         limit: max_rows,
+                    });
+                }
+                if bytes > max_bytes {
+                    return Err(AnalysisError::Limit {
+                        what,
+                        limit: max_bytes,
                     });
                 }
             }
@@ -155,11 +227,11 @@ pub fn farkas(
         // Among the new combinations, drop those whose support strictly contains another's and
         // duplicates of equal support (minimal-support semiflows are unique up to a factor).
         let mut fresh: Vec<Row> = next.split_off(kept);
-        fresh.sort_by_key(|r| popcount(&r.support));
+        fresh.sort_by_key(|r| r.rhs.len());
         let mut accepted: Vec<Row> = Vec::with_capacity(fresh.len());
         for r in fresh {
             let dominated = accepted.iter().any(|s| {
-                is_subset(&s.support, &r.support) && (s.support != r.support || s.rhs == r.rhs)
+                is_subset(&s.rhs, &r.rhs) && (!same_support(&s.rhs, &r.rhs) || s.rhs == r.rhs)
             });
             if !dominated {
                 accepted.push(r);
@@ -167,19 +239,11 @@ pub fn farkas(
         }
         next.extend(accepted);
         rows = next;
+        bytes = rows.iter().map(Row::bytes).sum();
     }
     let mut out: Vec<Semiflow> = rows
         .into_iter()
-        .map(|r| {
-            Semiflow(
-                r.rhs
-                    .iter()
-                    .enumerate()
-                    .filter(|&(_, &w)| w != 0)
-                    .map(|(i, &w)| (i, w))
-                    .collect(),
-            )
-        })
+        .map(|r| Semiflow(r.rhs.iter().map(|&(i, w)| (i as usize, w)).collect()))
         .collect();
     // Equal supports at the end are proportional, hence equal after the gcd division.
     out.sort();
@@ -199,21 +263,66 @@ pub fn farkas(
     Ok(minimal)
 }
 
+/// The columns of C as sparse rows: row `p` holds `(t, C[p][t])`.
+fn c_rows(net: &Net) -> Vec<Vec<(u32, i64)>> {
+    let mut rows = vec![Vec::new(); net.num_places()];
+    for t in 0..net.num_transitions() {
+        for &(p, d) in net.delta(cetratus_net::TransIdx(t as u32)) {
+            rows[p.index()].push((t as u32, d));
+        }
+    }
+    rows
+}
+
+/// Cᵀ as sparse rows: row `t` holds `(p, C[p][t])`.
+fn c_columns(net: &Net) -> Vec<Vec<(u32, i64)>> {
+    (0..net.num_transitions())
+        .map(|t| {
+            let mut r: Vec<(u32, i64)> = net
+                .delta(cetratus_net::TransIdx(t as u32))
+                .iter()
+                .map(|&(p, d)| (p.index() as u32, d))
+                .collect();
+            r.sort_unstable();
+            r
+        })
+        .collect()
+}
+
 /// The minimal P-semiflows of `net` (`y·C = 0`), indices are places.
 pub fn p_semiflows(net: &Net, max_rows: usize) -> Result<Vec<Semiflow>, AnalysisError> {
-    let inc = Incidence::of(net);
-    farkas(&inc.c, net.num_transitions(), max_rows, "P-semiflows")
+    p_semiflows_within(net, max_rows, usize::MAX)
+}
+
+/// [`p_semiflows`] with a limit on the bytes of the tableau.
+pub fn p_semiflows_within(
+    net: &Net,
+    max_rows: usize,
+    max_bytes: usize,
+) -> Result<Vec<Semiflow>, AnalysisError> {
+    let rows = c_rows(net);
+    farkas_sparse(
+        &rows,
+        net.num_transitions(),
+        max_rows,
+        max_bytes,
+        "P-semiflows",
+    )
 }
 
 /// The minimal T-semiflows of `net` (`C·x = 0`), indices are transitions.
 pub fn t_semiflows(net: &Net, max_rows: usize) -> Result<Vec<Semiflow>, AnalysisError> {
-    let inc = Incidence::of(net);
-    farkas(
-        &inc.c_transposed(),
-        net.num_places(),
-        max_rows,
-        "T-semiflows",
-    )
+    t_semiflows_within(net, max_rows, usize::MAX)
+}
+
+/// [`t_semiflows`] with a limit on the bytes of the tableau.
+pub fn t_semiflows_within(
+    net: &Net,
+    max_rows: usize,
+    max_bytes: usize,
+) -> Result<Vec<Semiflow>, AnalysisError> {
+    let rows = c_columns(net);
+    farkas_sparse(&rows, net.num_places(), max_rows, max_bytes, "T-semiflows")
 }
 
 /// Structural bounds: for each place, `Some(b)` when every reachable marking has `M[p] ≤ b`
@@ -224,16 +333,20 @@ pub fn t_semiflows(net: &Net, max_rows: usize) -> Result<Vec<Semiflow>, Analysis
 /// structurally bounded by `⌊y·M0 / y[p]⌋` (for a generator with `y[p] > 0`), and the net is
 /// structurally bounded exactly when every place is. Capacities are not used here.
 pub fn structural_bounds(net: &Net, max_rows: usize) -> Result<Vec<Option<u64>>, AnalysisError> {
+    structural_bounds_within(net, max_rows, usize::MAX)
+}
+
+/// [`structural_bounds`] with a limit on the bytes of the tableau.
+pub fn structural_bounds_within(
+    net: &Net,
+    max_rows: usize,
+    max_bytes: usize,
+) -> Result<Vec<Option<u64>>, AnalysisError> {
     let np = net.num_places();
     let nt = net.num_transitions();
-    let inc = Incidence::of(net);
-    let mut a = inc.c.clone();
-    for t in 0..nt {
-        let mut slack = vec![0; nt];
-        slack[t] = 1;
-        a.push(slack);
-    }
-    let gens = farkas(&a, nt, max_rows, "structural bounds")?;
+    let mut a = c_rows(net);
+    a.extend((0..nt).map(|t| vec![(t as u32, 1)]));
+    let gens = farkas_sparse(&a, nt, max_rows, max_bytes, "structural bounds")?;
     let m0 = net.initial_marking();
     let mut bounds: Vec<Option<u64>> = vec![None; np];
     for g in &gens {

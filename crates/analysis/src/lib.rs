@@ -14,6 +14,7 @@
 //! is one edge, inhibitor arcs are honoured, capacities are enabling conditions, priorities are
 //! ignored.
 
+pub mod budget;
 mod check;
 pub mod classify;
 pub mod coverability;
@@ -26,6 +27,7 @@ pub mod reach;
 mod report;
 pub mod siphons;
 
+pub use budget::{Clock, Deadline, PartialReason};
 pub use check::{check, CheckOptions, Progress, ProgressFn};
 pub use classify::Classification;
 pub use error::AnalysisError;

@@ -27,9 +27,11 @@ use std::sync::Arc;
 
 use cetratus_net::{Net, PlaceIdx, TransIdx};
 
+use crate::budget::{Deadline, PartialReason};
 use crate::{AnalysisError, Progress, ProgressFn};
 
 mod par;
+mod scc;
 
 /// Bits a state may use at most in the packed explorer.
 pub const MAX_BITS: usize = 32 * 63;
@@ -108,15 +110,35 @@ impl Packing {
 pub enum Stop {
     /// `max_states` states were discovered.
     MaxStates(u64),
+    /// Going on would have held more than `max_memory` bytes.
+    MaxMemory(u64),
+    /// The deadline passed.
+    Timeout,
     /// The cancel flag was set.
     Cancelled,
+}
+
+impl Stop {
+    /// The report's name for this stop.
+    pub fn reason(&self) -> PartialReason {
+        match self {
+            Stop::MaxStates(_) => PartialReason::MaxStates,
+            Stop::MaxMemory(_) => PartialReason::MaxMemory,
+            Stop::Timeout => PartialReason::Timeout,
+            Stop::Cancelled => PartialReason::Cancelled,
+        }
+    }
 }
 
 /// Options of one exploration.
 #[derive(Clone, Default)]
 pub struct ReachOptions {
-    /// Stop after discovering this many states.
+    /// Stop after discovering this many states (`None`: only the ids' range limits them).
     pub max_states: Option<u64>,
+    /// Stop before the store would hold more than this many bytes (`None`: no limit).
+    pub max_memory: Option<u64>,
+    /// Stop once this deadline has passed (checked every few thousand states).
+    pub deadline: Option<Deadline>,
     /// Stop when this flag becomes true (checked every few thousand states).
     pub cancel: Option<Arc<AtomicBool>>,
     /// Called every few thousand states with the counts so far.
@@ -126,6 +148,31 @@ pub struct ReachOptions {
     /// Threads of the exploration: 0 or 1 run the sequential explorer, 2 or more the parallel one
     /// (same states, ids, counts and witness; more memory per state).
     pub threads: usize,
+}
+
+impl ReachOptions {
+    /// Why to stop now: cancellation or time (states and bytes are checked where they grow).
+    pub fn interrupted(&self) -> Option<Stop> {
+        if self
+            .cancel
+            .as_ref()
+            .is_some_and(|c| c.load(Ordering::Relaxed))
+        {
+            return Some(Stop::Cancelled);
+        }
+        if self.deadline.as_ref().is_some_and(Deadline::passed) {
+            return Some(Stop::Timeout);
+        }
+        None
+    }
+
+    /// `Err` when holding `bytes` would break the memory budget.
+    pub fn within_memory(&self, bytes: usize) -> Result<(), Stop> {
+        match self.max_memory {
+            Some(m) if bytes as u64 > m => Err(Stop::MaxMemory(m)),
+            _ => Ok(()),
+        }
+    }
 }
 
 /// What the terminal strongly connected components say.
@@ -162,6 +209,8 @@ pub struct ReachResult {
     pub stopped: Option<Stop>,
     /// SCC results, when asked for and the exploration was complete.
     pub liveness: Option<Liveness>,
+    /// Why liveness and reversibility were not decided although the exploration was complete.
+    pub liveness_stopped: Option<Stop>,
     /// Bytes held by the state store at its largest (states, parents, hash table).
     pub peak_bytes: usize,
     /// Bits per packed state.
@@ -180,6 +229,9 @@ struct Test {
 struct Compiled<const W: usize> {
     tests: Vec<Test>,
     offsets: Vec<u32>,
+    /// Per transition, the field ranges in which undoing it stays inside every field.
+    rtests: Vec<Test>,
+    roffsets: Vec<u32>,
     sub: Vec<[u64; W]>,
     add: Vec<[u64; W]>,
 }
@@ -189,6 +241,7 @@ impl<const W: usize> Compiled<W> {
         let nt = net.num_transitions();
         let mut tests = Vec::new();
         let mut offsets = vec![0u32];
+        let (mut rtests, mut roffsets) = (Vec::new(), vec![0u32]);
         let mut sub = vec![[0u64; W]; nt];
         let mut add = vec![[0u64; W]; nt];
         for ti in 0..nt {
@@ -219,6 +272,21 @@ impl<const W: usize> Compiled<W> {
                     }
                 }
                 let f = pk.fields[p.index()];
+                let (lo, hi) = if d > 0 {
+                    (d as u64, f.mask)
+                } else {
+                    match f.mask.checked_sub(d.unsigned_abs()) {
+                        Some(hi) => (0, hi),
+                        None => (1, 0),
+                    }
+                };
+                rtests.push(Test {
+                    word: f.word,
+                    shift: f.shift,
+                    mask: f.mask,
+                    lo,
+                    hi,
+                });
                 let amount = (d.unsigned_abs()) << f.shift;
                 if d > 0 {
                     add[ti][f.word as usize] += amount;
@@ -237,10 +305,13 @@ impl<const W: usize> Compiled<W> {
                 });
             }
             offsets.push(tests.len() as u32);
+            roffsets.push(rtests.len() as u32);
         }
         Compiled {
             tests,
             offsets,
+            rtests,
+            roffsets,
             sub,
             add,
         }
@@ -254,6 +325,26 @@ impl<const W: usize> Compiled<W> {
             let v = (key[x.word as usize] >> x.shift) & x.mask;
             v >= x.lo && v <= x.hi
         })
+    }
+
+    /// The state from which firing `t` gives `key`, if `t` is enabled there.
+    #[inline(always)]
+    fn unfire(&self, key: &[u64; W], t: usize) -> Option<[u64; W]> {
+        let a = self.roffsets[t] as usize;
+        let b = self.roffsets[t + 1] as usize;
+        let inside = self.rtests[a..b].iter().all(|x| {
+            let v = (key[x.word as usize] >> x.shift) & x.mask;
+            v >= x.lo && v <= x.hi
+        });
+        if !inside {
+            return None;
+        }
+        let mut out = *key;
+        let (s, ad) = (&self.sub[t], &self.add[t]);
+        for i in 0..W {
+            out[i] = out[i].wrapping_sub(ad[i]).wrapping_add(s[i]);
+        }
+        self.enabled(&out, t).then_some(out)
     }
 
     #[inline(always)]
@@ -314,10 +405,10 @@ fn hash<const W: usize>(k: &[u64; W]) -> u64 {
 
 const EMPTY: u64 = u64::MAX;
 
-/// Open addressing over the keys themselves; ids per slot only when asked for.
+/// Open addressing over the keys themselves. Once an exploration is complete the table no longer
+/// moves, and a key's slot is its id for the liveness pass (module `scc`).
 struct Table<const W: usize> {
     slots: Vec<[u64; W]>,
-    ids: Option<Vec<u32>>,
     len: usize,
     /// Bytes held during the last growth, when the old and the new slots coexist.
     transient_bytes: usize,
@@ -325,11 +416,10 @@ struct Table<const W: usize> {
 }
 
 impl<const W: usize> Table<W> {
-    fn new(with_ids: bool) -> Self {
+    fn new() -> Self {
         let cap = 1 << 12;
         Table {
             slots: vec![[EMPTY; W]; cap],
-            ids: with_ids.then(|| vec![0; cap]),
             len: 0,
             transient_bytes: 0,
             grows: 0,
@@ -337,7 +427,21 @@ impl<const W: usize> Table<W> {
     }
 
     fn bytes(&self) -> usize {
-        self.slots.len() * (8 * W + if self.ids.is_some() { 4 } else { 0 })
+        self.slots.len() * 8 * W
+    }
+
+    /// Bytes held while growing to fit `n` more keys (old and new slots), or the current bytes
+    /// when no growth is needed.
+    fn bytes_to_fit(&self, n: usize) -> usize {
+        let mut cap = self.slots.len();
+        while (self.len + n) * 4 > cap * 3 {
+            cap *= 2;
+        }
+        if cap == self.slots.len() {
+            self.bytes()
+        } else {
+            (self.slots.len() + cap) * 8 * W
+        }
     }
 
     /// Makes room for `n` more keys, so that slot positions computed now stay valid.
@@ -357,16 +461,13 @@ impl<const W: usize> Table<W> {
 
     /// Inserts the key whose hash is `h`; true when it was new. Call [`Table::reserve`] first.
     #[inline(always)]
-    fn insert_hashed(&mut self, key: &[u64; W], h: u64, id: u32) -> bool {
+    fn insert_hashed(&mut self, key: &[u64; W], h: u64) -> bool {
         let mask = self.slots.len() - 1;
         let mut i = h as usize & mask;
         loop {
             let s = &self.slots[i];
             if s[0] == EMPTY {
                 self.slots[i] = *key;
-                if let Some(ids) = &mut self.ids {
-                    ids[i] = id;
-                }
                 self.len += 1;
                 return true;
             }
@@ -378,23 +479,23 @@ impl<const W: usize> Table<W> {
     }
 
     /// Inserts the key; true when it was new.
-    fn insert(&mut self, key: &[u64; W], id: u32) -> bool {
+    fn insert(&mut self, key: &[u64; W]) -> bool {
         self.reserve(1);
-        self.insert_hashed(key, hash(key), id)
+        self.insert_hashed(key, hash(key))
     }
 
+    /// The slot holding the key whose hash is `h`.
     #[inline(always)]
-    fn id_of(&self, key: &[u64; W]) -> Option<u32> {
-        let ids = self.ids.as_ref()?;
+    fn slot_of(&self, key: &[u64; W], h: u64) -> Option<usize> {
         let mask = self.slots.len() - 1;
-        let mut i = hash(key) as usize & mask;
+        let mut i = h as usize & mask;
         loop {
             let s = &self.slots[i];
             if s[0] == EMPTY {
                 return None;
             }
             if s == key {
-                return Some(ids[i]);
+                return Some(i);
             }
             i = (i + 1) & mask;
         }
@@ -403,14 +504,11 @@ impl<const W: usize> Table<W> {
     fn grow(&mut self) {
         let cap = self.slots.len() * 2;
         let old = std::mem::replace(&mut self.slots, vec![[EMPTY; W]; cap]);
-        let old_ids = self.ids.take();
-        let mut ids = old_ids.as_ref().map(|_| vec![0u32; cap]);
         // Both tables are alive here: this is the peak of the table's memory.
-        let id_bytes = if old_ids.is_some() { 4 } else { 0 };
-        self.transient_bytes = (old.len() + cap) * (8 * W + id_bytes);
+        self.transient_bytes = (old.len() + cap) * 8 * W;
         self.grows += 1;
         let mask = cap - 1;
-        for (j, k) in old.iter().enumerate() {
+        for k in old.iter() {
             if k[0] == EMPTY {
                 continue;
             }
@@ -419,11 +517,7 @@ impl<const W: usize> Table<W> {
                 i = (i + 1) & mask;
             }
             self.slots[i] = *k;
-            if let (Some(ids), Some(old_ids)) = (&mut ids, &old_ids) {
-                ids[i] = old_ids[j];
-            }
         }
-        self.ids = ids;
     }
 }
 
@@ -455,15 +549,18 @@ fn explore_w<const W: usize>(net: &Net, pk: &Packing, opts: &ReachOptions) -> Re
     let nt = net.num_transitions();
     let np = net.num_places();
     let code = Compiled::<W>::new(net, pk);
-    let mut table = Table::<W>::new(opts.liveness);
+    let mut table = Table::<W>::new();
     let mut states: Chunked<[u64; W]> = Chunked::new();
     let mut parents: Chunked<u32> = Chunked::new();
     let mut k0 = [0u64; W];
     pk.encode(net.initial_marking().as_slice(), &mut k0);
-    table.insert(&k0, 0);
+    table.insert(&k0);
     states.push(k0);
     parents.push(u32::MAX);
-    let max_states = opts.max_states.unwrap_or(u64::from(u32::MAX - 1));
+    let max_states = opts
+        .max_states
+        .unwrap_or(u64::from(u32::MAX - 1))
+        .min(u64::from(u32::MAX - 1));
     let mut max_fields: Vec<u64> = vec![0; np];
     let mut observe = |k: &[u64; W]| {
         for (m, f) in max_fields.iter_mut().zip(&pk.fields) {
@@ -477,15 +574,12 @@ fn explore_w<const W: usize>(net: &Net, pk: &Packing, opts: &ReachOptions) -> Re
     let mut first_dead: Option<usize> = None;
     let mut stopped = None;
     let mut peak_bytes = 0usize;
+    let chunk_bytes = (1 << CHUNK_BITS) * (8 * W + 4);
     let mut cur = 0usize;
     'bfs: while cur < states.len {
         if cur & 0x3FFF == 0 && cur > 0 {
-            if opts
-                .cancel
-                .as_ref()
-                .is_some_and(|c| c.load(Ordering::Relaxed))
-            {
-                stopped = Some(Stop::Cancelled);
+            if let Some(s) = opts.interrupted() {
+                stopped = Some(s);
                 break;
             }
             if let Some(p) = &opts.progress {
@@ -493,6 +587,7 @@ fn explore_w<const W: usize>(net: &Net, pk: &Packing, opts: &ReachOptions) -> Re
                     states: states.len as u64,
                     edges,
                     expanded: cur as u64,
+                    bytes: (table.bytes() + states.bytes() + parents.bytes()) as u64,
                 });
             }
         }
@@ -507,18 +602,28 @@ fn explore_w<const W: usize>(net: &Net, pk: &Packing, opts: &ReachOptions) -> Re
                 batch.push((succ, hash(&succ)));
             }
         }
-        edges += batch.len() as u64;
-        let grows = table.grows;
-        table.reserve(batch.len());
-        if table.grows != grows {
-            peak_bytes = peak_bytes.max(table.transient_bytes + states.bytes() + parents.bytes());
+        // Counted before anything grows: the table (old and new while it doubles) and the
+        // chunks that this state's successors may open.
+        let need = table.bytes_to_fit(batch.len())
+            + states.bytes()
+            + parents.bytes()
+            + if (states.len & ((1 << CHUNK_BITS) - 1)) + batch.len() >= 1 << CHUNK_BITS {
+                chunk_bytes
+            } else {
+                0
+            };
+        if let Err(s) = opts.within_memory(need) {
+            stopped = Some(s);
+            break;
         }
+        peak_bytes = peak_bytes.max(need);
+        edges += batch.len() as u64;
+        table.reserve(batch.len());
         for &(_, h) in &batch {
             table.touch(h);
         }
         for (succ, h) in &batch {
-            let id = states.len as u32;
-            if table.insert_hashed(succ, *h, id) {
+            if table.insert_hashed(succ, *h) {
                 if states.len as u64 >= max_states {
                     // One state too many: the run is partial; the expansion of this state stops.
                     stopped = Some(Stop::MaxStates(max_states));
@@ -537,20 +642,28 @@ fn explore_w<const W: usize>(net: &Net, pk: &Packing, opts: &ReachOptions) -> Re
     }
     let peak_bytes = peak_bytes.max(table.bytes() + states.bytes() + parents.bytes());
     let deadlock_witness = deadlock_witness(&code, &states, &parents, first_dead, nt);
-    let liveness = (opts.liveness && stopped.is_none()).then(|| tarjan(&code, &table, &states, nt));
+    let n = states.len;
+    drop((states, parents));
+    let never_enabled: Vec<TransIdx> = (0..nt)
+        .filter(|&t| !enabled_ever[t])
+        .map(|t| TransIdx(t as u32))
+        .collect();
+    let (liveness, liveness_stopped, scc_bytes) = if opts.liveness && stopped.is_none() {
+        scc::liveness(&code, &table, &k0, n, &never_enabled, opts)
+    } else {
+        (None, None, 0)
+    };
     ReachResult {
-        states: states.len as u64,
+        states: n as u64,
         edges,
         deadlocks,
         deadlock_witness,
         max_tokens: max_fields.iter().map(|&m| m as u32).collect(),
-        never_enabled: (0..nt)
-            .filter(|&t| !enabled_ever[t])
-            .map(|t| TransIdx(t as u32))
-            .collect(),
+        never_enabled,
         stopped,
         liveness,
-        peak_bytes,
+        liveness_stopped,
+        peak_bytes: peak_bytes.max(scc_bytes),
         bits_per_state: pk.bits,
     }
 }
@@ -577,119 +690,6 @@ fn deadlock_witness<const W: usize>(
         path.reverse();
         path
     })
-}
-
-/// Iterative Tarjan over the implicit graph (successors are recomputed from the packed states),
-/// recording terminal SCCs and which transitions occur inside each.
-fn tarjan<const W: usize>(
-    code: &Compiled<W>,
-    table: &Table<W>,
-    states: &Chunked<[u64; W]>,
-    nt: usize,
-) -> Liveness {
-    const NONE: u32 = u32::MAX;
-    let n = states.len;
-    let mut index = vec![NONE; n];
-    let mut low = vec![0u32; n];
-    let mut on_stack = vec![0u64; n.div_ceil(64)];
-    let mut exits = vec![0u64; n.div_ceil(64)];
-    let bit = |v: &Vec<u64>, i: usize| v[i >> 6] >> (i & 63) & 1 == 1;
-    let mut stack: Vec<u32> = Vec::new();
-    let mut frames: Vec<(u32, u32)> = Vec::new();
-    let mut next_index = 0u32;
-    let (mut sccs, mut terminal) = (0u64, 0u64);
-    let mut missing = vec![false; nt];
-    let mut root_terminal = false;
-    let mut occurs = vec![false; nt];
-    let mut visit = |v: usize,
-                     index: &mut Vec<u32>,
-                     low: &mut Vec<u32>,
-                     on_stack: &mut Vec<u64>,
-                     stack: &mut Vec<u32>| {
-        index[v] = next_index;
-        low[v] = next_index;
-        next_index += 1;
-        on_stack[v >> 6] |= 1 << (v & 63);
-        stack.push(v as u32);
-    };
-    visit(0, &mut index, &mut low, &mut on_stack, &mut stack);
-    frames.push((0, 0));
-    while let Some(&(v, t0)) = frames.last() {
-        let v = v as usize;
-        let key = states.get(v);
-        let mut descended = false;
-        let mut t = t0 as usize;
-        while t < nt {
-            if code.enabled(&key, t) {
-                let succ = code.fire(&key, t);
-                let w = table.id_of(&succ).map_or(0, |w| w as usize);
-                if index[w] == NONE {
-                    if let Some(f) = frames.last_mut() {
-                        f.1 = t as u32 + 1;
-                    }
-                    visit(w, &mut index, &mut low, &mut on_stack, &mut stack);
-                    frames.push((w as u32, 0));
-                    descended = true;
-                    break;
-                } else if bit(&on_stack, w) {
-                    low[v] = low[v].min(index[w]);
-                } else {
-                    // w belongs to an SCC already completed, so this edge leaves v's SCC.
-                    exits[v >> 6] |= 1 << (v & 63);
-                }
-            }
-            t += 1;
-        }
-        if descended {
-            continue;
-        }
-        frames.pop();
-        if low[v] == index[v] {
-            sccs += 1;
-            let start = stack.iter().rposition(|&x| x as usize == v).unwrap_or(0);
-            let members = stack.split_off(start);
-            let is_terminal = members.iter().all(|&x| !bit(&exits, x as usize));
-            occurs.iter_mut().for_each(|o| *o = false);
-            for &x in &members {
-                let x = x as usize;
-                on_stack[x >> 6] &= !(1 << (x & 63));
-                if is_terminal {
-                    let k = states.get(x);
-                    for (t, o) in occurs.iter_mut().enumerate() {
-                        *o |= code.enabled(&k, t);
-                    }
-                }
-            }
-            if is_terminal {
-                terminal += 1;
-                for (m, o) in missing.iter_mut().zip(&occurs) {
-                    *m |= !o;
-                }
-                if v == 0 {
-                    root_terminal = true;
-                }
-            }
-            if let Some(&(u, _)) = frames.last() {
-                // v's SCC is finished and differs from u's: the tree edge u → v leaves u's SCC.
-                let u = u as usize;
-                exits[u >> 6] |= 1 << (u & 63);
-            }
-        } else if let Some(&(u, _)) = frames.last() {
-            let u = u as usize;
-            low[u] = low[u].min(low[v]);
-        }
-    }
-    let non_live: Vec<TransIdx> = (0..nt)
-        .filter(|&t| missing[t])
-        .map(|t| TransIdx(t as u32))
-        .collect();
-    Liveness {
-        sccs,
-        terminal_sccs: terminal,
-        live: non_live.is_empty(),
-        non_live,
-        reversible: root_terminal && terminal == 1,
-    }
 }
 
 /// A packing from the structural bounds and capacities alone, or `None` when some place has

@@ -5,6 +5,7 @@ use std::fmt;
 use serde::ser::{SerializeMap, Serializer};
 use serde::Serialize;
 
+use crate::budget::PartialReason;
 use crate::{Classification, Incidence};
 
 /// A list of `(id, value)` pairs serialised as a JSON object in declaration order.
@@ -131,8 +132,9 @@ pub struct Report {
     pub notes: Vec<String>,
     /// The run stopped early: counts are lower bounds and verdicts may be missing.
     pub partial: bool,
-    /// Why it stopped early.
-    pub partial_reason: Option<String>,
+    /// Why it stopped early: `max_states`, `max_memory`, `timeout`, `cancelled` or
+    /// `not_explored`; the notes say more.
+    pub partial_reason: Option<PartialReason>,
     /// Bits per packed state (reachability graph only).
     pub bits_per_state: Option<usize>,
     /// Peak bytes of the state store divided by the number of states (the store allocates in
@@ -177,8 +179,9 @@ impl fmt::Display for Report {
         if self.partial {
             writeln!(
                 f,
-                "PARTIAL RESULT: {}",
-                self.partial_reason.as_deref().unwrap_or("stopped early")
+                "PARTIAL RESULT ({}): see the notes",
+                self.partial_reason
+                    .map_or("stopped early".into(), |r| r.to_string())
             )?;
         }
         let c = &self.classification;

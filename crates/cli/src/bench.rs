@@ -22,6 +22,16 @@ pub struct BenchArgs {
 
 #[derive(clap::Subcommand, Debug)]
 enum What {
+    /// Write a member of a benchmark family as ISO PNML, for `cetratus check` and other tools.
+    Net {
+        /// `kanban` or `fms`.
+        family: String,
+        /// The family's parameter (cards per cell, parts per type).
+        n: u32,
+        /// Where to write the PNML file.
+        #[arg(long)]
+        out: std::path::PathBuf,
+    },
     /// A fleet: N runtime processes on one Mosquitto, watched by one `cetratus mct`.
     Fleet {
         /// How many PLC processes.
@@ -103,6 +113,15 @@ enum What {
 
 /// Runs `cetratus bench`.
 pub fn run(args: &BenchArgs) -> anyhow::Result<()> {
+    if let Some(What::Net { family, n, out }) = &args.what {
+        let net = match family.to_ascii_lowercase().as_str() {
+            "kanban" => cetratus_analysis::families::kanban(*n)?,
+            "fms" => cetratus_analysis::families::fms(*n)?,
+            other => anyhow::bail!("unknown family `{other}`; choose kanban or fms"),
+        };
+        cetratus_net::pnml::write_file(&net, out)?;
+        return Ok(());
+    }
     if let Some(What::Fleet {
         n,
         period,

@@ -4,9 +4,11 @@ use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
+use std::time::{Duration, Instant};
 
 use anyhow::Context;
-use cetratus_analysis::{check, CheckOptions, TerminalProgress};
+use cetratus_analysis::budget::{parse_bytes, DEFAULT_MAX_STATES};
+use cetratus_analysis::{check, CheckOptions, Clock, TerminalProgress};
 use cetratus_net::Net;
 
 /// Arguments of `cetratus check`.
@@ -17,14 +19,38 @@ pub struct CheckArgs {
     /// Print the report as JSON on stdout.
     #[arg(long)]
     pub json: bool,
-    /// Stop exploring after N states; the report is then marked partial.
-    #[arg(long, value_name = "N")]
-    pub max_states: Option<u64>,
+    /// Stop exploring after N states; the report is then partial (`max_states`).
+    #[arg(long, value_name = "N", default_value_t = DEFAULT_MAX_STATES)]
+    pub max_states: u64,
+    /// Stop before the state space would hold more than this (e.g. 4GiB, 512MiB); the report is
+    /// then partial (`max_memory`).
+    #[arg(long, value_name = "SIZE", default_value = "4GiB", value_parser = parse_size)]
+    pub max_memory: u64,
+    /// Stop after this long (e.g. 10min, 30s, 500ms); the report is then partial (`timeout`).
+    #[arg(long, value_name = "DURATION", default_value = "10min", value_parser = parse_timeout)]
+    pub timeout: Duration,
     /// Threads: with 2 or more the state space is explored in parallel (same states, same ids,
     /// same witness as one thread) and the structural analyses run beside it. Defaults to the
     /// machine's cores.
     #[arg(long, value_name = "N")]
     pub threads: Option<usize>,
+}
+
+fn parse_size(text: &str) -> anyhow::Result<u64> {
+    Ok(parse_bytes(text)?)
+}
+
+fn parse_timeout(text: &str) -> anyhow::Result<Duration> {
+    Ok(Duration::from_micros(crate::parse_duration_us(text)?))
+}
+
+/// The machine's monotonic clock, from the start of the check.
+struct Monotonic(Instant);
+
+impl Clock for Monotonic {
+    fn elapsed(&self) -> Duration {
+        self.0.elapsed()
+    }
 }
 
 fn load(path: &Path) -> anyhow::Result<Net> {
@@ -44,6 +70,7 @@ fn load(path: &Path) -> anyhow::Result<Net> {
 /// Runs `cetratus check`: prints the report, as text or JSON. Ctrl-C stops the exploration and
 /// prints what was found so far, marked partial.
 pub fn run(args: &CheckArgs) -> anyhow::Result<()> {
+    let clock = Arc::new(Monotonic(Instant::now()));
     let net = load(&args.file)?;
     let cancel = Arc::new(AtomicBool::new(false));
     let flag = cancel.clone();
@@ -52,7 +79,10 @@ pub fn run(args: &CheckArgs) -> anyhow::Result<()> {
     }
     let progress = TerminalProgress::new();
     let opts = CheckOptions {
-        max_states: args.max_states,
+        max_states: Some(args.max_states),
+        max_memory: Some(args.max_memory),
+        timeout: Some(args.timeout),
+        clock: Some(clock),
         threads: args
             .threads
             .unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()))

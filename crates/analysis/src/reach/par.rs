@@ -30,11 +30,10 @@
 use cetratus_net::{Net, TransIdx};
 
 use super::{
-    deadlock_witness, hash, tarjan, Chunked, Compiled, Packing, ReachOptions, ReachResult, Stop,
-    Table,
+    deadlock_witness, hash, scc, Chunked, Compiled, Packing, ReachOptions, ReachResult, Stop,
+    Table, CHUNK_BITS,
 };
 use crate::Progress;
-use std::sync::atomic::Ordering;
 
 /// Largest batch: enough to keep the threads busy, and few enough states to check the cancel
 /// flag often.
@@ -136,7 +135,7 @@ fn insert<const W: usize>(
                 table.touch(ha);
             }
             table.reserve(1);
-            if table.insert_hashed(key, *h, 0) {
+            if table.insert_hashed(key, *h) {
                 new.push((*disc, *key));
             }
         }
@@ -175,16 +174,19 @@ pub(super) fn explore_par<const W: usize>(
     let nt = net.num_transitions();
     let np = net.num_places();
     let code = Compiled::<W>::new(net, pk);
-    let mut tables: Vec<Table<W>> = (0..threads).map(|_| Table::new(false)).collect();
+    let mut tables: Vec<Table<W>> = (0..threads).map(|_| Table::new()).collect();
     let mut states: Chunked<[u64; W]> = Chunked::new();
     let mut parents: Chunked<u32> = Chunked::new();
     let mut k0 = [0u64; W];
     pk.encode(net.initial_marking().as_slice(), &mut k0);
     let h0 = hash(&k0);
-    tables[owner(h0, threads)].insert(&k0, 0);
+    tables[owner(h0, threads)].insert(&k0);
     states.push(k0);
     parents.push(u32::MAX);
-    let max_states = opts.max_states.unwrap_or(u64::from(u32::MAX - 1));
+    let max_states = opts
+        .max_states
+        .unwrap_or(u64::from(u32::MAX - 1))
+        .min(u64::from(u32::MAX - 1));
     let mut max_fields: Vec<u64> = vec![0; np];
     let mut observe = |k: &[u64; W]| {
         for (m, f) in max_fields.iter_mut().zip(&pk.fields) {
@@ -207,12 +209,8 @@ pub(super) fn explore_par<const W: usize>(
     let mut cur = 0usize;
     while cur < states.len {
         if cur > 0 {
-            if opts
-                .cancel
-                .as_ref()
-                .is_some_and(|c| c.load(Ordering::Relaxed))
-            {
-                stopped = Some(Stop::Cancelled);
+            if let Some(s) = opts.interrupted() {
+                stopped = Some(s);
                 break;
             }
             if let Some(p) = &opts.progress {
@@ -220,10 +218,23 @@ pub(super) fn explore_par<const W: usize>(
                     states: states.len as u64,
                     edges,
                     expanded: cur as u64,
+                    bytes: peak_bytes as u64,
                 });
             }
         }
         let size = (states.len - cur).min(max_batch);
+        // Counted before the batch: every table grown to take the whole batch's successors
+        // (old and new slots), full outboxes, and the chunks the new states may open.
+        let worst = size * nt;
+        let need: usize = tables.iter().map(|t| t.bytes_to_fit(worst)).sum::<usize>()
+            + OUTBOX_BYTES.min(worst * std::mem::size_of::<Succ<W>>())
+            + states.bytes()
+            + parents.bytes()
+            + worst.div_ceil(1 << CHUNK_BITS).saturating_add(1) * (1 << CHUNK_BITS) * (8 * W + 4);
+        if let Err(s) = opts.within_memory(need) {
+            stopped = Some(s);
+            break;
+        }
         let end = cur + size;
         let parallel = size >= MIN_PARALLEL;
         let step = size.div_ceil(threads);
@@ -298,27 +309,43 @@ pub(super) fn explore_par<const W: usize>(
     let peak_bytes = peak_bytes.max(table_bytes + states.bytes() + parents.bytes());
     drop(tables);
     let deadlock_witness = deadlock_witness(&code, &states, &parents, first_dead, nt);
-    let liveness = (opts.liveness && stopped.is_none()).then(|| {
-        // Tarjan looks ids up by key: rebuild the sequential table with ids, in id order.
-        let mut ids = Table::<W>::new(true);
-        for i in 0..states.len {
-            ids.insert(&states.get(i), i as u32);
+    let never_enabled: Vec<TransIdx> = (0..nt)
+        .filter(|&t| !enabled_ever[t])
+        .map(|t| TransIdx(t as u32))
+        .collect();
+    let n = states.len;
+    drop(parents);
+    let (liveness, liveness_stopped, scc_bytes) = if opts.liveness && stopped.is_none() {
+        // The liveness pass reads one table: rebuild it from the states, then free them.
+        let mut one = Table::<W>::new();
+        let bytes = one.bytes_to_fit(n) + states.bytes();
+        match opts.within_memory(bytes) {
+            Err(s) => (None, Some(s), bytes),
+            Ok(()) => {
+                one.reserve(n);
+                for i in 0..n {
+                    let k = states.get(i);
+                    one.insert_hashed(&k, hash(&k));
+                }
+                drop(states);
+                let (l, s, b) = scc::liveness(&code, &one, &k0, n, &never_enabled, opts);
+                (l, s, b.max(bytes))
+            }
         }
-        tarjan(&code, &ids, &states, nt)
-    });
+    } else {
+        (None, None, 0)
+    };
     ReachResult {
-        states: states.len as u64,
+        states: n as u64,
         edges,
         deadlocks,
         deadlock_witness,
         max_tokens: max_fields.iter().map(|&m| m as u32).collect(),
-        never_enabled: (0..nt)
-            .filter(|&t| !enabled_ever[t])
-            .map(|t| TransIdx(t as u32))
-            .collect(),
+        never_enabled,
         stopped,
         liveness,
-        peak_bytes,
+        liveness_stopped,
+        peak_bytes: peak_bytes.max(scc_bytes),
         bits_per_state: pk.bits,
     }
 }

@@ -1,0 +1,240 @@
+//! Liveness and reversibility once the exploration is complete, over the finished hash table.
+//!
+//! The table no longer moves, so a state's slot is its id: no id is stored anywhere, and the
+//! packed states and BFS parents of the exploration are already freed.
+//!
+//! First a backward search from M0 over the implicit graph: predecessors are recomputed by undoing
+//! each transition (a range test per field it changes, then the forward enabling test) and looked
+//! up in the table, the lookups of one state's predecessors overlapped. If every state reaches M0,
+//! the graph is one strongly connected component: the net is reversible, and live exactly when
+//! every transition is enabled somewhere. This is the common case of a plant model, and it costs
+//! one lookup per edge, stopping as soon as every state is found. Otherwise an iterative Tarjan
+//! (explicit frames, no recursion) finds the terminal components.
+//!
+//! Memory, all counted: the table, a bit per slot and a queue of 4 bytes per state for the
+//! backward search; for Tarjan two `u32` per slot, two bits per slot, and its stacks.
+
+use super::{hash, Compiled, Liveness, ReachOptions, Stop, Table};
+use cetratus_net::TransIdx;
+
+const NONE: u32 = u32::MAX;
+
+fn bit(v: &[u64], i: usize) -> bool {
+    v[i >> 6] >> (i & 63) & 1 == 1
+}
+
+fn set(v: &mut [u64], i: usize) {
+    v[i >> 6] |= 1 << (i & 63);
+}
+
+/// Liveness and reversibility, why they were not decided, and the bytes held at the peak.
+pub(super) fn liveness<const W: usize>(
+    code: &Compiled<W>,
+    table: &Table<W>,
+    k0: &[u64; W],
+    states: usize,
+    never_enabled: &[TransIdx],
+    opts: &ReachOptions,
+) -> (Option<Liveness>, Option<Stop>, usize) {
+    let Some(root) = table.slot_of(k0, hash(k0)) else {
+        return (None, None, 0);
+    };
+    match reaches_root(code, table, root, states, opts) {
+        Err((s, bytes)) => (None, Some(s), bytes),
+        Ok((true, bytes)) => (
+            Some(Liveness {
+                sccs: 1,
+                terminal_sccs: 1,
+                live: never_enabled.is_empty(),
+                non_live: never_enabled.to_vec(),
+                reversible: true,
+            }),
+            None,
+            bytes,
+        ),
+        Ok((false, bytes)) => match tarjan(code, table, root, opts) {
+            Ok((l, b)) => (Some(l), None, bytes.max(b)),
+            Err((s, b)) => (None, Some(s), bytes.max(b)),
+        },
+    }
+}
+
+type Counted<T> = Result<(T, usize), (Stop, usize)>;
+
+/// Whether every one of the `states` states reaches the state in slot `root`.
+fn reaches_root<const W: usize>(
+    code: &Compiled<W>,
+    table: &Table<W>,
+    root: usize,
+    states: usize,
+    opts: &ReachOptions,
+) -> Counted<bool> {
+    let cap = table.slots.len();
+    let bytes = table.bytes() + cap.div_ceil(64) * 8 + states * 4;
+    opts.within_memory(bytes).map_err(|s| (s, bytes))?;
+    let mut seen = vec![0u64; cap.div_ceil(64)];
+    let mut queue: Vec<u32> = Vec::with_capacity(states);
+    let nt = code.offsets.len() - 1;
+    let mut batch: Vec<([u64; W], u64)> = Vec::with_capacity(nt);
+    set(&mut seen, root);
+    queue.push(root as u32);
+    let mut head = 0;
+    while head < queue.len() && queue.len() < states {
+        if head & 0x3FFF == 0 && head > 0 {
+            if let Some(s) = opts.interrupted() {
+                return Err((s, bytes));
+            }
+        }
+        let key = table.slots[queue[head] as usize];
+        head += 1;
+        batch.clear();
+        for t in 0..nt {
+            if let Some(u) = code.unfire(&key, t) {
+                batch.push((u, hash(&u)));
+            }
+        }
+        for &(_, h) in &batch {
+            table.touch(h);
+        }
+        for (u, h) in &batch {
+            if let Some(s) = table.slot_of(u, *h) {
+                if !bit(&seen, s) {
+                    set(&mut seen, s);
+                    queue.push(s as u32);
+                }
+            }
+        }
+    }
+    Ok((queue.len() == states, bytes))
+}
+
+/// Iterative Tarjan over the implicit graph, nodes being table slots, recording terminal SCCs and
+/// which transitions occur inside each.
+fn tarjan<const W: usize>(
+    code: &Compiled<W>,
+    table: &Table<W>,
+    root: usize,
+    opts: &ReachOptions,
+) -> Counted<Liveness> {
+    let n = table.slots.len();
+    let nt = code.offsets.len() - 1;
+    let fixed = table.bytes() + n * 8 + n.div_ceil(64) * 16;
+    opts.within_memory(fixed).map_err(|s| (s, fixed))?;
+    let mut index = vec![NONE; n];
+    let mut low = vec![0u32; n];
+    let mut on_stack = vec![0u64; n.div_ceil(64)];
+    let mut exits = vec![0u64; n.div_ceil(64)];
+    let mut stack: Vec<u32> = Vec::new();
+    let mut frames: Vec<(u32, u32)> = Vec::new();
+    let mut peak = fixed;
+    let mut next_index = 0u32;
+    let (mut sccs, mut terminal) = (0u64, 0u64);
+    let mut missing = vec![false; nt];
+    let mut root_terminal = false;
+    let mut occurs = vec![false; nt];
+    let mut visit = |v: usize,
+                     index: &mut Vec<u32>,
+                     low: &mut Vec<u32>,
+                     on_stack: &mut Vec<u64>,
+                     stack: &mut Vec<u32>| {
+        index[v] = next_index;
+        low[v] = next_index;
+        next_index += 1;
+        set(on_stack, v);
+        stack.push(v as u32);
+    };
+    visit(root, &mut index, &mut low, &mut on_stack, &mut stack);
+    frames.push((root as u32, 0));
+    let mut steps = 0u64;
+    while let Some(&(v, t0)) = frames.last() {
+        steps += 1;
+        if steps & 0x3FFF == 0 {
+            // The stacks grow with the search's depth: counted here, before they grow further.
+            let bytes = fixed + stack.capacity() * 4 + frames.capacity() * 8;
+            peak = peak.max(bytes);
+            if let Err(s) = opts.within_memory(bytes * 2 - fixed) {
+                return Err((s, peak));
+            }
+            if let Some(s) = opts.interrupted() {
+                return Err((s, peak));
+            }
+        }
+        let v = v as usize;
+        let key = table.slots[v];
+        let mut descended = false;
+        let mut t = t0 as usize;
+        while t < nt {
+            if code.enabled(&key, t) {
+                let succ = code.fire(&key, t);
+                let w = table.slot_of(&succ, hash(&succ)).unwrap_or(root);
+                if index[w] == NONE {
+                    if let Some(f) = frames.last_mut() {
+                        f.1 = t as u32 + 1;
+                    }
+                    visit(w, &mut index, &mut low, &mut on_stack, &mut stack);
+                    frames.push((w as u32, 0));
+                    descended = true;
+                    break;
+                } else if bit(&on_stack, w) {
+                    low[v] = low[v].min(index[w]);
+                } else {
+                    // w belongs to an SCC already completed, so this edge leaves v's SCC.
+                    set(&mut exits, v);
+                }
+            }
+            t += 1;
+        }
+        if descended {
+            continue;
+        }
+        frames.pop();
+        if low[v] == index[v] {
+            sccs += 1;
+            let start = stack.iter().rposition(|&x| x as usize == v).unwrap_or(0);
+            let is_terminal = stack[start..].iter().all(|&x| !bit(&exits, x as usize));
+            occurs.iter_mut().for_each(|o| *o = false);
+            for &x in &stack[start..] {
+                let x = x as usize;
+                on_stack[x >> 6] &= !(1 << (x & 63));
+                if is_terminal {
+                    let k = table.slots[x];
+                    for (t, o) in occurs.iter_mut().enumerate() {
+                        *o |= code.enabled(&k, t);
+                    }
+                }
+            }
+            stack.truncate(start);
+            if is_terminal {
+                terminal += 1;
+                for (m, o) in missing.iter_mut().zip(&occurs) {
+                    *m |= !o;
+                }
+                if v == root {
+                    root_terminal = true;
+                }
+            }
+            if let Some(&(u, _)) = frames.last() {
+                // v's SCC is finished and differs from u's: the tree edge u → v leaves u's SCC.
+                set(&mut exits, u as usize);
+            }
+        } else if let Some(&(u, _)) = frames.last() {
+            let u = u as usize;
+            low[u] = low[u].min(low[v]);
+        }
+    }
+    peak = peak.max(fixed + stack.capacity() * 4 + frames.capacity() * 8);
+    let non_live: Vec<TransIdx> = (0..nt)
+        .filter(|&t| missing[t])
+        .map(|t| TransIdx(t as u32))
+        .collect();
+    Ok((
+        Liveness {
+            sccs,
+            terminal_sccs: terminal,
+            live: non_live.is_empty(),
+            non_live,
+            reversible: root_terminal && terminal == 1,
+        },
+        peak,
+    ))
+}

@@ -196,7 +196,8 @@ pub fn run(ctx: &UpdateContext, update: &PreparedUpdate, policy: &GatePolicy) ->
         if r.partial {
             notes.push(format!(
                 "the {which} exploration stopped early ({}) after {} states; the findings cover what was explored",
-                r.partial_reason.as_deref().unwrap_or("budget"),
+                r.partial_reason
+                    .map_or_else(|| "budget".to_string(), |p| p.to_string()),
                 r.states
             ));
         }

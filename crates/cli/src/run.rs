@@ -12,7 +12,7 @@ use cetratus_program::Program;
 use cetratus_runtime::{CycleFigures, Plc};
 
 use crate::summary::{print_event, print_summary, Summary, MAX_EVENTS};
-use cetratus_twin::{parse_defect_rate, TwinKind, TwinSettings};
+use cetratus_twin::{parse_defect_rate, TwinSettings};
 
 use crate::parse_duration_us;
 
@@ -220,11 +220,7 @@ pub fn run(args: &RunArgs) -> anyhow::Result<()> {
     } else {
         0
     };
-    let mut presses = args.press.clone();
-    if presses.is_empty() && kind == Some(TwinKind::Festo) {
-        presses.extend(["RESET@100ms".to_string(), "START@500ms".to_string()]);
-    }
-    crate::run_io::press(&mut io, &presses, base_us)?;
+    crate::run_io::press(&mut io, &args.press, kind, base_us)?;
     let opts = NodeOptions {
         base_us,
         trust: trust.clone(),

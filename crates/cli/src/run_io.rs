@@ -119,11 +119,21 @@ fn start_field(c: &IoConfig, map: FieldMap, period_us: u64) -> anyhow::Result<Op
     Ok(Some(field))
 }
 
-/// Schedules the `--press BUTTON@TIME` presses of the twin (program time from `base_us`).
-pub fn press(io: &mut PlantIo, presses: &[String], base_us: u64) -> anyhow::Result<()> {
-    if presses.is_empty() {
-        return Ok(());
-    }
+/// Schedules the `--press BUTTON@TIME` presses of the twin (program time from `base_us`); the
+/// Festo station's RESET and START when none are given.
+pub fn press(
+    io: &mut PlantIo,
+    presses: &[String],
+    kind: Option<TwinKind>,
+    base_us: u64,
+) -> anyhow::Result<()> {
+    // Without presses the Festo station gets RESET (homing) and START, as an operator gives them.
+    let festo = ["RESET@100ms".to_string(), "START@500ms".to_string()];
+    let presses = match presses {
+        [] if kind == Some(TwinKind::Festo) => &festo[..],
+        [] => return Ok(()),
+        given => given,
+    };
     let Some(t) = io.twin_mut() else {
         bail!("--press needs a twin; with field I/O, press the machine's own buttons");
     };

@@ -25,6 +25,7 @@ use std::sync::Mutex;
 use std::time::{Duration, Instant};
 
 use axum::http::{header, HeaderMap};
+use cetratus_mct::budget::TokenBucket;
 pub use cetratus_mct::password::hash_password;
 use cetratus_mct::password::HashedPassword;
 
@@ -119,42 +120,14 @@ fn valid_name(name: &str) -> bool {
             .all(|b| b.is_ascii_alphanumeric() || matches!(b, b'.' | b'_' | b'-'))
 }
 
-/// A token bucket: `rate` per second, at most `burst` saved up.
-#[derive(Clone, Copy)]
-struct Bucket {
-    tokens: f64,
-    at: Instant,
-}
-
-impl Bucket {
-    fn full(burst: f64, now: Instant) -> Self {
-        Bucket {
-            tokens: burst,
-            at: now,
-        }
-    }
-
-    fn take(&mut self, rate: f64, burst: f64, now: Instant) -> bool {
-        let dt = now.saturating_duration_since(self.at).as_secs_f64();
-        self.tokens = (self.tokens + dt * rate).min(burst);
-        self.at = now;
-        if self.tokens >= 1.0 {
-            self.tokens -= 1.0;
-            true
-        } else {
-            false
-        }
-    }
-}
-
 struct Session {
     account: String,
     last_seen: Instant,
 }
 
 struct Limits {
-    all: Bucket,
-    by_addr: HashMap<IpAddr, Bucket>,
+    all: TokenBucket,
+    by_addr: HashMap<IpAddr, TokenBucket>,
 }
 
 /// The dashboard's accounts, sessions and login links.
@@ -223,7 +196,7 @@ impl Access {
             sessions: Mutex::new(HashMap::new()),
             links: Mutex::new(HashMap::new()),
             limits: Mutex::new(Limits {
-                all: Bucket::full(LOGIN_BURST, Instant::now()),
+                all: TokenBucket::new(LOGINS_PER_S, LOGIN_BURST, Instant::now()),
                 by_addr: HashMap::new(),
             }),
             refused: std::sync::atomic::AtomicU64::new(0),
@@ -314,9 +287,9 @@ impl Access {
         let mine = limits
             .by_addr
             .entry(from)
-            .or_insert_with(|| Bucket::full(LOGIN_BURST_PER_ADDR, now))
-            .take(LOGINS_PER_S_PER_ADDR, LOGIN_BURST_PER_ADDR, now);
-        mine && limits.all.take(LOGINS_PER_S, LOGIN_BURST, now)
+            .or_insert_with(|| TokenBucket::new(LOGINS_PER_S_PER_ADDR, LOGIN_BURST_PER_ADDR, now))
+            .take(1.0, now);
+        mine && limits.all.take(1.0, now)
     }
 
     fn open_session(&self, account: &str) -> Option<String> {

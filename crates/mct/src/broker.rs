@@ -28,6 +28,7 @@ use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
 use crate::acl::{Acl, BrokerSettings, Checked, Login, Who, PLC_USER};
+use crate::budget::TokenBucket as Bucket;
 use crate::MctError;
 use async_trait::async_trait;
 use rmqtt::context::ServerContext;
@@ -70,38 +71,6 @@ pub const LOGINS_PER_S: f64 = 8.0;
 
 /// Account logins that may arrive at once before [`LOGINS_PER_S`] applies.
 pub const LOGIN_BURST: f64 = 16.0;
-
-/// A token bucket in bytes: `rate` per second, at most `burst` saved up.
-struct Bucket {
-    tokens: f64,
-    at: Instant,
-    rate: f64,
-    burst: f64,
-}
-
-impl Bucket {
-    fn new(rate: f64, burst: f64, now: Instant) -> Self {
-        Bucket {
-            tokens: burst,
-            at: now,
-            rate,
-            burst,
-        }
-    }
-
-    /// Takes `bytes` at `now`, or refuses (and takes nothing).
-    fn take(&mut self, bytes: f64, now: Instant) -> bool {
-        let dt = now.saturating_duration_since(self.at).as_secs_f64();
-        self.tokens = (self.tokens + dt * self.rate).min(self.burst);
-        self.at = now;
-        if bytes <= self.tokens {
-            self.tokens -= bytes;
-            true
-        } else {
-            false
-        }
-    }
-}
 
 /// The user property the embedded broker sets on a command it passed on without its payload
 /// (it came faster than [`INGRESS_BYTES_PER_S`]): the PLC answers it `busy`.
@@ -590,7 +559,8 @@ fn bind_error(addr: SocketAddr, e: rmqtt::Error) -> MctError {
 
 #[cfg(test)]
 mod tests {
-    use super::{Bucket, MemRetain, RETAINED_BYTES};
+    use super::{MemRetain, RETAINED_BYTES};
+    use crate::budget::TokenBucket as Bucket;
     use std::time::{Duration, Instant};
 
     #[test]

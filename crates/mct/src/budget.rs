@@ -8,6 +8,7 @@
 
 use std::sync::atomic::{AtomicU64, AtomicUsize, Ordering};
 use std::sync::Arc;
+use std::time::Instant;
 
 #[derive(Debug)]
 struct Inner {
@@ -88,6 +89,42 @@ impl Permit {
 impl Drop for Permit {
     fn drop(&mut self) {
         self.budget.used.fetch_sub(self.amount, Ordering::AcqRel);
+    }
+}
+
+/// A token bucket: `rate` units a second, at most `burst` saved up. The embedded broker meters
+/// bytes with it, the broker and the dashboard login attempts.
+#[derive(Clone, Copy, Debug)]
+pub struct TokenBucket {
+    tokens: f64,
+    at: Instant,
+    rate: f64,
+    burst: f64,
+}
+
+impl TokenBucket {
+    /// A full bucket at `now`.
+    pub fn new(rate: f64, burst: f64, now: Instant) -> Self {
+        TokenBucket {
+            tokens: burst,
+            at: now,
+            rate,
+            burst,
+        }
+    }
+
+    /// Takes `amount` at `now`, or refuses (and takes nothing). A `now` before the last one
+    /// refills nothing.
+    pub fn take(&mut self, amount: f64, now: Instant) -> bool {
+        let dt = now.saturating_duration_since(self.at).as_secs_f64();
+        self.tokens = (self.tokens + dt * self.rate).min(self.burst);
+        self.at = now;
+        if amount <= self.tokens {
+            self.tokens -= amount;
+            true
+        } else {
+            false
+        }
     }
 }
 

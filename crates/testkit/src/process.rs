@@ -74,14 +74,15 @@ pub fn require_program(name: &str, package: &str) -> PathBuf {
 ///
 /// When the child's standard error is not piped.
 pub fn stderr_lines(child: &mut std::process::Child) -> std::sync::mpsc::Receiver<String> {
+    lines_of(child.stderr.take().expect("a piped standard error"))
+}
+
+/// The lines of `pipe`, read on a thread of their own.
+fn lines_of(pipe: impl std::io::Read + Send + 'static) -> std::sync::mpsc::Receiver<String> {
     use std::io::BufRead;
-    let stderr = child.stderr.take().expect("a piped standard error");
     let (tx, rx) = std::sync::mpsc::channel();
     std::thread::spawn(move || {
-        for line in std::io::BufReader::new(stderr)
-            .lines()
-            .map_while(Result::ok)
-        {
+        for line in std::io::BufReader::new(pipe).lines().map_while(Result::ok) {
             // Read on when nobody listens any more: a child whose pipe closed would fail on
             // its next line (and Rust's `println!` panics then).
             let _ = tx.send(line);
@@ -97,20 +98,7 @@ pub fn stderr_lines(child: &mut std::process::Child) -> std::sync::mpsc::Receive
 ///
 /// When the child's standard output is not piped.
 pub fn stdout_lines(child: &mut std::process::Child) -> std::sync::mpsc::Receiver<String> {
-    use std::io::BufRead;
-    let stdout = child.stdout.take().expect("a piped standard output");
-    let (tx, rx) = std::sync::mpsc::channel();
-    std::thread::spawn(move || {
-        for line in std::io::BufReader::new(stdout)
-            .lines()
-            .map_while(Result::ok)
-        {
-            // Read on when nobody listens any more: a child whose pipe closed would fail on
-            // its next line (and Rust's `println!` panics then).
-            let _ = tx.send(line);
-        }
-    });
-    rx
+    lines_of(child.stdout.take().expect("a piped standard output"))
 }
 
 /// Waits up to `within` for a line of `lines` that holds a dashboard login link, and returns

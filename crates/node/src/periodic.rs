@@ -23,6 +23,11 @@ pub fn run_periodic(
     } else {
         1.0
     };
+    // A thread's sleeps may end up to its timer slack (50 µs by default) late, so that the kernel
+    // can batch wake-ups; the scan thread's deadlines are worth more than that. (SCHED_FIFO
+    // threads have none anyway.)
+    #[cfg(target_os = "linux")]
+    let _ = nix::sys::prctl::set_timerslack(1);
     let wall_period = Duration::from_secs_f64(period_us.max(1) as f64 / 1e6 / speed);
     let origin = Instant::now();
     let mut last_start: Option<Instant> = None;

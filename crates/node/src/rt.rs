@@ -24,6 +24,8 @@ pub struct RtStatus {
     pub mlockall: bool,
     /// The CPU the scan thread has to itself, when the process may use two or more.
     pub cpu: Option<usize>,
+    /// The CPUs are kept out of deep idle states (`/dev/cpu_dma_latency` held at 0 µs).
+    pub idle_latency: bool,
     /// Why something was refused.
     pub warnings: Vec<String>,
 }
@@ -37,9 +39,13 @@ impl fmt::Display for RtStatus {
             if self.mlockall { "on" } else { "off" }
         )?;
         match self.cpu {
-            Some(cpu) => write!(f, "CPU {cpu} to itself"),
-            None => write!(f, "no CPU to itself"),
+            Some(cpu) => write!(f, "CPU {cpu} to itself")?,
+            None => write!(f, "no CPU to itself")?,
         }
+        if self.idle_latency {
+            write!(f, ", no deep idle")?;
+        }
+        Ok(())
     }
 }
 
@@ -79,6 +85,10 @@ pub fn request(priority: u8) -> RtStatus {
         }
         match isolate() {
             Ok(cpu) => status.cpu = Some(cpu),
+            Err(why) => status.warnings.push(why),
+        }
+        match hold_idle_latency() {
+            Ok(()) => status.idle_latency = true,
             Err(why) => status.warnings.push(why),
         }
     }
@@ -135,6 +145,35 @@ fn isolate() -> Result<usize, String> {
         }
     }
     Ok(scan)
+}
+
+/// The open `/dev/cpu_dma_latency`: the kernel keeps the request while it stays open.
+#[cfg(target_os = "linux")]
+static IDLE_LATENCY: OnceLock<std::fs::File> = OnceLock::new();
+
+/// Asks the kernel to keep every CPU out of idle states whose wake-up takes longer than 0 µs,
+/// for as long as the process lives, as `cyclictest` does. An idle CPU otherwise halts, and on a
+/// virtual machine a halted CPU gives its physical one back to the host: the scan thread's timer
+/// then wakes it with a latency of tens to hundreds of microseconds (docs/performance.md).
+#[cfg(target_os = "linux")]
+fn hold_idle_latency() -> Result<(), String> {
+    use std::io::Write;
+    if IDLE_LATENCY.get().is_some() {
+        return Ok(());
+    }
+    let mut f = std::fs::OpenOptions::new()
+        .write(true)
+        .open("/dev/cpu_dma_latency")
+        .map_err(|e| {
+            format!(
+                "cannot open /dev/cpu_dma_latency ({e}): idle CPUs may enter deep sleep states \
+                 and wake the scan thread late; run as root or make the device writable"
+            )
+        })?;
+    f.write_all(&0i32.to_ne_bytes())
+        .map_err(|e| format!("cannot write /dev/cpu_dma_latency ({e})"))?;
+    let _ = IDLE_LATENCY.set(f);
+    Ok(())
 }
 
 /// Gives up real-time scheduling on the calling thread: a thread inherits its creator's policy

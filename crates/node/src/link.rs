@@ -101,7 +101,7 @@ pub struct ControlLink {
     net_due: bool,
     names_in: Arc<Vec<String>>,
     names_out: Arc<Vec<String>>,
-    last_key: (Slot, Status, String, String),
+    last_key: (Slot, Status, Option<[u8; 32]>, Option<[u8; 32]>),
     last_sampled: u64,
     first: bool,
     publish_every: u64,
@@ -171,7 +171,7 @@ impl ControlLink {
             net_due: true,
             names_in: Arc::new(plc.io_inputs().to_vec()),
             names_out: Arc::new(plc.io_outputs().to_vec()),
-            last_key: (Slot::A, Status::Idle, String::new(), String::new()),
+            last_key: (Slot::A, Status::Idle, None, None),
             last_sampled: 0,
             first: true,
             publish_every: publish_every.max(1),
@@ -275,10 +275,7 @@ impl ControlLink {
     /// Publishes the cycle's events, and a snapshot when one is due or something changed.
     pub fn after_cycle(&mut self, plc: &Plc, events: &[Event], timing: &LoopTiming, now: u64) {
         self.queue_events(events);
-        let hash = |s: Slot| {
-            plc.container(s)
-                .map_or(String::new(), |c| c.program().hash_hex().to_string())
-        };
+        let hash = |s: Slot| plc.container(s).map(|c| c.program().hash());
         let key = (plc.primary(), plc.status(), hash(Slot::A), hash(Slot::B));
         let changed = key != self.last_key;
         if changed {

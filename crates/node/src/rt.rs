@@ -77,6 +77,7 @@ pub fn request(priority: u8) -> RtStatus {
             )),
         }
         use nix::sys::mman::{mlockall, MlockAllFlags};
+        keep_heap();
         match mlockall(MlockAllFlags::MCL_CURRENT | MlockAllFlags::MCL_FUTURE) {
             Ok(()) => status.mlockall = true,
             Err(e) => status.warnings.push(format!(
@@ -145,6 +146,24 @@ fn isolate() -> Result<usize, String> {
         }
     }
     Ok(scan)
+}
+
+/// Keeps the allocator from returning memory to the kernel and from mapping large blocks of
+/// their own. Every mapping change takes the process's memory-map lock, and under
+/// `mlockall(MCL_FUTURE)` a new mapping is also faulted in and locked while the lock is held: a
+/// thread receiving 1 MiB MQTT payloads would map and unmap one per message, and the scan thread,
+/// whenever its own heap grows or shrinks, would wait for it. With this, the heap grows to the
+/// process's peak and stays there (the usual recipe for real-time programs with locked memory).
+#[cfg(target_os = "linux")]
+#[allow(unsafe_code)]
+fn keep_heap() {
+    #[cfg(target_env = "gnu")]
+    // SAFETY: mallopt only changes the allocator's tunables; it is called before the scan
+    // thread starts its cycles, and glibc serialises it against allocations.
+    unsafe {
+        nix::libc::mallopt(nix::libc::M_TRIM_THRESHOLD, i32::MAX);
+        nix::libc::mallopt(nix::libc::M_MMAP_MAX, 0);
+    }
 }
 
 /// The open `/dev/cpu_dma_latency`: the kernel keeps the request while it stays open.

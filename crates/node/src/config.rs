@@ -166,6 +166,7 @@ struct UpdatesSection {
     validation: Option<String>,
     validation_twin: Option<String>,
     horizon: Option<String>,
+    revalidate: Option<String>,
     throughput_share: Option<f64>,
     #[serde(default)]
     require_verdict: bool,
@@ -507,7 +508,7 @@ impl LocalConfig {
     }
 }
 
-/// `[updates] validation`, `validation_twin`, `horizon`, `throughput_share`.
+/// `[updates] validation`, `validation_twin`, `horizon`, `revalidate`, `throughput_share`.
 fn validation_policy(
     u: &UpdatesSection,
     value_error: &impl Fn(&'static str, &str, String) -> ConfigError,
@@ -550,6 +551,10 @@ fn validation_policy(
             ));
         }
         v.horizon_us = us;
+    }
+    if let Some(r) = &u.revalidate {
+        v.revalidate_us = duration::parse_us(r, Bare::Seconds)
+            .map_err(|e| value_error("[updates] revalidate", r, e.to_string()))?;
     }
     if let Some(share) = u.throughput_share {
         if !(0.0..=1.0).contains(&share) {
@@ -692,7 +697,7 @@ mod tests {
         assert_eq!(c.validation, ValidationPolicy::default());
         assert!(!c.require_verdict);
         let d = dir_with(
-            "[updates]\nvalidation = \"commission\"\nvalidation_twin = \"festo\"\nhorizon = \"2min\"\nthroughput_share = 0.8\nrequire_verdict = true\n",
+            "[updates]\nvalidation = \"commission\"\nvalidation_twin = \"festo\"\nhorizon = \"2min\"\nthroughput_share = 0.8\nrequire_verdict = true\nrevalidate = \"30s\"\n",
         );
         let c = LocalConfig::load(Some(&d)).unwrap();
         assert_eq!(
@@ -703,6 +708,17 @@ mod tests {
             (c.validation.horizon_us, c.validation.throughput_share),
             (120_000_000, 0.8)
         );
+        assert_eq!(c.validation.revalidate_us, 30_000_000);
+        assert_eq!(
+            ValidationPolicy::default().revalidate_us,
+            10_000_000,
+            "every 10 s of the window by default"
+        );
+        let e = LocalConfig::load(Some(&dir_with("[updates]\nrevalidate = \"often\"\n")))
+            .err()
+            .unwrap()
+            .to_string();
+        assert!(e.contains("[updates] revalidate"), "{e}");
         assert!(c.limits(Limits::for_period_us(10_000)).require_verdict);
         let e = LocalConfig::load(Some(&dir_with("[updates]\nvalidation = \"commission\"\n")))
             .err()

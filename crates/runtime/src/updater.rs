@@ -88,6 +88,10 @@ pub struct PreparedUpdate {
     container: Container,
     in_map: Vec<usize>,
     out_map: Vec<Option<usize>>,
+    // The Router's input image of the candidate and its Monitor figures, built here so that
+    // the install at the cycle boundary allocates neither.
+    image: Vec<Value>,
+    stats: ContainerStats,
     // Entries the install touches: the cost model of a virtual run charges by it.
     work: u64,
     pub(crate) plan: UpdatePlan,
@@ -128,6 +132,9 @@ pub struct UpdateContext {
     pub io_outputs: Vec<String>,
     /// The primary's marking when the context was taken (the analysis gate starts from it).
     pub primary_marking: Vec<cetratus_net::Tokens>,
+    /// The cycle whose boundary the context was taken at: `primary_marking` is the marking an
+    /// install at that boundary would transform.
+    pub cycle: u64,
 }
 
 impl UpdateContext {
@@ -248,9 +255,12 @@ impl UpdateContext {
             transform: update.transform,
             projection: update.projection,
         };
+        let container = Container::new(program, 0);
         Ok(PreparedUpdate {
             base_hash: primary.hash(),
-            container: Container::new(program, 0),
+            image: container.inputs().to_vec(),
+            stats: ContainerStats::new(self.io_outputs.len()),
+            container,
             in_map,
             out_map,
             work,
@@ -632,15 +642,12 @@ impl Updater {
         let s = core.primary_slot.other();
         let up = *up;
         let mut candidate = up.container;
-        core.router.attach(
-            s.index(),
-            candidate.inputs().to_vec(),
-            up.in_map,
-            up.out_map,
-        );
+        // The image and the figures were built with the candidate, off the scan thread.
+        core.router
+            .attach(s.index(), up.image, up.in_map, up.out_map);
         // The candidate's first scan sees the edges of this cycle, as the primary's does.
         candidate.continue_edges_from(core.router.last_inputs_for(s.index()));
-        core.monitor.stats[s.index()] = ContainerStats::new(core.router.io_outputs().len());
+        core.monitor.stats[s.index()] = up.stats;
         let name = format!("{} {}", up.plan.meta.name, up.plan.meta.version);
         self.phase = Phase::Quarantine(Box::new(Quarantine {
             candidate,

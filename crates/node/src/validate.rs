@@ -433,6 +433,15 @@ pub fn validate(job: &Job) -> Verdict {
             b.produced,
             job.policy.throughput_share * 100.0
         ));
+        // A part is the unit of production: over a horizon that holds few, where a part is at
+        // its end decides more than the program does.
+        if (b.produced as f64) * (1.0 - job.policy.throughput_share) < 1.0 {
+            reasons.push(format!(
+                "the horizon holds only {} parts of the program it replaces, so one part is {:.0} % of its production: a longer horizon judges throughput rather than the phase",
+                b.produced,
+                100.0 / b.produced as f64
+            ));
+        }
     }
     let passed = reasons.is_empty();
     if job.update.meta.changes_throughput {

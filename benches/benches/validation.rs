@@ -65,20 +65,7 @@ impl Cell {
         self.run_for(PERIOD);
     }
     fn fork_job(&self) -> Job {
-        let mut snap = PlcSnapshot::default();
-        self.plc.snapshot_into(&mut snap);
-        let dispatched = self
-            .plc
-            .io_outputs()
-            .iter()
-            .zip(self.plc.dispatched())
-            .map(|(n, v)| (n.clone(), matches!(v, Value::Bool(true))))
-            .collect();
-        let start = Start::Fork {
-            snapshot: Box::new(snap),
-            twin: Box::new(self.io.plant().clone()),
-            dispatched,
-        };
+        let start = Start::fork(&self.plc, self.io.plant().clone());
         let policy = ValidationPolicy {
             mode: ValidationMode::Fork,
             ..ValidationPolicy::default()

@@ -8,10 +8,9 @@ use std::sync::Arc;
 use cetratus_io::TwinDriver;
 use cetratus_node::gate::{self, GatePolicy};
 use cetratus_node::validate::{self, Job, Start, ValidationMode, ValidationPolicy};
-use cetratus_program::{build_package, Program, TrustStore, Value};
+use cetratus_program::{build_package, Program, TrustStore};
 use cetratus_runtime::{
-    Command, EventDetail, EventKind, ManualStopwatch, Plc, PlcSnapshot, SubstituteMode,
-    SubstituteRequest,
+    Command, EventDetail, EventKind, ManualStopwatch, Plc, SubstituteMode, SubstituteRequest,
 };
 use cetratus_twin::{Plant, Twin, TwinKind};
 use criterion::{criterion_group, criterion_main, BatchSize, Criterion};

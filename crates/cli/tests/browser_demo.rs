@@ -120,18 +120,38 @@ async fn demo_in_browser(plc: &str) -> (tempfile::TempDir, ChildGuard, Browser) 
 async fn an_operator_reverts_a_substituted_update_with_the_pages_revert_button() {
     let (dir, _demo, c) = demo_in_browser("web2").await;
     // Revert and Accept are for probation only: idle, the page offers neither.
-    assert_eq!(c.js("return document.getElementById('revert').disabled").await, true);
-    assert_eq!(c.js("return document.getElementById('accept').disabled").await, true);
+    assert_eq!(
+        c.js("return document.getElementById('revert').disabled")
+            .await,
+        true
+    );
+    assert_eq!(
+        c.js("return document.getElementById('accept').disabled")
+            .await,
+        true
+    );
     c.load_package(&dir.path().join("u1.cpkg")).await;
     c.wait_text("status", "quarantine", Duration::from_secs(20))
         .await;
-    assert_eq!(c.js("return document.getElementById('revert').disabled").await, true);
+    assert_eq!(
+        c.js("return document.getElementById('revert').disabled")
+            .await,
+        true
+    );
     c.click_and_confirm("substitute").await;
     c.wait_text("primary", "B", Duration::from_secs(20)).await;
     c.wait_text("status", "probation", Duration::from_secs(10))
         .await;
-    assert_eq!(c.js("return document.getElementById('revert').disabled").await, false);
-    assert_eq!(c.js("return document.getElementById('accept').disabled").await, false);
+    assert_eq!(
+        c.js("return document.getElementById('revert').disabled")
+            .await,
+        false
+    );
+    assert_eq!(
+        c.js("return document.getElementById('accept').disabled")
+            .await,
+        false
+    );
 
     c.click_and_confirm("revert").await;
     // The page says what the PLC did, from its `reverted` event, not only that it was accepted.

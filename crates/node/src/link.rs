@@ -281,7 +281,10 @@ impl ControlLink {
     pub fn after_cycle(&mut self, plc: &Plc, events: &[Event], timing: &LoopTiming, now: u64) {
         self.queue_events(events);
         // A load waits for the marking of this boundary: its analysis gate starts from it.
-        if self.ctx_wanted.swap(false, std::sync::atomic::Ordering::AcqRel) {
+        if self
+            .ctx_wanted
+            .swap(false, std::sync::atomic::Ordering::AcqRel)
+        {
             let _ = self.ctx_tx.try_send((plc.update_context(), true));
         }
         let hash = |s: Slot| {

@@ -13,8 +13,8 @@ use cetratus_persist::{PersistStats, Persister};
 use cetratus_program::TrustStore;
 use cetratus_runtime::trace::Trace;
 use cetratus_runtime::{
-    Clock, Command, CommandError, Dispatcher, Event, EventKind, LoopTiming, Plc,
-    Provider, Status, SubstituteMode, SubstituteRequest, VerdictResult, VirtualClock,
+    Clock, Command, CommandError, Dispatcher, Event, EventKind, LoopTiming, Plc, Provider, Status,
+    SubstituteMode, SubstituteRequest, VerdictResult, VirtualClock,
 };
 
 use crate::link::{ControlLink, LinkCounters};

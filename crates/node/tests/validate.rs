@@ -10,8 +10,8 @@ use cetratus_io::TwinDriver;
 use cetratus_node::validate::{self, Start, ValidationMode, ValidationPolicy};
 use cetratus_program::{build_package, Program, TrustStore};
 use cetratus_runtime::{
-    Command, EventKind, ManualStopwatch, Plc, RevertReason, Slot, Status,
-    SubstituteMode, SubstituteRequest, VerdictResult,
+    Command, EventKind, ManualStopwatch, Plc, RevertReason, Slot, Status, SubstituteMode,
+    SubstituteRequest, VerdictResult,
 };
 use cetratus_twin::{Twin, TwinKind};
 
@@ -342,7 +342,10 @@ fn a_fork_taken_just_before_an_edge_sees_it() {
         .expect("FCM1");
     // The cycle at which FCM1 first rises, from a run of its own (the cell is deterministic).
     let mut probe = Cell::new(program.clone());
-    while !matches!(probe.plc.inputs()[fcm1], cetratus_program::Value::Bool(true)) {
+    while !matches!(
+        probe.plc.inputs()[fcm1],
+        cetratus_program::Value::Bool(true)
+    ) {
         probe.run_for(PERIOD);
     }
     let rise_us = probe.now - PERIOD;
@@ -357,7 +360,10 @@ fn a_fork_taken_just_before_an_edge_sees_it() {
     ));
     let v = validate::validate(&cell.fork_job(policy(60)));
     assert_eq!(v.result, VerdictResult::Pass, "{v:?}");
-    assert!(v.reasons.is_empty(), "the baseline has no trouble either: {v:?}");
+    assert!(
+        v.reasons.is_empty(),
+        "the baseline has no trouble either: {v:?}"
+    );
 }
 
 /// A node on the cell validates a new primary again every `revalidate` of its probation window,
@@ -371,7 +377,12 @@ fn during_probation_validation_runs_again_and_a_later_failing_verdict_reverts() 
     use cetratus_runtime::{Event, LoopTiming};
 
     let dir = workshop(VERNADAT);
-    edit(dir.path(), "u1.toml", "T20 = \"SB\"", "T20 = \"SB && B < 4\"");
+    edit(
+        dir.path(),
+        "u1.toml",
+        "T20 = \"SB\"",
+        "T20 = \"SB && B < 4\"",
+    );
     let (bytes, _) = build_package(&dir.path().join("u1.package.toml"), None).expect("U.1");
     let pkg = dir.path().join("u1.cpkg");
     std::fs::write(&pkg, bytes).expect("write");
@@ -442,7 +453,12 @@ fn during_probation_validation_runs_again_and_a_later_failing_verdict_reverts() 
     assert!(last.message.contains(": fail"), "{}", text(&verdicts));
     // Verdicts of the window come every 5 s of program time.
     for w in verdicts.windows(2) {
-        assert_eq!(w[1].time_us - w[0].time_us, 5_000_000, "{}", text(&verdicts));
+        assert_eq!(
+            w[1].time_us - w[0].time_us,
+            5_000_000,
+            "{}",
+            text(&verdicts)
+        );
     }
     let reverted = events
         .iter()
@@ -461,4 +477,3 @@ fn during_probation_validation_runs_again_and_a_later_failing_verdict_reverts() 
     let (plc, _, _) = node.finish().expect("finish");
     assert_eq!(plc.primary(), Slot::A);
 }
-

@@ -611,7 +611,11 @@ impl Updater {
         } = &mut *up.quarantine;
         let result = plan
             .transform
-            .apply(primary.marking(), candidate.program(), &mut plan.scratch_marking)
+            .apply(
+                primary.marking(),
+                candidate.program(),
+                &mut plan.scratch_marking,
+            )
             .map_err(|e| e.to_string())
             .and_then(|()| {
                 plan.transform.apply_timers(
@@ -671,8 +675,7 @@ impl Updater {
         quarantine.started_us = now_us;
         self.phase = Phase::Quarantine(quarantine);
         let message = if s == Slot::A { in_a } else { in_b };
-        core.log
-            .push(EventKind::QuarantineStarted, message, detail);
+        core.log.push(EventKind::QuarantineStarted, message, detail);
     }
 
     fn try_substitute(&mut self, core: &mut Core) {

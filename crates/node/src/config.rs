@@ -491,6 +491,20 @@ impl LocalConfig {
         })
     }
 
+    /// Refuses `validation = "fork"` for a run without an in-process twin: there is nothing to
+    /// fork, and every update would go unvalidated (with `require_verdict`, unsubstitutable).
+    pub fn check_validation(&self, has_twin: bool) -> Result<(), ConfigError> {
+        if self.validation.mode != ValidationMode::Fork || has_twin {
+            return Ok(());
+        }
+        Err(ConfigError::Value {
+            path: self.dir.join("config.toml").display().to_string(),
+            key: "[updates] validation",
+            value: "fork".into(),
+            reason: "fork mode forks the twin the PLC runs against, and this run has none: run it with --twin, or set validation = \"commission\" with validation_twin = \"vernadat\" or \"festo\"".into(),
+        })
+    }
+
     /// `limits` with what `[updates]` sets: stateTransTimeout, the candidate's work budget and
     /// the probation window.
     pub fn limits(&self, limits: Limits) -> Limits {
@@ -730,6 +744,20 @@ mod tests {
             .unwrap()
             .to_string();
         assert!(e.contains("between 0 and 1"), "{e}");
+    }
+
+    #[test]
+    fn fork_validation_needs_a_twin_to_fork() {
+        let c = LocalConfig::load(Some(&dir_with("[updates]\nvalidation = \"fork\"\n"))).unwrap();
+        assert!(c.check_validation(true).is_ok());
+        let e = c.check_validation(false).unwrap_err().to_string();
+        assert!(
+            e.contains("validation = \"fork\"") && e.contains("--twin"),
+            "{e}"
+        );
+        assert!(e.contains("config.toml"), "{e}");
+        let off = LocalConfig::load(Some(&dir_with("[updates]\n"))).unwrap();
+        assert!(off.check_validation(false).is_ok());
     }
 
     #[test]

@@ -170,8 +170,11 @@ impl<IO: Provider + Dispatcher> Node<IO> {
             return;
         };
         let policy = v.validator.policy;
+        // Commissioning starts fresh twins from initial markings: run again, it would only say
+        // the same. Forks of the state of the moment are what the window is watched with.
         if events.iter().any(|e| e.kind == EventKind::ProbationStarted) {
-            v.revalidate_at = (policy.revalidate_us > 0).then(|| now + policy.revalidate_us);
+            v.revalidate_at = (policy.revalidate_us > 0 && policy.mode == ValidationMode::Fork)
+                .then(|| now + policy.revalidate_us);
         }
         if self.plc.status() != Status::Probation {
             v.revalidate_at = None;

@@ -50,8 +50,9 @@ pub struct ValidationPolicy {
     pub horizon_us: u64,
     /// The least share of the baseline's production the candidate must reach.
     pub throughput_share: f64,
-    /// During probation, a validation starts again on a fork of the state of the moment every
-    /// this much program time, µs, while the window lasts; 0: once, at the substitution.
+    /// During probation (fork mode), a validation starts again on a fork of the state of the
+    /// moment every this much program time, µs, while the window lasts; 0: once, at the
+    /// substitution.
     pub revalidate_us: u64,
 }
 

@@ -8,10 +8,9 @@ use std::sync::Arc;
 use cetratus_io::TwinDriver;
 use cetratus_node::gate::{self, GatePolicy};
 use cetratus_node::validate::{self, Job, Start, ValidationMode, ValidationPolicy};
-use cetratus_program::{build_package, Program, TrustStore, Value};
+use cetratus_program::{build_package, Program, TrustStore};
 use cetratus_runtime::{
-    Command, EventDetail, EventKind, ManualStopwatch, Plc, PlcSnapshot, SubstituteMode,
-    SubstituteRequest,
+    Command, EventDetail, EventKind, ManualStopwatch, Plc, SubstituteMode, SubstituteRequest,
 };
 use cetratus_twin::{Plant, Twin, TwinKind};
 use criterion::{criterion_group, criterion_main, BatchSize, Criterion};
@@ -65,20 +64,7 @@ impl Cell {
         self.run_for(PERIOD);
     }
     fn fork_job(&self) -> Job {
-        let mut snap = PlcSnapshot::default();
-        self.plc.snapshot_into(&mut snap);
-        let dispatched = self
-            .plc
-            .io_outputs()
-            .iter()
-            .zip(self.plc.dispatched())
-            .map(|(n, v)| (n.clone(), matches!(v, Value::Bool(true))))
-            .collect();
-        let start = Start::Fork {
-            snapshot: Box::new(snap),
-            twin: Box::new(self.io.plant().clone()),
-            dispatched,
-        };
+        let start = Start::fork(&self.plc, self.io.plant().clone());
         let policy = ValidationPolicy {
             mode: ValidationMode::Fork,
             ..ValidationPolicy::default()

@@ -60,7 +60,9 @@ pub fn run(args: &DemoArgs) -> anyhow::Result<()> {
     if !args.scripted {
         return live(args, &files);
     }
-    let rec = scripted(&files)?;
+    // The analysis gate as the configuration sets it, as in a real run.
+    let local = args.config.load()?;
+    let rec = scripted(&files, local.gate)?;
     let end_ms = rec.steps.last().map_or(0.0, |s| s.time_ms);
     if let Some(path) = &args.svg {
         std::fs::write(path, diagram(&rec, end_ms).to_svg())

@@ -153,6 +153,7 @@ pub fn run(args: &RunArgs) -> anyhow::Result<()> {
         args.virtual_time,
         period_us,
     )?;
+    local.check_validation(io.twin().is_some())?;
     let plant = kind.map_or("field I/O".to_string(), |k| format!("{k} twin"));
     // Real-time runs are watched and commanded over MQTT, with the dashboard beside them; their
     // ports are taken before anything is written, so a start that cannot bind leaves no trace.

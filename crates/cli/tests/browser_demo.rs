@@ -1,7 +1,8 @@
 //! The whole system in a real browser: `cetratus demo` (the Vernadat cell in real time, its twin,
 //! the embedded broker and the dashboard), driven in headless Chromium through ChromeDriver. The
 //! operator uploads U.1 through the page, sees quarantine, substitutes, sees PRIMARY flip and
-//! probation, and accepts the update.
+//! probation, and accepts the update; another operator substitutes and reverts with the page's
+//! Revert, and the old program drives the cell again.
 
 use std::process::{Command, Stdio};
 use std::time::Duration;
@@ -85,6 +86,86 @@ async fn an_operator_loads_u1_in_the_browser_sees_quarantine_substitutes_and_pri
 
     let png = c.screenshot().await.expect("screenshot");
     std::fs::write(artifacts_dir().join("demo-dashboard.png"), &png).expect("screenshot written");
+    c.close().await;
+}
+
+/// The demo started with its dashboard, and a headless Chromium logged in with its one-time link.
+async fn demo_in_browser(plc: &str) -> (tempfile::TempDir, ChildGuard, Browser) {
+    require_chromium();
+    let dir = tempfile::tempdir().expect("temp dir");
+    let (mqtt, http) = (free_port(), free_port());
+    let mut demo = ChildGuard::spawn(
+        Command::new(BIN)
+            .args(["demo", "--speed", "20", "--plc", plc, "--for", "2h"])
+            .args([
+                "--mqtt",
+                &format!("127.0.0.1:{mqtt}"),
+                "--http",
+                &format!("127.0.0.1:{http}"),
+                "--dir",
+            ])
+            .arg(dir.path())
+            .stdout(Stdio::piped())
+            .stderr(Stdio::null()),
+    );
+    wait_for_port(http, "the dashboard", Duration::from_secs(30));
+    let link = login_link(&stdout_lines(&mut demo.0), Duration::from_secs(30));
+    let c = Browser::start().await;
+    c.goto(&link).await.expect("the page loads");
+    c.wait_text("primary", "A", Duration::from_secs(30)).await;
+    (dir, demo, c)
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn an_operator_reverts_a_substituted_update_with_the_pages_revert_button() {
+    let (dir, _demo, c) = demo_in_browser("web2").await;
+    // Revert and Accept are for probation only: idle, the page offers neither.
+    assert_eq!(
+        c.js("return document.getElementById('revert').disabled")
+            .await,
+        true
+    );
+    assert_eq!(
+        c.js("return document.getElementById('accept').disabled")
+            .await,
+        true
+    );
+    c.load_package(&dir.path().join("u1.cpkg")).await;
+    c.wait_text("status", "quarantine", Duration::from_secs(20))
+        .await;
+    assert_eq!(
+        c.js("return document.getElementById('revert').disabled")
+            .await,
+        true
+    );
+    c.click_and_confirm("substitute").await;
+    c.wait_text("primary", "B", Duration::from_secs(20)).await;
+    c.wait_text("status", "probation", Duration::from_secs(10))
+        .await;
+    assert_eq!(
+        c.js("return document.getElementById('revert').disabled")
+            .await,
+        false
+    );
+    assert_eq!(
+        c.js("return document.getElementById('accept').disabled")
+            .await,
+        false
+    );
+
+    c.click_and_confirm("revert").await;
+    // The page says what the PLC did, from its `reverted` event, not only that it was accepted.
+    wait_reply(&c, "revert: reverted:").await;
+    c.wait_text("primary", "A", Duration::from_secs(10)).await;
+    c.wait_text("status", "idle", Duration::from_secs(10)).await;
+    assert!(
+        c.text_of("reply").await.contains("operator"),
+        "the reply gives the revert's reason: {}",
+        c.text_of("reply").await
+    );
+    // The old program drives the cell again: its tokens move in A.
+    let drawn = c.wait_tokens_move("A", Duration::from_secs(10)).await;
+    assert!(drawn.contains("place-P10="), "{drawn}");
     c.close().await;
 }
 

@@ -219,8 +219,10 @@ fn operator_key(dir: &Path, name: &str, cfg: &Path) -> (std::path::PathBuf, Stri
     (key, id)
 }
 
+/// The PLC runs in real time, so each load is forked at a moment the test does not choose: over
+/// two minutes of plant time U.1's verdict passes from any cycle of the cell
+/// (`cetratus-node`'s `u1_forked_at_any_cycle_passes_over_two_minutes_of_plant_time`).
 #[test]
-#[ignore = "the second load's twin verdict sometimes fails on its fork (a real-time run forked at a moment the test does not choose); open in the validated-updates issue"]
 fn auto_substitute_on_pass_substitutes_only_loads_signed_by_an_allowed_operator_key() {
     let work = tempfile::tempdir().expect("temp dir");
     let pk = work.path().join("pk");
@@ -239,7 +241,7 @@ fn auto_substitute_on_pass_substitutes_only_loads_signed_by_an_allowed_operator_
     std::fs::write(
         cfg.join("config.toml"),
         format!(
-            "[updates]\nvalidation = \"fork\"\nhorizon = \"1min\"\nauto_substitute = \"on-pass\"\nauto_substitute_keys = [\"{alice_id}\"]\n"
+            "[updates]\nvalidation = \"fork\"\nhorizon = \"2min\"\nauto_substitute = \"on-pass\"\nauto_substitute_keys = [\"{alice_id}\"]\n"
         ),
     )
     .expect("config.toml");

@@ -323,8 +323,10 @@ fn the_analysis_gate_reports_at_load_and_refuses_a_deadlocking_package_when_told
         err.contains("refused by the analysis gate: deadlock"),
         "{err}"
     );
+    // From the marking the install transforms at 10 s, where a part waits in the buffer for
+    // T20; from the cold start's marking the sequence would begin with T10.
     assert!(
-        err.contains("a shortest firing sequence to one: T10"),
+        err.contains("a shortest firing sequence to one: T20 "),
         "{err}"
     );
     assert!(
@@ -404,5 +406,69 @@ fn twin_validation_gives_verdicts_in_quarantine_and_probation_and_require_verdic
             .iter()
             .any(|(k, m)| k == "refused" && m.contains("requires a passing twin verdict")),
         "{events:?}"
+    );
+}
+
+/// `demo --scripted` gates its loads as a run does: each has an analysis verdict (U.1 passes,
+/// U.2 warns that it changes the old machine invariants), in its events and in the candidate's
+/// `exec_info`; and the configuration's policy holds, so `gate_broken_invariants = "refuse"`
+/// refuses U.2 and the experiment stops with the gate's reason.
+#[test]
+fn the_scripted_demo_gates_its_loads_as_a_run_does() {
+    let dir = tempfile::tempdir().expect("a temporary directory");
+    let config = dir.path().join("config");
+    std::fs::create_dir(&config).expect("a configuration directory");
+    let demo = |config: &Path| {
+        Command::new(BIN)
+            .args(["demo", "--scripted", "--json", "--dir"])
+            .arg(dir.path().join("demo"))
+            .args(["--config", &p(config)])
+            .output()
+            .expect("cetratus demo")
+    };
+    let out = demo(&config);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let rec: Value = serde_json::from_slice(&out.stdout).expect("the record");
+    let verdicts: Vec<String> = rec["events"]
+        .as_array()
+        .expect("events")
+        .iter()
+        .filter(|e| e["kind"] == "verdict")
+        .filter_map(|e| e["message"].as_str().map(str::to_string))
+        .collect();
+    assert_eq!(verdicts.len(), 2, "{verdicts:?}");
+    assert!(
+        verdicts[0].starts_with("analysis verdict on U.1") && verdicts[0].ends_with(": pass"),
+        "{verdicts:?}"
+    );
+    assert!(
+        verdicts[1].starts_with("analysis verdict on U.2")
+            && verdicts[1].contains(": warn: broken invariants"),
+        "{verdicts:?}"
+    );
+    let in_quarantine = &rec["exec_info"][0];
+    let candidate = in_quarantine
+        .as_array()
+        .and_then(|c| c.iter().find(|c| c["role"] == "candidate"))
+        .unwrap_or_else(|| panic!("{in_quarantine}"));
+    assert_eq!(candidate["verdicts"][0]["kind"], "analysis", "{candidate}");
+
+    let strict = dir.path().join("strict");
+    std::fs::create_dir(&strict).expect("a configuration directory");
+    std::fs::write(
+        strict.join("config.toml"),
+        "[updates]\ngate_broken_invariants = \"refuse\"\n",
+    )
+    .expect("config.toml");
+    let out = demo(&strict);
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains("refused by the analysis gate: broken invariants"),
+        "{err}"
     );
 }

@@ -2,6 +2,7 @@
 //! the twin's inputs, scanning the program and writing the outputs back.
 
 mod common;
+mod updates;
 
 use cetratus_testkit::CountingAlloc;
 use cetratus_twin::{FestoStation, Plant, VernadatCell};
@@ -52,4 +53,47 @@ fn scanning_the_festo_program_against_its_twin_never_allocates() {
     let mut station = FestoStation::with_defaults(1);
     start_festo(&mut station);
     assert_eq!(allocations_while_scanning(FESTO, station), 0);
+}
+
+/// The install of a candidate at the cycle boundary (the state transformation into the prebuilt
+/// container, and connecting it to the Router and the Monitor) allocates nothing but the event
+/// list that its `quarantine_started` event starts. The candidate's input image, its figures,
+/// the quarantine it enters and the event's message are built when the update is prepared, off
+/// the scan thread.
+#[test]
+fn the_install_of_a_candidate_allocates_only_the_list_of_its_event() {
+    use cetratus_runtime::{Command, EventKind, ManualStopwatch, Plc, Status};
+    let w = updates::Workshop::new();
+    let program = w.program("vernadat.toml");
+    let mut io = cetratus_io::TwinDriver::new(
+        VernadatCell::with_defaults(1),
+        program.inputs(),
+        program.outputs(),
+    )
+    .expect("the signals match");
+    let mut plc = Plc::new(program, 0, Box::new(ManualStopwatch::new()));
+    plc.use_virtual_time(updates::PERIOD);
+    let mut now = 0;
+    for _ in 0..WARM_UP {
+        plc.cycle(now, &mut io);
+        now += updates::PERIOD;
+    }
+    let prepared = plc
+        .update_context()
+        .prepare_package(&w.package("u1.package.toml"), &w.trust, false, false)
+        .expect("U.1 prepares");
+    plc.command(Command::Load(Box::new(prepared)))
+        .expect("accepted");
+    let _ = plc.drain_events();
+    let counted = ALLOC.during(|| plc.cycle(now, &mut io));
+    let events = plc.drain_events();
+    assert_eq!(plc.status(), Status::Quarantine, "{events:?}");
+    assert_eq!(
+        events.iter().map(|e| e.kind).collect::<Vec<_>>(),
+        [EventKind::QuarantineStarted]
+    );
+    assert!(
+        counted <= 1,
+        "the install cycle made {counted} allocations; the event list needs 1"
+    );
 }

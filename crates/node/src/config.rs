@@ -166,6 +166,7 @@ struct UpdatesSection {
     validation: Option<String>,
     validation_twin: Option<String>,
     horizon: Option<String>,
+    revalidate: Option<String>,
     throughput_share: Option<f64>,
     #[serde(default)]
     require_verdict: bool,
@@ -490,6 +491,20 @@ impl LocalConfig {
         })
     }
 
+    /// Refuses `validation = "fork"` for a run without an in-process twin: there is nothing to
+    /// fork, and every update would go unvalidated (with `require_verdict`, unsubstitutable).
+    pub fn check_validation(&self, has_twin: bool) -> Result<(), ConfigError> {
+        if self.validation.mode != ValidationMode::Fork || has_twin {
+            return Ok(());
+        }
+        Err(ConfigError::Value {
+            path: self.dir.join("config.toml").display().to_string(),
+            key: "[updates] validation",
+            value: "fork".into(),
+            reason: "fork mode forks the twin the PLC runs against, and this run has none: run it with --twin, or set validation = \"commission\" with validation_twin = \"vernadat\" or \"festo\"".into(),
+        })
+    }
+
     /// `limits` with what `[updates]` sets: stateTransTimeout, the candidate's work budget and
     /// the probation window.
     pub fn limits(&self, limits: Limits) -> Limits {
@@ -507,7 +522,7 @@ impl LocalConfig {
     }
 }
 
-/// `[updates] validation`, `validation_twin`, `horizon`, `throughput_share`.
+/// `[updates] validation`, `validation_twin`, `horizon`, `revalidate`, `throughput_share`.
 fn validation_policy(
     u: &UpdatesSection,
     value_error: &impl Fn(&'static str, &str, String) -> ConfigError,
@@ -550,6 +565,10 @@ fn validation_policy(
             ));
         }
         v.horizon_us = us;
+    }
+    if let Some(r) = &u.revalidate {
+        v.revalidate_us = duration::parse_us(r, Bare::Seconds)
+            .map_err(|e| value_error("[updates] revalidate", r, e.to_string()))?;
     }
     if let Some(share) = u.throughput_share {
         if !(0.0..=1.0).contains(&share) {
@@ -692,7 +711,7 @@ mod tests {
         assert_eq!(c.validation, ValidationPolicy::default());
         assert!(!c.require_verdict);
         let d = dir_with(
-            "[updates]\nvalidation = \"commission\"\nvalidation_twin = \"festo\"\nhorizon = \"2min\"\nthroughput_share = 0.8\nrequire_verdict = true\n",
+            "[updates]\nvalidation = \"commission\"\nvalidation_twin = \"festo\"\nhorizon = \"2min\"\nthroughput_share = 0.8\nrequire_verdict = true\nrevalidate = \"30s\"\n",
         );
         let c = LocalConfig::load(Some(&d)).unwrap();
         assert_eq!(
@@ -703,6 +722,17 @@ mod tests {
             (c.validation.horizon_us, c.validation.throughput_share),
             (120_000_000, 0.8)
         );
+        assert_eq!(c.validation.revalidate_us, 30_000_000);
+        assert_eq!(
+            ValidationPolicy::default().revalidate_us,
+            10_000_000,
+            "every 10 s of the window by default"
+        );
+        let e = LocalConfig::load(Some(&dir_with("[updates]\nrevalidate = \"often\"\n")))
+            .err()
+            .unwrap()
+            .to_string();
+        assert!(e.contains("[updates] revalidate"), "{e}");
         assert!(c.limits(Limits::for_period_us(10_000)).require_verdict);
         let e = LocalConfig::load(Some(&dir_with("[updates]\nvalidation = \"commission\"\n")))
             .err()
@@ -714,6 +744,20 @@ mod tests {
             .unwrap()
             .to_string();
         assert!(e.contains("between 0 and 1"), "{e}");
+    }
+
+    #[test]
+    fn fork_validation_needs_a_twin_to_fork() {
+        let c = LocalConfig::load(Some(&dir_with("[updates]\nvalidation = \"fork\"\n"))).unwrap();
+        assert!(c.check_validation(true).is_ok());
+        let e = c.check_validation(false).unwrap_err().to_string();
+        assert!(
+            e.contains("validation = \"fork\"") && e.contains("--twin"),
+            "{e}"
+        );
+        assert!(e.contains("config.toml"), "{e}");
+        let off = LocalConfig::load(Some(&dir_with("[updates]\n"))).unwrap();
+        assert!(off.check_validation(false).is_ok());
     }
 
     #[test]

@@ -22,6 +22,7 @@ use cetratus_twin::{Plant, Twin, TwinKind};
 use serde::Serialize;
 
 use crate::clock::MonotonicStopwatch;
+use crate::gate::{self, GatePolicy};
 use crate::node::{Node, NodeOptions};
 
 /// Why the demo cannot run.
@@ -283,6 +284,7 @@ const PERIOD_US: u64 = 10_000;
 
 struct Run {
     node: Node<TwinDriver<Twin>>,
+    gate: GatePolicy,
     now: u64,
     rec: Recorder,
     events: Vec<Event>,
@@ -313,13 +315,17 @@ impl Run {
         self.events.extend(ev);
         r.map_err(|e| DemoError::Experiment(e.to_string()))
     }
+    /// Prepares and gates a package as a run's preparer does, then loads it.
     fn load(&mut self, bytes: &[u8], trust: &TrustStore) -> Result<(), DemoError> {
-        let prepared = self
-            .node
-            .plc()
-            .update_context()
+        let ctx = self.node.plc().update_context();
+        let mut prepared = ctx
             .prepare_package(bytes, trust, false, false)
             .map_err(|e| DemoError::Experiment(e.to_string()))?;
+        let gate = gate::run(&ctx, &prepared, &self.gate);
+        if let Some(refusal) = gate.refusal {
+            return Err(DemoError::Experiment(refusal));
+        }
+        prepared.add_verdict(gate.verdict);
         self.command(Command::Load(Box::new(prepared)))
     }
     fn substitute(&mut self) -> Result<(), DemoError> {
@@ -334,8 +340,9 @@ impl Run {
     }
 }
 
-/// Plays the paper's experiment in virtual time.
-pub fn scripted(files: &DemoFiles) -> Result<DemoRecord, DemoError> {
+/// Plays the paper's experiment in virtual time; each load goes through the analysis gate
+/// with `gate`, as in a run.
+pub fn scripted(files: &DemoFiles, gate: GatePolicy) -> Result<DemoRecord, DemoError> {
     let program = Arc::new(Program::load(&files.program)?);
     let twin = TwinKind::Vernadat.build(1);
     let io = TwinDriver::new(twin, program.inputs(), program.outputs())?;
@@ -347,9 +354,10 @@ pub fn scripted(files: &DemoFiles) -> Result<DemoRecord, DemoError> {
         allow_unsigned: false,
         record_trace: false,
         progress_every: None,
-        gate: crate::gate::GatePolicy::default(),
+        gate,
     };
     let mut r = Run {
+        gate: opts.gate,
         node: Node::new(plc, io, opts),
         now: 0,
         rec: Recorder {

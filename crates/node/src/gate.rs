@@ -1,7 +1,8 @@
 //! The analysis gate at load (docs/live-update.md, *Analysis gate*): before a prepared update is
 //! handed to the scan thread, the preparer explores the candidate's reachability graph from the
-//! transformed marking of the primary, and the primary's from its marking, within a state and
-//! time budget, and reports:
+//! transformed marking (the package's state transformation applied to the primary's marking at
+//! the cycle boundary the load is handled at, which is what an install there gives the
+//! candidate), and the primary's from that marking, within a state and time budget, and reports:
 //!
 //! * deadlocks the candidate can reach, with a shortest witness;
 //! * transitions (matched by id) that can fire in the primary's graph but in none of the
@@ -227,6 +228,7 @@ pub fn run(ctx: &UpdateContext, update: &PreparedUpdate, policy: &GatePolicy) ->
     figures.insert("deadlocks".to_string(), cand.deadlocks as f64);
     figures.insert("lost_transitions".to_string(), lost.len() as f64);
     figures.insert("broken_invariants".to_string(), broken.len() as f64);
+    figures.insert("from_cycle".to_string(), ctx.cycle as f64);
     figures.insert("gate_ms".to_string(), t0.elapsed().as_secs_f64() * 1e3);
     let mut reasons: Vec<String> = findings.into_iter().map(|(_, r)| r).collect();
     reasons.extend(notes);

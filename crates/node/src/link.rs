@@ -91,7 +91,9 @@ struct Snapshot {
 /// [`ControlLink::after_cycle`] after it. Neither blocks.
 pub struct ControlLink {
     to_scan_rx: Receiver<Ready>,
-    ctx_tx: SyncSender<UpdateContext>,
+    ctx_tx: SyncSender<(UpdateContext, bool)>,
+    // Set by the preparer when a load needs the primary's marking of now (the analysis gate).
+    ctx_wanted: Arc<AtomicBool>,
     snap_tx: Option<Sender<ToPublisher>>,
     snapshots: Budget,
     outgoing: SyncSender<Outgoing>,
@@ -132,12 +134,14 @@ impl ControlLink {
             stats,
         } = link;
         let (to_scan_tx, to_scan_rx) = sync_channel::<Ready>(32);
-        let (ctx_tx, ctx_rx) = sync_channel::<UpdateContext>(4);
+        let (ctx_tx, ctx_rx) = sync_channel::<(UpdateContext, bool)>(4);
+        let ctx_wanted = Arc::new(AtomicBool::new(false));
         // Unbounded as a channel, bounded by the permits its messages carry.
         let (snap_tx, snap_rx) = channel::<ToPublisher>();
-        let _ = ctx_tx.try_send(plc.update_context());
+        let _ = ctx_tx.try_send((plc.update_context(), false));
         let prep = Preparer {
             ctx_rx,
+            ctx_wanted: ctx_wanted.clone(),
             to_scan: to_scan_tx,
             to_publisher: snap_tx.clone(),
             exec_info: Budget::new(EXEC_INFO_QUEUE),
@@ -162,6 +166,7 @@ impl ControlLink {
         ControlLink {
             to_scan_rx,
             ctx_tx,
+            ctx_wanted,
             snap_tx: Some(snap_tx),
             snapshots: Budget::new(2),
             outgoing,
@@ -275,12 +280,19 @@ impl ControlLink {
     /// Publishes the cycle's events, and a snapshot when one is due or something changed.
     pub fn after_cycle(&mut self, plc: &Plc, events: &[Event], timing: &LoopTiming, now: u64) {
         self.queue_events(events);
+        // A load waits for the marking of this boundary: its analysis gate starts from it.
+        if self
+            .ctx_wanted
+            .swap(false, std::sync::atomic::Ordering::AcqRel)
+        {
+            let _ = self.ctx_tx.try_send((plc.update_context(), true));
+        }
         let hash = |s: Slot| plc.container(s).map(|c| c.program().hash());
         let key = (plc.primary(), plc.status(), hash(Slot::A), hash(Slot::B));
         let changed = key != self.last_key;
         if changed {
             if key.0 != self.last_key.0 || key.2 != self.last_key.2 || key.3 != self.last_key.3 {
-                let _ = self.ctx_tx.try_send(plc.update_context());
+                let _ = self.ctx_tx.try_send((plc.update_context(), false));
             }
             self.last_key = key;
             self.net_due = true;
@@ -300,7 +312,7 @@ impl ControlLink {
         if let (Some(permit), Some(tx)) = (permit, &self.snap_tx) {
             // The preparer's context follows the primary's marking at the publication rate: the
             // analysis gate starts from it.
-            let _ = self.ctx_tx.try_send(plc.update_context());
+            let _ = self.ctx_tx.try_send((plc.update_context(), false));
             let since = self.last_sampled;
             let samples: Vec<CycleRecord> = plc
                 .monitor()
@@ -366,7 +378,8 @@ fn try_out(tx: &SyncSender<Outgoing>, m: Outgoing) -> Result<(), Outgoing> {
 /// The preparer thread: MQTT commands in, prepared commands out to the scan thread,
 /// `exec_info` requests out to the publisher.
 struct Preparer {
-    ctx_rx: Receiver<UpdateContext>,
+    ctx_rx: Receiver<(UpdateContext, bool)>,
+    ctx_wanted: Arc<AtomicBool>,
     to_scan: SyncSender<Ready>,
     to_publisher: Sender<ToPublisher>,
     exec_info: Budget,
@@ -386,15 +399,18 @@ impl Preparer {
                     if done.load(std::sync::atomic::Ordering::Acquire) {
                         return;
                     }
-                    while let Ok(c) = self.ctx_rx.try_recv() {
+                    while let Ok((c, _)) = self.ctx_rx.try_recv() {
                         ctx = Some(c);
                     }
                     continue;
                 }
                 Err(_) => return,
             };
-            while let Ok(c) = self.ctx_rx.try_recv() {
+            while let Ok((c, _)) = self.ctx_rx.try_recv() {
                 ctx = Some(c);
+            }
+            if matches!(cmd.request, Request::Load { .. }) && ctx.is_some() {
+                self.fresh_context(&mut ctx);
             }
             if cmd.request == Request::ExecInfo {
                 self.exec_info(cmd.reply);
@@ -459,6 +475,26 @@ impl Preparer {
                         .out
                         .send(Outgoing::Reply(cmd.reply, Err(refused(reason))));
                 }
+            }
+        }
+    }
+
+    /// Asks the scan thread for the primary's marking of its next cycle boundary and waits for
+    /// it (a second at most: a scan thread that does not answer leaves the last context), so that
+    /// the analysis gate starts from the marking of now rather than of the last publication.
+    fn fresh_context(&self, ctx: &mut Option<UpdateContext>) {
+        self.ctx_wanted
+            .store(true, std::sync::atomic::Ordering::Release);
+        let end = std::time::Instant::now() + std::time::Duration::from_secs(1);
+        while let Some(left) = end.checked_duration_since(std::time::Instant::now()) {
+            match self.ctx_rx.recv_timeout(left) {
+                Ok((c, fresh)) => {
+                    *ctx = Some(c);
+                    if fresh {
+                        return;
+                    }
+                }
+                Err(_) => return,
             }
         }
     }

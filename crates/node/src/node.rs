@@ -10,11 +10,11 @@ use std::sync::mpsc::{sync_channel, SyncSender};
 use std::thread::JoinHandle;
 
 use cetratus_persist::{PersistStats, Persister};
-use cetratus_program::{TrustStore, Value};
+use cetratus_program::TrustStore;
 use cetratus_runtime::trace::Trace;
 use cetratus_runtime::{
-    Clock, Command, CommandError, Dispatcher, Event, EventKind, LoopTiming, Plc, PlcSnapshot,
-    Provider, Status, SubstituteMode, SubstituteRequest, VerdictResult, VirtualClock,
+    Clock, Command, CommandError, Dispatcher, Event, EventKind, LoopTiming, Plc, Provider, Status,
+    SubstituteMode, SubstituteRequest, VerdictResult, VirtualClock,
 };
 
 use crate::link::{ControlLink, LinkCounters};
@@ -90,6 +90,8 @@ struct NodeValidation<IO> {
     fork: fn(&IO) -> Option<Twin>,
     period_us: u64,
     auto: Option<AutoSubstitute>,
+    // Program time of the next validation during probation.
+    revalidate_at: Option<u64>,
 }
 
 /// What a node leaves when it stops.
@@ -153,45 +155,50 @@ impl<IO: Provider + Dispatcher> Node<IO> {
                 fork,
                 period_us,
                 auto: None,
+                revalidate_at: None,
             });
         }
         self
     }
 
     /// Starts a validation when the cycle's events put an update into quarantine or probation,
-    /// and hands a finished verdict to the PLC. In virtual time it waits for the verdict, so that
-    /// it lands at the same cycle on every run.
-    fn validation_step(&mut self, events: &[Event]) {
-        let Some(v) = self.validation.as_ref() else {
+    /// and again on a fork of the state of the moment every `revalidate_us` of the probation
+    /// window; hands a finished verdict to the PLC (a failing one in probation reverts). In
+    /// virtual time it waits for the verdict, so that it lands at the same cycle on every run.
+    fn validation_step(&mut self, events: &[Event], now: u64) {
+        let Some(v) = self.validation.as_mut() else {
             return;
         };
-        let due = events.iter().any(|e| {
-            e.kind == EventKind::QuarantineStarted || e.kind == EventKind::ProbationStarted
-        });
+        let policy = v.validator.policy;
+        // Commissioning starts fresh twins from initial markings: run again, it would only say
+        // the same. Forks of the state of the moment are what the window is watched with.
+        if events.iter().any(|e| e.kind == EventKind::ProbationStarted) {
+            v.revalidate_at = (policy.revalidate_us > 0 && policy.mode == ValidationMode::Fork)
+                .then(|| now + policy.revalidate_us);
+        }
+        if self.plc.status() != Status::Probation {
+            v.revalidate_at = None;
+        }
+        let again = v.revalidate_at.is_some_and(|t| now >= t);
+        let due = again
+            || events.iter().any(|e| {
+                e.kind == EventKind::QuarantineStarted || e.kind == EventKind::ProbationStarted
+            });
         let mut submitted = false;
         if due {
-            let start = match v.validator.policy.mode {
+            let start = match policy.mode {
                 ValidationMode::Commission(kind) => Some(Start::Commission(kind)),
-                ValidationMode::Fork => (v.fork)(&self.io).map(|twin| {
-                    let mut snapshot = Box::<PlcSnapshot>::default();
-                    self.plc.snapshot_into(&mut snapshot);
-                    let names = self.plc.io_outputs().iter();
-                    let dispatched = names
-                        .zip(self.plc.dispatched())
-                        .map(|(n, v)| (n.clone(), matches!(v, Value::Bool(true))))
-                        .collect();
-                    Start::Fork {
-                        snapshot,
-                        twin: Box::new(twin),
-                        dispatched,
-                    }
-                }),
+                ValidationMode::Fork => (v.fork)(&self.io).map(|t| Start::fork(&self.plc, t)),
                 ValidationMode::Off => None,
             };
             if let Some(job) =
-                start.and_then(|s| validate::job_for(&self.plc, s, v.validator.policy, v.period_us))
+                start.and_then(|s| validate::job_for(&self.plc, s, policy, v.period_us))
             {
                 submitted = v.validator.submit(job);
+            }
+            // A job that could not be handed over (one waits already) is tried again next cycle.
+            if again && submitted {
+                v.revalidate_at = Some(now + policy.revalidate_us);
             }
         }
         let done = if submitted && self.pace == Pace::Virtual {
@@ -388,7 +395,7 @@ impl<IO: Provider + Dispatcher> Node<IO> {
             self.fault(format!("{:.3}s: {v}", now as f64 / 1e6));
         }
         let ev = self.plc.drain_events();
-        self.validation_step(&ev);
+        self.validation_step(&ev, now);
         let ev = self.events(ev, "plc", false);
         if let Some(link) = self.link.as_mut() {
             link.after_cycle(&self.plc, &ev, timing, now);

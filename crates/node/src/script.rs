@@ -3,8 +3,8 @@
 //!
 //! A scripted package is read, verified and built on a thread of its own (the script's
 //! preparer), never on the scan thread: a package of a million places takes seconds to build.
-//! The next load of the script is prepared ahead, against the primary running at the time, and
-//! prepared again if the primary has changed by the time it is due. When the load is due:
+//! A load is prepared when it is due, against the primary and its marking at that cycle
+//! boundary: the analysis gate starts from the marking the install transforms. When it is due:
 //! * in virtual time ([`Pace::Virtual`]) the loop waits for its preparation, so it is applied at
 //!   the cycle its time names, however long the preparation took: a virtual run is the same
 //!   every time;
@@ -301,9 +301,9 @@ impl Script {
             Preparer::start(t, unsigned, *gate)
         });
         if !due {
-            // Prepared ahead, against the primary running now.
+            // Not prepared ahead: the analysis gate starts from the marking the install will
+            // transform, the primary's at the boundary the load is due at.
             prep.collect(false);
-            prep.ensure(item, path, plc);
             return None;
         }
         let base = plc.primary_program().hash();

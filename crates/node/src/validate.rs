@@ -50,6 +50,10 @@ pub struct ValidationPolicy {
     pub horizon_us: u64,
     /// The least share of the baseline's production the candidate must reach.
     pub throughput_share: f64,
+    /// During probation (fork mode), a validation starts again on a fork of the state of the
+    /// moment every this much program time, µs, while the window lasts; 0: once, at the
+    /// substitution.
+    pub revalidate_us: u64,
 }
 
 /// `auto_substitute = "on-pass"`: the operator key ids whose loads the PLC substitutes by itself
@@ -60,12 +64,17 @@ pub struct AutoSubstitute {
     pub keys: Vec<String>,
 }
 
+/// `[updates] revalidate` when absent: ten seconds, six fresh verdicts in the default minute of
+/// probation.
+pub const DEFAULT_REVALIDATE_US: u64 = 10_000_000;
+
 impl Default for ValidationPolicy {
     fn default() -> Self {
         ValidationPolicy {
             mode: ValidationMode::Off,
             horizon_us: 600_000_000,
             throughput_share: 0.9,
+            revalidate_us: DEFAULT_REVALIDATE_US,
         }
     }
 }
@@ -81,9 +90,39 @@ pub enum Start {
         /// What the PLC dispatched in its last cycle, by output name: what the twin was last
         /// told, which the forks' drivers start from.
         dispatched: Vec<(String, bool)>,
+        /// What the PLC read in its last cycle, by input name: the forks' edge detection
+        /// continues from it.
+        read: Vec<(String, Value)>,
     },
     /// Commission mode: fresh twins of this kind.
     Commission(TwinKind),
+}
+
+impl Start {
+    /// Fork mode: `plc`'s state, what it dispatched and read in its last cycle, and `twin`, the
+    /// plant it runs against, forked at the same moment (after a cycle).
+    pub fn fork(plc: &Plc, twin: Twin) -> Start {
+        let mut snapshot = Box::<PlcSnapshot>::default();
+        plc.snapshot_into(&mut snapshot);
+        let dispatched = plc
+            .io_outputs()
+            .iter()
+            .zip(plc.dispatched())
+            .map(|(n, v)| (n.clone(), matches!(v, Value::Bool(true))))
+            .collect();
+        let read = plc
+            .io_inputs()
+            .iter()
+            .cloned()
+            .zip(plc.inputs().iter().copied())
+            .collect();
+        Start::Fork {
+            snapshot,
+            twin: Box::new(twin),
+            dispatched,
+            read,
+        }
+    }
 }
 
 /// One validation to run: the baseline program, the update, and where to start.
@@ -191,6 +230,17 @@ fn resume(
     Some(plc)
 }
 
+/// Continues `plc`'s edge detection from what the forked PLC read in its last cycle, by name.
+fn continue_inputs(plc: &mut Plc, read: &[(String, Value)]) {
+    let image: Vec<Value> = plc
+        .io_inputs()
+        .iter()
+        .zip(plc.inputs())
+        .map(|(n, v)| read.iter().find(|(m, _)| m == n).map_or(*v, |(_, x)| *x))
+        .collect();
+    plc.continue_inputs_from(&image);
+}
+
 /// Takes `plc` through the install of `update` and a retransform substitution, as the PLC would:
 /// two cycles. Returns why it did not get there.
 fn apply_update(
@@ -249,9 +299,15 @@ pub fn validate(job: &Job) -> Verdict {
     let driver = |twin: Twin, p: &Program| TwinDriver::new(twin, p.inputs(), p.outputs());
     // (baseline PLC, its twin, candidate PLC, its twin, program time to start from)
     let setup = match &job.start {
-        Start::Fork { snapshot, twin, .. } => {
+        Start::Fork {
+            snapshot,
+            twin,
+            read,
+            ..
+        } => {
             let from = snapshot.time_us.saturating_add(job.period_us);
-            let Some(base) = resume(snapshot, job.baseline_slot, &programs, job.period_us) else {
+            let Some(mut base) = resume(snapshot, job.baseline_slot, &programs, job.period_us)
+            else {
                 return fail("the PLC's state could not be resumed on a fork".into());
             };
             let cand_slot = if job.on_probation {
@@ -259,9 +315,11 @@ pub fn validate(job: &Job) -> Verdict {
             } else {
                 job.baseline_slot
             };
-            let Some(cand) = resume(snapshot, cand_slot, &programs, job.period_us) else {
+            let Some(mut cand) = resume(snapshot, cand_slot, &programs, job.period_us) else {
                 return fail("the candidate's state could not be resumed on a fork".into());
             };
+            continue_inputs(&mut base, read);
+            continue_inputs(&mut cand, read);
             (base, (**twin).clone(), cand, (**twin).clone(), from)
         }
         Start::Commission(kind) => {
@@ -322,6 +380,16 @@ pub fn validate(job: &Job) -> Verdict {
             return fail(format!("the update does not take on the fork: {why}"));
         }
     }
+    // Both runs start at the same cycle boundary: the baseline runs on through the cycles the
+    // candidate's install and substitution took (the old program drove the plant in them on both
+    // forks), so that the same plant time is compared, cycle for cycle.
+    let mut from = from;
+    while from < cand_from {
+        base.cycle(from, &mut base_io);
+        let _ = base.drain_events();
+        drop(base.take_retired());
+        from += job.period_us;
+    }
     let mut outputs: Vec<u64> =
         Vec::with_capacity((job.policy.horizon_us / job.period_us.max(1)) as usize);
     let bits = |v: &[cetratus_program::Value]| {
@@ -366,6 +434,15 @@ pub fn validate(job: &Job) -> Verdict {
             b.produced,
             job.policy.throughput_share * 100.0
         ));
+        // A part is the unit of production: over a horizon that holds few, where a part is at
+        // its end decides more than the program does.
+        if (b.produced as f64) * (1.0 - job.policy.throughput_share) < 1.0 {
+            reasons.push(format!(
+                "the horizon holds only {} parts of the program it replaces, so one part is {:.0} % of its production: a longer horizon judges throughput rather than the phase",
+                b.produced,
+                100.0 / b.produced as f64
+            ));
+        }
     }
     let passed = reasons.is_empty();
     if job.update.meta.changes_throughput {

@@ -7,7 +7,9 @@ use std::sync::Arc;
 
 use cetratus_node::gate::{self, GatePolicy, Severity};
 use cetratus_program::{build_package, Program, TrustStore};
-use cetratus_runtime::{ManualStopwatch, Plc, PreparedUpdate, UpdateContext, VerdictResult};
+use cetratus_runtime::{
+    ManualStopwatch, Plc, PreparedUpdate, UpdateContext, VerdictKind, VerdictResult,
+};
 
 const EXAMPLES: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../../examples/vernadat");
 
@@ -125,4 +127,90 @@ fn a_budget_of_a_few_states_says_the_findings_are_partial() {
     let text = out.verdict.reasons.join("\n");
     assert!(text.contains("stopped early"), "{text}");
     assert!(out.verdict.figures["states_candidate"] <= 11.0);
+}
+
+/// A scripted load is gated from the marking its install transforms: the primary's at the cycle
+/// boundary the load is due at, not an earlier one. The deadlock witness of a U.1 without T24 is a
+/// shortest firing sequence from where the candidate starts, so it differs from one moment of the
+/// cell to another; the node's verdict is the gate's from the marking of the install's boundary.
+#[test]
+fn a_scripted_load_is_gated_from_the_marking_of_the_boundary_it_is_installed_at() {
+    use cetratus_io::TwinDriver;
+    use cetratus_node::script::Script;
+    use cetratus_node::{Node, NodeOptions};
+    use cetratus_runtime::{EventKind, LoopTiming, Slot};
+    use cetratus_twin::TwinKind;
+
+    const PERIOD: u64 = 10_000;
+    const DUE: u64 = 7_000_000;
+    let dir = workshop();
+    without_t24(dir.path());
+    let (bytes, _) = build_package(&dir.path().join("u1.package.toml"), None).expect("builds");
+    let pkg = dir.path().join("u1.cpkg");
+    std::fs::write(&pkg, &bytes).expect("write");
+    let program = Arc::new(Program::load(&dir.path().join("vernadat.toml")).expect("program"));
+    let io = TwinDriver::new(
+        TwinKind::Vernadat.build(1),
+        program.inputs(),
+        program.outputs(),
+    )
+    .expect("the signals match");
+    let mut plc = Plc::new(program, 0, Box::new(ManualStopwatch::default()));
+    plc.use_virtual_time(PERIOD);
+    let at_start = plc.update_context();
+    let opts = NodeOptions {
+        base_us: 0,
+        trust: TrustStore::empty(),
+        allow_unsigned: true,
+        record_trace: false,
+        progress_every: None,
+        gate: GatePolicy::default(),
+    };
+    let script = Script::parse(&[format!("{}us load {}", DUE, pkg.display())]).expect("script");
+    let mut node = Node::new(plc, io, opts).with_script(script);
+    let idle = LoopTiming::default();
+    let mut now = 0;
+    while now < DUE {
+        node.step(now, &idle).expect("a cycle");
+        now += PERIOD;
+    }
+    // The context of the boundary the load is due at, as a test sees it from outside.
+    let at_due = node.plc().update_context();
+    let events = node.step(now, &idle).expect("the install's cycle");
+    let started = events
+        .iter()
+        .find(|e| e.kind == EventKind::QuarantineStarted)
+        .unwrap_or_else(|| panic!("{events:#?}"));
+    assert_eq!(started.cycle, at_due.cycle, "installed at that boundary");
+    let info = node.plc().exec_info();
+    let verdict = info[Slot::B.index()]
+        .as_ref()
+        .and_then(|c| c.verdicts.iter().find(|v| v.kind == VerdictKind::Analysis))
+        .expect("the candidate's analysis verdict")
+        .clone();
+    assert_eq!(verdict.figures["from_cycle"], at_due.cycle as f64);
+
+    let gate_at = |ctx: &UpdateContext| {
+        let up = ctx
+            .prepare_package(&bytes, &TrustStore::empty(), true, false)
+            .expect("prepares");
+        gate::run(ctx, &up, &GatePolicy::default()).verdict.reasons
+    };
+    let witness = |reasons: &[String]| {
+        reasons
+            .iter()
+            .find(|r| r.starts_with("deadlock:"))
+            .cloned()
+            .unwrap_or_else(|| panic!("a deadlock finding: {reasons:?}"))
+    };
+    assert_eq!(
+        witness(&verdict.reasons),
+        witness(&gate_at(&at_due)),
+        "the node's gate explored from the install's marking"
+    );
+    assert_ne!(
+        witness(&gate_at(&at_due)),
+        witness(&gate_at(&at_start)),
+        "the cell has moved on since it started: another marking, another shortest witness"
+    );
 }

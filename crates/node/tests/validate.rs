@@ -10,8 +10,8 @@ use cetratus_io::TwinDriver;
 use cetratus_node::validate::{self, Start, ValidationMode, ValidationPolicy};
 use cetratus_program::{build_package, Program, TrustStore};
 use cetratus_runtime::{
-    Command, EventKind, ManualStopwatch, Plc, PlcSnapshot, RevertReason, Slot, Status,
-    SubstituteMode, SubstituteRequest, VerdictResult,
+    Command, EventKind, ManualStopwatch, Plc, RevertReason, Slot, Status, SubstituteMode,
+    SubstituteRequest, VerdictResult,
 };
 use cetratus_twin::{Twin, TwinKind};
 
@@ -79,20 +79,7 @@ impl Cell {
     }
     /// The validation of the update under way, forked now.
     fn fork_job(&self, policy: ValidationPolicy) -> validate::Job {
-        let mut snap = PlcSnapshot::default();
-        self.plc.snapshot_into(&mut snap);
-        let dispatched = self
-            .plc
-            .io_outputs()
-            .iter()
-            .zip(self.plc.dispatched())
-            .map(|(n, v)| (n.clone(), matches!(v, cetratus_program::Value::Bool(true))))
-            .collect();
-        let start = Start::Fork {
-            snapshot: Box::new(snap),
-            twin: Box::new(self.io.plant().clone()),
-            dispatched,
-        };
+        let start = Start::fork(&self.plc, self.io.plant().clone());
         validate::job_for(&self.plc, start, policy, PERIOD).expect("an update under way")
     }
 }
@@ -285,4 +272,208 @@ fn a_failing_verdict_during_probation_reverts_at_the_next_cycle() {
         "{reverted:?}"
     );
     assert_eq!(cell.plc.primary(), Slot::A);
+}
+
+/// The verdict of a fork taken at any cycle, as a real-time run takes it at a cycle it does not
+/// choose: U.1 loaded at 24 instants a prime number of cycles apart (over two minutes of the
+/// cell, across its buffer filling up) passes over two minutes of plant time at every one. Over
+/// one minute it does not: that holds 6 to 8 parts, and U.1, which keeps M1 going where the old
+/// program blocks it at a full buffer, is a part behind at some phases (docs/live-update.md).
+#[test]
+fn u1_forked_at_any_cycle_passes_over_two_minutes_of_plant_time() {
+    let dir = workshop(VERNADAT);
+    let mut cell = Cell::new(Arc::new(
+        Program::load(&dir.path().join("vernadat.toml")).expect("program"),
+    ));
+    cell.run_for(3_000_000);
+    let mut failed = Vec::new();
+    for _ in 0..24 {
+        cell.run_for(503 * PERIOD);
+        cell.load(dir.path(), "u1.package.toml");
+        let v = validate::validate(&cell.fork_job(policy(120)));
+        if v.result != VerdictResult::Pass {
+            failed.push(format!("fork at {:.2} s: {v:?}", cell.now as f64 / 1e6));
+        }
+        cell.plc.command(Command::Abort).expect("abort");
+        cell.run_for(PERIOD);
+        assert_eq!(cell.plc.status(), Status::Idle);
+    }
+    assert!(failed.is_empty(), "{}", failed.join("\n"));
+}
+
+/// The two runs of a fork start at the same cycle boundary: the baseline runs on through the two
+/// cycles the candidate's install and substitution take. U.1 does what the old program does
+/// until the buffer fills, so over the first 20 s their outputs agree cycle for cycle (before,
+/// the candidate's run was two cycles late, and every output edge counted as divergent).
+#[test]
+fn both_runs_of_a_fork_start_at_the_same_cycle() {
+    let dir = workshop(VERNADAT);
+    let mut cell = Cell::new(Arc::new(
+        Program::load(&dir.path().join("vernadat.toml")).expect("program"),
+    ));
+    for _ in 0..5 {
+        cell.run_for(139 * PERIOD);
+        cell.load(dir.path(), "u1.package.toml");
+        let v = validate::validate(&cell.fork_job(policy(20)));
+        assert_eq!(v.result, VerdictResult::Pass, "{v:?}");
+        assert!(v.figures["parts_baseline"] >= 2.0, "{v:?}");
+        assert_eq!(v.figures["divergent_cycles"], 0.0, "{v:?}");
+        assert_eq!(v.figures["parts_candidate"], v.figures["parts_baseline"]);
+        cell.plc.command(Command::Abort).expect("abort");
+        cell.run_for(PERIOD);
+    }
+}
+
+/// A fork continues the edge detection of the PLC it forks: with T11 = `rise(FCM1)` in both
+/// programs, a fork whose first cycle is the one in which FCM1 rises sees the rise. Before, a
+/// forked PLC had no past and its first scan saw no edge: T11 never fired, CM1 stayed on, and
+/// the fork stalled.
+#[test]
+fn a_fork_taken_just_before_an_edge_sees_it() {
+    let dir = workshop(VERNADAT);
+    for file in ["vernadat.toml", "u1.toml"] {
+        edit(dir.path(), file, "T11 = \"FCM1\"", "T11 = \"rise(FCM1)\"");
+    }
+    let program = Arc::new(Program::load(&dir.path().join("vernadat.toml")).expect("program"));
+    let fcm1 = program
+        .inputs()
+        .iter()
+        .position(|s| s.name == "FCM1")
+        .expect("FCM1");
+    // The cycle at which FCM1 first rises, from a run of its own (the cell is deterministic).
+    let mut probe = Cell::new(program.clone());
+    while !matches!(
+        probe.plc.inputs()[fcm1],
+        cetratus_program::Value::Bool(true)
+    ) {
+        probe.run_for(PERIOD);
+    }
+    let rise_us = probe.now - PERIOD;
+    // The same cell, loaded so that the fork's first cycle is that one.
+    let mut cell = Cell::new(program);
+    cell.run_for(rise_us - PERIOD);
+    cell.load(dir.path(), "u1.package.toml");
+    assert_eq!(cell.now, rise_us);
+    assert!(matches!(
+        cell.plc.inputs()[fcm1],
+        cetratus_program::Value::Bool(false)
+    ));
+    let v = validate::validate(&cell.fork_job(policy(60)));
+    assert_eq!(v.result, VerdictResult::Pass, "{v:?}");
+    assert!(
+        v.reasons.is_empty(),
+        "the baseline has no trouble either: {v:?}"
+    );
+}
+
+/// A node on the cell validates a new primary again every `revalidate` of its probation window,
+/// on a fork of the state of the moment. This candidate stops fetching parts from the buffer once
+/// four wait there: the forks of the first moments do not reach that within their horizon and
+/// pass; a later one does, fails, and the PLC reverts to the old program for it.
+#[test]
+fn during_probation_validation_runs_again_and_a_later_failing_verdict_reverts() {
+    use cetratus_node::script::Script;
+    use cetratus_node::{Node, NodeOptions};
+    use cetratus_runtime::{Event, LoopTiming};
+
+    let dir = workshop(VERNADAT);
+    edit(
+        dir.path(),
+        "u1.toml",
+        "T20 = \"SB\"",
+        "T20 = \"SB && B < 4\"",
+    );
+    let (bytes, _) = build_package(&dir.path().join("u1.package.toml"), None).expect("U.1");
+    let pkg = dir.path().join("u1.cpkg");
+    std::fs::write(&pkg, bytes).expect("write");
+    let program = Arc::new(Program::load(&dir.path().join("vernadat.toml")).expect("program"));
+    let io = TwinDriver::new(
+        TwinKind::Vernadat.build(1),
+        program.inputs(),
+        program.outputs(),
+    )
+    .expect("the signals match");
+    let mut plc = Plc::new(program, 0, Box::new(ManualStopwatch::new()));
+    plc.use_virtual_time(PERIOD);
+    let mut limits = plc.limits();
+    limits.probation_us = 600_000_000;
+    plc.set_limits(limits);
+    let opts = NodeOptions {
+        base_us: 0,
+        trust: TrustStore::empty(),
+        allow_unsigned: true,
+        record_trace: false,
+        progress_every: None,
+        gate: Default::default(),
+    };
+    let script = Script::parse(&[
+        format!("2s load {}", pkg.display()),
+        "3s substitute".to_string(),
+    ])
+    .expect("script");
+    let mut node = Node::new(plc, io, opts)
+        .with_script(script)
+        .with_twin_validation(
+            ValidationPolicy {
+                revalidate_us: 5_000_000,
+                ..policy(10)
+            },
+            PERIOD,
+        );
+    let idle = LoopTiming::default();
+    let mut events: Vec<Event> = Vec::new();
+    let mut now = 0;
+    while now < 300_000_000 && !events.iter().any(|e| e.kind == EventKind::Reverted) {
+        events.extend(node.step(now, &idle).expect("a cycle"));
+        now += PERIOD;
+    }
+    let probation = events
+        .iter()
+        .position(|e| e.kind == EventKind::ProbationStarted)
+        .unwrap_or_else(|| panic!("{events:#?}"));
+    let verdicts: Vec<&Event> = events[probation..]
+        .iter()
+        .filter(|e| e.kind == EventKind::Verdict && e.message.starts_with("twin"))
+        .collect();
+    let text = |v: &[&Event]| {
+        v.iter()
+            .map(|e| format!("{:.2} s {}", e.time_us as f64 / 1e6, e.message))
+            .collect::<Vec<_>>()
+            .join("\n")
+    };
+    assert!(verdicts.len() >= 3, "{}", text(&verdicts));
+    assert!(
+        verdicts[..verdicts.len() - 1]
+            .iter()
+            .all(|e| e.message.contains(": pass")),
+        "{}",
+        text(&verdicts)
+    );
+    let last = verdicts.last().expect("a verdict");
+    assert!(last.message.contains(": fail"), "{}", text(&verdicts));
+    // Verdicts of the window come every 5 s of program time.
+    for w in verdicts.windows(2) {
+        assert_eq!(
+            w[1].time_us - w[0].time_us,
+            5_000_000,
+            "{}",
+            text(&verdicts)
+        );
+    }
+    let reverted = events
+        .iter()
+        .find(|e| e.kind == EventKind::Reverted)
+        .unwrap_or_else(|| panic!("no revert: {}", text(&verdicts)));
+    assert!(
+        matches!(
+            reverted.detail,
+            Some(cetratus_runtime::EventDetail::Revert {
+                reason: RevertReason::Verdict,
+                ..
+            })
+        ),
+        "{reverted:?}"
+    );
+    let (plc, _, _) = node.finish().expect("finish");
+    assert_eq!(plc.primary(), Slot::A);
 }

@@ -141,7 +141,7 @@ impl Phase {
     /// The package of the update under way.
     pub fn meta(&self) -> Option<&PackageMeta> {
         match self {
-            Phase::Setup(p) => Some(&p.plan.meta),
+            Phase::Setup(p) => Some(p.meta()),
             Phase::Quarantine(q) => Some(&q.plan.meta),
             Phase::Probation(p) => Some(&p.plan.meta),
             _ => None,

@@ -118,6 +118,7 @@ impl Plc {
             io_inputs: self.core.router.io_inputs().to_vec(),
             io_outputs: self.core.router.io_outputs().to_vec(),
             primary_marking: self.core.primary.marking().to_vec(),
+            cycle: self.cycles(),
         }
     }
 
@@ -188,6 +189,17 @@ impl Plc {
     /// The input image of the last cycle.
     pub fn inputs(&self) -> &[Value] {
         self.core.router.inputs()
+    }
+    /// Continues from `image`, the I/O input image that the PLC whose state this one resumes
+    /// read in its last cycle: the primary's next scan sees the edges between that cycle and its
+    /// own, as the original PLC's would (a resumed container otherwise has no past, and its first
+    /// scan sees no edge). A validation fork needs it to run on from the very cycle it forks.
+    pub fn continue_inputs_from(&mut self, image: &[Value]) {
+        let core = &mut self.core;
+        core.router.set_last_inputs(image);
+        let p = core.primary_slot.index();
+        core.primary
+            .continue_edges_from(core.router.last_inputs_for(p));
     }
     /// What the Dispatcher got in the last cycle.
     pub fn dispatched(&self) -> &[Value] {

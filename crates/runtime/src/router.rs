@@ -220,6 +220,15 @@ impl MessageRouter {
     pub fn inputs(&self) -> &[Value] {
         &self.inputs
     }
+    /// Takes `image` as the input image of the last cycle (a PLC resumed on a fork of another
+    /// one's state: what that PLC read last). Ignored unless it has the I/O map's length.
+    pub(crate) fn set_last_inputs(&mut self, image: &[Value]) {
+        if image.len() == self.inputs.len() {
+            self.inputs.copy_from_slice(image);
+            self.in_bits = bits(&self.inputs);
+            self.stale = [true, true];
+        }
+    }
     /// The input image of the cycle before.
     pub fn prev_inputs(&self) -> &[Value] {
         &self.prev_inputs

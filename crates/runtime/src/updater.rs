@@ -22,7 +22,7 @@ use crate::monitor::{ContainerStats, Verdict, VerdictKind, VerdictResult};
 use crate::phase::{Ending, Phase, Probation, Quarantine, UpdatePlan};
 use crate::plc::Core;
 use crate::router::{map_by_name, safe_image};
-use crate::{Container, Status};
+use crate::{Container, Slot, Status};
 
 /// How the candidate's marking is taken at substitution (DESIGN §4).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Default)]
@@ -85,35 +85,41 @@ impl SubstituteRequest {
 /// An update verified, resolved and built away from the scan thread, ready to install.
 pub struct PreparedUpdate {
     base_hash: [u8; 32],
-    container: Container,
+    // The quarantine the install enters, built here with the candidate container and the plan:
+    // the install at the cycle boundary fills in its start and allocates nothing of its own.
+    pub(crate) quarantine: Box<Quarantine>,
     in_map: Vec<usize>,
     out_map: Vec<Option<usize>>,
+    // The Router's input image of the candidate and its Monitor figures.
+    image: Vec<Value>,
+    stats: ContainerStats,
+    // The message of `quarantine_started`, for a candidate in A and in B.
+    installed: [String; 2],
     // Entries the install touches: the cost model of a virtual run charges by it.
     work: u64,
-    pub(crate) plan: UpdatePlan,
 }
 
 impl PreparedUpdate {
     /// The package's metadata.
     pub fn meta(&self) -> &PackageMeta {
-        &self.plan.meta
+        &self.quarantine.plan.meta
     }
     /// The candidate's program.
     pub fn program(&self) -> &Arc<Program> {
-        self.container.program()
+        self.quarantine.candidate.program()
     }
     /// The state transformation the install will apply.
     pub fn transform(&self) -> &StateTransform {
-        &self.plan.transform
+        &self.quarantine.plan.transform
     }
     /// Attaches a validation verdict: published in the `exec_info` of the update's program and
     /// as a `verdict` event when the load is accepted.
     pub fn add_verdict(&mut self, v: Verdict) {
-        self.plan.verdicts.push(v);
+        self.quarantine.plan.verdicts.push(v);
     }
     /// The verdicts attached so far.
     pub fn verdicts(&self) -> &[Verdict] {
-        &self.plan.verdicts
+        &self.quarantine.plan.verdicts
     }
 }
 
@@ -128,6 +134,9 @@ pub struct UpdateContext {
     pub io_outputs: Vec<String>,
     /// The primary's marking when the context was taken (the analysis gate starts from it).
     pub primary_marking: Vec<cetratus_net::Tokens>,
+    /// The cycle whose boundary the context was taken at: `primary_marking` is the marking an
+    /// install at that boundary would transform.
+    pub cycle: u64,
 }
 
 impl UpdateContext {
@@ -248,13 +257,29 @@ impl UpdateContext {
             transform: update.transform,
             projection: update.projection,
         };
+        let container = Container::new(program, 0);
+        let installed = [Slot::A, Slot::B].map(|s| {
+            format!(
+                "{} {} installed in {} within one cycle; it runs in quarantine, its outputs withheld",
+                plan.meta.name,
+                plan.meta.version,
+                s.name()
+            )
+        });
         Ok(PreparedUpdate {
             base_hash: primary.hash(),
-            container: Container::new(program, 0),
+            image: container.inputs().to_vec(),
+            stats: ContainerStats::new(self.io_outputs.len()),
+            installed,
+            quarantine: Box::new(Quarantine {
+                candidate: container,
+                plan,
+                pending: None,
+                started_us: 0,
+            }),
             in_map,
             out_map,
             work,
-            plan,
         })
     }
 }
@@ -378,19 +403,19 @@ impl Updater {
                 }
                 let msg = format!(
                     "load accepted: {} {} goes into {} at the next cycle",
-                    p.plan.meta.name,
-                    p.plan.meta.version,
+                    p.quarantine.plan.meta.name,
+                    p.quarantine.plan.meta.version,
                     core.primary_slot.other().name()
                 );
                 core.log.push(EventKind::LoadAccepted, msg, None);
-                for v in &p.plan.verdicts {
+                for v in &p.quarantine.plan.verdicts {
                     core.log.push(
                         EventKind::Verdict,
                         format!(
                             "{} verdict on {} {}: {}{}",
                             v.kind.name(),
-                            p.plan.meta.name,
-                            p.plan.meta.version,
+                            p.quarantine.plan.meta.name,
+                            p.quarantine.plan.meta.version,
                             v.result.name(),
                             if v.reasons.is_empty() {
                                 String::new()
@@ -581,12 +606,14 @@ impl Updater {
         let now_us = core.log.now_us;
         let primary = &core.primary;
         let start = core.stopwatch.now_ns();
-        let plan = &mut up.plan;
+        let Quarantine {
+            candidate, plan, ..
+        } = &mut *up.quarantine;
         let result = plan
             .transform
             .apply(
                 primary.marking(),
-                up.container.program(),
+                candidate.program(),
                 &mut plan.scratch_marking,
             )
             .map_err(|e| e.to_string())
@@ -597,13 +624,12 @@ impl Updater {
                     now_us,
                     &mut plan.scratch_since,
                 );
-                up.container
+                candidate
                     .set_state(&plan.scratch_marking, &plan.scratch_since)
                     .map_err(|e| e.to_string())?;
                 // Latches and variables the program shares with the primary carry over, as the
                 // marking does: an S that latched before the update stays latched.
-                up.container
-                    .carry_from(primary, &plan.latch_map, &plan.var_map);
+                candidate.carry_from(primary, &plan.latch_map, &plan.var_map);
                 Ok(())
             });
         let took = match self.install_timing {
@@ -630,32 +656,26 @@ impl Updater {
             return;
         }
         let s = core.primary_slot.other();
-        let up = *up;
-        let mut candidate = up.container;
-        core.router.attach(
-            s.index(),
-            candidate.inputs().to_vec(),
-            up.in_map,
-            up.out_map,
-        );
+        // Everything below was built with the candidate, off the scan thread.
+        let PreparedUpdate {
+            mut quarantine,
+            in_map,
+            out_map,
+            image,
+            stats,
+            installed: [in_a, in_b],
+            ..
+        } = *up;
+        core.router.attach(s.index(), image, in_map, out_map);
         // The candidate's first scan sees the edges of this cycle, as the primary's does.
-        candidate.continue_edges_from(core.router.last_inputs_for(s.index()));
-        core.monitor.stats[s.index()] = ContainerStats::new(core.router.io_outputs().len());
-        let name = format!("{} {}", up.plan.meta.name, up.plan.meta.version);
-        self.phase = Phase::Quarantine(Box::new(Quarantine {
-            candidate,
-            plan: up.plan,
-            pending: None,
-            started_us: now_us,
-        }));
-        core.log.push(
-            EventKind::QuarantineStarted,
-            format!(
-                "{name} installed in {} within one cycle; it runs in quarantine, its outputs withheld",
-                s.name()
-            ),
-            detail,
-        );
+        quarantine
+            .candidate
+            .continue_edges_from(core.router.last_inputs_for(s.index()));
+        core.monitor.stats[s.index()] = stats;
+        quarantine.started_us = now_us;
+        self.phase = Phase::Quarantine(quarantine);
+        let message = if s == Slot::A { in_a } else { in_b };
+        core.log.push(EventKind::QuarantineStarted, message, detail);
     }
 
     fn try_substitute(&mut self, core: &mut Core) {

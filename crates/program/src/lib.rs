@@ -13,6 +13,7 @@
 #![warn(missing_docs)]
 
 mod action;
+pub mod body;
 pub mod duration;
 mod error;
 pub mod guard;
@@ -27,6 +28,7 @@ mod value;
 use std::path::Path;
 
 pub use action::{Action, ActionState, Qualifier, Target};
+pub use body::{Body, BodyError};
 pub use error::ProgramError;
 pub use guard::{EvalCtx, EvalError, EvalErrorKind, Guard};
 pub use invariant::{Invariant, InvariantViolation};

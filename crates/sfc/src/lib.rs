@@ -69,6 +69,16 @@ pub fn chart_net(text: &str, label: &str, chart: &Chart) -> Result<Net, SfcError
     Ok(build::net(&source, chart)?.0)
 }
 
+/// Imports the SFC POU `pou` (or the file's only SFC POU) as [`import_str`] does, with the net
+/// file named after the POU (`POU.pnml`): what `cetratus import plcopen` writes and what a package
+/// manifest naming the file carries, so both give the same program hash.
+pub fn import_program(text: &str, label: &str, pou: Option<&str>) -> Result<Imported, SfcError> {
+    // The net file's name is in the TOML, and it follows the POU's name as declared.
+    let probe = import_str(text, label, pou, "net.pnml")?;
+    let net_file = format!("{}.pnml", probe.program.name());
+    import_str(text, label, pou, &net_file)
+}
+
 /// Imports the SFC POU `pou` (or the file's only SFC POU when `None`) of a PLCopen file as a
 /// program whose TOML names `net_file` as its net.
 pub fn import_str(

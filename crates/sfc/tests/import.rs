@@ -28,7 +28,8 @@ fn the_twincat_charts_import_as_programs_with_their_conditions_as_guards() {
     assert!(one.toml.contains("T2 = \"Condition_1\""), "{}", one.toml);
     let six = import("twincat-sfc-evolution-6.xml", Some("main")).expect("imports");
     // The action ACT writes `changed`; the variable is declared `Changed`: one name, IEC case.
-    assert!(six.toml.contains("target = \"Changed\""), "{}", six.toml);
+    assert!(six.toml.contains("Changed := true"), "{}", six.toml);
+    assert!(six.toml.contains("body = \"ACT\""), "{}", six.toml);
     assert!(six
         .notes
         .iter()
@@ -49,12 +50,6 @@ fn importing_the_same_file_twice_gives_the_same_program_hash() {
 fn refusals_name_the_construct_the_pou_and_the_line_and_column() {
     let cases = [
         (
-            "beremiz-first-steps.xml",
-            Some("CounterSFC"),
-            "beremiz-first-steps.xml:782:39",
-            "computed value to `Cnt`",
-        ),
-        (
             "iec-checker-example.xml",
             Some("SFCTest"),
             "iec-checker-example.xml:504:",
@@ -69,8 +64,8 @@ fn refusals_name_the_construct_the_pou_and_the_line_and_column() {
         (
             "codesys-nested-sfc.xml",
             None,
-            "codesys-nested-sfc.xml:190:61",
-            "computed value to `i`",
+            "codesys-nested-sfc.xml:410:15",
+            "the action `sub_sfc1` with a SFC body",
         ),
     ];
     for (file, pou, at, construct) in cases {
@@ -97,4 +92,60 @@ fn a_pnml_file_is_not_taken_for_plcopen() {
     assert!(!cetratus_sfc::is_plcopen(&pnml));
     let err = cetratus_sfc::import_str(&pnml, "t.pnml", None, "n.pnml").expect_err("not PLCopen");
     assert!(err.to_string().contains("not PLCopen TC6 XML"), "{err}");
+}
+
+#[test]
+fn beremiz_counter_bodies_count_in_every_scan_of_their_step_with_the_iec_final_run() {
+    use cetratus_program::{ActionState, EvalCtx, Value};
+    let imported = import("beremiz-first-steps.xml", Some("CounterSFC")).expect("imports");
+    let p = &imported.program;
+    assert!(imported.toml.contains("Cnt := Cnt + 1"), "{}", imported.toml);
+    let count = p.net().place_by_id("Count").expect("step Count").index();
+    let start = p.net().place_by_id("Start").expect("step Start").index();
+    let mut st = ActionState::new(p);
+    let mut marking = p.net().initial_marking().0;
+    let mut since: Vec<Option<u64>> = marking.iter().map(|&m| (m > 0).then_some(0)).collect();
+    let (mut outputs, mut vars) = (vec![Value::Int(0)], vec![Value::Int(0), Value::Int(0)]);
+    let run = |st: &mut ActionState,
+               m: &[u32],
+               s: &[Option<u64>],
+               changes: &[(cetratus_net::PlaceIdx, u32)],
+               now: u64,
+               o: &mut Vec<Value>,
+               v: &mut Vec<Value>| {
+        let c = EvalCtx {
+            inputs: &[Value::Bool(false)],
+            prev_inputs: &[Value::Bool(false)],
+            vars: &[],
+            marking: m,
+            place_since_us: s,
+            place_dwell_us: &[],
+            now_us: now,
+        };
+        st.apply(p, &c, changes, o, v).expect("runs");
+    };
+    // Start -> Count.
+    marking[start] = 0;
+    marking[count] = 1;
+    since[start] = None;
+    since[count] = Some(10);
+    let entered = [
+        (cetratus_net::PlaceIdx(start as u32), 1),
+        (cetratus_net::PlaceIdx(count as u32), 0),
+    ];
+    run(&mut st, &marking, &since, &entered, 10, &mut outputs, &mut vars);
+    run(&mut st, &marking, &since, &[], 20, &mut outputs, &mut vars);
+    run(&mut st, &marking, &since, &[], 30, &mut outputs, &mut vars);
+    assert_eq!((vars[0], outputs[0]), (Value::Int(3), Value::Int(3)));
+    // Count -> Start: one final run, then nothing.
+    marking[start] = 1;
+    marking[count] = 0;
+    since[count] = None;
+    let left = [
+        (cetratus_net::PlaceIdx(start as u32), 0),
+        (cetratus_net::PlaceIdx(count as u32), 1),
+    ];
+    run(&mut st, &marking, &since, &left, 40, &mut outputs, &mut vars);
+    run(&mut st, &marking, &since, &[], 50, &mut outputs, &mut vars);
+    assert_eq!((vars[0], outputs[0]), (Value::Int(4), Value::Int(4)));
 }

@@ -170,3 +170,37 @@ pub fn import_str(
         notes,
     })
 }
+
+/// The PLCopen importer for package manifests: a `program` or `base` that is PLCopen XML is
+/// imported as `cetratus import plcopen` writes it ([`import_program`]), so the package binds to
+/// the same program hash.
+pub struct PlcopenImporter;
+
+impl cetratus_program::ProgramImporter for PlcopenImporter {
+    fn import(
+        &self,
+        path: &std::path::Path,
+        pou: Option<&str>,
+    ) -> Option<Result<(String, String), String>> {
+        let is_xml = path
+            .extension()
+            .and_then(|e| e.to_str())
+            .is_some_and(|e| e.eq_ignore_ascii_case("xml"));
+        if !is_xml {
+            return None;
+        }
+        let label = path.display().to_string();
+        let text = match std::fs::read_to_string(path) {
+            Ok(t) => t,
+            Err(e) => return Some(Err(format!("cannot read `{label}`: {e}"))),
+        };
+        if !is_plcopen(text.strip_prefix('\u{feff}').unwrap_or(&text)) {
+            return None;
+        }
+        Some(
+            import_program(&text, &label, pou)
+                .map(|i| (i.toml, cetratus_net::pnml::write_string(&i.net)))
+                .map_err(|e| e.to_string()),
+        )
+    }
+}

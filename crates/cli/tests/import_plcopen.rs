@@ -54,6 +54,11 @@ fn an_imported_twincat_chart_is_checked_simulated_and_run_in_virtual_time() {
     let check = ok(&cetratus(&["check", program]));
     assert!(check.contains("states: 3"), "{check}");
     assert!(check.contains("safe: yes"), "{check}");
+    // The chart checks: version 6 forks into Step2 and Step3 and joins them again.
+    assert!(check.contains("sfc chart"), "{check}");
+    assert!(check.contains("unsafe steps (active twice through parallel branches): none"), "{check}");
+    assert!(check.contains("unreachable steps: none"), "{check}");
+    assert!(check.contains("parallel branches that never join: none"), "{check}");
     let sim = ok(&cetratus(&["sim", program, "--steps", "3"]));
     assert!(sim.contains("Step2=1 Step3=1"), "{sim}");
     let run = ok(&cetratus(&[

@@ -149,3 +149,47 @@ fn beremiz_counter_bodies_count_in_every_scan_of_their_step_with_the_iec_final_r
     run(&mut st, &marking, &since, &[], 50, &mut outputs, &mut vars);
     assert_eq!((vars[0], outputs[0]), (Value::Int(4), Value::Int(4)));
 }
+
+#[test]
+fn a_steps_entry_active_and_exit_actions_in_vendor_data_become_p1_n_and_p0_bodies() {
+    let attr = |guid: &str, v: &str| format!(r#"<attribute guid="{guid}">{v}</attribute>"#);
+    let step_data = format!(
+        r#"<addData><data name="http://www.3s-software.com/plcopenxml/sfc/element" handleUnknown="implementation"><attributes xmlns="">{}{}{}{}</attributes></data></addData>"#,
+        attr("38391c6d-6d4a-42f8-8ee7-9f45e5adafa8", "Work"),
+        attr("a6b08bd8-b696-47e3-9cbf-7408b61c9ff8", "OnEntry"),
+        attr("700a583f-b4d4-43e4-8c14-629c7cd3bec8", "{WhileActive}"),
+        attr("a2621e18-7de3-4ea6-ae6d-89e9e0b7befd", "OnExit"),
+    )
+    .replace("{WhileActive}", "WhileActive");
+    let action = |name: &str, st: &str| {
+        format!(r#"<action name="{name}"><body><ST><p>{st}</p></ST></body></action>"#)
+    };
+    let text = format!(
+        r#"<?xml version="1.0"?>
+<project xmlns="http://www.plcopen.org/xml/tc6_0201"><types><pous>
+<pou name="P" pouType="program"><interface><localVars>
+<variable name="n"><type><INT/></type></variable>
+<variable name="go"><type><BOOL/></type></variable>
+</localVars></interface>
+<actions>{}{}{}</actions>
+<body><SFC>
+<step localId="1" name="Idle" initialStep="true"/>
+<transition localId="2"><connectionPointIn><connection refLocalId="1"/></connectionPointIn>
+<condition><inline name=""><ST><p>go</p></ST></inline></condition></transition>
+<step localId="3" name="Work"><connectionPointIn><connection refLocalId="2"/></connectionPointIn>{step_data}</step>
+<transition localId="4"><connectionPointIn><connection refLocalId="3"/></connectionPointIn>
+<condition><inline name=""><ST><p>NOT go</p></ST></inline></condition></transition>
+<jumpStep localId="5" targetName="Idle"><connectionPointIn><connection refLocalId="4"/></connectionPointIn></jumpStep>
+</SFC></body></pou></pous></types></project>"#,
+        action("OnEntry", "n := 100;"),
+        action("WhileActive", "n := n + 1;"),
+        action("OnExit", "n := -n;"),
+    );
+    let imported = cetratus_sfc::import_str(&text, "steps.xml", None, "P.pnml").expect("imports");
+    let toml = &imported.toml;
+    for (q, body) in [("P1", "OnEntry"), ("N", "WhileActive"), ("P0", "OnExit")] {
+        let block = format!("place = \"Work\"\nqualifier = \"{q}\"\nbody = \"{body}\"");
+        assert!(toml.contains(&block), "{block} in\n{toml}");
+    }
+    assert!(toml.contains("n := n + 1"), "{toml}");
+}

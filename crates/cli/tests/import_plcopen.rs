@@ -117,3 +117,53 @@ fn a_chart_outside_the_mapping_is_refused_with_its_construct_and_position() {
     assert!(err.contains("FBD body of transition STOP"), "{err}");
     assert!(!dir.path().join("traffic_light_sequence.toml").exists());
 }
+
+#[test]
+fn bad_charts_are_clear_errors_from_the_binary_never_a_crash() {
+    let dir = tempfile::tempdir().expect("a temporary directory");
+    let good = std::fs::read_to_string(fixture("twincat-sfc-evolution-1.xml")).expect("reads");
+    let jump = good.find("<jumpStep").expect("a jump");
+    let jump_end = good.find("</jumpStep>").expect("its end") + "</jumpStep>".len();
+    let body = |st: &str| {
+        good.replacen(
+            "<step localId=\"3\"",
+            &format!("<actionBlock localId=\"99\"><connectionPointIn><connection refLocalId=\"3\"/></connectionPointIn><action localId=\"0\" qualifier=\"N\"><inline><ST><p><![CDATA[{st}]]></p></ST></inline></action></actionBlock><step localId=\"3\""),
+            1,
+        )
+    };
+    let cases: Vec<(&str, String, &str)> = vec![
+        ("malformed", good.replacen("</transition>", "</transitio>", 1), "malformed.xml:"),
+        (
+            "two-initial",
+            good.replace(r#"name="Step1">"#, r#"name="Step1" initialStep="true">"#),
+            "one initial step",
+        ),
+        (
+            "no-target",
+            format!("{}{}", &good[..jump], &good[jump_end..]),
+            "has no target",
+        ),
+        ("unknown-variable", body("Nowhere := TRUE;"), "unknown name `Nowhere`"),
+        (
+            "deep-body",
+            body(&("IF TRUE THEN ".repeat(2_000) + &" END_IF;".repeat(2_000))),
+            "more than",
+        ),
+    ];
+    for (name, text, expected) in cases {
+        let file = dir.path().join(format!("{name}.xml"));
+        std::fs::write(&file, text).expect("writes");
+        let out = cetratus(&[
+            "import",
+            "plcopen",
+            file.to_str().expect("UTF-8"),
+            "-o",
+            dir.path().join(name).to_str().expect("UTF-8"),
+        ]);
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(1), "{name}: {err}");
+        assert!(!err.contains("panicked"), "{name}: {err}");
+        assert!(err.contains(expected), "{name}: {err}");
+        assert!(err.contains(&format!("{name}.xml:")), "{name}: the file and position: {err}");
+    }
+}

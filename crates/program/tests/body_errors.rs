@@ -62,3 +62,54 @@ fn if_nested_past_the_limit_is_refused_and_any_depth_is_no_crash() {
     let e = refused(&format!("X = '''\n{many}'''"), RUN_X);
     assert!(e.contains("more than 512 statements"), "{e}");
 }
+
+mod fuzz {
+    use cetratus_program::{ActionState, EvalCtx, Program, Value};
+    use proptest::prelude::*;
+
+    fn token() -> impl Strategy<Value = &'static str> {
+        prop::sample::select(vec![
+            "if ", "elif ", "else", "end", " then", "v", "r", "o", "x", ":=", " := ", "=", "+",
+            "-", "*", "/", "(", ")", "1", "0", "9223372036854775807", "1.5", "true", "&&", "||",
+            "!", ">", "==", "A.t", "B.dwell", "3s", "real(", "int(", "\n", ";", "#", " ",
+        ])
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(512))]
+
+        #[test]
+        fn token_soup_bodies_load_or_are_refused_and_what_loads_runs_or_fails_cleanly(
+            toks in prop::collection::vec(token(), 0..60),
+        ) {
+            let body: String = toks.concat();
+            let src = format!(
+                "[program]\nname = \"s\"\nversion = \"1\"\n\
+                 [[input]]\nname = \"x\"\ntype = \"bool\"\n\
+                 [[output]]\nname = \"o\"\ntype = \"int\"\n\
+                 [[variable]]\nname = \"v\"\ntype = \"int\"\n\
+                 [[variable]]\nname = \"r\"\ntype = \"real\"\n\
+                 [[action]]\nplace = \"A\"\nqualifier = \"N\"\nbody = \"X\"\n\
+                 [bodies]\nX = '''\n{body}'''\n"
+            );
+            let Ok(p) = Program::from_sources(&src, "f.toml", cetratus_testkit::nets::small()) else {
+                return Ok(());
+            };
+            let mut st = ActionState::new(&p);
+            let (m, since) = (vec![1u32, 0, 2], vec![Some(0), None, Some(0)]);
+            let ctx = EvalCtx {
+                inputs: &[Value::Bool(true)],
+                prev_inputs: &[Value::Bool(false)],
+                vars: &[],
+                marking: &m,
+                place_since_us: &since,
+                place_dwell_us: &[],
+                now_us: 5_000_000,
+            };
+            let (mut out, mut vars) = (vec![Value::Int(0)], vec![Value::Int(3), Value::Real(0.5)]);
+            let _ = st.start(&p, &ctx, &mut out, &mut vars);
+            prop_assert!(matches!(vars[0], Value::Int(_)) && matches!(vars[1], Value::Real(_)));
+            prop_assert!(matches!(out[0], Value::Int(_)));
+        }
+    }
+}

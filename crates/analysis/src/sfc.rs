@@ -38,7 +38,10 @@ impl SfcFindings {
             w.push(format!("unsafe SFC: step {} can be active twice at once, activated again through parallel branches before it was left; join the branches before the step, or give each branch its own step", self.unsafe_steps.join(", ")));
         }
         if !self.unreachable_steps.is_empty() {
-            w.push(format!("unreachable steps: {} never become active; connect them, or remove them", self.unreachable_steps.join(", ")));
+            w.push(format!(
+                "unreachable steps: {} never become active; connect them, or remove them",
+                self.unreachable_steps.join(", ")
+            ));
         }
         for (t, p) in &self.unjoined_branches {
             w.push(format!("the parallel branch starting at step {p} (after {t}) never joins the other branches of its divergence; end it with a simultaneous convergence"));
@@ -162,9 +165,8 @@ fn unjoined_branches(net: &Net) -> Vec<(String, String)> {
         }
         let joins: Vec<Vec<bool>> = branches.iter().map(|&b| open_joins(net, b)).collect();
         for (i, &b) in branches.iter().enumerate() {
-            let meets = (0..net.num_transitions()).any(|j| {
-                joins[i][j] && joins.iter().enumerate().any(|(k, o)| k != i && o[j])
-            });
+            let meets = (0..net.num_transitions())
+                .any(|j| joins[i][j] && joins.iter().enumerate().any(|(k, o)| k != i && o[j]));
             if !meets {
                 out.push((net.transition(t).id.clone(), net.place(b).id.clone()));
             }
@@ -187,7 +189,11 @@ impl fmt::Display for SfcFindings {
             f,
             "  unsafe steps (active twice through parallel branches): {}{}",
             list(&self.unsafe_steps),
-            if self.partial { " (exploration partial: not known)" } else { "" }
+            if self.partial {
+                " (exploration partial: not known)"
+            } else {
+                ""
+            }
         )?;
         writeln!(f, "  unreachable steps: {}", list(&self.unreachable_steps))?;
         let branches: Vec<String> = self
@@ -195,6 +201,10 @@ impl fmt::Display for SfcFindings {
             .iter()
             .map(|(t, p)| format!("{p} (from {t})"))
             .collect();
-        writeln!(f, "  parallel branches that never join: {}", list(&branches))
+        writeln!(
+            f,
+            "  parallel branches that never join: {}",
+            list(&branches)
+        )
     }
 }

@@ -10,15 +10,18 @@ use cetratus_net::{ArcKind, Net, NetBuilder, Place, Transition};
 fn chart(steps: &[(&str, bool)], transitions: &[(&str, &[&str], &[&str])]) -> Net {
     let mut b = NetBuilder::new("chart");
     for (s, initial) in steps {
-        b.add_place(Place::new(*s, u32::from(*initial))).expect("a step");
+        b.add_place(Place::new(*s, u32::from(*initial)))
+            .expect("a step");
     }
     for (t, from, to) in transitions {
         b.add_transition(Transition::new(*t)).expect("a transition");
         for s in *from {
-            b.add_arc(&format!("{s}_{t}"), s, t, 1, ArcKind::Normal).expect("an arc");
+            b.add_arc(&format!("{s}_{t}"), s, t, 1, ArcKind::Normal)
+                .expect("an arc");
         }
         for s in *to {
-            b.add_arc(&format!("{t}_{s}"), t, s, 1, ArcKind::Normal).expect("an arc");
+            b.add_arc(&format!("{t}_{s}"), t, s, 1, ArcKind::Normal)
+                .expect("an arc");
         }
     }
     b.build().expect("a well-formed net")
@@ -83,7 +86,11 @@ fn a_step_activated_twice_through_parallel_branches_is_unsafe_and_the_branches_n
 fn a_step_no_transition_leads_to_is_unreachable() {
     let net = chart(
         &[("S0", true), ("S1", false), ("Lost", false)],
-        &[("T1", &["S0"], &["S1"]), ("T2", &["S1"], &["S0"]), ("T3", &["Lost"], &["S0"])],
+        &[
+            ("T1", &["S0"], &["S1"]),
+            ("T2", &["S1"], &["S0"]),
+            ("T3", &["Lost"], &["S0"]),
+        ],
     );
     let f = findings(&net);
     assert_eq!(f.unreachable_steps, ["Lost"]);

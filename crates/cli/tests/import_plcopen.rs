@@ -56,9 +56,15 @@ fn an_imported_twincat_chart_is_checked_simulated_and_run_in_virtual_time() {
     assert!(check.contains("safe: yes"), "{check}");
     // The chart checks: version 6 forks into Step2 and Step3 and joins them again.
     assert!(check.contains("sfc chart"), "{check}");
-    assert!(check.contains("unsafe steps (active twice through parallel branches): none"), "{check}");
+    assert!(
+        check.contains("unsafe steps (active twice through parallel branches): none"),
+        "{check}"
+    );
     assert!(check.contains("unreachable steps: none"), "{check}");
-    assert!(check.contains("parallel branches that never join: none"), "{check}");
+    assert!(
+        check.contains("parallel branches that never join: none"),
+        "{check}"
+    );
     let sim = ok(&cetratus(&["sim", program, "--steps", "3"]));
     assert!(sim.contains("Step2=1 Step3=1"), "{sim}");
     let run = ok(&cetratus(&[
@@ -132,7 +138,11 @@ fn bad_charts_are_clear_errors_from_the_binary_never_a_crash() {
         )
     };
     let cases: Vec<(&str, String, &str)> = vec![
-        ("malformed", good.replacen("</transition>", "</transitio>", 1), "malformed.xml:"),
+        (
+            "malformed",
+            good.replacen("</transition>", "</transitio>", 1),
+            "malformed.xml:",
+        ),
         (
             "two-initial",
             good.replace(r#"name="Step1">"#, r#"name="Step1" initialStep="true">"#),
@@ -143,7 +153,11 @@ fn bad_charts_are_clear_errors_from_the_binary_never_a_crash() {
             format!("{}{}", &good[..jump], &good[jump_end..]),
             "has no target",
         ),
-        ("unknown-variable", body("Nowhere := TRUE;"), "unknown name `Nowhere`"),
+        (
+            "unknown-variable",
+            body("Nowhere := TRUE;"),
+            "unknown name `Nowhere`",
+        ),
         (
             "deep-body",
             body(&("IF TRUE THEN ".repeat(2_000) + &" END_IF;".repeat(2_000))),
@@ -164,6 +178,9 @@ fn bad_charts_are_clear_errors_from_the_binary_never_a_crash() {
         assert_eq!(out.status.code(), Some(1), "{name}: {err}");
         assert!(!err.contains("panicked"), "{name}: {err}");
         assert!(err.contains(expected), "{name}: {err}");
-        assert!(err.contains(&format!("{name}.xml:")), "{name}: the file and position: {err}");
+        assert!(
+            err.contains(&format!("{name}.xml:")),
+            "{name}: the file and position: {err}"
+        );
     }
 }

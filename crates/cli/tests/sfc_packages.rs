@@ -74,14 +74,27 @@ fn import_hash(dir: &Path, file: &str) -> String {
 #[test]
 fn a_manifest_naming_plcopen_files_binds_to_the_hashes_the_import_gives() {
     let dir = versions();
-    let (h1, h6) = (import_hash(dir.path(), "v1.xml"), import_hash(dir.path(), "v6.xml"));
+    let (h1, h6) = (
+        import_hash(dir.path(), "v1.xml"),
+        import_hash(dir.path(), "v6.xml"),
+    );
     let m = manifest(dir.path(), "v6.xml", "v1.xml", "");
     let pkg = dir.path().join("p.json");
-    let out = cetratus(&["package", "build", &m, "--unsigned", "--out", pkg.to_str().expect("UTF-8")]);
+    let out = cetratus(&[
+        "package",
+        "build",
+        &m,
+        "--unsigned",
+        "--out",
+        pkg.to_str().expect("UTF-8"),
+    ]);
     let printed = text(&out);
     assert!(out.status.success(), "{printed}");
     assert!(printed.contains(&format!("Main 1  {h6}")), "{printed}");
-    assert!(printed.contains(&format!("base        Main 1  {h1}")), "{printed}");
+    assert!(
+        printed.contains(&format!("base        Main 1  {h1}")),
+        "{printed}"
+    );
     // v6 adds Step2 and Step3 after Step1: they start inactive (their ST_base is 0), whatever
     // the old chart's state.
     for step in ["Step2", "Step3"] {
@@ -102,7 +115,10 @@ fn a_removed_step_the_old_chart_can_reach_refuses_the_build_unless_it_is_mapped(
     let out = cetratus(&["package", "build", &m, "--unsigned", "--out", pkg]);
     let printed = text(&out);
     assert!(!out.status.success(), "{printed}");
-    assert!(printed.contains("step `Step2` is removed by the new version"), "{printed}");
+    assert!(
+        printed.contains("step `Step2` is removed by the new version"),
+        "{printed}"
+    );
     assert!(printed.contains("[transform.removed] Step2"), "{printed}");
     let m = manifest(
         dir.path(),
@@ -123,5 +139,8 @@ fn a_pou_for_a_program_that_is_not_plcopen_is_refused_at_its_line() {
     let printed = text(&out);
     assert!(!out.status.success());
     assert!(printed.contains("m.package.toml:5:"), "{printed}");
-    assert!(printed.contains("`pou` is for a `program` in PLCopen XML"), "{printed}");
+    assert!(
+        printed.contains("`pou` is for a `program` in PLCopen XML"),
+        "{printed}"
+    );
 }

@@ -14,7 +14,10 @@ fn example(rel: &str) -> PathBuf {
 }
 
 fn cetratus(args: &[&str]) -> Output {
-    Command::new(BIN).args(args).output().expect("cetratus runs")
+    Command::new(BIN)
+        .args(args)
+        .output()
+        .expect("cetratus runs")
 }
 
 fn ok(out: Output) -> String {
@@ -53,7 +56,13 @@ fn the_sfc_cell_runs_an_hour_on_the_twin_like_the_petri_net_cell() {
     let program = import(dir.path());
     let hour = |p: &Path| {
         ok(cetratus(&[
-            "run", s(p), "--twin", "vernadat", "--virtual", "--for", "1h",
+            "run",
+            s(p),
+            "--twin",
+            "vernadat",
+            "--virtual",
+            "--for",
+            "1h",
         ]))
     };
     let sfc = hour(&program);
@@ -74,7 +83,8 @@ fn the_sfc_u1_loads_runs_in_quarantine_and_substitutes() {
     ok(cetratus(&["package", "keygen", "--out", s(&key)]));
     let trusted = d.join("trusted");
     std::fs::create_dir(&trusted).expect("a trust directory");
-    std::fs::copy(d.join("operator.key.pub"), trusted.join("operator.pub")).expect("trusts the key");
+    std::fs::copy(d.join("operator.key.pub"), trusted.join("operator.pub"))
+        .expect("trusts the key");
     std::fs::create_dir(d.join("config")).expect("a configuration directory");
     let pkg = d.join("u1.cpkg");
     let built = ok(cetratus(&[

@@ -113,7 +113,9 @@ impl Body {
         if source.len() > MAX_BODY_BYTES {
             return Err(SyntaxError::new(
                 MAX_BODY_BYTES,
-                format!("the body is longer than {MAX_BODY_BYTES} bytes; split it into several actions"),
+                format!(
+                    "the body is longer than {MAX_BODY_BYTES} bytes; split it into several actions"
+                ),
             ));
         }
         let mut c = Compiler {
@@ -155,7 +157,12 @@ impl Body {
                     } else if scope.inputs.iter().any(|s| s.name == name) {
                         return Err(SyntaxError::new(at, format!("`{name}` is an input, which the program cannot assign; assign a variable or an output")));
                     } else {
-                        return Err(SyntaxError::new(at, format!("`{name}` is not declared; a body assigns a variable or an output")));
+                        return Err(SyntaxError::new(
+                            at,
+                            format!(
+                                "`{name}` is not declared; a body assigns a variable or an output"
+                            ),
+                        ));
                     };
                     let (Op::StoreVar(_, want) | Op::StoreOut(_, want)) = store else {
                         unreachable!("built above")
@@ -356,9 +363,10 @@ fn classify(line: &str, at: usize) -> Result<Line<'_>, SyntaxError> {
     let word = first_word(line);
     let guarded = |kw: &str| -> Result<(&str, usize), SyntaxError> {
         let rest = &line[kw.len()..];
-        let Some(cond) = rest.strip_suffix("then").filter(|c| {
-            c.ends_with(|ch: char| ch.is_whitespace() || ch == ')')
-        }) else {
+        let Some(cond) = rest
+            .strip_suffix("then")
+            .filter(|c| c.ends_with(|ch: char| ch.is_whitespace() || ch == ')'))
+        else {
             return Err(SyntaxError::new(
                 at + line.len(),
                 format!("`{kw}` needs its condition and `then` on one line: `{kw} x > 0 then`"),
@@ -366,7 +374,10 @@ fn classify(line: &str, at: usize) -> Result<Line<'_>, SyntaxError> {
         };
         let lead = cond.len() - cond.trim_start().len();
         if cond.trim().is_empty() {
-            return Err(SyntaxError::new(at + kw.len(), format!("`{kw}` has no condition")));
+            return Err(SyntaxError::new(
+                at + kw.len(),
+                format!("`{kw}` has no condition"),
+            ));
         }
         Ok((cond.trim(), at + kw.len() + lead))
     };
@@ -380,7 +391,10 @@ fn classify(line: &str, at: usize) -> Result<Line<'_>, SyntaxError> {
         if !ok {
             return Err(SyntaxError::new(
                 at,
-                format!("`{}` cannot be assigned; the left of `:=` is a signal name", name),
+                format!(
+                    "`{}` cannot be assigned; the left of `:=` is a signal name",
+                    name
+                ),
             ));
         }
         let expr = &line[eq + 2..];

@@ -220,7 +220,11 @@ fn ds_latches_only_when_the_place_stays_marked_for_its_delay() {
     let mut c = Cell::new(program(&acts));
     c.scan(1_000_000, &[(A, 0), (B, 1)]);
     assert_eq!(c.scan(2_000_000, &[(B, 0)]), [false, false, false]);
-    assert_eq!(c.scan(9_000_000, &[]), [false, false, false], "left too early");
+    assert_eq!(
+        c.scan(9_000_000, &[]),
+        [false, false, false],
+        "left too early"
+    );
     c.scan(10_000_000, &[(B, 1)]);
     assert_eq!(c.scan(12_000_000, &[]), [true, false, false]);
     assert_eq!(
@@ -259,7 +263,10 @@ fn body_action(place: &str, q: &str, body: &str, duration: Option<&str>) -> Stri
 
 #[test]
 fn an_n_body_runs_in_every_scan_while_marked_and_once_more_in_the_scan_it_is_left() {
-    let p = with_bodies(&body_action("B", "N", "Count", None), "Count = 'v := v + 1'");
+    let p = with_bodies(
+        &body_action("B", "N", "Count", None),
+        "Count = 'v := v + 1'",
+    );
     let mut c = Cell::new(p);
     assert_eq!(c.vars[0], Value::Int(5), "B is not marked at M0");
     c.scan(10, &[(A, 0), (B, 1)]);
@@ -305,7 +312,11 @@ fn a_stored_body_runs_after_its_place_is_left_until_a_reset_then_once_more() {
     assert_eq!(c.vars[0], Value::Int(8));
     c.scan(40, &[(PlaceIdx(2), 0)]);
     c.scan(50, &[(PlaceIdx(2), 1)]);
-    assert_eq!(c.vars[0], Value::Int(10), "9 at 40, and the final run at the reset");
+    assert_eq!(
+        c.vars[0],
+        Value::Int(10),
+        "9 at 40, and the final run at the reset"
+    );
     c.scan(60, &[]);
     assert_eq!(c.vars[0], Value::Int(10));
 }
@@ -318,7 +329,10 @@ fn if_elif_else_take_the_first_true_arm_and_a_body_output_holds_its_value() {
     // The container starts outputs at their type's zero; the test cell starts them on.
     c.out[0] = Value::Bool(false);
     c.scan(10, &[(A, 0), (B, 1)]);
-    assert_eq!((c.out[3], c.out[0], c.vars[0]), (Value::Int(1), Value::Bool(false), Value::Int(8)));
+    assert_eq!(
+        (c.out[3], c.out[0], c.vars[0]),
+        (Value::Int(1), Value::Bool(false), Value::Int(8))
+    );
     c.scan(20, &[]);
     assert_eq!((c.out[3], c.out[0]), (Value::Int(2), Value::Bool(true)));
     c.scan(30, &[]);
@@ -340,17 +354,27 @@ fn an_overflowing_body_fails_naming_its_line_and_column() {
     );
     let mut st = ActionState::new(&p);
     let (m, since) = (vec![0, 1, 2], vec![None, Some(0), Some(0)]);
-    let (mut out, mut vars) = (vec![Value::Bool(false); 4], vec![Value::Int(0), Value::Bool(false)]);
+    let (mut out, mut vars) = (
+        vec![Value::Bool(false); 4],
+        vec![Value::Int(0), Value::Bool(false)],
+    );
     let err = st
         .start(&p, &view(&m, &since, 0), &mut out, &mut vars)
         .expect_err("overflow");
     assert_eq!((err.line, err.column), (2, 8), "{err}");
-    assert!(err.to_string().contains("action body `Big` failed at line 2, column 8: arithmetic overflow"), "{err}");
+    assert!(
+        err.to_string()
+            .contains("action body `Big` failed at line 2, column 8: arithmetic overflow"),
+        "{err}"
+    );
 }
 
 #[test]
 fn sd_ds_and_sl_bodies_follow_the_same_q_as_targets() {
-    let p = with_bodies(&body_action("B", "SD", "Count", Some("1s")), "Count = 'v := v + 1'");
+    let p = with_bodies(
+        &body_action("B", "SD", "Count", Some("1s")),
+        "Count = 'v := v + 1'",
+    );
     let mut c = Cell::new(p);
     c.scan(0, &[(A, 0), (B, 1)]);
     c.scan(500_000, &[(B, 0)]);

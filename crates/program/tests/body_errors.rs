@@ -23,14 +23,22 @@ const RUN_X: &str = "[[action]]\nplace = \"A\"\nqualifier = \"N\"\nbody = \"X\"\
 #[test]
 fn type_errors_unknown_names_and_inputs_are_refused_at_their_column() {
     for (body, at, what) in [
-        ("X = 'v := r'", "b.toml:22:11", "`v` is int but the value is real"),
+        (
+            "X = 'v := r'",
+            "b.toml:22:11",
+            "`v` is int but the value is real",
+        ),
         ("X = 'v := w + 1'", "b.toml:22:11", "unknown name `w`"),
         ("X = 'x := true'", "b.toml:22:6", "is an input"),
         ("X = 'v := A.t'", "b.toml:22:11", "duration"),
         ("X = 'if v then'", "b.toml:22:9", "must be a bool"),
         ("X = 'if v > 1 then'", "b.toml:22:6", "has no `end`"),
         ("X = 'else'", "b.toml:22:6", "`else` without an `if`"),
-        ("X = 'if true then; else; elif true then; end'", "b.toml:22:", "after `else`"),
+        (
+            "X = 'if true then; else; elif true then; end'",
+            "b.toml:22:",
+            "after `else`",
+        ),
         ("X = 'v = 1'", "b.toml:22:6", "is not a statement"),
         ("X = 'WHILE v < 3 DO'", "b.toml:22:6", "is not a statement"),
     ] {
@@ -56,7 +64,10 @@ fn if_nested_past_the_limit_is_refused_and_any_depth_is_no_crash() {
     for depth in [33usize, 10_000] {
         let text = "if true then\n".repeat(depth) + &"end\n".repeat(depth);
         let e = refused(&format!("X = '''\n{text}'''"), RUN_X);
-        assert!(e.contains("nested more than 32 deep") || e.contains("longer than"), "{e}");
+        assert!(
+            e.contains("nested more than 32 deep") || e.contains("longer than"),
+            "{e}"
+        );
     }
     let many = "v := 1\n".repeat(600);
     let e = refused(&format!("X = '''\n{many}'''"), RUN_X);
@@ -69,9 +80,43 @@ mod fuzz {
 
     fn token() -> impl Strategy<Value = &'static str> {
         prop::sample::select(vec![
-            "if ", "elif ", "else", "end", " then", "v", "r", "o", "x", ":=", " := ", "=", "+",
-            "-", "*", "/", "(", ")", "1", "0", "9223372036854775807", "1.5", "true", "&&", "||",
-            "!", ">", "==", "A.t", "B.dwell", "3s", "real(", "int(", "\n", ";", "#", " ",
+            "if ",
+            "elif ",
+            "else",
+            "end",
+            " then",
+            "v",
+            "r",
+            "o",
+            "x",
+            ":=",
+            " := ",
+            "=",
+            "+",
+            "-",
+            "*",
+            "/",
+            "(",
+            ")",
+            "1",
+            "0",
+            "9223372036854775807",
+            "1.5",
+            "true",
+            "&&",
+            "||",
+            "!",
+            ">",
+            "==",
+            "A.t",
+            "B.dwell",
+            "3s",
+            "real(",
+            "int(",
+            "\n",
+            ";",
+            "#",
+            " ",
         ])
     }
 

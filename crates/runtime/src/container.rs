@@ -320,8 +320,7 @@ impl Container {
             place_dwell_us: &self.place_dwell_us,
             now_us,
         };
-        let acted = if std::mem::take(&mut self.fresh_state) && !std::mem::take(&mut self.resume)
-        {
+        let acted = if std::mem::take(&mut self.fresh_state) && !std::mem::take(&mut self.resume) {
             // The first scan enters every marked place: P1 and S actions of M0 take effect.
             self.actions
                 .start(program, &view, &mut self.outputs, &mut self.vars)
@@ -376,13 +375,9 @@ impl Container {
             place_dwell_us: &self.place_dwell_us,
             now_us,
         };
-        let acted = self.actions.apply(
-            &self.program,
-            &view,
-            &[],
-            &mut self.outputs,
-            &mut self.vars,
-        );
+        let acted =
+            self.actions
+                .apply(&self.program, &view, &[], &mut self.outputs, &mut self.vars);
         self.scans += 1;
         if let Err(e) = acted {
             self.force_full = true;

@@ -520,7 +520,10 @@ pub(crate) fn read(
         };
         let attributes = children(*e, "addData")
             .flat_map(|d| children(d, "data"))
-            .filter(|d| d.attribute("name").is_some_and(|n| n.ends_with("/plcopenxml/sfc/element")))
+            .filter(|d| {
+                d.attribute("name")
+                    .is_some_and(|n| n.ends_with("/plcopenxml/sfc/element"))
+            })
             .flat_map(|d| children(d, "attributes"))
             .flat_map(|a| children(a, "attribute"));
         for attr in attributes {

@@ -197,7 +197,8 @@ fn with_body(body: &str) -> String {
 #[test]
 fn an_unknown_variable_in_an_action_body_is_refused_with_the_pou_and_its_line_and_column() {
     let vars = bool_var("go");
-    let err = import(&project(&with_body("go := TRUE;\nmissing := 1;"), &vars)).expect_err("unknown");
+    let err =
+        import(&project(&with_body("go := TRUE;\nmissing := 1;"), &vars)).expect_err("unknown");
     let msg = err.to_string();
     assert!(msg.contains("in POU `P`"), "{msg}");
     assert!(msg.contains("unknown name `missing`"), "{msg}");

@@ -99,7 +99,11 @@ fn beremiz_counter_bodies_count_in_every_scan_of_their_step_with_the_iec_final_r
     use cetratus_program::{ActionState, EvalCtx, Value};
     let imported = import("beremiz-first-steps.xml", Some("CounterSFC")).expect("imports");
     let p = &imported.program;
-    assert!(imported.toml.contains("Cnt := Cnt + 1"), "{}", imported.toml);
+    assert!(
+        imported.toml.contains("Cnt := Cnt + 1"),
+        "{}",
+        imported.toml
+    );
     let count = p.net().place_by_id("Count").expect("step Count").index();
     let start = p.net().place_by_id("Start").expect("step Start").index();
     let mut st = ActionState::new(p);
@@ -133,7 +137,15 @@ fn beremiz_counter_bodies_count_in_every_scan_of_their_step_with_the_iec_final_r
         (cetratus_net::PlaceIdx(start as u32), 1),
         (cetratus_net::PlaceIdx(count as u32), 0),
     ];
-    run(&mut st, &marking, &since, &entered, 10, &mut outputs, &mut vars);
+    run(
+        &mut st,
+        &marking,
+        &since,
+        &entered,
+        10,
+        &mut outputs,
+        &mut vars,
+    );
     run(&mut st, &marking, &since, &[], 20, &mut outputs, &mut vars);
     run(&mut st, &marking, &since, &[], 30, &mut outputs, &mut vars);
     assert_eq!((vars[0], outputs[0]), (Value::Int(3), Value::Int(3)));
@@ -145,7 +157,15 @@ fn beremiz_counter_bodies_count_in_every_scan_of_their_step_with_the_iec_final_r
         (cetratus_net::PlaceIdx(start as u32), 0),
         (cetratus_net::PlaceIdx(count as u32), 1),
     ];
-    run(&mut st, &marking, &since, &left, 40, &mut outputs, &mut vars);
+    run(
+        &mut st,
+        &marking,
+        &since,
+        &left,
+        40,
+        &mut outputs,
+        &mut vars,
+    );
     run(&mut st, &marking, &since, &[], 50, &mut outputs, &mut vars);
     assert_eq!((vars[0], outputs[0]), (Value::Int(4), Value::Int(4)));
 }

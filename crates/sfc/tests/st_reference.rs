@@ -79,8 +79,11 @@ fn boolean() -> impl Strategy<Value = B> {
                 inner.clone()
             )
                 .prop_map(|(o, l, r)| B::Logic(o, Box::new(l), Box::new(r))),
-            (any::<bool>(), inner.clone(), inner)
-                .prop_map(|(eq, l, r)| B::Same(eq, Box::new(l), Box::new(r))),
+            (any::<bool>(), inner.clone(), inner).prop_map(|(eq, l, r)| B::Same(
+                eq,
+                Box::new(l),
+                Box::new(r)
+            )),
         ]
     })
 }
@@ -92,7 +95,10 @@ fn statement() -> impl Strategy<Value = S> {
     ];
     leaf.prop_recursive(2, 8, 3, |inner| {
         (
-            prop::collection::vec((boolean(), prop::collection::vec(inner.clone(), 0..3)), 1..3),
+            prop::collection::vec(
+                (boolean(), prop::collection::vec(inner.clone(), 0..3)),
+                1..3,
+            ),
             prop::collection::vec(inner, 0..3),
         )
             .prop_map(|(arms, otherwise)| S::If(arms, otherwise))
@@ -136,12 +142,21 @@ fn st_bool(e: &B, u: bool) -> String {
 fn st_stmts(stmts: &[S], u: bool, out: &mut String) {
     for s in stmts {
         match s {
-            S::SetI(v, e) => out.push_str(&format!("{} := {};\n", cased(INTS[*v], u), st_int(e, !u))),
-            S::SetB(v, e) => out.push_str(&format!("{} := {};\n", cased(BOOLS[*v], u), st_bool(e, !u))),
+            S::SetI(v, e) => {
+                out.push_str(&format!("{} := {};\n", cased(INTS[*v], u), st_int(e, !u)))
+            }
+            S::SetB(v, e) => {
+                out.push_str(&format!("{} := {};\n", cased(BOOLS[*v], u), st_bool(e, !u)))
+            }
             S::If(arms, otherwise) => {
                 for (n, (c, body)) in arms.iter().enumerate() {
                     let kw = if n == 0 { "IF" } else { "ELSIF" };
-                    out.push_str(&format!("{} {} {}\n", cased(kw, u), st_bool(c, u), cased("THEN", !u)));
+                    out.push_str(&format!(
+                        "{} {} {}\n",
+                        cased(kw, u),
+                        st_bool(c, u),
+                        cased("THEN", !u)
+                    ));
                     st_stmts(body, !u, out);
                 }
                 if !otherwise.is_empty() {

@@ -425,9 +425,10 @@ impl Compiler<'_, '_> {
                     self.places.push(p.0);
                     self.emit(Op::Tokens(p.0), pos, 1);
                     Ok(GType::Int)
-                } else if let (true, Some(i)) =
-                    (self.body, self.scope.outputs.iter().position(|s| &s.name == n))
-                {
+                } else if let (true, Some(i)) = (
+                    self.body,
+                    self.scope.outputs.iter().position(|s| &s.name == n),
+                ) {
                     let ty = self.scope.outputs[i].ty;
                     self.emit(Op::Out(i as u32, ty), pos, 1);
                     Ok(ty.into())

@@ -151,7 +151,10 @@ pub fn build_package_with(
             Some(r) => r?,
             None => {
                 if let Some(p) = &m.package.pou {
-                    return Err(at(p.span().start, "`pou` is for a `program` in PLCopen XML; remove it".into()));
+                    return Err(at(
+                        p.span().start,
+                        "`pou` is for a `program` in PLCopen XML; remove it".into(),
+                    ));
                 }
                 program_sources(&program_path).map_err(|e| in_manifest(e, &m.package.program))?
             }

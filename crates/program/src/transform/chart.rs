@@ -18,7 +18,12 @@ pub(super) fn networks_without_kept_places(new: &Net, old: &Net) -> Vec<bool> {
     for t in 0..new.num_transitions() {
         let t = cetratus_net::TransIdx(t as u32);
         let mut first: Option<usize> = None;
-        for p in new.pre(t).iter().map(|&(p, _)| p).chain(new.post(t).iter().map(|&(p, _)| p)) {
+        for p in new
+            .pre(t)
+            .iter()
+            .map(|&(p, _)| p)
+            .chain(new.post(t).iter().map(|&(p, _)| p))
+        {
             let p = p.index();
             match first {
                 None => first = Some(p),

@@ -5,7 +5,7 @@
 use std::hint::black_box;
 use std::sync::Arc;
 
-use cetratus_bench::program::{examples_dir, recorded_inputs, vernadat_program};
+use cetratus_bench::program::{recorded_inputs, vernadat_program};
 use cetratus_program::Program;
 use cetratus_runtime::Container;
 use cetratus_testkit::paths::fixture;
@@ -56,7 +56,8 @@ fn import(c: &mut Criterion) {
 /// 30 000 scans (5 minutes of the cell at 10 ms) replayed on a fresh container, per program: the
 /// inputs each program saw on the twin, so each does its own work.
 fn vernadat_scan(c: &mut Criterion) {
-    let xml = examples_dir().join("vernadat-sfc/vernadat-sfc.xml");
+    let xml = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../examples/vernadat-sfc/vernadat-sfc.xml");
     let text = std::fs::read_to_string(&xml).expect("the SFC example");
     let sfc: Arc<Program> = Arc::new(
         cetratus_sfc::import_program(&text, "vernadat-sfc.xml", Some("Cell"))

@@ -375,6 +375,7 @@ pub fn check(net: &Net, opts: &CheckOptions) -> Report {
             siphons_ms: st.siphons_ms,
             behaviour_ms,
         },
+        sfc: None,
     };
     let stop_note = |s: &Stop| {
         let what = match s {

@@ -25,6 +25,7 @@ pub mod matrix;
 mod progress;
 pub mod reach;
 mod report;
+pub mod sfc;
 pub mod siphons;
 
 pub use budget::{Clock, Deadline, PartialReason};

@@ -146,6 +146,9 @@ pub struct Report {
     pub incidence: Option<Incidence>,
     /// Time per phase.
     pub timings: Timings,
+    /// The chart checks of an SFC program (`crate::sfc::check_chart`); absent for other nets.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub sfc: Option<crate::sfc::SfcFindings>,
 }
 
 fn yes_no(b: Option<bool>) -> &'static str {
@@ -306,6 +309,9 @@ impl fmt::Display for Report {
                 "  state encoding: {b} bits per state; state store peak {:.1} MiB",
                 bytes as f64 / (1024.0 * 1024.0)
             )?;
+        }
+        if let Some(s) = &self.sfc {
+            write!(f, "{s}")?;
         }
         for w in &self.warnings {
             writeln!(f, "\nwarning: {w}")?;

@@ -53,7 +53,8 @@ impl Clock for Monotonic {
     }
 }
 
-fn load(path: &Path) -> anyhow::Result<Net> {
+/// The net to check, and whether it is an SFC chart (whose chart checks are added).
+fn load(path: &Path) -> anyhow::Result<(Net, bool)> {
     let is_program = path
         .extension()
         .and_then(|e| e.to_str())
@@ -61,17 +62,18 @@ fn load(path: &Path) -> anyhow::Result<Net> {
     if is_program {
         let program = cetratus_program::Program::load(path)
             .with_context(|| format!("cannot load the program {}", path.display()))?;
-        return Ok(Net::clone(program.net()));
+        return Ok((Net::clone(program.net()), program.is_sfc()));
     }
-    cetratus_net::pnml::read_file(path)
-        .with_context(|| format!("cannot read the net {}", path.display()))
+    let net = cetratus_net::pnml::read_file(path)
+        .with_context(|| format!("cannot read the net {}", path.display()))?;
+    Ok((net, false))
 }
 
 /// Runs `cetratus check`: prints the report, as text or JSON. Ctrl-C stops the exploration and
 /// prints what was found so far, marked partial.
 pub fn run(args: &CheckArgs) -> anyhow::Result<()> {
     let clock = Arc::new(Monotonic(Instant::now()));
-    let net = load(&args.file)?;
+    let (net, is_sfc) = load(&args.file)?;
     let cancel = Arc::new(AtomicBool::new(false));
     let flag = cancel.clone();
     if let Err(e) = ctrlc::set_handler(move || flag.store(true, Ordering::Relaxed)) {
@@ -91,7 +93,12 @@ pub fn run(args: &CheckArgs) -> anyhow::Result<()> {
         progress: Some(progress.callback()),
         ..CheckOptions::default()
     };
-    let report = check(&net, &opts);
+    let mut report = check(&net, &opts);
+    if is_sfc {
+        let chart = cetratus_analysis::sfc::check_chart(&net, &report);
+        report.warnings.extend(chart.warnings());
+        report.sfc = Some(chart);
+    }
     progress.finish();
     let text = if args.json {
         format!("{}\n", serde_json::to_string_pretty(&report)?)

@@ -37,11 +37,9 @@ pub fn run(args: &ImportArgs) -> anyhow::Result<()> {
     let label = a.file.display().to_string();
     let text = std::fs::read_to_string(&a.file)
         .with_context(|| format!("cannot read {label} as UTF-8 text"))?;
-    // The file names are fixed before importing: the TOML names its net.
-    let probe = cetratus_sfc::import_str(&text, &label, a.pou.as_deref(), "net.pnml")?;
-    let stem = probe.program.name().to_string();
+    let imported = cetratus_sfc::import_program(&text, &label, a.pou.as_deref())?;
+    let stem = imported.program.name().to_string();
     let net_file = format!("{stem}.pnml");
-    let imported = cetratus_sfc::import_str(&text, &label, a.pou.as_deref(), &net_file)?;
     std::fs::create_dir_all(&a.output)
         .with_context(|| format!("cannot create {}", a.output.display()))?;
     let toml_path = a.output.join(format!("{stem}.toml"));

@@ -5,9 +5,9 @@
 use std::path::{Path, PathBuf};
 
 use anyhow::{bail, Context};
-use cetratus_program::package::{build_package_at, BuildReport};
+use cetratus_program::package::{build_package_with, BuildReport};
 use cetratus_program::PackageError;
-use cetratus_program::{build_package, KeyPair, Program, TrustStore, UpdatePackage};
+use cetratus_program::{KeyPair, Program, TrustStore, UpdatePackage};
 
 /// Arguments of `cetratus package`.
 #[derive(clap::Args, Debug)]
@@ -119,16 +119,18 @@ fn build(a: &BuildArgs) -> anyhow::Result<()> {
         None => None,
     };
     // SOURCE_DATE_EPOCH makes `created`, and so the package, reproducible.
-    let (bytes, report) = match std::env::var("SOURCE_DATE_EPOCH") {
-        Ok(s) => {
-            let secs: u64 = s
-                .trim()
-                .parse()
-                .with_context(|| format!("SOURCE_DATE_EPOCH `{s}` is not a number of seconds"))?;
-            build_package_at(&a.manifest, key.as_ref(), secs)?
-        }
-        Err(_) => build_package(&a.manifest, key.as_ref())?,
+    let secs = match std::env::var("SOURCE_DATE_EPOCH") {
+        Ok(s) => s
+            .trim()
+            .parse()
+            .with_context(|| format!("SOURCE_DATE_EPOCH `{s}` is not a number of seconds"))?,
+        Err(_) => std::time::SystemTime::now()
+            .duration_since(std::time::UNIX_EPOCH)
+            .map_or(0, |d| d.as_secs()),
     };
+    // A manifest may name PLCopen XML files, imported as `cetratus import plcopen` does.
+    let importer = cetratus_sfc::PlcopenImporter;
+    let (bytes, report) = build_package_with(&a.manifest, key.as_ref(), secs, Some(&importer))?;
     write_file(&a.out, &bytes)?;
     print_report(&report);
     println!("wrote {} ({} bytes)", a.out.display(), bytes.len());

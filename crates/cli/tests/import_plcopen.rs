@@ -54,6 +54,17 @@ fn an_imported_twincat_chart_is_checked_simulated_and_run_in_virtual_time() {
     let check = ok(&cetratus(&["check", program]));
     assert!(check.contains("states: 3"), "{check}");
     assert!(check.contains("safe: yes"), "{check}");
+    // The chart checks: version 6 forks into Step2 and Step3 and joins them again.
+    assert!(check.contains("sfc chart"), "{check}");
+    assert!(
+        check.contains("unsafe steps (active twice through parallel branches): none"),
+        "{check}"
+    );
+    assert!(check.contains("unreachable steps: none"), "{check}");
+    assert!(
+        check.contains("parallel branches that never join: none"),
+        "{check}"
+    );
     let sim = ok(&cetratus(&["sim", program, "--steps", "3"]));
     assert!(sim.contains("Step2=1 Step3=1"), "{sim}");
     let run = ok(&cetratus(&[
@@ -111,4 +122,65 @@ fn a_chart_outside_the_mapping_is_refused_with_its_construct_and_position() {
     assert!(err.contains("beremiz-svghmi-traffic-light.xml:"), "{err}");
     assert!(err.contains("FBD body of transition STOP"), "{err}");
     assert!(!dir.path().join("traffic_light_sequence.toml").exists());
+}
+
+#[test]
+fn bad_charts_are_clear_errors_from_the_binary_never_a_crash() {
+    let dir = tempfile::tempdir().expect("a temporary directory");
+    let good = std::fs::read_to_string(fixture("twincat-sfc-evolution-1.xml")).expect("reads");
+    let jump = good.find("<jumpStep").expect("a jump");
+    let jump_end = good.find("</jumpStep>").expect("its end") + "</jumpStep>".len();
+    let body = |st: &str| {
+        good.replacen(
+            "<step localId=\"3\"",
+            &format!("<actionBlock localId=\"99\"><connectionPointIn><connection refLocalId=\"3\"/></connectionPointIn><action localId=\"0\" qualifier=\"N\"><inline><ST><p><![CDATA[{st}]]></p></ST></inline></action></actionBlock><step localId=\"3\""),
+            1,
+        )
+    };
+    let cases: Vec<(&str, String, &str)> = vec![
+        (
+            "malformed",
+            good.replacen("</transition>", "</transitio>", 1),
+            "malformed.xml:",
+        ),
+        (
+            "two-initial",
+            good.replace(r#"name="Step1">"#, r#"name="Step1" initialStep="true">"#),
+            "one initial step",
+        ),
+        (
+            "no-target",
+            format!("{}{}", &good[..jump], &good[jump_end..]),
+            "has no target",
+        ),
+        (
+            "unknown-variable",
+            body("Nowhere := TRUE;"),
+            "unknown name `Nowhere`",
+        ),
+        (
+            "deep-body",
+            body(&("IF TRUE THEN ".repeat(2_000) + &" END_IF;".repeat(2_000))),
+            "more than",
+        ),
+    ];
+    for (name, text, expected) in cases {
+        let file = dir.path().join(format!("{name}.xml"));
+        std::fs::write(&file, text).expect("writes");
+        let out = cetratus(&[
+            "import",
+            "plcopen",
+            file.to_str().expect("UTF-8"),
+            "-o",
+            dir.path().join(name).to_str().expect("UTF-8"),
+        ]);
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(1), "{name}: {err}");
+        assert!(!err.contains("panicked"), "{name}: {err}");
+        assert!(err.contains(expected), "{name}: {err}");
+        assert!(
+            err.contains(&format!("{name}.xml:")),
+            "{name}: the file and position: {err}"
+        );
+    }
 }

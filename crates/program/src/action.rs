@@ -4,6 +4,8 @@ use std::fmt;
 
 use cetratus_net::{PlaceIdx, Tokens};
 
+use crate::body::BodyError;
+use crate::guard::EvalCtx;
 use crate::value::Value;
 use crate::Program;
 
@@ -24,6 +26,28 @@ pub enum Qualifier {
     L(u64),
     /// Time delayed: on while marked, once `duration` has passed since entry.
     D(u64),
+    /// Stored and delayed: on `duration` after entry, whether or not the place is still
+    /// marked, until an R.
+    SD(u64),
+    /// Delayed and stored: on once the place has been marked for `duration`, until an R.
+    DS(u64),
+    /// Stored and time limited: on from entry for `duration`, whether or not the place is
+    /// still marked; an R ends it early.
+    SL(u64),
+}
+
+impl Qualifier {
+    /// The duration of a timed qualifier.
+    pub fn duration_us(self) -> Option<u64> {
+        match self {
+            Qualifier::L(d)
+            | Qualifier::D(d)
+            | Qualifier::SD(d)
+            | Qualifier::DS(d)
+            | Qualifier::SL(d) => Some(d),
+            _ => None,
+        }
+    }
 }
 
 impl fmt::Display for Qualifier {
@@ -38,21 +62,28 @@ impl fmt::Display for Qualifier {
                 f.write_str("L ")?;
                 crate::guard::write_duration(f, *d)
             }
-            Qualifier::D(d) => {
-                f.write_str("D ")?;
+            Qualifier::D(d) | Qualifier::SD(d) | Qualifier::DS(d) | Qualifier::SL(d) => {
+                f.write_str(match self {
+                    Qualifier::D(_) => "D ",
+                    Qualifier::SD(_) => "SD ",
+                    Qualifier::DS(_) => "DS ",
+                    _ => "SL ",
+                })?;
                 crate::guard::write_duration(f, *d)
             }
         }
     }
 }
 
-/// What an action drives: a bool output or a bool variable.
+/// What an action drives: a bool output or a bool variable, or a body it runs.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum Target {
     /// An output, by index.
     Output(u32),
     /// A variable, by index.
     Variable(u32),
+    /// An action body, by index into [`Program::bodies`].
+    Body(u32),
 }
 
 /// An action attached to a place.
@@ -66,20 +97,28 @@ pub struct Action {
     pub target: Target,
 }
 
-/// The state actions carry from scan to scan (the S/R latches), with scratch sized once.
+/// The state actions carry from scan to scan (the S/R latches, the stored timers of SD and SL,
+/// the last Q of each body for its final run), with scratch sized once.
 #[derive(Clone, Debug)]
 pub struct ActionState {
     /// Latch per driven target (index into `targets`).
     latch: Vec<bool>,
-    /// Scratch per driven target, cleared every scan.
+    /// Scratch per driven target, cleared every scan: non-stored Q, pulses, resets.
     on: Vec<bool>,
+    pulse: Vec<bool>,
     reset: Vec<bool>,
+    /// Per target: its Q in the last scan, pulses left out (a body's final run follows its fall).
+    was_on: Vec<bool>,
+    /// Per action: when its SD or SL timer started; `None` when it runs no such timer.
+    stored_since: Vec<Option<u64>>,
     deadline: Option<u64>,
-    // The outputs of the last scan hold until a place changes, a pulse ends or a timer is due:
-    // a scan with none of these leaves them as they are, at no cost.
+    // The outputs of the last scan hold until a place changes, a pulse ends, a timer is due or a
+    // body runs: a scan with none of these leaves them as they are, at no cost.
     settled: bool,
     pulsed: bool,
     quiet: bool,
+    // Tests compare against a state that always recomputes.
+    never_quiet: bool,
 }
 
 impl ActionState {
@@ -89,80 +128,92 @@ impl ActionState {
         ActionState {
             latch: vec![false; n],
             on: vec![false; n],
+            pulse: vec![false; n],
             reset: vec![false; n],
+            was_on: vec![false; n],
+            stored_since: vec![None; program.actions.len()],
             deadline: None,
             settled: false,
             pulsed: false,
             quiet: false,
+            never_quiet: false,
         }
     }
 
-    /// The first scan (startup): every place marked in `marking` counts as entered, then as
+    /// Makes every `apply` recompute in full, for comparing against the settled shortcut in
+    /// tests.
+    pub fn set_never_quiet(&mut self, on: bool) {
+        self.never_quiet = on;
+    }
+
+    /// The first scan (startup): every place marked in `ctx.marking` counts as entered, then as
     /// [`ActionState::apply`].
     pub fn start(
         &mut self,
         program: &Program,
-        marking: &[Tokens],
-        place_since_us: &[Option<u64>],
-        now_us: u64,
+        ctx: &EvalCtx,
         outputs: &mut [Value],
         vars: &mut [Value],
-    ) {
+    ) -> Result<(), BodyError> {
         // A first scan always recomputes, whatever the state did before it.
         self.quiet = false;
         self.begin();
-        for (p, &m) in marking.iter().enumerate() {
+        for (p, &m) in ctx.marking.iter().enumerate() {
             if m > 0 {
-                self.edge(program, PlaceIdx(p as u32), true);
+                self.edge(program, PlaceIdx(p as u32), true, ctx.now_us);
             }
         }
-        self.finish(program, marking, place_since_us, now_us, outputs, vars);
+        self.finish(program, ctx, outputs, vars)
     }
 
-    /// Computes the driven outputs and variables after this scan's marking update.
+    /// Computes the driven outputs and variables after this scan's marking update, and runs the
+    /// bodies whose actions are on (or that take their final run).
     ///
-    /// `marking` is the marking after the update; `changes` lists the places whose count changed
-    /// in this scan with their old count (`cetratus_net::Engine::changes()`); `place_since_us` is
-    /// already updated for this scan. Outputs no action drives are set to their type's zero;
-    /// variables no action drives are left alone. `outputs` and `vars` must be the buffers of the
-    /// previous scan: a scan in which no place changed, no pulse ends and no timer is due leaves them
-    /// as they are. Never allocates.
-    #[allow(clippy::too_many_arguments)]
+    /// `ctx` is the scan's view: the marking after the update, `place_since_us` already updated
+    /// for this scan, the inputs; its `vars` are not read (bodies read `vars`). `changes` lists
+    /// the places whose count changed in this scan with their old count
+    /// (`cetratus_net::Engine::changes()`). Outputs that neither an action nor a body drives are
+    /// set to their type's zero; outputs a body assigns keep their value; variables are left
+    /// alone unless driven. `outputs` and `vars` must be the buffers of the previous scan: a scan
+    /// in which no place changed, no pulse ends, no timer is due and no body runs leaves them as
+    /// they are. Never allocates, unless a body fails (the error names it).
     pub fn apply(
         &mut self,
         program: &Program,
-        marking: &[Tokens],
+        ctx: &EvalCtx,
         changes: &[(PlaceIdx, Tokens)],
-        place_since_us: &[Option<u64>],
-        now_us: u64,
         outputs: &mut [Value],
         vars: &mut [Value],
-    ) {
-        if self.settled && changes.is_empty() && self.deadline.is_none_or(|d| now_us < d) {
+    ) -> Result<(), BodyError> {
+        if self.settled
+            && !self.never_quiet
+            && changes.is_empty()
+            && self.deadline.is_none_or(|d| ctx.now_us < d)
+        {
             self.quiet = true;
-            return;
+            return Ok(());
         }
         self.quiet = false;
         self.begin();
         for &(p, old) in changes {
-            let new = marking.get(p.index()).copied().unwrap_or(0);
+            let new = ctx.marking.get(p.index()).copied().unwrap_or(0);
             if old == 0 && new > 0 {
-                self.edge(program, p, true);
+                self.edge(program, p, true, ctx.now_us);
             } else if old > 0 && new == 0 {
-                self.edge(program, p, false);
+                self.edge(program, p, false, ctx.now_us);
             }
         }
-        self.finish(program, marking, place_since_us, now_us, outputs, vars);
+        self.finish(program, ctx, outputs, vars)
     }
 
     /// True when the last `apply` changed nothing: no place changed, no pulse ended, no timer was
-    /// due, so outputs and variables are as before.
+    /// due, no body ran, so outputs and variables are as before.
     pub fn last_was_quiet(&self) -> bool {
         self.quiet
     }
 
-    /// The earliest future time at which an L or D action of a marked place changes its output,
-    /// as computed by the last `apply`/`start`; `None` when no such timer runs.
+    /// The earliest future time at which a timed action (L, D, SD, DS, SL) changes its Q, as
+    /// computed by the last `apply`/`start`; `None` when no such timer runs.
     pub fn next_deadline_us(&self) -> Option<u64> {
         self.deadline
     }
@@ -193,13 +244,18 @@ impl ActionState {
 
     fn begin(&mut self) {
         self.pulsed = false;
-        self.on.iter_mut().for_each(|b| *b = false);
-        self.reset.iter_mut().for_each(|b| *b = false);
+        for v in [&mut self.on, &mut self.pulse, &mut self.reset] {
+            v.iter_mut().for_each(|b| *b = false);
+        }
         self.deadline = None;
     }
 
+    fn due(&mut self, at: u64) {
+        self.deadline = Some(self.deadline.map_or(at, |x| x.min(at)));
+    }
+
     /// A place was entered (`entered`) or left: run its edge-triggered actions.
-    fn edge(&mut self, program: &Program, p: PlaceIdx, entered: bool) {
+    fn edge(&mut self, program: &Program, p: PlaceIdx, entered: bool, now_us: u64) {
         for &a in program.actions_of(p) {
             let (q, slot) = (
                 program.actions[a as usize].qualifier,
@@ -211,7 +267,20 @@ impl ActionState {
                 (Qualifier::R, true) => self.reset.get_mut(slot),
                 (Qualifier::P1, true) | (Qualifier::P0, false) => {
                     self.pulsed = true;
-                    self.on.get_mut(slot)
+                    self.pulse.get_mut(slot)
+                }
+                (Qualifier::SD(_), true) => {
+                    // Stored: a second entry while the delay runs does not restart it.
+                    if let Some(s) = self.stored_since.get_mut(a as usize) {
+                        s.get_or_insert(now_us);
+                    }
+                    None
+                }
+                (Qualifier::SL(_), true) => {
+                    if let Some(s) = self.stored_since.get_mut(a as usize) {
+                        *s = Some(now_us);
+                    }
+                    None
                 }
                 _ => None,
             };
@@ -224,24 +293,56 @@ impl ActionState {
     fn finish(
         &mut self,
         program: &Program,
-        marking: &[Tokens],
-        place_since_us: &[Option<u64>],
-        now_us: u64,
+        ctx: &EvalCtx,
         outputs: &mut [Value],
         vars: &mut [Value],
-    ) {
-        // Reset dominates set, as in the IEC action control's RS flip-flop.
+    ) -> Result<(), BodyError> {
+        let now_us = ctx.now_us;
+        // Reset dominates set, as in the IEC action control's RS flip-flop; it also stops the
+        // SD and SL timers on the same target.
         for (l, &r) in self.latch.iter_mut().zip(&self.reset) {
             if r {
                 *l = false;
             }
         }
+        for (a, (&slot, since)) in program
+            .actions
+            .iter()
+            .zip(program.action_slot.iter().zip(self.stored_since.iter_mut()))
+        {
+            if self.reset.get(slot as usize).copied().unwrap_or(false) {
+                *since = None;
+            }
+            // SD and SL run whether or not their place is still marked.
+            let Some(s) = *since else { continue };
+            let (on, due) = match a.qualifier {
+                Qualifier::SD(d) => {
+                    let due = s.saturating_add(d);
+                    (now_us >= due, (now_us < due).then_some(due))
+                }
+                Qualifier::SL(d) => {
+                    let due = s.saturating_add(d);
+                    if now_us >= due {
+                        *since = None;
+                    }
+                    (now_us < due, (now_us < due).then_some(due))
+                }
+                _ => (false, None),
+            };
+            if let Some(due) = due {
+                self.deadline = Some(self.deadline.map_or(due, |x| x.min(due)));
+            }
+            if let (true, Some(c)) = (on, self.on.get_mut(slot as usize)) {
+                *c = true;
+            }
+        }
         for (a, &slot) in program.actions.iter().zip(&program.action_slot) {
-            let marked = marking.get(a.place.index()).is_some_and(|&m| m > 0);
+            let marked = ctx.marking.get(a.place.index()).is_some_and(|&m| m > 0);
             if !marked {
                 continue;
             }
-            let since = place_since_us
+            let since = ctx
+                .place_since_us
                 .get(a.place.index())
                 .copied()
                 .flatten()
@@ -251,10 +352,18 @@ impl ActionState {
                 Qualifier::N => true,
                 Qualifier::L(d) | Qualifier::D(d) => {
                     if elapsed < d {
-                        let due = since.saturating_add(d);
-                        self.deadline = Some(self.deadline.map_or(due, |x| x.min(due)));
+                        self.due(since.saturating_add(d));
                     }
                     matches!(a.qualifier, Qualifier::L(_)) == (elapsed < d)
+                }
+                Qualifier::DS(d) => {
+                    let reset = self.reset.get(slot as usize).copied().unwrap_or(false);
+                    if elapsed < d {
+                        self.due(since.saturating_add(d));
+                    } else if let (false, Some(l)) = (reset, self.latch.get_mut(slot as usize)) {
+                        *l = true;
+                    }
+                    false
                 }
                 _ => false,
             };
@@ -262,21 +371,44 @@ impl ActionState {
                 *c = true;
             }
         }
-        for (o, s) in outputs.iter_mut().zip(&program.outputs) {
-            *o = s.ty.zero();
+        for ((o, s), &held) in outputs
+            .iter_mut()
+            .zip(&program.outputs)
+            .zip(&program.output_held)
+        {
+            if !held {
+                *o = s.ty.zero();
+            }
         }
+        let mut running = false;
         for (slot, target) in program.action_targets.iter().enumerate() {
-            let on = self.on.get(slot).copied().unwrap_or(false);
-            let v = Value::Bool(on || self.latch.get(slot).copied().unwrap_or(false));
+            let stored = self.on.get(slot).copied().unwrap_or(false)
+                || self.latch.get(slot).copied().unwrap_or(false);
+            let q = stored || self.pulse.get(slot).copied().unwrap_or(false);
             let cell = match *target {
                 Target::Output(i) => outputs.get_mut(i as usize),
                 Target::Variable(i) => vars.get_mut(i as usize),
+                Target::Body(_) => None,
             };
             if let Some(c) = cell {
-                *c = v;
+                *c = Value::Bool(q);
+            }
+            let was = self
+                .was_on
+                .get_mut(slot)
+                .is_some_and(|w| std::mem::replace(w, stored));
+            if let Target::Body(b) = *target {
+                // Q, or the IEC final run in the scan in which a non-pulse Q falls.
+                if q || was {
+                    if let Some(body) = program.bodies.get(b as usize) {
+                        body.run(ctx, vars, outputs)?;
+                    }
+                }
+                running |= stored;
             }
         }
-        // A pulse lasts one scan: the next scan must take it back.
-        self.settled = !self.pulsed;
+        // A pulse lasts one scan, and a body whose Q holds runs again: the next scan must run.
+        self.settled = !self.pulsed && !running;
+        Ok(())
     }
 }

@@ -13,6 +13,7 @@
 #![warn(missing_docs)]
 
 mod action;
+pub mod body;
 pub mod duration;
 mod error;
 pub mod guard;
@@ -27,12 +28,13 @@ mod value;
 use std::path::Path;
 
 pub use action::{Action, ActionState, Qualifier, Target};
+pub use body::{Body, BodyError};
 pub use error::ProgramError;
 pub use guard::{EvalCtx, EvalError, EvalErrorKind, Guard};
 pub use invariant::{Invariant, InvariantViolation};
 pub use package::{
-    build_package, BuildReport, KeyPair, PackageError, PackageMeta, ResolvedUpdate, TransformSpec,
-    TrustStore, UpdatePackage, VerifyingKeyFile,
+    build_package, BuildReport, KeyPair, PackageError, PackageMeta, ProgramImporter,
+    ResolvedUpdate, TransformSpec, TrustStore, UpdatePackage, VerifyingKeyFile,
 };
 pub use program::{Program, Watchdog, DEFAULT_SCAN_PERIOD, TOOL};
 pub use source::{toml_text, NotUtf8};

@@ -20,7 +20,9 @@ use toml::Spanned;
 mod build;
 
 pub use crate::keys::{KeyPair, TrustStore, VerifyingKeyFile};
-pub use build::{build_package, build_package_at, BuildReport};
+pub use build::{
+    build_package, build_package_at, build_package_with, BuildReport, ProgramImporter,
+};
 
 use crate::source::{NetOnly, Origin};
 use crate::transform::{DenseMatrix, Projection, StateTransform, TransformError};

@@ -10,6 +10,7 @@ use sha2::{Digest, Sha256};
 use toml::Spanned;
 
 use crate::action::{Action, Qualifier, Target};
+use crate::body::Body;
 use crate::guard::{EvalCtx, EvalError, Guard, Scope, SyntaxError};
 use crate::invariant::{self, Invariant, InvariantViolation};
 use crate::source::{Doc, Origin, SignalDecl};
@@ -43,12 +44,17 @@ pub struct Program {
     description: String,
     net: Arc<Net>,
     policy: Policy,
+    sfc: bool,
     scan_period: Duration,
     pub(crate) inputs: Vec<Signal>,
     pub(crate) outputs: Vec<Signal>,
     pub(crate) variables: Vec<Signal>,
     guards: Vec<Option<Guard>>,
     pub(crate) actions: Vec<Action>,
+    /// Action bodies, in declaration order.
+    pub(crate) bodies: Vec<Body>,
+    /// Per output: a body assigns it, so it keeps its value from scan to scan.
+    pub(crate) output_held: Vec<bool>,
     /// Per action, its index in `action_targets`.
     pub(crate) action_slot: Vec<u32>,
     /// The distinct targets actions drive, in order of first appearance.
@@ -171,6 +177,16 @@ impl Program {
                 .parse::<Policy>()
                 .map_err(|m| o.err(s.span().start, m))?,
         };
+        let sfc = match &p.chart {
+            None => false,
+            Some(c) if c.get_ref() == "sfc" => true,
+            Some(c) => {
+                return Err(o.err(
+                    c.span().start,
+                    format!("unknown chart kind `{}`; the one kind is \"sfc\" (an IEC 61131-3 chart imported from PLCopen XML)", c.get_ref()),
+                ))
+            }
+        };
         let scan_period = match &p.scan_period {
             None => DEFAULT_SCAN_PERIOD,
             Some(s) => {
@@ -236,17 +252,43 @@ impl Program {
             guards[t.index()] = Some(g);
         }
 
-        // Actions.
+        // Bodies, in document order, then the actions that run them or drive a signal.
+        let mut entries: Vec<(&Spanned<String>, &Spanned<String>)> = doc.bodies.iter().collect();
+        entries.sort_by_key(|(k, _)| k.span().start);
+        let mut bodies: Vec<Body> = Vec::with_capacity(entries.len());
+        for (key, text) in entries {
+            let b = Body::compile(key.get_ref(), text.get_ref(), &scope).map_err(|e| {
+                o.err(
+                    o.in_string(text, e.offset),
+                    format!("in the body {}: {}", key.get_ref(), e.message),
+                )
+            })?;
+            bodies.push(b);
+        }
+        let mut output_held = vec![false; outputs.len()];
+        for b in &bodies {
+            for &i in b.outputs() {
+                output_held[i as usize] = true;
+            }
+        }
         let mut actions = Vec::with_capacity(doc.action.len());
         for a in &doc.action {
             actions.push(action(
                 &o,
                 &net,
-                &outputs,
-                &variables,
-                &inputs,
+                (&outputs, &variables, &inputs),
+                &bodies,
                 a.get_ref(),
             )?);
+        }
+        for (i, b) in bodies.iter().enumerate() {
+            if !actions.iter().any(|a| a.target == Target::Body(i as u32)) {
+                let key = doc.bodies.keys().find(|k| k.get_ref() == b.name());
+                return Err(o.err(
+                    key.map_or(0, |k| k.span().start),
+                    format!("the body {} is run by no action; add an [[action]] with `body = \"{}\"`, or remove it", b.name(), b.name()),
+                ));
+            }
         }
         let mut action_targets: Vec<Target> = Vec::new();
         let mut action_slot = Vec::with_capacity(actions.len());
@@ -307,12 +349,15 @@ impl Program {
             description: p.description.clone(),
             net: Arc::new(net),
             policy,
+            sfc,
             scan_period,
             inputs,
             outputs,
             variables,
             guards,
             actions,
+            bodies,
+            output_held,
             action_slot,
             action_targets,
             place_action_start,
@@ -342,6 +387,11 @@ impl Program {
     /// The firing policy.
     pub fn policy(&self) -> Policy {
         self.policy
+    }
+    /// True when the net is an IEC 61131-3 chart (`[program] chart = "sfc"`): its places are
+    /// steps, and online change starts the steps a new version adds inactive.
+    pub fn is_sfc(&self) -> bool {
+        self.sfc
     }
     /// The scan period.
     pub fn scan_period(&self) -> Duration {
@@ -404,6 +454,10 @@ impl Program {
     /// The actions, in declaration order.
     pub fn actions(&self) -> &[Action] {
         &self.actions
+    }
+    /// The action bodies, in declaration order ([`Target::Body`] indexes them).
+    pub fn bodies(&self) -> &[Body] {
+        &self.bodies
     }
     /// The distinct signals actions drive; [`crate::ActionState::latches`] follows this order.
     pub fn action_targets(&self) -> &[Target] {
@@ -598,9 +652,8 @@ fn signal(
 fn action(
     o: &Origin,
     net: &Net,
-    outputs: &[Signal],
-    variables: &[Signal],
-    inputs: &[Signal],
+    (outputs, variables, inputs): (&[Signal], &[Signal], &[Signal]),
+    bodies: &[Body],
     d: &crate::source::ActionDecl,
 ) -> Result<Action, ProgramError> {
     let place = net.place_by_id(d.place.get_ref()).ok_or_else(|| {
@@ -612,20 +665,36 @@ fn action(
             ),
         )
     })?;
-    let tname = d.target.get_ref();
-    let tat = d.target.span().start;
-    let (target, sig) = if let Some(i) = outputs.iter().position(|s| &s.name == tname) {
-        (Target::Output(i as u32), &outputs[i])
-    } else if let Some(i) = variables.iter().position(|s| &s.name == tname) {
-        (Target::Variable(i as u32), &variables[i])
-    } else if inputs.iter().any(|s| &s.name == tname) {
-        return Err(o.err(tat, format!("`{tname}` is an input, which the program cannot drive; an action targets a bool output or a bool variable")));
-    } else {
-        return Err(o.err(tat, format!("action target `{tname}` is not declared; expected a bool output or a bool variable")));
+    let target = match (&d.target, &d.body) {
+        (Some(t), None) => signal_target(o, t, outputs, variables, inputs)?,
+        (None, Some(b)) => {
+            let i = bodies
+                .iter()
+                .position(|x| x.name() == b.get_ref())
+                .ok_or_else(|| {
+                    o.err(
+                        b.span().start,
+                        format!(
+                            "no body `{}` in [bodies]; declare it there, or name a body that is",
+                            b.get_ref()
+                        ),
+                    )
+                })?;
+            Target::Body(i as u32)
+        }
+        (Some(_), Some(b)) => {
+            return Err(o.err(
+                b.span().start,
+                "an action has a `target` or a `body`, not both; split it into two actions",
+            ))
+        }
+        (None, None) => {
+            return Err(o.err(
+                d.place.span().start,
+                "the action has neither `target` (a bool signal) nor `body` (a body of [bodies]); add one",
+            ))
+        }
     };
-    if sig.ty != Type::Bool {
-        return Err(o.err(tat, format!("action target `{tname}` is {} {}; an action drives a bool output or a bool variable", if sig.ty == Type::Int { "an" } else { "a" }, sig.ty)));
-    }
     let duration = match &d.duration {
         None => None,
         Some(s) => Some(
@@ -643,7 +712,10 @@ fn action(
         ("P0", None) => Qualifier::P0,
         ("L", Some(t)) => Qualifier::L(t),
         ("D", Some(t)) => Qualifier::D(t),
-        ("L" | "D", None) => {
+        ("SD", Some(t)) => Qualifier::SD(t),
+        ("DS", Some(t)) => Qualifier::DS(t),
+        ("SL", Some(t)) => Qualifier::SL(t),
+        ("L" | "D" | "SD" | "DS" | "SL", None) => {
             return Err(o.err(
                 qat,
                 format!("qualifier {q} needs a duration; add `duration = \"2s\"`"),
@@ -653,13 +725,13 @@ fn action(
             let at = d.duration.as_ref().map_or(qat, |s| s.span().start);
             return Err(o.err(
                 at,
-                format!("qualifier {q} takes no duration; remove it, or use L or D"),
+                format!("qualifier {q} takes no duration; remove it, or use L, D, SD, DS or SL"),
             ));
         }
         _ => {
             return Err(o.err(
                 qat,
-                format!("unknown qualifier `{q}`; expected N, S, R, P1, P0, L or D"),
+                format!("unknown qualifier `{q}`; expected N, S, R, P1, P0, L, D, SD, DS or SL"),
             ))
         }
     };
@@ -668,6 +740,31 @@ fn action(
         qualifier,
         target,
     })
+}
+
+/// The bool output or variable an action drives.
+fn signal_target(
+    o: &Origin,
+    t: &Spanned<String>,
+    outputs: &[Signal],
+    variables: &[Signal],
+    inputs: &[Signal],
+) -> Result<Target, ProgramError> {
+    let tname = t.get_ref();
+    let tat = t.span().start;
+    let (target, sig) = if let Some(i) = outputs.iter().position(|s| &s.name == tname) {
+        (Target::Output(i as u32), &outputs[i])
+    } else if let Some(i) = variables.iter().position(|s| &s.name == tname) {
+        (Target::Variable(i as u32), &variables[i])
+    } else if inputs.iter().any(|s| &s.name == tname) {
+        return Err(o.err(tat, format!("`{tname}` is an input, which the program cannot drive; an action targets a bool output or a bool variable")));
+    } else {
+        return Err(o.err(tat, format!("action target `{tname}` is not declared; expected a bool output or a bool variable")));
+    };
+    if sig.ty != Type::Bool {
+        return Err(o.err(tat, format!("action target `{tname}` is {} {}; an action drives a bool output or a bool variable (a body assigns other types)", if sig.ty == Type::Int { "an" } else { "a" }, sig.ty)));
+    }
+    Ok(target)
 }
 
 /// SHA-256 over a domain tag, the program text and the net's behaviour-relevant structure (ids,

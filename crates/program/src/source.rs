@@ -23,6 +23,8 @@ pub(crate) struct Doc {
     #[serde(default)]
     pub guards: BTreeMap<Spanned<String>, Spanned<String>>,
     #[serde(default)]
+    pub bodies: BTreeMap<Spanned<String>, Spanned<String>>,
+    #[serde(default)]
     pub action: Vec<Spanned<ActionDecl>>,
     #[serde(default)]
     pub invariant: Vec<Spanned<InvariantDecl>>,
@@ -43,6 +45,8 @@ pub(crate) struct ProgramSection {
     #[allow(dead_code)]
     pub net: Option<Spanned<String>>,
     pub policy: Option<Spanned<String>>,
+    /// `"sfc"`: the net is an IEC 61131-3 chart (online change starts added steps inactive).
+    pub chart: Option<Spanned<String>>,
     pub scan_period: Option<Spanned<String>>,
 }
 
@@ -67,7 +71,8 @@ pub(crate) struct SignalDecl {
 pub(crate) struct ActionDecl {
     pub place: Spanned<String>,
     pub qualifier: Spanned<String>,
-    pub target: Spanned<String>,
+    pub target: Option<Spanned<String>>,
+    pub body: Option<Spanned<String>>,
     pub duration: Option<Spanned<String>>,
 }
 

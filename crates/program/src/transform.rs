@@ -12,6 +12,11 @@ use cetratus_net::{Net, PlaceIdx, Tokens};
 
 use crate::{InvariantViolation, Program};
 
+mod chart;
+
+pub use chart::markable_places;
+use chart::networks_without_kept_places;
+
 /// Why a transform or projection could not be resolved, or refused to apply.
 #[derive(Debug, thiserror::Error)]
 pub enum TransformError {
@@ -92,6 +97,13 @@ pub enum TransformError {
         to: String,
         /// Column place.
         from: String,
+    },
+    /// A chart's step that the new version removes, that the old version can reach, and that
+    /// `removed` does not map.
+    #[error("step `{id}` is removed by the new version, and the running chart can reach it (its net lets it be marked, guards ignored); map it to a step of the new version with `[transform.removed] {id} = \"…\"`")]
+    RemovedReachable {
+        /// The step.
+        id: String,
     },
     /// `removed` names a place the new net still has.
     #[error("`{id}` is listed in `removed`, but the new net still has a place `{id}`, which keeps its tokens; remove it from `removed`")]
@@ -492,10 +504,19 @@ impl StateTransform {
         let (on, nn) = (old.net().as_ref(), new.net().as_ref());
         let mut rows: Vec<Vec<(u32, i64)>> = vec![Vec::new(); nn.num_places()];
         let mut base = vec![0i64; nn.num_places()];
+        // A chart's added step starts inactive, its initial step too, unless its whole network
+        // is new: a running chart goes on from its active steps, and one active step per
+        // network is what keeps a chart safe.
+        let network_is_new = if new.is_sfc() {
+            networks_without_kept_places(nn, on)
+        } else {
+            vec![true; nn.num_places()]
+        };
         for (r, p) in nn.places().iter().enumerate() {
             match on.place_by_id(&p.id) {
                 Some(q) => rows[r].push((q.0, 1)),
-                None => base[r] = i64::from(p.initial),
+                None if network_is_new[r] => base[r] = i64::from(p.initial),
+                None => {}
             }
         }
         for (from, to) in removed {

@@ -208,6 +208,7 @@ fn the_cell_runs_with_its_guards_and_keeps_its_invariants_at_every_scan() {
             vars: &[],
             marking: &ctx_marking,
             place_since_us: &since,
+            place_dwell_us: &[],
             now_us: now,
         };
         let n = match engine.scan(p.policy(), |t| p.eval_guard(t, &ctx)) {

@@ -208,6 +208,7 @@ fn check_compiled(p: &Program, text: &str, w: &World) -> Result<(), TestCaseErro
         vars: &w.vars,
         marking: &w.marking,
         place_since_us: &w.since,
+        place_dwell_us: &[],
         now_us: w.now,
     };
     let _ = g.eval(&ctx);

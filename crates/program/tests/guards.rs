@@ -34,6 +34,7 @@ impl World {
             vars: &self.vars,
             marking: &self.marking,
             place_since_us: &self.since,
+            place_dwell_us: &[],
             now_us: self.now,
         }
     }

@@ -1,4 +1,4 @@
-//! `Program::eval_guard`, `Program::check_invariants`, `ActionState::apply`,
+//! `Program::eval_guard`, `Program::check_invariants`, `ActionState::apply` (bodies included),
 //! `StateTransform::apply` and `Projection::drift` never allocate.
 
 mod common;
@@ -21,6 +21,9 @@ fn evaluating_guards_and_applying_actions_does_not_allocate() {
          [[action]]\nplace = \"B\"\nqualifier = \"S\"\ntarget = \"q\"\n\
          [[action]]\nplace = \"B\"\nqualifier = \"L\"\ntarget = \"o\"\nduration = \"2s\"\n\
          [[action]]\nplace = \"A\"\nqualifier = \"P0\"\ntarget = \"q\"\n\
+         [[action]]\nplace = \"C\"\nqualifier = \"N\"\nbody = \"Work\"\n\
+         [[action]]\nplace = \"B\"\nqualifier = \"SL\"\nbody = \"Work\"\nduration = \"1s\"\n\
+         [bodies]\nWork = '''\nif v > 3 && B.dwell < 1h then\n  v := v * 2 / 2 - 1\nelif n == 0 then\n  v := 0\nelse\n  v := v + 1\nend\n'''\n\
          [[invariant]]\nexpr = \"A + B = 1\"\n",
     );
     let inputs = [Value::Bool(true), Value::Int(0), Value::Real(0.25)];
@@ -34,6 +37,7 @@ fn evaluating_guards_and_applying_actions_does_not_allocate() {
         vars: &vars,
         marking: &marking,
         place_since_us: &since,
+        place_dwell_us: &[],
         now_us: 4_000_000,
     };
     let mut state = ActionState::new(&p);
@@ -48,15 +52,7 @@ fn evaluating_guards_and_applying_actions_does_not_allocate() {
             results[0] = p.eval_guard(TransIdx(0), &ctx);
             results[1] = p.eval_guard(TransIdx(1), &ctx);
             inv = p.check_invariants(&marking);
-            state.apply(
-                &p,
-                &marking,
-                &changes,
-                &since,
-                4_000_000,
-                &mut out,
-                &mut vars_out,
-            );
+            let _ = state.apply(&p, &ctx, &changes, &mut out, &mut vars_out);
         }
     });
     assert_eq!(n, 0, "allocations in the scan path");

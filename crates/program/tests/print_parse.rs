@@ -25,6 +25,7 @@ fn leaf() -> impl Strategy<Value = ExprKind> {
         .prop_map(ExprKind::Duration),
         name().prop_map(ExprKind::Name),
         name().prop_map(ExprKind::Timer),
+        name().prop_map(ExprKind::Dwell),
         name().prop_map(ExprKind::Rise),
         name().prop_map(ExprKind::Fall),
     ]

@@ -17,6 +17,8 @@ pub struct Container {
     // The marking as it was at the start of the scan: guards read this, not the step in progress.
     marking_at_start: Vec<Tokens>,
     place_since_us: Vec<Option<u64>>,
+    // Per place: how long it was marked the last time (`P.dwell`, IEC's Step.T once it is left).
+    place_dwell_us: Vec<u64>,
     actions: ActionState,
     inputs: Vec<Value>,
     prev_inputs: Vec<Value>,
@@ -126,6 +128,7 @@ impl Container {
             edge_memory: false,
             always_full: false,
             firings: vec![0; program.net().num_transitions()],
+            place_dwell_us: vec![0; marking.len()],
             marking_at_start: marking,
             place_since_us,
             actions,
@@ -150,6 +153,11 @@ impl Container {
     /// When each place last went from empty to marked (`None` while empty).
     pub fn place_since_us(&self) -> &[Option<u64>] {
         &self.place_since_us
+    }
+    /// Per place, how long it was marked the last time it was (0 if never): what `P.dwell`
+    /// reads while the place is empty.
+    pub fn place_dwell_us(&self) -> &[u64] {
+        &self.place_dwell_us
     }
     /// The output image computed by the last scan.
     pub fn outputs(&self) -> &[Value] {
@@ -219,7 +227,7 @@ impl Container {
             });
         }
         if self.is_quiet(inputs, unchanged) {
-            return Ok(self.quiet_scan(now_us));
+            return self.quiet_scan(now_us);
         }
         self.force_full = false;
         if self.edge_memory {
@@ -239,6 +247,7 @@ impl Container {
             vars: &self.vars,
             marking: &self.marking_at_start,
             place_since_us: &self.place_since_us,
+            place_dwell_us: &self.place_dwell_us,
             now_us,
         };
         let policy = program.policy();
@@ -296,31 +305,39 @@ impl Container {
             if old == 0 && new > 0 {
                 self.place_since_us[p.index()] = Some(now_us);
             } else if new == 0 {
-                self.place_since_us[p.index()] = None;
+                // IEC's Step.T: the dwell is kept until the place is marked again.
+                if let Some(since) = self.place_since_us[p.index()].take() {
+                    self.place_dwell_us[p.index()] = now_us.saturating_sub(since);
+                }
             }
         }
-        if std::mem::take(&mut self.fresh_state) && !std::mem::take(&mut self.resume) {
+        let view = EvalCtx {
+            inputs: &self.inputs,
+            prev_inputs: &self.prev_inputs,
+            vars: &[],
+            marking,
+            place_since_us: &self.place_since_us,
+            place_dwell_us: &self.place_dwell_us,
+            now_us,
+        };
+        let acted = if std::mem::take(&mut self.fresh_state) && !std::mem::take(&mut self.resume) {
             // The first scan enters every marked place: P1 and S actions of M0 take effect.
-            self.actions.start(
-                program,
-                marking,
-                &self.place_since_us,
-                now_us,
-                &mut self.outputs,
-                &mut self.vars,
-            );
+            self.actions
+                .start(program, &view, &mut self.outputs, &mut self.vars)
         } else {
             self.actions.apply(
                 program,
-                marking,
+                &view,
                 self.engine.changes(),
-                &self.place_since_us,
-                now_us,
                 &mut self.outputs,
                 &mut self.vars,
-            );
-        }
+            )
+        };
         self.scans += 1;
+        if let Err(e) = acted {
+            self.force_full = true;
+            return Err(RuntimeError::Body(e));
+        }
         Ok(ScanOutcome {
             fired,
             deadlocked: self.engine.enabled().is_empty(),
@@ -347,22 +364,29 @@ impl Container {
                 .any(|t| self.timed_guard[t.index()])
     }
 
-    /// A scan that fires nothing: the actions still run, for the L and D timers.
-    fn quiet_scan(&mut self, now_us: u64) -> ScanOutcome {
-        self.actions.apply(
-            &self.program,
-            self.engine.marking(),
-            &[],
-            &self.place_since_us,
+    /// A scan that fires nothing: the actions still run, for their timers.
+    fn quiet_scan(&mut self, now_us: u64) -> Result<ScanOutcome, RuntimeError> {
+        let view = EvalCtx {
+            inputs: &self.inputs,
+            prev_inputs: &self.prev_inputs,
+            vars: &[],
+            marking: self.engine.marking(),
+            place_since_us: &self.place_since_us,
+            place_dwell_us: &self.place_dwell_us,
             now_us,
-            &mut self.outputs,
-            &mut self.vars,
-        );
+        };
+        let acted =
+            self.actions
+                .apply(&self.program, &view, &[], &mut self.outputs, &mut self.vars);
         self.scans += 1;
-        ScanOutcome {
+        if let Err(e) = acted {
+            self.force_full = true;
+            return Err(RuntimeError::Body(e));
+        }
+        Ok(ScanOutcome {
             fired: 0,
             deadlocked: self.engine.enabled().is_empty(),
-        }
+        })
     }
 
     /// False when the last scan certainly left the outputs and variables as they were.
@@ -413,6 +437,7 @@ impl Container {
     /// Makes every scan run in full, for comparing against the quiet path in tests.
     pub fn set_always_full(&mut self, on: bool) {
         self.always_full = on;
+        self.actions.set_never_quiet(on);
     }
 
     /// Replaces the marking and place timers without allocating (an update's install, a
@@ -431,6 +456,8 @@ impl Container {
         self.engine.set_marking(marking)?;
         self.marking_at_start.copy_from_slice(marking);
         self.place_since_us.copy_from_slice(place_since_us);
+        // A new state has no past: the dwell of every empty place starts again from 0.
+        self.place_dwell_us.iter_mut().for_each(|d| *d = 0);
         // `scans` goes on, as `firings` do: the Monitor counts both since the install.
         self.fresh_state = true;
         self.force_full = true;

@@ -39,6 +39,10 @@ pub enum RuntimeError {
         /// The transition whose guard was next.
         transition: String,
     },
+    /// An action body failed (overflow, division by zero); the scan's firings have happened,
+    /// the body's assignments before the failing statement too.
+    #[error("{0}; fix the body, e.g. bound the value before the operation")]
+    Body(cetratus_program::BodyError),
     /// A fault injected on purpose by a test (feature `fault-injection`).
     #[error("injected fault: {0}")]
     Injected(String),

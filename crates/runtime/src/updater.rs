@@ -695,6 +695,7 @@ impl Updater {
                 vars: primary.variables(),
                 marking: primary.marking(),
                 place_since_us: primary.place_since_us(),
+                place_dwell_us: primary.place_dwell_us(),
                 now_us,
             };
             let holds = match guard.eval(&ctx) {
@@ -828,6 +829,7 @@ fn retained_latch_map(program: &Program, primary: &Program) -> Vec<Option<u32>> 
     let name = |p: &Program, t: &Target| match *t {
         Target::Output(i) => (0u8, p.outputs()[i as usize].name.clone()),
         Target::Variable(i) => (1u8, p.variables()[i as usize].name.clone()),
+        Target::Body(i) => (2u8, p.bodies()[i as usize].name().to_string()),
     };
     let theirs: Vec<(u8, String)> = primary
         .action_targets()

@@ -263,6 +263,7 @@ pub(crate) fn program_toml(
         q(&format!("SFC {} of {}", pou.name, file_name(source.label)))
     );
     let _ = writeln!(out, "net = {}", q(net_file));
+    let _ = writeln!(out, "chart = \"sfc\"");
     for (kind, section) in [
         (VarKind::Input, "input"),
         (VarKind::Output, "output"),
@@ -326,15 +327,17 @@ pub(crate) fn program_toml(
         let _ = write!(out, "\n[guards]\n{guards}");
     }
 
-    // Actions.
+    // Actions: a BOOL variable under its qualifier, or a body that the runtime's statement
+    // executor runs under it.
     let body_scope = Scope {
         signals: &signals,
         unusable: &unusable,
         chart,
         in_condition: false,
     };
-    let mut actions: Vec<(String, String, String, Option<u64>)> = Vec::new();
-    for a in &chart.associations {
+    let mut actions: Vec<(String, &'static str, Drive, Option<u64>)> = Vec::new();
+    let mut bodies: Vec<(String, String)> = Vec::new();
+    for (k, a) in chart.associations.iter().enumerate() {
         let step = chart.steps[a.step].name.clone();
         if let Some(ind) = &a.indicator {
             notes.push(format!("{}: the indicator variable `{ind}` is not imported (it has no effect on execution)", source.pos(a.at)));
@@ -360,8 +363,21 @@ pub(crate) fn program_toml(
         } else {
             None
         };
+        let qualifier = match a.qualifier {
+            Qualifier::N => "N",
+            Qualifier::S => "S",
+            Qualifier::R => "R",
+            // P is the IEC pulse: on in the scan the step is entered, as P1.
+            Qualifier::P | Qualifier::P1 => "P1",
+            Qualifier::P0 => "P0",
+            Qualifier::L => "L",
+            Qualifier::D => "D",
+            Qualifier::SD => "SD",
+            Qualifier::DS => "DS",
+            Qualifier::SL => "SL",
+        };
         // What the association runs: a Boolean variable, or a body.
-        let body: (String, usize) = match &a.action {
+        let (name, text, at) = match &a.action {
             ActionRef::Reference(name) => {
                 if let Some(named) = pou
                     .actions
@@ -369,7 +385,7 @@ pub(crate) fn program_toml(
                     .find(|n| n.name.eq_ignore_ascii_case(name))
                 {
                     match &named.body {
-                        Body::St { text, at } => (text.clone(), *at),
+                        Body::St { text, at } => (named.name.clone(), text.clone(), *at),
                         Body::Other { language, .. } => {
                             return Err(unsupported(
                                 format!("the action `{name}` with a {language} body"),
@@ -380,22 +396,7 @@ pub(crate) fn program_toml(
                 } else {
                     match body_scope.resolve(name) {
                         Some(Resolved::Var(v, Ty::Bool)) => {
-                            let q = match a.qualifier {
-                                Qualifier::N => "N",
-                                Qualifier::S => "S",
-                                Qualifier::R => "R",
-                                Qualifier::P | Qualifier::P1 => "P1",
-                                Qualifier::P0 => "P0",
-                                Qualifier::L => "L",
-                                Qualifier::D => "D",
-                                other => {
-                                    return Err(unsupported(
-                                        format!("the qualifier {other}"),
-                                        "Cetratus actions have N, S, R, P, P0, P1, L and D so far",
-                                    ))
-                                }
-                            };
-                            actions.push((step, q.to_string(), v, duration));
+                            actions.push((step, qualifier, Drive::Target(v), duration));
                             continue;
                         }
                         Some(Resolved::Var(v, ty)) => {
@@ -414,7 +415,9 @@ pub(crate) fn program_toml(
                     }
                 }
             }
-            ActionRef::Inline(Body::St { text, at }) => (text.clone(), *at),
+            ActionRef::Inline(Body::St { text, at }) => {
+                (format!("{step}_inline{}", k + 1), text.clone(), *at)
+            }
             ActionRef::Inline(Body::Other { language, .. }) => {
                 return Err(unsupported(
                     format!("an inline {language} action"),
@@ -422,51 +425,36 @@ pub(crate) fn program_toml(
                 ))
             }
         };
-        let stmts = st::body(&body.0, &body_scope).map_err(|e| st_err(body.1, e))?;
-        for s in &stmts {
-            match s {
-                Stmt::Assign { target, ty: Ty::Bool, value: Expr { kind: ExprKind::Bool(v), .. }, .. } => {
-                    // A body that stores a constant keeps it after the step: under N, P, P1 and
-                    // S it is a set (TRUE) or a reset (FALSE) when the step is entered; under R
-                    // it stops a stored body, whose assignments already took effect.
-                    match a.qualifier {
-                        Qualifier::N | Qualifier::P | Qualifier::P1 | Qualifier::S => {
-                            let q = if *v { "S" } else { "R" };
-                            actions.push((step.clone(), q.to_string(), target.clone(), None));
-                        }
-                        Qualifier::R => {}
-                        other => {
-                            return Err(unsupported(
-                                format!("the qualifier {other} on an action body"),
-                                "bodies run under N, S, R, P and P1 so far",
-                            ))
-                        }
-                    }
-                }
-                Stmt::Assign { target, at, .. } => {
-                    return Err(SfcError::Unsupported {
-                        pos: source.pos(body.1 + at),
-                        pou: pou.name.clone(),
-                        construct: format!("the assignment of a computed value to `{target}`"),
-                        message: "action bodies that compute values need the statement executor, which this version does not have; only constant BOOL assignments (x := TRUE;) are imported".into(),
-                    })
-                }
-                Stmt::If { at, .. } => {
-                    return Err(SfcError::Unsupported {
-                        pos: source.pos(body.1 + at),
-                        pou: pou.name.clone(),
-                        construct: "IF in an action body".into(),
-                        message: "action bodies with IF need the statement executor, which this version does not have".into(),
-                    })
-                }
+        // A named action associated with several steps is one body, with one action control.
+        let key = match bodies.iter().find(|(n, _)| n.eq_ignore_ascii_case(&name)) {
+            Some((n, _)) => n.clone(),
+            None => {
+                let stmts = st::body(&text, &body_scope).map_err(|e| st_err(at, e))?;
+                bodies.push((name.clone(), print_body(&stmts)));
+                name
             }
+        };
+        actions.push((step, qualifier, Drive::Body(key), duration));
+    }
+    if !bodies.is_empty() {
+        let _ = writeln!(out, "\n[bodies]");
+        for (name, text) in &bodies {
+            // A literal string: the body has no quotes to escape, and positions map one to one.
+            let _ = writeln!(out, "{} = '''\n{text}'''", q(name));
         }
     }
-    for (step, q, target, duration) in &actions {
+    for (step, qualifier, drive, duration) in &actions {
         let _ = writeln!(out, "\n[[action]]");
-        let _ = writeln!(out, "place = {}", cetratus_q(step));
-        let _ = writeln!(out, "qualifier = \"{q}\"");
-        let _ = writeln!(out, "target = {}", cetratus_q(target));
+        let _ = writeln!(out, "place = {}", q(step));
+        let _ = writeln!(out, "qualifier = \"{qualifier}\"");
+        match drive {
+            Drive::Target(t) => {
+                let _ = writeln!(out, "target = {}", q(t));
+            }
+            Drive::Body(b) => {
+                let _ = writeln!(out, "body = {}", q(b));
+            }
+        }
         if let Some(d) = duration {
             let _ = writeln!(out, "duration = \"{d}us\"");
         }
@@ -480,8 +468,53 @@ pub(crate) fn program_toml(
     Ok(out)
 }
 
-fn cetratus_q(s: &str) -> String {
-    q(s)
+/// What an action association drives in the program.
+enum Drive {
+    /// A BOOL variable, by its Cetratus name.
+    Target(String),
+    /// A body of `[bodies]`, by name.
+    Body(String),
+}
+
+/// Statements in the program format's body syntax (docs/program-format.md): one per line,
+/// `if`/`elif`/`else`/`end` for IF. Iterative: the nesting is the ST parser's, bounded, and no
+/// stack here grows with it.
+fn print_body(stmts: &[Stmt]) -> String {
+    enum Item<'s> {
+        Stmt(&'s Stmt, usize),
+        Line(String, usize),
+    }
+    let mut out = String::new();
+    let mut todo: Vec<Item> = stmts.iter().rev().map(|s| Item::Stmt(s, 0)).collect();
+    while let Some(item) = todo.pop() {
+        match item {
+            Item::Line(text, indent) => {
+                let _ = writeln!(out, "{:w$}{text}", "", w = indent * 2);
+            }
+            Item::Stmt(Stmt::Assign { target, value, .. }, indent) => {
+                let _ = writeln!(out, "{:w$}{target} := {value}", "", w = indent * 2);
+            }
+            Item::Stmt(
+                Stmt::If {
+                    arms, otherwise, ..
+                },
+                indent,
+            ) => {
+                // Pushed in reverse: the last line first.
+                todo.push(Item::Line("end".into(), indent));
+                if !otherwise.is_empty() {
+                    todo.extend(otherwise.iter().rev().map(|s| Item::Stmt(s, indent + 1)));
+                    todo.push(Item::Line("else".into(), indent));
+                }
+                for (n, (cond, body)) in arms.iter().enumerate().rev() {
+                    todo.extend(body.iter().rev().map(|s| Item::Stmt(s, indent + 1)));
+                    let kw = if n == 0 { "if" } else { "elif" };
+                    todo.push(Item::Line(format!("{kw} {cond} then"), indent));
+                }
+            }
+        }
+    }
+    out
 }
 
 /// The last path component of a label, so the program does not depend on where the file was.

@@ -214,6 +214,13 @@ enum Kind {
     Other,
 }
 
+/// The GUID of CODESYS's step attribute naming the step's entry action (run once on activation).
+const STEP_ENTRY_ACTION: &str = "a6b08bd8-b696-47e3-9cbf-7408b61c9ff8";
+/// The GUID of the step attribute naming its active ("main") action, run while it is active.
+const STEP_ACTIVE_ACTION: &str = "700a583f-b4d4-43e4-8c14-629c7cd3bec8";
+/// The GUID of the step attribute naming its exit action (run once on deactivation).
+const STEP_EXIT_ACTION: &str = "a2621e18-7de3-4ea6-ae6d-89e9e0b7befd";
+
 /// Reads one `<SFC>` element of `pou`.
 pub(crate) fn read(
     source: &Source,
@@ -497,6 +504,46 @@ pub(crate) fn read(
                 indicator: nonempty(a.attribute("indicator")),
                 action,
                 at,
+            });
+        }
+    }
+
+    // CODESYS and TwinCAT keep a step's entry, active and exit actions in the step's own
+    // `addData` (`…/plcopenxml/sfc/element`), one attribute each, by GUID, naming an action of
+    // the POU (empty when the step has none). They become P1, N and P0 associations.
+    for e in elements.iter().filter(|e| e.name() == "step") {
+        let Some(&step) = by_id
+            .get(e.attribute("localId").unwrap_or(""))
+            .and_then(|i| step_of.get(i))
+        else {
+            continue;
+        };
+        let attributes = children(*e, "addData")
+            .flat_map(|d| children(d, "data"))
+            .filter(|d| {
+                d.attribute("name")
+                    .is_some_and(|n| n.ends_with("/plcopenxml/sfc/element"))
+            })
+            .flat_map(|d| children(d, "attributes"))
+            .flat_map(|a| children(a, "attribute"));
+        for attr in attributes {
+            let qualifier = match attr.attribute("guid").map(|g| g.trim_matches(['{', '}'])) {
+                Some(STEP_ENTRY_ACTION) => Qualifier::P1,
+                Some(STEP_ACTIVE_ACTION) => Qualifier::N,
+                Some(STEP_EXIT_ACTION) => Qualifier::P0,
+                _ => continue,
+            };
+            let name = attr.text().unwrap_or("").trim();
+            if name.is_empty() {
+                continue;
+            }
+            chart.associations.push(Association {
+                step,
+                qualifier,
+                duration: None,
+                indicator: None,
+                action: ActionRef::Reference(name.to_string()),
+                at: attr.range().start,
             });
         }
     }

@@ -69,6 +69,16 @@ pub fn chart_net(text: &str, label: &str, chart: &Chart) -> Result<Net, SfcError
     Ok(build::net(&source, chart)?.0)
 }
 
+/// Imports the SFC POU `pou` (or the file's only SFC POU) as [`import_str`] does, with the net
+/// file named after the POU (`POU.pnml`): what `cetratus import plcopen` writes and what a package
+/// manifest naming the file carries, so both give the same program hash.
+pub fn import_program(text: &str, label: &str, pou: Option<&str>) -> Result<Imported, SfcError> {
+    // The net file's name is in the TOML, and it follows the POU's name as declared.
+    let probe = import_str(text, label, pou, "net.pnml")?;
+    let net_file = format!("{}.pnml", probe.program.name());
+    import_str(text, label, pou, &net_file)
+}
+
 /// Imports the SFC POU `pou` (or the file's only SFC POU when `None`) of a PLCopen file as a
 /// program whose TOML names `net_file` as its net.
 pub fn import_str(
@@ -159,4 +169,38 @@ pub fn import_str(
         program,
         notes,
     })
+}
+
+/// The PLCopen importer for package manifests: a `program` or `base` that is PLCopen XML is
+/// imported as `cetratus import plcopen` writes it ([`import_program`]), so the package binds to
+/// the same program hash.
+pub struct PlcopenImporter;
+
+impl cetratus_program::ProgramImporter for PlcopenImporter {
+    fn import(
+        &self,
+        path: &std::path::Path,
+        pou: Option<&str>,
+    ) -> Option<Result<(String, String), String>> {
+        let is_xml = path
+            .extension()
+            .and_then(|e| e.to_str())
+            .is_some_and(|e| e.eq_ignore_ascii_case("xml"));
+        if !is_xml {
+            return None;
+        }
+        let label = path.display().to_string();
+        let text = match std::fs::read_to_string(path) {
+            Ok(t) => t,
+            Err(e) => return Some(Err(format!("cannot read `{label}`: {e}"))),
+        };
+        if !is_plcopen(text.strip_prefix('\u{feff}').unwrap_or(&text)) {
+            return None;
+        }
+        Some(
+            import_program(&text, &label, pou)
+                .map(|i| (i.toml, cetratus_net::pnml::write_string(&i.net)))
+                .map_err(|e| e.to_string()),
+        )
+    }
 }

@@ -182,3 +182,57 @@ proptest! {
         let _ = cetratus_sfc::import_str(&text, name, None, "n.pnml");
     }
 }
+
+/// `TWO_STEPS` with an N action on step A whose inline ST body is `body`.
+fn with_body(body: &str) -> String {
+    TWO_STEPS.replace(
+        r#"<step localId="3" name="B">"#,
+        &format!(
+            r#"<actionBlock localId="9"><connectionPointIn><connection refLocalId="1"/></connectionPointIn><action localId="0" qualifier="N"><inline><ST><p><![CDATA[{body}]]></p></ST></inline></action></actionBlock>
+<step localId="3" name="B">"#
+        ),
+    )
+}
+
+#[test]
+fn an_unknown_variable_in_an_action_body_is_refused_with_the_pou_and_its_line_and_column() {
+    let vars = bool_var("go");
+    let err =
+        import(&project(&with_body("go := TRUE;\nmissing := 1;"), &vars)).expect_err("unknown");
+    let msg = err.to_string();
+    assert!(msg.contains("in POU `P`"), "{msg}");
+    assert!(msg.contains("unknown name `missing`"), "{msg}");
+    assert!(msg.starts_with("chart.xml:8:1:"), "{msg}");
+}
+
+#[test]
+fn deep_if_nesting_in_an_action_body_is_refused_not_a_crash() {
+    for depth in [33usize, 5_000] {
+        let body = "IF go THEN ".repeat(depth) + "go := FALSE;" + &" END_IF;".repeat(depth);
+        let err = import(&project(&with_body(&body), &bool_var("go"))).expect_err("deep");
+        let msg = err.to_string();
+        assert!(
+            msg.contains("nested more than 32") || msg.contains("more than 1024 tokens"),
+            "{msg}"
+        );
+    }
+}
+
+#[test]
+fn statements_outside_the_subset_in_a_body_are_refused_by_name() {
+    let vars = format!(
+        "{}<variable name=\"i\"><type><INT/></type></variable>",
+        bool_var("go")
+    );
+    for (body, construct) in [
+        ("FOR i := 1 TO 3 DO go := TRUE; END_FOR;", "FOR"),
+        ("WHILE go DO go := FALSE; END_WHILE;", "WHILE"),
+        ("CASE i OF 1: go := TRUE; END_CASE;", "CASE"),
+        ("i := i MOD 2;", "MOD"),
+        ("go := F_TRIG(go);", "the call `F_TRIG(…)`"),
+    ] {
+        let err = import(&project(&with_body(body), &vars)).expect_err(body);
+        assert!(matches!(err, SfcError::Unsupported { .. }), "{body}: {err}");
+        assert!(err.to_string().contains(construct), "{body}: {err}");
+    }
+}

@@ -28,7 +28,8 @@ fn the_twincat_charts_import_as_programs_with_their_conditions_as_guards() {
     assert!(one.toml.contains("T2 = \"Condition_1\""), "{}", one.toml);
     let six = import("twincat-sfc-evolution-6.xml", Some("main")).expect("imports");
     // The action ACT writes `changed`; the variable is declared `Changed`: one name, IEC case.
-    assert!(six.toml.contains("target = \"Changed\""), "{}", six.toml);
+    assert!(six.toml.contains("Changed := true"), "{}", six.toml);
+    assert!(six.toml.contains("body = \"ACT\""), "{}", six.toml);
     assert!(six
         .notes
         .iter()
@@ -49,12 +50,6 @@ fn importing_the_same_file_twice_gives_the_same_program_hash() {
 fn refusals_name_the_construct_the_pou_and_the_line_and_column() {
     let cases = [
         (
-            "beremiz-first-steps.xml",
-            Some("CounterSFC"),
-            "beremiz-first-steps.xml:782:39",
-            "computed value to `Cnt`",
-        ),
-        (
             "iec-checker-example.xml",
             Some("SFCTest"),
             "iec-checker-example.xml:504:",
@@ -69,8 +64,8 @@ fn refusals_name_the_construct_the_pou_and_the_line_and_column() {
         (
             "codesys-nested-sfc.xml",
             None,
-            "codesys-nested-sfc.xml:190:61",
-            "computed value to `i`",
+            "codesys-nested-sfc.xml:410:15",
+            "the action `sub_sfc1` with a SFC body",
         ),
     ];
     for (file, pou, at, construct) in cases {
@@ -97,4 +92,124 @@ fn a_pnml_file_is_not_taken_for_plcopen() {
     assert!(!cetratus_sfc::is_plcopen(&pnml));
     let err = cetratus_sfc::import_str(&pnml, "t.pnml", None, "n.pnml").expect_err("not PLCopen");
     assert!(err.to_string().contains("not PLCopen TC6 XML"), "{err}");
+}
+
+#[test]
+fn beremiz_counter_bodies_count_in_every_scan_of_their_step_with_the_iec_final_run() {
+    use cetratus_program::{ActionState, EvalCtx, Value};
+    let imported = import("beremiz-first-steps.xml", Some("CounterSFC")).expect("imports");
+    let p = &imported.program;
+    assert!(
+        imported.toml.contains("Cnt := Cnt + 1"),
+        "{}",
+        imported.toml
+    );
+    let count = p.net().place_by_id("Count").expect("step Count").index();
+    let start = p.net().place_by_id("Start").expect("step Start").index();
+    let mut st = ActionState::new(p);
+    let mut marking = p.net().initial_marking().0;
+    let mut since: Vec<Option<u64>> = marking.iter().map(|&m| (m > 0).then_some(0)).collect();
+    let (mut outputs, mut vars) = (vec![Value::Int(0)], vec![Value::Int(0), Value::Int(0)]);
+    let run = |st: &mut ActionState,
+               m: &[u32],
+               s: &[Option<u64>],
+               changes: &[(cetratus_net::PlaceIdx, u32)],
+               now: u64,
+               o: &mut Vec<Value>,
+               v: &mut Vec<Value>| {
+        let c = EvalCtx {
+            inputs: &[Value::Bool(false)],
+            prev_inputs: &[Value::Bool(false)],
+            vars: &[],
+            marking: m,
+            place_since_us: s,
+            place_dwell_us: &[],
+            now_us: now,
+        };
+        st.apply(p, &c, changes, o, v).expect("runs");
+    };
+    // Start -> Count.
+    marking[start] = 0;
+    marking[count] = 1;
+    since[start] = None;
+    since[count] = Some(10);
+    let entered = [
+        (cetratus_net::PlaceIdx(start as u32), 1),
+        (cetratus_net::PlaceIdx(count as u32), 0),
+    ];
+    run(
+        &mut st,
+        &marking,
+        &since,
+        &entered,
+        10,
+        &mut outputs,
+        &mut vars,
+    );
+    run(&mut st, &marking, &since, &[], 20, &mut outputs, &mut vars);
+    run(&mut st, &marking, &since, &[], 30, &mut outputs, &mut vars);
+    assert_eq!((vars[0], outputs[0]), (Value::Int(3), Value::Int(3)));
+    // Count -> Start: one final run, then nothing.
+    marking[start] = 1;
+    marking[count] = 0;
+    since[count] = None;
+    let left = [
+        (cetratus_net::PlaceIdx(start as u32), 0),
+        (cetratus_net::PlaceIdx(count as u32), 1),
+    ];
+    run(
+        &mut st,
+        &marking,
+        &since,
+        &left,
+        40,
+        &mut outputs,
+        &mut vars,
+    );
+    run(&mut st, &marking, &since, &[], 50, &mut outputs, &mut vars);
+    assert_eq!((vars[0], outputs[0]), (Value::Int(4), Value::Int(4)));
+}
+
+#[test]
+fn a_steps_entry_active_and_exit_actions_in_vendor_data_become_p1_n_and_p0_bodies() {
+    let attr = |guid: &str, v: &str| format!(r#"<attribute guid="{guid}">{v}</attribute>"#);
+    let step_data = format!(
+        r#"<addData><data name="http://www.3s-software.com/plcopenxml/sfc/element" handleUnknown="implementation"><attributes xmlns="">{}{}{}{}</attributes></data></addData>"#,
+        attr("38391c6d-6d4a-42f8-8ee7-9f45e5adafa8", "Work"),
+        attr("a6b08bd8-b696-47e3-9cbf-7408b61c9ff8", "OnEntry"),
+        attr("700a583f-b4d4-43e4-8c14-629c7cd3bec8", "{WhileActive}"),
+        attr("a2621e18-7de3-4ea6-ae6d-89e9e0b7befd", "OnExit"),
+    )
+    .replace("{WhileActive}", "WhileActive");
+    let action = |name: &str, st: &str| {
+        format!(r#"<action name="{name}"><body><ST><p>{st}</p></ST></body></action>"#)
+    };
+    let text = format!(
+        r#"<?xml version="1.0"?>
+<project xmlns="http://www.plcopen.org/xml/tc6_0201"><types><pous>
+<pou name="P" pouType="program"><interface><localVars>
+<variable name="n"><type><INT/></type></variable>
+<variable name="go"><type><BOOL/></type></variable>
+</localVars></interface>
+<actions>{}{}{}</actions>
+<body><SFC>
+<step localId="1" name="Idle" initialStep="true"/>
+<transition localId="2"><connectionPointIn><connection refLocalId="1"/></connectionPointIn>
+<condition><inline name=""><ST><p>go</p></ST></inline></condition></transition>
+<step localId="3" name="Work"><connectionPointIn><connection refLocalId="2"/></connectionPointIn>{step_data}</step>
+<transition localId="4"><connectionPointIn><connection refLocalId="3"/></connectionPointIn>
+<condition><inline name=""><ST><p>NOT go</p></ST></inline></condition></transition>
+<jumpStep localId="5" targetName="Idle"><connectionPointIn><connection refLocalId="4"/></connectionPointIn></jumpStep>
+</SFC></body></pou></pous></types></project>"#,
+        action("OnEntry", "n := 100;"),
+        action("WhileActive", "n := n + 1;"),
+        action("OnExit", "n := -n;"),
+    );
+    let imported = cetratus_sfc::import_str(&text, "steps.xml", None, "P.pnml").expect("imports");
+    let toml = &imported.toml;
+    for (q, body) in [("P1", "OnEntry"), ("N", "WhileActive"), ("P0", "OnExit")] {
+        let block = format!("place = \"Work\"\nqualifier = \"{q}\"\nbody = \"{body}\"");
+        assert!(toml.contains(&block), "{block} in\n{toml}");
+    }
+    assert!(toml.contains("n := n + 1"), "{toml}");
 }

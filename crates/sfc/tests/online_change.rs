@@ -77,3 +77,39 @@ fn going_back_to_version_1_while_a_removed_parallel_step_is_active_is_refused() 
     assert!(st.apply(&marking(&v6, &["Step2"]), &v1, &mut out).is_ok());
     assert_eq!(out, marking(&v1, &["Step1"]));
 }
+
+fn program_from(text: &str) -> Program {
+    cetratus_sfc::import_str(text, "v.xml", None, "Main.pnml")
+        .expect("imports")
+        .program
+}
+
+#[test]
+fn a_new_initial_step_starts_inactive_unless_the_whole_chart_is_new() {
+    let read = |f: &str| {
+        std::fs::read_to_string(fixture(&format!("plcopen/{f}"))).expect("reads the fixture")
+    };
+    let v1 = program("twincat-sfc-evolution-1.xml");
+    // Version 6 with its initial step renamed: a step the new version adds, in a chart whose
+    // other steps carry over. Step1 active in v1 stays the one active step.
+    let renamed = program_from(&read("twincat-sfc-evolution-6.xml").replace("Start", "Begin"));
+    assert!(renamed.is_sfc());
+    let st = StateTransform::generated(&v1, &renamed, &BTreeMap::new()).expect("a transform");
+    let mut out = vec![0; renamed.net().num_places()];
+    st.apply(&marking(&v1, &["Step1"]), &renamed, &mut out)
+        .expect("applies");
+    assert_eq!(out, marking(&renamed, &["Step1"]), "Begin starts inactive");
+    // Every step renamed: the whole chart is new, and it starts at its initial step.
+    let all_new = read("twincat-sfc-evolution-6.xml")
+        .replace("Start", "A0")
+        .replace("Step1", "A1")
+        .replace("Step2", "A2")
+        .replace("Step3", "A3");
+    let fresh = program_from(&all_new);
+    let st = StateTransform::generated(&v1, &fresh, &BTreeMap::new()).expect("a transform");
+    let mut out = vec![0; fresh.net().num_places()];
+    // (An old step still active would be refused: its step is removed and nothing maps it.)
+    st.apply(&marking(&v1, &[]), &fresh, &mut out)
+        .expect("applies");
+    assert_eq!(out, fresh.net().initial_marking().0);
+}

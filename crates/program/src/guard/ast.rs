@@ -121,6 +121,9 @@ pub enum ExprKind {
     Name(String),
     /// `P.t` or `t(P)`: how long place P has been marked.
     Timer(String),
+    /// `P.dwell`: as `P.t` while the place is marked; once it empties, how long it was last
+    /// marked, until it is marked again (IEC 61131-3's `Step.T`).
+    Dwell(String),
     /// `rise(x)`: bool input x went from false to true in this scan.
     Rise(String),
     /// `fall(x)`: bool input x went from true to false in this scan.
@@ -185,6 +188,7 @@ impl fmt::Display for Expr {
             ExprKind::Duration(d) => write_duration(f, *d),
             ExprKind::Name(n) => f.write_str(n),
             ExprKind::Timer(p) => write!(f, "{p}.t"),
+            ExprKind::Dwell(p) => write!(f, "{p}.dwell"),
             ExprKind::Rise(x) => write!(f, "rise({x})"),
             ExprKind::Fall(x) => write!(f, "fall({x})"),
             ExprKind::Call(func, e) => {

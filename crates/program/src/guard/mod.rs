@@ -5,6 +5,7 @@
 //! computed at compile time; evaluation never touches the heap.
 
 mod ast;
+mod eval;
 mod lexer;
 mod parser;
 
@@ -14,6 +15,7 @@ pub use ast::{BinOp, Expr, ExprKind, Func, UnOp};
 pub use parser::{parse, MAX_DEPTH, MAX_NESTING, MAX_TOKENS};
 
 pub(crate) use ast::write_duration;
+pub(crate) use eval::{eval, run, Store};
 
 use cetratus_net::{Net, Tokens};
 
@@ -100,6 +102,9 @@ pub struct EvalCtx<'a> {
     pub marking: &'a [Tokens],
     /// Per place: the start of the scan in which it went from 0 to more tokens; `None` while empty.
     pub place_since_us: &'a [Option<u64>],
+    /// Per place: how long it was marked the last time it was (0 if never), read by `P.dwell`
+    /// while the place is empty; a shorter slice reads 0.
+    pub place_dwell_us: &'a [u64],
     /// The start of this scan.
     pub now_us: u64,
 }
@@ -124,6 +129,7 @@ pub(crate) enum Op {
     Var(u32, Type),
     Tokens(u32),
     Timer(u32),
+    Dwell(u32),
     Rise(u32),
     Fall(u32),
     Not,
@@ -145,6 +151,16 @@ pub(crate) enum Op {
     AndJump(u32),
     /// `||`: if the top is true jump (keeping it), else pop it and go on with the right side.
     OrJump(u32),
+    /// Action bodies only: push an output's value.
+    Out(u32, Type),
+    /// Action bodies only: pop a value of the type into a variable.
+    StoreVar(u32, Type),
+    /// Action bodies only: pop a value of the type into an output.
+    StoreOut(u32, Type),
+    /// Action bodies only: pop a bool and jump forward when it is false.
+    JumpIfFalse(u32),
+    /// Action bodies only: jump forward.
+    Jump(u32),
 }
 
 /// The static type of a guard expression; durations exist only inside guards.
@@ -234,12 +250,14 @@ impl Guard {
         let mut c = Compiler {
             scope,
             code: Vec::new(),
+            base: 0,
             depth: 0,
             max: 0,
             inputs: Vec::new(),
             vars: Vec::new(),
             places: Vec::new(),
             timers: Vec::new(),
+            body: false,
         };
         let ty = c.expr(&expr)?;
         if ty != GType::Bool {
@@ -291,20 +309,24 @@ fn article(t: GType) -> &'static str {
     }
 }
 
-struct Compiler<'s, 'a> {
-    scope: &'s Scope<'a>,
-    code: Vec<(Op, u32)>,
-    depth: usize,
-    max: usize,
-    inputs: Vec<u32>,
-    vars: Vec<u32>,
-    places: Vec<u32>,
-    timers: Vec<u32>,
+pub(crate) struct Compiler<'s, 'a> {
+    pub(crate) scope: &'s Scope<'a>,
+    pub(crate) code: Vec<(Op, u32)>,
+    /// Added to every position: where the expression starts in a longer text (an action body).
+    pub(crate) base: usize,
+    pub(crate) depth: usize,
+    pub(crate) max: usize,
+    pub(crate) inputs: Vec<u32>,
+    pub(crate) vars: Vec<u32>,
+    pub(crate) places: Vec<u32>,
+    pub(crate) timers: Vec<u32>,
+    /// Compiling an action body, which may read outputs (it may assign them too).
+    pub(crate) body: bool,
 }
 
 impl Compiler<'_, '_> {
-    fn emit(&mut self, op: Op, pos: usize, stack_change: isize) {
-        self.code.push((op, pos as u32));
+    pub(crate) fn emit(&mut self, op: Op, pos: usize, stack_change: isize) {
+        self.code.push((op, (pos + self.base) as u32));
         self.depth = self.depth.saturating_add_signed(stack_change);
         self.max = self.max.max(self.depth);
     }
@@ -354,6 +376,20 @@ impl Compiler<'_, '_> {
         }
     }
 
+    /// Compiles `e`; its type comes back as a signal type, durations refused (action bodies
+    /// store values into signals, and no signal is a duration).
+    pub(crate) fn value(&mut self, e: &Expr) -> Result<Type, SyntaxError> {
+        match self.expr(e)? {
+            GType::Bool => Ok(Type::Bool),
+            GType::Int => Ok(Type::Int),
+            GType::Real => Ok(Type::Real),
+            GType::Duration => Err(SyntaxError::new(
+                e.pos,
+                "this is a duration, and no signal holds one; compare it instead, e.g. `S2.t >= 3s`",
+            )),
+        }
+    }
+
     fn expr(&mut self, e: &Expr) -> Result<GType, SyntaxError> {
         let pos = e.pos;
         match &e.kind {
@@ -389,6 +425,13 @@ impl Compiler<'_, '_> {
                     self.places.push(p.0);
                     self.emit(Op::Tokens(p.0), pos, 1);
                     Ok(GType::Int)
+                } else if let (true, Some(i)) = (
+                    self.body,
+                    self.scope.outputs.iter().position(|s| &s.name == n),
+                ) {
+                    let ty = self.scope.outputs[i].ty;
+                    self.emit(Op::Out(i as u32, ty), pos, 1);
+                    Ok(ty.into())
                 } else if self.scope.outputs.iter().any(|s| &s.name == n) {
                     Err(SyntaxError::new(
                         pos,
@@ -408,6 +451,12 @@ impl Compiler<'_, '_> {
                 let p = self.place(p, pos, "a timer")?;
                 self.timers.push(p);
                 self.emit(Op::Timer(p), pos, 1);
+                Ok(GType::Duration)
+            }
+            ExprKind::Dwell(p) => {
+                let p = self.place(p, pos, "a step time")?;
+                self.timers.push(p);
+                self.emit(Op::Dwell(p), pos, 1);
                 Ok(GType::Duration)
             }
             ExprKind::Rise(x) => {
@@ -587,185 +636,6 @@ impl Compiler<'_, '_> {
                 Ok(lt)
             }
         }
-    }
-}
-
-/// Runs postfix code on a fixed-size stack. Never allocates, never panics: an inconsistent
-/// stack (impossible after type checking) reports `MissingValue` rather than indexing out of range.
-pub(crate) fn eval(code: &[(Op, u32)], ctx: &EvalCtx) -> Result<bool, EvalError> {
-    let mut stack = [0u64; MAX_STACK];
-    let mut sp = 0usize;
-    let mut pc = 0usize;
-    while let Some(&(op, pos)) = code.get(pc) {
-        let err = |kind| EvalError {
-            kind,
-            column: pos + 1,
-        };
-        pc += 1;
-        macro_rules! pop {
-            () => {{
-                sp = sp.checked_sub(1).ok_or(err(EvalErrorKind::MissingValue))?;
-                stack[sp]
-            }};
-        }
-        macro_rules! push {
-            ($v:expr) => {{
-                let v: u64 = $v;
-                *stack.get_mut(sp).ok_or(err(EvalErrorKind::MissingValue))? = v;
-                sp += 1;
-            }};
-        }
-        let value = |v: Option<&Value>, ty: Type| -> Result<u64, EvalError> {
-            match (v, ty) {
-                (Some(Value::Bool(b)), Type::Bool) => Ok(u64::from(*b)),
-                (Some(Value::Int(i)), Type::Int) => Ok(*i as u64),
-                (Some(Value::Real(r)), Type::Real) => Ok(r.to_bits()),
-                (None, _) => Err(err(EvalErrorKind::MissingValue)),
-                _ => Err(err(EvalErrorKind::WrongType)),
-            }
-        };
-        let int = |r: Option<i64>| r.map(|v| v as u64).ok_or(err(EvalErrorKind::Overflow));
-        let real = |r: f64| {
-            if r.is_finite() {
-                Ok(r.to_bits())
-            } else {
-                Err(err(EvalErrorKind::Overflow))
-            }
-        };
-        let input_bool = |i: u32, image: &[Value]| value(image.get(i as usize), Type::Bool);
-        match op {
-            Op::Const(v) => push!(v),
-            Op::Input(i, ty) => push!(value(ctx.inputs.get(i as usize), ty)?),
-            Op::Var(i, ty) => push!(value(ctx.vars.get(i as usize), ty)?),
-            Op::Tokens(p) => {
-                let m = ctx
-                    .marking
-                    .get(p as usize)
-                    .ok_or(err(EvalErrorKind::MissingValue))?;
-                push!(u64::from(*m))
-            }
-            Op::Timer(p) => {
-                let m = *ctx
-                    .marking
-                    .get(p as usize)
-                    .ok_or(err(EvalErrorKind::MissingValue))?;
-                let since = *ctx
-                    .place_since_us
-                    .get(p as usize)
-                    .ok_or(err(EvalErrorKind::MissingValue))?;
-                let t = match since {
-                    Some(s) if m > 0 => ctx.now_us.saturating_sub(s).min(i64::MAX as u64),
-                    _ => 0,
-                };
-                push!(t)
-            }
-            Op::Rise(i) => {
-                let now = input_bool(i, ctx.inputs)?;
-                let before = input_bool(i, ctx.prev_inputs)?;
-                push!(u64::from(now == 1 && before == 0))
-            }
-            Op::Fall(i) => {
-                let now = input_bool(i, ctx.inputs)?;
-                let before = input_bool(i, ctx.prev_inputs)?;
-                push!(u64::from(now == 0 && before == 1))
-            }
-            Op::Not => {
-                let a = pop!();
-                push!(a ^ 1)
-            }
-            Op::NegInt => {
-                let a = pop!() as i64;
-                push!(int(a.checked_neg())?)
-            }
-            Op::NegReal => {
-                let a = f64::from_bits(pop!());
-                push!((-a).to_bits())
-            }
-            Op::AddInt | Op::SubInt | Op::MulInt | Op::DivInt => {
-                let b = pop!() as i64;
-                let a = pop!() as i64;
-                let r = match op {
-                    Op::AddInt => a.checked_add(b),
-                    Op::SubInt => a.checked_sub(b),
-                    Op::MulInt => a.checked_mul(b),
-                    _ if b == 0 => return Err(err(EvalErrorKind::DivisionByZero)),
-                    _ => a.checked_div(b),
-                };
-                push!(int(r)?)
-            }
-            Op::AddReal | Op::SubReal | Op::MulReal | Op::DivReal => {
-                let b = f64::from_bits(pop!());
-                let a = f64::from_bits(pop!());
-                let r = match op {
-                    Op::AddReal => a + b,
-                    Op::SubReal => a - b,
-                    Op::MulReal => a * b,
-                    _ if b == 0.0 => return Err(err(EvalErrorKind::DivisionByZero)),
-                    _ => a / b,
-                };
-                push!(real(r)?)
-            }
-            Op::CmpInt(c) => {
-                let b = pop!() as i64;
-                let a = pop!() as i64;
-                push!(u64::from(compare(c, a.partial_cmp(&b))))
-            }
-            Op::CmpReal(c) => {
-                let b = f64::from_bits(pop!());
-                let a = f64::from_bits(pop!());
-                push!(u64::from(compare(c, a.partial_cmp(&b))))
-            }
-            Op::ToReal => {
-                let a = pop!() as i64;
-                push!((a as f64).to_bits())
-            }
-            Op::ToInt => {
-                let a = f64::from_bits(pop!()).trunc();
-                // i64::MAX as f64 rounds up to 2^63, which is already out of range.
-                if !(a >= i64::MIN as f64 && a < i64::MAX as f64) {
-                    return Err(err(EvalErrorKind::Overflow));
-                }
-                push!(a as i64 as u64)
-            }
-            Op::AndJump(target) | Op::OrJump(target) => {
-                let top = *stack
-                    .get(sp.wrapping_sub(1))
-                    .ok_or(err(EvalErrorKind::MissingValue))?;
-                let short = if matches!(op, Op::AndJump(_)) {
-                    top == 0
-                } else {
-                    top == 1
-                };
-                if short {
-                    pc = target as usize;
-                } else {
-                    sp -= 1;
-                }
-            }
-        }
-    }
-    match (sp, stack[0]) {
-        (1, v) => Ok(v == 1),
-        _ => Err(EvalError {
-            kind: EvalErrorKind::MissingValue,
-            column: 1,
-        }),
-    }
-}
-
-fn compare(c: Cmp, o: Option<std::cmp::Ordering>) -> bool {
-    use std::cmp::Ordering::*;
-    match (c, o) {
-        // Computed reals are checked finite, but a real input may carry NaN: every comparison
-        // with it is false except `!=`, as in IEEE 754.
-        (Cmp::Ne, None) => true,
-        (_, None) => false,
-        (Cmp::Eq, Some(o)) => o == Equal,
-        (Cmp::Ne, Some(o)) => o != Equal,
-        (Cmp::Lt, Some(o)) => o == Less,
-        (Cmp::Le, Some(o)) => o != Greater,
-        (Cmp::Gt, Some(o)) => o == Greater,
-        (Cmp::Ge, Some(o)) => o != Less,
     }
 }
 

@@ -15,7 +15,7 @@
 //! product := unary ( ("*"|"/") unary )*
 //! unary   := ("!"|"-") unary | atom
 //! atom    := "true" | "false" | INT | REAL | DURATION
-//!          | NAME "." "t" | "t" "(" NAME ")" | "rise" "(" NAME ")" | "fall" "(" NAME ")"
+//!          | NAME "." ("t" | "dwell") | "t" "(" NAME ")" | "rise" "(" NAME ")" | "fall" "(" NAME ")"
 //!          | "real" "(" expr ")" | "int" "(" expr ")" | NAME | "(" expr ")"
 //! ```
 
@@ -286,9 +286,13 @@ impl Parser {
                                 self.bump();
                                 ExprKind::Timer(name)
                             }
+                            Tok::Ident(t) if t == "dwell" => {
+                                self.bump();
+                                ExprKind::Dwell(name)
+                            }
                             other => {
                                 let msg = format!(
-                                    "expected `t` after `{name}.` (the place timer `{name}.t`), found {}",
+                                    "expected `t` or `dwell` after `{name}.` (the place timer `{name}.t`), found {}",
                                     other.describe()
                                 );
                                 return Err(self.error_here(msg));

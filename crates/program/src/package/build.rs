@@ -24,7 +24,11 @@ struct ManifestPackage {
     #[serde(default)]
     description: String,
     program: Spanned<String>,
+    /// The POU of a PLCopen `program`, when the file has several.
+    pou: Option<Spanned<String>>,
     base: Spanned<String>,
+    /// The POU of a PLCopen `base`.
+    base_pou: Option<Spanned<String>>,
     #[serde(default)]
     changes_throughput: bool,
 }
@@ -56,6 +60,16 @@ pub struct BuildReport {
     pub warnings: Vec<String>,
 }
 
+/// Turns a program file of another format into program TOML and PNML text, for a manifest whose
+/// `program` or `base` names one: the caller that knows the format gives it (the `cetratus`
+/// binary gives the PLCopen SFC importer). The text must be the same for the same file, since
+/// the program hash is computed from it.
+pub trait ProgramImporter {
+    /// `None` when `path` is not in this importer's format; else the program TOML and PNML text
+    /// of `pou` (or of the file's only program), or what is wrong with the file.
+    fn import(&self, path: &Path, pou: Option<&str>) -> Option<Result<(String, String), String>>;
+}
+
 /// Builds a package from a manifest, signed with `key` (unsigned when `None`), stamped with the
 /// current time.
 pub fn build_package(
@@ -76,6 +90,16 @@ pub fn build_package_at(
     manifest_path: &Path,
     key: Option<&KeyPair>,
     created_unix_secs: u64,
+) -> Result<(Vec<u8>, BuildReport), PackageError> {
+    build_package_with(manifest_path, key, created_unix_secs, None)
+}
+
+/// [`build_package_at`] with an importer for program files of another format.
+pub fn build_package_with(
+    manifest_path: &Path,
+    key: Option<&KeyPair>,
+    created_unix_secs: u64,
+    importer: Option<&dyn ProgramImporter>,
 ) -> Result<(Vec<u8>, BuildReport), PackageError> {
     let label = manifest_path.display().to_string();
     let bytes = std::fs::read(manifest_path).map_err(|source| PackageError::Io {
@@ -113,8 +137,28 @@ pub fn build_package_at(
         ),
         other => other,
     };
-    let (program_toml, program_pnml) = program_sources(&dir.join(m.package.program.get_ref()))
-        .map_err(|e| in_manifest(e, &m.package.program))?;
+    fn pou(p: &Option<Spanned<String>>) -> Option<&str> {
+        p.as_ref().map(|s| s.get_ref().as_str())
+    }
+    let import = |path: &Path, p: &Option<Spanned<String>>, field: &Spanned<String>| {
+        importer
+            .and_then(|i| i.import(path, pou(p)))
+            .map(|r| r.map_err(|message| at(field.span().start, message)))
+    };
+    let program_path = dir.join(m.package.program.get_ref());
+    let (program_toml, program_pnml) =
+        match import(&program_path, &m.package.pou, &m.package.program) {
+            Some(r) => r?,
+            None => {
+                if let Some(p) = &m.package.pou {
+                    return Err(at(
+                        p.span().start,
+                        "`pou` is for a `program` in PLCopen XML; remove it".into(),
+                    ));
+                }
+                program_sources(&program_path).map_err(|e| in_manifest(e, &m.package.program))?
+            }
+        };
     let base_path = dir.join(m.package.base.get_ref());
     if !base_path.is_file() {
         return Err(at(
@@ -125,7 +169,15 @@ pub fn build_package_at(
             ),
         ));
     }
-    let base = Program::load(&base_path)?;
+    let base = match import(&base_path, &m.package.base_pou, &m.package.base) {
+        Some(r) => {
+            let (toml, pnml) = r?;
+            let label = base_path.display().to_string();
+            let net = cetratus_net::pnml::read_str(&pnml, &label).map_err(ProgramError::from)?;
+            Program::from_sources(&toml, &label, net)?
+        }
+        None => Program::load(&base_path)?,
+    };
 
     let meta = PackageMeta {
         name: m.package.name.get_ref().clone(),
@@ -155,6 +207,19 @@ pub fn build_package_at(
         section,
         source: Box::new(source),
     };
+    if let (true, TransformSpec::Generated { removed }) = (base.is_sfc(), &payload.transform) {
+        // A chart whose step vanishes while active would lose its place in the sequence: the
+        // build refuses a removed step the old chart can reach unless the manifest maps it.
+        let markable = crate::transform::markable_places(base.net());
+        for (p, can) in base.net().places().iter().zip(markable) {
+            if can && new.net().place_by_id(&p.id).is_none() && !removed.contains_key(&p.id) {
+                return Err(manifest_err(
+                    "transform",
+                    TransformError::RemovedReachable { id: p.id.clone() },
+                ));
+            }
+        }
+    }
     let transform = resolve_transform(&payload.transform, &base, &new)
         .map_err(|e| manifest_err("transform", e))?;
     let projection = resolve_projection(payload.projection.as_ref(), &base, &new)

@@ -327,7 +327,7 @@ impl Parser<'_> {
                             ))
                         }
                         Some(Resolved::Step(p)) if field.eq_ignore_ascii_case("T") => {
-                            Ok((at(ExprKind::Timer(p), pos), Ty::Time))
+                            Ok((at(ExprKind::Dwell(p), pos), Ty::Time))
                         }
                         Some(Resolved::Step(_)) => Err(StError::new(
                             fpos,

@@ -42,10 +42,11 @@ fn conditions_translate_into_the_guard_language() {
 
 #[test]
 fn step_flags_and_times_read_in_either_case() {
-    assert_eq!(guard("S0.t > T#6s"), "S0.t > 6s");
-    assert_eq!(guard("s0.T >= TIME#1m30s"), "S0.t >= 90s");
+    // Step.T is the place's dwell: kept after the step is left, until it is activated again.
+    assert_eq!(guard("S0.t > T#6s"), "S0.dwell > 6s");
+    assert_eq!(guard("s0.T >= TIME#1m30s"), "S0.dwell >= 90s");
     assert_eq!(guard("S1.X AND s1.x"), "S1 > 0 && S1 > 0");
-    assert_eq!(guard("S1.T < T#1.5s"), "S1.t < 1500ms");
+    assert_eq!(guard("S1.T < T#1.5s"), "S1.dwell < 1500ms");
     assert_eq!(guard("A"), "a");
 }
 

@@ -27,6 +27,7 @@ use cetratus_runtime::{
     Command, Dispatcher, EventKind, ManualStopwatch, Plc, PlcSnapshot, Slot, Status,
     SubstituteMode, SubstituteRequest, Verdict, VerdictKind, VerdictResult,
 };
+use cetratus_runtime::mask::Mask;
 use cetratus_twin::{Plant, Twin, TwinKind};
 
 /// Where the twins of a validation come from.
@@ -322,24 +323,16 @@ pub fn validate(job: &Job) -> Verdict {
             return fail(format!("the update does not take on the fork: {why}"));
         }
     }
-    let mut outputs: Vec<u64> =
+    let mut outputs: Vec<Mask> =
         Vec::with_capacity((job.policy.horizon_us / job.period_us.max(1)) as usize);
-    let bits = |v: &[cetratus_program::Value]| {
-        v.iter().enumerate().take(64).fold(0u64, |acc, (i, x)| {
-            if matches!(x, cetratus_program::Value::Bool(true)) {
-                acc | (1 << i)
-            } else {
-                acc
-            }
-        })
-    };
+    let bits = Mask::of;
     let b = run(&mut base, &mut base_io, from, job, |d| {
         outputs.push(bits(d))
     });
     let mut i = 0usize;
     let mut divergent = 0u64;
     let c = run(&mut cand, &mut cand_io, cand_from, job, |d| {
-        if outputs.get(i).is_some_and(|&o| o != bits(d)) {
+        if outputs.get(i).is_some_and(|o| *o != bits(d)) {
             divergent += 1;
         }
         i += 1;

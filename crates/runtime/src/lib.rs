@@ -22,10 +22,12 @@ mod event;
 #[cfg(feature = "fault-injection")]
 pub mod inject;
 mod io;
+pub mod mask;
 pub mod monitor;
 mod phase;
 mod plc;
 mod probation;
+mod recent;
 mod router;
 mod snapshot;
 mod stats;

@@ -14,9 +14,9 @@ use cetratus_program::{PackageMeta, Program, Value};
 use crate::clock::{InstallTiming, Stopwatch};
 use crate::error::CommandError;
 use crate::event::{Event, EventDetail, EventKind, EventLog, RevertReason};
-use crate::monitor::{CycleRecord, ExecInfo, Monitor, Pair, Role, Verdict, VerdictResult};
+use crate::monitor::{ExecInfo, Monitor, Pair, Role, Verdict, VerdictResult};
 use crate::phase::Phase;
-use crate::router::{bits, MessageRouter};
+use crate::router::MessageRouter;
 use crate::updater::{Command, Limits, UpdateContext, Updater, VIRTUAL_NS_PER_ENTRY};
 use crate::watchdog::{Stall, StallWatch};
 use crate::{Container, Dispatcher, Provider, RuntimeError, Slot, Status, TimingStats};
@@ -77,7 +77,7 @@ impl Plc {
         stopwatch: Box<dyn Stopwatch>,
     ) -> Self {
         let router = MessageRouter::new(io_program, slot.index());
-        let outputs = router.io_outputs().len();
+        let (inputs, outputs) = (router.io_inputs().len(), router.io_outputs().len());
         Plc {
             updater: Updater::new(Limits::for_period_us(
                 io_program.scan_period().as_micros() as u64
@@ -86,7 +86,7 @@ impl Plc {
                 primary_slot: slot,
                 primary,
                 router,
-                monitor: Monitor::new(8192, outputs),
+                monitor: Monitor::new(8192, inputs, outputs),
                 log: EventLog::new(now_us),
                 stopwatch,
                 retired: Vec::with_capacity(2),
@@ -428,28 +428,28 @@ impl Plc {
     }
 
     fn end_cycle(&mut self, now_us: u64, took_ns: Option<u64>) {
-        let core = &self.core;
         let status = self.updater.status();
-        let out = |s: Slot| {
-            self.container(s)
-                .map(|_| core.router.output_bits(s.index()))
-        };
+        let (has_a, has_b) = (
+            self.container(Slot::A).is_some(),
+            self.container(Slot::B).is_some(),
+        );
+        let core = &mut self.core;
+        let router = &core.router;
         let dispatched = if status == Status::Fault {
-            bits(core.router.dispatched())
+            router.dispatched_bits()
         } else {
-            core.router.output_bits(core.primary_slot.index())
+            router.output_bits(core.primary_slot.index())
         };
-        let r = CycleRecord {
-            cycle: core.log.cycle,
-            time_us: now_us,
-            primary: core.primary_slot,
+        core.monitor.recent.record(
+            core.log.cycle,
+            now_us,
+            core.primary_slot,
             status,
-            inputs: core.router.input_bits(),
-            outputs_a: out(Slot::A),
-            outputs_b: out(Slot::B),
-            dispatched,
-        };
-        self.core.monitor.record(r);
+            router.input_bits().words(),
+            has_a.then(|| router.output_bits(0).words()),
+            has_b.then(|| router.output_bits(1).words()),
+            dispatched.words(),
+        );
         // A warm start refuses a cycle count near the top; a count that got there anyway stops
         // rather than wraps to 0.
         self.core.log.cycle = self.core.log.cycle.saturating_add(1);

@@ -8,6 +8,7 @@
 
 use cetratus_program::{Program, Signal, Type, Value};
 
+use crate::mask::Mask;
 use crate::{Container, Dispatcher, Provider};
 
 /// The I/O map and the images of both containers.
@@ -20,26 +21,16 @@ pub struct MessageRouter {
     in_maps: [Vec<usize>; 2],
     out_maps: [Vec<Option<usize>>; 2],
     outs: [Vec<Value>; 2],
-    in_bits: u64,
-    out_bits: [u64; 2],
+    in_bits: Mask,
+    out_bits: [Mask; 2],
+    dispatched_bits: Mask,
     inputs_changed: bool,
-    // Every output of the I/O map is boolean and there are at most 64: images fit a bit mask.
+    // Every output of the I/O map is boolean: images compare as bit masks.
     bool_outputs: bool,
     // A container's input image or mapped outputs must be rebuilt (new install, warm start).
     stale: [bool; 2],
     dispatched: Vec<Value>,
     safe: Vec<Value>,
-}
-
-/// Bit `i` set when signal `i` is true (or a nonzero integer); the first 64 signals.
-pub(crate) fn bits(values: &[Value]) -> u64 {
-    values.iter().enumerate().take(64).fold(0, |acc, (i, v)| {
-        if matches!(v, Value::Bool(true)) || matches!(v, Value::Int(x) if *x != 0) {
-            acc | (1 << i)
-        } else {
-            acc
-        }
-    })
 }
 
 /// For each name of `from`, the index of the signal of that name in `to`.
@@ -77,10 +68,11 @@ impl MessageRouter {
                 vec![Value::Bool(false); n_out],
                 vec![Value::Bool(false); n_out],
             ],
-            in_bits: bits(image),
-            out_bits: [0, 0],
+            in_bits: Mask::of(image),
+            out_bits: [Mask::new(n_out), Mask::new(n_out)],
+            dispatched_bits: Mask::new(n_out),
             inputs_changed: true,
-            bool_outputs: n_out <= 64 && program.outputs().iter().all(|s| s.ty == Type::Bool),
+            bool_outputs: program.outputs().iter().all(|s| s.ty == Type::Bool),
             stale: [true, true],
             inputs: image.to_vec(),
             prev_inputs: image.to_vec(),
@@ -138,7 +130,7 @@ impl MessageRouter {
         io.read_inputs(now_us, &mut self.inputs);
         self.inputs_changed = self.inputs != self.prev_inputs;
         if self.inputs_changed {
-            self.in_bits = bits(&self.inputs);
+            self.in_bits.set_from(&self.inputs);
         }
     }
 
@@ -160,7 +152,7 @@ impl MessageRouter {
             for (o, m) in self.outs[slot].iter_mut().zip(&self.out_maps[slot]) {
                 *o = m.map_or(Value::Bool(false), |k| c.outputs()[k]);
             }
-            self.out_bits[slot] = bits(&self.outs[slot]);
+            self.out_bits[slot].set_from(&self.outs[slot]);
         }
         self.stale[slot] = false;
     }
@@ -173,6 +165,7 @@ impl MessageRouter {
         io: &mut D,
     ) {
         self.dispatched.copy_from_slice(&self.outs[primary]);
+        self.dispatched_bits.copy_from(&self.out_bits[primary]);
         io.write_outputs(now_us, &self.dispatched);
     }
 
@@ -180,6 +173,7 @@ impl MessageRouter {
     pub(crate) fn dispatch_safe<D: Dispatcher + ?Sized>(&mut self, now_us: u64, io: &mut D) {
         io.write_outputs(now_us, &self.safe);
         self.dispatched.copy_from_slice(&self.safe);
+        self.dispatched_bits.set_from(&self.safe);
     }
 
     /// The input image of the last cycle as container `slot` reads it, through its input map:
@@ -237,14 +231,18 @@ impl MessageRouter {
         &self.outs[slot]
     }
     /// The inputs as a bit mask.
-    pub fn input_bits(&self) -> u64 {
-        self.in_bits
+    pub fn input_bits(&self) -> &Mask {
+        &self.in_bits
     }
     /// Container `slot`'s outputs as a bit mask.
-    pub fn output_bits(&self, slot: usize) -> u64 {
-        self.out_bits[slot]
+    pub fn output_bits(&self, slot: usize) -> &Mask {
+        &self.out_bits[slot]
     }
-    /// Every output is boolean and they fit a bit mask.
+    /// What the Dispatcher got in the last cycle, as a bit mask.
+    pub fn dispatched_bits(&self) -> &Mask {
+        &self.dispatched_bits
+    }
+    /// Every output is boolean: bit masks compare the outputs whole.
     pub fn bool_outputs(&self) -> bool {
         self.bool_outputs
     }

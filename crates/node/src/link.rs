@@ -312,6 +312,13 @@ impl ControlLink {
                 .map(|r| wire::sample(&r))
                 .collect();
             self.last_sampled = plc.cycles();
+            // A live update may have added signals to the I/O map.
+            if self.names_in.len() != plc.io_inputs().len() {
+                self.names_in = Arc::new(plc.io_inputs().to_vec());
+            }
+            if self.names_out.len() != plc.io_outputs().len() {
+                self.names_out = Arc::new(plc.io_outputs().to_vec());
+            }
             let mut state = wire::state(plc, timing);
             state.control = self.control_counters();
             let snap = Snapshot {

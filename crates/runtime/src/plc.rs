@@ -17,9 +17,11 @@ use crate::event::{Event, EventDetail, EventKind, EventLog, RevertReason};
 use crate::monitor::{ExecInfo, Monitor, Pair, Role, Verdict, VerdictResult};
 use crate::phase::Phase;
 use crate::router::MessageRouter;
-use crate::updater::{Command, Limits, UpdateContext, Updater, VIRTUAL_NS_PER_ENTRY};
+use crate::updater::{Command, IoGrowth, Limits, UpdateContext, Updater, VIRTUAL_NS_PER_ENTRY};
 use crate::watchdog::{Stall, StallWatch};
-use crate::{Container, Dispatcher, Provider, RuntimeError, Slot, Status, TimingStats};
+use crate::{
+    Container, Dispatcher, Provider, RuntimeError, SharedAdmission, Slot, Status, TimingStats,
+};
 
 /// The running side of the PLC, which the Updater changes at cycle boundaries: PRIMARY and its
 /// container, the Message Router, the Monitor and the event log.
@@ -32,6 +34,24 @@ pub(crate) struct Core {
     pub stopwatch: Box<dyn Stopwatch>,
     // Containers that left service, freed away from the scan thread.
     pub retired: Vec<Container>,
+    // Signals appended to the I/O map at this boundary's install, for the I/O to serve.
+    pub grown: Option<IoGrowth>,
+    // Whether the node's I/O can serve signals the I/O map lacks.
+    pub admission: Option<SharedAdmission>,
+}
+
+impl Core {
+    /// Appends an update's new signals to the I/O map and to the Monitor's figures; the I/O
+    /// hears of them before the cycle's inputs are read.
+    pub(crate) fn grow_io(&mut self, grow: IoGrowth) {
+        self.router.grow(&grow.inputs, &grow.outputs);
+        let (ins, outs) = (self.router.io_inputs().len(), self.router.io_outputs().len());
+        for st in &mut self.monitor.stats {
+            st.divergent_cycles.resize(outs, 0);
+        }
+        self.monitor.recent.widen(ins, outs);
+        self.grown = Some(grow);
+    }
 }
 
 /// The PLC: two containers, PRIMARY, STATUS, the Message Router, the Updater and the Monitor.
@@ -90,6 +110,8 @@ impl Plc {
                 log: EventLog::new(now_us),
                 stopwatch,
                 retired: Vec::with_capacity(2),
+                grown: None,
+                admission: None,
             },
             deadlock_alarmed: false,
             stall: StallWatch::new(now_us),
@@ -118,7 +140,14 @@ impl Plc {
             io_inputs: self.core.router.io_inputs().to_vec(),
             io_outputs: self.core.router.io_outputs().to_vec(),
             primary_marking: self.core.primary.marking().to_vec(),
+            admission: self.core.admission.clone(),
         }
+    }
+
+    /// Lets updates use signals the running program does not, when `admission` (the node's I/O)
+    /// can serve them: they are appended to the I/O map at the install.
+    pub fn set_io_admission(&mut self, admission: SharedAdmission) {
+        self.core.admission = Some(admission);
     }
 
     /// How the in-cycle install is timed.
@@ -240,6 +269,9 @@ impl Plc {
     pub fn cycle<IO: Provider + Dispatcher + ?Sized>(&mut self, now_us: u64, io: &mut IO) {
         self.core.log.now_us = now_us;
         self.updater.boundary(&mut self.core);
+        if let Some(g) = self.core.grown.take() {
+            io.io_map_grew(&g.inputs, &g.outputs);
+        }
         self.core.router.read(now_us, io);
 
         if self.updater.status() == Status::Fault {

@@ -45,6 +45,7 @@ pub struct RecentCycles {
     words: Vec<u64>,
     in_words: usize,
     out_words: usize,
+    cap: usize,
     start: usize,
     len: usize,
 }
@@ -59,13 +60,45 @@ impl RecentCycles {
             words: vec![0; capacity * (in_words + 3 * out_words)],
             in_words,
             out_words,
+            cap: capacity,
             start: 0,
             len: 0,
         }
     }
 
+    /// Makes room for an I/O map that grew to `inputs` and `outputs` signals, keeping the cycles
+    /// held (their new signals read as off). Allocates only when a mask needs another word.
+    pub(crate) fn widen(&mut self, inputs: usize, outputs: usize) {
+        let (iw, ow) = (words_for(inputs), words_for(outputs));
+        if iw <= self.in_words && ow <= self.out_words {
+            return;
+        }
+        let mut wider = RecentCycles {
+            heads: Vec::with_capacity(self.capacity()),
+            words: vec![0; self.capacity() * (iw + 3 * ow)],
+            in_words: iw,
+            out_words: ow,
+            cap: self.cap,
+            start: 0,
+            len: 0,
+        };
+        for r in self.iter() {
+            wider.record(
+                r.cycle,
+                r.time_us,
+                r.primary,
+                r.status,
+                r.inputs,
+                r.outputs_a,
+                r.outputs_b,
+                r.dispatched,
+            );
+        }
+        *self = wider;
+    }
+
     fn capacity(&self) -> usize {
-        self.heads.capacity()
+        self.cap
     }
 
     fn stride(&self) -> usize {

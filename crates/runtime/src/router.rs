@@ -124,6 +124,33 @@ impl MessageRouter {
         self.stale[slot] = true;
     }
 
+    /// Appends signals to the I/O map (an update that uses signals the running program does not):
+    /// inputs start at their initial values, and no container drives the new outputs until the
+    /// candidate that declares them is attached.
+    pub(crate) fn grow(&mut self, inputs: &[Signal], outputs: &[Signal]) {
+        for s in inputs {
+            self.io_inputs.push(s.name.clone());
+            self.inputs.push(s.initial);
+            self.prev_inputs.push(s.initial);
+        }
+        for s in outputs {
+            self.io_outputs.push(s.name.clone());
+            for k in 0..2 {
+                self.outs[k].push(Value::Bool(false));
+                self.out_maps[k].push(None);
+            }
+            self.dispatched.push(Value::Bool(false));
+            self.safe.push(Value::Bool(false));
+        }
+        self.bool_outputs &= outputs.iter().all(|s| s.ty == Type::Bool);
+        self.in_bits = Mask::of(&self.inputs);
+        let n = self.io_outputs.len();
+        self.out_bits = [Mask::new(n), Mask::new(n)];
+        self.dispatched_bits = Mask::of(&self.dispatched);
+        self.inputs_changed = true;
+        self.stale = [true, true];
+    }
+
     /// Reads the Provider into the input image.
     pub(crate) fn read<P: Provider + ?Sized>(&mut self, now_us: u64, io: &mut P) {
         self.prev_inputs.copy_from_slice(&self.inputs);

@@ -145,6 +145,7 @@ impl Rig {
             io_inputs: self.plc.io_inputs().to_vec(),
             io_outputs: self.plc.io_outputs().to_vec(),
             primary_marking: self.plc.primary_container().marking().to_vec(),
+            admission: None,
         }
         .prepare(ResolvedUpdate {
             program: new.clone(),

@@ -16,8 +16,8 @@ use crate::error::CommandError;
 use crate::event::{Event, EventDetail, EventKind, EventLog, RevertReason};
 use crate::monitor::{ExecInfo, Monitor, Pair, Role, Verdict, VerdictResult};
 use crate::phase::Phase;
-use crate::router::MessageRouter;
-use crate::updater::{Command, IoGrowth, Limits, UpdateContext, Updater, VIRTUAL_NS_PER_ENTRY};
+use crate::router::{IoGrowth, MessageRouter};
+use crate::updater::{Command, Limits, UpdateContext, Updater, VIRTUAL_NS_PER_ENTRY};
 use crate::watchdog::{Stall, StallWatch};
 use crate::{
     Container, Dispatcher, Provider, RuntimeError, SharedAdmission, Slot, Status, TimingStats,

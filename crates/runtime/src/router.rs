@@ -33,6 +33,15 @@ pub struct MessageRouter {
     safe: Vec<Value>,
 }
 
+/// The signals an update appends to the I/O map at its install, and the map's lengths (inputs,
+/// outputs) it was prepared against.
+#[derive(Clone, Debug, Default)]
+pub(crate) struct IoGrowth {
+    pub from: (usize, usize),
+    pub inputs: Vec<Signal>,
+    pub outputs: Vec<Signal>,
+}
+
 /// For each name of `from`, the index of the signal of that name in `to`.
 pub(crate) fn map_by_name(from: &[String], to: &[Signal]) -> Vec<Option<usize>> {
     from.iter()

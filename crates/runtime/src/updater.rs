@@ -21,7 +21,7 @@ use crate::event::{EventDetail, EventKind, RevertReason};
 use crate::monitor::{ContainerStats, Verdict, VerdictKind, VerdictResult};
 use crate::phase::{Ending, Phase, Probation, Quarantine, UpdatePlan};
 use crate::plc::Core;
-use crate::router::{map_by_name, safe_image};
+use crate::router::{map_by_name, safe_image, IoGrowth};
 use crate::{Container, SharedAdmission, Status};
 
 /// How the candidate's marking is taken at substitution (DESIGN §4).
@@ -116,15 +116,6 @@ impl PreparedUpdate {
     pub fn verdicts(&self) -> &[Verdict] {
         &self.plan.verdicts
     }
-}
-
-/// The signals an update appends to the I/O map at its install, and the map's lengths (inputs,
-/// outputs) it was prepared against.
-#[derive(Clone, Debug, Default)]
-pub(crate) struct IoGrowth {
-    pub from: (usize, usize),
-    pub inputs: Vec<Signal>,
-    pub outputs: Vec<Signal>,
 }
 
 /// What building an update needs from the running PLC, cloned so it can be done on any thread.

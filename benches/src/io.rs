@@ -123,7 +123,8 @@ impl Drop for Pymodbus {
 }
 
 fn free_addr() -> Result<SocketAddr, BenchError> {
-    let l = std::net::TcpListener::bind("127.0.0.1:0").map_err(|e| BenchError::from(e.to_string()))?;
+    let l =
+        std::net::TcpListener::bind("127.0.0.1:0").map_err(|e| BenchError::from(e.to_string()))?;
     l.local_addr().map_err(|e| BenchError::from(e.to_string()))
 }
 
@@ -140,7 +141,9 @@ fn pymodbus() -> Result<Pymodbus, BenchError> {
         .stdout(Stdio::null())
         .stderr(Stdio::null())
         .spawn()
-        .map_err(|e| BenchError::from(format!("cannot start python3 for the pymodbus device: {e}")))?;
+        .map_err(|e| {
+            BenchError::from(format!("cannot start python3 for the pymodbus device: {e}"))
+        })?;
     let p = Pymodbus {
         child,
         addr,
@@ -231,12 +234,15 @@ fn scan_latency(
             .map_err(|e| BenchError::from(e.to_string()))?;
             let map = FieldMap::bind(&config, program.inputs(), program.outputs(), true)
                 .map_err(|e| BenchError::from(e.to_string()))?;
-            Some(FieldIo::start(&config, map, period_us).map_err(|e| BenchError::from(e.to_string()))?)
+            Some(
+                FieldIo::start(&config, map, period_us)
+                    .map_err(|e| BenchError::from(e.to_string()))?,
+            )
         }
         None => None,
     };
-    let mut io = PlantIo::new(Some(driver), field, None)
-        .ok_or_else(|| BenchError::from("no I/O"))?;
+    let mut io =
+        PlantIo::new(Some(driver), field, None).ok_or_else(|| BenchError::from("no I/O"))?;
     let mut cycle = ScanCycle::new(Container::new(program, 0), MonotonicStopwatch::boxed());
     cycle.set_period_us(period_us);
     let stop = AtomicBool::new(false);

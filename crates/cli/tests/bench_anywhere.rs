@@ -77,7 +77,9 @@ fn bench_io_measures_round_trips_against_pymodbus_and_its_own_server_from_anywhe
     let out = Command::new(BIN)
         .current_dir(dir.path())
         .env("TMPDIR", dir.path())
-        .args(["bench", "io", "--period", "10ms", "--for", "500ms", "--json"])
+        .args([
+            "bench", "io", "--period", "10ms", "--for", "500ms", "--json",
+        ])
         .output()
         .expect("run cetratus");
     assert!(

@@ -122,8 +122,16 @@ fn drop_and_return(policy: &str) -> (String, String, String, Value) {
     let plc = start(&io, dir.path(), "12s");
     wait_for_port(server, "the PLC's Modbus server", Duration::from_secs(30));
     // PE is on: the program got it, and CM1 went on at the device.
-    assert_eq!(wait_read(server, "di", 0, "1"), "1", "PE reached the program");
-    assert_eq!(wait_read(port, "coils", 0, "1"), "1", "CM1 reached the device");
+    assert_eq!(
+        wait_read(server, "di", 0, "1"),
+        "1",
+        "PE reached the program"
+    );
+    assert_eq!(
+        wait_read(port, "coils", 0, "1"),
+        "1",
+        "CM1 reached the device"
+    );
     drop(dev);
     // A second is a hundred cycles, far past stale_after (20 cycles: a loaded machine can keep
     // the I/O thread of a device that is there from a few cycles).
@@ -163,13 +171,19 @@ fn safe_takes_the_safe_inputs_while_the_device_is_away_and_reads_again_when_it_i
 fn fault_holds_inputs_and_outputs_safe_until_a_restart_even_when_the_device_is_back() {
     let (away, back, coil, s) = drop_and_return("fault");
     assert_eq!((away.as_str(), back.as_str()), ("0", "0"), "{s}");
-    assert_eq!(coil, "0", "CM1 stays at its safe value after the reconnect: {s}");
+    assert_eq!(
+        coil, "0",
+        "CM1 stays at its safe value after the reconnect: {s}"
+    );
     let d = &s["io"][0];
     // The device is read again and says so; the field I/O stays in its safe state.
     assert_eq!(d["link"], "up", "{d}");
     assert!(d["reconnects"].as_u64().unwrap() >= 1, "{d}");
     let faults = s["faults"].to_string();
-    assert!(faults.contains("field I/O") && faults.contains("safe"), "{s}");
+    assert!(
+        faults.contains("field I/O") && faults.contains("safe"),
+        "{s}"
+    );
 }
 
 #[test]
@@ -198,7 +212,10 @@ fn a_device_that_answers_three_cycles_late_goes_stale_without_stalling_the_scan(
     let d = &s["io"][0];
     assert!(d["reads"].as_u64().unwrap() > 3, "the answers came: {d}");
     assert_eq!(d["errors"], 0, "none timed out: {d}");
-    assert!(seen.iter().any(|v| v == "0"), "PE safe while stale: {seen:?}");
+    assert!(
+        seen.iter().any(|v| v == "0"),
+        "PE safe while stale: {seen:?}"
+    );
     assert!(
         s["scan"]["cycles"].as_u64().unwrap() >= 200,
         "the scan went on at its period: {s}"

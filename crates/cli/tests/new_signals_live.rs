@@ -54,7 +54,10 @@ fn s(p: &Path) -> &str {
 }
 
 fn cetratus(args: &[&str]) -> Output {
-    Command::new(BIN).args(args).output().expect("cetratus runs")
+    Command::new(BIN)
+        .args(args)
+        .output()
+        .expect("cetratus runs")
 }
 
 fn text(out: &Output) -> String {
@@ -159,7 +162,14 @@ fn an_update_adds_an_input_and_an_output_on_configured_channels_without_a_restar
             .arg(&base)
             .arg("--io")
             .arg(&io)
-            .args(["--for", "10min", "--cold", "--plc", "grow1", "--no-dashboard"])
+            .args([
+                "--for",
+                "10min",
+                "--cold",
+                "--plc",
+                "grow1",
+                "--no-dashboard",
+            ])
             .args(["--mqtt", &format!("127.0.0.1:{mqtt}")])
             .arg("--trust")
             .arg(d.join("trusted"))
@@ -195,7 +205,11 @@ fn an_update_adds_an_input_and_an_output_on_configured_channels_without_a_restar
     let out = client(&["load", s(&grown)]);
     assert_eq!(out.status.code(), Some(0), "{}", text(&out));
     std::thread::sleep(Duration::from_millis(500));
-    assert_eq!(coils(device), "1,0,0,0,0,0,0,0", "a candidate's outputs are withheld");
+    assert_eq!(
+        coils(device),
+        "1,0,0,0,0,0,0,0",
+        "a candidate's outputs are withheld"
+    );
     let out = client(&["substitute"]);
     assert_eq!(out.status.code(), Some(0), "{}", text(&out));
     assert_eq!(

@@ -94,7 +94,11 @@ fn a_minute_with_the_twin_in_its_own_process_takes_u1_and_finishes_as_many_parts
         .arg(&demo)
         .output()
         .unwrap();
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     let script = [
         "--at".to_string(),
         format!("10s load {}", demo.join("u1.cpkg").display()),
@@ -160,17 +164,15 @@ fn a_minute_with_the_twin_in_its_own_process_takes_u1_and_finishes_as_many_parts
     // U.1 was loaded, quarantined and substituted over the Modbus link, then accepted.
     let events = audit(&state);
     let at = |what: &str| events.iter().position(|e| e == what);
-    let order = [
-        at("quarantine_started"),
-        at("substituted"),
-        at("accepted"),
-    ];
+    let order = [at("quarantine_started"), at("substituted"), at("accepted")];
     assert!(
         order.iter().all(Option::is_some) && order.windows(2).all(|w| w[0] < w[1]),
         "{events:?}"
     );
     assert!(
-        !events.iter().any(|e| e.contains("fault") || e == "reverted"),
+        !events
+            .iter()
+            .any(|e| e.contains("fault") || e == "reverted"),
         "{events:?}"
     );
 }

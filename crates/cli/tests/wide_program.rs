@@ -63,7 +63,10 @@ fn program(dir: &Path, name: &str, version: &str, inverted: Option<usize>) -> Pa
 }
 
 fn cetratus(args: &[&str]) -> Output {
-    Command::new(BIN).args(args).output().expect("cetratus runs")
+    Command::new(BIN)
+        .args(args)
+        .output()
+        .expect("cetratus runs")
 }
 
 fn ok(out: Output) -> Output {

@@ -224,7 +224,8 @@ impl FieldIo {
         map.extend(&self.config, inputs, outputs)?;
         let map = Arc::new(map);
         self.front.resize(map.safe_inputs.len(), Value::Bool(false));
-        self.front[self.map.safe_inputs.len()..].copy_from_slice(&map.safe_inputs[self.map.safe_inputs.len()..]);
+        self.front[self.map.safe_inputs.len()..]
+            .copy_from_slice(&map.safe_inputs[self.map.safe_inputs.len()..]);
         self.last_out.clone_from(&map.safe_outputs);
         self.out_pending = true;
         {

@@ -23,11 +23,11 @@ use std::time::Instant;
 
 use cetratus_io::TwinDriver;
 use cetratus_program::{Program, ResolvedUpdate, Value};
+use cetratus_runtime::mask::Mask;
 use cetratus_runtime::{
     Command, Dispatcher, EventKind, ManualStopwatch, Plc, PlcSnapshot, Slot, Status,
     SubstituteMode, SubstituteRequest, Verdict, VerdictKind, VerdictResult,
 };
-use cetratus_runtime::mask::Mask;
 use cetratus_twin::{Plant, Twin, TwinKind};
 
 /// Where the twins of a validation come from.

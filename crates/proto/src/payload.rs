@@ -487,9 +487,7 @@ impl<'de> Deserialize<'de> for SignalMask {
             )
         })? {
             Wire::Number(v) if v < 1 << 53 => Ok(SignalMask::from(v)),
-            Wire::Words(w) if w.len() <= MAX_MASK_WORDS => {
-                Ok(SignalMask(w).trimmed())
-            }
+            Wire::Words(w) if w.len() <= MAX_MASK_WORDS => Ok(SignalMask(w).trimmed()),
             _ => Err(de::Error::custom(
                 "a signal mask is a number below 2^53 or an array of at most 128 32-bit words",
             )),

@@ -382,7 +382,12 @@ fn a_mask_past_bit_52_is_an_array_of_32_bit_words() {
         serde_json::to_value(SignalMask::from(1u64 << 52)).expect("ser"),
         json!(1u64 << 52)
     );
-    for bad in [json!(1u64 << 53), json!([1, -1]), json!("3"), json!(vec![0; 129])] {
+    for bad in [
+        json!(1u64 << 53),
+        json!([1, -1]),
+        json!("3"),
+        json!(vec![0; 129]),
+    ] {
         let e = serde_json::from_value::<SignalMask>(bad.clone()).expect_err("refused");
         assert!(e.to_string().contains("signal mask"), "{bad}: {e}");
     }

@@ -8,8 +8,8 @@ use cetratus_net::TransIdx;
 use cetratus_program::{Projection, Value};
 use serde::Serialize;
 
-pub use crate::recent::{CycleRecord, RecentCycles};
 use crate::mask::for_each_difference;
+pub use crate::recent::{CycleRecord, RecentCycles};
 use crate::router::MessageRouter;
 use crate::updater::value_json;
 use crate::{Blocker, Container, Slot, Summary, TimingStats};

@@ -45,7 +45,10 @@ impl Core {
     /// hears of them before the cycle's inputs are read.
     pub(crate) fn grow_io(&mut self, grow: IoGrowth) {
         self.router.grow(&grow.inputs, &grow.outputs);
-        let (ins, outs) = (self.router.io_inputs().len(), self.router.io_outputs().len());
+        let (ins, outs) = (
+            self.router.io_inputs().len(),
+            self.router.io_outputs().len(),
+        );
         for st in &mut self.monitor.stats {
             st.divergent_cycles.resize(outs, 0);
         }

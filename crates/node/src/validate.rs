@@ -25,7 +25,7 @@ use cetratus_io::TwinDriver;
 use cetratus_program::{Program, ResolvedUpdate, Value};
 use cetratus_runtime::mask::Mask;
 use cetratus_runtime::{
-    Command, Dispatcher, EventKind, ManualStopwatch, Plc, PlcSnapshot, Slot, Status,
+    Command, Dispatcher, EventKind, IoAdmission, ManualStopwatch, Plc, PlcSnapshot, Slot, Status,
     SubstituteMode, SubstituteRequest, Verdict, VerdictKind, VerdictResult,
 };
 use cetratus_twin::{Plant, Twin, TwinKind};
@@ -188,8 +188,31 @@ fn resume(
     )
     .ok()?;
     plc.use_virtual_time(period_us);
+    plc.set_io_admission(Arc::new(ForkOutputs));
     let _ = plc.drain_events();
     Some(plc)
+}
+
+/// What a fork admits of a candidate's new signals: outputs, which the node's field devices
+/// take and the twin of the fork ignores, as the plant ignores outputs it has no actuator for;
+/// no new inputs, which the twin cannot provide (a node whose twin is the plant refuses them
+/// too).
+struct ForkOutputs;
+
+impl IoAdmission for ForkOutputs {
+    fn admit(
+        &self,
+        inputs: &[cetratus_program::Signal],
+        _outputs: &[cetratus_program::Signal],
+    ) -> Result<(), String> {
+        match inputs.first() {
+            Some(s) => Err(format!(
+                "the twin of the validation cannot provide the new input `{}`",
+                s.name
+            )),
+            None => Ok(()),
+        }
+    }
 }
 
 /// Takes `plc` through the install of `update` and a retransform substitution, as the PLC would:

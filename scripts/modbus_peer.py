@@ -1,8 +1,8 @@
 #!/usr/bin/env python3
 """A real Modbus TCP peer for the tests, on pymodbus.
 
-  modbus_peer.py device PORT [--unit U] [--di 1,0,1] [--size N] [--delay-ms MS]
-      a remote I/O device: discrete inputs as given, coils, input and holding registers;
+  modbus_peer.py device PORT [--unit U] [--di 1,0,1] [--co 1,0] [--size N] [--delay-ms MS]
+      a remote I/O device: discrete inputs and coils as given, input and holding registers;
       reads past `size` entries get an exception; every answer waits `delay-ms`.
   modbus_peer.py read PORT TABLE ADDRESS COUNT [--unit U]
       prints the values read, comma-separated (TABLE: coils, di, ir, hr).
@@ -36,9 +36,11 @@ def device(args):
 
     di = [v == "1" for v in args.di.split(",")] if args.di else []
     di += [False] * (args.size - len(di))
+    co = [v == "1" for v in args.co.split(",")] if args.co else []
+    co += [False] * (args.size - len(co))
     ctx = ModbusDeviceContext(
         di=ModbusSequentialDataBlock(1, di[: args.size]),
-        co=ModbusSequentialDataBlock(1, [False] * args.size),
+        co=ModbusSequentialDataBlock(1, co[: args.size]),
         ir=ModbusSequentialDataBlock(1, [0] * args.size),
         hr=ModbusSequentialDataBlock(1, [0] * args.size),
     )
@@ -168,6 +170,7 @@ d = sub.add_parser("device")
 d.add_argument("port", type=int)
 d.add_argument("--unit", type=int, default=1)
 d.add_argument("--di", default="")
+d.add_argument("--co", default="")
 d.add_argument("--size", type=int, default=64)
 d.add_argument("--delay-ms", type=int, default=0)
 for name in ("read", "write"):

@@ -111,6 +111,12 @@ pub fn jitter_figures(period_us: u64, for_us: u64, rt: bool) -> Figures {
         s("rt"),
         status.unwrap_or_else(|| "not requested".into()).into(),
     );
+    // The machine's own limit, in the same run, with the same period and settings.
+    let machine = crate::cyclictest::measure(period_us, for_us, rt);
+    out.insert(
+        s("machine"),
+        serde_json::to_value(machine).unwrap_or_default(),
+    );
     out
 }
 

@@ -4,10 +4,12 @@
 //! and `cetratus bench --quick --json` measure the same thing.
 
 pub mod analysis;
+pub mod cyclictest;
 pub mod dense;
 pub mod embedded;
 pub mod fuzz;
 pub mod harness;
+pub mod io;
 pub mod measure;
 pub mod program;
 pub mod update;

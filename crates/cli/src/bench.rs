@@ -94,6 +94,19 @@ enum What {
         #[arg(long)]
         json: bool,
     },
+    /// Field I/O: the Modbus round trip of a cycle (64 coils, 16 registers) against pymodbus
+    /// and against Cetratus's own server, and scan latency with field I/O off and on.
+    Io {
+        /// The cycle period.
+        #[arg(long, default_value = "10ms")]
+        period: String,
+        /// Length of each series and phase, wall time.
+        #[arg(long = "for", default_value = "30s")]
+        for_: String,
+        /// Print one JSON object.
+        #[arg(long)]
+        json: bool,
+    },
     /// Real-time jitter of the scan cycle: the Vernadat program on its twin at a fixed period.
     Jitter {
         /// The scan period.
@@ -208,6 +221,15 @@ pub fn run(args: &BenchArgs) -> anyhow::Result<()> {
             &dashboard,
         )
         .map_err(|e| anyhow::anyhow!("{e}"))?;
+        return print(&out, *json || args.json);
+    }
+    if let Some(What::Io { period, for_, json }) = &args.what {
+        let f = cetratus_bench::io::figures(parse_duration_us(period)?, parse_duration_us(for_)?)
+            .map_err(|e| anyhow::anyhow!("{e}"))?;
+        let out = match serde_json::to_value(&f)? {
+            serde_json::Value::Object(m) => m.into_iter().collect(),
+            _ => BTreeMap::new(),
+        };
         return print(&out, *json || args.json);
     }
     if let Some(What::Jitter {

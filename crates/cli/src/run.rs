@@ -222,6 +222,7 @@ pub fn run(args: &RunArgs) -> anyhow::Result<()> {
         0
     };
     crate::run_io::press(&mut io, &args.press, kind, base_us)?;
+    crate::run_io::admit(&io, &mut plc);
     let opts = NodeOptions {
         base_us,
         trust: trust.clone(),

@@ -147,6 +147,14 @@ pub fn press(
     Ok(())
 }
 
+/// Lets live updates use signals the running program does not, on channels the field devices
+/// serve (docs/io.md).
+pub fn admit(io: &PlantIo, plc: &mut cetratus_runtime::Plc) {
+    if let Some(f) = io.field() {
+        plc.set_io_admission(f.admission());
+    }
+}
+
 /// What the plant says at the end of a run.
 pub struct PlantReport {
     /// Parts finished (good parts for the Festo station); 0 without a twin.

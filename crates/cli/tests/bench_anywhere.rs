@@ -31,3 +31,75 @@ fn bench_jitter_runs_from_a_directory_outside_the_source_tree() {
         .any(|e| e.path().join("examples/vernadat/vernadat.toml").is_file());
     assert!(written, "the program came from the binary's embedded copy");
 }
+
+#[test]
+fn bench_jitter_reports_the_machines_own_latency_from_cyclictest_or_why_not() {
+    let out = Command::new(BIN)
+        .args([
+            "bench", "jitter", "--period", "10ms", "--for", "1s", "--json",
+        ])
+        .output()
+        .expect("run cetratus");
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).expect("one JSON object");
+    let m = &v["machine"];
+    // scripts/test installs rt-tests, so cyclictest is there; without --rt it needs no priority.
+    assert!(
+        m["cycles"].as_u64().is_some_and(|n| n > 0),
+        "cyclictest measured: {m}"
+    );
+    assert!(m["command"].as_str().unwrap().contains("--laptop"), "{m}");
+    assert!(m["p99_us"].as_u64() >= m["p50_us"].as_u64(), "{m}");
+    // Without it on the PATH the report says so instead of failing.
+    let out = Command::new(BIN)
+        .env("PATH", "/nonexistent")
+        .args([
+            "bench", "jitter", "--period", "10ms", "--for", "300ms", "--json",
+        ])
+        .output()
+        .expect("run cetratus");
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).expect("one JSON object");
+    assert!(
+        v["machine"]["cyclictest"]
+            .as_str()
+            .is_some_and(|s| s.contains("missing") && s.contains("rt-tests")),
+        "{v}"
+    );
+}
+
+#[test]
+fn bench_io_measures_round_trips_against_pymodbus_and_its_own_server_from_anywhere() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let out = Command::new(BIN)
+        .current_dir(dir.path())
+        .env("TMPDIR", dir.path())
+        .args([
+            "bench", "io", "--period", "10ms", "--for", "500ms", "--json",
+        ])
+        .output()
+        .expect("run cetratus");
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).expect("one JSON object");
+    let peers: Vec<&str> = v["round_trips"]
+        .as_array()
+        .expect("round trips")
+        .iter()
+        .map(|r| {
+            assert!(r["cycles"].as_u64().is_some_and(|n| n > 0), "{r}");
+            assert_eq!(r["failed"], 0, "{r}");
+            r["peer"].as_str().unwrap()
+        })
+        .collect();
+    assert_eq!(peers, ["pymodbus", "cetratus"]);
+    for phase in ["latency_io_off", "latency_io_on"] {
+        assert!(v[phase]["cycles"].as_u64().is_some_and(|n| n > 0), "{v}");
+    }
+}

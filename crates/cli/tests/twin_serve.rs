@@ -70,12 +70,43 @@ fn a_flood_of_connections_is_refused_past_the_limit_and_bad_requests_get_excepti
     assert!(s["modbus"]["exceptions"].as_u64().unwrap() >= 3, "{s}");
 }
 
+/// The audit log's `what` of every record, in order.
+fn audit(state: &std::path::Path) -> Vec<String> {
+    std::fs::read_to_string(state.join("audit.jsonl"))
+        .unwrap_or_default()
+        .lines()
+        .filter_map(|l| serde_json::from_str::<Value>(l).ok())
+        .map(|r| r["what"].as_str().unwrap_or("").to_string())
+        .collect()
+}
+
 /// The one real-time run of this suite: a minute of the cell with the PLC and the twin in two
-/// processes, compared with the in-process twin.
+/// processes, with the paper's U.1 loaded at 10 s and substituted at 20 s over the Modbus link,
+/// compared with the in-process twin under the same script.
 #[test]
-fn a_minute_with_the_twin_in_its_own_process_finishes_as_many_parts_as_in_process() {
+fn a_minute_with_the_twin_in_its_own_process_takes_u1_and_finishes_as_many_parts_as_in_process() {
     let port = free_port();
     let dir = tempfile::tempdir().unwrap();
+    // The demo's program and its signed U.1, with the key that signed it.
+    let demo = dir.path().join("demo");
+    let out = Command::new(BIN)
+        .args(["demo", "--scripted", "--json", "--dir"])
+        .arg(&demo)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let script = [
+        "--at".to_string(),
+        format!("10s load {}", demo.join("u1.cpkg").display()),
+        "--at".to_string(),
+        "20s substitute".to_string(),
+        "--at".to_string(),
+        "22s accept".to_string(),
+    ];
     let io = dir.path().join("io-modbus.toml");
     let text = std::fs::read_to_string(example("vernadat/io-modbus.toml")).unwrap();
     std::fs::write(&io, text.replace("15020", &port.to_string())).unwrap();
@@ -88,15 +119,19 @@ fn a_minute_with_the_twin_in_its_own_process_finishes_as_many_parts_as_in_proces
     );
     wait_for_port(port, "the twin's Modbus server", Duration::from_secs(30));
     // The PLC outlives the twin, so that the twin never sees its outputs go safe mid-move.
+    let state = dir.path().join("state");
     let _plc = ChildGuard::spawn(
         Command::new(BIN)
             .arg("run")
-            .arg(example("vernadat/vernadat.toml"))
+            .arg(demo.join("vernadat.toml"))
             .arg("--io")
             .arg(&io)
             .args(["--no-mct", "--cold", "--json"])
+            .arg("--trust")
+            .arg(demo.join("trusted"))
+            .args(&script)
             .arg("--state-dir")
-            .arg(dir.path().join("state"))
+            .arg(&state)
             .arg("--config")
             .arg(dir.path().join("config"))
             .stdout(Stdio::null())
@@ -105,8 +140,15 @@ fn a_minute_with_the_twin_in_its_own_process_finishes_as_many_parts_as_in_proces
     let served = json_of(twin);
     let in_process = Command::new(BIN)
         .arg("run")
-        .arg(example("vernadat/vernadat.toml"))
+        .arg(demo.join("vernadat.toml"))
         .args(["--twin", "vernadat", "--virtual", "--for", "60s", "--json"])
+        .arg("--trust")
+        .arg(demo.join("trusted"))
+        .args(&script)
+        .arg("--state-dir")
+        .arg(dir.path().join("state-in-process"))
+        .arg("--config")
+        .arg(dir.path().join("config"))
         .output()
         .unwrap();
     let in_process: Value = serde_json::from_slice(&in_process.stdout).unwrap();
@@ -119,4 +161,18 @@ fn a_minute_with_the_twin_in_its_own_process_finishes_as_many_parts_as_in_proces
         "two processes {two}, in process {one}"
     );
     assert_eq!(served["twin_faults"], 0, "{served}");
+    // U.1 was loaded, quarantined and substituted over the Modbus link, then accepted.
+    let events = audit(&state);
+    let at = |what: &str| events.iter().position(|e| e == what);
+    let order = [at("quarantine_started"), at("substituted"), at("accepted")];
+    assert!(
+        order.iter().all(Option::is_some) && order.windows(2).all(|w| w[0] < w[1]),
+        "{events:?}"
+    );
+    assert!(
+        !events
+            .iter()
+            .any(|e| e.contains("fault") || e == "reverted"),
+        "{events:?}"
+    );
 }

@@ -419,10 +419,20 @@
   // over `names`), and the plain one of docs/mqtt.md (one sample: inputs, outputs {A, B},
   // dispatched). Both become points {t, inputs, A, B, d}; t is PLC time in ms when the message has
   // it, so the diagram shows the plant's timing whatever the network did.
+  // A mask is a number while every set bit is below bit 53 (exact in a double), otherwise an
+  // array of 32-bit words, the first signals' word first: any number of signals has a bit.
   function bits(v, names) {
-    if (typeof v !== 'number') return null;
     const o = {};
-    names.forEach((n, i) => { o[n] = Math.floor(v / 2 ** i) % 2 === 1; });
+    if (typeof v === 'number') {
+      names.forEach((n, i) => { o[n] = i < 53 && Math.floor(v / 2 ** i) % 2 === 1; });
+    } else if (Array.isArray(v)) {
+      names.forEach((n, i) => {
+        const w = v[i >> 5];
+        o[n] = typeof w === 'number' && ((w >>> (i & 31)) & 1) === 1;
+      });
+    } else {
+      return null;
+    }
     return o;
   }
   function points(d) {

@@ -19,8 +19,8 @@ use std::sync::{Arc, Mutex, MutexGuard, TryLockError};
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
-use cetratus_program::Value;
-use cetratus_runtime::{Dispatcher, Provider};
+use cetratus_program::{Signal, Value};
+use cetratus_runtime::{Dispatcher, IoAdmission, Provider};
 use serde::Serialize;
 
 use crate::config::{Device, IoConfig, StalePolicy};
@@ -89,6 +89,9 @@ pub(crate) struct Shared {
     /// The outputs to write (I/O-map order) and their generation, bumped on change.
     pub outputs: Vec<Value>,
     pub outputs_gen: u64,
+    /// The field map; replaced (not changed) when a live update adds signals, and taken by each
+    /// I/O thread at its next cycle.
+    pub map: Arc<FieldMap>,
 }
 
 /// Locks the shared image from an I/O thread; a panic elsewhere does not stop the I/O.
@@ -120,6 +123,7 @@ impl StatusReader {
 /// The field I/O of a node: a [`Provider`] and a [`Dispatcher`] over the process image.
 pub struct FieldIo {
     map: Arc<FieldMap>,
+    config: IoConfig,
     devices: Vec<Device>,
     shared: Arc<Mutex<Shared>>,
     front: Vec<Value>,
@@ -160,6 +164,7 @@ impl FieldIo {
                 .collect(),
             outputs: map.safe_outputs.clone(),
             outputs_gen: 1,
+            map: map.clone(),
         }));
         let stopped = Arc::new(AtomicBool::new(false));
         let mut kicks = Vec::new();
@@ -185,6 +190,7 @@ impl FieldIo {
             front: map.safe_inputs.clone(),
             last_out: map.safe_outputs.clone(),
             map,
+            config: config.clone(),
             devices: config.devices.clone(),
             shared,
             seen: vec![0; n],
@@ -197,6 +203,42 @@ impl FieldIo {
             threads,
             stopped,
         })
+    }
+
+    /// What lets a live update use signals the running program does not: those on a channel a
+    /// device serves (asked away from the scan thread).
+    pub fn admission(&self) -> Arc<FieldAdmission> {
+        Arc::new(FieldAdmission {
+            config: self.config.clone(),
+            shared: self.shared.clone(),
+        })
+    }
+
+    /// Serves signals appended to the I/O map (at the install of an update that
+    /// [`FieldAdmission`] admitted): their channels join the map, the inputs start at their
+    /// safe values, and every I/O thread takes the new map at its next cycle. On the scan
+    /// thread, at that install's cycle boundary only: it builds the new map and locks the image
+    /// for the copy (an I/O thread holds it only to copy values, never across a request).
+    pub fn grow(&mut self, inputs: &[Signal], outputs: &[Signal]) -> Result<(), IoError> {
+        let mut map = (*self.map).clone();
+        map.extend(&self.config, inputs, outputs)?;
+        let map = Arc::new(map);
+        self.front.resize(map.safe_inputs.len(), Value::Bool(false));
+        self.front[self.map.safe_inputs.len()..]
+            .copy_from_slice(&map.safe_inputs[self.map.safe_inputs.len()..]);
+        self.last_out.clone_from(&map.safe_outputs);
+        self.out_pending = true;
+        {
+            let mut s = lock(&self.shared);
+            let n = s.inputs.len();
+            s.inputs.extend_from_slice(&map.safe_inputs[n..]);
+            let n = s.outputs.len();
+            s.outputs.extend_from_slice(&map.safe_outputs[n..]);
+            s.outputs_gen += 1;
+            s.map = map.clone();
+        }
+        self.map = map;
+        Ok(())
     }
 
     /// Waits (before the first scan, never in one) until every device that serves an input has
@@ -321,7 +363,27 @@ impl FieldIo {
     }
 }
 
+/// Admits the signals of a live update that a device of the I/O configuration serves.
+pub struct FieldAdmission {
+    config: IoConfig,
+    shared: Arc<Mutex<Shared>>,
+}
+
+impl IoAdmission for FieldAdmission {
+    fn admit(&self, inputs: &[Signal], outputs: &[Signal]) -> Result<(), String> {
+        let mut map = (*lock(&self.shared).map).clone();
+        map.extend(&self.config, inputs, outputs)
+            .map_err(|e| e.to_string())
+    }
+}
+
 impl Provider for FieldIo {
+    fn io_map_grew(&mut self, inputs: &[Signal], outputs: &[Signal]) {
+        // Admitted away from the scan thread against the same map: this does not fail unless
+        // the configuration changed under it, and then the new signals stay unserved.
+        let _ = self.grow(inputs, outputs);
+    }
+
     fn read_inputs(&mut self, _now_us: u64, inputs: &mut [Value]) {
         self.take_inputs();
         for c in &self.map.inputs {

@@ -142,6 +142,79 @@ impl FieldMap {
     }
 }
 
+impl FieldMap {
+    /// Appends signals that a live update adds to the I/O map (after the ones bound so far), as
+    /// channels of the devices that serve their addresses. Only a signal whose address a device
+    /// of `config` serves can be added: an input a device reads, an output a device is written.
+    pub fn extend(
+        &mut self,
+        config: &IoConfig,
+        inputs: &[Signal],
+        outputs: &[Signal],
+    ) -> Result<(), IoError> {
+        let mut more = FieldMap {
+            inputs: Vec::new(),
+            outputs: Vec::new(),
+            safe_inputs: inputs.iter().map(safe).collect(),
+            safe_outputs: outputs.iter().map(safe).collect(),
+        };
+        let sides = [
+            (inputs, self.safe_inputs.len(), true),
+            (outputs, self.safe_outputs.len(), false),
+        ];
+        for (signals, first, input) in sides {
+            for (k, s) in signals.iter().enumerate() {
+                let unmapped = |why: String| IoError::Unmapped {
+                    signal: s.name.clone(),
+                    why,
+                };
+                let Some(text) = &s.address else {
+                    return Err(unmapped(format!("it is new to the running I/O map and declares no address; give it the address of a channel that a device of {} serves", config.file)));
+                };
+                let c = channel(config, first + k, s, text)?;
+                let want = if input { Area::Input } else { Area::Output };
+                if c.address.area != want {
+                    return Err(unmapped(format!(
+                        "{} is not an {} address",
+                        c.address,
+                        if input { "input (%I)" } else { "output (%Q)" }
+                    )));
+                }
+                if c.on.is_none() {
+                    return Err(unmapped(format!("it is new to the running I/O map, and no device of {} serves {}; a live update may add only signals on a configured channel (or restart with the new program)", config.file, c.address)));
+                }
+                if input {
+                    more.inputs.push(c);
+                } else {
+                    more.outputs.push(c);
+                }
+            }
+        }
+        let old = self.inputs.iter().chain(&self.outputs);
+        let new = more.inputs.iter().chain(&more.outputs);
+        for (k, b) in new.clone().enumerate() {
+            if let Some(a) = old
+                .clone()
+                .chain(new.clone().take(k))
+                .find(|a| a.address == b.address)
+            {
+                return Err(IoError::Unmapped {
+                    signal: b.name.clone(),
+                    why: format!(
+                        "{} is also the address of `{}`; give each signal its own",
+                        b.address, a.name
+                    ),
+                });
+            }
+        }
+        self.inputs.append(&mut more.inputs);
+        self.outputs.append(&mut more.outputs);
+        self.safe_inputs.append(&mut more.safe_inputs);
+        self.safe_outputs.append(&mut more.safe_outputs);
+        Ok(())
+    }
+}
+
 fn channel(config: &IoConfig, signal: usize, s: &Signal, text: &str) -> Result<Channel, IoError> {
     let unmapped = |why: String| IoError::Unmapped {
         signal: s.name.clone(),

@@ -176,6 +176,10 @@ impl DeviceThread {
                 since_write = since_write.saturating_add(1);
                 let due = {
                     let s = lock(&self.shared);
+                    if !Arc::ptr_eq(&s.map, &self.map) {
+                        // A live update added signals: serve their channels from now on.
+                        self.map = s.map.clone();
+                    }
                     let due = rewrite
                         || s.outputs_gen != written_gen
                         || since_write >= self.dev.rewrite_every;

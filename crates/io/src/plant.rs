@@ -1,7 +1,7 @@
 //! The I/O of a run: a digital twin in process, the field, or both, and the PLC's own Modbus
 //! server beside them (the process image for HMIs and SCADA).
 
-use cetratus_program::Value;
+use cetratus_program::{Signal, Value};
 use cetratus_runtime::{Dispatcher, Provider};
 use cetratus_twin::Twin;
 
@@ -58,6 +58,13 @@ impl PlantIo {
 }
 
 impl Provider for PlantIo {
+    fn io_map_grew(&mut self, inputs: &[Signal], outputs: &[Signal]) {
+        // Only the field serves new signals (its admission refuses the others).
+        if let Some(f) = self.field.as_mut() {
+            f.io_map_grew(inputs, outputs);
+        }
+    }
+
     fn read_inputs(&mut self, now_us: u64, inputs: &mut [Value]) {
         if let Some(t) = self.twin.as_mut() {
             t.read_inputs(now_us, inputs);

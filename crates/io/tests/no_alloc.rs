@@ -97,3 +97,77 @@ fn the_install_of_a_candidate_allocates_only_the_list_of_its_event() {
         "the install cycle made {counted} allocations; the event list needs 1"
     );
 }
+
+/// Inputs that change every cycle: signal `i` is on in cycles where `(cycle + i) % 7 == 0`.
+struct Moving {
+    cycle: u64,
+}
+
+impl cetratus_runtime::Provider for Moving {
+    fn read_inputs(&mut self, _now_us: u64, inputs: &mut [cetratus_program::Value]) {
+        for (i, v) in inputs.iter_mut().enumerate() {
+            *v = cetratus_program::Value::Bool((self.cycle + i as u64) % 7 == 0);
+        }
+        self.cycle += 1;
+    }
+}
+
+impl cetratus_runtime::Dispatcher for Moving {
+    fn write_outputs(&mut self, _now_us: u64, _outputs: &[cetratus_program::Value]) {}
+}
+
+/// A program of 100 inputs and 100 outputs: `y_i` follows `x_i` one cycle later.
+fn wide_program(dir: &std::path::Path) -> std::path::PathBuf {
+    let n = 100;
+    let mut pnml = String::from("<?xml version=\"1.0\"?>\n<pnml xmlns=\"http://www.pnml.org/version-2009/grammar/pnml\"><net id=\"w\" type=\"http://www.pnml.org/version-2009/grammar/ptnet\"><page id=\"g\">\n");
+    let mut toml = String::from("[program]\nname = \"wide\"\nversion = \"1.0.0\"\nnet = \"wide.pnml\"\npolicy = \"step\"\nscan_period = \"10ms\"\n");
+    let (mut outs, mut guards, mut actions) = (String::new(), String::new(), String::new());
+    for i in 0..n {
+        pnml.push_str(&format!("<place id=\"p{i}\"><initialMarking><text>1</text></initialMarking></place><place id=\"q{i}\"/><transition id=\"on{i}\"/><transition id=\"off{i}\"/><arc id=\"a{i}\" source=\"p{i}\" target=\"on{i}\"/><arc id=\"b{i}\" source=\"on{i}\" target=\"q{i}\"/><arc id=\"c{i}\" source=\"q{i}\" target=\"off{i}\"/><arc id=\"d{i}\" source=\"off{i}\" target=\"p{i}\"/>\n"));
+        toml.push_str(&format!("[[input]]\nname = \"x{i}\"\ntype = \"bool\"\n"));
+        outs.push_str(&format!("[[output]]\nname = \"y{i}\"\ntype = \"bool\"\n"));
+        guards.push_str(&format!("on{i} = \"x{i}\"\noff{i} = \"!x{i}\"\n"));
+        actions.push_str(&format!(
+            "[[action]]\nplace = \"q{i}\"\nqualifier = \"N\"\ntarget = \"y{i}\"\n"
+        ));
+    }
+    pnml.push_str("</page></net></pnml>\n");
+    toml.push_str(&outs);
+    toml.push_str("[guards]\n");
+    toml.push_str(&guards);
+    toml.push_str(&actions);
+    std::fs::write(dir.join("wide.pnml"), pnml).expect("write the net");
+    let path = dir.join("wide.toml");
+    std::fs::write(&path, toml).expect("write the program");
+    path
+}
+
+#[test]
+fn a_plc_of_200_signals_records_every_cycle_for_the_timing_diagram_without_allocating() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let program = std::sync::Arc::new(cetratus_testkit::programs::load(&wide_program(dir.path())));
+    let mut plc = cetratus_runtime::Plc::new(program, 0, cetratus_testkit::stopwatch());
+    let _ = plc.drain_events();
+    let mut io = Moving { cycle: 0 };
+    let mut now = 0;
+    for _ in 0..WARM_UP {
+        plc.cycle(now, &mut io);
+        now += 10_000;
+    }
+    let before = ALLOC.allocations();
+    // Past the Monitor's 8192 recent cycles, so that the ring wraps while counted.
+    for _ in 0..COUNTED {
+        plc.cycle(now, &mut io);
+        now += 10_000;
+    }
+    let counted = ALLOC.allocations() - before;
+    let last = plc.monitor().recent.last().expect("a recorded cycle");
+    // Signal 150 is output y50; both signals past the 64th have their bits in the record.
+    let bit = |words: &[u64], i: usize| words[i / 64] & (1 << (i % 64)) != 0;
+    let c = io.cycle - 1;
+    assert_eq!(bit(last.inputs, 99), (c + 99) % 7 == 0);
+    assert_eq!(bit(last.inputs, 70), (c + 70) % 7 == 0);
+    assert_eq!(bit(last.dispatched, 90), (c - 1 + 90) % 7 == 0);
+    assert_eq!(plc.monitor().recent.len(), 8192);
+    assert_eq!(counted, 0);
+}

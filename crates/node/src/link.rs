@@ -27,7 +27,6 @@ use cetratus_proto::{
     within_error, ControlCounters, ErrorBody, ErrorCode, EventMsg, ExecInfoMsg, IoMsg, IoNames,
     StateMsg,
 };
-use cetratus_runtime::monitor::CycleRecord;
 use cetratus_runtime::{
     Command, Event, ExecInfo, LoopTiming, Plc, Slot, Status, SubstituteMode, SubstituteRequest,
     UpdateContext,
@@ -82,7 +81,7 @@ struct Snapshot {
     inputs: Vec<Value>,
     outputs: [Option<Vec<Value>>; 2],
     dispatched: Vec<Value>,
-    samples: Vec<CycleRecord>,
+    samples: Vec<cetratus_proto::Sample>,
     programs: Option<[Option<ProgramAndMarking>; 2]>,
     time_us: u64,
 }
@@ -314,14 +313,21 @@ impl ControlLink {
             // analysis gate starts from it.
             let _ = self.ctx_tx.try_send((plc.update_context(), false));
             let since = self.last_sampled;
-            let samples: Vec<CycleRecord> = plc
+            let samples: Vec<cetratus_proto::Sample> = plc
                 .monitor()
                 .recent
                 .iter()
                 .filter(|r| r.cycle >= since)
-                .copied()
+                .map(|r| wire::sample(&r))
                 .collect();
             self.last_sampled = plc.cycles();
+            // A live update may have added signals to the I/O map.
+            if self.names_in.len() != plc.io_inputs().len() {
+                self.names_in = Arc::new(plc.io_inputs().to_vec());
+            }
+            if self.names_out.len() != plc.io_outputs().len() {
+                self.names_out = Arc::new(plc.io_outputs().to_vec());
+            }
             let mut state = wire::state(plc, timing);
             state.control = self.control_counters();
             let snap = Snapshot {
@@ -602,7 +608,7 @@ fn publish_loop(rx: Receiver<ToPublisher>, out: SyncSender<Outgoing>, quality: Q
             outputs_b: s.outputs[1]
                 .as_ref()
                 .map(|o| wire::signals(&s.names_out, o)),
-            samples: s.samples.iter().map(wire::sample).collect(),
+            samples: s.samples,
             time_ms: s.time_us / 1000,
             unix_ms: None,
         };

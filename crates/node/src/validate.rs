@@ -23,8 +23,9 @@ use std::time::Instant;
 
 use cetratus_io::TwinDriver;
 use cetratus_program::{Program, ResolvedUpdate, Value};
+use cetratus_runtime::mask::Mask;
 use cetratus_runtime::{
-    Command, Dispatcher, EventKind, ManualStopwatch, Plc, PlcSnapshot, Slot, Status,
+    Command, Dispatcher, EventKind, IoAdmission, ManualStopwatch, Plc, PlcSnapshot, Slot, Status,
     SubstituteMode, SubstituteRequest, Verdict, VerdictKind, VerdictResult,
 };
 use cetratus_twin::{Plant, Twin, TwinKind};
@@ -226,6 +227,7 @@ fn resume(
     )
     .ok()?;
     plc.use_virtual_time(period_us);
+    plc.set_io_admission(Arc::new(ForkOutputs));
     let _ = plc.drain_events();
     Some(plc)
 }
@@ -239,6 +241,28 @@ fn continue_inputs(plc: &mut Plc, read: &[(String, Value)]) {
         .map(|(n, v)| read.iter().find(|(m, _)| m == n).map_or(*v, |(_, x)| *x))
         .collect();
     plc.continue_inputs_from(&image);
+}
+
+/// What a fork admits of a candidate's new signals: outputs, which the node's field devices
+/// take and the twin of the fork ignores, as the plant ignores outputs it has no actuator for;
+/// no new inputs, which the twin cannot provide (a node whose twin is the plant refuses them
+/// too).
+struct ForkOutputs;
+
+impl IoAdmission for ForkOutputs {
+    fn admit(
+        &self,
+        inputs: &[cetratus_program::Signal],
+        _outputs: &[cetratus_program::Signal],
+    ) -> Result<(), String> {
+        match inputs.first() {
+            Some(s) => Err(format!(
+                "the twin of the validation cannot provide the new input `{}`",
+                s.name
+            )),
+            None => Ok(()),
+        }
+    }
 }
 
 /// Takes `plc` through the install of `update` and a retransform substitution, as the PLC would:
@@ -390,24 +414,16 @@ pub fn validate(job: &Job) -> Verdict {
         drop(base.take_retired());
         from += job.period_us;
     }
-    let mut outputs: Vec<u64> =
+    let mut outputs: Vec<Mask> =
         Vec::with_capacity((job.policy.horizon_us / job.period_us.max(1)) as usize);
-    let bits = |v: &[cetratus_program::Value]| {
-        v.iter().enumerate().take(64).fold(0u64, |acc, (i, x)| {
-            if matches!(x, cetratus_program::Value::Bool(true)) {
-                acc | (1 << i)
-            } else {
-                acc
-            }
-        })
-    };
+    let bits = Mask::of;
     let b = run(&mut base, &mut base_io, from, job, |d| {
         outputs.push(bits(d))
     });
     let mut i = 0usize;
     let mut divergent = 0u64;
     let c = run(&mut cand, &mut cand_io, cand_from, job, |d| {
-        if outputs.get(i).is_some_and(|&o| o != bits(d)) {
+        if outputs.get(i).is_some_and(|o| *o != bits(d)) {
             divergent += 1;
         }
         i += 1;

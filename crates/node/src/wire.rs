@@ -196,14 +196,15 @@ pub fn state(plc: &Plc, loop_timing: &LoopTiming) -> proto::StateMsg {
 
 /// One cycle of the timing diagram.
 pub fn sample(r: &CycleRecord) -> proto::Sample {
+    let mask = proto::SignalMask::from_u64_words;
     proto::Sample {
         time_ms: r.time_us / 1000,
         primary: slot(r.primary),
         status: status(r.status),
-        inputs: r.inputs,
-        outputs_a: r.outputs_a,
-        outputs_b: r.outputs_b,
-        dispatched: r.dispatched,
+        inputs: mask(r.inputs),
+        outputs_a: r.outputs_a.map(mask),
+        outputs_b: r.outputs_b.map(mask),
+        dispatched: mask(r.dispatched),
     }
 }
 

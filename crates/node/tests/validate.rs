@@ -477,3 +477,35 @@ fn during_probation_validation_runs_again_and_a_later_failing_verdict_reverts() 
     let (plc, _, _) = node.finish().expect("finish");
     assert_eq!(plc.primary(), Slot::A);
 }
+
+#[test]
+fn a_candidate_with_a_new_output_on_a_field_channel_is_validated_on_its_fork() {
+    // The cell's twin is the plant; a field device takes a beacon's output at %QX1.0 (nobody
+    // answers at its address: the admission reads the configuration, not the device).
+    let dir = workshop(VERNADAT);
+    let u1 = dir.path().join("u1.toml");
+    let mut text = std::fs::read_to_string(&u1).expect("u1.toml");
+    text.push_str("\n[[output]]\nname = \"BEACON\"\ntype = \"bool\"\naddress = \"%QX1.0\"\n\n[[action]]\nplace = \"P12\"\nqualifier = \"N\"\ntarget = \"BEACON\"\n");
+    std::fs::write(&u1, text).expect("write u1.toml");
+    let program = Arc::new(Program::load(&dir.path().join("vernadat.toml")).expect("program"));
+    let config = cetratus_io::config::IoConfig::parse(
+        "io.toml",
+        "[[device]]\nname = \"beacons\"\ntransport = \"modbus-tcp\"\naddress = \"127.0.0.1:1\"\nserves = [{ from = \"%QX1.0\", to = \"%QX1.7\" }]\n",
+    )
+    .expect("the configuration");
+    let map = cetratus_io::map::FieldMap::bind(&config, program.inputs(), program.outputs(), true)
+        .expect("the program fits");
+    let field = cetratus_io::field::FieldIo::start(&config, map, PERIOD).expect("the I/O thread");
+    let mut cell = Cell::new(program);
+    cell.plc.set_io_admission(field.admission());
+    cell.run_for(5_000_000);
+    cell.load(dir.path(), "u1.package.toml");
+    assert_eq!(
+        cell.plc.io_outputs().last().map(String::as_str),
+        Some("BEACON"),
+        "the install added the beacon to the I/O map"
+    );
+    let v = validate::validate(&cell.fork_job(policy(120)));
+    assert_eq!(v.result, VerdictResult::Pass, "{v:?}");
+    drop(field);
+}

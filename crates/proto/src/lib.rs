@@ -30,7 +30,8 @@ pub use outcome::Ending;
 pub use payload::{
     decode, encode, within_error, Accepted, Command, ControlCounters, CycleFigures, ErrorBody,
     EventMsg, ExecInfo, ExecInfoMsg, InputQuality, IoMsg, IoNames, LinkState, LoadArgs, NetMsg,
-    NoArgs, ProgramInfo, Programs, Quality, Reply, ReplyFields, Sample, SignalValue, Signals,
-    StateMsg, StatePayload, SubstituteArgs, TimingSummary, Verdict, MAX_PAYLOAD, MAX_WITHIN_MS,
+    NoArgs, ProgramInfo, Programs, Quality, Reply, ReplyFields, Sample, SignalMask, SignalValue,
+    Signals, StateMsg, StatePayload, SubstituteArgs, TimingSummary, Verdict, MAX_PAYLOAD,
+    MAX_WITHIN_MS,
 };
 pub use topic::{parse_topic, Leaf, PlcId, Topics, Verb, ALL_PLCS_FILTER, ROOT};

@@ -416,9 +416,97 @@ pub struct IoNames {
     pub outputs: Vec<String>,
 }
 
+/// The most words a [`SignalMask`] may have on the wire: 4096 signals.
+pub const MAX_MASK_WORDS: usize = 128;
+
+/// Signals as a bit mask: bit `i` of word `i / 32` is signal `i` (the signal is true, or a
+/// nonzero integer). On the wire a JSON number when every set bit is below bit 53, so that
+/// JavaScript reads it exactly (bit 0 is the first signal); otherwise an array of 32-bit words,
+/// the first signals' word first.
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct SignalMask(Vec<u32>);
+
+impl SignalMask {
+    /// The mask of 64-bit words (bit `i` of word `i / 64` is signal `i`).
+    pub fn from_u64_words(words: &[u64]) -> Self {
+        SignalMask(
+            words
+                .iter()
+                .flat_map(|&x| [x as u32, (x >> 32) as u32])
+                .collect(),
+        )
+        .trimmed()
+    }
+
+    /// Signal `i`'s bit.
+    pub fn get(&self, i: usize) -> bool {
+        self.0.get(i / 32).is_some_and(|w| w & (1 << (i % 32)) != 0)
+    }
+
+    /// The 32-bit words, the first signals' first (trailing zero words dropped).
+    pub fn words(&self) -> &[u32] {
+        &self.0
+    }
+
+    fn small(&self) -> Option<u64> {
+        match self.0[..] {
+            [] => Some(0),
+            [lo] => Some(u64::from(lo)),
+            [lo, hi] if hi < 1 << 21 => Some(u64::from(lo) | u64::from(hi) << 32),
+            _ => None,
+        }
+    }
+}
+
+impl From<u64> for SignalMask {
+    fn from(v: u64) -> Self {
+        SignalMask::from_u64_words(&[v])
+    }
+}
+
+impl Serialize for SignalMask {
+    fn serialize<S: Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        match self.small() {
+            Some(v) => s.serialize_u64(v),
+            None => self.0.serialize(s),
+        }
+    }
+}
+
+impl<'de> Deserialize<'de> for SignalMask {
+    fn deserialize<D: Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        #[derive(Deserialize)]
+        #[serde(untagged)]
+        enum Wire {
+            Number(u64),
+            Words(Vec<u32>),
+        }
+        match Wire::deserialize(d).map_err(|_| {
+            de::Error::custom(
+                "a signal mask is a number below 2^53 or an array of at most 128 32-bit words",
+            )
+        })? {
+            Wire::Number(v) if v < 1 << 53 => Ok(SignalMask::from(v)),
+            Wire::Words(w) if w.len() <= MAX_MASK_WORDS => Ok(SignalMask(w).trimmed()),
+            _ => Err(de::Error::custom(
+                "a signal mask is a number below 2^53 or an array of at most 128 32-bit words",
+            )),
+        }
+    }
+}
+
+impl SignalMask {
+    fn trimmed(mut self) -> Self {
+        while self.0.last() == Some(&0) {
+            self.0.pop();
+        }
+        self
+    }
+}
+
 /// One cycle of the timing diagram; on the wire the array
 /// `[time_ms, PRIMARY, STATUS, inputs, outputs_a | null, outputs_b | null, dispatched]`.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(from = "SampleWire", into = "SampleWire")]
 pub struct Sample {
     /// Program time at the cycle's start, in milliseconds.
@@ -428,17 +516,25 @@ pub struct Sample {
     /// STATUS during the cycle.
     pub status: StatusName,
     /// Inputs, as a bit mask.
-    pub inputs: u64,
+    pub inputs: SignalMask,
     /// Outputs of A (`None` when empty), as a bit mask.
-    pub outputs_a: Option<u64>,
+    pub outputs_a: Option<SignalMask>,
     /// Outputs of B (`None` when empty), as a bit mask.
-    pub outputs_b: Option<u64>,
+    pub outputs_b: Option<SignalMask>,
     /// What reached the Dispatcher, as a bit mask.
-    pub dispatched: u64,
+    pub dispatched: SignalMask,
 }
 
-#[derive(Clone, Copy, Serialize, Deserialize)]
-struct SampleWire(u64, Slot, StatusName, u64, Option<u64>, Option<u64>, u64);
+#[derive(Clone, Serialize, Deserialize)]
+struct SampleWire(
+    u64,
+    Slot,
+    StatusName,
+    SignalMask,
+    Option<SignalMask>,
+    Option<SignalMask>,
+    SignalMask,
+);
 
 impl From<SampleWire> for Sample {
     fn from(w: SampleWire) -> Self {

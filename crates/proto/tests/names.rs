@@ -3,7 +3,7 @@
 use std::net::SocketAddr;
 
 use cetratus_proto::{
-    parse_topic, BrokerUrl, Command, ErrorCode, Leaf, PlcId, ProtoError, Reply, Sample,
+    parse_topic, BrokerUrl, Command, ErrorCode, Leaf, PlcId, ProtoError, Reply, Sample, SignalMask,
     SignalValue, Slot, StatusName, SubstituteArgs, SubstituteMode, Topics, Verb, Verdict,
     VerdictKind, VerdictResult, ALL_PLCS_FILTER,
 };
@@ -358,15 +358,39 @@ fn a_sample_is_a_seven_element_array() {
         time_ms: 105840,
         primary: Slot::A,
         status: StatusName::Idle,
-        inputs: 5,
-        outputs_a: Some(2),
+        inputs: 5.into(),
+        outputs_a: Some(2.into()),
         outputs_b: None,
-        dispatched: 2,
+        dispatched: 2.into(),
     };
     let j = json!([105840, "A", "idle", 5, 2, null, 2]);
-    assert_eq!(serde_json::to_value(s).expect("ser"), j);
+    assert_eq!(serde_json::to_value(&s).expect("ser"), j);
     assert_eq!(serde_json::from_value::<Sample>(j).expect("de"), s);
     assert!(serde_json::from_value::<Sample>(json!([1, "A", "idle", 5, 2, null])).is_err());
+}
+
+#[test]
+fn a_mask_past_bit_52_is_an_array_of_32_bit_words() {
+    // Signals 0, 53 and 199 of a 200-signal program: JavaScript cannot hold bit 53 in a number.
+    let m = SignalMask::from_u64_words(&[1 | 1 << 53, 0, 0, 1 << (199 - 192)]);
+    let j = serde_json::to_value(&m).expect("ser");
+    assert_eq!(j, json!([1, 1 << 21, 0, 0, 0, 0, 1 << 7]));
+    let back: SignalMask = serde_json::from_value(j).expect("de");
+    assert!(back.get(0) && back.get(53) && back.get(199) && !back.get(198));
+    // Below bit 53 it stays the number it always was.
+    assert_eq!(
+        serde_json::to_value(SignalMask::from(1u64 << 52)).expect("ser"),
+        json!(1u64 << 52)
+    );
+    for bad in [
+        json!(1u64 << 53),
+        json!([1, -1]),
+        json!("3"),
+        json!(vec![0; 129]),
+    ] {
+        let e = serde_json::from_value::<SignalMask>(bad.clone()).expect_err("refused");
+        assert!(e.to_string().contains("signal mask"), "{bad}: {e}");
+    }
 }
 
 #[test]

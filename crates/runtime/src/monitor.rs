@@ -2,15 +2,17 @@
 //! between candidate and primary with its derived cause, drift, and a ring buffer of recent cycles
 //! for the timing diagram.
 
-use std::collections::{BTreeMap, VecDeque};
+use std::collections::BTreeMap;
 
 use cetratus_net::TransIdx;
 use cetratus_program::{Projection, Value};
 use serde::Serialize;
 
+use crate::mask::for_each_difference;
+pub use crate::recent::{CycleRecord, RecentCycles};
 use crate::router::MessageRouter;
 use crate::updater::value_json;
-use crate::{Blocker, Container, Slot, Status, Summary, TimingStats};
+use crate::{Blocker, Container, Slot, Summary, TimingStats};
 
 /// The derived cause of a divergence: the first transition that fired in one container and not
 /// in the other, and what blocked it in the other.
@@ -26,27 +28,6 @@ pub struct Cause {
     pub transition: TransIdx,
     /// Why it did not fire in the other container (places in the other container's net).
     pub blocked: Blocker,
-}
-
-/// One cycle as the timing diagram needs it; signals as bit masks in I/O-map order.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub struct CycleRecord {
-    /// Cycle index.
-    pub cycle: u64,
-    /// Program time at the cycle's start.
-    pub time_us: u64,
-    /// PRIMARY during the cycle.
-    pub primary: Slot,
-    /// STATUS during the cycle.
-    pub status: Status,
-    /// Inputs.
-    pub inputs: u64,
-    /// Outputs of container A (`None` when empty).
-    pub outputs_a: Option<u64>,
-    /// Outputs of container B (`None` when empty).
-    pub outputs_b: Option<u64>,
-    /// What reached the Dispatcher.
-    pub dispatched: u64,
 }
 
 /// The Monitor's running figures for one container.
@@ -88,26 +69,17 @@ pub struct Monitor {
     /// Figures of A and B.
     pub stats: [ContainerStats; 2],
     /// Recent cycles, oldest first.
-    pub recent: VecDeque<CycleRecord>,
-    capacity: usize,
+    pub recent: RecentCycles,
 }
 
 impl Monitor {
-    /// A monitor keeping `capacity` recent cycles for an I/O map of `outputs` outputs.
-    pub fn new(capacity: usize, outputs: usize) -> Self {
+    /// A monitor keeping `capacity` recent cycles for an I/O map of `inputs` inputs and
+    /// `outputs` outputs (any number: the masks are as wide as the map).
+    pub fn new(capacity: usize, inputs: usize, outputs: usize) -> Self {
         Monitor {
             stats: [ContainerStats::new(outputs), ContainerStats::new(outputs)],
-            recent: VecDeque::with_capacity(capacity),
-            capacity: capacity.max(1),
+            recent: RecentCycles::new(capacity, inputs, outputs),
         }
-    }
-
-    /// Appends a cycle, dropping the oldest when full (no allocation once full).
-    pub fn record(&mut self, r: CycleRecord) {
-        if self.recent.len() == self.capacity {
-            self.recent.pop_front();
-        }
-        self.recent.push_back(r);
     }
 }
 
@@ -292,13 +264,11 @@ impl Monitor {
         // and this is one comparison.
         let mut differs = false;
         if router.bool_outputs() {
-            let mut diff = router.output_bits(p.index()) ^ router.output_bits(c.index());
-            differs = diff != 0;
-            while diff != 0 {
-                let k = diff.trailing_zeros() as usize;
+            let (a, b) = (router.output_bits(p.index()), router.output_bits(c.index()));
+            for_each_difference(a.words(), b.words(), |k| {
                 stats.divergent_cycles[k] += 1;
-                diff &= diff - 1;
-            }
+                differs = true;
+            });
         } else {
             let outs = router
                 .outputs(p.index())

@@ -14,12 +14,14 @@ use cetratus_program::{PackageMeta, Program, Value};
 use crate::clock::{InstallTiming, Stopwatch};
 use crate::error::CommandError;
 use crate::event::{Event, EventDetail, EventKind, EventLog, RevertReason};
-use crate::monitor::{CycleRecord, ExecInfo, Monitor, Pair, Role, Verdict, VerdictResult};
+use crate::monitor::{ExecInfo, Monitor, Pair, Role, Verdict, VerdictResult};
 use crate::phase::Phase;
-use crate::router::{bits, MessageRouter};
+use crate::router::{IoGrowth, MessageRouter};
 use crate::updater::{Command, Limits, UpdateContext, Updater, VIRTUAL_NS_PER_ENTRY};
 use crate::watchdog::{Stall, StallWatch};
-use crate::{Container, Dispatcher, Provider, RuntimeError, Slot, Status, TimingStats};
+use crate::{
+    Container, Dispatcher, Provider, RuntimeError, SharedAdmission, Slot, Status, TimingStats,
+};
 
 /// The running side of the PLC, which the Updater changes at cycle boundaries: PRIMARY and its
 /// container, the Message Router, the Monitor and the event log.
@@ -32,6 +34,27 @@ pub(crate) struct Core {
     pub stopwatch: Box<dyn Stopwatch>,
     // Containers that left service, freed away from the scan thread.
     pub retired: Vec<Container>,
+    // Signals appended to the I/O map at this boundary's install, for the I/O to serve.
+    pub grown: Option<IoGrowth>,
+    // Whether the node's I/O can serve signals the I/O map lacks.
+    pub admission: Option<SharedAdmission>,
+}
+
+impl Core {
+    /// Appends an update's new signals to the I/O map and to the Monitor's figures; the I/O
+    /// hears of them before the cycle's inputs are read.
+    pub(crate) fn grow_io(&mut self, grow: IoGrowth) {
+        self.router.grow(&grow.inputs, &grow.outputs);
+        let (ins, outs) = (
+            self.router.io_inputs().len(),
+            self.router.io_outputs().len(),
+        );
+        for st in &mut self.monitor.stats {
+            st.divergent_cycles.resize(outs, 0);
+        }
+        self.monitor.recent.widen(ins, outs);
+        self.grown = Some(grow);
+    }
 }
 
 /// The PLC: two containers, PRIMARY, STATUS, the Message Router, the Updater and the Monitor.
@@ -77,7 +100,7 @@ impl Plc {
         stopwatch: Box<dyn Stopwatch>,
     ) -> Self {
         let router = MessageRouter::new(io_program, slot.index());
-        let outputs = router.io_outputs().len();
+        let (inputs, outputs) = (router.io_inputs().len(), router.io_outputs().len());
         Plc {
             updater: Updater::new(Limits::for_period_us(
                 io_program.scan_period().as_micros() as u64
@@ -86,10 +109,12 @@ impl Plc {
                 primary_slot: slot,
                 primary,
                 router,
-                monitor: Monitor::new(8192, outputs),
+                monitor: Monitor::new(8192, inputs, outputs),
                 log: EventLog::new(now_us),
                 stopwatch,
                 retired: Vec::with_capacity(2),
+                grown: None,
+                admission: None,
             },
             deadlock_alarmed: false,
             stall: StallWatch::new(now_us),
@@ -119,7 +144,14 @@ impl Plc {
             io_outputs: self.core.router.io_outputs().to_vec(),
             primary_marking: self.core.primary.marking().to_vec(),
             cycle: self.cycles(),
+            admission: self.core.admission.clone(),
         }
+    }
+
+    /// Lets updates use signals the running program does not, when `admission` (the node's I/O)
+    /// can serve them: they are appended to the I/O map at the install.
+    pub fn set_io_admission(&mut self, admission: SharedAdmission) {
+        self.core.admission = Some(admission);
     }
 
     /// How the in-cycle install is timed.
@@ -252,6 +284,9 @@ impl Plc {
     pub fn cycle<IO: Provider + Dispatcher + ?Sized>(&mut self, now_us: u64, io: &mut IO) {
         self.core.log.now_us = now_us;
         self.updater.boundary(&mut self.core);
+        if let Some(g) = self.core.grown.take() {
+            io.io_map_grew(&g.inputs, &g.outputs);
+        }
         self.core.router.read(now_us, io);
 
         if self.updater.status() == Status::Fault {
@@ -440,28 +475,28 @@ impl Plc {
     }
 
     fn end_cycle(&mut self, now_us: u64, took_ns: Option<u64>) {
-        let core = &self.core;
         let status = self.updater.status();
-        let out = |s: Slot| {
-            self.container(s)
-                .map(|_| core.router.output_bits(s.index()))
-        };
+        let (has_a, has_b) = (
+            self.container(Slot::A).is_some(),
+            self.container(Slot::B).is_some(),
+        );
+        let core = &mut self.core;
+        let router = &core.router;
         let dispatched = if status == Status::Fault {
-            bits(core.router.dispatched())
+            router.dispatched_bits()
         } else {
-            core.router.output_bits(core.primary_slot.index())
+            router.output_bits(core.primary_slot.index())
         };
-        let r = CycleRecord {
-            cycle: core.log.cycle,
-            time_us: now_us,
-            primary: core.primary_slot,
+        core.monitor.recent.record(
+            core.log.cycle,
+            now_us,
+            core.primary_slot,
             status,
-            inputs: core.router.input_bits(),
-            outputs_a: out(Slot::A),
-            outputs_b: out(Slot::B),
-            dispatched,
-        };
-        self.core.monitor.record(r);
+            router.input_bits().words(),
+            has_a.then(|| router.output_bits(0).words()),
+            has_b.then(|| router.output_bits(1).words()),
+            dispatched.words(),
+        );
         // A warm start refuses a cycle count near the top; a count that got there anyway stops
         // rather than wraps to 0.
         self.core.log.cycle = self.core.log.cycle.saturating_add(1);

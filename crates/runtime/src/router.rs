@@ -8,6 +8,7 @@
 
 use cetratus_program::{Program, Signal, Type, Value};
 
+use crate::mask::Mask;
 use crate::{Container, Dispatcher, Provider};
 
 /// The I/O map and the images of both containers.
@@ -20,10 +21,11 @@ pub struct MessageRouter {
     in_maps: [Vec<usize>; 2],
     out_maps: [Vec<Option<usize>>; 2],
     outs: [Vec<Value>; 2],
-    in_bits: u64,
-    out_bits: [u64; 2],
+    in_bits: Mask,
+    out_bits: [Mask; 2],
+    dispatched_bits: Mask,
     inputs_changed: bool,
-    // Every output of the I/O map is boolean and there are at most 64: images fit a bit mask.
+    // Every output of the I/O map is boolean: images compare as bit masks.
     bool_outputs: bool,
     // A container's input image or mapped outputs must be rebuilt (new install, warm start).
     stale: [bool; 2],
@@ -31,15 +33,13 @@ pub struct MessageRouter {
     safe: Vec<Value>,
 }
 
-/// Bit `i` set when signal `i` is true (or a nonzero integer); the first 64 signals.
-pub(crate) fn bits(values: &[Value]) -> u64 {
-    values.iter().enumerate().take(64).fold(0, |acc, (i, v)| {
-        if matches!(v, Value::Bool(true)) || matches!(v, Value::Int(x) if *x != 0) {
-            acc | (1 << i)
-        } else {
-            acc
-        }
-    })
+/// The signals an update appends to the I/O map at its install, and the map's lengths (inputs,
+/// outputs) it was prepared against.
+#[derive(Clone, Debug, Default)]
+pub(crate) struct IoGrowth {
+    pub from: (usize, usize),
+    pub inputs: Vec<Signal>,
+    pub outputs: Vec<Signal>,
 }
 
 /// For each name of `from`, the index of the signal of that name in `to`.
@@ -77,10 +77,11 @@ impl MessageRouter {
                 vec![Value::Bool(false); n_out],
                 vec![Value::Bool(false); n_out],
             ],
-            in_bits: bits(image),
-            out_bits: [0, 0],
+            in_bits: Mask::of(image),
+            out_bits: [Mask::new(n_out), Mask::new(n_out)],
+            dispatched_bits: Mask::new(n_out),
             inputs_changed: true,
-            bool_outputs: n_out <= 64 && program.outputs().iter().all(|s| s.ty == Type::Bool),
+            bool_outputs: program.outputs().iter().all(|s| s.ty == Type::Bool),
             stale: [true, true],
             inputs: image.to_vec(),
             prev_inputs: image.to_vec(),
@@ -132,13 +133,40 @@ impl MessageRouter {
         self.stale[slot] = true;
     }
 
+    /// Appends signals to the I/O map (an update that uses signals the running program does not):
+    /// inputs start at their initial values, and no container drives the new outputs until the
+    /// candidate that declares them is attached.
+    pub(crate) fn grow(&mut self, inputs: &[Signal], outputs: &[Signal]) {
+        for s in inputs {
+            self.io_inputs.push(s.name.clone());
+            self.inputs.push(s.initial);
+            self.prev_inputs.push(s.initial);
+        }
+        for s in outputs {
+            self.io_outputs.push(s.name.clone());
+            for k in 0..2 {
+                self.outs[k].push(Value::Bool(false));
+                self.out_maps[k].push(None);
+            }
+            self.dispatched.push(Value::Bool(false));
+            self.safe.push(Value::Bool(false));
+        }
+        self.bool_outputs &= outputs.iter().all(|s| s.ty == Type::Bool);
+        self.in_bits = Mask::of(&self.inputs);
+        let n = self.io_outputs.len();
+        self.out_bits = [Mask::new(n), Mask::new(n)];
+        self.dispatched_bits = Mask::of(&self.dispatched);
+        self.inputs_changed = true;
+        self.stale = [true, true];
+    }
+
     /// Reads the Provider into the input image.
     pub(crate) fn read<P: Provider + ?Sized>(&mut self, now_us: u64, io: &mut P) {
         self.prev_inputs.copy_from_slice(&self.inputs);
         io.read_inputs(now_us, &mut self.inputs);
         self.inputs_changed = self.inputs != self.prev_inputs;
         if self.inputs_changed {
-            self.in_bits = bits(&self.inputs);
+            self.in_bits.set_from(&self.inputs);
         }
     }
 
@@ -160,7 +188,7 @@ impl MessageRouter {
             for (o, m) in self.outs[slot].iter_mut().zip(&self.out_maps[slot]) {
                 *o = m.map_or(Value::Bool(false), |k| c.outputs()[k]);
             }
-            self.out_bits[slot] = bits(&self.outs[slot]);
+            self.out_bits[slot].set_from(&self.outs[slot]);
         }
         self.stale[slot] = false;
     }
@@ -173,6 +201,7 @@ impl MessageRouter {
         io: &mut D,
     ) {
         self.dispatched.copy_from_slice(&self.outs[primary]);
+        self.dispatched_bits.copy_from(&self.out_bits[primary]);
         io.write_outputs(now_us, &self.dispatched);
     }
 
@@ -180,6 +209,7 @@ impl MessageRouter {
     pub(crate) fn dispatch_safe<D: Dispatcher + ?Sized>(&mut self, now_us: u64, io: &mut D) {
         io.write_outputs(now_us, &self.safe);
         self.dispatched.copy_from_slice(&self.safe);
+        self.dispatched_bits.set_from(&self.safe);
     }
 
     /// The input image of the last cycle as container `slot` reads it, through its input map:
@@ -225,7 +255,7 @@ impl MessageRouter {
     pub(crate) fn set_last_inputs(&mut self, image: &[Value]) {
         if image.len() == self.inputs.len() {
             self.inputs.copy_from_slice(image);
-            self.in_bits = bits(&self.inputs);
+            self.in_bits.set_from(&self.inputs);
             self.stale = [true, true];
         }
     }
@@ -246,14 +276,18 @@ impl MessageRouter {
         &self.outs[slot]
     }
     /// The inputs as a bit mask.
-    pub fn input_bits(&self) -> u64 {
-        self.in_bits
+    pub fn input_bits(&self) -> &Mask {
+        &self.in_bits
     }
     /// Container `slot`'s outputs as a bit mask.
-    pub fn output_bits(&self, slot: usize) -> u64 {
-        self.out_bits[slot]
+    pub fn output_bits(&self, slot: usize) -> &Mask {
+        &self.out_bits[slot]
     }
-    /// Every output is boolean and they fit a bit mask.
+    /// What the Dispatcher got in the last cycle, as a bit mask.
+    pub fn dispatched_bits(&self) -> &Mask {
+        &self.dispatched_bits
+    }
+    /// Every output is boolean: bit masks compare the outputs whole.
     pub fn bool_outputs(&self) -> bool {
         self.bool_outputs
     }

@@ -10,7 +10,7 @@
 use std::sync::Arc;
 
 use cetratus_program::{
-    EvalCtx, Guard, PackageMeta, Program, ResolvedUpdate, StateTransform, TrustStore,
+    EvalCtx, Guard, PackageMeta, Program, ResolvedUpdate, Signal, StateTransform, TrustStore,
     UpdatePackage, Value,
 };
 use serde::Serialize;
@@ -21,8 +21,8 @@ use crate::event::{EventDetail, EventKind, RevertReason};
 use crate::monitor::{ContainerStats, Verdict, VerdictKind, VerdictResult};
 use crate::phase::{Ending, Phase, Probation, Quarantine, UpdatePlan};
 use crate::plc::Core;
-use crate::router::{map_by_name, safe_image};
-use crate::{Container, Slot, Status};
+use crate::router::{map_by_name, safe_image, IoGrowth};
+use crate::{Container, SharedAdmission, Slot, Status};
 
 /// How the candidate's marking is taken at substitution (DESIGN §4).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Default)]
@@ -95,6 +95,8 @@ pub struct PreparedUpdate {
     stats: ContainerStats,
     // The message of `quarantine_started`, for a candidate in A and in B.
     installed: [String; 2],
+    // The signals the install appends to the I/O map.
+    grow: IoGrowth,
     // Entries the install touches: the cost model of a virtual run charges by it.
     work: u64,
 }
@@ -137,6 +139,8 @@ pub struct UpdateContext {
     /// The cycle whose boundary the context was taken at: `primary_marking` is the marking an
     /// install at that boundary would transform.
     pub cycle: u64,
+    /// Whether the node's I/O can serve signals the I/O map lacks; `None`: it cannot.
+    pub admission: Option<SharedAdmission>,
 }
 
 impl UpdateContext {
@@ -183,31 +187,63 @@ impl UpdateContext {
     }
 
     /// Builds a resolved update: the candidate container, its I/O maps and the transition
-    /// correspondence used by the Monitor. Refuses a candidate whose signals the I/O map lacks.
+    /// correspondence used by the Monitor. A candidate signal the I/O map lacks is appended to
+    /// it at the install when the node's I/O admits it ([`UpdateContext::admission`]: its address
+    /// maps to a configured channel); otherwise the candidate is refused.
     pub fn prepare(&self, update: ResolvedUpdate) -> Result<PreparedUpdate, PrepareError> {
         let primary = &*self.primary;
         let program = update.program.clone();
-        let mut in_map = Vec::with_capacity(program.inputs().len());
-        for s in program.inputs() {
-            match self.io_inputs.iter().position(|n| *n == s.name) {
-                Some(i) => in_map.push(i),
+        let new_inputs: Vec<Signal> = program
+            .inputs()
+            .iter()
+            .filter(|s| !self.io_inputs.contains(&s.name))
+            .cloned()
+            .collect();
+        let new_outputs: Vec<Signal> = program
+            .outputs()
+            .iter()
+            .filter(|s| !self.io_outputs.contains(&s.name))
+            .cloned()
+            .collect();
+        if !new_inputs.is_empty() || !new_outputs.is_empty() {
+            match &self.admission {
+                Some(a) => a
+                    .admit(&new_inputs, &new_outputs)
+                    .map_err(PrepareError::NewSignals)?,
                 None => {
-                    return Err(PrepareError::MissingInput {
-                        signal: s.name.clone(),
-                        available: self.io_inputs.join(", "),
-                    })
+                    if let Some(s) = new_inputs.first() {
+                        return Err(PrepareError::MissingInput {
+                            signal: s.name.clone(),
+                            available: self.io_inputs.join(", "),
+                        });
+                    }
+                    if let Some(s) = new_outputs.first() {
+                        return Err(PrepareError::MissingOutput {
+                            signal: s.name.clone(),
+                            available: self.io_outputs.join(", "),
+                        });
+                    }
                 }
             }
         }
-        for s in program.outputs() {
-            if !self.io_outputs.contains(&s.name) {
-                return Err(PrepareError::MissingOutput {
-                    signal: s.name.clone(),
-                    available: self.io_outputs.join(", "),
-                });
-            }
-        }
-        let out_map = map_by_name(&self.io_outputs, program.outputs());
+        let io_inputs: Vec<String> = self
+            .io_inputs
+            .iter()
+            .cloned()
+            .chain(new_inputs.iter().map(|s| s.name.clone()))
+            .collect();
+        let io_outputs: Vec<String> = self
+            .io_outputs
+            .iter()
+            .cloned()
+            .chain(new_outputs.iter().map(|s| s.name.clone()))
+            .collect();
+        let in_map: Vec<usize> = program
+            .inputs()
+            .iter()
+            .filter_map(|s| io_inputs.iter().position(|n| *n == s.name))
+            .collect();
+        let out_map = map_by_name(&io_outputs, program.outputs());
         let (pn, cn) = (primary.net(), program.net());
         let np = cn.num_places();
         let work =
@@ -269,7 +305,7 @@ impl UpdateContext {
         Ok(PreparedUpdate {
             base_hash: primary.hash(),
             image: container.inputs().to_vec(),
-            stats: ContainerStats::new(self.io_outputs.len()),
+            stats: ContainerStats::new(self.io_outputs.len() + new_outputs.len()),
             installed,
             quarantine: Box::new(Quarantine {
                 candidate: container,
@@ -279,6 +315,11 @@ impl UpdateContext {
             }),
             in_map,
             out_map,
+            grow: IoGrowth {
+                from: (self.io_inputs.len(), self.io_outputs.len()),
+                inputs: new_inputs,
+                outputs: new_outputs,
+            },
             work,
         })
     }
@@ -656,6 +697,18 @@ impl Updater {
             return;
         }
         let s = core.primary_slot.other();
+        let here = (
+            core.router.io_inputs().len(),
+            core.router.io_outputs().len(),
+        );
+        if up.grow.from != here {
+            core.log.push(
+                EventKind::TransformRefused,
+                "the I/O map changed since the package was prepared (another update added signals to it); the secondary is emptied and the primary goes on: load the package again".to_string(),
+                None,
+            );
+            return;
+        }
         // Everything below was built with the candidate, off the scan thread.
         let PreparedUpdate {
             mut quarantine,
@@ -664,8 +717,12 @@ impl Updater {
             image,
             stats,
             installed: [in_a, in_b],
+            grow,
             ..
         } = *up;
+        if !grow.inputs.is_empty() || !grow.outputs.is_empty() {
+            core.grow_io(grow);
+        }
         core.router.attach(s.index(), image, in_map, out_map);
         // The candidate's first scan sees the edges of this cycle, as the primary's does.
         quarantine

@@ -146,6 +146,7 @@ impl Rig {
             io_outputs: self.plc.io_outputs().to_vec(),
             primary_marking: self.plc.primary_container().marking().to_vec(),
             cycle: self.plc.cycles(),
+            admission: None,
         }
         .prepare(ResolvedUpdate {
             program: new.clone(),

@@ -1,0 +1,227 @@
+//! A live update that uses signals the running program does not: when their addresses are on
+//! channels a field device serves, they join the I/O map at the install, and after the
+//! substitution the new output reaches a real pymodbus device, following a new input read from
+//! it. A candidate whose new signal no device serves is refused at load, naming it.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output, Stdio};
+use std::time::{Duration, Instant};
+
+use cetratus_testkit::paths::workspace_root;
+use cetratus_testkit::ports::{free_port, wait_for_port};
+use cetratus_testkit::process::ChildGuard;
+
+const BIN: &str = env!("CARGO_BIN_EXE_cetratus");
+
+/// Writes `name.toml` and `name.pnml`: for each `(i, input address, output address)`, output
+/// `y{i}` follows input `x{i}` one cycle later.
+fn program(dir: &Path, name: &str, version: &str, signals: &[(usize, &str, &str)]) -> PathBuf {
+    let mut pnml = String::from(
+        "<?xml version=\"1.0\"?>\n<pnml xmlns=\"http://www.pnml.org/version-2009/grammar/pnml\">\n<net id=\"n\" type=\"http://www.pnml.org/version-2009/grammar/ptnet\"><page id=\"g\">\n",
+    );
+    let mut toml = format!(
+        "[program]\nname = \"follow\"\nversion = \"{version}\"\nnet = \"{name}.pnml\"\npolicy = \"step\"\nscan_period = \"10ms\"\n"
+    );
+    let (mut outs, mut guards, mut actions) = (String::new(), String::new(), String::new());
+    for &(i, input, output) in signals {
+        pnml.push_str(&format!(
+            "<place id=\"p{i}\"><initialMarking><text>1</text></initialMarking></place><place id=\"q{i}\"/>\n<transition id=\"on{i}\"/><transition id=\"off{i}\"/>\n<arc id=\"a{i}\" source=\"p{i}\" target=\"on{i}\"/><arc id=\"b{i}\" source=\"on{i}\" target=\"q{i}\"/><arc id=\"c{i}\" source=\"q{i}\" target=\"off{i}\"/><arc id=\"d{i}\" source=\"off{i}\" target=\"p{i}\"/>\n"
+        ));
+        toml.push_str(&format!(
+            "[[input]]\nname = \"x{i}\"\ntype = \"bool\"\naddress = \"{input}\"\n"
+        ));
+        outs.push_str(&format!(
+            "[[output]]\nname = \"y{i}\"\ntype = \"bool\"\naddress = \"{output}\"\n"
+        ));
+        guards.push_str(&format!("on{i} = \"x{i}\"\noff{i} = \"!x{i}\"\n"));
+        actions.push_str(&format!(
+            "[[action]]\nplace = \"q{i}\"\nqualifier = \"N\"\ntarget = \"y{i}\"\n"
+        ));
+    }
+    pnml.push_str("</page></net></pnml>\n");
+    toml.push_str(&outs);
+    toml.push_str("[guards]\n");
+    toml.push_str(&guards);
+    toml.push_str(&actions);
+    std::fs::write(dir.join(format!("{name}.pnml")), pnml).expect("write the net");
+    let path = dir.join(format!("{name}.toml"));
+    std::fs::write(&path, toml).expect("write the program");
+    path
+}
+
+fn s(p: &Path) -> &str {
+    p.to_str().expect("a UTF-8 path")
+}
+
+fn cetratus(args: &[&str]) -> Output {
+    Command::new(BIN)
+        .args(args)
+        .output()
+        .expect("cetratus runs")
+}
+
+fn text(out: &Output) -> String {
+    format!(
+        "exit {:?}\nstdout: {}\nstderr: {}",
+        out.status.code(),
+        String::from_utf8_lossy(&out.stdout),
+        String::from_utf8_lossy(&out.stderr)
+    )
+}
+
+/// A signed package of `name.toml` over `base.toml`.
+fn package(dir: &Path, key: &Path, name: &str) -> PathBuf {
+    let manifest = dir.join(format!("{name}.package.toml"));
+    std::fs::write(
+        &manifest,
+        format!("[package]\nname = \"{name}\"\nversion = \"1.1.0\"\nauthor = \"tests\"\nprogram = \"{name}.toml\"\nbase = \"base.toml\"\n"),
+    )
+    .expect("write the manifest");
+    let pkg = dir.join(format!("{name}.cpkg"));
+    let out = cetratus(&[
+        "package",
+        "build",
+        s(&manifest),
+        "--key",
+        s(key),
+        "-o",
+        s(&pkg),
+    ]);
+    assert!(out.status.success(), "{}", text(&out));
+    pkg
+}
+
+/// What a pymodbus client reads from the device's coils.
+fn coils(port: u16) -> String {
+    let out = Command::new("python3")
+        .arg(workspace_root().join("scripts/modbus_peer.py"))
+        .args(["read", &port.to_string(), "coils", "0", "8"])
+        .output()
+        .expect("run the pymodbus client");
+    String::from_utf8_lossy(&out.stdout).trim().to_string()
+}
+
+fn wait_coils(port: u16, want: &str) -> String {
+    let end = Instant::now() + Duration::from_secs(30);
+    let mut seen = String::new();
+    while Instant::now() < end {
+        seen = coils(port);
+        if seen == want {
+            break;
+        }
+        std::thread::sleep(Duration::from_millis(100));
+    }
+    seen
+}
+
+#[test]
+fn an_update_adds_an_input_and_an_output_on_configured_channels_without_a_restart() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let d = dir.path();
+    let base = program(d, "base", "1.0.0", &[(0, "%IX0.0", "%QX0.0")]);
+    program(
+        d,
+        "grown",
+        "1.1.0",
+        &[(0, "%IX0.0", "%QX0.0"), (5, "%IX0.5", "%QX0.5")],
+    );
+    // x9 at %IX2.0, which no device serves.
+    program(
+        d,
+        "unserved",
+        "1.1.0",
+        &[(0, "%IX0.0", "%QX0.0"), (9, "%IX2.0", "%QX0.6")],
+    );
+    let key = d.join("k.key");
+    let out = cetratus(&["package", "keygen", "--out", s(&key)]);
+    assert!(out.status.success(), "{}", text(&out));
+    std::fs::create_dir_all(d.join("trusted")).expect("mkdir");
+    std::fs::copy(d.join("k.key.pub"), d.join("trusted/k.pub")).expect("copy the key");
+    let grown = package(d, &key, "grown");
+    let unserved = package(d, &key, "unserved");
+
+    // The device has x0 and x5 on.
+    let (device, mqtt) = (free_port(), free_port());
+    let _device = ChildGuard::spawn(
+        Command::new("python3")
+            .arg(workspace_root().join("scripts/modbus_peer.py"))
+            .args(["device", &device.to_string(), "--di", "1,0,0,0,0,1"])
+            .stdout(Stdio::null())
+            .stderr(Stdio::null()),
+    );
+    wait_for_port(device, "the pymodbus device", Duration::from_secs(30));
+    let io = d.join("io.toml");
+    std::fs::write(
+        &io,
+        format!("[[device]]\nname = \"rack\"\ntransport = \"modbus-tcp\"\naddress = \"127.0.0.1:{device}\"\ntimeout = \"500ms\"\nserves = [{{ from = \"%IX0.0\", to = \"%IX0.7\" }}, {{ from = \"%QX0.0\", to = \"%QX0.7\" }}]\n"),
+    )
+    .expect("write io.toml");
+    let _plc = ChildGuard::spawn(
+        Command::new(BIN)
+            .arg("run")
+            .arg(&base)
+            .arg("--io")
+            .arg(&io)
+            .args([
+                "--for",
+                "10min",
+                "--cold",
+                "--plc",
+                "grow1",
+                "--no-dashboard",
+            ])
+            .args(["--mqtt", &format!("127.0.0.1:{mqtt}")])
+            .arg("--trust")
+            .arg(d.join("trusted"))
+            .arg("--state-dir")
+            .arg(d.join("state"))
+            .arg("--config")
+            .arg(d.join("config"))
+            .stdout(Stdio::null())
+            .stderr(Stdio::null()),
+    );
+    wait_for_port(mqtt, "the embedded broker", Duration::from_secs(60));
+    let broker = format!("127.0.0.1:{mqtt}");
+    let client = |args: &[&str]| {
+        Command::new(BIN)
+            .args(args)
+            .args(["--plc", "grow1", "--mqtt", &broker])
+            .output()
+            .expect("the client runs")
+    };
+    // Only y0 is driven: coil 5 has no program yet.
+    assert_eq!(wait_coils(device, "1,0,0,0,0,0,0,0"), "1,0,0,0,0,0,0,0");
+
+    // A new signal no device serves: refused at load, naming it and its address.
+    let out = client(&["load", s(&unserved)]);
+    assert_ne!(out.status.code(), Some(0), "{}", text(&out));
+    let t = text(&out);
+    assert!(
+        t.contains("x9") && t.contains("%IX2.0") && t.contains("no device"),
+        "{t}"
+    );
+
+    // New signals on configured channels: loaded, in quarantine (y5 withheld), substituted.
+    let out = client(&["load", s(&grown)]);
+    assert_eq!(out.status.code(), Some(0), "{}", text(&out));
+    std::thread::sleep(Duration::from_millis(500));
+    assert_eq!(
+        coils(device),
+        "1,0,0,0,0,0,0,0",
+        "a candidate's outputs are withheld"
+    );
+    let out = client(&["substitute"]);
+    assert_eq!(out.status.code(), Some(0), "{}", text(&out));
+    assert_eq!(
+        wait_coils(device, "1,0,0,0,0,1,0,0"),
+        "1,0,0,0,0,1,0,0",
+        "y5 follows x5 at the device after the substitution"
+    );
+    let out = Command::new(BIN)
+        .args(["exec-info", "--broker", &format!("mqtt://{broker}")])
+        .args(["--plc", "grow1", "--json"])
+        .output()
+        .expect("exec-info");
+    let t = String::from_utf8_lossy(&out.stdout);
+    assert!(t.contains("\"rack\"") && t.contains("\"good\""), "{t}");
+}

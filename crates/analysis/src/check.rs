@@ -61,6 +61,8 @@ pub struct CheckOptions {
     pub set_limits: SetLimits,
     /// Explore the state space (false: structure only).
     pub behaviour: bool,
+    /// Property mode: use stubborn sets for `deadlock`, `reach` and `always`.
+    pub reduction: bool,
 }
 
 impl Default for CheckOptions {
@@ -76,22 +78,23 @@ impl Default for CheckOptions {
             farkas_max_rows: DEFAULT_MAX_ROWS,
             set_limits: SetLimits::default(),
             behaviour: true,
+            reduction: true,
         }
     }
 }
 
 /// Milliseconds on the options' clock since `since` (0 without a clock).
-fn ms(opts: &CheckOptions, since: Duration) -> f64 {
+pub(crate) fn ms(opts: &CheckOptions, since: Duration) -> f64 {
     now(opts).saturating_sub(since).as_secs_f64() * 1e3
 }
 
 /// The Farkas tableaux share the memory budget with the state space.
-fn tableau_bytes(opts: &CheckOptions) -> usize {
+pub(crate) fn tableau_bytes(opts: &CheckOptions) -> usize {
     opts.max_memory
         .map_or(usize::MAX, |m| usize::try_from(m).unwrap_or(usize::MAX))
 }
 
-fn now(opts: &CheckOptions) -> Duration {
+pub(crate) fn now(opts: &CheckOptions) -> Duration {
     opts.clock.as_ref().map_or(Duration::ZERO, |c| c.elapsed())
 }
 
@@ -189,20 +192,14 @@ fn named_flow(net: &Net, s: &Semiflow, places: bool) -> Named<i64> {
     )
 }
 
-/// Runs every analysis on `net` and reports. Never fails: what could not be computed is `null` in
-/// the report and explained in its notes.
-pub fn check(net: &Net, opts: &CheckOptions) -> Report {
-    let t0 = now(opts);
-    let np = net.num_places();
-    let nt = net.num_transitions();
-    let pid = |p: usize| net.places()[p].id.clone();
-    let tid = |t: TransIdx| net.transitions()[t.index()].id.clone();
-    let mut notes: Vec<String> = Vec::new();
-    let mut warnings: Vec<String> = Vec::new();
-    let classification = classify(net);
-    let incidence = (np * nt <= 10_000).then(|| Incidence::of(net));
-    let sb = structural_bounds_within(net, opts.farkas_max_rows, tableau_bytes(opts));
-    let known: Vec<Option<u64>> = match &sb {
+/// Per place, a proven bound: the structural bound (from `sb`) or the capacity, the smaller of
+/// the two when both exist.
+pub(crate) fn known_bounds(
+    net: &Net,
+    sb: &Result<Vec<Option<u64>>, AnalysisError>,
+    notes: &mut Vec<String>,
+) -> Vec<Option<u64>> {
+    match sb {
         Ok(b) => b
             .iter()
             .enumerate()
@@ -221,7 +218,23 @@ pub fn check(net: &Net, opts: &CheckOptions) -> Report {
                 .map(|p| p.capacity.map(u64::from))
                 .collect()
         }
-    };
+    }
+}
+
+/// Runs every analysis on `net` and reports. Never fails: what could not be computed is `null` in
+/// the report and explained in its notes.
+pub fn check(net: &Net, opts: &CheckOptions) -> Report {
+    let t0 = now(opts);
+    let np = net.num_places();
+    let nt = net.num_transitions();
+    let pid = |p: usize| net.places()[p].id.clone();
+    let tid = |t: TransIdx| net.transitions()[t.index()].id.clone();
+    let mut notes: Vec<String> = Vec::new();
+    let mut warnings: Vec<String> = Vec::new();
+    let classification = classify(net);
+    let incidence = (np * nt <= 10_000).then(|| Incidence::of(net));
+    let sb = structural_bounds_within(net, opts.farkas_max_rows, tableau_bytes(opts));
+    let known = known_bounds(net, &sb, &mut notes);
     let structurally_bounded = sb.as_ref().ok().map(|b| b.iter().all(Option::is_some));
     let structure_ms = ms(opts, t0);
 
@@ -369,6 +382,11 @@ pub fn check(net: &Net, opts: &CheckOptions) -> Report {
         bytes_per_state: None,
         store_bytes: None,
         incidence,
+        property: None,
+        holds: None,
+        witness: None,
+        witness_shortest: None,
+        reduction: None,
         timings: Timings {
             structure_ms,
             invariants_ms: st.invariants_ms,

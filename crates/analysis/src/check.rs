@@ -16,7 +16,9 @@ use crate::invariants::{
 };
 use crate::reach::{explore, Packing, ReachOptions, ReachResult, Stop};
 use crate::report::{Bound, Named, Report, Timings};
-use crate::siphons::{holds_marked_trap, minimal_siphons, minimal_traps, MinimalSets, SetLimits};
+use crate::siphons::{
+    holds_marked_trap, minimal_siphons_until, minimal_traps_until, MinimalSets, SetLimits,
+};
 use crate::{AnalysisError, Incidence};
 
 /// How far an exploration has got.
@@ -107,14 +109,38 @@ struct Structural {
     siphons_ms: f64,
 }
 
-fn structural(net: &Net, opts: &CheckOptions) -> Structural {
+/// The deadline of the whole run: `timeout` after now on the options' clock.
+pub(crate) fn deadline(opts: &CheckOptions) -> Option<Deadline> {
+    match (&opts.clock, opts.timeout) {
+        (Some(c), Some(t)) => Some(Deadline::after(c.clone(), t)),
+        _ => None,
+    }
+}
+
+/// Why the run must stop now, if it must: Ctrl-C or the time budget.
+pub(crate) fn interrupted(opts: &CheckOptions, deadline: &Option<Deadline>) -> Option<PartialReason> {
+    if opts
+        .cancel
+        .as_ref()
+        .is_some_and(|c| c.load(std::sync::atomic::Ordering::Relaxed))
+    {
+        return Some(PartialReason::Cancelled);
+    }
+    deadline
+        .as_ref()
+        .is_some_and(Deadline::passed)
+        .then_some(PartialReason::Timeout)
+}
+
+fn structural(net: &Net, opts: &CheckOptions, deadline: &Option<Deadline>) -> Structural {
+    let stop = || interrupted(opts, deadline).is_some();
     let t0 = now(opts);
-    let p = p_semiflows_within(net, opts.farkas_max_rows, tableau_bytes(opts));
-    let t = t_semiflows_within(net, opts.farkas_max_rows, tableau_bytes(opts));
+    let p = p_semiflows_within(net, opts.farkas_max_rows, tableau_bytes(opts), &stop);
+    let t = t_semiflows_within(net, opts.farkas_max_rows, tableau_bytes(opts), &stop);
     let invariants_ms = ms(opts, t0);
     let t1 = now(opts);
-    let siphons = minimal_siphons(net, opts.set_limits);
-    let traps = minimal_traps(net, opts.set_limits);
+    let siphons = minimal_siphons_until(net, opts.set_limits, &stop);
+    let traps = minimal_traps_until(net, opts.set_limits, &stop);
     Structural {
         p,
         t,
@@ -136,12 +162,10 @@ fn behaviour(
     net: &Net,
     known: &[Option<u64>],
     opts: &CheckOptions,
+    deadline: &Option<Deadline>,
     notes: &mut Vec<String>,
 ) -> Behaviour {
-    let deadline = match (&opts.clock, opts.timeout) {
-        (Some(c), Some(t)) => Some(Deadline::after(c.clone(), t)),
-        _ => None,
-    };
+    let deadline = deadline.clone();
     let ropts = ReachOptions {
         max_states: opts.max_states,
         max_memory: opts.max_memory,
@@ -233,7 +257,9 @@ pub fn check(net: &Net, opts: &CheckOptions) -> Report {
     let mut warnings: Vec<String> = Vec::new();
     let classification = classify(net);
     let incidence = (np * nt <= 10_000).then(|| Incidence::of(net));
-    let sb = structural_bounds_within(net, opts.farkas_max_rows, tableau_bytes(opts));
+    let deadline = deadline(opts);
+    let stop = || interrupted(opts, &deadline).is_some();
+    let sb = structural_bounds_within(net, opts.farkas_max_rows, tableau_bytes(opts), &stop);
     let known = known_bounds(net, &sb, &mut notes);
     let structurally_bounded = sb.as_ref().ok().map(|b| b.iter().all(Option::is_some));
     let structure_ms = ms(opts, t0);
@@ -241,9 +267,9 @@ pub fn check(net: &Net, opts: &CheckOptions) -> Report {
     let tb = now(opts);
     let (st, beh, behaviour_ms) = if opts.threads >= 2 && opts.behaviour {
         std::thread::scope(|s| {
-            let h = s.spawn(|| structural(net, opts));
+            let h = s.spawn(|| structural(net, opts, &deadline));
             let mut n = Vec::new();
-            let b = behaviour(net, &known, opts, &mut n);
+            let b = behaviour(net, &known, opts, &deadline, &mut n);
             let bms = ms(opts, tb);
             // A panic in the structural thread is a bug; surface it rather than hide it.
             let st = match h.join() {
@@ -254,10 +280,10 @@ pub fn check(net: &Net, opts: &CheckOptions) -> Report {
             (st, b, bms)
         })
     } else {
-        let st = structural(net, opts);
+        let st = structural(net, opts, &deadline);
         let tb = now(opts);
         let b = if opts.behaviour {
-            behaviour(net, &known, opts, &mut notes)
+            behaviour(net, &known, opts, &deadline, &mut notes)
         } else {
             Behaviour::None("behaviour not requested".into())
         };
@@ -527,6 +553,23 @@ pub fn check(net: &Net, opts: &CheckOptions) -> Report {
                 report.partial_reason = Some(s.reason());
                 report.notes.push(stop_note(s));
             }
+        }
+    }
+    // The structural phase honours the same time budget and Ctrl-C as the exploration.
+    let cut = |r: Option<&AnalysisError>| matches!(r, Some(AnalysisError::Interrupted { .. }));
+    if !report.partial
+        && (cut(sb.as_ref().err())
+            || cut(st.p.as_ref().err())
+            || cut(st.t.as_ref().err())
+            || st.siphons.truncated
+            || st.traps.truncated)
+    {
+        if let Some(why) = interrupted(opts, &deadline) {
+            report.partial = true;
+            report.partial_reason = Some(why);
+            report.notes.push(format!(
+                "the structural analyses were cut short ({why}); what they could not finish is                  null or truncated"
+            ));
         }
     }
     report

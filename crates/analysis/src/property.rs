@@ -19,8 +19,8 @@
 
 use cetratus_net::{Net, TransIdx};
 
-use crate::budget::{Deadline, PartialReason};
-use crate::check::{known_bounds, ms, now, tableau_bytes};
+use crate::budget::PartialReason;
+use crate::check::{deadline, interrupted, known_bounds, ms, now, tableau_bytes};
 use crate::classify::classify;
 use crate::coverability::{karp_miller, karp_miller_until_omega};
 use crate::invariants::structural_bounds_within;
@@ -154,7 +154,9 @@ fn names(net: &Net, path: &[TransIdx]) -> Vec<String> {
 pub fn check_property(net: &Net, property: &Property, opts: &CheckOptions) -> Report {
     let t0 = now(opts);
     let mut r = blank(net, property);
-    let sb = structural_bounds_within(net, opts.farkas_max_rows, tableau_bytes(opts));
+    let deadline = deadline(opts);
+    let stop = || interrupted(opts, &deadline).is_some();
+    let sb = structural_bounds_within(net, opts.farkas_max_rows, tableau_bytes(opts), &stop);
     let known = known_bounds(net, &sb, &mut r.notes);
     r.structurally_bounded = sb.as_ref().ok().map(|b| b.iter().all(Option::is_some));
     r.timings.structure_ms = ms(opts, t0);
@@ -162,10 +164,7 @@ pub fn check_property(net: &Net, property: &Property, opts: &CheckOptions) -> Re
     let ropts = ReachOptions {
         max_states: opts.max_states,
         max_memory: opts.max_memory,
-        deadline: match (&opts.clock, opts.timeout) {
-            (Some(c), Some(t)) => Some(Deadline::after(c.clone(), t)),
-            _ => None,
-        },
+        deadline,
         cancel: opts.cancel.clone(),
         progress: opts.progress.clone(),
         liveness: false,

@@ -1,7 +1,7 @@
 //! A terminal progress display for long explorations (indicatif, on stderr).
 
 use std::sync::{Arc, Mutex};
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
 use crate::{Progress, ProgressFn};
 
@@ -16,9 +16,8 @@ pub struct TerminalProgress {
     bar: indicatif::ProgressBar,
     max_states: u64,
     timeout: Duration,
-    start: Instant,
-    /// The last reading: (time, states), for the rate.
-    last: Arc<Mutex<Option<(Instant, u64)>>>,
+    /// The last reading: (time since the start, states), for the rate.
+    last: Arc<Mutex<Option<(Duration, u64)>>>,
 }
 
 impl TerminalProgress {
@@ -33,7 +32,6 @@ impl TerminalProgress {
             bar,
             max_states,
             timeout,
-            start: Instant::now(),
             last: Arc::new(Mutex::new(None)),
         }
     }
@@ -45,8 +43,9 @@ impl TerminalProgress {
     }
 
     fn show(&self, p: Progress) {
-        let now = Instant::now();
-        let elapsed = now.duration_since(self.start);
+        // indicatif's own clock (the analysis reads none): time since the display was made.
+        let now = self.bar.elapsed();
+        let elapsed = now;
         if elapsed < QUIET_FOR {
             return;
         }
@@ -55,7 +54,7 @@ impl TerminalProgress {
         };
         let rate = match *last {
             Some((t, s)) if now > t => {
-                (p.states.saturating_sub(s)) as f64 / now.duration_since(t).as_secs_f64()
+                (p.states.saturating_sub(s)) as f64 / (now - t).as_secs_f64()
             }
             _ => p.states as f64 / elapsed.as_secs_f64().max(1e-3),
         };

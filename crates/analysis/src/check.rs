@@ -118,7 +118,10 @@ pub(crate) fn deadline(opts: &CheckOptions) -> Option<Deadline> {
 }
 
 /// Why the run must stop now, if it must: Ctrl-C or the time budget.
-pub(crate) fn interrupted(opts: &CheckOptions, deadline: &Option<Deadline>) -> Option<PartialReason> {
+pub(crate) fn interrupted(
+    opts: &CheckOptions,
+    deadline: &Option<Deadline>,
+) -> Option<PartialReason> {
     if opts
         .cancel
         .as_ref()

@@ -336,7 +336,14 @@ pub fn t_semiflows_within(
     stop: &dyn Fn() -> bool,
 ) -> Result<Vec<Semiflow>, AnalysisError> {
     let rows = c_columns(net);
-    farkas_sparse(&rows, net.num_places(), max_rows, max_bytes, "T-semiflows", stop)
+    farkas_sparse(
+        &rows,
+        net.num_places(),
+        max_rows,
+        max_bytes,
+        "T-semiflows",
+        stop,
+    )
 }
 
 /// Structural bounds: for each place, `Some(b)` when every reachable marking has `M[p] ≤ b`

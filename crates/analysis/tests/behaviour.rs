@@ -237,7 +237,11 @@ fn the_structural_phase_stops_at_the_timeout_and_the_report_says_so() {
         assert_eq!(r.partial_reason, Some(PartialReason::Timeout));
         assert_eq!(r.p_invariants, None, "{:?}", r.notes);
         assert_eq!(r.t_invariants, None);
-        assert!(r.notes.iter().any(|n| n.contains("P-invariants")), "{:?}", r.notes);
+        assert!(
+            r.notes.iter().any(|n| n.contains("P-invariants")),
+            "{:?}",
+            r.notes
+        );
     }
 }
 

@@ -366,10 +366,7 @@ fn decide(
         }
         None => {
             // The search met no target and explored everything.
-            r.holds = Some(match property {
-                Property::Deadlock | Property::Reach(_) => false,
-                _ => true,
-            });
+            r.holds = Some(!matches!(property, Property::Deadlock | Property::Reach(_)));
             match property {
                 Property::Safe => r.safe = Some(true),
                 Property::Live => r.live = Some(true),

@@ -62,7 +62,7 @@ impl Stubborn {
         let mut needs = vec![Vec::new(); np];
         let mut inhibited = vec![Vec::new(); np];
         let mut visible = vec![false; nt];
-        for i in 0..nt {
+        for (i, vis) in visible.iter_mut().enumerate() {
             for &(p, d) in net.delta(t(i)) {
                 if d > 0 {
                     inc[p.index()].push(i as u32);
@@ -70,7 +70,7 @@ impl Stubborn {
                     dec[p.index()].push(i as u32);
                 }
                 if d != 0 && visible_places.is_some_and(|v| v[p.index()]) {
-                    visible[i] = true;
+                    *vis = true;
                 }
             }
             for &(p, _) in net.pre(t(i)) {

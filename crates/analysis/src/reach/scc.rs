@@ -11,9 +11,8 @@
 //! one lookup per edge, stopping as soon as every state is found. Otherwise an iterative Tarjan
 //! (explicit frames, no recursion) finds the terminal components.
 //!
-//! Memory, all counted: the table, a bit per slot and a queue of the keys themselves (8·W bytes
-//! per state, no more than the exploration's states array) for the backward search; for Tarjan
-//! two `u32` per slot, two bits per slot, and its stacks.
+//! Memory, all counted: the table, a bit per slot and a queue of 4 bytes per state for the
+//! backward search; for Tarjan two `u32` per slot, two bits per slot, and its stacks.
 
 use super::{hash, Compiled, Liveness, ReachOptions, Stop, Table};
 use cetratus_net::TransIdx;
@@ -74,16 +73,14 @@ fn reaches_root<const W: usize>(
         return reaches_root_layered(code, table, root, states, opts);
     }
     let cap = table.slots.len();
-    // The queue holds the keys themselves (no more than the exploration's states array held):
-    // reading a dequeued key is then a sequential read, not a cache miss in the table.
-    let bytes = table.bytes() + cap.div_ceil(64) * 8 + states * 8 * W;
+    let bytes = table.bytes() + cap.div_ceil(64) * 8 + states * 4;
     opts.within_memory(bytes).map_err(|s| (s, bytes))?;
     let mut seen = vec![0u64; cap.div_ceil(64)];
-    let mut queue: Vec<[u64; W]> = Vec::with_capacity(states);
+    let mut queue: Vec<u32> = Vec::with_capacity(states);
     let nt = code.offsets.len() - 1;
     let mut batch: Vec<([u64; W], u64)> = Vec::with_capacity(nt);
     set(&mut seen, root);
-    queue.push(table.slots[root]);
+    queue.push(root as u32);
     let mut head = 0;
     while head < queue.len() && queue.len() < states {
         if head & 0x3FFF == 0 && head > 0 {
@@ -91,7 +88,7 @@ fn reaches_root<const W: usize>(
                 return Err((s, bytes));
             }
         }
-        let key = queue[head];
+        let key = table.slots[queue[head] as usize];
         head += 1;
         batch.clear();
         for t in 0..nt {
@@ -106,7 +103,7 @@ fn reaches_root<const W: usize>(
             if let Some(s) = table.slot_of(u, *h) {
                 if !bit(&seen, s) {
                     set(&mut seen, s);
-                    queue.push(*u);
+                    queue.push(s as u32);
                 }
             }
         }

@@ -112,6 +112,30 @@ fn every_fixture_answers_each_property_as_the_full_check_does() {
 }
 
 #[test]
+fn on_every_fixture_each_place_bound_is_reached_with_stubborn_sets_and_never_exceeded() {
+    for f in FIXTURES {
+        let net = nets::fixture(f);
+        let full = check(&net, &CheckOptions::default());
+        for (p, b) in &full.max_tokens.0 {
+            let cetratus_analysis::Bound::Tokens(b) = *b else {
+                panic!("{f}: {p} has no bound");
+            };
+            let at = Predicate::parse(&format!("\"{p}\" >= {b}"), &net).expect("predicate");
+            let over = Predicate::parse(&format!("\"{p}\" > {b}"), &net).expect("predicate");
+            for reduction in [true, false] {
+                let r = prop(&net, &Property::Reach(at.clone()), reduction);
+                assert_eq!(r.holds, Some(true), "{f}: {p} >= {b}");
+                let end = replay(&net, r.witness.as_ref().expect("witness"));
+                let idx = net.place_by_id(p).expect("place").index();
+                assert_eq!(u64::from(end[idx]), b, "{f}: {p}");
+                let r = prop(&net, &Property::Always(over.negated()), reduction);
+                assert_eq!(r.holds, Some(true), "{f}: never {p} > {b}");
+            }
+        }
+    }
+}
+
+#[test]
 fn the_philosophers_deadlock_witness_replays_to_a_dead_marking_with_and_without_reduction() {
     let net = nets::fixture("mcc/Philosophers-PT-000005.pnml");
     let reduced = prop(&net, &Property::Deadlock, true);

@@ -16,7 +16,9 @@ use crate::invariants::{
 };
 use crate::reach::{explore, Packing, ReachOptions, ReachResult, Stop};
 use crate::report::{Bound, Named, Report, Timings};
-use crate::siphons::{holds_marked_trap, minimal_siphons, minimal_traps, MinimalSets, SetLimits};
+use crate::siphons::{
+    holds_marked_trap, minimal_siphons_until, minimal_traps_until, MinimalSets, SetLimits,
+};
 use crate::{AnalysisError, Incidence};
 
 /// How far an exploration has got.
@@ -61,6 +63,8 @@ pub struct CheckOptions {
     pub set_limits: SetLimits,
     /// Explore the state space (false: structure only).
     pub behaviour: bool,
+    /// Property mode: use stubborn sets for `deadlock`, `reach` and `always`.
+    pub reduction: bool,
 }
 
 impl Default for CheckOptions {
@@ -76,22 +80,23 @@ impl Default for CheckOptions {
             farkas_max_rows: DEFAULT_MAX_ROWS,
             set_limits: SetLimits::default(),
             behaviour: true,
+            reduction: true,
         }
     }
 }
 
 /// Milliseconds on the options' clock since `since` (0 without a clock).
-fn ms(opts: &CheckOptions, since: Duration) -> f64 {
+pub(crate) fn ms(opts: &CheckOptions, since: Duration) -> f64 {
     now(opts).saturating_sub(since).as_secs_f64() * 1e3
 }
 
 /// The Farkas tableaux share the memory budget with the state space.
-fn tableau_bytes(opts: &CheckOptions) -> usize {
+pub(crate) fn tableau_bytes(opts: &CheckOptions) -> usize {
     opts.max_memory
         .map_or(usize::MAX, |m| usize::try_from(m).unwrap_or(usize::MAX))
 }
 
-fn now(opts: &CheckOptions) -> Duration {
+pub(crate) fn now(opts: &CheckOptions) -> Duration {
     opts.clock.as_ref().map_or(Duration::ZERO, |c| c.elapsed())
 }
 
@@ -104,14 +109,41 @@ struct Structural {
     siphons_ms: f64,
 }
 
-fn structural(net: &Net, opts: &CheckOptions) -> Structural {
+/// The deadline of the whole run: `timeout` after now on the options' clock.
+pub(crate) fn deadline(opts: &CheckOptions) -> Option<Deadline> {
+    match (&opts.clock, opts.timeout) {
+        (Some(c), Some(t)) => Some(Deadline::after(c.clone(), t)),
+        _ => None,
+    }
+}
+
+/// Why the run must stop now, if it must: Ctrl-C or the time budget.
+pub(crate) fn interrupted(
+    opts: &CheckOptions,
+    deadline: &Option<Deadline>,
+) -> Option<PartialReason> {
+    if opts
+        .cancel
+        .as_ref()
+        .is_some_and(|c| c.load(std::sync::atomic::Ordering::Relaxed))
+    {
+        return Some(PartialReason::Cancelled);
+    }
+    deadline
+        .as_ref()
+        .is_some_and(Deadline::passed)
+        .then_some(PartialReason::Timeout)
+}
+
+fn structural(net: &Net, opts: &CheckOptions, deadline: &Option<Deadline>) -> Structural {
+    let stop = || interrupted(opts, deadline).is_some();
     let t0 = now(opts);
-    let p = p_semiflows_within(net, opts.farkas_max_rows, tableau_bytes(opts));
-    let t = t_semiflows_within(net, opts.farkas_max_rows, tableau_bytes(opts));
+    let p = p_semiflows_within(net, opts.farkas_max_rows, tableau_bytes(opts), &stop);
+    let t = t_semiflows_within(net, opts.farkas_max_rows, tableau_bytes(opts), &stop);
     let invariants_ms = ms(opts, t0);
     let t1 = now(opts);
-    let siphons = minimal_siphons(net, opts.set_limits);
-    let traps = minimal_traps(net, opts.set_limits);
+    let siphons = minimal_siphons_until(net, opts.set_limits, &stop);
+    let traps = minimal_traps_until(net, opts.set_limits, &stop);
     Structural {
         p,
         t,
@@ -133,12 +165,10 @@ fn behaviour(
     net: &Net,
     known: &[Option<u64>],
     opts: &CheckOptions,
+    deadline: &Option<Deadline>,
     notes: &mut Vec<String>,
 ) -> Behaviour {
-    let deadline = match (&opts.clock, opts.timeout) {
-        (Some(c), Some(t)) => Some(Deadline::after(c.clone(), t)),
-        _ => None,
-    };
+    let deadline = deadline.clone();
     let ropts = ReachOptions {
         max_states: opts.max_states,
         max_memory: opts.max_memory,
@@ -189,20 +219,14 @@ fn named_flow(net: &Net, s: &Semiflow, places: bool) -> Named<i64> {
     )
 }
 
-/// Runs every analysis on `net` and reports. Never fails: what could not be computed is `null` in
-/// the report and explained in its notes.
-pub fn check(net: &Net, opts: &CheckOptions) -> Report {
-    let t0 = now(opts);
-    let np = net.num_places();
-    let nt = net.num_transitions();
-    let pid = |p: usize| net.places()[p].id.clone();
-    let tid = |t: TransIdx| net.transitions()[t.index()].id.clone();
-    let mut notes: Vec<String> = Vec::new();
-    let mut warnings: Vec<String> = Vec::new();
-    let classification = classify(net);
-    let incidence = (np * nt <= 10_000).then(|| Incidence::of(net));
-    let sb = structural_bounds_within(net, opts.farkas_max_rows, tableau_bytes(opts));
-    let known: Vec<Option<u64>> = match &sb {
+/// Per place, a proven bound: the structural bound (from `sb`) or the capacity, the smaller of
+/// the two when both exist.
+pub(crate) fn known_bounds(
+    net: &Net,
+    sb: &Result<Vec<Option<u64>>, AnalysisError>,
+    notes: &mut Vec<String>,
+) -> Vec<Option<u64>> {
+    match sb {
         Ok(b) => b
             .iter()
             .enumerate()
@@ -221,16 +245,34 @@ pub fn check(net: &Net, opts: &CheckOptions) -> Report {
                 .map(|p| p.capacity.map(u64::from))
                 .collect()
         }
-    };
+    }
+}
+
+/// Runs every analysis on `net` and reports. Never fails: what could not be computed is `null` in
+/// the report and explained in its notes.
+pub fn check(net: &Net, opts: &CheckOptions) -> Report {
+    let t0 = now(opts);
+    let np = net.num_places();
+    let nt = net.num_transitions();
+    let pid = |p: usize| net.places()[p].id.clone();
+    let tid = |t: TransIdx| net.transitions()[t.index()].id.clone();
+    let mut notes: Vec<String> = Vec::new();
+    let mut warnings: Vec<String> = Vec::new();
+    let classification = classify(net);
+    let incidence = (np * nt <= 10_000).then(|| Incidence::of(net));
+    let deadline = deadline(opts);
+    let stop = || interrupted(opts, &deadline).is_some();
+    let sb = structural_bounds_within(net, opts.farkas_max_rows, tableau_bytes(opts), &stop);
+    let known = known_bounds(net, &sb, &mut notes);
     let structurally_bounded = sb.as_ref().ok().map(|b| b.iter().all(Option::is_some));
     let structure_ms = ms(opts, t0);
 
     let tb = now(opts);
     let (st, beh, behaviour_ms) = if opts.threads >= 2 && opts.behaviour {
         std::thread::scope(|s| {
-            let h = s.spawn(|| structural(net, opts));
+            let h = s.spawn(|| structural(net, opts, &deadline));
             let mut n = Vec::new();
-            let b = behaviour(net, &known, opts, &mut n);
+            let b = behaviour(net, &known, opts, &deadline, &mut n);
             let bms = ms(opts, tb);
             // A panic in the structural thread is a bug; surface it rather than hide it.
             let st = match h.join() {
@@ -241,10 +283,10 @@ pub fn check(net: &Net, opts: &CheckOptions) -> Report {
             (st, b, bms)
         })
     } else {
-        let st = structural(net, opts);
+        let st = structural(net, opts, &deadline);
         let tb = now(opts);
         let b = if opts.behaviour {
-            behaviour(net, &known, opts, &mut notes)
+            behaviour(net, &known, opts, &deadline, &mut notes)
         } else {
             Behaviour::None("behaviour not requested".into())
         };
@@ -369,6 +411,11 @@ pub fn check(net: &Net, opts: &CheckOptions) -> Report {
         bytes_per_state: None,
         store_bytes: None,
         incidence,
+        property: None,
+        holds: None,
+        witness: None,
+        witness_shortest: None,
+        reduction: None,
         timings: Timings {
             structure_ms,
             invariants_ms: st.invariants_ms,
@@ -510,6 +557,23 @@ pub fn check(net: &Net, opts: &CheckOptions) -> Report {
                 report.partial_reason = Some(s.reason());
                 report.notes.push(stop_note(s));
             }
+        }
+    }
+    // The structural phase honours the same time budget and Ctrl-C as the exploration.
+    let cut = |r: Option<&AnalysisError>| matches!(r, Some(AnalysisError::Interrupted { .. }));
+    if !report.partial
+        && (cut(sb.as_ref().err())
+            || cut(st.p.as_ref().err())
+            || cut(st.t.as_ref().err())
+            || st.siphons.truncated
+            || st.traps.truncated)
+    {
+        if let Some(why) = interrupted(opts, &deadline) {
+            report.partial = true;
+            report.partial_reason = Some(why);
+            report.notes.push(format!(
+                "the structural analyses were cut short ({why}); what they could not finish is                  null or truncated"
+            ));
         }
     }
     report

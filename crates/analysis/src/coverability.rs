@@ -34,6 +34,9 @@ pub struct Coverability {
     pub max_tokens: Vec<u64>,
     /// Why it stopped early, if it did.
     pub stopped: Option<Stop>,
+    /// The firing sequence to the first node that got an ω: it reaches a marking that strictly
+    /// covers an earlier marking on the same path, so the sequence between them can repeat.
+    pub first_omega: Option<Vec<TransIdx>>,
 }
 
 fn enabled(net: &Net, t: TransIdx, m: &[u64]) -> bool {
@@ -162,6 +165,16 @@ impl Seen {
 
 /// Builds the Karp–Miller graph of `net`, within the options' states, bytes and time.
 pub fn karp_miller(net: &Net, opts: &ReachOptions) -> Coverability {
+    build(net, opts, false)
+}
+
+/// Like [`karp_miller`], but stops at the first ω (`first_omega` then holds its path): enough to
+/// show that the net is unbounded.
+pub fn karp_miller_until_omega(net: &Net, opts: &ReachOptions) -> Coverability {
+    build(net, opts, true)
+}
+
+fn build(net: &Net, opts: &ReachOptions, stop_at_omega: bool) -> Coverability {
     let np = net.num_places();
     let nt = net.num_transitions();
     let m0: Vec<u64> = net
@@ -195,6 +208,7 @@ pub fn karp_miller(net: &Net, opts: &ReachOptions) -> Coverability {
     let (mut edges, mut dead) = (0u64, 0u64);
     let mut first_dead = None;
     let mut stopped = None;
+    let mut first_omega: Option<(usize, u32)> = None;
     let mut cur = 0usize;
     let mut m: Vec<u64> = Vec::with_capacity(np);
     'bfs: while cur < nodes.len {
@@ -238,6 +252,12 @@ pub fn karp_miller(net: &Net, opts: &ReachOptions) -> Coverability {
                 }
                 a = nodes.parent(ai).map(|(p, _)| p);
             }
+            if first_omega.is_none() && succ.contains(&OMEGA) {
+                first_omega = Some((cur, ti as u32));
+                if stop_at_omega {
+                    break 'bfs;
+                }
+            }
             if seen.find(&nodes, &succ).is_err() {
                 if nodes.len as u64 >= max_states {
                     stopped = Some(Stop::MaxStates(max_states));
@@ -269,7 +289,7 @@ pub fn karp_miller(net: &Net, opts: &ReachOptions) -> Coverability {
             *x = (*x).max(v);
         }
     }
-    let dead_witness = first_dead.map(|d| {
+    let path = |d: usize| {
         let mut path = Vec::new();
         let mut v = d;
         while let Some((p, t)) = nodes.parent(v) {
@@ -278,6 +298,12 @@ pub fn karp_miller(net: &Net, opts: &ReachOptions) -> Coverability {
         }
         path.reverse();
         path
+    };
+    let dead_witness = first_dead.map(path);
+    let first_omega = first_omega.map(|(v, t)| {
+        let mut p = path(v);
+        p.push(TransIdx(t));
+        p
     });
     Coverability {
         nodes: nodes.len as u64,
@@ -290,5 +316,6 @@ pub fn karp_miller(net: &Net, opts: &ReachOptions) -> Coverability {
             .collect(),
         max_tokens,
         stopped,
+        first_omega,
     }
 }

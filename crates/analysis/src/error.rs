@@ -17,6 +17,12 @@ pub enum AnalysisError {
         /// The limit that was hit.
         limit: usize,
     },
+    /// The time budget ran out, or the run was cancelled, during a structural computation.
+    #[error("{what} stopped when the time budget ran out or Ctrl-C was pressed")]
+    Interrupted {
+        /// What was being computed.
+        what: &'static str,
+    },
     /// A state of the net does not fit the packed encoding.
     #[error("the state vector of this net needs {bits} bits, more than the {max} the packed explorer supports")]
     StateTooWide {

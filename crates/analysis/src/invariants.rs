@@ -147,21 +147,25 @@ pub fn farkas(
                 .collect()
         })
         .collect();
-    farkas_sparse(&sparse, m, max_rows, usize::MAX, what)
+    farkas_sparse(&sparse, m, max_rows, usize::MAX, what, &|| false)
 }
 
 /// All minimal-support `x ≥ 0, x ≠ 0` with `x·A = 0`, for `A` given by sparse rows (sorted
 /// `(column, value)` pairs, columns below `m`).
 ///
 /// `what` names the computation in errors. More than `max_rows` rows, or a tableau holding more
-/// than `max_bytes`, abandons the computation with [`AnalysisError::Limit`].
+/// than `max_bytes`, abandons the computation with [`AnalysisError::Limit`]; `stop` returning
+/// true (time is up, Ctrl-C) abandons it with [`AnalysisError::Interrupted`].
 pub fn farkas_sparse(
     a: &[Vec<(u32, i64)>],
     m: usize,
     max_rows: usize,
     max_bytes: usize,
     what: &'static str,
+    stop: &dyn Fn() -> bool,
 ) -> Result<Vec<Semiflow>, AnalysisError> {
+    let interrupted = || AnalysisError::Interrupted { what };
+    let mut pairs = 0u32;
     let mut rows: Vec<Row> = a
         .iter()
         .enumerate()
@@ -173,6 +177,9 @@ pub fn farkas_sparse(
     let mut bytes: usize = rows.iter().map(Row::bytes).sum();
     let overflow = || AnalysisError::Overflow { what };
     for j in 0..m as u32 {
+        if stop() {
+            return Err(interrupted());
+        }
         let (mut pos, mut neg, mut zero) = (Vec::new(), Vec::new(), Vec::new());
         for r in rows.drain(..) {
             match r.at(j).signum() {
@@ -185,6 +192,10 @@ pub fn farkas_sparse(
         let mut next = zero;
         for p in &pos {
             for q in &neg {
+                pairs = pairs.wrapping_add(1);
+                if pairs & 0xFFF == 0 && stop() {
+                    return Err(interrupted());
+                }
                 let (a, b) = (i128::from(-q.at(j)), i128::from(p.at(j)));
                 let mut g = 0i128;
                 let rhs = combine(a, &p.rhs, b, &q.rhs, &mut g).ok_or_else(overflow)?;
@@ -291,14 +302,15 @@ fn c_columns(net: &Net) -> Vec<Vec<(u32, i64)>> {
 
 /// The minimal P-semiflows of `net` (`y·C = 0`), indices are places.
 pub fn p_semiflows(net: &Net, max_rows: usize) -> Result<Vec<Semiflow>, AnalysisError> {
-    p_semiflows_within(net, max_rows, usize::MAX)
+    p_semiflows_within(net, max_rows, usize::MAX, &|| false)
 }
 
-/// [`p_semiflows`] with a limit on the bytes of the tableau.
+/// [`p_semiflows`] with a limit on the bytes of the tableau, abandoned when `stop` says so.
 pub fn p_semiflows_within(
     net: &Net,
     max_rows: usize,
     max_bytes: usize,
+    stop: &dyn Fn() -> bool,
 ) -> Result<Vec<Semiflow>, AnalysisError> {
     let rows = c_rows(net);
     farkas_sparse(
@@ -307,12 +319,13 @@ pub fn p_semiflows_within(
         max_rows,
         max_bytes,
         "P-semiflows",
+        stop,
     )
 }
 
 /// The minimal T-semiflows of `net` (`C·x = 0`), indices are transitions.
 pub fn t_semiflows(net: &Net, max_rows: usize) -> Result<Vec<Semiflow>, AnalysisError> {
-    t_semiflows_within(net, max_rows, usize::MAX)
+    t_semiflows_within(net, max_rows, usize::MAX, &|| false)
 }
 
 /// [`t_semiflows`] with a limit on the bytes of the tableau.
@@ -320,9 +333,17 @@ pub fn t_semiflows_within(
     net: &Net,
     max_rows: usize,
     max_bytes: usize,
+    stop: &dyn Fn() -> bool,
 ) -> Result<Vec<Semiflow>, AnalysisError> {
     let rows = c_columns(net);
-    farkas_sparse(&rows, net.num_places(), max_rows, max_bytes, "T-semiflows")
+    farkas_sparse(
+        &rows,
+        net.num_places(),
+        max_rows,
+        max_bytes,
+        "T-semiflows",
+        stop,
+    )
 }
 
 /// Structural bounds: for each place, `Some(b)` when every reachable marking has `M[p] ≤ b`
@@ -333,7 +354,7 @@ pub fn t_semiflows_within(
 /// structurally bounded by `⌊y·M0 / y[p]⌋` (for a generator with `y[p] > 0`), and the net is
 /// structurally bounded exactly when every place is. Capacities are not used here.
 pub fn structural_bounds(net: &Net, max_rows: usize) -> Result<Vec<Option<u64>>, AnalysisError> {
-    structural_bounds_within(net, max_rows, usize::MAX)
+    structural_bounds_within(net, max_rows, usize::MAX, &|| false)
 }
 
 /// [`structural_bounds`] with a limit on the bytes of the tableau.
@@ -341,12 +362,13 @@ pub fn structural_bounds_within(
     net: &Net,
     max_rows: usize,
     max_bytes: usize,
+    stop: &dyn Fn() -> bool,
 ) -> Result<Vec<Option<u64>>, AnalysisError> {
     let np = net.num_places();
     let nt = net.num_transitions();
     let mut a = c_rows(net);
     a.extend((0..nt).map(|t| vec![(t as u32, 1)]));
-    let gens = farkas_sparse(&a, nt, max_rows, max_bytes, "structural bounds")?;
+    let gens = farkas_sparse(&a, nt, max_rows, max_bytes, "structural bounds", stop)?;
     let m0 = net.initial_marking();
     let mut bounds: Vec<Option<u64>> = vec![None; np];
     for g in &gens {

@@ -8,6 +8,9 @@
 //!   Karp–Miller coverability graph when the net may be unbounded, deadlocks with a shortest
 //!   witness, place bounds, liveness and reversibility from the terminal strongly connected
 //!   components.
+//! * Property-directed checks ([`check_property`]): one property (deadlock, bounded, safe, live,
+//!   reversible, or a predicate reachable / always true), stopping as soon as it is decided, with
+//!   stubborn-set reduction for deadlocks and predicates.
 //! * [`check`] runs everything and returns a [`Report`] (serde-serialisable, with a text rendering).
 //!
 //! Semantics are the plain interleaving semantics of DESIGN §3: every enabled transition at a state
@@ -22,7 +25,9 @@ mod error;
 pub mod families;
 pub mod invariants;
 pub mod matrix;
+pub mod predicate;
 mod progress;
+mod property;
 pub mod reach;
 mod report;
 pub mod sfc;
@@ -34,7 +39,9 @@ pub use classify::Classification;
 pub use error::AnalysisError;
 pub use invariants::Semiflow;
 pub use matrix::Incidence;
+pub use predicate::{Predicate, PredicateError};
 pub use progress::TerminalProgress;
+pub use property::{check_property, Property};
 pub use report::{Bound, Named, Report};
 
 /// The structural analyses, gathered under one name for readers of the issue.

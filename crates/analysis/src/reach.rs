@@ -32,6 +32,8 @@ use crate::{AnalysisError, Progress, ProgressFn};
 
 mod par;
 mod scc;
+pub(crate) mod search;
+pub(crate) mod stubborn;
 
 /// Bits a state may use at most in the packed explorer.
 pub const MAX_BITS: usize = 32 * 63;
@@ -535,6 +537,30 @@ pub fn explore(
         5..=8 => Ok(explore_w::<8>(net, packing, opts)),
         9..=16 => Ok(explore_w::<16>(net, packing, opts)),
         17..=32 => Ok(explore_w::<32>(net, packing, opts)),
+        _ => Err(AnalysisError::StateTooWide {
+            bits: packing.bits,
+            max: MAX_BITS,
+        }),
+    }
+}
+
+/// The property-directed search (module `search`) with states packed by `packing`.
+pub(crate) fn search(
+    net: &Net,
+    packing: &Packing,
+    target: &search::Target<'_>,
+    stubborn: Option<&stubborn::Stubborn>,
+    after: search::After,
+    opts: &ReachOptions,
+) -> Result<search::Outcome, AnalysisError> {
+    let (t, s, a, o) = (target, stubborn, after, opts);
+    match packing.words {
+        1 => Ok(search::search::<1>(net, packing, t, s, a, o)),
+        2 => Ok(search::search::<2>(net, packing, t, s, a, o)),
+        3..=4 => Ok(search::search::<4>(net, packing, t, s, a, o)),
+        5..=8 => Ok(search::search::<8>(net, packing, t, s, a, o)),
+        9..=16 => Ok(search::search::<16>(net, packing, t, s, a, o)),
+        17..=32 => Ok(search::search::<32>(net, packing, t, s, a, o)),
         _ => Err(AnalysisError::StateTooWide {
             bits: packing.bits,
             max: MAX_BITS,

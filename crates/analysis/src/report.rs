@@ -142,6 +142,18 @@ pub struct Report {
     pub bytes_per_state: Option<f64>,
     /// Peak bytes of the state store.
     pub store_bytes: Option<usize>,
+    /// Property mode (`--property`, `--reach`, `--always`): the property checked, e.g.
+    /// `deadlock` or `reach P1 >= 2`; `null` in a full check.
+    pub property: Option<String>,
+    /// Whether the property holds; `null` when the run could not decide it.
+    pub holds: Option<bool>,
+    /// The firing sequence that shows the answer: to a marking satisfying `reach`, to a dead
+    /// marking, or to a counterexample of `always`, `bounded`, `safe`, `live`, `reversible`.
+    pub witness: Option<Vec<String>>,
+    /// The witness is a shortest such sequence (breadth-first search without reduction).
+    pub witness_shortest: Option<bool>,
+    /// The state-space reduction used in property mode: `stubborn` or `none`.
+    pub reduction: Option<&'static str>,
     /// The incidence matrices, for nets of at most 10,000 entries.
     pub incidence: Option<Incidence>,
     /// Time per phase.
@@ -264,6 +276,28 @@ impl fmt::Display for Report {
             },
             sets(&self.traps)
         )?;
+        if let Some(p) = &self.property {
+            writeln!(f, "\nproperty {p}: {}", yes_no(self.holds))?;
+            if let Some(w) = &self.witness {
+                writeln!(
+                    f,
+                    "  witness{}: {}",
+                    if self.witness_shortest == Some(true) {
+                        " (shortest)"
+                    } else {
+                        ""
+                    },
+                    if w.is_empty() {
+                        "(the initial marking)".into()
+                    } else {
+                        w.join(" ")
+                    }
+                )?;
+            }
+            if let Some(r) = self.reduction {
+                writeln!(f, "  reduction: {r}")?;
+            }
+        }
         writeln!(f, "\nbehaviour ({} graph)", self.graph)?;
         writeln!(f, "  states: {}", self.states)?;
         writeln!(f, "  edges: {}", self.edges)?;

@@ -37,7 +37,13 @@ impl Default for SetLimits {
 
 /// `ins[t]`/`outs[t]` as place lists: for siphons the inputs and outputs of each transition, for
 /// traps the same swapped (a trap of N is a siphon of the reversed net).
-fn enumerate(np: usize, ins: &[Vec<usize>], outs: &[Vec<usize>], lim: SetLimits) -> MinimalSets {
+fn enumerate(
+    np: usize,
+    ins: &[Vec<usize>],
+    outs: &[Vec<usize>],
+    lim: SetLimits,
+    stop: &dyn Fn() -> bool,
+) -> MinimalSets {
     // Transitions that produce into each place: the ones whose condition can break when p joins S.
     let mut feeders: Vec<Vec<usize>> = vec![Vec::new(); np];
     for (t, o) in outs.iter().enumerate() {
@@ -59,7 +65,10 @@ fn enumerate(np: usize, ins: &[Vec<usize>], outs: &[Vec<usize>], lim: SetLimits)
         stack.push((s, ex));
         while let Some((s, ex)) = stack.pop() {
             nodes += 1;
-            if nodes > lim.max_nodes || found.len() >= lim.max_sets {
+            if nodes > lim.max_nodes
+                || found.len() >= lim.max_sets
+                || (nodes & 0x3FF == 0 && stop())
+            {
                 truncated = true;
                 break 'roots;
             }
@@ -124,14 +133,24 @@ fn io(net: &Net) -> (Vec<Vec<usize>>, Vec<Vec<usize>>) {
 
 /// The minimal (nonempty) siphons of `net`.
 pub fn minimal_siphons(net: &Net, lim: SetLimits) -> MinimalSets {
+    minimal_siphons_until(net, lim, &|| false)
+}
+
+/// [`minimal_siphons`], truncated as soon as `stop` returns true (time is up, Ctrl-C).
+pub fn minimal_siphons_until(net: &Net, lim: SetLimits, stop: &dyn Fn() -> bool) -> MinimalSets {
     let (ins, outs) = io(net);
-    enumerate(net.num_places(), &ins, &outs, lim)
+    enumerate(net.num_places(), &ins, &outs, lim, stop)
 }
 
 /// The minimal (nonempty) traps of `net`.
 pub fn minimal_traps(net: &Net, lim: SetLimits) -> MinimalSets {
+    minimal_traps_until(net, lim, &|| false)
+}
+
+/// [`minimal_traps`], truncated as soon as `stop` returns true.
+pub fn minimal_traps_until(net: &Net, lim: SetLimits, stop: &dyn Fn() -> bool) -> MinimalSets {
     let (ins, outs) = io(net);
-    enumerate(net.num_places(), &outs, &ins, lim)
+    enumerate(net.num_places(), &outs, &ins, lim, stop)
 }
 
 /// The largest trap inside `set` (possibly empty), by removing places that leak tokens out of it.

@@ -213,3 +213,45 @@ fn the_deadlock_witness_leads_from_m0_to_a_dead_marking() {
     );
     assert_eq!(w.len(), 3);
 }
+
+/// A clock that moves one second each time it is read.
+struct Jumps(AtomicU64);
+
+impl cetratus_analysis::Clock for Jumps {
+    fn elapsed(&self) -> std::time::Duration {
+        std::time::Duration::from_secs(self.0.fetch_add(1, Ordering::Relaxed))
+    }
+}
+
+#[test]
+fn the_structural_phase_stops_at_the_timeout_and_the_report_says_so() {
+    for threads in [1, 2] {
+        let opts = CheckOptions {
+            clock: Some(Arc::new(Jumps(AtomicU64::new(0)))),
+            timeout: Some(std::time::Duration::from_secs(1)),
+            threads,
+            ..CheckOptions::default()
+        };
+        let r = check(&kanban(2).expect("Kanban builds"), &opts);
+        assert!(r.partial);
+        assert_eq!(r.partial_reason, Some(PartialReason::Timeout));
+        assert_eq!(r.p_invariants, None, "{:?}", r.notes);
+        assert_eq!(r.t_invariants, None);
+        assert!(
+            r.notes.iter().any(|n| n.contains("P-invariants")),
+            "{:?}",
+            r.notes
+        );
+    }
+}
+
+#[test]
+fn a_set_cancel_flag_also_stops_the_invariants() {
+    let opts = CheckOptions {
+        cancel: Some(Arc::new(AtomicBool::new(true))),
+        ..CheckOptions::default()
+    };
+    let r = check(&kanban(2).expect("Kanban builds"), &opts);
+    assert_eq!(r.partial_reason, Some(PartialReason::Cancelled));
+    assert_eq!(r.p_invariants, None);
+}

@@ -8,7 +8,9 @@ use std::time::{Duration, Instant};
 
 use anyhow::Context;
 use cetratus_analysis::budget::{parse_bytes, DEFAULT_MAX_STATES};
-use cetratus_analysis::{check, CheckOptions, Clock, TerminalProgress};
+use cetratus_analysis::{
+    check, check_property, CheckOptions, Clock, Predicate, Property, TerminalProgress,
+};
 use cetratus_net::Net;
 
 /// Arguments of `cetratus check`.
@@ -30,10 +32,26 @@ pub struct CheckArgs {
     #[arg(long, value_name = "DURATION", default_value = "10min", value_parser = parse_timeout)]
     pub timeout: Duration,
     /// Threads: with 2 or more the state space is explored in parallel (same states, same ids,
-    /// same witness as one thread) and the structural analyses run beside it. Defaults to the
-    /// machine's cores.
+    /// same witness as one thread) and the structural analyses run beside it. Defaults to 1: the
+    /// whole check (exploration, then liveness and reversibility over one table) measured faster
+    /// on one thread than on two (docs/analysis.md).
     #[arg(long, value_name = "N")]
     pub threads: Option<usize>,
+    /// Check one property only, stopping as soon as it is decided, with a firing sequence that
+    /// shows the answer.
+    #[arg(long, value_name = "NAME", value_parser = ["deadlock", "bounded", "safe", "live", "reversible"],
+          conflicts_with_all = ["reach", "always"])]
+    pub property: Option<String>,
+    /// Is some marking satisfying this predicate reachable? e.g. 'P10 >= 2 && P20 == 0'
+    /// (place ids or names, + - *, < <= == != >= >, && || ! and parentheses).
+    #[arg(long, value_name = "PREDICATE", conflicts_with = "always")]
+    pub reach: Option<String>,
+    /// Does this predicate hold in every reachable marking? (same syntax as --reach)
+    #[arg(long, value_name = "PREDICATE")]
+    pub always: Option<String>,
+    /// Property mode: explore every interleaving (no stubborn sets); witnesses are then shortest.
+    #[arg(long)]
+    pub no_reduction: bool,
 }
 
 fn parse_size(text: &str) -> anyhow::Result<u64> {
@@ -69,37 +87,73 @@ fn load(path: &Path) -> anyhow::Result<(Net, bool)> {
     Ok((net, false))
 }
 
+/// Reads a predicate of `--reach` or `--always`; the error shows the text with a caret under the
+/// column at fault.
+fn predicate(flag: &str, text: &str, net: &Net) -> anyhow::Result<Predicate> {
+    Predicate::parse(text, net).map_err(|e| {
+        anyhow::anyhow!(
+            "cannot read the predicate of {flag} {e}\n  {text}\n  {caret:>col$}",
+            caret = "^",
+            col = e.column
+        )
+    })
+}
+
+/// The property asked for on the command line, if any.
+fn property(args: &CheckArgs, net: &Net) -> anyhow::Result<Option<Property>> {
+    if let Some(name) = &args.property {
+        return Property::named(name).map(Some).ok_or_else(|| {
+            anyhow::anyhow!(
+                "unknown property {name:?}; use one of {}",
+                Property::NAMES.join(", ")
+            )
+        });
+    }
+    if let Some(text) = &args.reach {
+        return Ok(Some(Property::Reach(predicate("--reach", text, net)?)));
+    }
+    if let Some(text) = &args.always {
+        return Ok(Some(Property::Always(predicate("--always", text, net)?)));
+    }
+    Ok(None)
+}
+
 /// Runs `cetratus check`: prints the report, as text or JSON. Ctrl-C stops the exploration and
 /// prints what was found so far, marked partial.
 pub fn run(args: &CheckArgs) -> anyhow::Result<()> {
     let clock = Arc::new(Monotonic(Instant::now()));
     let (net, is_sfc) = load(&args.file)?;
+    let property = property(args, &net)?;
     let cancel = Arc::new(AtomicBool::new(false));
     let flag = cancel.clone();
     if let Err(e) = ctrlc::set_handler(move || flag.store(true, Ordering::Relaxed)) {
         eprintln!("warning: Ctrl-C will end the process without a partial report ({e})");
     }
-    let progress = TerminalProgress::new();
+    // No progress in JSON mode: its reader wants the report alone.
+    let progress = (!args.json).then(|| TerminalProgress::new(args.max_states, args.timeout));
     let opts = CheckOptions {
         max_states: Some(args.max_states),
         max_memory: Some(args.max_memory),
         timeout: Some(args.timeout),
         clock: Some(clock),
-        threads: args
-            .threads
-            .unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()))
-            .max(1),
+        threads: args.threads.unwrap_or(1).max(1),
         cancel: Some(cancel),
-        progress: Some(progress.callback()),
+        progress: progress.as_ref().map(TerminalProgress::callback),
+        reduction: !args.no_reduction,
         ..CheckOptions::default()
     };
-    let mut report = check(&net, &opts);
-    if is_sfc {
+    let mut report = match &property {
+        Some(p) => check_property(&net, p, &opts),
+        None => check(&net, &opts),
+    };
+    if is_sfc && property.is_none() {
         let chart = cetratus_analysis::sfc::check_chart(&net, &report);
         report.warnings.extend(chart.warnings());
         report.sfc = Some(chart);
     }
-    progress.finish();
+    if let Some(p) = &progress {
+        p.finish();
+    }
     let text = if args.json {
         format!("{}\n", serde_json::to_string_pretty(&report)?)
     } else {

@@ -69,6 +69,9 @@ fn reaches_root<const W: usize>(
     states: usize,
     opts: &ReachOptions,
 ) -> Counted<bool> {
+    if opts.threads >= 2 {
+        return reaches_root_layered(code, table, root, states, opts);
+    }
     let cap = table.slots.len();
     let bytes = table.bytes() + cap.div_ceil(64) * 8 + states * 4;
     opts.within_memory(bytes).map_err(|s| (s, bytes))?;
@@ -106,6 +109,99 @@ fn reaches_root<const W: usize>(
         }
     }
     Ok((queue.len() == states, bytes))
+}
+
+/// Layers of a frontier below this size are searched on one thread.
+const PARALLEL_LAYER: usize = 8_192;
+
+/// The slots of the predecessors of the `frontier` slots that `seen` does not hold yet (with
+/// repeats): the lookups of the backward search, which only read the table and `seen`.
+fn predecessors<const W: usize>(
+    code: &Compiled<W>,
+    table: &Table<W>,
+    frontier: &[u32],
+    seen: &[u64],
+) -> Vec<u32> {
+    let nt = code.offsets.len() - 1;
+    let mut out = Vec::with_capacity(frontier.len());
+    let mut batch: Vec<([u64; W], u64)> = Vec::with_capacity(nt);
+    for &slot in frontier {
+        let key = table.slots[slot as usize];
+        batch.clear();
+        for t in 0..nt {
+            if let Some(u) = code.unfire(&key, t) {
+                batch.push((u, hash(&u)));
+            }
+        }
+        for &(_, h) in &batch {
+            table.touch(h);
+        }
+        for (u, h) in &batch {
+            if let Some(s) = table.slot_of(u, *h) {
+                if !bit(seen, s) {
+                    out.push(s as u32);
+                }
+            }
+        }
+    }
+    out
+}
+
+/// [`reaches_root`] on `opts.threads` threads: a breadth-first search by layers, each layer's
+/// lookups split between the threads (they only read), the new slots then marked on one thread.
+fn reaches_root_layered<const W: usize>(
+    code: &Compiled<W>,
+    table: &Table<W>,
+    root: usize,
+    states: usize,
+    opts: &ReachOptions,
+) -> Counted<bool> {
+    let cap = table.slots.len();
+    // The frontier and the next one hold at most every state once (4 bytes each); the threads'
+    // outputs, repeats included, are counted as they come.
+    let fixed = table.bytes() + cap.div_ceil(64) * 8 + states * 4;
+    opts.within_memory(fixed).map_err(|s| (s, fixed))?;
+    let mut peak = fixed;
+    let mut seen = vec![0u64; cap.div_ceil(64)];
+    set(&mut seen, root);
+    let mut frontier: Vec<u32> = vec![root as u32];
+    let mut found = 1usize;
+    let threads = opts.threads.max(1);
+    while !frontier.is_empty() && found < states {
+        if let Some(s) = opts.interrupted() {
+            return Err((s, peak));
+        }
+        let outs: Vec<Vec<u32>> = if frontier.len() < PARALLEL_LAYER {
+            vec![predecessors(code, table, &frontier, &seen)]
+        } else {
+            let part = frontier.len().div_ceil(threads);
+            let seen = &seen;
+            std::thread::scope(|s| {
+                let hs: Vec<_> = frontier
+                    .chunks(part)
+                    .map(|c| s.spawn(move || predecessors(code, table, c, seen)))
+                    .collect();
+                hs.into_iter()
+                    .map(|h| h.join().unwrap_or_else(|p| std::panic::resume_unwind(p)))
+                    .collect()
+            })
+        };
+        let out_bytes: usize = outs.iter().map(|o| o.capacity() * 4).sum();
+        peak = peak.max(fixed + out_bytes);
+        opts.within_memory(fixed + out_bytes)
+            .map_err(|s| (s, peak))?;
+        let mut next = Vec::new();
+        for s in outs.into_iter().flatten() {
+            let s = s as usize;
+            if !bit(&seen, s) {
+                set(&mut seen, s);
+                next.push(s as u32);
+            }
+        }
+        found += next.len();
+        frontier = next;
+    }
+    Ok((found == states, peak))
 }
 
 /// Iterative Tarjan over the implicit graph, nodes being table slots, recording terminal SCCs and

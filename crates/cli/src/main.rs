@@ -5,6 +5,8 @@
 
 #[cfg(feature = "bench")]
 mod bench;
+#[cfg(feature = "bench")]
+mod bench_opcua;
 mod check;
 mod client;
 mod config;
@@ -17,10 +19,12 @@ mod package;
 mod package_inspect;
 mod run;
 mod run_io;
+mod run_opcua;
 mod sim;
 mod state;
 mod summary;
 mod twin_cmd;
+mod twin_opcua;
 
 use clap::{Parser, Subcommand};
 
@@ -105,7 +109,14 @@ fn init_logging() {
     use tracing_subscriber::filter::{EnvFilter, LevelFilter};
     let filter = EnvFilter::builder()
         .with_default_directive(LevelFilter::WARN.into())
-        .from_env_lossy();
+        .from_env_lossy()
+        // An OPC UA server with policy None has no certificate, and async-opcua says so as an
+        // error on every connection.
+        .add_directive(
+            "opcua_core::comms::secure_channel=off"
+                .parse()
+                .unwrap_or_else(|_| LevelFilter::WARN.into()),
+        );
     // `try_init` also installs the `log` bridge, capped at the filter's most verbose level.
     let installed = tracing_subscriber::fmt()
         .with_env_filter(filter)

@@ -152,6 +152,7 @@ pub fn run(args: &RunArgs) -> anyhow::Result<()> {
         local.io.as_ref(),
         args.virtual_time,
         period_us,
+        &args.mqtt.plc_id(),
     )?;
     let plant = kind.map_or("field I/O".to_string(), |k| format!("{k} twin"));
     // Real-time runs are watched and commanded over MQTT, with the dashboard beside them; their
@@ -229,15 +230,15 @@ pub fn run(args: &RunArgs) -> anyhow::Result<()> {
         progress_every: args.progress,
         gate: local.gate,
     };
-    let status_board = io.server().map(|s| s.status_board());
+    let observer = crate::run_opcua::observer(&io);
     let mut node = Node::new(plc, io, opts)
         .with_script(script)
         .with_validation(local.validation, period_us, |io| {
             io.twin().map(|t| t.plant().clone())
         })
         .with_auto_substitute(local.auto_substitute.clone());
-    if let Some(mut board) = status_board {
-        node = node.with_observer(move |plc| board.show(plc));
+    if let Some(observe) = observer {
+        node = node.with_observer(observe);
     }
     if let Some(p) = persister {
         node = node.with_persister(p);
@@ -362,6 +363,7 @@ pub fn run(args: &RunArgs) -> anyhow::Result<()> {
         counters: plant_report.counters,
         io: plant_report.io,
         modbus_server: plant_report.server,
+        opcua_server: plant_report.opcua,
         scan: figures,
         primary: plc.primary().name(),
         status: plc.status().name(),

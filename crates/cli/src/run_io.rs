@@ -33,6 +33,7 @@ pub fn open(
     local_io: Option<&IoConfig>,
     virtual_time: bool,
     period_us: u64,
+    plc_id: &str,
 ) -> anyhow::Result<Opened> {
     let kind: Option<TwinKind> = match twin {
         Some(t) => Some(t.parse().map_err(|e| anyhow::anyhow!("{e}"))?),
@@ -55,6 +56,13 @@ pub fn open(
             );
         }
     }
+    let opcua_inputs = config
+        .as_ref()
+        .and_then(|c| c.opcua.as_ref())
+        .is_some_and(|o| o.inputs);
+    if let (true, Some(k), Some(c)) = (opcua_inputs, kind, &config) {
+        bail!("{}: [opcua] inputs = true and --twin {k} would both provide the inputs; an input has one source: leave out --twin, or inputs = true", c.file);
+    }
     let twin = match kind {
         Some(k) => {
             let t = k
@@ -66,10 +74,15 @@ pub fn open(
     };
     let (field, server) = match &config {
         Some(c) => {
-            let map = FieldMap::bind(c, program.inputs(), program.outputs(), kind.is_some())
-                .with_context(|| {
-                    format!("the program does not fit the I/O configuration {}", c.file)
-                })?;
+            let map = FieldMap::bind(
+                c,
+                program.inputs(),
+                program.outputs(),
+                kind.is_some() || opcua_inputs,
+            )
+            .with_context(|| {
+                format!("the program does not fit the I/O configuration {}", c.file)
+            })?;
             let server = match &c.server {
                 Some(s) => {
                     let server = ImageServer::start(s, &map)
@@ -95,7 +108,8 @@ pub fn open(
         }
         None => (None, None),
     };
-    let io = PlantIo::new(twin, field, server).ok_or_else(|| {
+    let opcua = crate::run_opcua::start(config.as_ref(), program, plc_id)?;
+    let io = PlantIo::with_servers(twin, field, server, opcua).ok_or_else(|| {
         anyhow::anyhow!("nothing to run against: give --twin vernadat|festo, --io IO.toml, or both (or an [io] section in the local configuration)")
     })?;
     Ok(Opened { io, kind })
@@ -161,6 +175,8 @@ pub struct PlantReport {
     pub io: Option<Vec<DeviceStatus>>,
     /// What the PLC's Modbus server did.
     pub server: Option<BankCounters>,
+    /// What the PLC's OPC UA server did.
+    pub opcua: Option<cetratus_io::opcua::OpcUaCounters>,
 }
 
 /// The plant's end-of-run figures.
@@ -172,6 +188,7 @@ pub fn report(io: &PlantIo) -> anyhow::Result<PlantReport> {
         counters: serde_json::Value::Object(Default::default()),
         io: io.field().map(|f| f.status()),
         server: io.server().map(|s| s.counters()),
+        opcua: io.opcua().map(|s| s.counters()),
     };
     if let Some(t) = io.twin() {
         let plant = t.plant();

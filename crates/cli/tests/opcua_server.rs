@@ -237,15 +237,34 @@ fn json_of(mut child: ChildGuard) -> Value {
 }
 
 /// The one real-time OPC UA run of this suite: a minute of the cell with the twin host as the
-/// OPC UA client of the PLC (the paper's setup), compared with the in-process twin.
+/// OPC UA client of the PLC (the paper's setup), U.1 and then U.2 loaded and substituted on the
+/// way, compared with the in-process twin under the same script.
 #[test]
 fn a_minute_with_the_twin_as_the_plcs_opcua_client_finishes_as_many_parts_as_in_process() {
+    let demo = demo_files();
+    let d = demo.path();
     let port = free_port();
-    let dir = tempfile::tempdir().unwrap();
-    let io = dir.path().join("io-opcua.toml");
+    let io = d.join("io-opcua.toml");
     let text = std::fs::read_to_string(example("vernadat/io-opcua.toml")).unwrap();
     std::fs::write(&io, text.replace("14840", &port.to_string())).unwrap();
     let url = format!("opc.tcp://127.0.0.1:{port}");
+    let pkg = |name: &str| d.join(name).display().to_string();
+    let script = [
+        "--trust".to_string(),
+        pkg("trusted"),
+        "--at".into(),
+        format!("10s load {}", pkg("u1.cpkg")),
+        "--at".into(),
+        "20s substitute".into(),
+        "--at".into(),
+        "25s accept".into(),
+        "--at".into(),
+        format!("30s load {}", pkg("u2.cpkg")),
+        "--at".into(),
+        "40s substitute".into(),
+        "--at".into(),
+        "45s accept".into(),
+    ];
     // The twin retries until the PLC serves; the PLC waits for the twin's first sensors.
     let twin = ChildGuard::spawn(
         Command::new(BIN)
@@ -255,25 +274,30 @@ fn a_minute_with_the_twin_as_the_plcs_opcua_client_finishes_as_many_parts_as_in_
             .stderr(Stdio::null()),
     );
     // The PLC outlives the twin, so that the twin never sees its outputs go safe mid-move.
-    let _plc = ChildGuard::spawn(
+    let plc = ChildGuard::spawn(
         Command::new(BIN)
             .arg("run")
-            .arg(example("vernadat/vernadat.toml"))
+            .arg(d.join("vernadat.toml"))
             .arg("--io")
             .arg(&io)
-            .args(["--no-mct", "--cold", "--json", "--plc", "cell"])
+            .args(["--no-mct", "--cold", "--json", "--plc", "cell", "--for", "62s"])
+            .args(&script)
             .arg("--state-dir")
-            .arg(dir.path().join("state"))
+            .arg(d.join("state"))
             .arg("--config")
-            .arg(dir.path().join("config"))
-            .stdout(Stdio::null())
+            .arg(d.join("config"))
+            .stdout(Stdio::piped())
             .stderr(Stdio::null()),
     );
     let served = json_of(twin);
+    let run = json_of(plc);
     let in_process = Command::new(BIN)
         .arg("run")
-        .arg(example("vernadat/vernadat.toml"))
+        .arg(d.join("vernadat.toml"))
         .args(["--twin", "vernadat", "--virtual", "--for", "60s", "--json"])
+        .arg("--config")
+        .arg(d.join("config"))
+        .args(&script)
         .output()
         .unwrap();
     let in_process: Value = serde_json::from_slice(&in_process.stdout).unwrap();
@@ -287,6 +311,15 @@ fn a_minute_with_the_twin_as_the_plcs_opcua_client_finishes_as_many_parts_as_in_
     );
     assert_eq!(served["twin_faults"], 0, "{served}");
     assert_eq!(served["plc"], "cell", "{served}");
+    let substituted = run["events"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .filter(|e| e["kind"] == "substituted")
+        .count();
+    assert_eq!(substituted, 2, "{run}");
+    assert_eq!(run["opcua_server"]["model_changes"], 2, "{run}");
+    assert!(run["faults"].as_array().unwrap().is_empty(), "{run}");
 }
 
 /// The demo's signed packages U.1 and U.2 and the key that signed them.

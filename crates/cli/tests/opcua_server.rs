@@ -90,7 +90,7 @@ fn a_scada_client_browses_reads_and_subscribes_and_cannot_write_a_read_only_node
     let url = format!("opc.tcp://127.0.0.1:{port}");
     let io = write_io(
         dir.path(),
-        &format!("[opcua]\nlisten = \"{url}\"\nmax_sessions = 4\n"),
+        &format!("[opcua]\nlisten = \"{url}\"\nmax_sessions = 4\nmax_connections = 4\n"),
     );
     let plc = start(dir.path(), &io, port, &["--twin", "vernadat"]);
     let nodes = peer(&["browse", &url]);
@@ -141,12 +141,19 @@ fn a_scada_client_browses_reads_and_subscribes_and_cannot_write_a_read_only_node
     }
     let got = peer(&["write", &url, "cell.Outputs.NOPE", "bool", "1"]);
     assert_eq!(got, ["BadNodeIdUnknown"]);
+    // A flood of connections: those beyond the limit are closed at once, and the server answers.
+    let closed: u64 = peer(&["flood", &url, "20"])[0].parse().unwrap();
+    assert!(closed >= 16, "{closed} of 20 closed");
     let read = peer(&["read", &url, "cell.STATUS", "cell.Marking.NOPE"]);
     assert_eq!(
         read,
         ["cell.STATUS=idle", "cell.Marking.NOPE=BadNodeIdUnknown"]
     );
     let s = stop(plc);
+    assert!(
+        s["opcua_server"]["refused_connections"].as_u64().unwrap() >= 16,
+        "{s}"
+    );
     assert!(s["opcua_server"]["published"].as_u64().unwrap() > 10, "{s}");
     assert_eq!(s["opcua_server"]["writes"], 0, "{s}");
     assert!(s["parts_finished"].as_u64().is_some(), "{s}");

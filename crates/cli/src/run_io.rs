@@ -24,7 +24,10 @@ pub struct Opened {
     pub kind: Option<TwinKind>,
 }
 
-/// Opens the run's I/O. `io_file` is `--io`; `local_io` the local configuration's `[io]`.
+/// Opens the run's I/O. `io_file` is `--io`; `local_io` the local configuration's `[io]`;
+/// `plc_id` names the OPC UA server's nodes.
+// The run's options as the command line gives them, each used once.
+#[allow(clippy::too_many_arguments)]
 pub fn open(
     program: &Program,
     twin: Option<&str>,

@@ -74,14 +74,13 @@ pub fn start(
 pub fn observer(io: &PlantIo) -> Option<impl FnMut(&Plc) + Send + 'static> {
     let mut board = io.server().map(|s| s.status_board());
     let mut publisher = io.opcua().map(|s| s.publisher());
-    (board.is_some() || publisher.is_some()).then(move || {
-        move |plc: &Plc| {
-            if let Some(b) = board.as_mut() {
-                b.show(plc);
-            }
-            if let Some(p) = publisher.as_mut() {
-                p.show(plc);
-            }
+    let any = board.is_some() || publisher.is_some();
+    any.then_some(move |plc: &Plc| {
+        if let Some(b) = board.as_mut() {
+            b.show(plc);
+        }
+        if let Some(p) = publisher.as_mut() {
+            p.show(plc);
         }
     })
 }

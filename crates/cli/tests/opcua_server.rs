@@ -287,7 +287,9 @@ fn a_minute_with_the_twin_as_the_plcs_opcua_client_finishes_as_many_parts_as_in_
             .arg(d.join("vernadat.toml"))
             .arg("--io")
             .arg(&io)
-            .args(["--no-mct", "--cold", "--json", "--plc", "cell", "--for", "62s"])
+            .args([
+                "--no-mct", "--cold", "--json", "--plc", "cell", "--for", "62s",
+            ])
             .args(&script)
             .arg("--state-dir")
             .arg(d.join("state"))

@@ -156,7 +156,7 @@ pub struct Start<'a> {
     pub plc: &'a str,
     /// The program at start.
     pub program: &'a Arc<Program>,
-    /// The I/O map's inputs and outputs.
+    /// The I/O map's inputs.
     pub inputs: &'a [Signal],
     /// The I/O map's outputs.
     pub outputs: &'a [Signal],

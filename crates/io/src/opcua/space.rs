@@ -507,7 +507,6 @@ impl Space {
     }
 }
 
-#[allow(clippy::too_many_arguments)]
 fn variable(
     a: &mut AddressSpace,
     id: &NodeId,

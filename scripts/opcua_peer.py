@@ -25,6 +25,9 @@
       STATUS, or `refused: REASON`.
   opcua_peer.py keys DIR
       writes a self-signed client certificate (DIR/client.der) and key (DIR/client.pem).
+  opcua_peer.py sessions URL N
+      opens N sessions at once and holds them; prints how many the server let in, then the
+      refusal of the others.
   opcua_peer.py flood URL N
       opens N TCP connections at once, holds them two seconds, and prints how many the server
       closed at once.
@@ -226,6 +229,21 @@ def keys(directory):
     print("ok")
 
 
+async def sessions(url, n):
+    clients = [Client(url) for _ in range(n)]
+    opened, refusals = [], set()
+    for c in clients:
+        try:
+            await c.connect()
+            opened.append(c)
+        except Exception as e:  # the refusal itself is the answer
+            refusals.add(type(e).__name__)
+    print(len(opened))
+    print(",".join(sorted(refusals)) or "none")
+    for c in opened:
+        await c.disconnect()
+
+
 def flood(url, n):
     host, port = url.removeprefix("opc.tcp://").rstrip("/").rsplit(":", 1)
     socks = []
@@ -282,6 +300,9 @@ def main():
     sc.add_argument("--password")
     k = sub.add_parser("keys")
     k.add_argument("dir")
+    ss = sub.add_parser("sessions")
+    ss.add_argument("url")
+    ss.add_argument("n", type=int)
     f = sub.add_parser("flood")
     f.add_argument("url")
     f.add_argument("n", type=int)
@@ -304,6 +325,8 @@ def main():
         asyncio.run(secure(a.url, a.policy, a.cert, a.key, a.user, a.password))
     elif a.cmd == "keys":
         keys(a.dir)
+    elif a.cmd == "sessions":
+        asyncio.run(sessions(a.url, a.n))
     elif a.cmd == "flood":
         flood(a.url, a.n)
 

@@ -90,7 +90,7 @@ fn a_scada_client_browses_reads_and_subscribes_and_cannot_write_a_read_only_node
     let url = format!("opc.tcp://127.0.0.1:{port}");
     let io = write_io(
         dir.path(),
-        &format!("[opcua]\nlisten = \"{url}\"\nmax_sessions = 4\nmax_connections = 4\n"),
+        &format!("[opcua]\nlisten = \"{url}\"\nmax_sessions = 2\nmax_connections = 4\n"),
     );
     let plc = start(dir.path(), &io, port, &["--twin", "vernadat"]);
     let nodes = peer(&["browse", &url]);
@@ -141,6 +141,9 @@ fn a_scada_client_browses_reads_and_subscribes_and_cannot_write_a_read_only_node
     }
     let got = peer(&["write", &url, "cell.Outputs.NOPE", "bool", "1"]);
     assert_eq!(got, ["BadNodeIdUnknown"]);
+    // Sessions beyond max_sessions are refused.
+    let sessions = peer(&["sessions", &url, "3"]);
+    assert_eq!(sessions, ["2", "BadTooManySessions"]);
     // A flood of connections: those beyond the limit are closed at once, and the server answers.
     let closed: u64 = peer(&["flood", &url, "20"])[0].parse().unwrap();
     assert!(closed >= 16, "{closed} of 20 closed");

@@ -22,6 +22,8 @@ pub struct BenchArgs {
 
 #[derive(clap::Subcommand, Debug)]
 enum What {
+    /// OPC UA write → scan → read latency of the real binary (p50, p99).
+    Opcua(crate::bench_opcua::OpcuaArgs),
     /// Write a member of a benchmark family as ISO PNML, for `cetratus check` and other tools.
     Net {
         /// `kanban` or `fms`.
@@ -126,6 +128,9 @@ enum What {
 
 /// Runs `cetratus bench`.
 pub fn run(args: &BenchArgs) -> anyhow::Result<()> {
+    if let Some(What::Opcua(a)) = &args.what {
+        return crate::bench_opcua::run(a);
+    }
     if let Some(What::Net { family, n, out }) = &args.what {
         let net = match family.to_ascii_lowercase().as_str() {
             "kanban" => cetratus_analysis::families::kanban(*n)?,

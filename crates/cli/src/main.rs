@@ -5,6 +5,8 @@
 
 #[cfg(feature = "bench")]
 mod bench;
+#[cfg(feature = "bench")]
+mod bench_opcua;
 mod check;
 mod client;
 mod config;
@@ -17,10 +19,12 @@ mod package;
 mod package_inspect;
 mod run;
 mod run_io;
+mod run_opcua;
 mod sim;
 mod state;
 mod summary;
 mod twin_cmd;
+mod twin_opcua;
 
 use clap::{Parser, Subcommand};
 
@@ -103,9 +107,22 @@ enum Command {
 fn init_logging() {
     use std::io::IsTerminal as _;
     use tracing_subscriber::filter::{EnvFilter, LevelFilter};
-    let filter = EnvFilter::builder()
+    let mut filter = EnvFilter::builder()
         .with_default_directive(LevelFilter::WARN.into())
         .from_env_lossy();
+    // Policy None needs no certificate, and async-opcua says so on every connection; a client's
+    // orderly disconnect is a warning there too.
+    for quiet in [
+        "opcua_core::comms::secure_channel=off",
+        "opcua_crypto::certificate_store=off",
+        "opcua_client::session::client=off",
+        "opcua_client::config=error",
+        "opcua_client::session::event_loop=error",
+    ] {
+        if let Ok(d) = quiet.parse() {
+            filter = filter.add_directive(d);
+        }
+    }
     // `try_init` also installs the `log` bridge, capped at the filter's most verbose level.
     let installed = tracing_subscriber::fmt()
         .with_env_filter(filter)

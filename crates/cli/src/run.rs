@@ -140,10 +140,8 @@ pub fn run(args: &RunArgs) -> anyhow::Result<()> {
             }
         );
     }
-    let period_us = match &args.period {
-        Some(p) => parse_duration_us(p)?.max(1),
-        None => program.scan_period().as_micros() as u64,
-    };
+    let period_us = (args.period.as_deref().map(parse_duration_us).transpose()?)
+        .map_or(program.scan_period().as_micros() as u64, |p| p.max(1));
     let crate::run_io::Opened { mut io, kind } = crate::run_io::open(
         &program,
         args.twin.as_deref(),
@@ -152,6 +150,7 @@ pub fn run(args: &RunArgs) -> anyhow::Result<()> {
         local.io.as_ref(),
         args.virtual_time,
         period_us,
+        &args.mqtt.plc_id(),
     )?;
     local.check_validation(io.twin().is_some())?;
     let plant = kind.map_or("field I/O".to_string(), |k| format!("{k} twin"));
@@ -231,15 +230,15 @@ pub fn run(args: &RunArgs) -> anyhow::Result<()> {
         progress_every: args.progress,
         gate: local.gate,
     };
-    let status_board = io.server().map(|s| s.status_board());
+    let observer = crate::run_opcua::observer(&io);
     let mut node = Node::new(plc, io, opts)
         .with_script(script)
         .with_validation(local.validation, period_us, |io| {
             io.twin().map(|t| t.plant().clone())
         })
         .with_auto_substitute(local.auto_substitute.clone());
-    if let Some(mut board) = status_board {
-        node = node.with_observer(move |plc| board.show(plc));
+    if let Some(observe) = observer {
+        node = node.with_observer(observe);
     }
     if let Some(p) = persister {
         node = node.with_persister(p);
@@ -364,6 +363,7 @@ pub fn run(args: &RunArgs) -> anyhow::Result<()> {
         counters: plant_report.counters,
         io: plant_report.io,
         modbus_server: plant_report.server,
+        opcua_server: plant_report.opcua,
         scan: figures,
         primary: plc.primary().name(),
         status: plc.status().name(),

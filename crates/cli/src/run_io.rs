@@ -24,7 +24,10 @@ pub struct Opened {
     pub kind: Option<TwinKind>,
 }
 
-/// Opens the run's I/O. `io_file` is `--io`; `local_io` the local configuration's `[io]`.
+/// Opens the run's I/O. `io_file` is `--io`; `local_io` the local configuration's `[io]`;
+/// `plc_id` names the OPC UA server's nodes.
+// The run's options as the command line gives them, each used once.
+#[allow(clippy::too_many_arguments)]
 pub fn open(
     program: &Program,
     twin: Option<&str>,
@@ -33,6 +36,7 @@ pub fn open(
     local_io: Option<&IoConfig>,
     virtual_time: bool,
     period_us: u64,
+    plc_id: &str,
 ) -> anyhow::Result<Opened> {
     let kind: Option<TwinKind> = match twin {
         Some(t) => Some(t.parse().map_err(|e| anyhow::anyhow!("{e}"))?),
@@ -55,6 +59,13 @@ pub fn open(
             );
         }
     }
+    let opcua_inputs = config
+        .as_ref()
+        .and_then(|c| c.opcua.as_ref())
+        .is_some_and(|o| o.inputs);
+    if let (true, Some(k), Some(c)) = (opcua_inputs, kind, &config) {
+        bail!("{}: [opcua] inputs = true and --twin {k} would both provide the inputs; an input has one source: leave out --twin, or inputs = true", c.file);
+    }
     let twin = match kind {
         Some(k) => {
             let t = k
@@ -66,10 +77,15 @@ pub fn open(
     };
     let (field, server) = match &config {
         Some(c) => {
-            let map = FieldMap::bind(c, program.inputs(), program.outputs(), kind.is_some())
-                .with_context(|| {
-                    format!("the program does not fit the I/O configuration {}", c.file)
-                })?;
+            let map = FieldMap::bind(
+                c,
+                program.inputs(),
+                program.outputs(),
+                kind.is_some() || opcua_inputs,
+            )
+            .with_context(|| {
+                format!("the program does not fit the I/O configuration {}", c.file)
+            })?;
             let server = match &c.server {
                 Some(s) => {
                     let server = ImageServer::start(s, &map)
@@ -95,7 +111,8 @@ pub fn open(
         }
         None => (None, None),
     };
-    let io = PlantIo::new(twin, field, server).ok_or_else(|| {
+    let opcua = crate::run_opcua::start(config.as_ref(), program, plc_id)?;
+    let io = PlantIo::with_servers(twin, field, server, opcua).ok_or_else(|| {
         anyhow::anyhow!("nothing to run against: give --twin vernadat|festo, --io IO.toml, or both (or an [io] section in the local configuration)")
     })?;
     Ok(Opened { io, kind })
@@ -169,6 +186,8 @@ pub struct PlantReport {
     pub io: Option<Vec<DeviceStatus>>,
     /// What the PLC's Modbus server did.
     pub server: Option<BankCounters>,
+    /// What the PLC's OPC UA server did.
+    pub opcua: Option<cetratus_io::opcua::OpcUaCounters>,
 }
 
 /// The plant's end-of-run figures.
@@ -180,6 +199,7 @@ pub fn report(io: &PlantIo) -> anyhow::Result<PlantReport> {
         counters: serde_json::Value::Object(Default::default()),
         io: io.field().map(|f| f.status()),
         server: io.server().map(|s| s.counters()),
+        opcua: io.opcua().map(|s| s.counters()),
     };
     if let Some(t) = io.twin() {
         let plant = t.plant();

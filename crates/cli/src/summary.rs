@@ -31,6 +31,9 @@ pub struct Summary {
     /// What the PLC's Modbus server did, when it had one.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub modbus_server: Option<cetratus_io::bank::BankCounters>,
+    /// What the PLC's OPC UA server did, when it had one.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub opcua_server: Option<cetratus_io::opcua::OpcUaCounters>,
     /// Scan timing figures.
     pub scan: CycleFigures,
     /// PRIMARY at the end.
@@ -117,6 +120,12 @@ pub fn print_summary(s: &Summary) {
         println!(
             "  modbus server   {} requests, {} exceptions, {} connections refused",
             m.requests, m.exceptions, m.refused
+        );
+    }
+    if let Some(o) = &s.opcua_server {
+        println!(
+            "  opc ua server   {} cycles published, {} input writes, {} refused, {} connections refused, {} model changes",
+            o.published, o.writes, o.refused_writes, o.refused_connections, o.model_changes
         );
     }
     if s.faults.is_empty() {

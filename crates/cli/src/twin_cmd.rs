@@ -18,7 +18,8 @@ pub struct TwinArgs {
 
 #[derive(clap::Subcommand, Debug)]
 enum TwinCommand {
-    /// Run a twin as a Modbus TCP device, at the addresses its example program declares.
+    /// Run a twin as a Modbus TCP device (at the addresses its example program declares), or as
+    /// the OPC UA client of a PLC's server.
     Serve(ServeArgs),
 }
 
@@ -29,8 +30,15 @@ pub struct ServeArgs {
     #[arg(value_parser = ["vernadat", "festo"])]
     twin: String,
     /// Where the Modbus device listens, e.g. `127.0.0.1:15020`.
-    #[arg(long)]
+    #[arg(long, conflicts_with = "opcua")]
     modbus: Option<String>,
+    /// The PLC's OPC UA server to be the plant of, e.g. `opc.tcp://127.0.0.1:14840`; retried
+    /// until it is up.
+    #[arg(long)]
+    opcua: Option<String>,
+    /// The PLC's name in the server's nodes (`<plc>.Inputs.…`); the one PLC it shows by default.
+    #[arg(long, requires = "opcua")]
+    plc: Option<String>,
     /// Print the address map and stop.
     #[arg(long)]
     print_map: bool,
@@ -69,14 +77,14 @@ pub fn run(args: &TwinArgs) -> anyhow::Result<()> {
         print!("{}", map.print());
         return Ok(());
     }
-    let Some(listen) = &a.modbus else {
+    if a.modbus.is_none() && a.opcua.is_none() {
         anyhow::bail!(
-            "give the address to serve on, e.g. --modbus 127.0.0.1:15020 (or --print-map)"
+            "give the address to serve on, e.g. --modbus 127.0.0.1:15020, or the PLC's OPC UA server, e.g. --opcua opc.tcp://127.0.0.1:14840 (or --print-map)"
         );
-    };
-    let listen = listen.parse().with_context(|| {
-        format!("--modbus {listen}: write an IP address and a port, e.g. 127.0.0.1:15020")
-    })?;
+    }
+    if let Some(url) = &a.opcua {
+        cetratus_io::opcua::config::parse_url(url).map_err(|e| anyhow::anyhow!("--opcua: {e}"))?;
+    }
     let mut presses = a.press.clone();
     if presses.is_empty() && kind == TwinKind::Festo {
         presses.extend(["RESET@100ms".to_string(), "START@500ms".to_string()]);
@@ -95,6 +103,15 @@ pub fn run(args: &TwinArgs) -> anyhow::Result<()> {
     ctrlc::set_handler(move || s.store(true, Ordering::Relaxed))
         .context("cannot install the Ctrl-C handler")?;
     let json = a.json;
+    if let Some(url) = &a.opcua {
+        return crate::twin_opcua::run(twin, url, a.plc.as_deref(), until_us, &stop, json);
+    }
+    let Some(listen) = &a.modbus else {
+        anyhow::bail!("give --modbus ADDR or --opcua URL");
+    };
+    let listen = listen.parse().with_context(|| {
+        format!("--modbus {listen}: write an IP address and a port, e.g. 127.0.0.1:15020")
+    })?;
     let report = serve(twin, &map, listen, until_us, &stop, |addr| {
         if !json {
             eprintln!("the {kind} twin serves Modbus TCP on {addr}; Ctrl-C stops");

@@ -271,6 +271,7 @@ fn with_the_twin_as_the_plant_the_server_shows_the_twins_sensors_and_the_program
     let text =
         std::fs::read_to_string(cetratus_testkit::paths::example("vernadat/io-servers.toml"))
             .unwrap();
+    let text = text.replace("14841", &free_port().to_string());
     std::fs::write(&io, text.replace("15021", &port.to_string())).unwrap();
     let plc = ChildGuard::spawn(
         Command::new(BIN)

@@ -162,6 +162,8 @@ pub struct IoConfig {
     pub channels: BTreeMap<IecAddress, ChannelOptions>,
     /// The Modbus server, when configured.
     pub server: Option<ServerConfig>,
+    /// The OPC UA server, when configured.
+    pub opcua: Option<crate::opcua::config::OpcUaConfig>,
     /// How long the first scan waits for every device's first complete read (µs); after that
     /// it runs on the safe values of the inputs still missing.
     pub start_timeout_us: u64,
@@ -176,6 +178,7 @@ struct FileSrc {
     #[serde(default)]
     channel: Vec<ChannelSrc>,
     server: Option<Spanned<ServerSrc>>,
+    opcua: Option<Spanned<crate::opcua::config::OpcUaSrc>>,
 }
 
 #[derive(Deserialize)]
@@ -330,7 +333,7 @@ impl IoConfig {
             None => Ok(None),
             Some(io) => {
                 let c = IoConfig::build(&Reader { file, text }, io)?;
-                Ok((!c.devices.is_empty() || c.server.is_some()).then_some(c))
+                Ok((!c.devices.is_empty() || c.server.is_some() || c.opcua.is_some()).then_some(c))
             }
         }
     }
@@ -500,6 +503,11 @@ impl IoConfig {
             devices,
             channels,
             server,
+            opcua: src
+                .opcua
+                .as_ref()
+                .map(|o| crate::opcua::config::OpcUaConfig::build(r.file, r.text, o))
+                .transpose()?,
             start_timeout_us: r.duration(&src.start_timeout, 2_000_000, "start_timeout")?,
         })
     }

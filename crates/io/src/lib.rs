@@ -11,6 +11,7 @@ pub mod config;
 pub mod field;
 pub mod map;
 mod modbus;
+pub mod opcua;
 pub mod plant;
 pub mod server;
 pub mod twin_serve;
@@ -74,6 +75,9 @@ pub enum IoError {
         /// The OS error.
         reason: String,
     },
+    /// The OPC UA server could not be built as configured.
+    #[error("the OPC UA server cannot start: {0}")]
+    OpcUa(String),
     /// An I/O thread could not be started.
     #[error("cannot start an I/O thread: {0}")]
     Thread(String),

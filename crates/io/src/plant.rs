@@ -1,11 +1,12 @@
 //! The I/O of a run: a digital twin in process, the field, or both, and the PLC's own Modbus
-//! server beside them (the process image for HMIs and SCADA).
+//! and OPC UA servers beside them (the process image for HMIs and SCADA).
 
 use cetratus_program::{Signal, Value};
 use cetratus_runtime::{Dispatcher, Provider};
 use cetratus_twin::Twin;
 
 use crate::field::FieldIo;
+use crate::opcua::OpcUaServer;
 use crate::server::ImageServer;
 use crate::TwinDriver;
 
@@ -15,6 +16,7 @@ pub struct PlantIo {
     twin: Option<TwinDriver<Twin>>,
     field: Option<FieldIo>,
     server: Option<ImageServer>,
+    opcua: Option<OpcUaServer>,
 }
 
 impl PlantIo {
@@ -24,11 +26,35 @@ impl PlantIo {
         field: Option<FieldIo>,
         server: Option<ImageServer>,
     ) -> Option<PlantIo> {
-        (twin.is_some() || field.is_some() || server.is_some()).then_some(PlantIo {
-            twin,
-            field,
-            server,
-        })
+        PlantIo::with_servers(twin, field, server, None)
+    }
+
+    /// The I/O of a run with the PLC's OPC UA server too (whose clients' inputs come after the
+    /// rest); `None` when it has nothing at all.
+    pub fn with_servers(
+        twin: Option<TwinDriver<Twin>>,
+        field: Option<FieldIo>,
+        server: Option<ImageServer>,
+        opcua: Option<OpcUaServer>,
+    ) -> Option<PlantIo> {
+        (twin.is_some() || field.is_some() || server.is_some() || opcua.is_some()).then_some(
+            PlantIo {
+                twin,
+                field,
+                server,
+                opcua,
+            },
+        )
+    }
+
+    /// The PLC's OPC UA server, when the run has one.
+    pub fn opcua(&self) -> Option<&OpcUaServer> {
+        self.opcua.as_ref()
+    }
+
+    /// The PLC's OPC UA server, to stop it.
+    pub fn opcua_mut(&mut self) -> Option<&mut OpcUaServer> {
+        self.opcua.as_mut()
     }
 
     /// The PLC's Modbus server, when the run has one.
@@ -74,6 +100,9 @@ impl Provider for PlantIo {
         }
         if let Some(s) = self.server.as_mut() {
             s.read_inputs(now_us, inputs);
+        }
+        if let Some(o) = self.opcua.as_mut() {
+            o.read_inputs(now_us, inputs);
         }
     }
 }

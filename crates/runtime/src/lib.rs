@@ -26,6 +26,7 @@ pub mod mask;
 pub mod monitor;
 mod phase;
 mod plc;
+mod prepare;
 mod probation;
 mod recent;
 mod router;

@@ -1,0 +1,42 @@
+//! The front listener of the OPC UA server: it holds the public port, closes connections beyond
+//! the limit at once, and relays the others to the server's own listener on a loopback port.
+//! async-opcua limits sessions but not connections; a client that opens sockets without ever
+//! creating a session would otherwise hold them until its hello timeout.
+
+use std::net::SocketAddr;
+use std::sync::atomic::{AtomicUsize, Ordering};
+use std::sync::Arc;
+
+use tokio::net::{TcpListener, TcpStream};
+
+use super::Shared;
+
+/// Relays every accepted connection, up to `max` at once, to `inner`; runs until dropped.
+pub(crate) async fn relay(public: TcpListener, inner: SocketAddr, max: usize, shared: Arc<Shared>) {
+    let open = Arc::new(AtomicUsize::new(0));
+    loop {
+        let Ok((mut client, _)) = public.accept().await else {
+            // Out of descriptors, say: wait a little rather than spin.
+            tokio::time::sleep(std::time::Duration::from_millis(10)).await;
+            continue;
+        };
+        if open.load(Ordering::SeqCst) >= max {
+            shared
+                .counters
+                .refused_connections
+                .fetch_add(1, Ordering::Relaxed);
+            drop(client);
+            continue;
+        }
+        open.fetch_add(1, Ordering::SeqCst);
+        let open = open.clone();
+        tokio::spawn(async move {
+            if let Ok(mut server) = TcpStream::connect(inner).await {
+                let _ = client.set_nodelay(true);
+                let _ = server.set_nodelay(true);
+                let _ = tokio::io::copy_bidirectional(&mut client, &mut server).await;
+            }
+            open.fetch_sub(1, Ordering::SeqCst);
+        });
+    }
+}

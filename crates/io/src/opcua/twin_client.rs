@@ -1,0 +1,307 @@
+//! `cetratus twin serve vernadat|festo --opcua opc.tcp://ADDR`: a digital twin as the OPC UA
+//! client of a PLC's server, the paper's virtual commissioning (the twin host is the client of
+//! the PLC). It writes the twin's sensors to `<plc>.Inputs.<signal>` and reads its actuators from
+//! `<plc>.Outputs.<signal>`, stepping the twin in real time, about every millisecond.
+//!
+//! It retries until the server is up. The twin's clock starts with its first complete write of
+//! the sensors, which is also what the PLC's first scan waits for; from then on `--for D` is D of
+//! plant time under control, as with the Modbus twin.
+
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+use cetratus_twin::{Plant, Twin};
+use opcua::client::{ClientBuilder, IdentityToken, Session};
+use opcua::crypto::SecurityPolicy;
+use opcua::types::{
+    AttributeId, BrowseDescription, BrowseDirection, BrowseResultMask, DataValue,
+    MessageSecurityMode, NodeClassMask, NodeId, ObjectId, ReadValueId, ReferenceTypeId,
+    TimestampsToReturn, UserTokenPolicy, Variant, WriteValue,
+};
+
+use super::NAMESPACE;
+use crate::IoError;
+
+/// What the client did.
+#[derive(Debug, Default, Clone, Copy, PartialEq, Eq, serde::Serialize)]
+pub struct ClientCounters {
+    /// Read requests answered.
+    pub reads: u64,
+    /// Write requests answered.
+    pub writes: u64,
+    /// Requests that failed (a lost connection, a timeout), or values with a bad status.
+    pub errors: u64,
+    /// Attempts to reach the server before it answered.
+    pub connect_attempts: u64,
+}
+
+/// What a twin served over OPC UA did.
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct OpcUaServeReport {
+    /// The twin's name.
+    pub twin: String,
+    /// The PLC it was the plant of.
+    pub plc: String,
+    /// Seconds of twin time.
+    pub seconds: f64,
+    /// Parts finished (good parts for the Festo station).
+    pub parts_finished: u64,
+    /// Physical faults seen.
+    pub twin_faults: u64,
+    /// Their descriptions.
+    pub faults: Vec<String>,
+    /// The twin's counters.
+    pub counters: serde_json::Value,
+    /// What the OPC UA client did.
+    pub opcua: ClientCounters,
+}
+
+pub(crate) fn client_error(e: impl std::fmt::Display) -> IoError {
+    IoError::Thread(format!("OPC UA client: {e}"))
+}
+
+/// Connects to `url` (retrying until the server answers or `stop`), finds the PLC (`plc`, or
+/// the one object of the `urn:cetratus` namespace), and drives `twin` until `until_us` of twin
+/// time or `stop`. `on_connect` is told the PLC's name once the session is up.
+pub fn serve(
+    twin: Twin,
+    url: &str,
+    plc: Option<&str>,
+    until_us: u64,
+    stop: &AtomicBool,
+    on_connect: impl FnOnce(&str),
+) -> Result<OpcUaServeReport, IoError> {
+    let rt = tokio::runtime::Builder::new_current_thread()
+        .enable_all()
+        .build()
+        .map_err(|e| IoError::Thread(e.to_string()))?;
+    rt.block_on(run(twin, url, plc, until_us, stop, on_connect))
+}
+
+pub(crate) async fn connect(
+    url: &str,
+    stop: &AtomicBool,
+    counters: &mut ClientCounters,
+) -> Result<Option<Arc<Session>>, IoError> {
+    let mut client = ClientBuilder::new()
+        .application_name("Cetratus twin")
+        .application_uri("urn:cetratus:twin")
+        .product_uri("urn:cetratus")
+        .pki_dir(std::env::temp_dir().join("cetratus-opcua-twin"))
+        .trust_server_certs(true)
+        .session_retry_limit(-1)
+        .session_retry_initial(Duration::from_millis(100))
+        .session_retry_max(Duration::from_secs(2))
+        .request_timeout(Duration::from_secs(2))
+        .client()
+        .map_err(|e| client_error(e.join(", ")))?;
+    loop {
+        if stop.load(Ordering::Relaxed) {
+            return Ok(None);
+        }
+        counters.connect_attempts += 1;
+        let endpoint = (
+            url,
+            SecurityPolicy::None.to_uri(),
+            MessageSecurityMode::None,
+            UserTokenPolicy::anonymous(),
+        );
+        match client
+            .connect_to_matching_endpoint(endpoint, IdentityToken::Anonymous)
+            .await
+        {
+            Ok((session, event_loop)) => {
+                event_loop.spawn();
+                if tokio::time::timeout(Duration::from_secs(5), session.wait_for_connection())
+                    .await
+                    .unwrap_or(false)
+                {
+                    return Ok(Some(session));
+                }
+                let _ = session.disconnect().await;
+            }
+            Err(_) => tokio::time::sleep(Duration::from_millis(200)).await,
+        }
+    }
+}
+
+/// The PLC's name: the one object under Objects in the Cetratus namespace.
+pub(crate) async fn find_plc(session: &Session) -> Result<(u16, String), IoError> {
+    let ns = session
+        .read(
+            &[ReadValueId::new_value(NodeId::from(
+                opcua::types::VariableId::Server_NamespaceArray,
+            ))],
+            TimestampsToReturn::Neither,
+            0.0,
+        )
+        .await
+        .map_err(client_error)?
+        .into_iter()
+        .next()
+        .and_then(|dv| dv.value)
+        .and_then(|v| match v {
+            Variant::Array(a) => a
+                .values
+                .iter()
+                .position(|x| matches!(x, Variant::String(s) if s.as_ref() == NAMESPACE)),
+            _ => None,
+        })
+        .ok_or_else(|| {
+            client_error(format!(
+                "the server has no {NAMESPACE} namespace: is it a Cetratus PLC?"
+            ))
+        })?;
+    let ns = u16::try_from(ns).map_err(client_error)?;
+    let browse = BrowseDescription {
+        node_id: ObjectId::ObjectsFolder.into(),
+        browse_direction: BrowseDirection::Forward,
+        reference_type_id: ReferenceTypeId::Organizes.into(),
+        include_subtypes: true,
+        node_class_mask: NodeClassMask::OBJECT.bits(),
+        result_mask: BrowseResultMask::All as u32,
+    };
+    let results = session
+        .browse(&[browse], 100, None)
+        .await
+        .map_err(client_error)?;
+    let plc = results
+        .into_iter()
+        .flat_map(|r| r.references.unwrap_or_default())
+        .find(|r| r.node_id.node_id.namespace == ns)
+        .and_then(|r| match r.node_id.node_id.identifier {
+            opcua::types::Identifier::String(s) => Some(s.as_ref().to_string()),
+            _ => None,
+        })
+        .ok_or_else(|| client_error("the server shows no PLC under Objects"))?;
+    Ok((ns, plc))
+}
+
+pub(crate) fn bool_of(dv: &DataValue) -> Option<bool> {
+    if dv.status.is_some_and(|s| !s.is_good()) {
+        return None;
+    }
+    match dv.value {
+        Some(Variant::Boolean(b)) => Some(b),
+        _ => None,
+    }
+}
+
+async fn run(
+    mut twin: Twin,
+    url: &str,
+    plc: Option<&str>,
+    until_us: u64,
+    stop: &AtomicBool,
+    on_connect: impl FnOnce(&str),
+) -> Result<OpcUaServeReport, IoError> {
+    let mut counters = ClientCounters::default();
+    let Some(session) = connect(url, stop, &mut counters).await? else {
+        return Err(client_error("stopped before the server answered"));
+    };
+    let (ns, found) = find_plc(&session).await?;
+    let plc = plc.map_or(found, str::to_string);
+    on_connect(&plc);
+    let sensors: Vec<NodeId> = twin
+        .input_names()
+        .iter()
+        .map(|n| NodeId::new(ns, format!("{plc}.Inputs.{n}")))
+        .collect();
+    let actuators: Vec<ReadValueId> = twin
+        .output_names()
+        .iter()
+        .map(|n| ReadValueId::new_value(NodeId::new(ns, format!("{plc}.Outputs.{n}"))))
+        .collect();
+    let mut inputs = vec![false; sensors.len()];
+    let mut outputs = vec![false; actuators.len()];
+    let mut written: Vec<Option<bool>> = vec![None; sensors.len()];
+    twin.inputs(&mut inputs);
+    let mut start: Option<Instant> = None;
+    let mut now_us = 0;
+    while now_us < until_us && !stop.load(Ordering::Relaxed) {
+        let tick = Instant::now();
+        if let Some(s) = start {
+            match session
+                .read(&actuators, TimestampsToReturn::Neither, 0.0)
+                .await
+            {
+                Ok(values) => {
+                    counters.reads += 1;
+                    for (o, dv) in outputs.iter_mut().zip(&values) {
+                        match bool_of(dv) {
+                            Some(b) => *o = b,
+                            None => counters.errors += 1,
+                        }
+                    }
+                }
+                Err(_) => {
+                    counters.errors += 1;
+                    // After a lost connection, every sensor is written again.
+                    written.fill(None);
+                }
+            }
+            now_us = s.elapsed().as_micros() as u64;
+            twin.step(now_us, &outputs);
+            twin.inputs(&mut inputs);
+        }
+        let changed: Vec<WriteValue> = sensors
+            .iter()
+            .zip(&inputs)
+            .zip(&written)
+            .filter(|((_, v), w)| **w != Some(**v))
+            .map(|((id, v), _)| WriteValue {
+                node_id: id.clone(),
+                attribute_id: AttributeId::Value as u32,
+                index_range: Default::default(),
+                value: DataValue::value_only(*v),
+            })
+            .collect();
+        if !changed.is_empty() {
+            match session.write(&changed).await {
+                Ok(codes) if codes.iter().all(|c| c.is_good()) => {
+                    counters.writes += 1;
+                    for (w, v) in written.iter_mut().zip(&inputs) {
+                        *w = Some(*v);
+                    }
+                    // The plant's clock starts with its controller's first complete input image.
+                    start.get_or_insert_with(Instant::now);
+                }
+                Ok(codes) => {
+                    counters.writes += 1;
+                    counters.errors += codes.iter().filter(|c| !c.is_good()).count() as u64;
+                    if start.is_none() {
+                        let bad = codes.iter().position(|c| !c.is_good()).unwrap_or(0);
+                        return Err(client_error(format!(
+                            "the PLC refuses the sensor {} ({}): does its I/O configuration say that inputs come from OPC UA (inputs = true)?",
+                            sensors[bad], codes[bad]
+                        )));
+                    }
+                }
+                Err(_) => {
+                    counters.errors += 1;
+                    written.fill(None);
+                }
+            }
+        }
+        let spent = tick.elapsed();
+        if spent < Duration::from_millis(1) {
+            tokio::time::sleep(Duration::from_millis(1) - spent).await;
+        }
+    }
+    let _ = session.disconnect().await;
+    let c = twin.counters();
+    Ok(OpcUaServeReport {
+        twin: twin.name().to_string(),
+        plc,
+        seconds: now_us as f64 / 1e6,
+        parts_finished: c
+            .get("parts_finished")
+            .or_else(|| c.get("parts_good"))
+            .unwrap_or(0),
+        twin_faults: twin.faults().len() as u64 + twin.faults_dropped(),
+        faults: twin.faults().iter().map(|f| f.to_string()).collect(),
+        counters: serde_json::to_value(c).unwrap_or_default(),
+        opcua: counters,
+    })
+}

@@ -304,9 +304,13 @@ pub(crate) fn program_toml(
     }
     // The `Q` of each action with a nested chart, as a BOOL variable named after the action.
     for n in nests {
-        if pou.variables.iter().any(|v| v.name.eq_ignore_ascii_case(&n.action)) {
+        if let Some(v) = pou
+            .variables
+            .iter()
+            .find(|v| v.name.eq_ignore_ascii_case(&n.action))
+        {
             return Err(SfcError::Chart {
-                pos: source.pos(chart.steps[n.steps.start].at),
+                pos: source.pos(v.at),
                 pou: pou.name.clone(),
                 message: format!(
                     "the action `{}` has a nested chart, whose state is the BOOL variable `{0}`, and a variable of the POU has that name; rename one",

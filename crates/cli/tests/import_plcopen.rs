@@ -332,3 +332,29 @@ fn a_nested_chart_evolves_while_its_action_is_set_and_resumes_where_it_stopped()
     run(&mut c, true, 10);
     assert!(nested_firings(&c) > stopped, "and evolves again");
 }
+
+#[test]
+fn check_on_a_plcopen_file_runs_the_chart_checks_of_the_imported_program() {
+    let file = fixture("codesys-nested-sfc.xml");
+    let check = ok(&cetratus(&["check", file.to_str().expect("UTF-8")]));
+    assert!(check.contains("net PLC_PRG: 8 places, 8 transitions"), "{check}");
+    assert!(check.contains("states: 12"), "{check}");
+    assert!(check.contains("sfc chart"), "{check}");
+    assert!(check.contains("unreachable steps: none"), "{check}");
+    assert!(check.contains("parallel branches that never join: none"), "{check}");
+    // --pou chooses the POU as the import does: an unknown one lists the file's SFC POUs.
+    let beremiz = fixture("beremiz-first-steps.xml");
+    let out = cetratus(&["check", beremiz.to_str().expect("UTF-8"), "--pou", "Nope"]);
+    assert_eq!(out.status.code(), Some(1));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("no POU `Nope` with an SFC body"), "{err}");
+    assert!(err.contains("CounterSFC"), "{err}");
+    let check = ok(&cetratus(&["check", beremiz.to_str().expect("UTF-8"), "--pou", "CounterSFC"]));
+    assert!(check.contains("sfc chart"), "{check}");
+    // A chart the import refuses is the same refusal.
+    let light = fixture("beremiz-svghmi-traffic-light.xml");
+    let out = cetratus(&["check", light.to_str().expect("UTF-8")]);
+    assert_eq!(out.status.code(), Some(1));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("FBD body of transition STOP"), "{err}");
+}

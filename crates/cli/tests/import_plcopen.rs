@@ -217,7 +217,7 @@ fn the_nested_codesys_chart_runs_only_while_its_action_is_set() {
     let var = |name: &str| p.variable_index(name).expect(name);
     let (on, k, i) = (var("sub_sfc1"), var("k"), var("i"));
     let mut c = cetratus_runtime::Container::new(p.clone(), 0);
-    let (mut was_on, mut last_k) = (false, 0i64);
+    let (mut was_on, mut was_active, mut last_k) = (false, false, 0i64);
     let (mut scans_on, mut k_while_off_after) = (0u32, None::<i64>);
     let (mut entered_step1, mut entered_step4) = (false, false);
     // 30 s of 10 ms scans: Init, then Step0 and Step1 (S sub_sfc1) in parallel, Step1.t > 6s
@@ -237,9 +237,13 @@ fn the_nested_codesys_chart_runs_only_while_its_action_is_set() {
         if m[nested] == 1 {
             assert_eq!(k_now, last_k + 1, "scan {n}: k counts while the nested step is active");
             scans_on += 1;
+        } else if was_active {
+            // The scan the nested step is held: the IEC final run of its N action.
+            assert_eq!(k_now, last_k + 1, "scan {n}: the final run");
         } else if let Some(frozen) = k_while_off_after {
             assert_eq!(k_now, frozen, "scan {n}: k stays while sub_sfc1 is off");
         }
+        was_active = m[nested] == 1;
         if !now_on && entered_step4 && m[nested] == 0 {
             k_while_off_after.get_or_insert(k_now);
         }

@@ -77,8 +77,7 @@ fn load(path: &Path, pou: Option<&str>) -> anyhow::Result<(Net, bool)> {
             .with_context(|| format!("cannot read {}", path.display()))?;
         if cetratus_sfc::is_plcopen(text.strip_prefix('\u{feff}').unwrap_or(&text)) {
             // The program `import plcopen` would write, with the chart checks.
-            let imported =
-                cetratus_sfc::import_program(&text, &path.display().to_string(), pou)?;
+            let imported = cetratus_sfc::import_program(&text, &path.display().to_string(), pou)?;
             for note in &imported.notes {
                 eprintln!("note: {note}");
             }

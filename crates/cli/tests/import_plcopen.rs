@@ -186,7 +186,11 @@ fn bad_charts_are_clear_errors_from_the_binary_never_a_crash() {
 }
 
 /// Imports `file` with the binary into `dir` and loads the program it wrote.
-fn import_and_load(file: &Path, dir: &Path, stem: &str) -> (String, std::sync::Arc<cetratus_program::Program>) {
+fn import_and_load(
+    file: &Path,
+    dir: &Path,
+    stem: &str,
+) -> (String, std::sync::Arc<cetratus_program::Program>) {
     let printed = ok(&cetratus(&[
         "import",
         "plcopen",
@@ -208,12 +212,18 @@ fn the_nested_codesys_chart_runs_only_while_its_action_is_set() {
         printed.contains("7 steps, 6 transitions, 6 actions (with the nested charts of sub_sfc1)"),
         "{printed}"
     );
-    let check = ok(&cetratus(&["check", dir.path().join("PLC_PRG.toml").to_str().expect("UTF-8")]));
+    let check = ok(&cetratus(&[
+        "check",
+        dir.path().join("PLC_PRG.toml").to_str().expect("UTF-8"),
+    ]));
     assert!(check.contains("unreachable steps: none"), "{check}");
     let net = p.net();
     let place = |id: &str| net.place_by_id(id).expect(id).index();
     let (step1, step4) = (place("Step1"), place("Step4"));
-    let (nested, held) = (place("sub_sfc1__Init_sub_sfc1"), place("sub_sfc1__Init_sub_sfc1__held"));
+    let (nested, held) = (
+        place("sub_sfc1__Init_sub_sfc1"),
+        place("sub_sfc1__Init_sub_sfc1__held"),
+    );
     let var = |name: &str| p.variable_index(name).expect(name);
     let (on, k, i) = (var("sub_sfc1"), var("k"), var("i"));
     let mut c = cetratus_runtime::Container::new(p.clone(), 0);
@@ -226,16 +236,30 @@ fn the_nested_codesys_chart_runs_only_while_its_action_is_set() {
         c.scan(n * 10_000, &[]).expect("scans");
         let m = c.marking();
         let now_on = c.variables()[on] == Value::Bool(true);
-        let Value::Int(k_now) = c.variables()[k] else { panic!("k is an int") };
+        let Value::Int(k_now) = c.variables()[k] else {
+            panic!("k is an int")
+        };
         entered_step1 |= m[step1] == 1;
         entered_step4 |= m[step4] == 1;
         // The nested step is active exactly when the action was on after the previous scan,
         // and otherwise waits in its held place.
-        assert_eq!(m[nested] == 1, was_on, "scan {n}: nested step follows sub_sfc1");
-        assert_eq!(m[nested] + m[held], 1, "scan {n}: one token, active or held");
+        assert_eq!(
+            m[nested] == 1,
+            was_on,
+            "scan {n}: nested step follows sub_sfc1"
+        );
+        assert_eq!(
+            m[nested] + m[held],
+            1,
+            "scan {n}: one token, active or held"
+        );
         // Its N action (k := k + 1) runs while it is active, once more the scan it is left.
         if m[nested] == 1 {
-            assert_eq!(k_now, last_k + 1, "scan {n}: k counts while the nested step is active");
+            assert_eq!(
+                k_now,
+                last_k + 1,
+                "scan {n}: k counts while the nested step is active"
+            );
             scans_on += 1;
         } else if was_active {
             // The scan the nested step is held: the IEC final run of its N action.
@@ -250,13 +274,24 @@ fn the_nested_codesys_chart_runs_only_while_its_action_is_set() {
         was_on = now_on;
         last_k = k_now;
     }
-    assert!(entered_step1 && entered_step4, "the chart went through Step1 and Step4");
+    assert!(
+        entered_step1 && entered_step4,
+        "the chart went through Step1 and Step4"
+    );
     // Set at Step1, reset at Step4 about 10 s later: about 1000 scans of the nested chart.
-    assert!((900..1_100).contains(&scans_on), "{scans_on} scans with sub_sfc1 set");
+    assert!(
+        (900..1_100).contains(&scans_on),
+        "{scans_on} scans with sub_sfc1 set"
+    );
     assert!(k_while_off_after.is_some(), "sub_sfc1 was reset");
     assert!(!was_on, "sub_sfc1 is reset at the end");
-    let Value::Int(i_end) = c.variables()[i] else { panic!("i is an int") };
-    assert!(i_end > last_k, "i counts in Step0 and in the nested step: {i_end}");
+    let Value::Int(i_end) = c.variables()[i] else {
+        panic!("i is an int")
+    };
+    assert!(
+        i_end > last_k,
+        "i counts in Step0 and in the nested step: {i_end}"
+    );
 }
 
 /// A POU whose step `Run` sets the action `Sub` while the input `go` holds, and whose step `Off`
@@ -311,7 +346,8 @@ fn a_nested_chart_evolves_while_its_action_is_set_and_resumes_where_it_stopped()
             c.scan(now, &[Value::Bool(go)]).expect("scans");
         }
     };
-    let nested_firings = |c: &cetratus_runtime::Container| c.firings()[a_to_b] + c.firings()[b_to_a];
+    let nested_firings =
+        |c: &cetratus_runtime::Container| c.firings()[a_to_b] + c.firings()[b_to_a];
     // Off: the nested chart waits at its initial step, held.
     run(&mut c, false, 10);
     assert_eq!(nested_firings(&c), 0);
@@ -320,15 +356,26 @@ fn a_nested_chart_evolves_while_its_action_is_set_and_resumes_where_it_stopped()
     // scan: A → B, B → A, …
     run(&mut c, true, 11);
     let on_firings = nested_firings(&c);
-    assert!((8..=10).contains(&on_firings), "{on_firings} nested firings");
+    assert!(
+        (8..=10).contains(&on_firings),
+        "{on_firings} nested firings"
+    );
     // Off: Off is entered (R), the active step is held; nothing fires however long it stays off.
     run(&mut c, false, 3);
     let stopped = nested_firings(&c);
     let held_at = if c.marking()[b_held] == 1 { "B" } else { "A" };
-    assert_eq!(c.marking()[a] + c.marking()[b], 0, "no nested step active while off");
+    assert_eq!(
+        c.marking()[a] + c.marking()[b],
+        0,
+        "no nested step active while off"
+    );
     assert_eq!(c.marking()[a_held] + c.marking()[b_held], 1);
     run(&mut c, false, 200);
-    assert_eq!(nested_firings(&c), stopped, "the nested chart does not evolve while off");
+    assert_eq!(
+        nested_firings(&c),
+        stopped,
+        "the nested chart does not evolve while off"
+    );
     // On again: it resumes at the step where it stopped, not at its initial step.
     run(&mut c, true, 2);
     let resumed_at = if c.marking()[b] == 1 { "B" } else { "A" };
@@ -341,11 +388,17 @@ fn a_nested_chart_evolves_while_its_action_is_set_and_resumes_where_it_stopped()
 fn check_on_a_plcopen_file_runs_the_chart_checks_of_the_imported_program() {
     let file = fixture("codesys-nested-sfc.xml");
     let check = ok(&cetratus(&["check", file.to_str().expect("UTF-8")]));
-    assert!(check.contains("net PLC_PRG: 8 places, 8 transitions"), "{check}");
+    assert!(
+        check.contains("net PLC_PRG: 8 places, 8 transitions"),
+        "{check}"
+    );
     assert!(check.contains("states: 12"), "{check}");
     assert!(check.contains("sfc chart"), "{check}");
     assert!(check.contains("unreachable steps: none"), "{check}");
-    assert!(check.contains("parallel branches that never join: none"), "{check}");
+    assert!(
+        check.contains("parallel branches that never join: none"),
+        "{check}"
+    );
     // --pou chooses the POU as the import does: an unknown one lists the file's SFC POUs.
     let beremiz = fixture("beremiz-first-steps.xml");
     let out = cetratus(&["check", beremiz.to_str().expect("UTF-8"), "--pou", "Nope"]);
@@ -353,7 +406,12 @@ fn check_on_a_plcopen_file_runs_the_chart_checks_of_the_imported_program() {
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(err.contains("no POU `Nope` with an SFC body"), "{err}");
     assert!(err.contains("CounterSFC"), "{err}");
-    let check = ok(&cetratus(&["check", beremiz.to_str().expect("UTF-8"), "--pou", "CounterSFC"]));
+    let check = ok(&cetratus(&[
+        "check",
+        beremiz.to_str().expect("UTF-8"),
+        "--pou",
+        "CounterSFC",
+    ]));
     assert!(check.contains("sfc chart"), "{check}");
     // A chart the import refuses is the same refusal.
     let light = fixture("beremiz-svghmi-traffic-light.xml");

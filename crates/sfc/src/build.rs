@@ -13,6 +13,9 @@ use crate::source::Source;
 use crate::st::{self, Names, Resolved, StError, Stmt, Ty};
 use crate::SfcError;
 
+/// A transition the mapping adds (a nested step's hold or resume), with its guard.
+pub(crate) type ExtraGuard = (String, String);
+
 /// The structural net of a chart: steps as places (initial steps marked), transitions as
 /// transitions with their left-to-right priorities, jumps as arcs to their target. Refuses a
 /// network (a connected part of the chart) with no initial step or with two. The steps of a
@@ -22,7 +25,7 @@ pub(crate) fn net(
     source: &Source,
     chart: &Chart,
     nests: &[Nest],
-) -> Result<(Net, Vec<String>, Vec<(String, String)>), SfcError> {
+) -> Result<(Net, Vec<String>, Vec<ExtraGuard>), SfcError> {
     check_networks(source, chart)?;
     let mut used: HashSet<String> = chart
         .steps
@@ -243,7 +246,7 @@ pub(crate) fn program_toml(
     chart: &Chart,
     nests: &[Nest],
     ids: &[String],
-    extra: &[(String, String)],
+    extra: &[ExtraGuard],
     net_file: &str,
     notes: &mut Vec<String>,
 ) -> Result<String, SfcError> {

@@ -122,13 +122,19 @@ pub(crate) fn merge(
             merged.associations.push(inner);
         }
         merged.action_blocks += nested.action_blocks;
-        merged.jumps.extend(nested.jumps.iter().map(|j| format!("{action}{SEP}{j}")));
+        merged
+            .jumps
+            .extend(nested.jumps.iter().map(|j| format!("{action}{SEP}{j}")));
         merged.selection_divergences += nested.selection_divergences;
         merged.selection_convergences += nested.selection_convergences;
         merged.simultaneous_divergences += nested.simultaneous_divergences;
         merged.simultaneous_convergences += nested.simultaneous_convergences;
         for (name, count) in &nested.ignored_vendor_data {
-            match merged.ignored_vendor_data.iter_mut().find(|(n, _)| n == name) {
+            match merged
+                .ignored_vendor_data
+                .iter_mut()
+                .find(|(n, _)| n == name)
+            {
                 Some((_, c)) => *c += count,
                 None => merged.ignored_vendor_data.push((name.clone(), *count)),
             }

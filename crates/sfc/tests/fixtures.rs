@@ -287,7 +287,8 @@ fn the_nested_codesys_chart_imports_with_both_charts_as_expected_json_describes_
                 .transition_by_id(&id)
                 .unwrap_or_else(|| panic!("transition {id}"));
             let ids = |arcs: &[(cetratus_net::PlaceIdx, u32)]| {
-                let mut v: Vec<String> = arcs.iter().map(|&(p, _)| net.place(p).id.clone()).collect();
+                let mut v: Vec<String> =
+                    arcs.iter().map(|&(p, _)| net.place(p).id.clone()).collect();
                 v.sort();
                 v
             };
@@ -296,7 +297,11 @@ fn the_nested_codesys_chart_imports_with_both_charts_as_expected_json_describes_
                 v.sort();
                 v
             };
-            assert_eq!(ids(net.pre(t_idx)), qualified(names(&t["from"])), "{id}: from");
+            assert_eq!(
+                ids(net.pre(t_idx)),
+                qualified(names(&t["from"])),
+                "{id}: from"
+            );
             assert_eq!(ids(net.post(t_idx)), qualified(names(&t["to"])), "{id}: to");
         }
     }
@@ -320,7 +325,11 @@ fn the_nested_codesys_chart_imports_with_both_charts_as_expected_json_describes_
         )
     };
     let ((main_m, main_e), (nested_m, nested_e)) = (m(main), m(nested));
-    assert_eq!(count(nested, "steps"), 1, "the product rule below is for one nested step");
+    assert_eq!(
+        count(nested, "steps"),
+        1,
+        "the product rule below is for one nested step"
+    );
     let graph = karp_miller(net, &ReachOptions::default());
     assert!(graph.unbounded.is_empty());
     assert_eq!(graph.nodes, main_m * nested_m * 2, "markings");

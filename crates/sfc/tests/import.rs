@@ -252,15 +252,38 @@ fn a_nested_chart_reads_its_own_steps_and_evolves_only_while_its_action_is_on() 
     let text = nested_pou(&loop_chart("A", "go"), &loop_chart("B", "go"));
     let imported = cetratus_sfc::import_str(&text, "n.xml", None, "P.pnml").expect("imports");
     let toml = &imported.toml;
-    assert!(toml.contains("Sub__T3 = \"Sub && Sub__A.dwell > 1s\""), "{toml}");
+    assert!(
+        toml.contains("Sub__T3 = \"Sub && Sub__A.dwell > 1s\""),
+        "{toml}"
+    );
     assert!(toml.contains("Sub__A__hold = \"!Sub\""), "{toml}");
     assert!(toml.contains("Sub__A__resume = \"Sub\""), "{toml}");
-    assert!(toml.contains("place = \"Run\"\nqualifier = \"S\"\ntarget = \"Sub\""), "{toml}");
-    assert!(toml.contains("place = \"Sub__A\"\nqualifier = \"N\"\ntarget = \"go\""), "{toml}");
+    assert!(
+        toml.contains("place = \"Run\"\nqualifier = \"S\"\ntarget = \"Sub\""),
+        "{toml}"
+    );
+    assert!(
+        toml.contains("place = \"Sub__A\"\nqualifier = \"N\"\ntarget = \"go\""),
+        "{toml}"
+    );
     // `Inner` is associated by no step of P's chart: noted, not imported.
-    assert!(imported.notes.iter().any(|n| n.contains("`Inner`") && n.contains("not imported")), "{:?}", imported.notes);
-    let place = imported.program.net().place_by_id("Sub__A").expect("the nested step");
-    assert_eq!(imported.program.net().place(place).name.as_deref(), Some("Sub.A"));
+    assert!(
+        imported
+            .notes
+            .iter()
+            .any(|n| n.contains("`Inner`") && n.contains("not imported")),
+        "{:?}",
+        imported.notes
+    );
+    let place = imported
+        .program
+        .net()
+        .place_by_id("Sub__A")
+        .expect("the nested step");
+    assert_eq!(
+        imported.program.net().place(place).name.as_deref(),
+        Some("Sub.A")
+    );
 }
 
 #[test]
@@ -271,10 +294,18 @@ fn a_chart_nested_in_a_nested_chart_is_refused_by_name() {
     let msg = err.to_string();
     assert!(matches!(err, SfcError::Unsupported { .. }), "{msg}");
     assert!(msg.starts_with("n.xml:"), "{msg}");
-    assert!(msg.contains("`Inner` with a SFC body inside the nested chart of action `Sub`"), "{msg}");
+    assert!(
+        msg.contains("`Inner` with a SFC body inside the nested chart of action `Sub`"),
+        "{msg}"
+    );
     assert!(msg.contains("one level deep"), "{msg}");
     // A chart that starts itself is the same refusal, not a loop.
     let text = nested_pou(&loop_chart("A", "Sub"), &loop_chart("B", "go"));
-    let msg = cetratus_sfc::import_str(&text, "n.xml", None, "P.pnml").expect_err("itself").to_string();
-    assert!(msg.contains("`Sub` with a SFC body inside the nested chart of action `Sub`"), "{msg}");
+    let msg = cetratus_sfc::import_str(&text, "n.xml", None, "P.pnml")
+        .expect_err("itself")
+        .to_string();
+    assert!(
+        msg.contains("`Sub` with a SFC body inside the nested chart of action `Sub`"),
+        "{msg}"
+    );
 }

@@ -420,3 +420,40 @@ fn check_on_a_plcopen_file_runs_the_chart_checks_of_the_imported_program() {
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(err.contains("FBD body of transition STOP"), "{err}");
 }
+
+#[test]
+fn a_chart_that_starts_itself_is_refused_by_the_binary_not_a_recursion() {
+    let dir = tempfile::tempdir().expect("a temporary directory");
+    // Step B of `Sub`'s chart starts `Sub` again: a chart in a chart, without end.
+    let text = TOGGLE.replacen(
+        r#"<transition localId="4">"#,
+        r#"<actionBlock localId="9"><connectionPointIn><connection refLocalId="3"/></connectionPointIn><action localId="0" qualifier="N"><reference name="Sub"/></action></actionBlock><transition localId="4">"#,
+        1,
+    );
+    let file = dir.path().join("self.xml");
+    std::fs::write(&file, text).expect("writes");
+    for args in [
+        vec![
+            "import",
+            "plcopen",
+            file.to_str().expect("UTF-8"),
+            "-o",
+            dir.path().join("out").to_str().expect("UTF-8"),
+        ],
+        vec!["check", file.to_str().expect("UTF-8")],
+    ] {
+        let out = cetratus(&args);
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(1), "{err}");
+        assert!(!err.contains("panicked"), "{err}");
+        assert!(err.contains("self.xml:"), "{err}");
+        assert!(
+            err.contains(
+                "the action `Sub` with a SFC body inside the nested chart of action `Sub`"
+            ),
+            "{err}"
+        );
+        assert!(err.contains("one level deep"), "{err}");
+    }
+    assert!(!dir.path().join("out").join("P.toml").exists());
+}

@@ -16,8 +16,12 @@ use cetratus_net::Net;
 /// Arguments of `cetratus check`.
 #[derive(clap::Args, Debug)]
 pub struct CheckArgs {
-    /// A PNML file (ISO/IEC 15909-2 or PIPE dialect) or a program file (.toml).
+    /// A PNML file (ISO/IEC 15909-2 or PIPE dialect), a program file (.toml), or a PLCopen TC6
+    /// XML file, whose SFC POU is checked as `cetratus import plcopen` imports it.
     pub file: PathBuf,
+    /// The SFC POU of a PLCopen file (needed when the file has several).
+    #[arg(long, value_name = "NAME")]
+    pub pou: Option<String>,
     /// Print the report as JSON on stdout.
     #[arg(long)]
     pub json: bool,
@@ -72,7 +76,7 @@ impl Clock for Monotonic {
 }
 
 /// The net to check, and whether it is an SFC chart (whose chart checks are added).
-fn load(path: &Path) -> anyhow::Result<(Net, bool)> {
+fn load(path: &Path, pou: Option<&str>) -> anyhow::Result<(Net, bool)> {
     let is_program = path
         .extension()
         .and_then(|e| e.to_str())
@@ -81,6 +85,28 @@ fn load(path: &Path) -> anyhow::Result<(Net, bool)> {
         let program = cetratus_program::Program::load(path)
             .with_context(|| format!("cannot load the program {}", path.display()))?;
         return Ok((Net::clone(program.net()), program.is_sfc()));
+    }
+    let is_xml = path
+        .extension()
+        .and_then(|e| e.to_str())
+        .is_some_and(|e| e.eq_ignore_ascii_case("xml"));
+    if is_xml {
+        let text = std::fs::read_to_string(path)
+            .with_context(|| format!("cannot read {}", path.display()))?;
+        if cetratus_sfc::is_plcopen(text.strip_prefix('\u{feff}').unwrap_or(&text)) {
+            // The program `import plcopen` would write, with the chart checks.
+            let imported = cetratus_sfc::import_program(&text, &path.display().to_string(), pou)?;
+            for note in &imported.notes {
+                eprintln!("note: {note}");
+            }
+            return Ok((imported.net, true));
+        }
+    }
+    if let Some(pou) = pou {
+        anyhow::bail!(
+            "--pou {pou} names a POU of a PLCopen file, and {} is not one",
+            path.display()
+        );
     }
     let net = cetratus_net::pnml::read_file(path)
         .with_context(|| format!("cannot read the net {}", path.display()))?;
@@ -122,7 +148,7 @@ fn property(args: &CheckArgs, net: &Net) -> anyhow::Result<Option<Property>> {
 /// prints what was found so far, marked partial.
 pub fn run(args: &CheckArgs) -> anyhow::Result<()> {
     let clock = Arc::new(Monotonic(Instant::now()));
-    let (net, is_sfc) = load(&args.file)?;
+    let (net, is_sfc) = load(&args.file, args.pou.as_deref())?;
     let property = property(args, &net)?;
     let cancel = Arc::new(AtomicBool::new(false));
     let flag = cancel.clone();

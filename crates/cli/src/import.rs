@@ -50,13 +50,25 @@ pub fn run(args: &ImportArgs) -> anyhow::Result<()> {
     for note in &imported.notes {
         eprintln!("note: {note}");
     }
-    let net = imported.program.net();
+    // Counted as drawn: the chart and its nested charts (not their held places and hold and
+    // resume transitions).
+    let charts = || std::iter::once(&imported.chart).chain(&imported.nested);
+    let nested: Vec<&str> = imported
+        .nested
+        .iter()
+        .map(|c| c.location.trim_start_matches("action "))
+        .collect();
     println!(
-        "{}: {} steps, {} transitions, {} actions; program hash {}",
+        "{}: {} steps, {} transitions, {} actions{}; program hash {}",
         toml_path.display(),
-        net.num_places(),
-        net.num_transitions(),
-        imported.chart.associations.len(),
+        charts().map(|c| c.steps.len()).sum::<usize>(),
+        charts().map(|c| c.transitions.len()).sum::<usize>(),
+        charts().map(|c| c.associations.len()).sum::<usize>(),
+        if nested.is_empty() {
+            String::new()
+        } else {
+            format!(" (with the nested charts of {})", nested.join(", "))
+        },
         imported.program.hash_hex()
     );
     Ok(())

@@ -184,3 +184,276 @@ fn bad_charts_are_clear_errors_from_the_binary_never_a_crash() {
         );
     }
 }
+
+/// Imports `file` with the binary into `dir` and loads the program it wrote.
+fn import_and_load(
+    file: &Path,
+    dir: &Path,
+    stem: &str,
+) -> (String, std::sync::Arc<cetratus_program::Program>) {
+    let printed = ok(&cetratus(&[
+        "import",
+        "plcopen",
+        file.to_str().expect("UTF-8"),
+        "-o",
+        dir.to_str().expect("UTF-8"),
+    ]));
+    let program = cetratus_program::Program::load(&dir.join(format!("{stem}.toml")))
+        .expect("the imported program loads");
+    (printed, std::sync::Arc::new(program))
+}
+
+#[test]
+fn the_nested_codesys_chart_runs_only_while_its_action_is_set() {
+    use cetratus_program::Value;
+    let dir = tempfile::tempdir().expect("a temporary directory");
+    let (printed, p) = import_and_load(&fixture("codesys-nested-sfc.xml"), dir.path(), "PLC_PRG");
+    assert!(
+        printed.contains("7 steps, 6 transitions, 6 actions (with the nested charts of sub_sfc1)"),
+        "{printed}"
+    );
+    let check = ok(&cetratus(&[
+        "check",
+        dir.path().join("PLC_PRG.toml").to_str().expect("UTF-8"),
+    ]));
+    assert!(check.contains("unreachable steps: none"), "{check}");
+    let net = p.net();
+    let place = |id: &str| net.place_by_id(id).expect(id).index();
+    let (step1, step4) = (place("Step1"), place("Step4"));
+    let (nested, held) = (
+        place("sub_sfc1__Init_sub_sfc1"),
+        place("sub_sfc1__Init_sub_sfc1__held"),
+    );
+    let var = |name: &str| p.variable_index(name).expect(name);
+    let (on, k, i) = (var("sub_sfc1"), var("k"), var("i"));
+    let mut c = cetratus_runtime::Container::new(p.clone(), 0);
+    let (mut was_on, mut was_active, mut last_k) = (false, false, 0i64);
+    let (mut scans_on, mut k_while_off_after) = (0u32, None::<i64>);
+    let (mut entered_step1, mut entered_step4) = (false, false);
+    // 30 s of 10 ms scans: Init, then Step0 and Step1 (S sub_sfc1) in parallel, Step1.t > 6s
+    // to Step5, Step3 then the join to Step4 (R sub_sfc1), where the chart stays (FALSE).
+    for n in 1..=3_000u64 {
+        c.scan(n * 10_000, &[]).expect("scans");
+        let m = c.marking();
+        let now_on = c.variables()[on] == Value::Bool(true);
+        let Value::Int(k_now) = c.variables()[k] else {
+            panic!("k is an int")
+        };
+        entered_step1 |= m[step1] == 1;
+        entered_step4 |= m[step4] == 1;
+        // The nested step is active exactly when the action was on after the previous scan,
+        // and otherwise waits in its held place.
+        assert_eq!(
+            m[nested] == 1,
+            was_on,
+            "scan {n}: nested step follows sub_sfc1"
+        );
+        assert_eq!(
+            m[nested] + m[held],
+            1,
+            "scan {n}: one token, active or held"
+        );
+        // Its N action (k := k + 1) runs while it is active, once more the scan it is left.
+        if m[nested] == 1 {
+            assert_eq!(
+                k_now,
+                last_k + 1,
+                "scan {n}: k counts while the nested step is active"
+            );
+            scans_on += 1;
+        } else if was_active {
+            // The scan the nested step is held: the IEC final run of its N action.
+            assert_eq!(k_now, last_k + 1, "scan {n}: the final run");
+        } else if let Some(frozen) = k_while_off_after {
+            assert_eq!(k_now, frozen, "scan {n}: k stays while sub_sfc1 is off");
+        }
+        was_active = m[nested] == 1;
+        if !now_on && entered_step4 && m[nested] == 0 {
+            k_while_off_after.get_or_insert(k_now);
+        }
+        was_on = now_on;
+        last_k = k_now;
+    }
+    assert!(
+        entered_step1 && entered_step4,
+        "the chart went through Step1 and Step4"
+    );
+    // Set at Step1, reset at Step4 about 10 s later: about 1000 scans of the nested chart.
+    assert!(
+        (900..1_100).contains(&scans_on),
+        "{scans_on} scans with sub_sfc1 set"
+    );
+    assert!(k_while_off_after.is_some(), "sub_sfc1 was reset");
+    assert!(!was_on, "sub_sfc1 is reset at the end");
+    let Value::Int(i_end) = c.variables()[i] else {
+        panic!("i is an int")
+    };
+    assert!(
+        i_end > last_k,
+        "i counts in Step0 and in the nested step: {i_end}"
+    );
+}
+
+/// A POU whose step `Run` sets the action `Sub` while the input `go` holds, and whose step `Off`
+/// resets it; `Sub`'s chart goes A → B → A, one step per scan.
+const TOGGLE: &str = r#"<?xml version="1.0"?>
+<project xmlns="http://www.plcopen.org/xml/tc6_0201"><types><pous>
+<pou name="P" pouType="program"><interface><inputVars>
+<variable name="go"><type><BOOL/></type></variable>
+</inputVars></interface>
+<actions><action name="Sub"><body><SFC>
+<step localId="1" name="A" initialStep="true"/>
+<transition localId="2"><connectionPointIn><connection refLocalId="1"/></connectionPointIn>
+<condition><inline name=""><ST><p>TRUE</p></ST></inline></condition></transition>
+<step localId="3" name="B"><connectionPointIn><connection refLocalId="2"/></connectionPointIn></step>
+<transition localId="4"><connectionPointIn><connection refLocalId="3"/></connectionPointIn>
+<condition><inline name=""><ST><p>A.T &lt; T#1h</p></ST></inline></condition></transition>
+<jumpStep localId="5" targetName="A"><connectionPointIn><connection refLocalId="4"/></connectionPointIn></jumpStep>
+</SFC></body></action></actions>
+<body><SFC>
+<step localId="1" name="Idle" initialStep="true"/>
+<transition localId="2"><connectionPointIn><connection refLocalId="1"/></connectionPointIn>
+<condition><inline name=""><ST><p>go</p></ST></inline></condition></transition>
+<step localId="3" name="Run"><connectionPointIn><connection refLocalId="2"/></connectionPointIn></step>
+<actionBlock localId="4"><connectionPointIn><connection refLocalId="3"/></connectionPointIn><action localId="0" qualifier="S"><reference name="Sub"/></action></actionBlock>
+<transition localId="5"><connectionPointIn><connection refLocalId="3"/></connectionPointIn>
+<condition><inline name=""><ST><p>NOT go</p></ST></inline></condition></transition>
+<step localId="6" name="Off"><connectionPointIn><connection refLocalId="5"/></connectionPointIn></step>
+<actionBlock localId="7"><connectionPointIn><connection refLocalId="6"/></connectionPointIn><action localId="0" qualifier="R"><reference name="Sub"/></action></actionBlock>
+<transition localId="8"><connectionPointIn><connection refLocalId="6"/></connectionPointIn>
+<condition><inline name=""><ST><p>go</p></ST></inline></condition></transition>
+<jumpStep localId="9" targetName="Run"><connectionPointIn><connection refLocalId="8"/></connectionPointIn></jumpStep>
+</SFC></body></pou></pous></types></project>"#;
+
+#[test]
+fn a_nested_chart_evolves_while_its_action_is_set_and_resumes_where_it_stopped() {
+    use cetratus_program::Value;
+    let dir = tempfile::tempdir().expect("a temporary directory");
+    let file = dir.path().join("toggle.xml");
+    std::fs::write(&file, TOGGLE).expect("writes");
+    let (_, p) = import_and_load(&file, dir.path(), "P");
+    let net = p.net();
+    let t = |id: &str| net.transition_by_id(id).expect(id).index();
+    let (a_to_b, b_to_a) = (t("Sub__T2"), t("Sub__T4"));
+    let place = |id: &str| net.place_by_id(id).expect(id).index();
+    let (a, b) = (place("Sub__A"), place("Sub__B"));
+    let (a_held, b_held) = (place("Sub__A__held"), place("Sub__B__held"));
+    let mut c = cetratus_runtime::Container::new(p.clone(), 0);
+    let mut now = 0;
+    let mut run = |c: &mut cetratus_runtime::Container, go: bool, scans: u64| {
+        for _ in 0..scans {
+            now += 10_000;
+            c.scan(now, &[Value::Bool(go)]).expect("scans");
+        }
+    };
+    let nested_firings =
+        |c: &cetratus_runtime::Container| c.firings()[a_to_b] + c.firings()[b_to_a];
+    // Off: the nested chart waits at its initial step, held.
+    run(&mut c, false, 10);
+    assert_eq!(nested_firings(&c), 0);
+    assert_eq!(c.marking()[a_held], 1);
+    // On for 11 scans: Run is entered (S), the chart resumes the scan after, then fires once a
+    // scan: A → B, B → A, …
+    run(&mut c, true, 11);
+    let on_firings = nested_firings(&c);
+    assert!(
+        (8..=10).contains(&on_firings),
+        "{on_firings} nested firings"
+    );
+    // Off: Off is entered (R), the active step is held; nothing fires however long it stays off.
+    run(&mut c, false, 3);
+    let stopped = nested_firings(&c);
+    let held_at = if c.marking()[b_held] == 1 { "B" } else { "A" };
+    assert_eq!(
+        c.marking()[a] + c.marking()[b],
+        0,
+        "no nested step active while off"
+    );
+    assert_eq!(c.marking()[a_held] + c.marking()[b_held], 1);
+    run(&mut c, false, 200);
+    assert_eq!(
+        nested_firings(&c),
+        stopped,
+        "the nested chart does not evolve while off"
+    );
+    // On again: it resumes at the step where it stopped, not at its initial step.
+    run(&mut c, true, 2);
+    let resumed_at = if c.marking()[b] == 1 { "B" } else { "A" };
+    assert_eq!(resumed_at, held_at, "resumed where it stopped");
+    run(&mut c, true, 10);
+    assert!(nested_firings(&c) > stopped, "and evolves again");
+}
+
+#[test]
+fn check_on_a_plcopen_file_runs_the_chart_checks_of_the_imported_program() {
+    let file = fixture("codesys-nested-sfc.xml");
+    let check = ok(&cetratus(&["check", file.to_str().expect("UTF-8")]));
+    assert!(
+        check.contains("net PLC_PRG: 8 places, 8 transitions"),
+        "{check}"
+    );
+    assert!(check.contains("states: 12"), "{check}");
+    assert!(check.contains("sfc chart"), "{check}");
+    assert!(check.contains("unreachable steps: none"), "{check}");
+    assert!(
+        check.contains("parallel branches that never join: none"),
+        "{check}"
+    );
+    // --pou chooses the POU as the import does: an unknown one lists the file's SFC POUs.
+    let beremiz = fixture("beremiz-first-steps.xml");
+    let out = cetratus(&["check", beremiz.to_str().expect("UTF-8"), "--pou", "Nope"]);
+    assert_eq!(out.status.code(), Some(1));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("no POU `Nope` with an SFC body"), "{err}");
+    assert!(err.contains("CounterSFC"), "{err}");
+    let check = ok(&cetratus(&[
+        "check",
+        beremiz.to_str().expect("UTF-8"),
+        "--pou",
+        "CounterSFC",
+    ]));
+    assert!(check.contains("sfc chart"), "{check}");
+    // A chart the import refuses is the same refusal.
+    let light = fixture("beremiz-svghmi-traffic-light.xml");
+    let out = cetratus(&["check", light.to_str().expect("UTF-8")]);
+    assert_eq!(out.status.code(), Some(1));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("FBD body of transition STOP"), "{err}");
+}
+
+#[test]
+fn a_chart_that_starts_itself_is_refused_by_the_binary_not_a_recursion() {
+    let dir = tempfile::tempdir().expect("a temporary directory");
+    // Step B of `Sub`'s chart starts `Sub` again: a chart in a chart, without end.
+    let text = TOGGLE.replacen(
+        r#"<transition localId="4">"#,
+        r#"<actionBlock localId="9"><connectionPointIn><connection refLocalId="3"/></connectionPointIn><action localId="0" qualifier="N"><reference name="Sub"/></action></actionBlock><transition localId="4">"#,
+        1,
+    );
+    let file = dir.path().join("self.xml");
+    std::fs::write(&file, text).expect("writes");
+    for args in [
+        vec![
+            "import",
+            "plcopen",
+            file.to_str().expect("UTF-8"),
+            "-o",
+            dir.path().join("out").to_str().expect("UTF-8"),
+        ],
+        vec!["check", file.to_str().expect("UTF-8")],
+    ] {
+        let out = cetratus(&args);
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(1), "{err}");
+        assert!(!err.contains("panicked"), "{err}");
+        assert!(err.contains("self.xml:"), "{err}");
+        assert!(
+            err.contains(
+                "the action `Sub` with a SFC body inside the nested chart of action `Sub`"
+            ),
+            "{err}"
+        );
+        assert!(err.contains("one level deep"), "{err}");
+    }
+    assert!(!dir.path().join("out").join("P.toml").exists());
+}

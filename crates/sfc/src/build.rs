@@ -7,15 +7,25 @@ use cetratus_net::{ArcKind, Net, NetBuilder, Place, Transition as NetTransition}
 use cetratus_program::guard::{Expr, ExprKind};
 
 use crate::chart::{ActionRef, Chart, Qualifier};
+use crate::nest::{Nest, SEP};
 use crate::pou::{Body, Pou, VarKind};
 use crate::source::Source;
 use crate::st::{self, Names, Resolved, StError, Stmt, Ty};
 use crate::SfcError;
 
+/// A transition the mapping adds (a nested step's hold or resume), with its guard.
+pub(crate) type ExtraGuard = (String, String);
+
 /// The structural net of a chart: steps as places (initial steps marked), transitions as
 /// transitions with their left-to-right priorities, jumps as arcs to their target. Refuses a
-/// network (a connected part of the chart) with no initial step or with two.
-pub(crate) fn net(source: &Source, chart: &Chart) -> Result<(Net, Vec<String>), SfcError> {
+/// network (a connected part of the chart) with no initial step or with two. The steps of a
+/// nested chart (`nests`) start unmarked, each with a held place and its hold and resume
+/// transitions (module `nest`), whose ids and guards are returned after the transitions' ids.
+pub(crate) fn net(
+    source: &Source,
+    chart: &Chart,
+    nests: &[Nest],
+) -> Result<(Net, Vec<String>, Vec<ExtraGuard>), SfcError> {
     check_networks(source, chart)?;
     let mut used: HashSet<String> = chart
         .steps
@@ -31,10 +41,26 @@ pub(crate) fn net(source: &Source, chart: &Chart) -> Result<(Net, Vec<String>), 
     };
     let mut b = NetBuilder::new(chart.pou.clone());
     b.name(chart.pou.clone());
-    for s in &chart.steps {
-        let mut p = Place::new(s.name.clone(), u32::from(s.initial));
-        p.name = Some(s.name.clone());
+    for (i, s) in chart.steps.iter().enumerate() {
+        let nested = Nest::of_step(nests, i);
+        let mut p = Place::new(s.name.clone(), u32::from(s.initial && nested.is_none()));
+        p.name = Some(match nested {
+            Some(n) => display(&n.action, &s.name),
+            None => s.name.clone(),
+        });
         b.add_place(p).map_err(|e| net_err(source, e))?;
+    }
+    // A nested step's held place, where its token waits while the action is off.
+    let mut held = Vec::new();
+    for n in nests {
+        for i in n.steps.clone() {
+            let s = &chart.steps[i];
+            let id = fresh(format!("{}{SEP}held", s.name));
+            let mut p = Place::new(id.clone(), u32::from(s.initial));
+            p.name = Some(format!("{} (held)", display(&n.action, &s.name)));
+            b.add_place(p).map_err(|e| net_err(source, e))?;
+            held.push((i, id, n.action.clone()));
+        }
     }
     // Left to right: among the transitions that leave a step, the leftmost has the highest
     // priority (IEC 61131-3: the first true branch from the left wins).
@@ -76,7 +102,31 @@ pub(crate) fn net(source: &Source, chart: &Chart) -> Result<(Net, Vec<String>), 
         }
         ids.push(id);
     }
-    Ok((b.build().map_err(|e| net_err(source, e))?, ids))
+    let mut extra = Vec::new();
+    for (i, place, action) in held {
+        let step = &chart.steps[i].name;
+        for (suffix, from, to, guard) in [
+            ("hold", step.as_str(), place.as_str(), format!("!{action}")),
+            ("resume", place.as_str(), step.as_str(), action.clone()),
+        ] {
+            let id = fresh(format!("{step}{SEP}{suffix}"));
+            b.add_transition(NetTransition::new(id.clone()))
+                .map_err(|e| net_err(source, e))?;
+            let arc = fresh(format!("{id}_from_{from}"));
+            b.add_arc(&arc, from, &id, 1, ArcKind::Normal)
+                .map_err(|e| net_err(source, e))?;
+            let arc = fresh(format!("{id}_to_{to}"));
+            b.add_arc(&arc, &id, to, 1, ArcKind::Normal)
+                .map_err(|e| net_err(source, e))?;
+            extra.push((id, guard));
+        }
+    }
+    Ok((b.build().map_err(|e| net_err(source, e))?, ids, extra))
+}
+
+/// `A.S` for the place `A__S` of step `S` of action `A`'s chart.
+fn display(action: &str, id: &str) -> String {
+    format!("{action}.{}", &id[action.len() + SEP.len()..])
 }
 
 fn net_err(source: &Source, e: cetratus_net::NetError) -> SfcError {
@@ -154,11 +204,16 @@ struct Scope<'c> {
     unusable: &'c [(String, String)],
     chart: &'c Chart,
     in_condition: bool,
+    /// The action whose nested chart the text belongs to: its own steps are found first.
+    prefix: Option<&'c str>,
 }
 
 impl Names for Scope<'_> {
     fn resolve(&self, name: &str) -> Option<Resolved> {
-        if let Some(s) = self.chart.step_index(name) {
+        let own = self
+            .prefix
+            .and_then(|a| self.chart.step_index(&format!("{a}{SEP}{name}")));
+        if let Some(s) = own.or_else(|| self.chart.step_index(name)) {
             return Some(Resolved::Step(self.chart.steps[s].name.clone()));
         }
         if let Some(s) = self
@@ -181,13 +236,17 @@ impl Names for Scope<'_> {
     }
 }
 
-/// The program TOML of a chart, whose net has the transition ids `ids`; `notes` gathers what was
-/// read but not imported.
+/// The program TOML of a chart with its nested charts merged in (`nests`), whose net has the
+/// transition ids `ids` and the hold and resume transitions `extra` (id, guard); `notes` gathers
+/// what was read but not imported.
+#[allow(clippy::too_many_arguments)]
 pub(crate) fn program_toml(
     source: &Source,
     pou: &Pou,
     chart: &Chart,
+    nests: &[Nest],
     ids: &[String],
+    extra: &[ExtraGuard],
     net_file: &str,
     notes: &mut Vec<String>,
 ) -> Result<String, SfcError> {
@@ -246,6 +305,30 @@ pub(crate) fn program_toml(
             initial: v.initial.clone(),
         });
     }
+    // The `Q` of each action with a nested chart, as a BOOL variable named after the action.
+    for n in nests {
+        if let Some(v) = pou
+            .variables
+            .iter()
+            .find(|v| v.name.eq_ignore_ascii_case(&n.action))
+        {
+            return Err(SfcError::Chart {
+                pos: source.pos(v.at),
+                pou: pou.name.clone(),
+                message: format!(
+                    "the action `{}` has a nested chart, whose state is the BOOL variable `{0}`, and a variable of the POU has that name; rename one",
+                    n.action
+                ),
+            });
+        }
+        signals.push(Signal {
+            name: n.action.clone(),
+            kind: VarKind::Local,
+            ty: Ty::Bool,
+            address: None,
+            initial: None,
+        });
+    }
 
     let mut out = String::new();
     let _ = writeln!(
@@ -295,9 +378,15 @@ pub(crate) fn program_toml(
         unusable: &unusable,
         chart,
         in_condition: true,
+        prefix: None,
     };
     let mut guards = String::new();
-    for (t, id) in chart.transitions.iter().zip(ids) {
+    for (i, (t, id)) in chart.transitions.iter().zip(ids).enumerate() {
+        let nest = Nest::of_transition(nests, i);
+        let cond_scope = Scope {
+            prefix: nest.map(|n| n.action.as_str()),
+            ..cond_scope
+        };
         let (text, at, negated) = match &t.condition {
             crate::chart::Condition::St { text, at, negated } => (text, *at, *negated),
             crate::chart::Condition::Unsupported { form, at } => {
@@ -318,10 +407,25 @@ pub(crate) fn program_toml(
                 Box::new(e),
             ));
         }
+        if let Some(n) = nest {
+            // A nested chart evolves only while its action is on.
+            let on = Expr::new(ExprKind::Name(n.action.clone()));
+            e = match e.kind {
+                ExprKind::Bool(true) => on,
+                _ => Expr::new(ExprKind::Binary(
+                    cetratus_program::guard::BinOp::And,
+                    Box::new(on),
+                    Box::new(e),
+                )),
+            };
+        }
         if e.kind == ExprKind::Bool(true) {
             continue;
         }
         let _ = writeln!(guards, "{id} = {}", q(&e.to_string()));
+    }
+    for (id, guard) in extra {
+        let _ = writeln!(guards, "{id} = {}", q(guard));
     }
     if !guards.is_empty() {
         let _ = write!(out, "\n[guards]\n{guards}");
@@ -334,11 +438,16 @@ pub(crate) fn program_toml(
         unusable: &unusable,
         chart,
         in_condition: false,
+        prefix: None,
     };
     let mut actions: Vec<(String, &'static str, Drive, Option<u64>)> = Vec::new();
     let mut bodies: Vec<(String, String)> = Vec::new();
     for (k, a) in chart.associations.iter().enumerate() {
         let step = chart.steps[a.step].name.clone();
+        let body_scope = Scope {
+            prefix: Nest::of_step(nests, a.step).map(|n| n.action.as_str()),
+            ..body_scope
+        };
         if let Some(ind) = &a.indicator {
             notes.push(format!("{}: the indicator variable `{ind}` is not imported (it has no effect on execution)", source.pos(a.at)));
         }
@@ -386,10 +495,22 @@ pub(crate) fn program_toml(
                 {
                     match &named.body {
                         Body::St { text, at } => (named.name.clone(), text.clone(), *at),
+                        // An action with a nested chart: its Q drives the chart's variable.
+                        Body::Other { .. }
+                            if nests.iter().any(|n| n.action == named.name) =>
+                        {
+                            actions.push((
+                                step,
+                                qualifier,
+                                Drive::Target(named.name.clone()),
+                                duration,
+                            ));
+                            continue;
+                        }
                         Body::Other { language, .. } => {
                             return Err(unsupported(
                                 format!("the action `{name}` with a {language} body"),
-                                "action bodies must be Structured Text (a nested chart or FBD/LD body is not imported)",
+                                "action bodies must be Structured Text or a chart (an FBD, LD or IL body is not imported)",
                             ))
                         }
                     }

@@ -16,6 +16,7 @@
 mod build;
 mod chart;
 mod error;
+mod nest;
 mod pou;
 mod source;
 pub mod st;
@@ -35,6 +36,10 @@ use source::Source;
 pub struct Imported {
     /// The chart as drawn.
     pub chart: Chart,
+    /// The charts of the actions with an SFC body that the chart associates (nested charts), as
+    /// drawn, in order of first association. Their steps and transitions are in `net` as
+    /// `ACTION__NAME` (docs/sfc.md, *Nested charts*).
+    pub nested: Vec<Chart>,
     /// The program's net.
     pub net: Net,
     /// The program's TOML text (its `net =` names the PNML file to write beside it).
@@ -66,7 +71,7 @@ pub fn charts(text: &str, label: &str) -> Result<Vec<Chart>, SfcError> {
 pub fn chart_net(text: &str, label: &str, chart: &Chart) -> Result<Net, SfcError> {
     let text = text.strip_prefix('\u{feff}').unwrap_or(text);
     let source = Source { label, text };
-    Ok(build::net(&source, chart)?.0)
+    Ok(build::net(&source, chart, &[])?.0)
 }
 
 /// Imports the SFC POU `pou` (or the file's only SFC POU) as [`import_str`] does, with the net
@@ -155,8 +160,20 @@ pub fn import_str(
             message: format!("POU `{}` has no SFC body", chosen.name),
         })?;
     let chart = chart::read(&source, chosen, "body", sfc)?;
-    let (net, ids) = build::net(&source, &chart)?;
-    let toml = build::program_toml(&source, chosen, &chart, &ids, net_file, &mut notes)?;
+    let (merged, nests, nested) = nest::merge(&source, chosen, &chart)?;
+    for a in &chosen.actions {
+        if nest::sfc_action(chosen, &a.name).is_some() && !nests.iter().any(|n| n.action == a.name)
+        {
+            notes.push(format!(
+                "{label}: the action `{}` has a SFC body and no step of the chart associates it: not imported",
+                a.name
+            ));
+        }
+    }
+    let (net, ids, extra) = build::net(&source, &merged, &nests)?;
+    let toml = build::program_toml(
+        &source, chosen, &merged, &nests, &ids, &extra, net_file, &mut notes,
+    )?;
     let program =
         Program::from_sources(&toml, label, net.clone()).map_err(|e| SfcError::Program {
             file: label.to_string(),
@@ -164,6 +181,7 @@ pub fn import_str(
         })?;
     Ok(Imported {
         chart,
+        nested,
         net,
         toml,
         program,

@@ -248,3 +248,95 @@ fn qualifiers_read_from_the_fixtures_are_the_iec_ones() {
     assert_eq!(Qualifier::parse("SD"), Some(Qualifier::SD));
     assert_eq!(Qualifier::parse("X"), None);
 }
+
+#[test]
+fn the_nested_codesys_chart_imports_with_both_charts_as_expected_json_describes_them() {
+    let file = "codesys-nested-sfc.xml";
+    let text = read(&format!("plcopen/{file}"));
+    let imported = cetratus_sfc::import_str(&text, file, None, "PLC_PRG.pnml")
+        .unwrap_or_else(|e| panic!("{file} imports: {e}"));
+    let expected = expected();
+    let want = expected["files"][file]["sfc_charts"]
+        .as_array()
+        .expect("sfc_charts");
+    assert_eq!(want.len(), 2, "the POU's chart and the chart of sub_sfc1");
+    assert_eq!(imported.nested.len(), 1, "one nested chart");
+    let (main, nested) = (&want[0], &want[1]);
+    assert_eq!(main["where"], "body");
+    assert_eq!(nested["where"], "action sub_sfc1");
+    // Each chart as imported: counts, transitions, qualifiers and its own reachable markings.
+    check_chart(file, &imported.chart, main, &text);
+    check_chart(file, &imported.nested[0], nested, &text);
+
+    // Both charts are in the program's net: the nested steps and transitions qualified by the
+    // action's name, each with its source and target steps.
+    let net = imported.program.net();
+    for (chart, prefix) in [(main, ""), (nested, "sub_sfc1__")] {
+        for s in names(&chart["step_names"]) {
+            let p = net
+                .place_by_id(&format!("{prefix}{s}"))
+                .unwrap_or_else(|| panic!("step {prefix}{s} is a place"));
+            let initial = net.initial_marking().as_slice()[p.index()];
+            // A nested chart's initial step waits in its held place until the action is on.
+            let want_initial = prefix.is_empty() && names(&chart["initial_steps"]).contains(&s);
+            assert_eq!(initial == 1, want_initial, "{prefix}{s}: initial marking");
+        }
+        for t in chart["transition_list"].as_array().expect("transitions") {
+            let id = format!("{prefix}T{}", t["localId"].as_str().expect("localId"));
+            let t_idx = net
+                .transition_by_id(&id)
+                .unwrap_or_else(|| panic!("transition {id}"));
+            let ids = |arcs: &[(cetratus_net::PlaceIdx, u32)]| {
+                let mut v: Vec<String> =
+                    arcs.iter().map(|&(p, _)| net.place(p).id.clone()).collect();
+                v.sort();
+                v
+            };
+            let qualified = |v: Vec<String>| {
+                let mut v: Vec<String> = v.into_iter().map(|s| format!("{prefix}{s}")).collect();
+                v.sort();
+                v
+            };
+            assert_eq!(
+                ids(net.pre(t_idx)),
+                qualified(names(&t["from"])),
+                "{id}: from"
+            );
+            assert_eq!(ids(net.post(t_idx)), qualified(names(&t["to"])), "{id}: to");
+        }
+    }
+    let held = net
+        .place_by_id("sub_sfc1__Init_sub_sfc1__held")
+        .expect("the held place of the nested initial step");
+    assert_eq!(net.initial_marking().as_slice()[held.index()], 1);
+    // Steps: 6 + 1, each nested step with its held place; transitions: 5 + 1, and a hold and a
+    // resume per nested step.
+    assert_eq!(net.num_places(), 6 + 1 + 1);
+    assert_eq!(net.num_transitions(), 5 + 1 + 2);
+    // The program's own reachable markings, guards ignored: the nested chart's single step is
+    // active or held in every marking of the POU's chart, independently, so the markings are
+    // the product, and from each marking the chart's edges, the nested chart's own edges while
+    // its step is active, and one hold or resume edge leave.
+    let m = |c: &Value| {
+        let r = &c["reachability"];
+        (
+            r["markings"].as_u64().expect("markings"),
+            r["edges"].as_u64().expect("edges"),
+        )
+    };
+    let ((main_m, main_e), (nested_m, nested_e)) = (m(main), m(nested));
+    assert_eq!(
+        count(nested, "steps"),
+        1,
+        "the product rule below is for one nested step"
+    );
+    let graph = karp_miller(net, &ReachOptions::default());
+    assert!(graph.unbounded.is_empty());
+    assert_eq!(graph.nodes, main_m * nested_m * 2, "markings");
+    assert_eq!(
+        graph.edges,
+        main_e * 2 + main_m * nested_e + main_m * 2,
+        "edges"
+    );
+    assert_eq!(graph.dead, 0, "dead markings");
+}

@@ -61,12 +61,6 @@ fn refusals_name_the_construct_the_pou_and_the_line_and_column() {
             "beremiz-svghmi-traffic-light.xml:",
             "FBD body of transition STOP",
         ),
-        (
-            "codesys-nested-sfc.xml",
-            None,
-            "codesys-nested-sfc.xml:410:15",
-            "the action `sub_sfc1` with a SFC body",
-        ),
     ];
     for (file, pou, at, construct) in cases {
         let err = import(file, pou).expect_err(file);
@@ -212,4 +206,106 @@ fn a_steps_entry_active_and_exit_actions_in_vendor_data_become_p1_n_and_p0_bodie
         assert!(toml.contains(&block), "{block} in\n{toml}");
     }
     assert!(toml.contains("n := n + 1"), "{toml}");
+}
+
+/// A POU `P` whose chart starts the action `Sub` at step `Run` (S) and stops it at `Off` (R);
+/// `Sub`'s body is the chart `sub`, and the action `Inner` has the chart `inner`.
+fn nested_pou(sub: &str, inner: &str) -> String {
+    format!(
+        r#"<?xml version="1.0"?>
+<project xmlns="http://www.plcopen.org/xml/tc6_0201"><types><pous>
+<pou name="P" pouType="program"><interface><localVars>
+<variable name="go"><type><BOOL/></type></variable>
+</localVars></interface>
+<actions>
+<action name="Sub"><body><SFC>{sub}</SFC></body></action>
+<action name="Inner"><body><SFC>{inner}</SFC></body></action>
+</actions>
+<body><SFC>
+<step localId="1" name="Run" initialStep="true"/>
+<actionBlock localId="2"><connectionPointIn><connection refLocalId="1"/></connectionPointIn><action localId="0" qualifier="S"><reference name="Sub"/></action></actionBlock>
+<transition localId="3"><connectionPointIn><connection refLocalId="1"/></connectionPointIn>
+<condition><inline name=""><ST><p>go</p></ST></inline></condition></transition>
+<step localId="4" name="Off"><connectionPointIn><connection refLocalId="3"/></connectionPointIn></step>
+<actionBlock localId="5"><connectionPointIn><connection refLocalId="4"/></connectionPointIn><action localId="0" qualifier="R"><reference name="Sub"/></action></actionBlock>
+<transition localId="6"><connectionPointIn><connection refLocalId="4"/></connectionPointIn>
+<condition><inline name=""><ST><p>NOT go</p></ST></inline></condition></transition>
+<jumpStep localId="7" targetName="Run"><connectionPointIn><connection refLocalId="6"/></connectionPointIn></jumpStep>
+</SFC></body></pou></pous></types></project>"#
+    )
+}
+
+/// A one-step chart whose step `name` runs the action `action` (N) and jumps back to itself.
+fn loop_chart(name: &str, action: &str) -> String {
+    format!(
+        r#"<step localId="1" name="{name}" initialStep="true"/>
+<actionBlock localId="2"><connectionPointIn><connection refLocalId="1"/></connectionPointIn><action localId="0" qualifier="N"><reference name="{action}"/></action></actionBlock>
+<transition localId="3"><connectionPointIn><connection refLocalId="1"/></connectionPointIn>
+<condition><inline name=""><ST><p>{name}.T &gt; T#1s</p></ST></inline></condition></transition>
+<jumpStep localId="4" targetName="{name}"><connectionPointIn><connection refLocalId="3"/></connectionPointIn></jumpStep>"#
+    )
+}
+
+#[test]
+fn a_nested_chart_reads_its_own_steps_and_evolves_only_while_its_action_is_on() {
+    // `Sub`'s chart associates the variable `go`, and reads its own step's time.
+    let text = nested_pou(&loop_chart("A", "go"), &loop_chart("B", "go"));
+    let imported = cetratus_sfc::import_str(&text, "n.xml", None, "P.pnml").expect("imports");
+    let toml = &imported.toml;
+    assert!(
+        toml.contains("Sub__T3 = \"Sub && Sub__A.dwell > 1s\""),
+        "{toml}"
+    );
+    assert!(toml.contains("Sub__A__hold = \"!Sub\""), "{toml}");
+    assert!(toml.contains("Sub__A__resume = \"Sub\""), "{toml}");
+    assert!(
+        toml.contains("place = \"Run\"\nqualifier = \"S\"\ntarget = \"Sub\""),
+        "{toml}"
+    );
+    assert!(
+        toml.contains("place = \"Sub__A\"\nqualifier = \"N\"\ntarget = \"go\""),
+        "{toml}"
+    );
+    // `Inner` is associated by no step of P's chart: noted, not imported.
+    assert!(
+        imported
+            .notes
+            .iter()
+            .any(|n| n.contains("`Inner`") && n.contains("not imported")),
+        "{:?}",
+        imported.notes
+    );
+    let place = imported
+        .program
+        .net()
+        .place_by_id("Sub__A")
+        .expect("the nested step");
+    assert_eq!(
+        imported.program.net().place(place).name.as_deref(),
+        Some("Sub.A")
+    );
+}
+
+#[test]
+fn a_chart_nested_in_a_nested_chart_is_refused_by_name() {
+    // `Sub`'s step starts `Inner`, whose body is a chart too: two levels.
+    let text = nested_pou(&loop_chart("A", "Inner"), &loop_chart("B", "go"));
+    let err = cetratus_sfc::import_str(&text, "n.xml", None, "P.pnml").expect_err("two levels");
+    let msg = err.to_string();
+    assert!(matches!(err, SfcError::Unsupported { .. }), "{msg}");
+    assert!(msg.starts_with("n.xml:"), "{msg}");
+    assert!(
+        msg.contains("`Inner` with a SFC body inside the nested chart of action `Sub`"),
+        "{msg}"
+    );
+    assert!(msg.contains("one level deep"), "{msg}");
+    // A chart that starts itself is the same refusal, not a loop.
+    let text = nested_pou(&loop_chart("A", "Sub"), &loop_chart("B", "go"));
+    let msg = cetratus_sfc::import_str(&text, "n.xml", None, "P.pnml")
+        .expect_err("itself")
+        .to_string();
+    assert!(
+        msg.contains("`Sub` with a SFC body inside the nested chart of action `Sub`"),
+        "{msg}"
+    );
 }

@@ -113,3 +113,57 @@ fn a_new_initial_step_starts_inactive_unless_the_whole_chart_is_new() {
         .expect("applies");
     assert_eq!(out, fresh.net().initial_marking().0);
 }
+
+/// A POU whose step `Run` starts the action `Sub` (S) when `with_sub`; `Sub`'s body is a chart
+/// A → B → A.
+fn with_nested(with_sub: bool) -> Program {
+    let block = if with_sub {
+        r#"<actionBlock localId="4"><connectionPointIn><connection refLocalId="3"/></connectionPointIn><action localId="0" qualifier="S"><reference name="Sub"/></action></actionBlock>"#
+    } else {
+        ""
+    };
+    let text = format!(
+        r#"<?xml version="1.0"?>
+<project xmlns="http://www.plcopen.org/xml/tc6_0201"><types><pous>
+<pou name="P" pouType="program"><interface><localVars>
+<variable name="go"><type><BOOL/></type></variable>
+</localVars></interface>
+<actions><action name="Sub"><body><SFC>
+<step localId="1" name="A" initialStep="true"/>
+<transition localId="2"><connectionPointIn><connection refLocalId="1"/></connectionPointIn>
+<condition><inline name=""><ST><p>go</p></ST></inline></condition></transition>
+<step localId="3" name="B"><connectionPointIn><connection refLocalId="2"/></connectionPointIn></step>
+<transition localId="4"><connectionPointIn><connection refLocalId="3"/></connectionPointIn>
+<condition><inline name=""><ST><p>go</p></ST></inline></condition></transition>
+<jumpStep localId="5" targetName="A"><connectionPointIn><connection refLocalId="4"/></connectionPointIn></jumpStep>
+</SFC></body></action></actions>
+<body><SFC>
+<step localId="1" name="Idle" initialStep="true"/>
+<transition localId="2"><connectionPointIn><connection refLocalId="1"/></connectionPointIn>
+<condition><inline name=""><ST><p>go</p></ST></inline></condition></transition>
+<step localId="3" name="Run"><connectionPointIn><connection refLocalId="2"/></connectionPointIn></step>{block}
+<transition localId="5"><connectionPointIn><connection refLocalId="3"/></connectionPointIn>
+<condition><inline name=""><ST><p>NOT go</p></ST></inline></condition></transition>
+<jumpStep localId="6" targetName="Idle"><connectionPointIn><connection refLocalId="5"/></connectionPointIn></jumpStep>
+</SFC></body></pou></pous></types></project>"#
+    );
+    cetratus_sfc::import_str(&text, "p.xml", None, "P.pnml")
+        .expect("imports")
+        .program
+}
+
+#[test]
+fn a_nested_chart_that_an_update_adds_starts_at_its_initial_step_held() {
+    let (old, new) = (with_nested(false), with_nested(true));
+    assert!(
+        old.net().place_by_id("Sub__A").is_none(),
+        "not associated: not imported"
+    );
+    let st = StateTransform::generated(&old, &new, &BTreeMap::new()).expect("a transform");
+    let mut out = vec![0; new.net().num_places()];
+    st.apply(&marking(&old, &["Run"]), &new, &mut out)
+        .expect("applies");
+    // The running chart keeps its step; the nested chart is new as a whole, so it starts at
+    // its initial step, held until `Sub` is on.
+    assert_eq!(out, marking(&new, &["Run", "Sub__A__held"]));
+}

@@ -201,10 +201,7 @@ fn build(net: &Net, opts: &ReachOptions, stop_at_omega: bool) -> Coverability {
         len: 0,
     };
     seen.insert(&nodes, 0);
-    let max_states = opts
-        .max_states
-        .unwrap_or(u64::from(u32::MAX - 1))
-        .min(u64::from(u32::MAX - 1));
+    let max_states = opts.state_limit();
     let (mut edges, mut dead) = (0u64, 0u64);
     let mut first_dead = None;
     let mut stopped = None;

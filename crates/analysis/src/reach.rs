@@ -153,6 +153,14 @@ pub struct ReachOptions {
 }
 
 impl ReachOptions {
+    /// The number of states a search may discover: `max_states`, within the range of the
+    /// 32-bit state ids.
+    pub(crate) fn state_limit(&self) -> u64 {
+        self.max_states
+            .unwrap_or(u64::from(u32::MAX - 1))
+            .min(u64::from(u32::MAX - 1))
+    }
+
     /// Why to stop now: cancellation or time (states and bytes are checked where they grow).
     pub fn interrupted(&self) -> Option<Stop> {
         if self
@@ -568,13 +576,12 @@ pub(crate) fn search(
     }
 }
 
-fn explore_w<const W: usize>(net: &Net, pk: &Packing, opts: &ReachOptions) -> ReachResult {
-    if opts.threads >= 2 {
-        return par::explore_par::<W>(net, pk, opts);
-    }
-    let nt = net.num_transitions();
-    let np = net.num_places();
-    let code = Compiled::<W>::new(net, pk);
+/// A search's store holding M0 alone: the table, the states by id, each state's parent, and
+/// M0 packed.
+fn seeded<const W: usize>(
+    net: &Net,
+    pk: &Packing,
+) -> (Table<W>, Chunked<[u64; W]>, Chunked<u32>, [u64; W]) {
     let mut table = Table::<W>::new();
     let mut states: Chunked<[u64; W]> = Chunked::new();
     let mut parents: Chunked<u32> = Chunked::new();
@@ -583,10 +590,18 @@ fn explore_w<const W: usize>(net: &Net, pk: &Packing, opts: &ReachOptions) -> Re
     table.insert(&k0);
     states.push(k0);
     parents.push(u32::MAX);
-    let max_states = opts
-        .max_states
-        .unwrap_or(u64::from(u32::MAX - 1))
-        .min(u64::from(u32::MAX - 1));
+    (table, states, parents, k0)
+}
+
+fn explore_w<const W: usize>(net: &Net, pk: &Packing, opts: &ReachOptions) -> ReachResult {
+    if opts.threads >= 2 {
+        return par::explore_par::<W>(net, pk, opts);
+    }
+    let nt = net.num_transitions();
+    let np = net.num_places();
+    let code = Compiled::<W>::new(net, pk);
+    let (mut table, mut states, mut parents, k0) = seeded::<W>(net, pk);
+    let max_states = opts.state_limit();
     let mut max_fields: Vec<u64> = vec![0; np];
     let mut observe = |k: &[u64; W]| {
         for (m, f) in max_fields.iter_mut().zip(&pk.fields) {

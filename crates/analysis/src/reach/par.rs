@@ -183,10 +183,7 @@ pub(super) fn explore_par<const W: usize>(
     tables[owner(h0, threads)].insert(&k0);
     states.push(k0);
     parents.push(u32::MAX);
-    let max_states = opts
-        .max_states
-        .unwrap_or(u64::from(u32::MAX - 1))
-        .min(u64::from(u32::MAX - 1));
+    let max_states = opts.state_limit();
     let mut max_fields: Vec<u64> = vec![0; np];
     let mut observe = |k: &[u64; W]| {
         for (m, f) in max_fields.iter_mut().zip(&pk.fields) {

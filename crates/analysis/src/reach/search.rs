@@ -17,7 +17,7 @@
 use cetratus_net::{Net, TransIdx};
 
 use super::stubborn::Stubborn;
-use super::{hash, scc, Chunked, Compiled, Packing, ReachOptions, Stop, Table, CHUNK_BITS};
+use super::{hash, scc, Chunked, Compiled, Packing, ReachOptions, Stop, CHUNK_BITS};
 use crate::predicate::Predicate;
 use crate::Progress;
 
@@ -70,18 +70,8 @@ pub(crate) fn search<const W: usize>(
     let nt = net.num_transitions();
     let np = net.num_places();
     let code = Compiled::<W>::new(net, pk);
-    let mut table = Table::<W>::new();
-    let mut states: Chunked<[u64; W]> = Chunked::new();
-    let mut parents: Chunked<u32> = Chunked::new();
-    let mut k0 = [0u64; W];
-    pk.encode(net.initial_marking().as_slice(), &mut k0);
-    table.insert(&k0);
-    states.push(k0);
-    parents.push(u32::MAX);
-    let max_states = opts
-        .max_states
-        .unwrap_or(u64::from(u32::MAX - 1))
-        .min(u64::from(u32::MAX - 1));
+    let (mut table, mut states, mut parents, k0) = super::seeded::<W>(net, pk);
+    let max_states = opts.state_limit();
     let field = |k: &[u64; W], p: usize| {
         let f = pk.fields[p];
         (k[f.word as usize] >> f.shift) & f.mask

@@ -9,7 +9,7 @@ use std::time::{Duration, Instant};
 
 use cetratus_testkit::paths::{example, workspace_root};
 use cetratus_testkit::ports::{free_port, wait_for_port};
-use cetratus_testkit::process::ChildGuard;
+use cetratus_testkit::process::{stop_with_sigterm as stop, ChildGuard};
 use serde_json::Value;
 
 const BIN: &str = env!("CARGO_BIN_EXE_cetratus");
@@ -55,32 +55,6 @@ fn start(dir: &Path, io: &Path, port: u16, extra: &[&str]) -> ChildGuard {
     );
     wait_for_port(port, "the PLC's OPC UA server", Duration::from_secs(60));
     plc
-}
-
-/// Stops the PLC as an operator would (SIGTERM) and parses its closing summary.
-fn stop(mut plc: ChildGuard) -> Value {
-    let kill = Command::new("kill")
-        .args(["-TERM", &plc.id().to_string()])
-        .status()
-        .expect("kill");
-    assert!(kill.success());
-    let end = Instant::now() + Duration::from_secs(30);
-    let status = loop {
-        if let Some(s) = plc.0.try_wait().expect("wait") {
-            break s;
-        }
-        assert!(Instant::now() < end, "the PLC did not stop on SIGTERM");
-        std::thread::sleep(Duration::from_millis(50));
-    };
-    let (mut out, mut err) = (String::new(), String::new());
-    if let Some(mut o) = plc.0.stdout.take() {
-        std::io::Read::read_to_string(&mut o, &mut out).expect("stdout");
-    }
-    if let Some(mut e) = plc.0.stderr.take() {
-        std::io::Read::read_to_string(&mut e, &mut err).expect("stderr");
-    }
-    assert!(status.success(), "the PLC failed:\n{err}");
-    serde_json::from_str(&out).unwrap_or_else(|e| panic!("not JSON ({e}): {out}\n{err}"))
 }
 
 #[test]

@@ -123,3 +123,31 @@ pub fn login_link(
         seen.join("\n")
     )
 }
+
+/// Stops a `cetratus run --json` as an operator would (SIGTERM), waits up to 30 s for it to end,
+/// checks that it ended well and parses its closing summary.
+pub fn stop_with_sigterm(mut plc: ChildGuard) -> serde_json::Value {
+    use std::time::{Duration, Instant};
+    let kill = Command::new("kill")
+        .args(["-TERM", &plc.id().to_string()])
+        .status()
+        .expect("kill");
+    assert!(kill.success());
+    let end = Instant::now() + Duration::from_secs(30);
+    let status = loop {
+        if let Some(s) = plc.0.try_wait().expect("wait") {
+            break s;
+        }
+        assert!(Instant::now() < end, "the PLC did not stop on SIGTERM");
+        std::thread::sleep(Duration::from_millis(50));
+    };
+    let (mut out, mut err) = (String::new(), String::new());
+    if let Some(mut o) = plc.0.stdout.take() {
+        std::io::Read::read_to_string(&mut o, &mut out).expect("stdout");
+    }
+    if let Some(mut e) = plc.0.stderr.take() {
+        std::io::Read::read_to_string(&mut e, &mut err).expect("stderr");
+    }
+    assert!(status.success(), "the PLC failed:\n{err}");
+    serde_json::from_str(&out).unwrap_or_else(|e| panic!("not JSON ({e}): {out}\n{err}"))
+}

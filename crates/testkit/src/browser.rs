@@ -277,11 +277,21 @@ pub struct Timing {
 }
 
 impl Timing {
-    /// Fails unless the diagram has gained samples and been redrawn since `earlier`.
+    /// Fails unless the diagram has a newer sample than `earlier` had, and has been redrawn. (Its
+    /// number of samples is no measure: once the window is full, old samples leave it as new
+    /// ones come.)
     pub fn assert_scrolled_since(&self, earlier: &Timing) {
+        let t = |s: &str| s.parse::<f64>().ok();
         assert!(
-            self.samples > earlier.samples,
-            "the timing diagram gained no samples ({} -> {})",
+            self.samples > 0
+                && match (t(&earlier.last_time), t(&self.last_time)) {
+                    (Some(a), Some(b)) => b > a,
+                    (None, Some(_)) => true,
+                    _ => false,
+                },
+            "the timing diagram gained no samples (newest sample at {:?}, then at {:?}; {} -> {} samples)",
+            earlier.last_time,
+            self.last_time,
             earlier.samples,
             self.samples
         );

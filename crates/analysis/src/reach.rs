@@ -576,6 +576,34 @@ pub(crate) fn search(
     }
 }
 
+/// Every 16,384 expanded states of a search: why it must stop (its deadline, Ctrl-C), or else a
+/// progress report.
+#[inline]
+fn checkpoint<const W: usize>(
+    opts: &ReachOptions,
+    expanded: usize,
+    edges: u64,
+    table: &Table<W>,
+    states: &Chunked<[u64; W]>,
+    parents: &Chunked<u32>,
+) -> Option<Stop> {
+    if expanded & 0x3FFF != 0 || expanded == 0 {
+        return None;
+    }
+    if let Some(s) = opts.interrupted() {
+        return Some(s);
+    }
+    if let Some(p) = &opts.progress {
+        p(Progress {
+            states: states.len as u64,
+            edges,
+            expanded: expanded as u64,
+            bytes: (table.bytes() + states.bytes() + parents.bytes()) as u64,
+        });
+    }
+    None
+}
+
 /// A search's store holding M0 alone: the table, the states by id, each state's parent, and
 /// M0 packed.
 fn seeded<const W: usize>(
@@ -618,19 +646,9 @@ fn explore_w<const W: usize>(net: &Net, pk: &Packing, opts: &ReachOptions) -> Re
     let chunk_bytes = (1 << CHUNK_BITS) * (8 * W + 4);
     let mut cur = 0usize;
     'bfs: while cur < states.len {
-        if cur & 0x3FFF == 0 && cur > 0 {
-            if let Some(s) = opts.interrupted() {
-                stopped = Some(s);
-                break;
-            }
-            if let Some(p) = &opts.progress {
-                p(Progress {
-                    states: states.len as u64,
-                    edges,
-                    expanded: cur as u64,
-                    bytes: (table.bytes() + states.bytes() + parents.bytes()) as u64,
-                });
-            }
+        if let Some(s) = checkpoint(opts, cur, edges, &table, &states, &parents) {
+            stopped = Some(s);
+            break;
         }
         let key = states.get(cur);
         let mut any = false;

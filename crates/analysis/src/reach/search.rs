@@ -19,7 +19,6 @@ use cetratus_net::{Net, TransIdx};
 use super::stubborn::Stubborn;
 use super::{hash, scc, Chunked, Compiled, Packing, ReachOptions, Stop, CHUNK_BITS};
 use crate::predicate::Predicate;
-use crate::Progress;
 
 /// What the search looks for.
 pub(crate) enum Target<'a> {
@@ -96,19 +95,9 @@ pub(crate) fn search<const W: usize>(
     let chunk_bytes = (1 << CHUNK_BITS) * (8 * W + 4);
     let mut cur = 0usize;
     'bfs: while cur < states.len && found.is_none() {
-        if cur & 0x3FFF == 0 && cur > 0 {
-            if let Some(s) = opts.interrupted() {
-                stopped = Some(s);
-                break;
-            }
-            if let Some(p) = &opts.progress {
-                p(Progress {
-                    states: states.len as u64,
-                    edges,
-                    expanded: cur as u64,
-                    bytes: (table.bytes() + states.bytes() + parents.bytes()) as u64,
-                });
-            }
+        if let Some(s) = super::checkpoint(opts, cur, edges, &table, &states, &parents) {
+            stopped = Some(s);
+            break;
         }
         let key = states.get(cur);
         en.clear();

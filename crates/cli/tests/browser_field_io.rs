@@ -6,7 +6,8 @@ use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
 use cetratus_testkit::browser::{require_chromium, Browser};
-use cetratus_testkit::paths::{example, workspace_root};
+use cetratus_testkit::modbus;
+use cetratus_testkit::paths::example;
 use cetratus_testkit::ports::{free_port, wait_for_port};
 use cetratus_testkit::process::{login_link, stderr_lines, ChildGuard};
 
@@ -17,14 +18,7 @@ async fn the_dashboard_shows_the_input_quality_of_each_field_device() {
     require_chromium();
     let dir = tempfile::tempdir().expect("temp dir");
     let (device, mqtt, http) = (free_port(), free_port(), free_port());
-    let _device = ChildGuard::spawn(
-        Command::new("python3")
-            .arg(workspace_root().join("scripts/modbus_peer.py"))
-            .args(["device", &device.to_string(), "--di", "1"])
-            .stdout(Stdio::null())
-            .stderr(Stdio::null()),
-    );
-    wait_for_port(device, "the pymodbus device", Duration::from_secs(30));
+    let _device = modbus::device(device, &["--di", "1"]);
     let io = dir.path().join("io.toml");
     std::fs::write(
         &io,

@@ -6,46 +6,13 @@ use std::path::{Path, PathBuf};
 use std::process::{Command, Output, Stdio};
 use std::time::{Duration, Instant};
 
-use cetratus_testkit::paths::{example, workspace_root};
+use cetratus_testkit::modbus::{self, read};
+use cetratus_testkit::paths::example;
 use cetratus_testkit::ports::{free_port, wait_for_port};
 use cetratus_testkit::process::ChildGuard;
 use serde_json::Value;
 
 const BIN: &str = env!("CARGO_BIN_EXE_cetratus");
-
-fn peer() -> PathBuf {
-    workspace_root().join("scripts/modbus_peer.py")
-}
-
-/// A pymodbus remote I/O device on `port`, with PE (discrete input 0) on.
-fn device(port: u16, extra: &[&str]) -> ChildGuard {
-    let d = ChildGuard::spawn(
-        Command::new("python3")
-            .arg(peer())
-            .args(["device", &port.to_string(), "--di", "1"])
-            .args(extra)
-            .stdout(Stdio::null())
-            .stderr(Stdio::null()),
-    );
-    wait_for_port(port, "the pymodbus device", Duration::from_secs(30));
-    d
-}
-
-/// What a pymodbus client reads from the device.
-fn read(port: u16, table: &str, address: u16, count: u16) -> String {
-    let out = Command::new("python3")
-        .arg(peer())
-        .args([
-            "read",
-            &port.to_string(),
-            table,
-            &address.to_string(),
-            &count.to_string(),
-        ])
-        .output()
-        .expect("run the pymodbus client");
-    String::from_utf8_lossy(&out.stdout).trim().to_string()
-}
 
 /// An I/O configuration of one device on `port` serving the Vernadat program's addresses.
 fn io_file(dir: &Path, port: u16, extra: &str) -> PathBuf {
@@ -87,7 +54,7 @@ fn summary(out: &Output) -> Value {
 fn the_program_reads_a_pymodbus_device_drives_its_coils_and_leaves_them_safe_on_stop() {
     let dir = tempfile::tempdir().unwrap();
     let port = free_port();
-    let _dev = device(port, &[]);
+    let _dev = modbus::device(port, &["--di", "1"]);
     let io = io_file(dir.path(), port, "");
     let mut plc = ChildGuard::spawn(
         run(&io, dir.path(), "4s")
@@ -157,7 +124,7 @@ fn exception_responses_and_a_wrong_unit_id_are_counted_and_never_read_as_values(
     let dir = tempfile::tempdir().unwrap();
     let port = free_port();
     // The inputs are served past the device's 64 entries: every read is an illegal address.
-    let _dev = device(port, &[]);
+    let _dev = modbus::device(port, &["--di", "1"]);
     let io = io_file(dir.path(), port, "");
     let text = std::fs::read_to_string(&io).unwrap();
     std::fs::write(
@@ -172,7 +139,7 @@ fn exception_responses_and_a_wrong_unit_id_are_counted_and_never_read_as_values(
     assert_eq!(d["link"], "up", "an exception keeps the connection: {d}");
 
     let port = free_port();
-    let _dev = device(port, &[]);
+    let _dev = modbus::device(port, &["--di", "1"]);
     let io = io_file(dir.path(), port, "unit = 7\n");
     let s = summary(&run(&io, dir.path(), "1s").output().unwrap());
     let d = &s["io"][0];
@@ -188,7 +155,7 @@ fn a_device_that_answers_late_goes_stale_and_its_inputs_take_their_safe_values()
     let dir = tempfile::tempdir().unwrap();
     let port = free_port();
     // Three cycles late, past a 20 ms timeout.
-    let _dev = device(port, &["--delay-ms", "30"]);
+    let _dev = modbus::device(port, &["--di", "1", "--delay-ms", "30"]);
     let io = io_file(dir.path(), port, "stale = \"safe\"\nstale_after = 3\n");
     let text = std::fs::read_to_string(&io).unwrap();
     std::fs::write(
@@ -206,7 +173,7 @@ fn a_device_that_answers_late_goes_stale_and_its_inputs_take_their_safe_values()
 fn a_device_that_drops_mid_run_is_reconnected_and_read_again() {
     let dir = tempfile::tempdir().unwrap();
     let port = free_port();
-    let dev = device(port, &[]);
+    let dev = modbus::device(port, &["--di", "1"]);
     let io = io_file(dir.path(), port, "");
     let plc = run(&io, dir.path(), "5s")
         .stdout(Stdio::piped())
@@ -216,7 +183,7 @@ fn a_device_that_drops_mid_run_is_reconnected_and_read_again() {
     std::thread::sleep(Duration::from_secs(2));
     drop(dev);
     std::thread::sleep(Duration::from_millis(500));
-    let _back = device(port, &[]);
+    let _back = modbus::device(port, &["--di", "1"]);
     let s = summary(&plc.wait_with_output().unwrap());
     let d = &s["io"][0];
     assert!(d["reconnects"].as_u64().unwrap() >= 1, "{d}");
@@ -285,7 +252,7 @@ fn a_virtual_run_needs_a_twin_and_refuses_network_io() {
 fn exec_info_reports_the_quality_of_each_devices_inputs() {
     let (port, silent, mqtt) = (free_port(), free_port(), free_port());
     let dir = tempfile::tempdir().unwrap();
-    let _device = device(port, &[]);
+    let _device = modbus::device(port, &["--di", "1"]);
     // A second device, for outputs only, that nobody answers for.
     let extra = format!("[[device]]\nname = \"valves\"\ntransport = \"modbus-tcp\"\naddress = \"127.0.0.1:{silent}\"\nserves = [{{ from = \"%QX1.0\", to = \"%QX1.7\" }}]\n");
     let io = io_file(dir.path(), port, &extra);

@@ -9,46 +9,13 @@ use std::path::{Path, PathBuf};
 use std::process::{Command, Output, Stdio};
 use std::time::{Duration, Instant};
 
-use cetratus_testkit::paths::{example, workspace_root};
+use cetratus_testkit::modbus::{self, read};
+use cetratus_testkit::paths::example;
 use cetratus_testkit::ports::{free_port, wait_for_port};
 use cetratus_testkit::process::ChildGuard;
 use serde_json::Value;
 
 const BIN: &str = env!("CARGO_BIN_EXE_cetratus");
-
-fn peer() -> PathBuf {
-    workspace_root().join("scripts/modbus_peer.py")
-}
-
-/// A pymodbus remote I/O device on `port`, with PE (discrete input 0) on.
-fn device(port: u16, extra: &[&str]) -> ChildGuard {
-    let d = ChildGuard::spawn(
-        Command::new("python3")
-            .arg(peer())
-            .args(["device", &port.to_string(), "--di", "1"])
-            .args(extra)
-            .stdout(Stdio::null())
-            .stderr(Stdio::null()),
-    );
-    wait_for_port(port, "the pymodbus device", Duration::from_secs(30));
-    d
-}
-
-/// What a pymodbus client reads from `table` of the server on `port` (empty when it cannot).
-fn read(port: u16, table: &str, address: u16, count: u16) -> String {
-    let out = Command::new("python3")
-        .arg(peer())
-        .args([
-            "read",
-            &port.to_string(),
-            table,
-            &address.to_string(),
-            &count.to_string(),
-        ])
-        .output()
-        .expect("run the pymodbus client");
-    String::from_utf8_lossy(&out.stdout).trim().to_string()
-}
 
 /// Reads until `table` at `address` reads `want`, for 30 s at most; returns what it read last.
 fn wait_read(port: u16, table: &str, address: u16, want: &str) -> String {
@@ -112,7 +79,7 @@ fn finish(mut plc: ChildGuard) -> Value {
 fn drop_and_return(policy: &str) -> (String, String, String, Value) {
     let dir = tempfile::tempdir().expect("temp dir");
     let (port, server) = (free_port(), free_port());
-    let dev = device(port, &[]);
+    let dev = modbus::device(port, &["--di", "1"]);
     let io = io_file(
         dir.path(),
         port,
@@ -140,7 +107,7 @@ fn drop_and_return(policy: &str) -> (String, String, String, Value) {
     // The reconnect writes every output again: CM1 on, or its safe value (off) after a fault.
     // The device comes back with CM1 at the other value, so that the write shows.
     let fault = policy == "fault";
-    let _back = device(port, &["--co", if fault { "1" } else { "0" }]);
+    let _back = modbus::device(port, &["--di", "1", "--co", if fault { "1" } else { "0" }]);
     let coil = wait_read(port, "coils", 0, if fault { "0" } else { "1" });
     let back = wait_read(server, "di", 0, if fault { "0" } else { "1" });
     let summary = finish(plc);
@@ -192,7 +159,7 @@ fn a_device_that_answers_three_cycles_late_goes_stale_without_stalling_the_scan(
     let (port, server) = (free_port(), free_port());
     // 30 ms per answer at a 10 ms cycle, well within the timeout: every read completes three
     // cycles after the one it was for, past `stale_after = 2`.
-    let _dev = device(port, &["--delay-ms", "30"]);
+    let _dev = modbus::device(port, &["--di", "1", "--delay-ms", "30"]);
     let io = io_file(
         dir.path(),
         port,

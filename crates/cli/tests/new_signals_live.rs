@@ -7,7 +7,7 @@ use std::path::{Path, PathBuf};
 use std::process::{Command, Output, Stdio};
 use std::time::{Duration, Instant};
 
-use cetratus_testkit::paths::workspace_root;
+use cetratus_testkit::modbus;
 use cetratus_testkit::ports::{free_port, wait_for_port};
 use cetratus_testkit::process::ChildGuard;
 
@@ -93,12 +93,7 @@ fn package(dir: &Path, key: &Path, name: &str) -> PathBuf {
 
 /// What a pymodbus client reads from the device's coils.
 fn coils(port: u16) -> String {
-    let out = Command::new("python3")
-        .arg(workspace_root().join("scripts/modbus_peer.py"))
-        .args(["read", &port.to_string(), "coils", "0", "8"])
-        .output()
-        .expect("run the pymodbus client");
-    String::from_utf8_lossy(&out.stdout).trim().to_string()
+    modbus::read(port, "coils", 0, 8)
 }
 
 fn wait_coils(port: u16, want: &str) -> String {
@@ -142,14 +137,7 @@ fn an_update_adds_an_input_and_an_output_on_configured_channels_without_a_restar
 
     // The device has x0 and x5 on.
     let (device, mqtt) = (free_port(), free_port());
-    let _device = ChildGuard::spawn(
-        Command::new("python3")
-            .arg(workspace_root().join("scripts/modbus_peer.py"))
-            .args(["device", &device.to_string(), "--di", "1,0,0,0,0,1"])
-            .stdout(Stdio::null())
-            .stderr(Stdio::null()),
-    );
-    wait_for_port(device, "the pymodbus device", Duration::from_secs(30));
+    let _device = modbus::device(device, &["--di", "1,0,0,0,0,1"]);
     let io = d.join("io.toml");
     std::fs::write(
         &io,

@@ -4,7 +4,8 @@
 use std::process::{Command, Stdio};
 use std::time::Duration;
 
-use cetratus_testkit::paths::{example, workspace_root};
+use cetratus_testkit::modbus::client as peer;
+use cetratus_testkit::paths::example;
 use cetratus_testkit::ports::{free_port, wait_for_port};
 use cetratus_testkit::process::ChildGuard;
 use serde_json::Value;
@@ -19,15 +20,6 @@ fn json_of(mut child: ChildGuard) -> Value {
     }
     let _ = child.0.wait();
     serde_json::from_str(&text).unwrap_or_else(|e| panic!("not JSON ({e}): {text}"))
-}
-
-fn peer(args: &[&str]) -> String {
-    let out = Command::new("python3")
-        .arg(workspace_root().join("scripts/modbus_peer.py"))
-        .args(args)
-        .output()
-        .expect("run the pymodbus client");
-    String::from_utf8_lossy(&out.stdout).trim().to_string()
 }
 
 #[test]

@@ -8,6 +8,7 @@ use std::process::{Command, Output, Stdio};
 use std::time::{Duration, Instant};
 
 use cetratus_testkit::browser::{require_chromium, Browser};
+use cetratus_testkit::modbus::read;
 use cetratus_testkit::paths::workspace_root;
 use cetratus_testkit::ports::{free_port, wait_for_port};
 use cetratus_testkit::process::{login_link, stderr_lines, ChildGuard};
@@ -81,22 +82,6 @@ fn ok(out: Output) -> Output {
 
 fn s(p: &Path) -> &str {
     p.to_str().expect("a UTF-8 path")
-}
-
-/// What a pymodbus client reads from the device's `table`.
-fn read(port: u16, table: &str, address: u16, count: u16) -> String {
-    let out = Command::new("python3")
-        .arg(workspace_root().join("scripts/modbus_peer.py"))
-        .args([
-            "read",
-            &port.to_string(),
-            table,
-            &address.to_string(),
-            &count.to_string(),
-        ])
-        .output()
-        .expect("run the pymodbus client");
-    String::from_utf8_lossy(&out.stdout).trim().to_string()
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]

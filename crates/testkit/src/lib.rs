@@ -19,6 +19,7 @@
 pub mod browser;
 pub mod counting;
 pub mod http;
+pub mod modbus;
 pub mod mqtt;
 #[cfg(feature = "nets")]
 pub mod nets;

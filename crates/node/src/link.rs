@@ -415,40 +415,30 @@ impl Preparer {
             while let Ok((c, _)) = self.ctx_rx.try_recv() {
                 ctx = Some(c);
             }
-            if matches!(cmd.request, Request::Load { .. }) && ctx.is_some() {
-                self.fresh_context(&mut ctx);
-            }
             if cmd.request == Request::ExecInfo {
                 self.exec_info(cmd.reply);
                 continue;
             }
-            let Some(c) = ctx.as_ref() else {
+            if ctx.is_none() {
                 let _ = self.out.send(Outgoing::Reply(
                     cmd.reply,
                     Err(refused("the PLC is starting; try again")),
                 ));
                 continue;
-            };
+            }
             let mut extra = None;
             let prepared: Result<Box<Command>, String> = match &cmd.request {
-                Request::Load { package } => c
-                    .prepare_package(package, &self.trust, self.allow_unsigned, false)
-                    .map_err(|e| e.to_string())
-                    .and_then(|mut p| {
-                        let gate = gate::run(c, &p, &self.gate);
-                        if let Some(refusal) = gate.refusal {
-                            return Err(refusal);
-                        }
-                        extra = Some(json!({
-                            "accepted": true,
-                            "verdicts": [wire::verdict(&gate.verdict)],
-                        }));
-                        p.add_verdict(gate.verdict);
-                        Ok(Box::new(Command::Load(Box::new(p))))
-                    }),
-                Request::Substitute(a) => {
-                    substitute(c, a).map(|s| Box::new(Command::Substitute(s)))
-                }
+                Request::Load { package } => self.load(&mut ctx, package).map(|(p, e)| {
+                    extra = Some(e);
+                    p
+                }),
+                Request::Substitute(a) => ctx
+                    .as_ref()
+                    .map_or_else(
+                        || Err("the PLC is starting; try again".into()),
+                        |c| substitute(c, a),
+                    )
+                    .map(|s| Box::new(Command::Substitute(s))),
                 Request::Remove => Ok(Box::new(Command::Remove)),
                 Request::Abort => Ok(Box::new(Command::Abort)),
                 Request::Reset => Ok(Box::new(Command::Reset)),
@@ -483,6 +473,44 @@ impl Preparer {
                 }
             }
         }
+    }
+
+    /// Verifies, resolves and builds a package, then gates it from the primary's marking of the
+    /// next cycle boundary: the command for the scan thread and what the reply adds. Only a
+    /// package that verified asks the scan thread for that marking, so refused loads cost the
+    /// scan thread nothing. When the primary changed meanwhile, the package is resolved again,
+    /// against the new one.
+    fn load(
+        &self,
+        ctx: &mut Option<UpdateContext>,
+        package: &[u8],
+    ) -> Result<(Box<Command>, serde_json::Value), String> {
+        let prepare = |c: &UpdateContext| {
+            c.prepare_package(package, &self.trust, self.allow_unsigned, false)
+                .map_err(|e| e.to_string())
+        };
+        let Some(before) = ctx.as_ref() else {
+            return Err("the PLC is starting; try again".to_string());
+        };
+        let mut p = prepare(before)?;
+        let base = before.primary.hash();
+        self.fresh_context(ctx);
+        let Some(c) = ctx.as_ref() else {
+            return Err("the PLC is starting; try again".to_string());
+        };
+        if c.primary.hash() != base {
+            p = prepare(c)?;
+        }
+        let gate = gate::run(c, &p, &self.gate);
+        if let Some(refusal) = gate.refusal {
+            return Err(refusal);
+        }
+        let extra = json!({
+            "accepted": true,
+            "verdicts": [wire::verdict(&gate.verdict)],
+        });
+        p.add_verdict(gate.verdict);
+        Ok((Box::new(Command::Load(Box::new(p))), extra))
     }
 
     /// Asks the scan thread for the primary's marking of its next cycle boundary and waits for

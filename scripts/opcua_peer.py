@@ -18,7 +18,8 @@
       reads the node until it shows VALUE; prints `ok` or `timeout LAST`.
   opcua_peer.py run URL SCRIPT...
       one session that runs each step in turn, a line each: `w:ID:TYPE:VALUE`, `r:ID`,
-      `wait:ID:VALUE` (30 s at most).
+      `wait:ID:VALUE` (30 s at most), `keep:ID:TYPE:VALUE:SECONDS` (writes the value every
+      50 ms for SECONDS, as a client's keep-alive; prints `ok` or the first refusal).
   opcua_peer.py secure URL POLICY CERT KEY [--user U --password P]
       connects with POLICY (Basic256Sha256, Aes128_Sha256_RsaOaep, Aes256_Sha256_RsaPss) and
       Sign & Encrypt, with the client certificate CERT (DER) and key KEY (PEM); prints the PLC's
@@ -174,6 +175,12 @@ async def run(url, steps):
                 print(await read_one(c, parts[1]))
             elif parts[0] == "wait":
                 print(await wait_for(c, parts[1], parts[2], 30))
+            elif parts[0] == "keep":
+                end, got = time.monotonic() + float(parts[4]), "ok"
+                while time.monotonic() < end and got == "ok":
+                    got = await write_one(c, parts[1], parts[2], parts[3])
+                    await asyncio.sleep(0.05)
+                print(got)
             sys.stdout.flush()
 
 

@@ -279,8 +279,8 @@ pub fn run(args: &RunArgs) -> anyhow::Result<()> {
             args.speed,
             period_us,
         );
-        if let Some(f) = node.io().field() {
-            link.set_input_quality(f.status_reader());
+        if let Some(q) = crate::run_opcua::input_quality(node.io()) {
+            link.set_input_quality(q);
         }
         node = node.with_link(link);
         services = Some(s);

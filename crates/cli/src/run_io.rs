@@ -197,7 +197,7 @@ pub fn report(io: &PlantIo) -> anyhow::Result<PlantReport> {
         twin_faults: 0,
         faults: Vec::new(),
         counters: serde_json::Value::Object(Default::default()),
-        io: io.field().map(|f| f.status()),
+        io: crate::run_opcua::input_status(io),
         server: io.server().map(|s| s.counters()),
         opcua: io.opcua().map(|s| s.counters()),
     };
@@ -211,6 +211,10 @@ pub fn report(io: &PlantIo) -> anyhow::Result<PlantReport> {
             .unwrap_or(0);
         r.twin_faults = plant.faults().len() as u64 + plant.faults_dropped();
         r.counters = serde_json::to_value(counters)?;
+    }
+    if io.opcua().is_some_and(|o| o.faulted()) {
+        r.faults
+            .push("OPC UA inputs: no client wrote an input for `stale_after` cycles under the `fault` policy; the program ran on safe inputs and the Outputs nodes showed safe values".into());
     }
     if io.field().is_some_and(|f| f.faulted()) {
         r.faults

@@ -5,6 +5,7 @@ use std::sync::Arc;
 
 use anyhow::Context;
 use cetratus_io::config::IoConfig;
+use cetratus_io::field::DeviceStatus;
 use cetratus_io::opcua::{OpcUaServer, PasswordCheck, Start};
 use cetratus_io::plant::PlantIo;
 use cetratus_mct::password::HashedPassword;
@@ -83,4 +84,28 @@ pub fn observer(io: &PlantIo) -> Option<impl FnMut(&Plc) + Send + 'static> {
             p.show(plc);
         }
     })
+}
+
+/// Every source of inputs with a quality, for the run summary: the field devices, then the
+/// OPC UA clients when they provide the inputs; `None` when there is neither.
+pub fn input_status(io: &PlantIo) -> Option<Vec<DeviceStatus>> {
+    let mut all = io.field().map(|f| f.status());
+    if let Some(s) = io.opcua().and_then(|o| o.status()) {
+        all.get_or_insert_with(Vec::new).push(s);
+    }
+    all
+}
+
+/// The reader of the same for `exec_info`, on the publisher's thread.
+pub fn input_quality(io: &PlantIo) -> Option<cetratus_node::link::InputQualityReader> {
+    let field = io.field().map(|f| f.status_reader());
+    let opcua = io.opcua().and_then(|o| o.status_reader());
+    if field.is_none() && opcua.is_none() {
+        return None;
+    }
+    Some(Arc::new(move || {
+        let mut all = field.as_ref().map(|f| f.read()).unwrap_or_default();
+        all.extend(opcua.as_ref().map(|o| o()));
+        all
+    }))
 }

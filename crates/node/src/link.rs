@@ -35,7 +35,7 @@ use serde_json::json;
 
 use crate::gate::{self, GatePolicy};
 use crate::wire;
-use cetratus_io::field::StatusReader;
+use cetratus_io::field::DeviceStatus;
 
 /// `exec_info` requests that may wait for the publisher; past them a request is answered
 /// `busy`.
@@ -114,8 +114,12 @@ pub struct ControlLink {
     load_key: Option<String>,
 }
 
-/// Where the publisher reads the field devices' input quality, once the node has field I/O.
-type QualitySource = Arc<Mutex<Option<StatusReader>>>;
+/// Reads the input quality of every source of inputs (field devices, OPC UA clients), from the
+/// publisher's thread, never the scan's.
+pub type InputQualityReader = Arc<dyn Fn() -> Vec<DeviceStatus> + Send + Sync>;
+
+/// Where the publisher reads the input quality, once the node has field I/O or OPC UA inputs.
+type QualitySource = Arc<Mutex<Option<InputQualityReader>>>;
 
 impl ControlLink {
     /// Starts the preparer and the publisher for `plc` on `link`.
@@ -187,9 +191,9 @@ impl ControlLink {
         }
     }
 
-    /// Shows the field devices' input quality in `exec_info`, read by the publisher from
-    /// `reader` (never by the scan thread).
-    pub fn set_input_quality(&mut self, reader: StatusReader) {
+    /// Shows the input quality of the field devices and OPC UA clients in `exec_info`, read by
+    /// the publisher from `reader` (never by the scan thread).
+    pub fn set_input_quality(&mut self, reader: InputQualityReader) {
         *self.quality.lock().unwrap_or_else(|p| p.into_inner()) = Some(reader);
     }
 
@@ -609,7 +613,7 @@ fn publish_loop(rx: Receiver<ToPublisher>, out: SyncSender<Outgoing>, quality: Q
             .lock()
             .unwrap_or_else(|p| p.into_inner())
             .as_ref()
-            .map(|r| wire::input_quality(&r.read()))
+            .map(|r| wire::input_quality(&r()))
             .unwrap_or_default();
         let info = Arc::new(ExecInfoMsg(s.exec_info.map(|e| {
             e.as_ref().map(|e| {

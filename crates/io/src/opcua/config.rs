@@ -9,7 +9,7 @@ use std::path::PathBuf;
 use serde::Deserialize;
 use toml::Spanned;
 
-use crate::config::position;
+use crate::config::{position, StalePolicy};
 use crate::IoError;
 
 /// The security policies offered with `security = "sign-and-encrypt"`.
@@ -77,6 +77,10 @@ pub struct OpcUaConfig {
     pub listen: SocketAddr,
     /// Whether OPC UA clients write the program's inputs (a twin host, the paper's setup).
     pub inputs: bool,
+    /// What the program gets when no client has written an input for `stale_after` cycles.
+    pub stale: StalePolicy,
+    /// Cycles without a write before the inputs are stale.
+    pub stale_after: u32,
     /// Sessions at once.
     pub max_sessions: usize,
     /// TCP connections at once; more are closed at once.
@@ -95,6 +99,8 @@ pub(crate) struct OpcUaSrc {
     listen: Spanned<String>,
     #[serde(default)]
     inputs: bool,
+    stale: Option<Spanned<String>>,
+    stale_after: Option<Spanned<i64>>,
     max_sessions: Option<Spanned<i64>>,
     max_connections: Option<Spanned<i64>>,
     security: Option<Spanned<String>>,
@@ -110,6 +116,11 @@ struct UserSrc {
     name: Spanned<String>,
     password_hash: Spanned<String>,
 }
+
+/// Cycles without a write before OPC UA inputs are stale, by default: 50 cycles, half a second
+/// at a 10 ms cycle, five times the keep-alive of `twin serve --opcua` (every input rewritten
+/// every 100 ms).
+pub const DEFAULT_STALE_AFTER: u32 = 50;
 
 /// `opc.tcp://IP:PORT` (an optional `/` at the end) as a socket address.
 pub fn parse_url(url: &str) -> Result<SocketAddr, String> {
@@ -147,6 +158,29 @@ impl OpcUaConfig {
         };
         let max_sessions = count(&s.max_sessions, 8, "max_sessions")?;
         let max_connections = count(&s.max_connections, 16, "max_connections")?;
+        if !s.inputs {
+            if let Some(span) = s.stale.as_ref().map(|x| x.span()).or(s.stale_after.as_ref().map(|x| x.span())) {
+                return Err(err(span, "`stale` and `stale_after` apply to inputs written by OPC UA clients: set inputs = true, or leave them out".into()));
+            }
+        }
+        let stale = match &s.stale {
+            None => StalePolicy::default(),
+            Some(x) => match x.get_ref().as_str() {
+                "hold" => StalePolicy::Hold,
+                "safe" => StalePolicy::Safe,
+                "fault" => StalePolicy::Fault,
+                other => {
+                    return Err(err(x.span(), format!("unknown stale policy `{other}`; expected \"hold\", \"safe\" or \"fault\"")))
+                }
+            },
+        };
+        let stale_after = match &s.stale_after {
+            None => DEFAULT_STALE_AFTER,
+            Some(v) => u32::try_from(*v.get_ref())
+                .ok()
+                .filter(|k| (1..=1_000_000).contains(k))
+                .ok_or_else(|| err(v.span(), "`stale_after` must be a whole number from 1 to 1000000".into()))?,
+        };
         let security = match s.security.as_ref().map(|x| x.get_ref().as_str()) {
             None | Some("none") => {
                 if let Some(p) = &s.policies {
@@ -233,6 +267,8 @@ impl OpcUaConfig {
             url,
             listen,
             inputs: s.inputs,
+            stale,
+            stale_after,
             max_sessions,
             max_connections,
             security,
@@ -305,6 +341,12 @@ mod tests {
         assert!(e.contains("travel in clear"), "{e}");
         let e = err("[opcua]\nlisten = \"127.0.0.1:4840\"\n");
         assert!(e.contains("not an opc.tcp URL"), "{e}");
+        let e = err("[opcua]\nlisten = \"opc.tcp://127.0.0.1:4840\"\nstale = \"safe\"\n");
+        assert!(e.starts_with("io.toml:3:") && e.contains("set inputs = true"), "{e}");
+        let e = err("[opcua]\nlisten = \"opc.tcp://127.0.0.1:4840\"\ninputs = true\nstale = \"drop\"\n");
+        assert!(e.contains("unknown stale policy `drop`"), "{e}");
+        let e = err("[opcua]\nlisten = \"opc.tcp://127.0.0.1:4840\"\ninputs = true\nstale_after = 0\n");
+        assert!(e.contains("`stale_after` must be"), "{e}");
         let e = err("[opcua]\nlisten = \"opc.tcp://127.0.0.1:4840\"\nmax_session = 3\n");
         assert!(e.contains("unknown field `max_session`"), "{e}");
     }

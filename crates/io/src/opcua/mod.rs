@@ -25,13 +25,15 @@ mod space;
 pub mod twin_client;
 
 use std::net::SocketAddr;
-use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicU64, AtomicU8, Ordering};
 use std::sync::{Arc, Mutex, MutexGuard, TryLockError};
 use std::thread::JoinHandle;
 
 use cetratus_program::{Program, Signal, Type, Value};
 use cetratus_runtime::{Dispatcher, Plc, Provider, Slot, Status};
 
+use crate::config::StalePolicy;
+use crate::field::{DeviceStatus, Link, Quality};
 use crate::IoError;
 pub use config::OpcUaConfig;
 
@@ -104,6 +106,33 @@ pub(crate) struct Shared {
     pub written: Mutex<Written>,
     pub wake: tokio::sync::Notify,
     pub counters: Counters,
+    /// The quality of the written inputs, as the scan last counted it (for other threads).
+    pub quality: AtomicU8,
+    /// Cycles in a row without a write, as the scan last counted them.
+    pub missed: AtomicU64,
+    /// Set once the inputs went stale under the `fault` policy: the Outputs nodes show the
+    /// outputs' safe values until the run is restarted.
+    pub fault: AtomicBool,
+    /// The outputs' safe values, shown under a fault.
+    pub safe_outputs: Mutex<Vec<Value>>,
+}
+
+fn quality_code(q: Quality) -> u8 {
+    match q {
+        Quality::Initial => 0,
+        Quality::Good => 1,
+        Quality::Late => 2,
+        Quality::Stale => 3,
+    }
+}
+
+fn quality_of(code: u8) -> Quality {
+    match code {
+        0 => Quality::Initial,
+        1 => Quality::Good,
+        2 => Quality::Late,
+        _ => Quality::Stale,
+    }
 }
 
 /// The inputs clients wrote.
@@ -140,6 +169,14 @@ pub struct OpcUaServer {
     url: String,
     provides_inputs: bool,
     held: Vec<Value>,
+    safe_inputs: Vec<Value>,
+    stale: StalePolicy,
+    stale_after: u64,
+    last_writes: u64,
+    written_once: bool,
+    missed: u64,
+    quality: Quality,
+    fault: bool,
     contended: u64,
     stop: Option<tokio::sync::oneshot::Sender<()>>,
     thread: Option<JoinHandle<()>>,
@@ -200,6 +237,10 @@ impl OpcUaServer {
             }),
             wake: tokio::sync::Notify::new(),
             counters: Counters::default(),
+            quality: AtomicU8::new(quality_code(Quality::Initial)),
+            missed: AtomicU64::new(0),
+            fault: AtomicBool::new(false),
+            safe_outputs: Mutex::new(run.outputs.iter().map(safe).collect()),
         });
         let layout = space::Layout {
             plc: run.plc.to_string(),
@@ -260,7 +301,15 @@ impl OpcUaServer {
             addr,
             shared,
             provides_inputs: config.inputs,
-            held: safe_inputs,
+            held: safe_inputs.clone(),
+            safe_inputs,
+            stale: config.stale,
+            stale_after: u64::from(config.stale_after),
+            last_writes: 0,
+            written_once: false,
+            missed: 0,
+            quality: Quality::Initial,
+            fault: false,
             contended: 0,
             stop: Some(stop_tx),
             thread: Some(thread),
@@ -302,6 +351,32 @@ impl OpcUaServer {
         self.shared.counters.read()
     }
 
+    /// The quality of the inputs OPC UA clients write, as a device's (docs/io.md, *Quality*);
+    /// `None` when they provide no inputs.
+    pub fn status(&self) -> Option<DeviceStatus> {
+        self.provides_inputs
+            .then(|| status_of(&self.shared, self.quality, self.missed))
+    }
+
+    /// Reads [`OpcUaServer::status`] from another thread than the scan's.
+    pub fn status_reader(&self) -> Option<impl Fn() -> DeviceStatus + Send + Sync + 'static> {
+        let shared = self.shared.clone();
+        self.provides_inputs.then(move || {
+            move || {
+                status_of(
+                    &shared,
+                    quality_of(shared.quality.load(Ordering::Relaxed)),
+                    shared.missed.load(Ordering::Relaxed),
+                )
+            }
+        })
+    }
+
+    /// Whether the inputs went stale under the `fault` policy.
+    pub fn faulted(&self) -> bool {
+        self.fault
+    }
+
     /// Cycles in which the server's thread held the written inputs and the scan kept its copy.
     pub fn contended(&self) -> u64 {
         self.contended
@@ -331,11 +406,70 @@ impl Drop for OpcUaServer {
     }
 }
 
+/// The figures of the OPC UA clients as the source of the inputs, in a device's terms: `link` is
+/// `up` while they write in time, `reads` counts the writes accepted, `errors` those refused.
+fn status_of(shared: &Shared, quality: Quality, missed: u64) -> DeviceStatus {
+    let c = shared.counters.read();
+    DeviceStatus {
+        name: "opcua".into(),
+        quality,
+        link: match quality {
+            Quality::Initial => Link::Connecting,
+            Quality::Good | Quality::Late => Link::Up,
+            Quality::Stale => Link::Down,
+        },
+        missed_cycles: missed,
+        reads: c.writes,
+        errors: c.refused_writes,
+        exceptions: 0,
+        reconnects: 0,
+        writes: 0,
+        last_error: (quality == Quality::Stale).then(|| {
+            format!("no OPC UA client wrote an input for {missed} cycles")
+        }),
+    }
+}
+
+impl OpcUaServer {
+    /// Counts the cycles since a client last wrote an input (an atomic load: no lock), and
+    /// grades them as a device's reads (docs/io.md, *Quality*).
+    fn count_cycle(&mut self) {
+        let writes = self.shared.counters.writes.load(Ordering::Relaxed);
+        if writes != self.last_writes {
+            self.last_writes = writes;
+            self.written_once = true;
+            self.missed = 0;
+        } else {
+            self.missed = self.missed.saturating_add(1);
+        }
+        // A client that writes only what changed keeps the inputs alive with a keep-alive: a
+        // quiet spell shorter than half of `stale_after` is good, beyond it late.
+        self.quality = if !self.written_once {
+            Quality::Initial
+        } else if self.missed < self.stale_after.div_ceil(2) {
+            Quality::Good
+        } else if self.missed < self.stale_after {
+            Quality::Late
+        } else {
+            if self.stale == StalePolicy::Fault && !self.fault {
+                self.fault = true;
+                self.shared.fault.store(true, Ordering::Relaxed);
+            }
+            Quality::Stale
+        };
+        self.shared
+            .quality
+            .store(quality_code(self.quality), Ordering::Relaxed);
+        self.shared.missed.store(self.missed, Ordering::Relaxed);
+    }
+}
+
 impl Provider for OpcUaServer {
     fn read_inputs(&mut self, _now_us: u64, inputs: &mut [Value]) {
         if !self.provides_inputs {
             return;
         }
+        self.count_cycle();
         match try_lock(&self.shared.written) {
             Some(w) => {
                 let n = self.held.len().min(w.values.len());
@@ -343,8 +477,15 @@ impl Provider for OpcUaServer {
             }
             None => self.contended += 1,
         }
-        let n = inputs.len().min(self.held.len());
-        inputs[..n].copy_from_slice(&self.held[..n]);
+        let use_safe = self.fault
+            || (self.quality == Quality::Stale && self.stale != StalePolicy::Hold);
+        let from = if use_safe {
+            &self.safe_inputs
+        } else {
+            &self.held
+        };
+        let n = inputs.len().min(from.len());
+        inputs[..n].copy_from_slice(&from[..n]);
     }
 }
 
@@ -372,7 +513,13 @@ impl Publisher {
             return;
         };
         copy_into(&mut im.inputs, plc.inputs());
-        copy_into(&mut im.outputs, plc.dispatched());
+        if self.shared.fault.load(Ordering::Relaxed) {
+            if let Some(safe) = try_lock(&self.shared.safe_outputs) {
+                copy_into(&mut im.outputs, &safe);
+            }
+        } else {
+            copy_into(&mut im.outputs, plc.dispatched());
+        }
         im.primary = plc.primary();
         im.status = plc.status();
         im.cycles = plc.cycles();

@@ -23,6 +23,10 @@ use opcua::types::{
 use super::NAMESPACE;
 use crate::IoError;
 
+/// How often the client writes every sensor again when none changed: the keep-alive that tells
+/// the PLC its inputs' source is alive (docs/io.md, *Quality*).
+pub const KEEPALIVE: Duration = Duration::from_millis(100);
+
 /// What the client did.
 #[derive(Debug, Default, Clone, Copy, PartialEq, Eq, serde::Serialize)]
 pub struct ClientCounters {
@@ -218,6 +222,7 @@ async fn run(
     let mut written: Vec<Option<bool>> = vec![None; sensors.len()];
     twin.inputs(&mut inputs);
     let mut start: Option<Instant> = None;
+    let mut last_write = Instant::now();
     let mut now_us = 0;
     while now_us < until_us && !stop.load(Ordering::Relaxed) {
         let tick = Instant::now();
@@ -245,6 +250,9 @@ async fn run(
             twin.step(now_us, &outputs);
             twin.inputs(&mut inputs);
         }
+        if last_write.elapsed() >= KEEPALIVE {
+            written.fill(None);
+        }
         let changed: Vec<WriteValue> = sensors
             .iter()
             .zip(&inputs)
@@ -261,6 +269,7 @@ async fn run(
             match session.write(&changed).await {
                 Ok(codes) if codes.iter().all(|c| c.is_good()) => {
                     counters.writes += 1;
+                    last_write = Instant::now();
                     for (w, v) in written.iter_mut().zip(&inputs) {
                         *w = Some(*v);
                     }

@@ -12,8 +12,9 @@
   opcua_peer.py subscribe URL ID SECONDS
       subscribes to the node (publishing interval 50 ms) and prints how many distinct values
       it was told of in that time, then the last one.
-  opcua_peer.py events URL SECONDS
-      subscribes to the Server object's events and prints the event type of each one received.
+  opcua_peer.py events URL SECONDS [--source]
+      subscribes to the Server object's events, prints `subscribed`, and after SECONDS the event
+      type of each one received (with --source, and the string id of its source node).
   opcua_peer.py wait URL ID VALUE SECONDS
       reads the node until it shows VALUE; prints `ok` or `timeout LAST`.
   opcua_peer.py run URL SCRIPT...
@@ -150,14 +151,19 @@ async def subscribe(url, ident, seconds):
         print(show(h.values[-1]) if h.values else "none")
 
 
-async def events(url, seconds):
+async def events(url, seconds, source=False):
     async with Client(url) as c:
         h = Counter()
         sub = await c.create_subscription(50, h)
-        await sub.subscribe_events(c.nodes.server)
+        await sub.subscribe_events(c.nodes.server, queuesize=100)
+        print("subscribed")
+        sys.stdout.flush()
         await asyncio.sleep(seconds)
         for e in h.events:
-            print(e.EventType.to_string())
+            if source:
+                print(f"{e.EventType.to_string()} {e.SourceNode.Identifier}")
+            else:
+                print(e.EventType.to_string())
 
 
 async def wait(url, ident, value, seconds):
@@ -290,6 +296,7 @@ def main():
     e = sub.add_parser("events")
     e.add_argument("url")
     e.add_argument("seconds", type=float)
+    e.add_argument("--source", action="store_true")
     wt = sub.add_parser("wait")
     wt.add_argument("url")
     wt.add_argument("id")
@@ -323,7 +330,7 @@ def main():
     elif a.cmd == "subscribe":
         asyncio.run(subscribe(a.url, a.id, a.seconds))
     elif a.cmd == "events":
-        asyncio.run(events(a.url, a.seconds))
+        asyncio.run(events(a.url, a.seconds, a.source))
     elif a.cmd == "wait":
         asyncio.run(wait(a.url, a.id, a.value, a.seconds))
     elif a.cmd == "run":

@@ -16,7 +16,8 @@ const BIN: &str = env!("CARGO_BIN_EXE_cetratus");
 
 fn peer(args: &[&str]) -> Command {
     let mut c = Command::new("python3");
-    c.arg(workspace_root().join("scripts/opcua_peer.py")).args(args);
+    c.arg(workspace_root().join("scripts/opcua_peer.py"))
+        .args(args);
     c
 }
 

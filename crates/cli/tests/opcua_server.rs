@@ -362,6 +362,7 @@ fn after_a_substitution_the_marking_nodes_follow_the_new_program_with_a_model_ch
     let hash_before = peer(&["read", &url, "cell.ExecInfo.ProgramHash"]);
     // Subscribed to the Server's events before the first substitution, until after the second.
     let events = peer(&["events", &url, "7"]);
+    assert_eq!(events[0], "subscribed");
     let changes = events.iter().filter(|e| *e == "i=2133").count();
     assert!(changes >= 2, "{events:?}");
     let after = peer(&["browse", &url]);

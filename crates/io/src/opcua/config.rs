@@ -159,7 +159,12 @@ impl OpcUaConfig {
         let max_sessions = count(&s.max_sessions, 8, "max_sessions")?;
         let max_connections = count(&s.max_connections, 16, "max_connections")?;
         if !s.inputs {
-            if let Some(span) = s.stale.as_ref().map(|x| x.span()).or(s.stale_after.as_ref().map(|x| x.span())) {
+            if let Some(span) = s
+                .stale
+                .as_ref()
+                .map(|x| x.span())
+                .or(s.stale_after.as_ref().map(|x| x.span()))
+            {
                 return Err(err(span, "`stale` and `stale_after` apply to inputs written by OPC UA clients: set inputs = true, or leave them out".into()));
             }
         }
@@ -169,9 +174,12 @@ impl OpcUaConfig {
                 "hold" => StalePolicy::Hold,
                 "safe" => StalePolicy::Safe,
                 "fault" => StalePolicy::Fault,
-                other => {
-                    return Err(err(x.span(), format!("unknown stale policy `{other}`; expected \"hold\", \"safe\" or \"fault\"")))
-                }
+                other => return Err(err(
+                    x.span(),
+                    format!(
+                        "unknown stale policy `{other}`; expected \"hold\", \"safe\" or \"fault\""
+                    ),
+                )),
             },
         };
         let stale_after = match &s.stale_after {
@@ -179,7 +187,12 @@ impl OpcUaConfig {
             Some(v) => u32::try_from(*v.get_ref())
                 .ok()
                 .filter(|k| (1..=1_000_000).contains(k))
-                .ok_or_else(|| err(v.span(), "`stale_after` must be a whole number from 1 to 1000000".into()))?,
+                .ok_or_else(|| {
+                    err(
+                        v.span(),
+                        "`stale_after` must be a whole number from 1 to 1000000".into(),
+                    )
+                })?,
         };
         let security = match s.security.as_ref().map(|x| x.get_ref().as_str()) {
             None | Some("none") => {
@@ -342,10 +355,16 @@ mod tests {
         let e = err("[opcua]\nlisten = \"127.0.0.1:4840\"\n");
         assert!(e.contains("not an opc.tcp URL"), "{e}");
         let e = err("[opcua]\nlisten = \"opc.tcp://127.0.0.1:4840\"\nstale = \"safe\"\n");
-        assert!(e.starts_with("io.toml:3:") && e.contains("set inputs = true"), "{e}");
-        let e = err("[opcua]\nlisten = \"opc.tcp://127.0.0.1:4840\"\ninputs = true\nstale = \"drop\"\n");
+        assert!(
+            e.starts_with("io.toml:3:") && e.contains("set inputs = true"),
+            "{e}"
+        );
+        let e = err(
+            "[opcua]\nlisten = \"opc.tcp://127.0.0.1:4840\"\ninputs = true\nstale = \"drop\"\n",
+        );
         assert!(e.contains("unknown stale policy `drop`"), "{e}");
-        let e = err("[opcua]\nlisten = \"opc.tcp://127.0.0.1:4840\"\ninputs = true\nstale_after = 0\n");
+        let e =
+            err("[opcua]\nlisten = \"opc.tcp://127.0.0.1:4840\"\ninputs = true\nstale_after = 0\n");
         assert!(e.contains("`stale_after` must be"), "{e}");
         let e = err("[opcua]\nlisten = \"opc.tcp://127.0.0.1:4840\"\nmax_session = 3\n");
         assert!(e.contains("unknown field `max_session`"), "{e}");

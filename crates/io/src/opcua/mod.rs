@@ -115,6 +115,9 @@ pub(crate) struct Shared {
     pub fault: AtomicBool,
     /// The outputs' safe values, shown under a fault.
     pub safe_outputs: Mutex<Vec<Value>>,
+    /// Signals appended to the I/O map by a live update, for the server's thread to add as
+    /// nodes: the inputs, then the outputs.
+    pub grown: Mutex<Vec<(SignalNode, bool)>>,
 }
 
 fn quality_code(q: Quality) -> u8 {
@@ -241,6 +244,7 @@ impl OpcUaServer {
             missed: AtomicU64::new(0),
             fault: AtomicBool::new(false),
             safe_outputs: Mutex::new(run.outputs.iter().map(safe).collect()),
+            grown: Mutex::new(Vec::new()),
         });
         let layout = space::Layout {
             plc: run.plc.to_string(),
@@ -424,9 +428,8 @@ fn status_of(shared: &Shared, quality: Quality, missed: u64) -> DeviceStatus {
         exceptions: 0,
         reconnects: 0,
         writes: 0,
-        last_error: (quality == Quality::Stale).then(|| {
-            format!("no OPC UA client wrote an input for {missed} cycles")
-        }),
+        last_error: (quality == Quality::Stale)
+            .then(|| format!("no OPC UA client wrote an input for {missed} cycles")),
     }
 }
 
@@ -465,6 +468,29 @@ impl OpcUaServer {
 }
 
 impl Provider for OpcUaServer {
+    fn io_map_grew(&mut self, inputs: &[Signal], outputs: &[Signal]) {
+        // At an install's cycle boundary only: the new nodes are the server thread's work. The
+        // new inputs come from the field (OPC UA clients write only the inputs of the start), so
+        // the written inputs stay as they are.
+        let node = |s: &Signal, input| {
+            (
+                SignalNode {
+                    name: s.name.clone(),
+                    ty: s.ty,
+                },
+                input,
+            )
+        };
+        lock(&self.shared.safe_outputs).extend(outputs.iter().map(safe));
+        lock(&self.shared.grown).extend(
+            inputs
+                .iter()
+                .map(|s| node(s, true))
+                .chain(outputs.iter().map(|s| node(s, false))),
+        );
+        self.shared.wake.notify_one();
+    }
+
     fn read_inputs(&mut self, _now_us: u64, inputs: &mut [Value]) {
         if !self.provides_inputs {
             return;
@@ -477,8 +503,8 @@ impl Provider for OpcUaServer {
             }
             None => self.contended += 1,
         }
-        let use_safe = self.fault
-            || (self.quality == Quality::Stale && self.stale != StalePolicy::Hold);
+        let use_safe =
+            self.fault || (self.quality == Quality::Stale && self.stale != StalePolicy::Hold);
         let from = if use_safe {
             &self.safe_inputs
         } else {

@@ -195,6 +195,8 @@ struct Space {
     primary: NodeId,
     status: NodeId,
     marking_folder: NodeId,
+    inputs_folder: NodeId,
+    outputs_folder: NodeId,
     program: Option<Arc<Program>>,
     seen: u64,
     shown: Shown,
@@ -227,6 +229,8 @@ impl Space {
             primary: NodeId::new(ns, format!("{plc}.PRIMARY")),
             status: NodeId::new(ns, format!("{plc}.STATUS")),
             marking_folder: NodeId::new(ns, format!("{plc}.Marking")),
+            inputs_folder: NodeId::new(ns, format!("{plc}.Inputs")),
+            outputs_folder: NodeId::new(ns, format!("{plc}.Outputs")),
             plc,
             ns,
             manager,
@@ -384,6 +388,18 @@ impl Space {
             }
             self.add_places(&mut a, program);
         }
+        let message = format!(
+            "the nodes of {} follow program {} ({} places)",
+            self.plc,
+            program.name(),
+            self.places.len()
+        );
+        self.model_changed(self.marking_folder.clone(), message);
+    }
+
+    /// Counts a model change and reports it on the Server object, with `source` the folder
+    /// whose nodes changed.
+    fn model_changed(&mut self, source: NodeId, message: String) {
         self.changes += 1;
         self.shared
             .counters
@@ -392,23 +408,75 @@ impl Space {
         let event = BaseEventType::new(
             ObjectTypeId::GeneralModelChangeEventType,
             ByteString::from(format!("cetratus:{}:model:{}", self.plc, self.changes).into_bytes()),
-            format!(
-                "the nodes of {} follow program {} ({} places)",
-                self.plc,
-                program.name(),
-                self.places.len()
-            ),
+            message,
             DateTime::now(),
         )
-        .set_source_node(self.marking_folder.clone())
+        .set_source_node(source)
         .set_source_name(self.plc.as_str().into());
         let server: NodeId = ObjectId::Server.into();
         self.subscriptions
             .notify_events([(&event as &dyn Event, &server)].into_iter());
     }
 
+    /// Adds the nodes of the signals a live update appended to the I/O map (read-only: they come
+    /// from the field), with a model-change event per folder that gained nodes.
+    fn grow(&mut self) {
+        let grown = std::mem::take(&mut *lock(&self.shared.grown));
+        if grown.is_empty() {
+            return;
+        }
+        let (mut inputs, mut outputs) = (Vec::new(), Vec::new());
+        {
+            let a = self.manager.address_space().clone();
+            let mut a = a.write();
+            for (sig, input) in &grown {
+                let (folder, path) = if *input {
+                    (&self.inputs_folder, "Inputs")
+                } else {
+                    (&self.outputs_folder, "Outputs")
+                };
+                let id = self.id(&format!("{path}.{}", sig.name));
+                if a.find(&id).is_some() {
+                    continue;
+                }
+                variable(
+                    &mut a,
+                    &id,
+                    &sig.name,
+                    data_type(sig.ty),
+                    variant(sig.ty.zero()),
+                    folder,
+                    false,
+                );
+                if *input {
+                    self.inputs.push(id);
+                    self.shown.inputs.push(None);
+                    inputs.push(sig.name.as_str());
+                } else {
+                    self.outputs.push(id);
+                    self.shown.outputs.push(None);
+                    outputs.push(sig.name.as_str());
+                }
+            }
+        }
+        for (folder, names, what) in [
+            (self.inputs_folder.clone(), inputs, "inputs"),
+            (self.outputs_folder.clone(), outputs, "outputs"),
+        ] {
+            if !names.is_empty() {
+                let message = format!(
+                    "the I/O map of {} grew: new {what} {}",
+                    self.plc,
+                    names.join(", ")
+                );
+                self.model_changed(folder, message);
+            }
+        }
+    }
+
     /// Sets the nodes that changed since the last publication.
     fn publish(&mut self) {
+        self.grow();
         let (generation, program, primary, status, figures) = {
             let im = lock(&self.shared.image);
             if im.generation == self.seen {

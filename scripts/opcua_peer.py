@@ -24,7 +24,14 @@
   opcua_peer.py secure URL POLICY CERT KEY [--user U --password P]
       connects with POLICY (Basic256Sha256, Aes128_Sha256_RsaOaep, Aes256_Sha256_RsaPss) and
       Sign & Encrypt, with the client certificate CERT (DER) and key KEY (PEM); prints the PLC's
-      STATUS, or `refused: REASON`.
+      STATUS (or the node --read ID), or `refused: REASON`.
+  opcua_peer.py guess URL POLICY CERT KEY USER PASSWORD N
+      N logins as USER with PASSWORD over 8 encrypted connections at once, each session trying
+      to activate again after each refusal; prints how many ended how (`ok=…`, the name of each
+      refusal with its count), sorted.
+  opcua_peer.py junk URL N
+      one session that writes N malformed values (wrong types, unknown nodes, an index range),
+      then reads STATUS; prints each status name with its count, sorted, then STATUS.
   opcua_peer.py keys DIR
       writes a self-signed client certificate (DIR/client.der) and key (DIR/client.pem).
   opcua_peer.py sessions URL N
@@ -190,7 +197,7 @@ async def run(url, steps):
             sys.stdout.flush()
 
 
-async def secure(url, policy, cert, key, user, password):
+async def secure(url, policy, cert, key, user, password, read_id=None):
     c = Client(url)
     c.application_uri = "urn:cetratus:test-client"
     if user:
@@ -204,10 +211,77 @@ async def secure(url, policy, cert, key, user, password):
             ns = await c.get_namespace_index(NAMESPACE)
             objects = await c.nodes.objects.get_children()
             plc = [o for o in objects if o.nodeid.NamespaceIndex == ns][0]
-            status = c.get_node(ua.NodeId(f"{plc.nodeid.Identifier}.STATUS", ns))
-            print(await status.read_value())
+            ident = read_id or f"{plc.nodeid.Identifier}.STATUS"
+            print(await c.get_node(ua.NodeId(ident, ns)).read_value())
     except Exception as e:  # the refusal itself is the answer
         print(f"refused: {type(e).__name__} {e}")
+
+
+async def guess(url, policy, cert, key, user, password, n):
+    """8 encrypted connections, each with one session that tries to activate n/8 times."""
+    counts = {}
+
+    async def one(k):
+        c = Client(url)
+        c.application_uri = "urn:cetratus:test-client"
+        try:
+            await c.set_security_string(f"{policy.replace('_', '')},SignAndEncrypt,{cert},{key}")
+            await c.connect_socket()
+            await c.send_hello()
+            await c.open_secure_channel()
+            await c.create_session()
+        except Exception as e:  # a refusal as the stack reports it
+            counts[type(e).__name__] = counts.get(type(e).__name__, 0) + k
+            return
+        for _ in range(k):
+            try:
+                await c.activate_session(username=user, password=password)
+                name = "ok"
+            except Exception as e:  # the refusal itself is the answer
+                name = type(e).__name__
+            counts[name] = counts.get(name, 0) + 1
+        try:
+            await c.close_session()
+            await c.close_secure_channel()
+        except Exception:
+            pass
+        c.disconnect_socket()
+
+    await asyncio.gather(*(one(n // 8 + (1 if i < n % 8 else 0)) for i in range(8)))
+    print(" ".join(f"{k}={v}" for k, v in sorted(counts.items())))
+
+
+async def junk(url, n):
+    counts = {}
+    async with Client(url) as c:
+        ns = await c.get_namespace_index(NAMESPACE)
+        objects = await c.nodes.objects.get_children()
+        plc = [o for o in objects if o.nodeid.NamespaceIndex == ns][0].nodeid.Identifier
+        cases = [
+            (f"{plc}.Inputs.PE", ua.Variant(1.5, ua.VariantType.Double), None),
+            (f"{plc}.Inputs.PE", ua.Variant("x" * 1000, ua.VariantType.String), None),
+            (f"{plc}.Inputs.NOPE", ua.Variant(True, ua.VariantType.Boolean), None),
+            ("\u00e9\u0000" * 50, ua.Variant(True, ua.VariantType.Boolean), None),
+            (f"{plc}.Inputs.PE", ua.Variant([True, False], ua.VariantType.Boolean), None),
+            (f"{plc}.Inputs.PE", ua.Variant(True, ua.VariantType.Boolean), "0:1"),
+        ]
+        for i in range(n):
+            ident, v, rng = cases[i % len(cases)]
+            p = ua.WriteParameters()
+            wv = ua.WriteValue()
+            wv.NodeId = ua.NodeId(ident, ns)
+            wv.AttributeId = ua.AttributeIds.Value
+            wv.Value = ua.DataValue(v)
+            if rng:
+                wv.IndexRange = rng
+            p.NodesToWrite = [wv]
+            results = await c.uaclient.write(p)
+            for r in results:
+                counts[r.name] = counts.get(r.name, 0) + 1
+        status = await c.get_node(ua.NodeId(f"{plc}.STATUS", ns)).read_value()
+    for k, v in sorted(counts.items()):
+        print(f"{k}={v}")
+    print(status)
 
 
 def keys(directory):
@@ -312,6 +386,14 @@ def main():
     sc.add_argument("key")
     sc.add_argument("--user")
     sc.add_argument("--password")
+    sc.add_argument("--read")
+    g = sub.add_parser("guess")
+    for name in ("url", "policy", "cert", "key", "user", "password"):
+        g.add_argument(name)
+    g.add_argument("n", type=int)
+    j = sub.add_parser("junk")
+    j.add_argument("url")
+    j.add_argument("n", type=int)
     k = sub.add_parser("keys")
     k.add_argument("dir")
     ss = sub.add_parser("sessions")
@@ -336,7 +418,11 @@ def main():
     elif a.cmd == "run":
         asyncio.run(run(a.url, a.steps))
     elif a.cmd == "secure":
-        asyncio.run(secure(a.url, a.policy, a.cert, a.key, a.user, a.password))
+        asyncio.run(secure(a.url, a.policy, a.cert, a.key, a.user, a.password, a.read))
+    elif a.cmd == "guess":
+        asyncio.run(guess(a.url, a.policy, a.cert, a.key, a.user, a.password, a.n))
+    elif a.cmd == "junk":
+        asyncio.run(junk(a.url, a.n))
     elif a.cmd == "keys":
         keys(a.dir)
     elif a.cmd == "sessions":

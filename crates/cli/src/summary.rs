@@ -124,8 +124,8 @@ pub fn print_summary(s: &Summary) {
     }
     if let Some(o) = &s.opcua_server {
         println!(
-            "  opc ua server   {} cycles published, {} input writes, {} refused, {} connections refused, {} model changes",
-            o.published, o.writes, o.refused_writes, o.refused_connections, o.model_changes
+            "  opc ua server   {} cycles published, {} input writes, {} refused, {} connections refused, {} model changes; logins {} ok, {} wrong, {} refused unchecked",
+            o.published, o.writes, o.refused_writes, o.refused_connections, o.model_changes, o.logins, o.failed_logins, o.refused_logins
         );
     }
     if s.faults.is_empty() {

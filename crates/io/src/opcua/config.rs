@@ -174,12 +174,14 @@ impl OpcUaConfig {
                 "hold" => StalePolicy::Hold,
                 "safe" => StalePolicy::Safe,
                 "fault" => StalePolicy::Fault,
-                other => return Err(err(
-                    x.span(),
-                    format!(
+                other => {
+                    return Err(err(
+                        x.span(),
+                        format!(
                         "unknown stale policy `{other}`; expected \"hold\", \"safe\" or \"fault\""
                     ),
-                )),
+                    ))
+                }
             },
         };
         let stale_after = match &s.stale_after {

@@ -1,5 +1,6 @@
 //! The front listener of the OPC UA server: it holds the public port, closes connections beyond
-//! the limit at once, and relays the others to the server's own listener on a loopback port.
+//! the limit, or beyond their address's rate, at once, and relays the others to the server's own
+//! listener on a loopback port.
 //! async-opcua limits sessions but not connections; a client that opens sockets without ever
 //! creating a session would otherwise hold them until its hello timeout.
 
@@ -14,13 +15,15 @@ use super::Shared;
 /// Relays every accepted connection, up to `max` at once, to `inner`; runs until dropped.
 pub(crate) async fn relay(public: TcpListener, inner: SocketAddr, max: usize, shared: Arc<Shared>) {
     let open = Arc::new(AtomicUsize::new(0));
+    let mut rates = super::limit::PerAddress::new();
     loop {
-        let Ok((mut client, _)) = public.accept().await else {
+        let Ok((mut client, from)) = public.accept().await else {
             // Out of descriptors, say: wait a little rather than spin.
             tokio::time::sleep(std::time::Duration::from_millis(10)).await;
             continue;
         };
-        if open.load(Ordering::SeqCst) >= max {
+        if open.load(Ordering::SeqCst) >= max || !rates.admit(from.ip(), std::time::Instant::now())
+        {
             shared
                 .counters
                 .refused_connections

@@ -19,6 +19,7 @@
 
 pub mod config;
 mod front;
+mod limit;
 pub mod probe;
 mod security;
 mod space;
@@ -74,8 +75,15 @@ pub struct OpcUaCounters {
     pub refused_writes: u64,
     /// TCP connections closed at once because the limit was reached.
     pub refused_connections: u64,
-    /// Substitutions after which the nodes followed the new program.
+    /// Substitutions after which the nodes followed the new program, and live updates that
+    /// added signals.
     pub model_changes: u64,
+    /// Password logins accepted.
+    pub logins: u64,
+    /// Password logins refused after the check (a wrong name or password).
+    pub failed_logins: u64,
+    /// Password logins refused unchecked, because they came too fast.
+    pub refused_logins: u64,
 }
 
 #[derive(Default)]
@@ -85,6 +93,9 @@ pub(crate) struct Counters {
     pub refused_writes: AtomicU64,
     pub refused_connections: AtomicU64,
     pub model_changes: AtomicU64,
+    pub logins: AtomicU64,
+    pub failed_logins: AtomicU64,
+    pub refused_logins: AtomicU64,
 }
 
 impl Counters {
@@ -95,6 +106,9 @@ impl Counters {
             refused_writes: self.refused_writes.load(Ordering::Relaxed),
             refused_connections: self.refused_connections.load(Ordering::Relaxed),
             model_changes: self.model_changes.load(Ordering::Relaxed),
+            logins: self.logins.load(Ordering::Relaxed),
+            failed_logins: self.failed_logins.load(Ordering::Relaxed),
+            refused_logins: self.refused_logins.load(Ordering::Relaxed),
         }
     }
 }

@@ -10,7 +10,9 @@
 //!   without, the trusted certificate is the credential.
 
 use std::path::PathBuf;
-use std::sync::Arc;
+use std::sync::atomic::Ordering;
+use std::sync::{Arc, Mutex};
+use std::time::Instant;
 
 use async_trait::async_trait;
 use opcua::server::authenticator::{
@@ -20,7 +22,8 @@ use opcua::server::{ServerBuilder, ServerEndpoint, ServerUserToken, ANONYMOUS_US
 use opcua::types::{Error, StatusCode, UAString, UserTokenPolicy, UserTokenType};
 
 use super::config::{OpcUaConfig, Policy, Security, User};
-use super::PasswordCheck;
+use super::limit::{worth_logging, Bucket, LOGINS_PER_S, LOGIN_BURST};
+use super::{PasswordCheck, Shared};
 
 /// The endpoint token id of users with passwords.
 const USERS: &str = "cetratus-users";
@@ -30,6 +33,7 @@ pub(crate) fn configure(
     builder: ServerBuilder,
     config: &OpcUaConfig,
     passwords: Option<PasswordCheck>,
+    shared: Arc<Shared>,
 ) -> Result<ServerBuilder, String> {
     match &config.security {
         Security::None => Ok(builder
@@ -69,6 +73,8 @@ pub(crate) fn configure(
                 .with_authenticator(Arc::new(Accounts {
                     users: config.users.clone(),
                     check,
+                    rate: Mutex::new(Bucket::new(LOGINS_PER_S, LOGIN_BURST, Instant::now())),
+                    shared,
                 }));
             for p in policies {
                 let (id, e) = match p {
@@ -117,6 +123,10 @@ fn absolute(p: &std::path::Path) -> PathBuf {
 struct Accounts {
     users: Vec<User>,
     check: Option<PasswordCheck>,
+    /// Password checks for all clients together (async-opcua does not tell an authenticator
+    /// which address a login comes from; the front listener limits connections per address).
+    rate: Mutex<Bucket>,
+    shared: Arc<Shared>,
 }
 
 #[async_trait]
@@ -142,6 +152,26 @@ impl AuthManager for Accounts {
         let Some(check) = self.check.clone() else {
             return Err(rejected());
         };
+        let counters = &self.shared.counters;
+        let may = self
+            .rate
+            .lock()
+            .unwrap_or_else(|p| p.into_inner())
+            .take(Instant::now());
+        if !may {
+            // Refused before the (slow) check, counted, and logged on the 1st, 2nd, 4th…
+            // refusal: a flood of guesses must not become a flood of log lines.
+            let n = counters.refused_logins.fetch_add(1, Ordering::Relaxed) + 1;
+            if worth_logging(n) {
+                tracing::warn!(user = %username.escape_debug(), refused = n, "OPC UA login refused: too many attempts");
+            }
+            // Answered as a wrong password is (async-opcua reports a refused identity as
+            // BadUserAccessDenied): a guesser learns nothing from it.
+            return Err(Error::new(
+                StatusCode::BadUserAccessDenied,
+                "too many login attempts; try again in a few seconds",
+            ));
+        }
         // An unknown name costs what a wrong password does: the check runs on some hash.
         let (known, hash) = match self.users.iter().find(|u| u.name == username) {
             Some(u) => (true, u.password_hash.clone()),
@@ -158,8 +188,14 @@ impl AuthManager for Accounts {
             .await
             .unwrap_or(false);
         if ok && known {
+            counters.logins.fetch_add(1, Ordering::Relaxed);
+            tracing::info!(user = %username, "OPC UA login");
             Ok(UserToken(username.to_string()))
         } else {
+            let n = counters.failed_logins.fetch_add(1, Ordering::Relaxed) + 1;
+            if worth_logging(n) {
+                tracing::warn!(user = %username.escape_debug(), failed = n, "OPC UA login failed: wrong user or password");
+            }
             Err(rejected())
         }
     }

@@ -110,7 +110,7 @@ pub(crate) async fn serve(
             },
             "cetratus",
         ));
-    let builder = match super::security::configure(builder, &config, passwords) {
+    let builder = match super::security::configure(builder, &config, passwords, shared.clone()) {
         Ok(b) => b,
         Err(e) => return fail(IoError::OpcUa(e)),
     };

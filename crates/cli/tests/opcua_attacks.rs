@@ -1,0 +1,251 @@
+//! Attacks on the PLC's OPC UA server with a real client (asyncua, FreeOpcUa's Python stack)
+//! against the real `cetratus run`: a flood of wrong-password logins is limited before the
+//! password check and the right password still logs in afterwards; a flood of malformed writes
+//! and of connections leaves the PLC scanning and answering (docs/security.md, *OPC UA*).
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Stdio};
+use std::time::{Duration, Instant};
+
+use cetratus_testkit::paths::{example, workspace_root};
+use cetratus_testkit::ports::{free_port, wait_for_port};
+use cetratus_testkit::process::{stop_with_sigterm as stop, ChildGuard};
+
+const BIN: &str = env!("CARGO_BIN_EXE_cetratus");
+
+fn peer(args: &[&str]) -> Vec<String> {
+    let out = Command::new("python3")
+        .arg(workspace_root().join("scripts/opcua_peer.py"))
+        .args(args)
+        .output()
+        .expect("run the asyncua client");
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success(),
+        "{args:?}: {text}\n{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    text.lines().map(str::to_string).collect()
+}
+
+fn start(dir: &Path, io_body: &str, port: u16, extra: &[&str]) -> ChildGuard {
+    let io = dir.join("io.toml");
+    std::fs::write(&io, io_body).unwrap();
+    let plc = ChildGuard::spawn(
+        Command::new(BIN)
+            .arg("run")
+            .arg(example("vernadat/vernadat.toml"))
+            .arg("--io")
+            .arg(&io)
+            .args(["--json", "--no-mct", "--cold", "--plc", "cell"])
+            .args(extra)
+            .arg("--state-dir")
+            .arg(dir.join("state"))
+            .arg("--config")
+            .arg(dir.join("config"))
+            .stdout(Stdio::piped())
+            .stderr(Stdio::null()),
+    );
+    wait_for_port(port, "the PLC's OPC UA server", Duration::from_secs(60));
+    plc
+}
+
+fn hash(password: &str) -> String {
+    let mut h = Command::new(BIN)
+        .arg("hash-password")
+        .stdin(Stdio::piped())
+        .stdout(Stdio::piped())
+        .spawn()
+        .unwrap();
+    std::io::Write::write_all(
+        h.stdin.as_mut().unwrap(),
+        format!("{password}\n").as_bytes(),
+    )
+    .unwrap();
+    let out = h.wait_with_output().unwrap();
+    String::from_utf8_lossy(&out.stdout).trim().to_string()
+}
+
+/// Makes a client certificate in `d` and has the server at `url` (pki at `d/pki`) trust it, as
+/// an administrator does: a first connection puts it in `rejected/`, moved to `trusted/`.
+fn trusted_client(d: &Path, url: &str) -> (PathBuf, PathBuf) {
+    assert_eq!(peer(&["keys", &d.display().to_string()]), ["ok"]);
+    let (cert, key) = (d.join("client.der"), d.join("client.pem"));
+    let first = peer(&[
+        "secure",
+        url,
+        "Basic256Sha256",
+        &cert.display().to_string(),
+        &key.display().to_string(),
+    ])
+    .join(" ");
+    assert!(first.starts_with("refused"), "{first}");
+    let end = Instant::now() + Duration::from_secs(10);
+    loop {
+        let found: Vec<_> = std::fs::read_dir(d.join("pki/rejected"))
+            .unwrap()
+            .map(|e| e.unwrap().path())
+            .collect();
+        if let Some(f) = found.first() {
+            std::fs::rename(f, d.join("pki/trusted").join(f.file_name().unwrap())).unwrap();
+            break;
+        }
+        assert!(Instant::now() < end, "no rejected certificate");
+        std::thread::sleep(Duration::from_millis(50));
+    }
+    (cert, key)
+}
+
+fn cycles(url: &str) -> u64 {
+    let r = peer(&["read", url, "cell.ExecInfo.Cycles"]);
+    r[0].strip_prefix("cell.ExecInfo.Cycles=")
+        .and_then(|v| v.parse().ok())
+        .unwrap_or_else(|| panic!("{r:?}"))
+}
+
+#[test]
+fn a_flood_of_wrong_passwords_is_limited_before_the_check_and_the_right_one_still_logs_in() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let port = free_port();
+    let url = format!("opc.tcp://127.0.0.1:{port}");
+    let h = hash("panel-secret");
+    let plc = start(
+        d,
+        &format!("[opcua]\nlisten = \"{url}\"\nsecurity = \"sign-and-encrypt\"\npki = \"pki\"\npolicies = [\"Basic256Sha256\"]\nmax_connections = 16\n\n[[opcua.user]]\nname = \"hmi\"\npassword_hash = \"{h}\"\n"),
+        port,
+        &["--twin", "vernadat"],
+    );
+    let (cert, key) = trusted_client(d, &url);
+    let (cert, key) = (cert.display().to_string(), key.display().to_string());
+    let before = cycles_secure(&url, &cert, &key);
+    // 48 guesses, 8 at a time.
+    let got = peer(&[
+        "guess",
+        &url,
+        "Basic256Sha256",
+        &cert,
+        &key,
+        "hmi",
+        "guess",
+        "48",
+    ])
+    .join(" ");
+    let count = |name: &str| -> u64 {
+        got.split(' ')
+            .find_map(|kv| kv.strip_prefix(&format!("{name}=")))
+            .map_or(0, |v| v.parse().unwrap())
+    };
+    assert_eq!(count("ok"), 0, "{got}");
+    // Refused whether checked or not (the counters below tell them apart).
+    assert!(count("BadUserAccessDenied") > 0, "{got}");
+    // The limit refills: the right password logs in, and the PLC kept scanning all along.
+    std::thread::sleep(Duration::from_secs(3));
+    let ok = peer(&[
+        "secure",
+        &url,
+        "Basic256Sha256",
+        &cert,
+        &key,
+        "--user",
+        "hmi",
+        "--password",
+        "panel-secret",
+    ]);
+    assert_eq!(ok, ["idle"]);
+    let after = cycles_secure(&url, &cert, &key);
+    assert!(after > before, "cycles {before} then {after}");
+    let s = stop(plc);
+    let o = &s["opcua_server"];
+    assert!(o["refused_logins"].as_u64().unwrap() > 0, "{s}");
+    assert!(o["failed_logins"].as_u64().unwrap() > 0, "{s}");
+    assert!(o["logins"].as_u64().unwrap() >= 3, "{s}");
+}
+
+/// The cycle counter, read over an encrypted session as `hmi`.
+fn cycles_secure(url: &str, cert: &str, key: &str) -> u64 {
+    // The rate limit may refuse a login right after a flood: try again for a while.
+    let end = Instant::now() + Duration::from_secs(30);
+    loop {
+        let r = peer(&[
+            "secure",
+            url,
+            "Basic256Sha256",
+            cert,
+            key,
+            "--user",
+            "hmi",
+            "--password",
+            "panel-secret",
+            "--read",
+            "cell.ExecInfo.Cycles",
+        ]);
+        if let Some(n) = r.first().and_then(|v| v.parse().ok()) {
+            return n;
+        }
+        assert!(Instant::now() < end, "{r:?}");
+        std::thread::sleep(Duration::from_millis(500));
+    }
+}
+
+#[test]
+fn floods_of_malformed_writes_and_of_connections_leave_the_plc_scanning_and_answering() {
+    let dir = tempfile::tempdir().unwrap();
+    let port = free_port();
+    let url = format!("opc.tcp://127.0.0.1:{port}");
+    let mut plc = start(
+        dir.path(),
+        &format!("start_timeout = \"1s\"\n\n[opcua]\nlisten = \"{url}\"\ninputs = true\nmax_connections = 8\n"),
+        port,
+        &[],
+    );
+    let before = cycles(&url);
+    let got = peer(&["junk", &url, "600"]);
+    // Every malformed write has its Bad status; none was taken.
+    assert_eq!(got.last().map(String::as_str), Some("idle"), "{got:?}");
+    let total: u64 = got[..got.len() - 1]
+        .iter()
+        .map(|l| {
+            assert!(l.starts_with("Bad"), "{got:?}");
+            l.split('=').nth(1).unwrap().parse::<u64>().unwrap()
+        })
+        .sum();
+    assert_eq!(total, 600, "{got:?}");
+    assert!(
+        got.iter().any(|l| l.starts_with("BadTypeMismatch=")),
+        "{got:?}"
+    );
+    assert!(
+        got.iter().any(|l| l.starts_with("BadNodeIdUnknown=")),
+        "{got:?}"
+    );
+    // Connections beyond the limit, or beyond one address's rate, are closed at once.
+    let closed: u64 = peer(&["flood", &url, "60"])[0].parse().unwrap();
+    assert!(closed >= 50, "{closed} of 60 closed");
+    assert!(plc.0.try_wait().unwrap().is_none(), "the PLC is running");
+    // The rate of one address refills: the PLC answers, and it kept scanning.
+    let end = Instant::now() + Duration::from_secs(30);
+    let after = loop {
+        let r = Command::new("python3")
+            .arg(workspace_root().join("scripts/opcua_peer.py"))
+            .args(["read", &url, "cell.ExecInfo.Cycles"])
+            .output()
+            .unwrap();
+        let t = String::from_utf8_lossy(&r.stdout).to_string();
+        if let Some(n) = t
+            .trim()
+            .strip_prefix("cell.ExecInfo.Cycles=")
+            .and_then(|v| v.parse::<u64>().ok())
+        {
+            break n;
+        }
+        assert!(Instant::now() < end, "{t}");
+        std::thread::sleep(Duration::from_millis(500));
+    };
+    assert!(after > before, "cycles {before} then {after}");
+    let s = stop(plc);
+    let o = &s["opcua_server"];
+    assert_eq!(o["writes"], 0, "{s}");
+    assert!(o["refused_writes"].as_u64().unwrap() >= 300, "{s}");
+    assert!(o["refused_connections"].as_u64().unwrap() >= 50, "{s}");
+}

@@ -39,6 +39,8 @@ pub struct ServeArgs {
     /// The PLC's name in the server's nodes (`<plc>.Inputs.…`); the one PLC it shows by default.
     #[arg(long, requires = "opcua")]
     plc: Option<String>,
+    #[command(flatten)]
+    security: crate::twin_opcua::SecurityArgs,
     /// Print the address map and stop.
     #[arg(long)]
     print_map: bool,
@@ -85,6 +87,7 @@ pub fn run(args: &TwinArgs) -> anyhow::Result<()> {
     if let Some(url) = &a.opcua {
         cetratus_io::opcua::config::parse_url(url).map_err(|e| anyhow::anyhow!("--opcua: {e}"))?;
     }
+    let security = a.security.resolve(a.opcua.is_some())?;
     let mut presses = a.press.clone();
     if presses.is_empty() && kind == TwinKind::Festo {
         presses.extend(["RESET@100ms".to_string(), "START@500ms".to_string()]);
@@ -104,7 +107,8 @@ pub fn run(args: &TwinArgs) -> anyhow::Result<()> {
         .context("cannot install the Ctrl-C handler")?;
     let json = a.json;
     if let Some(url) = &a.opcua {
-        return crate::twin_opcua::run(twin, url, a.plc.as_deref(), until_us, &stop, json);
+        let plc = a.plc.as_deref();
+        return crate::twin_opcua::run(twin, url, plc, until_us, &stop, &security, json);
     }
     let Some(listen) = &a.modbus else {
         anyhow::bail!("give --modbus ADDR or --opcua URL");

@@ -20,6 +20,7 @@
 pub mod config;
 mod front;
 mod limit;
+pub mod pki;
 pub mod probe;
 mod security;
 mod space;

@@ -26,7 +26,7 @@ pub fn write_scan_read(
     rt.block_on(async {
         let stop = AtomicBool::new(false);
         let mut counters = ClientCounters::default();
-        let Some(session) = connect(url, &stop, &mut counters).await? else {
+        let Some(session) = connect(url, &stop, &mut counters, &Default::default()).await? else {
             return Err(client_error("no session"));
         };
         let (ns, plc) = find_plc(&session).await?;

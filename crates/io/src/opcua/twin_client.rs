@@ -7,6 +7,7 @@
 //! the sensors, which is also what the PLC's first scan waits for; from then on `--for D` is D of
 //! plant time under control, as with the Modbus twin.
 
+use std::path::PathBuf;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
@@ -20,8 +21,49 @@ use opcua::types::{
     TimestampsToReturn, UserTokenPolicy, Variant, WriteValue,
 };
 
+use super::config::Policy;
 use super::NAMESPACE;
 use crate::IoError;
+
+/// How the client reaches the PLC's server (docs/io.md, *The twin as an OPC UA client*).
+#[derive(Clone, Debug, Default)]
+pub struct ClientSecurity {
+    /// Sign & Encrypt with this policy; policy None (a server on loopback) when `None`.
+    pub policy: Option<Policy>,
+    /// The client's PKI directory: its certificate and key (`own/`, `private/`, made on first
+    /// use) and the servers it trusts (`trusted/`).
+    pub pki: Option<PathBuf>,
+    /// The user and password to log in as; anonymous without.
+    pub user: Option<(String, String)>,
+}
+
+fn policy_of(p: Policy) -> SecurityPolicy {
+    match p {
+        Policy::Basic256Sha256 => SecurityPolicy::Basic256Sha256,
+        Policy::Aes128Sha256RsaOaep => SecurityPolicy::Aes128Sha256RsaOaep,
+        Policy::Aes256Sha256RsaPss => SecurityPolicy::Aes256Sha256RsaPss,
+    }
+}
+
+/// Makes the client's PKI directory and certificate when missing, and installs the certificates
+/// an administrator copied into its `trusted/`; returns the client's certificate (DER) path and
+/// the name under which a server's trust list must hold it.
+pub fn prepare_pki(pki: &std::path::Path) -> Result<(PathBuf, String), IoError> {
+    super::pki::install_trusted(pki).map_err(client_error)?;
+    // Building the client makes the key pair on first use.
+    ClientBuilder::new()
+        .application_name("Cetratus twin")
+        .application_uri("urn:cetratus:twin")
+        .product_uri("urn:cetratus")
+        .pki_dir(pki)
+        .create_sample_keypair(true)
+        .client()
+        .map_err(|e| client_error(e.join(", ")))?;
+    let cert = pki.join("own/cert.der");
+    let der = std::fs::read(&cert).map_err(|e| client_error(format!("{}: {e}", cert.display())))?;
+    let name = super::pki::trusted_name(&der).map_err(client_error)?;
+    Ok((cert, name))
+}
 
 /// How often the client writes every sensor again when none changed: the keep-alive that tells
 /// the PLC its inputs' source is alive (docs/io.md, *Quality*).
@@ -74,45 +116,72 @@ pub fn serve(
     plc: Option<&str>,
     until_us: u64,
     stop: &AtomicBool,
+    security: &ClientSecurity,
     on_connect: impl FnOnce(&str),
 ) -> Result<OpcUaServeReport, IoError> {
     let rt = tokio::runtime::Builder::new_current_thread()
         .enable_all()
         .build()
         .map_err(|e| IoError::Thread(e.to_string()))?;
-    rt.block_on(run(twin, url, plc, until_us, stop, on_connect))
+    rt.block_on(run(twin, url, plc, until_us, stop, security, on_connect))
 }
 
 pub(crate) async fn connect(
     url: &str,
     stop: &AtomicBool,
     counters: &mut ClientCounters,
+    security: &ClientSecurity,
 ) -> Result<Option<Arc<Session>>, IoError> {
+    let secure = security.policy.is_some();
+    let pki = match (&security.pki, secure) {
+        (Some(p), true) => p.clone(),
+        (None, true) => {
+            return Err(client_error(
+                "Sign & Encrypt needs the client's PKI directory",
+            ))
+        }
+        // Policy None uses no certificate; the store still wants a directory.
+        (_, false) => std::env::temp_dir().join("cetratus-opcua-twin"),
+    };
     let mut client = ClientBuilder::new()
         .application_name("Cetratus twin")
         .application_uri("urn:cetratus:twin")
         .product_uri("urn:cetratus")
-        .pki_dir(std::env::temp_dir().join("cetratus-opcua-twin"))
-        .trust_server_certs(true)
+        .pki_dir(pki)
+        .create_sample_keypair(secure)
+        // Encrypted, the server's certificate must be in the client's trust list.
+        .trust_server_certs(!secure)
         .session_retry_limit(-1)
         .session_retry_initial(Duration::from_millis(100))
         .session_retry_max(Duration::from_secs(2))
         .request_timeout(Duration::from_secs(2))
         .client()
         .map_err(|e| client_error(e.join(", ")))?;
+    let (policy, mode) = match security.policy {
+        Some(p) => (policy_of(p), MessageSecurityMode::SignAndEncrypt),
+        None => (SecurityPolicy::None, MessageSecurityMode::None),
+    };
     loop {
         if stop.load(Ordering::Relaxed) {
             return Ok(None);
         }
         counters.connect_attempts += 1;
-        let endpoint = (
-            url,
-            SecurityPolicy::None.to_uri(),
-            MessageSecurityMode::None,
-            UserTokenPolicy::anonymous(),
-        );
+        if let (true, Some(pki)) = (secure, &security.pki) {
+            // A certificate an administrator copied into `trusted/` meanwhile counts from the
+            // next attempt.
+            if let Err(e) = super::pki::install_trusted(pki) {
+                if counters.connect_attempts.is_power_of_two() {
+                    eprintln!("OPC UA: {e}");
+                }
+            }
+        }
+        let endpoint = (url, policy.to_uri(), mode, UserTokenPolicy::anonymous());
+        let identity = match &security.user {
+            Some((u, p)) => IdentityToken::new_user_name(u.clone(), p.clone()),
+            None => IdentityToken::Anonymous,
+        };
         match client
-            .connect_to_matching_endpoint(endpoint, IdentityToken::Anonymous)
+            .connect_to_matching_endpoint(endpoint, identity)
             .await
         {
             Ok((session, event_loop)) => {
@@ -125,7 +194,17 @@ pub(crate) async fn connect(
                 }
                 let _ = session.disconnect().await;
             }
-            Err(_) => tokio::time::sleep(Duration::from_millis(200)).await,
+            Err(e) => {
+                // Told on the 1st, 2nd, 4th… failure: an untrusted certificate or a wrong
+                // password is worth knowing, a server that is not up yet is expected.
+                if counters.connect_attempts.is_power_of_two() && counters.connect_attempts > 1 {
+                    eprintln!(
+                        "OPC UA: {url}: attempt {} failed: {e}",
+                        counters.connect_attempts
+                    );
+                }
+                tokio::time::sleep(Duration::from_millis(200)).await
+            }
         }
     }
 }
@@ -198,10 +277,11 @@ async fn run(
     plc: Option<&str>,
     until_us: u64,
     stop: &AtomicBool,
+    security: &ClientSecurity,
     on_connect: impl FnOnce(&str),
 ) -> Result<OpcUaServeReport, IoError> {
     let mut counters = ClientCounters::default();
-    let Some(session) = connect(url, stop, &mut counters).await? else {
+    let Some(session) = connect(url, stop, &mut counters, security).await? else {
         return Err(client_error("stopped before the server answered"));
     };
     let (ns, found) = find_plc(&session).await?;

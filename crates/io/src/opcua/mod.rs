@@ -380,14 +380,12 @@ impl OpcUaServer {
     /// Reads [`OpcUaServer::status`] from another thread than the scan's.
     pub fn status_reader(&self) -> Option<impl Fn() -> DeviceStatus + Send + Sync + 'static> {
         let shared = self.shared.clone();
-        self.provides_inputs.then(move || {
-            move || {
-                status_of(
-                    &shared,
-                    quality_of(shared.quality.load(Ordering::Relaxed)),
-                    shared.missed.load(Ordering::Relaxed),
-                )
-            }
+        self.provides_inputs.then_some(move || {
+            status_of(
+                &shared,
+                quality_of(shared.quality.load(Ordering::Relaxed)),
+                shared.missed.load(Ordering::Relaxed),
+            )
         })
     }
 

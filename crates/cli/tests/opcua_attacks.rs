@@ -44,7 +44,7 @@ fn start(dir: &Path, io_body: &str, port: u16, extra: &[&str]) -> ChildGuard {
             .arg("--config")
             .arg(dir.join("config"))
             .stdout(Stdio::piped())
-            .stderr(Stdio::null()),
+            .stderr(std::fs::File::create(dir.join("plc.err")).unwrap()),
     );
     wait_for_port(port, "the PLC's OPC UA server", Duration::from_secs(60));
     plc
@@ -160,6 +160,18 @@ fn a_flood_of_wrong_passwords_is_limited_before_the_check_and_the_right_one_stil
     assert!(o["refused_logins"].as_u64().unwrap() > 0, "{s}");
     assert!(o["failed_logins"].as_u64().unwrap() > 0, "{s}");
     assert!(o["logins"].as_u64().unwrap() >= 3, "{s}");
+    // Logged on the 1st, 2nd, 4th… refusal only, with the running count.
+    let log = std::fs::read_to_string(d.join("plc.err")).unwrap();
+    let lines = log
+        .lines()
+        .filter(|l| l.contains("OPC UA login refused: too many attempts"))
+        .count() as u64;
+    let refused = o["refused_logins"].as_u64().unwrap();
+    assert!(
+        lines >= 1 && lines <= 1 + refused.ilog2() as u64,
+        "{lines} lines for {refused}: {log}"
+    );
+    assert!(log.contains("refused=1"), "{log}");
 }
 
 /// The cycle counter, read over an encrypted session as `hmi`.

@@ -1,7 +1,7 @@
 //! `cetratus twin serve --opcua` with Sign & Encrypt and a user, against the real `cetratus run`
 //! serving beyond loopback (on every address) with `security = "sign-and-encrypt"`: each side
-//! trusts the other's certificate as an administrator would, and the twin finishes parts as the
-//! PLC's plant (docs/io.md, *The twin as an OPC UA client*).
+//! trusts the other's certificate because an administrator copied it into its `trusted/`, and
+//! the twin finishes parts as the PLC's plant (docs/io.md, *The twin as an OPC UA client*).
 
 use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
@@ -40,6 +40,38 @@ fn the_twin_logs_in_over_sign_and_encrypt_and_finishes_parts() {
         format!("start_timeout = \"120s\"\n\n[opcua]\nlisten = \"opc.tcp://0.0.0.0:{port}\"\ninputs = true\nsecurity = \"sign-and-encrypt\"\npki = \"pki\"\n\n[[opcua.user]]\nname = \"twin\"\npassword_hash = \"{}\"\n", hash("twin-secret")),
     )
     .unwrap();
+    std::fs::write(d.join("password"), "twin-secret\n").unwrap();
+    let twin_pki = d.join("twin-pki");
+    let twin_cmd = |url: &str, for_: &str| {
+        let mut c = Command::new(BIN);
+        c.args(["twin", "serve", "vernadat", "--for", for_, "--json"])
+            .args(["--opcua", url])
+            .args(["--security", "sign-and-encrypt", "--user", "twin"])
+            .arg("--pki")
+            .arg(&twin_pki)
+            .arg("--password-file")
+            .arg(d.join("password"))
+            .stdout(Stdio::piped())
+            .stderr(Stdio::null());
+        c
+    };
+    // The twin's certificate is made on first use (here against a port no one serves).
+    {
+        let _first = ChildGuard::spawn(&mut twin_cmd("opc.tcp://127.0.0.1:9", "1s"));
+        let end = Instant::now() + Duration::from_secs(60);
+        while !twin_pki.join("own/cert.der").exists() {
+            assert!(Instant::now() < end, "the twin made no certificate");
+            std::thread::sleep(Duration::from_millis(50));
+        }
+        std::thread::sleep(Duration::from_millis(500));
+    }
+    // The PLC trusts the twin: its certificate copied into the PLC's trusted/ under any name.
+    std::fs::create_dir_all(d.join("pki/trusted")).unwrap();
+    std::fs::copy(
+        twin_pki.join("own/cert.der"),
+        d.join("pki/trusted/twin.der"),
+    )
+    .unwrap();
     let plc = ChildGuard::spawn(
         Command::new(BIN)
             .arg("run")
@@ -56,37 +88,8 @@ fn the_twin_logs_in_over_sign_and_encrypt_and_finishes_parts() {
     );
     wait_for_port(port, "the PLC's OPC UA server", Duration::from_secs(120));
     // The twin trusts the PLC: its certificate copied into the twin's trusted/ under any name.
-    let twin_pki = d.join("twin-pki");
-    std::fs::create_dir_all(twin_pki.join("trusted")).unwrap();
     std::fs::copy(d.join("pki/own/cert.der"), twin_pki.join("trusted/plc.der")).unwrap();
-    std::fs::write(d.join("password"), "twin-secret\n").unwrap();
-    let twin = ChildGuard::spawn(
-        Command::new(BIN)
-            .args(["twin", "serve", "vernadat", "--for", "20s", "--json"])
-            .args(["--opcua", &format!("opc.tcp://127.0.0.1:{port}")])
-            .args(["--security", "sign-and-encrypt", "--user", "twin"])
-            .arg("--pki")
-            .arg(&twin_pki)
-            .arg("--password-file")
-            .arg(d.join("password"))
-            .stdout(Stdio::piped())
-            .stderr(Stdio::null()),
-    );
-    // The PLC trusts the twin: its first attempt is refused and its certificate kept in
-    // rejected/, which an administrator moves to trusted/.
-    let end = Instant::now() + Duration::from_secs(60);
-    loop {
-        let found: Vec<_> = std::fs::read_dir(d.join("pki/rejected"))
-            .unwrap()
-            .map(|e| e.unwrap().path())
-            .collect();
-        if let Some(f) = found.first() {
-            std::fs::rename(f, d.join("pki/trusted").join(f.file_name().unwrap())).unwrap();
-            break;
-        }
-        assert!(Instant::now() < end, "the twin never reached the PLC");
-        std::thread::sleep(Duration::from_millis(50));
-    }
+    let twin = ChildGuard::spawn(&mut twin_cmd(&format!("opc.tcp://127.0.0.1:{port}"), "20s"));
     let mut text = String::new();
     let mut twin = twin;
     std::io::Read::read_to_string(twin.0.stdout.as_mut().unwrap(), &mut text).unwrap();
@@ -98,6 +101,11 @@ fn the_twin_logs_in_over_sign_and_encrypt_and_finishes_parts() {
     let s = stop(plc);
     assert!(s["opcua_server"]["logins"].as_u64().unwrap() >= 1, "{s}");
     assert!(s["opcua_server"]["writes"].as_u64().unwrap() > 10, "{s}");
+    // Trusted from the start: never refused.
+    assert_eq!(
+        std::fs::read_dir(d.join("pki/rejected")).unwrap().count(),
+        0
+    );
 }
 
 #[test]

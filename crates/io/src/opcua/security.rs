@@ -4,8 +4,8 @@
 //!   policy None, anonymous sessions.
 //! * Security `sign-and-encrypt`: one endpoint per configured policy (Basic256Sha256,
 //!   Aes128_Sha256_RsaOaep, Aes256_Sha256_RsaPss), all Sign & Encrypt. A client's application
-//!   certificate must be in the trust list (`<pki>/trusted/`); unknown certificates are
-//!   refused and kept in `<pki>/rejected/` for an administrator to move. With `[[opcua.user]]`
+//!   certificate must be in the trust list (`<pki>/trusted/`, any `.der` name at start);
+//!   unknown certificates are refused and kept in `<pki>/rejected/` for an administrator to move. With `[[opcua.user]]`
 //!   entries a session logs in as one of them (argon2 hashes, checked on a blocking thread);
 //!   without, the trusted certificate is the credential.
 
@@ -56,6 +56,9 @@ pub(crate) fn configure(
             } else {
                 ANONYMOUS_USER_TOKEN_ID.to_string()
             }];
+            // Certificates an administrator copied into trusted/ under another name than the one
+            // async-opcua looks for are added under it (at start).
+            super::pki::install_trusted(&absolute(pki))?;
             let mut b = builder
                 // The endpoints name their token by id; async-opcua checks that one is
                 // configured. Its password is never compared: `Accounts` decides every login.

@@ -482,11 +482,9 @@ impl Plc {
         );
         let core = &mut self.core;
         let router = &core.router;
-        let dispatched = if status == Status::Fault {
-            router.dispatched_bits()
-        } else {
-            router.output_bits(core.primary_slot.index())
-        };
+        // What the plant got: the primary's outputs, with the outputs it lacks at their held
+        // values, or the safe values in fault.
+        let dispatched = router.dispatched_bits();
         core.monitor.recent.record(
             core.log.cycle,
             now_us,

@@ -3,7 +3,8 @@
 //! substitution the new output reaches a real pymodbus device, following a new input read from
 //! it. An output no program drives holds the safe value of the last program that declared it:
 //! a new one until its candidate is PRIMARY, and those the new primary drops after the
-//! substitution. A candidate whose new signal no device serves is refused at load, naming it.
+//! substitution. The PLC's Modbus server shows the new signals from the install on. A candidate
+//! whose new signal no device serves is refused at load, naming it.
 
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output, Stdio};
@@ -175,12 +176,12 @@ fn an_update_adds_signals_on_configured_channels_and_undriven_outputs_hold_their
     let unserved = package(d, &key, "unserved", "");
 
     // The device has x0 on, x1 and x5 off.
-    let (device, mqtt) = (free_port(), free_port());
+    let (device, mqtt, server) = (free_port(), free_port(), free_port());
     let _device = modbus::device(device, &["--di", "1,0,0,0,0,0"]);
     let io = d.join("io.toml");
     std::fs::write(
         &io,
-        format!("[[device]]\nname = \"rack\"\ntransport = \"modbus-tcp\"\naddress = \"127.0.0.1:{device}\"\ntimeout = \"500ms\"\nserves = [{{ from = \"%IX0.0\", to = \"%IX0.7\" }}, {{ from = \"%QX0.0\", to = \"%QX0.7\" }}, {{ from = \"%QW0\", to = \"%QW3\" }}]\n"),
+        format!("[[device]]\nname = \"rack\"\ntransport = \"modbus-tcp\"\naddress = \"127.0.0.1:{device}\"\ntimeout = \"500ms\"\nserves = [{{ from = \"%IX0.0\", to = \"%IX0.7\" }}, {{ from = \"%QX0.0\", to = \"%QX0.7\" }}, {{ from = \"%QW0\", to = \"%QW3\" }}]\n[server]\nmodbus = \"127.0.0.1:{server}\"\n"),
     )
     .expect("write io.toml");
     let _plc = ChildGuard::spawn(
@@ -219,6 +220,15 @@ fn an_update_adds_signals_on_configured_channels_and_undriven_outputs_hold_their
     // y0 on, y1 off (driven), coil 5 has no program yet; w2 is 7.
     assert_eq!(wait_coils(device, "1,0,0,0,0,0,0,0"), "1,0,0,0,0,0,0,0");
     assert_eq!(wait_for(device, "hr", 0, 4, "0,0,7,0"), "0,0,7,0");
+    // The PLC's Modbus server shows the signals of the running program: x5 and y5 are not there.
+    assert_eq!(wait_for(server, "coils", 0, 2, "1,0"), "1,0");
+    let before = modbus::read(server, "coils", 5, 1);
+    assert!(before.starts_with("exception"), "coil 5 before: {before}");
+    let before = modbus::read(server, "di", 5, 1);
+    assert!(
+        before.starts_with("exception"),
+        "discrete input 5 before: {before}"
+    );
 
     // A new signal no device serves: refused at load, naming it and its address.
     let out = client(&["load", s(&unserved)]);
@@ -239,6 +249,12 @@ fn an_update_adds_signals_on_configured_channels_and_undriven_outputs_hold_their
         "a new output holds its candidate's safe value until the candidate is PRIMARY"
     );
     assert_eq!(modbus::read(device, "hr", 0, 4), "0,0,7,0");
+    // From the install on, the server shows them: y5 as dispatched, x5 as read.
+    assert_eq!(
+        wait_for(server, "coils", 0, 6, "1,0,0,0,0,1"),
+        "1,0,0,0,0,1"
+    );
+    assert_eq!(wait_for(server, "di", 0, 6, "1,0,0,0,0,0"), "1,0,0,0,0,0");
 
     // Substituted: y5 follows x5 (off); y1 and w2, which no program drives any more, hold the
     // safe values of the program that declared them last.
@@ -254,6 +270,16 @@ fn an_update_adds_signals_on_configured_channels_and_undriven_outputs_hold_their
         "0,0,1234,0",
         "the dropped w2 holds its safe value 1234"
     );
+    assert_eq!(
+        wait_for(server, "coils", 0, 6, "1,1,0,0,0,0"),
+        "1,1,0,0,0,0"
+    );
+    assert_eq!(modbus::read(server, "hr", 0, 3), "0,0,1234");
+    // The status registers are where they were: PRIMARY is B.
+    assert_eq!(wait_for(server, "ir", 8192, 1, "1"), "1");
+    // A new input is read-only to clients.
+    let w = modbus::client(&["write", &server.to_string(), "coils", "8197", "1"]);
+    assert!(w.starts_with("exception"), "a write to x5's mirror: {w}");
     let out = Command::new(BIN)
         .args(["exec-info", "--broker", &format!("mqtt://{broker}")])
         .args(["--plc", "grow1", "--json"])

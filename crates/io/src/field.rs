@@ -241,6 +241,11 @@ impl FieldIo {
         Ok(())
     }
 
+    /// The field map bound so far (grown by live updates).
+    pub fn map(&self) -> &FieldMap {
+        &self.map
+    }
+
     /// Waits (before the first scan, never in one) until every device that serves an input has
     /// completed a read, or `timeout_us` passes. Returns the devices still missing, whose inputs
     /// start at their safe values.
@@ -372,8 +377,19 @@ pub struct FieldAdmission {
 impl IoAdmission for FieldAdmission {
     fn admit(&self, inputs: &[Signal], outputs: &[Signal]) -> Result<(), String> {
         let mut map = (*lock(&self.shared).map).clone();
+        let (ins, outs) = (map.inputs.len(), map.outputs.len());
         map.extend(&self.config, inputs, outputs)
-            .map_err(|e| e.to_string())
+            .map_err(|e| e.to_string())?;
+        // The PLC's Modbus server shows them too, below its own entries.
+        if self.config.server.is_some() {
+            for c in &map.inputs[ins..] {
+                crate::server::fits_server(c, true).map_err(|e| e.to_string())?;
+            }
+            for c in &map.outputs[outs..] {
+                crate::server::fits_server(c, false).map_err(|e| e.to_string())?;
+            }
+        }
+        Ok(())
     }
 }
 

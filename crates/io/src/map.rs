@@ -183,6 +183,9 @@ impl FieldMap {
                 if c.on.is_none() {
                     return Err(unmapped(format!("it is new to the running I/O map, and no device of {} serves {}; a live update may add only signals on a configured channel (or restart with the new program)", config.file, c.address)));
                 }
+                if input && c.hmi_writable {
+                    return Err(unmapped(format!("{} is marked hmi_writable but a field device provides it; an input has one source", c.address)));
+                }
                 if input {
                     more.inputs.push(c);
                 } else {

@@ -85,9 +85,13 @@ impl PlantIo {
 
 impl Provider for PlantIo {
     fn io_map_grew(&mut self, inputs: &[Signal], outputs: &[Signal]) {
-        // Only the field serves new signals (its admission refuses the others).
+        // Only the field serves new signals (its admission refuses the others); the Modbus
+        // server shows them from then on.
         if let Some(f) = self.field.as_mut() {
             f.io_map_grew(inputs, outputs);
+            if let Some(s) = self.server.as_mut() {
+                s.grow(f.map());
+            }
         }
     }
 

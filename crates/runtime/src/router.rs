@@ -189,7 +189,7 @@ impl MessageRouter {
             }
         }
         for u in &mut self.undriven {
-            u.reserve(self.io_outputs.len().saturating_sub(u.capacity()));
+            u.reserve(self.io_outputs.len().saturating_sub(u.len()));
         }
         self.bool_outputs &= outputs.iter().all(|s| s.ty == Type::Bool);
         self.in_bits = Mask::of(&self.inputs);

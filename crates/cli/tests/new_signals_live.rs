@@ -3,7 +3,7 @@
 //! substitution the new output reaches a real pymodbus device, following a new input read from
 //! it. An output no program drives holds the safe value of the last program that declared it:
 //! a new one until its candidate is PRIMARY, and those the new primary drops after the
-//! substitution. The PLC's Modbus server shows the new signals from the install on. A candidate
+//! substitution, and on a stop. The PLC's Modbus server shows the new signals from the install on. A candidate
 //! whose new signal no device serves is refused at load, naming it.
 
 use std::path::{Path, PathBuf};
@@ -12,7 +12,7 @@ use std::time::{Duration, Instant};
 
 use cetratus_testkit::modbus;
 use cetratus_testkit::ports::{free_port, wait_for_port};
-use cetratus_testkit::process::ChildGuard;
+use cetratus_testkit::process::{stop_with_sigterm, ChildGuard};
 
 const BIN: &str = env!("CARGO_BIN_EXE_cetratus");
 
@@ -139,13 +139,13 @@ fn an_update_adds_signals_on_configured_channels_and_undriven_outputs_hold_their
         &[(0, "%IX0.0", "%QX0.0", false), (1, "%IX0.1", "%QX0.1", true)],
         "[[output]]\nname = \"w2\"\ntype = \"int\"\naddress = \"%QW2\"\nsafe = 1234\n[bodies]\nSet = \"w2 := 7\"\n[[action]]\nplace = \"q0\"\nqualifier = \"N\"\nbody = \"Set\"\n",
     );
-    // Drops y1 and w2; adds x5 and y5 (safe true), which follows x5, off.
+    // Drops y1 and w2; adds x5 and y5 (safe true), which follows x5, off; y0 is safe on now.
     program(
         d,
         "grown",
         "1.1.0",
         &[
-            (0, "%IX0.0", "%QX0.0", false),
+            (0, "%IX0.0", "%QX0.0", true),
             (5, "%IX0.5", "%QX0.5", true),
         ],
         "",
@@ -184,7 +184,7 @@ fn an_update_adds_signals_on_configured_channels_and_undriven_outputs_hold_their
         format!("[[device]]\nname = \"rack\"\ntransport = \"modbus-tcp\"\naddress = \"127.0.0.1:{device}\"\ntimeout = \"500ms\"\nserves = [{{ from = \"%IX0.0\", to = \"%IX0.7\" }}, {{ from = \"%QX0.0\", to = \"%QX0.7\" }}, {{ from = \"%QW0\", to = \"%QW3\" }}]\n[server]\nmodbus = \"127.0.0.1:{server}\"\n"),
     )
     .expect("write io.toml");
-    let _plc = ChildGuard::spawn(
+    let plc = ChildGuard::spawn(
         Command::new(BIN)
             .arg("run")
             .arg(&base)
@@ -197,6 +197,7 @@ fn an_update_adds_signals_on_configured_channels_and_undriven_outputs_hold_their
                 "--plc",
                 "grow1",
                 "--no-dashboard",
+                "--json",
             ])
             .args(["--mqtt", &format!("127.0.0.1:{mqtt}")])
             .arg("--trust")
@@ -205,8 +206,8 @@ fn an_update_adds_signals_on_configured_channels_and_undriven_outputs_hold_their
             .arg(d.join("state"))
             .arg("--config")
             .arg(d.join("config"))
-            .stdout(Stdio::null())
-            .stderr(Stdio::null()),
+            .stdout(Stdio::piped())
+            .stderr(Stdio::piped()),
     );
     wait_for_port(mqtt, "the embedded broker", Duration::from_secs(60));
     let broker = format!("127.0.0.1:{mqtt}");
@@ -287,4 +288,10 @@ fn an_update_adds_signals_on_configured_channels_and_undriven_outputs_hold_their
         .expect("exec-info");
     let t = String::from_utf8_lossy(&out.stdout);
     assert!(t.contains("\"rack\"") && t.contains("\"good\""), "{t}");
+
+    // On a stop every output goes to the safe value of the program that declared it last: y0
+    // to the new primary's (on), y1 and w2 to the old one's, y5 to the new one's.
+    stop_with_sigterm(plc);
+    assert_eq!(coils(device), "1,1,0,0,0,1,0,0");
+    assert_eq!(modbus::read(device, "hr", 0, 4), "0,0,1234,0");
 }

@@ -131,6 +131,9 @@ pub struct FieldIo {
     missed: Vec<u64>,
     quality: Vec<Quality>,
     last_out: Vec<Value>,
+    // What the outputs go to in the I/O's safe state (a stale device under `fault`, a stop):
+    // the PLC's safe values, as it last gave them.
+    safe_out: Vec<Value>,
     out_pending: bool,
     fault: bool,
     contended: u64,
@@ -189,6 +192,7 @@ impl FieldIo {
         Ok(FieldIo {
             front: map.safe_inputs.clone(),
             last_out: map.safe_outputs.clone(),
+            safe_out: map.safe_outputs.clone(),
             map,
             config: config.clone(),
             devices: config.devices.clone(),
@@ -227,6 +231,8 @@ impl FieldIo {
         self.front[self.map.safe_inputs.len()..]
             .copy_from_slice(&map.safe_inputs[self.map.safe_inputs.len()..]);
         self.last_out.clone_from(&map.safe_outputs);
+        let n = self.safe_out.len();
+        self.safe_out.extend_from_slice(&map.safe_outputs[n..]);
         self.out_pending = true;
         {
             let mut s = lock(&self.shared);
@@ -308,7 +314,7 @@ impl FieldIo {
         }
         {
             let mut s = lock(&self.shared);
-            s.outputs.clone_from(&self.map.safe_outputs);
+            s.outputs.clone_from(&self.safe_out);
             s.outputs_gen += 1;
         }
         for k in &self.kicks {
@@ -422,9 +428,16 @@ impl Provider for FieldIo {
 }
 
 impl Dispatcher for FieldIo {
+    fn safe_outputs(&mut self, safe: &[Value]) {
+        // Of the map's length once it grew (the router and the field grow at the same install).
+        if safe.len() == self.safe_out.len() {
+            self.safe_out.copy_from_slice(safe);
+        }
+    }
+
     fn write_outputs(&mut self, _now_us: u64, outputs: &[Value]) {
         let wanted: &[Value] = if self.fault {
-            &self.map.safe_outputs
+            &self.safe_out
         } else {
             outputs
         };

@@ -170,7 +170,8 @@ impl DeviceThread {
             }
             let Some(c) = ctx.as_mut() else { continue };
             let result = if stop {
-                self.outputs.clone_from(&self.map.safe_outputs);
+                // The safe values the scan side set before it sent the stop.
+                self.outputs.clone_from(&lock(&self.shared).outputs);
                 self.write(c)
             } else {
                 since_write = since_write.saturating_add(1);

@@ -112,6 +112,12 @@ impl Provider for PlantIo {
 }
 
 impl Dispatcher for PlantIo {
+    fn safe_outputs(&mut self, safe: &[Value]) {
+        if let Some(f) = self.field.as_mut() {
+            f.safe_outputs(safe);
+        }
+    }
+
     fn write_outputs(&mut self, now_us: u64, outputs: &[Value]) {
         if let Some(t) = self.twin.as_mut() {
             t.write_outputs(now_us, outputs);

@@ -41,6 +41,8 @@ pub struct MessageRouter {
     // Per container, the outputs of the I/O map its program lacks (sized for the map, so that
     // refilling it never allocates).
     undriven: [Vec<usize>; 2],
+    // Bumped whenever `safe` changes, so that the I/O hears of it once.
+    safe_generation: u64,
 }
 
 /// The signals an update appends to the I/O map at its install, and the map's lengths (inputs,
@@ -99,6 +101,7 @@ impl MessageRouter {
             safe: safe_image(&out_map, program),
             held: safe_image(&out_map, program),
             undriven: [Vec::with_capacity(n_out), Vec::with_capacity(n_out)],
+            safe_generation: 1,
             io_inputs,
             io_outputs,
         };
@@ -191,6 +194,7 @@ impl MessageRouter {
         for u in &mut self.undriven {
             u.reserve(self.io_outputs.len().saturating_sub(u.len()));
         }
+        self.safe_generation += 1;
         self.bool_outputs &= outputs.iter().all(|s| s.ty == Type::Bool);
         self.in_bits = Mask::of(&self.inputs);
         let n = self.io_outputs.len();
@@ -281,6 +285,7 @@ impl MessageRouter {
     /// and those it lacks keep the safe value of the last program that declared them.
     pub(crate) fn drive_safe(&mut self, slot: usize, safe: &mut Vec<Value>) {
         std::mem::swap(&mut self.safe, safe);
+        self.safe_generation += 1;
         for (j, m) in self.out_maps[slot].iter().enumerate() {
             match (m, self.safe.get_mut(j)) {
                 (Some(_), Some(v)) => self.held[j] = *v,
@@ -288,6 +293,17 @@ impl MessageRouter {
                 (_, None) => {}
             }
         }
+    }
+
+    /// The outputs' safe values (I/O-map order): the driving program's, and the held values of
+    /// the outputs it lacks.
+    pub fn safe(&self) -> &[Value] {
+        &self.safe
+    }
+
+    /// Changes whenever [`MessageRouter::safe`] does.
+    pub(crate) fn safe_generation(&self) -> u64 {
+        self.safe_generation
     }
 
     /// Per output of the I/O map, what it holds when no program drives it: the safe value of

@@ -144,10 +144,7 @@ fn an_update_adds_signals_on_configured_channels_and_undriven_outputs_hold_their
         d,
         "grown",
         "1.1.0",
-        &[
-            (0, "%IX0.0", "%QX0.0", true),
-            (5, "%IX0.5", "%QX0.5", true),
-        ],
+        &[(0, "%IX0.0", "%QX0.0", true), (5, "%IX0.5", "%QX0.5", true)],
         "",
     );
     // x9 at %IX2.0, which no device serves.

@@ -325,9 +325,12 @@ impl FieldIo {
         }
     }
 
+    /// Takes the inputs the devices read, counts missed cycles and grades each device's
+    /// quality, under one `try_lock` of the image: the same lock shows the quality to readers
+    /// on other threads (a cycle in which an I/O thread holds the image shows it one cycle late).
     fn take_inputs(&mut self) {
         match self.shared.try_lock() {
-            Ok(s) => {
+            Ok(mut s) => {
                 for (d, st) in s.devices.iter().enumerate() {
                     if st.reads != self.seen[d] {
                         self.seen[d] = st.reads;
@@ -339,39 +342,45 @@ impl FieldIo {
                 for c in &self.map.inputs {
                     self.front[c.signal] = s.inputs[c.signal];
                 }
+                self.fault |= grade(&self.devices, &self.seen, &self.missed, &mut self.quality);
+                for (d, st) in s.devices.iter_mut().enumerate() {
+                    st.quality = self.quality[d];
+                    st.missed_cycles = self.missed[d];
+                }
             }
-            Err(TryLockError::WouldBlock) => self.contended += 1,
+            Err(TryLockError::WouldBlock) => {
+                self.contended += 1;
+                self.fault |= grade(&self.devices, &self.seen, &self.missed, &mut self.quality);
+            }
             Err(TryLockError::Poisoned(p)) => {
                 let s = p.into_inner();
                 for c in &self.map.inputs {
                     self.front[c.signal] = s.inputs[c.signal];
                 }
-            }
-        }
-        for (d, dev) in self.devices.iter().enumerate() {
-            self.quality[d] = if self.seen[d] == 0 {
-                Quality::Initial
-            } else if self.missed[d] <= 1 {
-                // A read that lands just after a cycle start is on time for the next one.
-                Quality::Good
-            } else if self.missed[d] < u64::from(dev.stale_after) {
-                Quality::Late
-            } else {
-                if dev.stale == StalePolicy::Fault {
-                    self.fault = true;
-                }
-                Quality::Stale
-            };
-        }
-        // For readers on other threads; a cycle in which an I/O thread holds the image shows
-        // them one cycle late.
-        if let Ok(mut s) = self.shared.try_lock() {
-            for (d, st) in s.devices.iter_mut().enumerate() {
-                st.quality = self.quality[d];
-                st.missed_cycles = self.missed[d];
+                self.fault |= grade(&self.devices, &self.seen, &self.missed, &mut self.quality);
             }
         }
     }
+}
+
+/// Each device's quality from its reads seen and cycles missed; true when a device with the
+/// `fault` policy is stale.
+fn grade(devices: &[Device], seen: &[u64], missed: &[u64], quality: &mut [Quality]) -> bool {
+    let mut fault = false;
+    for (d, dev) in devices.iter().enumerate() {
+        quality[d] = if seen[d] == 0 {
+            Quality::Initial
+        } else if missed[d] <= 1 {
+            // A read that lands just after a cycle start is on time for the next one.
+            Quality::Good
+        } else if missed[d] < u64::from(dev.stale_after) {
+            Quality::Late
+        } else {
+            fault |= dev.stale == StalePolicy::Fault;
+            Quality::Stale
+        };
+    }
+    fault
 }
 
 /// Admits the signals of a live update that a device of the I/O configuration serves.
@@ -436,11 +445,7 @@ impl Dispatcher for FieldIo {
     }
 
     fn write_outputs(&mut self, _now_us: u64, outputs: &[Value]) {
-        let wanted: &[Value] = if self.fault {
-            &self.safe_out
-        } else {
-            outputs
-        };
+        let wanted: &[Value] = if self.fault { &self.safe_out } else { outputs };
         if self.out_pending || wanted != &self.last_out[..] {
             if let Ok(mut s) = self.shared.try_lock() {
                 let n = s.outputs.len().min(wanted.len());

@@ -355,6 +355,23 @@ mod tests {
     }
 
     #[test]
+    fn a_live_update_cannot_add_a_device_input_that_is_marked_hmi_writable() {
+        let config = IoConfig::parse(
+            "io.toml",
+            "[[device]]\nname = \"d\"\ntransport = \"modbus-tcp\"\naddress = \"h:502\"\nserves = [{ from = \"%IX0.0\", to = \"%IX0.7\" }]\n[[channel]]\naddress = \"%IX0.5\"\nhmi_writable = true\n",
+        )
+        .unwrap();
+        let mut m =
+            FieldMap::bind(&config, &[signal("A", Type::Bool, "%IX0.0")], &[], false).unwrap();
+        let e = m
+            .extend(&config, &[signal("B", Type::Bool, "%IX0.5")], &[])
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains('B') && e.contains("hmi_writable"), "{e}");
+        assert_eq!(m.inputs.len(), 1, "the map is unchanged");
+    }
+
+    #[test]
     fn an_input_no_device_serves_is_refused() {
         let e = FieldMap::bind(&config(), &[signal("A", Type::Bool, "%IX3.0")], &[], false)
             .unwrap_err();

@@ -4,8 +4,12 @@
 //!   coils written (function 15), 16 holding registers written (16), 64 discrete inputs read (2)
 //!   and 16 input registers read (4), one cycle every period, against a pymodbus device and
 //!   against Cetratus's own Modbus server (`bank`, the server of `twin serve`).
-//! * The scan latency of the Vernadat program on its twin with no field I/O, then with its
-//!   outputs also written to the pymodbus device through the process image, in the same run.
+//! * The scan latency of the Vernadat program on its twin with no field I/O, and with its
+//!   outputs also written to the pymodbus device through the process image, in the same run: the
+//!   two phases alternate in slices of [`SLICE_US`] (off, on, on, off, ...), each with its own
+//!   histogram, so that both see the same host conditions. With `rt`, the scan thread has
+//!   SCHED_FIFO, locked memory and a CPU of its own, as `cetratus run --rt` gives it, and the I/O
+//!   thread keeps the normal policy on the other CPUs, as in a run.
 
 use std::net::{SocketAddr, TcpStream};
 use std::path::PathBuf;
@@ -16,7 +20,7 @@ use std::time::{Duration, Instant};
 
 use cetratus_io::bank::{Bank, BankServer, ServeOptions, WriteFrom};
 use cetratus_io::config::IoConfig;
-use cetratus_io::field::FieldIo;
+use cetratus_io::field::{DeviceStatus, FieldIo};
 use cetratus_io::map::FieldMap;
 use cetratus_io::plant::PlantIo;
 use cetratus_io::TwinDriver;
@@ -37,6 +41,8 @@ const MODBUS_PEER: &str = include_str!("../../scripts/modbus_peer.py");
 pub const COILS: usize = 64;
 /// Registers written and read per cycle.
 pub const REGISTERS: usize = 16;
+/// The length of one slice of a latency phase: off and on alternate in slices this long.
+pub const SLICE_US: u64 = 2_000_000;
 
 /// Round trips of one peer.
 #[derive(Clone, Debug, Serialize)]
@@ -97,6 +103,12 @@ pub struct IoFigures {
     pub budget_p99_us: f64,
     /// Whether p99 with I/O kept within it.
     pub within_budget: bool,
+    /// The slices in which off and on alternate, in µs.
+    pub slice_us: u64,
+    /// What `--rt` obtained, or `not requested`.
+    pub rt: String,
+    /// What the device's I/O thread did in the phase with I/O (reads, writes, errors).
+    pub device: Option<DeviceStatus>,
 }
 
 /// A file removed on drop.
@@ -215,51 +227,110 @@ fn round_trips(
     })
 }
 
-/// The Vernadat program on its twin in real time, with or without field I/O beside the twin.
+/// One latency phase: the Vernadat program on its own twin, with or without field I/O.
+struct Phase {
+    cycle: ScanCycle,
+    io: PlantIo,
+    timing: LoopTiming,
+    // Program time run so far: each slice goes on from there.
+    reached_us: u64,
+}
+
+impl Phase {
+    fn new(period_us: u64, field: Option<FieldIo>) -> Result<Phase, BenchError> {
+        let program = vernadat_program();
+        let twin = TwinKind::Vernadat.build(1);
+        let driver = TwinDriver::new(twin, program.inputs(), program.outputs())
+            .map_err(|e| BenchError::from(e.to_string()))?;
+        let io =
+            PlantIo::new(Some(driver), field, None).ok_or_else(|| BenchError::from("no I/O"))?;
+        let mut cycle = ScanCycle::new(Container::new(program, 0), MonotonicStopwatch::boxed());
+        cycle.set_period_us(period_us);
+        Ok(Phase {
+            cycle,
+            io,
+            timing: LoopTiming::default(),
+            reached_us: 0,
+        })
+    }
+
+    /// Runs `slice_us` more of the phase in real time.
+    fn slice(&mut self, period_us: u64, slice_us: u64, stop: &AtomicBool) {
+        let base = self.reached_us;
+        let (cycle, io) = (&mut self.cycle, &mut self.io);
+        let reached = run_periodic(
+            period_us,
+            slice_us,
+            1.0,
+            stop,
+            &mut self.timing,
+            |now, _| cycle.cycle(base + now, io).is_ok(),
+        );
+        self.reached_us += reached.max(period_us);
+    }
+
+    fn figures(mut self) -> CycleFigures {
+        self.cycle.set_timing(std::mem::take(&mut self.timing));
+        if let Some(f) = self.io.field_mut() {
+            f.stop();
+        }
+        self.cycle.figures()
+    }
+}
+
+/// The field I/O of the phase with I/O: the Vernadat outputs on the device's coils.
+fn field_io(program_period_us: u64, device: SocketAddr) -> Result<FieldIo, BenchError> {
+    let program = vernadat_program();
+    let config = IoConfig::parse(
+        "bench-io.toml",
+        &format!("[[device]]\nname = \"bench\"\ntransport = \"modbus-tcp\"\naddress = \"{device}\"\nserves = [{{ from = \"%QX0.0\", to = \"%QX0.7\" }}]\n"),
+    )
+    .map_err(|e| BenchError::from(e.to_string()))?;
+    let map = FieldMap::bind(&config, program.inputs(), program.outputs(), true)
+        .map_err(|e| BenchError::from(e.to_string()))?;
+    // The thread polls on its own only when no cycle wakes it: not while the other phase runs.
+    let poll_us = program_period_us.max(4 * SLICE_US);
+    FieldIo::start(&config, map, poll_us).map_err(|e| BenchError::from(e.to_string()))
+}
+
+/// Scan latency without field I/O and with it, `for_us` of each, in alternating slices.
 fn scan_latency(
     period_us: u64,
     for_us: u64,
-    device: Option<SocketAddr>,
-) -> Result<CycleFigures, BenchError> {
-    let program = vernadat_program();
-    let twin = TwinKind::Vernadat.build(1);
-    let driver = TwinDriver::new(twin, program.inputs(), program.outputs())
-        .map_err(|e| BenchError::from(e.to_string()))?;
-    let field = match device {
-        Some(addr) => {
-            let config = IoConfig::parse(
-                "bench-io.toml",
-                &format!("[[device]]\nname = \"bench\"\ntransport = \"modbus-tcp\"\naddress = \"{addr}\"\nserves = [{{ from = \"%QX0.0\", to = \"%QX0.7\" }}]\n"),
-            )
-            .map_err(|e| BenchError::from(e.to_string()))?;
-            let map = FieldMap::bind(&config, program.inputs(), program.outputs(), true)
-                .map_err(|e| BenchError::from(e.to_string()))?;
-            Some(
-                FieldIo::start(&config, map, period_us)
-                    .map_err(|e| BenchError::from(e.to_string()))?,
-            )
-        }
-        None => None,
+    device: SocketAddr,
+    rt: bool,
+) -> Result<(CycleFigures, CycleFigures, String, Option<DeviceStatus>), BenchError> {
+    let mut off = Phase::new(period_us, None)?;
+    let mut on = Phase::new(period_us, Some(field_io(period_us, device)?))?;
+    // After the I/O thread started, as in `cetratus run --rt`: it stays off the scan's CPU.
+    let rt = if rt {
+        cetratus_node::rt::request(80).to_string()
+    } else {
+        "not requested".to_string()
     };
-    let mut io =
-        PlantIo::new(Some(driver), field, None).ok_or_else(|| BenchError::from("no I/O"))?;
-    let mut cycle = ScanCycle::new(Container::new(program, 0), MonotonicStopwatch::boxed());
-    cycle.set_period_us(period_us);
     let stop = AtomicBool::new(false);
-    let mut timing = LoopTiming::default();
-    run_periodic(period_us, for_us, 1.0, &stop, &mut timing, |now, _| {
-        cycle.cycle(now, &mut io).is_ok()
-    });
-    cycle.set_timing(timing);
-    if let Some(f) = io.field_mut() {
-        f.stop();
+    let mut round = 0u64;
+    while off.reached_us < for_us || on.reached_us < for_us {
+        let (first, second) = if round % 2 == 0 {
+            (&mut off, &mut on)
+        } else {
+            (&mut on, &mut off)
+        };
+        for p in [first, second] {
+            let left = for_us.saturating_sub(p.reached_us);
+            if left > 0 {
+                p.slice(period_us, left.min(SLICE_US), &stop);
+            }
+        }
+        round += 1;
     }
-    Ok(cycle.figures())
+    let device = on.io.field().and_then(|f| f.status().into_iter().next());
+    Ok((off.figures(), on.figures(), rt, device))
 }
 
 /// Runs every measurement of `bench io`: each round-trip series and each latency phase lasts
-/// `for_us` of wall time.
-pub fn figures(period_us: u64, for_us: u64) -> Result<IoFigures, BenchError> {
+/// `for_us` of wall time (the two phases in alternating slices); `rt` as `cetratus run --rt`.
+pub fn figures(period_us: u64, for_us: u64, rt: bool) -> Result<IoFigures, BenchError> {
     let period = Duration::from_micros(period_us.max(1));
     let for_ = Duration::from_micros(for_us);
     let device = pymodbus()?;
@@ -283,8 +354,7 @@ pub fn figures(period_us: u64, for_us: u64) -> Result<IoFigures, BenchError> {
     .map_err(|e| BenchError::from(e.to_string()))?;
     round.push(round_trips("cetratus", server.addr, period, for_)?);
     server.stop();
-    let off = scan_latency(period_us, for_us, None)?;
-    let on = scan_latency(period_us, for_us, Some(device.addr))?;
+    let (off, on, rt, status) = scan_latency(period_us, for_us, device.addr, rt)?;
     let (off, on) = (Latency::from(&off), Latency::from(&on));
     let budget = off.p99_us * 1.1 + 20.0;
     Ok(IoFigures {
@@ -294,5 +364,8 @@ pub fn figures(period_us: u64, for_us: u64) -> Result<IoFigures, BenchError> {
         budget_p99_us: budget,
         latency_io_off: off,
         latency_io_on: on,
+        slice_us: SLICE_US,
+        rt,
+        device: status,
     })
 }

@@ -102,9 +102,13 @@ enum What {
         /// The cycle period.
         #[arg(long, default_value = "10ms")]
         period: String,
-        /// Length of each series and phase, wall time.
+        /// Length of each series and phase, wall time (the two latency phases alternate in 2 s
+        /// slices).
         #[arg(long = "for", default_value = "30s")]
         for_: String,
+        /// Ask for SCHED_FIFO and mlockall for the scan thread, as `run --rt` does.
+        #[arg(long)]
+        rt: bool,
         /// Print one JSON object.
         #[arg(long)]
         json: bool,
@@ -228,9 +232,16 @@ pub fn run(args: &BenchArgs) -> anyhow::Result<()> {
         .map_err(|e| anyhow::anyhow!("{e}"))?;
         return print(&out, *json || args.json);
     }
-    if let Some(What::Io { period, for_, json }) = &args.what {
-        let f = cetratus_bench::io::figures(parse_duration_us(period)?, parse_duration_us(for_)?)
-            .map_err(|e| anyhow::anyhow!("{e}"))?;
+    if let Some(What::Io {
+        period,
+        for_,
+        rt,
+        json,
+    }) = &args.what
+    {
+        let f =
+            cetratus_bench::io::figures(parse_duration_us(period)?, parse_duration_us(for_)?, *rt)
+                .map_err(|e| anyhow::anyhow!("{e}"))?;
         let out = match serde_json::to_value(&f)? {
             serde_json::Value::Object(m) => m.into_iter().collect(),
             _ => BTreeMap::new(),

@@ -102,4 +102,8 @@ fn bench_io_measures_round_trips_against_pymodbus_and_its_own_server_from_anywhe
     for phase in ["latency_io_off", "latency_io_on"] {
         assert!(v[phase]["cycles"].as_u64().is_some_and(|n| n > 0), "{v}");
     }
+    // The phase with I/O exchanged with the device; the phases alternate in slices.
+    assert!(v["device"]["reads"].as_u64().is_some_and(|n| n > 0), "{v}");
+    assert!(v["slice_us"].as_u64().is_some_and(|n| n > 0), "{v}");
+    assert_eq!(v["rt"], "not requested", "{v}");
 }

@@ -131,6 +131,9 @@ pub struct FieldIo {
     missed: Vec<u64>,
     quality: Vec<Quality>,
     last_out: Vec<Value>,
+    // What the outputs go to in the I/O's safe state (a stale device under `fault`, a stop):
+    // the PLC's safe values, as it last gave them.
+    safe_out: Vec<Value>,
     out_pending: bool,
     fault: bool,
     contended: u64,
@@ -189,6 +192,7 @@ impl FieldIo {
         Ok(FieldIo {
             front: map.safe_inputs.clone(),
             last_out: map.safe_outputs.clone(),
+            safe_out: map.safe_outputs.clone(),
             map,
             config: config.clone(),
             devices: config.devices.clone(),
@@ -227,6 +231,8 @@ impl FieldIo {
         self.front[self.map.safe_inputs.len()..]
             .copy_from_slice(&map.safe_inputs[self.map.safe_inputs.len()..]);
         self.last_out.clone_from(&map.safe_outputs);
+        let n = self.safe_out.len();
+        self.safe_out.extend_from_slice(&map.safe_outputs[n..]);
         self.out_pending = true;
         {
             let mut s = lock(&self.shared);
@@ -239,6 +245,11 @@ impl FieldIo {
         }
         self.map = map;
         Ok(())
+    }
+
+    /// The field map bound so far (grown by live updates).
+    pub fn map(&self) -> &FieldMap {
+        &self.map
     }
 
     /// Waits (before the first scan, never in one) until every device that serves an input has
@@ -303,7 +314,7 @@ impl FieldIo {
         }
         {
             let mut s = lock(&self.shared);
-            s.outputs.clone_from(&self.map.safe_outputs);
+            s.outputs.clone_from(&self.safe_out);
             s.outputs_gen += 1;
         }
         for k in &self.kicks {
@@ -314,9 +325,12 @@ impl FieldIo {
         }
     }
 
+    /// Takes the inputs the devices read, counts missed cycles and grades each device's
+    /// quality, under one `try_lock` of the image: the same lock shows the quality to readers
+    /// on other threads (a cycle in which an I/O thread holds the image shows it one cycle late).
     fn take_inputs(&mut self) {
         match self.shared.try_lock() {
-            Ok(s) => {
+            Ok(mut s) => {
                 for (d, st) in s.devices.iter().enumerate() {
                     if st.reads != self.seen[d] {
                         self.seen[d] = st.reads;
@@ -328,39 +342,45 @@ impl FieldIo {
                 for c in &self.map.inputs {
                     self.front[c.signal] = s.inputs[c.signal];
                 }
+                self.fault |= grade(&self.devices, &self.seen, &self.missed, &mut self.quality);
+                for (d, st) in s.devices.iter_mut().enumerate() {
+                    st.quality = self.quality[d];
+                    st.missed_cycles = self.missed[d];
+                }
             }
-            Err(TryLockError::WouldBlock) => self.contended += 1,
+            Err(TryLockError::WouldBlock) => {
+                self.contended += 1;
+                self.fault |= grade(&self.devices, &self.seen, &self.missed, &mut self.quality);
+            }
             Err(TryLockError::Poisoned(p)) => {
                 let s = p.into_inner();
                 for c in &self.map.inputs {
                     self.front[c.signal] = s.inputs[c.signal];
                 }
-            }
-        }
-        for (d, dev) in self.devices.iter().enumerate() {
-            self.quality[d] = if self.seen[d] == 0 {
-                Quality::Initial
-            } else if self.missed[d] <= 1 {
-                // A read that lands just after a cycle start is on time for the next one.
-                Quality::Good
-            } else if self.missed[d] < u64::from(dev.stale_after) {
-                Quality::Late
-            } else {
-                if dev.stale == StalePolicy::Fault {
-                    self.fault = true;
-                }
-                Quality::Stale
-            };
-        }
-        // For readers on other threads; a cycle in which an I/O thread holds the image shows
-        // them one cycle late.
-        if let Ok(mut s) = self.shared.try_lock() {
-            for (d, st) in s.devices.iter_mut().enumerate() {
-                st.quality = self.quality[d];
-                st.missed_cycles = self.missed[d];
+                self.fault |= grade(&self.devices, &self.seen, &self.missed, &mut self.quality);
             }
         }
     }
+}
+
+/// Each device's quality from its reads seen and cycles missed; true when a device with the
+/// `fault` policy is stale.
+fn grade(devices: &[Device], seen: &[u64], missed: &[u64], quality: &mut [Quality]) -> bool {
+    let mut fault = false;
+    for (d, dev) in devices.iter().enumerate() {
+        quality[d] = if seen[d] == 0 {
+            Quality::Initial
+        } else if missed[d] <= 1 {
+            // A read that lands just after a cycle start is on time for the next one.
+            Quality::Good
+        } else if missed[d] < u64::from(dev.stale_after) {
+            Quality::Late
+        } else {
+            fault |= dev.stale == StalePolicy::Fault;
+            Quality::Stale
+        };
+    }
+    fault
 }
 
 /// Admits the signals of a live update that a device of the I/O configuration serves.
@@ -372,8 +392,19 @@ pub struct FieldAdmission {
 impl IoAdmission for FieldAdmission {
     fn admit(&self, inputs: &[Signal], outputs: &[Signal]) -> Result<(), String> {
         let mut map = (*lock(&self.shared).map).clone();
+        let (ins, outs) = (map.inputs.len(), map.outputs.len());
         map.extend(&self.config, inputs, outputs)
-            .map_err(|e| e.to_string())
+            .map_err(|e| e.to_string())?;
+        // The PLC's Modbus server shows them too, below its own entries.
+        if self.config.server.is_some() {
+            for c in &map.inputs[ins..] {
+                crate::server::fits_server(c, true).map_err(|e| e.to_string())?;
+            }
+            for c in &map.outputs[outs..] {
+                crate::server::fits_server(c, false).map_err(|e| e.to_string())?;
+            }
+        }
+        Ok(())
     }
 }
 
@@ -406,12 +437,15 @@ impl Provider for FieldIo {
 }
 
 impl Dispatcher for FieldIo {
+    fn safe_outputs(&mut self, safe: &[Value]) {
+        // Of the map's length once it grew (the router and the field grow at the same install).
+        if safe.len() == self.safe_out.len() {
+            self.safe_out.copy_from_slice(safe);
+        }
+    }
+
     fn write_outputs(&mut self, _now_us: u64, outputs: &[Value]) {
-        let wanted: &[Value] = if self.fault {
-            &self.map.safe_outputs
-        } else {
-            outputs
-        };
+        let wanted: &[Value] = if self.fault { &self.safe_out } else { outputs };
         if self.out_pending || wanted != &self.last_out[..] {
             if let Ok(mut s) = self.shared.try_lock() {
                 let n = s.outputs.len().min(wanted.len());

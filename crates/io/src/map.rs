@@ -183,6 +183,9 @@ impl FieldMap {
                 if c.on.is_none() {
                     return Err(unmapped(format!("it is new to the running I/O map, and no device of {} serves {}; a live update may add only signals on a configured channel (or restart with the new program)", config.file, c.address)));
                 }
+                if input && c.hmi_writable {
+                    return Err(unmapped(format!("{} is marked hmi_writable but a field device provides it; an input has one source", c.address)));
+                }
                 if input {
                     more.inputs.push(c);
                 } else {
@@ -349,6 +352,23 @@ mod tests {
         assert_eq!(m.inputs[1].on, Some((0, 1, 4)));
         assert_eq!(m.inputs[2].on, None);
         assert_eq!(m.outputs[0].on, Some((0, 2, 1)));
+    }
+
+    #[test]
+    fn a_live_update_cannot_add_a_device_input_that_is_marked_hmi_writable() {
+        let config = IoConfig::parse(
+            "io.toml",
+            "[[device]]\nname = \"d\"\ntransport = \"modbus-tcp\"\naddress = \"h:502\"\nserves = [{ from = \"%IX0.0\", to = \"%IX0.7\" }]\n[[channel]]\naddress = \"%IX0.5\"\nhmi_writable = true\n",
+        )
+        .unwrap();
+        let mut m =
+            FieldMap::bind(&config, &[signal("A", Type::Bool, "%IX0.0")], &[], false).unwrap();
+        let e = m
+            .extend(&config, &[signal("B", Type::Bool, "%IX0.5")], &[])
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains('B') && e.contains("hmi_writable"), "{e}");
+        assert_eq!(m.inputs.len(), 1, "the map is unchanged");
     }
 
     #[test]

@@ -24,6 +24,12 @@ use crate::map::FieldMap;
 /// The longest error text kept for a device.
 const MAX_ERROR: usize = 200;
 
+/// Once cycles wake the thread, it polls on its own only after this long without one (a scan
+/// that stopped). A poll at the cycle period, restarted after each exchange, would fire in every
+/// cycle whose wake-up comes a little later than the last one's: at the moment the scan thread
+/// wakes, competing with it for the CPU, for an exchange the cycle's own wake-up repeats.
+const IDLE_POLL: Duration = Duration::from_secs(1);
+
 /// One device's I/O thread.
 pub(crate) struct DeviceThread {
     index: usize,
@@ -131,9 +137,16 @@ impl DeviceThread {
         let mut written_gen = 0u64;
         let mut since_write = 0u32;
         let mut rewrite = true;
+        // Before the first cycle the thread polls at the period (the first input image).
+        let mut driven = false;
         loop {
-            let stop = match kicks.recv_timeout(self.poll) {
-                Ok(Kick::Cycle) | Err(RecvTimeoutError::Timeout) => false,
+            let wait = if driven { IDLE_POLL } else { self.poll };
+            let stop = match kicks.recv_timeout(wait) {
+                Ok(Kick::Cycle) => {
+                    driven = true;
+                    false
+                }
+                Err(RecvTimeoutError::Timeout) => false,
                 Ok(Kick::Stop) | Err(RecvTimeoutError::Disconnected) => true,
             };
             if ctx.is_none() {
@@ -170,7 +183,8 @@ impl DeviceThread {
             }
             let Some(c) = ctx.as_mut() else { continue };
             let result = if stop {
-                self.outputs.clone_from(&self.map.safe_outputs);
+                // The safe values the scan side set before it sent the stop.
+                self.outputs.clone_from(&lock(&self.shared).outputs);
                 self.write(c)
             } else {
                 since_write = since_write.saturating_add(1);

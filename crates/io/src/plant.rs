@@ -85,10 +85,13 @@ impl PlantIo {
 
 impl Provider for PlantIo {
     fn io_map_grew(&mut self, inputs: &[Signal], outputs: &[Signal]) {
-        // Only the field serves new signals (its admission refuses the others); the OPC UA
-        // server shows them.
+        // Only the field serves new signals (its admission refuses the others); the Modbus
+        // server and the OPC UA server show them from then on.
         if let Some(f) = self.field.as_mut() {
             f.io_map_grew(inputs, outputs);
+            if let Some(s) = self.server.as_mut() {
+                s.grow(f.map());
+            }
         }
         if let Some(o) = self.opcua.as_mut() {
             o.io_map_grew(inputs, outputs);
@@ -112,6 +115,12 @@ impl Provider for PlantIo {
 }
 
 impl Dispatcher for PlantIo {
+    fn safe_outputs(&mut self, safe: &[Value]) {
+        if let Some(f) = self.field.as_mut() {
+            f.safe_outputs(safe);
+        }
+    }
+
     fn write_outputs(&mut self, now_us: u64, outputs: &[Value]) {
         if let Some(t) = self.twin.as_mut() {
             t.write_outputs(now_us, outputs);

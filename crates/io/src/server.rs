@@ -143,6 +143,87 @@ fn try_bank(bank: &Mutex<Bank>) -> Option<MutexGuard<'_, Bank>> {
     }
 }
 
+/// Where a client reads an input, and writes it when the configuration lets HMIs write it.
+fn shown_input(c: &Channel) -> Shown {
+    let shown = place_of(c);
+    let written = if c.address.area == Area::Memory {
+        Some(shown)
+    } else if c.hmi_writable {
+        Some(Place {
+            table: if c.address.size == crate::address::Size::Bit {
+                Table::Coils
+            } else {
+                Table::HoldingRegisters
+            },
+            at: SERVER_AREA as usize + shown.at,
+        })
+    } else {
+        None
+    };
+    Shown {
+        channel: c.clone(),
+        shown,
+        written,
+    }
+}
+
+/// Where a client reads an output.
+fn shown_output(c: &Channel) -> Shown {
+    Shown {
+        channel: c.clone(),
+        shown: place_of(c),
+        written: None,
+    }
+}
+
+/// Refuses a signal among the server's own entries.
+fn below_server_area(s: &Shown) -> Result<(), IoError> {
+    let end = s.shown.at + s.channel.address.width() as usize;
+    if end > SERVER_AREA as usize {
+        return Err(IoError::Unmapped {
+            signal: s.channel.name.clone(),
+            why: format!(
+                "{} is {} {}, but the Modbus server keeps the entries from {SERVER_AREA} on for its status registers and for HMI writes; give the signal a lower address, or remove [server]",
+                s.channel.address,
+                s.shown.table.name(),
+                s.shown.at
+            ),
+        });
+    }
+    Ok(())
+}
+
+/// Whether the PLC's Modbus server can show channel `c` (an input when `input`): refused when
+/// its entries are among the server's own (asked when a live update adds it).
+pub(crate) fn fits_server(c: &Channel, input: bool) -> Result<(), IoError> {
+    below_server_area(&if input {
+        shown_input(c)
+    } else {
+        shown_output(c)
+    })
+}
+
+/// Grows `bank`'s tables (and their writable flags) to hold `s`.
+fn lay_out(bank: &mut Bank, s: &Shown) {
+    for p in std::iter::once(s.shown).chain(s.written) {
+        let end = p.at + s.channel.address.width() as usize;
+        match p.table {
+            Table::DiscreteInputs => grow(&mut bank.discrete_inputs, end, false),
+            Table::Coils => grow(&mut bank.coils, end, false),
+            Table::InputRegisters => {}
+            Table::HoldingRegisters => grow(&mut bank.holding_registers, end, 0),
+        }
+    }
+    if let Some(w) = bank.writable.as_mut() {
+        grow(&mut w.coils, bank.coils.len(), false);
+        grow(
+            &mut w.holding_registers,
+            bank.holding_registers.len(),
+            false,
+        );
+    }
+}
+
 impl ImageServer {
     /// Lays out the image of `map` and starts serving it as `config` says.
     pub fn start(config: &ServerConfig, map: &FieldMap) -> Result<ImageServer, IoError> {
@@ -150,66 +231,17 @@ impl ImageServer {
             addr: config.listen.clone(),
             reason: "not an IP address and port".into(),
         })?;
-        let mut inputs = Vec::new();
-        for c in &map.inputs {
-            let shown = place_of(c);
-            let written = if c.address.area == Area::Memory {
-                Some(shown)
-            } else if c.hmi_writable {
-                Some(Place {
-                    table: if c.address.size == crate::address::Size::Bit {
-                        Table::Coils
-                    } else {
-                        Table::HoldingRegisters
-                    },
-                    at: SERVER_AREA as usize + shown.at,
-                })
-            } else {
-                None
-            };
-            inputs.push(Shown {
-                channel: c.clone(),
-                shown,
-                written,
-            });
-        }
-        let outputs: Vec<Shown> = map
-            .outputs
-            .iter()
-            .map(|c| Shown {
-                channel: c.clone(),
-                shown: place_of(c),
-                written: None,
-            })
-            .collect();
+        let inputs: Vec<Shown> = map.inputs.iter().map(shown_input).collect();
+        let outputs: Vec<Shown> = map.outputs.iter().map(shown_output).collect();
         for s in inputs.iter().chain(&outputs) {
-            let end = s.shown.at + s.channel.address.width() as usize;
-            if end > SERVER_AREA as usize {
-                return Err(IoError::Unmapped {
-                    signal: s.channel.name.clone(),
-                    why: format!(
-                        "{} is {} {}, but the Modbus server keeps the entries from {SERVER_AREA} on for its status registers and for HMI writes; give the signal a lower address, or remove [server]",
-                        s.channel.address,
-                        s.shown.table.name(),
-                        s.shown.at
-                    ),
-                });
-            }
+            below_server_area(s)?;
         }
         let mut bank = Bank {
             input_registers: vec![0; SERVER_AREA as usize + STATUS_LEN],
             ..Bank::default()
         };
         for s in inputs.iter().chain(&outputs) {
-            for p in std::iter::once(s.shown).chain(s.written) {
-                let end = p.at + s.channel.address.width() as usize;
-                match p.table {
-                    Table::DiscreteInputs => grow(&mut bank.discrete_inputs, end, false),
-                    Table::Coils => grow(&mut bank.coils, end, false),
-                    Table::InputRegisters => {}
-                    Table::HoldingRegisters => grow(&mut bank.holding_registers, end, 0),
-                }
-            }
+            lay_out(&mut bank, s);
         }
         let mut writable = Writable {
             coils: vec![false; bank.coils.len()],
@@ -273,6 +305,46 @@ impl ImageServer {
         StatusBoard {
             bank: self.bank.clone(),
         }
+    }
+
+    /// Shows the channels that a live update appended to `map` (the field map, grown at the
+    /// install): the tables grow to hold them, new inputs show their safe values until the scan
+    /// shows what the program got, new outputs 0 until the dispatch of the same cycle shows them. A new
+    /// signal is read-only to clients (only a device-served signal can be added, and a
+    /// device-served input is never `hmi_writable`). On the scan thread, at that install's cycle
+    /// boundary only: it locks the bank once, for the copy.
+    pub fn grow(&mut self, map: &FieldMap) {
+        let known =
+            |shown: &[Shown], c: &Channel| shown.iter().any(|s| s.channel.signal == c.signal);
+        let new_inputs: Vec<Shown> = map
+            .inputs
+            .iter()
+            .filter(|c| !known(&self.inputs, c))
+            .map(shown_input)
+            .filter(|s| s.written.is_none() && below_server_area(s).is_ok())
+            .collect();
+        let new_outputs: Vec<Shown> = map
+            .outputs
+            .iter()
+            .filter(|c| !known(&self.outputs, c))
+            .map(shown_output)
+            .filter(|s| below_server_area(s).is_ok())
+            .collect();
+        grow(&mut self.held, map.safe_inputs.len(), Value::Bool(false));
+        let mut b = lock(&self.bank);
+        for s in &new_inputs {
+            lay_out(&mut b, s);
+            let v = map.safe_inputs[s.channel.signal];
+            self.held[s.channel.signal] = v;
+            show(&mut b, s, s.shown, v);
+        }
+        for s in &new_outputs {
+            lay_out(&mut b, s);
+            show(&mut b, s, s.shown, s.channel.ty.zero());
+        }
+        drop(b);
+        self.inputs.extend(new_inputs);
+        self.outputs.extend(new_outputs);
     }
 }
 

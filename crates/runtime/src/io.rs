@@ -32,4 +32,11 @@ pub type SharedAdmission = Arc<dyn IoAdmission>;
 pub trait Dispatcher {
     /// Applies the outputs, in the program's declared output order.
     fn write_outputs(&mut self, now_us: u64, outputs: &[Value]);
+
+    /// The outputs' safe values changed (the first cycle, a new primary, an install that grew
+    /// the map): what the I/O sends when it goes to its safe state on its own (a stop, a device
+    /// gone stale under a `fault` policy), in I/O-map order. Called on the scan thread at a cycle
+    /// boundary, after [`Provider::io_map_grew`]; it must neither block nor allocate. The default
+    /// ignores them.
+    fn safe_outputs(&mut self, _safe: &[Value]) {}
 }

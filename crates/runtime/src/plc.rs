@@ -66,6 +66,8 @@ pub struct Plc {
     stall: StallWatch,
     stall_slot: Slot,
     cycle_stats: TimingStats,
+    // The generation of the safe values the I/O was last given.
+    safe_told: u64,
 }
 
 impl Plc {
@@ -120,6 +122,7 @@ impl Plc {
             stall: StallWatch::new(now_us),
             stall_slot: slot,
             cycle_stats: TimingStats::new(),
+            safe_told: 0,
         }
     }
 
@@ -286,6 +289,11 @@ impl Plc {
         self.updater.boundary(&mut self.core);
         if let Some(g) = self.core.grown.take() {
             io.io_map_grew(&g.inputs, &g.outputs);
+        }
+        let safe = self.core.router.safe_generation();
+        if safe != self.safe_told {
+            self.safe_told = safe;
+            io.safe_outputs(self.core.router.safe());
         }
         self.core.router.read(now_us, io);
 
@@ -482,11 +490,9 @@ impl Plc {
         );
         let core = &mut self.core;
         let router = &core.router;
-        let dispatched = if status == Status::Fault {
-            router.dispatched_bits()
-        } else {
-            router.output_bits(core.primary_slot.index())
-        };
+        // What the plant got: the primary's outputs, with the outputs it lacks at their held
+        // values, or the safe values in fault.
+        let dispatched = router.dispatched_bits();
         core.monitor.recent.record(
             core.log.cycle,
             now_us,

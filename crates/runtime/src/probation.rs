@@ -112,7 +112,7 @@ impl Updater {
         };
         p.shadow
             .continue_edges_from(core.router.last_inputs_for(s.index()));
-        core.router.swap_safe(&mut plan.safe);
+        core.router.drive_safe(s.index(), &mut plan.safe);
         let new_slot = core.primary_slot;
         core.primary_slot = s;
         let new_primary = std::mem::replace(&mut core.primary, p.shadow);

@@ -1,6 +1,8 @@
 //! The Message Router of the paper's Figure 1: it moves I/O data between the Provider, the two
 //! containers and the Dispatcher. The same inputs go to both containers, each through its own
-//! input map; only PRIMARY's outputs reach the Dispatcher; in fault, the safe values do.
+//! input map; only PRIMARY's outputs reach the Dispatcher; in fault, the safe values do. An
+//! output of the I/O map that PRIMARY lacks holds the safe value of the last program that
+//! declared it.
 //!
 //! Images are rebuilt only when they can have changed (new inputs, a new install, a warm start),
 //! and boolean images are kept as bit masks so that the Monitor compares two containers' outputs
@@ -30,7 +32,17 @@ pub struct MessageRouter {
     // A container's input image or mapped outputs must be rebuilt (new install, warm start).
     stale: [bool; 2],
     dispatched: Vec<Value>,
+    // The safe values of the program that drives the outputs, and for the outputs it lacks
+    // what `held` says.
     safe: Vec<Value>,
+    // Per output of the I/O map, the safe value of the last program that declared it: what an
+    // output no program drives holds (docs/io.md).
+    held: Vec<Value>,
+    // Per container, the outputs of the I/O map its program lacks (sized for the map, so that
+    // refilling it never allocates).
+    undriven: [Vec<usize>; 2],
+    // Bumped whenever `safe` changes, so that the I/O hears of it once.
+    safe_generation: u64,
 }
 
 /// The signals an update appends to the I/O map at its install, and the map's lengths (inputs,
@@ -87,6 +99,9 @@ impl MessageRouter {
             prev_inputs: image.to_vec(),
             dispatched: vec![Value::Bool(false); n_out],
             safe: safe_image(&out_map, program),
+            held: safe_image(&out_map, program),
+            undriven: [Vec::with_capacity(n_out), Vec::with_capacity(n_out)],
+            safe_generation: 1,
             io_inputs,
             io_outputs,
         };
@@ -97,7 +112,7 @@ impl MessageRouter {
     }
 
     /// Connects container `slot` running `program` through its own maps; refuses a program that
-    /// reads an input the I/O map lacks, naming it.
+    /// reads an input the I/O map lacks, naming it. `program` drives the outputs from now on.
     pub(crate) fn attach_by_name(
         &mut self,
         slot: usize,
@@ -115,22 +130,41 @@ impl MessageRouter {
             })
             .collect::<Result<Vec<_>, _>>()?;
         let out_map = map_by_name(&self.io_outputs, program.outputs());
-        self.attach(slot, image.to_vec(), in_map, out_map);
+        let mut safe = safe_image(&out_map, program);
+        self.attach(slot, image.to_vec(), in_map, out_map, &safe);
+        self.drive_safe(slot, &mut safe);
         Ok(())
     }
 
-    /// Connects container `slot` through the given maps; its images are rebuilt at its next scan.
+    /// Connects container `slot` through the given maps, for a program whose safe values in
+    /// I/O-map order are `safe`; its images are rebuilt at its next scan. The outputs it
+    /// declares hold its safe values whenever no program drives them.
     pub(crate) fn attach(
         &mut self,
         slot: usize,
         image: Vec<Value>,
         in_map: Vec<usize>,
         out_map: Vec<Option<usize>>,
+        safe: &[Value],
     ) {
         self.images[slot] = image;
         self.in_maps[slot] = in_map;
         self.out_maps[slot] = out_map;
         self.stale[slot] = true;
+        self.declare(slot, safe);
+    }
+
+    /// Takes the safe values of container `slot`'s program (I/O-map order) for the outputs it
+    /// declares, and lists those it lacks.
+    fn declare(&mut self, slot: usize, safe: &[Value]) {
+        self.undriven[slot].clear();
+        for (j, m) in self.out_maps[slot].iter().enumerate() {
+            match (m, safe.get(j)) {
+                (Some(_), Some(&v)) => self.held[j] = v,
+                (Some(_), None) => {}
+                (None, _) => self.undriven[slot].push(j),
+            }
+        }
     }
 
     /// Appends signals to the I/O map (an update that uses signals the running program does not):
@@ -149,8 +183,18 @@ impl MessageRouter {
                 self.out_maps[k].push(None);
             }
             self.dispatched.push(Value::Bool(false));
-            self.safe.push(Value::Bool(false));
+            // Until a program that declares it is attached, an output no program drives.
+            let held = s.safe.unwrap_or(s.ty.zero());
+            self.held.push(held);
+            self.safe.push(held);
+            for u in &mut self.undriven {
+                u.push(self.held.len() - 1);
+            }
         }
+        for u in &mut self.undriven {
+            u.reserve(self.io_outputs.len().saturating_sub(u.len()));
+        }
+        self.safe_generation += 1;
         self.bool_outputs &= outputs.iter().all(|s| s.ty == Type::Bool);
         self.in_bits = Mask::of(&self.inputs);
         let n = self.io_outputs.len();
@@ -202,6 +246,14 @@ impl MessageRouter {
     ) {
         self.dispatched.copy_from_slice(&self.outs[primary]);
         self.dispatched_bits.copy_from(&self.out_bits[primary]);
+        // The outputs the primary lacks hold the safe value of the last program that declared
+        // them (most programs declare every output of the map: nothing to do).
+        if !self.undriven[primary].is_empty() {
+            for &j in &self.undriven[primary] {
+                self.dispatched[j] = self.held[j];
+            }
+            self.dispatched_bits.set_from(&self.dispatched);
+        }
         io.write_outputs(now_us, &self.dispatched);
     }
 
@@ -228,14 +280,36 @@ impl MessageRouter {
         self.stale[slot] = true;
     }
 
-    /// Exchanges the safe values with those of the program that now drives the outputs.
-    pub(crate) fn swap_safe(&mut self, safe: &mut Vec<Value>) {
+    /// Exchanges the safe values (I/O-map order) with those of the program in container `slot`,
+    /// which now drives the outputs: the outputs it declares hold its safe values from now on,
+    /// and those it lacks keep the safe value of the last program that declared them.
+    pub(crate) fn drive_safe(&mut self, slot: usize, safe: &mut Vec<Value>) {
         std::mem::swap(&mut self.safe, safe);
+        self.safe_generation += 1;
+        for (j, m) in self.out_maps[slot].iter().enumerate() {
+            match (m, self.safe.get_mut(j)) {
+                (Some(_), Some(v)) => self.held[j] = *v,
+                (None, Some(v)) => *v = self.held[j],
+                (_, None) => {}
+            }
+        }
     }
 
-    /// Sets the safe values.
-    pub(crate) fn set_safe(&mut self, safe: Vec<Value>) {
-        self.safe = safe;
+    /// The outputs' safe values (I/O-map order): the driving program's, and the held values of
+    /// the outputs it lacks.
+    pub fn safe(&self) -> &[Value] {
+        &self.safe
+    }
+
+    /// Changes whenever [`MessageRouter::safe`] does.
+    pub(crate) fn safe_generation(&self) -> u64 {
+        self.safe_generation
+    }
+
+    /// Per output of the I/O map, what it holds when no program drives it: the safe value of
+    /// the last program that declared it, or false/0.
+    pub fn held(&self) -> &[Value] {
+        &self.held
     }
 
     /// Input names of the I/O map.

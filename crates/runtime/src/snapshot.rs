@@ -10,7 +10,6 @@ use crate::clock::Stopwatch;
 use crate::error::WarmStartError;
 use crate::event::EventKind;
 use crate::plc::Plc;
-use crate::router::{map_by_name, safe_image};
 use crate::updater::value_json;
 use crate::{Container, Slot, Status};
 
@@ -132,8 +131,6 @@ impl Plc {
         core.router
             .attach_by_name(i, &prog, &image)
             .map_err(WarmStartError::MissingInput)?;
-        let out_map = map_by_name(core.router.io_outputs(), prog.outputs());
-        core.router.set_safe(safe_image(&out_map, &prog));
         core.log.cycle = snap.cycle;
         if snap.status == Some(Status::Fault) {
             plc.enter_fault();

@@ -476,7 +476,8 @@ impl Updater {
         if !grow.inputs.is_empty() || !grow.outputs.is_empty() {
             core.grow_io(grow);
         }
-        core.router.attach(s.index(), image, in_map, out_map);
+        core.router
+            .attach(s.index(), image, in_map, out_map, &quarantine.plan.safe);
         // The candidate's first scan sees the edges of this cycle, as the primary's does.
         quarantine
             .candidate
@@ -579,7 +580,7 @@ impl Updater {
         };
         let mut q = *q;
         // The safe values of the program that now drives the outputs.
-        core.router.swap_safe(&mut q.plan.safe);
+        core.router.drive_safe(c.index(), &mut q.plan.safe);
         let old = core.primary_slot;
         core.primary_slot = c;
         let old_primary = std::mem::replace(&mut core.primary, q.candidate);

@@ -214,11 +214,11 @@ pub fn report(io: &PlantIo) -> anyhow::Result<PlantReport> {
     }
     if io.opcua().is_some_and(|o| o.faulted()) {
         r.faults
-            .push("OPC UA inputs: no client wrote an input for `stale_after` cycles under the `fault` policy; the program ran on safe inputs and the Outputs nodes showed safe values".into());
+            .push("OPC UA inputs: no client wrote an input for `stale_after` cycles under the `fault` policy; the PLC's I/O went to its safe state: safe inputs, and safe outputs on the field devices and the Outputs nodes".into());
     }
     if io.field().is_some_and(|f| f.faulted()) {
         r.faults
-            .push("field I/O: a device with the `fault` stale policy went silent; outputs were held at their safe values".into());
+            .push("field I/O: a device with the `fault` stale policy went silent; the PLC's I/O went to its safe state: safe inputs, and safe outputs on the field devices and the OPC UA Outputs nodes".into());
     }
     Ok(r)
 }

@@ -136,6 +136,9 @@ pub struct FieldIo {
     safe_out: Vec<Value>,
     out_pending: bool,
     fault: bool,
+    // The PLC's I/O is in its safe state because another input source (the OPC UA server's
+    // clients) went stale under `fault`.
+    safe_state: bool,
     contended: u64,
     kicks: Vec<SyncSender<Kick>>,
     threads: Vec<JoinHandle<()>>,
@@ -202,6 +205,7 @@ impl FieldIo {
             quality: vec![Quality::Initial; n],
             out_pending: false,
             fault: false,
+            safe_state: false,
             contended: 0,
             kicks,
             threads,
@@ -299,6 +303,17 @@ impl FieldIo {
     /// Whether a device with the `fault` policy went stale: the field I/O is in its safe state.
     pub fn faulted(&self) -> bool {
         self.fault
+    }
+
+    /// Puts the field I/O in its safe state for a fault of another input source: safe values in,
+    /// safe values out, latched until the run is restarted, as under its own `fault`.
+    pub fn enter_safe_state(&mut self) {
+        self.safe_state = true;
+    }
+
+    /// Whether the field I/O is in its safe state, for its own fault or another source's.
+    pub fn in_safe_state(&self) -> bool {
+        self.fault || self.safe_state
     }
 
     /// Cycles in which the scan found the image held by an I/O thread and kept its copy.
@@ -424,6 +439,7 @@ impl Provider for FieldIo {
                 continue;
             };
             let use_safe = self.fault
+                || self.safe_state
                 || self.quality[d] == Quality::Initial
                 || (self.quality[d] == Quality::Stale
                     && self.devices[d].stale != StalePolicy::Hold);
@@ -445,7 +461,11 @@ impl Dispatcher for FieldIo {
     }
 
     fn write_outputs(&mut self, _now_us: u64, outputs: &[Value]) {
-        let wanted: &[Value] = if self.fault { &self.safe_out } else { outputs };
+        let wanted: &[Value] = if self.in_safe_state() {
+            &self.safe_out
+        } else {
+            outputs
+        };
         if self.out_pending || wanted != &self.last_out[..] {
             if let Ok(mut s) = self.shared.try_lock() {
                 let n = s.outputs.len().min(wanted.len());

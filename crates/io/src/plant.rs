@@ -119,9 +119,22 @@ impl Dispatcher for PlantIo {
         if let Some(f) = self.field.as_mut() {
             f.safe_outputs(safe);
         }
+        if let Some(o) = self.opcua.as_mut() {
+            o.safe_outputs(safe);
+        }
     }
 
     fn write_outputs(&mut self, now_us: u64, outputs: &[Value]) {
+        // The PLC's I/O has one safe state: a source that faults (a field device or the OPC UA
+        // server's clients, stale under `fault`) takes the other one into it.
+        if let (Some(f), Some(o)) = (self.field.as_mut(), self.opcua.as_mut()) {
+            if o.faulted() && !f.in_safe_state() {
+                f.enter_safe_state();
+            }
+            if f.faulted() && !o.in_safe_state() {
+                o.enter_safe_state();
+            }
+        }
         if let Some(t) = self.twin.as_mut() {
             t.write_outputs(now_us, outputs);
         }
@@ -130,6 +143,9 @@ impl Dispatcher for PlantIo {
         }
         if let Some(s) = self.server.as_mut() {
             s.write_outputs(now_us, outputs);
+        }
+        if let Some(o) = self.opcua.as_mut() {
+            o.write_outputs(now_us, outputs);
         }
     }
 }

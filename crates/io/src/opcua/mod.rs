@@ -128,7 +128,8 @@ pub(crate) struct Shared {
     /// Set once the inputs went stale under the `fault` policy: the Outputs nodes show the
     /// outputs' safe values until the run is restarted.
     pub fault: AtomicBool,
-    /// The outputs' safe values, shown under a fault.
+    /// The outputs' safe values, shown under a fault: those the PLC last gave (the driving
+    /// program's, and the held ones of the outputs it lacks).
     pub safe_outputs: Mutex<Vec<Value>>,
     /// Signals appended to the I/O map by a live update, for the server's thread to add as
     /// nodes: the inputs, then the outputs.
@@ -195,6 +196,12 @@ pub struct OpcUaServer {
     missed: u64,
     quality: Quality,
     fault: bool,
+    // The PLC's I/O is in its safe state because a field device went stale under `fault`.
+    safe_state: bool,
+    // The PLC's safe outputs, and whether the shared copy still lacks them (the server's thread
+    // held it when they changed).
+    safe_out: Vec<Value>,
+    safe_pending: bool,
     contended: u64,
     stop: Option<tokio::sync::oneshot::Sender<()>>,
     thread: Option<JoinHandle<()>>,
@@ -329,6 +336,9 @@ impl OpcUaServer {
             missed: 0,
             quality: Quality::Initial,
             fault: false,
+            safe_state: false,
+            safe_out: Vec::new(),
+            safe_pending: false,
             contended: 0,
             stop: Some(stop_tx),
             thread: Some(thread),
@@ -392,6 +402,25 @@ impl OpcUaServer {
     /// Whether the inputs went stale under the `fault` policy.
     pub fn faulted(&self) -> bool {
         self.fault
+    }
+
+    /// Puts the server in the PLC's safe state for a field device's fault: the written inputs
+    /// give way to their safe values and the Outputs nodes show the safe outputs, latched.
+    pub fn enter_safe_state(&mut self) {
+        self.safe_state = true;
+        self.shared.fault.store(true, Ordering::Relaxed);
+    }
+
+    /// Whether the server is in the PLC's safe state, for its clients' fault or a device's.
+    pub fn in_safe_state(&self) -> bool {
+        self.fault || self.safe_state
+    }
+
+    fn push_safe_outputs(&mut self) {
+        if let Some(mut s) = try_lock(&self.shared.safe_outputs) {
+            copy_into(&mut s, &self.safe_out);
+            self.safe_pending = false;
+        }
     }
 
     /// Cycles in which the server's thread held the written inputs and the scan kept its copy.
@@ -516,8 +545,9 @@ impl Provider for OpcUaServer {
             }
             None => self.contended += 1,
         }
-        let use_safe =
-            self.fault || (self.quality == Quality::Stale && self.stale != StalePolicy::Hold);
+        let use_safe = self.fault
+            || self.safe_state
+            || (self.quality == Quality::Stale && self.stale != StalePolicy::Hold);
         let from = if use_safe {
             &self.safe_inputs
         } else {
@@ -529,8 +559,18 @@ impl Provider for OpcUaServer {
 }
 
 impl Dispatcher for OpcUaServer {
+    fn safe_outputs(&mut self, safe: &[Value]) {
+        copy_into(&mut self.safe_out, safe);
+        self.safe_pending = true;
+        self.push_safe_outputs();
+    }
+
     fn write_outputs(&mut self, _now_us: u64, _outputs: &[Value]) {
-        // The outputs are published with the rest of the cycle, by the Publisher.
+        // The outputs are published with the rest of the cycle, by the Publisher; only safe
+        // values the server's thread kept from the last offer are offered again.
+        if self.safe_pending {
+            self.push_safe_outputs();
+        }
     }
 }
 

@@ -6,7 +6,13 @@ use cetratus_bench::analysis::Reduction;
 fn print_reduction(r: &Reduction) {
     println!(
         "{}({}): full {} states ({:.3} s), stubborn sets {} states ({:.3} s), deadlock: {}",
-        r.family, r.n, r.full_states, r.full_seconds, r.reduced_states, r.reduced_seconds, r.deadlock
+        r.family,
+        r.n,
+        r.full_states,
+        r.full_seconds,
+        r.reduced_states,
+        r.reduced_seconds,
+        r.deadlock
     );
 }
 

@@ -5,9 +5,9 @@ use std::process::Command;
 use std::time::Instant;
 
 use cetratus_analysis::families::{fms, kanban};
-use cetratus_analysis::{check_property, CheckOptions, Property};
 use cetratus_analysis::invariants::{p_semiflows, t_semiflows, DEFAULT_MAX_ROWS};
 use cetratus_analysis::reach::{explore, structural_packing, ReachOptions, ReachResult};
+use cetratus_analysis::{check_property, CheckOptions, Property};
 use cetratus_net::Net;
 use serde::Serialize;
 

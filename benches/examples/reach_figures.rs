@@ -1,8 +1,31 @@
 //! Prints `reachability_figures` (what `cetratus bench` reports for the analysis) as a table,
 //! without building the CLI: `cargo run --release -p cetratus-bench --example reach_figures`
-//! (`-- --quick` for N = 3).
+//! (`-- --quick` for N = 3; `-- --reductions` for the stubborn-set counts alone, N = 5 and 6).
+use cetratus_bench::analysis::Reduction;
+
+fn print_reduction(r: &Reduction) {
+    println!(
+        "{}({}): full {} states ({:.3} s), stubborn sets {} states ({:.3} s), deadlock: {}",
+        r.family,
+        r.n,
+        r.full_states,
+        r.full_seconds,
+        r.reduced_states,
+        r.reduced_seconds,
+        r.deadlock
+    );
+}
+
 fn main() {
     let quick = std::env::args().any(|a| a == "--quick");
+    if std::env::args().any(|a| a == "--reductions") {
+        for n in [5, 6] {
+            for family in ["Kanban", "FMS"] {
+                print_reduction(&cetratus_bench::analysis::reduction(family, n));
+            }
+        }
+        return;
+    }
     let f = cetratus_bench::analysis::reachability_figures(quick);
     for n in &f.nets {
         println!(
@@ -38,4 +61,5 @@ fn main() {
     if let Some(note) = &f.baseline_note {
         println!("note: {note}");
     }
+    f.reductions.iter().for_each(print_reduction);
 }

@@ -42,3 +42,20 @@ fn the_vernadat_workload_is_the_net_of_the_vernadat_example() {
         shape(&cetratus_testkit::nets::vernadat())
     );
 }
+
+#[test]
+fn the_stubborn_set_figures_count_the_reduced_space_beside_the_full_one() {
+    for family in ["Kanban", "FMS"] {
+        let r = cetratus_bench::analysis::reduction(family, 3);
+        let full =
+            cetratus_bench::analysis::explore_once(&cetratus_bench::analysis::family(family, 3));
+        assert_eq!(r.full_states, full.states, "{family}");
+        assert!(!r.deadlock, "{family}(3) has no deadlock");
+        assert!(
+            r.reduced_states >= 1 && r.reduced_states < r.full_states,
+            "{family}(3): {} reduced states for {} in full",
+            r.reduced_states,
+            r.full_states
+        );
+    }
+}

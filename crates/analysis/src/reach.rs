@@ -3,7 +3,9 @@
 //! Encoding. Every place gets a fixed field of `⌈log2(bound+1)⌉` bits, where the bound is proven
 //! before exploring (a structural bound from `y·C ≤ 0`, a capacity, or the exact bound of a finished
 //! Karp–Miller graph). Fields never straddle a 64-bit word and each word uses at most 63 bits, so
-//! the all-ones word is free to mark empty slots. A state is `[u64; W]` for a small `W` chosen at
+//! bit 63 is free: it is set in the first word of every stored state (firing never carries into
+//! it), and a slot whose first word is 0 is empty, so a new table is fresh zeroed memory that
+//! needs no filling. A state is `[u64; W]` for a small `W` chosen at
 //! run time (the explorer is monomorphised for W = 1, 2, 4, 8, 16, 32).
 //!
 //! Firing is word arithmetic: enabledness is a range test `lo ≤ field ≤ hi` per place the
@@ -413,7 +415,11 @@ fn hash<const W: usize>(k: &[u64; W]) -> u64 {
     h.wrapping_mul(0xD6E8_FEB8_6659_FD93) ^ (h >> 29)
 }
 
-const EMPTY: u64 = u64::MAX;
+/// The first word of an empty slot.
+const EMPTY: u64 = 0;
+
+/// Set in the first word of every stored state, so that no state is [`EMPTY`].
+const MARK: u64 = 1 << 63;
 
 /// Open addressing over the keys themselves. Once an exploration is complete the table no longer
 /// moves, and a key's slot is its id for the liveness pass (module `scc`).
@@ -615,6 +621,7 @@ fn seeded<const W: usize>(
     let mut parents: Chunked<u32> = Chunked::new();
     let mut k0 = [0u64; W];
     pk.encode(net.initial_marking().as_slice(), &mut k0);
+    k0[0] |= MARK;
     table.insert(&k0);
     states.push(k0);
     parents.push(u32::MAX);

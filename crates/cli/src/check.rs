@@ -36,9 +36,10 @@ pub struct CheckArgs {
     #[arg(long, value_name = "DURATION", default_value = "10min", value_parser = parse_timeout)]
     pub timeout: Duration,
     /// Threads: with 2 or more the state space is explored in parallel (same states, same ids,
-    /// same witness as one thread) and the structural analyses run beside it. Defaults to 1: the
-    /// whole check (exploration, then liveness and reversibility over one table) measured faster
-    /// on one thread than on two (docs/analysis.md).
+    /// same witness as one thread) and the structural analyses run beside it. Defaults to 2 when
+    /// a second core is idle (nothing else runnable, load average below the cores), else 1;
+    /// either way the parallel explorer expands a breadth-first batch on one thread while it
+    /// holds fewer than 2,048 states (docs/analysis.md, "The default thread count").
     #[arg(long, value_name = "N")]
     pub threads: Option<usize>,
     /// Check one property only, stopping as soon as it is decided, with a firing sequence that
@@ -144,6 +145,25 @@ fn property(args: &CheckArgs, net: &Net) -> anyhow::Result<Option<Property>> {
     Ok(None)
 }
 
+/// The default of `--threads`: two threads only pay when the second one gets a core of its
+/// own (docs/analysis.md, "The default thread count"). So: 2 when the machine has at least two
+/// cores, nothing else is runnable right now (`/proc/loadavg` counts this process alone) and the
+/// load average of the last minute stays below the number of cores; else 1, also when the load
+/// cannot be read.
+fn default_threads() -> usize {
+    let cores = std::thread::available_parallelism().map_or(1, usize::from);
+    let text = std::fs::read_to_string("/proc/loadavg").unwrap_or_default();
+    let mut fields = text.split_whitespace();
+    let minute = fields.next().and_then(|f| f.parse::<f64>().ok());
+    let runnable = fields
+        .nth(2)
+        .and_then(|f| f.split('/').next()?.parse::<usize>().ok());
+    match (minute, runnable) {
+        (Some(m), Some(r)) if cores >= 2 && r < cores && m < cores as f64 => 2,
+        _ => 1,
+    }
+}
+
 /// Runs `cetratus check`: prints the report, as text or JSON. Ctrl-C stops the exploration and
 /// prints what was found so far, marked partial.
 pub fn run(args: &CheckArgs) -> anyhow::Result<()> {
@@ -162,7 +182,7 @@ pub fn run(args: &CheckArgs) -> anyhow::Result<()> {
         max_memory: Some(args.max_memory),
         timeout: Some(args.timeout),
         clock: Some(clock),
-        threads: args.threads.unwrap_or(1).max(1),
+        threads: args.threads.unwrap_or_else(default_threads).max(1),
         cancel: Some(cancel),
         progress: progress.as_ref().map(TerminalProgress::callback),
         reduction: !args.no_reduction,

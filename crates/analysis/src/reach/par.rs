@@ -31,7 +31,7 @@ use cetratus_net::{Net, TransIdx};
 
 use super::{
     deadlock_witness, hash, scc, Chunked, Compiled, Packing, ReachOptions, ReachResult, Stop,
-    Table, CHUNK_BITS,
+    Table, CHUNK_BITS, MARK,
 };
 use crate::Progress;
 
@@ -179,6 +179,7 @@ pub(super) fn explore_par<const W: usize>(
     let mut parents: Chunked<u32> = Chunked::new();
     let mut k0 = [0u64; W];
     pk.encode(net.initial_marking().as_slice(), &mut k0);
+    k0[0] |= MARK;
     let h0 = hash(&k0);
     tables[owner(h0, threads)].insert(&k0);
     states.push(k0);

@@ -152,7 +152,6 @@ pub type BesideParts = (
 /// this crate's.
 pub type Beside<'a> = &'a dyn Fn(&str) -> Result<BesideParts, BenchError>;
 
-
 /// What the flooding threads share with the run: which kind is on (none between flood slices),
 /// what they sent, per kind, and the replies they got, by code.
 struct Control {
@@ -217,7 +216,9 @@ fn login_flood(addr: std::net::SocketAddr, account: &str, ctl: &Control) {
             .nth(1)
             .unwrap_or("?")
             .to_string();
-        *lock(&ctl.codes).entry(format!("http_{status}")).or_default() += 1;
+        *lock(&ctl.codes)
+            .entry(format!("http_{status}"))
+            .or_default() += 1;
     }
 }
 

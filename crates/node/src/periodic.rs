@@ -146,14 +146,20 @@ mod tests {
         let before = seen.len() as u64;
         run_periodic(2_000, 4_000, 1.0, &stop, &mut timing, |_, _| true);
         let after = timing.latency.summary().count;
-        assert!((before + 1..=before + 2).contains(&after), "{before} then {after}");
+        assert!(
+            (before + 1..=before + 2).contains(&after),
+            "{before} then {after}"
+        );
     }
 
     #[test]
     fn a_stop_or_a_body_returning_false_ends_the_loop() {
         let mut timing = LoopTiming::default();
         let stop = AtomicBool::new(true);
-        assert_eq!(run_periodic(1_000, 1_000_000, 1.0, &stop, &mut timing, |_, _| true), 0);
+        assert_eq!(
+            run_periodic(1_000, 1_000_000, 1.0, &stop, &mut timing, |_, _| true),
+            0
+        );
         let go = AtomicBool::new(false);
         let mut n = 0;
         let reached = run_periodic(1_000, 1_000_000, 1.0, &go, &mut timing, |_, _| {

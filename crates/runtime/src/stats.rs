@@ -158,11 +158,16 @@ mod tests {
 
     #[test]
     fn adding_two_halves_gives_the_summary_of_the_whole() {
-        let (mut whole, mut a, mut b) = (TimingStats::new(), TimingStats::new(), TimingStats::new());
+        let (mut whole, mut a, mut b) =
+            (TimingStats::new(), TimingStats::new(), TimingStats::new());
         for v in 1..=10_000u64 {
             let x = (v * 7_919) % 10_007 * 50;
             whole.record(x);
-            if v % 3 == 0 { a.record(x) } else { b.record(x) }
+            if v % 3 == 0 {
+                a.record(x)
+            } else {
+                b.record(x)
+            }
         }
         a.add(&b);
         a.add(&TimingStats::new());

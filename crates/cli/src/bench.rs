@@ -83,9 +83,13 @@ enum What {
     /// Scan latency and peak memory while others flood the PLC: garbage, refused loads,
     /// exec_info, 1 MiB payloads and event spam, one kind per phase, against an unloaded phase.
     Flood {
-        /// Length of each phase (unloaded, then one per kind), wall time.
+        /// How long each kind floods in all, wall time (in slices, between unloaded slices).
         #[arg(long = "for", default_value = "60s")]
         for_: String,
+        /// Length of one slice: an unloaded slice and a flood slice alternate, round-robin over
+        /// the kinds, until each kind has had `--for`.
+        #[arg(long, default_value = "2s")]
+        slice: String,
         /// The scan period.
         #[arg(long, default_value = "1ms")]
         period: String,
@@ -195,12 +199,12 @@ pub fn run(args: &BenchArgs) -> anyhow::Result<()> {
     }
     if let Some(What::Flood {
         for_,
+        slice,
         period,
         rt,
         json,
     }) = &args.what
     {
-        // The dashboard beside the PLC, as `cetratus run` starts it.
         // The dashboard beside the PLC, as `cetratus run` starts it, with one account for the
         // login flood to get wrong.
         let dashboard = |broker: &str| -> Result<harness::BesideParts, harness::BenchError> {
@@ -226,6 +230,7 @@ pub fn run(args: &BenchArgs) -> anyhow::Result<()> {
         let out = harness::flood(
             parse_duration_us(for_)?,
             parse_duration_us(period)?,
+            parse_duration_us(slice)?,
             *rt,
             &dashboard,
         )

@@ -107,3 +107,63 @@ fn bench_io_measures_round_trips_against_pymodbus_and_its_own_server_from_anywhe
     assert!(v["slice_us"].as_u64().is_some_and(|n| n > 0), "{v}");
     assert_eq!(v["rt"], "not requested", "{v}");
 }
+
+/// `bench flood` interleaves: every kind gets its slices, each after an unloaded one, and every
+/// kind is sent and measured in every round.
+#[test]
+fn bench_flood_measures_every_kind_in_slices_between_unloaded_ones() {
+    let out = Command::new(BIN)
+        .args([
+            "bench", "flood", "--for", "200ms", "--slice", "100ms", "--period", "10ms", "--json",
+        ])
+        .output()
+        .expect("run cetratus");
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).expect("one JSON object");
+    assert_eq!(v["method"], "interleaved", "{v}");
+    assert_eq!(v["slice_s"], 0.1, "{v}");
+    let kinds = [
+        "garbage",
+        "refused_loads",
+        "exec_info",
+        "large_payloads",
+        "event_spam",
+        "dashboard_logins",
+    ];
+    // Two rounds of six kinds, each flood slice after an unloaded one.
+    assert_eq!(v["unloaded_slices"], 12, "{v}");
+    assert!(v["unloaded_cycles"].as_u64().is_some_and(|n| n > 0), "{v}");
+    let limit = v["limit_ns"].as_f64().expect("the limit");
+    let p99 = v["unloaded_latency_p99_ns"]
+        .as_f64()
+        .expect("the unloaded p99");
+    assert_eq!(limit, 1.2 * p99 + 20_000.0, "{v}");
+    for kind in kinds {
+        let k = &v[kind];
+        assert_eq!(k["slices"], 2, "{kind}: {k}");
+        assert!(k["cycles"].as_u64().is_some_and(|n| n > 0), "{kind}: {k}");
+        assert!(k["sent"].as_u64().is_some_and(|n| n > 0), "{kind}: {k}");
+        assert!(k["latency_p99_ns"].as_u64().is_some(), "{kind}: {k}");
+        assert!(
+            k["unloaded_before_latency_p99_ns"].as_u64().is_some(),
+            "{kind}: {k}"
+        );
+    }
+    // The replies are counted for the kind that caused them.
+    let garbage = &v["garbage"]["replies"];
+    assert!(
+        garbage["malformed"].as_u64().is_some_and(|n| n > 0),
+        "{garbage}"
+    );
+    assert!(
+        v["dashboard_logins"]["replies"]
+            .as_object()
+            .is_some_and(|r| r.keys().all(|c| c.starts_with("http_"))),
+        "{v}"
+    );
+    assert!(v["machine"].is_object(), "{v}");
+}

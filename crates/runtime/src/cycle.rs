@@ -139,3 +139,12 @@ pub struct LoopTiming {
     /// Cycles whose body ran past the next planned start.
     pub overruns: u64,
 }
+
+impl LoopTiming {
+    /// Adds `other`'s samples and overruns to these (runs measured apart, counted as one).
+    pub fn add(&mut self, other: &LoopTiming) {
+        self.cycle.add(&other.cycle);
+        self.latency.add(&other.latency);
+        self.overruns += other.overruns;
+    }
+}

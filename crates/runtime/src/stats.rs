@@ -86,6 +86,22 @@ impl TimingStats {
         *b = b.saturating_add(1);
     }
 
+    /// Adds `other`'s samples to these, as if each had been recorded here (`last` becomes
+    /// `other`'s last, when it has one).
+    pub fn add(&mut self, other: &TimingStats) {
+        if other.count == 0 {
+            return;
+        }
+        self.last = other.last;
+        self.min = self.min.min(other.min);
+        self.max = self.max.max(other.max);
+        self.sum += other.sum;
+        self.count += other.count;
+        for (b, &n) in self.hist.iter_mut().zip(other.hist.iter()) {
+            *b = b.saturating_add(n);
+        }
+    }
+
     /// The value below which `q` (0..=1) of the samples fall.
     pub fn quantile(&self, q: f64) -> u64 {
         if self.count == 0 {
@@ -138,6 +154,24 @@ mod tests {
                 assert!(bucket_upper(b - 1) < v, "{v} in bucket {b}");
             }
         }
+    }
+
+    #[test]
+    fn adding_two_halves_gives_the_summary_of_the_whole() {
+        let (mut whole, mut a, mut b) =
+            (TimingStats::new(), TimingStats::new(), TimingStats::new());
+        for v in 1..=10_000u64 {
+            let x = (v * 7_919) % 10_007 * 50;
+            whole.record(x);
+            if v % 3 == 0 {
+                a.record(x)
+            } else {
+                b.record(x)
+            }
+        }
+        a.add(&b);
+        a.add(&TimingStats::new());
+        assert_eq!(a.summary(), whole.summary());
     }
 
     #[test]

@@ -1,0 +1,480 @@
+//! The floods of what others can send, against the Vernadat node as `cetratus run` has it
+//! (`cetratus bench flood`): every kind of [`FloodKind`] in short slices, round-robin with
+//! unloaded slices, so that every kind and its unloaded reference see the same machine.
+
+use std::collections::BTreeMap;
+use std::sync::atomic::{AtomicBool, AtomicU64, AtomicUsize, Ordering};
+use std::sync::{Arc, Mutex, MutexGuard};
+use std::time::Duration;
+
+use cetratus_runtime::LoopTiming;
+
+use crate::harness::{vernadat_node, BenchError, Figures};
+
+/// How long a flood's client waits before looking again whether its kind is on.
+const IDLE_POLL: Duration = Duration::from_millis(1);
+
+/// The wait after a flood slice stops, unmeasured, for what it left in the queues to drain (its
+/// replies still count for it).
+pub const SETTLE_US: u64 = 1_000_000;
+
+fn lock<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
+    m.lock().unwrap_or_else(|e| e.into_inner())
+}
+
+/// What a flood sends, one kind per slice of [`flood`].
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum FloodKind {
+    /// Bytes that are not JSON, on `cmd/load` and on verbs that do not exist.
+    Garbage,
+    /// A real signed package (U.1) from a key the PLC does not trust: verified, then refused.
+    RefusedLoads,
+    /// `exec_info` requests.
+    ExecInfo,
+    /// `load` commands of just under 1 MiB (random bytes, refused).
+    LargePayloads,
+    /// 32 KiB events on another PLC's `events` topic, for the embedded dashboard to keep.
+    EventSpam,
+    /// Dashboard logins with wrong passwords, over HTTP (not MQTT), as fast as they are answered.
+    Logins,
+}
+
+impl FloodKind {
+    /// Every kind, in the order a run floods them.
+    pub const ALL: [FloodKind; 6] = [
+        FloodKind::Garbage,
+        FloodKind::RefusedLoads,
+        FloodKind::ExecInfo,
+        FloodKind::LargePayloads,
+        FloodKind::EventSpam,
+        FloodKind::Logins,
+    ];
+
+    /// Its place in [`FloodKind::ALL`].
+    fn index(self) -> usize {
+        FloodKind::ALL
+            .iter()
+            .position(|k| *k == self)
+            .unwrap_or_default()
+    }
+
+    /// Its name in the figures.
+    pub fn name(self) -> &'static str {
+        match self {
+            FloodKind::Garbage => "garbage",
+            FloodKind::RefusedLoads => "refused_loads",
+            FloodKind::ExecInfo => "exec_info",
+            FloodKind::LargePayloads => "large_payloads",
+            FloodKind::EventSpam => "event_spam",
+            FloodKind::Logins => "dashboard_logins",
+        }
+    }
+
+    /// The messages it sends, in turn: topic and payload (shared, so that sending one costs the
+    /// flooding client no copy: a flood from another machine would not use this one's CPU).
+    fn messages(self, plc: &str, u1: &[u8]) -> Vec<(String, bytes::Bytes)> {
+        self.payloads(plc, u1)
+            .into_iter()
+            .map(|(t, p)| (t, bytes::Bytes::from(p)))
+            .collect()
+    }
+
+    fn payloads(self, plc: &str, u1: &[u8]) -> Vec<(String, Vec<u8>)> {
+        use base64::Engine as _;
+        let cmd = |verb: &str| format!("cetratus/{plc}/cmd/{verb}");
+        let b64 = |bytes: &[u8]| base64::engine::general_purpose::STANDARD.encode(bytes);
+        match self {
+            FloodKind::Garbage => vec![
+                (cmd("load"), noise(300, 1)),
+                (cmd("frobnicate"), b"{}".to_vec()),
+                (cmd("substitute"), b"{\"mode\": \"sideways\"}".to_vec()),
+                (cmd("load"), b"{\"package_b64\": 42".to_vec()),
+            ],
+            FloodKind::RefusedLoads => {
+                vec![(
+                    cmd("load"),
+                    format!("{{\"package_b64\":\"{}\"}}", b64(u1)).into_bytes(),
+                )]
+            }
+            FloodKind::ExecInfo => vec![(cmd("exec_info"), b"{}".to_vec())],
+            FloodKind::LargePayloads => {
+                let body = format!("{{\"package_b64\":\"{}\"}}", b64(&noise(760_000, 2)));
+                vec![(cmd("load"), body.into_bytes())]
+            }
+            FloodKind::EventSpam => {
+                let body = serde_json::json!({"kind": "spam", "message": "s".repeat(32 << 10)});
+                vec![(
+                    "cetratus/other/events".to_string(),
+                    body.to_string().into_bytes(),
+                )]
+            }
+            FloodKind::Logins => Vec::new(),
+        }
+    }
+}
+
+/// `n` bytes that look random, the same for a seed (SplitMix64).
+fn noise(n: usize, seed: u64) -> Vec<u8> {
+    let mut x = seed;
+    (0..n)
+        .map(|_| {
+            x = x.wrapping_add(0x9E37_79B9_7F4A_7C15);
+            let mut z = x;
+            z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+            z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+            (z ^ (z >> 31)) as u8
+        })
+        .collect()
+}
+
+/// This process's resident memory, in KiB.
+fn rss_kib() -> u64 {
+    std::fs::read_to_string("/proc/self/status")
+        .ok()
+        .and_then(|s| {
+            s.lines()
+                .find_map(|l| l.strip_prefix("VmRSS:"))
+                .and_then(|v| v.split_whitespace().next())
+                .and_then(|v| v.parse().ok())
+        })
+        .unwrap_or(0)
+}
+
+/// What [`Beside`] starts: something that stops when dropped, and the dashboard's HTTP address
+/// with an account name whose password the login flood gets wrong.
+pub type BesideParts = (
+    Box<dyn std::any::Any>,
+    Option<(std::net::SocketAddr, String)>,
+);
+
+/// Whatever runs beside the PLC while it is flooded (the dashboard, in `cetratus bench flood`),
+/// given the broker's URL. The caller provides it: the dashboard is the binary's to start, not
+/// this crate's.
+pub type Beside<'a> = &'a dyn Fn(&str) -> Result<BesideParts, BenchError>;
+
+/// What the flooding threads share with the run: which kind is on (none between flood slices),
+/// what they sent, per kind, and the replies they got, by code.
+struct Control {
+    /// 0 for none, else 1 + the kind's index in [`FloodKind::ALL`].
+    active: AtomicUsize,
+    done: AtomicBool,
+    sent: [AtomicU64; FloodKind::ALL.len()],
+    codes: Mutex<BTreeMap<String, u64>>,
+}
+
+impl Control {
+    fn new() -> Self {
+        Control {
+            active: AtomicUsize::new(0),
+            done: AtomicBool::new(false),
+            sent: std::array::from_fn(|_| AtomicU64::new(0)),
+            codes: Mutex::default(),
+        }
+    }
+
+    fn set(&self, kind: Option<FloodKind>) {
+        self.active
+            .store(kind.map_or(0, |k| k.index() + 1), Ordering::Relaxed);
+    }
+
+    fn active(&self) -> Option<FloodKind> {
+        let i = self.active.load(Ordering::Relaxed);
+        i.checked_sub(1).map(|i| FloodKind::ALL[i])
+    }
+
+    fn count_sent(&self, kind: FloodKind) {
+        self.sent[kind.index()].fetch_add(1, Ordering::Relaxed);
+    }
+}
+
+/// Posts logins with a wrong password for `account` to the dashboard at `addr` while `active`
+/// says logins, until `done`, one connection per attempt as a script would; counts the answers by
+/// HTTP status.
+fn login_flood(addr: std::net::SocketAddr, account: &str, ctl: &Control) {
+    use std::io::{Read, Write};
+    let body = serde_json::json!({"account": account, "password": "wrong"}).to_string();
+    let request = format!(
+        "POST /api/login HTTP/1.0\r\nHost: {addr}\r\nContent-Type: application/json\r\nContent-Length: {}\r\n\r\n{body}",
+        body.len()
+    );
+    let mut answer = Vec::with_capacity(1024);
+    while !ctl.done.load(Ordering::Relaxed) {
+        if ctl.active() != Some(FloodKind::Logins) {
+            std::thread::sleep(IDLE_POLL);
+            continue;
+        }
+        let Ok(mut s) = std::net::TcpStream::connect(addr) else {
+            continue;
+        };
+        answer.clear();
+        if s.write_all(request.as_bytes()).is_err() || s.read_to_end(&mut answer).is_err() {
+            continue;
+        }
+        ctl.count_sent(FloodKind::Logins);
+        let status = String::from_utf8_lossy(&answer[..answer.len().min(12)])
+            .split_whitespace()
+            .nth(1)
+            .unwrap_or("?")
+            .to_string();
+        *lock(&ctl.codes)
+            .entry(format!("http_{status}"))
+            .or_default() += 1;
+    }
+}
+
+/// What the slices of one phase (the unloaded one, or one kind) add up to.
+#[derive(Default)]
+struct Tally {
+    timing: LoopTiming,
+    /// For a kind: the unloaded slices that came right before its own.
+    before: LoopTiming,
+    slices: u64,
+    measured_us: u64,
+    busy: u64,
+    replies: BTreeMap<String, u64>,
+}
+
+/// Runs the Vernadat node as `cetratus run` does (embedded broker, `beside` it the dashboard,
+/// MQTT link) at `period_us`, and floods it with each [`FloodKind`] for `phase_us` in all, sent
+/// by clients as fast as they can. The run is cut into slices of `slice_us`, round-robin: an
+/// unloaded slice, then one of the first kind, an unloaded slice, one of the second kind… until
+/// every kind has had `phase_us`; after each flood slice the scans go on unmeasured for
+/// [`SETTLE_US`] while what it left drains. So every kind and the unloaded reference are measured
+/// over the same stretch of time, whatever the machine (or its host) does meanwhile.
+///
+/// Reports, per kind and for the unloaded slices, the scan latency (p50, p99, max), overruns and
+/// the peak resident memory of the process, and what the flood came to (messages sent, replies
+/// by code, commands answered `busy`). The process holds the flooding clients too, so its peak
+/// memory is an upper bound on the PLC's. With `rt` the scan thread asks for SCHED_FIFO (as
+/// `cetratus run --rt` does); the flooding clients never run real-time.
+pub fn flood(
+    phase_us: u64,
+    period_us: u64,
+    slice_us: u64,
+    rt: bool,
+    beside: Beside<'_>,
+) -> Result<Figures, BenchError> {
+    use cetratus_node::periodic::run_periodic;
+    use rumqttc::v5::mqttbytes::v5::{Packet, PublishProperties};
+    use rumqttc::v5::mqttbytes::QoS;
+
+    const PLC: &str = "bench";
+    let slice_us = slice_us.clamp(period_us.max(1), phase_us.max(period_us.max(1)));
+    let free = || -> Result<std::net::SocketAddr, BenchError> {
+        Ok(std::net::TcpListener::bind("127.0.0.1:0")?.local_addr()?)
+    };
+    let mqtt = free()?;
+    let (mut node, handle) = vernadat_node(PLC, mqtt, period_us)?;
+    let (dashboard, login_target) = beside(&format!("mqtt://{mqtt}"))?;
+    let ctl = Arc::new(Control::new());
+
+    // The flooding client, and the replies it gets, by error code.
+    let mut opts = cetratus_mct::client_options(&format!("mqtt://{mqtt}"), "bench-flood")?;
+    opts.set_max_packet_size(Some(cetratus_mct::BROKER_MAX_PACKET));
+    let (client, mut conn) = rumqttc::v5::Client::new(opts, 16);
+    let mut threads = Vec::new();
+    {
+        let ctl = ctl.clone();
+        // Ends when the connection does.
+        std::thread::spawn(move || {
+            for ev in conn.iter() {
+                if let Ok(rumqttc::v5::Event::Incoming(Packet::Publish(p))) = ev {
+                    let v: serde_json::Value =
+                        serde_json::from_slice(&p.payload).unwrap_or_default();
+                    let code = v["error"]["code"].as_str().unwrap_or("ok").to_string();
+                    *lock(&ctl.codes).entry(code).or_default() += 1;
+                }
+            }
+        });
+    }
+    let replies = format!("cetratus/{PLC}/reply/bench-flood");
+    client.subscribe(replies.clone(), QoS::AtMostOnce)?;
+    let u1 = crate::update::packages().u1;
+    let messages: Vec<_> = FloodKind::ALL
+        .iter()
+        .map(|k| k.messages(PLC, &u1))
+        .collect();
+    threads.push({
+        let (ctl, client) = (ctl.clone(), client.clone());
+        let props = PublishProperties {
+            response_topic: Some(replies.clone()),
+            correlation_data: Some(b"flood".to_vec().into()),
+            ..PublishProperties::default()
+        };
+        std::thread::spawn(move || {
+            let mut turn = 0usize;
+            while !ctl.done.load(Ordering::Relaxed) {
+                let Some((kind, list)) = ctl
+                    .active()
+                    .map(|k| (k, &messages[k.index()]))
+                    .filter(|(_, list)| !list.is_empty())
+                else {
+                    std::thread::sleep(IDLE_POLL);
+                    continue;
+                };
+                let (topic, payload) = &list[turn % list.len()];
+                turn = turn.wrapping_add(1);
+                let r = if topic.contains("/cmd/") {
+                    client.publish_with_properties(
+                        topic.clone(),
+                        QoS::AtMostOnce,
+                        false,
+                        payload.clone(),
+                        props.clone(),
+                    )
+                } else {
+                    client.publish(topic.clone(), QoS::AtMostOnce, false, payload.clone())
+                };
+                if r.is_err() {
+                    return;
+                }
+                ctl.count_sent(kind);
+            }
+        })
+    });
+    if let Some((addr, account)) = login_target.clone() {
+        let ctl = ctl.clone();
+        threads.push(std::thread::spawn(move || {
+            login_flood(addr, &account, &ctl)
+        }));
+    }
+    // Peak resident memory by phase: the unloaded slices, then each kind (its settling included).
+    let peaks: Arc<[AtomicU64; 1 + FloodKind::ALL.len()]> =
+        Arc::new(std::array::from_fn(|_| AtomicU64::new(0)));
+    let rss_phase = Arc::new(AtomicUsize::new(0));
+    threads.push({
+        let (ctl, peaks, rss_phase) = (ctl.clone(), peaks.clone(), rss_phase.clone());
+        std::thread::spawn(move || {
+            while !ctl.done.load(Ordering::Relaxed) {
+                peaks[rss_phase.load(Ordering::Relaxed)].fetch_max(rss_kib(), Ordering::Relaxed);
+                std::thread::sleep(Duration::from_millis(20));
+            }
+        })
+    });
+
+    // Every thread of the node and of the floods is running by now, so only the scan thread is
+    // real-time, on its CPU of its own.
+    let rt_status = rt.then(|| cetratus_node::rt::request(80).to_string());
+    let mut now_base = 0u64;
+    let never = AtomicBool::new(false);
+    // One slice of `length_us`; its timing, and the length it ran.
+    let mut slice = |node: &mut cetratus_node::Node<_>, length_us: u64| {
+        let mut timing = LoopTiming::default();
+        let base = now_base;
+        let reached = run_periodic(period_us, length_us, 1.0, &never, &mut timing, |now, t| {
+            node.step(base + now, t);
+            true
+        });
+        now_base += reached;
+        (timing, reached)
+    };
+    // The MQTT link connected, the dashboard subscribed, the first snapshots sent.
+    slice(&mut node, SETTLE_US);
+    let mut unloaded = Tally::default();
+    let mut kinds: Vec<Tally> = FloodKind::ALL.iter().map(|_| Tally::default()).collect();
+    let mut done_us = 0u64;
+    while done_us < phase_us {
+        let length = slice_us.min(phase_us - done_us);
+        for (i, kind) in FloodKind::ALL.into_iter().enumerate() {
+            rss_phase.store(0, Ordering::Relaxed);
+            let (t, reached) = slice(&mut node, length);
+            unloaded.timing.add(&t);
+            unloaded.slices += 1;
+            unloaded.measured_us += reached;
+            let tally = &mut kinds[i];
+            tally.before.add(&t);
+            // Replies still arriving from the kind before are nobody's.
+            lock(&ctl.codes).clear();
+            let busy0 = handle.stats().commands_busy;
+            rss_phase.store(1 + i, Ordering::Relaxed);
+            ctl.set(Some(kind));
+            let (t, reached) = slice(&mut node, length);
+            ctl.set(None);
+            slice(&mut node, SETTLE_US);
+            tally.timing.add(&t);
+            tally.slices += 1;
+            tally.measured_us += reached;
+            tally.busy += handle.stats().commands_busy - busy0;
+            for (code, n) in std::mem::take(&mut *lock(&ctl.codes)) {
+                *tally.replies.entry(code).or_default() += n;
+            }
+        }
+        done_us += length;
+    }
+    ctl.done.store(true, Ordering::Relaxed);
+    for t in threads {
+        let _ = t.join();
+    }
+    // The machine's own wake-up latency, right after, from the scan thread (whose CPU, priority
+    // and timer slack cyclictest inherits), for as long as one kind was measured (at most 30 s).
+    let machine = crate::cyclictest::measure(period_us, phase_us.min(30_000_000), rt);
+
+    let q = unloaded.timing.latency.summary();
+    let limit = 1.2 * q.p99_ns as f64 + 20_000.0;
+    let mib = |i: usize| peaks[i].load(Ordering::Relaxed) / 1024;
+    let mut out = Figures::new();
+    let s = |k: &str| k.to_string();
+    out.insert(s("method"), "interleaved".into());
+    out.insert(s("period_us"), period_us.into());
+    out.insert(s("phase_s"), (phase_us as f64 / 1e6).into());
+    out.insert(s("slice_s"), (slice_us as f64 / 1e6).into());
+    out.insert(s("settle_s"), (SETTLE_US as f64 / 1e6).into());
+    out.insert(s("unloaded_slices"), unloaded.slices.into());
+    out.insert(s("unloaded_cycles"), q.count.into());
+    out.insert(s("unloaded_latency_p50_ns"), q.p50_ns.into());
+    out.insert(s("unloaded_latency_p99_ns"), q.p99_ns.into());
+    out.insert(s("unloaded_latency_max_ns"), q.max_ns.into());
+    out.insert(s("unloaded_overruns"), unloaded.timing.overruns.into());
+    out.insert(s("unloaded_peak_rss_mib"), mib(0).into());
+    out.insert(s("limit_ns"), limit.into());
+    let mut all_within = true;
+    for (i, (kind, tally)) in FloodKind::ALL.iter().zip(&kinds).enumerate() {
+        let l = tally.timing.latency.summary();
+        let within = (l.p99_ns as f64) <= limit;
+        all_within &= within && mib(1 + i) < 256;
+        let sent = ctl.sent[i].load(Ordering::Relaxed);
+        let seconds = tally.measured_us as f64 / 1e6;
+        out.insert(
+            kind.name().to_string(),
+            serde_json::json!({
+                "sent": sent,
+                "sent_per_s": if seconds > 0.0 { sent as f64 / seconds } else { 0.0 },
+                "slices": tally.slices,
+                "cycles": l.count,
+                "latency_p50_ns": l.p50_ns,
+                "latency_p99_ns": l.p99_ns,
+                "latency_max_ns": l.max_ns,
+                "overruns": tally.timing.overruns,
+                "unloaded_before_latency_p99_ns": tally.before.latency.summary().p99_ns,
+                "within_limit": within,
+                "peak_rss_mib": mib(1 + i),
+                "busy": tally.busy,
+                "replies": tally.replies,
+            }),
+        );
+    }
+    let (plc, _, report) = node.finish()?;
+    drop(dashboard);
+    let stats = handle.stats();
+    handle.shutdown();
+    out.insert(s("all_within_targets"), all_within.into());
+    out.insert(
+        s("machine"),
+        serde_json::to_value(machine).unwrap_or_default(),
+    );
+    out.insert(
+        s("rt"),
+        rt_status.unwrap_or_else(|| "not requested".into()).into(),
+    );
+    out.insert(s("primary_status"), plc.status().name().into());
+    out.insert(
+        s("dropped"),
+        serde_json::json!({
+            "commands_busy": stats.commands_busy,
+            "commands_dropped": stats.commands_dropped,
+            "mqtt_client_lost": stats.messages_lost,
+            "plc_events_dropped": report.link.map_or(0, |c| c.dropped),
+        }),
+    );
+    Ok(out)
+}

@@ -5,19 +5,31 @@
 //!
 //! First a backward search from M0 over the implicit graph: predecessors are recomputed by undoing
 //! each transition (a range test per field it changes, then the forward enabling test) and looked
-//! up in the table, the lookups of one state's predecessors overlapped. If every state reaches M0,
-//! the graph is one strongly connected component: the net is reversible, and live exactly when
-//! every transition is enabled somewhere. This is the common case of a plant model, and it costs
+//! up in the table. On one thread the lookups go by batches: the predecessors of many queued states
+//! are generated together, radix-sorted by home slot and looked up in that order, so that they
+//! sweep the table instead of missing the cache at random (as in a radix-partitioned hash join);
+//! the slots found come out nearly in order too, so the keys of the next batch load in a sweep.
+//! With two threads the search goes by layers, the lookups of one state's predecessors
+//! overlapped. If every state reaches M0, the graph is one strongly connected component: the net
+//! is reversible, and live exactly when every transition is enabled somewhere. This is the common case of a plant model, and it costs
 //! one lookup per edge, stopping as soon as every state is found. Otherwise an iterative Tarjan
 //! (explicit frames, no recursion) finds the terminal components.
 //!
-//! Memory, all counted: the table, a bit per slot and a queue of 4 bytes per state for the
-//! backward search; for Tarjan two `u32` per slot, two bits per slot, and its stacks.
+//! Memory, all counted: the table, a bit per slot, a queue of 4 bytes per state and, on one
+//! thread, the batch and its sorted copy (at most a quarter of the slots each, so at most half
+//! the table's bytes) for the backward search; for Tarjan two `u32` per slot, two bits per slot,
+//! and its stacks.
 
 use super::{hash, Compiled, Liveness, ReachOptions, Stop, Table};
 use cetratus_net::TransIdx;
 
 const NONE: u32 = u32::MAX;
+
+/// Predecessors looked up together by the backward search on one thread, at most.
+const BATCH: usize = 1 << 20;
+
+/// The bits of a digit of the radix sort of a batch by home slot.
+const DIGIT_BITS: usize = 11;
 
 fn bit(v: &[u64], i: usize) -> bool {
     v[i >> 6] >> (i & 63) & 1 == 1
@@ -73,42 +85,81 @@ fn reaches_root<const W: usize>(
         return reaches_root_layered(code, table, root, states, opts);
     }
     let cap = table.slots.len();
-    let bytes = table.bytes() + cap.div_ceil(64) * 8 + states * 4;
+    let nt = code.offsets.len() - 1;
+    // The batch of predecessors and its sorted copy: at most a quarter of the slots, so at most
+    // half the table's bytes for both.
+    let batch_cap = (cap / 4).min(BATCH).max(nt.max(1));
+    let per_batch = batch_cap / nt.max(1);
+    let batch_bytes = (2 * batch_cap + per_batch) * 8 * W + ((1 << DIGIT_BITS) + 1) * 8;
+    let bytes = table.bytes() + cap.div_ceil(64) * 8 + (states + 1) * 4 + batch_bytes;
     opts.within_memory(bytes).map_err(|s| (s, bytes))?;
     let mut seen = vec![0u64; cap.div_ceil(64)];
-    let mut queue: Vec<u32> = Vec::with_capacity(states);
-    let nt = code.offsets.len() - 1;
-    let mut batch: Vec<([u64; W], u64)> = Vec::with_capacity(nt);
+    // Every state once, and one place past the last for the write that keeps nothing.
+    let mut queue: Vec<u32> = vec![0; states + 1];
+    let mut batch: Vec<[u64; W]> = Vec::with_capacity(batch_cap);
+    let mut parted: Vec<[u64; W]> = Vec::with_capacity(batch_cap);
+    let mut starts = vec![0usize; (1 << DIGIT_BITS) + 1];
+    let mut keys: Vec<[u64; W]> = Vec::with_capacity(per_batch);
+    let mask = cap - 1;
+    let bits = cap.trailing_zeros() as usize;
+    let passes = bits.div_ceil(DIGIT_BITS).max(1);
+    let width = bits.div_ceil(passes);
+    let radix = 1usize << width;
     set(&mut seen, root);
-    queue.push(root as u32);
+    queue[0] = root as u32;
+    let mut found = 1;
     let mut head = 0;
-    while head < queue.len() && queue.len() < states {
-        if head & 0x3FFF == 0 && head > 0 {
-            if let Some(s) = opts.interrupted() {
-                return Err((s, bytes));
-            }
+    while head < found && found < states {
+        if let Some(s) = opts.interrupted() {
+            return Err((s, bytes));
         }
-        let key = table.slots[queue[head] as usize];
-        head += 1;
+        // The predecessors of as many queued states as the batch holds: the queue's slots come
+        // mostly in increasing order (they were found in slot order), so their keys load in a
+        // sweep of the table.
         batch.clear();
-        for t in 0..nt {
-            if let Some(u) = code.unfire(&key, t) {
-                batch.push((u, hash(&u)));
-            }
-        }
-        for &(_, h) in &batch {
-            table.touch(h);
-        }
-        for (u, h) in &batch {
-            if let Some(s) = table.slot_of(u, *h) {
-                if !bit(&seen, s) {
-                    set(&mut seen, s);
-                    queue.push(s as u32);
+        let end = found.min(head + per_batch);
+        keys.clear();
+        keys.extend(queue[head..end].iter().map(|&s| table.slots[s as usize]));
+        head = end;
+        for key in &keys {
+            for t in 0..nt {
+                if let Some(u) = code.unfire(key, t) {
+                    batch.push(u);
                 }
             }
         }
+        // Sorted by home slot (a radix sort, least significant digit first), so that the
+        // lookups below sweep the table in order instead of jumping around it.
+        for pass in 0..passes {
+            let sh = pass * width;
+            starts.iter_mut().for_each(|c| *c = 0);
+            for u in &batch {
+                starts[((hash(u) as usize & mask) >> sh & (radix - 1)) + 1] += 1;
+            }
+            for b in 0..radix {
+                starts[b + 1] += starts[b];
+            }
+            parted.clear();
+            parted.resize(batch.len(), [0; W]);
+            for u in &batch {
+                let b = (hash(u) as usize & mask) >> sh & (radix - 1);
+                parted[starts[b]] = *u;
+                starts[b] += 1;
+            }
+            std::mem::swap(&mut batch, &mut parted);
+        }
+        for u in &batch {
+            if let Some(s) = table.slot_of(u, hash(u)) {
+                // Without a branch on `seen`, whose outcome is random: the slot is written
+                // past the queue's end and kept only when it is new.
+                let new = !bit(&seen, s);
+                set(&mut seen, s);
+                queue[found] = s as u32;
+                found += new as usize;
+            }
+        }
     }
-    Ok((queue.len() == states, bytes))
+    Ok((found == states, bytes))
 }
 
 /// Layers of a frontier below this size are searched on one thread.

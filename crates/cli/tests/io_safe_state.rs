@@ -8,10 +8,9 @@ use std::path::Path;
 use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
-use cetratus_testkit::modbus;
-use cetratus_testkit::paths::workspace_root;
 use cetratus_testkit::ports::{free_port, wait_for_port};
 use cetratus_testkit::process::{stop_with_sigterm, ChildGuard};
+use cetratus_testkit::{modbus, opcua};
 
 const BIN: &str = env!("CARGO_BIN_EXE_cetratus");
 
@@ -79,29 +78,19 @@ fn opc_ua_inputs_stale_under_fault_take_the_field_devices_to_their_safe_outputs(
     wait_for_port(port, "the PLC's OPC UA server", Duration::from_secs(60));
 
     // The client drives y on and off through x; the device follows the program.
-    let out = Command::new("python3")
-        .arg(workspace_root().join("scripts/opcua_peer.py"))
-        .args([
-            "run",
-            &url,
-            "w:cell.Inputs.x:bool:1",
-            "wait:cell.Outputs.y:1",
-        ])
-        .output()
-        .expect("run the asyncua client");
-    assert!(out.status.success(), "{out:?}");
+    opcua::run(&[
+        "run",
+        &url,
+        "w:cell.Inputs.x:bool:1",
+        "wait:cell.Outputs.y:1",
+    ]);
     assert_eq!(coil(device, "1"), "1", "the program drove y on");
-    let out = Command::new("python3")
-        .arg(workspace_root().join("scripts/opcua_peer.py"))
-        .args([
-            "run",
-            &url,
-            "w:cell.Inputs.x:bool:0",
-            "wait:cell.Outputs.y:0",
-        ])
-        .output()
-        .expect("run the asyncua client");
-    assert!(out.status.success(), "{out:?}");
+    opcua::run(&[
+        "run",
+        &url,
+        "w:cell.Inputs.x:bool:0",
+        "wait:cell.Outputs.y:0",
+    ]);
     assert_eq!(coil(device, "0"), "0", "the program drove y off");
 
     // The client is gone: after `stale_after` cycles the inputs fault, and the device gets y's

@@ -7,26 +7,12 @@ use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
+use cetratus_testkit::opcua::{hash_password, run as peer};
 use cetratus_testkit::paths::{example, workspace_root};
 use cetratus_testkit::ports::{free_port, wait_for_port};
 use cetratus_testkit::process::{stop_with_sigterm as stop, ChildGuard};
 
 const BIN: &str = env!("CARGO_BIN_EXE_cetratus");
-
-fn peer(args: &[&str]) -> Vec<String> {
-    let out = Command::new("python3")
-        .arg(workspace_root().join("scripts/opcua_peer.py"))
-        .args(args)
-        .output()
-        .expect("run the asyncua client");
-    let text = String::from_utf8_lossy(&out.stdout);
-    assert!(
-        out.status.success(),
-        "{args:?}: {text}\n{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    text.lines().map(str::to_string).collect()
-}
 
 fn start(dir: &Path, io_body: &str, port: u16, extra: &[&str]) -> ChildGuard {
     let io = dir.join("io.toml");
@@ -48,22 +34,6 @@ fn start(dir: &Path, io_body: &str, port: u16, extra: &[&str]) -> ChildGuard {
     );
     wait_for_port(port, "the PLC's OPC UA server", Duration::from_secs(60));
     plc
-}
-
-fn hash(password: &str) -> String {
-    let mut h = Command::new(BIN)
-        .arg("hash-password")
-        .stdin(Stdio::piped())
-        .stdout(Stdio::piped())
-        .spawn()
-        .unwrap();
-    std::io::Write::write_all(
-        h.stdin.as_mut().unwrap(),
-        format!("{password}\n").as_bytes(),
-    )
-    .unwrap();
-    let out = h.wait_with_output().unwrap();
-    String::from_utf8_lossy(&out.stdout).trim().to_string()
 }
 
 /// Makes a client certificate in `d` and has the server at `url` (pki at `d/pki`) trust it, as
@@ -109,7 +79,7 @@ fn a_flood_of_wrong_passwords_is_limited_before_the_check_and_the_right_one_stil
     let d = dir.path();
     let port = free_port();
     let url = format!("opc.tcp://127.0.0.1:{port}");
-    let h = hash("panel-secret");
+    let h = hash_password(BIN, "panel-secret");
     let plc = start(
         d,
         &format!("[opcua]\nlisten = \"{url}\"\nsecurity = \"sign-and-encrypt\"\npki = \"pki\"\npolicies = [\"Basic256Sha256\"]\nmax_connections = 16\n\n[[opcua.user]]\nname = \"hmi\"\npassword_hash = \"{h}\"\n"),

@@ -7,7 +7,8 @@ use std::path::Path;
 use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
-use cetratus_testkit::paths::{example, workspace_root};
+use cetratus_testkit::opcua;
+use cetratus_testkit::paths::example;
 use cetratus_testkit::ports::{free_port, wait_for_port};
 use cetratus_testkit::process::{stop_with_sigterm as stop, ChildGuard};
 use serde_json::Value;
@@ -15,21 +16,9 @@ use serde_json::Value;
 const BIN: &str = env!("CARGO_BIN_EXE_cetratus");
 
 fn peer(args: &[&str]) -> Command {
-    let mut c = Command::new("python3");
-    c.arg(workspace_root().join("scripts/opcua_peer.py"))
-        .args(args);
+    let mut c = opcua::command();
+    c.args(args);
     c
-}
-
-fn lines(mut c: Command) -> Vec<String> {
-    let out = c.output().expect("run the asyncua client");
-    let text = String::from_utf8_lossy(&out.stdout);
-    assert!(
-        out.status.success(),
-        "{text}\n{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    text.lines().map(str::to_string).collect()
 }
 
 /// The quality of the OPC UA inputs in the PLC's `exec_info`, once it is `want` (or the last
@@ -112,7 +101,7 @@ fn inputs_whose_client_went_away_go_stale_and_take_their_safe_values_under_safe(
     assert_eq!(q["link"], "up", "{q}");
     // While it writes, the program gets what it writes.
     assert_eq!(
-        lines(peer(&["wait", &url, "cell.Inputs.PE", "1", "10"])),
+        opcua::run(&["wait", &url, "cell.Inputs.PE", "1", "10"]),
         ["ok"]
     );
     let status = writer.0.wait().unwrap();
@@ -123,17 +112,17 @@ fn inputs_whose_client_went_away_go_stale_and_take_their_safe_values_under_safe(
     assert_eq!(q["link"], "down", "{q}");
     assert!(q["missed_cycles"].as_u64().unwrap() >= 30, "{q}");
     assert_eq!(
-        lines(peer(&["wait", &url, "cell.Inputs.PE", "0", "10"])),
+        opcua::run(&["wait", &url, "cell.Inputs.PE", "0", "10"]),
         ["ok"]
     );
     // A client that comes back makes it good again, and its value reaches the program.
     assert_eq!(
-        lines(peer(&[
+        opcua::run(&[
             "run",
             &url,
             "w:cell.Inputs.PE:bool:1",
             "wait:cell.Inputs.PE:1"
-        ])),
+        ]),
         ["ok", "ok"]
     );
     let s = stop(plc);
@@ -156,19 +145,19 @@ fn under_hold_a_silent_client_leaves_the_last_value_and_under_fault_the_run_faul
         mqtt,
     );
     assert_eq!(
-        lines(peer(&[
+        opcua::run(&[
             "run",
             &url,
             "w:cell.Inputs.PE:bool:1",
             "wait:cell.Inputs.PE:1"
-        ])),
+        ]),
         ["ok", "ok"]
     );
     let q = quality_until(mqtt, "stale");
     assert_eq!(q["quality"], "stale", "{q}");
     // `hold` (the default): the program keeps the last value written.
     assert_eq!(
-        lines(peer(&["read", &url, "cell.Inputs.PE"])),
+        opcua::run(&["read", &url, "cell.Inputs.PE"]),
         ["cell.Inputs.PE=1"]
     );
     let s = stop(plc);
@@ -185,24 +174,24 @@ fn under_hold_a_silent_client_leaves_the_last_value_and_under_fault_the_run_faul
         mqtt,
     );
     assert_eq!(
-        lines(peer(&[
+        opcua::run(&[
             "run",
             &url,
             "w:cell.Inputs.PE:bool:1",
             "wait:cell.Inputs.PE:1"
-        ])),
+        ]),
         ["ok", "ok"]
     );
     let q = quality_until(mqtt, "stale");
     assert_eq!(q["quality"], "stale", "{q}");
     // `fault`: safe inputs, latched; a new write does not bring the inputs back.
     assert_eq!(
-        lines(peer(&[
+        opcua::run(&[
             "run",
             &url,
             "w:cell.Inputs.PE:bool:1",
             "wait:cell.Inputs.PE:0"
-        ])),
+        ]),
         ["ok", "ok"]
     );
     let s = stop(plc);

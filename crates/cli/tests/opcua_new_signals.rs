@@ -9,7 +9,7 @@ use std::process::{Command, Output, Stdio};
 use std::time::{Duration, Instant};
 
 use cetratus_testkit::modbus;
-use cetratus_testkit::paths::workspace_root;
+use cetratus_testkit::opcua::command as peer;
 use cetratus_testkit::ports::{free_port, wait_for_port};
 use cetratus_testkit::process::ChildGuard;
 
@@ -60,12 +60,6 @@ fn ok(out: Output) -> String {
     );
     assert!(out.status.success(), "{t}");
     t
-}
-
-fn peer() -> Command {
-    let mut c = Command::new("python3");
-    c.arg(workspace_root().join("scripts/opcua_peer.py"));
-    c
 }
 
 fn browse(url: &str) -> Vec<String> {

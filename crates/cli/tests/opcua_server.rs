@@ -7,28 +7,13 @@ use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
-use cetratus_testkit::paths::{example, workspace_root};
+use cetratus_testkit::opcua::run as peer;
+use cetratus_testkit::paths::example;
 use cetratus_testkit::ports::{free_port, wait_for_port};
 use cetratus_testkit::process::{stop_with_sigterm as stop, ChildGuard};
 use serde_json::Value;
 
 const BIN: &str = env!("CARGO_BIN_EXE_cetratus");
-
-/// Runs asyncua's client (scripts/opcua_peer.py) and returns its lines.
-fn peer(args: &[&str]) -> Vec<String> {
-    let out = Command::new("python3")
-        .arg(workspace_root().join("scripts/opcua_peer.py"))
-        .args(args)
-        .output()
-        .expect("run the asyncua client");
-    let text = String::from_utf8_lossy(&out.stdout);
-    assert!(
-        out.status.success(),
-        "{args:?}: {text}\n{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    text.lines().map(str::to_string).collect()
-}
 
 fn write_io(dir: &Path, body: &str) -> PathBuf {
     let io = dir.join("io.toml");

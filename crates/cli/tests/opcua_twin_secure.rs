@@ -6,28 +6,13 @@
 use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
+use cetratus_testkit::opcua::hash_password;
 use cetratus_testkit::paths::example;
 use cetratus_testkit::ports::{free_port, wait_for_port};
 use cetratus_testkit::process::{stop_with_sigterm as stop, ChildGuard};
 use serde_json::Value;
 
 const BIN: &str = env!("CARGO_BIN_EXE_cetratus");
-
-fn hash(password: &str) -> String {
-    let mut h = Command::new(BIN)
-        .arg("hash-password")
-        .stdin(Stdio::piped())
-        .stdout(Stdio::piped())
-        .spawn()
-        .unwrap();
-    std::io::Write::write_all(
-        h.stdin.as_mut().unwrap(),
-        format!("{password}\n").as_bytes(),
-    )
-    .unwrap();
-    let out = h.wait_with_output().unwrap();
-    String::from_utf8_lossy(&out.stdout).trim().to_string()
-}
 
 #[test]
 fn the_twin_logs_in_over_sign_and_encrypt_and_finishes_parts() {
@@ -37,7 +22,7 @@ fn the_twin_logs_in_over_sign_and_encrypt_and_finishes_parts() {
     let io = d.join("io.toml");
     std::fs::write(
         &io,
-        format!("start_timeout = \"120s\"\n\n[opcua]\nlisten = \"opc.tcp://0.0.0.0:{port}\"\ninputs = true\nsecurity = \"sign-and-encrypt\"\npki = \"pki\"\n\n[[opcua.user]]\nname = \"twin\"\npassword_hash = \"{}\"\n", hash("twin-secret")),
+        format!("start_timeout = \"120s\"\n\n[opcua]\nlisten = \"opc.tcp://0.0.0.0:{port}\"\ninputs = true\nsecurity = \"sign-and-encrypt\"\npki = \"pki\"\n\n[[opcua.user]]\nname = \"twin\"\npassword_hash = \"{}\"\n", hash_password(BIN, "twin-secret")),
     )
     .unwrap();
     std::fs::write(d.join("password"), "twin-secret\n").unwrap();

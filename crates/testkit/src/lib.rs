@@ -1,5 +1,6 @@
 //! What the test suites of the workspace share: the counting allocator, free ports and child
-//! processes, a Mosquitto broker and its command-line clients, headless Chromium, the example
+//! processes, a Mosquitto broker and its command-line clients, the pymodbus and asyncua peers,
+//! headless Chromium, the example
 //! nets and programs, and a real stopwatch. A dev-dependency only; nothing ships it, and the
 //! architecture test checks that no crate depends on it otherwise.
 //!
@@ -23,6 +24,7 @@ pub mod modbus;
 pub mod mqtt;
 #[cfg(feature = "nets")]
 pub mod nets;
+pub mod opcua;
 pub mod paths;
 pub mod ports;
 pub mod process;

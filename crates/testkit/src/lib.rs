@@ -1,7 +1,7 @@
 //! What the test suites of the workspace share: the counting allocator, free ports and child
 //! processes, a Mosquitto broker and its command-line clients, the pymodbus and asyncua peers,
-//! headless Chromium, the example nets and programs, and a real stopwatch. A dev-dependency only; nothing ships it, and the
-//! architecture test checks that no crate depends on it otherwise.
+//! headless Chromium, the example nets and programs, and a real stopwatch. A dev-dependency only;
+//! nothing ships it, and the architecture test checks that no crate depends on it otherwise.
 //!
 //! The parts that pull in heavy crates sit behind features (`nets`, `programs`, `stopwatch`,
 //! `browser`), so that a suite compiles only what it uses.

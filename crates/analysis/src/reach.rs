@@ -372,6 +372,25 @@ impl<const W: usize> Compiled<W> {
 
 const CHUNK_BITS: u32 = 16;
 
+/// The bytes an exploration holds once `n` new states are added: the table (old and new while it
+/// doubles), the states and their parents, and the chunks that the new states may open.
+fn bytes_to_add<const W: usize>(
+    table: &Table<W>,
+    states: &Chunked<[u64; W]>,
+    parents: &Chunked<u32>,
+    n: usize,
+) -> usize {
+    let chunk_bytes = (1 << CHUNK_BITS) * (8 * W + 4);
+    table.bytes_to_fit(n)
+        + states.bytes()
+        + parents.bytes()
+        + if (states.len & ((1 << CHUNK_BITS) - 1)) + n >= 1 << CHUNK_BITS {
+            chunk_bytes
+        } else {
+            0
+        }
+}
+
 /// An append-only array in fixed chunks, so that growing never copies (no reallocation peak).
 struct Chunked<T: Copy> {
     chunks: Vec<Vec<T>>,
@@ -650,7 +669,6 @@ fn explore_w<const W: usize>(net: &Net, pk: &Packing, opts: &ReachOptions) -> Re
     let mut first_dead: Option<usize> = None;
     let mut stopped = None;
     let mut peak_bytes = 0usize;
-    let chunk_bytes = (1 << CHUNK_BITS) * (8 * W + 4);
     let mut cur = 0usize;
     'bfs: while cur < states.len {
         if let Some(s) = checkpoint(opts, cur, edges, &table, &states, &parents) {
@@ -670,14 +688,7 @@ fn explore_w<const W: usize>(net: &Net, pk: &Packing, opts: &ReachOptions) -> Re
         }
         // Counted before anything grows: the table (old and new while it doubles) and the
         // chunks that this state's successors may open.
-        let need = table.bytes_to_fit(batch.len())
-            + states.bytes()
-            + parents.bytes()
-            + if (states.len & ((1 << CHUNK_BITS) - 1)) + batch.len() >= 1 << CHUNK_BITS {
-                chunk_bytes
-            } else {
-                0
-            };
+        let need = bytes_to_add(&table, &states, &parents, batch.len());
         if let Err(s) = opts.within_memory(need) {
             stopped = Some(s);
             break;

@@ -17,7 +17,7 @@
 use cetratus_net::{Net, TransIdx};
 
 use super::stubborn::Stubborn;
-use super::{hash, scc, Chunked, Compiled, Packing, ReachOptions, Stop, CHUNK_BITS};
+use super::{hash, scc, Chunked, Compiled, Packing, ReachOptions, Stop};
 use crate::predicate::Predicate;
 
 /// What the search looks for.
@@ -92,7 +92,6 @@ pub(crate) fn search<const W: usize>(
     let mut reduced_states = 0u64;
     let mut stopped = None;
     let mut peak_bytes = 0usize;
-    let chunk_bytes = (1 << CHUNK_BITS) * (8 * W + 4);
     let mut cur = 0usize;
     'bfs: while cur < states.len && found.is_none() {
         if let Some(s) = super::checkpoint(opts, cur, edges, &table, &states, &parents) {
@@ -147,14 +146,7 @@ pub(crate) fn search<const W: usize>(
                 let succ = code.fire(&key, t as usize);
                 batch.push((succ, hash(&succ)));
             }
-            let need = table.bytes_to_fit(batch.len())
-                + states.bytes()
-                + parents.bytes()
-                + if (states.len & ((1 << CHUNK_BITS) - 1)) + batch.len() >= 1 << CHUNK_BITS {
-                    chunk_bytes
-                } else {
-                    0
-                };
+            let need = super::bytes_to_add(&table, &states, &parents, batch.len());
             if let Err(s) = opts.within_memory(need) {
                 stopped = Some(s);
                 break 'bfs;

@@ -133,14 +133,15 @@ fn inputs_whose_client_went_away_go_stale_and_take_their_safe_values_under_safe(
     assert!(!opcua_fault(&s), "{s}");
 }
 
-#[test]
-fn under_hold_a_silent_client_leaves_the_last_value_and_under_fault_the_run_faults() {
-    let dir = tempfile::tempdir().unwrap();
+/// Starts a PLC whose inputs come from OPC UA, with `policy` (lines of `[opcua]`) and
+/// `stale_after = 20`; a client writes PE = true once and leaves, and the inputs go stale.
+/// Returns the PLC and its server's URL.
+fn written_once_then_stale(dir: &Path, policy: &str) -> (ChildGuard, String) {
     let (port, mqtt) = (free_port(), free_port());
     let url = format!("opc.tcp://127.0.0.1:{port}");
     let plc = start(
-        dir.path(),
-        &format!("start_timeout = \"1s\"\n\n[opcua]\nlisten = \"{url}\"\ninputs = true\nstale_after = 20\n"),
+        dir,
+        &format!("start_timeout = \"1s\"\n\n[opcua]\nlisten = \"{url}\"\ninputs = true\n{policy}stale_after = 20\n"),
         port,
         mqtt,
     );
@@ -155,6 +156,13 @@ fn under_hold_a_silent_client_leaves_the_last_value_and_under_fault_the_run_faul
     );
     let q = quality_until(mqtt, "stale");
     assert_eq!(q["quality"], "stale", "{q}");
+    (plc, url)
+}
+
+#[test]
+fn under_hold_a_silent_client_leaves_the_last_value_and_under_fault_the_run_faults() {
+    let dir = tempfile::tempdir().unwrap();
+    let (plc, url) = written_once_then_stale(dir.path(), "");
     // `hold` (the default): the program keeps the last value written.
     assert_eq!(
         opcua::run(&["read", &url, "cell.Inputs.PE"]),
@@ -165,25 +173,7 @@ fn under_hold_a_silent_client_leaves_the_last_value_and_under_fault_the_run_faul
     assert!(!opcua_fault(&s), "{s}");
 
     let dir = tempfile::tempdir().unwrap();
-    let (port, mqtt) = (free_port(), free_port());
-    let url = format!("opc.tcp://127.0.0.1:{port}");
-    let plc = start(
-        dir.path(),
-        &format!("start_timeout = \"1s\"\n\n[opcua]\nlisten = \"{url}\"\ninputs = true\nstale = \"fault\"\nstale_after = 20\n"),
-        port,
-        mqtt,
-    );
-    assert_eq!(
-        opcua::run(&[
-            "run",
-            &url,
-            "w:cell.Inputs.PE:bool:1",
-            "wait:cell.Inputs.PE:1"
-        ]),
-        ["ok", "ok"]
-    );
-    let q = quality_until(mqtt, "stale");
-    assert_eq!(q["quality"], "stale", "{q}");
+    let (plc, url) = written_once_then_stale(dir.path(), "stale = \"fault\"\n");
     // `fault`: safe inputs, latched; a new write does not bring the inputs back.
     assert_eq!(
         opcua::run(&[

@@ -10,7 +10,7 @@ use std::time::{Duration, Instant};
 use cetratus_testkit::opcua::run as peer;
 use cetratus_testkit::paths::example;
 use cetratus_testkit::ports::{free_port, wait_for_port};
-use cetratus_testkit::process::{stop_with_sigterm as stop, ChildGuard};
+use cetratus_testkit::process::{demo_files, json_of, stop_with_sigterm as stop, ChildGuard};
 use serde_json::Value;
 
 const BIN: &str = env!("CARGO_BIN_EXE_cetratus");
@@ -195,22 +195,12 @@ fn a_server_beyond_loopback_without_security_is_refused_with_the_reason() {
     assert!(err.contains("policy None is only for loopback"), "{err}");
 }
 
-/// Waits for a guarded process and parses the JSON it printed.
-fn json_of(mut child: ChildGuard) -> Value {
-    let mut text = String::new();
-    if let Some(mut out) = child.0.stdout.take() {
-        std::io::Read::read_to_string(&mut out, &mut text).expect("read stdout");
-    }
-    let _ = child.0.wait();
-    serde_json::from_str(&text).unwrap_or_else(|e| panic!("not JSON ({e}): {text}"))
-}
-
 /// The one real-time OPC UA run of this suite: a minute of the cell with the twin host as the
 /// OPC UA client of the PLC (the paper's setup), U.1 and then U.2 loaded and substituted on the
 /// way, compared with the in-process twin under the same script.
 #[test]
 fn a_minute_with_the_twin_as_the_plcs_opcua_client_finishes_as_many_parts_as_in_process() {
-    let demo = demo_files();
+    let demo = demo_files(BIN);
     let d = demo.path();
     let port = free_port();
     let io = d.join("io-opcua.toml");
@@ -293,26 +283,9 @@ fn a_minute_with_the_twin_as_the_plcs_opcua_client_finishes_as_many_parts_as_in_
     assert!(run["faults"].as_array().unwrap().is_empty(), "{run}");
 }
 
-/// The demo's signed packages U.1 and U.2 and the key that signed them.
-fn demo_files() -> tempfile::TempDir {
-    let dir = tempfile::tempdir().expect("a temporary directory");
-    std::fs::create_dir(dir.path().join("config")).expect("a configuration directory");
-    let out = Command::new(BIN)
-        .args(["demo", "--scripted", "--json", "--dir"])
-        .arg(dir.path())
-        .output()
-        .expect("cetratus demo runs");
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    dir
-}
-
 #[test]
 fn after_a_substitution_the_marking_nodes_follow_the_new_program_with_a_model_change_event() {
-    let demo = demo_files();
+    let demo = demo_files(BIN);
     let d = demo.path();
     let port = free_port();
     let url = format!("opc.tcp://127.0.0.1:{port}");

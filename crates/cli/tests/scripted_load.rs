@@ -8,28 +8,10 @@ use std::process::{Command, Stdio};
 use std::sync::mpsc;
 use std::time::{Duration, Instant};
 
-use cetratus_testkit::process::ChildGuard;
+use cetratus_testkit::process::{demo_files, ChildGuard};
 use serde_json::Value;
 
 const BIN: &str = env!("CARGO_BIN_EXE_cetratus");
-
-/// The demo's files: the program, U.1 and U.2 signed, the key that signed them, and an empty
-/// configuration directory (`config/`), so that the machine's own configuration plays no part.
-fn demo_files() -> tempfile::TempDir {
-    let dir = tempfile::tempdir().expect("a temporary directory");
-    std::fs::create_dir(dir.path().join("config")).expect("a configuration directory");
-    let out = Command::new(BIN)
-        .args(["demo", "--scripted", "--json", "--dir"])
-        .arg(dir.path())
-        .output()
-        .expect("cetratus demo runs");
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    dir
-}
 
 fn p(path: &Path) -> String {
     path.display().to_string()
@@ -53,7 +35,7 @@ fn audit(state: &Path) -> Vec<(u64, u64, String)> {
 
 #[test]
 fn a_virtual_run_with_scripted_loads_gives_the_same_event_cycles_every_time() {
-    let demo = demo_files();
+    let demo = demo_files(BIN);
     let d = demo.path();
     let runs: Vec<Vec<(u64, u64, String)>> = (0..3)
         .map(|_| {
@@ -107,7 +89,7 @@ fn a_virtual_run_with_scripted_loads_gives_the_same_event_cycles_every_time() {
 fn a_scripted_load_whose_file_cannot_be_read_yet_does_not_stop_the_scans() {
     // A named pipe blocks whoever opens it until a writer comes: if the scan thread read the
     // package, the scans would stop at the load's time.
-    let demo = demo_files();
+    let demo = demo_files(BIN);
     let d = demo.path();
     let fifo: PathBuf = d.join("late.cpkg");
     let made = Command::new("mkfifo")
@@ -178,7 +160,7 @@ fn a_scripted_load_whose_file_cannot_be_read_yet_does_not_stop_the_scans() {
 
 #[test]
 fn a_json_run_summary_lists_the_runs_events_in_order() {
-    let demo = demo_files();
+    let demo = demo_files(BIN);
     let d = demo.path();
     let out = Command::new(BIN)
         .arg("run")
@@ -249,7 +231,7 @@ fn summary_events(out: &std::process::Output) -> Vec<(String, String)> {
 
 #[test]
 fn the_analysis_gate_reports_at_load_and_refuses_a_deadlocking_package_when_told_to() {
-    let demo = demo_files();
+    let demo = demo_files(BIN);
     let d = demo.path();
     // U.1 without T24: machine 2's part is never unloaded, and the cell comes to a dead stop.
     let net = std::fs::read_to_string(d.join("u1.pnml")).expect("u1.pnml");
@@ -347,7 +329,7 @@ fn the_analysis_gate_reports_at_load_and_refuses_a_deadlocking_package_when_told
 #[test]
 fn twin_validation_gives_verdicts_in_quarantine_and_probation_and_require_verdict_holds_substitution(
 ) {
-    let demo = demo_files();
+    let demo = demo_files(BIN);
     let d = demo.path();
     let config = |name: &str, text: &str| {
         let dir = d.join(name);

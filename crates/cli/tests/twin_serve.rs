@@ -7,20 +7,10 @@ use std::time::Duration;
 use cetratus_testkit::modbus::client as peer;
 use cetratus_testkit::paths::example;
 use cetratus_testkit::ports::{free_port, wait_for_port};
-use cetratus_testkit::process::ChildGuard;
+use cetratus_testkit::process::{json_of, ChildGuard};
 use serde_json::Value;
 
 const BIN: &str = env!("CARGO_BIN_EXE_cetratus");
-
-/// Waits for a guarded process and parses the JSON it printed.
-fn json_of(mut child: ChildGuard) -> Value {
-    let mut text = String::new();
-    if let Some(mut out) = child.0.stdout.take() {
-        std::io::Read::read_to_string(&mut out, &mut text).expect("read stdout");
-    }
-    let _ = child.0.wait();
-    serde_json::from_str(&text).unwrap_or_else(|e| panic!("not JSON ({e}): {text}"))
-}
 
 #[test]
 fn twin_serve_prints_the_addresses_the_example_program_declares() {

@@ -151,3 +151,32 @@ pub fn stop_with_sigterm(mut plc: ChildGuard) -> serde_json::Value {
     assert!(status.success(), "the PLC failed:\n{err}");
     serde_json::from_str(&out).unwrap_or_else(|e| panic!("not JSON ({e}): {out}\n{err}"))
 }
+
+/// Waits for a guarded process and parses the JSON it printed.
+pub fn json_of(mut child: ChildGuard) -> serde_json::Value {
+    let mut text = String::new();
+    if let Some(mut out) = child.0.stdout.take() {
+        std::io::Read::read_to_string(&mut out, &mut text).expect("read stdout");
+    }
+    let _ = child.0.wait();
+    serde_json::from_str(&text).unwrap_or_else(|e| panic!("not JSON ({e}): {text}"))
+}
+
+/// The demo's files as `cetratus demo --scripted` (the binary `bin`) writes them: the program,
+/// U.1 and U.2 signed, the key that signed them, and an empty configuration directory
+/// (`config/`), so that the machine's own configuration plays no part.
+pub fn demo_files(bin: &str) -> tempfile::TempDir {
+    let dir = tempfile::tempdir().expect("a temporary directory");
+    std::fs::create_dir(dir.path().join("config")).expect("a configuration directory");
+    let out = Command::new(bin)
+        .args(["demo", "--scripted", "--json", "--dir"])
+        .arg(dir.path())
+        .output()
+        .expect("cetratus demo runs");
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    dir
+}

@@ -339,6 +339,31 @@ impl<const W: usize> Compiled<W> {
         })
     }
 
+    /// Whether `key` passes every test of `tests`, all of them evaluated (no branch per test,
+    /// whose outcome would be random from one key to the next).
+    #[inline(always)]
+    fn passes(tests: &[Test], key: &[u64; W]) -> bool {
+        tests.iter().fold(true, |ok, x| {
+            let v = (key[x.word as usize] >> x.shift) & x.mask;
+            ok & (v >= x.lo) & (v <= x.hi)
+        })
+    }
+
+    /// [`Compiled::unfire`] without a branch on the outcome: the state from which firing `t`
+    /// gives `key`, and whether it exists (when not, the state returned means nothing).
+    #[inline(always)]
+    fn unfire_unchecked(&self, key: &[u64; W], t: usize) -> ([u64; W], bool) {
+        let (a, b) = (self.roffsets[t] as usize, self.roffsets[t + 1] as usize);
+        let inside = Self::passes(&self.rtests[a..b], key);
+        let mut out = *key;
+        let (s, ad) = (&self.sub[t], &self.add[t]);
+        for i in 0..W {
+            out[i] = out[i].wrapping_sub(ad[i]).wrapping_add(s[i]);
+        }
+        let (a, b) = (self.offsets[t] as usize, self.offsets[t + 1] as usize);
+        (out, inside & Self::passes(&self.tests[a..b], &out))
+    }
+
     /// The state from which firing `t` gives `key`, if `t` is enabled there.
     #[inline(always)]
     fn unfire(&self, key: &[u64; W], t: usize) -> Option<[u64; W]> {
@@ -370,7 +395,25 @@ impl<const W: usize> Compiled<W> {
     }
 }
 
+/// Asks the CPU to start loading the cache line of `p`, without waiting for it.
+#[allow(unsafe_code)]
+#[inline(always)]
+pub(super) fn prefetch<T>(p: &T) {
+    #[cfg(target_arch = "x86_64")]
+    // SAFETY: a prefetch is a hint that never faults and changes nothing the program computes;
+    // `p` is a valid reference besides.
+    unsafe {
+        use std::arch::x86_64::{_mm_prefetch, _MM_HINT_T0};
+        _mm_prefetch::<_MM_HINT_T0>((p as *const T).cast::<i8>());
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    std::hint::black_box(p);
+}
+
 const CHUNK_BITS: u32 = 16;
+
+/// States whose successors the exploration generates and starts loading ahead of their turn.
+const AHEAD: usize = 4;
 
 /// The bytes an exploration holds once `n` new states are added: the table (old and new while it
 /// doubles), the states and their parents, and the chunks that the new states may open.
@@ -487,11 +530,11 @@ impl<const W: usize> Table<W> {
         }
     }
 
-    /// Starts loading the first slot of a key's probe sequence. The loads of one state's
-    /// successors are independent, so the CPU overlaps their cache misses.
+    /// Starts loading the first slot of a key's probe sequence (a prefetch: nothing waits for
+    /// it), so that the cache misses of the lookups to come overlap.
     #[inline(always)]
     fn touch(&self, h: u64) {
-        std::hint::black_box(self.slots[h as usize & (self.slots.len() - 1)][0]);
+        prefetch(&self.slots[h as usize & (self.slots.len() - 1)]);
     }
 
     /// Inserts the key whose hash is `h`; true when it was new. Call [`Table::reserve`] first.
@@ -664,7 +707,12 @@ fn explore_w<const W: usize>(net: &Net, pk: &Packing, opts: &ReachOptions) -> Re
     };
     observe(&k0);
     let mut enabled_ever = vec![false; nt];
-    let mut batch: Vec<([u64; W], u64)> = Vec::with_capacity(nt);
+    // The successors of the states being expanded next, at most AHEAD of them, generated and
+    // their slots loading before this state's inserts wait for their own: the cache misses of
+    // several states overlap.
+    let mut ring: Vec<Vec<([u64; W], u64)>> = (0..AHEAD).map(|_| Vec::with_capacity(nt)).collect();
+    // The states whose successors the ring holds: `cur..prepared`.
+    let mut prepared = 0usize;
     let (mut edges, mut deadlocks) = (0u64, 0u64);
     let mut first_dead: Option<usize> = None;
     let mut stopped = None;
@@ -675,17 +723,15 @@ fn explore_w<const W: usize>(net: &Net, pk: &Packing, opts: &ReachOptions) -> Re
             stopped = Some(s);
             break;
         }
-        let key = states.get(cur);
-        let mut any = false;
-        batch.clear();
-        for (t, ever) in enabled_ever.iter_mut().enumerate() {
-            if code.enabled(&key, t) {
-                any = true;
-                *ever = true;
-                let succ = code.fire(&key, t);
-                batch.push((succ, hash(&succ)));
+        while prepared < states.len && prepared < cur + AHEAD {
+            let out = &mut ring[prepared % AHEAD];
+            successors(&code, &states.get(prepared), &mut enabled_ever, out);
+            for &(_, h) in out.iter() {
+                table.touch(h);
             }
+            prepared += 1;
         }
+        let batch = &ring[cur % AHEAD];
         // Counted before anything grows: the table (old and new while it doubles) and the
         // chunks that this state's successors may open.
         let need = bytes_to_add(&table, &states, &parents, batch.len());
@@ -696,10 +742,7 @@ fn explore_w<const W: usize>(net: &Net, pk: &Packing, opts: &ReachOptions) -> Re
         peak_bytes = peak_bytes.max(need);
         edges += batch.len() as u64;
         table.reserve(batch.len());
-        for &(_, h) in &batch {
-            table.touch(h);
-        }
-        for (succ, h) in &batch {
+        for (succ, h) in batch {
             if table.insert_hashed(succ, *h) {
                 if states.len as u64 >= max_states {
                     // One state too many: the run is partial; the expansion of this state stops.
@@ -711,7 +754,7 @@ fn explore_w<const W: usize>(net: &Net, pk: &Packing, opts: &ReachOptions) -> Re
                 observe(succ);
             }
         }
-        if !any {
+        if batch.is_empty() {
             deadlocks += 1;
             first_dead.get_or_insert(cur);
         }
@@ -742,6 +785,24 @@ fn explore_w<const W: usize>(net: &Net, pk: &Packing, opts: &ReachOptions) -> Re
         liveness_stopped,
         peak_bytes: peak_bytes.max(scc_bytes),
         bits_per_state: pk.bits,
+    }
+}
+
+/// The successors of `key` with their hashes, into `out`; marks the transitions enabled there.
+#[inline(always)]
+fn successors<const W: usize>(
+    code: &Compiled<W>,
+    key: &[u64; W],
+    enabled_ever: &mut [bool],
+    out: &mut Vec<([u64; W], u64)>,
+) {
+    out.clear();
+    for (t, ever) in enabled_ever.iter_mut().enumerate() {
+        if code.enabled(key, t) {
+            *ever = true;
+            let succ = code.fire(key, t);
+            out.push((succ, hash(&succ)));
+        }
     }
 }
 

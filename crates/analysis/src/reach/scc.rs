@@ -4,21 +4,21 @@
 //! packed states and BFS parents of the exploration are already freed.
 //!
 //! First a backward search from M0 over the implicit graph: predecessors are recomputed by undoing
-//! each transition (a range test per field it changes, then the forward enabling test) and looked
-//! up in the table. On one thread the lookups go by batches: the predecessors of many queued states
-//! are generated together, radix-sorted by home slot and looked up in that order, so that they
-//! sweep the table instead of missing the cache at random (as in a radix-partitioned hash join);
-//! the slots found come out nearly in order too, so the keys of the next batch load in a sweep.
-//! With two threads the search goes by layers, the lookups of one state's predecessors
+//! each transition (a range test per field it changes, then the forward enabling test, evaluated
+//! without a branch per test) and looked up in the table. On one thread the predecessors of many
+//! queued states are generated together and looked up in turn, each lookup starting the load of
+//! the home slot of the one [`AHEAD`] places further on (a prefetch), so that the cache misses
+//! overlap instead of waiting one after the other; the keys of the queued states load the same
+//! way. With two threads the search goes by layers, the lookups of one state's predecessors
 //! overlapped. If every state reaches M0, the graph is one strongly connected component: the net
-//! is reversible, and live exactly when every transition is enabled somewhere. This is the common case of a plant model, and it costs
-//! one lookup per edge, stopping as soon as every state is found. Otherwise an iterative Tarjan
-//! (explicit frames, no recursion) finds the terminal components.
+//! is reversible, and live exactly when every transition is enabled somewhere. This is the common
+//! case of a plant model, and it costs one lookup per edge, stopping as soon as every state is
+//! found. Otherwise an iterative Tarjan (explicit frames, no recursion) finds the terminal
+//! components.
 //!
 //! Memory, all counted: the table, a bit per slot, a queue of 4 bytes per state and, on one
-//! thread, the batch and its sorted copy (at most a quarter of the slots each, so at most half
-//! the table's bytes) for the backward search; for Tarjan two `u32` per slot, two bits per slot,
-//! and its stacks.
+//! thread, a batch of [`BATCH`] predecessors for the backward search; for Tarjan two `u32` per
+//! slot, two bits per slot, and its stacks.
 
 use super::{hash, Compiled, Liveness, ReachOptions, Stop, Table};
 use cetratus_net::TransIdx;
@@ -26,10 +26,10 @@ use cetratus_net::TransIdx;
 const NONE: u32 = u32::MAX;
 
 /// Predecessors looked up together by the backward search on one thread, at most.
-const BATCH: usize = 1 << 20;
+const BATCH: usize = 1 << 16;
 
-/// The bits of a digit of the radix sort of a batch by home slot.
-const DIGIT_BITS: usize = 11;
+/// How many loads ahead the backward search starts loading a slot: enough to cover a miss.
+const AHEAD: usize = 64;
 
 fn bit(v: &[u64], i: usize) -> bool {
     v[i >> 6] >> (i & 63) & 1 == 1
@@ -86,25 +86,17 @@ fn reaches_root<const W: usize>(
     }
     let cap = table.slots.len();
     let nt = code.offsets.len() - 1;
-    // The batch of predecessors and its sorted copy: at most a quarter of the slots, so at most
-    // half the table's bytes for both.
-    let batch_cap = (cap / 4).min(BATCH).max(nt.max(1));
-    let per_batch = batch_cap / nt.max(1);
-    let batch_bytes = (2 * batch_cap + per_batch) * 8 * W + ((1 << DIGIT_BITS) + 1) * 8;
-    let bytes = table.bytes() + cap.div_ceil(64) * 8 + (states + 1) * 4 + batch_bytes;
+    let (per_batch, batch_cap) = batch_sizes(nt, states);
+    let bytes =
+        table.bytes() + cap.div_ceil(64) * 8 + (states + 1) * 4 + (batch_cap + per_batch) * 8 * W;
     opts.within_memory(bytes).map_err(|s| (s, bytes))?;
     let mut seen = vec![0u64; cap.div_ceil(64)];
     // Every state once, and one place past the last for the write that keeps nothing.
     let mut queue: Vec<u32> = vec![0; states + 1];
-    let mut batch: Vec<[u64; W]> = Vec::with_capacity(batch_cap);
-    let mut parted: Vec<[u64; W]> = Vec::with_capacity(batch_cap);
-    let mut starts = vec![0usize; (1 << DIGIT_BITS) + 1];
+    // At its full length; `n` says how much of it a round holds, so that a predecessor is
+    // written whether or not it exists and kept only when it does, without a branch.
+    let mut batch: Vec<[u64; W]> = vec![[0; W]; batch_cap];
     let mut keys: Vec<[u64; W]> = Vec::with_capacity(per_batch);
-    let mask = cap - 1;
-    let bits = cap.trailing_zeros() as usize;
-    let passes = bits.div_ceil(DIGIT_BITS).max(1);
-    let width = bits.div_ceil(passes);
-    let radix = 1usize << width;
     set(&mut seen, root);
     queue[0] = root as u32;
     let mut found = 1;
@@ -113,53 +105,75 @@ fn reaches_root<const W: usize>(
         if let Some(s) = opts.interrupted() {
             return Err((s, bytes));
         }
-        // The predecessors of as many queued states as the batch holds: the queue's slots come
-        // mostly in increasing order (they were found in slot order), so their keys load in a
-        // sweep of the table.
-        batch.clear();
         let end = found.min(head + per_batch);
-        keys.clear();
-        keys.extend(queue[head..end].iter().map(|&s| table.slots[s as usize]));
+        gather(
+            table,
+            &queue[head..found.min(end + AHEAD)],
+            end - head,
+            &mut keys,
+        );
         head = end;
-        for key in &keys {
-            for t in 0..nt {
-                if let Some(u) = code.unfire(key, t) {
-                    batch.push(u);
-                }
-            }
-        }
-        // Sorted by home slot (a radix sort, least significant digit first), so that the
-        // lookups below sweep the table in order instead of jumping around it.
-        for pass in 0..passes {
-            let sh = pass * width;
-            starts.iter_mut().for_each(|c| *c = 0);
-            for u in &batch {
-                starts[((hash(u) as usize & mask) >> sh & (radix - 1)) + 1] += 1;
-            }
-            for b in 0..radix {
-                starts[b + 1] += starts[b];
-            }
-            parted.clear();
-            parted.resize(batch.len(), [0; W]);
-            for u in &batch {
-                let b = (hash(u) as usize & mask) >> sh & (radix - 1);
-                parted[starts[b]] = *u;
-                starts[b] += 1;
-            }
-            std::mem::swap(&mut batch, &mut parted);
-        }
-        for u in &batch {
-            if let Some(s) = table.slot_of(u, hash(u)) {
-                // Without a branch on `seen`, whose outcome is random: the slot is written
-                // past the queue's end and kept only when it is new.
-                let new = !bit(&seen, s);
-                set(&mut seen, s);
-                queue[found] = s as u32;
-                found += new as usize;
-            }
-        }
+        each_predecessor(code, table, &keys, &mut batch, |s| {
+            // Without a branch on `seen`, whose outcome is random: the slot is written past the
+            // queue's end and kept only when it is new.
+            let new = !bit(&seen, s);
+            set(&mut seen, s);
+            queue[found] = s as u32;
+            found += new as usize;
+        });
     }
     Ok((found == states, bytes))
+}
+
+/// How many of `states` queued states the backward search takes at a time, and the
+/// predecessors they may have (a slot per transition each).
+fn batch_sizes(nt: usize, states: usize) -> (usize, usize) {
+    let per_batch = (BATCH / nt.max(1)).clamp(1, states.max(1));
+    (per_batch, per_batch * nt.max(1))
+}
+
+/// The keys of the first `n` of `slots` into `keys` (cleared), the slots loading [`AHEAD`]
+/// places ahead (`slots` may run past `n` so that the last ones load ahead too).
+fn gather<const W: usize>(table: &Table<W>, slots: &[u32], n: usize, keys: &mut Vec<[u64; W]>) {
+    keys.clear();
+    for (i, &s) in slots[..n].iter().enumerate() {
+        if let Some(&next) = slots.get(i + AHEAD) {
+            super::prefetch(&table.slots[next as usize]);
+        }
+        keys.push(table.slots[s as usize]);
+    }
+}
+
+/// Calls `found` with the slot of every predecessor of every key in `keys` (with repeats), in
+/// turn: the predecessors are generated into `batch` (which holds `keys.len()` times the
+/// transitions), then looked up, each lookup starting the load of the home slot [`AHEAD`]
+/// lookups further on.
+fn each_predecessor<const W: usize>(
+    code: &Compiled<W>,
+    table: &Table<W>,
+    keys: &[[u64; W]],
+    batch: &mut [[u64; W]],
+    mut found: impl FnMut(usize),
+) {
+    let nt = code.offsets.len() - 1;
+    // Written whether or not the predecessor exists, kept only when it does: no branch.
+    let mut n = 0;
+    for key in keys {
+        for t in 0..nt {
+            let (u, ok) = code.unfire_unchecked(key, t);
+            batch[n] = u;
+            n += ok as usize;
+        }
+    }
+    let batch = &batch[..n];
+    for (i, u) in batch.iter().enumerate() {
+        if let Some(v) = batch.get(i + AHEAD) {
+            table.touch(hash(v));
+        }
+        if let Some(s) = table.slot_of(u, hash(u)) {
+            found(s);
+        }
+    }
 }
 
 /// Layers of a frontier below this size are searched on one thread.
@@ -173,27 +187,23 @@ fn predecessors<const W: usize>(
     frontier: &[u32],
     seen: &[u64],
 ) -> Vec<u32> {
-    let nt = code.offsets.len() - 1;
+    let (per_batch, batch_cap) = batch_sizes(code.offsets.len() - 1, frontier.len());
     let mut out = Vec::with_capacity(frontier.len());
-    let mut batch: Vec<([u64; W], u64)> = Vec::with_capacity(nt);
-    for &slot in frontier {
-        let key = table.slots[slot as usize];
-        batch.clear();
-        for t in 0..nt {
-            if let Some(u) = code.unfire(&key, t) {
-                batch.push((u, hash(&u)));
+    let mut batch: Vec<[u64; W]> = vec![[0; W]; batch_cap];
+    let mut keys: Vec<[u64; W]> = Vec::with_capacity(per_batch);
+    for (i, part) in frontier.chunks(per_batch).enumerate() {
+        let ahead = frontier.len().min(i * per_batch + part.len() + AHEAD);
+        gather(
+            table,
+            &frontier[i * per_batch..ahead],
+            part.len(),
+            &mut keys,
+        );
+        each_predecessor(code, table, &keys, &mut batch, |s| {
+            if !bit(seen, s) {
+                out.push(s as u32);
             }
-        }
-        for &(_, h) in &batch {
-            table.touch(h);
-        }
-        for (u, h) in &batch {
-            if let Some(s) = table.slot_of(u, *h) {
-                if !bit(seen, s) {
-                    out.push(s as u32);
-                }
-            }
-        }
+        });
     }
     out
 }
@@ -208,9 +218,14 @@ fn reaches_root_layered<const W: usize>(
     opts: &ReachOptions,
 ) -> Counted<bool> {
     let cap = table.slots.len();
-    // The frontier and the next one hold at most every state once (4 bytes each); the threads'
-    // outputs, repeats included, are counted as they come.
-    let fixed = table.bytes() + cap.div_ceil(64) * 8 + states * 4;
+    // The frontier and the next one hold at most every state once (4 bytes each), and each
+    // thread its keys and predecessors; the threads' outputs, repeats included, are counted as
+    // they come.
+    let (per_batch, batch_cap) = batch_sizes(code.offsets.len() - 1, states);
+    let fixed = table.bytes()
+        + cap.div_ceil(64) * 8
+        + states * 4
+        + opts.threads.max(1) * (per_batch + batch_cap) * 8 * W;
     opts.within_memory(fixed).map_err(|s| (s, fixed))?;
     let mut peak = fixed;
     let mut seen = vec![0u64; cap.div_ceil(64)];

@@ -46,7 +46,7 @@ const OUTBOX_BYTES: usize = 64 << 20;
 const MIN_PARALLEL: usize = 1 << 11;
 
 /// Successors handled ahead of the one being inserted, so that their cache misses overlap.
-const AHEAD: usize = 8;
+const AHEAD: usize = 32;
 
 /// A new state with its discoverer.
 type Found<const W: usize> = (u64, [u64; W]);

@@ -114,6 +114,8 @@ pub struct Builder {
     pub send_timeout: Duration,
     /// Maximum messages queued per client
     pub max_mqueue_len: usize,
+    /// cetratus: bytes of messages handed to one session and not yet taken by it (usize::MAX: unbounded)
+    pub max_session_inbox_bytes: usize, // cetratus: the session inbox's budget, read by rmqtt's SessionTx
     /// Rate limiting for message delivery (messages per duration)
     pub mqueue_rate_limit: (NonZeroU32, Duration),
     /// Maximum length of client identifiers
@@ -212,6 +214,7 @@ impl Builder {
             handshake_timeout: Duration::from_secs(30),
             send_timeout: Duration::from_secs(10),
             max_mqueue_len: 1000,
+            max_session_inbox_bytes: usize::MAX, // cetratus: unbounded, as before the patch
 
             mqueue_rate_limit: (nonzero!(u32::MAX), Duration::from_secs(1)),
             max_clientid_len: 65535,
@@ -350,6 +353,12 @@ impl Builder {
         self.max_mqueue_len = max_mqueue_len;
         self
     }
+
+    /// cetratus: bounds, in bytes, the messages handed to one session and not yet taken by it
+    pub fn max_session_inbox_bytes(mut self, bytes: usize) -> Self { // cetratus: the setter, as max_mqueue_len's
+        self.max_session_inbox_bytes = bytes; // cetratus: the setter's body
+        self // cetratus: the setter's body
+    } // cetratus: the setter's end
 
     /// Sets message rate limiting parameters
     pub fn mqueue_rate_limit(mut self, rate_limit: NonZeroU32, duration: Duration) -> Self {

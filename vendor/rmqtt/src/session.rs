@@ -145,7 +145,8 @@ impl SessionState {
             tx,
             #[cfg(feature = "debug")]
             session.scx.clone(),
-        );
+        ) // cetratus: the statement goes on below
+        .with_inbox_budget(session.listen_cfg().max_session_inbox_bytes); // cetratus: the inbox bounded in bytes, as the listener says
         let scx = session.scx.clone();
         let max_inflight = session.listen_cfg().max_inflight;
         Self {
@@ -366,6 +367,7 @@ impl SessionState {
                 msg = state.rx.next() => {
                     log::debug!("{:?} msg: {:?}", state.id, msg);
                     if let Some(msg) = msg {
+                        state.tx.inbox_taken(&msg); // cetratus: out of the inbox, its bytes given back
                         #[cfg(feature = "debug")]
                         state.scx.stats.debug_session_channels.dec();
                         state.process_message(sink, msg, deliver_queue_tx, flags).await?;
@@ -417,6 +419,7 @@ impl SessionState {
                 msg = self.rx.next() => {
                     log::debug!("{:?} recv offline msg: {:?}", self.id, msg);
                     if let Some(msg) = msg {
+                        self.tx.inbox_taken(&msg); // cetratus: out of the inbox, its bytes given back
                         match msg {
                             Message::Forward(from, p) => {
 
@@ -1657,7 +1660,9 @@ impl SessionState {
 
     #[inline]
     pub(crate) async fn forward(&self, from: From, p: Publish) {
-        let res = if let Err(e) = self.tx.unbounded_send(Message::Forward(from, p)) {
+        let res = if let Err(reason) = self.tx.inbox_charge(&p) { // cetratus: over the inbox's budget: not sent, dropped below
+            Err((from, p, reason)) // cetratus: to the message_dropped hook with Reason::SessionInboxFull
+        } else if let Err(e) = self.tx.unbounded_send(Message::Forward(from, p)) { // cetratus: `} else` added before rmqtt's line
             if let Message::Forward(from, p) = e.into_inner() {
                 Err((from, p, Reason::from("Send Publish message error, Tx is closed")))
             } else {

@@ -460,6 +460,9 @@ impl Entry for LockEntry {
             log::warn!("{:?} forward, from:{:?}, error: Tx is None", self.id, from);
             return Err((from, p, Reason::from_static("Tx is None")));
         };
+        if let Err(reason) = tx.inbox_charge(&p) { // cetratus: over the session inbox's budget: not sent
+            return Err((from, p, reason)); // cetratus: the caller hands it to the message_dropped hook
+        } // cetratus: end of the budget check
         if let Err(e) = tx.unbounded_send(Message::Forward(from, p)) {
             log::warn!("{:?} forward, error: {:?}", self.id, e);
             if let Message::Forward(from, p) = e.into_inner() {
@@ -739,6 +742,10 @@ impl Shared for DefaultShared {
                 continue;
             };
 
+            if let Err(reason) = tx.inbox_charge(&p) { // cetratus: over the session inbox's budget: not sent
+                errs.push((to, from.clone(), p, reason)); // cetratus: the caller hands it to the message_dropped hook
+                continue; // cetratus: on to the next subscriber
+            } // cetratus: end of the budget check
             if let Err(e) = tx.unbounded_send(Message::Forward(from.clone(), p)) {
                 log::warn!(
                     "forwards_to failed, from:{:?}, to:{:?}, topic_filter:{:?}, topic:{:?}, reason:{:?}",

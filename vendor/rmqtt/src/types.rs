@@ -8,6 +8,7 @@ use std::mem::{size_of, size_of_val};
 use std::net::SocketAddr;
 use std::num::{NonZeroU16, NonZeroU32};
 use std::ops::{Deref, DerefMut};
+use std::sync::atomic::{AtomicUsize, Ordering::{AcqRel, Acquire}}; // cetratus: the session inbox's byte count
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
@@ -108,11 +109,17 @@ pub type ListenerId = u16;
 
 pub(crate) const UNDEFINED: &str = "undefined";
 
+/// cetratus: what a message costs in a session's inbox beside its payload and topic: the channel's
+/// cetratus: node, the `Message`, the boxed codec `Publish` and its properties, rounded up.
+pub const INBOX_MESSAGE_OVERHEAD: usize = 512; // cetratus: the fixed part of a Forward's cost
+
 #[derive(Clone)]
 pub struct SessionTx {
     #[cfg(feature = "debug")]
     scx: ServerContext,
     tx: futures::channel::mpsc::UnboundedSender<Message>,
+    inbox: Arc<AtomicUsize>, // cetratus: bytes of Forward messages sent and not yet taken, shared by the clones
+    inbox_budget: usize, // cetratus: the most `inbox` may hold (Builder::max_session_inbox_bytes)
 }
 
 impl SessionTx {
@@ -124,8 +131,42 @@ impl SessionTx {
             tx,
             #[cfg(feature = "debug")]
             scx,
+            inbox: Arc::default(), // cetratus: an empty inbox
+            inbox_budget: usize::MAX, // cetratus: unbounded until with_inbox_budget
         }
     }
+
+    /// cetratus: bounds the bytes of Forward messages sent to this session and not yet taken
+    pub fn with_inbox_budget(mut self, bytes: usize) -> Self { // cetratus: set where the channel is made
+        self.inbox_budget = bytes; // cetratus: see with_inbox_budget
+        self // cetratus: see with_inbox_budget
+    } // cetratus: end of with_inbox_budget
+
+    /// cetratus: what a Forward of `p` costs in the inbox: payload, topic and a fixed overhead
+    pub fn inbox_cost(p: &Publish) -> usize { // cetratus: one definition for charge and release
+        p.payload.len() + p.topic.len() + INBOX_MESSAGE_OVERHEAD // cetratus: see inbox_cost
+    } // cetratus: end of inbox_cost
+
+    /// cetratus: books a Forward of `p` in the inbox before it is sent; over the budget it is not
+    /// cetratus: booked and must not be sent: the reason goes to the message_dropped hook. A send
+    /// cetratus: that then fails needs no release: the channel is closed, and its count with it.
+    pub fn inbox_charge(&self, p: &Publish) -> std::result::Result<(), Reason> { // cetratus: see above
+        let (cost, budget) = (Self::inbox_cost(p), self.inbox_budget); // cetratus: what it costs, what fits
+        let fits = |held: usize| held.checked_add(cost).filter(|after| *after <= budget); // cetratus: checked and added in one atomic step, so that concurrent senders cannot pass the budget together
+        self.inbox.fetch_update(AcqRel, Acquire, fits).map(drop).map_err(|_| Reason::SessionInboxFull) // cetratus: the reason the hook is given
+    } // cetratus: end of inbox_charge
+
+    /// cetratus: gives back what `msg` was charged when the session's loop takes it out of the inbox
+    pub fn inbox_taken(&self, msg: &Message) { // cetratus: called at every rx.next() of the session
+        if let Message::Forward(_, p) = msg { // cetratus: control messages are never charged
+            self.inbox.fetch_sub(Self::inbox_cost(p), AcqRel); // cetratus: see inbox_taken
+        } // cetratus: see inbox_taken
+    } // cetratus: end of inbox_taken
+
+    /// cetratus: bytes of Forward messages sent to this session and not yet taken
+    pub fn inbox_bytes(&self) -> usize { // cetratus: for tests and metrics
+        self.inbox.load(Acquire) // cetratus: see inbox_bytes
+    } // cetratus: end of inbox_bytes
 
     #[inline]
     pub fn is_closed(&self) -> bool {
@@ -2355,6 +2396,7 @@ pub enum Reason {
     Reasons(Vec<Reason>),
     #[default]
     Unknown,
+    SessionInboxFull, // cetratus: a Forward over the session's inbox budget (last, so serialised indices stay)
 }
 
 impl Reason {
@@ -2391,6 +2433,13 @@ impl std::convert::From<Reason> for PublishResult {
                 reason_string: Some("Message queue full".into()),
                 disconnect: false,
             },
+
+            SessionInboxFull => Self { // cetratus: as MessageQueueFull
+                reason_code: QuotaExceeded, // cetratus: as MessageQueueFull
+                properties: UserProperties::default(), // cetratus: as MessageQueueFull
+                reason_string: Some("Session inbox full".into()), // cetratus: as MessageQueueFull
+                disconnect: false, // cetratus: as MessageQueueFull
+            }, // cetratus: as MessageQueueFull
 
             InflightWindowFull => Self {
                 reason_code: QuotaExceeded,
@@ -2511,6 +2560,7 @@ impl ToReasonCode for Reason {
             Reason::DelayedPublishRefused => DisconnectReasonCode::NotAuthorized,
             Reason::MessageExpiration => DisconnectReasonCode::MessageRateTooHigh,
             Reason::MessageQueueFull => DisconnectReasonCode::QuotaExceeded,
+            Reason::SessionInboxFull => DisconnectReasonCode::QuotaExceeded, // cetratus: as MessageQueueFull
             Reason::InflightWindowFull => DisconnectReasonCode::ReceiveMaximumExceeded,
             Reason::ProtocolError(_) => DisconnectReasonCode::ProtocolError,
             Reason::Error(_) => DisconnectReasonCode::UnspecifiedError,
@@ -2598,6 +2648,7 @@ impl Display for Reason {
                 "MessageQueueFull" //message deliver queue is full
             }
             Reason::InflightWindowFull => "Inflight window is full",
+            Reason::SessionInboxFull => "SessionInboxFull: the session's inbox is over max_session_inbox_bytes", // cetratus: the hook's reason
             Reason::Error(r) => r,
             Reason::MqttError(e) => &e.to_string(),
             Reason::ProtocolError(r) => return write!(f, "ProtocolError({r})"),

@@ -8,12 +8,18 @@
 //! `run`), which log in with secrets drawn at start. The ACL and the logins apply on both.
 //!
 //! It runs inside the PLC's process, so what it keeps for others is the PLC's memory: retained
-//! messages are bounded in bytes ([`RETAINED_BYTES`]), the messages queued for a slow subscriber
-//! in count ([`SESSION_QUEUE`], [`SESSION_INFLIGHT`]), the clients in number ([`MAX_CLIENTS`]),
-//! and what others publish in bytes per second ([`INGRESS_BYTES_PER_S`]): rmqtt hands a message
-//! to each subscriber's session through an unbounded channel, so a subscriber that reads slower
-//! than others publish (the PLC parsing 1 MiB commands, the dashboard parsing events) would have
-//! the difference kept here. The PLC's own client is not limited: what it publishes is its own.
+//! messages are bounded in bytes ([`RETAINED_BYTES`]), the messages handed to one subscriber's
+//! session and not yet taken by it in bytes ([`SESSION_INBOX_BYTES`]), the messages queued
+//! behind that for a slow subscriber in count ([`SESSION_QUEUE`], [`SESSION_INFLIGHT`]), the
+//! clients in number ([`MAX_CLIENTS`]), and what others publish in bytes per second
+//! ([`INGRESS_BYTES_PER_S`]). The PLC's own client is not limited: what it publishes is its own.
+//!
+//! rmqtt hands each message for a subscriber to the subscriber's session through a channel that
+//! rmqtt leaves unbounded, so a subscriber that reads just fast enough never to hit the send
+//! timeout would have everything published meanwhile kept here. The workspace builds rmqtt from
+//! a patched copy (`vendor/rmqtt`, `vendor/README.md`) that counts the bytes in that channel per
+//! session and hands a message that would pass [`SESSION_INBOX_BYTES`] to the `message_dropped`
+//! hook instead of the channel; [`Drops`] counts and logs them.
 //!
 //! An account's password is checked with argon2 on one blocking thread at a time, at most
 //! [`LOGINS_PER_S`] a second: a flood of wrong passwords costs a core at most and never the
@@ -50,6 +56,21 @@ pub const RETAINED_BYTES: usize = 32 << 20;
 /// Messages queued for one subscriber that does not read fast enough (rmqtt's default is 1000:
 /// 4 GB of 4 MiB messages); past it the broker drops them for that subscriber.
 pub const SESSION_QUEUE: usize = 64;
+
+/// Bytes of messages handed to one subscriber's session and not yet taken by the session's task
+/// (payload, topic and rmqtt's fixed overhead of 512 bytes a message); past it a message is
+/// dropped for that subscriber and counted ([`Drops`]). Four full packets ([`BROKER_MAX_PACKET`]):
+/// * every message fits in an empty inbox, since the broker takes no larger packet from anyone,
+///   the PLC included: a full 1 MiB command, and a larger one that earns `too_large`;
+/// * the two subscribers in the PLC's process, its own client (commands) and its dashboard
+///   (everything the PLCs publish), read faster than others may publish
+///   ([`INGRESS_BYTES_PER_S`]), so their inboxes hold at most what others send at once
+///   ([`INGRESS_BURST`], two packets) plus what arrives while the session writes one message
+///   (less than two more): they lose nothing to this bound while they keep up;
+/// * a subscriber that reads slowly costs the PLC at most this (and its queue behind it,
+///   [`SESSION_QUEUE`]), however long others publish. Payloads are shared between sessions, so
+///   many slow subscribers of the same messages cost little more than one.
+pub const SESSION_INBOX_BYTES: usize = 4 * BROKER_MAX_PACKET as usize;
 
 /// QoS 1 and 2 messages in flight to one subscriber (rmqtt's default).
 pub const SESSION_INFLIGHT: u16 = 16;
@@ -154,6 +175,46 @@ impl Handler for Ingress {
             }
             _ => (true, acc),
         }
+    }
+}
+
+/// Counts the messages the broker dropped for one subscriber, by cause, and logs each cause on
+/// its 1st, 2nd, 4th… occurrence: a session inbox over [`SESSION_INBOX_BYTES`], or a deliver
+/// queue over [`SESSION_QUEUE`].
+#[derive(Default)]
+struct Drops {
+    inbox_full: AtomicU64,
+    queue_full: AtomicU64,
+}
+
+#[async_trait]
+impl Handler for Drops {
+    async fn hook(&self, param: &Parameter, acc: Option<HookResult>) -> ReturnType {
+        let Parameter::MessageDropped(to, _, publish, reason) = param else {
+            return (true, acc);
+        };
+        let (counter, limit) = match reason {
+            rmqtt::types::Reason::SessionInboxFull => {
+                (&self.inbox_full, "its session's inbox (SESSION_INBOX_BYTES)")
+            }
+            rmqtt::types::Reason::MessageQueueFull => {
+                (&self.queue_full, "its deliver queue (SESSION_QUEUE)")
+            }
+            _ => return (true, acc),
+        };
+        let n = counter.fetch_add(1, Ordering::Relaxed) + 1;
+        if crate::budget::worth_logging(n) {
+            let subscriber = to.as_ref().map(|id| id.client_id.to_string());
+            tracing::warn!(
+                topic = %publish.topic,
+                bytes = publish.payload.len(),
+                subscriber = subscriber.as_deref().unwrap_or("?"),
+                dropped = n,
+                "a subscriber of the embedded broker reads slower than others publish; a message \
+                 for it was dropped: {limit} is full"
+            );
+        }
+        (true, acc)
     }
 }
 
@@ -370,6 +431,7 @@ async fn listener(
         .reuseaddr(Some(true))
         .max_packet_size(BROKER_MAX_PACKET)
         .max_mqueue_len(SESSION_QUEUE)
+        .max_session_inbox_bytes(SESSION_INBOX_BYTES)
         .max_inflight(NonZeroU16::new(SESSION_INFLIGHT).unwrap_or(NonZeroU16::MIN))
         .max_connections(MAX_CLIENTS)
         .handshake_timeout(Duration::from_secs(10))
@@ -467,6 +529,8 @@ impl EmbeddedBroker {
             reg.add(Type::MessagePublish, Box::new(Shared(ingress.clone())))
                 .await;
             reg.add(Type::MessagePublishCheckAcl, Box::new(Shared(ingress)))
+                .await;
+            reg.add(Type::MessageDropped, Box::new(Drops::default()))
                 .await;
             reg.start().await;
             let mut server = MqttServer::new(scx).listener_by_id(public, addr.port());

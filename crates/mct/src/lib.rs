@@ -46,7 +46,8 @@ pub mod password;
 
 pub use acl::{BrokerAccount, BrokerSettings, BrokerTls, Login, DASHBOARD_USER, PLC_USER};
 pub use broker::{
-    EmbeddedBroker, BROKER_MAX_PACKET, LOGINS_PER_S, LOGIN_BURST, TURNED_AWAY_PROPERTY,
+    EmbeddedBroker, BROKER_MAX_PACKET, LOGINS_PER_S, LOGIN_BURST, SESSION_INBOX_BYTES,
+    SESSION_QUEUE, TURNED_AWAY_PROPERTY,
 };
 pub use control::{
     accepted, refused, unix_now, ControlPlane, IncomingCommand, Outcome, Rejection, ReplyHandle,

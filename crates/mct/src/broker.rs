@@ -210,8 +210,8 @@ impl Handler for Drops {
                 bytes = publish.payload.len(),
                 subscriber = subscriber.as_deref().unwrap_or("?"),
                 dropped = n,
-                "a subscriber of the embedded broker reads slower than others publish; a message \
-                 for it was dropped: {limit} is full"
+                "a subscriber of the embedded broker reads slower than messages come for it; a \
+                 message for it was dropped: {limit} is full"
             );
         }
         (true, acc)
@@ -641,6 +641,57 @@ mod tests {
         // Saved up to the burst, not beyond.
         assert!(!b.take(301.0, t0 + Duration::from_secs(100)));
         assert!(b.take(300.0, t0 + Duration::from_secs(100)));
+    }
+
+    /// A message of `n` payload bytes on the topic `t`.
+    fn message(n: usize) -> rmqtt::types::Publish {
+        rmqtt::codec::types::Publish {
+            dup: false,
+            retain: false,
+            qos: rmqtt::types::QoS::AtMostOnce,
+            topic: "t".into(),
+            packet_id: None,
+            payload: vec![0u8; n].into(),
+            properties: None,
+        }
+        .into()
+    }
+
+    #[test]
+    fn a_session_inbox_refuses_what_passes_its_budget_never_a_control_message_and_frees_what_is_taken(
+    ) {
+        use futures::StreamExt;
+        use rmqtt::types::{From, Id, Message, Reason, SessionTx};
+        let (tx, mut rx) = futures::channel::mpsc::unbounded();
+        let image = message(1000);
+        let cost = SessionTx::inbox_cost(&image);
+        assert_eq!(cost, 1000 + 1 + rmqtt::types::INBOX_MESSAGE_OVERHEAD);
+        let tx = SessionTx::new(tx).with_inbox_budget(2 * cost);
+        let from = || From::from_custom(Id::new(0, 0, None, None, "camera".into(), None));
+        for k in 0..2 {
+            assert!(tx.inbox_charge(&image).is_ok(), "{k}");
+            assert!(tx.unbounded_send(Message::Forward(from(), image.clone())).is_ok());
+        }
+        let other = tx.clone();
+        assert!(
+            matches!(other.inbox_charge(&image), Err(Reason::SessionInboxFull)),
+            "the budget is spent, for every sender of the session"
+        );
+        assert_eq!(tx.inbox_bytes(), 2 * cost, "a refused message is not booked");
+        assert!(
+            tx.unbounded_send(Message::Closed(Reason::Unknown)).is_ok(),
+            "a control message is never refused"
+        );
+        let taken = futures::executor::block_on(rx.next()).expect("the first message");
+        tx.inbox_taken(&taken);
+        assert_eq!(other.inbox_bytes(), cost, "what is taken is given back");
+        assert!(other.inbox_charge(&message(1000)).is_ok());
+        assert!(
+            SessionTx::new(futures::channel::mpsc::unbounded().0)
+                .inbox_charge(&message(64 << 20))
+                .is_ok(),
+            "without a budget, rmqtt's inbox is unbounded as published"
+        );
     }
 
     #[test]

@@ -120,7 +120,10 @@ fn normal_subscriber(port: u16, topic: &str) -> (Client, Arc<AtomicU64>) {
     opts.set_max_packet_size(Some(8 << 20));
     opts.set_keep_alive(Duration::from_secs(30));
     let (c, mut conn) = Client::new(opts, 64);
-    let (got, subscribed) = (Arc::new(AtomicU64::new(0)), Arc::new(AtomicBool::new(false)));
+    let (got, subscribed) = (
+        Arc::new(AtomicU64::new(0)),
+        Arc::new(AtomicBool::new(false)),
+    );
     let (g, sub) = (got.clone(), subscribed.clone());
     std::thread::spawn(move || {
         for ev in conn.iter() {
@@ -136,9 +139,11 @@ fn normal_subscriber(port: u16, topic: &str) -> (Client, Arc<AtomicU64>) {
     });
     c.subscribe(topic, QoS::AtMostOnce)
         .expect("the watcher subscribes");
-    wait_for("the watcher's subscription", Duration::from_secs(10), || {
-        subscribed.load(Ordering::Acquire)
-    });
+    wait_for(
+        "the watcher's subscription",
+        Duration::from_secs(10),
+        || subscribed.load(Ordering::Acquire),
+    );
     (c, got)
 }
 
@@ -201,7 +206,10 @@ fn a_slow_subscriber_does_not_make_the_plc_keep_what_others_publish_for_it() {
     // The PLC cycles on.
     request(&ops, PLC, "exec_info", b"after-flood", b"{}".to_vec());
     let after = cycles(&reply(&replies, b"after-flood", Duration::from_secs(30)));
-    assert!(after > before, "the PLC cycles on: {before} cycles, then {after}");
+    assert!(
+        after > before,
+        "the PLC cycles on: {before} cycles, then {after}"
+    );
     stop.store(true, Ordering::Relaxed);
 
     let growth = peak.saturating_sub(rss_before);

@@ -194,9 +194,10 @@ impl Handler for Drops {
             return (true, acc);
         };
         let (counter, limit) = match reason {
-            rmqtt::types::Reason::SessionInboxFull => {
-                (&self.inbox_full, "its session's inbox (SESSION_INBOX_BYTES)")
-            }
+            rmqtt::types::Reason::SessionInboxFull => (
+                &self.inbox_full,
+                "its session's inbox (SESSION_INBOX_BYTES)",
+            ),
             rmqtt::types::Reason::MessageQueueFull => {
                 (&self.queue_full, "its deliver queue (SESSION_QUEUE)")
             }
@@ -670,14 +671,20 @@ mod tests {
         let from = || From::from_custom(Id::new(0, 0, None, None, "camera".into(), None));
         for k in 0..2 {
             assert!(tx.inbox_charge(&image).is_ok(), "{k}");
-            assert!(tx.unbounded_send(Message::Forward(from(), image.clone())).is_ok());
+            assert!(tx
+                .unbounded_send(Message::Forward(from(), image.clone()))
+                .is_ok());
         }
         let other = tx.clone();
         assert!(
             matches!(other.inbox_charge(&image), Err(Reason::SessionInboxFull)),
             "the budget is spent, for every sender of the session"
         );
-        assert_eq!(tx.inbox_bytes(), 2 * cost, "a refused message is not booked");
+        assert_eq!(
+            tx.inbox_bytes(),
+            2 * cost,
+            "a refused message is not booked"
+        );
         assert!(
             tx.unbounded_send(Message::Closed(Reason::Unknown)).is_ok(),
             "a control message is never refused"

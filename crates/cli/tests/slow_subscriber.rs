@@ -171,6 +171,7 @@ fn camera(port: u16, topic: &str, n: u32) {
     let _ = c.disconnect();
 }
 
+/// The primary's cycles in an `exec_info` reply.
 fn cycles(v: &serde_json::Value) -> u64 {
     v["result"][0]["cycles"]
         .as_u64()
@@ -220,7 +221,7 @@ fn a_slow_subscriber_does_not_make_the_plc_keep_what_others_publish_for_it() {
          watcher received {received_in_flood}; PLC RSS before {rss_before} kB, peak {peak} kB, \
          growth {growth} kB (bound {bound} kB: one session {session_kb} kB + margin {MARGIN_KB} \
          kB)",
-        images as usize * MESSAGE >> 20,
+        (images as usize * MESSAGE) >> 20,
         sipped.load(Ordering::Relaxed) / 1024,
     );
     let logged: Vec<String> = log.try_iter().collect();

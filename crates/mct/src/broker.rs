@@ -33,12 +33,13 @@ use std::sync::{Arc, Mutex};
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
-use crate::acl::{Acl, BrokerSettings, Checked, Login, Who, PLC_USER};
+use crate::acl::{Acl, BrokerSettings, Checked, Login, Who, DASHBOARD_USER, PLC_USER};
 use crate::budget::TokenBucket as Bucket;
 use crate::MctError;
 use async_trait::async_trait;
 use rmqtt::context::ServerContext;
 use rmqtt::hook::{Handler, HookResult, Parameter, ReturnType, Type};
+use rmqtt::net::SessionsBudget;
 use rmqtt::retain::{DefaultRetainStorage, RetainStorage};
 use rmqtt::server::MqttServer;
 use rmqtt::types::{AuthResult, Retain, TopicFilter, TopicName};
@@ -74,6 +75,34 @@ pub const SESSION_INBOX_BYTES: usize = 4 * BROKER_MAX_PACKET as usize;
 
 /// QoS 1 and 2 messages in flight to one subscriber (rmqtt's default).
 pub const SESSION_INFLIGHT: u16 = 16;
+
+/// Bytes of messages in one subscriber's deliver queue (behind its inbox) and in its in-flight
+/// window together, counted as in the inbox; past it a message is dropped for that subscriber and
+/// counted ([`Drops`]). Without it the queue is bounded in messages only: [`SESSION_QUEUE`] and
+/// [`SESSION_INFLIGHT`] messages of [`BROKER_MAX_PACKET`] bytes are 320 MiB for one subscriber that
+/// takes its messages and never acknowledges them. Two full packets:
+/// * every message fits in an empty queue, and a full-size message fits beside one in flight;
+/// * the two subscribers in the PLC's process take every message as soon as it is written and
+///   acknowledge it at once, so their queues hold a message or two (the inbox before it absorbs
+///   bursts): they lose nothing to this bound while they keep up.
+pub const SESSION_QUEUE_BYTES: usize = 2 * BROKER_MAX_PACKET as usize;
+
+/// Bytes that the sessions of all clients but the process's own hold together, in their inboxes,
+/// deliver queues and in-flight windows, counted as in each of them; past it a message is dropped
+/// for the subscriber it was for, whichever that is, and counted ([`Drops`]). Without it each of
+/// [`MAX_CLIENTS`] sessions could hold its own budgets ([`SESSION_INBOX_BYTES`] and
+/// [`SESSION_QUEUE_BYTES`], 24 MiB): 6 GiB. 64 MiB is room for more than two sessions full to
+/// their budgets, or for a burst of [`INGRESS_BURST`] to each of eight subscribers at once; with
+/// [`RETAINED_BYTES`] and [`INTERNAL_SESSIONS_BYTES`] it keeps what the broker holds for others
+/// well under the 256 MB that the PLC may use under any flood.
+pub const SESSIONS_BYTES: usize = 64 << 20;
+
+/// Bytes that the sessions of the process's own clients (the PLC's, logged in as
+/// [`crate::PLC_USER`], and the dashboard's of `run`, [`crate::DASHBOARD_USER`]) hold together,
+/// apart from [`SESSIONS_BYTES`], so that what others make the broker hold for slow subscribers
+/// can never leave the PLC's commands, nor its dashboard, without room. The two sessions' own
+/// budgets, summed: the reserve itself never refuses them a message their budgets admit.
+pub const INTERNAL_SESSIONS_BYTES: usize = 2 * (SESSION_INBOX_BYTES + SESSION_QUEUE_BYTES);
 
 /// Clients connected at once: a PLC, its dashboard, operators and a few tools.
 pub const MAX_CLIENTS: usize = 256;
@@ -179,12 +208,14 @@ impl Handler for Ingress {
 }
 
 /// Counts the messages the broker dropped for one subscriber, by cause, and logs each cause on
-/// its 1st, 2nd, 4th… occurrence: a session inbox over [`SESSION_INBOX_BYTES`], or a deliver
-/// queue over [`SESSION_QUEUE`].
+/// its 1st, 2nd, 4th… occurrence: a session inbox over [`SESSION_INBOX_BYTES`], a deliver
+/// queue over [`SESSION_QUEUE`] or [`SESSION_QUEUE_BYTES`], or all sessions over
+/// [`SESSIONS_BYTES`] (or [`INTERNAL_SESSIONS_BYTES`]).
 #[derive(Default)]
 struct Drops {
     inbox_full: AtomicU64,
     queue_full: AtomicU64,
+    total_full: AtomicU64,
 }
 
 #[async_trait]
@@ -198,9 +229,15 @@ impl Handler for Drops {
                 &self.inbox_full,
                 "its session's inbox (SESSION_INBOX_BYTES)",
             ),
-            rmqtt::types::Reason::MessageQueueFull => {
-                (&self.queue_full, "its deliver queue (SESSION_QUEUE)")
-            }
+            rmqtt::types::Reason::MessageQueueFull => (
+                &self.queue_full,
+                "its deliver queue (SESSION_QUEUE messages or SESSION_QUEUE_BYTES)",
+            ),
+            rmqtt::types::Reason::SessionsBudgetFull => (
+                &self.total_full,
+                "what all sessions hold together (SESSIONS_BYTES, or INTERNAL_SESSIONS_BYTES for \
+                 the PLC's own clients)",
+            ),
             _ => return (true, acc),
         };
         let n = counter.fetch_add(1, Ordering::Relaxed) + 1;
@@ -423,6 +460,7 @@ async fn listener(
     addr: SocketAddr,
     anonymous: bool,
     tls: Option<&crate::acl::BrokerTls>,
+    sessions: &Arc<SessionsBudget>,
 ) -> Result<rmqtt::net::Listener, MctError> {
     let b = rmqtt::net::Builder::new()
         .name("cetratus")
@@ -433,6 +471,8 @@ async fn listener(
         .max_packet_size(BROKER_MAX_PACKET)
         .max_mqueue_len(SESSION_QUEUE)
         .max_session_inbox_bytes(SESSION_INBOX_BYTES)
+        .max_session_queue_bytes(SESSION_QUEUE_BYTES)
+        .sessions_budget(sessions.clone())
         .max_inflight(NonZeroU16::new(SESSION_INFLIGHT).unwrap_or(NonZeroU16::MIN))
         .max_connections(MAX_CLIENTS)
         .handshake_timeout(Duration::from_secs(10))
@@ -487,12 +527,18 @@ impl EmbeddedBroker {
             .enable_all()
             .build()?;
         let tls = settings.tls.as_ref();
-        let public = rt.block_on(listener(addr, anonymous, tls))?;
+        // One total for both listeners: the broker's, not a port's.
+        let sessions = Arc::new(SessionsBudget::new(
+            SESSIONS_BYTES,
+            vec![PLC_USER.to_owned(), DASHBOARD_USER.to_owned()],
+            INTERNAL_SESSIONS_BYTES,
+        ));
+        let public = rt.block_on(listener(addr, anonymous, tls, &sessions))?;
         // With TLS, the process's own clients come in on loopback, without it.
         let own = match tls {
             Some(_) => {
                 let local = free_port(SocketAddr::from(([127, 0, 0, 1], 0)))?;
-                Some((local, rt.block_on(listener(local, anonymous, None))?))
+                Some((local, rt.block_on(listener(local, anonymous, None, &sessions))?))
             }
             None => None,
         };
@@ -662,12 +708,12 @@ mod tests {
     fn a_session_inbox_refuses_what_passes_its_budget_never_a_control_message_and_frees_what_is_taken(
     ) {
         use futures::StreamExt;
-        use rmqtt::types::{From, Id, Message, Reason, SessionTx};
+        use rmqtt::types::{ByteBudget, From, Id, Message, Reason, SessionTx};
         let (tx, mut rx) = futures::channel::mpsc::unbounded();
         let image = message(1000);
         let cost = SessionTx::inbox_cost(&image);
         assert_eq!(cost, 1000 + 1 + rmqtt::types::INBOX_MESSAGE_OVERHEAD);
-        let tx = SessionTx::new(tx).with_inbox_budget(2 * cost);
+        let tx = SessionTx::new(tx).with_inbox_budget(ByteBudget::new(2 * cost, None, None));
         let from = || From::from_custom(Id::new(0, 0, None, None, "camera".into(), None));
         for k in 0..2 {
             assert!(tx.inbox_charge(&image).is_ok(), "{k}");

@@ -75,6 +75,30 @@ use tokio_tungstenite::{
 };
 
 /// Configuration builder for MQTT server instances
+/// cetratus: bytes that all sessions hold together in their inboxes, deliver queues and in-flight
+/// cetratus: windows, in two pots: the sessions of `reserve_users` are charged to the reserve, every
+/// cetratus: other session to the shared pot, so that others can never spend what those users need.
+#[derive(Debug, Default)] // cetratus: see SessionsBudget
+pub struct SessionsBudget { // cetratus: see above
+    /// cetratus: bytes held by the sessions charged to the shared pot
+    pub shared: std::sync::atomic::AtomicUsize, // cetratus: see SessionsBudget
+    /// cetratus: the most `shared` may hold
+    pub shared_max: usize, // cetratus: see SessionsBudget
+    /// cetratus: bytes held by the sessions of `reserve_users`
+    pub reserve: std::sync::atomic::AtomicUsize, // cetratus: see SessionsBudget
+    /// cetratus: the most `reserve` may hold
+    pub reserve_max: usize, // cetratus: see SessionsBudget
+    /// cetratus: the user names (as the client logged in) whose sessions are charged to the reserve
+    pub reserve_users: Vec<String>, // cetratus: see SessionsBudget
+} // cetratus: end of SessionsBudget
+
+impl SessionsBudget { // cetratus: see SessionsBudget
+    /// cetratus: a budget of `shared_max` bytes for everyone but `reserve_users`, and `reserve_max` for them
+    pub fn new(shared_max: usize, reserve_users: Vec<String>, reserve_max: usize) -> Self { // cetratus: see above
+        Self { shared_max, reserve_users, reserve_max, ..Self::default() } // cetratus: empty pots
+    } // cetratus: end of new
+} // cetratus: end of impl SessionsBudget
+
 #[derive(Clone, Debug)]
 pub struct Builder {
     /// Server identifier for logging and monitoring
@@ -116,6 +140,10 @@ pub struct Builder {
     pub max_mqueue_len: usize,
     /// cetratus: bytes of messages handed to one session and not yet taken by it (usize::MAX: unbounded)
     pub max_session_inbox_bytes: usize, // cetratus: the session inbox's budget, read by rmqtt's SessionTx
+    /// cetratus: bytes of messages in one session's deliver queue and in-flight window (usize::MAX: unbounded)
+    pub max_session_queue_bytes: usize, // cetratus: the deliver queue's budget, read by rmqtt's Session::new
+    /// cetratus: bytes held for all sessions together, shared by the listeners given the same one (None: no total)
+    pub sessions_budget: Option<Arc<SessionsBudget>>, // cetratus: the broker-wide total, read by rmqtt's ByteBudget
     /// Rate limiting for message delivery (messages per duration)
     pub mqueue_rate_limit: (NonZeroU32, Duration),
     /// Maximum length of client identifiers
@@ -215,6 +243,8 @@ impl Builder {
             send_timeout: Duration::from_secs(10),
             max_mqueue_len: 1000,
             max_session_inbox_bytes: usize::MAX, // cetratus: unbounded, as before the patch
+            max_session_queue_bytes: usize::MAX, // cetratus: unbounded, as before the patch
+            sessions_budget: None, // cetratus: no total, as before the patch
 
             mqueue_rate_limit: (nonzero!(u32::MAX), Duration::from_secs(1)),
             max_clientid_len: 65535,
@@ -357,6 +387,18 @@ impl Builder {
     /// cetratus: bounds, in bytes, the messages handed to one session and not yet taken by it
     pub fn max_session_inbox_bytes(mut self, bytes: usize) -> Self { // cetratus: the setter, as max_mqueue_len's
         self.max_session_inbox_bytes = bytes; // cetratus: the setter's body
+        self // cetratus: the setter's body
+    } // cetratus: the setter's end
+
+    /// cetratus: bounds, in bytes, the messages in one session's deliver queue and in-flight window
+    pub fn max_session_queue_bytes(mut self, bytes: usize) -> Self { // cetratus: the setter, as max_mqueue_len's
+        self.max_session_queue_bytes = bytes; // cetratus: the setter's body
+        self // cetratus: the setter's body
+    } // cetratus: the setter's end
+
+    /// cetratus: bounds, in bytes, what all sessions of the listeners given `budget` hold together
+    pub fn sessions_budget(mut self, budget: Arc<SessionsBudget>) -> Self { // cetratus: the setter
+        self.sessions_budget = Some(budget); // cetratus: the setter's body
         self // cetratus: the setter's body
     } // cetratus: the setter's end
 

@@ -39,7 +39,7 @@ mod ws;
 pub use quic::QuinnBiStream;
 
 /// Server configuration and listener management
-pub use builder::{Builder, Listener, ListenerType};
+pub use builder::{Builder, Listener, ListenerType, SessionsBudget}; // cetratus: SessionsBudget added
 
 pub use cert_extractor::TlsCertExtractor;
 

@@ -63,7 +63,7 @@ use serde::{Deserialize, Serialize};
 use crate::context::ServerContext;
 use crate::net::MqttError;
 use crate::queue::OnEventFn;
-use crate::types::{From, PacketId, Publish, TimestampMillis};
+use crate::types::{ByteBudget, From, PacketId, Publish, TimestampMillis}; // cetratus: ByteBudget added
 use crate::types::{QoS, Reason};
 use crate::utils::timestamp_millis;
 use crate::Result;
@@ -112,9 +112,16 @@ pub struct OutInflight {
     queues: OutQueues,
     on_push_fn: Option<Arc<dyn OnEventFn>>,
     on_pop_fn: Option<Arc<dyn OnEventFn>>,
+    budget: ByteBudget, // cetratus: the session's deliver queue budget, which the window shares
 }
 
 impl OutInflight {
+    /// cetratus: charges the messages in the window to `budget` (the session's deliver queue's)
+    pub fn with_budget(mut self, budget: ByteBudget) -> Self { // cetratus: see with_budget
+        self.budget = budget; // cetratus: see with_budget
+        self // cetratus: see with_budget
+    } // cetratus: end of with_budget
+
     #[inline]
     pub fn new(cap: usize, retry_interval: TimestampMillis, expiry_interval: TimestampMillis) -> Self {
         let interval = Self::interval(retry_interval, expiry_interval);
@@ -125,6 +132,7 @@ impl OutInflight {
             queues: OutQueues::default(),
             on_push_fn: None,
             on_pop_fn: None,
+            budget: ByteBudget::unbounded(), // cetratus: unbounded until with_budget
         }
     }
 
@@ -201,6 +209,7 @@ impl OutInflight {
             if let Some(f) = self.on_pop_fn.as_ref() {
                 f();
             }
+            self.budget.release(ByteBudget::cost(&msg.publish)); // cetratus: out of the window, its bytes given back
             Some(msg)
         } else {
             None
@@ -222,8 +231,10 @@ impl OutInflight {
             if let Some(f) = self.on_push_fn.as_ref() {
                 f();
             }
+            self.budget.to_inflight(ByteBudget::cost(&m.publish)); // cetratus: into the window: the message just written keeps its booking
             let old = self.queues.insert(packet_id.get(), m);
-            if old.is_some() {
+            if let Some(old) = old.as_ref() { // cetratus: `if old.is_some()` in rmqtt: the replaced one's bytes given back
+                self.budget.release(ByteBudget::cost(&old.publish)); // cetratus: see above
                 if let Some(f) = self.on_pop_fn.as_ref() {
                     f();
                 }
@@ -241,6 +252,7 @@ impl OutInflight {
             if let Some(f) = self.on_pop_fn.as_ref() {
                 f();
             }
+            self.budget.release(ByteBudget::cost(&msg.publish)); // cetratus: out of the window, its bytes given back
             Some(msg)
         } else {
             None

@@ -54,6 +54,8 @@ use governor::{
 };
 use parking_lot::Mutex;
 
+use crate::types::{ByteBudget, Reason}; // cetratus: the deliver queue bounded in bytes
+
 type DirectLimiter = RateLimiter<NotKeyed, InMemoryState, DefaultClock>;
 
 pub type Receiver<'a, T> =
@@ -109,6 +111,9 @@ impl<T> Sender<T> {
     #[inline]
     pub async fn send(&self, v: T) -> Result<(), T> {
         if let Err(v) = self.queue.push(v) {
+            if self.queue.refusal.lock().is_some() { // cetratus: refused for bytes: dropping an earlier message may not make room, so the one sent is dropped, whatever the policy
+                return Err(v); // cetratus: the caller asks take_refusal why
+            } // cetratus: end of the byte refusal
             match (self.policy_fn)(&v) {
                 Policy::Current => return Err(v),
                 Policy::Early => {
@@ -134,6 +139,19 @@ impl<T> Sender<T> {
     pub fn pop(&self) -> Option<T> {
         self.queue.pop()
     }
+
+    /// cetratus: why the last message refused by `send` was: MessageQueueFull (messages, or this
+    /// cetratus: session's bytes) or SessionsBudgetFull (the broker-wide total)
+    pub fn take_refusal(&self) -> Reason { // cetratus: see take_refusal
+        self.queue.refusal.lock().take().unwrap_or(Reason::MessageQueueFull) // cetratus: see take_refusal
+    } // cetratus: end of take_refusal
+
+    /// cetratus: the message taken out to be written is done with: its bytes given back (see ByteBudget::delivered)
+    pub fn delivered(&self) { // cetratus: see delivered
+        if let Some((budget, _)) = self.queue.budget.as_ref() { // cetratus: see delivered
+            budget.delivered(); // cetratus: see delivered
+        } // cetratus: see delivered
+    } // cetratus: end of delivered
 }
 
 pub struct ReceiverStream<T> {
@@ -146,7 +164,7 @@ impl<T> Stream for ReceiverStream<T> {
     fn poll_next(mut self: Pin<&mut Self>, cx: &mut Context<'_>) -> Poll<Option<Self::Item>> {
         let result: Option<_> = futures::ready!(Pin::new(&mut self.rx).poll_next(cx));
         Poll::Ready(match result {
-            Some(_) => Some(self.queue.pop()),
+            Some(_) => Some(self.queue.pop_for_delivery()), // cetratus: still booked while it is written
             None => None,
         })
     }
@@ -184,6 +202,8 @@ impl Limiter {
 pub struct Queue<T> {
     cap: usize,
     inner: Mutex<VecDeque<T>>,
+    budget: Option<(ByteBudget, fn(&T) -> usize)>, // cetratus: the bytes it may hold, and what an item costs
+    refusal: Mutex<Option<Reason>>, // cetratus: why the last push was refused for bytes
     on_push_fn: Option<Arc<dyn OnEventFn>>,
     on_pop_fn: Option<Arc<dyn OnEventFn>>,
 }
@@ -198,8 +218,32 @@ impl<T> Drop for Queue<T> {
 impl<T> Queue<T> {
     #[inline]
     pub fn new(cap: usize) -> Self {
-        Self { cap, inner: Mutex::new(VecDeque::new()), on_push_fn: None, on_pop_fn: None }
+        Self { cap, inner: Mutex::new(VecDeque::new()), budget: None, refusal: Mutex::new(None), on_push_fn: None, on_pop_fn: None } // cetratus: no byte budget until with_budget
     }
+
+    /// cetratus: bounds the bytes the queue holds (with what shares `budget`); `cost` is what an item costs
+    pub fn with_budget(mut self, budget: ByteBudget, cost: fn(&T) -> usize) -> Self { // cetratus: see with_budget
+        self.budget = Some((budget, cost)); // cetratus: see with_budget
+        self // cetratus: see with_budget
+    } // cetratus: end of with_budget
+
+    /// cetratus: the byte budget the queue charges, if any
+    pub fn budget(&self) -> Option<&ByteBudget> { // cetratus: shared with the session's in-flight window
+        self.budget.as_ref().map(|(b, _)| b) // cetratus: see budget
+    } // cetratus: end of budget
+
+    /// cetratus: takes the front item to be written: its bytes stay booked until ByteBudget::delivered or to_inflight
+    pub fn pop_for_delivery(&self) -> Option<T> { // cetratus: see pop_for_delivery
+        let mut inner = self.inner.lock(); // cetratus: as pop
+        let v = inner.pop_front()?; // cetratus: as pop
+        if let Some(f) = self.on_pop_fn.as_ref() { // cetratus: as pop
+            f(); // cetratus: as pop
+        } // cetratus: as pop
+        if let Some((budget, cost)) = self.budget.as_ref() { // cetratus: see pop_for_delivery
+            budget.delivering(cost(&v)); // cetratus: see pop_for_delivery
+        } // cetratus: see pop_for_delivery
+        Some(v) // cetratus: as pop
+    } // cetratus: end of pop_for_delivery
 
     #[inline]
     pub fn on_push<F>(&mut self, f: F)
@@ -223,6 +267,12 @@ impl<T> Queue<T> {
         if inner.len() >= self.cap {
             return Err(v);
         }
+        if let Some((budget, cost)) = self.budget.as_ref() { // cetratus: then the bytes
+            if let Err(reason) = budget.charge(cost(&v), Reason::MessageQueueFull) { // cetratus: see push
+                *self.refusal.lock() = Some(reason); // cetratus: for Sender::send and take_refusal
+                return Err(v); // cetratus: see push
+            } // cetratus: see push
+        } // cetratus: see push
         if let Some(f) = self.on_push_fn.as_ref() {
             f();
         }
@@ -237,6 +287,9 @@ impl<T> Queue<T> {
             if let Some(f) = self.on_pop_fn.as_ref() {
                 f();
             }
+            if let Some((budget, cost)) = self.budget.as_ref() { // cetratus: its bytes given back
+                budget.release(cost(&v)); // cetratus: see pop
+            } // cetratus: see pop
             Some(v)
         } else {
             None

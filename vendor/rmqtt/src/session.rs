@@ -146,7 +146,11 @@ impl SessionState {
             #[cfg(feature = "debug")]
             session.scx.clone(),
         ) // cetratus: the statement goes on below
-        .with_inbox_budget(session.listen_cfg().max_session_inbox_bytes); // cetratus: the inbox bounded in bytes, as the listener says
+        .with_inbox_budget(ByteBudget::new( // cetratus: the inbox bounded in bytes, as the listener says
+            session.listen_cfg().max_session_inbox_bytes, // cetratus: this session's inbox
+            session.listen_cfg().sessions_budget.clone(), // cetratus: and the total of all sessions
+            Some(session.id.username_ref()), // cetratus: whose login decides the total's pot
+        )); // cetratus: end of the inbox's budget
         let scx = session.scx.clone();
         let max_inflight = session.listen_cfg().max_inflight;
         Self {
@@ -354,6 +358,7 @@ impl SessionState {
                     match deliver_packet {
                         Some(Some((from, p))) => {
                             state.deliver(sink, from, p).await?;
+                            deliver_queue_tx.delivered(); // cetratus: written, expired or in the in-flight window: its booking settled
                         },
                         Some(None) => {
                             log::warn!("{:?} No messages received from the delivery queue", state.id);
@@ -429,7 +434,7 @@ impl SessionState {
                                 if let Err((from, p)) = deliver_queue_tx.send((from, p)).await {
                                     log::debug!("{:?} offline deliver_dropped, from: {:?}, {:?}", self.id, from, p);
                                     //hook, message_dropped
-                                   self.scx.extends.hook_mgr().message_dropped(Some(self.id.clone()), from, p, Reason::MessageQueueFull).await;
+                                   self.scx.extends.hook_mgr().message_dropped(Some(self.id.clone()), from, p, deliver_queue_tx.take_refusal()).await; // cetratus: was Reason::MessageQueueFull
                                 }
                             },
                             Message::Kick(sender, by_id, clean_start, is_admin) => {
@@ -568,7 +573,7 @@ impl SessionState {
                     self.scx
                         .extends
                         .hook_mgr()
-                        .message_dropped(Some(self.id.clone()), from, p, Reason::MessageQueueFull)
+                        .message_dropped(Some(self.id.clone()), from, p, deliver_queue_tx.take_refusal()) // cetratus: was Reason::MessageQueueFull
                         .await;
                 }
             }
@@ -1925,7 +1930,10 @@ impl Session {
         let message_retry_interval = listen_cfg.message_retry_interval.as_millis() as TimestampMillis;
         let message_expiry_interval = listen_cfg.message_expiry_interval.as_millis() as TimestampMillis;
         #[allow(unused_mut)]
-        let mut deliver_queue = MessageQueue::new(max_mqueue_len);
+        let mut deliver_queue = MessageQueue::new(max_mqueue_len).with_budget( // cetratus: bounded in bytes too, as the listener says
+            ByteBudget::new(listen_cfg.max_session_queue_bytes, listen_cfg.sessions_budget.clone(), Some(id.username_ref())), // cetratus: this session's queue and window, and the total
+            |(_, p)| ByteBudget::cost(p), // cetratus: what a queued message costs
+        ); // cetratus: end of the deliver queue's budget
 
         #[cfg(feature = "stats")]
         {
@@ -1943,7 +1951,8 @@ impl Session {
             });
         }
 
-        let out_inflight = OutInflight::new(max_inflight, message_retry_interval, message_expiry_interval);
+        let out_inflight = OutInflight::new(max_inflight, message_retry_interval, message_expiry_interval)
+            .with_budget(deliver_queue.budget().cloned().unwrap_or_else(ByteBudget::unbounded)); // cetratus: the window shares the deliver queue's budget
         #[cfg(feature = "stats")]
         let out_inflight = {
             let scx1 = scx.clone();

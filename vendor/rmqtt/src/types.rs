@@ -113,13 +113,126 @@ pub(crate) const UNDEFINED: &str = "undefined";
 /// cetratus: node, the `Message`, the boxed codec `Publish` and its properties, rounded up.
 pub const INBOX_MESSAGE_OVERHEAD: usize = 512; // cetratus: the fixed part of a Forward's cost
 
+/// cetratus: one part of a session's memory (its inbox; its deliver queue with its in-flight window)
+/// cetratus: counted in bytes, with the most it may hold, and charged to the broker-wide total as well
+/// cetratus: when the listener has one (`Builder::sessions_budget`). Shared by its clones; what it still
+/// cetratus: holds when the last clone goes is given back to the total, so that no path that skips a
+/// cetratus: release (a closed channel, a failed write) can shrink the total for good.
+#[derive(Clone)] // cetratus: see ByteBudget
+pub struct ByteBudget(Arc<ByteBudgetInner>); // cetratus: see ByteBudget
+
+struct ByteBudgetInner { // cetratus: see ByteBudget
+    held: AtomicUsize, // cetratus: bytes charged and not yet released, `delivering` included
+    max: usize, // cetratus: the most `held` may reach by a charge
+    total: Option<(Arc<crate::net::SessionsBudget>, bool)>, // cetratus: the broker-wide total, and whether this session is charged to its reserve
+    delivering: AtomicUsize, // cetratus: bytes of the message taken out of the deliver queue and being written
+} // cetratus: end of ByteBudgetInner
+
+impl ByteBudgetInner { // cetratus: see ByteBudget
+    fn pot(&self) -> Option<(&AtomicUsize, usize)> { // cetratus: the pot of the total this session is charged to, and its most
+        self.total.as_ref().map(|(t, reserve)| if *reserve { (&t.reserve, t.reserve_max) } else { (&t.shared, t.shared_max) }) // cetratus: see pot
+    } // cetratus: end of pot
+} // cetratus: end of impl ByteBudgetInner
+
+impl Drop for ByteBudgetInner { // cetratus: what the session still holds goes back to the total
+    fn drop(&mut self) { // cetratus: see Drop
+        if let Some((pot, _)) = self.pot() { // cetratus: see Drop
+            ByteBudget::sub(pot, self.held.load(Acquire)); // cetratus: see Drop
+        } // cetratus: see Drop
+    } // cetratus: see Drop
+} // cetratus: end of Drop
+
+impl ByteBudget { // cetratus: see ByteBudget
+    /// cetratus: no bound and no total, as rmqtt is published
+    pub fn unbounded() -> Self { // cetratus: see unbounded
+        Self::new(usize::MAX, None, None) // cetratus: see unbounded
+    } // cetratus: end of unbounded
+
+    /// cetratus: at most `max` bytes, charged to `total` as well (to its reserve when `user` is one of its reserve users)
+    pub fn new(max: usize, total: Option<Arc<crate::net::SessionsBudget>>, user: Option<&str>) -> Self { // cetratus: see new
+        let total = total.map(|t| { // cetratus: which pot
+            let reserve = user.is_some_and(|u| t.reserve_users.iter().any(|r| r == u)); // cetratus: the login's name, checked by the auth hook
+            (t, reserve) // cetratus: see new
+        }); // cetratus: see new
+        Self(Arc::new(ByteBudgetInner { held: AtomicUsize::new(0), max, total, delivering: AtomicUsize::new(0) })) // cetratus: see new
+    } // cetratus: end of new
+
+    /// cetratus: what a message `p` costs: payload, topic and a fixed overhead
+    pub fn cost(p: &Publish) -> usize { // cetratus: one definition for every charge and release
+        p.payload.len() + p.topic.len() + INBOX_MESSAGE_OVERHEAD // cetratus: see cost
+    } // cetratus: end of cost
+
+    fn add_within(counter: &AtomicUsize, cost: usize, max: usize) -> bool { // cetratus: checked and added in one atomic step, so that concurrent senders cannot pass `max` together
+        counter.fetch_update(AcqRel, Acquire, |held| held.checked_add(cost).filter(|after| *after <= max)).is_ok() // cetratus: see add_within
+    } // cetratus: end of add_within
+
+    fn sub(counter: &AtomicUsize, cost: usize) { // cetratus: never below zero
+        let _ = counter.fetch_update(AcqRel, Acquire, |held| Some(held.saturating_sub(cost))); // cetratus: see sub
+    } // cetratus: end of sub
+
+    /// cetratus: books `cost` bytes if they fit both this budget and the total; otherwise books
+    /// cetratus: nothing and returns `over` (this budget is full) or `Reason::SessionsBudgetFull` (the total is)
+    pub fn charge(&self, cost: usize, over: Reason) -> std::result::Result<(), Reason> { // cetratus: see charge
+        if !Self::add_within(&self.0.held, cost, self.0.max) { // cetratus: this session's part first
+            return Err(over); // cetratus: see charge
+        } // cetratus: see charge
+        if let Some((pot, max)) = self.0.pot() { // cetratus: then the total
+            if !Self::add_within(pot, cost, max) { // cetratus: see charge
+                Self::sub(&self.0.held, cost); // cetratus: the session's part given back
+                return Err(Reason::SessionsBudgetFull); // cetratus: see charge
+            } // cetratus: see charge
+        } // cetratus: see charge
+        Ok(()) // cetratus: see charge
+    } // cetratus: end of charge
+
+    /// cetratus: books `cost` bytes whatever the budgets say: for what is already held and cannot be refused
+    pub fn force(&self, cost: usize) { // cetratus: see force
+        let _ = self.0.held.fetch_update(AcqRel, Acquire, |held| Some(held.saturating_add(cost))); // cetratus: see force
+        if let Some((pot, _)) = self.0.pot() { // cetratus: see force
+            let _ = pot.fetch_update(AcqRel, Acquire, |held| Some(held.saturating_add(cost))); // cetratus: see force
+        } // cetratus: see force
+    } // cetratus: end of force
+
+    /// cetratus: gives back `cost` bytes, to this budget and to the total
+    pub fn release(&self, cost: usize) { // cetratus: see release
+        Self::sub(&self.0.held, cost); // cetratus: see release
+        if let Some((pot, _)) = self.0.pot() { // cetratus: see release
+            Self::sub(pot, cost); // cetratus: see release
+        } // cetratus: see release
+    } // cetratus: end of release
+
+    /// cetratus: bytes booked and not given back
+    pub fn held(&self) -> usize { // cetratus: for tests and metrics
+        self.0.held.load(Acquire) // cetratus: see held
+    } // cetratus: end of held
+
+    /// cetratus: a message of `cost` bytes leaves the deliver queue to be written: still booked
+    pub fn delivering(&self, cost: usize) { // cetratus: see delivering
+        self.0.delivering.fetch_add(cost, AcqRel); // cetratus: see delivering
+    } // cetratus: end of delivering
+
+    /// cetratus: the message being written is done with (written at QoS 0, expired, or in the in-flight window): given back
+    pub fn delivered(&self) { // cetratus: see delivered
+        self.release(self.0.delivering.swap(0, AcqRel)); // cetratus: see delivered
+    } // cetratus: end of delivered
+
+    /// cetratus: a message of `cost` bytes enters the in-flight window: the booking of the message being written passes to it
+    pub fn to_inflight(&self, cost: usize) { // cetratus: see to_inflight
+        let delivering = self.0.delivering.swap(0, AcqRel); // cetratus: see to_inflight
+        if delivering >= cost { // cetratus: see to_inflight
+            self.release(delivering - cost); // cetratus: see to_inflight
+        } else { // cetratus: a retransmitted release (QoS 2), not written from the queue
+            self.force(cost - delivering); // cetratus: see to_inflight
+        } // cetratus: see to_inflight
+    } // cetratus: end of to_inflight
+} // cetratus: end of impl ByteBudget
+
 #[derive(Clone)]
 pub struct SessionTx {
     #[cfg(feature = "debug")]
     scx: ServerContext,
     tx: futures::channel::mpsc::UnboundedSender<Message>,
-    inbox: Arc<AtomicUsize>, // cetratus: bytes of Forward messages sent and not yet taken, shared by the clones
-    inbox_budget: usize, // cetratus: the most `inbox` may hold (Builder::max_session_inbox_bytes)
+    inbox: ByteBudget, // cetratus: bytes of Forward messages sent and not yet taken, shared by the clones
 }
 
 impl SessionTx {
@@ -131,41 +244,39 @@ impl SessionTx {
             tx,
             #[cfg(feature = "debug")]
             scx,
-            inbox: Arc::default(), // cetratus: an empty inbox
-            inbox_budget: usize::MAX, // cetratus: unbounded until with_inbox_budget
+            inbox: ByteBudget::unbounded(), // cetratus: unbounded until with_inbox_budget
         }
     }
 
     /// cetratus: bounds the bytes of Forward messages sent to this session and not yet taken
-    pub fn with_inbox_budget(mut self, bytes: usize) -> Self { // cetratus: set where the channel is made
-        self.inbox_budget = bytes; // cetratus: see with_inbox_budget
+    pub fn with_inbox_budget(mut self, budget: ByteBudget) -> Self { // cetratus: set where the channel is made
+        self.inbox = budget; // cetratus: see with_inbox_budget
         self // cetratus: see with_inbox_budget
     } // cetratus: end of with_inbox_budget
 
     /// cetratus: what a Forward of `p` costs in the inbox: payload, topic and a fixed overhead
     pub fn inbox_cost(p: &Publish) -> usize { // cetratus: one definition for charge and release
-        p.payload.len() + p.topic.len() + INBOX_MESSAGE_OVERHEAD // cetratus: see inbox_cost
+        ByteBudget::cost(p) // cetratus: see inbox_cost
     } // cetratus: end of inbox_cost
 
     /// cetratus: books a Forward of `p` in the inbox before it is sent; over the budget it is not
     /// cetratus: booked and must not be sent: the reason goes to the message_dropped hook. A send
-    /// cetratus: that then fails needs no release: the channel is closed, and its count with it.
+    /// cetratus: that then fails needs no release: the channel is closed, and its count goes with
+    /// cetratus: the last clone of this SessionTx (ByteBudget's Drop).
     pub fn inbox_charge(&self, p: &Publish) -> std::result::Result<(), Reason> { // cetratus: see above
-        let (cost, budget) = (Self::inbox_cost(p), self.inbox_budget); // cetratus: what it costs, what fits
-        let fits = |held: usize| held.checked_add(cost).filter(|after| *after <= budget); // cetratus: checked and added in one atomic step, so that concurrent senders cannot pass the budget together
-        self.inbox.fetch_update(AcqRel, Acquire, fits).map(drop).map_err(|_| Reason::SessionInboxFull) // cetratus: the reason the hook is given
+        self.inbox.charge(Self::inbox_cost(p), Reason::SessionInboxFull) // cetratus: SessionInboxFull, or SessionsBudgetFull for the total
     } // cetratus: end of inbox_charge
 
     /// cetratus: gives back what `msg` was charged when the session's loop takes it out of the inbox
     pub fn inbox_taken(&self, msg: &Message) { // cetratus: called at every rx.next() of the session
         if let Message::Forward(_, p) = msg { // cetratus: control messages are never charged
-            self.inbox.fetch_sub(Self::inbox_cost(p), AcqRel); // cetratus: see inbox_taken
+            self.inbox.release(Self::inbox_cost(p)); // cetratus: see inbox_taken
         } // cetratus: see inbox_taken
     } // cetratus: end of inbox_taken
 
     /// cetratus: bytes of Forward messages sent to this session and not yet taken
     pub fn inbox_bytes(&self) -> usize { // cetratus: for tests and metrics
-        self.inbox.load(Acquire) // cetratus: see inbox_bytes
+        self.inbox.held() // cetratus: see inbox_bytes
     } // cetratus: end of inbox_bytes
 
     #[inline]
@@ -2397,6 +2508,7 @@ pub enum Reason {
     #[default]
     Unknown,
     SessionInboxFull, // cetratus: a Forward over the session's inbox budget (last, so serialised indices stay)
+    SessionsBudgetFull, // cetratus: a message over the broker-wide total of all sessions (Builder::sessions_budget)
 }
 
 impl Reason {
@@ -2438,6 +2550,13 @@ impl std::convert::From<Reason> for PublishResult {
                 reason_code: QuotaExceeded, // cetratus: as MessageQueueFull
                 properties: UserProperties::default(), // cetratus: as MessageQueueFull
                 reason_string: Some("Session inbox full".into()), // cetratus: as MessageQueueFull
+                disconnect: false, // cetratus: as MessageQueueFull
+            }, // cetratus: as MessageQueueFull
+
+            SessionsBudgetFull => Self { // cetratus: as MessageQueueFull
+                reason_code: QuotaExceeded, // cetratus: as MessageQueueFull
+                properties: UserProperties::default(), // cetratus: as MessageQueueFull
+                reason_string: Some("Sessions budget full".into()), // cetratus: as MessageQueueFull
                 disconnect: false, // cetratus: as MessageQueueFull
             }, // cetratus: as MessageQueueFull
 
@@ -2561,6 +2680,7 @@ impl ToReasonCode for Reason {
             Reason::MessageExpiration => DisconnectReasonCode::MessageRateTooHigh,
             Reason::MessageQueueFull => DisconnectReasonCode::QuotaExceeded,
             Reason::SessionInboxFull => DisconnectReasonCode::QuotaExceeded, // cetratus: as MessageQueueFull
+            Reason::SessionsBudgetFull => DisconnectReasonCode::QuotaExceeded, // cetratus: as MessageQueueFull
             Reason::InflightWindowFull => DisconnectReasonCode::ReceiveMaximumExceeded,
             Reason::ProtocolError(_) => DisconnectReasonCode::ProtocolError,
             Reason::Error(_) => DisconnectReasonCode::UnspecifiedError,
@@ -2649,6 +2769,7 @@ impl Display for Reason {
             }
             Reason::InflightWindowFull => "Inflight window is full",
             Reason::SessionInboxFull => "SessionInboxFull: the session's inbox is over max_session_inbox_bytes", // cetratus: the hook's reason
+            Reason::SessionsBudgetFull => "SessionsBudgetFull: all sessions together are over sessions_budget", // cetratus: the hook's reason
             Reason::Error(r) => r,
             Reason::MqttError(e) => &e.to_string(),
             Reason::ProtocolError(r) => return write!(f, "ProtocolError({r})"),

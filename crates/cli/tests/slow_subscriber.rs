@@ -7,23 +7,22 @@
 //! a camera publishes 512 KiB messages on that topic at just under the broker's ingress limit for
 //! 18 s (about 270 MiB). The embedded broker hands each message to the attacker's session; the
 //! PLC's resident memory must grow by no more than what one session may hold
-//! (`SESSION_INBOX_BYTES`, then `SESSION_QUEUE` messages behind it) and a margin, the broker
+//! (`SESSION_INBOX_BYTES`, then `SESSION_QUEUE_BYTES` behind it) and a margin, the broker
 //! must say that it dropped messages for that subscriber, a normal subscriber of the same topic
 //! must go on receiving, and the PLC must go on cycling.
 
-use std::io::{Read, Write};
-use std::net::TcpStream;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
-use cetratus_mct::{SESSION_INBOX_BYTES, SESSION_QUEUE};
+use cetratus_mct::{SESSION_INBOX_BYTES, SESSION_QUEUE_BYTES};
 use rumqttc::v5::mqttbytes::v5::Packet;
 use rumqttc::v5::mqttbytes::QoS;
 use rumqttc::v5::{Client, Event, MqttOptions};
 
 mod common;
 
+use common::raw_mqtt::{subscriber, Reading};
 use common::{client, first_answer, reply, request, rss_kb, wait_for, RssSampler, RunningPlc};
 
 const PLC: &str = "cell1";
@@ -36,82 +35,10 @@ const MESSAGE: usize = 512 << 10;
 const PER_S: u32 = 30;
 /// How long the camera publishes.
 const FLOOD: Duration = Duration::from_secs(18);
-/// What the attacker reads at a time, every 100 ms: 160 KiB/s, so that one image is written to
-/// it in about 3 s, well within rmqtt's send timeout (10 s).
-const SIP: usize = 16 << 10;
 /// Room for what else the flood costs the PLC besides the attacker's session: the camera's and
 /// the normal subscriber's read and write buffers (a few images each), the allocator's slack
 /// and the PLC's own work over 20 s.
 const MARGIN_KB: u64 = 48 * 1024;
-
-/// An MQTT packet with a fixed header of `kind` and the remaining length encoded.
-fn packet(kind: u8, body: &[u8]) -> Vec<u8> {
-    let mut out = vec![kind];
-    let mut n = body.len();
-    loop {
-        let mut byte = (n % 128) as u8;
-        n /= 128;
-        if n > 0 {
-            byte |= 0x80;
-        }
-        out.push(byte);
-        if n == 0 {
-            break;
-        }
-    }
-    out.extend_from_slice(body);
-    out
-}
-
-/// A UTF-8 string as MQTT encodes it: its length in two bytes, then the bytes.
-fn mqtt_str(s: &str) -> Vec<u8> {
-    let mut out = (s.len() as u16).to_be_bytes().to_vec();
-    out.extend_from_slice(s.as_bytes());
-    out
-}
-
-/// The attacker: an MQTT 3.1.1 client on a bare socket, subscribed to `topic`, that then reads
-/// [`SIP`] bytes every 100 ms until `stop`, and counts what it read.
-fn slow_subscriber(port: u16, topic: &str, stop: Arc<AtomicBool>) -> Arc<AtomicU64> {
-    let mut s = TcpStream::connect(("127.0.0.1", port)).expect("the attacker connects");
-    s.set_read_timeout(Some(Duration::from_secs(10)))
-        .expect("a read timeout");
-    // CONNECT: protocol "MQTT" level 4, clean session, keep-alive 300 s (longer than the test:
-    // the attacker never needs to ping).
-    let mut connect = mqtt_str("MQTT");
-    connect.extend_from_slice(&[4, 0x02, 0x01, 0x2C]);
-    connect.extend_from_slice(&mqtt_str("slow-reader"));
-    s.write_all(&packet(0x10, &connect)).expect("CONNECT");
-    let mut connack = [0u8; 4];
-    s.read_exact(&mut connack).expect("CONNACK");
-    assert_eq!(connack, [0x20, 2, 0, 0], "the broker accepts the attacker");
-    // SUBSCRIBE, packet id 1, QoS 0.
-    let mut subscribe = vec![0, 1];
-    subscribe.extend_from_slice(&mqtt_str(topic));
-    subscribe.push(0);
-    s.write_all(&packet(0x82, &subscribe)).expect("SUBSCRIBE");
-    let mut suback = [0u8; 5];
-    s.read_exact(&mut suback).expect("SUBACK");
-    assert_eq!(suback, [0x90, 3, 0, 1, 0], "the broker grants QoS 0");
-    let read = Arc::new(AtomicU64::new(0));
-    let counted = read.clone();
-    std::thread::spawn(move || {
-        let mut buf = vec![0u8; SIP];
-        while !stop.load(Ordering::Relaxed) {
-            std::thread::sleep(Duration::from_millis(100));
-            match s.read(&mut buf) {
-                Ok(0) => break,
-                Ok(n) => {
-                    counted.fetch_add(n as u64, Ordering::Relaxed);
-                }
-                Err(e) if e.kind() == std::io::ErrorKind::WouldBlock => {}
-                Err(e) if e.kind() == std::io::ErrorKind::TimedOut => {}
-                Err(_) => break,
-            }
-        }
-    });
-    read
-}
 
 /// An MQTT 5 client on `topic` that reads as fast as it can, and the count of messages it
 /// received.
@@ -186,7 +113,7 @@ fn a_slow_subscriber_does_not_make_the_plc_keep_what_others_publish_for_it() {
     let before = cycles(&first_answer(&ops, &replies, PLC, Duration::from_secs(30)));
     let (_watcher, watched) = normal_subscriber(plc.mqtt, TOPIC);
     let stop = Arc::new(AtomicBool::new(false));
-    let sipped = slow_subscriber(plc.mqtt, TOPIC, stop.clone());
+    let sipped = subscriber(plc.mqtt, "slow-reader", TOPIC, Reading::Sip, stop.clone());
 
     let rss_before = rss_kb(pid).expect("the PLC's memory");
     let sampler = RssSampler::start(pid);
@@ -214,7 +141,7 @@ fn a_slow_subscriber_does_not_make_the_plc_keep_what_others_publish_for_it() {
     stop.store(true, Ordering::Relaxed);
 
     let growth = peak.saturating_sub(rss_before);
-    let session_kb = (SESSION_INBOX_BYTES + SESSION_QUEUE * MESSAGE) as u64 / 1024;
+    let session_kb = (SESSION_INBOX_BYTES + SESSION_QUEUE_BYTES) as u64 / 1024;
     let bound = session_kb + MARGIN_KB;
     eprintln!(
         "published {images} images of {MESSAGE} bytes ({} MiB); the attacker read {} KiB, the \

@@ -97,6 +97,13 @@ pub const SESSION_QUEUE_BYTES: usize = 2 * BROKER_MAX_PACKET as usize;
 /// well under the 256 MB that the PLC may use under any flood.
 pub const SESSIONS_BYTES: usize = 64 << 20;
 
+/// Bytes that a session's inbox, and its deliver queue, may each hold however full
+/// [`SESSIONS_BYTES`] is: a session that holds less is never refused by the total, so slow
+/// subscribers that hold the total leave an operator's session room for the replies to its
+/// commands and for events (a few KiB each). The total may pass its bound by this much twice a
+/// session, 32 MiB over [`MAX_CLIENTS`].
+pub const SESSION_FLOOR_BYTES: usize = 64 << 10;
+
 /// Bytes that the sessions of the process's own clients (the PLC's, logged in as
 /// [`crate::PLC_USER`], and the dashboard's of `run`, [`crate::DASHBOARD_USER`]) hold together,
 /// apart from [`SESSIONS_BYTES`], so that what others make the broker hold for slow subscribers
@@ -532,7 +539,8 @@ impl EmbeddedBroker {
             SESSIONS_BYTES,
             vec![PLC_USER.to_owned(), DASHBOARD_USER.to_owned()],
             INTERNAL_SESSIONS_BYTES,
-        ));
+        )
+        .with_floor(SESSION_FLOOR_BYTES));
         let public = rt.block_on(listener(addr, anonymous, tls, &sessions))?;
         // With TLS, the process's own clients come in on loopback, without it.
         let own = match tls {

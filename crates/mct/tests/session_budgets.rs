@@ -120,3 +120,28 @@ fn all_sessions_share_a_total_the_reserve_is_apart_and_a_session_gone_gives_back
     );
     assert!(b.charge(cost, Reason::MessageQueueFull).is_ok());
 }
+
+#[test]
+fn a_session_within_its_floor_is_never_refused_by_the_total() {
+    let reply = message(100, QoS::AtMostOnce, 0);
+    let cost = ByteBudget::cost(&reply);
+    let total = Arc::new(SessionsBudget::new(4 * cost, vec![], 0).with_floor(cost));
+    let hoarder = ByteBudget::new(4 * cost, Some(total.clone()), Some("mallory"));
+    for _ in 0..4 {
+        assert!(hoarder.charge(cost, Reason::SessionInboxFull).is_ok());
+    }
+    let operator = ByteBudget::new(4 * cost, Some(total.clone()), Some("ops"));
+    assert!(
+        operator.charge(cost, Reason::SessionInboxFull).is_ok(),
+        "an operator's session that holds nothing takes a reply, though the others hold the total"
+    );
+    assert!(
+        matches!(operator.charge(cost, Reason::SessionInboxFull), Err(Reason::SessionsBudgetFull)),
+        "past its floor, the total decides"
+    );
+    assert_eq!(
+        total.shared.load(std::sync::atomic::Ordering::Acquire),
+        5 * cost,
+        "the floor is booked in the total, which it passes by at most a floor a session"
+    );
+}

@@ -90,6 +90,8 @@ pub struct SessionsBudget { // cetratus: see above
     pub reserve_max: usize, // cetratus: see SessionsBudget
     /// cetratus: the user names (as the client logged in) whose sessions are charged to the reserve
     pub reserve_users: Vec<String>, // cetratus: see SessionsBudget
+    /// cetratus: what a part of a session (its inbox, its deliver queue) may always hold, full pot or not
+    pub floor: usize, // cetratus: see SessionsBudget
 } // cetratus: end of SessionsBudget
 
 impl SessionsBudget { // cetratus: see SessionsBudget
@@ -97,6 +99,12 @@ impl SessionsBudget { // cetratus: see SessionsBudget
     pub fn new(shared_max: usize, reserve_users: Vec<String>, reserve_max: usize) -> Self { // cetratus: see above
         Self { shared_max, reserve_users, reserve_max, ..Self::default() } // cetratus: empty pots
     } // cetratus: end of new
+
+    /// cetratus: lets a part of a session hold up to `bytes` however full its pot is (the pot may pass its most by that much a part)
+    pub fn with_floor(mut self, bytes: usize) -> Self { // cetratus: see with_floor
+        self.floor = bytes; // cetratus: see with_floor
+        self // cetratus: see with_floor
+    } // cetratus: end of with_floor
 } // cetratus: end of impl SessionsBudget
 
 #[derive(Clone, Debug)]

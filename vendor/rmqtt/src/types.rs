@@ -125,6 +125,7 @@ struct ByteBudgetInner { // cetratus: see ByteBudget
     held: AtomicUsize, // cetratus: bytes charged and not yet released, `delivering` included
     max: usize, // cetratus: the most `held` may reach by a charge
     total: Option<(Arc<crate::net::SessionsBudget>, bool)>, // cetratus: the broker-wide total, and whether this session is charged to its reserve
+    floor: usize, // cetratus: what this part may hold however full the total is (SessionsBudget::floor)
     delivering: AtomicUsize, // cetratus: bytes of the message taken out of the deliver queue and being written
 } // cetratus: end of ByteBudgetInner
 
@@ -154,7 +155,8 @@ impl ByteBudget { // cetratus: see ByteBudget
             let reserve = user.is_some_and(|u| t.reserve_users.iter().any(|r| r == u)); // cetratus: the login's name, checked by the auth hook
             (t, reserve) // cetratus: see new
         }); // cetratus: see new
-        Self(Arc::new(ByteBudgetInner { held: AtomicUsize::new(0), max, total, delivering: AtomicUsize::new(0) })) // cetratus: see new
+        let floor = total.as_ref().map_or(0, |(t, _)| t.floor); // cetratus: see new
+        Self(Arc::new(ByteBudgetInner { held: AtomicUsize::new(0), max, total, floor, delivering: AtomicUsize::new(0) })) // cetratus: see new
     } // cetratus: end of new
 
     /// cetratus: what a message `p` costs: payload, topic and a fixed overhead
@@ -177,7 +179,10 @@ impl ByteBudget { // cetratus: see ByteBudget
             return Err(over); // cetratus: see charge
         } // cetratus: see charge
         if let Some((pot, max)) = self.0.pot() { // cetratus: then the total
-            if !Self::add_within(pot, cost, max) { // cetratus: see charge
+            let within_floor = self.0.held.load(Acquire) <= self.0.floor; // cetratus: with this message booked above, still within the floor
+            if within_floor { // cetratus: a part within its floor is never refused by the total
+                let _ = pot.fetch_update(AcqRel, Acquire, |held| Some(held.saturating_add(cost))); // cetratus: booked all the same
+            } else if !Self::add_within(pot, cost, max) { // cetratus: otherwise the total decides
                 Self::sub(&self.0.held, cost); // cetratus: the session's part given back
                 return Err(Reason::SessionsBudgetFull); // cetratus: see charge
             } // cetratus: see charge

@@ -3,6 +3,8 @@
 
 #![allow(dead_code)]
 
+pub mod raw_mqtt;
+
 use std::collections::BTreeMap;
 use std::process::{Command, Stdio};
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};

@@ -37,8 +37,9 @@ const MARGIN_KB: u64 = 48 * 1024;
 static ONE_AT_A_TIME: Mutex<()> = Mutex::new(());
 
 /// The camera: publishes `n` images of `size` bytes at `qos`, `per_s` a second, the k-th on
-/// `topics[k % topics.len()]`.
-fn camera(port: u16, topics: &[String], size: usize, per_s: u32, n: u32, qos: QoS) {
+/// `topics[k % topics.len()]`; with `tiny`, each image is followed at once by a message of 64
+/// bytes on that topic, at QoS 1, and the image goes to a topic no one reads.
+fn camera(port: u16, topics: &[String], size: usize, per_s: u32, n: u32, qos: QoS, tiny: bool) {
     let mut opts = MqttOptions::new("camera", "127.0.0.1", port);
     opts.set_max_packet_size(Some(8 << 20));
     opts.set_keep_alive(Duration::from_secs(30));
@@ -54,8 +55,15 @@ fn camera(port: u16, topics: &[String], size: usize, per_s: u32, n: u32, qos: Qo
     let t0 = Instant::now();
     for k in 0..n {
         let topic = &topics[k as usize % topics.len()];
-        c.publish(topic, qos, false, image.clone())
-            .expect("the camera queues an image");
+        if tiny {
+            c.publish("plant/unread", qos, false, image.clone())
+                .expect("the camera queues an image");
+            c.publish(topic, QoS::AtLeastOnce, false, vec![0x5Au8; 64])
+                .expect("the camera queues a tiny message");
+        } else {
+            c.publish(topic, qos, false, image.clone())
+                .expect("the camera queues an image");
+        }
         let next = t0 + Duration::from_secs(1) * (k + 1) / per_s;
         std::thread::sleep(next.saturating_duration_since(Instant::now()));
     }
@@ -72,7 +80,7 @@ fn cycles(v: &serde_json::Value) -> u64 {
 /// Starts the PLC and `attackers` on their topics, floods them with images of `size` bytes at
 /// `qos`, checks that the PLC cycles on and answers an operator, and returns the growth of its
 /// resident memory in kB and its log.
-fn flood(attackers: &[(String, Reading)], size: usize, qos: QoS) -> (u64, Vec<String>) {
+fn flood(attackers: &[(String, Reading)], size: usize, qos: QoS, tiny: bool) -> (u64, Vec<String>) {
     let (plc, log) = RunningPlc::start_logged(PLC, &[]);
     let pid = plc.process.id();
     let (ops, replies) = client(plc.mqtt, "ops", PLC);
@@ -93,7 +101,7 @@ fn flood(attackers: &[(String, Reading)], size: usize, qos: QoS) -> (u64, Vec<St
     // Just under the ingress limit, so that every image reaches the sessions.
     let per_s = ((15 << 20) / size) as u32;
     let images = per_s * FLOOD.as_secs() as u32;
-    camera(plc.mqtt, &topics, size, per_s, images, qos);
+    camera(plc.mqtt, &topics, size, per_s, images, qos, tiny);
     // The last images reach the sessions after the camera is done.
     std::thread::sleep(Duration::from_secs(2));
     let peak = sampler.peak_kb();
@@ -124,7 +132,7 @@ fn a_subscriber_that_never_acknowledges_does_not_make_the_plc_keep_its_deliver_q
     // 3 MiB images at QoS 1: without a bound in bytes the session keeps 16 in flight and 64
     // queued behind them, 240 MiB, however the inbox is bounded.
     let attackers = [("plant/line1/camera".to_owned(), Reading::NeverAcknowledge)];
-    let (growth, logged) = flood(&attackers, 3 << 20, QoS::AtLeastOnce);
+    let (growth, logged) = flood(&attackers, 3 << 20, QoS::AtLeastOnce, false);
     let session_kb = (SESSION_INBOX_BYTES + SESSION_QUEUE_BYTES) as u64 / 1024;
     let bound = session_kb + MARGIN_KB;
     eprintln!("bound {bound} kB: one session {session_kb} kB + margin {MARGIN_KB} kB");
@@ -149,7 +157,7 @@ fn many_slow_subscribers_together_hold_no_more_than_the_brokers_total() {
     let attackers: Vec<(String, Reading)> = (0..10)
         .map(|k| (format!("plant/line1/camera{k}"), Reading::Sip))
         .collect();
-    let (growth, logged) = flood(&attackers, 512 << 10, QoS::AtMostOnce);
+    let (growth, logged) = flood(&attackers, 512 << 10, QoS::AtMostOnce, false);
     // Each session's inbox and queue may pass the total by their floor.
     let total_kb = (SESSIONS_BYTES + 2 * attackers.len() * SESSION_FLOOR_BYTES) as u64 / 1024;
     let bound = total_kb + MARGIN_KB;
@@ -166,5 +174,23 @@ fn many_slow_subscribers_together_hold_no_more_than_the_brokers_total() {
             .any(|l| l.contains("what all sessions hold together")),
         "the broker says it dropped messages at its total; the log:\n{}",
         logged.join("\n")
+    );
+}
+
+#[test]
+fn tiny_messages_read_with_large_ones_do_not_keep_them_for_a_subscriber() {
+    let _one = ONE_AT_A_TIME.lock().unwrap_or_else(|e| e.into_inner());
+    // Each 3 MiB image, on a topic no one reads, is followed at once by a message of 64 bytes to
+    // the attacker, who keeps 80 of them (16 in flight, 64 queued). The broker reads both
+    // packets into one buffer: a tiny message that shared the image's buffer must not keep it.
+    let attackers = [("plant/line1/tiny".to_owned(), Reading::NeverAcknowledge)];
+    let (growth, _) = flood(&attackers, 3 << 20, QoS::AtMostOnce, true);
+    let session_kb = (SESSION_INBOX_BYTES + SESSION_QUEUE_BYTES) as u64 / 1024;
+    let bound = session_kb + MARGIN_KB;
+    eprintln!("bound {bound} kB: one session {session_kb} kB + margin {MARGIN_KB} kB");
+    assert!(
+        growth < bound,
+        "the PLC's memory grew by {growth} kB while a subscriber kept tiny messages read together \
+         with large ones: more than one session may hold ({session_kb} kB) and a margin"
     );
 }

@@ -10,16 +10,20 @@
 //! It runs inside the PLC's process, so what it keeps for others is the PLC's memory: retained
 //! messages are bounded in bytes ([`RETAINED_BYTES`]), the messages handed to one subscriber's
 //! session and not yet taken by it in bytes ([`SESSION_INBOX_BYTES`]), the messages queued
-//! behind that for a slow subscriber in count ([`SESSION_QUEUE`], [`SESSION_INFLIGHT`]), the
-//! clients in number ([`MAX_CLIENTS`]), and what others publish in bytes per second
-//! ([`INGRESS_BYTES_PER_S`]). The PLC's own client is not limited: what it publishes is its own.
+//! behind that and in flight to it in count and bytes ([`SESSION_QUEUE`], [`SESSION_INFLIGHT`],
+//! [`SESSION_QUEUE_BYTES`]), what all sessions hold together in bytes ([`SESSIONS_BYTES`], with
+//! a reserve for the process's own clients, [`INTERNAL_SESSIONS_BYTES`]), the clients in number
+//! ([`MAX_CLIENTS`]), and what others publish in bytes per second ([`INGRESS_BYTES_PER_S`]). The
+//! PLC's own client is not limited: what it publishes is its own.
 //!
 //! rmqtt hands each message for a subscriber to the subscriber's session through a channel that
-//! rmqtt leaves unbounded, so a subscriber that reads just fast enough never to hit the send
-//! timeout would have everything published meanwhile kept here. The workspace builds rmqtt from
-//! a patched copy (`vendor/rmqtt`, `vendor/README.md`) that counts the bytes in that channel per
-//! session and hands a message that would pass [`SESSION_INBOX_BYTES`] to the `message_dropped`
-//! hook instead of the channel; [`Drops`] counts and logs them.
+//! rmqtt leaves unbounded, and bounds the queue behind it in messages only, so a subscriber that
+//! reads just fast enough never to hit the send timeout, or that never acknowledges, would have
+//! what others publish kept here. The workspace builds rmqtt from a patched copy (`vendor/rmqtt`,
+//! `vendor/README.md`) that counts those bytes per session and in total and hands a message that
+//! does not fit to the `message_dropped` hook instead; [`Drops`] counts and logs them. Each
+//! publication is copied out of the buffer it was read into before it is routed ([`detached`]),
+//! so that what a session is charged for is what it holds.
 //!
 //! An account's password is checked with argon2 on one blocking thread at a time, at most
 //! [`LOGINS_PER_S`] a second: a flood of wrong passwords costs a core at most and never the

@@ -110,11 +110,17 @@ fn flood(attackers: &[(String, Reading)], size: usize, qos: QoS, tiny: bool) -> 
     // what they hold.
     request(&ops, PLC, "exec_info", b"after-flood", b"{}".to_vec());
     let after = cycles(&reply(&replies, b"after-flood", Duration::from_secs(30)));
-    assert!(after > before, "the PLC cycles on: {before} cycles, then {after}");
+    assert!(
+        after > before,
+        "the PLC cycles on: {before} cycles, then {after}"
+    );
     stop.store(true, Ordering::Relaxed);
 
     let growth = peak.saturating_sub(rss_before);
-    let taken: Vec<u64> = read.iter().map(|r| r.load(Ordering::Relaxed) >> 10).collect();
+    let taken: Vec<u64> = read
+        .iter()
+        .map(|r| r.load(Ordering::Relaxed) >> 10)
+        .collect();
     eprintln!(
         "published {images} images of {size} bytes ({} MiB) on {} topics; the attackers read \
          {taken:?} KiB; PLC RSS before {rss_before} kB, peak {peak} kB, growth {growth} kB",

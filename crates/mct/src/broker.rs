@@ -568,18 +568,23 @@ impl EmbeddedBroker {
             .build()?;
         let tls = settings.tls.as_ref();
         // One total for both listeners: the broker's, not a port's.
-        let sessions = Arc::new(SessionsBudget::new(
-            SESSIONS_BYTES,
-            vec![PLC_USER.to_owned(), DASHBOARD_USER.to_owned()],
-            INTERNAL_SESSIONS_BYTES,
-        )
-        .with_floor(SESSION_FLOOR_BYTES));
+        let sessions = Arc::new(
+            SessionsBudget::new(
+                SESSIONS_BYTES,
+                vec![PLC_USER.to_owned(), DASHBOARD_USER.to_owned()],
+                INTERNAL_SESSIONS_BYTES,
+            )
+            .with_floor(SESSION_FLOOR_BYTES),
+        );
         let public = rt.block_on(listener(addr, anonymous, tls, &sessions))?;
         // With TLS, the process's own clients come in on loopback, without it.
         let own = match tls {
             Some(_) => {
                 let local = free_port(SocketAddr::from(([127, 0, 0, 1], 0)))?;
-                Some((local, rt.block_on(listener(local, anonymous, None, &sessions))?))
+                Some((
+                    local,
+                    rt.block_on(listener(local, anonymous, None, &sessions))?,
+                ))
             }
             None => None,
         };

@@ -38,7 +38,10 @@ fn a_deliver_queue_refuses_what_passes_its_bytes_whatever_the_policy_and_gives_b
     let image = message(1000, QoS::AtLeastOnce, 0);
     let cost = ByteBudget::cost(&image);
     let budget = ByteBudget::new(3 * cost, None, None);
-    let limiter = Limiter::new(std::num::NonZeroU32::new(1000).unwrap(), std::time::Duration::from_secs(1));
+    let limiter = Limiter::new(
+        std::num::NonZeroU32::new(1000).unwrap(),
+        std::time::Duration::from_secs(1),
+    );
     let q = queue(64, &budget);
     let (tx, _rx) = limiter.channel(q.clone());
     // QoS 1: rmqtt's policy would drop the earliest message to make room; bytes refuse the new one.
@@ -48,7 +51,10 @@ fn a_deliver_queue_refuses_what_passes_its_bytes_whatever_the_policy_and_gives_b
             assert!(tx.send((from(), image.clone())).await.is_ok(), "{k}");
         }
         let refused = tx.send((from(), image.clone())).await;
-        assert!(refused.is_err(), "a fourth message passes the queue's bytes");
+        assert!(
+            refused.is_err(),
+            "a fourth message passes the queue's bytes"
+        );
         assert!(matches!(tx.take_refusal(), Reason::MessageQueueFull));
         assert_eq!(q.len(), 3, "no earlier message was dropped for it");
         assert_eq!(budget.held(), 3 * cost, "a refused message is not booked");
@@ -100,18 +106,31 @@ fn all_sessions_share_a_total_the_reserve_is_apart_and_a_session_gone_gives_back
         assert!(budget.charge(cost, Reason::MessageQueueFull).is_ok());
     }
     assert!(
-        matches!(b.charge(cost, Reason::MessageQueueFull), Err(Reason::SessionsBudgetFull)),
+        matches!(
+            b.charge(cost, Reason::MessageQueueFull),
+            Err(Reason::SessionsBudgetFull)
+        ),
         "b is within its own budget, but all sessions together are full"
     );
-    assert_eq!(b.held(), cost, "a message refused by the total is not booked by the session");
+    assert_eq!(
+        b.held(),
+        cost,
+        "a message refused by the total is not booked by the session"
+    );
     for k in 0..2 {
         assert!(
             plc.charge(cost, Reason::MessageQueueFull).is_ok(),
             "the PLC's own client is charged to its reserve: {k}"
         );
     }
-    assert!(matches!(plc.charge(cost, Reason::SessionInboxFull), Err(Reason::SessionInboxFull)));
-    assert_eq!(total.shared.load(std::sync::atomic::Ordering::Acquire), 3 * cost);
+    assert!(matches!(
+        plc.charge(cost, Reason::SessionInboxFull),
+        Err(Reason::SessionInboxFull)
+    ));
+    assert_eq!(
+        total.shared.load(std::sync::atomic::Ordering::Acquire),
+        3 * cost
+    );
     drop(a);
     assert_eq!(
         total.shared.load(std::sync::atomic::Ordering::Acquire),
@@ -136,7 +155,10 @@ fn a_session_within_its_floor_is_never_refused_by_the_total() {
         "an operator's session that holds nothing takes a reply, though the others hold the total"
     );
     assert!(
-        matches!(operator.charge(cost, Reason::SessionInboxFull), Err(Reason::SessionsBudgetFull)),
+        matches!(
+            operator.charge(cost, Reason::SessionInboxFull),
+            Err(Reason::SessionsBudgetFull)
+        ),
         "past its floor, the total decides"
     );
     assert_eq!(

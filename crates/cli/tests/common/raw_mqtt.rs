@@ -69,7 +69,11 @@ pub fn subscriber(
     s.write_all(&packet(0x10, &connect)).expect("CONNECT");
     let mut connack = [0u8; 4];
     s.read_exact(&mut connack).expect("CONNACK");
-    assert_eq!(connack, [0x20, 2, 0, 0], "the broker accepts the attacker {id}");
+    assert_eq!(
+        connack,
+        [0x20, 2, 0, 0],
+        "the broker accepts the attacker {id}"
+    );
     let qos = match reading {
         Reading::Sip => 0,
         Reading::NeverAcknowledge => 1,
@@ -81,7 +85,11 @@ pub fn subscriber(
     s.write_all(&packet(0x82, &subscribe)).expect("SUBSCRIBE");
     let mut suback = [0u8; 5];
     s.read_exact(&mut suback).expect("SUBACK");
-    assert_eq!(suback, [0x90, 3, 0, 1, qos], "the broker grants QoS {qos} to {id}");
+    assert_eq!(
+        suback,
+        [0x90, 3, 0, 1, qos],
+        "the broker grants QoS {qos} to {id}"
+    );
     let read = Arc::new(AtomicU64::new(0));
     let counted = read.clone();
     std::thread::spawn(move || {

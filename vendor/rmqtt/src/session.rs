@@ -1951,7 +1951,7 @@ impl Session {
             });
         }
 
-        let out_inflight = OutInflight::new(max_inflight, message_retry_interval, message_expiry_interval)
+        let out_inflight = OutInflight::new(max_inflight, message_retry_interval, message_expiry_interval) // cetratus: the statement goes on below
             .with_budget(deliver_queue.budget().cloned().unwrap_or_else(ByteBudget::unbounded)); // cetratus: the window shares the deliver queue's budget
         #[cfg(feature = "stats")]
         let out_inflight = {

@@ -8,12 +8,22 @@
 //! `run`), which log in with secrets drawn at start. The ACL and the logins apply on both.
 //!
 //! It runs inside the PLC's process, so what it keeps for others is the PLC's memory: retained
-//! messages are bounded in bytes ([`RETAINED_BYTES`]), the messages queued for a slow subscriber
-//! in count ([`SESSION_QUEUE`], [`SESSION_INFLIGHT`]), the clients in number ([`MAX_CLIENTS`]),
-//! and what others publish in bytes per second ([`INGRESS_BYTES_PER_S`]): rmqtt hands a message
-//! to each subscriber's session through an unbounded channel, so a subscriber that reads slower
-//! than others publish (the PLC parsing 1 MiB commands, the dashboard parsing events) would have
-//! the difference kept here. The PLC's own client is not limited: what it publishes is its own.
+//! messages are bounded in bytes ([`RETAINED_BYTES`]), the messages handed to one subscriber's
+//! session and not yet taken by it in bytes ([`SESSION_INBOX_BYTES`]), the messages queued
+//! behind that and in flight to it in count and bytes ([`SESSION_QUEUE`], [`SESSION_INFLIGHT`],
+//! [`SESSION_QUEUE_BYTES`]), what all sessions hold together in bytes ([`SESSIONS_BYTES`], with
+//! a reserve for the process's own clients, [`INTERNAL_SESSIONS_BYTES`]), the clients in number
+//! ([`MAX_CLIENTS`]), and what others publish in bytes per second ([`INGRESS_BYTES_PER_S`]). The
+//! PLC's own client is not limited: what it publishes is its own.
+//!
+//! rmqtt hands each message for a subscriber to the subscriber's session through a channel that
+//! rmqtt leaves unbounded, and bounds the queue behind it in messages only, so a subscriber that
+//! reads just fast enough never to hit the send timeout, or that never acknowledges, would have
+//! what others publish kept here. The workspace builds rmqtt from a patched copy (`vendor/rmqtt`,
+//! `vendor/README.md`) that counts those bytes per session and in total and hands a message that
+//! does not fit to the `message_dropped` hook instead; [`Drops`] counts and logs them. Each
+//! publication is copied out of the buffer it was read into before it is routed ([`detached`]),
+//! so that what a session is charged for is what it holds.
 //!
 //! An account's password is checked with argon2 on one blocking thread at a time, at most
 //! [`LOGINS_PER_S`] a second: a flood of wrong passwords costs a core at most and never the
@@ -27,12 +37,13 @@ use std::sync::{Arc, Mutex};
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
-use crate::acl::{Acl, BrokerSettings, Checked, Login, Who, PLC_USER};
+use crate::acl::{Acl, BrokerSettings, Checked, Login, Who, DASHBOARD_USER, PLC_USER};
 use crate::budget::TokenBucket as Bucket;
 use crate::MctError;
 use async_trait::async_trait;
 use rmqtt::context::ServerContext;
 use rmqtt::hook::{Handler, HookResult, Parameter, ReturnType, Type};
+use rmqtt::net::SessionsBudget;
 use rmqtt::retain::{DefaultRetainStorage, RetainStorage};
 use rmqtt::server::MqttServer;
 use rmqtt::types::{AuthResult, Retain, TopicFilter, TopicName};
@@ -51,8 +62,58 @@ pub const RETAINED_BYTES: usize = 32 << 20;
 /// 4 GB of 4 MiB messages); past it the broker drops them for that subscriber.
 pub const SESSION_QUEUE: usize = 64;
 
+/// Bytes of messages handed to one subscriber's session and not yet taken by the session's task
+/// (payload, topic and rmqtt's fixed overhead of 512 bytes a message); past it a message is
+/// dropped for that subscriber and counted ([`Drops`]). Four full packets ([`BROKER_MAX_PACKET`]):
+/// * every message fits in an empty inbox, since the broker takes no larger packet from anyone,
+///   the PLC included: a full 1 MiB command, and a larger one that earns `too_large`;
+/// * the two subscribers in the PLC's process, its own client (commands) and its dashboard
+///   (everything the PLCs publish), read faster than others may publish
+///   ([`INGRESS_BYTES_PER_S`]), so their inboxes hold at most what others send at once
+///   ([`INGRESS_BURST`], two packets) plus what arrives while the session writes one message
+///   (less than two more): they lose nothing to this bound while they keep up;
+/// * a subscriber that reads slowly costs the PLC at most this (and its queue behind it,
+///   [`SESSION_QUEUE`]), however long others publish. Payloads are shared between sessions, so
+///   many slow subscribers of the same messages cost little more than one.
+pub const SESSION_INBOX_BYTES: usize = 4 * BROKER_MAX_PACKET as usize;
+
 /// QoS 1 and 2 messages in flight to one subscriber (rmqtt's default).
 pub const SESSION_INFLIGHT: u16 = 16;
+
+/// Bytes of messages in one subscriber's deliver queue (behind its inbox) and in its in-flight
+/// window together, counted as in the inbox; past it a message is dropped for that subscriber and
+/// counted ([`Drops`]). Without it the queue is bounded in messages only: [`SESSION_QUEUE`] and
+/// [`SESSION_INFLIGHT`] messages of [`BROKER_MAX_PACKET`] bytes are 320 MiB for one subscriber that
+/// takes its messages and never acknowledges them. Two full packets:
+/// * every message fits in an empty queue, and a full-size message fits beside one in flight;
+/// * the two subscribers in the PLC's process take every message as soon as it is written and
+///   acknowledge it at once, so their queues hold a message or two (the inbox before it absorbs
+///   bursts): they lose nothing to this bound while they keep up.
+pub const SESSION_QUEUE_BYTES: usize = 2 * BROKER_MAX_PACKET as usize;
+
+/// Bytes that the sessions of all clients but the process's own hold together, in their inboxes,
+/// deliver queues and in-flight windows, counted as in each of them; past it a message is dropped
+/// for the subscriber it was for, whichever that is, and counted ([`Drops`]). Without it each of
+/// [`MAX_CLIENTS`] sessions could hold its own budgets ([`SESSION_INBOX_BYTES`] and
+/// [`SESSION_QUEUE_BYTES`], 24 MiB): 6 GiB. 64 MiB is room for more than two sessions full to
+/// their budgets, or for a burst of [`INGRESS_BURST`] to each of eight subscribers at once; with
+/// [`RETAINED_BYTES`] and [`INTERNAL_SESSIONS_BYTES`] it keeps what the broker holds for others
+/// well under the 256 MB that the PLC may use under any flood.
+pub const SESSIONS_BYTES: usize = 64 << 20;
+
+/// Bytes that a session's inbox, and its deliver queue, may each hold however full
+/// [`SESSIONS_BYTES`] is: a session that holds less is never refused by the total, so slow
+/// subscribers that hold the total leave an operator's session room for the replies to its
+/// commands and for events (a few KiB each). The total may pass its bound by this much twice a
+/// session, 32 MiB over [`MAX_CLIENTS`].
+pub const SESSION_FLOOR_BYTES: usize = 64 << 10;
+
+/// Bytes that the sessions of the process's own clients (the PLC's, logged in as
+/// [`crate::PLC_USER`], and the dashboard's of `run`, [`crate::DASHBOARD_USER`]) hold together,
+/// apart from [`SESSIONS_BYTES`], so that what others make the broker hold for slow subscribers
+/// can never leave the PLC's commands, nor its dashboard, without room. The two sessions' own
+/// budgets, summed: the reserve itself never refuses them a message their budgets admit.
+pub const INTERNAL_SESSIONS_BYTES: usize = 2 * (SESSION_INBOX_BYTES + SESSION_QUEUE_BYTES);
 
 /// Clients connected at once: a PLC, its dashboard, operators and a few tools.
 pub const MAX_CLIENTS: usize = 256;
@@ -129,9 +190,9 @@ impl Handler for Ingress {
             // Before the ACL check: a command is charged here, and stripped when over.
             Parameter::MessagePublish(_, from, publish) if is_command(publish) => {
                 if self.admit(&from.id.client_id, from.id.username_ref(), publish) {
-                    return (true, acc);
+                    return (true, Some(HookResult::Publish(detached(publish))));
                 }
-                let mut stripped = (*publish).clone();
+                let mut stripped = detached(publish);
                 drop(std::mem::take(&mut stripped.inner.payload));
                 stripped
                     .inner
@@ -152,8 +213,86 @@ impl Handler for Ingress {
                 );
                 (false, Some(HookResult::PublishAclResult(refused)))
             }
+            Parameter::MessagePublish(_, _, publish) => {
+                (true, Some(HookResult::Publish(detached(publish))))
+            }
             _ => (true, acc),
         }
+    }
+}
+
+/// A copy of `publish` that shares no memory with the buffer it was read into. rmqtt's codec
+/// cuts a packet's topic, payload and properties out of the connection's read buffer without
+/// copying them, so a message kept for a subscriber kept alive the whole buffer it was read
+/// with: a 64-byte message read together with a 3 MiB one kept the 3 MiB, and a session charged
+/// for 80 such messages (about 48 KiB) held 280 MiB (`crates/cli/tests/hoarding_subscribers.rs`).
+/// The broker copies every publication once, before it is routed, so that what the sessions are
+/// charged for is what they hold.
+fn detached(publish: &rmqtt::types::Publish) -> rmqtt::types::Publish {
+    fn own(s: &TopicName) -> TopicName {
+        TopicName::from(s.to_string())
+    }
+    let mut copy = publish.clone();
+    let inner = &mut *copy.inner;
+    inner.topic = own(&publish.topic);
+    inner.payload = publish.payload.to_vec().into();
+    if let Some(p) = inner.properties.as_mut() {
+        p.correlation_data = p.correlation_data.as_ref().map(|b| b.to_vec().into());
+        p.content_type = p.content_type.as_ref().map(own);
+        p.response_topic = p.response_topic.as_ref().map(own);
+        for (name, value) in &mut p.user_properties {
+            (*name, *value) = (own(name), own(value));
+        }
+    }
+    copy
+}
+
+/// Counts the messages the broker dropped for one subscriber, by cause, and logs each cause on
+/// its 1st, 2nd, 4th… occurrence: a session inbox over [`SESSION_INBOX_BYTES`], a deliver
+/// queue over [`SESSION_QUEUE`] or [`SESSION_QUEUE_BYTES`], or all sessions over
+/// [`SESSIONS_BYTES`] (or [`INTERNAL_SESSIONS_BYTES`]).
+#[derive(Default)]
+struct Drops {
+    inbox_full: AtomicU64,
+    queue_full: AtomicU64,
+    total_full: AtomicU64,
+}
+
+#[async_trait]
+impl Handler for Drops {
+    async fn hook(&self, param: &Parameter, acc: Option<HookResult>) -> ReturnType {
+        let Parameter::MessageDropped(to, _, publish, reason) = param else {
+            return (true, acc);
+        };
+        let (counter, limit) = match reason {
+            rmqtt::types::Reason::SessionInboxFull => (
+                &self.inbox_full,
+                "its session's inbox (SESSION_INBOX_BYTES)",
+            ),
+            rmqtt::types::Reason::MessageQueueFull => (
+                &self.queue_full,
+                "its deliver queue (SESSION_QUEUE messages or SESSION_QUEUE_BYTES)",
+            ),
+            rmqtt::types::Reason::SessionsBudgetFull => (
+                &self.total_full,
+                "what all sessions hold together (SESSIONS_BYTES, or INTERNAL_SESSIONS_BYTES for \
+                 the PLC's own clients)",
+            ),
+            _ => return (true, acc),
+        };
+        let n = counter.fetch_add(1, Ordering::Relaxed) + 1;
+        if crate::budget::worth_logging(n) {
+            let subscriber = to.as_ref().map(|id| id.client_id.to_string());
+            tracing::warn!(
+                topic = %publish.topic,
+                bytes = publish.payload.len(),
+                subscriber = subscriber.as_deref().unwrap_or("?"),
+                dropped = n,
+                "a subscriber of the embedded broker reads slower than messages come for it; a \
+                 message for it was dropped: {limit} is full"
+            );
+        }
+        (true, acc)
     }
 }
 
@@ -361,6 +500,7 @@ async fn listener(
     addr: SocketAddr,
     anonymous: bool,
     tls: Option<&crate::acl::BrokerTls>,
+    sessions: &Arc<SessionsBudget>,
 ) -> Result<rmqtt::net::Listener, MctError> {
     let b = rmqtt::net::Builder::new()
         .name("cetratus")
@@ -370,6 +510,9 @@ async fn listener(
         .reuseaddr(Some(true))
         .max_packet_size(BROKER_MAX_PACKET)
         .max_mqueue_len(SESSION_QUEUE)
+        .max_session_inbox_bytes(SESSION_INBOX_BYTES)
+        .max_session_queue_bytes(SESSION_QUEUE_BYTES)
+        .sessions_budget(sessions.clone())
         .max_inflight(NonZeroU16::new(SESSION_INFLIGHT).unwrap_or(NonZeroU16::MIN))
         .max_connections(MAX_CLIENTS)
         .handshake_timeout(Duration::from_secs(10))
@@ -424,12 +567,24 @@ impl EmbeddedBroker {
             .enable_all()
             .build()?;
         let tls = settings.tls.as_ref();
-        let public = rt.block_on(listener(addr, anonymous, tls))?;
+        // One total for both listeners: the broker's, not a port's.
+        let sessions = Arc::new(
+            SessionsBudget::new(
+                SESSIONS_BYTES,
+                vec![PLC_USER.to_owned(), DASHBOARD_USER.to_owned()],
+                INTERNAL_SESSIONS_BYTES,
+            )
+            .with_floor(SESSION_FLOOR_BYTES),
+        );
+        let public = rt.block_on(listener(addr, anonymous, tls, &sessions))?;
         // With TLS, the process's own clients come in on loopback, without it.
         let own = match tls {
             Some(_) => {
                 let local = free_port(SocketAddr::from(([127, 0, 0, 1], 0)))?;
-                Some((local, rt.block_on(listener(local, anonymous, None))?))
+                Some((
+                    local,
+                    rt.block_on(listener(local, anonymous, None, &sessions))?,
+                ))
             }
             None => None,
         };
@@ -467,6 +622,8 @@ impl EmbeddedBroker {
             reg.add(Type::MessagePublish, Box::new(Shared(ingress.clone())))
                 .await;
             reg.add(Type::MessagePublishCheckAcl, Box::new(Shared(ingress)))
+                .await;
+            reg.add(Type::MessageDropped, Box::new(Drops::default()))
                 .await;
             reg.start().await;
             let mut server = MqttServer::new(scx).listener_by_id(public, addr.port());
@@ -577,6 +734,63 @@ mod tests {
         // Saved up to the burst, not beyond.
         assert!(!b.take(301.0, t0 + Duration::from_secs(100)));
         assert!(b.take(300.0, t0 + Duration::from_secs(100)));
+    }
+
+    /// A message of `n` payload bytes on the topic `t`.
+    fn message(n: usize) -> rmqtt::types::Publish {
+        rmqtt::codec::types::Publish {
+            dup: false,
+            retain: false,
+            qos: rmqtt::types::QoS::AtMostOnce,
+            topic: "t".into(),
+            packet_id: None,
+            payload: vec![0u8; n].into(),
+            properties: None,
+        }
+        .into()
+    }
+
+    #[test]
+    fn a_session_inbox_refuses_what_passes_its_budget_never_a_control_message_and_frees_what_is_taken(
+    ) {
+        use futures::StreamExt;
+        use rmqtt::types::{ByteBudget, From, Id, Message, Reason, SessionTx};
+        let (tx, mut rx) = futures::channel::mpsc::unbounded();
+        let image = message(1000);
+        let cost = SessionTx::inbox_cost(&image);
+        assert_eq!(cost, 1000 + 1 + rmqtt::types::INBOX_MESSAGE_OVERHEAD);
+        let tx = SessionTx::new(tx).with_inbox_budget(ByteBudget::new(2 * cost, None, None));
+        let from = || From::from_custom(Id::new(0, 0, None, None, "camera".into(), None));
+        for k in 0..2 {
+            assert!(tx.inbox_charge(&image).is_ok(), "{k}");
+            assert!(tx
+                .unbounded_send(Message::Forward(from(), image.clone()))
+                .is_ok());
+        }
+        let other = tx.clone();
+        assert!(
+            matches!(other.inbox_charge(&image), Err(Reason::SessionInboxFull)),
+            "the budget is spent, for every sender of the session"
+        );
+        assert_eq!(
+            tx.inbox_bytes(),
+            2 * cost,
+            "a refused message is not booked"
+        );
+        assert!(
+            tx.unbounded_send(Message::Closed(Reason::Unknown)).is_ok(),
+            "a control message is never refused"
+        );
+        let taken = futures::executor::block_on(rx.next()).expect("the first message");
+        tx.inbox_taken(&taken);
+        assert_eq!(other.inbox_bytes(), cost, "what is taken is given back");
+        assert!(other.inbox_charge(&message(1000)).is_ok());
+        assert!(
+            SessionTx::new(futures::channel::mpsc::unbounded().0)
+                .inbox_charge(&message(64 << 20))
+                .is_ok(),
+            "without a budget, rmqtt's inbox is unbounded as published"
+        );
     }
 
     #[test]

@@ -46,7 +46,9 @@ pub mod password;
 
 pub use acl::{BrokerAccount, BrokerSettings, BrokerTls, Login, DASHBOARD_USER, PLC_USER};
 pub use broker::{
-    EmbeddedBroker, BROKER_MAX_PACKET, LOGINS_PER_S, LOGIN_BURST, TURNED_AWAY_PROPERTY,
+    EmbeddedBroker, BROKER_MAX_PACKET, INTERNAL_SESSIONS_BYTES, LOGINS_PER_S, LOGIN_BURST,
+    SESSIONS_BYTES, SESSION_FLOOR_BYTES, SESSION_INBOX_BYTES, SESSION_QUEUE, SESSION_QUEUE_BYTES,
+    TURNED_AWAY_PROPERTY,
 };
 pub use control::{
     accepted, refused, unix_now, ControlPlane, IncomingCommand, Outcome, Rejection, ReplyHandle,

@@ -3,9 +3,11 @@
 
 #![allow(dead_code)]
 
+pub mod raw_mqtt;
+
 use std::collections::BTreeMap;
 use std::process::{Command, Stdio};
-use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
@@ -36,6 +38,18 @@ impl RunningPlc {
     /// Starts the PLC `plc` with `extra` arguments and waits until its broker and dashboard
     /// listen.
     pub fn start(plc: &str, extra: &[&str]) -> Self {
+        Self::spawn(plc, extra, Stdio::null())
+    }
+
+    /// As [`RunningPlc::start`], with the lines of the PLC's log (standard error, `RUST_LOG`'s
+    /// default level) as they come.
+    pub fn start_logged(plc: &str, extra: &[&str]) -> (Self, std::sync::mpsc::Receiver<String>) {
+        let mut plc = Self::spawn(plc, extra, Stdio::piped());
+        let log = cetratus_testkit::process::stderr_lines(&mut plc.process.0);
+        (plc, log)
+    }
+
+    fn spawn(plc: &str, extra: &[&str], stderr: Stdio) -> Self {
         let state = tempfile::tempdir().expect("a state directory");
         let config = tempfile::tempdir().expect("an empty configuration directory");
         let (mqtt, http) = (free_port(), free_port());
@@ -54,7 +68,7 @@ impl RunningPlc {
                 .arg(config.path())
                 .args(extra)
                 .stdout(Stdio::null())
-                .stderr(Stdio::null()),
+                .stderr(stderr),
         );
         wait_for_port(mqtt, "the embedded broker", Duration::from_secs(30));
         wait_for_port(http, "the embedded dashboard", Duration::from_secs(30));
@@ -178,4 +192,52 @@ pub fn first_answer(client: &Client, replies: &Replies, plc: &str, within: Durat
         );
     }
     Value::Null
+}
+
+/// The resident memory of the process `pid`, in kB.
+pub fn rss_kb(pid: u32) -> Option<u64> {
+    let status = std::fs::read_to_string(format!("/proc/{pid}/status")).ok()?;
+    status
+        .lines()
+        .find_map(|l| l.strip_prefix("VmRSS:"))
+        .and_then(|v| v.split_whitespace().next())
+        .and_then(|v| v.parse().ok())
+}
+
+/// Samples a process's resident memory every 20 ms; returns the peak when stopped.
+pub struct RssSampler {
+    stop: Arc<AtomicBool>,
+    peak: Arc<AtomicU64>,
+    thread: Option<std::thread::JoinHandle<()>>,
+}
+
+impl RssSampler {
+    /// Starts sampling `pid`.
+    pub fn start(pid: u32) -> Self {
+        let stop = Arc::new(AtomicBool::new(false));
+        let peak = Arc::new(AtomicU64::new(0));
+        let (s, p) = (stop.clone(), peak.clone());
+        let thread = std::thread::spawn(move || {
+            while !s.load(Ordering::Relaxed) {
+                if let Some(kb) = rss_kb(pid) {
+                    p.fetch_max(kb, Ordering::Relaxed);
+                }
+                std::thread::sleep(Duration::from_millis(20));
+            }
+        });
+        RssSampler {
+            stop,
+            peak,
+            thread: Some(thread),
+        }
+    }
+
+    /// Stops sampling; the peak seen, in kB.
+    pub fn peak_kb(mut self) -> u64 {
+        self.stop.store(true, Ordering::Relaxed);
+        if let Some(t) = self.thread.take() {
+            let _ = t.join();
+        }
+        self.peak.load(Ordering::Relaxed)
+    }
 }

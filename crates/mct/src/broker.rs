@@ -43,7 +43,7 @@ use crate::MctError;
 use async_trait::async_trait;
 use rmqtt::context::ServerContext;
 use rmqtt::hook::{Handler, HookResult, Parameter, ReturnType, Type};
-use rmqtt::net::SessionsBudget;
+use rmqtt::net::{PartialsBudget, SessionsBudget};
 use rmqtt::retain::{DefaultRetainStorage, RetainStorage};
 use rmqtt::server::MqttServer;
 use rmqtt::types::{AuthResult, Retain, TopicFilter, TopicName};
@@ -117,6 +117,31 @@ pub const INTERNAL_SESSIONS_BYTES: usize = 2 * (SESSION_INBOX_BYTES + SESSION_QU
 
 /// Clients connected at once: a PLC, its dashboard, operators and a few tools.
 pub const MAX_CLIENTS: usize = 256;
+
+/// Bytes of packets that all connections together have begun to receive and not yet received
+/// whole (each connection's read buffer while a packet is incomplete, past
+/// [`PARTIAL_FLOOR_BYTES`]); a connection whose incomplete packet would take the total past it is
+/// disconnected, counted and logged. A packet is read whole before it is decoded, so without it
+/// each of [`MAX_CLIENTS`] clients could make the broker hold all but the last byte of a packet
+/// of [`BROKER_MAX_PACKET`] bytes for as long as it likes: 1 GiB. 32 MiB is eight full-size
+/// packets arriving at once, four times the ingress burst ([`INGRESS_BURST`]) that others may
+/// publish together anyway; with [`RETAINED_BYTES`], [`SESSIONS_BYTES`],
+/// [`INTERNAL_SESSIONS_BYTES`] and the floors it keeps what the broker holds for others under the
+/// 256 MB that the PLC may use under any flood. The process's own clients (the PLC's and the
+/// dashboard's, recognised by their login once it is checked) are not counted.
+pub const PARTIALS_BYTES: usize = 32 << 20;
+
+/// Bytes of an incomplete packet that a connection may always hold, whatever
+/// [`PARTIALS_BYTES`] holds: an operator's command, a login, a reply's acknowledgement is never
+/// refused by clients that hold the total. The total may pass its bound by this much a
+/// connection, 16 MiB over [`MAX_CLIENTS`].
+pub const PARTIAL_FLOOR_BYTES: usize = 64 << 10;
+
+/// Capacity past which a connection's read or write buffer, once empty again, is given back and
+/// replaced by a new one: one large packet costs its size while it is read or written, not for
+/// the life of the connection. Packets up to this size, the most common by far, reuse their
+/// buffer.
+pub const CONNECTION_BUFFER_BYTES: usize = 64 << 10;
 
 /// Bytes per second the broker takes from all clients together but the PLC's own: sixteen
 /// full-size packages a second, far more than operators and dashboards send, and less than the
@@ -495,12 +520,29 @@ impl std::fmt::Debug for EmbeddedBroker {
     }
 }
 
+/// The total of [`PARTIALS_BYTES`] for all listeners, which logs each client it disconnects on the
+/// 1st, 2nd, 4th… occurrence.
+fn partials_budget() -> PartialsBudget {
+    PartialsBudget::new(PARTIALS_BYTES, PARTIAL_FLOOR_BYTES).on_refused(Box::new(|n, from, bytes| {
+        if crate::budget::worth_logging(n) {
+            tracing::warn!(
+                %from,
+                bytes,
+                disconnected = n,
+                "a client of the embedded broker was disconnected in the middle of a packet: the \
+                 packets begun and not yet received by all clients passed {PARTIALS_BYTES} bytes"
+            );
+        }
+    }))
+}
+
 /// One rmqtt listener on `addr`, with TLS when `tls` names its files.
 async fn listener(
     addr: SocketAddr,
     anonymous: bool,
     tls: Option<&crate::acl::BrokerTls>,
     sessions: &Arc<SessionsBudget>,
+    partials: &Arc<PartialsBudget>,
 ) -> Result<rmqtt::net::Listener, MctError> {
     let b = rmqtt::net::Builder::new()
         .name("cetratus")
@@ -513,6 +555,8 @@ async fn listener(
         .max_session_inbox_bytes(SESSION_INBOX_BYTES)
         .max_session_queue_bytes(SESSION_QUEUE_BYTES)
         .sessions_budget(sessions.clone())
+        .partials_budget(partials.clone())
+        .idle_buffer_bytes(CONNECTION_BUFFER_BYTES)
         .max_inflight(NonZeroU16::new(SESSION_INFLIGHT).unwrap_or(NonZeroU16::MIN))
         .max_connections(MAX_CLIENTS)
         .handshake_timeout(Duration::from_secs(10))
@@ -576,14 +620,15 @@ impl EmbeddedBroker {
             )
             .with_floor(SESSION_FLOOR_BYTES),
         );
-        let public = rt.block_on(listener(addr, anonymous, tls, &sessions))?;
+        let partials = Arc::new(partials_budget());
+        let public = rt.block_on(listener(addr, anonymous, tls, &sessions, &partials))?;
         // With TLS, the process's own clients come in on loopback, without it.
         let own = match tls {
             Some(_) => {
                 let local = free_port(SocketAddr::from(([127, 0, 0, 1], 0)))?;
                 Some((
                     local,
-                    rt.block_on(listener(local, anonymous, None, &sessions))?,
+                    rt.block_on(listener(local, anonymous, None, &sessions, &partials))?,
                 ))
             }
             None => None,

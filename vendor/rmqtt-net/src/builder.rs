@@ -152,6 +152,10 @@ pub struct Builder {
     pub max_session_queue_bytes: usize, // cetratus: the deliver queue's budget, read by rmqtt's Session::new
     /// cetratus: bytes held for all sessions together, shared by the listeners given the same one (None: no total)
     pub sessions_budget: Option<Arc<SessionsBudget>>, // cetratus: the broker-wide total, read by rmqtt's ByteBudget
+    /// cetratus: bytes of packets begun and not yet received whole, over the connections of the listeners given the same one (None: no total)
+    pub partials_budget: Option<Arc<crate::PartialsBudget>>, // cetratus: read by stream.rs after each read
+    /// cetratus: capacity past which a connection's read or write buffer, empty again, is replaced by a new one (usize::MAX: never)
+    pub idle_buffer_bytes: usize, // cetratus: read by stream.rs after each read and each write
     /// Rate limiting for message delivery (messages per duration)
     pub mqueue_rate_limit: (NonZeroU32, Duration),
     /// Maximum length of client identifiers
@@ -253,6 +257,8 @@ impl Builder {
             max_session_inbox_bytes: usize::MAX, // cetratus: unbounded, as before the patch
             max_session_queue_bytes: usize::MAX, // cetratus: unbounded, as before the patch
             sessions_budget: None, // cetratus: no total, as before the patch
+            partials_budget: None, // cetratus: no total, as before the patch
+            idle_buffer_bytes: usize::MAX, // cetratus: buffers keep their size, as before the patch
 
             mqueue_rate_limit: (nonzero!(u32::MAX), Duration::from_secs(1)),
             max_clientid_len: 65535,
@@ -407,6 +413,18 @@ impl Builder {
     /// cetratus: bounds, in bytes, what all sessions of the listeners given `budget` hold together
     pub fn sessions_budget(mut self, budget: Arc<SessionsBudget>) -> Self { // cetratus: the setter
         self.sessions_budget = Some(budget); // cetratus: the setter's body
+        self // cetratus: the setter's body
+    } // cetratus: the setter's end
+
+    /// cetratus: bounds, in bytes, the packets begun and not yet received whole by the connections of the listeners given `budget`
+    pub fn partials_budget(mut self, budget: Arc<crate::PartialsBudget>) -> Self { // cetratus: the setter
+        self.partials_budget = Some(budget); // cetratus: the setter's body
+        self // cetratus: the setter's body
+    } // cetratus: the setter's end
+
+    /// cetratus: a connection's read or write buffer larger than `bytes` is replaced by a new one once empty
+    pub fn idle_buffer_bytes(mut self, bytes: usize) -> Self { // cetratus: the setter
+        self.idle_buffer_bytes = bytes; // cetratus: the setter's body
         self // cetratus: the setter's body
     } // cetratus: the setter's end
 

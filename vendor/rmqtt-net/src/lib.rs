@@ -29,6 +29,7 @@
 mod builder;
 mod cert_extractor;
 mod error;
+mod partial; // cetratus: the total of incomplete packets (partial.rs)
 #[cfg(feature = "quic")]
 mod quic;
 mod stream;
@@ -40,6 +41,7 @@ pub use quic::QuinnBiStream;
 
 /// Server configuration and listener management
 pub use builder::{Builder, Listener, ListenerType, SessionsBudget}; // cetratus: SessionsBudget added
+pub use partial::{Metered, OnRefused, PartialsBudget}; // cetratus: the total of incomplete packets
 
 pub use cert_extractor::TlsCertExtractor;
 

@@ -22,7 +22,7 @@ use rmqtt_codec::{MqttCodec, MqttPacket};
 /// Manages initial protocol detection and creates version-specific streams
 pub struct Dispatcher<Io> {
     /// Framed IO layer with MQTT codec
-    pub(crate) io: Framed<Io, MqttCodec>,
+    pub(crate) io: Framed<crate::Metered<Io>, MqttCodec>, // cetratus: the socket metered (partial.rs)
     /// Remote client's network address
     pub remote_addr: SocketAddr,
     /// Shared configuration builder
@@ -42,6 +42,7 @@ where
         cert_info: Option<CertInfo>,
         cfg: Arc<Builder>,
     ) -> Self {
+        let io = crate::Metered::new(io, cfg.partials_budget.clone()); // cetratus: every read booked in the total first
         Dispatcher { io: Framed::new(io, MqttCodec::Version(VersionCodec)), remote_addr, cfg, cert_info }
     }
 
@@ -118,7 +119,7 @@ pub mod v3 {
     /// MQTT v3.1.1 protocol stream implementation
     pub struct MqttStream<Io> {
         /// Framed IO layer with MQTT codec
-        pub io: Framed<Io, MqttCodec>,
+        pub io: Framed<crate::Metered<Io>, MqttCodec>, // cetratus: the socket metered (partial.rs)
         /// Remote client's network address
         pub remote_addr: SocketAddr,
         /// Shared configuration builder
@@ -241,7 +242,7 @@ pub mod v3 {
         /// Generic packet sending method
         #[inline]
         pub async fn send(&mut self, packet: rmqtt_codec::v3::Packet) -> Result<()> {
-            super::send(&mut self.io, MqttPacket::V3(packet), self.cfg.send_timeout).await
+            super::send(&mut self.io, MqttPacket::V3(packet), self.cfg.send_timeout, self.cfg.idle_buffer_bytes).await // cetratus: and the idle size
         }
 
         /// Flushes write buffers
@@ -266,6 +267,14 @@ pub mod v3 {
                 Err(_) => Err(MqttError::ReadTimeout.into()),
             }
         }
+
+        /// cetratus: once its login is checked: a user of the sessions' reserve (Builder::sessions_budget)
+        /// cetratus: is not counted in Builder::partials_budget
+        pub fn exempt_if_reserved(&mut self, user: &str) { // cetratus: see above
+            if self.cfg.sessions_budget.as_ref().is_some_and(|b| b.reserve_users.iter().any(|r| r == user)) { // cetratus: see above
+                self.io.get_mut().exempt(); // cetratus: see above
+            } // cetratus: see above
+        } // cetratus: end of exempt_if_reserved
 
         /// Waits for CONNECT packet with timeout
         #[inline]
@@ -312,6 +321,10 @@ pub mod v3 {
 
         fn poll_next(mut self: Pin<&mut Self>, cx: &mut Context<'_>) -> Poll<Option<Self::Item>> {
             let next = Pin::new(&mut self.io).poll_next(cx);
+            let this = &mut *self; // cetratus: the buffer as the read left it
+            if let Some(e) = super::after_read(&mut this.io, this.remote_addr, this.cfg.idle_buffer_bytes) { // cetratus: see after_read
+                return Poll::Ready(Some(Err(e))); // cetratus: disconnected for the total
+            } // cetratus: see above
             Poll::Ready(match futures::ready!(next) {
                 Some(Ok((MqttPacket::V3(packet), _))) => Some(Ok(packet)),
                 Some(Ok(_)) => Some(Err(MqttError::Decode(DecodeError::MalformedPacket).into())),
@@ -345,7 +358,7 @@ pub mod v5 {
     /// MQTT v5.0 protocol stream implementation
     pub struct MqttStream<Io> {
         /// Framed IO layer with MQTT codec
-        pub io: Framed<Io, MqttCodec>,
+        pub io: Framed<crate::Metered<Io>, MqttCodec>, // cetratus: the socket metered (partial.rs)
         /// Remote client's network address
         pub remote_addr: SocketAddr,
         /// Shared configuration builder
@@ -468,7 +481,7 @@ pub mod v5 {
         /// Generic packet sending method
         #[inline]
         pub async fn send(&mut self, packet: rmqtt_codec::v5::Packet) -> Result<()> {
-            super::send(&mut self.io, MqttPacket::V5(packet), self.cfg.send_timeout).await
+            super::send(&mut self.io, MqttPacket::V5(packet), self.cfg.send_timeout, self.cfg.idle_buffer_bytes).await // cetratus: and the idle size
         }
 
         /// Flushes write buffers
@@ -493,6 +506,14 @@ pub mod v5 {
                 Err(_) => Err(MqttError::ReadTimeout.into()),
             }
         }
+
+        /// cetratus: once its login is checked: a user of the sessions' reserve (Builder::sessions_budget)
+        /// cetratus: is not counted in Builder::partials_budget
+        pub fn exempt_if_reserved(&mut self, user: &str) { // cetratus: see above
+            if self.cfg.sessions_budget.as_ref().is_some_and(|b| b.reserve_users.iter().any(|r| r == user)) { // cetratus: see above
+                self.io.get_mut().exempt(); // cetratus: see above
+            } // cetratus: see above
+        } // cetratus: end of exempt_if_reserved
 
         /// Waits for CONNECT packet with timeout
         #[inline]
@@ -539,6 +560,10 @@ pub mod v5 {
 
         fn poll_next(mut self: Pin<&mut Self>, cx: &mut Context<'_>) -> Poll<Option<Self::Item>> {
             let next = Pin::new(&mut self.io).poll_next(cx);
+            let this = &mut *self; // cetratus: the buffer as the read left it
+            if let Some(e) = super::after_read(&mut this.io, this.remote_addr, this.cfg.idle_buffer_bytes) { // cetratus: see after_read
+                return Poll::Ready(Some(Err(e))); // cetratus: disconnected for the total
+            } // cetratus: see above
             Poll::Ready(match futures::ready!(next) {
                 Some(Ok((MqttPacket::V5(packet), _))) => Some(Ok(packet)),
                 Some(Ok(_)) => Some(Err(MqttError::Decode(DecodeError::MalformedPacket).into())),
@@ -549,22 +574,52 @@ pub mod v5 {
     }
 }
 
+/// cetratus: the capacity of a read buffer given back, as tokio-util's Framed starts with
+const IDLE_READ_BUFFER: usize = 8 * 1024; // cetratus: see above
+
+/// cetratus: after each read of a connection: gives its read buffer back if it is empty and larger
+/// cetratus: than `idle`, and books its capacity in the total in place of what was booked; when the
+/// cetratus: total refused a read, frees the buffer at once and returns the error that disconnects
+/// cetratus: the client
+fn after_read<Io>(io: &mut Framed<crate::Metered<Io>, MqttCodec>, addr: SocketAddr, idle: usize) -> Option<crate::Error> { // cetratus: see above
+    let buf = io.read_buffer_mut(); // cetratus: see above
+    // cetratus: its capacity is what is left of its allocation past the packets decoded from it;
+    // cetratus: try_reclaim tells whether the whole allocation is larger than idle (once it is no
+    // cetratus: longer shared with the last packet, which rmqtt drops before it reads again)
+    if buf.is_empty() && (buf.capacity() > idle || idle.checked_add(1).is_some_and(|n| buf.try_reclaim(n))) { // cetratus: see above
+        *buf = Default::default(); // cetratus: the large one goes
+        buf.reserve(IDLE_READ_BUFFER.min(idle)); // cetratus: the size Framed starts with
+    } // cetratus: see above
+    let (len, capacity) = (buf.len(), buf.capacity()); // cetratus: what has arrived and is not decoded yet, and its room
+    let refused = io.get_mut().take_refused(); // cetratus: did the total refuse a read?
+    if refused.is_none() && io.get_mut().sync(len, capacity) { // cetratus: no more than was booked: never refused
+        return None; // cetratus: see above
+    } // cetratus: see above
+    drop(std::mem::take(io.read_buffer_mut())); // cetratus: refused: the memory back now, not when the task ends
+    io.get_mut().sync(0, 0); // cetratus: and its booking
+    io.get_ref().refused_by(addr, refused.unwrap_or(len)); // cetratus: told
+    Some(MqttError::ServiceUnavailable.into()) // cetratus: see above
+} // cetratus: end of after_read
+
 #[inline]
-async fn send<Io>(io: &mut Framed<Io, MqttCodec>, packet: MqttPacket, send_timeout: Duration) -> Result<()>
+async fn send<Io>(io: &mut Framed<Io, MqttCodec>, packet: MqttPacket, send_timeout: Duration, idle: usize) -> Result<()> // cetratus: idle added
 where
     Io: AsyncWrite + Unpin,
 {
     if send_timeout.is_zero() {
         io.send(packet).await?;
-        Ok(())
-    } else {
+    } else { // cetratus: no early return, so that the buffer below is looked at
         match tokio::time::timeout(send_timeout, io.send(packet)).await {
             Ok(Ok(())) => Ok(()),
             Ok(Err(e)) => Err(MqttError::SendPacket(SendPacketError::Encode(e))),
             Err(_) => Err(MqttError::WriteTimeout),
         }?;
-        Ok(())
-    }
+    } // cetratus: see above
+    let buf = io.write_buffer_mut(); // cetratus: written and flushed: a large packet's buffer goes
+    if buf.is_empty() && (buf.capacity() > idle || idle.checked_add(1).is_some_and(|n| buf.try_reclaim(n))) { // cetratus: as in after_read
+        *buf = Default::default(); // cetratus: the next packet's encoding reserves what it needs
+    } // cetratus: see above
+    Ok(()) // cetratus: see above
 }
 
 #[inline]

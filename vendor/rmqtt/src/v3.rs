@@ -65,7 +65,10 @@ where
         }
 
         let (state, keep_alive) = match handshake(&scx, &mut sink, lid).await {
-            Ok(c) => c,
+            Ok(c) => {
+                sink.exempt_if_reserved(c.0.id.username_ref()); // cetratus: the login is checked now: a user of the reserve is not counted in partials_budget
+                c
+            } // cetratus: see above
             Err((ack_code, e)) => {
                 refused_ack_v3(&scx, &mut sink, None, ack_code, e.to_string()).await?;
                 if let Err(e) = sink.close().await {

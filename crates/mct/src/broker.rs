@@ -12,7 +12,9 @@
 //! session and not yet taken by it in bytes ([`SESSION_INBOX_BYTES`]), the messages queued
 //! behind that and in flight to it in count and bytes ([`SESSION_QUEUE`], [`SESSION_INFLIGHT`],
 //! [`SESSION_QUEUE_BYTES`]), what all sessions hold together in bytes ([`SESSIONS_BYTES`], with
-//! a reserve for the process's own clients, [`INTERNAL_SESSIONS_BYTES`]), the clients in number
+//! a reserve for the process's own clients, [`INTERNAL_SESSIONS_BYTES`]), the packets that all
+//! connections have begun to receive ([`PARTIALS_BYTES`]) and each connection's buffers once
+//! empty ([`CONNECTION_BUFFER_BYTES`]), the clients in number
 //! ([`MAX_CLIENTS`]), and what others publish in bytes per second ([`INGRESS_BYTES_PER_S`]). The
 //! PLC's own client is not limited: what it publishes is its own.
 //!
@@ -119,11 +121,12 @@ pub const INTERNAL_SESSIONS_BYTES: usize = 2 * (SESSION_INBOX_BYTES + SESSION_QU
 pub const MAX_CLIENTS: usize = 256;
 
 /// Bytes of packets that all connections together have begun to receive and not yet received
-/// whole (each connection's read buffer while a packet is incomplete, past
-/// [`PARTIAL_FLOOR_BYTES`]); a connection whose incomplete packet would take the total past it is
-/// disconnected, counted and logged. A packet is read whole before it is decoded, so without it
-/// each of [`MAX_CLIENTS`] clients could make the broker hold all but the last byte of a packet
-/// of [`BROKER_MAX_PACKET`] bytes for as long as it likes: 1 GiB. 32 MiB is eight full-size
+/// whole: the capacity of each connection's read buffer, past [`PARTIAL_FLOOR_BYTES`], booked
+/// before every read (rmqtt's codec reserves a packet's announced length once it has its
+/// header); a connection whose read would take the total past it is disconnected, counted and
+/// logged. A packet is read whole before it is decoded, so without it each of [`MAX_CLIENTS`]
+/// clients could make the broker hold all but the last byte of a packet of
+/// [`BROKER_MAX_PACKET`] bytes for as long as it likes: 1 GiB. 32 MiB is eight full-size
 /// packets arriving at once, four times the ingress burst ([`INGRESS_BURST`]) that others may
 /// publish together anyway; with [`RETAINED_BYTES`], [`SESSIONS_BYTES`],
 /// [`INTERNAL_SESSIONS_BYTES`] and the floors it keeps what the broker holds for others under the
@@ -131,8 +134,8 @@ pub const MAX_CLIENTS: usize = 256;
 /// dashboard's, recognised by their login once it is checked) are not counted.
 pub const PARTIALS_BYTES: usize = 32 << 20;
 
-/// Bytes of an incomplete packet that a connection may always hold, whatever
-/// [`PARTIALS_BYTES`] holds: an operator's command, a login, a reply's acknowledgement is never
+/// Capacity of a read buffer that a connection may always have, whatever [`PARTIALS_BYTES`]
+/// holds: an operator's command, a login, a reply's acknowledgement is never
 /// refused by clients that hold the total. The total may pass its bound by this much a
 /// connection, 16 MiB over [`MAX_CLIENTS`].
 pub const PARTIAL_FLOOR_BYTES: usize = 64 << 10;

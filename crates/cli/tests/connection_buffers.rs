@@ -109,7 +109,7 @@ fn attacked(attack: impl FnOnce(u16) -> Vec<TcpStream>) -> (u64, Vec<String>) {
     );
     let growth = peak.saturating_sub(rss_before);
     eprintln!(
-        "{} attackers still connected; PLC RSS before {rss_before} kB, peak {peak} kB, \
+        "{} attackers' sockets kept; PLC RSS before {rss_before} kB, peak {peak} kB, \
          settled {settled} kB, growth {growth} kB",
         held.len()
     );

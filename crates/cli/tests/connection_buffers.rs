@@ -23,7 +23,7 @@ use cetratus_mct::{
 
 mod common;
 
-use common::raw_mqtt::{mqtt_str, packet};
+use common::raw_mqtt::{connect as raw_connect, mqtt_str, packet};
 use common::{client, first_answer, reply, request, rss_kb, RssSampler, RunningPlc};
 
 const PLC: &str = "cell1";
@@ -38,26 +38,6 @@ const MARGIN_KB: u64 = 48 * 1024;
 
 /// One test at a time: each measures its own PLC's memory while it attacks it.
 static ONE_AT_A_TIME: Mutex<()> = Mutex::new(());
-
-/// Connects the attacker `id` to the broker on `port`, as a 3.1.1 client.
-fn connect(port: u16, id: &str) -> TcpStream {
-    let mut s = TcpStream::connect(("127.0.0.1", port)).expect("the attacker connects");
-    s.set_read_timeout(Some(Duration::from_secs(30)))
-        .expect("a read timeout");
-    // CONNECT: protocol "MQTT" level 4, clean session, keep-alive 300 s (longer than the test).
-    let mut connect = mqtt_str("MQTT");
-    connect.extend_from_slice(&[4, 0x02, 0x01, 0x2C]);
-    connect.extend_from_slice(&mqtt_str(id));
-    s.write_all(&packet(0x10, &connect)).expect("CONNECT");
-    let mut connack = [0u8; 4];
-    s.read_exact(&mut connack).expect("CONNACK");
-    assert_eq!(
-        connack,
-        [0x20, 2, 0, 0],
-        "the broker accepts the attacker {id}"
-    );
-    s
-}
 
 /// A PUBLISH at QoS 0 to a topic no one reads, of the largest size the broker takes.
 fn largest_publish() -> Vec<u8> {
@@ -127,7 +107,7 @@ fn clients_that_stall_in_the_middle_of_large_packets_hold_no_more_than_the_broke
     let begun = &publish[..publish.len() - 4096];
     let (growth, logged) = attacked(|port| {
         let attackers: Vec<_> = (0..ATTACKERS)
-            .map(|k| connect(port, &format!("stall-{k}")))
+            .map(|k| raw_connect(("127.0.0.1", port), &format!("stall-{k}")))
             .collect();
         let held = std::thread::scope(|scope| {
             let sending: Vec<_> = attackers
@@ -182,7 +162,7 @@ fn one_large_packet_does_not_cost_its_size_for_the_life_of_the_connection() {
         // read, so only what a connection keeps afterwards can.
         (0..ATTACKERS)
             .map(|k| {
-                let mut s = connect(port, &format!("large-once-{k}"));
+                let mut s = raw_connect(("127.0.0.1", port), &format!("large-once-{k}"));
                 s.write_all(&unsubscribe).expect("UNSUBSCRIBE");
                 let mut unsuback = [0u8; 4];
                 s.read_exact(&mut unsuback).expect("UNSUBACK");

@@ -6,50 +6,13 @@
 mod common;
 
 use std::io::{Read, Write};
-use std::net::{SocketAddr, TcpStream};
+use std::net::TcpStream;
 use std::time::Duration;
 
 use cetratus_mct::{EmbeddedBroker, BROKER_MAX_PACKET, PARTIALS_BYTES};
+use cetratus_testkit::raw_mqtt::{connect as raw_client, fixed_header as header, mqtt_str};
 use common::*;
 use rumqttc::v5::mqttbytes::QoS;
-
-/// A fixed header of `kind` with `remaining` as its remaining length.
-fn header(kind: u8, mut remaining: usize) -> Vec<u8> {
-    let mut out = vec![kind];
-    loop {
-        let mut byte = (remaining % 128) as u8;
-        remaining /= 128;
-        if remaining > 0 {
-            byte |= 0x80;
-        }
-        out.push(byte);
-        if remaining == 0 {
-            return out;
-        }
-    }
-}
-
-/// A UTF-8 string as MQTT encodes it.
-fn mqtt_str(s: &str) -> Vec<u8> {
-    let mut out = (s.len() as u16).to_be_bytes().to_vec();
-    out.extend_from_slice(s.as_bytes());
-    out
-}
-
-/// An anonymous MQTT 3.1.1 client on a bare socket, connected.
-fn raw_client(addr: SocketAddr, id: &str) -> TcpStream {
-    let mut s = TcpStream::connect(addr).expect("connects");
-    let mut connect = mqtt_str("MQTT");
-    connect.extend_from_slice(&[4, 0x02, 0x01, 0x2C]);
-    connect.extend_from_slice(&mqtt_str(id));
-    let mut packet = header(0x10, connect.len());
-    packet.extend_from_slice(&connect);
-    s.write_all(&packet).expect("CONNECT");
-    let mut connack = [0u8; 4];
-    s.read_exact(&mut connack).expect("CONNACK");
-    assert_eq!(connack, [0x20, 2, 0, 0], "the broker accepts {id}");
-    s
-}
 
 /// Whether the broker closed `s` within `within` (reads until end of stream or an error).
 fn closed_within(s: &mut TcpStream, within: Duration) -> bool {

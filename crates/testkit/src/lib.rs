@@ -29,6 +29,7 @@ pub mod ports;
 pub mod process;
 #[cfg(feature = "programs")]
 pub mod programs;
+pub mod raw_mqtt;
 
 pub use counting::CountingAlloc;
 

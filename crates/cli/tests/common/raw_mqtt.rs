@@ -3,7 +3,6 @@
 //! acknowledge it.
 
 use std::io::{Read, Write};
-use std::net::TcpStream;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::Arc;
 use std::time::Duration;
@@ -23,31 +22,7 @@ pub enum Reading {
     NeverAcknowledge,
 }
 
-/// An MQTT packet with a fixed header of `kind` and the remaining length encoded.
-pub fn packet(kind: u8, body: &[u8]) -> Vec<u8> {
-    let mut out = vec![kind];
-    let mut n = body.len();
-    loop {
-        let mut byte = (n % 128) as u8;
-        n /= 128;
-        if n > 0 {
-            byte |= 0x80;
-        }
-        out.push(byte);
-        if n == 0 {
-            break;
-        }
-    }
-    out.extend_from_slice(body);
-    out
-}
-
-/// A UTF-8 string as MQTT encodes it: its length in two bytes, then the bytes.
-pub fn mqtt_str(s: &str) -> Vec<u8> {
-    let mut out = (s.len() as u16).to_be_bytes().to_vec();
-    out.extend_from_slice(s.as_bytes());
-    out
-}
+pub use cetratus_testkit::raw_mqtt::{connect, mqtt_str, packet};
 
 /// Connects the client `id` to the broker on `port`, subscribes to `topic` and then reads as
 /// `reading` says until `stop`; returns the count of bytes it read.
@@ -58,22 +33,9 @@ pub fn subscriber(
     reading: Reading,
     stop: Arc<AtomicBool>,
 ) -> Arc<AtomicU64> {
-    let mut s = TcpStream::connect(("127.0.0.1", port)).expect("the attacker connects");
+    let mut s = connect(("127.0.0.1", port), id);
     s.set_read_timeout(Some(Duration::from_secs(10)))
         .expect("a read timeout");
-    // CONNECT: protocol "MQTT" level 4, clean session, keep-alive 300 s (longer than the test:
-    // the attacker never needs to ping).
-    let mut connect = mqtt_str("MQTT");
-    connect.extend_from_slice(&[4, 0x02, 0x01, 0x2C]);
-    connect.extend_from_slice(&mqtt_str(id));
-    s.write_all(&packet(0x10, &connect)).expect("CONNECT");
-    let mut connack = [0u8; 4];
-    s.read_exact(&mut connack).expect("CONNACK");
-    assert_eq!(
-        connack,
-        [0x20, 2, 0, 0],
-        "the broker accepts the attacker {id}"
-    );
     let qos = match reading {
         Reading::Sip => 0,
         Reading::NeverAcknowledge => 1,

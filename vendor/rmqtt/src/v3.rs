@@ -65,9 +65,9 @@ where
         }
 
         let (state, keep_alive) = match handshake(&scx, &mut sink, lid).await {
-            Ok(c) => {
+            Ok(c) => { // cetratus: a block, for the line below
                 sink.exempt_if_reserved(c.0.id.username_ref()); // cetratus: the login is checked now: a user of the reserve is not counted in partials_budget
-                c
+                c // cetratus: as before
             } // cetratus: see above
             Err((ack_code, e)) => {
                 refused_ack_v3(&scx, &mut sink, None, ack_code, e.to_string()).await?;

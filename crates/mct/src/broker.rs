@@ -135,8 +135,8 @@ pub const MAX_CLIENTS: usize = 256;
 pub const PARTIALS_BYTES: usize = 32 << 20;
 
 /// Capacity of a read buffer that a connection may always have, whatever [`PARTIALS_BYTES`]
-/// holds: an operator's command, a login, a reply's acknowledgement is never
-/// refused by clients that hold the total. The total may pass its bound by this much a
+/// holds: a login, an acknowledgement, an operator's command of up to about this size is never
+/// refused because other clients hold the total. The total may pass its bound by this much a
 /// connection, 16 MiB over [`MAX_CLIENTS`].
 pub const PARTIAL_FLOOR_BYTES: usize = 64 << 10;
 

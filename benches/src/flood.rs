@@ -58,6 +58,36 @@ impl FloodKind {
             .unwrap_or_default()
     }
 
+    /// The kind called `name` (as in the figures), or an error that lists them.
+    pub fn from_name(name: &str) -> Result<Self, BenchError> {
+        FloodKind::ALL
+            .into_iter()
+            .find(|k| k.name() == name.trim())
+            .ok_or_else(|| {
+                let names: Vec<_> = FloodKind::ALL.iter().map(|k| k.name()).collect();
+                BenchError::from(format!(
+                    "unknown flood kind `{name}`; choose among {}",
+                    names.join(", ")
+                ))
+            })
+    }
+
+    /// The kinds `names` name, each once, in the order of [`FloodKind::ALL`]; all of them when
+    /// `names` is empty.
+    pub fn list(names: &[String]) -> Result<Vec<Self>, BenchError> {
+        if names.is_empty() {
+            return Ok(FloodKind::ALL.to_vec());
+        }
+        let picked = names
+            .iter()
+            .map(|n| FloodKind::from_name(n))
+            .collect::<Result<Vec<_>, _>>()?;
+        Ok(FloodKind::ALL
+            .into_iter()
+            .filter(|k| picked.contains(k))
+            .collect())
+    }
+
     /// Its name in the figures.
     pub fn name(self) -> &'static str {
         match self {
@@ -235,7 +265,7 @@ struct Tally {
 }
 
 /// Runs the Vernadat node as `cetratus run` does (embedded broker, `beside` it the dashboard,
-/// MQTT link) at `period_us`, and floods it with each [`FloodKind`] for `phase_us` in all, sent
+/// MQTT link) at `period_us`, and floods it with each of `kinds` for `phase_us` in all, sent
 /// by clients as fast as they can. The run is cut into slices of `slice_us`, round-robin: an
 /// unloaded slice, then one of the first kind, an unloaded slice, one of the second kind… until
 /// every kind has had `phase_us`; after each flood slice the scans go on unmeasured for
@@ -252,6 +282,7 @@ pub fn flood(
     period_us: u64,
     slice_us: u64,
     rt: bool,
+    kinds: &[FloodKind],
     beside: Beside<'_>,
 ) -> Result<Figures, BenchError> {
     use cetratus_node::periodic::run_periodic;
@@ -371,17 +402,18 @@ pub fn flood(
     // The MQTT link connected, the dashboard subscribed, the first snapshots sent.
     slice(&mut node, SETTLE_US);
     let mut unloaded = Tally::default();
-    let mut kinds: Vec<Tally> = FloodKind::ALL.iter().map(|_| Tally::default()).collect();
+    let mut tallies: Vec<Tally> = FloodKind::ALL.iter().map(|_| Tally::default()).collect();
     let mut done_us = 0u64;
     while done_us < phase_us {
         let length = slice_us.min(phase_us - done_us);
-        for (i, kind) in FloodKind::ALL.into_iter().enumerate() {
+        for &kind in kinds {
+            let i = kind.index();
             rss_phase.store(0, Ordering::Relaxed);
             let (t, reached) = slice(&mut node, length);
             unloaded.timing.add(&t);
             unloaded.slices += 1;
             unloaded.measured_us += reached;
-            let tally = &mut kinds[i];
+            let tally = &mut tallies[i];
             tally.before.add(&t);
             // Replies still arriving from the kind before are nobody's.
             lock(&ctl.codes).clear();
@@ -428,7 +460,8 @@ pub fn flood(
     out.insert(s("unloaded_peak_rss_mib"), mib(0).into());
     out.insert(s("limit_ns"), limit.into());
     let mut all_within = true;
-    for (i, (kind, tally)) in FloodKind::ALL.iter().zip(&kinds).enumerate() {
+    for &kind in kinds {
+        let (i, tally) = (kind.index(), &tallies[kind.index()]);
         let l = tally.timing.latency.summary();
         let within = (l.p99_ns as f64) <= limit;
         all_within &= within && mib(1 + i) < 256;

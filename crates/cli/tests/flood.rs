@@ -1,11 +1,15 @@
 //! Floods against the real binary: what others publish must not decide how much memory the PLC
-//! uses, and the PLC must go on answering while it is flooded.
+//! uses, nor how many commands it answers, and the PLC must go on answering while it is flooded.
 //!
 //! `cetratus run` on its embedded broker (with the embedded dashboard) receives 300 `load`
 //! commands of about 1 MB each and 50 messages of 3 MB on another PLC's `events` topic, all sent
 //! as fast as a client can. Its resident memory is sampled throughout; it must stay under a bound
 //! that does not grow with the flood, some commands must be answered `busy` (the queues are
 //! bounded in bytes), and `exec_info` must still be answered afterwards.
+//!
+//! Then 20,000 small `exec_info` requests, as fast as a client can: the broker passes on no
+//! more than its command rate allows over the time they took, answers a few more `busy`, and
+//! refuses the rest with a reason; the PLC keeps cycling and answers normally afterwards.
 
 use std::collections::BTreeMap;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
@@ -14,6 +18,7 @@ use std::time::{Duration, Instant};
 
 use base64::Engine as _;
 use rumqttc::v5::mqttbytes::QoS;
+use cetratus_mct::{BUSY_ANSWERS_PER_S, BUSY_BURST, COMMANDS_PER_S, COMMAND_BURST};
 use serde_json::Value;
 
 /// The PLC's resident memory may not pass this, whatever is sent to it.
@@ -23,7 +28,7 @@ const PLC: &str = "cell1";
 
 mod common;
 
-use common::{client, first_answer, reply, request, RunningPlc};
+use common::{client, first_answer, reply, reply_topic, request, RunningPlc};
 
 fn rss_kb(pid: u32) -> Option<u64> {
     let status = std::fs::read_to_string(format!("/proc/{pid}/status")).ok()?;
@@ -186,5 +191,172 @@ fn a_flood_of_large_commands_and_events_leaves_the_plcs_memory_bounded_and_it_an
         },
     );
     eprintln!("state.control after the flood: {control}");
+    drop(plc);
+}
+
+/// What the command flood's client saw: its publishes acknowledged by the broker, by outcome,
+/// and the replies to them, by code.
+#[derive(Default)]
+struct FloodTally {
+    accepted: u64,
+    refused: u64,
+    reasons: std::collections::BTreeSet<String>,
+    last_ack: Option<Instant>,
+    replies: BTreeMap<String, u64>,
+    busy_messages: std::collections::BTreeSet<String>,
+}
+
+#[test]
+fn a_flood_of_small_commands_is_passed_on_only_at_the_brokers_command_rate() {
+    use rumqttc::v5::mqttbytes::v5::{Packet, PubAckReason, PublishProperties};
+    use rumqttc::v5::{Client, Event, MqttOptions};
+    use std::sync::Mutex;
+
+    const N: u64 = 20_000;
+    let plc = RunningPlc::start(PLC, &[]);
+    let (probe, replies) = client(plc.mqtt, "probe", PLC);
+    let before = first_answer(&probe, &replies, PLC, Duration::from_secs(30));
+
+    // The flooding client, at QoS 1 so that the broker's refusals come back with their reason.
+    let mut opts = MqttOptions::new("flood", "127.0.0.1", plc.mqtt);
+    opts.set_keep_alive(Duration::from_secs(30));
+    let (flood, mut conn) = Client::new(opts, 1024);
+    let tally: Arc<Mutex<FloodTally>> = Arc::default();
+    let subscribed = Arc::new(AtomicBool::new(false));
+    {
+        let (tally, subscribed) = (tally.clone(), subscribed.clone());
+        std::thread::spawn(move || {
+            for ev in conn.iter() {
+                let mut t = tally.lock().expect("tally");
+                match ev {
+                    Ok(Event::Incoming(Packet::SubAck(_))) => {
+                        subscribed.store(true, Ordering::Release)
+                    }
+                    Ok(Event::Incoming(Packet::PubAck(ack))) => {
+                        t.last_ack = Some(Instant::now());
+                        if ack.reason == PubAckReason::Success {
+                            t.accepted += 1;
+                        } else {
+                            t.refused += 1;
+                            let why = ack.properties.and_then(|p| p.reason_string);
+                            t.reasons.insert(format!("{:?}: {}", ack.reason, why.unwrap_or_default()));
+                        }
+                    }
+                    Ok(Event::Incoming(Packet::Publish(p))) => {
+                        let v: Value = serde_json::from_slice(&p.payload).unwrap_or_default();
+                        let code = v["error"]["code"].as_str().unwrap_or("ok").to_string();
+                        if code == "busy" {
+                            let m = v["error"]["message"].as_str().unwrap_or_default();
+                            t.busy_messages.insert(m.to_string());
+                        }
+                        *t.replies.entry(code).or_default() += 1;
+                    }
+                    Ok(_) => {}
+                    Err(_) => {
+                        drop(t);
+                        std::thread::sleep(Duration::from_millis(50));
+                    }
+                }
+            }
+        });
+    }
+    let replies_to = format!("{}-flood", reply_topic(PLC));
+    flood
+        .subscribe(replies_to.clone(), QoS::AtLeastOnce)
+        .expect("subscribe to the replies");
+    common::wait_for("the flood's subscription", Duration::from_secs(10), || {
+        subscribed.load(Ordering::Acquire)
+    });
+
+    let start = Instant::now();
+    for k in 0..N {
+        let props = PublishProperties {
+            response_topic: Some(replies_to.clone()),
+            correlation_data: Some(format!("flood-{k}").into_bytes().into()),
+            ..PublishProperties::default()
+        };
+        flood
+            .publish_with_properties(
+                format!("cetratus/{PLC}/cmd/exec_info"),
+                QoS::AtLeastOnce,
+                false,
+                b"{}".to_vec(),
+                props,
+            )
+            .expect("the flood client queues a command");
+    }
+    common::wait_for(
+        "the broker's acknowledgement of every command",
+        Duration::from_secs(300),
+        || {
+            let t = tally.lock().expect("tally");
+            t.accepted + t.refused == N
+        },
+    );
+    // Every command the broker passed on was charged between the first publish and the last
+    // acknowledgement: at most the bursts and the rates over that time.
+    let elapsed = {
+        let t = tally.lock().expect("tally");
+        t.last_ack.map_or(Duration::ZERO, |l| l - start)
+    };
+    // Until the replies stop coming.
+    let (mut seen, mut quiet_since) = (0, Instant::now());
+    while quiet_since.elapsed() < Duration::from_secs(3) {
+        let n: u64 = tally.lock().expect("tally").replies.values().sum();
+        if n != seen {
+            (seen, quiet_since) = (n, Instant::now());
+        }
+        std::thread::sleep(Duration::from_millis(100));
+    }
+    let secs = elapsed.as_secs_f64();
+    // Generous: a tenth more than the buckets allow, for the clocks of two processes.
+    let passed_bound = 1.1 * (COMMAND_BURST + COMMANDS_PER_S * secs) + 10.0;
+    let busy_bound = 1.1 * (BUSY_BURST + BUSY_ANSWERS_PER_S * secs) + 10.0;
+    let t = tally.lock().expect("tally");
+    eprintln!(
+        "{N} exec_info in {secs:.2} s: {} passed by the broker, {} refused {:?}; replies by code \
+         {:?}; busy messages {:?}",
+        t.accepted, t.refused, t.reasons, t.replies, t.busy_messages
+    );
+    assert!(
+        (t.accepted as f64) <= passed_bound + busy_bound,
+        "the broker passed on {} of {N} commands in {secs:.2} s; its limits allow at most \
+         {passed_bound:.0} + {busy_bound:.0}",
+        t.accepted
+    );
+    let ok = t.replies.get("ok").copied().unwrap_or(0);
+    assert!(
+        (ok as f64) <= passed_bound,
+        "{ok} full exec_info answers in {secs:.2} s, over the command rate's {passed_bound:.0}"
+    );
+    assert!(ok > 0, "the commands within the rate are answered: {:?}", t.replies);
+    assert!(
+        t.reasons.iter().any(|r| r.starts_with("NotAuthorized")
+            && r.contains("commands a second")
+            && r.contains("wait for each reply")),
+        "a refused sender hears what and what to do: {:?}",
+        t.reasons
+    );
+    assert!(
+        t.busy_messages
+            .iter()
+            .any(|m| m.contains("embedded broker passes them on")),
+        "some commands past the rate are answered busy, saying why: {:?}",
+        t.busy_messages
+    );
+    drop(t);
+
+    // The PLC kept cycling, and a command once the bucket has refilled is answered normally.
+    std::thread::sleep(Duration::from_secs_f64(
+        COMMAND_BURST / COMMANDS_PER_S + 0.5,
+    ));
+    request(&probe, PLC, "exec_info", b"after", b"{}".to_vec());
+    let after = reply(&replies, b"after", Duration::from_secs(30));
+    assert_eq!(after["ok"], true, "{after}");
+    let cycles = |v: &Value| v["result"][0]["cycles"].as_u64().unwrap_or(0);
+    assert!(
+        cycles(&after) > cycles(&before),
+        "the PLC went on cycling: {before} then {after}"
+    );
     drop(plc);
 }

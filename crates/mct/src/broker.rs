@@ -10,10 +10,12 @@
 //! It runs inside the PLC's process, so what it keeps for others is the PLC's memory: retained
 //! messages are bounded in bytes ([`RETAINED_BYTES`]), the messages queued for a slow subscriber
 //! in count ([`SESSION_QUEUE`], [`SESSION_INFLIGHT`]), the clients in number ([`MAX_CLIENTS`]),
-//! and what others publish in bytes per second ([`INGRESS_BYTES_PER_S`]): rmqtt hands a message
-//! to each subscriber's session through an unbounded channel, so a subscriber that reads slower
-//! than others publish (the PLC parsing 1 MiB commands, the dashboard parsing events) would have
-//! the difference kept here. The PLC's own client is not limited: what it publishes is its own.
+//! and what others publish in bytes and in commands per second ([`crate::ingress`]): rmqtt
+//! hands a message to each subscriber's session through an unbounded channel, so a subscriber
+//! that reads slower than others publish (the PLC parsing 1 MiB commands, the dashboard parsing
+//! events) would have the difference kept here, and every command costs the broker, the PLC's
+//! client and the machine a round trip. The PLC's own client is not limited: what it publishes
+//! is its own.
 //!
 //! An account's password is checked with argon2 on one blocking thread at a time, at most
 //! [`LOGINS_PER_S`] a second: a flood of wrong passwords costs a core at most and never the
@@ -27,8 +29,9 @@ use std::sync::{Arc, Mutex};
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
-use crate::acl::{Acl, BrokerSettings, Checked, Login, Who, PLC_USER};
+use crate::acl::{Acl, BrokerSettings, Checked, Login, Who};
 use crate::budget::TokenBucket as Bucket;
+use crate::ingress::Ingress;
 use crate::MctError;
 use async_trait::async_trait;
 use rmqtt::context::ServerContext;
@@ -57,105 +60,12 @@ pub const SESSION_INFLIGHT: u16 = 16;
 /// Clients connected at once: a PLC, its dashboard, operators and a few tools.
 pub const MAX_CLIENTS: usize = 256;
 
-/// Bytes per second the broker takes from all clients together but the PLC's own: sixteen
-/// full-size packages a second, far more than operators and dashboards send, and less than the
-/// PLC's MQTT client and its dashboard read even in a debug build.
-pub const INGRESS_BYTES_PER_S: f64 = 16.0 * (1 << 20) as f64;
-
-/// Bytes that may arrive at once before [`INGRESS_BYTES_PER_S`] applies.
-pub const INGRESS_BURST: f64 = 2.0 * BROKER_MAX_PACKET as f64;
-
 /// Account logins whose password the broker checks per second, for all clients together; past
 /// it (and [`LOGIN_BURST`]) a login is refused without being checked.
 pub const LOGINS_PER_S: f64 = 8.0;
 
 /// Account logins that may arrive at once before [`LOGINS_PER_S`] applies.
 pub const LOGIN_BURST: f64 = 16.0;
-
-/// The user property the embedded broker sets on a command it passed on without its payload
-/// (it came faster than [`INGRESS_BYTES_PER_S`]): the PLC answers it `busy`.
-pub const TURNED_AWAY_PROPERTY: &str = "cetratus-turned-away";
-
-/// Limits what clients other than the PLC's own publish to [`INGRESS_BYTES_PER_S`]. A command
-/// over it is passed on without its payload, marked with [`TURNED_AWAY_PROPERTY`], so that the
-/// PLC still learns where to answer `busy`; any other message over it is refused (dropped; an
-/// MQTT 5 sender at QoS 1 hears `not authorized` with the reason).
-struct Ingress {
-    bucket: Mutex<Bucket>,
-    refused: AtomicU64,
-}
-
-impl Ingress {
-    /// Charges `publish` from the client `client`, logged in as `user`, to the bucket; false when
-    /// over.
-    fn admit(&self, client: &str, user: &str, publish: &rmqtt::types::Publish) -> bool {
-        // The user name, not the client id that anyone may claim: the PLC's login is checked.
-        if user == PLC_USER {
-            return true;
-        }
-        let bytes = (publish.payload.len() + publish.topic.len()) as f64;
-        let taken = self
-            .bucket
-            .lock()
-            .unwrap_or_else(|e| e.into_inner())
-            .take(bytes, Instant::now());
-        if !taken {
-            let n = self.refused.fetch_add(1, Ordering::Relaxed) + 1;
-            if crate::budget::worth_logging(n) {
-                tracing::warn!(
-                    topic = %publish.topic,
-                    client,
-                    refused = n,
-                    "others publish faster than {INGRESS_BYTES_PER_S} bytes/s; the embedded \
-                     broker turned a message away"
-                );
-            }
-        }
-        taken
-    }
-}
-
-fn is_command(publish: &rmqtt::types::Publish) -> bool {
-    matches!(
-        cetratus_proto::parse_topic(&publish.topic),
-        Ok((_, cetratus_proto::Leaf::Cmd(_)))
-    )
-}
-
-#[async_trait]
-impl Handler for Ingress {
-    async fn hook(&self, param: &Parameter, acc: Option<HookResult>) -> ReturnType {
-        match param {
-            // Before the ACL check: a command is charged here, and stripped when over.
-            Parameter::MessagePublish(_, from, publish) if is_command(publish) => {
-                if self.admit(&from.id.client_id, from.id.username_ref(), publish) {
-                    return (true, acc);
-                }
-                let mut stripped = (*publish).clone();
-                drop(std::mem::take(&mut stripped.inner.payload));
-                stripped
-                    .inner
-                    .properties
-                    .get_or_insert_with(Default::default)
-                    .user_properties
-                    .push((TURNED_AWAY_PROPERTY.into(), "rate".into()));
-                (false, Some(HookResult::Publish(stripped)))
-            }
-            // Anything else is charged at the ACL check, where it can be refused.
-            Parameter::MessagePublishCheckAcl(session, publish) if !is_command(publish) => {
-                if self.admit(&session.id.client_id, session.id.username_ref(), publish) {
-                    return (true, acc);
-                }
-                let refused = rmqtt::types::PublishAclResult::rejected(
-                    false,
-                    Some("the embedded broker takes at most 16 MiB/s from others; retry".into()),
-                );
-                (false, Some(HookResult::PublishAclResult(refused)))
-            }
-            _ => (true, acc),
-        }
-    }
-}
 
 /// One handler registered for several hook types.
 struct Shared<H>(Arc<H>);
@@ -453,17 +363,10 @@ impl EmbeddedBroker {
             reg.add_priority(
                 Type::MessagePublishCheckAcl,
                 10,
-                Box::new(PublishAcl(hooks)),
+                Box::new(PublishAcl(hooks.clone())),
             )
             .await;
-            let ingress = Arc::new(Ingress {
-                bucket: Mutex::new(Bucket::new(
-                    INGRESS_BYTES_PER_S,
-                    INGRESS_BURST,
-                    Instant::now(),
-                )),
-                refused: AtomicU64::new(0),
-            });
+            let ingress = Arc::new(Ingress::new(hooks.clone()));
             reg.add(Type::MessagePublish, Box::new(Shared(ingress.clone())))
                 .await;
             reg.add(Type::MessagePublishCheckAcl, Box::new(Shared(ingress)))

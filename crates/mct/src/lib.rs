@@ -41,13 +41,12 @@ mod control;
 mod envelope;
 mod error;
 mod inbound;
+mod ingress;
 mod link;
 pub mod password;
 
 pub use acl::{BrokerAccount, BrokerSettings, BrokerTls, Login, DASHBOARD_USER, PLC_USER};
-pub use broker::{
-    EmbeddedBroker, BROKER_MAX_PACKET, LOGINS_PER_S, LOGIN_BURST, TURNED_AWAY_PROPERTY,
-};
+pub use broker::{EmbeddedBroker, BROKER_MAX_PACKET, LOGINS_PER_S, LOGIN_BURST};
 pub use control::{
     accepted, refused, unix_now, ControlPlane, IncomingCommand, Outcome, Rejection, ReplyHandle,
     Request,
@@ -57,6 +56,10 @@ pub use envelope::{
 };
 pub use error::MctError;
 pub use inbound::{CommandQueue, UNREAD_BYTES};
+pub use ingress::{
+    TurnedAway, BUSY_ANSWERS_PER_S, BUSY_BURST, COMMANDS_PER_S, COMMAND_BURST, INGRESS_BURST,
+    INGRESS_BYTES_PER_S, TURNED_AWAY_PROPERTY,
+};
 pub use link::{
     client_options, spawn_mqtt, start, BrokerChoice, LinkStats, MctLink, MqttConfig, MqttHandle,
     Outgoing, StatsReader, COMMAND_QUEUE_BYTES, DEFAULT_MQTT_ADDR,

@@ -196,7 +196,7 @@ fn a_flood_of_large_commands_and_events_leaves_the_plcs_memory_bounded_and_it_an
 
 /// What the command flood's client saw: its publishes acknowledged by the broker, by outcome,
 /// and the replies to them, by code.
-#[derive(Default)]
+#[derive(Clone, Default)]
 struct FloodTally {
     accepted: u64,
     refused: u64,
@@ -312,7 +312,7 @@ fn a_flood_of_small_commands_is_passed_on_only_at_the_brokers_command_rate() {
     // Generous: a tenth more than the buckets allow, for the clocks of two processes.
     let passed_bound = 1.1 * (COMMAND_BURST + COMMANDS_PER_S * secs) + 10.0;
     let busy_bound = 1.1 * (BUSY_BURST + BUSY_ANSWERS_PER_S * secs) + 10.0;
-    let t = tally.lock().expect("tally");
+    let t = tally.lock().expect("tally").clone();
     eprintln!(
         "{N} exec_info in {secs:.2} s: {} passed by the broker, {} refused {:?}; replies by code \
          {:?}; busy messages {:?}",
@@ -344,7 +344,6 @@ fn a_flood_of_small_commands_is_passed_on_only_at_the_brokers_command_rate() {
         "some commands past the rate are answered busy, saying why: {:?}",
         t.busy_messages
     );
-    drop(t);
 
     // The PLC kept cycling, and a command once the bucket has refilled is answered normally.
     std::thread::sleep(Duration::from_secs_f64(

@@ -107,7 +107,7 @@ impl TurnedAway {
         match self {
             TurnedAway::Commands => format!(
                 "commands come faster than the embedded broker passes them on ({COMMANDS_PER_S} \
-                 a second from all clients together); slow down"
+                 a second from all clients together)"
             ),
             TurnedAway::Bytes => format!(
                 "others publish faster than the embedded broker takes ({} MiB a second from \

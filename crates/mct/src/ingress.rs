@@ -147,22 +147,23 @@ impl Buckets {
     /// Charges a publish of `bytes` (a command when `command`) at `now`.
     fn judge(&mut self, command: bool, bytes: f64, now: Instant) -> Verdict {
         if !command {
-            return match self.bytes.take(bytes, now) {
-                true => Verdict::Pass,
-                false => Verdict::Refuse(TurnedAway::Bytes),
-            };
+            if self.bytes.take(bytes, now) {
+                return Verdict::Pass;
+            }
+            return Verdict::Refuse(TurnedAway::Bytes);
         }
         if self.commands.take(1.0, now) {
             // Within the command rate the PLC answers it in any case, with or without its
             // payload: its token is spent either way.
-            return match self.bytes.take(bytes, now) {
-                true => Verdict::Pass,
-                false => Verdict::TurnAway(TurnedAway::Bytes),
-            };
+            if self.bytes.take(bytes, now) {
+                return Verdict::Pass;
+            }
+            return Verdict::TurnAway(TurnedAway::Bytes);
         }
-        match self.busy.take(1.0, now) {
-            true => Verdict::TurnAway(TurnedAway::Commands),
-            false => Verdict::Refuse(TurnedAway::Commands),
+        if self.busy.take(1.0, now) {
+            Verdict::TurnAway(TurnedAway::Commands)
+        } else {
+            Verdict::Refuse(TurnedAway::Commands)
         }
     }
 }
@@ -376,7 +377,7 @@ mod tests {
         );
         // The byte limit spent no `busy` token, and a small command still passes on the bytes
         // that are left.
-        assert_eq!(b.busy.take(BUSY_BURST, t0), true);
+        assert!(b.busy.take(BUSY_BURST, t0));
         assert_eq!(b.judge(true, 0.0, t0), Verdict::Pass);
     }
 

@@ -173,8 +173,17 @@ fn bench_flood_measures_every_kind_in_slices_between_unloaded_ones() {
 fn bench_flood_runs_only_the_kinds_asked_for() {
     let out = Command::new(BIN)
         .args([
-            "bench", "flood", "--for", "200ms", "--slice", "100ms", "--period", "10ms", "--kinds",
-            "exec_info", "--json",
+            "bench",
+            "flood",
+            "--for",
+            "200ms",
+            "--slice",
+            "100ms",
+            "--period",
+            "10ms",
+            "--kinds",
+            "exec_info",
+            "--json",
         ])
         .output()
         .expect("run cetratus");
@@ -191,18 +200,32 @@ fn bench_flood_runs_only_the_kinds_asked_for() {
         v["exec_info"]["sent"].as_u64().is_some_and(|n| n > 0),
         "{v}"
     );
-    for other in ["garbage", "refused_loads", "large_payloads", "event_spam", "dashboard_logins"] {
+    for other in [
+        "garbage",
+        "refused_loads",
+        "large_payloads",
+        "event_spam",
+        "dashboard_logins",
+    ] {
         assert!(v.get(other).is_none(), "{other} was not asked for: {v}");
     }
 
     let out = Command::new(BIN)
-        .args(["bench", "flood", "--for", "200ms", "--kinds", "exec_info,frobnicate"])
+        .args([
+            "bench",
+            "flood",
+            "--for",
+            "200ms",
+            "--kinds",
+            "exec_info,frobnicate",
+        ])
         .output()
         .expect("run cetratus");
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(!out.status.success());
     assert!(
-        err.contains("unknown flood kind `frobnicate`") && err.contains("exec_info, large_payloads"),
+        err.contains("unknown flood kind `frobnicate`")
+            && err.contains("exec_info, large_payloads"),
         "{err}"
     );
 }

@@ -17,8 +17,8 @@ use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use base64::Engine as _;
-use rumqttc::v5::mqttbytes::QoS;
 use cetratus_mct::{BUSY_ANSWERS_PER_S, BUSY_BURST, COMMANDS_PER_S, COMMAND_BURST};
+use rumqttc::v5::mqttbytes::QoS;
 use serde_json::Value;
 
 /// The PLC's resident memory may not pass this, whatever is sent to it.
@@ -239,7 +239,11 @@ fn a_flood_of_small_commands_is_passed_on_only_at_the_brokers_command_rate() {
                         } else {
                             t.refused += 1;
                             let why = ack.properties.and_then(|p| p.reason_string);
-                            t.reasons.insert(format!("{:?}: {}", ack.reason, why.unwrap_or_default()));
+                            t.reasons.insert(format!(
+                                "{:?}: {}",
+                                ack.reason,
+                                why.unwrap_or_default()
+                            ));
                         }
                     }
                     Ok(Event::Incoming(Packet::Publish(p))) => {
@@ -329,7 +333,11 @@ fn a_flood_of_small_commands_is_passed_on_only_at_the_brokers_command_rate() {
         (ok as f64) <= passed_bound,
         "{ok} full exec_info answers in {secs:.2} s, over the command rate's {passed_bound:.0}"
     );
-    assert!(ok > 0, "the commands within the rate are answered: {:?}", t.replies);
+    assert!(
+        ok > 0,
+        "the commands within the rate are answered: {:?}",
+        t.replies
+    );
     assert!(
         t.reasons.iter().any(|r| r.starts_with("NotAuthorized")
             && r.contains("commands a second")

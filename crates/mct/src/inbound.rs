@@ -17,9 +17,9 @@ use rumqttc::v5::mqttbytes::QoS;
 use rumqttc::v5::{AsyncClient, Event, EventLoop};
 
 use crate::broker::BROKER_MAX_PACKET;
-use crate::ingress::{TurnedAway, TURNED_AWAY_PROPERTY};
 use crate::budget::{worth_logging, Budget, Permit};
 use crate::control::{unix_now, ControlPlane, IncomingCommand, Outcome, ReplyHandle, Request};
+use crate::ingress::{TurnedAway, TURNED_AWAY_PROPERTY};
 use crate::link::{handle_bytes, reply_props, Shared};
 
 /// What a queued command costs: its package, its reply address, its correlation data.

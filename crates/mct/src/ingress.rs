@@ -218,10 +218,7 @@ impl Ingress {
                 &self.counts.turned_away[why as usize],
                 "passed a command on without its payload, to be answered busy",
             ),
-            Verdict::Refuse(why) => (
-                &self.counts.refused[why as usize],
-                "refused a message",
-            ),
+            Verdict::Refuse(why) => (&self.counts.refused[why as usize], "refused a message"),
         };
         let n = counter.fetch_add(1, Ordering::Relaxed) + 1;
         if worth_logging(n) {
@@ -250,11 +247,10 @@ fn is_command(publish: &Publish) -> bool {
 }
 
 fn marked_refused(publish: &Publish) -> bool {
-    publish.properties.as_ref().is_some_and(|p| {
-        p.user_properties
-            .iter()
-            .any(|(k, _)| k == REFUSED_PROPERTY)
-    })
+    publish
+        .properties
+        .as_ref()
+        .is_some_and(|p| p.user_properties.iter().any(|(k, _)| k == REFUSED_PROPERTY))
 }
 
 /// The reason an MQTT 5 sender at QoS 1 hears with `not authorized`.
@@ -371,10 +367,7 @@ mod tests {
         let mut b = Buckets::new(t0);
         let big = BROKER_MAX_PACKET as f64;
         assert_eq!(count(&mut b, 2, true, big, t0), [2, 0, 0], "the byte burst");
-        assert_eq!(
-            b.judge(true, big, t0),
-            Verdict::TurnAway(TurnedAway::Bytes)
-        );
+        assert_eq!(b.judge(true, big, t0), Verdict::TurnAway(TurnedAway::Bytes));
         // The byte limit spent no `busy` token, and a small command still passes on the bytes
         // that are left.
         assert!(b.busy.take(BUSY_BURST, t0));
@@ -412,7 +405,11 @@ mod tests {
             b.judge(false, INGRESS_BURST, t0),
             Verdict::Refuse(TurnedAway::Bytes)
         );
-        assert_eq!(b.judge(true, 10.0, t0), Verdict::Pass, "commands own theirs");
+        assert_eq!(
+            b.judge(true, 10.0, t0),
+            Verdict::Pass,
+            "commands own theirs"
+        );
     }
 
     #[test]

@@ -11,7 +11,8 @@
 //!    payload, marked with [`TURNED_AWAY_PROPERTY`]: the PLC answers it `busy` and the sender
 //!    learns why (so is a command within the command rate but past the byte rate);
 //! 3. past both, it is refused at the ACL check: the PLC's client never reads it, and an MQTT 5
-//!    sender at QoS 1 hears `not authorized` with the reason.
+//!    sender at QoS 1 hears `not authorized` with the reason, after [`REFUSAL_PAUSE`], which
+//!    holds back a client that keeps sending.
 //!
 //! A command is charged once to each bucket it draws on, never twice to one: a command token and
 //! then its bytes, or a `busy` token alone (a command that travels without its payload costs no
@@ -26,7 +27,7 @@
 
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{Arc, Mutex};
-use std::time::Instant;
+use std::time::{Duration, Instant};
 
 use async_trait::async_trait;
 use rmqtt::hook::{Handler, HookResult, Parameter, ReturnType};
@@ -63,6 +64,14 @@ pub const BUSY_ANSWERS_PER_S: f64 = 50.0;
 
 /// `busy` answers that may be owed at once before [`BUSY_ANSWERS_PER_S`] applies.
 pub const BUSY_BURST: f64 = 100.0;
+
+/// How long the broker waits before it refuses a message over the limits, and so before it
+/// reads the sender's next packet (rmqtt reads one client's packets one at a time). Refusing is
+/// cheap, but reading and parsing what a client sends as fast as it can is not: 100,000 small
+/// commands a second keep a core busy even when every one is refused. Paused, a client that
+/// goes on sending past the limits gets at most a hundred refusals a second and its socket
+/// fills, so the kernel holds it back; other clients are not held up.
+pub const REFUSAL_PAUSE: Duration = Duration::from_millis(10);
 
 /// The user property the embedded broker sets on a command it passed on without its payload
 /// (it came faster than [`COMMANDS_PER_S`] or [`INGRESS_BYTES_PER_S`]): the PLC answers it
@@ -308,6 +317,7 @@ impl Handler for Ingress {
             Parameter::MessagePublishCheckAcl(session, publish) if is_command(publish) => {
                 let user = session.id.username.as_deref();
                 if user != Some(PLC_USER) && marked_refused(publish) {
+                    tokio::time::sleep(REFUSAL_PAUSE).await;
                     return refused(TurnedAway::Commands);
                 }
                 (true, acc)
@@ -317,7 +327,10 @@ impl Handler for Ingress {
                 let user = session.id.username.as_deref();
                 match self.judge(&session.id.client_id, user, publish, false) {
                     Verdict::Pass => (true, acc),
-                    Verdict::TurnAway(why) | Verdict::Refuse(why) => refused(why),
+                    Verdict::TurnAway(why) | Verdict::Refuse(why) => {
+                        tokio::time::sleep(REFUSAL_PAUSE).await;
+                        refused(why)
+                    }
                 }
             }
             _ => (true, acc),
@@ -328,7 +341,6 @@ impl Handler for Ingress {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use std::time::Duration;
 
     fn count(b: &mut Buckets, n: usize, command: bool, bytes: f64, now: Instant) -> [usize; 3] {
         let mut seen = [0; 3];

@@ -58,7 +58,7 @@ pub use error::MctError;
 pub use inbound::{CommandQueue, UNREAD_BYTES};
 pub use ingress::{
     TurnedAway, BUSY_ANSWERS_PER_S, BUSY_BURST, COMMANDS_PER_S, COMMAND_BURST, INGRESS_BURST,
-    INGRESS_BYTES_PER_S, TURNED_AWAY_PROPERTY,
+    INGRESS_BYTES_PER_S, REFUSAL_PAUSE, TURNED_AWAY_PROPERTY,
 };
 pub use link::{
     client_options, spawn_mqtt, start, BrokerChoice, LinkStats, MctLink, MqttConfig, MqttHandle,

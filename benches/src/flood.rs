@@ -252,6 +252,37 @@ fn login_flood(addr: std::net::SocketAddr, account: &str, ctl: &Control) {
     }
 }
 
+/// The flooding client of one slice: its connection is driven by a thread of its own, and closed
+/// when dropped, with whatever it had not sent yet.
+struct Sender {
+    client: rumqttc::v5::Client,
+    stop: Arc<AtomicBool>,
+}
+
+impl Sender {
+    fn connect(url: &str) -> Result<Self, BenchError> {
+        let mut opts = cetratus_mct::client_options(url, "bench-flood")?;
+        opts.set_max_packet_size(Some(cetratus_mct::BROKER_MAX_PACKET));
+        let (client, mut conn) = rumqttc::v5::Client::new(opts, 16);
+        let stop = Arc::new(AtomicBool::new(false));
+        let s = stop.clone();
+        std::thread::spawn(move || {
+            while !s.load(Ordering::Relaxed) {
+                if let Ok(Err(_)) = conn.recv_timeout(Duration::from_millis(10)) {
+                    std::thread::sleep(Duration::from_millis(10));
+                }
+            }
+        });
+        Ok(Sender { client, stop })
+    }
+}
+
+impl Drop for Sender {
+    fn drop(&mut self) {
+        self.stop.store(true, Ordering::Relaxed);
+    }
+}
+
 /// What the slices of one phase (the unloaded one, or one kind) add up to.
 #[derive(Default)]
 struct Tally {
@@ -299,12 +330,13 @@ pub fn flood(
     let (dashboard, login_target) = beside(&format!("mqtt://{mqtt}"))?;
     let ctl = Arc::new(Control::new());
 
-    // The flooding client, and the replies it gets, by error code.
-    let mut opts = cetratus_mct::client_options(&format!("mqtt://{mqtt}"), "bench-flood")?;
-    opts.set_max_packet_size(Some(cetratus_mct::BROKER_MAX_PACKET));
-    let (client, mut conn) = rumqttc::v5::Client::new(opts, 16);
-    let mut threads = Vec::new();
-    {
+    // The replies, by error code, on a client of their own: the broker holds back a client that
+    // floods past its limits (and its subscriptions with it).
+    let url = format!("mqtt://{mqtt}");
+    let replies = format!("cetratus/{PLC}/reply/bench-flood");
+    let replies_client = {
+        let opts = cetratus_mct::client_options(&url, "bench-flood-replies")?;
+        let (client, mut conn) = rumqttc::v5::Client::new(opts, 16);
         let ctl = ctl.clone();
         // Ends when the connection does.
         std::thread::spawn(move || {
@@ -317,16 +349,17 @@ pub fn flood(
                 }
             }
         });
-    }
-    let replies = format!("cetratus/{PLC}/reply/bench-flood");
-    client.subscribe(replies.clone(), QoS::AtMostOnce)?;
+        client.subscribe(replies.clone(), QoS::AtMostOnce)?;
+        client
+    };
+    let mut threads = Vec::new();
     let u1 = crate::update::packages().u1;
     let messages: Vec<_> = FloodKind::ALL
         .iter()
         .map(|k| k.messages(PLC, &u1))
         .collect();
     threads.push({
-        let (ctl, client) = (ctl.clone(), client.clone());
+        let ctl = ctl.clone();
         let props = PublishProperties {
             response_topic: Some(replies.clone()),
             correlation_data: Some(b"flood".to_vec().into()),
@@ -334,19 +367,36 @@ pub fn flood(
         };
         std::thread::spawn(move || {
             let mut turn = 0usize;
+            // A connection per flood slice: what a slice left unsent in the client and its socket
+            // (the broker reads a client held back by its limits slowly) goes with it when the
+            // slice ends, and does not flood the slices after it. The next one connects then,
+            // while nothing is measured.
+            let mut sender = Sender::connect(&url).ok();
+            let mut used = false;
             while !ctl.done.load(Ordering::Relaxed) {
                 let Some((kind, list)) = ctl
                     .active()
                     .map(|k| (k, &messages[k.index()]))
                     .filter(|(_, list)| !list.is_empty())
                 else {
+                    if std::mem::take(&mut used) {
+                        drop(sender.take());
+                        sender = Sender::connect(&url).ok();
+                    }
+                    std::thread::sleep(IDLE_POLL);
+                    continue;
+                };
+                used = true;
+                if sender.is_none() {
+                    sender = Sender::connect(&url).ok();
+                }
+                let Some(client) = sender.as_ref().map(|s| &s.client) else {
                     std::thread::sleep(IDLE_POLL);
                     continue;
                 };
                 let (topic, payload) = &list[turn % list.len()];
-                turn = turn.wrapping_add(1);
                 let r = if topic.contains("/cmd/") {
-                    client.publish_with_properties(
+                    client.try_publish_with_properties(
                         topic.clone(),
                         QoS::AtMostOnce,
                         false,
@@ -354,11 +404,14 @@ pub fn flood(
                         props.clone(),
                     )
                 } else {
-                    client.publish(topic.clone(), QoS::AtMostOnce, false, payload.clone())
+                    client.try_publish(topic.clone(), QoS::AtMostOnce, false, payload.clone())
                 };
                 if r.is_err() {
-                    return;
+                    // The client's queue is full: the broker reads no faster.
+                    std::thread::sleep(Duration::from_micros(50));
+                    continue;
                 }
+                turn = turn.wrapping_add(1);
                 ctl.count_sent(kind);
             }
         })
@@ -488,6 +541,7 @@ pub fn flood(
     }
     let (plc, _, report) = node.finish()?;
     drop(dashboard);
+    drop(replies_client);
     let stats = handle.stats();
     handle.shutdown();
     out.insert(s("all_within_targets"), all_within.into());

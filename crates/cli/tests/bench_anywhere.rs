@@ -141,7 +141,8 @@ fn bench_flood_measures_every_kind_in_slices_between_unloaded_ones() {
     let p99 = v["unloaded_latency_p99_ns"]
         .as_f64()
         .expect("the unloaded p99");
-    assert_eq!(limit, 1.2 * p99 + 20_000.0, "{v}");
+    // serde_json reads a float to within an ulp, not always to the value written.
+    assert!((limit - (1.2 * p99 + 20_000.0)).abs() < 1e-6, "{v}");
     for kind in kinds {
         let k = &v[kind];
         assert_eq!(k["slices"], 2, "{kind}: {k}");

@@ -58,6 +58,36 @@ impl FloodKind {
             .unwrap_or_default()
     }
 
+    /// The kind called `name` (as in the figures), or an error that lists them.
+    pub fn from_name(name: &str) -> Result<Self, BenchError> {
+        FloodKind::ALL
+            .into_iter()
+            .find(|k| k.name() == name.trim())
+            .ok_or_else(|| {
+                let names: Vec<_> = FloodKind::ALL.iter().map(|k| k.name()).collect();
+                BenchError::from(format!(
+                    "unknown flood kind `{name}`; choose among {}",
+                    names.join(", ")
+                ))
+            })
+    }
+
+    /// The kinds `names` name, each once, in the order of [`FloodKind::ALL`]; all of them when
+    /// `names` is empty.
+    pub fn list(names: &[String]) -> Result<Vec<Self>, BenchError> {
+        if names.is_empty() {
+            return Ok(FloodKind::ALL.to_vec());
+        }
+        let picked = names
+            .iter()
+            .map(|n| FloodKind::from_name(n))
+            .collect::<Result<Vec<_>, _>>()?;
+        Ok(FloodKind::ALL
+            .into_iter()
+            .filter(|k| picked.contains(k))
+            .collect())
+    }
+
     /// Its name in the figures.
     pub fn name(self) -> &'static str {
         match self {
@@ -222,6 +252,37 @@ fn login_flood(addr: std::net::SocketAddr, account: &str, ctl: &Control) {
     }
 }
 
+/// The flooding client of one slice: its connection is driven by a thread of its own, and closed
+/// when dropped, with whatever it had not sent yet.
+struct Sender {
+    client: rumqttc::v5::Client,
+    stop: Arc<AtomicBool>,
+}
+
+impl Sender {
+    fn connect(url: &str) -> Result<Self, BenchError> {
+        let mut opts = cetratus_mct::client_options(url, "bench-flood")?;
+        opts.set_max_packet_size(Some(cetratus_mct::BROKER_MAX_PACKET));
+        let (client, mut conn) = rumqttc::v5::Client::new(opts, 16);
+        let stop = Arc::new(AtomicBool::new(false));
+        let s = stop.clone();
+        std::thread::spawn(move || {
+            while !s.load(Ordering::Relaxed) {
+                if let Ok(Err(_)) = conn.recv_timeout(Duration::from_millis(10)) {
+                    std::thread::sleep(Duration::from_millis(10));
+                }
+            }
+        });
+        Ok(Sender { client, stop })
+    }
+}
+
+impl Drop for Sender {
+    fn drop(&mut self) {
+        self.stop.store(true, Ordering::Relaxed);
+    }
+}
+
 /// What the slices of one phase (the unloaded one, or one kind) add up to.
 #[derive(Default)]
 struct Tally {
@@ -235,7 +296,7 @@ struct Tally {
 }
 
 /// Runs the Vernadat node as `cetratus run` does (embedded broker, `beside` it the dashboard,
-/// MQTT link) at `period_us`, and floods it with each [`FloodKind`] for `phase_us` in all, sent
+/// MQTT link) at `period_us`, and floods it with each of `kinds` for `phase_us` in all, sent
 /// by clients as fast as they can. The run is cut into slices of `slice_us`, round-robin: an
 /// unloaded slice, then one of the first kind, an unloaded slice, one of the second kind… until
 /// every kind has had `phase_us`; after each flood slice the scans go on unmeasured for
@@ -252,6 +313,7 @@ pub fn flood(
     period_us: u64,
     slice_us: u64,
     rt: bool,
+    kinds: &[FloodKind],
     beside: Beside<'_>,
 ) -> Result<Figures, BenchError> {
     use cetratus_node::periodic::run_periodic;
@@ -268,12 +330,13 @@ pub fn flood(
     let (dashboard, login_target) = beside(&format!("mqtt://{mqtt}"))?;
     let ctl = Arc::new(Control::new());
 
-    // The flooding client, and the replies it gets, by error code.
-    let mut opts = cetratus_mct::client_options(&format!("mqtt://{mqtt}"), "bench-flood")?;
-    opts.set_max_packet_size(Some(cetratus_mct::BROKER_MAX_PACKET));
-    let (client, mut conn) = rumqttc::v5::Client::new(opts, 16);
-    let mut threads = Vec::new();
-    {
+    // The replies, by error code, on a client of their own: the broker holds back a client that
+    // floods past its limits (and its subscriptions with it).
+    let url = format!("mqtt://{mqtt}");
+    let replies = format!("cetratus/{PLC}/reply/bench-flood");
+    let replies_client = {
+        let opts = cetratus_mct::client_options(&url, "bench-flood-replies")?;
+        let (client, mut conn) = rumqttc::v5::Client::new(opts, 16);
         let ctl = ctl.clone();
         // Ends when the connection does.
         std::thread::spawn(move || {
@@ -286,16 +349,17 @@ pub fn flood(
                 }
             }
         });
-    }
-    let replies = format!("cetratus/{PLC}/reply/bench-flood");
-    client.subscribe(replies.clone(), QoS::AtMostOnce)?;
+        client.subscribe(replies.clone(), QoS::AtMostOnce)?;
+        client
+    };
+    let mut threads = Vec::new();
     let u1 = crate::update::packages().u1;
     let messages: Vec<_> = FloodKind::ALL
         .iter()
         .map(|k| k.messages(PLC, &u1))
         .collect();
     threads.push({
-        let (ctl, client) = (ctl.clone(), client.clone());
+        let ctl = ctl.clone();
         let props = PublishProperties {
             response_topic: Some(replies.clone()),
             correlation_data: Some(b"flood".to_vec().into()),
@@ -303,19 +367,36 @@ pub fn flood(
         };
         std::thread::spawn(move || {
             let mut turn = 0usize;
+            // A connection per flood slice: what a slice left unsent in the client and its socket
+            // (the broker reads a client held back by its limits slowly) goes with it when the
+            // slice ends, and does not flood the slices after it. The next one connects then,
+            // while nothing is measured.
+            let mut sender = Sender::connect(&url).ok();
+            let mut used = false;
             while !ctl.done.load(Ordering::Relaxed) {
                 let Some((kind, list)) = ctl
                     .active()
                     .map(|k| (k, &messages[k.index()]))
                     .filter(|(_, list)| !list.is_empty())
                 else {
+                    if std::mem::take(&mut used) {
+                        drop(sender.take());
+                        sender = Sender::connect(&url).ok();
+                    }
+                    std::thread::sleep(IDLE_POLL);
+                    continue;
+                };
+                used = true;
+                if sender.is_none() {
+                    sender = Sender::connect(&url).ok();
+                }
+                let Some(client) = sender.as_ref().map(|s| &s.client) else {
                     std::thread::sleep(IDLE_POLL);
                     continue;
                 };
                 let (topic, payload) = &list[turn % list.len()];
-                turn = turn.wrapping_add(1);
                 let r = if topic.contains("/cmd/") {
-                    client.publish_with_properties(
+                    client.try_publish_with_properties(
                         topic.clone(),
                         QoS::AtMostOnce,
                         false,
@@ -323,11 +404,14 @@ pub fn flood(
                         props.clone(),
                     )
                 } else {
-                    client.publish(topic.clone(), QoS::AtMostOnce, false, payload.clone())
+                    client.try_publish(topic.clone(), QoS::AtMostOnce, false, payload.clone())
                 };
                 if r.is_err() {
-                    return;
+                    // The client's queue is full: the broker reads no faster.
+                    std::thread::sleep(Duration::from_micros(50));
+                    continue;
                 }
+                turn = turn.wrapping_add(1);
                 ctl.count_sent(kind);
             }
         })
@@ -371,17 +455,18 @@ pub fn flood(
     // The MQTT link connected, the dashboard subscribed, the first snapshots sent.
     slice(&mut node, SETTLE_US);
     let mut unloaded = Tally::default();
-    let mut kinds: Vec<Tally> = FloodKind::ALL.iter().map(|_| Tally::default()).collect();
+    let mut tallies: Vec<Tally> = FloodKind::ALL.iter().map(|_| Tally::default()).collect();
     let mut done_us = 0u64;
     while done_us < phase_us {
         let length = slice_us.min(phase_us - done_us);
-        for (i, kind) in FloodKind::ALL.into_iter().enumerate() {
+        for &kind in kinds {
+            let i = kind.index();
             rss_phase.store(0, Ordering::Relaxed);
             let (t, reached) = slice(&mut node, length);
             unloaded.timing.add(&t);
             unloaded.slices += 1;
             unloaded.measured_us += reached;
-            let tally = &mut kinds[i];
+            let tally = &mut tallies[i];
             tally.before.add(&t);
             // Replies still arriving from the kind before are nobody's.
             lock(&ctl.codes).clear();
@@ -428,7 +513,8 @@ pub fn flood(
     out.insert(s("unloaded_peak_rss_mib"), mib(0).into());
     out.insert(s("limit_ns"), limit.into());
     let mut all_within = true;
-    for (i, (kind, tally)) in FloodKind::ALL.iter().zip(&kinds).enumerate() {
+    for &kind in kinds {
+        let (i, tally) = (kind.index(), &tallies[kind.index()]);
         let l = tally.timing.latency.summary();
         let within = (l.p99_ns as f64) <= limit;
         all_within &= within && mib(1 + i) < 256;
@@ -455,6 +541,7 @@ pub fn flood(
     }
     let (plc, _, report) = node.finish()?;
     drop(dashboard);
+    drop(replies_client);
     let stats = handle.stats();
     handle.shutdown();
     out.insert(s("all_within_targets"), all_within.into());

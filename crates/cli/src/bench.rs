@@ -96,6 +96,11 @@ enum What {
         /// Ask for SCHED_FIFO and mlockall for the scan thread, as `run --rt` does.
         #[arg(long)]
         rt: bool,
+        /// The kinds to flood, comma separated, among garbage, refused_loads,
+        /// exec_info, large_payloads, event_spam, dashboard_logins. All of them by default; a
+        /// single kind with `--for 20s` takes about a minute.
+        #[arg(long, value_delimiter = ',')]
+        kinds: Vec<String>,
         /// Print one JSON object.
         #[arg(long)]
         json: bool,
@@ -202,9 +207,11 @@ pub fn run(args: &BenchArgs) -> anyhow::Result<()> {
         slice,
         period,
         rt,
+        kinds,
         json,
     }) = &args.what
     {
+        let kinds = harness::FloodKind::list(kinds).map_err(|e| anyhow::anyhow!("{e}"))?;
         // The dashboard beside the PLC, as `cetratus run` starts it, with one account for the
         // login flood to get wrong.
         let dashboard = |broker: &str| -> Result<harness::BesideParts, harness::BenchError> {
@@ -232,6 +239,7 @@ pub fn run(args: &BenchArgs) -> anyhow::Result<()> {
             parse_duration_us(period)?,
             parse_duration_us(slice)?,
             *rt,
+            &kinds,
             &dashboard,
         )
         .map_err(|e| anyhow::anyhow!("{e}"))?;

@@ -1,16 +1,21 @@
 //! Floods against the real binary: what others publish must not decide how much memory the PLC
-//! uses, and the PLC must go on answering while it is flooded.
+//! uses, nor how many commands it answers, and the PLC must go on answering while it is flooded.
 //!
 //! `cetratus run` on its embedded broker (with the embedded dashboard) receives 300 `load`
 //! commands of about 1 MB each and 50 messages of 3 MB on another PLC's `events` topic, all sent
 //! as fast as a client can. Its resident memory is sampled throughout; it must stay under a bound
 //! that does not grow with the flood, some commands must be answered `busy` (the queues are
 //! bounded in bytes), and `exec_info` must still be answered afterwards.
+//!
+//! Then 10,000 small `exec_info` requests, as fast as a client can: the broker passes on no
+//! more than its command rate allows over the time they took, answers a few more `busy`, and
+//! refuses the rest with a reason; the PLC keeps cycling and answers normally afterwards.
 
 use std::collections::BTreeMap;
 use std::time::{Duration, Instant};
 
 use base64::Engine as _;
+use cetratus_mct::{BUSY_ANSWERS_PER_S, BUSY_BURST, COMMANDS_PER_S, COMMAND_BURST};
 use rumqttc::v5::mqttbytes::QoS;
 use serde_json::Value;
 
@@ -21,7 +26,7 @@ const PLC: &str = "cell1";
 
 mod common;
 
-use common::{client, first_answer, reply, request, rss_kb, RssSampler, RunningPlc};
+use common::{client, first_answer, reply, reply_topic, request, rss_kb, RssSampler, RunningPlc};
 
 /// Bytes that look random and are the same on every run (SplitMix64).
 fn noise(n: usize) -> Vec<u8> {
@@ -139,5 +144,185 @@ fn a_flood_of_large_commands_and_events_leaves_the_plcs_memory_bounded_and_it_an
         },
     );
     eprintln!("state.control after the flood: {control}");
+    drop(plc);
+}
+
+/// What the command flood's client saw: its publishes acknowledged by the broker, by outcome;
+/// and the replies to them, by code.
+#[derive(Clone, Default)]
+struct FloodTally {
+    accepted: u64,
+    refused: u64,
+    reasons: std::collections::BTreeSet<String>,
+    last_ack: Option<Instant>,
+    replies: BTreeMap<String, u64>,
+    busy_messages: std::collections::BTreeSet<String>,
+}
+
+#[test]
+fn a_flood_of_small_commands_is_passed_on_only_at_the_brokers_command_rate() {
+    use rumqttc::v5::mqttbytes::v5::{Packet, PubAckReason, PublishProperties};
+    use rumqttc::v5::{Client, Event, MqttOptions};
+    use std::sync::Mutex;
+
+    const N: u64 = 10_000;
+    let plc = RunningPlc::start(PLC, &[]);
+    let (probe, replies) = client(plc.mqtt, "probe", PLC);
+    let before = first_answer(&probe, &replies, PLC, Duration::from_secs(30));
+
+    // The flooding client, at QoS 1 so that the broker's refusals come back with their reason.
+    let mut opts = MqttOptions::new("flood", "127.0.0.1", plc.mqtt);
+    opts.set_keep_alive(Duration::from_secs(30));
+    let (flood, mut conn) = Client::new(opts, 1024);
+    let tally: Arc<Mutex<FloodTally>> = Arc::default();
+    let connected = Arc::new(AtomicBool::new(false));
+    {
+        let (tally, connected) = (tally.clone(), connected.clone());
+        std::thread::spawn(move || {
+            for ev in conn.iter() {
+                let mut t = tally.lock().expect("tally");
+                match ev {
+                    Ok(Event::Incoming(Packet::ConnAck(_))) => {
+                        connected.store(true, Ordering::Release)
+                    }
+                    Ok(Event::Incoming(Packet::PubAck(ack))) => {
+                        t.last_ack = Some(Instant::now());
+                        if ack.reason == PubAckReason::Success {
+                            t.accepted += 1;
+                        } else {
+                            t.refused += 1;
+                            let why = ack.properties.and_then(|p| p.reason_string);
+                            t.reasons.insert(format!(
+                                "{:?}: {}",
+                                ack.reason,
+                                why.unwrap_or_default()
+                            ));
+                        }
+                    }
+                    Ok(_) => {}
+                    Err(_) => {
+                        drop(t);
+                        std::thread::sleep(Duration::from_millis(50));
+                    }
+                }
+            }
+        });
+    }
+    // The replies go to the probe: a client that floods is held back by the broker, and with it
+    // its own subscriptions.
+    let replies_to = reply_topic(PLC);
+    common::wait_for("the flood's connection", Duration::from_secs(10), || {
+        connected.load(Ordering::Acquire)
+    });
+
+    let start = Instant::now();
+    for k in 0..N {
+        let props = PublishProperties {
+            response_topic: Some(replies_to.clone()),
+            correlation_data: Some(format!("flood-{k}").into_bytes().into()),
+            ..PublishProperties::default()
+        };
+        flood
+            .publish_with_properties(
+                format!("cetratus/{PLC}/cmd/exec_info"),
+                QoS::AtLeastOnce,
+                false,
+                b"{}".to_vec(),
+                props,
+            )
+            .expect("the flood client queues a command");
+    }
+    common::wait_for(
+        "the broker's acknowledgement of every command",
+        Duration::from_secs(300),
+        || {
+            let t = tally.lock().expect("tally");
+            t.accepted + t.refused == N
+        },
+    );
+    // Every command the broker passed on was charged between the first publish and the last
+    // acknowledgement: at most the bursts and the rates over that time.
+    let elapsed = {
+        let t = tally.lock().expect("tally");
+        t.last_ack.map_or(Duration::ZERO, |l| l - start)
+    };
+    // Until the replies stop coming.
+    let flood_replies = || -> Vec<Value> {
+        let r = replies.lock().expect("replies");
+        r.iter()
+            .filter(|(k, _)| k.starts_with(b"flood-"))
+            .map(|(_, v)| v.clone())
+            .collect()
+    };
+    let (mut seen, mut quiet_since) = (0, Instant::now());
+    while quiet_since.elapsed() < Duration::from_secs(3) {
+        let n = flood_replies().len();
+        if n != seen {
+            (seen, quiet_since) = (n, Instant::now());
+        }
+        std::thread::sleep(Duration::from_millis(100));
+    }
+    let secs = elapsed.as_secs_f64();
+    // The buckets' bound holds exactly over that time (one clock, the machine's); a little more
+    // for rounding.
+    let passed_bound = 1.02 * (COMMAND_BURST + COMMANDS_PER_S * secs) + 10.0;
+    let busy_bound = 1.02 * (BUSY_BURST + BUSY_ANSWERS_PER_S * secs) + 10.0;
+    let mut t = tally.lock().expect("tally").clone();
+    for v in flood_replies() {
+        let code = v["error"]["code"].as_str().unwrap_or("ok").to_string();
+        if code == "busy" {
+            let m = v["error"]["message"].as_str().unwrap_or_default();
+            t.busy_messages.insert(m.to_string());
+        }
+        *t.replies.entry(code).or_default() += 1;
+    }
+    eprintln!(
+        "{N} exec_info in {secs:.2} s: {} passed by the broker, {} refused {:?}; replies by code \
+         {:?}; busy messages {:?}",
+        t.accepted, t.refused, t.reasons, t.replies, t.busy_messages
+    );
+    assert!(
+        (t.accepted as f64) <= passed_bound + busy_bound,
+        "the broker passed on {} of {N} commands in {secs:.2} s; its limits allow at most \
+         {passed_bound:.0} + {busy_bound:.0}",
+        t.accepted
+    );
+    let ok = t.replies.get("ok").copied().unwrap_or(0);
+    assert!(
+        (ok as f64) <= passed_bound,
+        "{ok} full exec_info answers in {secs:.2} s, over the command rate's {passed_bound:.0}"
+    );
+    assert!(
+        ok > 0,
+        "the commands within the rate are answered: {:?}",
+        t.replies
+    );
+    assert!(
+        t.reasons.iter().any(|r| r.starts_with("NotAuthorized")
+            && r.contains("commands a second")
+            && r.contains("wait for each reply")),
+        "a refused sender hears what and what to do: {:?}",
+        t.reasons
+    );
+    assert!(
+        t.busy_messages
+            .iter()
+            .any(|m| m.contains("embedded broker passes them on")),
+        "some commands past the rate are answered busy, saying why: {:?}",
+        t.busy_messages
+    );
+
+    // The PLC kept cycling, and a command once the bucket has refilled is answered normally.
+    std::thread::sleep(Duration::from_secs_f64(
+        COMMAND_BURST / COMMANDS_PER_S + 0.5,
+    ));
+    request(&probe, PLC, "exec_info", b"after", b"{}".to_vec());
+    let after = reply(&replies, b"after", Duration::from_secs(30));
+    assert_eq!(after["ok"], true, "{after}");
+    let cycles = |v: &Value| v["result"][0]["cycles"].as_u64().unwrap_or(0);
+    assert!(
+        cycles(&after) > cycles(&before),
+        "the PLC went on cycling: {before} then {after}"
+    );
     drop(plc);
 }

@@ -15,8 +15,9 @@
 //! a reserve for the process's own clients, [`INTERNAL_SESSIONS_BYTES`]), the packets that all
 //! connections have begun to receive ([`PARTIALS_BYTES`]) and each connection's buffers once
 //! empty ([`CONNECTION_BUFFER_BYTES`]), the clients in number
-//! ([`MAX_CLIENTS`]), and what others publish in bytes per second ([`INGRESS_BYTES_PER_S`]). The
-//! PLC's own client is not limited: what it publishes is its own.
+//! ([`MAX_CLIENTS`]), and what others publish in bytes and in commands per second
+//! ([`crate::ingress`]): every command costs the broker, the PLC's client and the machine a round
+//! trip. The PLC's own client is not limited: what it publishes is its own.
 //!
 //! rmqtt hands each message for a subscriber to the subscriber's session through a channel that
 //! rmqtt leaves unbounded, and bounds the queue behind it in messages only, so a subscriber that
@@ -41,6 +42,7 @@ use std::time::{Duration, Instant};
 
 use crate::acl::{Acl, BrokerSettings, Checked, Login, Who, DASHBOARD_USER, PLC_USER};
 use crate::budget::TokenBucket as Bucket;
+use crate::ingress::Ingress;
 use crate::MctError;
 use async_trait::async_trait;
 use rmqtt::context::ServerContext;
@@ -71,8 +73,8 @@ pub const SESSION_QUEUE: usize = 64;
 ///   the PLC included: a full 1 MiB command, and a larger one that earns `too_large`;
 /// * the two subscribers in the PLC's process, its own client (commands) and its dashboard
 ///   (everything the PLCs publish), read faster than others may publish
-///   ([`INGRESS_BYTES_PER_S`]), so their inboxes hold at most what others send at once
-///   ([`INGRESS_BURST`], two packets) plus what arrives while the session writes one message
+///   ([`INGRESS_BYTES_PER_S`](crate::ingress::INGRESS_BYTES_PER_S)), so their inboxes hold at most what others send at once
+///   ([`INGRESS_BURST`](crate::ingress::INGRESS_BURST), two packets) plus what arrives while the session writes one message
 ///   (less than two more): they lose nothing to this bound while they keep up;
 /// * a subscriber that reads slowly costs the PLC at most this (and its queue behind it,
 ///   [`SESSION_QUEUE`]), however long others publish. Payloads are shared between sessions, so
@@ -98,7 +100,7 @@ pub const SESSION_QUEUE_BYTES: usize = 2 * BROKER_MAX_PACKET as usize;
 /// for the subscriber it was for, whichever that is, and counted ([`Drops`]). Without it each of
 /// [`MAX_CLIENTS`] sessions could hold its own budgets ([`SESSION_INBOX_BYTES`] and
 /// [`SESSION_QUEUE_BYTES`], 24 MiB): 6 GiB. 64 MiB is room for more than two sessions full to
-/// their budgets, or for a burst of [`INGRESS_BURST`] to each of eight subscribers at once; with
+/// their budgets, or for a burst of [`INGRESS_BURST`](crate::ingress::INGRESS_BURST) to each of eight subscribers at once; with
 /// [`RETAINED_BYTES`] and [`INTERNAL_SESSIONS_BYTES`] it keeps what the broker holds for others
 /// well under the 256 MB that the PLC may use under any flood.
 pub const SESSIONS_BYTES: usize = 64 << 20;
@@ -127,7 +129,7 @@ pub const MAX_CLIENTS: usize = 256;
 /// logged. A packet is read whole before it is decoded, so without it each of [`MAX_CLIENTS`]
 /// clients could make the broker hold all but the last byte of a packet of
 /// [`BROKER_MAX_PACKET`] bytes for as long as it likes: 1 GiB. 32 MiB is eight full-size
-/// packets arriving at once, four times the ingress burst ([`INGRESS_BURST`]) that others may
+/// packets arriving at once, four times the ingress burst ([`INGRESS_BURST`](crate::ingress::INGRESS_BURST)) that others may
 /// publish together anyway; with [`RETAINED_BYTES`], [`SESSIONS_BYTES`],
 /// [`INTERNAL_SESSIONS_BYTES`] and the floors it keeps what the broker holds for others under the
 /// 256 MB that the PLC may use under any flood. The process's own clients (the PLC's and the
@@ -146,108 +148,12 @@ pub const PARTIAL_FLOOR_BYTES: usize = 64 << 10;
 /// buffer.
 pub const CONNECTION_BUFFER_BYTES: usize = 64 << 10;
 
-/// Bytes per second the broker takes from all clients together but the PLC's own: sixteen
-/// full-size packages a second, far more than operators and dashboards send, and less than the
-/// PLC's MQTT client and its dashboard read even in a debug build.
-pub const INGRESS_BYTES_PER_S: f64 = 16.0 * (1 << 20) as f64;
-
-/// Bytes that may arrive at once before [`INGRESS_BYTES_PER_S`] applies.
-pub const INGRESS_BURST: f64 = 2.0 * BROKER_MAX_PACKET as f64;
-
 /// Account logins whose password the broker checks per second, for all clients together; past
 /// it (and [`LOGIN_BURST`]) a login is refused without being checked.
 pub const LOGINS_PER_S: f64 = 8.0;
 
 /// Account logins that may arrive at once before [`LOGINS_PER_S`] applies.
 pub const LOGIN_BURST: f64 = 16.0;
-
-/// The user property the embedded broker sets on a command it passed on without its payload
-/// (it came faster than [`INGRESS_BYTES_PER_S`]): the PLC answers it `busy`.
-pub const TURNED_AWAY_PROPERTY: &str = "cetratus-turned-away";
-
-/// Limits what clients other than the PLC's own publish to [`INGRESS_BYTES_PER_S`]. A command
-/// over it is passed on without its payload, marked with [`TURNED_AWAY_PROPERTY`], so that the
-/// PLC still learns where to answer `busy`; any other message over it is refused (dropped; an
-/// MQTT 5 sender at QoS 1 hears `not authorized` with the reason).
-struct Ingress {
-    bucket: Mutex<Bucket>,
-    refused: AtomicU64,
-}
-
-impl Ingress {
-    /// Charges `publish` from the client `client`, logged in as `user`, to the bucket; false when
-    /// over.
-    fn admit(&self, client: &str, user: &str, publish: &rmqtt::types::Publish) -> bool {
-        // The user name, not the client id that anyone may claim: the PLC's login is checked.
-        if user == PLC_USER {
-            return true;
-        }
-        let bytes = (publish.payload.len() + publish.topic.len()) as f64;
-        let taken = self
-            .bucket
-            .lock()
-            .unwrap_or_else(|e| e.into_inner())
-            .take(bytes, Instant::now());
-        if !taken {
-            let n = self.refused.fetch_add(1, Ordering::Relaxed) + 1;
-            if crate::budget::worth_logging(n) {
-                tracing::warn!(
-                    topic = %publish.topic,
-                    client,
-                    refused = n,
-                    "others publish faster than {INGRESS_BYTES_PER_S} bytes/s; the embedded \
-                     broker turned a message away"
-                );
-            }
-        }
-        taken
-    }
-}
-
-fn is_command(publish: &rmqtt::types::Publish) -> bool {
-    matches!(
-        cetratus_proto::parse_topic(&publish.topic),
-        Ok((_, cetratus_proto::Leaf::Cmd(_)))
-    )
-}
-
-#[async_trait]
-impl Handler for Ingress {
-    async fn hook(&self, param: &Parameter, acc: Option<HookResult>) -> ReturnType {
-        match param {
-            // Before the ACL check: a command is charged here, and stripped when over.
-            Parameter::MessagePublish(_, from, publish) if is_command(publish) => {
-                if self.admit(&from.id.client_id, from.id.username_ref(), publish) {
-                    return (true, Some(HookResult::Publish(detached(publish))));
-                }
-                let mut stripped = detached(publish);
-                drop(std::mem::take(&mut stripped.inner.payload));
-                stripped
-                    .inner
-                    .properties
-                    .get_or_insert_with(Default::default)
-                    .user_properties
-                    .push((TURNED_AWAY_PROPERTY.into(), "rate".into()));
-                (false, Some(HookResult::Publish(stripped)))
-            }
-            // Anything else is charged at the ACL check, where it can be refused.
-            Parameter::MessagePublishCheckAcl(session, publish) if !is_command(publish) => {
-                if self.admit(&session.id.client_id, session.id.username_ref(), publish) {
-                    return (true, acc);
-                }
-                let refused = rmqtt::types::PublishAclResult::rejected(
-                    false,
-                    Some("the embedded broker takes at most 16 MiB/s from others; retry".into()),
-                );
-                (false, Some(HookResult::PublishAclResult(refused)))
-            }
-            Parameter::MessagePublish(_, _, publish) => {
-                (true, Some(HookResult::Publish(detached(publish))))
-            }
-            _ => (true, acc),
-        }
-    }
-}
 
 /// A copy of `publish` that shares no memory with the buffer it was read into. rmqtt's codec
 /// cuts a packet's topic, payload and properties out of the connection's read buffer without
@@ -256,7 +162,7 @@ impl Handler for Ingress {
 /// for 80 such messages (about 48 KiB) held 280 MiB (`crates/cli/tests/hoarding_subscribers.rs`).
 /// The broker copies every publication once, before it is routed, so that what the sessions are
 /// charged for is what they hold.
-fn detached(publish: &rmqtt::types::Publish) -> rmqtt::types::Publish {
+pub(crate) fn detached(publish: &rmqtt::types::Publish) -> rmqtt::types::Publish {
     fn own(s: &TopicName) -> TopicName {
         TopicName::from(s.to_string())
     }
@@ -656,17 +562,10 @@ impl EmbeddedBroker {
             reg.add_priority(
                 Type::MessagePublishCheckAcl,
                 10,
-                Box::new(PublishAcl(hooks)),
+                Box::new(PublishAcl(hooks.clone())),
             )
             .await;
-            let ingress = Arc::new(Ingress {
-                bucket: Mutex::new(Bucket::new(
-                    INGRESS_BYTES_PER_S,
-                    INGRESS_BURST,
-                    Instant::now(),
-                )),
-                refused: AtomicU64::new(0),
-            });
+            let ingress = Arc::new(Ingress::new(hooks.clone()));
             reg.add(Type::MessagePublish, Box::new(Shared(ingress.clone())))
                 .await;
             reg.add(Type::MessagePublishCheckAcl, Box::new(Shared(ingress)))

@@ -16,9 +16,10 @@ use rumqttc::v5::mqttbytes::v5::{Packet, Publish};
 use rumqttc::v5::mqttbytes::QoS;
 use rumqttc::v5::{AsyncClient, Event, EventLoop};
 
-use crate::broker::{BROKER_MAX_PACKET, TURNED_AWAY_PROPERTY};
+use crate::broker::BROKER_MAX_PACKET;
 use crate::budget::{worth_logging, Budget, Permit};
 use crate::control::{unix_now, ControlPlane, IncomingCommand, Outcome, ReplyHandle, Request};
+use crate::ingress::{TurnedAway, TURNED_AWAY_PROPERTY};
 use crate::link::{handle_bytes, reply_props, Shared};
 
 /// What a queued command costs: its package, its reply address, its correlation data.
@@ -223,10 +224,20 @@ pub(crate) fn control_loop(
                 Ok(cmd) => Some(cmd.reply),
                 Err(rej) => rej.reply.map(|(h, _)| h),
             };
-            let why = "the PLC reads commands slower than they come";
+            // The embedded broker says which of its limits turned the command away; without
+            // that, it was this client's own budget.
+            let why = props
+                .into_iter()
+                .flat_map(|pr| &pr.user_properties)
+                .find(|(k, _)| k == TURNED_AWAY_PROPERTY)
+                .and_then(|(_, v)| TurnedAway::from_name(v))
+                .map_or_else(
+                    || "the PLC reads commands slower than they come".to_string(),
+                    TurnedAway::why,
+                );
             match reply {
                 Some(h) if h.topic.is_some() => {
-                    try_reply(&client, &shared, &h, &busy(&shared, why))
+                    try_reply(&client, &shared, &h, &busy(&shared, &why))
                 }
                 _ => {
                     shared.commands_dropped.fetch_add(1, Ordering::Relaxed);

@@ -41,6 +41,7 @@ mod control;
 mod envelope;
 mod error;
 mod inbound;
+mod ingress;
 mod link;
 pub mod password;
 
@@ -49,7 +50,6 @@ pub use broker::{
     EmbeddedBroker, BROKER_MAX_PACKET, CONNECTION_BUFFER_BYTES, INTERNAL_SESSIONS_BYTES,
     LOGINS_PER_S, LOGIN_BURST, MAX_CLIENTS, PARTIALS_BYTES, PARTIAL_FLOOR_BYTES, SESSIONS_BYTES,
     SESSION_FLOOR_BYTES, SESSION_INBOX_BYTES, SESSION_QUEUE, SESSION_QUEUE_BYTES,
-    TURNED_AWAY_PROPERTY,
 };
 pub use control::{
     accepted, refused, unix_now, ControlPlane, IncomingCommand, Outcome, Rejection, ReplyHandle,
@@ -60,6 +60,10 @@ pub use envelope::{
 };
 pub use error::MctError;
 pub use inbound::{CommandQueue, UNREAD_BYTES};
+pub use ingress::{
+    TurnedAway, BUSY_ANSWERS_PER_S, BUSY_BURST, COMMANDS_PER_S, COMMAND_BURST, INGRESS_BURST,
+    INGRESS_BYTES_PER_S, REFUSAL_PAUSE, TURNED_AWAY_PROPERTY,
+};
 pub use link::{
     client_options, spawn_mqtt, start, BrokerChoice, LinkStats, MctLink, MqttConfig, MqttHandle,
     Outgoing, StatsReader, COMMAND_QUEUE_BYTES, DEFAULT_MQTT_ADDR,

@@ -307,3 +307,52 @@ fn with_tls_the_broker_speaks_only_tls_on_its_port_and_checks_the_login() {
         .expect("publish");
     assert!(ok.next_on("cetratus/cell1/cmd/exec_info", T).is_some());
 }
+
+/// Publishes `n` commands `topic` at QoS 1 as `user` (password `pw`), and returns how many the
+/// broker acknowledged as passed and how many it refused.
+fn command_acks(broker: &EmbeddedBroker, user: &str, topic: &str, n: u64) -> (u64, u64) {
+    use rumqttc::v5::mqttbytes::v5::{Packet, PubAckReason};
+    use rumqttc::v5::{Client, Event, MqttOptions};
+    let addr = broker.addr();
+    let mut o = MqttOptions::new(unique(user), addr.ip().to_string(), addr.port());
+    o.set_credentials(user, "pw");
+    let (client, mut conn) = Client::new(o, 256);
+    let who = user.to_string();
+    let counter = std::thread::spawn(move || {
+        let (mut passed, mut refused) = (0, 0);
+        for ev in conn.iter() {
+            match ev {
+                Ok(Event::Incoming(Packet::PubAck(a))) if a.reason == PubAckReason::Success => {
+                    passed += 1
+                }
+                Ok(Event::Incoming(Packet::PubAck(_))) => refused += 1,
+                Ok(_) => {}
+                Err(e) => panic!("{who}'s connection: {e}"),
+            }
+            if passed + refused == n {
+                break;
+            }
+        }
+        (passed, refused)
+    });
+    for _ in 0..n {
+        client
+            .publish(topic, QoS::AtLeastOnce, false, "{}")
+            .expect("publish");
+    }
+    counter.join().expect("the counter")
+}
+
+#[test]
+fn commands_the_acl_refuses_spend_nothing_of_the_command_budget_of_those_who_may_command() {
+    let broker = broker_with_accounts(None);
+    // The attack: an account that may not command cell1 floods it, to leave no commands for
+    // the operators who may.
+    let flood = 3 * cetratus_mct::COMMAND_BURST as u64;
+    let (passed, refused) = command_acks(&broker, "other", "cetratus/cell1/cmd/exec_info", flood);
+    assert_eq!((passed, refused), (0, flood), "the ACL refuses every one");
+    // Within the burst, every command of an account that may command passes.
+    let within = cetratus_mct::COMMAND_BURST as u64 / 2;
+    let (passed, refused) = command_acks(&broker, "ops", "cetratus/cell1/cmd/exec_info", within);
+    assert_eq!((passed, refused), (within, 0));
+}

@@ -37,6 +37,13 @@ pub struct Progress {
 /// A progress callback, called from the exploring thread every few thousand states.
 pub type ProgressFn = Arc<dyn Fn(Progress) + Send + Sync>;
 
+/// The states a default run explores on one thread before it goes on with two
+/// ([`CheckOptions::parallel_from`]): measured on an idle 2-core machine, two threads were slower
+/// than one up to Kanban and FMS at N = 4 (about 450,000 states), about even at N = 5 (2.5 and
+/// 2.9 million) and 1.5 times faster at N = 6 (11 million); docs/analysis.md, "The default
+/// thread count".
+pub const PARALLEL_FROM: u64 = 1_000_000;
+
 /// Options of [`check`].
 #[derive(Clone)]
 pub struct CheckOptions {
@@ -53,6 +60,9 @@ pub struct CheckOptions {
     /// state-space exploration, and the exploration itself runs on this many threads (same
     /// states, ids, counts and witness as on one thread).
     pub threads: usize,
+    /// With 2 or more `threads`: the states the exploration finds on one thread before it goes
+    /// on with `threads` (0: with `threads` from the start). See [`PARALLEL_FROM`].
+    pub parallel_from: u64,
     /// Set to true (e.g. by Ctrl-C) to stop with a partial report.
     pub cancel: Option<Arc<AtomicBool>>,
     /// Called while the state space grows.
@@ -75,6 +85,7 @@ impl Default for CheckOptions {
             timeout: Some(DEFAULT_TIMEOUT),
             clock: None,
             threads: 1,
+            parallel_from: 0,
             cancel: None,
             progress: None,
             farkas_max_rows: DEFAULT_MAX_ROWS,
@@ -177,6 +188,7 @@ fn behaviour(
         progress: opts.progress.clone(),
         liveness: true,
         threads: opts.threads,
+        parallel_from: opts.parallel_from,
     };
     let bounds: Vec<u64> = if known.iter().all(Option::is_some) {
         notes.push(

@@ -34,7 +34,7 @@ pub mod sfc;
 pub mod siphons;
 
 pub use budget::{Clock, Deadline, PartialReason};
-pub use check::{check, CheckOptions, Progress, ProgressFn};
+pub use check::{check, CheckOptions, Progress, ProgressFn, PARALLEL_FROM};
 pub use classify::Classification;
 pub use error::AnalysisError;
 pub use invariants::Semiflow;

@@ -170,6 +170,7 @@ pub fn check_property(net: &Net, property: &Property, opts: &CheckOptions) -> Re
         progress: opts.progress.clone(),
         liveness: false,
         threads: 1,
+        parallel_from: 0,
     };
     decide(net, property, opts, &known, &ropts, &mut r);
     r.timings.behaviour_ms = ms(opts, tb);

@@ -152,6 +152,10 @@ pub struct ReachOptions {
     /// Threads of the exploration: 0 or 1 run the sequential explorer, 2 or more the parallel one
     /// (same states, ids, counts and witness; more memory per state).
     pub threads: usize,
+    /// With 2 or more `threads`: the states found on one thread before the exploration goes on
+    /// with `threads` (0: with `threads` from the start). Two threads pay only on large state
+    /// spaces (docs/analysis.md, "The default thread count").
+    pub parallel_from: u64,
 }
 
 impl ReachOptions {
@@ -691,7 +695,7 @@ fn seeded<const W: usize>(
 }
 
 fn explore_w<const W: usize>(net: &Net, pk: &Packing, opts: &ReachOptions) -> ReachResult {
-    if opts.threads >= 2 {
+    if opts.threads >= 2 && opts.parallel_from == 0 {
         return par::explore_par::<W>(net, pk, opts);
     }
     let nt = net.num_transitions();
@@ -718,9 +722,15 @@ fn explore_w<const W: usize>(net: &Net, pk: &Packing, opts: &ReachOptions) -> Re
     let mut stopped = None;
     let mut peak_bytes = 0usize;
     let mut cur = 0usize;
+    let hand_over = opts.threads >= 2;
+    let mut handed = false;
     'bfs: while cur < states.len {
         if let Some(s) = checkpoint(opts, cur, edges, &table, &states, &parents) {
             stopped = Some(s);
+            break;
+        }
+        if hand_over && cur & 0x3FFF == 0 && states.len as u64 >= opts.parallel_from {
+            handed = true;
             break;
         }
         while prepared < states.len && prepared < cur + AHEAD {
@@ -761,6 +771,21 @@ fn explore_w<const W: usize>(net: &Net, pk: &Packing, opts: &ReachOptions) -> Re
         cur += 1;
     }
     let peak_bytes = peak_bytes.max(table.bytes() + states.bytes() + parents.bytes());
+    if handed {
+        drop(table);
+        let start = par::Progressed {
+            states,
+            parents,
+            cur,
+            edges,
+            deadlocks,
+            first_dead,
+            enabled_ever,
+            max_fields,
+            peak_bytes,
+        };
+        return par::continue_par(net, pk, start, opts);
+    }
     let deadlock_witness = deadlock_witness(&code, &states, &parents, first_dead, nt);
     let n = states.len;
     drop((states, parents));
@@ -769,7 +794,12 @@ fn explore_w<const W: usize>(net: &Net, pk: &Packing, opts: &ReachOptions) -> Re
         .map(|t| TransIdx(t as u32))
         .collect();
     let (liveness, liveness_stopped, scc_bytes) = if opts.liveness && stopped.is_none() {
-        scc::liveness(&code, &table, &k0, n, &never_enabled, opts)
+        // Not handed over: the state space is small enough for one thread here too.
+        let one = ReachOptions {
+            threads: 1,
+            ..opts.clone()
+        };
+        scc::liveness(&code, &table, &k0, n, &never_enabled, &one)
     } else {
         (None, None, 0)
     };

@@ -44,6 +44,17 @@ fn behaviour(net: &Net, threads: usize, max_states: Option<u64>) -> Report {
 
 /// The exploration result without the store's bytes (the parallel store is laid out differently).
 fn explored(net: &Net, threads: usize, max_states: Option<u64>, liveness: bool) -> ReachResult {
+    handed_over(net, threads, 0, max_states, liveness)
+}
+
+/// [`explored`] on one thread until `from` states are found, then on `threads`.
+fn handed_over(
+    net: &Net,
+    threads: usize,
+    from: u64,
+    max_states: Option<u64>,
+    liveness: bool,
+) -> ReachResult {
     let packing = structural_packing(net, DEFAULT_MAX_ROWS)
         .expect("structural bounds")
         .expect("structurally bounded");
@@ -51,6 +62,7 @@ fn explored(net: &Net, threads: usize, max_states: Option<u64>, liveness: bool) 
         threads,
         max_states,
         liveness,
+        parallel_from: from,
         ..ReachOptions::default()
     };
     let mut r = explore(net, &packing, &opts).expect("fits the packed explorer");
@@ -111,6 +123,34 @@ fn parallel_exploration_of_fms_and_kanban_four_equals_the_sequential_one() {
     ] {
         let one = explored(&net, 1, None, false);
         assert_eq!(explored(&net, 2, None, false), one);
+    }
+}
+
+#[test]
+fn an_exploration_handed_over_to_more_threads_midway_equals_the_sequential_one() {
+    // The hand-over happens between blocks of 16,384 expanded states: FMS 3 and Kanban 3 have
+    // 48,590 and 58,400 states, so it happens once or twice over, or (past the last state) never.
+    for net in [
+        fms(3).expect("FMS builds"),
+        kanban(3).expect("Kanban builds"),
+    ] {
+        let one = explored(&net, 1, None, true);
+        for from in [1, 16_384, 30_000, 1_000_000] {
+            for threads in [2, 3] {
+                assert_eq!(
+                    handed_over(&net, threads, from, None, true),
+                    one,
+                    "from {from}, {threads} threads"
+                );
+            }
+        }
+        for max in [20_000, 40_000] {
+            assert_eq!(
+                handed_over(&net, 2, 16_384, Some(max), true),
+                explored(&net, 1, Some(max), true),
+                "from 16,384, max_states {max}"
+            );
+        }
     }
 }
 

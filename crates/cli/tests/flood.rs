@@ -12,6 +12,8 @@
 //! refuses the rest with a reason; the PLC keeps cycling and answers normally afterwards.
 
 use std::collections::BTreeMap;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use base64::Engine as _;

@@ -164,39 +164,91 @@ fn each<T: Send, F: Fn(usize, &mut T) + Sync>(items: &mut [T], parallel: bool, f
     });
 }
 
+/// Where an exploration stands: the states found so far with their parents, the next state to
+/// expand, and the counts of the states expanded before it.
+pub(super) struct Progressed<const W: usize> {
+    pub(super) states: Chunked<[u64; W]>,
+    pub(super) parents: Chunked<u32>,
+    pub(super) cur: usize,
+    pub(super) edges: u64,
+    pub(super) deadlocks: u64,
+    pub(super) first_dead: Option<usize>,
+    pub(super) enabled_ever: Vec<bool>,
+    pub(super) max_fields: Vec<u64>,
+    pub(super) peak_bytes: usize,
+}
+
 /// Explores with `opts.threads` threads; the result equals the sequential one.
 pub(super) fn explore_par<const W: usize>(
     net: &Net,
     pk: &Packing,
     opts: &ReachOptions,
 ) -> ReachResult {
-    let threads = opts.threads.max(1);
-    let nt = net.num_transitions();
-    let np = net.num_places();
-    let code = Compiled::<W>::new(net, pk);
-    let mut tables: Vec<Table<W>> = (0..threads).map(|_| Table::new()).collect();
     let mut states: Chunked<[u64; W]> = Chunked::new();
     let mut parents: Chunked<u32> = Chunked::new();
     let mut k0 = [0u64; W];
     pk.encode(net.initial_marking().as_slice(), &mut k0);
     k0[0] |= MARK;
-    let h0 = hash(&k0);
-    tables[owner(h0, threads)].insert(&k0);
     states.push(k0);
     parents.push(u32::MAX);
+    let mut max_fields: Vec<u64> = vec![0; net.num_places()];
+    for (m, f) in max_fields.iter_mut().zip(&pk.fields) {
+        *m = (k0[f.word as usize] >> f.shift) & f.mask;
+    }
+    let start = Progressed {
+        states,
+        parents,
+        cur: 0,
+        edges: 0,
+        deadlocks: 0,
+        first_dead: None,
+        enabled_ever: vec![false; net.num_transitions()],
+        max_fields,
+        peak_bytes: 0,
+    };
+    continue_par(net, pk, start, opts)
+}
+
+/// Goes on with `opts.threads` threads from where `start` stands (the sequential explorer hands
+/// over once the state space has grown past [`ReachOptions::parallel_from`]): the owners' tables
+/// are filled with the states found so far, in id order, and the search continues from
+/// `start.cur`. The result equals the sequential one.
+pub(super) fn continue_par<const W: usize>(
+    net: &Net,
+    pk: &Packing,
+    start: Progressed<W>,
+    opts: &ReachOptions,
+) -> ReachResult {
+    let threads = opts.threads.max(1);
+    let nt = net.num_transitions();
+    let code = Compiled::<W>::new(net, pk);
+    let Progressed {
+        mut states,
+        mut parents,
+        mut cur,
+        mut edges,
+        mut deadlocks,
+        mut first_dead,
+        mut enabled_ever,
+        mut max_fields,
+        mut peak_bytes,
+    } = start;
+    let k0 = states.get(0);
+    let mut tables: Vec<Table<W>> = (0..threads).map(|_| Table::new()).collect();
+    for i in 0..states.len {
+        let k = states.get(i);
+        let h = hash(&k);
+        let t = &mut tables[owner(h, threads)];
+        t.reserve(1);
+        t.insert_hashed(&k, h);
+    }
     let max_states = opts.state_limit();
-    let mut max_fields: Vec<u64> = vec![0; np];
     let mut observe = |k: &[u64; W]| {
         for (m, f) in max_fields.iter_mut().zip(&pk.fields) {
             *m = (*m).max((k[f.word as usize] >> f.shift) & f.mask);
         }
     };
-    observe(&k0);
-    let mut enabled_ever = vec![false; nt];
-    let (mut edges, mut deadlocks) = (0u64, 0u64);
-    let mut first_dead: Option<usize> = None;
     let mut stopped = None;
-    let mut peak_bytes = 0usize;
     let max_batch =
         MAX_BATCH.min((OUTBOX_BYTES / (nt.max(1) * std::mem::size_of::<Succ<W>>())).max(1));
     // Buffers reused from batch to batch: one per thread, one per owner.
@@ -204,7 +256,6 @@ pub(super) fn explore_par<const W: usize>(
     let mut lists: Vec<Vec<Found<W>>> = vec![Vec::new(); threads];
     let mut new: Vec<Found<W>> = Vec::new();
     let mut recount = Expanded::new(0, nt);
-    let mut cur = 0usize;
     while cur < states.len {
         if cur > 0 {
             if let Some(s) = opts.interrupted() {

@@ -5,25 +5,30 @@ use std::process::Command;
 
 const BIN: &str = env!("CARGO_BIN_EXE_cetratus");
 
-#[test]
-fn bench_jitter_runs_from_a_directory_outside_the_source_tree() {
-    let dir = tempfile::tempdir().expect("temp dir");
-    let out = Command::new(BIN)
-        .current_dir(dir.path())
-        // The embedded workloads are written under the temporary directory: here, so that the
-        // test sees that they came from the binary and not from a source tree.
-        .env("TMPDIR", dir.path())
-        .args([
-            "bench", "jitter", "--period", "10ms", "--for", "300ms", "--json",
-        ])
-        .output()
-        .expect("run cetratus");
+/// Runs `cmd`, which must succeed (else its error output is shown), and reads its JSON report.
+fn report(cmd: &mut Command) -> serde_json::Value {
+    let out = cmd.output().expect("run cetratus");
     assert!(
         out.status.success(),
         "{}",
         String::from_utf8_lossy(&out.stderr)
     );
-    let v: serde_json::Value = serde_json::from_slice(&out.stdout).expect("one JSON object");
+    serde_json::from_slice(&out.stdout).expect("one JSON object")
+}
+
+#[test]
+fn bench_jitter_runs_from_a_directory_outside_the_source_tree() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let v = report(
+        Command::new(BIN)
+            .current_dir(dir.path())
+            // The embedded workloads are written under the temporary directory: here, so that the
+            // test sees that they came from the binary and not from a source tree.
+            .env("TMPDIR", dir.path())
+            .args([
+                "bench", "jitter", "--period", "10ms", "--for", "300ms", "--json",
+            ]),
+    );
     assert!(v["cycles"].as_u64().is_some_and(|n| n > 0), "{v}");
     let written = std::fs::read_dir(dir.path())
         .expect("list")
@@ -34,18 +39,9 @@ fn bench_jitter_runs_from_a_directory_outside_the_source_tree() {
 
 #[test]
 fn bench_jitter_reports_the_machines_own_latency_from_cyclictest_or_why_not() {
-    let out = Command::new(BIN)
-        .args([
-            "bench", "jitter", "--period", "10ms", "--for", "1s", "--json",
-        ])
-        .output()
-        .expect("run cetratus");
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let v: serde_json::Value = serde_json::from_slice(&out.stdout).expect("one JSON object");
+    let v = report(Command::new(BIN).args([
+        "bench", "jitter", "--period", "10ms", "--for", "1s", "--json",
+    ]));
     let m = &v["machine"];
     // scripts/test installs rt-tests, so cyclictest is there; without --rt it needs no priority.
     assert!(
@@ -74,20 +70,14 @@ fn bench_jitter_reports_the_machines_own_latency_from_cyclictest_or_why_not() {
 #[test]
 fn bench_io_measures_round_trips_against_pymodbus_and_its_own_server_from_anywhere() {
     let dir = tempfile::tempdir().expect("temp dir");
-    let out = Command::new(BIN)
-        .current_dir(dir.path())
-        .env("TMPDIR", dir.path())
-        .args([
-            "bench", "io", "--period", "10ms", "--for", "500ms", "--json",
-        ])
-        .output()
-        .expect("run cetratus");
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
+    let v = report(
+        Command::new(BIN)
+            .current_dir(dir.path())
+            .env("TMPDIR", dir.path())
+            .args([
+                "bench", "io", "--period", "10ms", "--for", "500ms", "--json",
+            ]),
     );
-    let v: serde_json::Value = serde_json::from_slice(&out.stdout).expect("one JSON object");
     let peers: Vec<&str> = v["round_trips"]
         .as_array()
         .expect("round trips")
@@ -112,18 +102,9 @@ fn bench_io_measures_round_trips_against_pymodbus_and_its_own_server_from_anywhe
 /// kind is sent and measured in every round.
 #[test]
 fn bench_flood_measures_every_kind_in_slices_between_unloaded_ones() {
-    let out = Command::new(BIN)
-        .args([
-            "bench", "flood", "--for", "200ms", "--slice", "100ms", "--period", "10ms", "--json",
-        ])
-        .output()
-        .expect("run cetratus");
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let v: serde_json::Value = serde_json::from_slice(&out.stdout).expect("one JSON object");
+    let v = report(Command::new(BIN).args([
+        "bench", "flood", "--for", "200ms", "--slice", "100ms", "--period", "10ms", "--json",
+    ]));
     assert_eq!(v["method"], "interleaved", "{v}");
     assert_eq!(v["slice_s"], 0.1, "{v}");
     let kinds = [
@@ -172,28 +153,19 @@ fn bench_flood_measures_every_kind_in_slices_between_unloaded_ones() {
 /// `bench flood --kinds` floods only the kinds it names, and names the kinds when one is wrong.
 #[test]
 fn bench_flood_runs_only_the_kinds_asked_for() {
-    let out = Command::new(BIN)
-        .args([
-            "bench",
-            "flood",
-            "--for",
-            "200ms",
-            "--slice",
-            "100ms",
-            "--period",
-            "10ms",
-            "--kinds",
-            "exec_info",
-            "--json",
-        ])
-        .output()
-        .expect("run cetratus");
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let v: serde_json::Value = serde_json::from_slice(&out.stdout).expect("one JSON object");
+    let v = report(Command::new(BIN).args([
+        "bench",
+        "flood",
+        "--for",
+        "200ms",
+        "--slice",
+        "100ms",
+        "--period",
+        "10ms",
+        "--kinds",
+        "exec_info",
+        "--json",
+    ]));
     // Two rounds of one kind.
     assert_eq!(v["unloaded_slices"], 2, "{v}");
     assert_eq!(v["exec_info"]["slices"], 2, "{v}");

@@ -14,16 +14,15 @@
 
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
 use cetratus_mct::{SESSIONS_BYTES, SESSION_FLOOR_BYTES, SESSION_INBOX_BYTES, SESSION_QUEUE_BYTES};
 use rumqttc::v5::mqttbytes::QoS;
-use rumqttc::v5::{Client, MqttOptions};
 
 mod common;
 
 use common::raw_mqtt::{subscriber, Reading};
-use common::{client, first_answer, reply, request, rss_kb, RssSampler, RunningPlc};
+use common::{camera, client, first_answer, reply, request, rss_kb, RssSampler, RunningPlc};
 
 const PLC: &str = "cell1";
 /// How long the camera publishes.
@@ -35,40 +34,6 @@ const MARGIN_KB: u64 = 48 * 1024;
 
 /// One test at a time: each measures its own PLC's memory while it floods it.
 static ONE_AT_A_TIME: Mutex<()> = Mutex::new(());
-
-/// The camera: publishes `n` images of `size` bytes at `qos`, `per_s` a second, the k-th on
-/// `topics[k % topics.len()]`; with `tiny`, each image is followed at once by a message of 64
-/// bytes on that topic, at QoS 1, and the image goes to a topic no one reads.
-fn camera(port: u16, topics: &[String], size: usize, per_s: u32, n: u32, qos: QoS, tiny: bool) {
-    let mut opts = MqttOptions::new("camera", "127.0.0.1", port);
-    opts.set_max_packet_size(Some(8 << 20));
-    opts.set_keep_alive(Duration::from_secs(30));
-    let (c, mut conn) = Client::new(opts, 64);
-    std::thread::spawn(move || {
-        for ev in conn.iter() {
-            if ev.is_err() {
-                std::thread::sleep(Duration::from_millis(50));
-            }
-        }
-    });
-    let image = vec![0xA5u8; size];
-    let t0 = Instant::now();
-    for k in 0..n {
-        let topic = &topics[k as usize % topics.len()];
-        if tiny {
-            c.publish("plant/unread", qos, false, image.clone())
-                .expect("the camera queues an image");
-            c.publish(topic, QoS::AtLeastOnce, false, vec![0x5Au8; 64])
-                .expect("the camera queues a tiny message");
-        } else {
-            c.publish(topic, qos, false, image.clone())
-                .expect("the camera queues an image");
-        }
-        let next = t0 + Duration::from_secs(1) * (k + 1) / per_s;
-        std::thread::sleep(next.saturating_duration_since(Instant::now()));
-    }
-    let _ = c.disconnect();
-}
 
 /// The primary's cycles in an `exec_info` reply.
 fn cycles(v: &serde_json::Value) -> u64 {

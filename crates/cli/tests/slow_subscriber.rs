@@ -13,7 +13,7 @@
 
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::Arc;
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
 use cetratus_mct::{SESSION_INBOX_BYTES, SESSION_QUEUE_BYTES};
 use rumqttc::v5::mqttbytes::v5::Packet;
@@ -23,7 +23,9 @@ use rumqttc::v5::{Client, Event, MqttOptions};
 mod common;
 
 use common::raw_mqtt::{subscriber, Reading};
-use common::{client, first_answer, reply, request, rss_kb, wait_for, RssSampler, RunningPlc};
+use common::{
+    camera, client, first_answer, reply, request, rss_kb, wait_for, RssSampler, RunningPlc,
+};
 
 const PLC: &str = "cell1";
 /// A topic outside `cetratus/`, which anyone on an open broker may publish and read.
@@ -74,30 +76,6 @@ fn normal_subscriber(port: u16, topic: &str) -> (Client, Arc<AtomicU64>) {
     (c, got)
 }
 
-/// The camera: publishes `n` images of [`MESSAGE`] bytes on `topic`, [`PER_S`] a second.
-fn camera(port: u16, topic: &str, n: u32) {
-    let mut opts = MqttOptions::new("camera", "127.0.0.1", port);
-    opts.set_max_packet_size(Some(8 << 20));
-    opts.set_keep_alive(Duration::from_secs(30));
-    let (c, mut conn) = Client::new(opts, 64);
-    std::thread::spawn(move || {
-        for ev in conn.iter() {
-            if ev.is_err() {
-                std::thread::sleep(Duration::from_millis(50));
-            }
-        }
-    });
-    let image = vec![0xA5u8; MESSAGE];
-    let t0 = Instant::now();
-    for k in 0..n {
-        c.publish(topic, QoS::AtMostOnce, false, image.clone())
-            .expect("the camera queues an image");
-        let next = t0 + Duration::from_secs(1) * (k + 1) / PER_S;
-        std::thread::sleep(next.saturating_duration_since(Instant::now()));
-    }
-    let _ = c.disconnect();
-}
-
 /// The primary's cycles in an `exec_info` reply.
 fn cycles(v: &serde_json::Value) -> u64 {
     v["result"][0]["cycles"]
@@ -118,14 +96,30 @@ fn a_slow_subscriber_does_not_make_the_plc_keep_what_others_publish_for_it() {
     let rss_before = rss_kb(pid).expect("the PLC's memory");
     let sampler = RssSampler::start(pid);
     let images = PER_S * FLOOD.as_secs() as u32;
-    camera(plc.mqtt, TOPIC, images);
+    camera(
+        plc.mqtt,
+        &[TOPIC.to_string()],
+        MESSAGE,
+        PER_S,
+        images,
+        QoS::AtMostOnce,
+        false,
+    );
     // The last images reach the sessions after the camera is done.
     std::thread::sleep(Duration::from_secs(2));
     let peak = sampler.peak_kb();
     let received_in_flood = watched.load(Ordering::Relaxed);
 
     // The watcher still receives: one more image after the flood reaches it.
-    camera(plc.mqtt, TOPIC, 1);
+    camera(
+        plc.mqtt,
+        &[TOPIC.to_string()],
+        MESSAGE,
+        PER_S,
+        1,
+        QoS::AtMostOnce,
+        false,
+    );
     wait_for(
         "an image after the flood at the normal subscriber",
         Duration::from_secs(30),

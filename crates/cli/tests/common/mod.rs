@@ -241,3 +241,37 @@ impl RssSampler {
         self.peak.load(Ordering::Relaxed)
     }
 }
+
+/// The camera: publishes `n` images of `size` bytes at `qos`, `per_s` a second, the k-th on
+/// `topics[k % topics.len()]`; with `tiny`, each image is followed at once by a message of 64
+/// bytes on that topic, at QoS 1, and the image goes to a topic no one reads.
+pub fn camera(port: u16, topics: &[String], size: usize, per_s: u32, n: u32, qos: QoS, tiny: bool) {
+    let mut opts = MqttOptions::new("camera", "127.0.0.1", port);
+    opts.set_max_packet_size(Some(8 << 20));
+    opts.set_keep_alive(Duration::from_secs(30));
+    let (c, mut conn) = Client::new(opts, 64);
+    std::thread::spawn(move || {
+        for ev in conn.iter() {
+            if ev.is_err() {
+                std::thread::sleep(Duration::from_millis(50));
+            }
+        }
+    });
+    let image = vec![0xA5u8; size];
+    let t0 = Instant::now();
+    for k in 0..n {
+        let topic = &topics[k as usize % topics.len()];
+        if tiny {
+            c.publish("plant/unread", qos, false, image.clone())
+                .expect("the camera queues an image");
+            c.publish(topic, QoS::AtLeastOnce, false, vec![0x5Au8; 64])
+                .expect("the camera queues a tiny message");
+        } else {
+            c.publish(topic, qos, false, image.clone())
+                .expect("the camera queues an image");
+        }
+        let next = t0 + Duration::from_secs(1) * (k + 1) / per_s;
+        std::thread::sleep(next.saturating_duration_since(Instant::now()));
+    }
+    let _ = c.disconnect();
+}

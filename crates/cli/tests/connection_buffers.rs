@@ -24,7 +24,9 @@ use cetratus_mct::{
 mod common;
 
 use common::raw_mqtt::{connect as raw_connect, mqtt_str, packet};
-use common::{client, first_answer, reply, request, rss_kb, RssSampler, RunningPlc};
+use common::{
+    client, first_answer, primary_cycles, reply, request, rss_kb, RssSampler, RunningPlc,
+};
 
 const PLC: &str = "cell1";
 /// Attackers connected at once: most of what the broker admits ([`MAX_CLIENTS`]), leaving room
@@ -57,13 +59,6 @@ fn largest_unsubscribe() -> Vec<u8> {
     packet(0xA2, &body)
 }
 
-/// The primary's cycles in an `exec_info` reply.
-fn cycles(v: &serde_json::Value) -> u64 {
-    v["result"][0]["cycles"]
-        .as_u64()
-        .unwrap_or_else(|| panic!("exec_info names the primary's cycles: {v}"))
-}
-
 /// Starts the PLC, runs `attack` against its broker's port, checks that the PLC cycles on and
 /// answers an operator while the attackers are still connected, and returns the growth of its
 /// resident memory in kB (the peak during the attack) and its log.
@@ -71,7 +66,7 @@ fn attacked(attack: impl FnOnce(u16) -> Vec<TcpStream>) -> (u64, Vec<String>) {
     let (plc, log) = RunningPlc::start_logged(PLC, &[]);
     let pid = plc.process.id();
     let (ops, replies) = client(plc.mqtt, "ops", PLC);
-    let before = cycles(&first_answer(&ops, &replies, PLC, Duration::from_secs(30)));
+    let before = primary_cycles(&first_answer(&ops, &replies, PLC, Duration::from_secs(30)));
 
     let rss_before = rss_kb(pid).expect("the PLC's memory");
     let sampler = RssSampler::start(pid);
@@ -82,7 +77,7 @@ fn attacked(attack: impl FnOnce(u16) -> Vec<TcpStream>) -> (u64, Vec<String>) {
     let settled = rss_kb(pid).expect("the PLC's memory");
 
     request(&ops, PLC, "exec_info", b"under-attack", b"{}".to_vec());
-    let after = cycles(&reply(&replies, b"under-attack", Duration::from_secs(30)));
+    let after = primary_cycles(&reply(&replies, b"under-attack", Duration::from_secs(30)));
     assert!(
         after > before,
         "the PLC cycles on: {before} cycles, then {after}"

@@ -22,7 +22,9 @@ use rumqttc::v5::mqttbytes::QoS;
 mod common;
 
 use common::raw_mqtt::{subscriber, Reading};
-use common::{camera, client, first_answer, reply, request, rss_kb, RssSampler, RunningPlc};
+use common::{
+    camera, client, first_answer, primary_cycles, reply, request, rss_kb, RssSampler, RunningPlc,
+};
 
 const PLC: &str = "cell1";
 /// How long the camera publishes.
@@ -35,13 +37,6 @@ const MARGIN_KB: u64 = 48 * 1024;
 /// One test at a time: each measures its own PLC's memory while it floods it.
 static ONE_AT_A_TIME: Mutex<()> = Mutex::new(());
 
-/// The primary's cycles in an `exec_info` reply.
-fn cycles(v: &serde_json::Value) -> u64 {
-    v["result"][0]["cycles"]
-        .as_u64()
-        .unwrap_or_else(|| panic!("exec_info names the primary's cycles: {v}"))
-}
-
 /// Starts the PLC and `attackers` on their topics, floods them with images of `size` bytes at
 /// `qos`, checks that the PLC cycles on and answers an operator, and returns the growth of its
 /// resident memory in kB and its log.
@@ -49,7 +44,7 @@ fn flood(attackers: &[(String, Reading)], size: usize, qos: QoS, tiny: bool) -> 
     let (plc, log) = RunningPlc::start_logged(PLC, &[]);
     let pid = plc.process.id();
     let (ops, replies) = client(plc.mqtt, "ops", PLC);
-    let before = cycles(&first_answer(&ops, &replies, PLC, Duration::from_secs(30)));
+    let before = primary_cycles(&first_answer(&ops, &replies, PLC, Duration::from_secs(30)));
     let stop = Arc::new(AtomicBool::new(false));
     let read: Vec<_> = attackers
         .iter()
@@ -74,7 +69,7 @@ fn flood(attackers: &[(String, Reading)], size: usize, qos: QoS, tiny: bool) -> 
     // The PLC cycles on, and an operator's command is answered while the attackers still hold
     // what they hold.
     request(&ops, PLC, "exec_info", b"after-flood", b"{}".to_vec());
-    let after = cycles(&reply(&replies, b"after-flood", Duration::from_secs(30)));
+    let after = primary_cycles(&reply(&replies, b"after-flood", Duration::from_secs(30)));
     assert!(
         after > before,
         "the PLC cycles on: {before} cycles, then {after}"

@@ -24,7 +24,8 @@ mod common;
 
 use common::raw_mqtt::{subscriber, Reading};
 use common::{
-    camera, client, first_answer, reply, request, rss_kb, wait_for, RssSampler, RunningPlc,
+    camera, client, first_answer, primary_cycles, reply, request, rss_kb, wait_for, RssSampler,
+    RunningPlc,
 };
 
 const PLC: &str = "cell1";
@@ -76,19 +77,12 @@ fn normal_subscriber(port: u16, topic: &str) -> (Client, Arc<AtomicU64>) {
     (c, got)
 }
 
-/// The primary's cycles in an `exec_info` reply.
-fn cycles(v: &serde_json::Value) -> u64 {
-    v["result"][0]["cycles"]
-        .as_u64()
-        .unwrap_or_else(|| panic!("exec_info names the primary's cycles: {v}"))
-}
-
 #[test]
 fn a_slow_subscriber_does_not_make_the_plc_keep_what_others_publish_for_it() {
     let (plc, log) = RunningPlc::start_logged(PLC, &[]);
     let pid = plc.process.id();
     let (ops, replies) = client(plc.mqtt, "ops", PLC);
-    let before = cycles(&first_answer(&ops, &replies, PLC, Duration::from_secs(30)));
+    let before = primary_cycles(&first_answer(&ops, &replies, PLC, Duration::from_secs(30)));
     let (_watcher, watched) = normal_subscriber(plc.mqtt, TOPIC);
     let stop = Arc::new(AtomicBool::new(false));
     let sipped = subscriber(plc.mqtt, "slow-reader", TOPIC, Reading::Sip, stop.clone());
@@ -127,7 +121,7 @@ fn a_slow_subscriber_does_not_make_the_plc_keep_what_others_publish_for_it() {
     );
     // The PLC cycles on.
     request(&ops, PLC, "exec_info", b"after-flood", b"{}".to_vec());
-    let after = cycles(&reply(&replies, b"after-flood", Duration::from_secs(30)));
+    let after = primary_cycles(&reply(&replies, b"after-flood", Duration::from_secs(30)));
     assert!(
         after > before,
         "the PLC cycles on: {before} cycles, then {after}"

@@ -275,3 +275,10 @@ pub fn camera(port: u16, topics: &[String], size: usize, per_s: u32, n: u32, qos
     }
     let _ = c.disconnect();
 }
+
+/// The primary's cycle count in an `exec_info` reply.
+pub fn primary_cycles(v: &Value) -> u64 {
+    v["result"][0]["cycles"]
+        .as_u64()
+        .unwrap_or_else(|| panic!("exec_info names the primary's cycles: {v}"))
+}

@@ -10,22 +10,6 @@ use common::RunningPlc;
 
 const BIN: &str = env!("CARGO_BIN_EXE_cetratus");
 
-/// The demo's signed U.1 and the directory of the key that signed it.
-fn demo_files() -> tempfile::TempDir {
-    let dir = tempfile::tempdir().expect("a temporary directory");
-    let out = Command::new(BIN)
-        .args(["demo", "--scripted", "--json", "--dir"])
-        .arg(dir.path())
-        .output()
-        .expect("cetratus demo runs");
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    dir
-}
-
 struct Client {
     plc: &'static str,
     mqtt: String,
@@ -52,7 +36,7 @@ fn text(out: &Output) -> String {
 
 #[test]
 fn substitute_remove_and_abort_wait_for_their_outcome_and_exit_by_it() {
-    let files = demo_files();
+    let files = cetratus_testkit::process::demo_files(BIN);
     let trusted = files.path().join("trusted").display().to_string();
     let u1 = files.path().join("u1.cpkg").display().to_string();
     let plc = RunningPlc::start("outcomes1", &["--trust", &trusted]);
@@ -124,7 +108,7 @@ fn substitute_remove_and_abort_wait_for_their_outcome_and_exit_by_it() {
 
 #[test]
 fn revert_and_accept_end_probation_wait_for_their_outcome_and_exit_by_it() {
-    let files = demo_files();
+    let files = cetratus_testkit::process::demo_files(BIN);
     let trusted = files.path().join("trusted").display().to_string();
     let u1 = files.path().join("u1.cpkg").display().to_string();
     // No `[updates] probation` in the configuration: a minute of probation by default.

@@ -9,17 +9,7 @@ const BIN: &str = env!("CARGO_BIN_EXE_cetratus");
 
 #[test]
 fn inspect_with_a_base_resolves_a_signed_package_whose_key_nobody_trusted() {
-    let dir = tempfile::tempdir().expect("a temporary directory");
-    let out = Command::new(BIN)
-        .args(["demo", "--scripted", "--json", "--dir"])
-        .arg(dir.path())
-        .output()
-        .expect("cetratus demo runs");
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    let dir = cetratus_testkit::process::demo_files(BIN);
     let (u1, base) = (dir.path().join("u1.cpkg"), dir.path().join("vernadat.toml"));
 
     let out = Command::new(BIN)

@@ -12,19 +12,8 @@ const BIN: &str = env!("CARGO_BIN_EXE_cetratus");
 /// The demo's files (program, U.1 and U.2 signed, the key's `trusted/`) and a `config/`
 /// directory holding `config`.
 fn demo_files(config: &str) -> tempfile::TempDir {
-    let dir = tempfile::tempdir().expect("a temporary directory");
-    let out = Command::new(BIN)
-        .args(["demo", "--scripted", "--json", "--dir"])
-        .arg(dir.path())
-        .output()
-        .expect("cetratus demo runs");
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    let dir = cetratus_testkit::process::demo_files(BIN);
     let c = dir.path().join("config");
-    std::fs::create_dir(&c).expect("a configuration directory");
     std::fs::write(c.join("config.toml"), config).expect("config.toml");
     use std::os::unix::fs::PermissionsExt;
     for p in [c.clone(), c.join("config.toml")] {

@@ -8,9 +8,9 @@ use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
 use cetratus_testkit::opcua::{hash_password, run as peer};
-use cetratus_testkit::paths::{example, workspace_root};
+use cetratus_testkit::paths::workspace_root;
 use cetratus_testkit::ports::{free_port, wait_for_port};
-use cetratus_testkit::process::{stop_with_sigterm as stop, ChildGuard};
+use cetratus_testkit::process::{run_vernadat, stop_with_sigterm as stop, ChildGuard};
 
 const BIN: &str = env!("CARGO_BIN_EXE_cetratus");
 
@@ -18,17 +18,9 @@ fn start(dir: &Path, io_body: &str, port: u16, extra: &[&str]) -> ChildGuard {
     let io = dir.join("io.toml");
     std::fs::write(&io, io_body).unwrap();
     let plc = ChildGuard::spawn(
-        Command::new(BIN)
-            .arg("run")
-            .arg(example("vernadat/vernadat.toml"))
-            .arg("--io")
-            .arg(&io)
-            .args(["--json", "--no-mct", "--cold", "--plc", "cell"])
+        run_vernadat(BIN, &io, dir)
+            .arg("--no-mct")
             .args(extra)
-            .arg("--state-dir")
-            .arg(dir.join("state"))
-            .arg("--config")
-            .arg(dir.join("config"))
             .stdout(Stdio::piped())
             .stderr(std::fs::File::create(dir.join("plc.err")).unwrap()),
     );

@@ -8,9 +8,8 @@ use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
 use cetratus_testkit::opcua;
-use cetratus_testkit::paths::example;
 use cetratus_testkit::ports::{free_port, wait_for_port};
-use cetratus_testkit::process::{stop_with_sigterm as stop, ChildGuard};
+use cetratus_testkit::process::{run_vernadat, stop_with_sigterm as stop, ChildGuard};
 use serde_json::Value;
 
 const BIN: &str = env!("CARGO_BIN_EXE_cetratus");
@@ -49,17 +48,9 @@ fn start(dir: &Path, io_body: &str, port: u16, mqtt: u16) -> ChildGuard {
     let io = dir.join("io.toml");
     std::fs::write(&io, io_body).unwrap();
     let plc = ChildGuard::spawn(
-        Command::new(BIN)
-            .arg("run")
-            .arg(example("vernadat/vernadat.toml"))
-            .arg("--io")
-            .arg(&io)
-            .args(["--json", "--cold", "--plc", "cell", "--no-dashboard"])
+        run_vernadat(BIN, &io, dir)
+            .arg("--no-dashboard")
             .args(["--mqtt", &format!("127.0.0.1:{mqtt}")])
-            .arg("--state-dir")
-            .arg(dir.join("state"))
-            .arg("--config")
-            .arg(dir.join("config"))
             .stdout(Stdio::piped())
             .stderr(Stdio::null()),
     );

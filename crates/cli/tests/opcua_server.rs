@@ -10,7 +10,9 @@ use std::time::{Duration, Instant};
 use cetratus_testkit::opcua::run as peer;
 use cetratus_testkit::paths::example;
 use cetratus_testkit::ports::{free_port, wait_for_port};
-use cetratus_testkit::process::{demo_files, json_of, stop_with_sigterm as stop, ChildGuard};
+use cetratus_testkit::process::{
+    demo_files, json_of, run_vernadat, stop_with_sigterm as stop, ChildGuard,
+};
 use serde_json::Value;
 
 const BIN: &str = env!("CARGO_BIN_EXE_cetratus");
@@ -24,17 +26,9 @@ fn write_io(dir: &Path, body: &str) -> PathBuf {
 /// The Vernadat program in real time as PLC `cell`, with `io` and `extra` arguments.
 fn start(dir: &Path, io: &Path, port: u16, extra: &[&str]) -> ChildGuard {
     let plc = ChildGuard::spawn(
-        Command::new(BIN)
-            .arg("run")
-            .arg(example("vernadat/vernadat.toml"))
-            .arg("--io")
-            .arg(io)
-            .args(["--json", "--no-mct", "--cold", "--plc", "cell"])
+        run_vernadat(BIN, io, dir)
+            .arg("--no-mct")
             .args(extra)
-            .arg("--state-dir")
-            .arg(dir.join("state"))
-            .arg("--config")
-            .arg(dir.join("config"))
             .stdout(Stdio::piped())
             .stderr(Stdio::piped()),
     );

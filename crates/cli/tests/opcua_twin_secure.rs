@@ -7,9 +7,8 @@ use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
 use cetratus_testkit::opcua::hash_password;
-use cetratus_testkit::paths::example;
 use cetratus_testkit::ports::{free_port, wait_for_port};
-use cetratus_testkit::process::{stop_with_sigterm as stop, ChildGuard};
+use cetratus_testkit::process::{run_vernadat, stop_with_sigterm as stop, ChildGuard};
 use serde_json::Value;
 
 const BIN: &str = env!("CARGO_BIN_EXE_cetratus");
@@ -58,16 +57,8 @@ fn the_twin_logs_in_over_sign_and_encrypt_and_finishes_parts() {
     )
     .unwrap();
     let plc = ChildGuard::spawn(
-        Command::new(BIN)
-            .arg("run")
-            .arg(example("vernadat/vernadat.toml"))
-            .arg("--io")
-            .arg(&io)
-            .args(["--json", "--no-mct", "--cold", "--plc", "cell"])
-            .arg("--state-dir")
-            .arg(d.join("state"))
-            .arg("--config")
-            .arg(d.join("config"))
+        run_vernadat(BIN, &io, d)
+            .arg("--no-mct")
             .stdout(Stdio::piped())
             .stderr(Stdio::null()),
     );

@@ -180,3 +180,20 @@ pub fn demo_files(bin: &str) -> tempfile::TempDir {
     );
     dir
 }
+
+/// `bin run` of the Vernadat example as PLC `cell`, cold, with the I/O map `io`, a JSON summary,
+/// and its state and configuration under `dir` (`state/`, `config/`); the caller adds the rest
+/// (broker, twin, output).
+pub fn run_vernadat(bin: &str, io: &std::path::Path, dir: &std::path::Path) -> Command {
+    let mut cmd = Command::new(bin);
+    cmd.arg("run")
+        .arg(crate::paths::example("vernadat/vernadat.toml"))
+        .arg("--io")
+        .arg(io)
+        .args(["--json", "--cold", "--plc", "cell"])
+        .arg("--state-dir")
+        .arg(dir.join("state"))
+        .arg("--config")
+        .arg(dir.join("config"));
+    cmd
+}

@@ -284,29 +284,12 @@ impl Space {
             );
             for sig in &layout.inputs {
                 let id = s.id(&format!("Inputs.{}", sig.name));
-                let zero = variant(sig.ty.zero());
-                variable(
-                    &mut a,
-                    &id,
-                    &sig.name,
-                    data_type(sig.ty),
-                    zero,
-                    &folders[0],
-                    layout.writable_inputs,
-                );
+                signal_variable(&mut a, &id, sig, &folders[0], layout.writable_inputs);
                 s.inputs.push(id);
             }
             for sig in &layout.outputs {
                 let id = s.id(&format!("Outputs.{}", sig.name));
-                variable(
-                    &mut a,
-                    &id,
-                    &sig.name,
-                    data_type(sig.ty),
-                    variant(sig.ty.zero()),
-                    &folders[1],
-                    false,
-                );
+                signal_variable(&mut a, &id, sig, &folders[1], false);
                 s.outputs.push(id);
             }
             for (name, ty) in FIGURES {
@@ -439,15 +422,7 @@ impl Space {
                 if a.find(&id).is_some() {
                     continue;
                 }
-                variable(
-                    &mut a,
-                    &id,
-                    &sig.name,
-                    data_type(sig.ty),
-                    variant(sig.ty.zero()),
-                    folder,
-                    false,
-                );
+                signal_variable(&mut a, &id, sig, folder, false);
                 if *input {
                     self.inputs.push(id);
                     self.shown.inputs.push(None);
@@ -573,6 +548,18 @@ impl Space {
             .published
             .fetch_add(1, Ordering::Relaxed);
     }
+}
+
+/// The variable of signal `sig` under `parent`, holding its type's zero until the first cycle.
+fn signal_variable(
+    a: &mut AddressSpace,
+    id: &NodeId,
+    sig: &SignalNode,
+    parent: &NodeId,
+    writable: bool,
+) {
+    let zero = variant(sig.ty.zero());
+    variable(a, id, &sig.name, data_type(sig.ty), zero, parent, writable);
 }
 
 fn variable(

@@ -8,7 +8,7 @@ use cetratus_analysis::families::{fms, kanban};
 use cetratus_analysis::invariants::DEFAULT_MAX_ROWS;
 use cetratus_analysis::reach::{explore, structural_packing, ReachOptions, ReachResult};
 use cetratus_analysis::{check, CheckOptions, Report};
-use cetratus_net::Net;
+use cetratus_net::{ArcKind, Net, NetBuilder, Place, Transition};
 use cetratus_testkit::nets;
 use proptest::prelude::*;
 
@@ -201,5 +201,54 @@ proptest! {
     #[test]
     fn parallel_check_of_a_random_net_equals_the_sequential_one(net in small_net()) {
         prop_assert_eq!(behaviour(&net, 2, Some(5_000)), behaviour(&net, 1, Some(5_000)));
+    }
+}
+
+/// Sixteen switches that flip back and forth (2^16 states, one strongly connected component)
+/// and a one-way latch that any state may close, after which the switches still flip: 2^17
+/// states, of which only the first half reach M0. The backward search meets layers of up to
+/// 12,870 states, large enough to be split between threads, and finds M0 unreachable from half
+/// the states, so Tarjan runs after it.
+fn switches_with_a_latch() -> Net {
+    let mut b = NetBuilder::new("switches-with-a-latch");
+    for i in 0..16 {
+        b.add_place(Place::new(format!("off{i}"), 1))
+            .expect("place");
+        b.add_place(Place::new(format!("on{i}"), 0)).expect("place");
+        for (t, from, to) in [("up", "off", "on"), ("down", "on", "off")] {
+            b.add_transition(Transition::new(format!("{t}{i}")))
+                .expect("transition");
+            let (tr, a, z) = (format!("{t}{i}"), format!("{from}{i}"), format!("{to}{i}"));
+            b.add_arc(&format!("{tr}a"), &a, &tr, 1, ArcKind::Normal)
+                .expect("arc");
+            b.add_arc(&format!("{tr}b"), &tr, &z, 1, ArcKind::Normal)
+                .expect("arc");
+        }
+    }
+    b.add_place(Place::new("open", 1)).expect("place");
+    b.add_place(Place::new("closed", 0)).expect("place");
+    b.add_transition(Transition::new("close"))
+        .expect("transition");
+    b.add_arc("ca", "open", "close", 1, ArcKind::Normal)
+        .expect("arc");
+    b.add_arc("cb", "close", "closed", 1, ArcKind::Normal)
+        .expect("arc");
+    b.build().expect("net")
+}
+
+#[test]
+fn parallel_liveness_of_a_large_net_that_is_not_reversible_equals_the_sequential_one() {
+    let net = switches_with_a_latch();
+    let one = explored(&net, 1, None, true);
+    assert_eq!(one.states, 1 << 17);
+    let live = one.liveness.as_ref().expect("liveness decided");
+    assert!(!live.reversible);
+    assert!(!live.live);
+    for threads in [2, 3] {
+        assert_eq!(
+            explored(&net, threads, None, true),
+            one,
+            "{threads} threads"
+        );
     }
 }

@@ -21,23 +21,28 @@
 //! Limits. At `max_states`, the batch's new states are cut where the sequential explorer stops,
 //! and the counts of the batch are recomputed up to that state's parent, so a partial result is
 //! the sequential one too. The cancel flag and the progress callback are served between
-//! batches. For the liveness pass the ids are not in the tables: a sequential table with ids is
-//! rebuilt from the states, in id order, after the exploration.
+//! batches. The liveness pass reads the owners' tables as they are ([`Shards`]).
 //!
 //! Memory: the tables hold the same bytes per state as the sequential one; the outboxes of one
-//! batch come on top (at most `OUTBOX_BYTES`; ≈ 25 MB with their spare capacity at Kanban N=5).
+//! batch come on top (at most `OUTBOX_BYTES`; ≈ 4 MB with their spare capacity at Kanban N=5).
+//!
+//! Speed. The threads are started once ([`Crew`]). A batch is small enough that its outboxes stay
+//! in the caches between the two phases, and everything that one thread writes while the others
+//! work (its outboxes, its counters, each owner's table and list) sits on cache lines of its own
+//! ([`Padded`]): without it the threads passed the lines back and forth at every edge, and two
+//! threads were barely faster than one.
 
 use cetratus_net::{Net, TransIdx};
 
 use super::{
-    deadlock_witness, hash, scc, Chunked, Compiled, Packing, ReachOptions, ReachResult, Stop,
-    Table, CHUNK_BITS, MARK,
+    deadlock_witness, hash, prefetch, scc, Chunked, Compiled, Packing, Padded, ReachOptions,
+    ReachResult, Stop, Table, CHUNK_BITS, MARK,
 };
 use crate::Progress;
 
 /// Largest batch: enough to keep the threads busy, and few enough states to check the cancel
 /// flag often.
-const MAX_BATCH: usize = 1 << 16;
+const MAX_BATCH: usize = 1 << 14;
 
 /// Bytes the outboxes of one batch may take at most (the batch is shortened for wide nets).
 const OUTBOX_BYTES: usize = 64 << 20;
@@ -60,10 +65,60 @@ fn owner(h: u64, owners: usize) -> usize {
     ((h >> 32) as usize * owners) >> 32
 }
 
-/// What one thread found in its sub-range of a batch.
+/// The owners' finished tables, read by the liveness pass: the id of a slot is its table's
+/// index times the largest table's slot count, plus the slot.
+struct Shards<const W: usize> {
+    tables: Vec<Table<W>>,
+    /// log2 of the largest table's slot count.
+    bits: u32,
+}
+
+impl<const W: usize> Shards<W> {
+    fn new(tables: Vec<Table<W>>) -> Self {
+        let bits = tables
+            .iter()
+            .map(|t| t.slots.len().trailing_zeros())
+            .max()
+            .unwrap_or(0);
+        Shards { tables, bits }
+    }
+    #[inline(always)]
+    fn slot(&self, id: usize) -> &[u64; W] {
+        &self.tables[id >> self.bits].slots[id & ((1 << self.bits) - 1)]
+    }
+}
+
+impl<const W: usize> scc::Visited<W> for Shards<W> {
+    fn ids(&self) -> usize {
+        self.tables.len() << self.bits
+    }
+    #[inline(always)]
+    fn id_of(&self, key: &[u64; W], h: u64) -> Option<usize> {
+        let o = owner(h, self.tables.len());
+        self.tables[o].slot_of(key, h).map(|s| o << self.bits | s)
+    }
+    #[inline(always)]
+    fn key(&self, id: usize) -> [u64; W] {
+        *self.slot(id)
+    }
+    #[inline(always)]
+    fn touch(&self, h: u64) {
+        self.tables[owner(h, self.tables.len())].touch(h);
+    }
+    #[inline(always)]
+    fn touch_id(&self, id: usize) {
+        prefetch(self.slot(id));
+    }
+    fn bytes(&self) -> usize {
+        self.tables.iter().map(Table::bytes).sum()
+    }
+}
+
+/// What one thread found in its sub-range of a batch. Each thread's is padded, and so is each
+/// outbox: the threads write them at every edge.
 struct Expanded<const W: usize> {
     /// One outbox per owner, in discoverer order.
-    outboxes: Vec<Vec<Succ<W>>>,
+    outboxes: Vec<Padded<Vec<Succ<W>>>>,
     edges: u64,
     deadlocks: u64,
     first_dead: Option<usize>,
@@ -73,7 +128,7 @@ struct Expanded<const W: usize> {
 impl<const W: usize> Expanded<W> {
     fn new(owners: usize, nt: usize) -> Self {
         Expanded {
-            outboxes: vec![Vec::new(); owners],
+            outboxes: vec![Padded::default(); owners],
             edges: 0,
             deadlocks: 0,
             first_dead: None,
@@ -92,19 +147,18 @@ fn expand<const W: usize>(
     ex: &mut Expanded<W>,
 ) {
     let owners = ex.outboxes.len();
-    ex.outboxes.iter_mut().for_each(Vec::clear);
-    ex.edges = 0;
-    ex.deadlocks = 0;
-    ex.first_dead = None;
-    ex.enabled_ever.iter_mut().for_each(|e| *e = false);
+    ex.outboxes.iter_mut().for_each(|b| b.clear());
+    let (mut edges, mut deadlocks, mut first_dead) = (0, 0, None);
+    // Allocated here, by the thread that writes it, away from the other threads' data.
+    let mut enabled_ever = vec![false; ex.enabled_ever.len()];
     for s in range {
         let key = states.get(s);
         let mut any = false;
-        for (t, ever) in ex.enabled_ever.iter_mut().enumerate() {
+        for (t, ever) in enabled_ever.iter_mut().enumerate() {
             if code.enabled(&key, t) {
                 *ever = true;
                 any = true;
-                ex.edges += 1;
+                edges += 1;
                 if owners > 0 {
                     let succ = code.fire(&key, t);
                     let h = hash(&succ);
@@ -113,17 +167,21 @@ fn expand<const W: usize>(
             }
         }
         if !any {
-            ex.deadlocks += 1;
-            ex.first_dead.get_or_insert(s);
+            deadlocks += 1;
+            first_dead.get_or_insert(s);
         }
     }
+    ex.edges = edges;
+    ex.deadlocks = deadlocks;
+    ex.first_dead = first_dead;
+    ex.enabled_ever = enabled_ever;
 }
 
 /// Phase 2: the owner of `table` inserts what the threads sent it, thread 0's first, and lists
 /// the new keys with their discoverers in `new` (cleared), in discoverer order.
 fn insert<const W: usize>(
     table: &mut Table<W>,
-    expanded: &[Expanded<W>],
+    expanded: &[Padded<Expanded<W>>],
     o: usize,
     new: &mut Vec<Found<W>>,
 ) {
@@ -142,26 +200,53 @@ fn insert<const W: usize>(
     }
 }
 
-/// Runs `f(i, &mut items[i])` for every item, one thread per item when `parallel` (the calling
-/// thread taking the first).
-fn each<T: Send, F: Fn(usize, &mut T) + Sync>(items: &mut [T], parallel: bool, f: F) {
-    if !parallel {
-        items.iter_mut().enumerate().for_each(|(i, x)| f(i, x));
-        return;
+/// The threads of a parallel pass, started once and reused by every batch or layer (starting a
+/// thread per batch cost more than the batch's work once batches fit in the caches).
+pub(super) struct Crew {
+    /// `threads - 1` workers; the calling thread is the first member. None on one thread, or
+    /// when the workers could not be started (then the calling thread does all the work).
+    pool: Option<rayon_core::ThreadPool>,
+}
+
+impl Crew {
+    pub(super) fn new(threads: usize) -> Crew {
+        let pool = (threads > 1)
+            .then(|| {
+                rayon_core::ThreadPoolBuilder::new()
+                    .num_threads(threads - 1)
+                    .thread_name(|i| format!("cetratus-check-{}", i + 1))
+                    .build()
+                    .ok()
+            })
+            .flatten();
+        Crew { pool }
     }
-    let f = &f;
-    std::thread::scope(|sc| {
-        let mut it = items.iter_mut().enumerate();
-        let first = it.next();
-        let handles: Vec<_> = it.map(|(i, x)| sc.spawn(move || f(i, x))).collect();
-        if let Some((i, x)) = first {
-            f(i, x);
-        }
-        for h in handles {
-            // A panic in a worker is a bug in this module; surface it.
-            h.join().unwrap_or_else(|e| std::panic::resume_unwind(e));
-        }
-    });
+
+    /// Runs `f(i, &mut items[i])` for every item, one member per item when `parallel` (the
+    /// calling thread taking the first).
+    pub(super) fn each<T: Send, F: Fn(usize, &mut T) + Sync>(
+        &self,
+        items: &mut [T],
+        parallel: bool,
+        f: F,
+    ) {
+        let Some(pool) = self.pool.as_ref().filter(|_| parallel) else {
+            items.iter_mut().enumerate().for_each(|(i, x)| f(i, x));
+            return;
+        };
+        let f = &f;
+        // A panic in a worker is a bug in this module; the scope passes it on to the caller.
+        pool.in_place_scope(|sc| {
+            let mut it = items.iter_mut().enumerate();
+            let first = it.next();
+            for (i, x) in it {
+                sc.spawn(move |_| f(i, x));
+            }
+            if let Some((i, x)) = first {
+                f(i, x);
+            }
+        });
+    }
 }
 
 /// Where an exploration stands: the states found so far with their parents, the next state to
@@ -234,7 +319,7 @@ pub(super) fn continue_par<const W: usize>(
         mut peak_bytes,
     } = start;
     let k0 = states.get(0);
-    let mut tables: Vec<Table<W>> = (0..threads).map(|_| Table::new()).collect();
+    let mut tables: Vec<Padded<Table<W>>> = (0..threads).map(|_| Padded(Table::new())).collect();
     for i in 0..states.len {
         let k = states.get(i);
         let h = hash(&k);
@@ -252,10 +337,13 @@ pub(super) fn continue_par<const W: usize>(
     let max_batch =
         MAX_BATCH.min((OUTBOX_BYTES / (nt.max(1) * std::mem::size_of::<Succ<W>>())).max(1));
     // Buffers reused from batch to batch: one per thread, one per owner.
-    let mut expanded: Vec<Expanded<W>> = (0..threads).map(|_| Expanded::new(threads, nt)).collect();
-    let mut lists: Vec<Vec<Found<W>>> = vec![Vec::new(); threads];
+    let mut expanded: Vec<Padded<Expanded<W>>> = (0..threads)
+        .map(|_| Padded(Expanded::new(threads, nt)))
+        .collect();
+    let mut lists: Vec<Padded<Vec<Found<W>>>> = vec![Padded::default(); threads];
     let mut new: Vec<Found<W>> = Vec::new();
-    let mut recount = Expanded::new(0, nt);
+    let mut recount = Padded(Expanded::new(0, nt));
+    let crew = Crew::new(threads);
     while cur < states.len {
         if cur > 0 {
             if let Some(s) = opts.interrupted() {
@@ -289,7 +377,7 @@ pub(super) fn continue_par<const W: usize>(
         let step = size.div_ceil(threads);
         {
             let (code, states) = (&code, &states);
-            each(&mut expanded, parallel, |i, ex| {
+            crew.each(&mut expanded, parallel, |i, ex| {
                 let a = (cur + i * step).min(end);
                 expand(code, states, a..(a + step).min(end), ex);
             });
@@ -297,9 +385,9 @@ pub(super) fn continue_par<const W: usize>(
         let grows: Vec<u32> = tables.iter().map(|t| t.grows).collect();
         {
             let expanded = &expanded;
-            let mut work: Vec<(&mut Table<W>, &mut Vec<Found<W>>)> =
+            let mut work: Vec<(&mut Padded<Table<W>>, &mut Padded<Vec<Found<W>>>)> =
                 tables.iter_mut().zip(lists.iter_mut()).collect();
-            each(&mut work, parallel, |o, (t, new)| {
+            crew.each(&mut work, parallel, |o, (t, new)| {
                 insert(t, expanded, o, new)
             });
         }
@@ -354,33 +442,18 @@ pub(super) fn continue_par<const W: usize>(
         }
         cur = end;
     }
-    let table_bytes: usize = tables.iter().map(Table::bytes).sum();
+    let table_bytes: usize = tables.iter().map(|t| t.bytes()).sum();
     let peak_bytes = peak_bytes.max(table_bytes + states.bytes() + parents.bytes());
-    drop(tables);
     let deadlock_witness = deadlock_witness(&code, &states, &parents, first_dead, nt);
     let never_enabled: Vec<TransIdx> = (0..nt)
         .filter(|&t| !enabled_ever[t])
         .map(|t| TransIdx(t as u32))
         .collect();
     let n = states.len;
-    drop(parents);
+    drop((states, parents));
     let (liveness, liveness_stopped, scc_bytes) = if opts.liveness && stopped.is_none() {
-        // The liveness pass reads one table: rebuild it from the states, then free them.
-        let mut one = Table::<W>::new();
-        let bytes = one.bytes_to_fit(n) + states.bytes();
-        match opts.within_memory(bytes) {
-            Err(s) => (None, Some(s), bytes),
-            Ok(()) => {
-                one.reserve(n);
-                for i in 0..n {
-                    let k = states.get(i);
-                    one.insert_hashed(&k, hash(&k));
-                }
-                drop(states);
-                let (l, s, b) = scc::liveness(&code, &one, &k0, n, &never_enabled, opts);
-                (l, s, b.max(bytes))
-            }
-        }
+        let tables = tables.into_iter().map(|t| t.0).collect();
+        scc::liveness(&code, &Shards::new(tables), &k0, n, &never_enabled, opts)
     } else {
         (None, None, 0)
     };
@@ -400,9 +473,9 @@ pub(super) fn continue_par<const W: usize>(
 }
 
 /// Merges lists sorted by discoverer into `out` (cleared).
-fn merge<const W: usize>(lists: &[Vec<Found<W>>], out: &mut Vec<Found<W>>) {
+fn merge<const W: usize>(lists: &[Padded<Vec<Found<W>>>], out: &mut Vec<Found<W>>) {
     out.clear();
-    let total = lists.iter().map(Vec::len).sum();
+    let total = lists.iter().map(|l| l.len()).sum();
     let mut heads = vec![0usize; lists.len()];
     while out.len() < total {
         let mut best: Option<usize> = None;

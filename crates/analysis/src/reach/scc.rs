@@ -1,7 +1,9 @@
-//! Liveness and reversibility once the exploration is complete, over the finished hash table.
+//! Liveness and reversibility once the exploration is complete, over the finished hash tables.
 //!
-//! The table no longer moves, so a state's slot is its id: no id is stored anywhere, and the
-//! packed states and BFS parents of the exploration are already freed.
+//! The tables no longer move, so a state's slot is its id ([`Visited`]): no id is stored
+//! anywhere, and the packed states and BFS parents of the exploration are already freed. After a
+//! parallel exploration the owners' tables are read as they are, an id naming the table and the
+//! slot in it, so nothing is rebuilt.
 //!
 //! First a backward search from M0 over the implicit graph: predecessors are recomputed by undoing
 //! each transition (a range test per field it changes, then the forward enabling test, evaluated
@@ -9,19 +11,62 @@
 //! queued states are generated together and looked up in turn, each lookup starting the load of
 //! the home slot of the one [`AHEAD`] places further on (a prefetch), so that the cache misses
 //! overlap instead of waiting one after the other; the keys of the queued states load the same
-//! way. With two threads the search goes by layers, the lookups of one state's predecessors
-//! overlapped. If every state reaches M0, the graph is one strongly connected component: the net
+//! way. With more threads the search goes by layers over one queue, each thread taking a part
+//! of the layer the same way and claiming the states it finds with one atomic bit each
+//! ([`reaches_root_layered`]). If every state reaches M0, the graph is one strongly connected component: the net
 //! is reversible, and live exactly when every transition is enabled somewhere. This is the common
 //! case of a plant model, and it costs one lookup per edge, stopping as soon as every state is
 //! found. Otherwise an iterative Tarjan (explicit frames, no recursion) finds the terminal
 //! components.
 //!
-//! Memory, all counted: the table, a bit per slot, a queue of 4 bytes per state and, on one
+//! Memory, all counted: the table, a bit per slot, a queue of 4 bytes per state and, per
 //! thread, a batch of [`BATCH`] predecessors for the backward search; for Tarjan two `u32` per
 //! slot, two bits per slot, and its stacks.
 
-use super::{hash, Compiled, Liveness, ReachOptions, Stop, Table};
+use super::{hash, prefetch, Compiled, Liveness, Padded, ReachOptions, Stop, Table};
 use cetratus_net::TransIdx;
+use std::sync::atomic::{AtomicU32, AtomicU64, AtomicUsize, Ordering::Relaxed};
+
+/// The finished set of states, read by id: a slot of a table.
+pub(super) trait Visited<const W: usize>: Sync {
+    /// The number of ids: every id is below it (empty slots included).
+    fn ids(&self) -> usize;
+    /// The id of `key`, whose hash is `h`, if it was found.
+    fn id_of(&self, key: &[u64; W], h: u64) -> Option<usize>;
+    /// The key with id `id`.
+    fn key(&self, id: usize) -> [u64; W];
+    /// Starts loading the first slot that a lookup of hash `h` reads (see [`Table::touch`]).
+    fn touch(&self, h: u64);
+    /// Starts loading the slot of `id`.
+    fn touch_id(&self, id: usize);
+    /// The bytes held by the tables.
+    fn bytes(&self) -> usize;
+}
+
+impl<const W: usize> Visited<W> for Table<W> {
+    fn ids(&self) -> usize {
+        self.slots.len()
+    }
+    #[inline(always)]
+    fn id_of(&self, key: &[u64; W], h: u64) -> Option<usize> {
+        self.slot_of(key, h)
+    }
+    #[inline(always)]
+    fn key(&self, id: usize) -> [u64; W] {
+        self.slots[id]
+    }
+    #[inline(always)]
+    fn touch(&self, h: u64) {
+        Table::touch(self, h)
+    }
+    #[inline(always)]
+    fn touch_id(&self, id: usize) {
+        prefetch(&self.slots[id]);
+    }
+    fn bytes(&self) -> usize {
+        Table::bytes(self)
+    }
+}
 
 const NONE: u32 = u32::MAX;
 
@@ -42,13 +87,13 @@ fn set(v: &mut [u64], i: usize) {
 /// Liveness and reversibility, why they were not decided, and the bytes held at the peak.
 pub(super) fn liveness<const W: usize>(
     code: &Compiled<W>,
-    table: &Table<W>,
+    table: &impl Visited<W>,
     k0: &[u64; W],
     states: usize,
     never_enabled: &[TransIdx],
     opts: &ReachOptions,
 ) -> (Option<Liveness>, Option<Stop>, usize) {
-    let Some(root) = table.slot_of(k0, hash(k0)) else {
+    let Some(root) = table.id_of(k0, hash(k0)) else {
         return (None, None, 0);
     };
     match reaches_root(code, table, root, states, opts) {
@@ -76,7 +121,7 @@ type Counted<T> = Result<(T, usize), (Stop, usize)>;
 /// Whether every one of the `states` states reaches the state in slot `root`.
 fn reaches_root<const W: usize>(
     code: &Compiled<W>,
-    table: &Table<W>,
+    table: &impl Visited<W>,
     root: usize,
     states: usize,
     opts: &ReachOptions,
@@ -84,7 +129,7 @@ fn reaches_root<const W: usize>(
     if opts.threads >= 2 {
         return reaches_root_layered(code, table, root, states, opts);
     }
-    let cap = table.slots.len();
+    let cap = table.ids();
     let nt = code.offsets.len() - 1;
     let (per_batch, batch_cap) = batch_sizes(nt, states);
     let bytes =
@@ -134,13 +179,18 @@ fn batch_sizes(nt: usize, states: usize) -> (usize, usize) {
 
 /// The keys of the first `n` of `slots` into `keys` (cleared), the slots loading [`AHEAD`]
 /// places ahead (`slots` may run past `n` so that the last ones load ahead too).
-fn gather<const W: usize>(table: &Table<W>, slots: &[u32], n: usize, keys: &mut Vec<[u64; W]>) {
+fn gather<const W: usize>(
+    table: &impl Visited<W>,
+    slots: &[u32],
+    n: usize,
+    keys: &mut Vec<[u64; W]>,
+) {
     keys.clear();
     for (i, &s) in slots[..n].iter().enumerate() {
         if let Some(&next) = slots.get(i + AHEAD) {
-            super::prefetch(&table.slots[next as usize]);
+            table.touch_id(next as usize);
         }
-        keys.push(table.slots[s as usize]);
+        keys.push(table.key(s as usize));
     }
 }
 
@@ -150,7 +200,7 @@ fn gather<const W: usize>(table: &Table<W>, slots: &[u32], n: usize, keys: &mut 
 /// lookups further on.
 fn each_predecessor<const W: usize>(
     code: &Compiled<W>,
-    table: &Table<W>,
+    table: &impl Visited<W>,
     keys: &[[u64; W]],
     batch: &mut [[u64; W]],
     mut found: impl FnMut(usize),
@@ -170,115 +220,143 @@ fn each_predecessor<const W: usize>(
         if let Some(v) = batch.get(i + AHEAD) {
             table.touch(hash(v));
         }
-        if let Some(s) = table.slot_of(u, hash(u)) {
+        if let Some(s) = table.id_of(u, hash(u)) {
             found(s);
         }
     }
 }
 
-/// Layers of a frontier below this size are searched on one thread.
+/// Layers of a frontier below this size are searched on the calling thread.
 const PARALLEL_LAYER: usize = 8_192;
 
-/// The slots of the predecessors of the `frontier` slots that `seen` does not hold yet (with
-/// repeats): the lookups of the backward search, which only read the table and `seen`.
-fn predecessors<const W: usize>(
-    code: &Compiled<W>,
-    table: &Table<W>,
-    frontier: &[u32],
-    seen: &[u64],
-) -> Vec<u32> {
-    let (per_batch, batch_cap) = batch_sizes(code.offsets.len() - 1, frontier.len());
-    let mut out = Vec::with_capacity(frontier.len());
-    let mut batch: Vec<[u64; W]> = vec![[0; W]; batch_cap];
-    let mut keys: Vec<[u64; W]> = Vec::with_capacity(per_batch);
-    for (i, part) in frontier.chunks(per_batch).enumerate() {
-        let ahead = frontier.len().min(i * per_batch + part.len() + AHEAD);
-        gather(
-            table,
-            &frontier[i * per_batch..ahead],
-            part.len(),
-            &mut keys,
-        );
-        each_predecessor(code, table, &keys, &mut batch, |s| {
-            if !bit(seen, s) {
-                out.push(s as u32);
-            }
-        });
-    }
-    out
+/// What one thread of the layered search keeps from layer to layer.
+struct Scratch<const W: usize> {
+    ids: Vec<u32>,
+    keys: Vec<[u64; W]>,
+    batch: Vec<[u64; W]>,
+    /// The states this thread found in its current batch, before they join the queue.
+    found: Vec<u32>,
 }
 
-/// [`reaches_root`] on `opts.threads` threads: a breadth-first search by layers, each layer's
-/// lookups split between the threads (they only read), the new slots then marked on one thread.
+/// Sets bit `i` of `seen` unless it is set; true when this call set it. A plain load first: most
+/// predecessors were found long before, and those cost no atomic write.
+#[inline(always)]
+fn claim(seen: &[AtomicU64], i: usize) -> bool {
+    let (w, m) = (&seen[i >> 6], 1u64 << (i & 63));
+    w.load(Relaxed) & m == 0 && w.fetch_or(m, Relaxed) & m == 0
+}
+
+/// The search by one thread of `queue[range]`, a part of the current layer: the predecessors
+/// that no thread has found yet are claimed in `seen` and appended to the queue after `tail`.
+/// Stops early once the queue holds every one of the `states` states.
+#[allow(clippy::too_many_arguments)]
+fn search_part<const W: usize>(
+    code: &Compiled<W>,
+    table: &impl Visited<W>,
+    queue: &[AtomicU32],
+    range: std::ops::Range<usize>,
+    seen: &[AtomicU64],
+    tail: &AtomicUsize,
+    states: usize,
+    sc: &mut Scratch<W>,
+) {
+    let per_batch = sc.batch.len() / (code.offsets.len() - 1).max(1);
+    let mut head = range.start;
+    while head < range.end && tail.load(Relaxed) < states {
+        let end = range.end.min(head + per_batch);
+        sc.ids.clear();
+        sc.ids.extend(
+            queue[head..range.end.min(end + AHEAD)]
+                .iter()
+                .map(|x| x.load(Relaxed)),
+        );
+        gather(table, &sc.ids, end - head, &mut sc.keys);
+        head = end;
+        let found = &mut sc.found;
+        found.clear();
+        each_predecessor(code, table, &sc.keys, &mut sc.batch, |s| {
+            if claim(seen, s) {
+                found.push(s as u32);
+            }
+        });
+        let at = tail.fetch_add(found.len(), Relaxed);
+        for (q, &s) in queue[at..].iter().zip(found.iter()) {
+            q.store(s, Relaxed);
+        }
+    }
+}
+
+/// [`reaches_root`] on `opts.threads` threads: a breadth-first search by layers over one queue.
+/// The threads split each layer and look up its predecessors (they only read the tables); a new
+/// state is claimed with one atomic bit in `seen` (tested with a plain load first, so only the
+/// first finding of each state writes), and appended to the queue by the thread that claimed it.
+/// The layer's end is where the threads meet, so the queue's order within a layer may differ from
+/// run to run, but its contents, the answer and the memory held do not.
 fn reaches_root_layered<const W: usize>(
     code: &Compiled<W>,
-    table: &Table<W>,
+    table: &impl Visited<W>,
     root: usize,
     states: usize,
     opts: &ReachOptions,
 ) -> Counted<bool> {
-    let cap = table.slots.len();
-    // The frontier and the next one hold at most every state once (4 bytes each), and each
-    // thread its keys and predecessors; the threads' outputs, repeats included, are counted as
-    // they come.
-    let (per_batch, batch_cap) = batch_sizes(code.offsets.len() - 1, states);
-    let fixed = table.bytes()
-        + cap.div_ceil(64) * 8
-        + states * 4
-        + opts.threads.max(1) * (per_batch + batch_cap) * 8 * W;
-    opts.within_memory(fixed).map_err(|s| (s, fixed))?;
-    let mut peak = fixed;
-    let mut seen = vec![0u64; cap.div_ceil(64)];
-    set(&mut seen, root);
-    let mut frontier: Vec<u32> = vec![root as u32];
-    let mut found = 1usize;
     let threads = opts.threads.max(1);
-    while !frontier.is_empty() && found < states {
-        if let Some(s) = opts.interrupted() {
-            return Err((s, peak));
-        }
-        let outs: Vec<Vec<u32>> = if frontier.len() < PARALLEL_LAYER {
-            vec![predecessors(code, table, &frontier, &seen)]
-        } else {
-            let part = frontier.len().div_ceil(threads);
-            let seen = &seen;
-            std::thread::scope(|s| {
-                let hs: Vec<_> = frontier
-                    .chunks(part)
-                    .map(|c| s.spawn(move || predecessors(code, table, c, seen)))
-                    .collect();
-                hs.into_iter()
-                    .map(|h| h.join().unwrap_or_else(|p| std::panic::resume_unwind(p)))
-                    .collect()
+    let (per_batch, batch_cap) = batch_sizes(code.offsets.len() - 1, states);
+    // The tables, the seen bits, the queue (every state once) and each thread's ids, keys,
+    // predecessors and finds.
+    let bytes = table.bytes()
+        + table.ids().div_ceil(64) * 8
+        + states * 4
+        + threads * ((per_batch + AHEAD) * 4 + (per_batch + batch_cap) * (8 * W + 4));
+    opts.within_memory(bytes).map_err(|s| (s, bytes))?;
+    let seen: Vec<AtomicU64> = (0..table.ids().div_ceil(64))
+        .map(|_| AtomicU64::new(0))
+        .collect();
+    let queue: Vec<AtomicU32> = (0..states).map(|_| AtomicU32::new(0)).collect();
+    claim(&seen, root);
+    queue[0].store(root as u32, Relaxed);
+    let tail = AtomicUsize::new(1);
+    let mut scratch: Vec<Padded<Scratch<W>>> = (0..threads)
+        .map(|_| {
+            Padded(Scratch {
+                ids: Vec::with_capacity(per_batch + AHEAD),
+                keys: Vec::with_capacity(per_batch),
+                batch: vec![[0; W]; batch_cap],
+                found: Vec::with_capacity(batch_cap),
             })
-        };
-        let out_bytes: usize = outs.iter().map(|o| o.capacity() * 4).sum();
-        peak = peak.max(fixed + out_bytes);
-        opts.within_memory(fixed + out_bytes)
-            .map_err(|s| (s, peak))?;
-        let mut next = Vec::new();
-        for s in outs.into_iter().flatten() {
-            let s = s as usize;
-            if !bit(&seen, s) {
-                set(&mut seen, s);
-                next.push(s as u32);
-            }
+        })
+        .collect();
+    let crew = super::par::Crew::new(threads);
+    let mut head = 0;
+    loop {
+        let end = tail.load(Relaxed);
+        if head == end || end >= states {
+            break;
         }
-        found += next.len();
-        frontier = next;
+        if let Some(s) = opts.interrupted() {
+            return Err((s, bytes));
+        }
+        let size = end - head;
+        let step = size.div_ceil(threads);
+        let (queue, seen, tail) = (&queue, &seen, &tail);
+        crew.each(&mut scratch, size >= PARALLEL_LAYER, |i, sc| {
+            let a = end.min(head + i * step);
+            let b = end.min(a + step);
+            search_part(code, table, queue, a..b, seen, tail, states, sc);
+        });
+        head = end;
     }
-    Ok((found == states, peak))
+    Ok((tail.load(Relaxed) >= states, bytes))
 }
 
 /// Iterative Tarjan over the implicit graph, nodes being table slots, recording terminal SCCs and
 /// which transitions occur inside each.
 fn tarjan<const W: usize>(
     code: &Compiled<W>,
-    table: &Table<W>,
+    table: &impl Visited<W>,
     root: usize,
     opts: &ReachOptions,
 ) -> Counted<Liveness> {
-    let n = table.slots.len();
+    let n = table.ids();
     let nt = code.offsets.len() - 1;
     let fixed = table.bytes() + n * 8 + n.div_ceil(64) * 16;
     opts.within_memory(fixed).map_err(|s| (s, fixed))?;
@@ -322,13 +400,13 @@ fn tarjan<const W: usize>(
             }
         }
         let v = v as usize;
-        let key = table.slots[v];
+        let key = table.key(v);
         let mut descended = false;
         let mut t = t0 as usize;
         while t < nt {
             if code.enabled(&key, t) {
                 let succ = code.fire(&key, t);
-                let w = table.slot_of(&succ, hash(&succ)).unwrap_or(root);
+                let w = table.id_of(&succ, hash(&succ)).unwrap_or(root);
                 if index[w] == NONE {
                     if let Some(f) = frames.last_mut() {
                         f.1 = t as u32 + 1;
@@ -359,7 +437,7 @@ fn tarjan<const W: usize>(
                 let x = x as usize;
                 on_stack[x >> 6] &= !(1 << (x & 63));
                 if is_terminal {
-                    let k = table.slots[x];
+                    let k = table.key(x);
                     for (t, o) in occurs.iter_mut().enumerate() {
                         *o |= code.enabled(&k, t);
                     }

@@ -14,7 +14,7 @@ use crate::coverability::{karp_miller, OMEGA};
 use crate::invariants::{
     p_semiflows_within, structural_bounds_within, t_semiflows_within, Semiflow, DEFAULT_MAX_ROWS,
 };
-use crate::reach::{explore, Packing, ReachOptions, ReachResult, Stop};
+use crate::reach::{explore, Packing, ReachOptions, ReachResult, SpareCoreFn, Stop};
 use crate::report::{Bound, Named, Report, Timings};
 use crate::siphons::{
     holds_marked_trap, minimal_siphons_until, minimal_traps_until, MinimalSets, SetLimits,
@@ -42,7 +42,7 @@ pub type ProgressFn = Arc<dyn Fn(Progress) + Send + Sync>;
 /// than one up to Kanban and FMS at N = 4 (about 450,000 states), about even at N = 5 (2.5 and
 /// 2.9 million) and 1.5 times faster at N = 6 (11 million); docs/analysis.md, "The default
 /// thread count".
-pub const PARALLEL_FROM: u64 = 1_000_000;
+pub const PARALLEL_FROM: u64 = 200_000;
 
 /// Options of [`check`].
 #[derive(Clone)]
@@ -63,6 +63,9 @@ pub struct CheckOptions {
     /// With 2 or more `threads`: the states the exploration finds on one thread before it goes
     /// on with `threads` (0: with `threads` from the start). See [`PARALLEL_FROM`].
     pub parallel_from: u64,
+    /// Asked at `parallel_from` states whether to go on with `threads` (see
+    /// [`ReachOptions::spare_core`]).
+    pub spare_core: Option<SpareCoreFn>,
     /// Set to true (e.g. by Ctrl-C) to stop with a partial report.
     pub cancel: Option<Arc<AtomicBool>>,
     /// Called while the state space grows.
@@ -86,6 +89,7 @@ impl Default for CheckOptions {
             clock: None,
             threads: 1,
             parallel_from: 0,
+            spare_core: None,
             cancel: None,
             progress: None,
             farkas_max_rows: DEFAULT_MAX_ROWS,
@@ -189,6 +193,7 @@ fn behaviour(
         liveness: true,
         threads: opts.threads,
         parallel_from: opts.parallel_from,
+        spare_core: opts.spare_core.clone(),
     };
     let bounds: Vec<u64> = if known.iter().all(Option::is_some) {
         notes.push(

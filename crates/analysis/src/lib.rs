@@ -42,6 +42,7 @@ pub use matrix::Incidence;
 pub use predicate::{Predicate, PredicateError};
 pub use progress::TerminalProgress;
 pub use property::{check_property, Property};
+pub use reach::SpareCoreFn;
 pub use report::{Bound, Named, Report};
 
 /// The structural analyses, gathered under one name for readers of the issue.

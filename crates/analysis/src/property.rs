@@ -171,6 +171,7 @@ pub fn check_property(net: &Net, property: &Property, opts: &CheckOptions) -> Re
         liveness: false,
         threads: 1,
         parallel_from: 0,
+        spare_core: None,
     };
     decide(net, property, opts, &known, &ropts, &mut r);
     r.timings.behaviour_ms = ms(opts, tb);

@@ -156,7 +156,14 @@ pub struct ReachOptions {
     /// with `threads` (0: with `threads` from the start). Two threads pay only on large state
     /// spaces (docs/analysis.md, "The default thread count").
     pub parallel_from: u64,
+    /// With `parallel_from` > 0: asked once, when the exploration reaches `parallel_from` states,
+    /// whether to go on with `threads` (e.g. whether a core has stayed idle meanwhile); false
+    /// goes on with one. `None`: always hand over.
+    pub spare_core: Option<SpareCoreFn>,
 }
+
+/// Whether a core is free for more threads now (see [`ReachOptions::spare_core`]).
+pub type SpareCoreFn = Arc<dyn Fn() -> bool + Send + Sync>;
 
 impl ReachOptions {
     /// The number of states a search may discover: `max_states`, within the range of the
@@ -741,7 +748,7 @@ fn explore_w<const W: usize>(net: &Net, pk: &Packing, opts: &ReachOptions) -> Re
     let mut stopped = None;
     let mut peak_bytes = 0usize;
     let mut cur = 0usize;
-    let hand_over = opts.threads >= 2;
+    let mut hand_over = opts.threads >= 2;
     let mut handed = false;
     'bfs: while cur < states.len {
         if let Some(s) = checkpoint(opts, cur, edges, &table, &states, &parents) {
@@ -749,8 +756,11 @@ fn explore_w<const W: usize>(net: &Net, pk: &Packing, opts: &ReachOptions) -> Re
             break;
         }
         if hand_over && cur & 0x3FFF == 0 && states.len as u64 >= opts.parallel_from {
-            handed = true;
-            break;
+            if opts.spare_core.as_ref().is_none_or(|spare| spare()) {
+                handed = true;
+                break;
+            }
+            hand_over = false;
         }
         while prepared < states.len && prepared < cur + AHEAD {
             let out = &mut ring[prepared % AHEAD];

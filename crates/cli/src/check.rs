@@ -36,11 +36,11 @@ pub struct CheckArgs {
     #[arg(long, value_name = "DURATION", default_value = "10min", value_parser = parse_timeout)]
     pub timeout: Duration,
     /// Threads: with 2 or more the state space is explored in parallel (same states, same ids,
-    /// same witness as one thread) and the structural analyses run beside it. Defaults to 2 when
-    /// a second core is idle (nothing else runnable, load average below the cores), else 1; by
-    /// default the exploration also stays on one thread until it has found 1,000,000 states,
-    /// since two threads are slower on smaller state spaces (docs/analysis.md, "The default
-    /// thread count").
+    /// same witness as one thread) and the structural analyses run beside it. By default the
+    /// exploration starts on one thread and, once it has found 200,000 states, goes on with two
+    /// if the machine has a second core that stayed idle meanwhile: two threads are slower on
+    /// smaller state spaces, and on a busy machine (docs/analysis.md, "The default thread
+    /// count").
     #[arg(long, value_name = "N")]
     pub threads: Option<usize>,
     /// Check one property only, stopping as soon as it is decided, with a firing sequence that
@@ -146,12 +146,10 @@ fn property(args: &CheckArgs, net: &Net) -> anyhow::Result<Option<Property>> {
     Ok(None)
 }
 
-/// The default of `--threads`: two threads only pay when the second one gets a core of its
-/// own (docs/analysis.md, "The default thread count"). So: 2 when the machine has at least two
-/// cores, nothing else is runnable right now (`/proc/loadavg` counts this process alone) and the
-/// load average of the last minute stays below the number of cores; else 1, also when the load
-/// cannot be read.
-fn default_threads() -> usize {
+/// Whether a second core is idle right now: the machine has at least two cores, nothing else is
+/// runnable (`/proc/loadavg` counts this process alone) and the load average of the last minute
+/// stays below the number of cores. False when the load cannot be read.
+fn idle_now() -> bool {
     let cores = std::thread::available_parallelism().map_or(1, usize::from);
     let text = std::fs::read_to_string("/proc/loadavg").unwrap_or_default();
     let mut fields = text.split_whitespace();
@@ -159,9 +157,43 @@ fn default_threads() -> usize {
     let runnable = fields
         .nth(2)
         .and_then(|f| f.split('/').next()?.parse::<usize>().ok());
-    match (minute, runnable) {
-        (Some(m), Some(r)) if cores >= 2 && r < cores && m < cores as f64 => 2,
-        _ => 1,
+    matches!((minute, runnable), (Some(m), Some(r)) if cores >= 2 && r < cores && m < cores as f64)
+}
+
+/// The machine's CPU time so far, from the first line of `/proc/stat`: idle ticks (idle and
+/// I/O wait), all ticks, and the number of CPUs.
+fn cpu_ticks() -> Option<(u64, u64, u64)> {
+    let text = std::fs::read_to_string("/proc/stat").ok()?;
+    let fields: Vec<u64> = text
+        .lines()
+        .next()?
+        .strip_prefix("cpu ")?
+        .split_whitespace()
+        .take(8)
+        .map(|f| f.parse().ok())
+        .collect::<Option<_>>()?;
+    let cpus = text
+        .lines()
+        .filter(|l| {
+            l.strip_prefix("cpu")
+                .is_some_and(|r| r.starts_with(|c: char| c.is_ascii_digit()))
+        })
+        .count() as u64;
+    (fields.len() == 8 && cpus > 0).then(|| (fields[3] + fields[4], fields.iter().sum(), cpus))
+}
+
+/// Asked when a default run has found [`cetratus_analysis::PARALLEL_FROM`] states: whether a
+/// second core stayed idle since `start` (the [`cpu_ticks`] at the run's start), i.e. whether
+/// the machine's idle time over the interval adds up to at least three quarters of one CPU's.
+/// The kernel counts in ticks of 10 ms: over fewer than two ticks per CPU the count says too
+/// little, and the load test of [`idle_now`] decides.
+fn spare_core_since(start: Option<(u64, u64, u64)>) -> bool {
+    match (start, cpu_ticks()) {
+        (Some((idle0, all0, cpus)), Some((idle1, all1, _))) if all1 >= all0 + 2 * cpus => {
+            // idle CPUs = idle ticks / ticks per CPU; compared as 4·idle·cpus ≥ 3·all.
+            4 * (idle1 - idle0.min(idle1)) * cpus >= 3 * (all1 - all0)
+        }
+        _ => idle_now(),
     }
 }
 
@@ -178,18 +210,27 @@ pub fn run(args: &CheckArgs) -> anyhow::Result<()> {
     }
     // No progress in JSON mode: its reader wants the report alone.
     let progress = (!args.json).then(|| TerminalProgress::new(args.max_states, args.timeout));
+    let cores = std::thread::available_parallelism().map_or(1, usize::from);
     let opts = CheckOptions {
         max_states: Some(args.max_states),
         max_memory: Some(args.max_memory),
         timeout: Some(args.timeout),
         clock: Some(clock),
-        threads: args.threads.unwrap_or_else(default_threads).max(1),
-        // The default starts on one thread and takes the second once the state space is large.
+        // The default starts on one thread and takes a second once the state space is large,
+        // if a second core stayed idle meanwhile (two threads only pay on a core of their own).
+        threads: args
+            .threads
+            .unwrap_or(if cores >= 2 { 2 } else { 1 })
+            .max(1),
         parallel_from: if args.threads.is_some() {
             0
         } else {
             cetratus_analysis::PARALLEL_FROM
         },
+        spare_core: args.threads.is_none().then(|| {
+            let start = cpu_ticks();
+            Arc::new(move || spare_core_since(start)) as cetratus_analysis::SpareCoreFn
+        }),
         cancel: Some(cancel),
         progress: progress.as_ref().map(TerminalProgress::callback),
         reduction: !args.no_reduction,

@@ -35,7 +35,7 @@
 use cetratus_net::{Net, TransIdx};
 
 use super::{
-    deadlock_witness, hash, prefetch, scc, Chunked, Compiled, Packing, Padded, ReachOptions,
+    deadlock_witness, hash, prefetch, scc, Chunked, Compiled, Field, Packing, Padded, ReachOptions,
     ReachResult, Stop, Table, CHUNK_BITS, MARK,
 };
 use crate::Progress;
@@ -177,15 +177,26 @@ fn expand<const W: usize>(
     ex.enabled_ever = enabled_ever;
 }
 
-/// Phase 2: the owner of `table` inserts what the threads sent it, thread 0's first, and lists
-/// the new keys with their discoverers in `new` (cleared), in discoverer order.
+/// What one owner holds: its table, and what it found in the current batch.
+struct Owner<const W: usize> {
+    table: Table<W>,
+    /// The new keys with their discoverers, in discoverer order.
+    new: Vec<Found<W>>,
+    /// The largest value of each field among `new`.
+    max: Vec<u64>,
+}
+
+/// Phase 2: owner `o` inserts what the threads sent it, thread 0's first, lists the new keys
+/// with their discoverers (in discoverer order) and observes their fields.
 fn insert<const W: usize>(
-    table: &mut Table<W>,
+    own: &mut Owner<W>,
     expanded: &[Padded<Expanded<W>>],
     o: usize,
-    new: &mut Vec<Found<W>>,
+    fields: &[Field],
 ) {
+    let Owner { table, new, max } = own;
     new.clear();
+    max.iter_mut().for_each(|m| *m = 0);
     for ex in expanded {
         let inbox = &ex.outboxes[o];
         for (j, (disc, key, h)) in inbox.iter().enumerate() {
@@ -195,6 +206,9 @@ fn insert<const W: usize>(
             table.reserve(1);
             if table.insert_hashed(key, *h) {
                 new.push((*disc, *key));
+                for (m, f) in max.iter_mut().zip(fields) {
+                    *m = (*m).max((key[f.word as usize] >> f.shift) & f.mask);
+                }
             }
         }
     }
@@ -319,20 +333,23 @@ pub(super) fn continue_par<const W: usize>(
         mut peak_bytes,
     } = start;
     let k0 = states.get(0);
-    let mut tables: Vec<Padded<Table<W>>> = (0..threads).map(|_| Padded(Table::new())).collect();
+    let mut owners: Vec<Padded<Owner<W>>> = (0..threads)
+        .map(|_| {
+            Padded(Owner {
+                table: Table::new(),
+                new: Vec::new(),
+                max: vec![0; pk.fields.len()],
+            })
+        })
+        .collect();
     for i in 0..states.len {
         let k = states.get(i);
         let h = hash(&k);
-        let t = &mut tables[owner(h, threads)];
+        let t = &mut owners[owner(h, threads)].table;
         t.reserve(1);
         t.insert_hashed(&k, h);
     }
     let max_states = opts.state_limit();
-    let mut observe = |k: &[u64; W]| {
-        for (m, f) in max_fields.iter_mut().zip(&pk.fields) {
-            *m = (*m).max((k[f.word as usize] >> f.shift) & f.mask);
-        }
-    };
     let mut stopped = None;
     let max_batch =
         MAX_BATCH.min((OUTBOX_BYTES / (nt.max(1) * std::mem::size_of::<Succ<W>>())).max(1));
@@ -340,7 +357,6 @@ pub(super) fn continue_par<const W: usize>(
     let mut expanded: Vec<Padded<Expanded<W>>> = (0..threads)
         .map(|_| Padded(Expanded::new(threads, nt)))
         .collect();
-    let mut lists: Vec<Padded<Vec<Found<W>>>> = vec![Padded::default(); threads];
     let mut new: Vec<Found<W>> = Vec::new();
     let mut recount = Padded(Expanded::new(0, nt));
     let crew = Crew::new(threads);
@@ -363,7 +379,10 @@ pub(super) fn continue_par<const W: usize>(
         // Counted before the batch: every table grown to take the whole batch's successors
         // (old and new slots), full outboxes, and the chunks the new states may open.
         let worst = size * nt;
-        let need: usize = tables.iter().map(|t| t.bytes_to_fit(worst)).sum::<usize>()
+        let need: usize = owners
+            .iter()
+            .map(|o| o.table.bytes_to_fit(worst))
+            .sum::<usize>()
             + OUTBOX_BYTES.min(worst * std::mem::size_of::<Succ<W>>())
             + states.bytes()
             + parents.bytes()
@@ -382,13 +401,11 @@ pub(super) fn continue_par<const W: usize>(
                 expand(code, states, a..(a + step).min(end), ex);
             });
         }
-        let grows: Vec<u32> = tables.iter().map(|t| t.grows).collect();
+        let grows: Vec<u32> = owners.iter().map(|o| o.table.grows).collect();
         {
-            let expanded = &expanded;
-            let mut work: Vec<(&mut Padded<Table<W>>, &mut Padded<Vec<Found<W>>>)> =
-                tables.iter_mut().zip(lists.iter_mut()).collect();
-            crew.each(&mut work, parallel, |o, (t, new)| {
-                insert(t, expanded, o, new)
+            let (expanded, fields) = (&expanded, &pk.fields[..]);
+            crew.each(&mut owners, parallel, |o, own| {
+                insert(own, expanded, o, fields)
             });
         }
         let outbox_bytes: usize = expanded
@@ -396,8 +413,9 @@ pub(super) fn continue_par<const W: usize>(
             .flat_map(|e| &e.outboxes)
             .map(|b| b.capacity() * std::mem::size_of::<Succ<W>>())
             .sum();
-        let table_bytes: usize = tables
+        let table_bytes: usize = owners
             .iter()
+            .map(|o| &o.table)
             .zip(&grows)
             .map(|(t, &g)| {
                 if t.grows != g {
@@ -408,18 +426,35 @@ pub(super) fn continue_par<const W: usize>(
             })
             .sum();
         peak_bytes = peak_bytes.max(table_bytes + outbox_bytes + states.bytes() + parents.bytes());
-        merge(&lists, &mut new);
         let allowed = max_states.saturating_sub(states.len as u64) as usize;
-        let counts = if new.len() > allowed {
+        let found: usize = owners.iter().map(|o| o.new.len()).sum();
+        let counts = if found > allowed {
             // The sequential explorer stops at the first new state beyond the limit, inside the
             // expansion of its parent: count exactly what it would have counted by then.
+            merge(&owners, |f| new.push(*f));
             let parent = (new[allowed].0 >> 32) as usize;
             new.truncate(allowed);
             stopped = Some(Stop::MaxStates(max_states));
             // (`parent` has a successor, so it is not dead and its dead check does not matter.)
             expand(&code, &states, cur..parent + 1, &mut recount);
+            for (disc, key) in &new {
+                states.push(*key);
+                parents.push((disc >> 32) as u32);
+                for (m, f) in max_fields.iter_mut().zip(&pk.fields) {
+                    *m = (*m).max((key[f.word as usize] >> f.shift) & f.mask);
+                }
+            }
             std::slice::from_ref(&recount)
         } else {
+            merge(&owners, |(disc, key)| {
+                states.push(*key);
+                parents.push((disc >> 32) as u32);
+            });
+            for own in &owners {
+                for (m, &x) in max_fields.iter_mut().zip(&own.max) {
+                    *m = (*m).max(x);
+                }
+            }
             &expanded[..]
         };
         for ex in counts {
@@ -432,17 +467,12 @@ pub(super) fn continue_par<const W: usize>(
                 *e |= x;
             }
         }
-        for (disc, key) in &new {
-            states.push(*key);
-            parents.push((disc >> 32) as u32);
-            observe(key);
-        }
         if stopped.is_some() {
             break;
         }
         cur = end;
     }
-    let table_bytes: usize = tables.iter().map(|t| t.bytes()).sum();
+    let table_bytes: usize = owners.iter().map(|o| o.table.bytes()).sum();
     let peak_bytes = peak_bytes.max(table_bytes + states.bytes() + parents.bytes());
     let deadlock_witness = deadlock_witness(&code, &states, &parents, first_dead, nt);
     let never_enabled: Vec<TransIdx> = (0..nt)
@@ -452,7 +482,7 @@ pub(super) fn continue_par<const W: usize>(
     let n = states.len;
     drop((states, parents));
     let (liveness, liveness_stopped, scc_bytes) = if opts.liveness && stopped.is_none() {
-        let tables = tables.into_iter().map(|t| t.0).collect();
+        let tables = owners.into_iter().map(|o| o.0.table).collect();
         scc::liveness(&code, &Shards::new(tables), &k0, n, &never_enabled, opts)
     } else {
         (None, None, 0)
@@ -472,22 +502,35 @@ pub(super) fn continue_par<const W: usize>(
     }
 }
 
-/// Merges lists sorted by discoverer into `out` (cleared).
-fn merge<const W: usize>(lists: &[Padded<Vec<Found<W>>>], out: &mut Vec<Found<W>>) {
-    out.clear();
-    let total = lists.iter().map(|l| l.len()).sum();
-    let mut heads = vec![0usize; lists.len()];
-    while out.len() < total {
-        let mut best: Option<usize> = None;
-        for (l, list) in lists.iter().enumerate() {
-            if let Some(e) = list.get(heads[l]) {
-                if best.is_none_or(|b| e.0 < lists[b][heads[b]].0) {
-                    best = Some(l);
+/// Calls `f` on the owners' new keys in discoverer order (each owner's list is in that order).
+fn merge<const W: usize>(owners: &[Padded<Owner<W>>], mut f: impl FnMut(&Found<W>)) {
+    if let [a, b] = owners {
+        let (a, b) = (&a.new, &b.new);
+        let (mut i, mut j) = (0, 0);
+        while i < a.len() && j < b.len() {
+            if a[i].0 < b[j].0 {
+                f(&a[i]);
+                i += 1;
+            } else {
+                f(&b[j]);
+                j += 1;
+            }
+        }
+        a[i..].iter().chain(&b[j..]).for_each(f);
+        return;
+    }
+    let mut heads = vec![0usize; owners.len()];
+    loop {
+        let mut best: Option<(usize, u64)> = None;
+        for (l, own) in owners.iter().enumerate() {
+            if let Some(e) = own.new.get(heads[l]) {
+                if best.is_none_or(|(_, d)| e.0 < d) {
+                    best = Some((l, e.0));
                 }
             }
         }
-        let Some(b) = best else { break };
-        out.push(lists[b][heads[b]]);
-        heads[b] += 1;
+        let Some((l, _)) = best else { break };
+        f(&owners[l].new[heads[l]]);
+        heads[l] += 1;
     }
 }

@@ -7,10 +7,13 @@ mod common;
 use cetratus_analysis::families::{fms, kanban};
 use cetratus_analysis::invariants::DEFAULT_MAX_ROWS;
 use cetratus_analysis::reach::{explore, structural_packing, ReachOptions, ReachResult};
+use cetratus_analysis::SpareCoreFn;
 use cetratus_analysis::{check, CheckOptions, Report};
 use cetratus_net::{ArcKind, Net, NetBuilder, Place, Transition};
 use cetratus_testkit::nets;
 use proptest::prelude::*;
+use std::sync::atomic::{AtomicUsize, Ordering};
+use std::sync::Arc;
 
 const FIXTURES: [&str; 11] = [
     "pipe/ClassicGSPN.xml",
@@ -152,6 +155,51 @@ fn an_exploration_handed_over_to_more_threads_midway_equals_the_sequential_one()
             );
         }
     }
+}
+
+#[test]
+fn an_exploration_told_no_core_is_spare_stays_on_one_thread() {
+    // Asked once, at the hand-over point: "no" keeps the sequential explorer, whose result,
+    // memory included, is the one-thread result; "yes" hands over.
+    let net = kanban(3).expect("Kanban builds");
+    let packing = structural_packing(&net, DEFAULT_MAX_ROWS)
+        .expect("structural bounds")
+        .expect("structurally bounded");
+    let run = |threads: usize, spare: Option<bool>| {
+        let asked = Arc::new(AtomicUsize::new(0));
+        let count = asked.clone();
+        let opts = ReachOptions {
+            threads,
+            liveness: true,
+            parallel_from: if threads > 1 { 16_384 } else { 0 },
+            spare_core: spare.map(|spare| {
+                Arc::new(move || {
+                    count.fetch_add(1, Ordering::Relaxed);
+                    spare
+                }) as SpareCoreFn
+            }),
+            ..ReachOptions::default()
+        };
+        let r = explore(&net, &packing, &opts).expect("fits the packed explorer");
+        (r, asked.load(Ordering::Relaxed))
+    };
+    let (one, _) = run(1, None);
+    let (kept, asked) = run(2, Some(false));
+    assert_eq!(asked, 1);
+    assert_eq!(kept, one, "memory included");
+    let (handed, asked) = run(2, Some(true));
+    assert_eq!(asked, 1);
+    assert_eq!(handed, run(2, None).0, "memory included");
+    assert_eq!(
+        ReachResult {
+            peak_bytes: 0,
+            ..handed
+        },
+        ReachResult {
+            peak_bytes: 0,
+            ..one
+        }
+    );
 }
 
 #[test]

@@ -188,13 +188,22 @@ fn cpu_ticks() -> Option<(u64, u64, u64)> {
 /// The kernel counts in ticks of 10 ms: over fewer than two ticks per CPU the count says too
 /// little, and the load test of [`idle_now`] decides.
 fn spare_core_since(start: Option<(u64, u64, u64)>) -> bool {
-    match (start, cpu_ticks()) {
-        (Some((idle0, all0, cpus)), Some((idle1, all1, _))) if all1 >= all0 + 2 * cpus => {
-            // idle CPUs = idle ticks / ticks per CPU; compared as 4·idle·cpus ≥ 3·all.
-            4 * (idle1 - idle0.min(idle1)) * cpus >= 3 * (all1 - all0)
-        }
-        _ => idle_now(),
-    }
+    start
+        .zip(cpu_ticks())
+        .and_then(|(start, now)| idle_core(start, now))
+        .unwrap_or_else(idle_now)
+}
+
+/// Whether the idle time between two [`cpu_ticks`] adds up to three quarters of one CPU's at
+/// least; `None` over fewer than two ticks per CPU.
+fn idle_core(
+    (idle0, all0, cpus): (u64, u64, u64),
+    (idle1, all1, _): (u64, u64, u64),
+) -> Option<bool> {
+    let all = all1.checked_sub(all0)?;
+    let idle = idle1.saturating_sub(idle0);
+    // idle CPUs = idle ticks / ticks per CPU = idle · cpus / all; compared as 4·idle·cpus ≥ 3·all.
+    (all >= 2 * cpus).then_some(4 * idle * cpus >= 3 * all)
 }
 
 /// Runs `cetratus check`: prints the report, as text or JSON. Ctrl-C stops the exploration and
@@ -257,5 +266,23 @@ pub fn run(args: &CheckArgs) -> anyhow::Result<()> {
     match std::io::stdout().lock().write_all(text.as_bytes()) {
         Err(e) if e.kind() != std::io::ErrorKind::BrokenPipe => Err(e.into()),
         _ => Ok(()),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::idle_core;
+
+    #[test]
+    fn a_core_counts_as_spare_when_three_quarters_of_one_cpu_were_idle() {
+        // Two CPUs, 40 ticks in all (20 each): this process kept one busy.
+        let start = (1_000, 10_000, 2);
+        assert_eq!(idle_core(start, (1_020, 10_040, 2)), Some(true));
+        assert_eq!(idle_core(start, (1_015, 10_040, 2)), Some(true));
+        assert_eq!(idle_core(start, (1_014, 10_040, 2)), Some(false));
+        assert_eq!(idle_core(start, (1_000, 10_040, 2)), Some(false));
+        // Too short to say, or a counter that went back.
+        assert_eq!(idle_core(start, (1_002, 10_003, 2)), None);
+        assert_eq!(idle_core(start, (1_000, 9_000, 2)), None);
     }
 }

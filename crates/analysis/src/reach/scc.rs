@@ -246,32 +246,43 @@ fn claim(seen: &[AtomicU64], i: usize) -> bool {
     w.load(Relaxed) & m == 0 && w.fetch_or(m, Relaxed) & m == 0
 }
 
-/// The search by one thread of `queue[range]`, a part of the current layer: the predecessors
-/// that no thread has found yet are claimed in `seen` and appended to the queue after `tail`.
-/// Stops early once the queue holds every one of the `states` states.
-#[allow(clippy::too_many_arguments)]
+/// The layer `queue[..end]` being searched: its states are taken in chunks from `next` on, by
+/// whichever thread is free, so that no thread waits for another at the layer's end longer than
+/// a chunk.
+struct Layer<'a> {
+    queue: &'a [AtomicU32],
+    next: AtomicUsize,
+    end: usize,
+    chunk: usize,
+    /// Where the states found are appended.
+    tail: &'a AtomicUsize,
+}
+
+/// One thread's share of the search of `layer`: the predecessors that no thread has found yet
+/// are claimed in `seen` and appended to the queue. Stops early once the queue holds every one
+/// of the `states` states.
 fn search_part<const W: usize>(
     code: &Compiled<W>,
     table: &impl Visited<W>,
-    queue: &[AtomicU32],
-    range: std::ops::Range<usize>,
+    layer: &Layer,
     seen: &[AtomicU64],
-    tail: &AtomicUsize,
     states: usize,
     sc: &mut Scratch<W>,
 ) {
-    let per_batch = sc.batch.len() / (code.offsets.len() - 1).max(1);
-    let mut head = range.start;
-    while head < range.end && tail.load(Relaxed) < states {
-        let end = range.end.min(head + per_batch);
+    let (queue, tail) = (layer.queue, layer.tail);
+    while tail.load(Relaxed) < states {
+        let head = layer.next.fetch_add(layer.chunk, Relaxed);
+        if head >= layer.end {
+            break;
+        }
+        let end = layer.end.min(head + layer.chunk);
         sc.ids.clear();
         sc.ids.extend(
-            queue[head..range.end.min(end + AHEAD)]
+            queue[head..layer.end.min(end + AHEAD)]
                 .iter()
                 .map(|x| x.load(Relaxed)),
         );
         gather(table, &sc.ids, end - head, &mut sc.keys);
-        head = end;
         let found = &mut sc.found;
         found.clear();
         each_predecessor(code, table, &sc.keys, &mut sc.batch, |s| {
@@ -336,12 +347,17 @@ fn reaches_root_layered<const W: usize>(
             return Err((s, bytes));
         }
         let size = end - head;
-        let step = size.div_ceil(threads);
-        let (queue, seen, tail) = (&queue, &seen, &tail);
-        crew.each(&mut scratch, size >= PARALLEL_LAYER, |i, sc| {
-            let a = end.min(head + i * step);
-            let b = end.min(a + step);
-            search_part(code, table, queue, a..b, seen, tail, states, sc);
+        let layer = Layer {
+            queue: &queue,
+            next: AtomicUsize::new(head),
+            end,
+            // A batch of predecessors at most, and a few chunks per thread.
+            chunk: per_batch.min(size.div_ceil(4 * threads)).max(1),
+            tail: &tail,
+        };
+        let seen = &seen;
+        crew.each(&mut scratch, size >= PARALLEL_LAYER, |_, sc| {
+            search_part(code, table, &layer, seen, states, sc);
         });
         head = end;
     }

@@ -38,10 +38,10 @@ pub struct Progress {
 pub type ProgressFn = Arc<dyn Fn(Progress) + Send + Sync>;
 
 /// The states a default run explores on one thread before it goes on with two
-/// ([`CheckOptions::parallel_from`]): measured on an idle 2-core machine, two threads were slower
-/// than one up to Kanban and FMS at N = 4 (about 450,000 states), about even at N = 5 (2.5 and
-/// 2.9 million) and 1.5 times faster at N = 6 (11 million); docs/analysis.md, "The default
-/// thread count".
+/// ([`CheckOptions::parallel_from`]), if a core stayed idle meanwhile
+/// ([`CheckOptions::spare_core`]): measured on an idle 2-core machine, two threads gained
+/// nothing at 50,000–60,000 states (Kanban 3, FMS 3) and were faster from 450,000 up (Kanban 4,
+/// FMS 4: 1.4×); docs/analysis.md, "The default thread count".
 pub const PARALLEL_FROM: u64 = 200_000;
 
 /// Options of [`check`].

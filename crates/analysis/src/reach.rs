@@ -421,25 +421,6 @@ pub(super) fn prefetch<T>(p: &T) {
     std::hint::black_box(p);
 }
 
-/// A value alone on its cache lines (two, as the prefetcher pulls lines in pairs), so that two
-/// threads writing their own values do not pass a shared line back and forth.
-#[repr(align(128))]
-#[derive(Clone, Default)]
-struct Padded<T>(T);
-
-impl<T> std::ops::Deref for Padded<T> {
-    type Target = T;
-    fn deref(&self) -> &T {
-        &self.0
-    }
-}
-
-impl<T> std::ops::DerefMut for Padded<T> {
-    fn deref_mut(&mut self) -> &mut T {
-        &mut self.0
-    }
-}
-
 const CHUNK_BITS: u32 = 16;
 
 /// States whose successors the exploration generates and starts loading ahead of their turn.

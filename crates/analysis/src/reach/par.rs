@@ -35,7 +35,7 @@
 use cetratus_net::{Net, TransIdx};
 
 use super::{
-    deadlock_witness, hash, prefetch, scc, Chunked, Compiled, Field, Packing, Padded, ReachOptions,
+    deadlock_witness, hash, prefetch, scc, Chunked, Compiled, Field, Packing, ReachOptions,
     ReachResult, Stop, Table, CHUNK_BITS, MARK,
 };
 use crate::Progress;
@@ -211,6 +211,25 @@ fn insert<const W: usize>(
                 }
             }
         }
+    }
+}
+
+/// A value alone on its cache lines (two, as the prefetcher pulls lines in pairs), so that two
+/// threads writing their own values do not pass a shared line back and forth.
+#[repr(align(128))]
+#[derive(Clone, Default)]
+pub(super) struct Padded<T>(pub(super) T);
+
+impl<T> std::ops::Deref for Padded<T> {
+    type Target = T;
+    fn deref(&self) -> &T {
+        &self.0
+    }
+}
+
+impl<T> std::ops::DerefMut for Padded<T> {
+    fn deref_mut(&mut self) -> &mut T {
+        &mut self.0
     }
 }
 

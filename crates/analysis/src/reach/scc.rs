@@ -23,7 +23,8 @@
 //! thread, a batch of [`BATCH`] predecessors for the backward search; for Tarjan two `u32` per
 //! slot, two bits per slot, and its stacks.
 
-use super::{hash, prefetch, Compiled, Liveness, Padded, ReachOptions, Stop, Table};
+use super::par::{Crew, Padded};
+use super::{hash, prefetch, Compiled, Liveness, ReachOptions, Stop, Table};
 use cetratus_net::TransIdx;
 use std::sync::atomic::{AtomicU32, AtomicU64, AtomicUsize, Ordering::Relaxed};
 
@@ -336,7 +337,7 @@ fn reaches_root_layered<const W: usize>(
             })
         })
         .collect();
-    let crew = super::par::Crew::new(threads);
+    let crew = Crew::new(threads);
     let mut head = 0;
     loop {
         let end = tail.load(Relaxed);

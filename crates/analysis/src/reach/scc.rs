@@ -13,8 +13,9 @@
 //! overlap instead of waiting one after the other; the keys of the queued states load the same
 //! way. With more threads the search goes by layers over one queue, each thread taking a part
 //! of the layer the same way and claiming the states it finds with one atomic bit each
-//! ([`reaches_root_layered`]). If every state reaches M0, the graph is one strongly connected component: the net
-//! is reversible, and live exactly when every transition is enabled somewhere. This is the common
+//! ([`reaches_root_layered`]). If every state reaches M0, the graph is one strongly connected
+//! component: the net is reversible, and live exactly when every transition is enabled
+//! somewhere. This is the common
 //! case of a plant model, and it costs one lookup per edge, stopping as soon as every state is
 //! found. Otherwise an iterative Tarjan (explicit frames, no recursion) finds the terminal
 //! components.

@@ -25,7 +25,7 @@ mod common;
 
 use common::raw_mqtt::{connect as raw_connect, mqtt_str, packet};
 use common::{
-    client, first_answer, primary_cycles, reply, request, rss_kb, RssSampler, RunningPlc,
+    assert_cycles_on, client, first_answer, primary_cycles, rss_kb, RssSampler, RunningPlc,
 };
 
 const PLC: &str = "cell1";
@@ -76,12 +76,7 @@ fn attacked(attack: impl FnOnce(u16) -> Vec<TcpStream>) -> (u64, Vec<String>) {
     let peak = sampler.peak_kb();
     let settled = rss_kb(pid).expect("the PLC's memory");
 
-    request(&ops, PLC, "exec_info", b"under-attack", b"{}".to_vec());
-    let after = primary_cycles(&reply(&replies, b"under-attack", Duration::from_secs(30)));
-    assert!(
-        after > before,
-        "the PLC cycles on: {before} cycles, then {after}"
-    );
+    assert_cycles_on(&ops, &replies, PLC, b"under-attack", before);
     let growth = peak.saturating_sub(rss_before);
     eprintln!(
         "{} attackers' sockets kept; PLC RSS before {rss_before} kB, peak {peak} kB, \

@@ -23,7 +23,7 @@ mod common;
 
 use common::raw_mqtt::{subscriber, Reading};
 use common::{
-    camera, client, first_answer, primary_cycles, reply, request, rss_kb, RssSampler, RunningPlc,
+    assert_cycles_on, camera, client, first_answer, primary_cycles, rss_kb, RssSampler, RunningPlc,
 };
 
 const PLC: &str = "cell1";
@@ -68,12 +68,7 @@ fn flood(attackers: &[(String, Reading)], size: usize, qos: QoS, tiny: bool) -> 
 
     // The PLC cycles on, and an operator's command is answered while the attackers still hold
     // what they hold.
-    request(&ops, PLC, "exec_info", b"after-flood", b"{}".to_vec());
-    let after = primary_cycles(&reply(&replies, b"after-flood", Duration::from_secs(30)));
-    assert!(
-        after > before,
-        "the PLC cycles on: {before} cycles, then {after}"
-    );
+    assert_cycles_on(&ops, &replies, PLC, b"after-flood", before);
     stop.store(true, Ordering::Relaxed);
 
     let growth = peak.saturating_sub(rss_before);

@@ -282,3 +282,14 @@ pub fn primary_cycles(v: &Value) -> u64 {
         .as_u64()
         .unwrap_or_else(|| panic!("exec_info names the primary's cycles: {v}"))
 }
+
+/// Asks the PLC `plc` for `exec_info` (correlation `corr`) and asserts that its primary has run
+/// more than `before` cycles: the PLC cycles on and answers an operator.
+pub fn assert_cycles_on(ops: &Client, replies: &Replies, plc: &str, corr: &[u8], before: u64) {
+    request(ops, plc, "exec_info", corr, b"{}".to_vec());
+    let after = primary_cycles(&reply(replies, corr, Duration::from_secs(30)));
+    assert!(
+        after > before,
+        "the PLC cycles on: {before} cycles, then {after}"
+    );
+}

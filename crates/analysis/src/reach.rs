@@ -51,6 +51,22 @@ pub struct Field {
     pub mask: u64,
 }
 
+impl Field {
+    /// This field's value in the packed state `key`.
+    #[inline(always)]
+    pub(crate) fn read(&self, key: &[u64]) -> u64 {
+        (key[self.word as usize] >> self.shift) & self.mask
+    }
+}
+
+/// Raises each of `max` to its field's value in the packed state `key` (the bounds seen).
+#[inline(always)]
+fn observe(max: &mut [u64], fields: &[Field], key: &[u64]) {
+    for (m, f) in max.iter_mut().zip(fields) {
+        *m = (*m).max(f.read(key));
+    }
+}
+
 /// The layout of packed states: one field per place.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct Packing {
@@ -104,7 +120,7 @@ impl Packing {
     /// Unpacks a state.
     pub fn decode(&self, key: &[u64], out: &mut [u32]) {
         for (f, o) in self.fields.iter().zip(out.iter_mut()) {
-            *o = ((key[f.word as usize] >> f.shift) & f.mask) as u32;
+            *o = f.read(key) as u32;
         }
     }
 }
@@ -711,12 +727,7 @@ fn explore_w<const W: usize>(net: &Net, pk: &Packing, opts: &ReachOptions) -> Re
     let (mut table, mut states, mut parents, k0) = seeded::<W>(net, pk);
     let max_states = opts.state_limit();
     let mut max_fields: Vec<u64> = vec![0; np];
-    let mut observe = |k: &[u64; W]| {
-        for (m, f) in max_fields.iter_mut().zip(&pk.fields) {
-            *m = (*m).max((k[f.word as usize] >> f.shift) & f.mask);
-        }
-    };
-    observe(&k0);
+    observe(&mut max_fields, &pk.fields, &k0);
     let mut enabled_ever = vec![false; nt];
     // The successors of the states being expanded next, at most AHEAD of them, generated and
     // their slots loading before this state's inserts wait for their own: the cache misses of
@@ -771,7 +782,7 @@ fn explore_w<const W: usize>(net: &Net, pk: &Packing, opts: &ReachOptions) -> Re
                 }
                 states.push(*succ);
                 parents.push(cur as u32);
-                observe(succ);
+                observe(&mut max_fields, &pk.fields, succ);
             }
         }
         if batch.is_empty() {

@@ -35,8 +35,8 @@
 use cetratus_net::{Net, TransIdx};
 
 use super::{
-    deadlock_witness, hash, prefetch, scc, Chunked, Compiled, Field, Packing, ReachOptions,
-    ReachResult, Stop, Table, CHUNK_BITS, MARK,
+    deadlock_witness, hash, observe, prefetch, scc, Chunked, Compiled, Field, Packing,
+    ReachOptions, ReachResult, Stop, Table, CHUNK_BITS, MARK,
 };
 use crate::Progress;
 
@@ -206,9 +206,7 @@ fn insert<const W: usize>(
             table.reserve(1);
             if table.insert_hashed(key, *h) {
                 new.push((*disc, *key));
-                for (m, f) in max.iter_mut().zip(fields) {
-                    *m = (*m).max((key[f.word as usize] >> f.shift) & f.mask);
-                }
+                observe(max, fields, key);
             }
         }
     }
@@ -310,9 +308,7 @@ pub(super) fn explore_par<const W: usize>(
     states.push(k0);
     parents.push(u32::MAX);
     let mut max_fields: Vec<u64> = vec![0; net.num_places()];
-    for (m, f) in max_fields.iter_mut().zip(&pk.fields) {
-        *m = (k0[f.word as usize] >> f.shift) & f.mask;
-    }
+    observe(&mut max_fields, &pk.fields, &k0);
     let start = Progressed {
         states,
         parents,
@@ -459,9 +455,7 @@ pub(super) fn continue_par<const W: usize>(
             for (disc, key) in &new {
                 states.push(*key);
                 parents.push((disc >> 32) as u32);
-                for (m, f) in max_fields.iter_mut().zip(&pk.fields) {
-                    *m = (*m).max((key[f.word as usize] >> f.shift) & f.mask);
-                }
+                observe(&mut max_fields, &pk.fields, key);
             }
             std::slice::from_ref(&recount)
         } else {

@@ -71,10 +71,7 @@ pub(crate) fn search<const W: usize>(
     let code = Compiled::<W>::new(net, pk);
     let (mut table, mut states, mut parents, k0) = super::seeded::<W>(net, pk);
     let max_states = opts.state_limit();
-    let field = |k: &[u64; W], p: usize| {
-        let f = pk.fields[p];
-        (k[f.word as usize] >> f.shift) & f.mask
-    };
+    let field = |k: &[u64; W], p: usize| pk.fields[p].read(k);
     let goal = |k: &[u64; W]| match target {
         Target::Marking(pred) => pred.holds(|p| field(k, p.index())),
         _ => false,

@@ -51,14 +51,9 @@ fn bench_jitter_reports_the_machines_own_latency_from_cyclictest_or_why_not() {
     assert!(m["command"].as_str().unwrap().contains("--laptop"), "{m}");
     assert!(m["p99_us"].as_u64() >= m["p50_us"].as_u64(), "{m}");
     // Without it on the PATH the report says so instead of failing.
-    let out = Command::new(BIN)
-        .env("PATH", "/nonexistent")
-        .args([
-            "bench", "jitter", "--period", "10ms", "--for", "300ms", "--json",
-        ])
-        .output()
-        .expect("run cetratus");
-    let v: serde_json::Value = serde_json::from_slice(&out.stdout).expect("one JSON object");
+    let v = report(Command::new(BIN).env("PATH", "/nonexistent").args([
+        "bench", "jitter", "--period", "10ms", "--for", "300ms", "--json",
+    ]));
     assert!(
         v["machine"]["cyclictest"]
             .as_str()

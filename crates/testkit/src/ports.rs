@@ -1,7 +1,9 @@
 //! Loopback ports for the servers a test starts: one nobody listens on, and waiting until one
 //! is listened on.
 
+use std::collections::BTreeSet;
 use std::net::{SocketAddr, TcpListener, TcpStream};
+use std::sync::Mutex;
 use std::time::{Duration, Instant};
 
 /// A loopback port nobody listens on right now.
@@ -11,11 +13,24 @@ pub fn free_port() -> u16 {
     free_addr().port()
 }
 
-/// A loopback address, on a port nobody listens on right now.
+/// A loopback address, on a port nobody listens on right now, and never handed out before in
+/// this process.
+///
+/// The tests of one binary run side by side, and some stop a server and start it again on its
+/// port (a device that goes away and comes back). Without the second condition another test
+/// could be given that port in between, or the same port before either server took it, and
+/// then talk to the other test's server.
 pub fn free_addr() -> SocketAddr {
-    TcpListener::bind("127.0.0.1:0")
-        .and_then(|l| l.local_addr())
-        .expect("a free port on 127.0.0.1")
+    static GIVEN: Mutex<BTreeSet<u16>> = Mutex::new(BTreeSet::new());
+    let mut given = GIVEN.lock().unwrap_or_else(|e| e.into_inner());
+    loop {
+        let addr = TcpListener::bind("127.0.0.1:0")
+            .and_then(|l| l.local_addr())
+            .expect("a free port on 127.0.0.1");
+        if given.insert(addr.port()) {
+            return addr;
+        }
+    }
 }
 
 /// Whether something accepts connections on 127.0.0.1:`port` before `within` has passed.

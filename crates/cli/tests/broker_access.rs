@@ -135,6 +135,40 @@ fn with_broker_accounts_only_an_allowed_account_commands_and_the_dashboard_of_ru
 }
 
 #[test]
+fn a_last_will_is_refused_at_connect_when_its_account_could_not_publish_it() {
+    use cetratus_testkit::raw_mqtt::{try_connect, ConnectOptions};
+    let h = hash("pw");
+    let cfg = config_dir(&format!(
+        "[mqtt]\nusers = [\n  {{ name = \"ops\", password_hash = \"{h}\", plcs = [\"acc1\"] }},\n  \
+         {{ name = \"viewer\", password_hash = \"{h}\", plcs = [] }},\n]\n"
+    ));
+    let port = free_port();
+    let _plc = ChildGuard::spawn(
+        run(cfg.path(), &format!("127.0.0.1:{port}"), "127.0.0.1:0")
+            .arg("--no-dashboard")
+            .stdout(Stdio::null())
+            .stderr(Stdio::null()),
+    );
+    wait_for_port(port, "the embedded broker", Duration::from_secs(30));
+    // A read-only account got a package loaded, then substituted, by dropping its connection.
+    for (user, topic, code) in [
+        ("viewer", "cetratus/acc1/cmd/load", 5),
+        ("viewer", "cetratus/acc1/cmd/substitute", 5),
+        ("ops", "cetratus/acc1/state", 5),
+        ("ops", "cetratus/acc2/cmd/abort", 5),
+        ("ops", "cetratus/acc1/cmd/abort", 0),
+        ("viewer", "plant/viewer/alive", 0),
+    ] {
+        let options = ConnectOptions {
+            login: Some((user, "pw")),
+            will: Some((topic, b"{}", false)),
+        };
+        let (_s, got) = try_connect(("127.0.0.1", port), "will-test", options);
+        assert_eq!(got, code, "{user} with a will on {topic}");
+    }
+}
+
+#[test]
 fn a_broker_beyond_loopback_without_tls_stops_the_start_and_says_what_to_set() {
     let cfg = config_dir("");
     let out = run(

@@ -148,7 +148,15 @@ impl Hub {
         let nonce = SystemTime::now()
             .duration_since(UNIX_EPOCH)
             .map_or(0, |d| d.subsec_nanos());
-        let client_id = format!("cetratus-dashboard-{}-{nonce:08x}", std::process::id());
+        let name = format!("dashboard-{}-{nonce:08x}", std::process::id());
+        // The dashboard of a PLC's own process takes an id that no other login may take on
+        // that PLC's broker; elsewhere, a plain one.
+        let client_id = match target.credentials() {
+            Some((user, _)) if user == cetratus_mct::DASHBOARD_USER => {
+                cetratus_mct::acl::internal_client_id(&name)
+            }
+            _ => format!("cetratus-{name}"),
+        };
         let mut opts = MqttOptions::new(client_id.clone(), target.host(), target.port());
         opts.set_keep_alive(Duration::from_secs(10))
             .set_clean_start(true)

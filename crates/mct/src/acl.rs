@@ -27,6 +27,23 @@ pub const PLC_USER: &str = "$cetratus-plc";
 /// The user name the dashboard of `cetratus run` logs in with.
 pub const DASHBOARD_USER: &str = "$cetratus-dashboard";
 
+/// What the client ids of the process's own clients start with. The embedded broker refuses a
+/// client id that starts with it to every other login: a broker drops the older of two clients
+/// with one id, so whoever took the PLC's id would cut the PLC off its own control plane.
+pub const INTERNAL_CLIENT_ID_PREFIX: &str = "$cetratus-";
+
+/// The client id of one of the process's own clients, named `name` (the PLC's id, or the
+/// dashboard's).
+pub fn internal_client_id(name: &str) -> String {
+    format!("{INTERNAL_CLIENT_ID_PREFIX}{name}")
+}
+
+/// Whether `client_id` is reserved for the process's own clients: any id that starts with `$`,
+/// as the names of their logins do.
+pub fn is_internal_client_id(client_id: &str) -> bool {
+    client_id.starts_with('$')
+}
+
 /// An account of the embedded broker, as the local configuration gives it.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct BrokerAccount {

@@ -44,6 +44,7 @@ mod inbound;
 mod ingress;
 mod link;
 pub mod password;
+pub mod topics;
 
 pub use acl::{BrokerAccount, BrokerSettings, BrokerTls, Login, DASHBOARD_USER, PLC_USER};
 pub use broker::{
@@ -69,3 +70,4 @@ pub use link::{
     Outgoing, StatsReader, COMMAND_QUEUE_BYTES, DEFAULT_MQTT_ADDR,
 };
 pub use rumqttc::v5::MqttOptions;
+pub use topics::{MAX_TOPIC_BYTES, MAX_TOPIC_LEVELS};

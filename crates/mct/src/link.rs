@@ -408,7 +408,9 @@ pub fn start(config: MqttConfig) -> Result<(MctLink, MqttHandle), MctError> {
         BrokerChoice::Embedded(settings) => {
             let b = EmbeddedBroker::start_with(settings.clone(), &config.plc_id)?;
             let url = format!("mqtt://{}", b.local_addr());
-            let mut o = client_options(&url, &client_id)?;
+            // An id no other login may take on this broker.
+            let id = crate::acl::internal_client_id(&format!("plc-{}", config.plc_id));
+            let mut o = client_options(&url, &id)?;
             let login = b.plc_login();
             o.set_credentials(&login.user, &login.password);
             (Some(b), o, url)

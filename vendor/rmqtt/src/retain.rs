@@ -217,90 +217,115 @@ impl<V> Node<V>
 where
     V: std::fmt::Debug + Clone,
 {
+    // cetratus: every walk of the tree is a loop, never a recursion: a topic's levels are a
+    // client's to choose, and a recursion once a level overflowed the stack of a broker thread
+    // (and aborted the process) at a few thousand levels.
     #[inline]
     pub fn insert(&mut self, topic: &Topic, value: V) {
-        let mut path = topic.levels().clone();
-        path.reverse();
-        self._insert(path, value);
-    }
-
-    #[inline]
-    fn _insert(&mut self, mut path: Vec<Level>, value: V) {
-        if let Some(first) = path.pop() {
-            self.branches.entry(first).or_default()._insert(path, value)
-        } else {
-            self.value.replace(value);
+        let mut node = self;
+        for level in topic.levels() {
+            node = node.branches.entry(level.clone()).or_default();
         }
+        node.value.replace(value);
     }
 
+    // cetratus: a loop down the path, then one removal of the highest node that the removal
+    // left empty, with everything below it.
     #[inline]
     pub fn remove(&mut self, topic: &Topic) -> Option<V> {
-        self._remove(topic.levels().as_ref())
-    }
-
-    #[inline]
-    fn _remove(&mut self, path: &[Level]) -> Option<V> {
-        if path.is_empty() {
-            self.value.take()
-        } else {
-            let t = &path[0];
-            if let Some(x) = self.branches.get_mut(t) {
-                let res = x._remove(&path[1..]);
-                if x.value.is_none() && x.branches.is_empty() {
-                    self.branches.remove(t);
-                }
-                res
-            } else {
-                None
-            }
+        let path: &[Level] = topic.levels().as_ref();
+        let mut leaf = &mut *self;
+        for level in path {
+            leaf = leaf.branches.get_mut(level)?;
         }
+        let removed = leaf.value.take()?;
+        let (mut cut, mut node) = (None, &*self);
+        for (depth, level) in path.iter().enumerate() {
+            let Some(next) = node.branches.get(level) else { break };
+            let only_the_path = if depth + 1 < path.len() { 1 } else { 0 };
+            let empty = next.value.is_none() && next.branches.len() == only_the_path;
+            match (empty, cut) {
+                (true, None) => cut = Some(depth),
+                (false, _) => cut = None,
+                (true, Some(_)) => {}
+            }
+            node = next;
+        }
+        if let Some(depth) = cut {
+            let mut parent = &mut *self;
+            for level in &path[..depth] {
+                match parent.branches.get_mut(level) {
+                    Some(next) => parent = next,
+                    None => return Some(removed),
+                }
+            }
+            parent.branches.remove(&path[depth]);
+        }
+        Some(removed)
     }
 
     //remove all pairs `v` for which `f(&mut v)` returns `false`.
+    // cetratus: the nodes are taken out of the tree into a list, parents before children, and
+    // put back from its end, children first, each only if it still holds something: a
+    // post-order walk without recursion.
     #[inline]
     pub fn retain<F>(&mut self, max_limit: usize, mut f: F) -> usize
     where
         F: FnMut(&mut V) -> bool,
     {
+        const ROOT: usize = usize::MAX;
+        let mut taken: Vec<(usize, Level, Node<V>)> =
+            std::mem::take(&mut self.branches).into_iter().map(|(l, n)| (ROOT, l, n)).collect();
+        let mut k = 0;
+        while k < taken.len() {
+            let children = std::mem::take(&mut taken[k].2.branches);
+            taken.extend(children.into_iter().map(|(l, n)| (k, l, n)));
+            k += 1;
+        }
         let mut removeds = 0;
-        self._retain(&mut f, &mut removeds, max_limit);
+        while let Some((parent, level, mut node)) = taken.pop() {
+            if removeds < max_limit {
+                if let Some(v) = node.value.as_mut() {
+                    if !f(v) {
+                        node.value = None;
+                        removeds += 1;
+                    }
+                }
+            }
+            if node.value.is_none() && node.branches.is_empty() {
+                continue;
+            }
+            let parent = if parent == ROOT { &mut *self } else { &mut taken[parent].2 };
+            parent.branches.insert(level, node);
+        }
         removeds
     }
 
-    #[inline]
-    fn _retain<F>(&mut self, f: &mut F, removeds: &mut usize, max_limit: usize)
-    where
-        F: FnMut(&mut V) -> bool,
-    {
-        if *removeds >= max_limit {
-            return;
-        }
-        self.branches.retain(|_, child_node| {
-            child_node._retain(f, removeds, max_limit);
-            if let Some(v) = child_node.value_mut() {
-                if !f(v) {
-                    let _ = child_node.value.take();
-                    *removeds += 1;
-                }
-            }
-            !(child_node.value.is_none() && child_node.branches.is_empty())
-        });
-    }
-
+    // cetratus: the nodes still to visit are on a stack of their own.
     #[inline]
     pub fn matches(&self, topic: &Topic) -> Vec<(Topic, V)> {
         let mut out = Vec::new();
-        self._matches(topic.levels(), Vec::new(), &mut out);
+        let mut stack = vec![(self, topic.levels().as_slice(), Vec::new())];
+        while let Some((node, path, sub_path)) = stack.pop() {
+            node.match_one(path, sub_path, &mut out, &mut stack);
+        }
         out
     }
 
+    /// One node of [`Node::matches`]: what matches goes to `out`, the nodes below it to visit
+    /// to `stack`.
     #[inline]
-    fn _matches(&self, path: &[Level], mut sub_path: Vec<Level>, out: &mut Vec<(Topic, V)>) {
+    #[allow(clippy::type_complexity)]
+    fn match_one<'a>(
+        &'a self,
+        path: &'a [Level],
+        mut sub_path: Vec<Level>,
+        out: &mut Vec<(Topic, V)>,
+        stack: &mut Vec<(&'a Node<V>, &'a [Level], Vec<Level>)>,
+    ) {
         let add_to_out = |levels: Vec<Level>, v: V, out: &mut Vec<(Topic, V)>| {
             out.push((Topic::from(levels), v));
         };
-
-        //let node_map = &self.branches;
 
         if self.branches.is_empty() || path.is_empty() {
             if path.is_empty() {
@@ -309,58 +334,56 @@ where
                     add_to_out(sub_path, v.clone(), out);
                 }
             }
-        } else if !path.is_empty() {
-            if let Some(r) = self.branches.get(&path[0]) {
-                //Precise matching
-                sub_path.push(path[0].clone());
+        } else if let Some(r) = self.branches.get(&path[0]) {
+            //Precise matching
+            sub_path.push(path[0].clone());
+
+            if path.len() > 1 && path[1] == Level::MultiWildcard {
+                //# Match parent, subscription ending with #
+                if let Some(v) = r.value.as_ref() {
+                    add_to_out(sub_path.clone(), v.clone(), out);
+                }
+            }
+            stack.push((r, &path[1..], sub_path));
+        } else if matches!(path[0], Level::SingleWildcard) {
+            //Single layer matching
+            for (k, v) in self.branches.iter() {
+                if sub_path.is_empty() && !matches!(k, Level::Blank) && k.is_metadata() {
+                    //TopicName names starting with the $character cannot be matched with topic
+                    //filters starting with wildcards (# or +)
+                    continue;
+                }
+                let mut sub_path = sub_path.clone();
+                sub_path.push(k.clone());
 
                 if path.len() > 1 && path[1] == Level::MultiWildcard {
                     //# Match parent, subscription ending with #
-                    if let Some(v) = r.value.as_ref() {
+                    if let Some(v) = v.value.as_ref() {
                         add_to_out(sub_path.clone(), v.clone(), out);
                     }
                 }
-                r._matches(&path[1..], sub_path, out);
-            } else if matches!(path[0], Level::SingleWildcard) {
-                //Single layer matching
-                for (k, v) in self.branches.iter() {
-                    if sub_path.is_empty() && !matches!(k, Level::Blank) && k.is_metadata() {
-                        //TopicName names starting with the $character cannot be matched with topic
-                        //filters starting with wildcards (# or +)
-                        continue;
-                    }
-                    let mut sub_path = sub_path.clone();
-                    sub_path.push(k.clone());
-
-                    if path.len() > 1 && path[1] == Level::MultiWildcard {
-                        //# Match parent, subscription ending with #
-                        if let Some(v) = v.value.as_ref() {
-                            add_to_out(sub_path.clone(), v.clone(), out);
-                        }
-                    }
-                    v._matches(&path[1..], sub_path, out);
+                stack.push((v, &path[1..], sub_path));
+            }
+        } else if path[0] == Level::MultiWildcard {
+            //Multilayer matching
+            for (k, v) in self.branches.iter() {
+                if sub_path.is_empty() && !matches!(k, Level::Blank) && k.is_metadata() {
+                    //TopicName names starting with the $character cannot be matched with topic
+                    //filters starting with wildcards (# or +)
+                    continue;
                 }
-            } else if path[0] == Level::MultiWildcard {
-                //Multilayer matching
-                for (k, v) in self.branches.iter() {
-                    if sub_path.is_empty() && !matches!(k, Level::Blank) && k.is_metadata() {
-                        //TopicName names starting with the $character cannot be matched with topic
-                        //filters starting with wildcards (# or +)
-                        continue;
-                    }
-                    let mut sub_path = sub_path.clone();
-                    sub_path.push(k.clone());
+                let mut sub_path = sub_path.clone();
+                sub_path.push(k.clone());
 
-                    if v.branches.is_empty() {
-                        if let Some(v) = v.value.as_ref() {
-                            add_to_out(sub_path, v.clone(), out);
-                        }
-                    } else {
-                        if let Some(v) = v.value.as_ref() {
-                            add_to_out(sub_path.clone(), v.clone(), out);
-                        }
-                        v._matches(path, sub_path, out);
+                if v.branches.is_empty() {
+                    if let Some(v) = v.value.as_ref() {
+                        add_to_out(sub_path, v.clone(), out);
                     }
+                } else {
+                    if let Some(v) = v.value.as_ref() {
+                        add_to_out(sub_path.clone(), v.clone(), out);
+                    }
+                    stack.push((v, path, sub_path));
                 }
             }
         }
@@ -386,42 +409,52 @@ where
         self.branches.get(l)
     }
 
+    // cetratus: the sizes and the listing walk with a stack of their own.
     #[inline]
     pub fn values_size(&self) -> usize {
-        let len: usize = self.branches.values().map(|n| n.values_size()).sum();
-        if self.value.is_some() {
-            len + 1
-        } else {
-            len
+        let (mut size, mut stack) = (0, vec![self]);
+        while let Some(n) = stack.pop() {
+            size += usize::from(n.value.is_some());
+            stack.extend(n.branches.values());
         }
+        size
     }
 
     #[inline]
     pub fn nodes_size(&self) -> usize {
-        let len: usize = self.branches.values().map(|n| n.nodes_size()).sum();
-        self.branches.len() + len
+        let (mut size, mut stack) = (0, vec![self]);
+        while let Some(n) = stack.pop() {
+            size += n.branches.len();
+            stack.extend(n.branches.values());
+        }
+        size
     }
 
     #[inline]
     pub fn list(&self, mut top: usize) -> Vec<String> {
         let mut out = Vec::new();
-        let parent = Level::Blank;
-        self._list(&mut out, &parent, &mut top, 0);
+        let mut stack = vec![(self, 0usize)];
+        while let Some((node, depth)) = stack.pop() {
+            for (l, n) in node.branches.iter() {
+                if top == 0 {
+                    return out;
+                }
+                out.push(format!("{} {:?}", " ".repeat(depth * 3), l));
+                top -= 1;
+                stack.push((n, depth + 1));
+            }
+        }
         out
     }
+}
 
-    #[inline]
-    fn _list(&self, out: &mut Vec<String>, _parent: &Level, top: &mut usize, depth: usize) {
-        if *top == 0 {
-            return;
-        }
-        for (l, n) in self.branches.iter() {
-            out.push(format!("{} {:?}", " ".repeat(depth * 3), l));
-            *top -= 1;
-            n._list(out, l, top, depth + 1);
-            if *top == 0 {
-                return;
-            }
+// cetratus: a node's children are dropped one after the other from a stack, not by the nested
+// drops of their maps, which recurse once a level.
+impl<V> Drop for Node<V> {
+    fn drop(&mut self) {
+        let mut stack: Vec<Node<V>> = self.branches.drain().map(|(_, n)| n).collect();
+        while let Some(mut n) = stack.pop() {
+            stack.extend(n.branches.drain().map(|(_, c)| c));
         }
     }
 }

@@ -848,6 +848,14 @@ impl SessionState {
                 //hook, message_publish
                 let p = self.hook.message_publish(from.clone(), &p).await.unwrap_or(p);
                 log::debug!("process_last_will, publish: {p:?}");
+                // cetratus: a will is a publish by its client, so it passes the publish ACL as
+                // any other; refused, it is dropped (the message_dropped hook is told why).
+                let acl_result = self.hook.message_publish_check_acl(&p).await;
+                if !acl_result.is_allow() {
+                    let reason = Reason::PublishResult(acl_result.pub_res());
+                    self.scx.extends.hook_mgr().message_dropped(None, from, p, reason).await;
+                    return Ok(());
+                }
 
                 let message_storage_available = {
                     #[cfg(feature = "msgstore")]

@@ -95,43 +95,58 @@ impl<V> Node<V>
 where
     V: Hash + Ord + Eq + Clone + Debug + Serialize + Deserialize<'static>,
 {
+    // cetratus: every walk of the tree is a loop, never a recursion: a topic's levels are a
+    // client's to choose, and a recursion once a level overflowed the stack of a broker thread
+    // (and aborted the process) at a few thousand levels.
     #[inline]
     pub fn insert(&mut self, topic_filter: &Topic, value: V) -> bool {
-        let mut path = topic_filter.levels().clone();
-        path.reverse();
-        self._insert(path, value)
-    }
-
-    #[inline]
-    fn _insert(&mut self, mut path: Vec<Level>, value: V) -> bool {
-        if let Some(first) = path.pop() {
-            self.branches.entry(first).or_default()._insert(path, value)
-        } else {
-            self.values.insert(value)
+        let mut node = self;
+        for level in topic_filter.levels() {
+            node = node.branches.entry(level.clone()).or_default();
         }
+        node.values.insert(value)
     }
 
+    // cetratus: a loop down the path, then one removal of the highest node that the removal
+    // left empty, with everything below it.
     #[inline]
     pub fn remove(&mut self, topic_filter: &Topic, value: &V) -> bool {
-        self._remove(topic_filter.levels().as_ref(), value)
-    }
-
-    #[inline]
-    fn _remove(&mut self, path: &[Level], value: &V) -> bool {
-        if path.is_empty() {
-            self.values.remove(value)
-        } else {
-            let t = &path[0];
-            if let Some(x) = self.branches.get_mut(t) {
-                let res = x._remove(&path[1..], value);
-                if x.values.is_empty() && x.branches.is_empty() {
-                    self.branches.remove(t);
-                }
-                res
-            } else {
-                false
+        let path: &[Level] = topic_filter.levels().as_ref();
+        let mut leaf = &mut *self;
+        for level in path {
+            match leaf.branches.get_mut(level) {
+                Some(next) => leaf = next,
+                None => return false,
             }
         }
+        if !leaf.values.remove(value) {
+            return false;
+        }
+        // The depth of the highest node on the path from which every node down to the leaf
+        // holds nothing but the next one.
+        let (mut cut, mut node) = (None, &*self);
+        for (depth, level) in path.iter().enumerate() {
+            let Some(next) = node.branches.get(level) else { break };
+            let only_the_path = if depth + 1 < path.len() { 1 } else { 0 };
+            let empty = next.values.is_empty() && next.branches.len() == only_the_path;
+            match (empty, cut) {
+                (true, None) => cut = Some(depth),
+                (false, _) => cut = None,
+                (true, Some(_)) => {}
+            }
+            node = next;
+        }
+        if let Some(depth) = cut {
+            let mut parent = &mut *self;
+            for level in &path[..depth] {
+                match parent.branches.get_mut(level) {
+                    Some(next) => parent = next,
+                    None => return true,
+                }
+            }
+            parent.branches.remove(&path[depth]);
+        }
+        true
     }
 
     #[inline]
@@ -144,16 +159,25 @@ where
         Matcher { node: self, path: topic.levels() }
     }
 
+    // cetratus: the sizes and the listing walk with a stack of their own.
     #[inline]
     pub fn values_size(&self) -> usize {
-        let len: usize = self.branches.values().map(|n| n.values_size()).sum();
-        self.values.len() + len
+        let (mut size, mut stack) = (0, vec![self]);
+        while let Some(n) = stack.pop() {
+            size += n.values.len();
+            stack.extend(n.branches.values());
+        }
+        size
     }
 
     #[inline]
     pub fn nodes_size(&self) -> usize {
-        let len: usize = self.branches.values().map(|n| n.nodes_size()).sum();
-        self.branches.len() + len
+        let (mut size, mut stack) = (0, vec![self]);
+        while let Some(n) = stack.pop() {
+            size += n.branches.len();
+            stack.extend(n.branches.values());
+        }
+        size
     }
 
     #[inline]
@@ -174,19 +198,27 @@ where
     #[inline]
     pub fn list(&self, top: usize) -> Vec<String> {
         let mut out = Vec::new();
-        let parent = Level::Blank;
-        self._list(&mut out, &parent, top, 0);
+        let mut stack = vec![(self, 0usize)];
+        while let Some((node, depth)) = stack.pop() {
+            if depth >= top {
+                continue;
+            }
+            for (l, n) in node.branches.iter() {
+                out.push(format!("{} {:?}", " ".repeat(depth * 3), l));
+                stack.push((n, depth + 1));
+            }
+        }
         out
     }
+}
 
-    #[inline]
-    fn _list(&self, out: &mut Vec<String>, _parent: &Level, top: usize, depth: usize) {
-        if top == 0 {
-            return;
-        }
-        for (l, n) in self.branches.iter() {
-            out.push(format!("{} {:?}", " ".repeat(depth * 3), l));
-            n._list(out, l, top - 1, depth + 1);
+// cetratus: a node's children are dropped one after the other from a stack, not by the nested
+// drops of their maps, which recurse once a level.
+impl<V: Ord> Drop for Node<V> {
+    fn drop(&mut self) {
+        let mut stack: Vec<Node<V>> = self.branches.drain().map(|(_, n)| n).collect();
+        while let Some(mut n) = stack.pop() {
+            stack.extend(n.branches.drain().map(|(_, c)| c));
         }
     }
 }
@@ -257,12 +289,13 @@ impl VecToTopic for Vec<&Level> {
     }
 }
 
+// cetratus: the matcher keeps the nodes it has still to visit on a stack of its own, instead of
+// an iterator per level nested in its parent's (whose `next` recursed once a level).
 pub struct MatchedIter<'a, V: Ord> {
-    node: &'a Node<V>,
-    path: &'a [Level],
-    sub_path: Option<Vec<&'a Level>>,
+    /// Nodes still to visit: the node, the topic's levels left to match below it, and the
+    /// filter's levels that led to it.
+    stack: Vec<(&'a Node<V>, &'a [Level], Vec<&'a Level>)>,
     curr_items: Vec<(Vec<&'a Level>, Vec<&'a V>)>,
-    sub_iters: Vec<Self>,
 }
 
 impl<'a, V> MatchedIter<'a, V>
@@ -271,7 +304,7 @@ where
 {
     #[inline]
     fn new(node: &'a Node<V>, path: &'a [Level], sub_path: Vec<&'a Level>) -> Self {
-        Self { node, path, sub_path: Some(sub_path), curr_items: Vec::new(), sub_iters: Vec::new() }
+        Self { stack: vec![(node, path, sub_path)], curr_items: Vec::new() }
     }
 
     #[inline]
@@ -281,80 +314,52 @@ where
         }
     }
 
+    /// Visits one node: its matches go to `curr_items`, the nodes below it that may match to
+    /// the stack.
     #[inline]
-    fn next_item(&mut self) -> Option<Item<'a, V>> {
-        if let Some(item) = self.curr_items.pop() {
-            return Some(item);
-        }
-        while !self.sub_iters.is_empty() {
-            if let Some(item) = self.sub_iters[0].next() {
-                return Some(item);
-            }
-            self.sub_iters.remove(0);
-        }
-        None
-    }
-
-    #[inline]
-    fn prepare(&mut self) -> Option<()> {
-        if self.path.is_empty() {
+    fn visit(&mut self, node: &'a Node<V>, path: &'a [Level], mut sub_path: Vec<&'a Level>) {
+        if path.is_empty() {
             //Match parent #
-            if let Some(b_node) = self.node.branches.get(&Level::MultiWildcard) {
+            if let Some(b_node) = node.branches.get(&Level::MultiWildcard) {
                 if !b_node.values.is_empty() {
-                    let mut sub_path = self.sub_path.clone()?;
+                    let mut sub_path = sub_path.clone();
                     sub_path.push(&Level::MultiWildcard);
                     self.add_to_items(sub_path, &b_node.values);
                 }
             }
-            let sub_path = self.sub_path.take()?;
-            self.add_to_items(sub_path, &self.node.values);
-        } else {
-            //Topic names starting with the $character cannot be matched with topic
-            //filters starting with wildcards (# or +)
-            if !(self.sub_path.as_ref()?.is_empty()
-                && !matches!(self.path[0], Level::Blank)
-                && self.path[0].is_metadata()
-                && (self.node.branches.contains_key(&Level::MultiWildcard)
-                    || self.node.branches.contains_key(&Level::SingleWildcard)))
-            {
-                //Multilayer matching
-                if let Some(b_node) = self.node.branches.get(&Level::MultiWildcard) {
-                    if !b_node.values.is_empty() {
-                        let mut sub_path = self.sub_path.clone()?;
-                        sub_path.push(&Level::MultiWildcard);
-                        self.add_to_items(sub_path, &b_node.values);
-                    }
-                }
-
-                //Single layer matching
-                if let Some(b_node) = self.node.branches.get(&Level::SingleWildcard) {
-                    let mut sub_path = self.sub_path.clone()?;
-                    sub_path.push(&Level::SingleWildcard);
-                    self.sub_iters.push(MatchedIter::new(b_node, &self.path[1..], sub_path));
+            self.add_to_items(sub_path, &node.values);
+            return;
+        }
+        //Topic names starting with the $character cannot be matched with topic
+        //filters starting with wildcards (# or +)
+        if !(sub_path.is_empty()
+            && !matches!(path[0], Level::Blank)
+            && path[0].is_metadata()
+            && (node.branches.contains_key(&Level::MultiWildcard)
+                || node.branches.contains_key(&Level::SingleWildcard)))
+        {
+            //Multilayer matching
+            if let Some(b_node) = node.branches.get(&Level::MultiWildcard) {
+                if !b_node.values.is_empty() {
+                    let mut sub_path = sub_path.clone();
+                    sub_path.push(&Level::MultiWildcard);
+                    self.add_to_items(sub_path, &b_node.values);
                 }
             }
 
-            //Precise matching
-            if let Some(b_node) = self.node.branches.get(&self.path[0]) {
-                let mut sub_path = self.sub_path.take()?;
-                sub_path.push(&self.path[0]);
-                self.sub_iters.push(MatchedIter::new(b_node, &self.path[1..], sub_path));
+            //Single layer matching
+            if let Some(b_node) = node.branches.get(&Level::SingleWildcard) {
+                let mut sub_path = sub_path.clone();
+                sub_path.push(&Level::SingleWildcard);
+                self.stack.push((b_node, &path[1..], sub_path));
             }
         }
-        self.sub_path.take();
 
-        Some(())
-    }
-
-    fn _debug(&self, tag: &str) {
-        println!(
-            "{} sub_iters:{}, curr_items:{}, path:{}, sub_path:{}",
-            tag,
-            self.sub_iters.len(),
-            self.curr_items.len(),
-            self.path.to_string(),
-            self.sub_path.as_ref().map(|path| path.to_string()).unwrap_or_else(|| "None".into())
-        );
+        //Precise matching
+        if let Some(b_node) = node.branches.get(&path[0]) {
+            sub_path.push(&path[0]);
+            self.stack.push((b_node, &path[1..], sub_path));
+        }
     }
 }
 
@@ -366,17 +371,13 @@ where
 
     #[inline]
     fn next(&mut self) -> Option<Self::Item> {
-        if let Some(item) = self.next_item() {
-            return Some(item);
+        loop {
+            if let Some(item) = self.curr_items.pop() {
+                return Some(item);
+            }
+            let (node, path, sub_path) = self.stack.pop()?;
+            self.visit(node, path, sub_path);
         }
-        self.sub_path.as_ref()?;
-
-        self.prepare()?;
-
-        if let Some(item) = self.next_item() {
-            return Some(item);
-        }
-        None
     }
 }
 

@@ -37,17 +37,27 @@ pub enum FloodKind {
     EventSpam,
     /// Dashboard logins with wrong passwords, over HTTP (not MQTT), as fast as they are answered.
     Logins,
+    /// A connection that subscribes with a filter of 6,000 levels, then publishes a retained
+    /// message on a topic of 8,000 levels (both refused: `MAX_TOPIC_LEVELS`), again and again.
+    DeepTopics,
+    /// Connections whose last will is the PLC's retained `state`, forged (refused at CONNECT).
+    Wills,
+    /// Connections that take the client id of the PLC's own client (refused at CONNECT).
+    IdTakeover,
 }
 
 impl FloodKind {
     /// Every kind, in the order a run floods them.
-    pub const ALL: [FloodKind; 6] = [
+    pub const ALL: [FloodKind; 9] = [
         FloodKind::Garbage,
         FloodKind::RefusedLoads,
         FloodKind::ExecInfo,
         FloodKind::LargePayloads,
         FloodKind::EventSpam,
         FloodKind::Logins,
+        FloodKind::DeepTopics,
+        FloodKind::Wills,
+        FloodKind::IdTakeover,
     ];
 
     /// Its place in [`FloodKind::ALL`].
@@ -97,6 +107,9 @@ impl FloodKind {
             FloodKind::LargePayloads => "large_payloads",
             FloodKind::EventSpam => "event_spam",
             FloodKind::Logins => "dashboard_logins",
+            FloodKind::DeepTopics => "deep_topics",
+            FloodKind::Wills => "wills",
+            FloodKind::IdTakeover => "id_takeover",
         }
     }
 
@@ -138,7 +151,11 @@ impl FloodKind {
                     body.to_string().into_bytes(),
                 )]
             }
-            FloodKind::Logins => Vec::new(),
+            // Sent by connections of their own ([`connection_flood`], [`login_flood`]).
+            FloodKind::Logins
+            | FloodKind::DeepTopics
+            | FloodKind::Wills
+            | FloodKind::IdTakeover => Vec::new(),
         }
     }
 }
@@ -249,6 +266,90 @@ fn login_flood(addr: std::net::SocketAddr, account: &str, ctl: &Control) {
         *lock(&ctl.codes)
             .entry(format!("http_{status}"))
             .or_default() += 1;
+    }
+}
+
+/// The attacks that are connections of their own ([`FloodKind::DeepTopics`],
+/// [`FloodKind::Wills`], [`FloodKind::IdTakeover`]), one after the other while their kind is on,
+/// each counted once the broker has answered it; what it answered is tallied as a code
+/// (`connack_<return code>`, `suback_<return code>`, `closed`).
+fn connection_flood(broker: std::net::SocketAddr, plc: &str, ctl: &Control) {
+    let deep_filter = vec!["a"; 6000].join("/");
+    let deep_topic = vec!["b"; 8000].join("/");
+    let state = format!("cetratus/{plc}/state");
+    let plc_id = cetratus_mct::acl::plc_client_id(plc);
+    while !ctl.done.load(Ordering::Relaxed) {
+        let kind = ctl.active();
+        let (id, will) = match kind {
+            Some(FloodKind::DeepTopics) => ("flood-deep", None),
+            Some(FloodKind::Wills) => ("flood-will", Some(&state)),
+            Some(FloodKind::IdTakeover) => (plc_id.as_str(), None),
+            _ => {
+                std::thread::sleep(IDLE_POLL);
+                continue;
+            }
+        };
+        let attack = RawAttack { broker, id, will };
+        let code = match kind {
+            Some(FloodKind::DeepTopics) => attack.deep(&deep_filter, &deep_topic),
+            _ => attack.connect().map(|(_, code)| format!("connack_{code}")),
+        };
+        let Ok(code) = code else { continue };
+        if let Some(kind) = kind {
+            ctl.count_sent(kind);
+        }
+        *lock(&ctl.codes).entry(code).or_default() += 1;
+    }
+}
+
+/// One connection of [`connection_flood`], MQTT 3.1.1 packets written by rumqttc's encoder on a
+/// bare socket.
+struct RawAttack<'a> {
+    broker: std::net::SocketAddr,
+    id: &'a str,
+    will: Option<&'a String>,
+}
+
+impl RawAttack<'_> {
+    /// Connects; the socket and the CONNACK's return code.
+    fn connect(&self) -> std::io::Result<(std::net::TcpStream, u8)> {
+        use std::io::{Read, Write};
+        let mut s = std::net::TcpStream::connect(self.broker)?;
+        s.set_read_timeout(Some(Duration::from_secs(5)))?;
+        let mut connect = rumqttc::Connect::new(self.id);
+        connect.keep_alive = 60;
+        connect.last_will = self
+            .will
+            .map(|t| rumqttc::LastWill::new(t, b"{}".to_vec(), rumqttc::QoS::AtMostOnce, true));
+        let mut buf = bytes::BytesMut::new();
+        connect.write(&mut buf).map_err(std::io::Error::other)?;
+        s.write_all(&buf)?;
+        let mut connack = [0u8; 4];
+        s.read_exact(&mut connack)?;
+        Ok((s, connack[3]))
+    }
+
+    /// Subscribes with `filter` and publishes on `topic`, retained; the SUBACK's return code,
+    /// and whether the broker then closed the connection.
+    fn deep(&self, filter: &str, topic: &str) -> std::io::Result<String> {
+        use std::io::{Read, Write};
+        let (mut s, _) = self.connect()?;
+        let mut buf = bytes::BytesMut::new();
+        let mut sub = rumqttc::Subscribe::new(filter, rumqttc::QoS::AtMostOnce);
+        sub.pkid = 1;
+        sub.write(&mut buf).map_err(std::io::Error::other)?;
+        let mut publish = rumqttc::Publish::new(topic, rumqttc::QoS::AtMostOnce, b"x".to_vec());
+        publish.retain = true;
+        publish.write(&mut buf).map_err(std::io::Error::other)?;
+        s.write_all(&buf)?;
+        let mut suback = [0u8; 5];
+        s.read_exact(&mut suback)?;
+        let closed = matches!(s.read(&mut [0u8; 64]), Ok(0) | Err(_));
+        Ok(format!(
+            "suback_{}{}",
+            suback[4],
+            if closed { "_closed" } else { "" }
+        ))
     }
 }
 
@@ -415,6 +516,10 @@ pub fn flood(
                 ctl.count_sent(kind);
             }
         })
+    });
+    threads.push({
+        let ctl = ctl.clone();
+        std::thread::spawn(move || connection_flood(mqtt, PLC, &ctl))
     });
     if let Some((addr, account)) = login_target.clone() {
         let ctl = ctl.clone();

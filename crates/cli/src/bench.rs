@@ -97,8 +97,9 @@ enum What {
         #[arg(long)]
         rt: bool,
         /// The kinds to flood, comma separated, among garbage, refused_loads,
-        /// exec_info, large_payloads, event_spam, dashboard_logins. All of them by default; a
-        /// single kind with `--for 20s` takes about a minute.
+        /// exec_info, large_payloads, event_spam, dashboard_logins, deep_topics, wills and
+        /// id_takeover. All of them by default; a single kind with `--for 20s` takes about a
+        /// minute.
         #[arg(long, value_delimiter = ',')]
         kinds: Vec<String>,
         /// Print one JSON object.

@@ -109,9 +109,12 @@ fn bench_flood_measures_every_kind_in_slices_between_unloaded_ones() {
         "large_payloads",
         "event_spam",
         "dashboard_logins",
+        "deep_topics",
+        "wills",
+        "id_takeover",
     ];
-    // Two rounds of six kinds, each flood slice after an unloaded one.
-    assert_eq!(v["unloaded_slices"], 12, "{v}");
+    // Two rounds of nine kinds, each flood slice after an unloaded one.
+    assert_eq!(v["unloaded_slices"], 18, "{v}");
     assert!(v["unloaded_cycles"].as_u64().is_some_and(|n| n > 0), "{v}");
     let limit = v["limit_ns"].as_f64().expect("the limit");
     let p99 = v["unloaded_latency_p99_ns"]
@@ -142,6 +145,21 @@ fn bench_flood_measures_every_kind_in_slices_between_unloaded_ones() {
             .is_some_and(|r| r.keys().all(|c| c.starts_with("http_"))),
         "{v}"
     );
+    // Each attack of a connection of its own is refused as the broker refuses it.
+    for (kind, code) in [
+        ("deep_topics", "suback_128_closed"),
+        ("wills", "connack_5"),
+        ("id_takeover", "connack_5"),
+    ] {
+        let replies = &v[kind]["replies"];
+        let only = replies
+            .as_object()
+            .is_some_and(|r| r.keys().all(|c| c == code));
+        assert!(
+            only && replies[code].as_u64().is_some_and(|n| n > 0),
+            "{kind}: {replies}"
+        );
+    }
     assert!(v["machine"].is_object(), "{v}");
 }
 
@@ -174,6 +192,9 @@ fn bench_flood_runs_only_the_kinds_asked_for() {
         "large_payloads",
         "event_spam",
         "dashboard_logins",
+        "deep_topics",
+        "wills",
+        "id_takeover",
     ] {
         assert!(v.get(other).is_none(), "{other} was not asked for: {v}");
     }

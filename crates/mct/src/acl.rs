@@ -38,6 +38,11 @@ pub fn internal_client_id(name: &str) -> String {
     format!("{INTERNAL_CLIENT_ID_PREFIX}{name}")
 }
 
+/// The client id of the PLC `plc`'s own client on its embedded broker.
+pub fn plc_client_id(plc: &str) -> String {
+    internal_client_id(&format!("plc-{plc}"))
+}
+
 /// Whether `client_id` is reserved for the process's own clients: any id that starts with `$`,
 /// as the names of their logins do.
 pub fn is_internal_client_id(client_id: &str) -> bool {

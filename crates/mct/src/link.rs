@@ -409,7 +409,7 @@ pub fn start(config: MqttConfig) -> Result<(MctLink, MqttHandle), MctError> {
             let b = EmbeddedBroker::start_with(settings.clone(), &config.plc_id)?;
             let url = format!("mqtt://{}", b.local_addr());
             // An id no other login may take on this broker.
-            let id = crate::acl::internal_client_id(&format!("plc-{}", config.plc_id));
+            let id = crate::acl::plc_client_id(&config.plc_id);
             let mut o = client_options(&url, &id)?;
             let login = b.plc_login();
             o.set_credentials(&login.user, &login.password);

@@ -5,17 +5,13 @@
 mod common;
 
 use std::io::{Read, Write};
-use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
 use cetratus_mct::MAX_TOPIC_LEVELS;
 use cetratus_testkit::raw_mqtt::{
     closed_within, connect, mqtt_str, packet, try_connect, ConnectOptions,
 };
-use common::{assert_cycles_on, client, first_answer, primary_cycles, RunningPlc};
-use rumqttc::v5::mqttbytes::v5::Packet;
-use rumqttc::v5::mqttbytes::QoS;
-use rumqttc::v5::{Client, Event, MqttOptions};
+use common::{assert_cycles_on, client, first_answer, primary_cycles, watch, RunningPlc};
 
 /// Sends a SUBSCRIBE of `filter` on `s`; returns the SUBACK's return code.
 fn suback_code(s: &mut std::net::TcpStream, packet_id: u16, filter: &str) -> u8 {
@@ -99,28 +95,6 @@ fn a_will_on_a_topic_only_the_plc_publishes_is_refused_at_connect() {
         let (_s, code) = try_connect(addr, id, ConnectOptions { login: None, will });
         assert_eq!(code, 0, "a will on {topic} is taken");
     }
-}
-
-/// Every payload published on `topic` while the returned client lives.
-fn watch(port: u16, topic: &str) -> (Client, Arc<Mutex<Vec<Vec<u8>>>>) {
-    let mut opts = MqttOptions::new("watcher", "127.0.0.1", port);
-    opts.set_keep_alive(Duration::from_secs(30));
-    let (c, mut conn) = Client::new(opts, 64);
-    let seen: Arc<Mutex<Vec<Vec<u8>>>> = Arc::default();
-    let s = seen.clone();
-    std::thread::spawn(move || {
-        for ev in conn.iter() {
-            match ev {
-                Ok(Event::Incoming(Packet::Publish(p))) => {
-                    s.lock().expect("seen").push(p.payload.to_vec())
-                }
-                Ok(_) => {}
-                Err(_) => std::thread::sleep(Duration::from_millis(50)),
-            }
-        }
-    });
-    c.subscribe(topic, QoS::AtLeastOnce).expect("subscribes");
-    (c, seen)
 }
 
 #[test]

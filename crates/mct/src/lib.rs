@@ -66,8 +66,8 @@ pub use ingress::{
     INGRESS_BYTES_PER_S, REFUSAL_PAUSE, TURNED_AWAY_PROPERTY,
 };
 pub use link::{
-    client_options, spawn_mqtt, start, BrokerChoice, LinkStats, MctLink, MqttConfig, MqttHandle,
-    Outgoing, StatsReader, COMMAND_QUEUE_BYTES, DEFAULT_MQTT_ADDR,
+    client_options, join_within, spawn_mqtt, start, BrokerChoice, LinkStats, MctLink, MqttConfig,
+    MqttHandle, Outgoing, StatsReader, COMMAND_QUEUE_BYTES, DEFAULT_MQTT_ADDR, STOP_WITHIN,
 };
 pub use rumqttc::v5::MqttOptions;
 pub use topics::{MAX_TOPIC_BYTES, MAX_TOPIC_LEVELS};

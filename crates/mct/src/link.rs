@@ -340,33 +340,61 @@ impl MqttHandle {
             let topic = self.state_topic.clone();
             let task = self.loop_task.take();
             rt.block_on(async move {
-                // A clean disconnect suppresses the last will, so say "offline" ourselves.
-                let _ = client
-                    .publish(
-                        topic,
-                        QoS::AtLeastOnce,
-                        true,
-                        StatePayload::OFFLINE_JSON.to_vec(),
-                    )
-                    .await;
-                let _ = client.disconnect().await;
-                if let Some(t) = task {
-                    let _ = tokio::time::timeout(Duration::from_millis(250), t).await;
+                // A clean disconnect suppresses the last will, so say "offline" ourselves. The
+                // client's queue may be full of what a flood left: try for a while, then go.
+                let goodbye = async {
+                    let _ = client
+                        .publish(
+                            topic,
+                            QoS::AtLeastOnce,
+                            true,
+                            StatePayload::OFFLINE_JSON.to_vec(),
+                        )
+                        .await;
+                    let _ = client.disconnect().await;
+                    if let Some(t) = task {
+                        let _ = tokio::time::timeout(Duration::from_millis(250), t).await;
+                    }
+                };
+                if tokio::time::timeout(STOP_WITHIN, goodbye).await.is_err() {
+                    tracing::warn!(
+                        "the offline state could not be published within {STOP_WITHIN:?}; the \
+                         broker publishes the last will when the connection ends"
+                    );
                 }
             });
             if let Some(t) = self.out_thread.take() {
-                let _ = t.join();
+                join_within(t, STOP_WITHIN, "the MQTT publishing thread");
             }
             rt.shutdown_timeout(Duration::from_millis(200));
             // The event loop is gone with the runtime, and with it the control thread's input.
             if let Some(t) = self.control_thread.take() {
-                let _ = t.join();
+                join_within(t, STOP_WITHIN, "the MQTT control thread");
             }
         }
         if let Some(b) = self.broker.take() {
             b.stop();
         }
     }
+}
+
+/// How long a stop waits for each thread of the control plane (and the offline message) before it
+/// leaves it behind: a stop always ends, whatever is queued or whoever holds the broker.
+pub const STOP_WITHIN: Duration = Duration::from_secs(2);
+
+/// Joins `thread`, waiting at most `within`; false (and a warning naming `what`) when it had not
+/// ended by then: it is left to end with the process.
+pub fn join_within(thread: JoinHandle<()>, within: Duration, what: &str) -> bool {
+    let end = Instant::now() + within;
+    while !thread.is_finished() {
+        if Instant::now() >= end {
+            tracing::warn!("{what} did not stop within {within:?}; left behind");
+            return false;
+        }
+        std::thread::sleep(Duration::from_millis(5));
+    }
+    let _ = thread.join();
+    true
 }
 
 impl Drop for MqttHandle {

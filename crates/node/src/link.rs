@@ -368,12 +368,24 @@ impl ControlLink {
         }
     }
 
-    /// Stops the preparer and the publisher.
-    pub fn stop(mut self) {
-        self.snap_tx = None;
-        self.done.store(true, std::sync::atomic::Ordering::Release);
-        for t in self.threads.drain(..) {
-            let _ = t.join();
+    /// Stops the preparer and the publisher, within [`cetratus_mct::STOP_WITHIN`] each whatever
+    /// is queued: the commands prepared and not yet taken are dropped, since the scan thread
+    /// takes no more.
+    pub fn stop(self) {
+        let ControlLink {
+            to_scan_rx,
+            snap_tx,
+            done,
+            threads,
+            ..
+        } = self;
+        done.store(true, std::sync::atomic::Ordering::Release);
+        drop(snap_tx);
+        // The preparer may be blocked handing a command to the scan thread: without a receiver,
+        // its send fails and it ends.
+        drop(to_scan_rx);
+        for (t, what) in threads.into_iter().zip(["the preparer", "the publisher"]) {
+            cetratus_mct::join_within(t, cetratus_mct::STOP_WITHIN, what);
         }
     }
 }

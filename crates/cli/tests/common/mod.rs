@@ -305,3 +305,25 @@ pub fn assert_cycles_on(ops: &Client, replies: &Replies, plc: &str, corr: &[u8],
         "the PLC cycles on: {before} cycles, then {after}"
     );
 }
+
+/// Every payload published on `topic` while the returned client lives.
+pub fn watch(port: u16, topic: &str) -> (Client, Arc<Mutex<Vec<Vec<u8>>>>) {
+    let mut opts = MqttOptions::new("watcher", "127.0.0.1", port);
+    opts.set_keep_alive(Duration::from_secs(30));
+    let (c, mut conn) = Client::new(opts, 64);
+    let seen: Arc<Mutex<Vec<Vec<u8>>>> = Arc::default();
+    let s = seen.clone();
+    std::thread::spawn(move || {
+        for ev in conn.iter() {
+            match ev {
+                Ok(Event::Incoming(Packet::Publish(p))) => {
+                    s.lock().expect("seen").push(p.payload.to_vec())
+                }
+                Ok(_) => {}
+                Err(_) => std::thread::sleep(Duration::from_millis(50)),
+            }
+        }
+    });
+    c.subscribe(topic, QoS::AtLeastOnce).expect("subscribes");
+    (c, seen)
+}

@@ -158,14 +158,23 @@ async def subscribe(url, ident, seconds):
         print(show(h.values[-1]) if h.values else "none")
 
 
-async def events(url, seconds, source=False):
+async def events(url, seconds, source=False, until=None):
+    """Subscribes to the Server's events, says "subscribed", and prints the events' types after
+    `seconds`, or as soon as `until` (TYPE:COUNT) events of TYPE have come."""
     async with Client(url) as c:
         h = Counter()
         sub = await c.create_subscription(50, h)
         await sub.subscribe_events(c.nodes.server, queuesize=100)
         print("subscribed")
         sys.stdout.flush()
-        await asyncio.sleep(seconds)
+        end = asyncio.get_running_loop().time() + seconds
+        kind, count = (until.rsplit(":", 1) + [None])[:2] if until else (None, None)
+        while asyncio.get_running_loop().time() < end:
+            if kind is not None:
+                seen = sum(1 for e in h.events if e.EventType.to_string() == kind)
+                if seen >= int(count):
+                    break
+            await asyncio.sleep(0.05)
         for e in h.events:
             if source:
                 print(f"{e.EventType.to_string()} {e.SourceNode.Identifier}")
@@ -371,6 +380,7 @@ def main():
     e.add_argument("url")
     e.add_argument("seconds", type=float)
     e.add_argument("--source", action="store_true")
+    e.add_argument("--until", help="TYPE:COUNT, stop once COUNT events of TYPE came")
     wt = sub.add_parser("wait")
     wt.add_argument("url")
     wt.add_argument("id")
@@ -412,7 +422,7 @@ def main():
     elif a.cmd == "subscribe":
         asyncio.run(subscribe(a.url, a.id, a.seconds))
     elif a.cmd == "events":
-        asyncio.run(events(a.url, a.seconds, a.source))
+        asyncio.run(events(a.url, a.seconds, a.source, a.until))
     elif a.cmd == "wait":
         asyncio.run(wait(a.url, a.id, a.value, a.seconds))
     elif a.cmd == "run":

@@ -281,40 +281,53 @@ fn a_minute_with_the_twin_as_the_plcs_opcua_client_finishes_as_many_parts_as_in_
 fn after_a_substitution_the_marking_nodes_follow_the_new_program_with_a_model_change_event() {
     let demo = demo_files(BIN);
     let d = demo.path();
-    let port = free_port();
+    let (port, mqtt) = (free_port(), free_port());
     let url = format!("opc.tcp://127.0.0.1:{port}");
     let io = write_io(d, &format!("[opcua]\nlisten = \"{url}\"\n"));
     let pkg = |name: &str| d.join(name).display().to_string();
-    let plc = start(
-        d,
-        &io,
-        port,
-        &[
-            "--twin",
-            "vernadat",
-            "--trust",
-            &pkg("trusted"),
-            "--at",
-            &format!("3s load {}", pkg("u1.cpkg")),
-            "--at",
-            "4s substitute",
-            "--at",
-            "5s accept",
-            "--at",
-            &format!("6s load {}", pkg("u2.cpkg")),
-            "--at",
-            "7s substitute",
-        ],
+    let mqtt = format!("127.0.0.1:{mqtt}");
+    let plc = ChildGuard::spawn(
+        run_vernadat(BIN, &io, d)
+            .args(["--twin", "vernadat", "--trust", &pkg("trusted")])
+            .args(["--mqtt", &mqtt, "--no-dashboard"])
+            .stdout(Stdio::piped())
+            .stderr(Stdio::piped()),
     );
+    wait_for_port(port, "the PLC's OPC UA server", Duration::from_secs(60));
     let before = peer(&["browse", &url]);
     assert!(
         !before.iter().any(|n| n == "cell.Marking.P30"),
         "{before:?}"
     );
     let hash_before = peer(&["read", &url, "cell.ExecInfo.ProgramHash"]);
-    // Subscribed to the Server's events before the first substitution, until after the second.
-    let events = peer(&["events", &url, "7"]);
-    assert_eq!(events[0], "subscribed");
+    // Subscribed to the Server's events before the first substitution, until after the second
+    // model change (GeneralModelChangeEventType, i=2133); the updates go over MQTT once the
+    // subscription is confirmed.
+    let mut events = ChildGuard::spawn(
+        cetratus_testkit::opcua::command()
+            .args(["events", &url, "120", "--until", "i=2133:2"])
+            .stdout(Stdio::piped()),
+    );
+    let mut lines = std::io::BufRead::lines(std::io::BufReader::new(
+        events.0.stdout.take().expect("the peer's output"),
+    ));
+    let first = lines.next().and_then(Result::ok);
+    assert_eq!(first.as_deref(), Some("subscribed"));
+    for verb in [
+        vec!["load", &pkg("u1.cpkg")],
+        vec!["substitute"],
+        vec!["accept"],
+        vec!["load", &pkg("u2.cpkg")],
+        vec!["substitute"],
+    ] {
+        let out = Command::new(BIN)
+            .args(&verb)
+            .args(["--plc", "cell", "--mqtt", &mqtt, "--timeout", "60s"])
+            .output()
+            .expect("the client runs");
+        assert!(out.status.success(), "{verb:?}: {out:?}");
+    }
+    let events: Vec<String> = lines.map_while(Result::ok).collect();
     let changes = events.iter().filter(|e| *e == "i=2133").count();
     assert!(changes >= 2, "{events:?}");
     let after = peer(&["browse", &url]);

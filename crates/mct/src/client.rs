@@ -87,6 +87,7 @@ pub struct Session {
     key: Option<OperatorKey>,
     reply_leaf: Option<String>,
     events: bool,
+    online: bool,
     held: VecDeque<Message>,
 }
 
@@ -113,6 +114,7 @@ impl Session {
             key: config.key,
             reply_leaf: None,
             events: false,
+            online: false,
             held: VecDeque::new(),
         };
         s.wait_for(|e| matches!(e, Packet::ConnAck(_)))
@@ -203,8 +205,53 @@ impl Session {
         }
     }
 
-    /// Sends a command with a response topic and correlation data, and returns the PLC's reply.
+    /// Keeps `m` for whoever reads next, dropping the oldest beyond [`HELD`].
+    fn hold(&mut self, m: Message) {
+        if self.held.len() == HELD {
+            self.held.pop_front();
+        }
+        self.held.push_back(m);
+    }
+
+    /// Waits, once a session and until `end`, for the PLC's retained `state` to say it is
+    /// online. A PLC says so only once it has subscribed to its commands, so a command sent then
+    /// is not lost, even right after the PLC started.
+    fn wait_online(&mut self, end: Instant) -> Result<(), MctError> {
+        if self.online {
+            return Ok(());
+        }
+        self.subscribe(Leaf::State)?;
+        let mut seen = "it had no state of it";
+        loop {
+            let left = end.saturating_duration_since(Instant::now());
+            let m = if left.is_zero() {
+                None
+            } else {
+                self.receive(Some(left))?
+            };
+            let Some(m) = m else {
+                return Err(MctError::Offline {
+                    plc: self.topics.plc().to_string(),
+                    after: self.timeout,
+                    seen,
+                });
+            };
+            if m.leaf != "state" {
+                self.hold(m);
+                continue;
+            }
+            if m.payload["online"] == Value::Bool(true) {
+                self.online = true;
+                return Ok(());
+            }
+            seen = "its last state said offline";
+        }
+    }
+
+    /// Sends a command with a response topic and correlation data, and returns the PLC's reply,
+    /// once the PLC is online.
     pub fn request(&mut self, command: &Command) -> Result<Reply, MctError> {
+        self.wait_online(Instant::now() + self.timeout)?;
         let verb = command.verb();
         let reply_leaf = format!("reply/cli-{}", std::process::id());
         if self.reply_leaf.as_deref() != Some(reply_leaf.as_str()) {
@@ -238,10 +285,7 @@ impl Session {
                     });
                 }
                 // An event may come before the reply; it is kept for whoever reads next.
-                if self.held.len() == HELD {
-                    self.held.pop_front();
-                }
-                self.held.push_back(m);
+                self.hold(m);
             }
         }
         Err(MctError::NoReply {

@@ -111,4 +111,17 @@ pub enum MctError {
         /// How long the client waited.
         after: std::time::Duration,
     },
+    /// No state of the PLC said it was online within the client's timeout.
+    #[error(
+        "PLC `{plc}` is not online on this broker (waited {after:?}; {seen}); check --plc, the \
+         broker (--mqtt or --broker), and that the PLC is running"
+    )]
+    Offline {
+        /// The PLC id.
+        plc: String,
+        /// How long the client waited.
+        after: std::time::Duration,
+        /// What the broker had of it: its last state said offline, or it had no state at all.
+        seen: &'static str,
+    },
 }

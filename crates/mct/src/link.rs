@@ -603,7 +603,10 @@ fn outgoing_loop(
         match rx.recv_timeout(tick) {
             Ok(Outgoing::State(s)) => {
                 let key = state_key(&s);
-                if last_state_key.as_ref() != Some(&key) {
+                // Online only once subscribed to the commands: a client that waits for the
+                // state (`client::Session`) then never sends a command into the void.
+                let subscribed = shared.connected.load(Ordering::Acquire);
+                if subscribed && last_state_key.as_ref() != Some(&key) {
                     last_state_key = Some(key);
                     publish(topics.state(), true, to_json(&s), None);
                     state = None;
@@ -641,7 +644,8 @@ fn outgoing_loop(
         }
         if Instant::now() >= next {
             next = Instant::now() + period;
-            if let Some(s) = state.take() {
+            let subscribed = shared.connected.load(Ordering::Acquire);
+            if let Some(s) = state.take_if(|_| subscribed) {
                 publish(
                     topics.state(),
                     true,

@@ -658,7 +658,7 @@ pub fn flood(
         s("rt"),
         rt_status.unwrap_or_else(|| "not requested".into()).into(),
     );
-    out.insert(s("primary_status"), plc.status().name().into());
+    out.insert(s("primary_status"), plc.status().as_str().into());
     out.insert(
         s("dropped"),
         serde_json::json!({

@@ -277,7 +277,7 @@ pub fn command_load(rate: u32, phase_us: u64, period_us: u64) -> Result<Figures,
     out.insert(s("overruns_loaded"), loaded.overruns.into());
     out.insert(s("limit_ns"), limit.into());
     out.insert(s("within_limit"), ((l.p99_ns as f64) <= limit).into());
-    out.insert(s("primary_status"), plc.status().name().into());
+    out.insert(s("primary_status"), plc.status().as_str().into());
     Ok(out)
 }
 

@@ -105,7 +105,7 @@ pub fn run(args: &DemoArgs) -> anyhow::Result<()> {
         "\n{} parts finished, {} faults; PRIMARY = {} at the end",
         rec.parts_finished,
         rec.faults.len(),
-        rec.steps.last().map_or("A", |s| s.primary.name())
+        rec.steps.last().map_or("A", |s| s.primary.as_str())
     );
     Ok(())
 }

@@ -365,8 +365,8 @@ pub fn run(args: &RunArgs) -> anyhow::Result<()> {
         modbus_server: plant_report.server,
         opcua_server: plant_report.opcua,
         scan: figures,
-        primary: plc.primary().name(),
-        status: plc.status().name(),
+        primary: plc.primary().as_str(),
+        status: plc.status().as_str(),
         state_dir: state_dir.as_ref().map(|d| d.display().to_string()),
         persist: report.persist,
     };

@@ -53,11 +53,11 @@ fn print(ins: &Inspection) {
             );
             println!(
                 "  PRIMARY         {}",
-                snap.primary.map_or("(none)", |p| p.name())
+                snap.primary.map_or("(none)", |p| p.as_str())
             );
             println!(
                 "  STATUS          {}{}",
-                snap.status.map_or("(none)", |st| st.name()),
+                snap.status.map_or("(none)", |st| st.as_str()),
                 snap.update
                     .as_ref()
                     .map_or(String::new(), |u| format!(" ({u})"))

@@ -27,32 +27,7 @@ use crate::config::{Device, IoConfig, StalePolicy};
 use crate::map::FieldMap;
 use crate::IoError;
 
-/// What a device's inputs are worth this cycle.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
-#[serde(rename_all = "snake_case")]
-pub enum Quality {
-    /// No complete read yet: the inputs are their safe values.
-    Initial,
-    /// Read in time.
-    Good,
-    /// Missed cycles, fewer than `stale_after`: the last values are used.
-    Late,
-    /// `stale_after` cycles or more without a read: the device's stale policy applies.
-    Stale,
-}
-
-/// How an I/O thread's connection stands.
-#[derive(Clone, Debug, PartialEq, Eq, Serialize, Default)]
-#[serde(rename_all = "snake_case")]
-pub enum Link {
-    /// Not connected yet.
-    #[default]
-    Connecting,
-    /// Connected.
-    Up,
-    /// Lost, or never made: the thread retries with backoff.
-    Down,
-}
+pub use cetratus_vocab::{LinkState, Quality};
 
 /// The figures of one device, for the run summary, exec_info and the dashboard.
 #[derive(Clone, Debug, PartialEq, Serialize)]
@@ -62,7 +37,7 @@ pub struct DeviceStatus {
     /// Its inputs' quality in the last cycle.
     pub quality: Quality,
     /// Its connection.
-    pub link: Link,
+    pub link: LinkState,
     /// Cycles in a row without a complete read.
     pub missed_cycles: u64,
     /// Complete reads.
@@ -158,7 +133,7 @@ impl FieldIo {
                 .map(|d| DeviceStatus {
                     name: d.name.clone(),
                     quality: Quality::Initial,
-                    link: Link::Connecting,
+                    link: LinkState::Connecting,
                     missed_cycles: 0,
                     reads: 0,
                     errors: 0,

@@ -18,7 +18,7 @@ use tokio_modbus::Slave;
 
 use crate::address::Table;
 use crate::config::{Device, Transport};
-use crate::field::{lock, Kick, Link, Shared};
+use crate::field::{lock, Kick, LinkState, Shared};
 use crate::map::FieldMap;
 
 /// The longest error text kept for a device.
@@ -164,7 +164,7 @@ impl DeviceThread {
                         let again = connected_once;
                         connected_once = true;
                         self.report(|s| {
-                            s.link = Link::Up;
+                            s.link = LinkState::Up;
                             s.reconnects += u64::from(again);
                         });
                         ctx = Some(c);
@@ -173,7 +173,7 @@ impl DeviceThread {
                         next_attempt = Instant::now() + backoff;
                         backoff = (backoff * 2).min(max);
                         self.report(|s| {
-                            s.link = Link::Down;
+                            s.link = LinkState::Down;
                             s.errors += 1;
                             s.last_error = Some(truncate(e));
                         });
@@ -224,7 +224,7 @@ impl DeviceThread {
                     ctx = None;
                     next_attempt = Instant::now() + backoff;
                     self.report(|s| {
-                        s.link = Link::Down;
+                        s.link = LinkState::Down;
                         s.errors += 1;
                         s.last_error = Some(truncate(e));
                     });
@@ -325,7 +325,7 @@ impl DeviceThread {
         st.reads += 1;
         if !any {
             // A device with only outputs: a read of nothing is a successful cycle.
-            st.link = Link::Up;
+            st.link = LinkState::Up;
         }
         Outcome::Ok
     }

@@ -555,7 +555,7 @@ pub(crate) fn reply_props(handle: &ReplyHandle) -> PublishProperties {
     }
 }
 
-fn state_key(s: &StateMsg) -> (cetratus_proto::Slot, cetratus_proto::StatusName, String) {
+fn state_key(s: &StateMsg) -> (cetratus_proto::Slot, cetratus_proto::Status, String) {
     (
         s.primary,
         s.status,

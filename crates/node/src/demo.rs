@@ -244,7 +244,7 @@ impl Recorder {
             .collect();
         let key = (
             plc.primary(),
-            plc.status().name(),
+            plc.status().as_str(),
             plc.inputs().to_vec(),
             outs,
             marks,
@@ -268,7 +268,7 @@ impl Recorder {
             step: plc.cycles() - 1,
             time_ms: now_us as f64 / 1e3,
             primary: plc.primary(),
-            status: plc.status().name(),
+            status: plc.status().as_str(),
             inputs: named(plc.io_inputs(), plc.inputs()),
             outputs_a: plc.outputs_of(Slot::A).map(|o| named(io_out, o)),
             outputs_b: plc.outputs_of(Slot::B).map(|o| named(io_out, o)),
@@ -470,7 +470,7 @@ pub fn diagram(rec: &DemoRecord, end_ms: f64) -> TimingDiagram {
         })
     };
     d.lanes.push(lane("update", "PRIMARY", &|s| {
-        LaneValue::Text(s.primary.name().to_string())
+        LaneValue::Text(s.primary.as_str().to_string())
     }));
     d.lanes.push(lane("update", "STATUS", &|s| {
         LaneValue::Text(s.status.to_string())
@@ -497,7 +497,8 @@ pub fn diagram(rec: &DemoRecord, end_ms: f64) -> TimingDiagram {
             e.kind,
             EventKind::LoadAccepted | EventKind::Substituted | EventKind::QuarantineStarted
         ) {
-            d.markers.push((e.time_us, e.kind.name().replace('_', " ")));
+            d.markers
+                .push((e.time_us, e.kind.as_str().replace('_', " ")));
         }
     }
     d
@@ -527,7 +528,7 @@ pub fn table(rec: &DemoRecord) -> String {
         s.push_str(&format!(
             "{:>9.2}  {:<3} {:<10}  {:<28} | {:<22} | {:<22} | {}\n",
             st.time_ms / 1e3,
-            st.primary.name(),
+            st.primary.as_str(),
             st.status,
             on(&st.inputs),
             opt(&st.outputs_a),

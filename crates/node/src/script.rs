@@ -219,7 +219,7 @@ impl Script {
                 ("load", Some(path)) => Verb::Load(path.to_string()),
                 ("load", None) => return Err(syntax("`load` needs a package file".into())),
                 ("substitute", m) => Verb::Substitute(match m {
-                    Some(m) => m.parse().map_err(syntax)?,
+                    Some(m) => m.parse().map_err(|e: cetratus_runtime::UnknownName| syntax(e.to_string()))?,
                     None => SubstituteMode::Retransform,
                 }),
                 ("remove", _) => Verb::Remove,

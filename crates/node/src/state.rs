@@ -71,8 +71,8 @@ pub fn open(
                 "cold start: the saved state in {} is ignored (cycle {}, PRIMARY {}, {})",
                 dir.display(),
                 s.snapshot.cycle,
-                s.snapshot.primary.map_or("?", |p| p.name()),
-                s.snapshot.status.map_or("?", |st| st.name())
+                s.snapshot.primary.map_or("?", |p| p.as_str()),
+                s.snapshot.status.map_or("?", |st| st.as_str())
             ),
             None => format!(
                 "cold start: the saved state in {} is ignored (there was none)",

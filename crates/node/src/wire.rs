@@ -1,5 +1,7 @@
 //! From the runtime's types to the wire's (`cetratus-proto`): the runtime knows nothing of the
-//! protocol, and the protocol nothing of the runtime; the node translates.
+//! protocol, and the protocol nothing of the runtime; the node translates their structures. The
+//! names both use (containers, STATUS, roles, verdicts, quality) are `cetratus-vocab`'s, the same
+//! type on both sides.
 
 use std::sync::Arc;
 
@@ -7,29 +9,7 @@ use cetratus_net::export::to_svg;
 use cetratus_program::{Program, Value};
 use cetratus_proto as proto;
 use cetratus_runtime::monitor::CycleRecord;
-use cetratus_runtime::{
-    Container, Event, ExecInfo, LoopTiming, Plc, Role, Slot, Status, Summary, Verdict, VerdictKind,
-    VerdictResult,
-};
-
-/// A container's name on the wire.
-pub fn slot(s: Slot) -> proto::Slot {
-    match s {
-        Slot::A => proto::Slot::A,
-        Slot::B => proto::Slot::B,
-    }
-}
-
-/// STATUS on the wire.
-pub fn status(s: Status) -> proto::StatusName {
-    match s {
-        Status::Idle => proto::StatusName::Idle,
-        Status::Setup => proto::StatusName::Setup,
-        Status::Quarantine => proto::StatusName::Quarantine,
-        Status::Probation => proto::StatusName::Probation,
-        Status::Fault => proto::StatusName::Fault,
-    }
-}
+use cetratus_runtime::{Container, Event, ExecInfo, LoopTiming, Plc, Slot, Summary, Verdict};
 
 /// Timing statistics on the wire.
 pub fn timing(s: Summary) -> proto::TimingSummary {
@@ -72,35 +52,20 @@ pub fn program_info(c: &Container) -> proto::ProgramInfo {
     }
 }
 
-fn role(r: Role) -> proto::Role {
-    match r {
-        Role::Primary => proto::Role::Primary,
-        Role::Candidate => proto::Role::Candidate,
-        Role::Shadow => proto::Role::Shadow,
-    }
-}
-
 /// A verdict on the wire.
 pub fn verdict(v: &Verdict) -> proto::Verdict {
     proto::Verdict {
         figures: v.figures.clone(),
-        kind: match v.kind {
-            VerdictKind::Analysis => proto::VerdictKind::Analysis,
-            VerdictKind::Twin => proto::VerdictKind::Twin,
-        },
+        kind: v.kind,
         reasons: v.reasons.clone(),
-        result: match v.result {
-            VerdictResult::Pass => proto::VerdictResult::Pass,
-            VerdictResult::Fail => proto::VerdictResult::Fail,
-            VerdictResult::Warn => proto::VerdictResult::Warn,
-        },
+        result: v.result,
     }
 }
 
 /// One container's `program_exec_info` on the wire.
 pub fn exec_info(e: &ExecInfo) -> proto::ExecInfo {
     proto::ExecInfo {
-        container: slot(e.container),
+        container: e.container,
         cycles: e.cycles,
         deadlock: e.deadlock,
         stall: e.stall,
@@ -122,7 +87,7 @@ pub fn exec_info(e: &ExecInfo) -> proto::ExecInfo {
             version: e.program.version.clone(),
             hash: e.program.hash.clone(),
         },
-        role: role(e.role),
+        role: e.role,
         scan: timing(e.scan),
         verdicts: e.verdicts.iter().map(verdict).collect(),
     }
@@ -130,23 +95,13 @@ pub fn exec_info(e: &ExecInfo) -> proto::ExecInfo {
 
 /// The quality of each field device's inputs on the wire.
 pub fn input_quality(devices: &[cetratus_io::field::DeviceStatus]) -> Vec<proto::InputQuality> {
-    use cetratus_io::field::{Link, Quality};
     devices
         .iter()
         .map(|d| proto::InputQuality {
             device: d.name.clone(),
-            link: match d.link {
-                Link::Connecting => proto::LinkState::Connecting,
-                Link::Up => proto::LinkState::Up,
-                Link::Down => proto::LinkState::Down,
-            },
+            link: d.link,
             missed_cycles: d.missed_cycles,
-            quality: match d.quality {
-                Quality::Initial => proto::Quality::Initial,
-                Quality::Good => proto::Quality::Good,
-                Quality::Late => proto::Quality::Late,
-                Quality::Stale => proto::Quality::Stale,
-            },
+            quality: d.quality,
         })
         .collect()
 }
@@ -161,7 +116,7 @@ pub fn event(e: &Event) -> proto::EventMsg {
     proto::EventMsg {
         cycle: Some(e.cycle),
         time_us: Some(e.time_us),
-        kind: e.kind.name().to_string(),
+        kind: e.kind.as_str().to_string(),
         message: e.message.clone(),
         detail: serde_json::to_value(e.detail).unwrap_or(serde_json::Value::Null),
     }
@@ -172,8 +127,8 @@ pub fn state(plc: &Plc, loop_timing: &LoopTiming) -> proto::StateMsg {
     let info = |s: Slot| plc.container(s).map(program_info);
     proto::StateMsg {
         online: true,
-        primary: slot(plc.primary()),
-        status: status(plc.status()),
+        primary: plc.primary(),
+        status: plc.status(),
         programs: proto::Programs {
             a: info(Slot::A),
             b: info(Slot::B),
@@ -199,8 +154,8 @@ pub fn sample(r: &CycleRecord) -> proto::Sample {
     let mask = proto::SignalMask::from_u64_words;
     proto::Sample {
         time_ms: r.time_us / 1000,
-        primary: slot(r.primary),
-        status: status(r.status),
+        primary: r.primary,
+        status: r.status,
         inputs: mask(r.inputs),
         outputs_a: r.outputs_a.map(mask),
         outputs_b: r.outputs_b.map(mask),
@@ -264,7 +219,7 @@ mod tests {
         let plc = vernadat();
         let bytes = serde_json::to_vec(&state(&plc, &LoopTiming::default())).unwrap();
         let back: proto::StateMsg = proto::decode("state", &bytes).unwrap();
-        assert_eq!(back.status, proto::StatusName::Idle);
+        assert_eq!(back.status, proto::Status::Idle);
         assert_eq!(back.cycle.cycles, 5);
     }
 }

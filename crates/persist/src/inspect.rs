@@ -72,14 +72,17 @@ pub(crate) fn check_snapshot(store: &StateStore, snap: &PlcSnapshot, ins: &mut I
     };
     let status = snap.status.unwrap_or(Status::Idle);
     if snap.containers[primary.index()].is_none() {
-        problems.push(format!("the PRIMARY container {} is empty", primary.name()));
+        problems.push(format!(
+            "the PRIMARY container {} is empty",
+            primary.as_str()
+        ));
     }
     let other = snap.containers[primary.other().index()].is_some();
     if other != (status == Status::Quarantine) {
         problems.push(format!(
             "half-applied update: STATUS is {} but container {} {}",
-            status.name(),
-            primary.other().name(),
+            status.as_str(),
+            primary.other().as_str(),
             if other { "holds a program" } else { "is empty" }
         ));
     }
@@ -87,7 +90,7 @@ pub(crate) fn check_snapshot(store: &StateStore, snap: &PlcSnapshot, ins: &mut I
     if snap.update.is_some() != under_way {
         problems.push(format!(
             "STATUS is {} but the update under way is {:?}",
-            status.name(),
+            status.as_str(),
             snap.update
         ));
     }
@@ -102,7 +105,7 @@ pub(crate) fn check_snapshot(store: &StateStore, snap: &PlcSnapshot, ins: &mut I
             "candidate"
         };
         let mut rep = ContainerReport {
-            slot: slot.name().into(),
+            slot: slot.as_str().into(),
             role: role.into(),
             program_hash: cs.program_hash.clone(),
             ..Default::default()
@@ -111,7 +114,7 @@ pub(crate) fn check_snapshot(store: &StateStore, snap: &PlcSnapshot, ins: &mut I
             Ok(p) => {
                 rep.program = format!("{} {}", p.name(), p.version());
                 if let Some(problem) = shape_problem(&p, cs) {
-                    problems.push(format!("container {}: {problem}", slot.name()));
+                    problems.push(format!("container {}: {problem}", slot.as_str()));
                     holds = false;
                 } else {
                     rep.marking = p
@@ -124,13 +127,13 @@ pub(crate) fn check_snapshot(store: &StateStore, snap: &PlcSnapshot, ins: &mut I
                     if let Err(v) = p.check_invariants(&cs.marking) {
                         holds = false;
                         rep.violation = Some(v.to_string());
-                        problems.push(format!("container {}: {v}", slot.name()));
+                        problems.push(format!("container {}: {v}", slot.as_str()));
                     }
                 }
             }
             Err(e) => {
                 holds = false;
-                problems.push(format!("container {}: {e}", slot.name()));
+                problems.push(format!("container {}: {e}", slot.as_str()));
             }
         }
         ins.containers.push(rep);
@@ -143,7 +146,7 @@ pub(crate) fn check_snapshot(store: &StateStore, snap: &PlcSnapshot, ins: &mut I
         .map_or(String::new(), |c| c.program.clone());
     ins.warm_start = format!(
         "PRIMARY = {} resumes {} at cycle {} ({:.3} s){}{}",
-        primary.name(),
+        primary.as_str(),
         resumes,
         snap.cycle,
         snap.time_us as f64 / 1e6,

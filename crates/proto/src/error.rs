@@ -58,3 +58,13 @@ pub enum ProtoError {
         source: serde_json::Error,
     },
 }
+
+impl From<cetratus_vocab::UnknownName> for ProtoError {
+    fn from(e: cetratus_vocab::UnknownName) -> Self {
+        ProtoError::UnknownName {
+            what: e.what,
+            value: e.value,
+            expected: e.expected,
+        }
+    }
+}

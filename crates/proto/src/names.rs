@@ -1,124 +1,13 @@
-//! The small closed sets of names on the wire: containers, STATUS, roles, error codes, verdicts.
+//! The closed sets of names that only the wire has: the error codes of a reply. The names the
+//! wire shares with the runtime (containers, STATUS, roles, verdicts, input quality, event
+//! kinds, substitution modes) are `cetratus-vocab`'s, re-exported here.
 
-use std::fmt;
-use std::str::FromStr;
+use cetratus_vocab::names;
 
-use serde::{Deserialize, Serialize};
-
-use crate::ProtoError;
-
-macro_rules! names {
-    (
-        $(#[$meta:meta])*
-        $name:ident, $what:literal, $expected:literal {
-            $( $(#[$vmeta:meta])* $variant:ident = $text:literal ),+ $(,)?
-        }
-    ) => {
-        $(#[$meta])*
-        #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize, Deserialize)]
-        pub enum $name {
-            $( $(#[$vmeta])* #[serde(rename = $text)] $variant, )+
-        }
-
-        impl $name {
-            /// Every value, in declaration order.
-            pub const ALL: &'static [$name] = &[$($name::$variant),+];
-
-            /// The name on the wire.
-            pub fn as_str(self) -> &'static str {
-                match self {
-                    $( $name::$variant => $text, )+
-                }
-            }
-        }
-
-        impl fmt::Display for $name {
-            fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-                f.write_str(self.as_str())
-            }
-        }
-
-        impl FromStr for $name {
-            type Err = ProtoError;
-            fn from_str(s: &str) -> Result<Self, ProtoError> {
-                match s {
-                    $( $text => Ok($name::$variant), )+
-                    other => Err(ProtoError::UnknownName {
-                        what: $what,
-                        value: other.chars().take(64).collect(),
-                        expected: $expected,
-                    }),
-                }
-            }
-        }
-    };
-}
-
-names! {
-    /// A program container, `"A"` or `"B"`; PRIMARY is one of them.
-    Slot, "container", "A or B" {
-        /// Container A (PRIMARY at boot).
-        A = "A",
-        /// Container B.
-        B = "B",
-    }
-}
-
-impl Slot {
-    /// The other container.
-    pub fn other(self) -> Slot {
-        match self {
-            Slot::A => Slot::B,
-            Slot::B => Slot::A,
-        }
-    }
-
-    /// 0 for A, 1 for B: the position in two-element payloads such as `exec_info`.
-    pub fn index(self) -> usize {
-        match self {
-            Slot::A => 0,
-            Slot::B => 1,
-        }
-    }
-}
-
-names! {
-    /// STATUS: whether an update is under way, or the PLC is in fault.
-    StatusName, "status", "idle, setup, quarantine, probation or fault" {
-        /// No update under way.
-        Idle = "idle",
-        /// A package was accepted; the state transformation runs at the next cycle boundary.
-        Setup = "setup",
-        /// Both containers run; only PRIMARY's outputs are dispatched.
-        Quarantine = "quarantine",
-        /// The new program is PRIMARY and the old one is kept to fall back to (not published yet).
-        Probation = "probation",
-        /// The primary faulted: safe outputs until an operator resets.
-        Fault = "fault",
-    }
-}
-
-names! {
-    /// A container's role in `exec_info`.
-    Role, "role", "primary, candidate or shadow" {
-        /// The container whose outputs are dispatched.
-        Primary = "primary",
-        /// The container in quarantine.
-        Candidate = "candidate",
-        /// The old program on probation after a substitution, its outputs withheld.
-        Shadow = "shadow",
-    }
-}
-
-names! {
-    /// How `substitute` carries the state over.
-    SubstituteMode, "substitution mode", "retransform or keep" {
-        /// Map the primary's marking through the projection again (the default).
-        Retransform = "retransform",
-        /// Keep the candidate's marking.
-        Keep = "keep",
-    }
-}
+pub use cetratus_vocab::{
+    EventKind, LinkState, Quality, Role, Slot, Status, SubstituteMode, UnknownName, VerdictKind,
+    VerdictResult,
+};
 
 names! {
     /// Why a command failed: the `error.code` of a reply.
@@ -142,27 +31,5 @@ names! {
         Refused = "refused",
         /// The PLC did not answer (its scan loop is not running).
         Unavailable = "unavailable",
-    }
-}
-
-names! {
-    /// Where a validation verdict comes from.
-    VerdictKind, "verdict kind", "analysis or twin" {
-        /// Static analysis of the nets.
-        Analysis = "analysis",
-        /// A run against the digital twin.
-        Twin = "twin",
-    }
-}
-
-names! {
-    /// What a validation verdict says.
-    VerdictResult, "verdict result", "pass, fail or warn" {
-        /// The check passed.
-        Pass = "pass",
-        /// The check failed.
-        Fail = "fail",
-        /// The check passed with reservations.
-        Warn = "warn",
     }
 }

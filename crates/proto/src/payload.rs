@@ -13,7 +13,9 @@ use serde::de::{self, Deserializer, Visitor};
 use serde::{Deserialize, Serialize, Serializer};
 use serde_json::Value;
 
-use crate::names::{ErrorCode, Role, Slot, StatusName, SubstituteMode, VerdictKind, VerdictResult};
+use crate::names::{
+    ErrorCode, LinkState, Quality, Role, Slot, Status, SubstituteMode, VerdictKind, VerdictResult,
+};
 use crate::{ProtoError, Verb};
 
 /// Largest command payload the PLC accepts (1 MiB); a bigger one gets `too_large`.
@@ -228,7 +230,7 @@ pub struct StateMsg {
     /// PRIMARY.
     pub primary: Slot,
     /// STATUS.
-    pub status: StatusName,
+    pub status: Status,
     /// Programs in A and B.
     pub programs: Programs,
     /// The scan loop's figures.
@@ -365,32 +367,6 @@ pub struct InputQuality {
     pub quality: Quality,
 }
 
-/// The quality of a device's inputs.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(rename_all = "snake_case")]
-pub enum Quality {
-    /// No complete read yet: the inputs are their safe values.
-    Initial,
-    /// Read in time.
-    Good,
-    /// Missed cycles, fewer than the device's `stale_after`: the last values are used.
-    Late,
-    /// `stale_after` cycles or more without a read: the device's stale policy applies.
-    Stale,
-}
-
-/// How the connection to a field device stands.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(rename_all = "snake_case")]
-pub enum LinkState {
-    /// Not connected yet.
-    Connecting,
-    /// Connected.
-    Up,
-    /// Lost, or never made: retried with backoff.
-    Down,
-}
-
 /// The `exec_info` message (and the `result` of `cmd/exec_info`): `[A | null, B | null]`.
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 #[serde(transparent)]
@@ -514,7 +490,7 @@ pub struct Sample {
     /// PRIMARY during the cycle.
     pub primary: Slot,
     /// STATUS during the cycle.
-    pub status: StatusName,
+    pub status: Status,
     /// Inputs, as a bit mask.
     pub inputs: SignalMask,
     /// Outputs of A (`None` when empty), as a bit mask.
@@ -529,7 +505,7 @@ pub struct Sample {
 struct SampleWire(
     u64,
     Slot,
-    StatusName,
+    Status,
     SignalMask,
     Option<SignalMask>,
     Option<SignalMask>,

@@ -5,7 +5,7 @@ use std::path::{Path, PathBuf};
 
 use cetratus_proto::{
     Accepted, Command, EventMsg, ExecInfoMsg, IoMsg, NetMsg, Reply, Role, Slot, StatePayload,
-    StatusName, Verb,
+    Status, Verb,
 };
 use serde::de::DeserializeOwned;
 use serde::Serialize;
@@ -144,7 +144,7 @@ fn typed_fields_hold_what_the_plc_said() {
         panic!("online");
     };
     assert_eq!(s.primary, Slot::A);
-    assert_eq!(s.status, StatusName::Quarantine);
+    assert_eq!(s.status, Status::Quarantine);
     assert!(s.programs.b.is_some());
     assert!(s.cycle.update.is_some());
     assert_eq!(

@@ -4,8 +4,8 @@ use std::net::SocketAddr;
 
 use cetratus_proto::{
     parse_topic, BrokerUrl, Command, ErrorCode, Leaf, PlcId, ProtoError, Reply, Sample, SignalMask,
-    SignalValue, Slot, StatusName, SubstituteArgs, SubstituteMode, Topics, Verb, Verdict,
-    VerdictKind, VerdictResult, ALL_PLCS_FILTER,
+    SignalValue, Slot, Status, SubstituteArgs, SubstituteMode, Topics, Verb, Verdict, VerdictKind,
+    VerdictResult, ALL_PLCS_FILTER,
 };
 use serde_json::{json, Value};
 
@@ -298,15 +298,12 @@ fn a_refused_url_does_not_print_its_password() {
 #[test]
 fn name_sets_read_and_write_their_wire_strings() {
     assert_eq!(
-        StatusName::ALL
-            .iter()
-            .map(|s| s.as_str())
-            .collect::<Vec<_>>(),
+        Status::ALL.iter().map(|s| s.as_str()).collect::<Vec<_>>(),
         ["idle", "setup", "quarantine", "probation", "fault"]
     );
-    for s in StatusName::ALL {
+    for s in Status::ALL {
         assert_eq!(serde_json::to_value(s).expect("ser"), json!(s.as_str()));
-        assert_eq!(s.as_str().parse::<StatusName>().expect("parses"), *s);
+        assert_eq!(s.as_str().parse::<Status>().expect("parses"), *s);
     }
     assert_eq!(serde_json::to_value(Slot::B).expect("ser"), json!("B"));
     assert_eq!(Slot::A.other(), Slot::B);
@@ -357,7 +354,7 @@ fn a_sample_is_a_seven_element_array() {
     let s = Sample {
         time_ms: 105840,
         primary: Slot::A,
-        status: StatusName::Idle,
+        status: Status::Idle,
         inputs: 5.into(),
         outputs_a: Some(2.into()),
         outputs_b: None,

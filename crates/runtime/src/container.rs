@@ -529,46 +529,4 @@ impl Container {
     }
 }
 
-/// A program container: A or B.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, serde::Serialize, serde::Deserialize)]
-pub enum Slot {
-    /// Container A (PRIMARY at boot).
-    A,
-    /// Container B.
-    B,
-}
-
-impl Slot {
-    /// The other container.
-    pub fn other(self) -> Slot {
-        match self {
-            Slot::A => Slot::B,
-            Slot::B => Slot::A,
-        }
-    }
-    /// 0 for A, 1 for B.
-    pub fn index(self) -> usize {
-        match self {
-            Slot::A => 0,
-            Slot::B => 1,
-        }
-    }
-    /// "A" or "B".
-    pub fn name(self) -> &'static str {
-        match self {
-            Slot::A => "A",
-            Slot::B => "B",
-        }
-    }
-}
-
-impl std::str::FromStr for Slot {
-    type Err = String;
-    fn from_str(s: &str) -> Result<Self, String> {
-        match s {
-            "A" | "a" => Ok(Slot::A),
-            "B" | "b" => Ok(Slot::B),
-            other => Err(format!("unknown container `{other}`; expected A or B")),
-        }
-    }
-}
+pub use cetratus_vocab::Slot;

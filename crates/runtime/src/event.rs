@@ -4,126 +4,7 @@ use serde::Serialize;
 
 use crate::updater::SubstituteMode;
 
-/// The kind of an [`Event`]. Its snake_case name is the `kind` of the `events` topic and the
-/// `what` of the audit log (docs/live-update.md lists them).
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize)]
-#[serde(rename_all = "snake_case")]
-pub enum EventKind {
-    /// A cold start: A runs the configured program from M0.
-    ColdStart,
-    /// A warm start from a saved state.
-    WarmStart,
-    /// A package was accepted; its install is due at the next cycle boundary.
-    LoadAccepted,
-    /// A command, a transform or a substitution was refused; nothing changed.
-    Refused,
-    /// A substitution was accepted and waits for its cycle boundary or its condition.
-    SubstituteAccepted,
-    /// The operator removed the candidate.
-    Removed,
-    /// The update under way was aborted.
-    Aborted,
-    /// The operator left the fault state.
-    Reset,
-    /// The candidate faulted; the update is aborted.
-    CandidateFault,
-    /// The primary faulted; safe values are driven.
-    PrimaryFault,
-    /// The update under way was discarded (primary fault, warm start).
-    UpdateDiscarded,
-    /// The primary is deadlocked while its inputs change.
-    DeadlockAlarm,
-    /// The state transformation was refused at the install.
-    TransformRefused,
-    /// The install took longer than stateTransTimeout.
-    StateTransTimeout,
-    /// The candidate was installed and runs in quarantine.
-    QuarantineStarted,
-    /// A waiting substitution was given up.
-    SubstituteTimeout,
-    /// PRIMARY flipped to the candidate.
-    Substituted,
-    /// The new primary runs with the old program as a shadow (probation).
-    ProbationStarted,
-    /// Probation ended; the update is final.
-    Accepted,
-    /// Probation failed or was reverted; PRIMARY flipped back.
-    Reverted,
-    /// The primary stalls: a watched place marked too long, or no firing too long.
-    StallAlarm,
-    /// A validation's verdict on an update (the analysis gate at load, a twin run).
-    Verdict,
-}
-
-impl EventKind {
-    /// Every kind, in declaration order.
-    pub const ALL: [EventKind; 22] = [
-        EventKind::ColdStart,
-        EventKind::WarmStart,
-        EventKind::LoadAccepted,
-        EventKind::Refused,
-        EventKind::SubstituteAccepted,
-        EventKind::Removed,
-        EventKind::Aborted,
-        EventKind::Reset,
-        EventKind::CandidateFault,
-        EventKind::PrimaryFault,
-        EventKind::UpdateDiscarded,
-        EventKind::DeadlockAlarm,
-        EventKind::TransformRefused,
-        EventKind::StateTransTimeout,
-        EventKind::QuarantineStarted,
-        EventKind::SubstituteTimeout,
-        EventKind::Substituted,
-        EventKind::ProbationStarted,
-        EventKind::Accepted,
-        EventKind::Reverted,
-        EventKind::StallAlarm,
-        EventKind::Verdict,
-    ];
-
-    /// The snake_case name.
-    pub fn name(self) -> &'static str {
-        match self {
-            EventKind::ColdStart => "cold_start",
-            EventKind::WarmStart => "warm_start",
-            EventKind::LoadAccepted => "load_accepted",
-            EventKind::Refused => "refused",
-            EventKind::SubstituteAccepted => "substitute_accepted",
-            EventKind::Removed => "removed",
-            EventKind::Aborted => "aborted",
-            EventKind::Reset => "reset",
-            EventKind::CandidateFault => "candidate_fault",
-            EventKind::PrimaryFault => "primary_fault",
-            EventKind::UpdateDiscarded => "update_discarded",
-            EventKind::DeadlockAlarm => "deadlock_alarm",
-            EventKind::TransformRefused => "transform_refused",
-            EventKind::StateTransTimeout => "state_trans_timeout",
-            EventKind::QuarantineStarted => "quarantine_started",
-            EventKind::SubstituteTimeout => "substitute_timeout",
-            EventKind::Substituted => "substituted",
-            EventKind::ProbationStarted => "probation_started",
-            EventKind::Accepted => "accepted",
-            EventKind::Reverted => "reverted",
-            EventKind::StallAlarm => "stall_alarm",
-            EventKind::Verdict => "verdict",
-        }
-    }
-
-    /// Whether the event is an alarm that a run's summary counts as a fault.
-    pub fn is_alarm(self) -> bool {
-        matches!(
-            self,
-            EventKind::PrimaryFault | EventKind::DeadlockAlarm | EventKind::StallAlarm
-        )
-    }
-}
-
-impl std::fmt::Display for EventKind {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.pad(self.name())
-    }
-}
+pub use cetratus_vocab::EventKind;
 
 /// Why a probation ended in a revert.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize)]
@@ -300,7 +181,7 @@ mod tests {
     #[test]
     fn every_kind_name_is_its_serde_name() {
         for k in EventKind::ALL {
-            assert_eq!(serde_json::to_value(k).unwrap(), k.name());
+            assert_eq!(serde_json::to_value(k).unwrap(), k.as_str());
         }
     }
 }

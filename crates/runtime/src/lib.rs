@@ -4,7 +4,7 @@
 //!   [`Container::scan`] never allocates.
 //! * [`MessageRouter`]: the same inputs to both containers, only PRIMARY's outputs to the
 //!   Dispatcher, the safe values in fault.
-//! * [`Updater`]: the live-update process; its phase ([`Status`]) is a typestate that owns the
+//! * [`Updater`]: the live-update process; its phase ([`Status`]) is an enum that owns the
 //!   secondary container (DESIGN §4).
 //! * [`Monitor`]: `program_exec_info`, divergence and its derived cause, drift, recent cycles.
 //! * [`Plc`]: composes them and runs one cycle at a time.
@@ -36,6 +36,7 @@ pub mod trace;
 mod updater;
 mod watchdog;
 
+pub use cetratus_vocab::UnknownName;
 pub use clock::{
     Clock, FixedWallClock, InstallTiming, ManualStopwatch, Stopwatch, VirtualClock, WallClock,
 };

@@ -106,17 +106,7 @@ impl ProgramId {
     }
 }
 
-/// The role of a container in `program_exec_info`.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
-#[serde(rename_all = "snake_case")]
-pub enum Role {
-    /// It drives the outputs.
-    Primary,
-    /// It runs in quarantine, its outputs withheld.
-    Candidate,
-    /// The old program on probation after a substitution, its outputs withheld.
-    Shadow,
-}
+pub use cetratus_vocab::{Role, VerdictKind, VerdictResult};
 
 /// What a validation found (DESIGN §4): `{kind, result, reasons, figures}`.
 #[derive(Clone, Debug, PartialEq, Serialize)]
@@ -129,49 +119,6 @@ pub struct Verdict {
     pub reasons: Vec<String>,
     /// Figures by name.
     pub figures: BTreeMap<String, f64>,
-}
-
-/// Which validation a [`Verdict`] comes from.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
-#[serde(rename_all = "snake_case")]
-pub enum VerdictKind {
-    /// The analysis gate at load.
-    Analysis,
-    /// A run on the digital twin.
-    Twin,
-}
-
-impl VerdictKind {
-    /// `analysis` or `twin`.
-    pub fn name(self) -> &'static str {
-        match self {
-            VerdictKind::Analysis => "analysis",
-            VerdictKind::Twin => "twin",
-        }
-    }
-}
-
-/// The outcome of a [`Verdict`].
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
-#[serde(rename_all = "snake_case")]
-pub enum VerdictResult {
-    /// Passed.
-    Pass,
-    /// Failed.
-    Fail,
-    /// Passed with findings.
-    Warn,
-}
-
-impl VerdictResult {
-    /// `pass`, `fail` or `warn`.
-    pub fn name(self) -> &'static str {
-        match self {
-            VerdictResult::Pass => "pass",
-            VerdictResult::Fail => "fail",
-            VerdictResult::Warn => "warn",
-        }
-    }
 }
 
 /// `program_exec_info` of one container, as published.
@@ -410,7 +357,7 @@ fn first_difference(pair: &Pair<'_>) -> Option<(Slot, TransIdx)> {
 /// Describes a cause in words, with ids from both containers' nets.
 pub fn describe_cause(cause: &Cause, fired: &Container, other: &Container) -> String {
     let t = &fired.program().net().transition(cause.transition).id;
-    let (a, b) = (cause.fired_in.name(), cause.fired_in.other().name());
+    let (a, b) = (cause.fired_in.as_str(), cause.fired_in.other().as_str());
     let why = match cause.blocked {
         Blocker::Place(p) => format!("it was blocked by {}", other.program().net().place(p).id),
         Blocker::Inhibitor(p) => {

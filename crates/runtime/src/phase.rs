@@ -1,49 +1,14 @@
-//! The Updater's phase as a typestate: each phase owns exactly the data it needs, so PRIMARY,
-//! STATUS and the secondary container can never disagree (DESIGN §4).
+//! The Updater's phase: an enum, checked at run time, whose every variant owns exactly the data
+//! it needs, so PRIMARY, STATUS and the secondary container can never disagree (DESIGN §4).
 
 use cetratus_net::{Tokens, TransIdx};
 use cetratus_program::{PackageMeta, Projection, StateTransform, Value};
-use serde::{Deserialize, Serialize};
 
 use crate::event::RevertReason;
 use crate::updater::{PreparedUpdate, SubstituteRequest};
 use crate::Container;
 
-/// STATUS: whether an update is under way (DESIGN §4), or the PLC is in fault. Its JSON strings
-/// are `idle`, `setup`, `quarantine`, `probation` and `fault`.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize, Deserialize)]
-#[serde(rename_all = "snake_case")]
-pub enum Status {
-    /// No update under way.
-    Idle,
-    /// A package was accepted; the state transformation runs at the next cycle boundary.
-    Setup,
-    /// Both containers run; only PRIMARY's outputs are dispatched.
-    Quarantine,
-    /// The new primary runs; the old program stays resident as a shadow until the window ends.
-    Probation,
-    /// The primary faulted: safe outputs until an operator resets.
-    Fault,
-}
-
-impl Status {
-    /// The lower-case name.
-    pub fn name(self) -> &'static str {
-        match self {
-            Status::Idle => "idle",
-            Status::Setup => "setup",
-            Status::Quarantine => "quarantine",
-            Status::Probation => "probation",
-            Status::Fault => "fault",
-        }
-    }
-}
-
-impl std::fmt::Display for Status {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.pad(self.name())
-    }
-}
+pub use cetratus_vocab::Status;
 
 /// What an installed update keeps for the Monitor and for the substitution.
 pub(crate) struct UpdatePlan {

@@ -313,7 +313,7 @@ impl Plc {
         let in_probation = matches!(self.updater.phase, Phase::Probation(_));
         let scanned = scan_slot(core, None, p, now_us, &mut mark, &limits);
         if let Err(e) = &scanned {
-            let why = format!("primary {} faulted: {e}", p.name());
+            let why = format!("primary {} faulted: {e}", p.as_str());
             if !in_probation {
                 core.router.dispatch_safe(now_us, io);
                 self.updater.primary_fault(core, why);
@@ -345,7 +345,7 @@ impl Plc {
                     self.updater.request_revert(
                         core,
                         RevertReason::Invariant,
-                        format!("primary {} reached an invalid marking: {v}", p.name()),
+                        format!("primary {} reached an invalid marking: {v}", p.as_str()),
                     );
                 }
             }
@@ -450,7 +450,7 @@ impl Plc {
                 EventKind::DeadlockAlarm,
                 format!(
                     "primary {} is deadlocked: no transition is enabled while its inputs change",
-                    p.name()
+                    p.as_str()
                 ),
                 None,
             );
@@ -468,7 +468,7 @@ impl Plc {
         if let Some(stall) = self.stall.check(&core.primary, now_us) {
             let why = format!(
                 "primary {} stalls: {}",
-                p.name(),
+                p.as_str(),
                 StallWatch::describe(stall, &core.primary)
             );
             let (Stall::Dwell { dwell_us: us, .. } | Stall::NoFiring { idle_us: us, .. }) = stall;
@@ -567,10 +567,10 @@ impl Plc {
         }
         let text = format!(
             "{} verdict on {} {}: {}{}",
-            verdict.kind.name(),
+            verdict.kind.as_str(),
             plan.meta.name,
             plan.meta.version,
-            verdict.result.name(),
+            verdict.result.as_str(),
             if verdict.reasons.is_empty() {
                 String::new()
             } else {

@@ -233,7 +233,7 @@ impl UpdateContext {
                 "{} {} installed in {} within one cycle; it runs in quarantine, its outputs withheld",
                 plan.meta.name,
                 plan.meta.version,
-                s.name()
+                s.as_str()
             )
         });
         Ok(PreparedUpdate {

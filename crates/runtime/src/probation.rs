@@ -121,9 +121,9 @@ impl Updater {
             EventKind::Reverted,
             format!(
                 "PRIMARY = {}: reverted from {name} after {held:.1} s of probation because {why} ({}); the old program drives the outputs again and {source}; {} stops",
-                s.name(),
+                s.as_str(),
                 reason.name(),
-                new_slot.name()
+                new_slot.as_str()
             ),
             Some(EventDetail::Revert {
                 reason,

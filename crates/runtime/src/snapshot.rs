@@ -140,7 +140,7 @@ impl Plc {
             EventKind::WarmStart,
             format!(
                 "warm start: PRIMARY = {} resumes {} {} at cycle {} ({:.3} s)",
-                primary.name(),
+                primary.as_str(),
                 prog.name(),
                 prog.version(),
                 snap.cycle,

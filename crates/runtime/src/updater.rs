@@ -9,7 +9,6 @@
 //! preparation is in `prepare.rs`).
 
 use cetratus_program::{EvalCtx, Guard, Value};
-use serde::Serialize;
 
 use crate::clock::InstallTiming;
 use crate::error::CommandError;
@@ -20,39 +19,7 @@ use crate::plc::Core;
 pub use crate::prepare::{PreparedUpdate, UpdateContext};
 use crate::{Slot, Status};
 
-/// How the candidate's marking is taken at substitution (DESIGN §4).
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Default)]
-#[serde(rename_all = "snake_case")]
-pub enum SubstituteMode {
-    /// Recompute `ST·M_primary + ST_base` at the switch: consistent with the plant by construction.
-    #[default]
-    Retransform,
-    /// Keep the candidate's own marking; only when drift is 0, unless forced.
-    Keep,
-}
-
-impl SubstituteMode {
-    /// `retransform` or `keep`.
-    pub fn name(self) -> &'static str {
-        match self {
-            SubstituteMode::Retransform => "retransform",
-            SubstituteMode::Keep => "keep",
-        }
-    }
-}
-
-impl std::str::FromStr for SubstituteMode {
-    type Err = String;
-    fn from_str(s: &str) -> Result<Self, String> {
-        match s {
-            "retransform" => Ok(SubstituteMode::Retransform),
-            "keep" => Ok(SubstituteMode::Keep),
-            o => Err(format!(
-                "unknown substitution mode `{o}`; expected retransform or keep"
-            )),
-        }
-    }
-}
+pub use cetratus_vocab::SubstituteMode;
 
 /// A substitution request, its condition compiled against the primary program.
 pub struct SubstituteRequest {
@@ -199,7 +166,7 @@ impl Updater {
                     "load accepted: {} {} goes into {} at the next cycle",
                     p.quarantine.plan.meta.name,
                     p.quarantine.plan.meta.version,
-                    core.primary_slot.other().name()
+                    core.primary_slot.other().as_str()
                 );
                 core.log.push(EventKind::LoadAccepted, msg, None);
                 for v in &p.quarantine.plan.verdicts {
@@ -207,10 +174,10 @@ impl Updater {
                         EventKind::Verdict,
                         format!(
                             "{} verdict on {} {}: {}{}",
-                            v.kind.name(),
+                            v.kind.as_str(),
                             p.quarantine.plan.meta.name,
                             p.quarantine.plan.meta.version,
-                            v.result.name(),
+                            v.result.as_str(),
                             if v.reasons.is_empty() {
                                 String::new()
                             } else {
@@ -592,13 +559,13 @@ impl Updater {
         };
         let text = format!(
             "PRIMARY = {}: {} {} drives the outputs ({} mode, drift {} at the switch, {:.1} s in quarantine); {} {fate}",
-            c.name(),
+            c.as_str(),
             q.plan.meta.name,
             q.plan.meta.version,
-            mode.name(),
+            mode.as_str(),
             drift,
             now_us.saturating_sub(q.started_us) as f64 / 1e6,
-            old.name(),
+            old.as_str(),
         );
         core.log.push(
             EventKind::Substituted,
@@ -617,7 +584,7 @@ impl Updater {
             format!(
                 "probation for {:.1} s: {} runs the old program as a shadow; the PLC reverts to it if {} {} faults, stalls or breaks an invariant, or on `revert`; `accept` ends probation",
                 window as f64 / 1e6,
-                old.name(),
+                old.as_str(),
                 q.plan.meta.name,
                 q.plan.meta.version,
             ),

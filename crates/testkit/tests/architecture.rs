@@ -26,15 +26,16 @@ use Allowed::{AnyBut, Only};
 /// One row per workspace crate. A new crate fails the test until it has a row here and a line
 /// in ARCHITECTURE.md.
 const RULES: &[(&str, Allowed)] = &[
+    ("cetratus-vocab", Only(&[])),
     ("cetratus-net", Only(&[])),
     ("cetratus-twin", Only(&[])),
-    ("cetratus-proto", Only(&[])),
+    ("cetratus-proto", Only(&["cetratus-vocab"])),
     ("cetratus-analysis", Only(&["cetratus-net"])),
     ("cetratus-program", Only(&["cetratus-net"])),
     ("cetratus-sfc", Only(&["cetratus-net", "cetratus-program"])),
     (
         "cetratus-runtime",
-        Only(&["cetratus-net", "cetratus-program"]),
+        Only(&["cetratus-vocab", "cetratus-net", "cetratus-program"]),
     ),
     (
         "cetratus-persist",
@@ -43,16 +44,22 @@ const RULES: &[(&str, Allowed)] = &[
     (
         "cetratus-io",
         Only(&[
+            "cetratus-vocab",
             "cetratus-net",
             "cetratus-program",
             "cetratus-runtime",
             "cetratus-twin",
         ]),
     ),
-    ("cetratus-mct", Only(&["cetratus-proto"])),
+    ("cetratus-mct", Only(&["cetratus-vocab", "cetratus-proto"])),
     (
         "cetratus-dashboard",
-        Only(&["cetratus-proto", "cetratus-mct", "cetratus-net"]),
+        Only(&[
+            "cetratus-vocab",
+            "cetratus-proto",
+            "cetratus-mct",
+            "cetratus-net",
+        ]),
     ),
     (
         "cetratus-node",
@@ -354,4 +361,142 @@ fn no_source_file_is_over_900_lines_unless_its_header_says_why() {
          ten ({SIZE_RULES}: split them, or say why they must stay whole):\n  {}",
         offenders.join("\n  ")
     );
+}
+
+/// Where a reader finds the vocabulary rule and its reason.
+const VOCABULARY_RULE: &str = "ARCHITECTURE.md, section Invariants, \"One vocabulary\"";
+
+/// An enum read from source: its name, its variants, and whether every variant is a bare name
+/// (no fields): only such an enum is a set of names that could repeat the vocabulary.
+type EnumItem = (String, Vec<String>, bool);
+
+/// The name an item starts with on `line`: `enum X` (with `pub` or `pub(crate)`), or `X` on the
+/// first line of a `names!` invocation (`pending`).
+fn enum_name(line: &str, pending: bool) -> Option<String> {
+    let word = |t: &str| -> String {
+        t.chars()
+            .take_while(|c| c.is_alphanumeric() || *c == '_')
+            .collect()
+    };
+    let t = line.trim();
+    let t = t
+        .strip_prefix("pub(crate) ")
+        .or_else(|| t.strip_prefix("pub "))
+        .unwrap_or(t);
+    if let Some(rest) = t.strip_prefix("enum ") {
+        return Some(word(rest)).filter(|w| !w.is_empty());
+    }
+    (pending && (t.ends_with(',') || t.contains(", \"")))
+        .then(|| word(t))
+        .filter(|w| !w.is_empty())
+}
+
+/// The enums defined in `source` (Rust): `enum X` items and `names!` invocations. A line-based
+/// reading, enough for rustfmt's layout: a variant is a capitalised word that starts a line one
+/// brace deep in the enum's body.
+fn enums_in(source: &str) -> Vec<EnumItem> {
+    let lines: Vec<&str> = source.lines().collect();
+    let (mut out, mut pending, mut k) = (Vec::new(), false, 0);
+    while k < lines.len() {
+        let t = lines[k].trim();
+        if t == "names! {" {
+            pending = true;
+        }
+        let Some(name) = enum_name(lines[k], pending && t != "names! {") else {
+            k += 1;
+            continue;
+        };
+        pending = false;
+        let (mut depth, mut variants, mut unit) = (0i32, Vec::new(), true);
+        for body in &lines[k..] {
+            k += 1;
+            let t = body.trim();
+            if depth == 1 && !t.starts_with('#') && !t.starts_with("//") {
+                let word: String = t
+                    .chars()
+                    .take_while(|c| c.is_alphanumeric() || *c == '_')
+                    .collect();
+                if word.starts_with(|c: char| c.is_ascii_uppercase()) {
+                    let after = t[word.len()..].trim_start();
+                    unit &= !(after.starts_with('(') || after.starts_with('{'));
+                    variants.push(word);
+                }
+            }
+            depth += body.matches('{').count() as i32 - body.matches('}').count() as i32;
+            if depth <= 0 && body.contains('}') {
+                break;
+            }
+        }
+        out.push((name, variants, unit));
+    }
+    out
+}
+
+/// Every enum outside `vocab` (file path, enum) with the same variants as an enum of `vocab`.
+fn vocabulary_violations(vocab: &str, others: &[(String, String)]) -> Vec<String> {
+    let words = enums_in(vocab);
+    let mut found = Vec::new();
+    for (path, source) in others {
+        for (name, variants, unit) in enums_in(source) {
+            if !unit {
+                continue;
+            }
+            let mut mine = variants.clone();
+            mine.sort();
+            for (word, theirs, _) in &words {
+                let mut theirs = theirs.clone();
+                theirs.sort();
+                if !mine.is_empty() && mine == theirs {
+                    found.push(format!(
+                        "{path}: enum {name} has the variants of cetratus_vocab::{word}; use that one \
+                         instead ({VOCABULARY_RULE})"
+                    ));
+                }
+            }
+        }
+    }
+    found
+}
+
+#[test]
+fn no_crate_defines_again_an_enum_of_the_vocabulary() {
+    let root = workspace_root();
+    let vocab_dir = root.join("crates/vocab/src");
+    let vocab: String = rust_files(&vocab_dir).iter().map(|p| read(p)).collect();
+    assert!(
+        enums_in(&vocab).len() >= 9,
+        "the vocabulary is read: {:?}",
+        enums_in(&vocab)
+    );
+    let others: Vec<(String, String)> = source_dirs()
+        .into_iter()
+        .filter(|d| *d != vocab_dir)
+        .flat_map(|d| rust_files(&d))
+        .map(|p| (shown(&p), read(&p)))
+        .collect();
+    let found = vocabulary_violations(&vocab, &others);
+    assert!(found.is_empty(), "{found:#?}");
+}
+
+#[test]
+fn an_enum_that_repeats_the_vocabulary_is_named_with_its_file_and_the_rule() {
+    let vocab = "names! {\n    /// A container.\n    Slot, \"container\", \"A or B\" {\n        /// A.\n        A = \"A\",\n        /// B.\n        B = \"B\",\n    }\n}\n";
+    let other = "/// Mine.\n#[derive(Clone)]\npub enum Container {\n    /// B.\n    B,\n    /// A.\n    #[default]\n    A,\n}\n\nenum Other {\n    A,\n    B(u32),\n    C { x: u8 },\n}\n";
+    let slot = (
+        "Slot".to_string(),
+        vec!["A".to_string(), "B".to_string()],
+        true,
+    );
+    assert_eq!(enums_in(vocab), [slot]);
+    let read = enums_in(other);
+    assert_eq!(
+        (read[1].1.as_slice(), read[1].2),
+        (&["A", "B", "C"].map(String::from)[..], false)
+    );
+    let found = vocabulary_violations(vocab, &[("crates/x/src/lib.rs".into(), other.into())]);
+    assert_eq!(found.len(), 1, "{found:?}");
+    assert!(found[0].starts_with(
+        "crates/x/src/lib.rs: enum Container has the variants of cetratus_vocab::Slot"
+    ));
+    assert!(found[0].contains(VOCABULARY_RULE));
 }

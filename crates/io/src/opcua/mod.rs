@@ -35,7 +35,7 @@ use cetratus_program::{Program, Signal, Type, Value};
 use cetratus_runtime::{Dispatcher, Plc, Provider, Slot, Status};
 
 use crate::config::StalePolicy;
-use crate::field::{DeviceStatus, Link, Quality};
+use crate::field::{DeviceStatus, LinkState, Quality};
 use crate::IoError;
 pub use config::OpcUaConfig;
 
@@ -460,9 +460,9 @@ fn status_of(shared: &Shared, quality: Quality, missed: u64) -> DeviceStatus {
         name: "opcua".into(),
         quality,
         link: match quality {
-            Quality::Initial => Link::Connecting,
-            Quality::Good | Quality::Late => Link::Up,
-            Quality::Stale => Link::Down,
+            Quality::Initial => LinkState::Connecting,
+            Quality::Good | Quality::Late => LinkState::Up,
+            Quality::Stale => LinkState::Down,
         },
         missed_cycles: missed,
         reads: c.writes,

@@ -516,14 +516,14 @@ impl Space {
             self.shown.primary = Some(primary);
             set.push((
                 self.primary.clone(),
-                DataValue::new_at(Variant::from(primary.name()), now),
+                DataValue::new_at(Variant::from(primary.as_str()), now),
             ));
         }
         if self.shown.status != Some(status) {
             self.shown.status = Some(status);
             set.push((
                 self.status.clone(),
-                DataValue::new_at(Variant::from(status.name()), now),
+                DataValue::new_at(Variant::from(status.as_str()), now),
             ));
         }
         for ((id, last), v) in self

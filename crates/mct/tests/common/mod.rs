@@ -10,9 +10,7 @@ use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
 use cetratus_mct::{refused, MctLink, Outgoing, Request};
-use cetratus_proto::{
-    CycleFigures, IoMsg, IoNames, ProgramInfo, Programs, Slot, StateMsg, StatusName,
-};
+use cetratus_proto::{CycleFigures, IoMsg, IoNames, ProgramInfo, Programs, Slot, StateMsg, Status};
 use rumqttc::v5::mqttbytes::v5::Packet;
 use rumqttc::v5::mqttbytes::QoS;
 use rumqttc::v5::{Client, Event, MqttOptions};
@@ -216,7 +214,7 @@ pub fn state(primary: &str, status: &str) -> StateMsg {
     StateMsg {
         online: true,
         primary: primary.parse::<Slot>().expect("A or B"),
-        status: status.parse::<StatusName>().expect("a status"),
+        status: status.parse::<Status>().expect("a status"),
         programs: Programs {
             a: Some(ProgramInfo {
                 name: "vernadat".into(),

@@ -2,7 +2,7 @@
 
 use cetratus_net::{ArcKind, Net, NetBuilder, Place, Transition};
 
-/// The Vernadat cell of DESIGN §6 as a bare net (13 places, H first; 10 transitions).
+/// The Vernadat cell of docs/design.md §6 as a bare net (13 places, H first; 10 transitions).
 ///
 /// The workspace's only builder of it: `cetratus bench` ships it, so it cannot live in the
 /// dev-only testkit. Tests read the same net from the example, and `tests/workloads.rs` checks

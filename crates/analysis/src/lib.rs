@@ -13,7 +13,7 @@
 //!   stubborn-set reduction for deadlocks and predicates.
 //! * [`check`] runs everything and returns a [`Report`] (serde-serialisable, with a text rendering).
 //!
-//! Semantics are the plain interleaving semantics of DESIGN §3: every enabled transition at a state
+//! Semantics are the plain interleaving semantics of docs/design.md §3: every enabled transition at a state
 //! is one edge, inhibitor arcs are honoured, capacities are enabling conditions, priorities are
 //! ignored.
 

@@ -1,4 +1,4 @@
-//! The Cetratus dashboard: the paper's Machine Configuration Tool as a web page (DESIGN §5,
+//! The Cetratus dashboard: the paper's Machine Configuration Tool as a web page (docs/design.md §5,
 //! docs/dashboard.md).
 //!
 //! An HTTP server (axum on Tokio, in its own thread with its own runtime) that is itself an MQTT

@@ -29,7 +29,7 @@ fn faults_of<P: Plant>(plant: &P) -> String {
 fn vernadat_program_runs_an_hour_without_fault_and_keeps_its_four_invariants_after_every_scan() {
     let program = load(VERNADAT);
     let p = |id| place(&program, id);
-    // DESIGN §6, as (weighted places, constant); checked by hand rather than through the program's
+    // docs/design.md §6, as (weighted places, constant); checked by hand rather than through the program's
     // own declarations, so that a wrong declaration cannot hide a wrong net.
     let invariants: [(&str, Vec<usize>, u64); 4] = [
         (

@@ -1,4 +1,4 @@
-//! Probation and rollback (DESIGN §4) on the Vernadat twin in virtual time: after a substitution
+//! Probation and rollback (docs/design.md §4) on the Vernadat twin in virtual time: after a substitution
 //! the old program runs on as a shadow; the PLC reverts to it when the new primary faults or
 //! breaks an invariant, or on `revert`, and the update becomes final when the window ends or on
 //! `accept`. Injected faults are global to the process, so the tests that arm one take turns.

@@ -1,4 +1,4 @@
-//! The Machine Configuration Tool's control plane: the PLC over MQTT (DESIGN §5, docs/mqtt.md).
+//! The Machine Configuration Tool's control plane: the PLC over MQTT (docs/design.md §5, docs/mqtt.md).
 //!
 //! Two halves:
 //! * [`ControlPlane`], transport-independent: turns `(topic, payload, response topic, correlation

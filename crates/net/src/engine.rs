@@ -1,4 +1,4 @@
-//! The token game: incremental enabling and the firing policies of DESIGN §3.
+//! The token game: incremental enabling and the firing policies of docs/design.md §3.
 //!
 //! The engine keeps the set of enabled transitions up to date after every change of the marking by
 //! looking only at the transitions that depend on the places that changed. A scan therefore costs
@@ -26,7 +26,7 @@ pub enum SingleRule {
 /// What fires in one scan.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Default)]
 pub enum Policy {
-    /// A maximal greedy step: transitions visited by priority, then declaration order (DESIGN §3).
+    /// A maximal greedy step: transitions visited by priority, then declaration order (docs/design.md §3).
     #[default]
     Step,
     /// One firing per scan, chosen by the rule.

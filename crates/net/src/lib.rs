@@ -4,7 +4,7 @@
 //! exists is well-formed: every arc joins a place and a transition, every id is unique, and the
 //! sparse Pre/Post/inhibitor tables agree with the declared arcs.
 //!
-//! Order is declaration order everywhere (DESIGN §3): `PlaceIdx(i)` is the i-th place declared after
+//! Order is declaration order everywhere (docs/design.md §3): `PlaceIdx(i)` is the i-th place declared after
 //! nested pages are flattened, and a [`Marking`] is indexed by it.
 
 mod csr;

@@ -314,7 +314,7 @@ impl Net {
         self.any_inhibitor
     }
 
-    /// Enabled(t, M) as DESIGN §3 defines it: `M ≥ Pre[·,t]`, every inhibitor arc `M[p] < w`, and
+    /// Enabled(t, M) as docs/design.md §3 defines it: `M ≥ Pre[·,t]`, every inhibitor arc `M[p] < w`, and
     /// `M + C[·,t]` within every capacity.
     pub fn is_enabled(&self, t: TransIdx, m: &[Tokens]) -> bool {
         self.pre(t).iter().all(|&(p, w)| m[p.index()] >= w)

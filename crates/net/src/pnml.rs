@@ -1,7 +1,7 @@
 //! PNML in and out: ISO/IEC 15909-2 place/transition nets and the PIPE dialect.
 //!
 //! Reading accepts both dialects and flattens nested pages in document order, so the order of
-//! places and transitions in the file is the order of the [`Net`] (DESIGN §3). Writing always
+//! places and transitions in the file is the order of the [`Net`] (docs/design.md §3). Writing always
 //! produces ISO PNML on a single page, in declaration order.
 //!
 //! The ISO P/T grammar has no capacities, priorities or inhibitor arcs. The writer stores them in a

@@ -1,5 +1,5 @@
 //! The laws of the token game, checked on random nets against a naive reference written from the
-//! definitions in DESIGN §3 (it reads the declared arcs, not the engine's derived tables).
+//! definitions in docs/design.md §3 (it reads the declared arcs, not the engine's derived tables).
 
 use std::sync::Arc as Shared;
 
@@ -143,7 +143,7 @@ impl Reference {
         v
     }
 
-    /// The greedy step exactly as DESIGN §3 words it.
+    /// The greedy step exactly as docs/design.md §3 words it.
     fn step(&self, m: &[i64], guard: &dyn Fn(usize) -> bool) -> Vec<usize> {
         let mut avail = m.to_vec(); // M − Σ Pre[chosen]
         let mut cur = m.to_vec(); // M + Σ C[chosen]

@@ -1,6 +1,6 @@
 //! Persistence of the PLC's state: the state directory and the writer thread that fills it.
 //!
-//! A state directory holds everything a warm start needs (DESIGN §4), in files that a crash at any
+//! A state directory holds everything a warm start needs (docs/design.md §4), in files that a crash at any
 //! instant leaves consistent:
 //!
 //! ```text

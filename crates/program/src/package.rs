@@ -1,4 +1,4 @@
-//! Signed update packages (DESIGN §1, §4): metadata + the new program + its state transformation
+//! Signed update packages (docs/design.md §1, §4): metadata + the new program + its state transformation
 //! and projection, in one file signed with Ed25519.
 //!
 //! An [`UpdatePackage`] exists only once its signature has been checked against a [`TrustStore`]
@@ -143,7 +143,7 @@ pub struct PackageMeta {
 #[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(tag = "kind", rename_all = "lowercase", deny_unknown_fields)]
 pub enum TransformSpec {
-    /// Generated from place ids (DESIGN §1, the paper's future work).
+    /// Generated from place ids (docs/design.md §1, the paper's future work).
     Generated {
         /// Transform only: removed old place id -> new place id that receives its tokens.
         #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]

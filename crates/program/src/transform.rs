@@ -1,5 +1,5 @@
-//! State transformations `M_new = ST·M_old + ST_base` and projections `Π·M_cand + Π_base` (DESIGN
-//! §1, §4).
+//! State transformations `M_new = ST·M_old + ST_base` and projections `Π·M_cand + Π_base`
+//! (docs/design.md §1, §4).
 //!
 //! Both are linear maps between the place spaces of two nets, resolved once against those nets
 //! (ids checked, stored sparse) so that applying one at a cycle boundary is a few multiply-adds

@@ -348,7 +348,7 @@ impl Container {
     /// changed for two scans (so `rise`/`fall` are false as they were), the actions changed no
     /// variable, and no enabled transition has a guard on a place timer. Then every guard gives
     /// what it gave in the last scan, which fired nothing: this scan fires nothing either. This is
-    /// what makes a scan cost what the activity costs (DESIGN §3).
+    /// what makes a scan cost what the activity costs (docs/design.md §3).
     fn is_quiet(&self, inputs: &[Value], unchanged: bool) -> bool {
         !self.always_full
             && !self.force_full

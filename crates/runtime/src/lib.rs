@@ -5,7 +5,7 @@
 //! * [`MessageRouter`]: the same inputs to both containers, only PRIMARY's outputs to the
 //!   Dispatcher, the safe values in fault.
 //! * [`Updater`]: the live-update process; its phase ([`Status`]) is an enum that owns the
-//!   secondary container (DESIGN §4).
+//!   secondary container (docs/design.md §4).
 //! * [`Monitor`]: `program_exec_info`, divergence and its derived cause, drift, recent cycles.
 //! * [`Plc`]: composes them and runs one cycle at a time.
 //!

@@ -108,7 +108,7 @@ impl ProgramId {
 
 pub use cetratus_vocab::{Role, VerdictKind, VerdictResult};
 
-/// What a validation found (DESIGN §4): `{kind, result, reasons, figures}`.
+/// What a validation found (docs/design.md §4): `{kind, result, reasons, figures}`.
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct Verdict {
     /// `analysis` or `twin`.

@@ -1,5 +1,5 @@
 //! The Updater's phase: an enum, checked at run time, whose every variant owns exactly the data
-//! it needs, so PRIMARY, STATUS and the secondary container can never disagree (DESIGN §4).
+//! it needs, so PRIMARY, STATUS and the secondary container can never disagree (docs/design.md §4).
 
 use cetratus_net::{Tokens, TransIdx};
 use cetratus_program::{PackageMeta, Projection, StateTransform, Value};

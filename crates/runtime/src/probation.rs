@@ -1,4 +1,4 @@
-//! Probation (DESIGN §4): after a substitution the old program stays resident as a shadow, and
+//! Probation (docs/design.md §4): after a substitution the old program stays resident as a shadow, and
 //! the Updater ends the window at a cycle boundary, by an accept (the window over, or the
 //! operator's) or by a revert to the shadow, for a cause the cycle saw or the operator's.
 

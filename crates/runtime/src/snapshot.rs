@@ -1,4 +1,4 @@
-//! The PLC's state as persisted, and the warm start that resumes it (DESIGN §4).
+//! The PLC's state as persisted, and the warm start that resumes it (docs/design.md §4).
 
 use std::sync::Arc;
 
@@ -82,7 +82,7 @@ impl Plc {
     }
 
     /// A warm start: the saved PRIMARY resumes its last committed marking, timers, variables and
-    /// latches; an update that was under way is discarded, with an event (DESIGN §4). A PLC that
+    /// latches; an update that was under way is discarded, with an event (docs/design.md §4). A PLC that
     /// was in fault comes back in fault. `program` finds a program by its hash; `io_program`
     /// defines the I/O map.
     pub fn warm_start(

@@ -73,7 +73,7 @@ pub struct Limits {
     /// A candidate scan longer than this (ns) in quarantine aborts the update, after the scan.
     pub candidate_budget_ns: u64,
     /// A candidate scan is stopped midway, and the update aborted, once it has done this many
-    /// units of work: guard evaluations plus guards that held (DESIGN §2: a runaway candidate
+    /// units of work: guard evaluations plus guards that held (docs/design.md §2: a runaway candidate
     /// must not take the primary's time). Counted, not timed, so a virtual run decides the same.
     pub candidate_work_budget: u64,
     /// A primary scan longer than this (ns) is a primary fault.

@@ -1,4 +1,4 @@
-//! Timing isolation of the candidate (DESIGN §2): the Dispatcher writes the primary's outputs
+//! Timing isolation of the candidate (docs/design.md §2): the Dispatcher writes the primary's outputs
 //! before the candidate is scanned, a candidate over its time budget is removed after its scan,
 //! and a runaway candidate scan is stopped midway by its work budget, not by a clock.
 //!

@@ -3,7 +3,7 @@
 
 use cetratus_net::{ArcKind, Net, NetBuilder, Place, Transition};
 
-/// The 13-place Vernadat cell of DESIGN §6 (H first, 10 transitions), read from the example.
+/// The 13-place Vernadat cell of docs/design.md §6 (H first, 10 transitions), read from the example.
 ///
 /// The net built in code lives in `cetratus_bench::workloads::vernadat`; the crate doc says why
 /// there is one builder and how it is kept equal to this file.

@@ -31,7 +31,7 @@
 //!
 //! # The Vernadat cell ([`vernadat::VernadatCell`], name `vernadat`)
 //!
-//! Two machines share a buffer; one robot loads and unloads them (DESIGN §6). Inputs, in order:
+//! Two machines share a buffer; one robot loads and unloads them (docs/design.md §6). Inputs, in order:
 //!
 //! | input | true while |
 //! |---|---|
@@ -69,7 +69,7 @@
 //! Counters: `parts_finished`, `parts_in_buffer`, `lubrications_m1`, `lubrications_m2`,
 //! `parts_machined_m1`, `parts_machined_m2`, `parts_scrapped`.
 //!
-//! Driven by the program net of DESIGN §6 scanned every 10 ms, the cell makes 446 parts in a virtual
+//! Driven by the program net of docs/design.md §6 scanned every 10 ms, the cell makes 446 parts in a virtual
 //! hour with no fault (the bound is 450: machine 2 needs 8 s per part); with U.2's 3 s lubrication
 //! stages it makes 325 (`tests/vernadat_program.rs`).
 //!
@@ -444,7 +444,7 @@ pub enum TwinError {
 /// The twins this crate provides, chosen by name.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum TwinKind {
-    /// The Vernadat cell of DESIGN §6.
+    /// The Vernadat cell of docs/design.md §6.
     Vernadat,
     /// The Festo processing station.
     Festo,

@@ -1,4 +1,4 @@
-//! The Vernadat cell (DESIGN §6): infeed, machine 1, buffer, machine 2, outfeed, one robot.
+//! The Vernadat cell (docs/design.md §6): infeed, machine 1, buffer, machine 2, outfeed, one robot.
 //!
 //! The signal semantics are described in the crate documentation.
 
@@ -237,7 +237,7 @@ impl VernadatCell {
         Ok(Self::build(params, seed))
     }
 
-    /// A cell with the default parameters of DESIGN §6.
+    /// A cell with the default parameters of docs/design.md §6.
     pub fn with_defaults(seed: u64) -> Self {
         Self::build(VernadatParams::default(), seed)
     }

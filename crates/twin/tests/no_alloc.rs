@@ -1,4 +1,4 @@
-//! `Plant::step` and `Plant::inputs` must not touch the heap (DESIGN §2: no allocation inside a scan).
+//! `Plant::step` and `Plant::inputs` must not touch the heap (docs/design.md §2: no allocation inside a scan).
 
 mod common;
 

@@ -1,4 +1,4 @@
-//! The Vernadat cell driven by the program nets of DESIGN §6 for a virtual hour.
+//! The Vernadat cell driven by the program nets of docs/design.md §6 for a virtual hour.
 
 mod common;
 

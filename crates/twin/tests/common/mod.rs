@@ -46,7 +46,7 @@ pub fn run<C: Controller, P: Plant + ?Sized>(
 }
 
 // ---------------------------------------------------------------------------------------------
-// The Vernadat program net of DESIGN §6, interpreted with the default step policy of DESIGN §3.
+// The Vernadat program net of docs/design.md §6, interpreted with the default step policy of docs/design.md §3.
 
 /// A transition's guard.
 #[derive(Clone, Copy, Debug)]

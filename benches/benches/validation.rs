@@ -56,7 +56,12 @@ impl Cell {
         let p = self
             .plc
             .update_context()
-            .prepare_package(&bytes, &TrustStore::empty(), true, false)
+            .prepare_package(
+                &bytes,
+                &TrustStore::empty(),
+                cetratus_program::Unsigned::Allowed,
+                cetratus_program::OtherBase::Refused,
+            )
             .expect("prepared");
         self.plc
             .command(Command::Load(Box::new(p)))
@@ -114,7 +119,12 @@ fn gate_at_load(c: &mut Criterion) {
         let ctx = plc.update_context();
         let (bytes, _) = build_package(&example("vernadat", manifest), None).expect("package");
         let up = ctx
-            .prepare_package(&bytes, &TrustStore::empty(), true, false)
+            .prepare_package(
+                &bytes,
+                &TrustStore::empty(),
+                cetratus_program::Unsigned::Allowed,
+                cetratus_program::OtherBase::Refused,
+            )
             .expect("prepared");
         let policy = GatePolicy::default();
         let out = gate::run(&ctx, &up, &policy);

@@ -16,7 +16,12 @@ fn main() {
     if quarantine {
         let p = plc
             .update_context()
-            .prepare_package(&pk.u1, &pk.trust, false, false)
+            .prepare_package(
+                &pk.u1,
+                &pk.trust,
+                cetratus_program::Unsigned::Refused,
+                cetratus_program::OtherBase::Refused,
+            )
             .expect("prepares");
         plc.command(Command::Load(Box::new(p))).expect("accepted");
     }

@@ -16,8 +16,13 @@ fn main() {
     let t = std::time::Instant::now();
     for _ in 0..n {
         std::hint::black_box(
-            ctx.prepare_package(&pk.u2, &pk.trust, false, false)
-                .expect("prepares"),
+            ctx.prepare_package(
+                &pk.u2,
+                &pk.trust,
+                cetratus_program::Unsigned::Refused,
+                cetratus_program::OtherBase::Refused,
+            )
+            .expect("prepares"),
         );
     }
     println!("prepare_package {:?}", t.elapsed() / n);

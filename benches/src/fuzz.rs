@@ -108,7 +108,11 @@ impl Readers {
             }
             Target::Package => {
                 drop(cetratus_program::package::inspect(input));
-                drop(UpdatePackage::verify(input, &self.trust, true));
+                drop(UpdatePackage::verify(
+                    input,
+                    &self.trust,
+                    cetratus_program::Unsigned::Allowed,
+                ));
             }
             Target::StateJson => drop(serde_json::from_slice::<cetratus_persist::StateFile>(input)),
             Target::Command => {

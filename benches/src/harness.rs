@@ -136,7 +136,6 @@ pub fn vernadat_node(
     BenchError,
 > {
     use cetratus_node::clock::MonotonicStopwatch;
-    use cetratus_node::gate::GatePolicy;
     use cetratus_node::link::ControlLink;
     use cetratus_node::{Node, NodeOptions};
     use std::time::Duration;
@@ -153,21 +152,18 @@ pub fn vernadat_node(
     config.publish_period = Duration::from_millis(200);
     let (link, handle) = cetratus_mct::start(config)?;
     handle.wait_connected(Duration::from_secs(10));
+    let load = cetratus_node::load::LoadPolicy::default();
     let link = ControlLink::start(
         &plc,
         link,
-        cetratus_program::TrustStore::empty(),
-        false,
-        GatePolicy::default(),
+        load.clone(),
         (200_000 / period_us.max(1)).max(1),
     );
     let opts = NodeOptions {
         base_us: 0,
-        trust: cetratus_program::TrustStore::empty(),
-        allow_unsigned: false,
+        load,
         record_trace: false,
         progress_every: None,
-        gate: GatePolicy::default(),
     };
     Ok((Node::new(plc, io, opts).with_link(link), handle))
 }

@@ -138,7 +138,12 @@ pub fn update_figures(quick: bool) -> UpdateFigures {
         let mut plc = Plc::new(vernadat.clone(), 0, MonotonicStopwatch::boxed());
         let prepared = plc
             .update_context()
-            .prepare_package(&pk.u1, &pk.trust, false, false)
+            .prepare_package(
+                &pk.u1,
+                &pk.trust,
+                cetratus_program::Unsigned::Refused,
+                cetratus_program::OtherBase::Refused,
+            )
             .expect("U.1 prepares");
         plc.command(Command::Load(Box::new(prepared)))
             .expect("accepted");
@@ -170,7 +175,12 @@ pub fn update_figures(quick: bool) -> UpdateFigures {
         let mut plc = Plc::new(vernadat.clone(), 0, MonotonicStopwatch::boxed());
         let prepared = plc
             .update_context()
-            .prepare_package(&pk.u1, &pk.trust, false, false)
+            .prepare_package(
+                &pk.u1,
+                &pk.trust,
+                cetratus_program::Unsigned::Refused,
+                cetratus_program::OtherBase::Refused,
+            )
             .expect("U.1 prepares");
         plc.command(Command::Load(Box::new(prepared)))
             .expect("accepted");
@@ -190,8 +200,13 @@ pub fn update_figures(quick: bool) -> UpdateFigures {
         .map(|_| {
             let t0 = Instant::now();
             black_box(
-                ctx.prepare_package(&pk.u2, &pk.trust, false, false)
-                    .expect("U.2 prepares"),
+                ctx.prepare_package(
+                    &pk.u2,
+                    &pk.trust,
+                    cetratus_program::Unsigned::Refused,
+                    cetratus_program::OtherBase::Refused,
+                )
+                .expect("U.2 prepares"),
             );
             t0.elapsed().as_secs_f64() * 1e6
         })

@@ -133,15 +133,12 @@ fn live(args: &DemoArgs, files: &DemoFiles) -> anyhow::Result<()> {
     let period_us = plc.primary_program().scan_period().as_micros() as u64;
     let (link, services) =
         crate::mqtt_args::start_services(&args.mqtt, &local, &args.http, true, false)?;
-    let link = crate::mqtt_args::control_link(
-        link,
-        &plc,
-        trust.clone(),
-        local.allow_unsigned,
-        local.gate,
-        args.speed,
-        period_us,
-    );
+    let load = cetratus_node::load::LoadPolicy {
+        trust,
+        unsigned: cetratus_program::Unsigned::allowed_if(local.allow_unsigned),
+        gate: local.gate,
+    };
+    let link = crate::mqtt_args::control_link(link, &plc, load.clone(), args.speed, period_us);
     let speed = if args.speed.is_finite() && args.speed > 0.0 {
         args.speed
     } else {
@@ -180,11 +177,9 @@ fn live(args: &DemoArgs, files: &DemoFiles) -> anyhow::Result<()> {
         .context("cannot install the Ctrl-C handler")?;
     let opts = NodeOptions {
         base_us: 0,
-        trust,
-        allow_unsigned: local.allow_unsigned,
+        load: load.clone(),
         record_trace: false,
         progress_every: None,
-        gate: local.gate,
     };
     let node = Node::new(plc, io, opts)
         .with_twin_validation(local.validation, period_us)

@@ -212,9 +212,7 @@ pub fn access_config(local: &LocalConfig) -> cetratus_dashboard::AccessConfig {
 pub fn control_link(
     link: MctLink,
     plc: &cetratus_runtime::Plc,
-    trust: cetratus_program::TrustStore,
-    allow_unsigned: bool,
-    gate: cetratus_node::gate::GatePolicy,
+    load: cetratus_node::load::LoadPolicy,
     speed: f64,
     period_us: u64,
 ) -> ControlLink {
@@ -226,5 +224,5 @@ pub fn control_link(
     let publish_every = ((200_000.0 * speed) / period_us.max(1) as f64)
         .round()
         .max(1.0) as u64;
-    ControlLink::start(plc, link, trust, allow_unsigned, gate, publish_every)
+    ControlLink::start(plc, link, load, publish_every)
 }

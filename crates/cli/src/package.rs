@@ -196,7 +196,11 @@ fn verify(a: &VerifyArgs) -> anyhow::Result<()> {
             .with_context(|| format!("cannot load the trust directory {}", dir.display()))?,
         None => TrustStore::empty(),
     };
-    let pkg = match UpdatePackage::verify(&bytes, &trust, a.allow_unsigned) {
+    let pkg = match UpdatePackage::verify(
+        &bytes,
+        &trust,
+        cetratus_program::Unsigned::allowed_if(a.allow_unsigned),
+    ) {
         Ok(p) => p,
         Err(e @ PackageError::UnknownSigner { .. }) if a.trust.is_none() => {
             bail!(
@@ -226,7 +230,7 @@ fn verify(a: &VerifyArgs) -> anyhow::Result<()> {
     if let Some(base) = &a.base {
         let old = load_program(base)?;
         let up = pkg
-            .resolve(&old, a.force)
+            .resolve(&old, cetratus_program::OtherBase::forced_if(a.force))
             .with_context(|| format!("{} does not fit {}", a.package.display(), base.display()))?;
         println!(
             "resolves    against {} {}: transform {}×{}, projection {}×{}",

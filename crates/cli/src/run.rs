@@ -222,13 +222,16 @@ pub fn run(args: &RunArgs) -> anyhow::Result<()> {
     };
     crate::run_io::press(&mut io, &args.press, kind, base_us)?;
     crate::run_io::admit(&io, &mut plc);
+    let load = cetratus_node::load::LoadPolicy {
+        trust: trust.clone(),
+        unsigned: cetratus_program::Unsigned::allowed_if(allow_unsigned),
+        gate: local.gate,
+    };
     let opts = NodeOptions {
         base_us,
-        trust: trust.clone(),
-        allow_unsigned,
+        load: load.clone(),
         record_trace: args.trace.is_some() || args.svg.is_some(),
         progress_every: args.progress,
-        gate: local.gate,
     };
     let observer = crate::run_opcua::observer(&io);
     let mut node = Node::new(plc, io, opts)
@@ -270,15 +273,8 @@ pub fn run(args: &RunArgs) -> anyhow::Result<()> {
     });
     let mut services = None;
     if let Some((link, s)) = mqtt {
-        let mut link = crate::mqtt_args::control_link(
-            link,
-            node.plc(),
-            trust.clone(),
-            allow_unsigned,
-            local.gate,
-            args.speed,
-            period_us,
-        );
+        let mut link =
+            crate::mqtt_args::control_link(link, node.plc(), load, args.speed, period_us);
         if let Some(q) = crate::run_opcua::input_quality(node.io()) {
             link.set_input_quality(q);
         }

@@ -165,10 +165,12 @@ fn packages_whose_transform_does_not_fit_the_running_net_are_refused_even_when_f
     // A PLC running U.2 (15 places): U.1's 13×13 dense matrix has the wrong dimensions.
     let mut cell = Cell::new(w.program("u2.toml"));
     cell.run_for(1_000_000);
-    let p = cell
-        .plc
-        .update_context()
-        .prepare_package(&u1, &w.trust, false, true);
+    let p = cell.plc.update_context().prepare_package(
+        &u1,
+        &w.trust,
+        cetratus_program::Unsigned::Refused,
+        cetratus_program::OtherBase::Forced,
+    );
     let e = p.err().expect("refused").to_string();
     assert!(
         e.contains("P30") || e.contains("15") || e.contains("13"),
@@ -240,7 +242,12 @@ fn one_update_at_a_time_and_every_refusal_is_an_event() {
     let second = cell
         .plc
         .update_context()
-        .prepare_package(&u1, &w.trust, false, false)
+        .prepare_package(
+            &u1,
+            &w.trust,
+            cetratus_program::Unsigned::Refused,
+            cetratus_program::OtherBase::Refused,
+        )
         .expect("prepared");
     assert!(cell.plc.command(Command::Load(Box::new(second))).is_err());
     cell.step();

@@ -80,7 +80,12 @@ fn the_install_of_a_candidate_allocates_only_the_list_of_its_event() {
     }
     let prepared = plc
         .update_context()
-        .prepare_package(&w.package("u1.package.toml"), &w.trust, false, false)
+        .prepare_package(
+            &w.package("u1.package.toml"),
+            &w.trust,
+            cetratus_program::Unsigned::Refused,
+            cetratus_program::OtherBase::Refused,
+        )
         .expect("U.1 prepares");
     plc.command(Command::Load(Box::new(prepared)))
         .expect("accepted");

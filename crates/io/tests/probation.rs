@@ -102,7 +102,12 @@ fn accept_ends_probation_at_the_next_cycle_and_no_load_is_taken_before() {
     assert_eq!(
         cell.plc
             .update_context()
-            .prepare_package(&w.package("u2.package.toml"), &w.trust, false, false)
+            .prepare_package(
+                &w.package("u2.package.toml"),
+                &w.trust,
+                cetratus_program::Unsigned::Refused,
+                cetratus_program::OtherBase::Refused
+            )
             .map(|p| cell.plc.command(Command::Load(Box::new(p))))
             .ok(),
         Some(Err(CommandError::LoadInProbation)),

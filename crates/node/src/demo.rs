@@ -22,7 +22,8 @@ use cetratus_twin::{Plant, Twin, TwinKind};
 use serde::Serialize;
 
 use crate::clock::MonotonicStopwatch;
-use crate::gate::{self, GatePolicy};
+use crate::gate::GatePolicy;
+use crate::load::LoadPolicy;
 use crate::node::{Node, NodeOptions};
 
 /// Why the demo cannot run.
@@ -284,7 +285,7 @@ const PERIOD_US: u64 = 10_000;
 
 struct Run {
     node: Node<TwinDriver<Twin>>,
-    gate: GatePolicy,
+    load: LoadPolicy,
     now: u64,
     rec: Recorder,
     events: Vec<Event>,
@@ -316,16 +317,12 @@ impl Run {
         r.map_err(|e| DemoError::Experiment(e.to_string()))
     }
     /// Prepares and gates a package as a run's preparer does, then loads it.
-    fn load(&mut self, bytes: &[u8], trust: &TrustStore) -> Result<(), DemoError> {
+    fn load(&mut self, bytes: &[u8]) -> Result<(), DemoError> {
         let ctx = self.node.plc().update_context();
-        let mut prepared = ctx
-            .prepare_package(bytes, trust, false, false)
+        let prepared = self
+            .load
+            .prepare(&ctx, bytes)
             .map_err(|e| DemoError::Experiment(e.to_string()))?;
-        let gate = gate::run(&ctx, &prepared, &self.gate);
-        if let Some(refusal) = gate.refusal {
-            return Err(DemoError::Experiment(refusal));
-        }
-        prepared.add_verdict(gate.verdict);
         self.command(Command::Load(Box::new(prepared)))
     }
     fn substitute(&mut self) -> Result<(), DemoError> {
@@ -348,16 +345,19 @@ pub fn scripted(files: &DemoFiles, gate: GatePolicy) -> Result<DemoRecord, DemoE
     let io = TwinDriver::new(twin, program.inputs(), program.outputs())?;
     let mut plc = Plc::new(program, 0, MonotonicStopwatch::boxed());
     plc.use_virtual_time(PERIOD_US);
-    let opts = NodeOptions {
-        base_us: 0,
+    let load = LoadPolicy {
         trust: files.trust.clone(),
-        allow_unsigned: false,
-        record_trace: false,
-        progress_every: None,
+        unsigned: cetratus_program::Unsigned::Refused,
         gate,
     };
+    let opts = NodeOptions {
+        base_us: 0,
+        load: load.clone(),
+        record_trace: false,
+        progress_every: None,
+    };
     let mut r = Run {
-        gate: opts.gate,
+        load,
         node: Node::new(plc, io, opts),
         now: 0,
         rec: Recorder {
@@ -371,7 +371,7 @@ pub fn scripted(files: &DemoFiles, gate: GatePolicy) -> Result<DemoRecord, DemoE
     r.run_until(10_000_000);
 
     // U.1 into B; quarantine until the buffer is full in A's eyes and B keeps going.
-    r.load(&files.u1, &files.trust)?;
+    r.load(&files.u1)?;
     r.step();
     let b = Slot::B.index();
     r.run_while(300_000_000, |plc| {
@@ -393,7 +393,7 @@ pub fn scripted(files: &DemoFiles, gate: GatePolicy) -> Result<DemoRecord, DemoE
 
     // U.2 into A with the generated transformation; quarantine over a full processing cycle, so
     // that LM1 and LM2 show in the candidate's outputs and the drift shows.
-    r.load(&files.u2, &files.trust)?;
+    r.load(&files.u2)?;
     r.step();
     let a = Slot::A.index();
     let lm: Vec<usize> = ["LM1", "LM2"]

@@ -19,6 +19,7 @@ pub mod demo;
 pub mod dirs;
 pub mod gate;
 pub mod link;
+pub mod load;
 mod node;
 pub mod periodic;
 pub mod rt;

@@ -22,7 +22,7 @@ use cetratus_mct::budget::{worth_logging, Budget, Permit};
 use cetratus_mct::{
     accepted, refused, IncomingCommand, MctLink, Outgoing, ReplyHandle, Request, StatsReader,
 };
-use cetratus_program::{Program, TrustStore, Value};
+use cetratus_program::{Program, Value};
 use cetratus_proto::{
     within_error, ControlCounters, ErrorBody, ErrorCode, EventMsg, ExecInfoMsg, IoMsg, IoNames,
     StateMsg,
@@ -33,7 +33,7 @@ use cetratus_runtime::{
 };
 use serde_json::json;
 
-use crate::gate::{self, GatePolicy};
+use crate::load::LoadPolicy;
 use crate::wire;
 use cetratus_io::field::DeviceStatus;
 
@@ -122,15 +122,8 @@ pub type InputQualityReader = Arc<dyn Fn() -> Vec<DeviceStatus> + Send + Sync>;
 type QualitySource = Arc<Mutex<Option<InputQualityReader>>>;
 
 impl ControlLink {
-    /// Starts the preparer and the publisher for `plc` on `link`.
-    pub fn start(
-        plc: &Plc,
-        link: MctLink,
-        trust: TrustStore,
-        allow_unsigned: bool,
-        gate: GatePolicy,
-        publish_every: u64,
-    ) -> ControlLink {
+    /// Starts the preparer and the publisher for `plc` on `link`; loads pass `policy`.
+    pub fn start(plc: &Plc, link: MctLink, policy: LoadPolicy, publish_every: u64) -> ControlLink {
         let MctLink {
             commands,
             outgoing,
@@ -149,9 +142,7 @@ impl ControlLink {
             to_publisher: snap_tx.clone(),
             exec_info: Budget::new(EXEC_INFO_QUEUE),
             out: outgoing.clone(),
-            trust,
-            allow_unsigned,
-            gate,
+            policy,
         };
         let done = Arc::new(AtomicBool::new(false));
         let prep_done = done.clone();
@@ -406,9 +397,7 @@ struct Preparer {
     to_publisher: Sender<ToPublisher>,
     exec_info: Budget,
     out: SyncSender<Outgoing>,
-    trust: TrustStore,
-    allow_unsigned: bool,
-    gate: GatePolicy,
+    policy: LoadPolicy,
 }
 
 impl Preparer {
@@ -501,31 +490,23 @@ impl Preparer {
         ctx: &mut Option<UpdateContext>,
         package: &[u8],
     ) -> Result<(Box<Command>, serde_json::Value), String> {
-        let prepare = |c: &UpdateContext| {
-            c.prepare_package(package, &self.trust, self.allow_unsigned, false)
-                .map_err(|e| e.to_string())
-        };
-        let Some(before) = ctx.as_ref() else {
-            return Err("the PLC is starting; try again".to_string());
-        };
-        let mut p = prepare(before)?;
+        let starting = || "the PLC is starting; try again".to_string();
+        let before = ctx.as_ref().ok_or_else(starting)?;
+        let mut p = self
+            .policy
+            .build(before, package)
+            .map_err(|e| e.to_string())?;
         let base = before.primary.hash();
         self.fresh_context(ctx);
-        let Some(c) = ctx.as_ref() else {
-            return Err("the PLC is starting; try again".to_string());
-        };
+        let c = ctx.as_ref().ok_or_else(starting)?;
         if c.primary.hash() != base {
-            p = prepare(c)?;
+            p = self.policy.build(c, package).map_err(|e| e.to_string())?;
         }
-        let gate = gate::run(c, &p, &self.gate);
-        if let Some(refusal) = gate.refusal {
-            return Err(refusal);
-        }
+        let p = self.policy.gate(c, p).map_err(|e| e.to_string())?;
         let extra = json!({
             "accepted": true,
-            "verdicts": [wire::verdict(&gate.verdict)],
+            "verdicts": p.verdicts().last().map(wire::verdict).into_iter().collect::<Vec<_>>(),
         });
-        p.add_verdict(gate.verdict);
         Ok((Box::new(Command::Load(Box::new(p))), extra))
     }
 

@@ -10,7 +10,6 @@ use std::sync::mpsc::{sync_channel, SyncSender};
 use std::thread::JoinHandle;
 
 use cetratus_persist::{PersistStats, Persister};
-use cetratus_program::TrustStore;
 use cetratus_runtime::trace::Trace;
 use cetratus_runtime::{
     Clock, Command, CommandError, Dispatcher, Event, EventKind, LoopTiming, Plc, Provider, Status,
@@ -45,16 +44,12 @@ pub enum Echo {
 pub struct NodeOptions {
     /// Program time at which this run starts (after a warm start, past the last committed cycle).
     pub base_us: u64,
-    /// Keys trusted for packages of the script.
-    pub trust: TrustStore,
-    /// Accept unsigned packages (local configuration only).
-    pub allow_unsigned: bool,
+    /// What the script's loads accept: keys, unsigned packages, the analysis gate.
+    pub load: crate::load::LoadPolicy,
     /// Record the I/O trace (`--trace`, `--svg`).
     pub record_trace: bool,
     /// Echo [`Echo::Progress`] every this many cycles.
     pub progress_every: Option<u64>,
-    /// The analysis gate of the script's loads.
-    pub gate: crate::gate::GatePolicy,
 }
 
 /// What [`Node::with_observer`] is given.
@@ -252,11 +247,7 @@ impl<IO: Provider + Dispatcher> Node<IO> {
 
     /// Gives scripted commands; their packages must be signed by the keys of the options.
     pub fn with_script(mut self, script: Script) -> Self {
-        self.script = script.trusting(
-            self.opts.trust.clone(),
-            self.opts.allow_unsigned,
-            self.opts.gate,
-        );
+        self.script = script.trusting(self.opts.load.clone());
         self
     }
 

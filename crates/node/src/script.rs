@@ -16,9 +16,8 @@
 
 use std::sync::mpsc::{sync_channel, Receiver, SyncSender};
 
-use crate::gate::{self, GatePolicy};
+use crate::load::LoadPolicy;
 use cetratus_program::duration::{self, Bare};
-use cetratus_program::TrustStore;
 use cetratus_runtime::{
     Command, Plc, PreparedUpdate, SubstituteMode, SubstituteRequest, UpdateContext,
 };
@@ -94,7 +93,7 @@ struct Preparer {
 }
 
 impl Preparer {
-    fn start(trust: TrustStore, allow_unsigned: bool, gate: GatePolicy) -> Self {
+    fn start(policy: LoadPolicy) -> Self {
         let (jobs, job_rx) = sync_channel::<Job>(1);
         let (done_tx, done) = sync_channel::<Done>(1);
         // Detached: it ends when the script (and so `jobs`) is dropped, after the job under way.
@@ -103,21 +102,14 @@ impl Preparer {
             .spawn(move || {
                 crate::rt::normal();
                 while let Ok(Job { item, path, ctx }) = job_rx.recv() {
+                    // The analysis gate, here on the script's thread as on the MQTT
+                    // preparer's: never on the scan thread.
                     let result = std::fs::read(&path)
                         .map_err(|e| format!("cannot read {path}: {e}"))
                         .and_then(|bytes| {
-                            ctx.prepare_package(&bytes, &trust, allow_unsigned, false)
+                            policy
+                                .prepare(&ctx, &bytes)
                                 .map_err(|e| format!("{path}: {e}"))
-                        })
-                        .and_then(|mut p| {
-                            // The analysis gate, here on the script's thread as on the MQTT
-                            // preparer's: never on the scan thread.
-                            let g = gate::run(&ctx, &p, &gate);
-                            if let Some(refusal) = g.refusal {
-                                return Err(format!("{path}: {refusal}"));
-                            }
-                            p.add_verdict(g.verdict);
-                            Ok(p)
                         });
                     let base = ctx.primary.hash();
                     if done_tx.send(Done { item, base, result }).is_err() {
@@ -185,8 +177,7 @@ pub struct Script {
     items: Vec<Scripted>,
     next: usize,
     preparer: Option<Preparer>,
-    trust: Option<(TrustStore, bool)>,
-    gate: GatePolicy,
+    policy: LoadPolicy,
 }
 
 impl std::fmt::Debug for Script {
@@ -241,20 +232,18 @@ impl Script {
             items: v,
             next: 0,
             preparer: None,
-            trust: None,
-            gate: GatePolicy::default(),
+            policy: LoadPolicy::default(),
         })
     }
 
     /// The keys a scripted package must be signed with (and whether unsigned ones are taken).
     /// Starts the preparer thread when the script loads a package: here, before the run, so that
     /// it does not inherit the scan thread's real-time priority (`--rt`).
-    pub fn trusting(mut self, trust: TrustStore, allow_unsigned: bool, gate: GatePolicy) -> Self {
-        self.gate = gate;
+    pub fn trusting(mut self, policy: LoadPolicy) -> Self {
         if self.items.iter().any(|s| matches!(s.verb, Verb::Load(_))) {
-            self.preparer = Some(Preparer::start(trust.clone(), allow_unsigned, gate));
+            self.preparer = Some(Preparer::start(policy.clone()));
         }
-        self.trust = Some((trust, allow_unsigned));
+        self.policy = policy;
         self
     }
 
@@ -272,8 +261,7 @@ impl Script {
             items,
             next,
             preparer,
-            trust,
-            gate,
+            policy,
         } = self;
         let s = items.get(*next)?;
         let due = s.at_us.saturating_add(base_us) <= now_us;
@@ -296,10 +284,7 @@ impl Script {
             return None;
         };
         let item = *next;
-        let prep = preparer.get_or_insert_with(|| {
-            let (t, unsigned) = trust.clone().unwrap_or((TrustStore::empty(), false));
-            Preparer::start(t, unsigned, *gate)
-        });
+        let prep = preparer.get_or_insert_with(|| Preparer::start(policy.clone()));
         if !due {
             // Not prepared ahead: the analysis gate starts from the marking the install will
             // transform, the primary's at the boundary the load is due at.

@@ -33,7 +33,12 @@ fn prepared(dir: &Path, base: &str, manifest: &str) -> (UpdateContext, PreparedU
     let ctx = plc.update_context();
     let (bytes, _) = build_package(&dir.join(manifest), None).expect("the package builds");
     let up = ctx
-        .prepare_package(&bytes, &TrustStore::empty(), true, false)
+        .prepare_package(
+            &bytes,
+            &TrustStore::empty(),
+            cetratus_program::Unsigned::Allowed,
+            cetratus_program::OtherBase::Refused,
+        )
         .expect("the package fits the running program");
     (ctx, up)
 }
@@ -160,11 +165,13 @@ fn a_scripted_load_is_gated_from_the_marking_of_the_boundary_it_is_installed_at(
     let at_start = plc.update_context();
     let opts = NodeOptions {
         base_us: 0,
-        trust: TrustStore::empty(),
-        allow_unsigned: true,
+        load: cetratus_node::load::LoadPolicy {
+            trust: TrustStore::empty(),
+            unsigned: cetratus_program::Unsigned::Allowed,
+            gate: Default::default(),
+        },
         record_trace: false,
         progress_every: None,
-        gate: GatePolicy::default(),
     };
     let script = Script::parse(&[format!("{}us load {}", DUE, pkg.display())]).expect("script");
     let mut node = Node::new(plc, io, opts).with_script(script);
@@ -192,7 +199,12 @@ fn a_scripted_load_is_gated_from_the_marking_of_the_boundary_it_is_installed_at(
 
     let gate_at = |ctx: &UpdateContext| {
         let up = ctx
-            .prepare_package(&bytes, &TrustStore::empty(), true, false)
+            .prepare_package(
+                &bytes,
+                &TrustStore::empty(),
+                cetratus_program::Unsigned::Allowed,
+                cetratus_program::OtherBase::Refused,
+            )
             .expect("prepares");
         gate::run(ctx, &up, &GatePolicy::default()).verdict.reasons
     };

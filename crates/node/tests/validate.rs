@@ -69,7 +69,12 @@ impl Cell {
         let p = self
             .plc
             .update_context()
-            .prepare_package(&bytes, &TrustStore::empty(), true, false)
+            .prepare_package(
+                &bytes,
+                &TrustStore::empty(),
+                cetratus_program::Unsigned::Allowed,
+                cetratus_program::OtherBase::Refused,
+            )
             .expect("prepared");
         self.plc
             .command(Command::Load(Box::new(p)))
@@ -199,11 +204,22 @@ fn f1_commissioned_on_fresh_festo_twins_passes() {
     let (bytes, _) = build_package(&dir.path().join("f1.package.toml"), None).expect("F.1");
     let plc = Plc::new(base.clone(), 0, Box::new(ManualStopwatch::new()));
     plc.update_context()
-        .prepare_package(&bytes, &TrustStore::empty(), true, false)
+        .prepare_package(
+            &bytes,
+            &TrustStore::empty(),
+            cetratus_program::Unsigned::Allowed,
+            cetratus_program::OtherBase::Refused,
+        )
         .expect("F.1 fits the Festo program");
-    let pkg = cetratus_program::UpdatePackage::verify(&bytes, &TrustStore::empty(), true)
-        .expect("verifies");
-    let update = pkg.resolve(&base, false).expect("resolves");
+    let pkg = cetratus_program::UpdatePackage::verify(
+        &bytes,
+        &TrustStore::empty(),
+        cetratus_program::Unsigned::Allowed,
+    )
+    .expect("verifies");
+    let update = pkg
+        .resolve(&base, cetratus_program::OtherBase::Refused)
+        .expect("resolves");
     let job = validate::Job {
         baseline: base,
         update,
@@ -400,11 +416,13 @@ fn during_probation_validation_runs_again_and_a_later_failing_verdict_reverts() 
     plc.set_limits(limits);
     let opts = NodeOptions {
         base_us: 0,
-        trust: TrustStore::empty(),
-        allow_unsigned: true,
+        load: cetratus_node::load::LoadPolicy {
+            trust: TrustStore::empty(),
+            unsigned: cetratus_program::Unsigned::Allowed,
+            gate: Default::default(),
+        },
         record_trace: false,
         progress_every: None,
-        gate: Default::default(),
     };
     let script = Script::parse(&[
         format!("2s load {}", pkg.display()),

@@ -33,8 +33,8 @@ pub use error::ProgramError;
 pub use guard::{EvalCtx, EvalError, EvalErrorKind, Guard};
 pub use invariant::{Invariant, InvariantViolation};
 pub use package::{
-    build_package, BuildReport, KeyPair, PackageError, PackageMeta, ProgramImporter,
-    ResolvedUpdate, TransformSpec, TrustStore, UpdatePackage, VerifyingKeyFile,
+    build_package, BuildReport, KeyPair, OtherBase, PackageError, PackageMeta, ProgramImporter,
+    ResolvedUpdate, TransformSpec, TrustStore, Unsigned, UpdatePackage, VerifyingKeyFile,
 };
 pub use program::{Program, Watchdog, DEFAULT_SCAN_PERIOD, TOOL};
 pub use source::{toml_text, NotUtf8};

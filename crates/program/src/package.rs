@@ -264,19 +264,62 @@ pub struct ResolvedUpdate {
     pub meta: PackageMeta,
 }
 
+/// Whether a package without a signature may load: only when the local configuration says so
+/// (`allow_unsigned`), never by a command.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Unsigned {
+    /// An unsigned package is refused.
+    #[default]
+    Refused,
+    /// An unsigned package loads.
+    Allowed,
+}
+
+impl Unsigned {
+    /// [`Unsigned::Allowed`] when `allowed` (a configuration's `allow_unsigned`), else refused.
+    pub fn allowed_if(allowed: bool) -> Self {
+        if allowed {
+            Unsigned::Allowed
+        } else {
+            Unsigned::Refused
+        }
+    }
+}
+
+/// Whether a package built against another program than the running one may load.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum OtherBase {
+    /// Refused: the package's `base_program_hash` must be the running program's.
+    #[default]
+    Refused,
+    /// Resolved against the running program anyway (its transform must still fit both nets).
+    Forced,
+}
+
+impl OtherBase {
+    /// [`OtherBase::Forced`] when `forced` (a command line's `--force`), else refused.
+    pub fn forced_if(forced: bool) -> Self {
+        if forced {
+            OtherBase::Forced
+        } else {
+            OtherBase::Refused
+        }
+    }
+}
+
 impl UpdatePackage {
     /// Parses a package file, checks its signature against the trusted keys (an unsigned package
-    /// passes only when `allow_unsigned`), then loads its program.
+    /// passes only when `unsigned` allows it), then loads its program.
     pub fn verify(
         bytes: &[u8],
         trust: &TrustStore,
-        allow_unsigned: bool,
+        unsigned: Unsigned,
     ) -> Result<UpdatePackage, PackageError> {
         let (envelope, payload_bytes) = open(bytes)?;
         // The signature is checked before the payload is parsed: nothing unauthenticated is
         // interpreted beyond the envelope.
         let signer = match &envelope.signature {
-            None if allow_unsigned => None,
+            None if unsigned == Unsigned::Allowed => None,
             None => return Err(PackageError::Unsigned),
             Some(sig) => {
                 let Some(key) = trust.keys.get(&sig.key_id) else {
@@ -333,10 +376,10 @@ impl UpdatePackage {
     }
 
     /// Resolves the package against the running program: refuses one built against another
-    /// program unless `force`, then builds the state transform and the projection.
-    pub fn resolve(&self, old: &Program, force: bool) -> Result<ResolvedUpdate, PackageError> {
+    /// program unless `base` forces it, then builds the state transform and the projection.
+    pub fn resolve(&self, old: &Program, base: OtherBase) -> Result<ResolvedUpdate, PackageError> {
         let running = old.hash_hex();
-        if !force && self.meta.base_program_hash != running {
+        if base == OtherBase::Refused && self.meta.base_program_hash != running {
             return Err(PackageError::BaseMismatch {
                 package_base: self.meta.base_program_hash.clone(),
                 running: running.to_string(),
@@ -374,7 +417,7 @@ pub struct UnverifiedPackage {
 
 impl UnverifiedPackage {
     /// The state transform and the projection the package declares, resolved against `old` as
-    /// [`UpdatePackage::resolve`] would with `force`: for showing the matrices. The signature is
+    /// [`UpdatePackage::resolve`] would with [`OtherBase::Forced`]: for showing the matrices. The signature is
     /// not checked, so no [`ResolvedUpdate`] comes out of it: nothing here can be loaded.
     pub fn resolve_for_display(
         &self,

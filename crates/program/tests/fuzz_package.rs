@@ -229,12 +229,20 @@ fn mutated_package(m: &Mutation, signature: Option<Value>) -> Vec<u8> {
 /// Reads a package every way a PLC and the CLI do; any of it may fail, none of it may panic.
 fn read_every_way(bytes: &[u8], markings: &[Vec<u32>]) {
     let _ = inspect(bytes);
-    let _ = UpdatePackage::verify(bytes, &TrustStore::empty(), false);
-    let Ok(pkg) = UpdatePackage::verify(bytes, &TrustStore::empty(), true) else {
+    let _ = UpdatePackage::verify(
+        bytes,
+        &TrustStore::empty(),
+        cetratus_program::Unsigned::Refused,
+    );
+    let Ok(pkg) = UpdatePackage::verify(
+        bytes,
+        &TrustStore::empty(),
+        cetratus_program::Unsigned::Allowed,
+    ) else {
         return;
     };
     for force in [false, true] {
-        let Ok(up) = pkg.resolve(vernadat(), force) else {
+        let Ok(up) = pkg.resolve(vernadat(), cetratus_program::OtherBase::forced_if(force)) else {
             continue;
         };
         let mut out = vec![0; up.program.net().num_places()];

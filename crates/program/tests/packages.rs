@@ -74,10 +74,14 @@ fn u1_dense_transform_gives_h_plus_two_with_other_places_equal() {
     let (bytes, report) = s.build(&paths::example("vernadat/u1.package.toml"));
     assert_eq!(report.transform_kind, "dense");
     assert!(report.warnings.is_empty(), "{:?}", report.warnings);
-    let pkg = ok(UpdatePackage::verify(&bytes, &s.trust(), false));
+    let pkg = ok(UpdatePackage::verify(
+        &bytes,
+        &s.trust(),
+        cetratus_program::Unsigned::Refused,
+    ));
     assert_eq!(pkg.signer(), Some(s.key.key_id().as_str()));
     let old = programs::example("vernadat/vernadat.toml");
-    let up = ok(pkg.resolve(&old, false));
+    let up = ok(pkg.resolve(&old, cetratus_program::OtherBase::Refused));
     assert_eq!((up.transform.rows(), up.transform.cols()), (13, 13));
 
     let m_old = old.net().initial_marking();
@@ -114,9 +118,13 @@ fn u2_generated_transform_is_the_identity_over_a_zero_block() {
     rows.extend(["P30".to_string(), "P31".to_string()]);
     assert_eq!(report.transform.row_ids, rows);
 
-    let pkg = ok(UpdatePackage::verify(&bytes, &s.trust(), false));
+    let pkg = ok(UpdatePackage::verify(
+        &bytes,
+        &s.trust(),
+        cetratus_program::Unsigned::Refused,
+    ));
     let old = programs::example("vernadat/u1.toml");
-    let up = ok(pkg.resolve(&old, false));
+    let up = ok(pkg.resolve(&old, cetratus_program::OtherBase::Refused));
     assert_eq!(up.transform.to_dense(), report.transform);
     assert_eq!((up.transform.rows(), up.transform.cols()), (15, 13));
 
@@ -138,7 +146,11 @@ fn u2_generated_transform_is_the_identity_over_a_zero_block() {
 fn a_package_file_says_who_signed_it_and_hashes_its_bytes() {
     let s = Signer::new();
     let (bytes, report) = s.build(&paths::example("vernadat/u2.package.toml"));
-    let pkg = ok(UpdatePackage::verify(&bytes, &s.trust(), false));
+    let pkg = ok(UpdatePackage::verify(
+        &bytes,
+        &s.trust(),
+        cetratus_program::Unsigned::Refused,
+    ));
     assert_eq!(pkg.meta().name, "U.2 lubrication");
     assert_eq!(pkg.meta().created, "2023-11-14T22:13:20Z");
     assert_eq!(
@@ -171,7 +183,8 @@ fn a_tampered_package_is_refused() {
     payload[at] ^= 0x01;
     doc["payload"] = serde_json::Value::String(b64.encode(&payload));
     let tampered = ok(serde_json::to_vec(&doc));
-    let err = UpdatePackage::verify(&tampered, &s.trust(), false).unwrap_err();
+    let err = UpdatePackage::verify(&tampered, &s.trust(), cetratus_program::Unsigned::Refused)
+        .unwrap_err();
     assert!(matches!(err, PackageError::BadSignature { .. }), "{err}");
     assert!(err.to_string().contains("altered"), "{err}");
 
@@ -179,7 +192,7 @@ fn a_tampered_package_is_refused() {
     let mut raw = bytes.clone();
     let at = raw.len() / 2;
     raw[at] ^= 0x01;
-    assert!(UpdatePackage::verify(&raw, &s.trust(), false).is_err());
+    assert!(UpdatePackage::verify(&raw, &s.trust(), cetratus_program::Unsigned::Refused).is_err());
 }
 
 #[test]
@@ -187,7 +200,12 @@ fn a_truncated_package_is_refused() {
     let s = Signer::new();
     let (bytes, _) = s.build(&paths::example("vernadat/u1.package.toml"));
     for len in [0, 1, bytes.len() / 2, bytes.len() - 3] {
-        let err = UpdatePackage::verify(&bytes[..len], &s.trust(), false).unwrap_err();
+        let err = UpdatePackage::verify(
+            &bytes[..len],
+            &s.trust(),
+            cetratus_program::Unsigned::Refused,
+        )
+        .unwrap_err();
         assert!(matches!(err, PackageError::Malformed { .. }), "{err}");
         assert!(err.to_string().contains("truncated"), "{err}");
     }
@@ -200,9 +218,18 @@ fn an_unsigned_package_is_refused_unless_allowed() {
         None,
     ));
     assert_eq!(report.signer, None);
-    let err = UpdatePackage::verify(&bytes, &TrustStore::empty(), false).unwrap_err();
+    let err = UpdatePackage::verify(
+        &bytes,
+        &TrustStore::empty(),
+        cetratus_program::Unsigned::Refused,
+    )
+    .unwrap_err();
     assert!(matches!(err, PackageError::Unsigned), "{err}");
-    let pkg = ok(UpdatePackage::verify(&bytes, &TrustStore::empty(), true));
+    let pkg = ok(UpdatePackage::verify(
+        &bytes,
+        &TrustStore::empty(),
+        cetratus_program::Unsigned::Allowed,
+    ));
     assert_eq!(pkg.signer(), None);
 }
 
@@ -212,7 +239,8 @@ fn a_package_signed_by_an_unknown_key_is_refused() {
     let (bytes, _) = s.build(&paths::example("vernadat/u1.package.toml"));
     let other = Signer::new();
     for trust in [TrustStore::empty(), other.trust()] {
-        let err = UpdatePackage::verify(&bytes, &trust, true).unwrap_err();
+        let err =
+            UpdatePackage::verify(&bytes, &trust, cetratus_program::Unsigned::Allowed).unwrap_err();
         assert!(matches!(err, PackageError::UnknownSigner { .. }), "{err}");
         assert!(err.to_string().contains(&s.key.key_id()), "{err}");
     }
@@ -222,13 +250,19 @@ fn a_package_signed_by_an_unknown_key_is_refused() {
 fn a_package_built_against_another_program_is_refused_unless_forced() {
     let s = Signer::new();
     let (bytes, _) = s.build(&paths::example("vernadat/u2.package.toml"));
-    let pkg = ok(UpdatePackage::verify(&bytes, &s.trust(), false));
+    let pkg = ok(UpdatePackage::verify(
+        &bytes,
+        &s.trust(),
+        cetratus_program::Unsigned::Refused,
+    ));
     // U.2 follows U.1; the cell still running the initial program is another program.
     let initial = programs::example("vernadat/vernadat.toml");
-    let err = pkg.resolve(&initial, false).unwrap_err();
+    let err = pkg
+        .resolve(&initial, cetratus_program::OtherBase::Refused)
+        .unwrap_err();
     assert!(matches!(err, PackageError::BaseMismatch { .. }), "{err}");
     assert!(err.to_string().contains(initial.hash_hex()), "{err}");
-    let up = ok(pkg.resolve(&initial, true));
+    let up = ok(pkg.resolve(&initial, cetratus_program::OtherBase::Forced));
     assert_eq!(up.transform.rows(), 15);
 }
 

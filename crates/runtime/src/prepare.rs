@@ -6,7 +6,8 @@
 use std::sync::Arc;
 
 use cetratus_program::{
-    PackageMeta, Program, ResolvedUpdate, Signal, StateTransform, TrustStore, UpdatePackage, Value,
+    OtherBase, PackageMeta, Program, ResolvedUpdate, Signal, StateTransform, TrustStore, Unsigned,
+    UpdatePackage, Value,
 };
 
 use crate::error::PrepareError;
@@ -84,11 +85,11 @@ impl UpdateContext {
         &self,
         bytes: &[u8],
         trust: &TrustStore,
-        allow_unsigned: bool,
-        force: bool,
+        unsigned: Unsigned,
+        base: OtherBase,
     ) -> Result<PreparedUpdate, PrepareError> {
-        let pkg = UpdatePackage::verify(bytes, trust, allow_unsigned)?;
-        let resolved = pkg.resolve(&self.primary, force)?;
+        let pkg = UpdatePackage::verify(bytes, trust, unsigned)?;
+        let resolved = pkg.resolve(&self.primary, base)?;
         self.prepare(resolved)
     }
 

@@ -500,3 +500,360 @@ fn an_enum_that_repeats_the_vocabulary_is_named_with_its_file_and_the_rule() {
     ));
     assert!(found[0].contains(VOCABULARY_RULE));
 }
+
+/// Where a reader finds the rule on function length and its reason.
+const FUNCTION_RULE: &str = "ARCHITECTURE.md, section Invariants, \"Functions stay short\"";
+
+/// The most physical lines of a function, from `fn` to its closing brace, outside tests.
+const FUNCTION_LINES: usize = 120;
+
+/// `source` with every comment, string and character literal blanked to spaces (line breaks
+/// kept), so that the braces left are the code's own.
+fn code_only(source: &str) -> String {
+    #[derive(PartialEq)]
+    enum At {
+        Code,
+        Line,
+        Block(usize),
+        Str,
+        Raw(usize),
+    }
+    let b: Vec<char> = source.chars().collect();
+    let (mut out, mut at, mut k) = (String::with_capacity(b.len()), At::Code, 0);
+    let blank = |c: char| if c == '\n' { '\n' } else { ' ' };
+    while k < b.len() {
+        let (c, next) = (b[k], b.get(k + 1).copied().unwrap_or(' '));
+        match at {
+            At::Code if c == '/' && next == '/' => at = At::Line,
+            At::Code if c == '/' && next == '*' => at = At::Block(0),
+            At::Code if c == '"' => at = At::Str,
+            At::Code
+                if c == 'r'
+                    && (next == '"' || next == '#')
+                    && !b
+                        .get(k.wrapping_sub(1))
+                        .is_some_and(|p| p.is_alphanumeric() || *p == '_') =>
+            {
+                let hashes = b[k + 1..].iter().take_while(|h| **h == '#').count();
+                if b.get(k + 1 + hashes) == Some(&'"') {
+                    out.extend(std::iter::repeat_n(' ', hashes + 2));
+                    k += hashes + 2;
+                    at = At::Raw(hashes);
+                    continue;
+                }
+            }
+            At::Code if c == '\'' && (b.get(k + 2) == Some(&'\'') || next == '\\') => {
+                // A character literal ('{', '\n', '\u{7b}'); a lifetime has no closing quote.
+                let end = b[k + 1..]
+                    .iter()
+                    .position(|q| *q == '\'')
+                    .map_or(k, |p| k + 1 + p);
+                out.extend(std::iter::repeat_n(' ', end - k + 1));
+                k = end + 1;
+                continue;
+            }
+            At::Line if c == '\n' => at = At::Code,
+            At::Block(d) if c == '*' && next == '/' => {
+                out.push_str("  ");
+                k += 2;
+                at = if d == 0 { At::Code } else { At::Block(d - 1) };
+                continue;
+            }
+            At::Block(d) if c == '/' && next == '*' => at = At::Block(d + 1),
+            At::Str if c == '\\' => {
+                out.push(' ');
+                out.push(blank(next));
+                k += 2;
+                continue;
+            }
+            At::Str if c == '"' => {
+                out.push(' ');
+                k += 1;
+                at = At::Code;
+                continue;
+            }
+            At::Raw(h)
+                if c == '"' && b[k + 1..].iter().take(h).filter(|x| **x == '#').count() == h =>
+            {
+                out.extend(std::iter::repeat_n(' ', h + 1));
+                k += h + 1;
+                at = At::Code;
+                continue;
+            }
+            _ => {}
+        }
+        out.push(if at == At::Code { c } else { blank(c) });
+        k += 1;
+    }
+    out
+}
+
+/// The functions of `source` outside `#[cfg(test)]` items: name, first line (1-based) and
+/// length in physical lines, from `fn` to the closing brace.
+fn functions_in(source: &str) -> Vec<(String, usize, usize)> {
+    let code = code_only(source);
+    let lines: Vec<&str> = code.lines().collect();
+    let (mut out, mut k) = (Vec::new(), 0);
+    while k < lines.len() {
+        let t = lines[k].trim_start();
+        if t.starts_with("#[cfg(test)]") {
+            // Skip the test item that follows: up to its closing brace.
+            k = end_of_item(&lines, k + 1).map_or(lines.len(), |e| e + 1);
+            continue;
+        }
+        let Some(at) = t.find("fn ").filter(|at| {
+            let before = &t[..*at];
+            before.split_whitespace().all(|w| {
+                [
+                    "pub",
+                    "pub(crate)",
+                    "pub(super)",
+                    "const",
+                    "async",
+                    "unsafe",
+                    "extern",
+                ]
+                .contains(&w)
+            })
+        }) else {
+            k += 1;
+            continue;
+        };
+        let name: String = t[at + 3..]
+            .chars()
+            .take_while(|c| c.is_alphanumeric() || *c == '_')
+            .collect();
+        match end_of_item(&lines, k) {
+            Some(end) => {
+                out.push((name, k + 1, end - k + 1));
+                k += 1;
+            }
+            None => k += 1,
+        }
+    }
+    out
+}
+
+/// The line of the brace that closes the item starting at line `start`, or `None` when the item
+/// ends with `;` before any brace (a declaration without a body).
+fn end_of_item(lines: &[&str], start: usize) -> Option<usize> {
+    let mut depth = 0i64;
+    let mut opened = false;
+    for (k, line) in lines.iter().enumerate().skip(start) {
+        for c in line.chars() {
+            match c {
+                '{' => {
+                    depth += 1;
+                    opened = true;
+                }
+                '}' => depth -= 1,
+                ';' if !opened && depth == 0 => return None,
+                _ => {}
+            }
+            if opened && depth == 0 {
+                return Some(k);
+            }
+        }
+    }
+    None
+}
+
+/// Functions allowed over [`FUNCTION_LINES`]: file, function, the most lines it may keep, and
+/// why. A function here may shrink, never grow; once under the limit, its row goes.
+const LONG_FUNCTIONS: &[(&str, &str, usize, &str)] = &[
+    ("benches/src/flood.rs", "flood", 261, "to be split"),
+    ("benches/src/harness.rs", "fleet", 152, "to be split"),
+    (
+        "benches/src/update.rs",
+        "update_figures",
+        122,
+        "to be split",
+    ),
+    ("crates/analysis/src/check.rs", "check", 328, "to be split"),
+    (
+        "crates/analysis/src/coverability.rs",
+        "build",
+        142,
+        "to be split",
+    ),
+    (
+        "crates/analysis/src/property.rs",
+        "decide",
+        194,
+        "to be split",
+    ),
+    (
+        "crates/analysis/src/reach/par.rs",
+        "continue_par",
+        187,
+        "to be split",
+    ),
+    (
+        "crates/analysis/src/reach/scc.rs",
+        "tarjan",
+        128,
+        "to be split",
+    ),
+    (
+        "crates/analysis/src/reach/search.rs",
+        "search",
+        214,
+        "to be split",
+    ),
+    (
+        "crates/analysis/src/reach.rs",
+        "explore_w",
+        121,
+        "to be split",
+    ),
+    ("crates/analysis/src/report.rs", "fmt", 175, "to be split"),
+    ("crates/cli/src/bench.rs", "run", 135, "to be split"),
+    ("crates/cli/src/run.rs", "run", 292, "to be split"),
+    ("crates/io/src/config.rs", "build", 173, "to be split"),
+    ("crates/io/src/opcua/config.rs", "build", 154, "to be split"),
+    ("crates/io/src/opcua/space.rs", "build", 124, "to be split"),
+    (
+        "crates/io/src/opcua/twin_client.rs",
+        "run",
+        123,
+        "to be split",
+    ),
+    ("crates/mct/src/control.rs", "parse", 174, "to be split"),
+    ("crates/net/src/export.rs", "write_svg", 153, "to be split"),
+    ("crates/net/src/net.rs", "build", 135, "to be split"),
+    ("crates/node/src/config.rs", "load", 197, "to be split"),
+    ("crates/node/src/gate.rs", "run", 137, "to be split"),
+    (
+        "crates/node/src/validate.rs",
+        "validate",
+        185,
+        "to be split",
+    ),
+    ("crates/program/src/action.rs", "finish", 121, "to be split"),
+    ("crates/program/src/body.rs", "compile", 147, "to be split"),
+    (
+        "crates/program/src/guard/mod.rs",
+        "expr",
+        247,
+        "to be split; the precedence-climbing parser of guard expressions",
+    ),
+    (
+        "crates/program/src/package/build.rs",
+        "build_package_with",
+        174,
+        "to be split",
+    ),
+    (
+        "crates/program/src/program.rs",
+        "build_doc",
+        211,
+        "to be split",
+    ),
+    (
+        "crates/runtime/src/container.rs",
+        "scan_within",
+        130,
+        "to be split",
+    ),
+    ("crates/runtime/src/plc.rs", "cycle", 151, "to be split"),
+    (
+        "crates/runtime/src/prepare.rs",
+        "prepare",
+        133,
+        "to be split",
+    ),
+    (
+        "crates/runtime/src/updater.rs",
+        "command",
+        155,
+        "to be split",
+    ),
+    (
+        "crates/runtime/src/updater.rs",
+        "try_substitute",
+        142,
+        "to be split",
+    ),
+    (
+        "crates/sfc/src/build.rs",
+        "program_toml",
+        348,
+        "to be split",
+    ),
+    ("crates/sfc/src/chart.rs", "read", 338, "to be split"),
+    (
+        "crates/sfc/src/st/lex.rs",
+        "lex",
+        140,
+        "a lexer: one match over the characters of the source, each arm a token",
+    ),
+];
+
+/// Every function of `files` (path, source) over [`FUNCTION_LINES`] lines that `allowed` does
+/// not allow at its length.
+fn function_violations(
+    files: &[(String, String)],
+    allowed: &[(&str, &str, usize, &str)],
+) -> Vec<String> {
+    let mut found = Vec::new();
+    for (path, source) in files {
+        for (name, line, len) in functions_in(source) {
+            if len <= FUNCTION_LINES {
+                continue;
+            }
+            let row = allowed.iter().find(|(p, f, _, _)| p == path && *f == name);
+            match row {
+                Some((_, _, most, _)) if len <= *most => {}
+                Some((_, _, most, _)) => found.push(format!(
+                    "{path}:{line}: fn {name} has {len} lines, more than the {most} it is allowed \
+                     ({FUNCTION_RULE})"
+                )),
+                None => found.push(format!(
+                    "{path}:{line}: fn {name} has {len} lines, more than {FUNCTION_LINES}; split \
+                     it, or give the reason it cannot be ({FUNCTION_RULE})"
+                )),
+            }
+        }
+    }
+    found
+}
+
+/// Every non-test source file: under `src/` of a crate or of the benches, not a `tests.rs`.
+fn non_test_sources() -> Vec<(String, String)> {
+    source_dirs()
+        .into_iter()
+        .flat_map(|d| rust_files(&d))
+        .filter(|p| p.file_name().is_some_and(|n| n != "tests.rs"))
+        .filter(|p| !p.components().any(|c| c.as_os_str() == "tests"))
+        .map(|p| (shown(&p), read(&p)))
+        .collect()
+}
+
+#[test]
+fn no_function_outside_the_tests_is_over_120_lines_unless_listed_with_its_reason() {
+    let found = function_violations(&non_test_sources(), LONG_FUNCTIONS);
+    assert!(found.is_empty(), "{found:#?}");
+}
+
+#[test]
+fn a_long_function_is_found_with_its_length_and_braces_in_text_do_not_count() {
+    let body = "    let s = \"}}}\"; let c = '{'; // }\n".repeat(FUNCTION_LINES);
+    let in_test = format!("fn in_test() {{\n{body}}}\n");
+    let source = format!(
+        "pub(crate) fn long(x: u8) -> u8\nwhere u8: Copy,\n{{\n{body}    r#\"{{\"#;\n}}\n\
+         fn short() {{}}\ntrait T {{ fn declared(&self); }}\n#[cfg(test)]\nmod tests {{\n{in_test}}}\n"
+    );
+    let fns = functions_in(&source);
+    let names: Vec<&str> = fns.iter().map(|(n, _, _)| n.as_str()).collect();
+    assert_eq!(names, ["long", "short"], "{fns:?}");
+    assert_eq!(fns[0], ("long".to_string(), 1, FUNCTION_LINES + 5));
+    let files = [("crates/x/src/lib.rs".to_string(), source)];
+    let found = function_violations(&files, &[]);
+    assert_eq!(found.len(), 1, "{found:?}");
+    assert!(found[0].starts_with("crates/x/src/lib.rs:1: fn long has 125 lines"));
+    assert!(found[0].contains(FUNCTION_RULE));
+    let allowed = [("crates/x/src/lib.rs", "long", 125, "a lexer")];
+    assert!(function_violations(&files, &allowed).is_empty());
+    let shrunk = [("crates/x/src/lib.rs", "long", 124, "a lexer")];
+    assert!(function_violations(&files, &shrunk)[0].contains("more than the 124 it is allowed"));
+}

@@ -131,7 +131,12 @@ impl Cell {
         let p = self
             .plc
             .update_context()
-            .prepare_package(bytes, trust, false, false)
+            .prepare_package(
+                bytes,
+                trust,
+                cetratus_program::Unsigned::Refused,
+                cetratus_program::OtherBase::Refused,
+            )
             .map_err(|e| e.to_string())?;
         self.plc
             .command(Command::Load(Box::new(p)))

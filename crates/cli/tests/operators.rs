@@ -30,11 +30,12 @@ fn with_operator_keys_only_signed_commands_are_carried_out_and_the_audit_log_nam
         String::from_utf8_lossy(&out.stderr)
     );
 
-    // The local configuration: the demo's package key is trusted, one operator key.
+    // The local configuration: the demo's package key is trusted, one operator key; both named
+    // in capitals, which a key file's extension may be (`OP.PUB` was once silently ignored).
     let cfg = work.path().join("config");
     std::fs::create_dir_all(cfg.join("trusted")).expect("mkdir");
     std::fs::create_dir_all(cfg.join("operators")).expect("mkdir");
-    std::fs::copy(pk.join("trusted/demo.pub"), cfg.join("trusted/demo.pub")).expect("copy");
+    std::fs::copy(pk.join("trusted/demo.pub"), cfg.join("trusted/DEMO.PUB")).expect("copy");
     let key = work.path().join("alice.key");
     let out = cetratus(&["package", "keygen", "--out", path(&key)]);
     assert!(
@@ -44,7 +45,7 @@ fn with_operator_keys_only_signed_commands_are_carried_out_and_the_audit_log_nam
     );
     std::fs::copy(
         work.path().join("alice.key.pub"),
-        cfg.join("operators/alice.pub"),
+        cfg.join("operators/ALICE.PUB"),
     )
     .expect("copy");
     let key_id = std::fs::read_to_string(work.path().join("alice.key.pub"))

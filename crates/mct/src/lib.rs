@@ -36,6 +36,7 @@
 pub mod acl;
 mod broker;
 pub mod budget;
+mod checks;
 pub mod client;
 mod control;
 mod envelope;

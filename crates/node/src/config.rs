@@ -250,7 +250,7 @@ fn keys_in(dir: &Path, what: &'static str) -> Result<Vec<VerifyingKeyFile>, Conf
     };
     let mut paths: Vec<PathBuf> = entries
         .filter_map(|e| e.ok().map(|e| e.path()))
-        .filter(|p| p.extension().is_some_and(|e| e == "pub"))
+        .filter(|p| cetratus_program::keys::is_key_file(p))
         .collect();
     paths.sort();
     paths

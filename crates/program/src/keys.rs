@@ -20,6 +20,13 @@ use crate::PackageError;
 const SECRET_HEADER: &str = "cetratus-secret-key/1";
 const PUBLIC_HEADER: &str = "cetratus-public-key/1";
 
+/// Whether `path` names a public key file: its extension is `pub`, in any case (`OP.PUB` too,
+/// as some tools and file systems write it).
+pub fn is_key_file(path: &Path) -> bool {
+    path.extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("pub"))
+}
+
 /// The trusted public keys, by key id.
 #[derive(Clone, Debug, Default)]
 pub struct TrustStore {
@@ -32,8 +39,8 @@ impl TrustStore {
         Self::default()
     }
 
-    /// Every `*.pub` file in a directory; a malformed one is an error, not skipped, since a
-    /// key someone meant to trust would otherwise be silently ignored.
+    /// Every key file ([`is_key_file`]) in a directory; a malformed one is an error, not
+    /// skipped, since a key someone meant to trust would otherwise be silently ignored.
     pub fn load_dir(dir: &Path) -> Result<Self, PackageError> {
         let io = |source| PackageError::Io {
             path: dir.display().to_string(),
@@ -42,7 +49,7 @@ impl TrustStore {
         let mut files: Vec<PathBuf> = std::fs::read_dir(dir)
             .map_err(io)?
             .filter_map(|e| e.ok().map(|e| e.path()))
-            .filter(|p| p.extension().is_some_and(|e| e == "pub") && p.is_file())
+            .filter(|p| is_key_file(p) && p.is_file())
             .collect();
         files.sort();
         let mut store = Self::empty();

@@ -148,161 +148,172 @@ impl Updater {
         self.phase.status()
     }
 
-    /// Accepts or refuses a command; what it causes happens at the next cycle boundary.
+    /// Accepts or refuses a command; what it causes happens at the next cycle boundary. One
+    /// method a verb.
     pub(crate) fn command(&mut self, cmd: Command, core: &mut Core) -> Result<(), CommandError> {
-        let status = self.status();
         match cmd {
-            Command::Load(p) => {
-                match status {
-                    Status::Idle => {}
-                    Status::Fault => return Err(CommandError::LoadInFault),
-                    Status::Probation => return Err(CommandError::LoadInProbation),
-                    status => return Err(CommandError::LoadBusy { status }),
+            Command::Load(p) => self.load(p, core),
+            Command::Substitute(req) => self.substitute(req, core),
+            Command::Remove => self.remove(core),
+            Command::Abort => self.abort(core),
+            Command::Revert => self.ask_probation_end(
+                "revert",
+                Ending::Revert {
+                    reason: RevertReason::Operator,
+                    detected_cycle: core.log.cycle,
+                    why: "the operator reverted".into(),
+                },
+            ),
+            Command::Accept => self.ask_probation_end("accept", Ending::Accept),
+            Command::Reset => self.reset(core),
+        }
+    }
+
+    /// `load`: only when idle, and only a package prepared against the running primary.
+    fn load(&mut self, p: Box<PreparedUpdate>, core: &mut Core) -> Result<(), CommandError> {
+        match self.status() {
+            Status::Idle => {}
+            Status::Fault => return Err(CommandError::LoadInFault),
+            Status::Probation => return Err(CommandError::LoadInProbation),
+            status => return Err(CommandError::LoadBusy { status }),
+        }
+        if p.base_hash != core.primary.program().hash() {
+            return Err(CommandError::StalePreparation);
+        }
+        let meta = &p.quarantine.plan.meta;
+        let msg = format!(
+            "load accepted: {} {} goes into {} at the next cycle",
+            meta.name,
+            meta.version,
+            core.primary_slot.other().as_str()
+        );
+        core.log.push(EventKind::LoadAccepted, msg, None);
+        for v in &p.quarantine.plan.verdicts {
+            let reasons = if v.reasons.is_empty() {
+                String::new()
+            } else {
+                format!(": {}", v.reasons.join("; "))
+            };
+            core.log.push(
+                EventKind::Verdict,
+                format!(
+                    "{} verdict on {} {}: {}{reasons}",
+                    v.kind, meta.name, meta.version, v.result
+                ),
+                Some(EventDetail::Verdict {
+                    kind: v.kind,
+                    result: v.result,
+                }),
+            );
+        }
+        self.phase = Phase::Setup(p);
+        Ok(())
+    }
+
+    /// `substitute`: only in quarantine, one at a time, and with a passing twin verdict when
+    /// the limits require one.
+    fn substitute(&mut self, req: SubstituteRequest, core: &mut Core) -> Result<(), CommandError> {
+        let status = self.status();
+        let require_verdict = self.limits.require_verdict;
+        let Phase::Quarantine(q) = &mut self.phase else {
+            return Err(CommandError::NoCandidate {
+                verb: "substitute",
+                status,
+            });
+        };
+        if q.pending.is_some() {
+            return Err(CommandError::SubstitutionWaiting);
+        }
+        if require_verdict {
+            let twin = q.plan.verdicts.iter().find(|v| v.kind == VerdictKind::Twin);
+            match twin.map(|v| v.result) {
+                Some(VerdictResult::Pass) | Some(VerdictResult::Warn) => {}
+                Some(VerdictResult::Fail) => {
+                    return Err(CommandError::VerdictRequired {
+                        have: "a failing twin verdict",
+                    })
                 }
-                if p.base_hash != core.primary.program().hash() {
-                    return Err(CommandError::StalePreparation);
+                None => {
+                    return Err(CommandError::VerdictRequired {
+                        have: "no twin verdict yet",
+                    })
                 }
-                let msg = format!(
-                    "load accepted: {} {} goes into {} at the next cycle",
-                    p.quarantine.plan.meta.name,
-                    p.quarantine.plan.meta.version,
-                    core.primary_slot.other().as_str()
-                );
-                core.log.push(EventKind::LoadAccepted, msg, None);
-                for v in &p.quarantine.plan.verdicts {
-                    core.log.push(
-                        EventKind::Verdict,
-                        format!(
-                            "{} verdict on {} {}: {}{}",
-                            v.kind.as_str(),
-                            p.quarantine.plan.meta.name,
-                            p.quarantine.plan.meta.version,
-                            v.result.as_str(),
-                            if v.reasons.is_empty() {
-                                String::new()
-                            } else {
-                                format!(": {}", v.reasons.join("; "))
-                            }
-                        ),
-                        Some(EventDetail::Verdict {
-                            kind: v.kind,
-                            result: v.result,
-                        }),
-                    );
-                }
-                self.phase = Phase::Setup(p);
-                Ok(())
-            }
-            Command::Substitute(req) => {
-                let Phase::Quarantine(q) = &mut self.phase else {
-                    return Err(CommandError::NoCandidate {
-                        verb: "substitute",
-                        status,
-                    });
-                };
-                if q.pending.is_some() {
-                    return Err(CommandError::SubstitutionWaiting);
-                }
-                if self.limits.require_verdict {
-                    let twin = q.plan.verdicts.iter().find(|v| v.kind == VerdictKind::Twin);
-                    match twin.map(|v| v.result) {
-                        Some(VerdictResult::Pass) | Some(VerdictResult::Warn) => {}
-                        Some(VerdictResult::Fail) => {
-                            return Err(CommandError::VerdictRequired {
-                                have: "a failing twin verdict",
-                            })
-                        }
-                        None => {
-                            return Err(CommandError::VerdictRequired {
-                                have: "no twin verdict yet",
-                            })
-                        }
-                    }
-                }
-                let deadline = req
-                    .within_us
-                    .map_or(u64::MAX, |w| core.log.now_us.saturating_add(w));
-                let msg = match &req.when {
-                    Some((text, _)) => format!("substitution waits for `{text}`"),
-                    None => "substitution at the next cycle".to_string(),
-                };
-                q.pending = Some((req, deadline));
-                core.log.push(EventKind::SubstituteAccepted, msg, None);
-                Ok(())
-            }
-            Command::Remove => {
-                if status != Status::Quarantine {
-                    return Err(CommandError::NoCandidate {
-                        verb: "remove",
-                        status,
-                    });
-                }
-                self.drop_candidate(
-                    core,
-                    EventKind::Removed,
-                    "the candidate was removed by the operator".into(),
-                );
-                Ok(())
-            }
-            Command::Abort => match status {
-                Status::Setup => {
-                    self.phase = Phase::Idle;
-                    core.log.push(
-                        EventKind::Aborted,
-                        "the update was aborted before its install".into(),
-                        None,
-                    );
-                    Ok(())
-                }
-                Status::Quarantine => {
-                    self.drop_candidate(
-                        core,
-                        EventKind::Aborted,
-                        "the update was aborted; the candidate is removed".into(),
-                    );
-                    Ok(())
-                }
-                status => Err(CommandError::NothingToAbort { status }),
-            },
-            Command::Revert | Command::Accept => {
-                let verb = if matches!(cmd, Command::Revert) {
-                    "revert"
-                } else {
-                    "accept"
-                };
-                let cycle = core.log.cycle;
-                let Phase::Probation(p) = &mut self.phase else {
-                    return Err(CommandError::NotInProbation { verb, status });
-                };
-                if p.ending.is_some() {
-                    return Err(CommandError::ProbationEnding { verb });
-                }
-                p.ending = Some(match cmd {
-                    Command::Revert => Ending::Revert {
-                        reason: RevertReason::Operator,
-                        detected_cycle: cycle,
-                        why: "the operator reverted".into(),
-                    },
-                    _ => Ending::Accept,
-                });
-                Ok(())
-            }
-            Command::Reset => {
-                if status != Status::Fault {
-                    return Err(CommandError::NotInFault { status });
-                }
-                self.phase = Phase::Idle;
-                // Inputs kept changing while in fault; rebuild the images at the next scan.
-                core.router.mark_all_stale();
-                core.log.push(
-                    EventKind::Reset,
-                    "fault reset by the operator: the primary resumes from its last good state"
-                        .into(),
-                    None,
-                );
-                Ok(())
             }
         }
+        let deadline = req
+            .within_us
+            .map_or(u64::MAX, |w| core.log.now_us.saturating_add(w));
+        let msg = match &req.when {
+            Some((text, _)) => format!("substitution waits for `{text}`"),
+            None => "substitution at the next cycle".to_string(),
+        };
+        q.pending = Some((req, deadline));
+        core.log.push(EventKind::SubstituteAccepted, msg, None);
+        Ok(())
+    }
+
+    /// `remove`: only in quarantine.
+    fn remove(&mut self, core: &mut Core) -> Result<(), CommandError> {
+        let status = self.status();
+        if status != Status::Quarantine {
+            return Err(CommandError::NoCandidate {
+                verb: "remove",
+                status,
+            });
+        }
+        let why = "the candidate was removed by the operator".into();
+        self.drop_candidate(core, EventKind::Removed, why);
+        Ok(())
+    }
+
+    /// `abort`: in setup (before the install) or in quarantine.
+    fn abort(&mut self, core: &mut Core) -> Result<(), CommandError> {
+        match self.status() {
+            Status::Setup => {
+                self.phase = Phase::Idle;
+                let why = "the update was aborted before its install".into();
+                core.log.push(EventKind::Aborted, why, None);
+                Ok(())
+            }
+            Status::Quarantine => {
+                let why = "the update was aborted; the candidate is removed".into();
+                self.drop_candidate(core, EventKind::Aborted, why);
+                Ok(())
+            }
+            status => Err(CommandError::NothingToAbort { status }),
+        }
+    }
+
+    /// `revert` and `accept`: only in probation, and once; the probation ends at the next cycle
+    /// boundary as `ending` says.
+    fn ask_probation_end(
+        &mut self,
+        verb: &'static str,
+        ending: Ending,
+    ) -> Result<(), CommandError> {
+        let status = self.status();
+        let Phase::Probation(p) = &mut self.phase else {
+            return Err(CommandError::NotInProbation { verb, status });
+        };
+        if p.ending.is_some() {
+            return Err(CommandError::ProbationEnding { verb });
+        }
+        p.ending = Some(ending);
+        Ok(())
+    }
+
+    /// `reset`: only in fault; the primary resumes from its last good state.
+    fn reset(&mut self, core: &mut Core) -> Result<(), CommandError> {
+        let status = self.status();
+        if status != Status::Fault {
+            return Err(CommandError::NotInFault { status });
+        }
+        self.phase = Phase::Idle;
+        // Inputs kept changing while in fault; rebuild the images at the next scan.
+        core.router.mark_all_stale();
+        let why = "fault reset by the operator: the primary resumes from its last good state";
+        core.log.push(EventKind::Reset, why.into(), None);
+        Ok(())
     }
 
     /// Empties the secondary container and goes back to idle.

@@ -118,6 +118,9 @@ fn init_logging() {
         "opcua_client::session::client=off",
         "opcua_client::config=error",
         "opcua_client::session::event_loop=error",
+        // A client that connects again under its own id kicks its old session, and rmqtt warns
+        // each time: a client reconnecting in a loop would write a line a connection.
+        "rmqtt::shared=error",
     ] {
         if let Ok(d) = quiet.parse() {
             filter = filter.add_directive(d);

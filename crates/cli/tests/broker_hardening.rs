@@ -143,3 +143,34 @@ fn no_login_takes_over_the_client_id_of_the_plc_or_of_its_dashboard() {
     });
     assert_eq!(lines, 4, "the broker logs the attempts, counted");
 }
+
+#[test]
+fn past_max_clients_a_connect_is_refused_and_the_plc_answers_on() {
+    use cetratus_mct::MAX_CLIENTS;
+    let plc = RunningPlc::start("many1", &[]);
+    let (ops, replies) = client(plc.mqtt, "ops-many1", "many1");
+    let before = primary_cycles(&first_answer(
+        &ops,
+        &replies,
+        "many1",
+        Duration::from_secs(30),
+    ));
+    let addr = ("127.0.0.1", plc.mqtt);
+    // 3,000 clients were once accepted against a documented 256.
+    let (mut held, mut refused) = (Vec::new(), 0);
+    for k in 0..MAX_CLIENTS + 20 {
+        let (s, code) = try_connect(addr, &format!("many-{k}"), ConnectOptions::default());
+        match code {
+            0 => held.push(s),
+            3 => refused += 1,
+            other => panic!("CONNACK {other} for client {k}"),
+        }
+    }
+    assert!(held.len() < MAX_CLIENTS, "{} held", held.len());
+    assert!(refused >= 20, "{refused} refused");
+    assert_cycles_on(&ops, &replies, "many1", b"full", before);
+    drop(held);
+    common::wait_for("a session free again", Duration::from_secs(10), || {
+        try_connect(addr, "after", ConnectOptions::default()).1 == 0
+    });
+}

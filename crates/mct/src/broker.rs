@@ -119,7 +119,10 @@ pub const SESSION_FLOOR_BYTES: usize = 64 << 10;
 /// budgets, summed: the reserve itself never refuses them a message their budgets admit.
 pub const INTERNAL_SESSIONS_BYTES: usize = 2 * (SESSION_INBOX_BYTES + SESSION_QUEUE_BYTES);
 
-/// Clients connected at once: a PLC, its dashboard, operators and a few tools.
+/// Sessions at once: a PLC, its dashboard, operators and a few tools. Past it a CONNECT is
+/// refused with *server unavailable* (3 in MQTT 3.1.1, 0x88 in MQTT 5) before its login is
+/// checked; the process's own clients are never refused, so the PLC's client reconnects whoever
+/// holds the sessions.
 pub const MAX_CLIENTS: usize = 256;
 
 /// Bytes of packets that all connections together have begun to receive and not yet received
@@ -461,7 +464,10 @@ impl EmbeddedBroker {
         let local = own.as_ref().map_or(addr, |(a, _)| *a);
         let hooks = acl.clone();
         let server = rt.block_on(async move {
-            let scx = ServerContext::new().build().await;
+            let scx = ServerContext::new()
+                .mqtt_max_sessions(MAX_CLIENTS as isize)
+                .build()
+                .await;
             *scx.extends.retain_mut().await = Box::new(MemRetain::new());
             let reg = scx.extends.hook_mgr().register();
             reg.add(Type::ClientAuthenticate, Box::new(Auth::new(hooks.clone())))

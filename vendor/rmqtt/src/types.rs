@@ -402,6 +402,15 @@ impl ConnectInfo {
         }
     }
 
+    // cetratus: whether the login's user name is one of the sessions budget's reserve (the
+    // process's own clients). Read before the login is checked: the session limit lets such a
+    // name through, and the authentication refuses an impostor right after.
+    #[inline]
+    pub fn is_reserved_login(&self, listen_cfg: &ListenerConfig) -> bool { // cetratus: see above
+        let user = self.username().map(|u| u.as_ref()); // cetratus: see above
+        listen_cfg.sessions_budget.as_ref().is_some_and(|b| b.reserve_users.iter().any(|r| Some(r.as_str()) == user)) // cetratus: see above
+    } // cetratus: see above
+
     #[inline]
     pub fn last_will(&self) -> Option<LastWill<'_>> {
         match self {

@@ -202,7 +202,8 @@ async fn _handshake(
 
     let entry = scx.extends.shared().await.entry(id.clone());
     let max_sessions = scx.mqtt_max_sessions;
-    if max_sessions > 0 && scx.sessions.count() >= max_sessions && !entry.exist() {
+    // cetratus: the process's own clients are never turned away by the session limit
+    if max_sessions > 0 && scx.sessions.count() >= max_sessions && !entry.exist() && !connect_info.is_reserved_login(&listen_cfg) {
         return Err((
             ConnectAckReason::V3(ConnectAckReasonV3::ServiceUnavailable),
             anyhow!(format!("the number of sessions on the current node exceeds the limit, with a maximum of {} sessions allowed", max_sessions)),

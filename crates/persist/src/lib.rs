@@ -121,6 +121,17 @@ pub enum PersistError {
         /// What it holds.
         value: u64,
     },
+    /// The state directory could be changed by someone other than the PLC's user: a snapshot
+    /// written there by another would be warm-started as PRIMARY.
+    #[error("{path} {why}, so another user of this machine could put a program of their own into the saved state; {fix}")]
+    NotPrivate {
+        /// The directory or file.
+        path: String,
+        /// What is wrong with it.
+        why: String,
+        /// What to run.
+        fix: String,
+    },
     /// A stored program loads, but to another hash than its name: the files were altered.
     #[error("program file {path} loads to hash {got}, not the {hash} its name says; it was altered; start with --cold")]
     ProgramMismatch {

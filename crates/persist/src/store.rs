@@ -58,11 +58,60 @@ pub fn is_program_hash(hash: &str) -> bool {
             .all(|b| b.is_ascii_digit() || (b'a'..=b'f').contains(&b))
 }
 
+/// Opens (creating, mode 0600) a file of the state directory: only the PLC's user reads what it
+/// holds, and only it may take the lock.
+fn private_file(path: &Path, options: &mut OpenOptions) -> Result<File, PersistError> {
+    use std::os::unix::fs::OpenOptionsExt;
+    options.mode(0o600).open(path).map_err(io_err(path))
+}
+
+/// Refuses a state directory (or its `programs/`) that others may write, or that another user
+/// owns (root aside): whoever may write it decides what the next warm start runs as PRIMARY.
+fn check_private(dir: &Path) -> Result<(), PersistError> {
+    use std::os::unix::fs::MetadataExt;
+    let meta = std::fs::metadata(dir).map_err(io_err(dir))?;
+    let shown = dir.display().to_string();
+    let me = nix::unistd::geteuid().as_raw();
+    if meta.uid() != me && meta.uid() != 0 {
+        return Err(PersistError::NotPrivate {
+            why: format!(
+                "belongs to user {}, not to this process's user {me}",
+                meta.uid()
+            ),
+            fix: format!("run `chown {me} {shown}` or give this PLC a --state-dir of its own"),
+            path: shown,
+        });
+    }
+    let mode = meta.mode() & 0o7777;
+    // A sticky directory (like /tmp) still lets others add files; it is no exception.
+    if mode & 0o022 != 0 {
+        return Err(PersistError::NotPrivate {
+            why: format!("is writable by its group or others (mode {mode:o})"),
+            fix: format!("run `chmod go-w {shown}`"),
+            path: shown,
+        });
+    }
+    Ok(())
+}
+
+/// Creates `dir` and its parents as needed, each new one mode 0700.
+fn create_private_dir(dir: &Path) -> Result<(), PersistError> {
+    use std::os::unix::fs::DirBuilderExt;
+    std::fs::DirBuilder::new()
+        .recursive(true)
+        .mode(0o700)
+        .create(dir)
+        .map_err(io_err(dir))
+}
+
 /// Writes `bytes` to `dir/name` so that a crash leaves either the old file or the new one.
 fn write_atomic(dir: &Path, name: &str, bytes: &[u8]) -> Result<(), PersistError> {
     let tmp = dir.join(format!("{name}.tmp"));
     let target = dir.join(name);
-    let mut f = File::create(&tmp).map_err(io_err(&tmp))?;
+    let mut f = private_file(
+        &tmp,
+        OpenOptions::new().write(true).create(true).truncate(true),
+    )?;
     f.write_all(bytes).map_err(io_err(&tmp))?;
     // The data must be on disk before the rename makes it visible, or a crash could leave a
     // renamed but empty file.
@@ -111,14 +160,14 @@ impl StateStore {
     /// [`StateStore::open`], with the wall clock that stamps its records.
     pub fn open_with_clock(dir: &Path, wall: Arc<dyn WallClock>) -> Result<Self, PersistError> {
         let programs = dir.join(PROGRAMS_DIR);
-        std::fs::create_dir_all(&programs).map_err(io_err(&programs))?;
+        create_private_dir(&programs)?;
+        check_private(dir)?;
+        check_private(&programs)?;
         let lock_path = dir.join(LOCK_FILE);
-        let lock_file = OpenOptions::new()
-            .create(true)
-            .truncate(false)
-            .write(true)
-            .open(&lock_path)
-            .map_err(io_err(&lock_path))?;
+        let lock_file = private_file(
+            &lock_path,
+            OpenOptions::new().create(true).truncate(false).write(true),
+        )?;
         let lock = Flock::lock(lock_file, FlockArg::LockExclusiveNonblock).map_err(|_| {
             PersistError::Locked {
                 dir: dir.display().to_string(),
@@ -191,13 +240,14 @@ impl StateStore {
 
     fn open_audit(&mut self) -> Result<Option<String>, PersistError> {
         let path = self.dir.join(AUDIT_FILE);
-        let mut f = OpenOptions::new()
-            .create(true)
-            .truncate(false)
-            .read(true)
-            .append(true)
-            .open(&path)
-            .map_err(io_err(&path))?;
+        let mut f = private_file(
+            &path,
+            OpenOptions::new()
+                .create(true)
+                .truncate(false)
+                .read(true)
+                .append(true),
+        )?;
         let mut bytes = Vec::new();
         f.read_to_end(&mut bytes).map_err(io_err(&path))?;
         let keep = bytes.iter().rposition(|&b| b == b'\n').map_or(0, |i| i + 1);

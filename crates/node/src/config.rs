@@ -67,6 +67,25 @@ pub enum ConfigError {
         /// Why.
         reason: String,
     },
+    /// A file or directory of the configuration belongs to another user than the process's
+    /// (root aside), who could change it.
+    #[error("{path} belongs to user {owner}, not to this process's user {me}, so that user could trust their own keys; run `chown {me} {path}`, or use a configuration of this user's own")]
+    OwnedByOther {
+        /// The file or directory.
+        path: String,
+        /// Its owner's uid.
+        owner: u32,
+        /// The process's effective uid.
+        me: u32,
+    },
+    /// A TLS private key that others may read.
+    #[error("{path} is readable by others (mode {mode:o}), so anyone on this machine could pose as this PLC; run `chmod 600 {path}`")]
+    KeyReadable {
+        /// The key file.
+        path: String,
+        /// Its permission bits.
+        mode: u32,
+    },
     /// Someone other than its owner may change the configuration.
     #[error("{path} is writable by others (mode {mode:o}), so anyone on this machine could trust their own keys; run `chmod go-w {path}`")]
     WritableByOthers {
@@ -253,6 +272,10 @@ fn keys_in(dir: &Path, what: &'static str) -> Result<Vec<VerifyingKeyFile>, Conf
         .filter(|p| cetratus_program::keys::is_key_file(p))
         .collect();
     paths.sort();
+    // A key file others may change is a key they choose.
+    for p in &paths {
+        check_not_writable_by_others(p)?;
+    }
     paths
         .iter()
         .map(|p| {
@@ -268,14 +291,40 @@ fn keys_in(dir: &Path, what: &'static str) -> Result<Vec<VerifyingKeyFile>, Conf
 /// Refuses a configuration file or directory that its group or others may write: the local
 /// configuration decides which keys are trusted, so only its owner may change it.
 fn check_not_writable_by_others(path: &Path) -> Result<(), ConfigError> {
-    use std::os::unix::fs::PermissionsExt;
+    use std::os::unix::fs::{MetadataExt, PermissionsExt};
     let Ok(meta) = std::fs::metadata(path) else {
         return Ok(());
     };
+    let me = nix::unistd::geteuid().as_raw();
+    if meta.uid() != me && meta.uid() != 0 {
+        return Err(ConfigError::OwnedByOther {
+            path: path.display().to_string(),
+            owner: meta.uid(),
+            me,
+        });
+    }
     let mode = meta.permissions().mode() & 0o7777;
     // A sticky directory (like /tmp) still lets others write; it is no exception.
     if mode & 0o022 != 0 {
         return Err(ConfigError::WritableByOthers {
+            path: path.display().to_string(),
+            mode,
+        });
+    }
+    Ok(())
+}
+
+/// Refuses a TLS private key that its group or others may read (or change): whoever reads it
+/// can pose as this PLC.
+fn check_private_key(path: &Path) -> Result<(), ConfigError> {
+    use std::os::unix::fs::PermissionsExt;
+    check_not_writable_by_others(path)?;
+    let Ok(meta) = std::fs::metadata(path) else {
+        return Ok(());
+    };
+    let mode = meta.permissions().mode() & 0o7777;
+    if mode & 0o044 != 0 {
+        return Err(ConfigError::KeyReadable {
             path: path.display().to_string(),
             mode,
         });
@@ -445,7 +494,12 @@ impl LocalConfig {
             cert, key,
         ) {
             (None, None) => Ok(None),
-            (Some(c), Some(k)) => Ok(Some((dir.join(c), dir.join(k)))),
+            (Some(c), Some(k)) => {
+                let (c, k) = (dir.join(c), dir.join(k));
+                check_not_writable_by_others(&c)?;
+                check_private_key(&k)?;
+                Ok(Some((c, k)))
+            }
             (c, _) => Err(value_error(
                 section,
                 if c.is_some() { "tls_cert" } else { "tls_key" },

@@ -11,6 +11,8 @@
 //! The directory is the one given, else `$XDG_CONFIG_HOME/cetratus`, else `~/.config/cetratus`.
 //! A missing directory is an empty configuration.
 
+mod private;
+
 use std::path::{Path, PathBuf};
 
 use cetratus_mct::{BrokerAccount, BrokerTls, OperatorKeys};
@@ -274,7 +276,7 @@ fn keys_in(dir: &Path, what: &'static str) -> Result<Vec<VerifyingKeyFile>, Conf
     paths.sort();
     // A key file others may change is a key they choose.
     for p in &paths {
-        check_not_writable_by_others(p)?;
+        private::check_not_writable_by_others(p)?;
     }
     paths
         .iter()
@@ -288,48 +290,27 @@ fn keys_in(dir: &Path, what: &'static str) -> Result<Vec<VerifyingKeyFile>, Conf
         .collect()
 }
 
-/// Refuses a configuration file or directory that its group or others may write: the local
-/// configuration decides which keys are trusted, so only its owner may change it.
-fn check_not_writable_by_others(path: &Path) -> Result<(), ConfigError> {
-    use std::os::unix::fs::{MetadataExt, PermissionsExt};
-    let Ok(meta) = std::fs::metadata(path) else {
-        return Ok(());
-    };
-    let me = nix::unistd::geteuid().as_raw();
-    if meta.uid() != me && meta.uid() != 0 {
-        return Err(ConfigError::OwnedByOther {
-            path: path.display().to_string(),
-            owner: meta.uid(),
-            me,
-        });
-    }
-    let mode = meta.permissions().mode() & 0o7777;
-    // A sticky directory (like /tmp) still lets others write; it is no exception.
-    if mode & 0o022 != 0 {
-        return Err(ConfigError::WritableByOthers {
-            path: path.display().to_string(),
-            mode,
-        });
-    }
-    Ok(())
-}
+/// A section's TLS certificate and private key, when it gives them, after their checks.
+type TlsFiles = Result<Option<(PathBuf, PathBuf)>, ConfigError>;
 
-/// Refuses a TLS private key that its group or others may read (or change): whoever reads it
-/// can pose as this PLC.
-fn check_private_key(path: &Path) -> Result<(), ConfigError> {
-    use std::os::unix::fs::PermissionsExt;
-    check_not_writable_by_others(path)?;
-    let Ok(meta) = std::fs::metadata(path) else {
-        return Ok(());
-    };
-    let mode = meta.permissions().mode() & 0o7777;
-    if mode & 0o044 != 0 {
-        return Err(ConfigError::KeyReadable {
-            path: path.display().to_string(),
-            mode,
-        });
+/// The TLS certificate and key of a section, under `dir`, each checked ([`private`]); `None`
+/// when neither is given, `Err` naming the one missing when only one is.
+fn tls_pair(
+    dir: &Path,
+    cert: Option<PathBuf>,
+    key: Option<PathBuf>,
+) -> Result<TlsFiles, &'static str> {
+    match (cert, key) {
+        (None, None) => Ok(Ok(None)),
+        (Some(c), Some(k)) => {
+            let (c, k) = (dir.join(c), dir.join(k));
+            Ok(private::check_not_writable_by_others(&c)
+                .and_then(|()| private::check_private_key(&k))
+                .map(|()| Some((c, k))))
+        }
+        (Some(_), None) => Err("tls_key"),
+        (None, Some(_)) => Err("tls_cert"),
     }
-    Ok(())
 }
 
 /// `file:line:column` of a byte offset of `text`.
@@ -384,7 +365,7 @@ impl LocalConfig {
             dir.join("trusted"),
             dir.join("operators"),
         ] {
-            check_not_writable_by_others(&path)?;
+            private::check_not_writable_by_others(&path)?;
         }
         let mut trust = TrustStore::empty();
         for k in keys_in(&dir.join("trusted"), "trusted")? {
@@ -490,23 +471,16 @@ impl LocalConfig {
                 plcs: u.plcs,
             });
         }
-        let pair = |section: &'static str, cert: Option<PathBuf>, key: Option<PathBuf>| match (
-            cert, key,
-        ) {
-            (None, None) => Ok(None),
-            (Some(c), Some(k)) => {
-                let (c, k) = (dir.join(c), dir.join(k));
-                check_not_writable_by_others(&c)?;
-                check_private_key(&k)?;
-                Ok(Some((c, k)))
-            }
-            (c, _) => Err(value_error(
-                section,
-                if c.is_some() { "tls_cert" } else { "tls_key" },
-                "TLS needs both `tls_cert` (the certificate chain, PEM) and `tls_key` (its \
-                 private key, PEM); give both, or neither"
-                    .into(),
-            )),
+        let pair = |section, cert, key| {
+            tls_pair(&dir, cert, key).map_err(|missing| {
+                value_error(
+                    section,
+                    missing,
+                    "TLS needs both `tls_cert` (the certificate chain, PEM) and `tls_key` (its \
+                     private key, PEM); give both, or neither"
+                        .into(),
+                )
+            })?
         };
         let mqtt_tls = pair("[mqtt] tls", file.mqtt.tls_cert, file.mqtt.tls_key)?
             .map(|(cert, key)| BrokerTls { cert, key });

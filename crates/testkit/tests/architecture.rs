@@ -721,7 +721,7 @@ const LONG_FUNCTIONS: &[(&str, &str, usize, &str)] = &[
     ("crates/mct/src/control.rs", "parse", 174, "to be split"),
     ("crates/net/src/export.rs", "write_svg", 153, "to be split"),
     ("crates/net/src/net.rs", "build", 135, "to be split"),
-    ("crates/node/src/config.rs", "load", 197, "to be split"),
+    ("crates/node/src/config.rs", "load", 195, "to be split"),
     ("crates/node/src/gate.rs", "run", 137, "to be split"),
     (
         "crates/node/src/validate.rs",

@@ -282,7 +282,7 @@ fn connection_flood(broker: std::net::SocketAddr, plc: &str, ctl: &Control) {
         let kind = ctl.active();
         let (id, will) = match kind {
             Some(FloodKind::DeepTopics) => ("flood-deep", None),
-            Some(FloodKind::Wills) => ("flood-will", Some(&state)),
+            Some(FloodKind::Wills) => ("flood-will", Some(state.as_str())),
             Some(FloodKind::IdTakeover) => (plc_id.as_str(), None),
             _ => {
                 std::thread::sleep(IDLE_POLL);
@@ -307,7 +307,7 @@ fn connection_flood(broker: std::net::SocketAddr, plc: &str, ctl: &Control) {
 struct RawAttack<'a> {
     broker: std::net::SocketAddr,
     id: &'a str,
-    will: Option<&'a String>,
+    will: Option<&'a str>,
 }
 
 impl RawAttack<'_> {

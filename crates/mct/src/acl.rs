@@ -27,9 +27,10 @@ pub const PLC_USER: &str = "$cetratus-plc";
 /// The user name the dashboard of `cetratus run` logs in with.
 pub const DASHBOARD_USER: &str = "$cetratus-dashboard";
 
-/// What the client ids of the process's own clients start with. The embedded broker refuses a
-/// client id that starts with it to every other login: a broker drops the older of two clients
-/// with one id, so whoever took the PLC's id would cut the PLC off its own control plane.
+/// What the client ids of the process's own clients start with: inside the ids that start with
+/// `$`, which the embedded broker refuses to every other login ([`is_internal_client_id`]). A
+/// broker drops the older of two clients with one id, so whoever took the PLC's id would cut the
+/// PLC off its own control plane.
 pub const INTERNAL_CLIENT_ID_PREFIX: &str = "$cetratus-";
 
 /// The client id of one of the process's own clients, named `name` (the PLC's id, or the

@@ -19,6 +19,19 @@ use crate::budget::TokenBucket as Bucket;
 use crate::password::HashedPassword;
 use crate::topics::check_topic;
 
+/// Counts one kind of refusal; a log line goes out for the 1st, 2nd, 4th… of them, with the
+/// count, so that a flood is reported with its size and costs no line a packet.
+#[derive(Default)]
+struct Tally(AtomicU64);
+
+impl Tally {
+    /// Counts one more: its number, when that one is worth a log line.
+    fn count(&self) -> Option<u64> {
+        let n = self.0.fetch_add(1, Ordering::Relaxed) + 1;
+        crate::budget::worth_logging(n).then_some(n)
+    }
+}
+
 /// Checks logins: the internal ones against their secrets at once, an account's password with
 /// argon2 on a blocking thread, one at a time and at most [`LOGINS_PER_S`] a second. Then what
 /// the client asked for at CONNECT: a client id reserved for the process's own clients
@@ -163,11 +176,6 @@ pub(crate) struct PublishAcl {
     refused: Tally,
 }
 
-/// Counts one kind of refusal; a log line goes out for the 1st, 2nd, 4th… of them, with the
-/// count, so that a flood is reported with its size and costs no line a packet.
-#[derive(Default)]
-struct Tally(AtomicU64);
-
 impl PublishAcl {
     /// Checks publishes against `acl`.
     pub(crate) fn new(acl: Arc<Acl>) -> Self {
@@ -176,14 +184,6 @@ impl PublishAcl {
             shapes: Tally::default(),
             refused: Tally::default(),
         }
-    }
-}
-
-impl Tally {
-    /// Counts one more: its number, when that one is worth a log line.
-    fn count(&self) -> Option<u64> {
-        let n = self.0.fetch_add(1, Ordering::Relaxed) + 1;
-        crate::budget::worth_logging(n).then_some(n)
     }
 }
 

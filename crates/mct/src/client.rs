@@ -236,7 +236,7 @@ impl Session {
                     seen,
                 });
             };
-            if m.leaf != "state" {
+            if m.leaf != Leaf::State.as_str() {
                 self.hold(m);
                 continue;
             }

@@ -18,6 +18,7 @@
 //! for the disk. `docs/persistence.md` derives how many scans a crash can lose.
 
 mod audit;
+mod exposure;
 mod inspect;
 mod store;
 mod writer;
@@ -30,6 +31,7 @@ use cetratus_program::Program;
 use cetratus_runtime::{Plc, Stopwatch, WallClock};
 
 pub use audit::{rfc3339_utc, AuditLog, AuditRecord};
+pub use exposure::{exposure, Exposure};
 pub use inspect::{ContainerReport, Inspection, StoredProgram};
 pub use store::{is_program_hash, PersistFigures, StateFile, StateStore};
 pub use writer::{PersistConfig, PersistStats, Persister, DEFAULT_INTERVAL_US};

@@ -68,30 +68,24 @@ fn private_file(path: &Path, options: &mut OpenOptions) -> Result<File, PersistE
 /// Refuses a state directory (or its `programs/`) that others may write, or that another user
 /// owns (root aside): whoever may write it decides what the next warm start runs as PRIMARY.
 fn check_private(dir: &Path) -> Result<(), PersistError> {
-    use std::os::unix::fs::MetadataExt;
     let meta = std::fs::metadata(dir).map_err(io_err(dir))?;
     let shown = dir.display().to_string();
-    let me = nix::unistd::geteuid().as_raw();
-    if meta.uid() != me && meta.uid() != 0 {
-        return Err(PersistError::NotPrivate {
-            why: format!(
-                "belongs to user {}, not to this process's user {me}",
-                meta.uid()
-            ),
-            fix: format!("run `chown {me} {shown}` or give this PLC a --state-dir of its own"),
-            path: shown,
-        });
-    }
-    let mode = meta.mode() & 0o7777;
-    // A sticky directory (like /tmp) still lets others add files; it is no exception.
-    if mode & 0o022 != 0 {
-        return Err(PersistError::NotPrivate {
-            why: format!("is writable by its group or others (mode {mode:o})"),
-            fix: format!("run `chmod go-w {shown}`"),
-            path: shown,
-        });
-    }
-    Ok(())
+    let (why, fix) = match exposure(&meta) {
+        None => return Ok(()),
+        Some(Exposure::OwnedByOther { owner, me }) => (
+            format!("belongs to user {owner}, not to this process's user {me}"),
+            format!("run `chown {me} {shown}` or give this PLC a --state-dir of its own"),
+        ),
+        Some(Exposure::WritableByOthers { mode }) => (
+            format!("is writable by its group or others (mode {mode:o})"),
+            format!("run `chmod go-w {shown}`"),
+        ),
+    };
+    Err(PersistError::NotPrivate {
+        path: shown,
+        why,
+        fix,
+    })
 }
 
 /// Creates `dir` and its parents as needed, each new one mode 0700.

@@ -100,6 +100,11 @@ impl SessionsBudget { // cetratus: see SessionsBudget
         Self { shared_max, reserve_users, reserve_max, ..Self::default() } // cetratus: empty pots
     } // cetratus: end of new
 
+    /// cetratus: whether `user` is one of `reserve_users` (the one test of it)
+    pub fn reserves(&self, user: &str) -> bool { // cetratus: see above
+        self.reserve_users.iter().any(|r| r == user) // cetratus: see above
+    } // cetratus: end of reserves
+
     /// cetratus: lets a part of a session hold up to `bytes` however full its pot is (the pot may pass its most by that much a part)
     pub fn with_floor(mut self, bytes: usize) -> Self { // cetratus: see with_floor
         self.floor = bytes; // cetratus: see with_floor

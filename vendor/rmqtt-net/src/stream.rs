@@ -271,7 +271,7 @@ pub mod v3 {
         /// cetratus: once its login is checked: a user of the sessions' reserve (Builder::sessions_budget)
         /// cetratus: is not counted in Builder::partials_budget
         pub fn exempt_if_reserved(&mut self, user: &str) { // cetratus: see above
-            if self.cfg.sessions_budget.as_ref().is_some_and(|b| b.reserve_users.iter().any(|r| r == user)) { // cetratus: see above
+            if self.cfg.sessions_budget.as_ref().is_some_and(|b| b.reserves(user)) { // cetratus: see above
                 self.io.get_mut().exempt(); // cetratus: see above
             } // cetratus: see above
         } // cetratus: end of exempt_if_reserved
@@ -510,7 +510,7 @@ pub mod v5 {
         /// cetratus: once its login is checked: a user of the sessions' reserve (Builder::sessions_budget)
         /// cetratus: is not counted in Builder::partials_budget
         pub fn exempt_if_reserved(&mut self, user: &str) { // cetratus: see above
-            if self.cfg.sessions_budget.as_ref().is_some_and(|b| b.reserve_users.iter().any(|r| r == user)) { // cetratus: see above
+            if self.cfg.sessions_budget.as_ref().is_some_and(|b| b.reserves(user)) { // cetratus: see above
                 self.io.get_mut().exempt(); // cetratus: see above
             } // cetratus: see above
         } // cetratus: end of exempt_if_reserved

@@ -152,7 +152,7 @@ impl ByteBudget { // cetratus: see ByteBudget
     /// cetratus: at most `max` bytes, charged to `total` as well (to its reserve when `user` is one of its reserve users)
     pub fn new(max: usize, total: Option<Arc<crate::net::SessionsBudget>>, user: Option<&str>) -> Self { // cetratus: see new
         let total = total.map(|t| { // cetratus: which pot
-            let reserve = user.is_some_and(|u| t.reserve_users.iter().any(|r| r == u)); // cetratus: the login's name, checked by the auth hook
+            let reserve = user.is_some_and(|u| t.reserves(u)); // cetratus: the login's name, checked by the auth hook
             (t, reserve) // cetratus: see new
         }); // cetratus: see new
         let floor = total.as_ref().map_or(0, |(t, _)| t.floor); // cetratus: see new
@@ -407,8 +407,8 @@ impl ConnectInfo {
     // name through, and the authentication refuses an impostor right after.
     #[inline]
     pub fn is_reserved_login(&self, listen_cfg: &ListenerConfig) -> bool { // cetratus: see above
-        let user = self.username().map(|u| u.as_ref()); // cetratus: see above
-        listen_cfg.sessions_budget.as_ref().is_some_and(|b| b.reserve_users.iter().any(|r| Some(r.as_str()) == user)) // cetratus: see above
+        let user: Option<&str> = self.username().map(|u| u.as_ref()); // cetratus: see above
+        listen_cfg.sessions_budget.as_ref().is_some_and(|b| user.is_some_and(|u| b.reserves(u))) // cetratus: see above
     } // cetratus: see above
 
     #[inline]

@@ -383,10 +383,9 @@ fn endings() -> Value {
     Verb::ALL
         .iter()
         .map(|v| {
-            let kinds = v
-                .endings()
+            let kinds = cetratus_proto::endings(*v)
                 .iter()
-                .map(|(k, e)| ((*k).to_string(), json!(e)))
+                .map(|(k, e)| (k.as_str().to_string(), json!(e)))
                 .collect::<serde_json::Map<_, _>>();
             (v.as_str().to_string(), Value::Object(kinds))
         })
@@ -466,7 +465,11 @@ async fn command(
             "unknown_verb",
             format!(
                 "`{verb}` is not a command; use one of {}",
-                Verb::ALL.map(Verb::as_str).join(", ")
+                Verb::ALL
+                    .iter()
+                    .map(|v| v.as_str())
+                    .collect::<Vec<_>>()
+                    .join(", ")
             ),
         );
     };
@@ -502,7 +505,7 @@ async fn command(
             );
         }
         let package_b64 = base64::engine::general_purpose::STANDARD.encode(&body);
-        Command::Load(LoadArgs { package_b64 }).to_body()
+        cetratus_proto::command_body(&Command::Load(LoadArgs { package_b64 }))
     } else if body.iter().all(u8::is_ascii_whitespace) {
         json!({})
     } else {
@@ -530,8 +533,8 @@ async fn command(
         .and_then(Value::as_u64)
         .map(|ms| Duration::from_millis(ms.saturating_add(15_000)));
     // Checked here, so that a browser learns at once what the PLC would refuse.
-    let args = match Command::from_body(verb, args) {
-        Ok(c) => c.to_body(),
+    let args = match cetratus_proto::command_from_body(verb, args) {
+        Ok(c) => cetratus_proto::command_body(&c),
         Err(e) => return error(StatusCode::BAD_REQUEST, "malformed", e.to_string()),
     };
     // The guard let only sessions through; the account is who the signed command names.

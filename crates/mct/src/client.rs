@@ -260,7 +260,7 @@ impl Session {
             self.reply_leaf = Some(reply_leaf.clone());
         }
         let correlation = format!("{verb}-{}", unique()).into_bytes();
-        let body = self.body(verb, &correlation, &command.to_body())?;
+        let body = self.body(verb, &correlation, &cetratus_proto::command_body(command))?;
         let props = PublishProperties {
             response_topic: Some(format!("{}{reply_leaf}", self.topics.prefix())),
             correlation_data: Some(correlation.into()),
@@ -295,11 +295,11 @@ impl Session {
     }
 
     /// Sends a command and, once the PLC accepts it, waits for the event that ends it
-    /// ([`Verb::endings`]), all within the session's timeout. Events are followed from before the
+    /// ([`cetratus_proto::endings`]), all within the session's timeout. Events are followed from before the
     /// command is sent, so an outcome that comes at once is not missed.
     pub fn command(&mut self, command: &Command) -> Result<Outcome, MctError> {
         let verb = command.verb();
-        if verb.endings().is_empty() {
+        if cetratus_proto::endings(verb).is_empty() {
             let reply = self.request(command)?;
             return Ok(if reply.ok {
                 Outcome::Replied(reply)
@@ -330,7 +330,7 @@ impl Session {
             let Ok(event) = serde_json::from_value::<EventMsg>(m.payload) else {
                 continue;
             };
-            match verb.ending(&event.kind) {
+            match cetratus_proto::ending(verb, &event.kind) {
                 Some(Ending::Done) => return Ok(Outcome::Done { reply, event }),
                 Some(Ending::Failed) => return Ok(Outcome::Failed { reply, event }),
                 None => {}

@@ -8,8 +8,8 @@ use std::time::Duration;
 
 use base64::Engine as _;
 use cetratus_proto::{
-    Accepted, Command, ErrorBody, ErrorCode, EventMsg, PlcId, ProtoError, Reply, ReplyFields,
-    SubstituteArgs, Topics, Verb, MAX_PAYLOAD,
+    command_from_body, Accepted, ErrorBody, ErrorCode, EventKind, EventMsg, PlcId, ProtoError,
+    Reply, ReplyFields, SubstituteArgs, Topics, Verb, MAX_PAYLOAD,
 };
 use serde_json::{json, Map, Value};
 
@@ -48,45 +48,9 @@ pub fn accepted() -> Outcome {
     Ok(serde_json::to_value(Accepted { accepted: true }).ok())
 }
 
-/// A command, parsed and authorised.
-#[derive(Clone, Debug, PartialEq, Eq)]
-pub enum Request {
-    /// Load an update package (its bytes, base64-decoded here so the scan side never parses).
-    Load {
-        /// The package file's bytes.
-        package: Vec<u8>,
-    },
-    /// Drop the candidate in quarantine.
-    Remove,
-    /// Make the candidate PRIMARY.
-    Substitute(SubstituteArgs),
-    /// Cancel the update under way.
-    Abort,
-    /// Leave the fault state.
-    Reset,
-    /// Reply with both containers' `program_exec_info`.
-    ExecInfo,
-    /// End probation by flipping PRIMARY back to the old program.
-    Revert,
-    /// End probation early: the update is final.
-    Accept,
-}
-
-impl Request {
-    /// The verb.
-    pub fn verb(&self) -> Verb {
-        match self {
-            Request::Load { .. } => Verb::Load,
-            Request::Remove => Verb::Remove,
-            Request::Substitute(_) => Verb::Substitute,
-            Request::Abort => Verb::Abort,
-            Request::Reset => Verb::Reset,
-            Request::ExecInfo => Verb::ExecInfo,
-            Request::Revert => Verb::Revert,
-            Request::Accept => Verb::Accept,
-        }
-    }
-}
+/// A command, parsed and authorised: a load carries the package's bytes (base64-decoded here, so
+/// the scan side never parses), a substitution its arguments.
+pub type Request = cetratus_vocab::Command<Vec<u8>, SubstituteArgs>;
 
 /// A command for the scan side, with the handle to answer it.
 #[derive(Clone, Debug, PartialEq, Eq)]
@@ -127,7 +91,7 @@ fn rejected_event(verb: &str, code: ErrorCode, message: &str, request_id: u64) -
     EventMsg {
         cycle: None,
         time_us: None,
-        kind: "command_rejected".into(),
+        kind: EventKind::CommandRejected.into(),
         message: format!("{verb}: {message}"),
         detail: json!({"verb": verb, "code": code, "request_id": request_id}),
     }
@@ -228,7 +192,11 @@ impl ControlPlane {
                 format!(
                     "unknown verb `{}`; expected one of {}",
                     handle.verb,
-                    Verb::ALL.map(Verb::as_str).join(", ")
+                    Verb::ALL
+                        .iter()
+                        .map(|v| v.as_str())
+                        .collect::<Vec<_>>()
+                        .join(", ")
                 ),
             ));
         };
@@ -332,31 +300,25 @@ impl ControlPlane {
     }
 
     fn request(verb: Verb, body: Map<String, Value>) -> Result<Request, String> {
-        let command = Command::from_body(verb, Value::Object(body)).map_err(|e| match e {
+        let command = command_from_body(verb, Value::Object(body)).map_err(|e| match e {
             ProtoError::Payload { source, .. } if !verb.takes_arguments() => {
                 format!("`{verb}` takes no arguments: {source}")
             }
             ProtoError::Payload { source, .. } => format!("bad `{verb}` arguments: {source}"),
             other => other.to_string(),
         })?;
-        Ok(match command {
-            Command::Load(l) => {
+        command.try_map(
+            |l| {
                 let package = base64::engine::general_purpose::STANDARD
                     .decode(l.package_b64.trim())
                     .map_err(|e| format!("package_b64 is not base64: {e}"))?;
                 if package.is_empty() {
                     return Err("package_b64 is empty".into());
                 }
-                Request::Load { package }
-            }
-            Command::Substitute(a) => Request::Substitute(a),
-            Command::Remove => Request::Remove,
-            Command::Abort => Request::Abort,
-            Command::Reset => Request::Reset,
-            Command::ExecInfo => Request::ExecInfo,
-            Command::Revert => Request::Revert,
-            Command::Accept => Request::Accept,
-        })
+                Ok(package)
+            },
+            Ok,
+        )
     }
 
     /// The reply to a command, as published: `ok`, `verb`, `request_id`, `correlation` (if
@@ -384,7 +346,7 @@ impl ControlPlane {
         EventMsg {
             cycle: None,
             time_us: None,
-            kind: "command_received".into(),
+            kind: EventKind::CommandReceived.into(),
             message: format!("{} received", cmd.reply.verb),
             detail,
         }
@@ -424,12 +386,7 @@ mod tests {
         let c = cp()
             .parse("cetratus/cell1/cmd/load", p, None, None, 0)
             .expect("accepted");
-        assert_eq!(
-            c.request,
-            Request::Load {
-                package: b"hello".to_vec()
-            }
-        );
+        assert_eq!(c.request, Request::Load(b"hello".to_vec()));
         assert_eq!(c.reply.topic.as_deref(), Some("cetratus/cell1/reply/me"));
         assert_eq!(c.reply.correlation, Some(json!(42)));
     }
@@ -514,7 +471,7 @@ mod tests {
             .parse("cetratus/cell1/cmd/load", b"nope", None, None, 0)
             .expect_err("rejected");
         assert!(rej.reply.is_none());
-        assert_eq!(rej.event.kind, "command_rejected");
+        assert_eq!(rej.event.kind, EventKind::CommandRejected);
     }
 
     #[test]

@@ -25,7 +25,7 @@ use crate::link::{handle_bytes, reply_props, Shared};
 /// What a queued command costs: its package, its reply address, its correlation data.
 fn command_bytes(c: &IncomingCommand) -> usize {
     let payload = match &c.request {
-        Request::Load { package } => package.len(),
+        Request::Load(package) => package.len(),
         Request::Substitute(a) => a.when.as_ref().map_or(0, String::len),
         _ => 0,
     };

@@ -148,7 +148,7 @@ impl Outgoing {
     pub fn approx_bytes(&self) -> usize {
         const BASE: usize = 128;
         BASE + match self {
-            Outgoing::Event(e) => e.kind.len() + e.message.len() + approx_json(&e.detail),
+            Outgoing::Event(e) => e.kind.as_str().len() + e.message.len() + approx_json(&e.detail),
             Outgoing::Reply(h, r) => {
                 handle_bytes(h)
                     + match r {

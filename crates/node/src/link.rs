@@ -28,7 +28,7 @@ use cetratus_proto::{
     StateMsg,
 };
 use cetratus_runtime::{
-    Command, Event, ExecInfo, LoopTiming, Plc, Slot, Status, SubstituteMode, SubstituteRequest,
+    Command, Event, ExecInfo, LoopTiming, Plc, PreparedUpdate, Slot, Status, SubstituteRequest,
     UpdateContext,
 };
 use serde_json::json;
@@ -431,32 +431,27 @@ impl Preparer {
                 ));
                 continue;
             }
-            let mut extra = None;
-            let prepared: Result<Box<Command>, String> = match &cmd.request {
-                Request::Load { package } => self.load(&mut ctx, package).map(|(p, e)| {
-                    extra = Some(e);
-                    p
-                }),
-                Request::Substitute(a) => ctx
-                    .as_ref()
-                    .map_or_else(
-                        || Err("the PLC is starting; try again".into()),
-                        |c| substitute(c, a),
-                    )
-                    .map(|s| Box::new(Command::Substitute(s))),
-                Request::Remove => Ok(Box::new(Command::Remove)),
-                Request::Abort => Ok(Box::new(Command::Abort)),
-                Request::Reset => Ok(Box::new(Command::Reset)),
-                Request::Revert => Ok(Box::new(Command::Revert)),
-                Request::Accept => Ok(Box::new(Command::Accept)),
-                Request::ExecInfo => continue,
+            let Some(c) = ctx.as_ref() else {
+                continue;
             };
+            let (mut extra, mut newer) = (None, None);
+            let prepared = cmd.request.as_ref().try_map(
+                |package| {
+                    let (p, e, n) = self.load(c, package)?;
+                    (extra, newer) = (Some(e), n);
+                    Ok(p)
+                },
+                |a| substitute(c, a),
+            );
+            if newer.is_some() {
+                ctx = newer;
+            }
             match prepared {
                 Ok(command) => {
                     // Blocks while the scan thread is behind, so the command queue before this
                     // thread fills up and answers `busy`.
                     let ready = Ready {
-                        command,
+                        command: Box::new(command),
                         from: cmd,
                         extra,
                     };
@@ -468,7 +463,7 @@ impl Preparer {
                     let _ = self.out.send(Outgoing::Event(EventMsg {
                         cycle: None,
                         time_us: None,
-                        kind: "refused".into(),
+                        kind: cetratus_runtime::EventKind::Refused.into(),
                         message: reason.clone(),
                         detail: json!({"verb": cmd.request.verb(), "key_id": cmd.key_id}),
                     }));
@@ -487,19 +482,23 @@ impl Preparer {
     /// against the new one.
     fn load(
         &self,
-        ctx: &mut Option<UpdateContext>,
+        before: &UpdateContext,
         package: &[u8],
-    ) -> Result<(Box<Command>, serde_json::Value), String> {
-        let starting = || "the PLC is starting; try again".to_string();
-        let before = ctx.as_ref().ok_or_else(starting)?;
+    ) -> Result<
+        (
+            Box<PreparedUpdate>,
+            serde_json::Value,
+            Option<UpdateContext>,
+        ),
+        String,
+    > {
         let mut p = self
             .policy
             .build(before, package)
             .map_err(|e| e.to_string())?;
-        let base = before.primary.hash();
-        self.fresh_context(ctx);
-        let c = ctx.as_ref().ok_or_else(starting)?;
-        if c.primary.hash() != base {
+        let newer = self.fresh_context();
+        let c = newer.as_ref().unwrap_or(before);
+        if c.primary.hash() != before.primary.hash() {
             p = self.policy.build(c, package).map_err(|e| e.to_string())?;
         }
         let p = self.policy.gate(c, p).map_err(|e| e.to_string())?;
@@ -507,27 +506,29 @@ impl Preparer {
             "accepted": true,
             "verdicts": p.verdicts().last().map(wire::verdict).into_iter().collect::<Vec<_>>(),
         });
-        Ok((Box::new(Command::Load(Box::new(p))), extra))
+        Ok((Box::new(p), extra, newer))
     }
 
     /// Asks the scan thread for the primary's marking of its next cycle boundary and waits for
     /// it (a second at most: a scan thread that does not answer leaves the last context), so that
     /// the analysis gate starts from the marking of now rather than of the last publication.
-    fn fresh_context(&self, ctx: &mut Option<UpdateContext>) {
+    fn fresh_context(&self) -> Option<UpdateContext> {
         self.ctx_wanted
             .store(true, std::sync::atomic::Ordering::Release);
         let end = std::time::Instant::now() + std::time::Duration::from_secs(1);
+        let mut newest = None;
         while let Some(left) = end.checked_duration_since(std::time::Instant::now()) {
             match self.ctx_rx.recv_timeout(left) {
                 Ok((c, fresh)) => {
-                    *ctx = Some(c);
+                    newest = Some(c);
                     if fresh {
-                        return;
+                        break;
                     }
                 }
-                Err(_) => return,
+                Err(_) => break,
             }
         }
+        newest
     }
 
     /// Hands an `exec_info` request to the publisher, or answers `busy` when
@@ -558,10 +559,7 @@ fn substitute(
     c: &UpdateContext,
     a: &cetratus_proto::SubstituteArgs,
 ) -> Result<SubstituteRequest, String> {
-    let mode = match a.mode {
-        None | Some(cetratus_proto::SubstituteMode::Retransform) => SubstituteMode::Retransform,
-        Some(cetratus_proto::SubstituteMode::Keep) => SubstituteMode::Keep,
-    };
+    let mode = a.mode.unwrap_or_default();
     // The protocol refuses a longer wait already; checked again here, where the multiplication
     // is, so that no path can make it overflow.
     if let Some(e) = a.within_ms.and_then(within_error) {

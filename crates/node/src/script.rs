@@ -22,6 +22,7 @@ use cetratus_runtime::{
     Command, Plc, PreparedUpdate, SubstituteMode, SubstituteRequest, UpdateContext,
 };
 use cetratus_twin::{Plant, Twin};
+use cetratus_vocab::Verb as Name;
 
 /// Why a script cannot be run.
 #[derive(Debug, thiserror::Error)]
@@ -39,17 +40,8 @@ pub enum ScriptError {
     Command(String),
 }
 
-/// The verbs a script knows.
-#[derive(Clone, Debug, PartialEq, Eq)]
-enum Verb {
-    Load(String),
-    Substitute(SubstituteMode),
-    Remove,
-    Abort,
-    Reset,
-    Revert,
-    Accept,
-}
+/// A scripted command: a load names its package file, a substitution its mode.
+type Verb = cetratus_vocab::Command<String, SubstituteMode>;
 
 /// One scripted command.
 #[derive(Clone, Debug)]
@@ -206,23 +198,24 @@ impl Script {
                 ));
             };
             let arg = parts.next();
-            let verb = match (verb, arg) {
-                ("load", Some(path)) => Verb::Load(path.to_string()),
-                ("load", None) => return Err(syntax("`load` needs a package file".into())),
-                ("substitute", m) => Verb::Substitute(match m {
-                    Some(m) => m.parse().map_err(|e: cetratus_runtime::UnknownName| syntax(e.to_string()))?,
+            let verb = match (verb.parse(), arg) {
+                (Ok(Name::Load), Some(path)) => Verb::Load(path.to_string()),
+                (Ok(Name::Load), None) => return Err(syntax("`load` needs a package file".into())),
+                (Ok(Name::Substitute), m) => Verb::Substitute(match m {
+                    Some(m) => m
+                        .parse()
+                        .map_err(|e: cetratus_runtime::UnknownName| syntax(e.to_string()))?,
                     None => SubstituteMode::Retransform,
                 }),
-                ("remove", _) => Verb::Remove,
-                ("abort", _) => Verb::Abort,
-                ("reset", _) => Verb::Reset,
-                ("revert", _) => Verb::Revert,
-                ("accept", _) => Verb::Accept,
-                (other, _) => {
-                    return Err(syntax(format!(
-                    "unknown command `{other}`; expected load, substitute, remove, abort, reset, revert or accept"
-                )))
+                (Ok(Name::ExecInfo), _) => {
+                    return Err(syntax(
+                        "`exec_info` is a query, not a command; `cetratus exec-info` asks a \
+                         running PLC"
+                            .into(),
+                    ))
                 }
+                (Ok(bare), _) => Verb::bare(bare).ok_or_else(|| syntax(bare.to_string()))?,
+                (Err(e), _) => return Err(syntax(e.to_string())),
             };
             let at_us = duration::parse_us(t, Bare::Seconds).map_err(|e| syntax(e.to_string()))?;
             v.push(Scripted { at_us, verb });
@@ -265,16 +258,12 @@ impl Script {
         } = self;
         let s = items.get(*next)?;
         let due = s.at_us.saturating_add(base_us) <= now_us;
-        let plain = match &s.verb {
-            Verb::Load(_) => None,
-            Verb::Substitute(mode) => Some(Command::Substitute(SubstituteRequest::now(*mode))),
-            Verb::Remove => Some(Command::Remove),
-            Verb::Abort => Some(Command::Abort),
-            Verb::Reset => Some(Command::Reset),
-            Verb::Revert => Some(Command::Revert),
-            Verb::Accept => Some(Command::Accept),
-        };
-        if let Some(c) = plain {
+        // Every verb but a load is ready as it is; a load is prepared below.
+        let plain = s
+            .verb
+            .as_ref()
+            .try_map(|_| Err(()), |mode| Ok(SubstituteRequest::now(*mode)));
+        if let Ok(c) = plain {
             return due.then(|| {
                 *next += 1;
                 Ok(c)

@@ -116,7 +116,7 @@ pub fn event(e: &Event) -> proto::EventMsg {
     proto::EventMsg {
         cycle: Some(e.cycle),
         time_us: Some(e.time_us),
-        kind: e.kind.as_str().to_string(),
+        kind: e.kind.into(),
         message: e.message.clone(),
         detail: serde_json::to_value(e.detail).unwrap_or(serde_json::Value::Null),
     }

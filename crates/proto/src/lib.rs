@@ -26,14 +26,15 @@ mod topic;
 pub use broker::{BrokerUrl, DEFAULT_PORT, DEFAULT_TLS_PORT};
 pub use error::ProtoError;
 pub use names::{
-    ErrorCode, EventKind, LinkState, Quality, Role, Slot, Status, SubstituteMode, UnknownName,
-    VerdictKind, VerdictResult,
+    ErrorCode, EventKind, LinkState, Open, Quality, Role, Slot, Status, SubstituteMode,
+    UnknownName, VerdictKind, VerdictResult,
 };
-pub use outcome::Ending;
+pub use outcome::{ending, endings, Ending};
 pub use payload::{
-    decode, encode, within_error, Accepted, Command, ControlCounters, CycleFigures, ErrorBody,
-    EventMsg, ExecInfo, ExecInfoMsg, InputQuality, IoMsg, IoNames, LoadArgs, NetMsg, NoArgs,
-    ProgramInfo, Programs, Reply, ReplyFields, Sample, SignalMask, SignalValue, Signals, StateMsg,
-    StatePayload, SubstituteArgs, TimingSummary, Verdict, MAX_PAYLOAD, MAX_WITHIN_MS,
+    command_body, command_from_body, decode, encode, within_error, Accepted, Command,
+    ControlCounters, CycleFigures, ErrorBody, EventMsg, ExecInfo, ExecInfoMsg, InputQuality, IoMsg,
+    IoNames, LoadArgs, NetMsg, NoArgs, ProgramInfo, Programs, Reply, ReplyFields, Sample,
+    SignalMask, SignalValue, Signals, StateMsg, StatePayload, SubstituteArgs, TimingSummary,
+    Verdict, MAX_PAYLOAD, MAX_WITHIN_MS,
 };
-pub use topic::{parse_topic, Leaf, PlcId, Topics, Verb, ALL_PLCS_FILTER, ROOT};
+pub use topic::{parse_topic, parse_verb, Leaf, PlcId, Topics, Verb, ALL_PLCS_FILTER, ROOT};

@@ -5,8 +5,8 @@
 use cetratus_vocab::names;
 
 pub use cetratus_vocab::{
-    EventKind, LinkState, Quality, Role, Slot, Status, SubstituteMode, UnknownName, VerdictKind,
-    VerdictResult,
+    EventKind, LinkState, Open, Quality, Role, Slot, Status, SubstituteMode, UnknownName,
+    VerdictKind, VerdictResult,
 };
 
 names! {

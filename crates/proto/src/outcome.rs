@@ -5,6 +5,8 @@
 
 use serde::Serialize;
 
+use cetratus_vocab::{EventKind, Open};
+
 use crate::Verb;
 
 /// How an event ends an accepted command.
@@ -18,50 +20,56 @@ pub enum Ending {
     Failed,
 }
 
-const LOAD: &[(&str, Ending)] = &[
-    ("quarantine_started", Ending::Done),
-    ("state_trans_timeout", Ending::Failed),
-    ("transform_refused", Ending::Failed),
-    ("refused", Ending::Failed),
-    ("aborted", Ending::Failed),
-    ("update_discarded", Ending::Failed),
+const LOAD: &[(EventKind, Ending)] = &[
+    (EventKind::QuarantineStarted, Ending::Done),
+    (EventKind::StateTransTimeout, Ending::Failed),
+    (EventKind::TransformRefused, Ending::Failed),
+    (EventKind::Refused, Ending::Failed),
+    (EventKind::Aborted, Ending::Failed),
+    (EventKind::UpdateDiscarded, Ending::Failed),
 ];
 
-const SUBSTITUTE: &[(&str, Ending)] = &[
-    ("substituted", Ending::Done),
-    ("refused", Ending::Failed),
-    ("substitute_timeout", Ending::Failed),
-    ("candidate_fault", Ending::Failed),
-    ("removed", Ending::Failed),
-    ("aborted", Ending::Failed),
-    ("update_discarded", Ending::Failed),
+const SUBSTITUTE: &[(EventKind, Ending)] = &[
+    (EventKind::Substituted, Ending::Done),
+    (EventKind::Refused, Ending::Failed),
+    (EventKind::SubstituteTimeout, Ending::Failed),
+    (EventKind::CandidateFault, Ending::Failed),
+    (EventKind::Removed, Ending::Failed),
+    (EventKind::Aborted, Ending::Failed),
+    (EventKind::UpdateDiscarded, Ending::Failed),
 ];
 
-impl Verb {
-    /// The event kinds that end an accepted command of this verb, and how. Empty for
-    /// `exec_info`, whose reply is its whole outcome.
-    pub fn endings(self) -> &'static [(&'static str, Ending)] {
-        match self {
-            Verb::Load => LOAD,
-            Verb::Substitute => SUBSTITUTE,
-            Verb::Remove => &[("removed", Ending::Done)],
-            Verb::Abort => &[("aborted", Ending::Done)],
-            Verb::Reset => &[("reset", Ending::Done)],
-            Verb::ExecInfo => &[],
-            // Probation can also end by itself before the command's boundary: a revert the PLC
-            // decided ends an `accept`, the window's end ends a `revert`.
-            Verb::Revert => &[("reverted", Ending::Done), ("accepted", Ending::Failed)],
-            Verb::Accept => &[("accepted", Ending::Done), ("reverted", Ending::Failed)],
-        }
+/// The event kinds that end an accepted command of `verb`, and how. Empty for `exec_info`,
+/// whose reply is its whole outcome.
+pub fn endings(verb: Verb) -> &'static [(EventKind, Ending)] {
+    match verb {
+        Verb::Load => LOAD,
+        Verb::Substitute => SUBSTITUTE,
+        Verb::Remove => &[(EventKind::Removed, Ending::Done)],
+        Verb::Abort => &[(EventKind::Aborted, Ending::Done)],
+        Verb::Reset => &[(EventKind::Reset, Ending::Done)],
+        Verb::ExecInfo => &[],
+        // Probation can also end by itself before the command's boundary: a revert the PLC
+        // decided ends an `accept`, the window's end ends a `revert`.
+        Verb::Revert => &[
+            (EventKind::Reverted, Ending::Done),
+            (EventKind::Accepted, Ending::Failed),
+        ],
+        Verb::Accept => &[
+            (EventKind::Accepted, Ending::Done),
+            (EventKind::Reverted, Ending::Failed),
+        ],
     }
+}
 
-    /// How an event of kind `kind` ends an accepted command of this verb; `None` when it does not.
-    pub fn ending(self, kind: &str) -> Option<Ending> {
-        self.endings()
-            .iter()
-            .find(|(k, _)| *k == kind)
-            .map(|&(_, e)| e)
-    }
+/// How an event of kind `kind` ends an accepted command of `verb`; `None` when it does not (a
+/// kind this build does not know never does).
+pub fn ending(verb: Verb, kind: &Open<EventKind>) -> Option<Ending> {
+    let kind = kind.known()?;
+    endings(verb)
+        .iter()
+        .find(|(k, _)| *k == kind)
+        .map(|&(_, e)| e)
 }
 
 #[cfg(test)]
@@ -70,19 +78,24 @@ mod tests {
 
     #[test]
     fn every_verb_but_exec_info_has_exactly_one_kind_that_completes_it() {
-        for v in Verb::ALL {
-            let done = v
-                .endings()
+        for &v in Verb::ALL {
+            let done = endings(v)
                 .iter()
                 .filter(|(_, e)| *e == Ending::Done)
                 .count();
             assert_eq!(done, usize::from(v != Verb::ExecInfo), "{v}");
         }
-        assert_eq!(Verb::Substitute.ending("substituted"), Some(Ending::Done));
+        let kind = |k: EventKind| Open::Known(k);
+        let sub = Verb::Substitute;
         assert_eq!(
-            Verb::Substitute.ending("substitute_timeout"),
+            ending(sub, &kind(EventKind::Substituted)),
+            Some(Ending::Done)
+        );
+        assert_eq!(
+            ending(sub, &kind(EventKind::SubstituteTimeout)),
             Some(Ending::Failed)
         );
-        assert_eq!(Verb::Substitute.ending("load_accepted"), None);
+        assert_eq!(ending(sub, &kind(EventKind::LoadAccepted)), None);
+        assert_eq!(ending(sub, &Open::Other("substituted2".into())), None);
     }
 }

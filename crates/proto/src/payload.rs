@@ -14,7 +14,8 @@ use serde::{Deserialize, Serialize, Serializer};
 use serde_json::Value;
 
 use crate::names::{
-    ErrorCode, LinkState, Quality, Role, Slot, Status, SubstituteMode, VerdictKind, VerdictResult,
+    ErrorCode, EventKind, LinkState, Open, Quality, Role, Slot, Status, SubstituteMode,
+    VerdictKind, VerdictResult,
 };
 use crate::{ProtoError, Verb};
 
@@ -593,8 +594,9 @@ pub struct EventMsg {
     /// Figures that go with it, free-form; absent when `null`.
     #[serde(default, skip_serializing_if = "Value::is_null")]
     pub detail: Value,
-    /// What (snake_case), e.g. `load_accepted`, `substituted`, `command_rejected`.
-    pub kind: String,
+    /// What happened, e.g. `load_accepted`, `substituted`, `command_rejected`; a kind this
+    /// build does not know (a newer PLC's) is kept as it was read.
+    pub kind: Open<EventKind>,
     /// In words: what, why, and what to do.
     pub message: String,
     /// Program time in microseconds (runtime events only).
@@ -724,73 +726,38 @@ pub struct SubstituteArgs {
 #[serde(deny_unknown_fields)]
 pub struct NoArgs {}
 
-/// A command body (what is signed in an envelope), without the reply fields.
-#[derive(Clone, Debug, PartialEq, Eq)]
-pub enum Command {
-    /// `load`.
-    Load(LoadArgs),
-    /// `substitute`.
-    Substitute(SubstituteArgs),
-    /// `remove`.
-    Remove,
-    /// `abort`.
-    Abort,
-    /// `reset`.
-    Reset,
-    /// `exec_info`.
-    ExecInfo,
-    /// `revert`.
-    Revert,
-    /// `accept`.
-    Accept,
-}
+/// A command body (what is signed in an envelope), without the reply fields: the package in
+/// base64 for `load`, the arguments of `substitute`.
+pub type Command = cetratus_vocab::Command<LoadArgs, SubstituteArgs>;
 
-impl Command {
-    /// The verb.
-    pub fn verb(&self) -> Verb {
-        match self {
-            Command::Load(_) => Verb::Load,
-            Command::Substitute(_) => Verb::Substitute,
-            Command::Remove => Verb::Remove,
-            Command::Abort => Verb::Abort,
-            Command::Reset => Verb::Reset,
-            Command::ExecInfo => Verb::ExecInfo,
-            Command::Revert => Verb::Revert,
-            Command::Accept => Verb::Accept,
+/// Reads the body of a `verb` command (the reply fields `reply_to`, `correlation` and `envelope`
+/// already removed); unknown fields are refused.
+pub fn command_from_body(verb: Verb, body: Value) -> Result<Command, ProtoError> {
+    let err = |source| ProtoError::Payload {
+        what: "command",
+        source,
+    };
+    match verb {
+        Verb::Load => serde_json::from_value(body).map(Command::Load).map_err(err),
+        Verb::Substitute => serde_json::from_value(body)
+            .map(Command::Substitute)
+            .map_err(err),
+        bare => {
+            let NoArgs {} = serde_json::from_value(body).map_err(err)?;
+            // A verb without arguments here, so `bare` has its command.
+            Ok(Command::bare(bare).unwrap_or(Command::ExecInfo))
         }
     }
+}
 
-    /// Reads the body of `verb` (the reply fields `reply_to`, `correlation` and `envelope`
-    /// already removed); unknown fields are refused.
-    pub fn from_body(verb: Verb, body: Value) -> Result<Self, ProtoError> {
-        let what = "command";
-        let err = |source| ProtoError::Payload { what, source };
-        Ok(match verb {
-            Verb::Load => Command::Load(serde_json::from_value(body).map_err(err)?),
-            Verb::Substitute => Command::Substitute(serde_json::from_value(body).map_err(err)?),
-            other => {
-                let NoArgs {} = serde_json::from_value(body).map_err(err)?;
-                match other {
-                    Verb::Remove => Command::Remove,
-                    Verb::Abort => Command::Abort,
-                    Verb::Reset => Command::Reset,
-                    Verb::Revert => Command::Revert,
-                    Verb::Accept => Command::Accept,
-                    _ => Command::ExecInfo,
-                }
-            }
-        })
-    }
-
-    /// The body as JSON, as the CLI sends it.
-    pub fn to_body(&self) -> Value {
-        let v = match self {
-            Command::Load(a) => serde_json::to_value(a),
-            Command::Substitute(a) => serde_json::to_value(a),
-            _ => serde_json::to_value(NoArgs {}),
-        };
-        v.unwrap_or_else(|_| Value::Object(serde_json::Map::new()))
-    }
+/// A command's body as JSON, as the CLI and the dashboard send it.
+pub fn command_body(command: &Command) -> Value {
+    let v = match command {
+        Command::Load(a) => serde_json::to_value(a),
+        Command::Substitute(a) => serde_json::to_value(a),
+        _ => serde_json::to_value(NoArgs {}),
+    };
+    v.unwrap_or_else(|_| Value::Object(serde_json::Map::new()))
 }
 
 /// The fields of a command payload that say where the reply goes (MQTT 3.1.1 clients); the
@@ -832,18 +799,18 @@ mod tests {
 
     #[test]
     fn a_within_over_24_hours_is_refused_with_the_maximum_named() {
-        let ok = Command::from_body(
+        let ok = command_from_body(
             Verb::Substitute,
             serde_json::json!({"within_ms": MAX_WITHIN_MS}),
         );
         assert!(ok.is_ok(), "{ok:?}");
         for ms in [MAX_WITHIN_MS + 1, u64::MAX / 1000 + 1, u64::MAX] {
-            let e = Command::from_body(Verb::Substitute, serde_json::json!({"within_ms": ms}))
+            let e = command_from_body(Verb::Substitute, serde_json::json!({"within_ms": ms}))
                 .expect_err("refused")
                 .to_string();
             assert!(e.contains("within_ms") && e.contains("24 h"), "{e}");
         }
-        let none = Command::from_body(Verb::Substitute, serde_json::json!({"within_ms": null}));
+        let none = command_from_body(Verb::Substitute, serde_json::json!({"within_ms": null}));
         assert!(matches!(
             none,
             Ok(Command::Substitute(SubstituteArgs {

@@ -112,115 +112,26 @@ impl<'de> Deserialize<'de> for PlcId {
     }
 }
 
-/// A command verb: the last topic level under `cmd/`.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
-pub enum Verb {
-    /// Load an update package into the secondary container.
-    Load,
-    /// Make the candidate PRIMARY.
-    Substitute,
-    /// Drop the candidate in quarantine.
-    Remove,
-    /// Cancel the update under way.
-    Abort,
-    /// Leave the fault state.
-    Reset,
-    /// Reply with both containers' `program_exec_info`.
-    ExecInfo,
-    /// End probation by flipping PRIMARY back to the old program.
-    Revert,
-    /// End probation early: the update is final.
-    Accept,
-}
+pub use cetratus_vocab::Verb;
 
-impl Verb {
-    /// Every verb, in the order the error messages list them.
-    pub const ALL: [Verb; 8] = [
-        Verb::Load,
-        Verb::Remove,
-        Verb::Substitute,
-        Verb::Abort,
-        Verb::Reset,
-        Verb::ExecInfo,
-        Verb::Revert,
-        Verb::Accept,
-    ];
-
-    /// The position in [`Verb::ALL`].
-    fn index(self) -> usize {
-        match self {
-            Verb::Load => 0,
-            Verb::Remove => 1,
-            Verb::Substitute => 2,
-            Verb::Abort => 3,
-            Verb::Reset => 4,
-            Verb::ExecInfo => 5,
-            Verb::Revert => 6,
-            Verb::Accept => 7,
-        }
-    }
-
-    /// The topic level, e.g. `exec_info`.
-    pub fn as_str(self) -> &'static str {
-        match self {
-            Verb::Load => "load",
-            Verb::Substitute => "substitute",
-            Verb::Remove => "remove",
-            Verb::Abort => "abort",
-            Verb::Reset => "reset",
-            Verb::ExecInfo => "exec_info",
-            Verb::Revert => "revert",
-            Verb::Accept => "accept",
-        }
-    }
-
-    /// The leaf `cmd/<verb>`.
-    pub fn leaf(self) -> &'static str {
-        match self {
-            Verb::Load => "cmd/load",
-            Verb::Substitute => "cmd/substitute",
-            Verb::Remove => "cmd/remove",
-            Verb::Abort => "cmd/abort",
-            Verb::Reset => "cmd/reset",
-            Verb::ExecInfo => "cmd/exec_info",
-            Verb::Revert => "cmd/revert",
-            Verb::Accept => "cmd/accept",
-        }
-    }
-
-    /// Whether the verb takes arguments (`load` and `substitute`); the others take `{}`.
-    pub fn takes_arguments(self) -> bool {
-        matches!(self, Verb::Load | Verb::Substitute)
+/// The leaf `cmd/<verb>` of a verb.
+fn cmd_leaf(verb: Verb) -> &'static str {
+    match verb {
+        Verb::Load => "cmd/load",
+        Verb::Substitute => "cmd/substitute",
+        Verb::Remove => "cmd/remove",
+        Verb::Abort => "cmd/abort",
+        Verb::Reset => "cmd/reset",
+        Verb::ExecInfo => "cmd/exec_info",
+        Verb::Revert => "cmd/revert",
+        Verb::Accept => "cmd/accept",
     }
 }
 
-impl fmt::Display for Verb {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        f.write_str(self.as_str())
-    }
-}
-
-impl FromStr for Verb {
-    type Err = ProtoError;
-    fn from_str(s: &str) -> Result<Self, ProtoError> {
-        Verb::ALL
-            .into_iter()
-            .find(|v| v.as_str() == s)
-            .ok_or_else(|| ProtoError::UnknownVerb(s.chars().take(64).collect()))
-    }
-}
-
-impl Serialize for Verb {
-    fn serialize<S: Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
-        s.serialize_str(self.as_str())
-    }
-}
-
-impl<'de> Deserialize<'de> for Verb {
-    fn deserialize<D: Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
-        let s = String::deserialize(d)?;
-        s.parse().map_err(serde::de::Error::custom)
-    }
+/// Reads a verb; an unknown one is [`ProtoError::UnknownVerb`], answered with `unknown_verb`.
+pub fn parse_verb(s: &str) -> Result<Verb, ProtoError> {
+    s.parse()
+        .map_err(|e: cetratus_vocab::UnknownName| ProtoError::UnknownVerb(e.value))
 }
 
 /// What follows `cetratus/<plc-id>/`: a published topic or a command.
@@ -258,7 +169,7 @@ impl Leaf {
             Leaf::Io => "io",
             Leaf::Net => "net",
             Leaf::Events => "events",
-            Leaf::Cmd(v) => v.leaf(),
+            Leaf::Cmd(v) => cmd_leaf(v),
         }
     }
 
@@ -280,7 +191,7 @@ impl FromStr for Leaf {
     /// [`ProtoError::UnknownVerb`] so that it can be answered with `unknown_verb`.
     fn from_str(s: &str) -> Result<Self, ProtoError> {
         if let Some(verb) = s.strip_prefix("cmd/") {
-            return verb.parse().map(Leaf::Cmd);
+            return parse_verb(verb).map(Leaf::Cmd);
         }
         Leaf::PUBLISHED
             .into_iter()
@@ -343,7 +254,7 @@ impl Topics {
             io: t(Leaf::Io.as_str()),
             net: t(Leaf::Net.as_str()),
             events: t(Leaf::Events.as_str()),
-            commands: Verb::ALL.map(|v| t(v.leaf())),
+            commands: std::array::from_fn(|i| t(cmd_leaf(Verb::ALL[i]))),
             command_filter: t("cmd/+"),
             all: t("#"),
             prefix,
@@ -388,7 +299,7 @@ impl Topics {
 
     /// `cetratus/<plc-id>/cmd/<verb>`.
     pub fn cmd(&self, verb: Verb) -> &str {
-        &self.commands[verb.index()]
+        &self.commands[verb as usize]
     }
 
     /// The topic of any leaf.

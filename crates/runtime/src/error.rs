@@ -1,6 +1,8 @@
 //! The runtime's errors: what a scan can fail with, why a command or an update is refused, and
 //! why a saved state cannot be resumed. Each message says what, where, and what to do.
 
+use cetratus_vocab::Verb;
+
 use crate::Status;
 
 /// What can go wrong while running a program.
@@ -112,6 +114,13 @@ pub enum CommandError {
     ProbationEnding {
         /// `revert` or `accept`.
         verb: &'static str,
+    },
+    /// A query (`exec_info`) sent as a command: it changes nothing, and its answer is read
+    /// from the PLC.
+    #[error("{verb} is a query, not a command: read `program_exec_info` instead")]
+    Query {
+        /// The verb.
+        verb: Verb,
     },
     /// Reset outside the fault state.
     #[error("reset refused: the PLC is not in fault (status {status})")]

@@ -18,6 +18,7 @@ use crate::phase::{Ending, Phase, Probation, Quarantine};
 use crate::plc::Core;
 pub use crate::prepare::{PreparedUpdate, UpdateContext};
 use crate::{Slot, Status};
+use cetratus_vocab::Verb;
 
 pub use cetratus_vocab::SubstituteMode;
 
@@ -45,25 +46,10 @@ impl SubstituteRequest {
     }
 }
 
-/// A command from the operator or the MCT.
-// Commands are few and move once; boxing the substitution would only add an allocation.
-#[allow(clippy::large_enum_variant)]
-pub enum Command {
-    /// Install a prepared update into the secondary container.
-    Load(Box<PreparedUpdate>),
-    /// Make the candidate PRIMARY.
-    Substitute(SubstituteRequest),
-    /// Drop the candidate in quarantine.
-    Remove,
-    /// Cancel whatever update is under way.
-    Abort,
-    /// Leave the fault state.
-    Reset,
-    /// End probation by flipping PRIMARY back to the old program.
-    Revert,
-    /// End probation early: the update is final.
-    Accept,
-}
+/// A command from the operator or the MCT: a prepared update to install, a substitution
+/// request, or a verb without arguments. `exec_info` is a query that the node answers from
+/// [`crate::Plc::program_exec_info`]; the Updater refuses it.
+pub type Command = cetratus_vocab::Command<Box<PreparedUpdate>, SubstituteRequest>;
 
 /// Limits of the Updater and the watchdog.
 #[derive(Clone, Copy, Debug)]
@@ -166,6 +152,9 @@ impl Updater {
             ),
             Command::Accept => self.ask_probation_end("accept", Ending::Accept),
             Command::Reset => self.reset(core),
+            Command::ExecInfo => Err(CommandError::Query {
+                verb: Verb::ExecInfo,
+            }),
         }
     }
 

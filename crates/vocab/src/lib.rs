@@ -1,7 +1,9 @@
 //! The words that the runtime, the wire protocol, the control plane, the node, the command line
 //! and the dashboard share, each defined once: a container ([`Slot`]), [`Status`], a container's
 //! [`Role`], a verdict's [`VerdictKind`] and [`VerdictResult`], an input's [`Quality`] and its
-//! device's [`LinkState`], the [`EventKind`]s and the [`SubstituteMode`]s.
+//! device's [`LinkState`], the [`EventKind`]s, the [`SubstituteMode`]s, and the command
+//! [`Verb`]s with their arguments ([`Command`]). An [`Open`] name keeps what a newer peer may
+//! send and this build does not know.
 //!
 //! Each is a closed set of names with one spelling, the same in JSON (serde), in text
 //! ([`std::fmt::Display`], [`std::str::FromStr`]) and in the docs. This crate depends on serde
@@ -35,6 +37,12 @@ impl fmt::Display for UnknownName {
 
 impl std::error::Error for UnknownName {}
 
+/// A closed set of names, made by [`names!`]: each value has one spelling.
+pub trait Name: Copy {
+    /// The name, as written on the wire and in the docs.
+    fn name(self) -> &'static str;
+}
+
 /// Defines a closed set of names: an enum whose variants each have one spelling, with `ALL`,
 /// `as_str`, `Display` (padded, so widths work), `FromStr` (its error an [`UnknownName`]) and
 /// serde by that spelling.
@@ -61,6 +69,12 @@ macro_rules! names {
                 match self {
                     $( $name::$variant => $text, )+
                 }
+            }
+        }
+
+        impl $crate::Name for $name {
+            fn name(self) -> &'static str {
+                self.as_str()
             }
         }
 
@@ -225,7 +239,8 @@ names! {
         "cold_start, warm_start, load_accepted, refused, substitute_accepted, removed, aborted, \
          reset, candidate_fault, primary_fault, update_discarded, deadlock_alarm, \
          transform_refused, state_trans_timeout, quarantine_started, substitute_timeout, \
-         substituted, probation_started, accepted, reverted, stall_alarm or verdict" {
+         substituted, probation_started, accepted, reverted, stall_alarm, verdict, \
+         command_received or command_rejected" {
         /// A cold start: A runs the configured program from M0.
         ColdStart = "cold_start",
         /// A warm start from a saved state.
@@ -270,6 +285,10 @@ names! {
         StallAlarm = "stall_alarm",
         /// A validation's verdict on an update (the analysis gate at load, a twin run).
         Verdict = "verdict",
+        /// The control plane accepted a command and handed it to the PLC.
+        CommandReceived = "command_received",
+        /// The control plane turned a command down before it reached the PLC.
+        CommandRejected = "command_rejected",
     }
 }
 
@@ -280,6 +299,198 @@ impl EventKind {
             self,
             EventKind::PrimaryFault | EventKind::DeadlockAlarm | EventKind::StallAlarm
         )
+    }
+}
+
+names! {
+    /// A command verb: the last topic level under `cmd/`, the `--at` verbs of a script, the
+    /// buttons of the dashboard. Declared in the order error messages list them.
+    Verb, "verb", "load, remove, substitute, abort, reset, exec_info, revert or accept" {
+        /// Load an update package into the secondary container.
+        Load = "load",
+        /// Drop the candidate in quarantine.
+        Remove = "remove",
+        /// Make the candidate PRIMARY.
+        Substitute = "substitute",
+        /// Cancel the update under way.
+        Abort = "abort",
+        /// Leave the fault state.
+        Reset = "reset",
+        /// Reply with both containers' `program_exec_info`.
+        ExecInfo = "exec_info",
+        /// End probation by flipping PRIMARY back to the old program.
+        Revert = "revert",
+        /// End probation early: the update is final.
+        Accept = "accept",
+    }
+}
+
+impl Verb {
+    /// Whether the verb takes arguments (`load` and `substitute`); the others take none.
+    pub fn takes_arguments(self) -> bool {
+        matches!(self, Verb::Load | Verb::Substitute)
+    }
+}
+
+/// A command: a [`Verb`] with its arguments. Each layer carries what it has of a load (`L`: the
+/// package in base64 on the wire, its bytes in the control plane, a file in a script, the
+/// prepared update in the runtime) and of a substitution (`S`), and maps one into the next with
+/// [`Command::try_map`]; the verbs without arguments pass through unchanged, so a new one is
+/// added here and the compiler names every `match` that must answer it.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum Command<L, S> {
+    /// Load an update package into the secondary container.
+    Load(L),
+    /// Make the candidate PRIMARY.
+    Substitute(S),
+    /// Drop the candidate in quarantine.
+    Remove,
+    /// Cancel the update under way.
+    Abort,
+    /// Leave the fault state.
+    Reset,
+    /// Reply with both containers' `program_exec_info`.
+    ExecInfo,
+    /// End probation by flipping PRIMARY back to the old program.
+    Revert,
+    /// End probation early: the update is final.
+    Accept,
+}
+
+impl<L, S> Command<L, S> {
+    /// The verb.
+    pub fn verb(&self) -> Verb {
+        match self {
+            Command::Load(_) => Verb::Load,
+            Command::Substitute(_) => Verb::Substitute,
+            Command::Remove => Verb::Remove,
+            Command::Abort => Verb::Abort,
+            Command::Reset => Verb::Reset,
+            Command::ExecInfo => Verb::ExecInfo,
+            Command::Revert => Verb::Revert,
+            Command::Accept => Verb::Accept,
+        }
+    }
+
+    /// The command of a verb that takes no arguments; `None` for `load` and `substitute`.
+    pub fn bare(verb: Verb) -> Option<Self> {
+        Some(match verb {
+            Verb::Load | Verb::Substitute => return None,
+            Verb::Remove => Command::Remove,
+            Verb::Abort => Command::Abort,
+            Verb::Reset => Command::Reset,
+            Verb::ExecInfo => Command::ExecInfo,
+            Verb::Revert => Command::Revert,
+            Verb::Accept => Command::Accept,
+        })
+    }
+
+    /// The same command, borrowing its arguments.
+    pub fn as_ref(&self) -> Command<&L, &S> {
+        match self {
+            Command::Load(l) => Command::Load(l),
+            Command::Substitute(s) => Command::Substitute(s),
+            Command::Remove => Command::Remove,
+            Command::Abort => Command::Abort,
+            Command::Reset => Command::Reset,
+            Command::ExecInfo => Command::ExecInfo,
+            Command::Revert => Command::Revert,
+            Command::Accept => Command::Accept,
+        }
+    }
+
+    /// The same command with its arguments converted; the first conversion that fails is the
+    /// error.
+    pub fn try_map<L2, S2, E>(
+        self,
+        load: impl FnOnce(L) -> Result<L2, E>,
+        substitute: impl FnOnce(S) -> Result<S2, E>,
+    ) -> Result<Command<L2, S2>, E> {
+        Ok(match self {
+            Command::Load(l) => Command::Load(load(l)?),
+            Command::Substitute(s) => Command::Substitute(substitute(s)?),
+            Command::Remove => Command::Remove,
+            Command::Abort => Command::Abort,
+            Command::Reset => Command::Reset,
+            Command::ExecInfo => Command::ExecInfo,
+            Command::Revert => Command::Revert,
+            Command::Accept => Command::Accept,
+        })
+    }
+}
+
+/// A name of an open set: one this build knows, or another, kept as it was read. A PLC of a
+/// newer version may publish an event kind an older dashboard has never heard of; the reader
+/// shows it as it is instead of refusing the message, so that versions can share a fleet.
+#[derive(Clone, Debug, PartialEq, Eq, Hash)]
+pub enum Open<T> {
+    /// A name of the set this build knows.
+    Known(T),
+    /// Any other name, as read.
+    Other(String),
+}
+
+impl<T: Name> Open<T> {
+    /// The name as read.
+    pub fn as_str(&self) -> &str {
+        match self {
+            Open::Known(t) => t.name(),
+            Open::Other(s) => s,
+        }
+    }
+
+    /// The known name, if it is one.
+    pub fn known(&self) -> Option<T> {
+        match self {
+            Open::Known(t) => Some(*t),
+            Open::Other(_) => None,
+        }
+    }
+}
+
+impl<T> From<T> for Open<T> {
+    fn from(t: T) -> Self {
+        Open::Known(t)
+    }
+}
+
+impl<T: PartialEq> PartialEq<T> for Open<T> {
+    fn eq(&self, other: &T) -> bool {
+        matches!(self, Open::Known(t) if t == other)
+    }
+}
+
+impl<T: Name> PartialEq<str> for Open<T> {
+    fn eq(&self, other: &str) -> bool {
+        self.as_str() == other
+    }
+}
+
+impl<T: Name> PartialEq<&str> for Open<T> {
+    fn eq(&self, other: &&str) -> bool {
+        self.as_str() == *other
+    }
+}
+
+impl<T: fmt::Display> fmt::Display for Open<T> {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Open::Known(t) => t.fmt(f),
+            Open::Other(s) => f.pad(s),
+        }
+    }
+}
+
+impl<T: fmt::Display> serde::Serialize for Open<T> {
+    fn serialize<Ser: serde::Serializer>(&self, s: Ser) -> Result<Ser::Ok, Ser::Error> {
+        s.collect_str(self)
+    }
+}
+
+impl<'de, T: std::str::FromStr> serde::Deserialize<'de> for Open<T> {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        let s = String::deserialize(d)?;
+        Ok(s.parse().map_or(Open::Other(s), Open::Known))
     }
 }
 
@@ -312,7 +523,35 @@ mod tests {
         reads_back(Quality::ALL);
         reads_back(LinkState::ALL);
         reads_back(EventKind::ALL);
-        assert_eq!(EventKind::ALL.len(), 22);
+        reads_back(Verb::ALL);
+        assert_eq!(EventKind::ALL.len(), 24);
+    }
+
+    #[test]
+    fn an_open_name_keeps_what_this_build_does_not_know() {
+        let known: Open<EventKind> =
+            serde_json::from_str("\"substituted\"").unwrap_or(Open::Other(String::new()));
+        assert_eq!(known, EventKind::Substituted);
+        let newer: Open<EventKind> =
+            serde_json::from_str("\"teleported\"").unwrap_or(Open::Known(EventKind::Reset));
+        assert_eq!(newer, Open::Other("teleported".into()));
+        assert_eq!(
+            serde_json::to_string(&newer).ok().as_deref(),
+            Some("\"teleported\"")
+        );
+        assert_eq!(
+            serde_json::to_string(&known).ok().as_deref(),
+            Some("\"substituted\"")
+        );
+    }
+
+    #[test]
+    fn every_verb_without_arguments_has_its_bare_command() {
+        for &v in Verb::ALL {
+            let bare = Command::<(), ()>::bare(v);
+            assert_eq!(bare.is_none(), v.takes_arguments(), "{v}");
+            assert!(bare.is_none_or(|c| c.verb() == v), "{v}");
+        }
     }
 
     #[test]

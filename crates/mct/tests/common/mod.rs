@@ -255,7 +255,7 @@ impl FakeScan {
                 while let Some(cmd) = link.try_command() {
                     let result = match &cmd.request {
                         Request::ExecInfo => Ok(Some(json!({"A": {"cycles": cycle}, "B": null}))),
-                        Request::Load { package } => Err(refused(format!(
+                        Request::Load(package) => Err(refused(format!(
                             "package of {} bytes is not a valid update package",
                             package.len()
                         ))),

@@ -52,7 +52,7 @@ impl Cell {
         }
     }
     fn load(&mut self, manifest: &Path) {
-        let (bytes, _) = build_package(manifest, None).expect("the package builds");
+        let (bytes, _) = build_package(manifest, None, 1_700_000_000).expect("the package builds");
         let p = self
             .plc
             .update_context()
@@ -117,7 +117,8 @@ fn gate_at_load(c: &mut Criterion) {
         let program = Arc::new(Program::load(&example("vernadat", base)).expect("program"));
         let plc = Plc::new(program, 0, Box::new(ManualStopwatch::new()));
         let ctx = plc.update_context();
-        let (bytes, _) = build_package(&example("vernadat", manifest), None).expect("package");
+        let (bytes, _) =
+            build_package(&example("vernadat", manifest), None, 1_700_000_000).expect("package");
         let up = ctx
             .prepare_package(
                 &bytes,

@@ -66,7 +66,11 @@ pub fn packages() -> Packages {
     let trusted = dir.join("trusted");
     std::fs::create_dir_all(&trusted).expect("trusted");
     std::fs::copy(KeyPair::public_path(&key_path), trusted.join("bench.pub")).expect("pub");
-    let build = |m: &str| build_package(&dir.join(m), Some(&key)).expect("builds").0;
+    let build = |m: &str| {
+        build_package(&dir.join(m), Some(&key), 1_700_000_000)
+            .expect("builds")
+            .0
+    };
     let p = Packages {
         u1: build("u1.package.toml"),
         u2: build("u2.package.toml"),

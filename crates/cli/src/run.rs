@@ -220,7 +220,7 @@ pub fn run(args: &RunArgs) -> anyhow::Result<()> {
     } else {
         0
     };
-    crate::run_io::press(&mut io, &args.press, kind, base_us)?;
+    crate::run_io::press(&mut io, &args.press, base_us)?;
     crate::run_io::admit(&io, &mut plc);
     let load = cetratus_node::load::LoadPolicy {
         trust: trust.clone(),

@@ -14,8 +14,6 @@ use cetratus_io::TwinDriver;
 use cetratus_program::Program;
 use cetratus_twin::{Plant, TwinKind, TwinSettings};
 
-use crate::parse_duration_us;
-
 /// What the run is connected to.
 pub struct Opened {
     /// The I/O.
@@ -137,31 +135,19 @@ fn start_field(c: &IoConfig, map: FieldMap, period_us: u64) -> anyhow::Result<Op
 }
 
 /// Schedules the `--press BUTTON@TIME` presses of the twin (program time from `base_us`); the
-/// Festo station's RESET and START when none are given.
-pub fn press(
-    io: &mut PlantIo,
-    presses: &[String],
-    kind: Option<TwinKind>,
-    base_us: u64,
-) -> anyhow::Result<()> {
-    // Without presses the Festo station gets RESET (homing) and START, as an operator gives them.
-    let festo = ["RESET@100ms".to_string(), "START@500ms".to_string()];
-    let presses = match presses {
-        [] if kind == Some(TwinKind::Festo) => &festo[..],
-        [] => return Ok(()),
-        given => given,
-    };
+/// twin's own start presses when none are given (the Festo station's RESET and START).
+pub fn press(io: &mut PlantIo, presses: &[String], base_us: u64) -> anyhow::Result<()> {
     let Some(t) = io.twin_mut() else {
+        if presses.is_empty() {
+            return Ok(());
+        }
         bail!("--press needs a twin; with field I/O, press the machine's own buttons");
     };
-    for p in presses {
-        let (button, at) = p.split_once('@').unwrap_or((p.as_str(), "0s"));
-        let at_us = parse_duration_us(at)?;
-        t.plant_mut()
-            .press(button, at_us.saturating_add(base_us))
-            .map_err(|e| anyhow::anyhow!("--press {p}: {e}"))?;
-    }
-    Ok(())
+    Ok(cetratus_node::script::press_buttons(
+        t.plant_mut(),
+        presses,
+        base_us,
+    )?)
 }
 
 /// Lets live updates use signals the running program does not, on channels the field devices

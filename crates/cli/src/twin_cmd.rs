@@ -5,7 +5,7 @@ use std::sync::Arc;
 
 use anyhow::Context;
 use cetratus_io::twin_serve::{serve, TwinMap};
-use cetratus_twin::{parse_defect_rate, Plant, TwinKind, TwinSettings};
+use cetratus_twin::{parse_defect_rate, TwinKind, TwinSettings};
 
 use crate::parse_duration_us;
 
@@ -88,15 +88,7 @@ pub fn run(args: &TwinArgs) -> anyhow::Result<()> {
         cetratus_io::opcua::config::parse_url(url).map_err(|e| anyhow::anyhow!("--opcua: {e}"))?;
     }
     let security = a.security.resolve(a.opcua.is_some())?;
-    let mut presses = a.press.clone();
-    if presses.is_empty() && kind == TwinKind::Festo {
-        presses.extend(["RESET@100ms".to_string(), "START@500ms".to_string()]);
-    }
-    for p in &presses {
-        let (button, at) = p.split_once('@').unwrap_or((p.as_str(), "0s"));
-        twin.press(button, parse_duration_us(at)?)
-            .map_err(|e| anyhow::anyhow!("--press {p}: {e}"))?;
-    }
+    cetratus_node::script::press_buttons(&mut twin, &a.press, 0)?;
     let until_us = match &a.for_ {
         Some(d) => parse_duration_us(d)?,
         None => u64::MAX,

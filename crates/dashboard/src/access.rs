@@ -100,14 +100,14 @@ pub enum AccessError {
     Duplicate(String),
     /// A password hash is not an argon2 PHC string.
     #[error(
-        "the password hash of the dashboard account `{name}` is not an argon2 hash ({reason}); \
+        "the password hash of the dashboard account `{name}` is not an argon2 hash: {reason}; \
          make one with `cetratus hash-password`"
     )]
     BadHash {
         /// The account.
         name: String,
         /// What the parser said.
-        reason: String,
+        reason: cetratus_mct::password::PasswordError,
     },
 }
 

@@ -130,12 +130,23 @@ impl fmt::Display for IecAddress {
     }
 }
 
-impl std::str::FromStr for IecAddress {
-    type Err = String;
+/// Text that is not an IEC address: the text and what is wrong with it.
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+#[error("`{text}` is not an IEC address: {why}; write e.g. %IX0.3, %QX1.0, %IW2, %QW0, %MW5, %ID1 or %MD0")]
+pub struct AddressError {
+    /// The text, cut to 64 characters.
+    pub text: String,
+    /// What is wrong with it.
+    pub why: &'static str,
+}
 
-    fn from_str(text: &str) -> Result<Self, String> {
-        let bad = |why: &str| {
-            format!("`{text}` is not an IEC address: {why}; write e.g. %IX0.3, %QX1.0, %IW2, %QW0, %MW5, %ID1 or %MD0")
+impl std::str::FromStr for IecAddress {
+    type Err = AddressError;
+
+    fn from_str(text: &str) -> Result<Self, AddressError> {
+        let bad = |why: &'static str| AddressError {
+            text: text.chars().take(64).collect(),
+            why,
         };
         let rest = text
             .strip_prefix('%')
@@ -246,7 +257,7 @@ mod tests {
             "%IW1 ",
         ] {
             let e = s.parse::<IecAddress>().unwrap_err();
-            assert!(e.contains("is not an IEC address"), "{s}: {e}");
+            assert!(e.to_string().contains("is not an IEC address"), "{s}: {e}");
         }
     }
 }

@@ -304,7 +304,7 @@ impl Reader<'_> {
     fn address(&self, s: &Spanned<String>) -> Result<IecAddress, IoError> {
         s.get_ref()
             .parse()
-            .map_err(|m: String| self.err(s.span(), m))
+            .map_err(|m: crate::address::AddressError| self.err(s.span(), m.to_string()))
     }
 }
 

@@ -20,7 +20,7 @@ use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
 use cetratus_program::{Signal, Value};
-use cetratus_runtime::{Dispatcher, IoAdmission, Provider};
+use cetratus_runtime::{Dispatcher, Inadmissible, IoAdmission, Provider};
 use serde::Serialize;
 
 use crate::config::{Device, IoConfig, StalePolicy};
@@ -380,18 +380,18 @@ pub struct FieldAdmission {
 }
 
 impl IoAdmission for FieldAdmission {
-    fn admit(&self, inputs: &[Signal], outputs: &[Signal]) -> Result<(), String> {
+    fn admit(&self, inputs: &[Signal], outputs: &[Signal]) -> Result<(), Inadmissible> {
+        let refused = |e: IoError| Inadmissible(e.to_string());
         let mut map = (*lock(&self.shared).map).clone();
         let (ins, outs) = (map.inputs.len(), map.outputs.len());
-        map.extend(&self.config, inputs, outputs)
-            .map_err(|e| e.to_string())?;
+        map.extend(&self.config, inputs, outputs).map_err(refused)?;
         // The PLC's Modbus server shows them too, below its own entries.
         if self.config.server.is_some() {
             for c in &map.inputs[ins..] {
-                crate::server::fits_server(c, true).map_err(|e| e.to_string())?;
+                crate::server::fits_server(c, true).map_err(refused)?;
             }
             for c in &map.outputs[outs..] {
-                crate::server::fits_server(c, false).map_err(|e| e.to_string())?;
+                crate::server::fits_server(c, false).map_err(refused)?;
             }
         }
         Ok(())

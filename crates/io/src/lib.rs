@@ -75,6 +75,22 @@ pub enum IoError {
         /// The OS error.
         reason: String,
     },
+    /// A certificate of an OPC UA trust list, or the list's directory, cannot be used.
+    #[error("{path}: {reason}")]
+    Pki {
+        /// The file or directory.
+        path: String,
+        /// What is wrong, and what to do.
+        reason: String,
+    },
+    /// An OPC UA endpoint URL cannot be used.
+    #[error("`{url}` {reason}; write e.g. \"opc.tcp://127.0.0.1:14840\"")]
+    OpcUaUrl {
+        /// The URL as given.
+        url: String,
+        /// What is wrong with it.
+        reason: &'static str,
+    },
     /// The OPC UA server could not be built as configured.
     #[error("the OPC UA server cannot start: {0}")]
     OpcUa(String),

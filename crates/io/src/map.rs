@@ -4,7 +4,7 @@
 
 use cetratus_program::{Signal, Type, Value};
 
-use crate::address::{Area, IecAddress, Size, Table};
+use crate::address::{AddressError, Area, IecAddress, Size, Table};
 use crate::config::{IoConfig, Scale, WordOrder};
 use crate::IoError;
 
@@ -223,7 +223,9 @@ fn channel(config: &IoConfig, signal: usize, s: &Signal, text: &str) -> Result<C
         signal: s.name.clone(),
         why,
     };
-    let address: IecAddress = text.parse().map_err(unmapped)?;
+    let address: IecAddress = text
+        .parse()
+        .map_err(|e: AddressError| unmapped(e.to_string()))?;
     match (s.ty, address.size) {
         (Type::Bool, Size::Bit) | (Type::Int | Type::Real, Size::Word | Size::Double) => {}
         (Type::Bool, _) => return Err(unmapped(format!("it is a bool at {address}; a bool needs a bit address (%IX, %QX)"))),

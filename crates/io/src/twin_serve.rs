@@ -16,7 +16,7 @@ use std::time::{Duration, Instant};
 use cetratus_twin::{Plant, Twin, TwinKind};
 use serde::Deserialize;
 
-use crate::address::{IecAddress, Table};
+use crate::address::{AddressError, IecAddress, Table};
 use crate::bank::{lock, Bank, BankCounters, BankServer, ServeOptions, WriteFrom};
 use crate::IoError;
 
@@ -73,9 +73,9 @@ impl TwinMap {
                 signal: name.to_string(),
                 why: "the example program gives it no address".into(),
             })?;
-            let a: IecAddress = text.parse().map_err(|why| IoError::Unmapped {
+            let a: IecAddress = text.parse().map_err(|e: AddressError| IoError::Unmapped {
                 signal: name.to_string(),
-                why,
+                why: e.to_string(),
             })?;
             let (t, n) = a.default_location();
             if t != table {

@@ -208,7 +208,7 @@ impl Acl {
                 bad(
                     &a.name,
                     format!(
-                        "`password_hash` is not an argon2 hash ({e}); write the output of \
+                        "`password_hash` is not an argon2 hash: {e}; write the output of \
                          `cetratus hash-password`"
                     ),
                 )

@@ -154,40 +154,27 @@ impl ControlPlane {
         let foreign_reply = asked
             .as_ref()
             .filter(|t| !(t.starts_with(&reply_prefix) && t.len() > reply_prefix.len()))
-            .cloned();
-        let reply_to = asked.filter(|t| valid_topic(t) && foreign_reply.is_none());
+            .map(|t| t.chars().take(128).collect::<String>());
         let handle = ReplyHandle {
             verb: verb
                 .map_or(verb_raw, |v| v.as_str())
                 .chars()
                 .take(64)
                 .collect(),
-            topic: reply_to,
+            topic: asked.filter(|t| valid_topic(t) && foreign_reply.is_none()),
             correlation_data: correlation_data.map(<[u8]>::to_vec),
             correlation: obj.and_then(|o| o.get("correlation")).cloned(),
             request_id,
         };
-        let reject = |code: ErrorCode, message: String| {
-            Box::new(Rejection {
-                event: rejected_event(&handle.verb, code, &message, request_id),
-                reply: handle
-                    .topic
-                    .is_some()
-                    .then(|| (handle.clone(), ErrorBody { code, message })),
-            })
-        };
-        if let Some(t) = foreign_reply {
-            return Err(reject(
+        let checked = match (foreign_reply, verb) {
+            (Some(t), _) => Err((
                 ErrorCode::NotAllowed,
                 format!(
-                    "the reply topic `{}` is not under `{reply_prefix}`; this PLC replies only \
-                     there: ask for a reply on `{reply_prefix}<your client>`",
-                    t.chars().take(128).collect::<String>()
+                    "the reply topic `{t}` is not under `{reply_prefix}`; this PLC replies only \
+                     there: ask for a reply on `{reply_prefix}<your client>`"
                 ),
-            ));
-        }
-        let Some(verb) = verb else {
-            return Err(reject(
+            )),
+            (None, None) => Err((
                 ErrorCode::UnknownVerb,
                 format!(
                     "unknown verb `{}`; expected one of {}",
@@ -198,91 +185,57 @@ impl ControlPlane {
                         .collect::<Vec<_>>()
                         .join(", ")
                 ),
-            ));
+            )),
+            (None, Some(verb)) => self.authorise(verb, payload.len(), &parsed, &handle, now_unix_s),
         };
-        if payload.len() > MAX_PAYLOAD {
-            return Err(reject(
+        match checked {
+            Ok((request, key_id, account)) => Ok(IncomingCommand {
+                request,
+                reply: handle,
+                key_id,
+                account,
+            }),
+            Err((code, message)) => Err(Box::new(Rejection {
+                event: rejected_event(&handle.verb, code, &message, request_id),
+                reply: handle
+                    .topic
+                    .is_some()
+                    .then(|| (handle, ErrorBody { code, message })),
+            })),
+        }
+    }
+
+    /// The checks of a command with a known verb and an allowed reply address: its size, its
+    /// JSON, its signature when keys are configured, and its arguments.
+    fn authorise(
+        &mut self,
+        verb: Verb,
+        bytes: usize,
+        parsed: &Result<Value, String>,
+        handle: &ReplyHandle,
+        now_unix_s: u64,
+    ) -> Result<(Request, Option<String>, Option<String>), (ErrorCode, String)> {
+        if bytes > MAX_PAYLOAD {
+            return Err((
                 ErrorCode::TooLarge,
-                format!(
-                    "payload of {} bytes exceeds the limit of {MAX_PAYLOAD} bytes",
-                    payload.len()
-                ),
+                format!("payload of {bytes} bytes exceeds the limit of {MAX_PAYLOAD} bytes"),
             ));
         }
-        let obj = match (&parsed, obj) {
-            (Err(e), _) => {
-                return Err(reject(
-                    ErrorCode::Malformed,
-                    format!("payload is not JSON: {e}"),
-                ))
-            }
-            (Ok(_), None) => {
-                return Err(reject(
-                    ErrorCode::Malformed,
-                    "payload must be a JSON object".into(),
-                ))
-            }
-            (Ok(_), Some(o)) => o.clone(),
+        let obj = match parsed {
+            Err(e) => return Err((ErrorCode::Malformed, format!("payload is not JSON: {e}"))),
+            Ok(Value::Object(o)) => o.clone(),
+            Ok(_) => return Err((ErrorCode::Malformed, "payload must be a JSON object".into())),
         };
         let (mut body, key_id, account) = match self.keys.as_mut() {
             None => (obj, None, None),
             Some(keys) => {
-                let Some(env) = obj.get("envelope") else {
-                    return Err(reject(
-                        ErrorCode::Unauthorised,
-                        "operator keys are configured: the command must be a signed envelope"
-                            .into(),
-                    ));
-                };
-                if let Some(k) = obj
-                    .keys()
-                    .find(|k| !ReplyFields::META_FIELDS.contains(&k.as_str()))
-                {
-                    return Err(reject(
-                        ErrorCode::NotAllowed,
-                        format!(
-                            "`{}` stands outside the signed envelope; with operator keys every \
-                             argument must be inside the signed payload",
-                            k.chars().take(64).collect::<String>()
-                        ),
-                    ));
-                }
-                let env = parse_envelope(env).map_err(|(code, m)| reject(code, m))?;
-                // What the signature binds the command to: MQTT 5 correlation data, or the
-                // compact JSON of an MQTT 3.1.1 client's `correlation` field.
-                let correlation = match (&handle.correlation_data, &handle.correlation) {
-                    (Some(data), _) => data.clone(),
-                    (None, Some(c)) => c.to_string().into_bytes(),
-                    (None, None) => Vec::new(),
-                };
-                let (inner, key_id, account) = keys
-                    .verify(
-                        self.topics.plc().as_str(),
-                        verb.as_str(),
-                        &correlation,
-                        &env,
-                        now_unix_s,
-                    )
-                    .map_err(|(code, m)| reject(code, m))?;
-                let inner: Value = serde_json::from_slice(&inner).map_err(|e| {
-                    reject(
-                        ErrorCode::Malformed,
-                        format!("signed payload is not JSON: {e}"),
-                    )
-                })?;
-                match inner {
-                    Value::Object(o) => (o, Some(key_id), account),
-                    _ => {
-                        return Err(reject(
-                            ErrorCode::Malformed,
-                            "signed payload must be a JSON object".into(),
-                        ))
-                    }
-                }
+                let plc = self.topics.plc().as_str();
+                let (body, key_id, account) = unseal(keys, plc, verb, &obj, handle, now_unix_s)?;
+                (body, Some(key_id), account)
             }
         };
         if body.contains_key("allow_unsigned") {
-            return Err(reject(
+            return Err((
                 ErrorCode::NotAllowed,
                 "allow_unsigned is a local configuration setting and is never accepted from a command".into(),
             ));
@@ -290,13 +243,8 @@ impl ControlPlane {
         for meta in ReplyFields::META_FIELDS {
             body.remove(meta);
         }
-        let request = Self::request(verb, body).map_err(|m| reject(ErrorCode::Malformed, m))?;
-        Ok(IncomingCommand {
-            request,
-            reply: handle,
-            key_id,
-            account,
-        })
+        let request = Self::request(verb, body).map_err(|m| (ErrorCode::Malformed, m))?;
+        Ok((request, key_id, account))
     }
 
     fn request(verb: Verb, body: Map<String, Value>) -> Result<Request, String> {
@@ -350,6 +298,59 @@ impl ControlPlane {
             message: format!("{} received", cmd.reply.verb),
             detail,
         }
+    }
+}
+
+/// The arguments of a command that operator keys require to be signed: the envelope's payload,
+/// with the key that signed it and the account it names. Nothing but the reply fields may stand
+/// outside the envelope.
+fn unseal(
+    keys: &mut OperatorKeys,
+    plc: &str,
+    verb: Verb,
+    obj: &Map<String, Value>,
+    handle: &ReplyHandle,
+    now_unix_s: u64,
+) -> Result<(Map<String, Value>, String, Option<String>), (ErrorCode, String)> {
+    let Some(env) = obj.get("envelope") else {
+        return Err((
+            ErrorCode::Unauthorised,
+            "operator keys are configured: the command must be a signed envelope".into(),
+        ));
+    };
+    if let Some(k) = obj
+        .keys()
+        .find(|k| !ReplyFields::META_FIELDS.contains(&k.as_str()))
+    {
+        return Err((
+            ErrorCode::NotAllowed,
+            format!(
+                "`{}` stands outside the signed envelope; with operator keys every argument \
+                 must be inside the signed payload",
+                k.chars().take(64).collect::<String>()
+            ),
+        ));
+    }
+    let env = parse_envelope(env)?;
+    // What the signature binds the command to: MQTT 5 correlation data, or the compact JSON of
+    // an MQTT 3.1.1 client's `correlation` field.
+    let correlation = match (&handle.correlation_data, &handle.correlation) {
+        (Some(data), _) => data.clone(),
+        (None, Some(c)) => c.to_string().into_bytes(),
+        (None, None) => Vec::new(),
+    };
+    let (inner, key_id, account) =
+        keys.verify(plc, verb.as_str(), &correlation, &env, now_unix_s)?;
+    match serde_json::from_slice(&inner) {
+        Ok(Value::Object(o)) => Ok((o, key_id, account)),
+        Ok(_) => Err((
+            ErrorCode::Malformed,
+            "signed payload must be a JSON object".into(),
+        )),
+        Err(e) => Err((
+            ErrorCode::Malformed,
+            format!("signed payload is not JSON: {e}"),
+        )),
     }
 }
 

@@ -8,16 +8,30 @@
 use argon2::password_hash::{PasswordHash, PasswordHashString, PasswordHasher, PasswordVerifier};
 use argon2::Argon2;
 
+/// What is wrong with a password hash, or why hashing failed.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+pub enum PasswordError {
+    /// Not a PHC string at all.
+    #[error("not a PHC string ({0})")]
+    NotPhc(String),
+    /// A PHC string of another algorithm.
+    #[error("the algorithm is `{0}`, not argon2")]
+    NotArgon2(String),
+    /// The system gave no randomness for the salt, or argon2 refused the parameters.
+    #[error("cannot hash the password: {0}")]
+    Hashing(String),
+}
+
 /// A password hash that parsed as an argon2 PHC string.
 #[derive(Clone, Debug)]
 pub struct HashedPassword(PasswordHashString);
 
 impl HashedPassword {
     /// Reads a PHC string; anything but an argon2 hash is refused, with the reason.
-    pub fn parse(phc: &str) -> Result<Self, String> {
-        let h = PasswordHash::new(phc).map_err(|e| e.to_string())?;
+    pub fn parse(phc: &str) -> Result<Self, PasswordError> {
+        let h = PasswordHash::new(phc).map_err(|e| PasswordError::NotPhc(e.to_string()))?;
         if !h.algorithm.as_str().starts_with("argon2") {
-            return Err(format!("the algorithm is `{}`", h.algorithm));
+            return Err(PasswordError::NotArgon2(h.algorithm.to_string()));
         }
         Ok(HashedPassword(h.serialize()))
     }
@@ -42,15 +56,16 @@ impl HashedPassword {
 }
 
 /// The argon2id hash of `password` with a fresh salt, as a PHC string.
-pub fn hash_password(password: &str) -> Result<String, String> {
+pub fn hash_password(password: &str) -> Result<String, PasswordError> {
     use argon2::password_hash::SaltString;
+    let failed = |e: &dyn std::fmt::Display| PasswordError::Hashing(e.to_string());
     let mut salt = [0u8; 16];
-    getrandom::fill(&mut salt).map_err(|e| e.to_string())?;
-    let salt = SaltString::encode_b64(&salt).map_err(|e| e.to_string())?;
+    getrandom::fill(&mut salt).map_err(|e| failed(&e))?;
+    let salt = SaltString::encode_b64(&salt).map_err(|e| failed(&e))?;
     Argon2::default()
         .hash_password(password.as_bytes(), &salt)
         .map(|h| h.to_string())
-        .map_err(|e| e.to_string())
+        .map_err(|e| failed(&e))
 }
 
 #[cfg(test)]
@@ -70,6 +85,6 @@ mod tests {
         assert!(HashedPassword::parse("s3cret").is_err());
         let e = HashedPassword::parse("$pbkdf2-sha256$i=1000$c2FsdHNhbHQ$aGFzaGhhc2hoYXNo")
             .expect_err("not argon2");
-        assert!(e.contains("pbkdf2"), "{e}");
+        assert!(e.to_string().contains("pbkdf2"), "{e}");
     }
 }

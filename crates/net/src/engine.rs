@@ -10,6 +10,8 @@ use std::cmp::Reverse;
 use std::collections::BinaryHeap;
 use std::sync::Arc;
 
+use cetratus_vocab::UnknownName;
+
 use crate::{Marking, Net, NetError, PlaceIdx, Tokens, TransIdx};
 
 /// How one firing is chosen under the `single` policy.
@@ -34,16 +36,18 @@ pub enum Policy {
 }
 
 impl std::str::FromStr for Policy {
-    type Err = String;
-    fn from_str(s: &str) -> Result<Self, String> {
+    type Err = UnknownName;
+    fn from_str(s: &str) -> Result<Self, UnknownName> {
         match s {
             "step" => Ok(Policy::Step),
             "single-last" | "single" => Ok(Policy::Single(SingleRule::Last)),
             "single-first" => Ok(Policy::Single(SingleRule::First)),
             "single-priority" => Ok(Policy::Single(SingleRule::Priority)),
-            other => Err(format!(
-                "unknown firing policy `{other}`; expected step, single-last, single-first or single-priority"
-            )),
+            other => Err(UnknownName {
+                what: "firing policy",
+                value: other.chars().take(64).collect(),
+                expected: "step, single-last, single-first or single-priority",
+            }),
         }
     }
 }

@@ -646,7 +646,9 @@ fn gate_policy(
         ),
     ] {
         if let Some(v) = value {
-            *slot = v.parse().map_err(|e: String| value_error(key, v, e))?;
+            *slot = v
+                .parse()
+                .map_err(|e: cetratus_vocab::UnknownName| value_error(key, v, e.to_string()))?;
         }
     }
     Ok(g)

@@ -148,8 +148,12 @@ pub fn prepare(dir: &Path, mut say: impl FnMut(String)) -> Result<DemoFiles, Dem
     let pub_src = KeyPair::public_path(&key_path);
     std::fs::copy(&pub_src, trusted.join("demo.pub")).map_err(io_err(&pub_src))?;
     let trust = TrustStore::load_dir(&trusted)?;
+    // Built now, as an engineer would build them: `created` is the wall clock's.
+    let created = std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map_or(0, |d| d.as_secs());
     let build = |manifest: &str, out: &str| -> Result<Vec<u8>, DemoError> {
-        let (bytes, _report) = build_package(&dir.join(manifest), Some(&key))?;
+        let (bytes, _report) = build_package(&dir.join(manifest), Some(&key), created)?;
         let path = dir.join(out);
         std::fs::write(&path, &bytes).map_err(io_err(&path))?;
         Ok(bytes)

@@ -35,14 +35,16 @@ pub enum Severity {
 }
 
 impl std::str::FromStr for Severity {
-    type Err = String;
-    fn from_str(s: &str) -> Result<Self, String> {
+    type Err = cetratus_vocab::UnknownName;
+    fn from_str(s: &str) -> Result<Self, cetratus_vocab::UnknownName> {
         match s {
             "warn" => Ok(Severity::Warn),
             "refuse" => Ok(Severity::Refuse),
-            o => Err(format!(
-                "`{o}` is not a gate policy; write \"warn\" or \"refuse\""
-            )),
+            o => Err(cetratus_vocab::UnknownName {
+                what: "gate policy",
+                value: o.chars().take(64).collect(),
+                expected: "\"warn\" or \"refuse\"",
+            }),
         }
     }
 }

@@ -21,7 +21,6 @@ use cetratus_program::duration::{self, Bare};
 use cetratus_runtime::{
     Command, Plc, PreparedUpdate, SubstituteMode, SubstituteRequest, UpdateContext,
 };
-use cetratus_twin::{Plant, Twin};
 use cetratus_vocab::Verb as Name;
 
 /// Why a script cannot be run.
@@ -308,25 +307,46 @@ impl Script {
     }
 }
 
+/// A `--press BUTTON@TIME` that cannot be given: the press as written, and why.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[error("--press {press}: {reason}")]
+pub struct PressError {
+    /// The press as written.
+    pub press: String,
+    /// What is wrong: the time, or a button the twin does not have.
+    pub reason: String,
+}
+
 /// Presses the twin's buttons as `--press BUTTON@TIME` asks (a bare button is pressed at 0 s),
-/// times counted from `base_us`. A station that has RESET and START buttons and is given no
-/// press gets `RESET@100ms` and `START@500ms`, so that it runs as it does for an operator.
-pub fn press_buttons(plant: &mut Twin, presses: &[String], base_us: u64) -> Result<(), String> {
-    let defaults = ["RESET@100ms".to_string(), "START@500ms".to_string()];
-    let buttons = plant.buttons();
-    let presses = if presses.is_empty() && buttons.contains(&"RESET") && buttons.contains(&"START")
-    {
-        &defaults[..]
-    } else {
-        presses
-    };
+/// times counted from `base_us`. Given no press, a plant gets its own start presses
+/// ([`cetratus_twin::Plant::start_presses`]: the Festo station's RESET at 100 ms and START at
+/// 500 ms), so that it runs as it does for an operator.
+pub fn press_buttons(
+    plant: &mut dyn cetratus_twin::Plant,
+    presses: &[String],
+    base_us: u64,
+) -> Result<(), PressError> {
+    let starts: Vec<(&str, u64)> = plant.start_presses().to_vec();
+    if presses.is_empty() {
+        for (button, at_us) in starts {
+            plant
+                .press(button, at_us.saturating_add(base_us))
+                .map_err(|e| PressError {
+                    press: button.to_string(),
+                    reason: e.to_string(),
+                })?;
+        }
+    }
     for p in presses {
+        let failed = |reason: String| PressError {
+            press: p.clone(),
+            reason,
+        };
         let (button, at) = p.split_once('@').unwrap_or((p.as_str(), "0s"));
-        let at_us =
-            duration::parse_us(at, Bare::Seconds).map_err(|e| format!("--press {p}: {e}"))?;
+        let at_us = duration::parse_us(at, Bare::Seconds).map_err(|e| failed(e.to_string()))?;
         plant
             .press(button, at_us.saturating_add(base_us))
-            .map_err(|e| format!("--press {p}: {e}"))?;
+            .map_err(|e| failed(e.to_string()))?;
     }
     Ok(())
 }

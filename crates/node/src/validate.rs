@@ -254,12 +254,12 @@ impl IoAdmission for ForkOutputs {
         &self,
         inputs: &[cetratus_program::Signal],
         _outputs: &[cetratus_program::Signal],
-    ) -> Result<(), String> {
+    ) -> Result<(), cetratus_runtime::Inadmissible> {
         match inputs.first() {
-            Some(s) => Err(format!(
+            Some(s) => Err(cetratus_runtime::Inadmissible(format!(
                 "the twin of the validation cannot provide the new input `{}`",
                 s.name
-            )),
+            ))),
             None => Ok(()),
         }
     }
@@ -353,11 +353,9 @@ pub fn validate(job: &Job) -> Verdict {
             cand.use_virtual_time(job.period_us);
             let mut twins = [kind.build(1), kind.build(1)];
             for t in &mut twins {
-                // A station that needs its buttons gets them as `cetratus run` gives them.
-                if t.buttons().contains(&"RESET") && t.buttons().contains(&"START") {
-                    let _ = t.press("RESET", 100_000);
-                    let _ = t.press("START", 500_000);
-                }
+                // A station that needs its buttons gets them as `cetratus run` gives them; its
+                // own start presses name buttons it has.
+                let _ = crate::script::press_buttons(t, &[], 0);
             }
             let [a, b] = twins;
             (base, a, cand, b, 0)

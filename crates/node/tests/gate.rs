@@ -31,7 +31,8 @@ fn prepared(dir: &Path, base: &str, manifest: &str) -> (UpdateContext, PreparedU
     let program = Arc::new(Program::load(&dir.join(base)).expect("the program"));
     let plc = Plc::new(program, 0, Box::new(ManualStopwatch::default()));
     let ctx = plc.update_context();
-    let (bytes, _) = build_package(&dir.join(manifest), None).expect("the package builds");
+    let (bytes, _) =
+        build_package(&dir.join(manifest), None, 1_700_000_000).expect("the package builds");
     let up = ctx
         .prepare_package(
             &bytes,
@@ -150,7 +151,8 @@ fn a_scripted_load_is_gated_from_the_marking_of_the_boundary_it_is_installed_at(
     const DUE: u64 = 7_000_000;
     let dir = workshop();
     without_t24(dir.path());
-    let (bytes, _) = build_package(&dir.path().join("u1.package.toml"), None).expect("builds");
+    let (bytes, _) =
+        build_package(&dir.path().join("u1.package.toml"), None, 1_700_000_000).expect("builds");
     let pkg = dir.path().join("u1.cpkg");
     std::fs::write(&pkg, &bytes).expect("write");
     let program = Arc::new(Program::load(&dir.path().join("vernadat.toml")).expect("program"));

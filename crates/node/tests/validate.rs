@@ -65,7 +65,8 @@ impl Cell {
         }
     }
     fn load(&mut self, dir: &Path, manifest: &str) {
-        let (bytes, _) = build_package(&dir.join(manifest), None).expect("the package builds");
+        let (bytes, _) =
+            build_package(&dir.join(manifest), None, 1_700_000_000).expect("the package builds");
         let p = self
             .plc
             .update_context()
@@ -201,7 +202,8 @@ fn a_candidate_that_slows_machine_2_fails_on_throughput_unless_its_package_says_
 fn f1_commissioned_on_fresh_festo_twins_passes() {
     let dir = workshop(FESTO);
     let base = Arc::new(Program::load(&dir.path().join("festo.toml")).expect("program"));
-    let (bytes, _) = build_package(&dir.path().join("f1.package.toml"), None).expect("F.1");
+    let (bytes, _) =
+        build_package(&dir.path().join("f1.package.toml"), None, 1_700_000_000).expect("F.1");
     let plc = Plc::new(base.clone(), 0, Box::new(ManualStopwatch::new()));
     plc.update_context()
         .prepare_package(
@@ -399,7 +401,8 @@ fn during_probation_validation_runs_again_and_a_later_failing_verdict_reverts() 
         "T20 = \"SB\"",
         "T20 = \"SB && B < 4\"",
     );
-    let (bytes, _) = build_package(&dir.path().join("u1.package.toml"), None).expect("U.1");
+    let (bytes, _) =
+        build_package(&dir.path().join("u1.package.toml"), None, 1_700_000_000).expect("U.1");
     let pkg = dir.path().join("u1.cpkg");
     std::fs::write(&pkg, bytes).expect("write");
     let program = Arc::new(Program::load(&dir.path().join("vernadat.toml")).expect("program"));

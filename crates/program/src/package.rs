@@ -21,7 +21,7 @@ mod build;
 
 pub use crate::keys::{KeyPair, TrustStore, VerifyingKeyFile};
 pub use build::{
-    build_package, build_package_at, build_package_with, BuildReport, ProgramImporter,
+    build_package, build_package_with, BuildReport, ImportError, ProgramImporter, ProgramText,
 };
 
 use crate::source::{NetOnly, Origin};

@@ -1,5 +1,6 @@
 //! [`Program`]: a net plus its interpretation, resolved and checked at load.
 
+use cetratus_vocab::UnknownName;
 use std::collections::HashMap;
 use std::path::Path;
 use std::sync::Arc;
@@ -175,7 +176,7 @@ impl Program {
             Some(s) => s
                 .get_ref()
                 .parse::<Policy>()
-                .map_err(|m| o.err(s.span().start, m))?,
+                .map_err(|m| o.err(s.span().start, m.to_string()))?,
         };
         let sfc = match &p.chart {
             None => false,
@@ -610,7 +611,7 @@ fn signal(
     let ty: Type =
         d.ty.get_ref()
             .parse()
-            .map_err(|m| o.err(d.ty.span().start, m))?;
+            .map_err(|m: UnknownName| o.err(d.ty.span().start, m.to_string()))?;
     let misplaced = |field: &str, span: std::ops::Range<usize>, only: &str| {
         o.err(
             span.start,

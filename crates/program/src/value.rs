@@ -2,6 +2,8 @@
 
 use std::fmt;
 
+use cetratus_vocab::UnknownName;
+
 /// The type of a signal (input, output or variable).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum Type {
@@ -40,15 +42,17 @@ impl fmt::Display for Type {
 }
 
 impl std::str::FromStr for Type {
-    type Err = String;
-    fn from_str(s: &str) -> Result<Self, String> {
+    type Err = UnknownName;
+    fn from_str(s: &str) -> Result<Self, UnknownName> {
         match s {
             "bool" => Ok(Type::Bool),
             "int" => Ok(Type::Int),
             "real" => Ok(Type::Real),
-            other => Err(format!(
-                "unknown type `{other}`; expected bool, int or real"
-            )),
+            other => Err(UnknownName {
+                what: "type",
+                value: other.chars().take(64).collect(),
+                expected: "bool, int or real",
+            }),
         }
     }
 }

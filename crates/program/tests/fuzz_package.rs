@@ -10,7 +10,7 @@ use std::sync::OnceLock;
 
 use base64::engine::general_purpose::STANDARD as B64;
 use base64::Engine as _;
-use cetratus_program::package::{build_package_at, inspect};
+use cetratus_program::package::{build_package, inspect};
 use cetratus_program::{Program, TrustStore, UpdatePackage};
 use cetratus_testkit::{paths, programs};
 use proptest::collection::vec;
@@ -28,7 +28,7 @@ fn u1_payload() -> &'static Value {
     static P: OnceLock<Value> = OnceLock::new();
     P.get_or_init(|| {
         let manifest = paths::example("vernadat/u1.package.toml");
-        let (bytes, _) = build_package_at(&manifest, None, 1_700_000_000)
+        let (bytes, _) = build_package(&manifest, None, 1_700_000_000)
             .unwrap_or_else(|e| panic!("U.1 builds: {e}"));
         let envelope: Value = serde_json::from_slice(&bytes).unwrap_or_else(|e| panic!("{e}"));
         let b64 = envelope["payload"].as_str().unwrap_or_default();

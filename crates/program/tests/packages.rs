@@ -7,7 +7,7 @@ use std::path::{Path, PathBuf};
 
 use base64::Engine as _;
 use cetratus_net::{NetBuilder, Place, Tokens};
-use cetratus_program::package::{build_package_at, PackageError};
+use cetratus_program::package::PackageError;
 use cetratus_program::{
     build_package, KeyPair, Program, StateTransform, TransformError, TrustStore, UpdatePackage,
 };
@@ -50,7 +50,7 @@ impl Signer {
         ok(TrustStore::load_dir(self.dir.path()))
     }
     fn build(&self, manifest: &Path) -> (Vec<u8>, cetratus_program::BuildReport) {
-        ok(build_package_at(manifest, Some(&self.key), 1_700_000_000))
+        ok(build_package(manifest, Some(&self.key), 1_700_000_000))
     }
 }
 
@@ -216,6 +216,7 @@ fn an_unsigned_package_is_refused_unless_allowed() {
     let (bytes, report) = ok(build_package(
         &paths::example("vernadat/u2.package.toml"),
         None,
+        1_700_000_000,
     ));
     assert_eq!(report.signer, None);
     let err = UpdatePackage::verify(
@@ -295,7 +296,7 @@ fn wrong_dimensions_are_refused_naming_them() {
         dir.path(),
         "[transform]\nkind = \"dense\"\nrows = [\"H\"]\ncols = [\"H\"]\nmatrix = [[1]]\n",
     );
-    let err = build_package(&m, None).unwrap_err();
+    let err = build_package(&m, None, 1_700_000_000).unwrap_err();
     assert!(
         matches!(err, PackageError::ManifestTransform { .. }),
         "{err}"
@@ -412,7 +413,7 @@ fn a_broken_invariant_of_the_new_program_is_refused_naming_it() {
     // A build against the base program warns about it.
     let dir = ok(tempfile::tempdir());
     let m = u1_manifest(dir.path(), "[transform]\nkind = \"generated\"\n");
-    let (_, report) = ok(build_package(&m, None));
+    let (_, report) = ok(build_package(&m, None, 1_700_000_000));
     assert_eq!(report.warnings.len(), 1);
     assert!(report.warnings[0].contains("H + B + P14 = 9"));
 }
@@ -424,10 +425,11 @@ fn a_sparse_transform_in_a_manifest_resolves_like_the_dense_one() {
         dir.path(),
         "[transform]\nkind = \"sparse\"\nidentity_on_kept = true\nbase = { H = 2 }\n",
     );
-    let (_, sparse) = ok(build_package(&m, None));
+    let (_, sparse) = ok(build_package(&m, None, 1_700_000_000));
     let (_, dense) = ok(build_package(
         &paths::example("vernadat/u1.package.toml"),
         None,
+        1_700_000_000,
     ));
     assert_eq!(sparse.transform, dense.transform);
     assert_eq!(dense.projection_kind, "sparse");
@@ -439,7 +441,7 @@ fn a_sparse_transform_in_a_manifest_resolves_like_the_dense_one() {
 fn a_manifest_with_an_unknown_key_is_refused_at_its_position() {
     let dir = ok(tempfile::tempdir());
     let m = u1_manifest(dir.path(), "[transform]\nkind = \"dense\"\nrowz = []\n");
-    let err = build_package(&m, None).unwrap_err();
+    let err = build_package(&m, None, 1_700_000_000).unwrap_err();
     let text = err.to_string();
     // Internally tagged tables are read whole, so the position is that of `[transform]`.
     assert!(
@@ -456,6 +458,6 @@ fn a_missing_program_file_is_reported_at_the_manifest_line() {
         &path,
         "[package]\nname = \"x\"\nversion = \"1\"\nprogram = \"nope.toml\"\nbase = \"nope.toml\"\n",
     ));
-    let err = build_package(&path, None).unwrap_err();
+    let err = build_package(&path, None, 1_700_000_000).unwrap_err();
     assert!(err.to_string().contains("m.toml:4:"), "{err}");
 }

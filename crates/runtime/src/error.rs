@@ -154,7 +154,7 @@ pub enum PrepareError {
     },
     /// The candidate uses signals the I/O map lacks, and the node's I/O cannot serve them.
     #[error("package refused: the candidate uses signals that the running I/O map does not have, and the node's I/O configuration cannot serve them: {0}")]
-    NewSignals(String),
+    NewSignals(crate::io::Inadmissible),
     /// A substitution condition does not compile against the primary.
     #[error("substitute refused: the condition `{}` does not compile: {source}", excerpt(.text))]
     Condition {

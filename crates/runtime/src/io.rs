@@ -22,8 +22,14 @@ pub trait Provider {
 pub trait IoAdmission: Send + Sync {
     /// `Ok` when every signal of `inputs` and `outputs` (new to the I/O map) maps to a channel
     /// of the node's I/O configuration; otherwise why not, naming the signal.
-    fn admit(&self, inputs: &[Signal], outputs: &[Signal]) -> Result<(), String>;
+    fn admit(&self, inputs: &[Signal], outputs: &[Signal]) -> Result<(), Inadmissible>;
 }
+
+/// Why the node's I/O cannot serve a signal that a candidate adds, as its driver says it,
+/// naming the signal and the configuration that would serve it.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[error("{0}")]
+pub struct Inadmissible(pub String);
 
 /// A shared [`IoAdmission`].
 pub type SharedAdmission = Arc<dyn IoAdmission>;

@@ -44,7 +44,7 @@ pub use container::{Blocker, Container, ScanOutcome, Slot};
 pub use cycle::{CycleFigures, LoopTiming, ScanCycle};
 pub use error::{CommandError, PrepareError, RuntimeError, WarmStartError};
 pub use event::{Event, EventDetail, EventKind, RevertMarking, RevertReason};
-pub use io::{Dispatcher, IoAdmission, Provider, SharedAdmission};
+pub use io::{Dispatcher, Inadmissible, IoAdmission, Provider, SharedAdmission};
 pub use monitor::{ExecInfo, Monitor, Role, Verdict, VerdictKind, VerdictResult};
 pub use phase::Status;
 pub use plc::Plc;

@@ -194,12 +194,14 @@ pub fn import_str(
 /// the same program hash.
 pub struct PlcopenImporter;
 
+use cetratus_program::package::{ImportError, ProgramText};
+
 impl cetratus_program::ProgramImporter for PlcopenImporter {
     fn import(
         &self,
         path: &std::path::Path,
         pou: Option<&str>,
-    ) -> Option<Result<(String, String), String>> {
+    ) -> Option<Result<ProgramText, ImportError>> {
         let is_xml = path
             .extension()
             .and_then(|e| e.to_str())
@@ -210,15 +212,18 @@ impl cetratus_program::ProgramImporter for PlcopenImporter {
         let label = path.display().to_string();
         let text = match std::fs::read_to_string(path) {
             Ok(t) => t,
-            Err(e) => return Some(Err(format!("cannot read `{label}`: {e}"))),
+            Err(e) => return Some(Err(ImportError(format!("cannot read `{label}`: {e}")))),
         };
         if !is_plcopen(text.strip_prefix('\u{feff}').unwrap_or(&text)) {
             return None;
         }
         Some(
             import_program(&text, &label, pou)
-                .map(|i| (i.toml, cetratus_net::pnml::write_string(&i.net)))
-                .map_err(|e| e.to_string()),
+                .map(|i| ProgramText {
+                    pnml: cetratus_net::pnml::write_string(&i.net),
+                    toml: i.toml,
+                })
+                .map_err(|e| ImportError(e.to_string())),
         )
     }
 }

@@ -27,11 +27,14 @@ use Allowed::{AnyBut, Only};
 /// in ARCHITECTURE.md.
 const RULES: &[(&str, Allowed)] = &[
     ("cetratus-vocab", Only(&[])),
-    ("cetratus-net", Only(&[])),
+    ("cetratus-net", Only(&["cetratus-vocab"])),
     ("cetratus-twin", Only(&[])),
     ("cetratus-proto", Only(&["cetratus-vocab"])),
     ("cetratus-analysis", Only(&["cetratus-net"])),
-    ("cetratus-program", Only(&["cetratus-net"])),
+    (
+        "cetratus-program",
+        Only(&["cetratus-vocab", "cetratus-net"]),
+    ),
     ("cetratus-sfc", Only(&["cetratus-net", "cetratus-program"])),
     (
         "cetratus-runtime",
@@ -718,7 +721,6 @@ const LONG_FUNCTIONS: &[(&str, &str, usize, &str)] = &[
         123,
         "to be split",
     ),
-    ("crates/mct/src/control.rs", "parse", 174, "to be split"),
     ("crates/net/src/export.rs", "write_svg", 153, "to be split"),
     ("crates/net/src/net.rs", "build", 135, "to be split"),
     ("crates/node/src/config.rs", "load", 195, "to be split"),
@@ -736,12 +738,6 @@ const LONG_FUNCTIONS: &[(&str, &str, usize, &str)] = &[
         "expr",
         247,
         "to be split; the precedence-climbing parser of guard expressions",
-    ),
-    (
-        "crates/program/src/package/build.rs",
-        "build_package_with",
-        174,
-        "to be split",
     ),
     (
         "crates/program/src/program.rs",

@@ -804,6 +804,11 @@ impl Plant for FestoStation {
         &BUTTONS
     }
 
+    /// RESET (homing) at 100 ms and START at 500 ms, as an operator starts the station.
+    fn start_presses(&self) -> &[(&'static str, u64)] {
+        &[("RESET", 100_000), ("START", 500_000)]
+    }
+
     fn press(&mut self, button: &str, at_us: u64) -> Result<(), TwinError> {
         match BUTTONS.iter().position(|b| b.eq_ignore_ascii_case(button)) {
             Some(i) => {

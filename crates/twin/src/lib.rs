@@ -185,6 +185,11 @@ pub trait Plant: Send {
     fn buttons(&self) -> &[&'static str] {
         &[]
     }
+    /// The presses an operator gives the plant to start it (button, virtual time in µs), when
+    /// no others are asked for: none by default.
+    fn start_presses(&self) -> &[(&'static str, u64)] {
+        &[]
+    }
     /// Schedules an operator's press of `button` at virtual time `at_us`.
     fn press(&mut self, button: &str, at_us: u64) -> Result<(), TwinError> {
         let _ = at_us;
@@ -624,6 +629,9 @@ impl Plant for Twin {
     }
     fn buttons(&self) -> &[&'static str] {
         self.plant().buttons()
+    }
+    fn start_presses(&self) -> &[(&'static str, u64)] {
+        self.plant().start_presses()
     }
     fn press(&mut self, button: &str, at_us: u64) -> Result<(), TwinError> {
         self.plant_mut().press(button, at_us)

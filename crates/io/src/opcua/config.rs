@@ -123,15 +123,18 @@ struct UserSrc {
 pub const DEFAULT_STALE_AFTER: u32 = 50;
 
 /// `opc.tcp://IP:PORT` (an optional `/` at the end) as a socket address.
-pub fn parse_url(url: &str) -> Result<SocketAddr, String> {
-    let rest = url.strip_prefix("opc.tcp://").ok_or_else(|| {
-        format!("`{url}` is not an opc.tcp URL; write e.g. \"opc.tcp://127.0.0.1:14840\"")
-    })?;
+pub fn parse_url(url: &str) -> Result<SocketAddr, IoError> {
+    let bad = |reason| IoError::OpcUaUrl {
+        url: url.chars().take(256).collect(),
+        reason,
+    };
+    let rest = url
+        .strip_prefix("opc.tcp://")
+        .ok_or_else(|| bad("is not an opc.tcp URL"))?;
     let rest = rest.strip_suffix('/').unwrap_or(rest);
     let rest = rest.replace("localhost:", "127.0.0.1:");
-    rest.parse().map_err(|_| {
-        format!("`{url}` does not name an IP address and a port; write e.g. \"opc.tcp://127.0.0.1:14840\"")
-    })
+    rest.parse()
+        .map_err(|_| bad("does not name an IP address and a port"))
 }
 
 impl OpcUaConfig {
@@ -148,7 +151,7 @@ impl OpcUaConfig {
         };
         let s = src.get_ref();
         let url = s.listen.get_ref().clone();
-        let listen = parse_url(&url).map_err(|m| err(s.listen.span(), m))?;
+        let listen = parse_url(&url).map_err(|m| err(s.listen.span(), m.to_string()))?;
         let count = |n: &Option<Spanned<i64>>, default: usize, what: &str| match n {
             None => Ok(default),
             Some(v) => usize::try_from(*v.get_ref())

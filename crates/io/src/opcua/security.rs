@@ -58,7 +58,7 @@ pub(crate) fn configure(
             }];
             // Certificates an administrator copied into trusted/ under another name than the one
             // async-opcua looks for are added under it (at start).
-            super::pki::install_trusted(&absolute(pki))?;
+            super::pki::install_trusted(&absolute(pki)).map_err(|e| e.to_string())?;
             let mut b = builder
                 // The endpoints name their token by id; async-opcua checks that one is
                 // configured. Its password is never compared: `Accounts` decides every login.

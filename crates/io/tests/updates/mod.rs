@@ -55,7 +55,7 @@ impl Workshop {
     }
 
     pub fn package(&self, manifest: &str) -> Vec<u8> {
-        build_package(&self.path(manifest), Some(&self.key))
+        build_package(&self.path(manifest), Some(&self.key), 1_700_000_000)
             .unwrap_or_else(|e| panic!("{manifest} builds: {e}"))
             .0
     }

@@ -67,26 +67,28 @@ pub struct BuildReport {
 pub trait ProgramImporter {
     /// `None` when `path` is not in this importer's format; else the program TOML and PNML text
     /// of `pou` (or of the file's only program), or what is wrong with the file.
-    fn import(&self, path: &Path, pou: Option<&str>) -> Option<Result<(String, String), String>>;
+    fn import(&self, path: &Path, pou: Option<&str>) -> Option<Result<ProgramText, ImportError>>;
 }
 
-/// Builds a package from a manifest, signed with `key` (unsigned when `None`), stamped with the
-/// current time.
+/// A program file of another format as a program: its TOML and its PNML text.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct ProgramText {
+    /// The program TOML.
+    pub toml: String,
+    /// The net, as PNML.
+    pub pnml: String,
+}
+
+/// What an importer found wrong with a file of its format, in its own words (with file:line
+/// where it can).
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+#[error("{0}")]
+pub struct ImportError(pub String);
+
+/// Builds a package from a manifest, signed with `key` (unsigned when `None`), its `created`
+/// stamp given in seconds since the Unix epoch: the caller reads the clock (or takes
+/// `SOURCE_DATE_EPOCH`, for a reproducible build), so that nothing in this crate does.
 pub fn build_package(
-    manifest_path: &Path,
-    key: Option<&KeyPair>,
-) -> Result<(Vec<u8>, BuildReport), PackageError> {
-    // The one clock read of this crate, on the tooling side: packages are built by people, not
-    // by the scan engine, and the time only goes into `created`.
-    let now = std::time::SystemTime::now()
-        .duration_since(std::time::UNIX_EPOCH)
-        .map_or(0, |d| d.as_secs());
-    build_package_at(manifest_path, key, now)
-}
-
-/// [`build_package`] with `created` set from seconds since the Unix epoch, for reproducible
-/// builds (e.g. from `SOURCE_DATE_EPOCH`).
-pub fn build_package_at(
     manifest_path: &Path,
     key: Option<&KeyPair>,
     created_unix_secs: u64,
@@ -94,7 +96,7 @@ pub fn build_package_at(
     build_package_with(manifest_path, key, created_unix_secs, None)
 }
 
-/// [`build_package_at`] with an importer for program files of another format.
+/// [`build_package`] with an importer for program files of another format.
 pub fn build_package_with(
     manifest_path: &Path,
     key: Option<&KeyPair>,
@@ -102,33 +104,12 @@ pub fn build_package_with(
     importer: Option<&dyn ProgramImporter>,
 ) -> Result<(Vec<u8>, BuildReport), PackageError> {
     let label = manifest_path.display().to_string();
-    let bytes = std::fs::read(manifest_path).map_err(|source| PackageError::Io {
-        path: label.clone(),
-        source,
-    })?;
-    let text = crate::toml_text(bytes, &label).map_err(|e| PackageError::Manifest {
-        message: e.message(),
-        pos: e.pos,
-    })?;
+    let (text, m) = read_manifest(manifest_path, &label)?;
     let o = Origin::new(&text, &label);
     let at = |offset: usize, message: String| PackageError::Manifest {
         pos: o.pos(offset),
         message,
     };
-    let m: Manifest = toml::from_str(&text).map_err(|e| {
-        at(
-            e.span().map_or(0, |s| s.start),
-            e.message().trim_end().to_string(),
-        )
-    })?;
-    for (field, v) in [("name", &m.package.name), ("version", &m.package.version)] {
-        if v.get_ref().trim().is_empty() {
-            return Err(at(
-                v.span().start,
-                format!("the package {field} is empty; give one"),
-            ));
-        }
-    }
     let dir = manifest_path.parent().unwrap_or_else(|| Path::new(""));
     let in_manifest = |e: PackageError, v: &Spanned<String>| match e {
         PackageError::Io { path, source } => at(
@@ -141,9 +122,10 @@ pub fn build_package_with(
         p.as_ref().map(|s| s.get_ref().as_str())
     }
     let import = |path: &Path, p: &Option<Spanned<String>>, field: &Spanned<String>| {
-        importer
-            .and_then(|i| i.import(path, pou(p)))
-            .map(|r| r.map_err(|message| at(field.span().start, message)))
+        importer.and_then(|i| i.import(path, pou(p))).map(|r| {
+            r.map(|i| (i.toml, i.pnml))
+                .map_err(|e| at(field.span().start, e.0))
+        })
     };
     let program_path = dir.join(m.package.program.get_ref());
     let (program_toml, program_pnml) =
@@ -179,18 +161,7 @@ pub fn build_package_with(
         None => Program::load(&base_path)?,
     };
 
-    let meta = PackageMeta {
-        name: m.package.name.get_ref().clone(),
-        version: m.package.version.get_ref().clone(),
-        author: m.package.author.clone(),
-        description: m.package.description.clone(),
-        created: humantime::format_rfc3339_seconds(
-            std::time::UNIX_EPOCH + std::time::Duration::from_secs(created_unix_secs),
-        )
-        .to_string(),
-        base_program_hash: base.hash_hex().to_string(),
-        changes_throughput: m.package.changes_throughput,
-    };
+    let meta = m.package.meta(created_unix_secs, &base);
     let payload = Payload {
         format: PAYLOAD_FORMAT.to_string(),
         meta: meta.clone(),
@@ -207,18 +178,8 @@ pub fn build_package_with(
         section,
         source: Box::new(source),
     };
-    if let (true, TransformSpec::Generated { removed }) = (base.is_sfc(), &payload.transform) {
-        // A chart whose step vanishes while active would lose its place in the sequence: the
-        // build refuses a removed step the old chart can reach unless the manifest maps it.
-        let markable = crate::transform::markable_places(base.net());
-        for (p, can) in base.net().places().iter().zip(markable) {
-            if can && new.net().place_by_id(&p.id).is_none() && !removed.contains_key(&p.id) {
-                return Err(manifest_err(
-                    "transform",
-                    TransformError::RemovedReachable { id: p.id.clone() },
-                ));
-            }
-        }
+    if let Some(e) = removed_reachable(&base, &new, &payload.transform) {
+        return Err(manifest_err("transform", e));
     }
     let transform = resolve_transform(&payload.transform, &base, &new)
         .map_err(|e| manifest_err("transform", e))?;
@@ -234,22 +195,7 @@ pub fn build_package_with(
         ));
     }
 
-    let payload_bytes = serde_json::to_vec(&payload).map_err(|e| PackageError::Malformed {
-        reason: format!("cannot serialize the payload ({e})"),
-    })?;
-    let signature = key.map(|k| SignatureBlock {
-        key_id: k.key_id(),
-        ed25519: B64.encode(k.sign(&payload_bytes).to_bytes()),
-    });
-    let envelope = Envelope {
-        format: PACKAGE_FORMAT.to_string(),
-        payload: B64.encode(&payload_bytes),
-        signature,
-    };
-    let mut bytes = serde_json::to_vec_pretty(&envelope).map_err(|e| PackageError::Malformed {
-        reason: format!("cannot serialize the package ({e})"),
-    })?;
-    bytes.push(b'\n');
+    let bytes = seal(&payload, key)?;
 
     let report = BuildReport {
         meta,
@@ -268,6 +214,100 @@ pub fn build_package_with(
         warnings,
     };
     Ok((bytes, report))
+}
+
+impl ManifestPackage {
+    /// The package's metadata, created at `created_unix_secs`, bound to `base`.
+    fn meta(&self, created_unix_secs: u64, base: &Program) -> PackageMeta {
+        let created = std::time::UNIX_EPOCH + std::time::Duration::from_secs(created_unix_secs);
+        PackageMeta {
+            name: self.name.get_ref().clone(),
+            version: self.version.get_ref().clone(),
+            author: self.author.clone(),
+            description: self.description.clone(),
+            created: humantime::format_rfc3339_seconds(created).to_string(),
+            base_program_hash: base.hash_hex().to_string(),
+            changes_throughput: self.changes_throughput,
+        }
+    }
+}
+
+/// The manifest's text and its sections, with a name and a version.
+fn read_manifest(path: &Path, label: &str) -> Result<(String, Manifest), PackageError> {
+    let bytes = std::fs::read(path).map_err(|source| PackageError::Io {
+        path: label.to_string(),
+        source,
+    })?;
+    let text = crate::toml_text(bytes, label).map_err(|e| PackageError::Manifest {
+        message: e.message(),
+        pos: e.pos,
+    })?;
+    let o = Origin::new(&text, label);
+    let at = |offset: usize, message: String| PackageError::Manifest {
+        pos: o.pos(offset),
+        message,
+    };
+    let m: Manifest = toml::from_str(&text).map_err(|e| {
+        at(
+            e.span().map_or(0, |s| s.start),
+            e.message().trim_end().to_string(),
+        )
+    })?;
+    for (field, v) in [("name", &m.package.name), ("version", &m.package.version)] {
+        if v.get_ref().trim().is_empty() {
+            return Err(at(
+                v.span().start,
+                format!("the package {field} is empty; give one"),
+            ));
+        }
+    }
+    Ok((text, m))
+}
+
+/// A step of the old chart that the new one removes, that the old chart can reach, and that a
+/// generated transform does not map: a chart whose step vanishes while active would lose its
+/// place in the sequence, so the build refuses it.
+fn removed_reachable(
+    base: &Program,
+    new: &Program,
+    spec: &TransformSpec,
+) -> Option<TransformError> {
+    let TransformSpec::Generated { removed } = spec else {
+        return None;
+    };
+    if !base.is_sfc() {
+        return None;
+    }
+    let markable = crate::transform::markable_places(base.net());
+    base.net()
+        .places()
+        .iter()
+        .zip(markable)
+        .find(|(p, can)| {
+            *can && new.net().place_by_id(&p.id).is_none() && !removed.contains_key(&p.id)
+        })
+        .map(|(p, _)| TransformError::RemovedReachable { id: p.id.clone() })
+}
+
+/// The package file: the payload, signed with `key` when there is one, in its envelope.
+fn seal(payload: &Payload, key: Option<&KeyPair>) -> Result<Vec<u8>, PackageError> {
+    let payload_bytes = serde_json::to_vec(payload).map_err(|e| PackageError::Malformed {
+        reason: format!("cannot serialize the payload ({e})"),
+    })?;
+    let signature = key.map(|k| SignatureBlock {
+        key_id: k.key_id(),
+        ed25519: B64.encode(k.sign(&payload_bytes).to_bytes()),
+    });
+    let envelope = Envelope {
+        format: PACKAGE_FORMAT.to_string(),
+        payload: B64.encode(&payload_bytes),
+        signature,
+    };
+    let mut bytes = serde_json::to_vec_pretty(&envelope).map_err(|e| PackageError::Malformed {
+        reason: format!("cannot serialize the package ({e})"),
+    })?;
+    bytes.push(b'\n');
+    Ok(bytes)
 }
 
 /// The program TOML text and PNML text of a program file: a `.toml` naming its net, or a

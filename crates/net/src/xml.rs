@@ -218,6 +218,9 @@ struct Builder<'i> {
     /// index into namespaces, or NONE when `xmlns=""` undeclares the default namespace. A map
     /// rather than a search of `scope`, whose length the input controls.
     bound: FxHashMap<&'i str, Vec<u32>>,
+    /// The same for the default namespace (no prefix), which most elements use: kept apart so
+    /// that they cost no hashing.
+    default_ns: Vec<u32>,
     /// The attribute names of the element being opened, once it has more than
     /// [`SCANNED_ATTRIBUTES`] of them.
     seen: FxHashSet<&'i str>,
@@ -242,6 +245,7 @@ impl<'i> Builder<'i> {
             stack: Vec::with_capacity(16),
             scope: Vec::new(),
             bound: FxHashMap::default(),
+            default_ns: Vec::new(),
             seen: FxHashSet::default(),
             entities: FxHashMap::default(),
             expanded: Cell::new(0),
@@ -380,7 +384,7 @@ impl<'i> Builder<'i> {
                     (self.doc.namespaces.len() - 1) as u32
                 };
                 self.scope.push(prefix);
-                self.bound.entry(prefix).or_default().push(ns);
+                self.bindings(prefix).push(ns);
                 bindings += 1;
                 continue;
             }
@@ -393,7 +397,11 @@ impl<'i> Builder<'i> {
             Some((p, n)) => (p, n),
             None => ("", qname),
         };
-        let namespace = match self.bound.get(prefix).and_then(|stack| stack.last()) {
+        let bound = match prefix {
+            "" => self.default_ns.last(),
+            _ => self.bound.get(prefix).and_then(|stack| stack.last()),
+        };
+        let namespace = match bound {
             Some(&ns) => ns,
             None if prefix.is_empty() => NONE,
             None if prefix == "xml" => {
@@ -505,10 +513,18 @@ impl<'i> Builder<'i> {
         let el = &mut self.doc.elements[open.id as usize];
         el.range.end = end;
         el.last_descendant = last;
-        for prefix in self.scope.drain(self.scope.len() - open.bindings..) {
-            if let Some(stack) = self.bound.get_mut(prefix) {
-                stack.pop();
-            }
+        for k in self.scope.len() - open.bindings..self.scope.len() {
+            let prefix = self.scope[k];
+            self.bindings(prefix).pop();
+        }
+        self.scope.truncate(self.scope.len() - open.bindings);
+    }
+
+    /// The namespaces `prefix` is bound to by the open elements, innermost last.
+    fn bindings(&mut self, prefix: &'i str) -> &mut Vec<u32> {
+        match prefix {
+            "" => &mut self.default_ns,
+            _ => self.bound.entry(prefix).or_default(),
         }
     }
 

@@ -34,7 +34,7 @@ enum What {
         #[arg(long)]
         out: std::path::PathBuf,
     },
-    /// A fleet: N runtime processes on one Mosquitto, watched by one `cetratus mct`.
+    /// A fleet: N runtime processes on one Mosquitto, watched by one `cetratus dashboard`.
     Fleet {
         /// How many PLC processes.
         #[arg(long, default_value_t = 50)]

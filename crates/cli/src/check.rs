@@ -8,10 +8,10 @@ use std::time::{Duration, Instant};
 
 use anyhow::Context;
 use cetratus_analysis::budget::{parse_bytes, DEFAULT_MAX_STATES};
-use cetratus_analysis::{
-    check, check_property, CheckOptions, Clock, Predicate, Property, TerminalProgress,
-};
+use cetratus_analysis::{check, check_property, CheckOptions, Clock, Predicate, Property};
 use cetratus_net::Net;
+
+use crate::progress::TerminalProgress;
 
 /// Arguments of `cetratus check`.
 #[derive(clap::Args, Debug)]

@@ -11,12 +11,13 @@ mod check;
 mod client;
 mod config;
 mod convert;
+mod dashboard_cmd;
 mod demo;
 mod import;
-mod mct_cmd;
 mod mqtt_args;
 mod package;
 mod package_inspect;
+mod progress;
 mod run;
 mod run_io;
 mod run_opcua;
@@ -72,8 +73,9 @@ enum Command {
     /// Measure the figures in docs/performance.md.
     #[cfg(feature = "bench")]
     Bench(bench::BenchArgs),
-    /// The dashboard on its own, watching the PLCs on a broker.
-    Mct(mct_cmd::MctArgs),
+    /// The dashboard on its own, watching the PLCs on a broker (`mct` is its older name).
+    #[command(alias = "mct")]
+    Dashboard(dashboard_cmd::DashboardArgs),
     /// Read a password from stdin and print its argon2 hash, for `[dashboard] accounts`.
     HashPassword,
     /// Send an update package to a PLC and follow it into quarantine.
@@ -152,8 +154,8 @@ fn main() -> std::process::ExitCode {
         Command::Twin(a) => twin_cmd::run(a),
         #[cfg(feature = "bench")]
         Command::Bench(a) => bench::run(a),
-        Command::Mct(a) => mct_cmd::run(a),
-        Command::HashPassword => mct_cmd::hash_password(),
+        Command::Dashboard(a) => dashboard_cmd::run(a),
+        Command::HashPassword => dashboard_cmd::hash_password(),
         Command::Load(a) => client::load(a),
         Command::Substitute(a) => client::substitute(a),
         Command::Remove(a) => client::plain(cetratus_proto::Command::Remove, a),

@@ -72,7 +72,7 @@ pub struct RunArgs {
     /// Real-time runs without MQTT and dashboard.
     #[arg(long)]
     no_mct: bool,
-    /// Real-time runs with MQTT but without the dashboard (e.g. a fleet watched by one `cetratus mct`).
+    /// Real-time runs with MQTT but without the dashboard (e.g. a fleet watched by one `cetratus dashboard`).
     #[arg(long)]
     no_dashboard: bool,
     /// Override the program's scan period, e.g. `100ms`.

@@ -1,4 +1,4 @@
-//! A flood of wrong dashboard logins against `cetratus mct`: refused without a hash once past
+//! A flood of wrong dashboard logins against `cetratus dashboard`: refused without a hash once past
 //! the rate limit, and logged thinly (the 1st, 2nd, 4th… refusal), so that guessing neither
 //! logs in nor floods the operator's log.
 

@@ -19,17 +19,17 @@ impl Drop for Proc {
     }
 }
 
-/// Starts `cetratus mct` watching `broker` and waits up to ten seconds for a stderr line that
+/// Starts `cetratus dashboard` watching `broker` and waits up to ten seconds for a stderr line that
 /// contains `needle`; returns that line, or panics with all the stderr seen.
 fn mct_stderr_line(broker: &str, needle: &str) -> String {
     let mut child = Command::new(BIN)
-        .args(["mct", "--broker", broker, "--http", "127.0.0.1:0"])
+        .args(["dashboard", "--broker", broker, "--http", "127.0.0.1:0"])
         // The default filter is what an operator gets.
         .env_remove("RUST_LOG")
         .stdout(Stdio::null())
         .stderr(Stdio::piped())
         .spawn()
-        .expect("start cetratus mct");
+        .expect("start cetratus dashboard");
     let stderr = child.stderr.take().expect("stderr is piped");
     let proc = Proc(child);
     let (tx, rx) = mpsc::channel();

@@ -52,6 +52,10 @@ pub fn accepted() -> Outcome {
 /// the scan side never parses), a substitution its arguments.
 pub type Request = cetratus_vocab::Command<Vec<u8>, SubstituteArgs>;
 
+/// A command that passed the checks: what it asks, the operator key that signed it and the
+/// account the signer acted for (both `None` without operator keys).
+type Authorised = (Request, Option<String>, Option<String>);
+
 /// A command for the scan side, with the handle to answer it.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct IncomingCommand {
@@ -200,7 +204,7 @@ impl ControlPlane {
                 reply: handle
                     .topic
                     .is_some()
-                    .then(|| (handle, ErrorBody { code, message })),
+                    .then_some((handle, ErrorBody { code, message })),
             })),
         }
     }
@@ -214,7 +218,7 @@ impl ControlPlane {
         parsed: &Result<Value, String>,
         handle: &ReplyHandle,
         now_unix_s: u64,
-    ) -> Result<(Request, Option<String>, Option<String>), (ErrorCode, String)> {
+    ) -> Result<Authorised, (ErrorCode, String)> {
         if bytes > MAX_PAYLOAD {
             return Err((
                 ErrorCode::TooLarge,
@@ -230,8 +234,8 @@ impl ControlPlane {
             None => (obj, None, None),
             Some(keys) => {
                 let plc = self.topics.plc().as_str();
-                let (body, key_id, account) = unseal(keys, plc, verb, &obj, handle, now_unix_s)?;
-                (body, Some(key_id), account)
+                let u = unseal(keys, plc, verb, &obj, handle, now_unix_s)?;
+                (u.body, Some(u.key_id), u.account)
             }
         };
         if body.contains_key("allow_unsigned") {
@@ -301,6 +305,13 @@ impl ControlPlane {
     }
 }
 
+/// A signed command's arguments, opened.
+struct Unsealed {
+    body: Map<String, Value>,
+    key_id: String,
+    account: Option<String>,
+}
+
 /// The arguments of a command that operator keys require to be signed: the envelope's payload,
 /// with the key that signed it and the account it names. Nothing but the reply fields may stand
 /// outside the envelope.
@@ -311,7 +322,7 @@ fn unseal(
     obj: &Map<String, Value>,
     handle: &ReplyHandle,
     now_unix_s: u64,
-) -> Result<(Map<String, Value>, String, Option<String>), (ErrorCode, String)> {
+) -> Result<Unsealed, (ErrorCode, String)> {
     let Some(env) = obj.get("envelope") else {
         return Err((
             ErrorCode::Unauthorised,
@@ -342,7 +353,11 @@ fn unseal(
     let (inner, key_id, account) =
         keys.verify(plc, verb.as_str(), &correlation, &env, now_unix_s)?;
     match serde_json::from_slice(&inner) {
-        Ok(Value::Object(o)) => Ok((o, key_id, account)),
+        Ok(Value::Object(body)) => Ok(Unsealed {
+            body,
+            key_id,
+            account,
+        }),
         Ok(_) => Err((
             ErrorCode::Malformed,
             "signed payload must be a JSON object".into(),

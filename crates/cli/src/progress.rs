@@ -1,9 +1,10 @@
-//! A terminal progress display for long explorations (indicatif, on stderr).
+//! A terminal progress display for long explorations (indicatif, on stderr), drawn from the
+//! analysis's progress callback: the analysis reports, the command line draws.
 
 use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
-use crate::{Progress, ProgressFn};
+use cetratus_analysis::{Progress, ProgressFn};
 
 /// Runs shorter than this show nothing.
 const QUIET_FOR: Duration = Duration::from_secs(1);
@@ -36,7 +37,7 @@ impl TerminalProgress {
         }
     }
 
-    /// The callback to put in [`crate::CheckOptions::progress`].
+    /// The callback to put in [`cetratus_analysis::CheckOptions::progress`].
     pub fn callback(&self) -> ProgressFn {
         let me = self.clone();
         Arc::new(move |p: Progress| me.show(p))

@@ -1,13 +1,13 @@
-//! `cetratus mct`: the dashboard on its own, watching every PLC on a broker.
+//! `cetratus dashboard`: the dashboard on its own, watching every PLC on a broker.
 
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 
 use anyhow::Context;
 
-/// Arguments of `cetratus mct`.
+/// Arguments of `cetratus dashboard`.
 #[derive(clap::Args, Debug)]
-pub struct MctArgs {
+pub struct DashboardArgs {
     /// Where the dashboard listens.
     #[arg(long, default_value = "127.0.0.1:8080")]
     http: String,
@@ -28,8 +28,8 @@ pub struct MctArgs {
     config: Option<std::path::PathBuf>,
 }
 
-/// Runs `cetratus mct` until Ctrl-C.
-pub fn run(args: &MctArgs) -> anyhow::Result<()> {
+/// Runs `cetratus dashboard` until Ctrl-C.
+pub fn run(args: &DashboardArgs) -> anyhow::Result<()> {
     let http = args.http.parse().with_context(|| {
         format!(
             "--http `{}`: expected an address such as 127.0.0.1:8080",

@@ -50,6 +50,23 @@ pub struct Packages {
     pub trust: TrustStore,
 }
 
+impl Packages {
+    /// `package` prepared against `ctx`, as a PLC that takes signed packages only prepares it.
+    pub fn prepare(
+        &self,
+        ctx: &cetratus_runtime::UpdateContext,
+        package: &[u8],
+    ) -> cetratus_runtime::PreparedUpdate {
+        ctx.prepare_package(
+            package,
+            &self.trust,
+            cetratus_program::Unsigned::Refused,
+            cetratus_program::OtherBase::Refused,
+        )
+        .expect("the package prepares")
+    }
+}
+
 /// Builds and signs U.1 and U.2 from the examples.
 pub fn packages() -> Packages {
     let dir = std::env::temp_dir().join(format!("cetratus-bench-{}", std::process::id()));
@@ -140,15 +157,7 @@ pub fn update_figures(quick: bool) -> UpdateFigures {
 
         let mut replay = Replay::new(images.clone());
         let mut plc = Plc::new(vernadat.clone(), 0, MonotonicStopwatch::boxed());
-        let prepared = plc
-            .update_context()
-            .prepare_package(
-                &pk.u1,
-                &pk.trust,
-                cetratus_program::Unsigned::Refused,
-                cetratus_program::OtherBase::Refused,
-            )
-            .expect("U.1 prepares");
+        let prepared = pk.prepare(&plc.update_context(), &pk.u1);
         plc.command(Command::Load(Box::new(prepared)))
             .expect("accepted");
         plc.cycle(0, &mut replay);
@@ -177,15 +186,7 @@ pub fn update_figures(quick: bool) -> UpdateFigures {
 
         let mut io = twin(&vernadat);
         let mut plc = Plc::new(vernadat.clone(), 0, MonotonicStopwatch::boxed());
-        let prepared = plc
-            .update_context()
-            .prepare_package(
-                &pk.u1,
-                &pk.trust,
-                cetratus_program::Unsigned::Refused,
-                cetratus_program::OtherBase::Refused,
-            )
-            .expect("U.1 prepares");
+        let prepared = pk.prepare(&plc.update_context(), &pk.u1);
         plc.command(Command::Load(Box::new(prepared)))
             .expect("accepted");
         plc.cycle(0, &mut io);
@@ -203,15 +204,7 @@ pub fn update_figures(quick: bool) -> UpdateFigures {
     let setup: Vec<f64> = (0..if quick { 50 } else { 300 })
         .map(|_| {
             let t0 = Instant::now();
-            black_box(
-                ctx.prepare_package(
-                    &pk.u2,
-                    &pk.trust,
-                    cetratus_program::Unsigned::Refused,
-                    cetratus_program::OtherBase::Refused,
-                )
-                .expect("U.2 prepares"),
-            );
+            black_box(pk.prepare(&ctx, &pk.u2));
             t0.elapsed().as_secs_f64() * 1e6
         })
         .collect();

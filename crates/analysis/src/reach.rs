@@ -865,20 +865,7 @@ fn deadlock_witness<const W: usize>(
     first_dead: Option<usize>,
     nt: usize,
 ) -> Option<Vec<TransIdx>> {
-    first_dead.map(|d| {
-        let mut path = Vec::new();
-        let mut v = d;
-        while parents.get(v) != u32::MAX {
-            let u = parents.get(v) as usize;
-            let (ku, kv) = (states.get(u), states.get(v));
-            if let Some(t) = (0..nt).find(|&t| code.enabled(&ku, t) && code.fire(&ku, t) == kv) {
-                path.push(TransIdx(t as u32));
-            }
-            v = u;
-        }
-        path.reverse();
-        path
-    })
+    first_dead.map(|d| search::path_to(code, states, parents, d, nt))
 }
 
 /// A packing from the structural bounds and capacities alone, or `None` when some place has

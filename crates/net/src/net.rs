@@ -499,11 +499,10 @@ impl NetBuilder {
         self.arcs[arc].path = path;
     }
 
-    /// Finishes the net and derives its sparse tables.
-    pub fn build(self) -> Result<Net, NetError> {
-        let np = self.places.len();
-        let nt = self.transitions.len();
-        // Parallel arcs add up; parallel inhibitor arcs keep the strictest threshold.
+    /// Pre, Post and the inhibitor thresholds as (transition, (place, weight)) pairs, sorted
+    /// by transition then place: parallel arcs add up, parallel inhibitor arcs keep the
+    /// strictest threshold.
+    fn arc_pairs(&self) -> Result<[Pairs<Tokens>; 3], NetError> {
         let mut pre: HashMap<(u32, u32), u64> = HashMap::default();
         let mut post: HashMap<(u32, u32), u64> = HashMap::default();
         let mut inh: HashMap<(u32, u32), Tokens> = HashMap::default();
@@ -522,40 +521,27 @@ impl NetBuilder {
                 _ => unreachable!("arc ends were checked when the arc was added"),
             }
         }
-        let to_tokens = |w: u64, arc_t: u32| -> Result<Tokens, NetError> {
-            Tokens::try_from(w).map_err(|_| NetError::ZeroWeight {
-                arc: format!("(parallel arcs of transition {arc_t}, weight overflow)"),
-            })
+        let sorted = |sums: HashMap<(u32, u32), u64>| -> Result<Pairs<Tokens>, NetError> {
+            let mut pairs = Vec::with_capacity(sums.len());
+            for ((t, p), w) in sums {
+                let w = Tokens::try_from(w).map_err(|_| NetError::ZeroWeight {
+                    arc: format!("(parallel arcs of transition {t}, weight overflow)"),
+                })?;
+                pairs.push((t, (PlaceIdx(p), w)));
+            }
+            pairs.sort_unstable_by_key(|&(t, (p, _))| (t, p));
+            Ok(pairs)
         };
-        let mut pre_pairs: Vec<(u32, (PlaceIdx, Tokens))> = Vec::with_capacity(pre.len());
-        for (&(t, p), &w) in &pre {
-            pre_pairs.push((t, (PlaceIdx(p), to_tokens(w, t)?)));
-        }
-        let mut post_pairs: Vec<(u32, (PlaceIdx, Tokens))> = Vec::with_capacity(post.len());
-        for (&(t, p), &w) in &post {
-            post_pairs.push((t, (PlaceIdx(p), to_tokens(w, t)?)));
-        }
-        let mut inh_pairs: Vec<(u32, (PlaceIdx, Tokens))> = inh
-            .iter()
-            .map(|(&(t, p), &w)| (t, (PlaceIdx(p), w)))
-            .collect();
-        pre_pairs.sort_unstable_by_key(|&(t, (p, _))| (t, p));
-        post_pairs.sort_unstable_by_key(|&(t, (p, _))| (t, p));
-        inh_pairs.sort_unstable_by_key(|&(t, (p, _))| (t, p));
+        let inh = inh.into_iter().map(|(k, w)| (k, u64::from(w))).collect();
+        Ok([sorted(pre)?, sorted(post)?, sorted(inh)?])
+    }
 
-        let mut delta_map: HashMap<(u32, u32), i64> = HashMap::default();
-        for &(t, (p, w)) in &pre_pairs {
-            *delta_map.entry((t, p.0)).or_default() -= i64::from(w);
-        }
-        for &(t, (p, w)) in &post_pairs {
-            *delta_map.entry((t, p.0)).or_default() += i64::from(w);
-        }
-        let mut delta_pairs: Vec<(u32, (PlaceIdx, i64))> = delta_map
-            .into_iter()
-            .filter(|&(_, d)| d != 0)
-            .map(|((t, p), d)| (t, (PlaceIdx(p), d)))
-            .collect();
-        delta_pairs.sort_unstable_by_key(|&(t, (p, _))| (t, p));
+    /// Finishes the net and derives its sparse tables.
+    pub fn build(self) -> Result<Net, NetError> {
+        let np = self.places.len();
+        let nt = self.transitions.len();
+        let [pre_pairs, post_pairs, inh_pairs] = self.arc_pairs()?;
+        let delta_pairs = delta_pairs(&pre_pairs, &post_pairs);
 
         let flip = |pairs: &[(u32, (PlaceIdx, Tokens))]| {
             let mut v: Vec<(u32, (TransIdx, Tokens))> = pairs
@@ -635,4 +621,25 @@ impl NetBuilder {
             trans_index,
         })
     }
+}
+
+/// (transition, (place, weight)) pairs, sorted by transition then place.
+type Pairs<T> = Vec<(u32, (PlaceIdx, T))>;
+
+/// The nonzero entries of `C = Post - Pre`, sorted as the pairs.
+fn delta_pairs(pre: &Pairs<Tokens>, post: &Pairs<Tokens>) -> Pairs<i64> {
+    let mut delta: HashMap<(u32, u32), i64> = HashMap::default();
+    for &(t, (p, w)) in pre {
+        *delta.entry((t, p.0)).or_default() -= i64::from(w);
+    }
+    for &(t, (p, w)) in post {
+        *delta.entry((t, p.0)).or_default() += i64::from(w);
+    }
+    let mut pairs: Pairs<i64> = delta
+        .into_iter()
+        .filter(|&(_, d)| d != 0)
+        .map(|((t, p), d)| (t, (PlaceIdx(p), d)))
+        .collect();
+    pairs.sort_unstable_by_key(|&(t, (p, _))| (t, p));
+    pairs
 }

@@ -290,16 +290,10 @@ impl ActionState {
         }
     }
 
-    fn finish(
-        &mut self,
-        program: &Program,
-        ctx: &EvalCtx,
-        outputs: &mut [Value],
-        vars: &mut [Value],
-    ) -> Result<(), BodyError> {
-        let now_us = ctx.now_us;
-        // Reset dominates set, as in the IEC action control's RS flip-flop; it also stops the
-        // SD and SL timers on the same target.
+    /// Reset dominates set, as in the IEC action control's RS flip-flop; it also stops the SD
+    /// and SL timers on the same target. SD and SL run whether or not their place is still
+    /// marked.
+    fn stored_timers(&mut self, program: &Program, now_us: u64) {
         for (l, &r) in self.latch.iter_mut().zip(&self.reset) {
             if r {
                 *l = false;
@@ -313,7 +307,6 @@ impl ActionState {
             if self.reset.get(slot as usize).copied().unwrap_or(false) {
                 *since = None;
             }
-            // SD and SL run whether or not their place is still marked.
             let Some(s) = *since else { continue };
             let (on, due) = match a.qualifier {
                 Qualifier::SD(d) => {
@@ -336,6 +329,17 @@ impl ActionState {
                 *c = true;
             }
         }
+    }
+
+    fn finish(
+        &mut self,
+        program: &Program,
+        ctx: &EvalCtx,
+        outputs: &mut [Value],
+        vars: &mut [Value],
+    ) -> Result<(), BodyError> {
+        let now_us = ctx.now_us;
+        self.stored_timers(program, now_us);
         for (a, &slot) in program.actions.iter().zip(&program.action_slot) {
             let marked = ctx.marking.get(a.place.index()).is_some_and(|&m| m > 0);
             if !marked {

@@ -121,6 +121,35 @@ impl UpdateContext {
         })
     }
 
+    /// The signals of `program` that the I/O map lacks (inputs, outputs), once the node's I/O
+    /// has admitted them; without an admission, the first one is the error.
+    fn new_signals(&self, program: &Program) -> Result<(Vec<Signal>, Vec<Signal>), PrepareError> {
+        let missing = |signals: &[Signal], have: &[String]| -> Vec<Signal> {
+            let new = signals.iter().filter(|s| !have.contains(&s.name));
+            new.cloned().collect()
+        };
+        let new_inputs = missing(program.inputs(), &self.io_inputs);
+        let new_outputs = missing(program.outputs(), &self.io_outputs);
+        if new_inputs.is_empty() && new_outputs.is_empty() {
+            return Ok((new_inputs, new_outputs));
+        }
+        if let Some(a) = &self.admission {
+            a.admit(&new_inputs, &new_outputs)
+                .map_err(PrepareError::NewSignals)?;
+        } else if let Some(s) = new_inputs.first() {
+            return Err(PrepareError::MissingInput {
+                signal: s.name.clone(),
+                available: self.io_inputs.join(", "),
+            });
+        } else if let Some(s) = new_outputs.first() {
+            return Err(PrepareError::MissingOutput {
+                signal: s.name.clone(),
+                available: self.io_outputs.join(", "),
+            });
+        }
+        Ok((new_inputs, new_outputs))
+    }
+
     /// Builds a resolved update: the candidate container, its I/O maps and the transition
     /// correspondence used by the Monitor. A candidate signal the I/O map lacks is appended to
     /// it at the install when the node's I/O admits it ([`UpdateContext::admission`]: its address
@@ -128,39 +157,7 @@ impl UpdateContext {
     pub fn prepare(&self, update: ResolvedUpdate) -> Result<PreparedUpdate, PrepareError> {
         let primary = &*self.primary;
         let program = update.program.clone();
-        let new_inputs: Vec<Signal> = program
-            .inputs()
-            .iter()
-            .filter(|s| !self.io_inputs.contains(&s.name))
-            .cloned()
-            .collect();
-        let new_outputs: Vec<Signal> = program
-            .outputs()
-            .iter()
-            .filter(|s| !self.io_outputs.contains(&s.name))
-            .cloned()
-            .collect();
-        if !new_inputs.is_empty() || !new_outputs.is_empty() {
-            match &self.admission {
-                Some(a) => a
-                    .admit(&new_inputs, &new_outputs)
-                    .map_err(PrepareError::NewSignals)?,
-                None => {
-                    if let Some(s) = new_inputs.first() {
-                        return Err(PrepareError::MissingInput {
-                            signal: s.name.clone(),
-                            available: self.io_inputs.join(", "),
-                        });
-                    }
-                    if let Some(s) = new_outputs.first() {
-                        return Err(PrepareError::MissingOutput {
-                            signal: s.name.clone(),
-                            available: self.io_outputs.join(", "),
-                        });
-                    }
-                }
-            }
-        }
+        let (new_inputs, new_outputs) = self.new_signals(&program)?;
         let io_inputs: Vec<String> = self
             .io_inputs
             .iter()
@@ -198,29 +195,9 @@ impl UpdateContext {
             scratch_since: vec![None; np],
             safe: safe_image(&out_map, &program),
             latch_map: retained_latch_map(&program, primary),
-            var_map: program
-                .variables()
-                .iter()
-                .map(|v| {
-                    primary
-                        .variables()
-                        .iter()
-                        .position(|w| w.name == v.name && w.ty == v.ty)
-                        .map(|j| j as u32)
-                })
-                .collect(),
+            var_map: retained_var_map(&program, primary),
             back_latch_map: retained_latch_map(primary, &program),
-            back_var_map: primary
-                .variables()
-                .iter()
-                .map(|v| {
-                    program
-                        .variables()
-                        .iter()
-                        .position(|w| w.name == v.name && w.ty == v.ty)
-                        .map(|j| j as u32)
-                })
-                .collect(),
+            back_var_map: retained_var_map(primary, &program),
             verdicts: Vec::new(),
             back_marking: vec![0; pn.num_places()],
             back_since: vec![None; pn.num_places()],
@@ -258,6 +235,19 @@ impl UpdateContext {
             work,
         })
     }
+}
+
+/// For each variable of `program`, the variable of `primary` of the same name and type.
+fn retained_var_map(program: &Program, primary: &Program) -> Vec<Option<u32>> {
+    let theirs = primary.variables();
+    program
+        .variables()
+        .iter()
+        .map(|v| {
+            let same = theirs.iter().position(|w| w.name == v.name && w.ty == v.ty);
+            same.map(|j| j as u32)
+        })
+        .collect()
 }
 
 /// For each latch (action target) of `program`, the latch of `primary` driving the signal of the

@@ -666,12 +666,6 @@ fn end_of_item(lines: &[&str], start: usize) -> Option<usize> {
 const LONG_FUNCTIONS: &[(&str, &str, usize, &str)] = &[
     ("benches/src/flood.rs", "flood", 261, "to be split"),
     ("benches/src/harness.rs", "fleet", 152, "to be split"),
-    (
-        "benches/src/update.rs",
-        "update_figures",
-        122,
-        "to be split",
-    ),
     ("crates/analysis/src/check.rs", "check", 328, "to be split"),
     (
         "crates/analysis/src/coverability.rs",
@@ -722,7 +716,6 @@ const LONG_FUNCTIONS: &[(&str, &str, usize, &str)] = &[
         "to be split",
     ),
     ("crates/net/src/export.rs", "write_svg", 153, "to be split"),
-    ("crates/net/src/net.rs", "build", 135, "to be split"),
     ("crates/node/src/config.rs", "load", 195, "to be split"),
     ("crates/node/src/gate.rs", "run", 137, "to be split"),
     (
@@ -731,7 +724,6 @@ const LONG_FUNCTIONS: &[(&str, &str, usize, &str)] = &[
         185,
         "to be split",
     ),
-    ("crates/program/src/action.rs", "finish", 121, "to be split"),
     ("crates/program/src/body.rs", "compile", 147, "to be split"),
     (
         "crates/program/src/guard/mod.rs",
@@ -752,12 +744,6 @@ const LONG_FUNCTIONS: &[(&str, &str, usize, &str)] = &[
         "to be split",
     ),
     ("crates/runtime/src/plc.rs", "cycle", 151, "to be split"),
-    (
-        "crates/runtime/src/prepare.rs",
-        "prepare",
-        133,
-        "to be split",
-    ),
     (
         "crates/runtime/src/updater.rs",
         "try_substitute",

@@ -390,12 +390,7 @@ impl<L, S> Command<L, S> {
         match self {
             Command::Load(l) => Command::Load(l),
             Command::Substitute(s) => Command::Substitute(s),
-            Command::Remove => Command::Remove,
-            Command::Abort => Command::Abort,
-            Command::Reset => Command::Reset,
-            Command::ExecInfo => Command::ExecInfo,
-            Command::Revert => Command::Revert,
-            Command::Accept => Command::Accept,
+            bare => bare.unchanged(),
         }
     }
 
@@ -409,13 +404,14 @@ impl<L, S> Command<L, S> {
         Ok(match self {
             Command::Load(l) => Command::Load(load(l)?),
             Command::Substitute(s) => Command::Substitute(substitute(s)?),
-            Command::Remove => Command::Remove,
-            Command::Abort => Command::Abort,
-            Command::Reset => Command::Reset,
-            Command::ExecInfo => Command::ExecInfo,
-            Command::Revert => Command::Revert,
-            Command::Accept => Command::Accept,
+            bare => bare.unchanged(),
         })
+    }
+
+    /// A command without arguments as a command of any argument types. Only called on one:
+    /// `exec_info` stands in for the two that have arguments, which the callers take first.
+    fn unchanged<L2, S2>(&self) -> Command<L2, S2> {
+        Command::bare(self.verb()).unwrap_or(Command::ExecInfo)
     }
 }
 

@@ -274,7 +274,7 @@ pub(crate) fn search<const W: usize>(
 }
 
 /// The firing sequence along the BFS parents from M0 to state `v`.
-fn path_to<const W: usize>(
+pub(super) fn path_to<const W: usize>(
     code: &Compiled<W>,
     states: &Chunked<[u64; W]>,
     parents: &Chunked<u32>,

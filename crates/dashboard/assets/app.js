@@ -319,8 +319,9 @@
 
   function updateTokens() {
     if (!view.exec) return;
-    for (const x of ['A', 'B']) {
-      const info = view.exec[x];
+    // exec_info is the protocol's pair: [A | null, B | null].
+    for (const [i, x] of [[0, 'A'], [1, 'B']]) {
+      const info = view.exec[i];
       const box = $('net-' + x);
       if (!info || !info.marking) continue;
       for (const [pid, n] of Object.entries(info.marking)) {
@@ -348,9 +349,9 @@
   const us = (ns) => (typeof ns === 'number' ? (ns / 1000).toFixed(1) : '–');
 
   function renderExec() {
-    const e = view.exec || {};
-    const a = e.A || null;
-    const b = e.B || null;
+    const e = view.exec || [];
+    const a = e[0] || null;
+    const b = e[1] || null;
     const rows = [];
     const row = (label, f, cls) => rows.push([label, a ? f(a) : '–', b ? f(b) : '–', cls]);
     row('role', (x) => x.role ?? '');

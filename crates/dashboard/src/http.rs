@@ -314,7 +314,7 @@ async fn style_css() -> Response {
     asset("text/css; charset=utf-8", STYLE_CSS)
 }
 
-async fn plcs(State(app): State<App>) -> Json<Value> {
+async fn plcs(State(app): State<App>) -> Json<Vec<crate::store::Listed>> {
     Json(app.hub.fleet().list())
 }
 
@@ -342,8 +342,9 @@ struct StreamQuery {
     plc: Option<String>,
 }
 
-fn sse(name: &str, data: &Value) -> Event {
-    Event::default().event(name).data(data.to_string())
+fn sse(name: &str, data: &impl serde::Serialize) -> Event {
+    let json = serde_json::to_string(data).unwrap_or_else(|_| "null".into());
+    Event::default().event(name).data(json)
 }
 
 fn broker_event(hub: &Hub, up: bool) -> Event {

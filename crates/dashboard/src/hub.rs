@@ -20,7 +20,7 @@ use tokio::sync::{broadcast, oneshot, watch};
 
 use cetratus_proto::{BrokerUrl, Leaf, PlcId, ProtoError, Topics, Verb, ROOT};
 
-use crate::store::{value_bytes, Fleet, Ignored, Update};
+use crate::store::{Fleet, Ignored, Update};
 use crate::DashboardError;
 
 /// Bytes of updates that may wait for the browsers' streams at once. A browser that falls behind
@@ -84,7 +84,7 @@ pub(crate) enum Push {
     /// A message of one PLC.
     Plc(Arc<Pushed>),
     /// The PLC list changed.
-    Plcs(Value),
+    Plcs(Vec<crate::store::Listed>),
     /// The broker connection went up or down.
     Broker(bool),
     /// Updates were not pushed (the streams are behind): start over from a fresh snapshot.
@@ -293,7 +293,7 @@ impl Hub {
         if self.tx.receiver_count() == 0 {
             return;
         }
-        match self.pushes.try_take(value_bytes(&update.data)) {
+        match self.pushes.try_take(update.bytes) {
             Some(permit) => {
                 let _ = self.tx.send(Push::Plc(Arc::new(Pushed {
                     update,

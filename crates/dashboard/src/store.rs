@@ -10,12 +10,15 @@
 //! PLC that holds the most. Bytes are those a parsed message takes in memory
 //! ([`value_bytes`], an estimate), and every message refused or dropped is counted
 //! ([`Fleet::dropped`]).
+//!
+//! What is kept is decoded with the protocol's own types ([`Payload`]): a message that is not
+//! the payload its topic carries is refused, and a field a newer PLC adds is passed over.
 
 use std::collections::{BTreeMap, VecDeque};
 
-use cetratus_proto::{parse_topic, Leaf};
+use cetratus_proto::{parse_topic, EventMsg, ExecInfoMsg, IoMsg, Leaf, NetMsg, StatePayload};
 use serde::Serialize;
-use serde_json::{json, Map, Value};
+use serde_json::Value;
 
 /// How many `io` samples are kept per PLC: 1024 at the default 500 ms period is about 8 minutes,
 /// more than the 60 s the timing diagram shows, so a browser that connects late still gets a full
@@ -94,14 +97,47 @@ impl Kind {
     }
 }
 
+/// A message of a PLC, decoded with the protocol's types; sent on to the browsers as the PLC
+/// wrote it.
+// Not boxed: one is kept per message, already bounded in bytes as its JSON, and moved, never
+// stored in bulk beside smaller ones of its kind.
+#[allow(clippy::large_enum_variant)]
+#[derive(Clone, Debug, PartialEq, Serialize)]
+#[serde(untagged)]
+pub enum Payload {
+    /// `state`.
+    State(StatePayload),
+    /// `exec_info`: `[A | null, B | null]`.
+    ExecInfo(ExecInfoMsg),
+    /// `io`.
+    Io(IoMsg),
+    /// `events`.
+    Event(EventMsg),
+    /// `net`.
+    Net(NetMsg),
+}
+
+impl Payload {
+    /// Reads the JSON of a `kind` message as its protocol type.
+    fn decode(kind: Kind, v: Value) -> Result<Payload, serde_json::Error> {
+        Ok(match kind {
+            Kind::State => Payload::State(serde_json::from_value(v)?),
+            Kind::ExecInfo => Payload::ExecInfo(serde_json::from_value(v)?),
+            Kind::Io => Payload::Io(serde_json::from_value(v)?),
+            Kind::Event => Payload::Event(serde_json::from_value(v)?),
+            Kind::Net => Payload::Net(serde_json::from_value(v)?),
+        })
+    }
+}
+
 /// A payload with the time the dashboard received it (Unix milliseconds), so the browser can
 /// measure MQTT → DOM latency.
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct Stamped {
     /// When the MQTT message arrived at the dashboard, Unix ms.
     pub recv_ms: f64,
-    /// The payload, normalised (see [`Fleet::apply`]).
-    pub data: Value,
+    /// The payload.
+    pub data: Payload,
     /// What it takes in memory ([`value_bytes`]).
     #[serde(skip)]
     pub bytes: usize,
@@ -130,8 +166,11 @@ pub struct Update {
     pub kind: Kind,
     /// When it arrived, Unix ms.
     pub recv_ms: f64,
-    /// The payload.
-    pub data: Value,
+    /// The payload; `None` when an empty retained message cleared what was kept.
+    pub data: Option<Payload>,
+    /// What the payload takes in memory ([`value_bytes`]).
+    #[serde(skip)]
+    pub bytes: usize,
     /// Whether this message made the PLC list change (a new id, or `online` changed).
     #[serde(skip)]
     pub list_changed: bool,
@@ -164,11 +203,8 @@ pub struct PlcView {
 impl PlcView {
     /// Whether the PLC's last `state` said it is online (false before any `state`).
     pub fn online(&self) -> bool {
-        self.state
-            .as_ref()
-            .and_then(|s| s.data.get("online"))
-            .and_then(Value::as_bool)
-            .unwrap_or(false)
+        let state = self.state.as_ref().map(|s| &s.data);
+        matches!(state, Some(Payload::State(StatePayload::Online(_))))
     }
 
     /// Bytes this PLC keeps.
@@ -299,33 +335,34 @@ pub struct Fleet {
     dropped: Dropped,
 }
 
-/// `exec_info` may come as `{"A": …, "B": …}` or as `[A, B]`; the browser gets the object form.
-fn normalise_exec_info(v: Value) -> Result<Value, String> {
-    match v {
-        Value::Object(o) => Ok(Value::Object(o)),
-        Value::Array(a) if a.len() == 2 => {
-            let mut it = a.into_iter();
-            let a = it.next().unwrap_or(Value::Null);
-            let b = it.next().unwrap_or(Value::Null);
-            Ok(json!({"A": a, "B": b}))
-        }
-        other => Err(format!(
-            "exec_info must be an object {{\"A\", \"B\"}} or a pair, not {}",
-            type_name(&other)
-        )),
-    }
+/// One PLC in the list the browsers choose from.
+#[derive(Clone, Debug, PartialEq, Eq, Serialize)]
+pub struct Listed {
+    /// The PLC id.
+    pub id: String,
+    /// Whether its last `state` said it is online.
+    pub online: bool,
 }
 
-fn type_name(v: &Value) -> &'static str {
-    match v {
-        Value::Null => "null",
-        Value::Bool(_) => "a boolean",
-        Value::Number(_) => "a number",
-        Value::String(_) => "a string",
-        Value::Array(_) => "an array",
-        Value::Object(_) => "an object",
-    }
+/// Everything a browser needs to draw one PLC at once.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct Snapshot<'a> {
+    /// The PLC id.
+    pub plc: &'a str,
+    /// The latest `state`.
+    pub state: Option<&'a Stamped>,
+    /// The latest `exec_info`.
+    pub exec_info: Option<&'a Stamped>,
+    /// The latest `net`.
+    pub net: Option<&'a Stamped>,
+    /// The kept `io` samples, oldest first.
+    pub io: &'a VecDeque<Stamped>,
+    /// The kept events, oldest first.
+    pub events: &'a VecDeque<Stamped>,
 }
+
+/// The history of a PLC that is not known.
+static NO_HISTORY: VecDeque<Stamped> = VecDeque::new();
 
 impl Fleet {
     /// An empty fleet.
@@ -347,51 +384,48 @@ impl Fleet {
                 bytes: payload.len(),
             });
         }
-        let data: Value = if payload.is_empty() {
+        let value: Value = if payload.is_empty() {
             Value::Null
         } else {
             serde_json::from_slice(payload)
                 .map_err(|e| Ignored::Malformed(format!("{topic}: not JSON: {e}")))?
         };
-        let data = match kind {
-            Kind::ExecInfo if !data.is_null() => normalise_exec_info(data)
-                .map_err(|e| Ignored::Malformed(format!("{topic}: {e}")))?,
-            Kind::State | Kind::Io | Kind::Net if !data.is_null() && !data.is_object() => {
-                return Err(Ignored::Malformed(format!(
-                    "{topic}: expected a JSON object, not {}",
-                    type_name(&data)
-                )))
-            }
-            _ => data,
+        let bytes = if value.is_null() {
+            0
+        } else {
+            value_bytes(&value)
+        };
+        let data = match value {
+            Value::Null => None,
+            v => Some(
+                Payload::decode(kind, v)
+                    .map_err(|e| Ignored::Malformed(format!("{topic}: not its payload: {e}")))?,
+            ),
         };
         let is_new = !self.plcs.contains_key(plc);
         if is_new && self.plcs.len() >= MAX_PLCS {
             return Err(Ignored::TooManyPlcs);
         }
-        if data.is_null() && matches!(kind, Kind::Io | Kind::Event) {
+        if data.is_none() && matches!(kind, Kind::Io | Kind::Event) {
             return Err(Ignored::Malformed(format!("{topic}: empty payload")));
         }
-        let bytes = if data.is_null() {
-            0
-        } else {
-            value_bytes(&data)
-        };
         let view = self.plcs.entry(plc.to_string()).or_default();
         let was_online = view.online();
         let before = view.bytes;
-        let stamped = Stamped {
+        let stamped = data.clone().map(|data| Stamped {
             recv_ms,
-            data: data.clone(),
+            data,
             bytes,
-        };
-        match kind {
-            Kind::State | Kind::ExecInfo | Kind::Net => {
-                view.set_latest(kind, (!data.is_null()).then_some(stamped));
+        });
+        match (kind, stamped) {
+            (Kind::State | Kind::ExecInfo | Kind::Net, stamped) => {
+                view.set_latest(kind, stamped);
             }
-            Kind::Io | Kind::Event => {
+            (Kind::Io | Kind::Event, Some(stamped)) => {
                 let (n, _) = view.push_history(kind, stamped);
                 self.dropped.history += n;
             }
+            (Kind::Io | Kind::Event, None) => {}
         }
         let online = view.online();
         self.bytes = self.bytes + view.bytes - before;
@@ -402,6 +436,7 @@ impl Fleet {
             kind,
             recv_ms,
             data,
+            bytes,
             list_changed,
         })
     }
@@ -440,13 +475,12 @@ impl Fleet {
     }
 
     /// The PLC ids with their `online` flag, in id order.
-    pub fn list(&self) -> Value {
-        Value::Array(
-            self.plcs
-                .iter()
-                .map(|(id, v)| json!({"id": id, "online": v.online()}))
-                .collect(),
-        )
+    pub fn list(&self) -> Vec<Listed> {
+        let listed = |(id, v): (&String, &PlcView)| Listed {
+            id: id.clone(),
+            online: v.online(),
+        };
+        self.plcs.iter().map(listed).collect()
     }
 
     /// What is known about one PLC.
@@ -455,38 +489,86 @@ impl Fleet {
     }
 
     /// Everything a browser needs to draw one PLC at once.
-    pub fn snapshot(&self, plc: &str) -> Value {
-        let mut m = Map::new();
-        m.insert("plc".into(), Value::String(plc.to_string()));
+    pub fn snapshot<'a>(&'a self, plc: &'a str) -> Snapshot<'a> {
         let view = self.plcs.get(plc);
-        let one = |s: Option<&Stamped>| serde_json::to_value(s).unwrap_or(Value::Null);
-        m.insert("state".into(), one(view.and_then(|v| v.state.as_ref())));
-        m.insert(
-            "exec_info".into(),
-            one(view.and_then(|v| v.exec_info.as_ref())),
-        );
-        m.insert("net".into(), one(view.and_then(|v| v.net.as_ref())));
-        let many = |q: Option<&VecDeque<Stamped>>| {
-            q.map_or(Value::Array(Vec::new()), |q| {
-                serde_json::to_value(q).unwrap_or(Value::Array(Vec::new()))
-            })
-        };
-        m.insert("io".into(), many(view.map(|v| &v.io)));
-        m.insert("events".into(), many(view.map(|v| &v.events)));
-        Value::Object(m)
+        Snapshot {
+            plc,
+            state: view.and_then(|v| v.state.as_ref()),
+            exec_info: view.and_then(|v| v.exec_info.as_ref()),
+            net: view.and_then(|v| v.net.as_ref()),
+            io: view.map_or(&NO_HISTORY, |v| &v.io),
+            events: view.map_or(&NO_HISTORY, |v| &v.events),
+        }
     }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use cetratus_proto::{Slot, StateMsg, Status};
+    use serde_json::json;
+
+    /// A payload the running PLC published (the protocol's golden files).
+    fn golden(name: &str) -> Value {
+        let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("../proto/tests/golden")
+            .join(name);
+        let text = std::fs::read_to_string(&path).expect("a golden file");
+        serde_json::from_str(&text).expect("golden JSON")
+    }
+
+    fn bytes(v: &Value) -> Vec<u8> {
+        v.to_string().into_bytes()
+    }
 
     fn state(primary: &str, status: &str) -> Vec<u8> {
-        json!({"online": true, "primary": primary, "status": status,
-               "programs": {"A": {"name": "v", "version": "1", "hash": "ab"}, "B": null},
-               "cycle": {"cycles": 3}})
-        .to_string()
-        .into_bytes()
+        let mut v = golden("state.json");
+        v["primary"] = json!(primary);
+        v["status"] = json!(status);
+        bytes(&v)
+    }
+
+    /// An `io` message whose `time_ms` is `t`, with a field of `pad` bytes this build ignores.
+    fn io(t: u64, pad: usize) -> Vec<u8> {
+        let mut v = golden("io.json");
+        v["time_ms"] = json!(t);
+        v["samples"] = json!([]);
+        if pad > 0 {
+            v["pad"] = json!("x".repeat(pad));
+        }
+        bytes(&v)
+    }
+
+    fn event(cycle: u64, message: &str) -> Vec<u8> {
+        bytes(&json!({"kind": "x", "message": message, "cycle": cycle}))
+    }
+
+    fn state_msg(s: Option<&Stamped>) -> Option<&StateMsg> {
+        match s.map(|s| &s.data) {
+            Some(Payload::State(StatePayload::Online(m))) => Some(m),
+            _ => None,
+        }
+    }
+
+    fn io_time(s: Option<&Stamped>) -> Option<u64> {
+        match s.map(|s| &s.data) {
+            Some(Payload::Io(m)) => Some(m.time_ms),
+            _ => None,
+        }
+    }
+
+    fn event_cycle(s: Option<&Stamped>) -> Option<u64> {
+        match s.map(|s| &s.data) {
+            Some(Payload::Event(e)) => e.cycle,
+            _ => None,
+        }
+    }
+
+    fn listed(id: &str, online: bool) -> Listed {
+        Listed {
+            id: id.into(),
+            online,
+        }
     }
 
     #[test]
@@ -499,12 +581,10 @@ mod tests {
         assert_eq!(u.kind, Kind::State);
         assert!(u.list_changed);
         let v = f.get("cell1").expect("kept");
-        assert_eq!(
-            v.state.as_ref().map(|s| &s.data["status"]),
-            Some(&json!("idle"))
-        );
+        let m = state_msg(v.state.as_ref()).expect("an online state");
+        assert_eq!((m.primary, m.status), (Slot::A, Status::Idle));
         assert!(v.online());
-        assert_eq!(f.list(), json!([{"id": "cell1", "online": true}]));
+        assert_eq!(f.list(), [listed("cell1", true)]);
     }
 
     #[test]
@@ -520,51 +600,43 @@ mod tests {
             .apply("cetratus/c/state", br#"{"online": false}"#, 3.0)
             .expect("taken");
         assert!(u.list_changed);
-        assert_eq!(f.list(), json!([{"id": "c", "online": false}]));
+        assert_eq!(f.list(), [listed("c", false)]);
     }
 
     #[test]
     fn io_history_is_bounded_and_keeps_the_newest() {
         let mut f = Fleet::new();
         for i in 0..IO_HISTORY + 10 {
-            let p = json!({"cycle": i, "inputs": {}, "outputs": {"A": {}, "B": null}, "dispatched": {}});
-            f.apply("cetratus/c/io", p.to_string().as_bytes(), i as f64)
+            f.apply("cetratus/c/io", &io(i as u64, 0), i as f64)
                 .expect("taken");
         }
         let io = &f.get("c").expect("kept").io;
         assert_eq!(io.len(), IO_HISTORY);
-        assert_eq!(io.front().map(|s| s.data["cycle"].clone()), Some(json!(10)));
-        assert_eq!(
-            io.back().map(|s| s.data["cycle"].clone()),
-            Some(json!(IO_HISTORY + 9))
-        );
+        assert_eq!(io_time(io.front()), Some(10));
+        assert_eq!(io_time(io.back()), Some(IO_HISTORY as u64 + 9));
     }
 
     #[test]
     fn io_history_is_bounded_in_bytes_too() {
         let mut f = Fleet::new();
-        let big = "x".repeat(100_000);
         for i in 0..100 {
-            let p = json!({"time_ms": i, "pad": big});
-            f.apply("cetratus/c/io", p.to_string().as_bytes(), 0.0)
+            f.apply("cetratus/c/io", &io(i, 100_000), 0.0)
                 .expect("taken");
         }
         let v = f.get("c").expect("kept");
-        let held: usize = v.io.iter().map(|s| s.data.to_string().len()).sum();
+        // A field this build passes over still counts: the bound is on what arrived.
+        let held: usize = v.io.iter().map(|s| s.bytes).sum();
         assert!(held <= IO_HISTORY_BYTES, "{held}");
-        assert!(v.io.len() >= IO_HISTORY_BYTES / 100_100, "{}", v.io.len());
-        assert_eq!(
-            v.io.back().map(|s| s.data["time_ms"].clone()),
-            Some(json!(99))
-        );
+        let each = v.io.back().map_or(1, |s| s.bytes);
+        assert!(v.io.len() + 1 >= IO_HISTORY_BYTES / each, "{}", v.io.len());
+        assert_eq!(io_time(v.io.back()), Some(99));
     }
 
     #[test]
     fn events_are_bounded() {
         let mut f = Fleet::new();
         for i in 0..EVENT_HISTORY + 5 {
-            let p = json!({"kind": "x", "message": i});
-            f.apply("cetratus/c/events", p.to_string().as_bytes(), 0.0)
+            f.apply("cetratus/c/events", &event(i as u64, "m"), 0.0)
                 .expect("taken");
         }
         assert_eq!(f.get("c").expect("kept").events.len(), EVENT_HISTORY);
@@ -593,22 +665,18 @@ mod tests {
         let mut f = Fleet::new();
         let pad = "e".repeat(50_000);
         for i in 0..100 {
-            let p = json!({"kind": "x", "message": pad, "cycle": i});
-            f.apply("cetratus/c/events", p.to_string().as_bytes(), i as f64)
+            f.apply("cetratus/c/events", &event(i, &pad), i as f64)
                 .expect("taken");
         }
         let v = f.get("c").expect("kept");
-        let held: usize = v.events.iter().map(|s| value_bytes(&s.data)).sum();
+        let held: usize = v.events.iter().map(|s| s.bytes).sum();
         assert!(held <= EVENT_HISTORY_BYTES, "{held}");
         assert!(
             v.events.len() >= EVENT_HISTORY_BYTES / 50_200,
             "{}",
             v.events.len()
         );
-        assert_eq!(
-            v.events.back().map(|s| s.data["cycle"].clone()),
-            Some(json!(99))
-        );
+        assert_eq!(event_cycle(v.events.back()), Some(99));
         assert_eq!(
             f.dropped().history as usize + v.events.len(),
             100,
@@ -621,13 +689,15 @@ mod tests {
         let mut f = Fleet::new();
         f.apply("cetratus/good/state", &state("A", "idle"), 0.0)
             .expect("taken");
-        let net = json!({"A": "n".repeat(3 << 20), "B": null}).to_string();
-        let info = json!({"A": {"marking": "m".repeat(3 << 20)}, "B": null}).to_string();
+        let net = bytes(&json!({"A": "n".repeat(3 << 20), "B": null}));
+        let mut info = golden("exec_info.json");
+        info[0]["first_cause"] = json!("m".repeat(3 << 20));
+        let info = bytes(&info);
         // Many ids, each with a drawing and figures of 3 MiB: far more than the fleet keeps.
         for i in 0..40 {
-            f.apply(&format!("cetratus/x{i}/net"), net.as_bytes(), 1.0)
+            f.apply(&format!("cetratus/x{i}/net"), &net, 1.0)
                 .expect("taken");
-            f.apply(&format!("cetratus/x{i}/exec_info"), info.as_bytes(), 1.0)
+            f.apply(&format!("cetratus/x{i}/exec_info"), &info, 1.0)
                 .expect("taken");
             assert!(f.bytes() <= FLEET_BYTES, "{} after {i}", f.bytes());
         }
@@ -643,9 +713,8 @@ mod tests {
     fn a_retained_net_replaced_many_times_holds_only_the_latest() {
         let mut f = Fleet::new();
         for i in 0..50 {
-            let net = json!({"A": format!("{i}{}", "n".repeat(2 << 20)), "B": null}).to_string();
-            f.apply("cetratus/c/net", net.as_bytes(), 0.0)
-                .expect("taken");
+            let net = json!({"A": format!("{i}{}", "n".repeat(2 << 20)), "B": null});
+            f.apply("cetratus/c/net", &bytes(&net), 0.0).expect("taken");
         }
         assert!(f.bytes() < 3 << 20, "{}", f.bytes());
         f.apply("cetratus/c/net", b"", 1.0).expect("taken");
@@ -653,24 +722,39 @@ mod tests {
     }
 
     #[test]
-    fn exec_info_pair_is_normalised_to_an_object() {
+    fn exec_info_is_the_protocols_pair_and_nothing_else() {
         let mut f = Fleet::new();
-        let u = f
-            .apply("cetratus/c/exec_info", br#"[{"cycles": 1}, null]"#, 0.0)
-            .expect("taken");
-        assert_eq!(u.data, json!({"A": {"cycles": 1}, "B": null}));
         let u = f
             .apply(
                 "cetratus/c/exec_info",
-                br#"{"A": {"cycles": 2}, "B": null}"#,
+                &bytes(&golden("exec_info.json")),
                 0.0,
             )
             .expect("taken");
-        assert_eq!(u.data["A"]["cycles"], json!(2));
-        assert!(matches!(
-            f.apply("cetratus/c/exec_info", b"[1]", 0.0),
-            Err(Ignored::Malformed(_))
-        ));
+        let Some(Payload::ExecInfo(pair)) = &u.data else {
+            panic!("exec_info: {:?}", u.data);
+        };
+        assert!(pair.get(Slot::A).is_some() && pair.get(Slot::B).is_none());
+        let sent = serde_json::to_value(&u.data).expect("JSON");
+        assert_eq!(
+            sent,
+            golden("exec_info.json"),
+            "the browser gets it as written"
+        );
+        for other in [
+            br#"{"A": {"cycles": 2}, "B": null}"#.as_slice(),
+            b"[1]",
+            b"[{\"cycles\": 1}, null]",
+        ] {
+            assert!(
+                matches!(
+                    f.apply("cetratus/c/exec_info", other, 0.0),
+                    Err(Ignored::Malformed(_))
+                ),
+                "{}",
+                String::from_utf8_lossy(other)
+            );
+        }
     }
 
     #[test]
@@ -684,20 +768,23 @@ mod tests {
         ] {
             assert_eq!(f.apply(t, b"{}", 0.0), Err(Ignored::NotOurs), "{t}");
         }
-        assert_eq!(f.list(), json!([]));
+        assert!(f.list().is_empty());
     }
 
     #[test]
     fn malformed_payload_is_refused_without_creating_the_plc() {
         let mut f = Fleet::new();
-        assert!(matches!(
-            f.apply("cetratus/c/state", b"not json", 0.0),
-            Err(Ignored::Malformed(_))
-        ));
-        assert!(matches!(
-            f.apply("cetratus/c/io", b"[1,2]", 0.0),
-            Err(Ignored::Malformed(_))
-        ));
+        for (topic, payload) in [
+            ("cetratus/c/state", b"not json".as_slice()),
+            ("cetratus/c/io", b"[1,2]"),
+            ("cetratus/c/state", br#"{"online": true, "primary": "C"}"#),
+            ("cetratus/c/events", b"{}"),
+        ] {
+            assert!(
+                matches!(f.apply(topic, payload, 0.0), Err(Ignored::Malformed(_))),
+                "{topic}"
+            );
+        }
         assert!(f.get("c").is_none());
     }
 
@@ -707,7 +794,8 @@ mod tests {
         f.apply("cetratus/c/net", br#"{"A": "<svg/>", "B": null}"#, 0.0)
             .expect("taken");
         assert!(f.get("c").and_then(|v| v.net.as_ref()).is_some());
-        f.apply("cetratus/c/net", b"", 1.0).expect("taken");
+        let u = f.apply("cetratus/c/net", b"", 1.0).expect("taken");
+        assert_eq!(u.data, None);
         assert!(f.get("c").and_then(|v| v.net.as_ref()).is_none());
     }
 
@@ -716,30 +804,31 @@ mod tests {
         let mut f = Fleet::new();
         f.apply("cetratus/c/state", &state("B", "idle"), 5.0)
             .expect("taken");
-        f.apply("cetratus/c/io", br#"{"cycle": 1}"#, 6.0)
-            .expect("taken");
-        let s = f.snapshot("c");
+        f.apply("cetratus/c/io", &io(1, 0), 6.0).expect("taken");
+        let s = serde_json::to_value(f.snapshot("c")).expect("JSON");
         assert_eq!(s["plc"], json!("c"));
         assert_eq!(s["state"]["recv_ms"], json!(5.0));
         assert_eq!(s["state"]["data"]["primary"], json!("B"));
-        assert_eq!(s["io"][0]["data"]["cycle"], json!(1));
+        assert_eq!(s["io"][0]["data"]["time_ms"], json!(1));
         assert_eq!(s["exec_info"], Value::Null);
-        assert_eq!(f.snapshot("unknown")["io"], json!([]));
+        let unknown = serde_json::to_value(f.snapshot("unknown")).expect("JSON");
+        assert_eq!(unknown["io"], json!([]));
     }
 
     #[test]
     fn the_number_of_plcs_is_bounded() {
         let mut f = Fleet::new();
+        let e = event(0, "m");
         for i in 0..MAX_PLCS {
-            f.apply(&format!("cetratus/p{i}/events"), b"{}", 0.0)
+            f.apply(&format!("cetratus/p{i}/events"), &e, 0.0)
                 .expect("taken");
         }
         assert_eq!(
-            f.apply("cetratus/one-too-many/events", b"{}", 0.0),
+            f.apply("cetratus/one-too-many/events", &e, 0.0),
             Err(Ignored::TooManyPlcs)
         );
         // Known PLCs still update.
-        assert!(f.apply("cetratus/p0/events", b"{}", 0.0).is_ok());
+        assert!(f.apply("cetratus/p0/events", &e, 0.0).is_ok());
     }
 
     #[test]

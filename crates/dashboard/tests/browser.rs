@@ -95,6 +95,12 @@ struct FakePlc {
     request_id: Mutex<u64>,
 }
 
+/// A timing summary as the PLC publishes it, over `n` scans.
+fn timing(n: u64) -> Value {
+    json!({"count": n, "last_ns": 3100, "max_ns": 11200, "mean_ns": 2900, "min_ns": 2000,
+           "p50_ns": 2800, "p99_ns": 5000})
+}
+
 fn program(name: &str, version: &str) -> Value {
     json!({"name": name, "version": version, "hash": "41aa0b9c3d2e"})
 }
@@ -114,7 +120,8 @@ impl FakePlc {
                 "A": if s.a_loaded { program("vernadat", "1.0.0") } else { Value::Null },
                 "B": if s.b_loaded { program("vernadat", "1.1.0") } else { Value::Null },
             },
-            "cycle": {"cycles": s.tick * 20, "scan_us": {"last": 3.1, "mean": 2.9, "p99": 5.0, "max": 11.2}, "overruns": 0},
+            "cycle": {"cycle": timing(s.tick * 20), "cycles": s.tick * 20, "latency": timing(s.tick * 20),
+                      "overruns": 0, "scan": timing(s.tick * 20), "time_ms": s.tick * 200, "update": null},
         })
     }
 
@@ -169,8 +176,7 @@ impl FakePlc {
         };
         let ea = a_loaded.then(|| self.exec_info("A", &self.a, role("A"), k));
         let eb = b_loaded.then(|| self.exec_info("B", &self.b, role("B"), k));
-        self.publish("exec_info", false, json!({"A": ea, "B": eb}))
-            .await;
+        self.publish("exec_info", false, json!([ea, eb])).await;
         // The runtime's shape (crates/cli's node): the Monitor's records since the last
         // publish as bit masks over `names`, PLC time in ms; plus `unix_ms` for the latency.
         let names_in = ["PE", "FCM1", "FPM1"];

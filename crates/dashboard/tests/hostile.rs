@@ -82,11 +82,12 @@ fn hostile_svg() -> String {
 async fn a_hostile_retained_net_neither_restyles_the_page_nor_runs_script() {
     require_chromium();
     let broker = Mosquitto::start();
-    let state = json!({
-        "online": true, "primary": "A", "status": "idle",
-        "programs": {"A": {"name": "evil", "version": "1", "hash": "ab"}, "B": null},
-        "cycle": {"cycles": 1},
-    });
+    // A state as the PLC publishes it (the protocol's golden file), naming the evil program.
+    let golden =
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../proto/tests/golden/state.json");
+    let mut state: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(golden).expect("state.json")).expect("JSON");
+    state["programs"]["A"] = json!({"name": "evil", "version": "1", "hash": "ab"});
     publish_retained(
         &broker,
         &[

@@ -5,6 +5,12 @@
 //! alphabetically; `state` was serialised from a struct and keeps that struct's order. The one
 //! exception is `exec_info`'s `program`, which shares [`ProgramInfo`] (name, version, hash) with
 //! `state` and so comes out in that order instead of the sorted one: same JSON, other bytes.
+//!
+//! What a PLC is sent (a command's arguments) is read strictly: an unknown field is refused, so a
+//! misspelt argument is never taken for its default. What a PLC publishes (`state`, `exec_info`,
+//! `io`, `net`, `events`, replies) is read leniently: a field a newer PLC adds is passed over, and
+//! an event kind it adds is kept as it is ([`crate::Open`]), so that PLCs of several versions can
+//! share a broker, a dashboard and a command line.
 
 use std::collections::BTreeMap;
 use std::fmt;
@@ -132,7 +138,6 @@ pub type Signals = BTreeMap<String, SignalValue>;
 
 /// A program's identity: in `state`'s `programs` and in `exec_info`'s `program`.
 #[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
 pub struct ProgramInfo {
     /// Name.
     pub name: String,
@@ -144,7 +149,6 @@ pub struct ProgramInfo {
 
 /// The programs in A and B; an empty container is `null`.
 #[derive(Clone, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
 pub struct Programs {
     /// Container A.
     #[serde(rename = "A")]
@@ -166,7 +170,6 @@ impl Programs {
 
 /// Timing statistics of a duration, in nanoseconds (all zero before the first sample).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
 pub struct TimingSummary {
     /// Samples recorded.
     pub count: u64,
@@ -186,7 +189,6 @@ pub struct TimingSummary {
 
 /// The `cycle` object of `state`: the scan loop's figures.
 #[derive(Clone, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
 pub struct CycleFigures {
     /// Start-to-start time of the scan loop.
     pub cycle: TimingSummary,
@@ -207,7 +209,6 @@ pub struct CycleFigures {
 /// The `control` object of `state`: what the PLC's control plane turned away or dropped since it
 /// started, so that a flood shows where it is seen and not only in the PLC's log.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
 pub struct ControlCounters {
     /// Commands answered `busy` because a queue was full, in entries or in bytes.
     pub commands_busy: u64,
@@ -224,7 +225,6 @@ pub struct ControlCounters {
 
 /// The retained `state` of a PLC that is online.
 #[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
 pub struct StateMsg {
     /// Always `true` here; see [`StatePayload::Offline`].
     pub online: bool,
@@ -281,12 +281,8 @@ impl<'de> Deserialize<'de> for StatePayload {
     fn deserialize<D: Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
         let v = Value::deserialize(d)?;
         match v.get("online") {
-            Some(Value::Bool(false)) => match v.as_object().map(|o| o.len()) {
-                Some(1) => Ok(StatePayload::Offline),
-                _ => Err(de::Error::custom(
-                    "an offline state must be exactly {\"online\": false}",
-                )),
-            },
+            // A newer PLC may say more about going offline; this build reads the flag.
+            Some(Value::Bool(false)) => Ok(StatePayload::Offline),
             _ => serde_json::from_value(v)
                 .map(StatePayload::Online)
                 .map_err(de::Error::custom),
@@ -299,7 +295,6 @@ impl<'de> Deserialize<'de> for StatePayload {
 
 /// A validation verdict on a candidate program.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
 pub struct Verdict {
     /// Figures that go with it, by name.
     pub figures: BTreeMap<String, f64>,
@@ -313,7 +308,6 @@ pub struct Verdict {
 
 /// `program_exec_info` of one container, as published.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
 pub struct ExecInfo {
     /// The container.
     pub container: Slot,
@@ -356,7 +350,6 @@ pub struct ExecInfo {
 
 /// What one field device's inputs were worth in the last cycle (docs/io.md, *Quality*).
 #[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
 pub struct InputQuality {
     /// The device's name in the I/O configuration.
     pub device: String,
@@ -385,7 +378,6 @@ impl ExecInfoMsg {
 
 /// The signal names of `io`, in I/O-map order (bit 0 of a sample's masks is the first name).
 #[derive(Clone, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
 pub struct IoNames {
     /// Input names.
     pub inputs: Vec<String>,
@@ -543,7 +535,6 @@ impl From<Sample> for SampleWire {
 
 /// The `io` message: the latest images by name and every cycle since the previous `io`.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
 pub struct IoMsg {
     /// Outputs that reached the Dispatcher.
     pub dispatched: Signals,
@@ -570,7 +561,6 @@ pub struct IoMsg {
 
 /// The retained `net` message: each container's net as SVG, `null` when empty.
 #[derive(Clone, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
 pub struct NetMsg {
     /// Container A's net.
     #[serde(rename = "A")]
@@ -586,7 +576,6 @@ pub struct NetMsg {
 /// An `events` message. Runtime events carry `cycle` and `time_us`; the control plane's own
 /// (`command_rejected`, `command_received`, and `refused` from the command preparer) do not.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
 pub struct EventMsg {
     /// Cycle index at which it happened (runtime events only).
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -609,7 +598,6 @@ pub struct EventMsg {
 
 /// The `error` object of a failed reply.
 #[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
 pub struct ErrorBody {
     /// Machine-readable reason.
     pub code: ErrorCode,
@@ -619,7 +607,6 @@ pub struct ErrorBody {
 
 /// The `result` of an accepted `load`, `substitute`, `remove`, `abort` or `reset`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
 pub struct Accepted {
     /// Always `true`.
     pub accepted: bool,
@@ -627,7 +614,6 @@ pub struct Accepted {
 
 /// A reply to a command, on the response topic (or the payload's `reply_to`).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
 pub struct Reply {
     /// The command's `correlation` field, echoed when it had one (any JSON, `null` included).
     #[serde(

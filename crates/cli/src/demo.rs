@@ -131,8 +131,14 @@ fn live(args: &DemoArgs, files: &DemoFiles) -> anyhow::Result<()> {
     let mut trust = files.trust.clone();
     trust.merge(&local.trust);
     let period_us = plc.primary_program().scan_period().as_micros() as u64;
-    let (link, services) =
-        crate::mqtt_args::start_services(&args.mqtt, &local, &args.http, true, false)?;
+    let (link, services) = crate::mqtt_args::start_services(
+        &args.mqtt,
+        &local,
+        crate::mqtt_args::Wanted {
+            dashboard: Some(&args.http),
+            announce: false,
+        },
+    )?;
     let load = cetratus_node::load::LoadPolicy {
         trust,
         unsigned: cetratus_program::Unsigned::allowed_if(local.allow_unsigned),

@@ -105,15 +105,21 @@ impl Services {
     }
 }
 
+/// What a node serves beside its MQTT client.
+pub struct Wanted<'a> {
+    /// The dashboard's address (`--http`), when it is served.
+    pub dashboard: Option<&'a str>,
+    /// Whether the broker's URL and the dashboard's login link are printed on stderr.
+    pub announce: bool,
+}
+
 /// Starts MQTT (the embedded broker or a plant broker's client) and the dashboard when asked.
 /// Called before the state directory is opened, so that a taken port stops a start before it
 /// leaves any trace.
 pub fn start_services(
     mqtt: &MqttArgs,
     local: &LocalConfig,
-    http: &str,
-    dashboard: bool,
-    announce: bool,
+    wanted: Wanted<'_>,
 ) -> anyhow::Result<(MctLink, Services)> {
     let mut config = mqtt.config(local)?;
     config.publish_period = std::time::Duration::from_millis(200);
@@ -147,10 +153,10 @@ pub fn start_services(
                 )
             }
         };
-    let http: SocketAddr = http
-        .parse()
-        .with_context(|| format!("--http `{http}`: expected an address such as 127.0.0.1:8080"))?;
-    let dashboard = if dashboard {
+    let dashboard = if let Some(http) = wanted.dashboard {
+        let http: SocketAddr = http.parse().with_context(|| {
+            format!("--http `{http}`: expected an address such as 127.0.0.1:8080")
+        })?;
         Some(cetratus_dashboard::serve(
             cetratus_dashboard::DashboardConfig {
                 http,
@@ -165,7 +171,7 @@ pub fn start_services(
     } else {
         None
     };
-    if announce {
+    if wanted.announce {
         match &dashboard {
             Some(d) => eprintln!(
                 "MQTT {broker_url} (topics cetratus/{plc_id}/…), dashboard {}",

@@ -12,7 +12,6 @@ use cetratus_program::Program;
 use cetratus_runtime::{CycleFigures, Plc};
 
 use crate::summary::{print_event, print_summary, Summary, MAX_EVENTS};
-use cetratus_twin::{parse_defect_rate, TwinSettings};
 
 use crate::parse_duration_us;
 
@@ -36,16 +35,8 @@ pub struct RunArgs {
     /// In real time, how many times faster than the wall clock the program clock runs.
     #[arg(long, default_value_t = 1.0)]
     speed: f64,
-    /// Seed of the twin's randomness (jitter, which parts are defective).
-    #[arg(long, default_value_t = 1)]
-    seed: u64,
-    /// Share of defective parts the Festo station is supplied: `5%`, `0.05` or `50000ppm`.
-    #[arg(long = "defect-rate", value_name = "RATE", default_value = "0", value_parser = parse_defect_rate)]
-    defect_ppm: u32,
-    /// Press a twin button at a time, e.g. `START@0.1s` (repeatable). The Festo station gets
-    /// `RESET@100ms` and `START@500ms` when none is given.
-    #[arg(long = "press")]
-    press: Vec<String>,
+    #[command(flatten)]
+    plant: crate::twin_cmd::PlantArgs,
     /// Write the I/O trace: `.csv` or `.json`.
     #[arg(long)]
     trace: Option<PathBuf>,
@@ -111,10 +102,7 @@ pub fn run(args: &RunArgs) -> anyhow::Result<()> {
         (None, true) => bail!("a virtual run needs a length: add --for, e.g. --for 1h"),
         (None, false) => u64::MAX,
     };
-    let settings = TwinSettings {
-        seed: args.seed,
-        defect_ppm: args.defect_ppm,
-    };
+    let settings = args.plant.settings();
     let script = Script::parse(&args.at)?;
     let local = args.config.load()?;
     let trust = match &args.trust {
@@ -157,12 +145,12 @@ pub fn run(args: &RunArgs) -> anyhow::Result<()> {
     // Real-time runs are watched and commanded over MQTT, with the dashboard beside them; their
     // ports are taken before anything is written, so a start that cannot bind leaves no trace.
     let mqtt = if !args.virtual_time && !args.no_mct {
+        let wanted = crate::mqtt_args::Wanted {
+            dashboard: (!args.no_dashboard).then_some(args.http.as_str()),
+            announce: !args.json,
+        };
         Some(crate::mqtt_args::start_services(
-            &args.mqtt,
-            &local,
-            &args.http,
-            !args.no_dashboard,
-            !args.json,
+            &args.mqtt, &local, wanted,
         )?)
     } else {
         None
@@ -220,7 +208,7 @@ pub fn run(args: &RunArgs) -> anyhow::Result<()> {
     } else {
         0
     };
-    crate::run_io::press(&mut io, &args.press, base_us)?;
+    crate::run_io::press(&mut io, &args.plant.press, base_us)?;
     crate::run_io::admit(&io, &mut plc);
     let load = cetratus_node::load::LoadPolicy {
         trust: trust.clone(),

@@ -51,26 +51,40 @@ pub struct ServeArgs {
     /// Print the closing summary as one JSON object.
     #[arg(long)]
     json: bool,
-    /// Seed of the twin's randomness.
+    #[command(flatten)]
+    plant: PlantArgs,
+}
+
+/// What a twin is given from the command line, by `run` and by `twin serve`.
+#[derive(clap::Args, Debug)]
+pub struct PlantArgs {
+    /// Seed of the twin's randomness (jitter, which parts are defective).
     #[arg(long, default_value_t = 1)]
-    seed: u64,
-    /// Share of defective parts the Festo station is supplied.
+    pub seed: u64,
+    /// Share of defective parts the Festo station is supplied: `5%`, `0.05` or `50000ppm`.
     #[arg(long = "defect-rate", value_name = "RATE", default_value = "0", value_parser = parse_defect_rate)]
-    defect_ppm: u32,
+    pub defect_ppm: u32,
     /// Press a twin button at a time, e.g. `START@0.5s` (repeatable); the Festo station gets
     /// `RESET@100ms` and `START@500ms` when none is given.
     #[arg(long = "press")]
-    press: Vec<String>,
+    pub press: Vec<String>,
+}
+
+impl PlantArgs {
+    /// The twin's settings.
+    pub fn settings(&self) -> TwinSettings {
+        TwinSettings {
+            seed: self.seed,
+            defect_ppm: self.defect_ppm,
+        }
+    }
 }
 
 /// Runs `cetratus twin`.
 pub fn run(args: &TwinArgs) -> anyhow::Result<()> {
     let TwinCommand::Serve(a) = &args.command;
     let kind: TwinKind = a.twin.parse().map_err(|e| anyhow::anyhow!("{e}"))?;
-    let settings = TwinSettings {
-        seed: a.seed,
-        defect_ppm: a.defect_ppm,
-    };
+    let settings = a.plant.settings();
     let mut twin = kind
         .configure(&settings)
         .map_err(|e| anyhow::anyhow!("{kind}: {e}"))?;
@@ -88,7 +102,7 @@ pub fn run(args: &TwinArgs) -> anyhow::Result<()> {
         cetratus_io::opcua::config::parse_url(url).map_err(|e| anyhow::anyhow!("--opcua: {e}"))?;
     }
     let security = a.security.resolve(a.opcua.is_some())?;
-    cetratus_node::script::press_buttons(&mut twin, &a.press, 0)?;
+    cetratus_node::script::press_buttons(&mut twin, &a.plant.press, 0)?;
     let until_us = match &a.for_ {
         Some(d) => parse_duration_us(d)?,
         None => u64::MAX,

@@ -107,11 +107,7 @@ impl VerifyingKeyFile {
 
     /// Reads a public key file.
     pub fn load(path: &Path) -> Result<Self, PackageError> {
-        let label = path.display().to_string();
-        let text = std::fs::read_to_string(path).map_err(|source| PackageError::Io {
-            path: label.clone(),
-            source,
-        })?;
+        let (text, label) = read_key_file(path)?;
         Self::parse(&text, &label)
     }
 
@@ -243,13 +239,9 @@ impl KeyPair {
 
     /// Reads a secret key file.
     pub fn load(path: &Path) -> Result<Self, PackageError> {
-        let label = path.display().to_string();
         // `read_to_string` sizes its buffer from the file's length, so the text is read into one
         // allocation, which is wiped on drop; the fields borrow from it rather than copy it.
-        let text = std::fs::read_to_string(path).map_err(|source| PackageError::Io {
-            path: label.clone(),
-            source,
-        })?;
+        let (text, label) = read_key_file(path)?;
         let text = Zeroizing::new(text);
         let fields = key_fields(&text, &label, SECRET_HEADER)?;
         let seed = field_bytes::<32>(&fields, "ed25519-seed", &label)?;
@@ -363,6 +355,18 @@ fn check_key_id(
             ),
         )),
         None => Err(key_err(label, "no `key-id` line")),
+    }
+}
+
+/// A key file's text and the path as errors name it.
+fn read_key_file(path: &Path) -> Result<(String, String), PackageError> {
+    let label = path.display().to_string();
+    match std::fs::read_to_string(path) {
+        Ok(text) => Ok((text, label)),
+        Err(source) => Err(PackageError::Io {
+            path: label,
+            source,
+        }),
     }
 }
 

@@ -140,6 +140,29 @@ enum What {
     },
 }
 
+/// The dashboard beside the flooded PLC, as `cetratus run` starts it, with one account for the
+/// login flood to get wrong.
+fn flood_dashboard(broker: &str) -> Result<harness::BesideParts, harness::BenchError> {
+    let hash = cetratus_dashboard::hash_password("bench-secret")?;
+    let d = cetratus_dashboard::serve(cetratus_dashboard::DashboardConfig {
+        http: std::net::SocketAddr::from(([127, 0, 0, 1], 0)),
+        broker_url: broker.to_string(),
+        user: None,
+        password: None,
+        signer: None,
+        access: cetratus_dashboard::AccessConfig {
+            accounts: vec![cetratus_dashboard::Account {
+                name: "ops".into(),
+                password_hash: hash,
+            }],
+            ..cetratus_dashboard::AccessConfig::default()
+        },
+        tls: None,
+    })?;
+    let addr = d.local_addr();
+    Ok((Box::new(d), Some((addr, "ops".to_string()))))
+}
+
 /// Runs `cetratus bench`.
 pub fn run(args: &BenchArgs) -> anyhow::Result<()> {
     if let Some(What::Opcua(a)) = &args.what {
@@ -213,35 +236,13 @@ pub fn run(args: &BenchArgs) -> anyhow::Result<()> {
     }) = &args.what
     {
         let kinds = harness::FloodKind::list(kinds).map_err(|e| anyhow::anyhow!("{e}"))?;
-        // The dashboard beside the PLC, as `cetratus run` starts it, with one account for the
-        // login flood to get wrong.
-        let dashboard = |broker: &str| -> Result<harness::BesideParts, harness::BenchError> {
-            let hash = cetratus_dashboard::hash_password("bench-secret")?;
-            let d = cetratus_dashboard::serve(cetratus_dashboard::DashboardConfig {
-                http: std::net::SocketAddr::from(([127, 0, 0, 1], 0)),
-                broker_url: broker.to_string(),
-                user: None,
-                password: None,
-                signer: None,
-                access: cetratus_dashboard::AccessConfig {
-                    accounts: vec![cetratus_dashboard::Account {
-                        name: "ops".into(),
-                        password_hash: hash,
-                    }],
-                    ..cetratus_dashboard::AccessConfig::default()
-                },
-                tls: None,
-            })?;
-            let addr = d.local_addr();
-            Ok((Box::new(d), Some((addr, "ops".to_string()))))
-        };
         let out = harness::flood(
             parse_duration_us(for_)?,
             parse_duration_us(period)?,
             parse_duration_us(slice)?,
             *rt,
             &kinds,
-            &dashboard,
+            &flood_dashboard,
         )
         .map_err(|e| anyhow::anyhow!("{e}"))?;
         return print(&out, *json || args.json);

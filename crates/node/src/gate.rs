@@ -106,6 +106,35 @@ fn explore(net: &Net, marking: &[u32], policy: &GatePolicy, deadline: Instant) -
     check(&net, &opts)
 }
 
+/// The invariants the candidate's net changes: its own, and the running program's carried over
+/// to the new net.
+fn broken_invariants(primary: &Program, candidate: &Program) -> Vec<String> {
+    let cn = candidate.net();
+    let mut broken = Vec::new();
+    for inv in candidate.invariants() {
+        if let Some((t, _)) = inv.first_breaking_transition(cn) {
+            broken.push(format!(
+                "the candidate's invariant `{}` is changed by {}",
+                inv.expr(),
+                cn.transition(t).id
+            ));
+        }
+    }
+    for inv in primary.invariants() {
+        let Some(on_new) = inv.on_net(cn) else {
+            continue;
+        };
+        if let Some((t, _)) = on_new.first_breaking_transition(cn) {
+            broken.push(format!(
+                "the running program's invariant `{}` is changed by {} in the new net",
+                inv.expr(),
+                cn.transition(t).id
+            ));
+        }
+    }
+    broken
+}
+
 /// Runs the gate on `update`, prepared against the primary of `ctx`.
 pub fn run(ctx: &UpdateContext, update: &PreparedUpdate, policy: &GatePolicy) -> GateOutcome {
     let t0 = Instant::now();
@@ -167,28 +196,7 @@ pub fn run(ctx: &UpdateContext, update: &PreparedUpdate, policy: &GatePolicy) ->
             ),
         ));
     }
-    let mut broken = Vec::new();
-    for inv in candidate.invariants() {
-        if let Some((t, _)) = inv.first_breaking_transition(cn) {
-            broken.push(format!(
-                "the candidate's invariant `{}` is changed by {}",
-                inv.expr(),
-                cn.transition(t).id
-            ));
-        }
-    }
-    for inv in primary.invariants() {
-        let Some(on_new) = inv.on_net(cn) else {
-            continue;
-        };
-        if let Some((t, _)) = on_new.first_breaking_transition(cn) {
-            broken.push(format!(
-                "the running program's invariant `{}` is changed by {} in the new net",
-                inv.expr(),
-                cn.transition(t).id
-            ));
-        }
-    }
+    let broken = broken_invariants(primary, candidate);
     if !broken.is_empty() {
         findings.push((
             policy.broken_invariants,

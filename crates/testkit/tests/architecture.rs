@@ -704,7 +704,6 @@ const LONG_FUNCTIONS: &[(&str, &str, usize, &str)] = &[
         "to be split",
     ),
     ("crates/analysis/src/report.rs", "fmt", 175, "to be split"),
-    ("crates/cli/src/bench.rs", "run", 135, "to be split"),
     ("crates/cli/src/run.rs", "run", 292, "to be split"),
     ("crates/io/src/config.rs", "build", 173, "to be split"),
     ("crates/io/src/opcua/config.rs", "build", 154, "to be split"),
@@ -717,7 +716,6 @@ const LONG_FUNCTIONS: &[(&str, &str, usize, &str)] = &[
     ),
     ("crates/net/src/export.rs", "write_svg", 153, "to be split"),
     ("crates/node/src/config.rs", "load", 195, "to be split"),
-    ("crates/node/src/gate.rs", "run", 137, "to be split"),
     (
         "crates/node/src/validate.rs",
         "validate",

@@ -11,10 +11,10 @@ use std::sync::mpsc::{Receiver, RecvTimeoutError, SyncSender, TrySendError};
 use std::sync::Arc;
 use std::time::Duration;
 
-use cetratus_proto::{ErrorBody, ErrorCode, EventMsg};
-use rumqttc::v5::mqttbytes::v5::{Packet, Publish};
+use cetratus_proto::{ErrorBody, ErrorCode, EventKind, EventMsg, Topics};
+use rumqttc::v5::mqttbytes::v5::{DisconnectReasonCode, Packet, Publish};
 use rumqttc::v5::mqttbytes::QoS;
-use rumqttc::v5::{AsyncClient, Event, EventLoop};
+use rumqttc::v5::{AsyncClient, ConnectionError, Event, EventLoop, StateError};
 
 use crate::broker::BROKER_MAX_PACKET;
 use crate::budget::{worth_logging, Budget, Permit};
@@ -102,13 +102,84 @@ pub const UNREAD_BYTES: usize = 2 * BROKER_MAX_PACKET as usize;
 /// Commands turned away unread that may wait for their `busy` answer.
 const TURNED_AWAY: usize = 1024;
 
+/// A connection the broker accepted and closed again within this time counts as taken.
+const SHORT_LIVED: Duration = Duration::from_secs(5);
+
+/// Three such connections within this time are another client taking the client id.
+const FLAPPING_WITHIN: Duration = Duration::from_secs(60);
+
+/// Watches for another client taking this client id: the broker says so (MQTT 5's *session
+/// taken over*), or, as Mosquitto does, closes the older connection without a word; then the
+/// sign is a connection it accepted and closed again at once, three times within a minute.
+#[derive(Default)]
+struct Takeovers {
+    /// When the current connection was accepted.
+    since: Option<std::time::Instant>,
+    /// When the latest short-lived connections ended, at most three.
+    short: std::collections::VecDeque<std::time::Instant>,
+    /// Takeovers seen.
+    count: u64,
+    /// Whether the latest is still to be told on `events`.
+    to_tell: bool,
+}
+
+impl Takeovers {
+    fn connected(&mut self) {
+        self.since = Some(std::time::Instant::now());
+    }
+
+    /// Whether the connection's end `e` is a takeover; counts it.
+    fn lost(&mut self, e: &ConnectionError) -> bool {
+        let said = matches!(
+            e,
+            ConnectionError::MqttState(StateError::ServerDisconnect {
+                reason_code: DisconnectReasonCode::SessionTakenOver,
+                ..
+            })
+        );
+        let now = std::time::Instant::now();
+        let closed = matches!(e, ConnectionError::MqttState(StateError::ConnectionAborted));
+        if closed && self.since.take().is_some_and(|t| now - t < SHORT_LIVED) {
+            self.short.push_back(now);
+        }
+        while self.short.len() > 3
+            || self
+                .short
+                .front()
+                .is_some_and(|t| now - *t > FLAPPING_WITHIN)
+        {
+            self.short.pop_front();
+        }
+        if !said && self.short.len() < 3 {
+            return false;
+        }
+        self.short.clear();
+        self.count += 1;
+        self.to_tell = true;
+        true
+    }
+
+    /// What the PLC says, naming its id and what to do.
+    fn message(&self, topics: &Topics) -> String {
+        format!(
+            "another client connected with this PLC's client id and the broker dropped this \
+             connection ({} times so far): does another PLC on this broker have the id `{}`? \
+             give each PLC its own id (--plc)",
+            self.count,
+            topics.plc()
+        )
+    }
+}
+
 pub(crate) async fn event_loop(
     mut eventloop: EventLoop,
     client: AsyncClient,
-    filter: String,
+    topics: Topics,
     inbound: std::sync::mpsc::Sender<Inbound>,
     shared: Arc<Shared>,
 ) {
+    let filter = topics.command_filter().to_string();
+    let mut takeovers = Takeovers::default();
     let unread = Budget::new(UNREAD_BYTES);
     let turned_away = Budget::new(TURNED_AWAY);
     // One warning per outage, not one per retry: a broker that stays away for an hour would
@@ -125,6 +196,17 @@ pub(crate) async fn event_loop(
                 shared.connected.store(true, Ordering::Release);
                 if std::mem::take(&mut outage_reported) {
                     tracing::info!("MQTT connection restored");
+                }
+                takeovers.connected();
+                if std::mem::take(&mut takeovers.to_tell) {
+                    let event = EventMsg {
+                        cycle: None,
+                        time_us: None,
+                        kind: EventKind::IdTakenOver.into(),
+                        message: takeovers.message(&topics),
+                        detail: serde_json::json!({"times": takeovers.count}),
+                    };
+                    try_event(&client, &shared, topics.events(), &event);
                 }
             }
             Ok(Event::Incoming(Packet::Publish(mut p))) => {
@@ -177,7 +259,11 @@ pub(crate) async fn event_loop(
                 if shared.stopping.load(Ordering::Acquire) {
                     return;
                 }
-                if outage_reported {
+                if takeovers.lost(&e) {
+                    if worth_logging(takeovers.count) {
+                        tracing::error!("{}", takeovers.message(&topics));
+                    }
+                } else if outage_reported {
                     tracing::debug!(error = %e, "MQTT connection still down; retrying in 1 s");
                 } else {
                     tracing::warn!(error = %e, "MQTT connection lost; retrying in 1 s");

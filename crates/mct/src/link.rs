@@ -509,7 +509,7 @@ pub fn spawn_mqtt(
     let loop_task = rt.spawn(event_loop(
         eventloop,
         client.clone(),
-        control.topics().command_filter().to_string(),
+        control.topics().clone(),
         inbound_tx,
         shared.clone(),
     ));

@@ -240,7 +240,7 @@ names! {
          reset, candidate_fault, primary_fault, update_discarded, deadlock_alarm, \
          transform_refused, state_trans_timeout, quarantine_started, substitute_timeout, \
          substituted, probation_started, accepted, reverted, stall_alarm, verdict, \
-         command_received or command_rejected" {
+         command_received, command_rejected or id_taken_over" {
         /// A cold start: A runs the configured program from M0.
         ColdStart = "cold_start",
         /// A warm start from a saved state.
@@ -289,6 +289,9 @@ names! {
         CommandReceived = "command_received",
         /// The control plane turned a command down before it reached the PLC.
         CommandRejected = "command_rejected",
+        /// The broker dropped the PLC's connection because another client connected with its
+        /// client id: two PLCs on one broker share an id.
+        IdTakenOver = "id_taken_over",
     }
 }
 
@@ -520,7 +523,7 @@ mod tests {
         reads_back(LinkState::ALL);
         reads_back(EventKind::ALL);
         reads_back(Verb::ALL);
-        assert_eq!(EventKind::ALL.len(), 24);
+        assert_eq!(EventKind::ALL.len(), 25);
     }
 
     #[test]

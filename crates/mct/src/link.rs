@@ -373,10 +373,18 @@ impl MqttHandle {
             }
         }
         if let Some(b) = self.broker.take() {
+            // The offline state reached the embedded broker before the disconnect; its
+            // subscribers get it from their sessions' queues, which a flood of what others send
+            // can keep the broker's threads from serving at once. A bounded moment for them,
+            // before the broker goes with the process.
+            std::thread::sleep(OFFLINE_GRACE);
             b.stop();
         }
     }
 }
+
+/// How long the embedded broker stays up after the offline state, for its subscribers to get it.
+pub const OFFLINE_GRACE: Duration = Duration::from_millis(300);
 
 /// How long a stop waits for each thread of the control plane (and the offline message) before it
 /// leaves it behind: a stop always ends, whatever is queued or whoever holds the broker.

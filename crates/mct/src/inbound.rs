@@ -115,7 +115,8 @@ const FLAPPING_WITHIN: Duration = Duration::from_secs(60);
 struct Takeovers {
     /// When the current connection was accepted.
     since: Option<std::time::Instant>,
-    /// When the latest short-lived connections ended, at most three.
+    /// When the latest short-lived connections ended within the last minute (fewer than three:
+    /// the third is a takeover, and clears them).
     short: std::collections::VecDeque<std::time::Instant>,
     /// Takeovers seen.
     count: u64,
@@ -142,11 +143,10 @@ impl Takeovers {
         if closed && self.since.take().is_some_and(|t| now - t < SHORT_LIVED) {
             self.short.push_back(now);
         }
-        while self.short.len() > 3
-            || self
-                .short
-                .front()
-                .is_some_and(|t| now - *t > FLAPPING_WITHIN)
+        while self
+            .short
+            .front()
+            .is_some_and(|t| now - *t > FLAPPING_WITHIN)
         {
             self.short.pop_front();
         }

@@ -424,14 +424,11 @@ impl Preparer {
                 self.exec_info(cmd.reply);
                 continue;
             }
-            if ctx.is_none() {
+            let Some(c) = ctx.as_ref() else {
                 let _ = self.out.send(Outgoing::Reply(
                     cmd.reply,
                     Err(refused("the PLC is starting; try again")),
                 ));
-                continue;
-            }
-            let Some(c) = ctx.as_ref() else {
                 continue;
             };
             let (mut extra, mut newer) = (None, None);

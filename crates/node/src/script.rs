@@ -326,9 +326,8 @@ pub fn press_buttons(
     presses: &[String],
     base_us: u64,
 ) -> Result<(), PressError> {
-    let starts: Vec<(&str, u64)> = plant.start_presses().to_vec();
     if presses.is_empty() {
-        for (button, at_us) in starts {
+        for &(button, at_us) in plant.start_presses() {
             plant
                 .press(button, at_us.saturating_add(base_us))
                 .map_err(|e| PressError {

@@ -805,7 +805,7 @@ impl Plant for FestoStation {
     }
 
     /// RESET (homing) at 100 ms and START at 500 ms, as an operator starts the station.
-    fn start_presses(&self) -> &[(&'static str, u64)] {
+    fn start_presses(&self) -> &'static [(&'static str, u64)] {
         &[("RESET", 100_000), ("START", 500_000)]
     }
 

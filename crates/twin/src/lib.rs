@@ -187,7 +187,7 @@ pub trait Plant: Send {
     }
     /// The presses an operator gives the plant to start it (button, virtual time in µs), when
     /// no others are asked for: none by default.
-    fn start_presses(&self) -> &[(&'static str, u64)] {
+    fn start_presses(&self) -> &'static [(&'static str, u64)] {
         &[]
     }
     /// Schedules an operator's press of `button` at virtual time `at_us`.
@@ -630,7 +630,7 @@ impl Plant for Twin {
     fn buttons(&self) -> &[&'static str] {
         self.plant().buttons()
     }
-    fn start_presses(&self) -> &[(&'static str, u64)] {
+    fn start_presses(&self) -> &'static [(&'static str, u64)] {
         self.plant().start_presses()
     }
     fn press(&mut self, button: &str, at_us: u64) -> Result<(), TwinError> {

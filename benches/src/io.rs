@@ -22,7 +22,7 @@ use cetratus_io::bank::{Bank, BankServer, ServeOptions, WriteFrom};
 use cetratus_io::config::IoConfig;
 use cetratus_io::field::{DeviceStatus, FieldIo};
 use cetratus_io::map::FieldMap;
-use cetratus_io::plant::PlantIo;
+use cetratus_io::plant::{Field, PlantDriver, PlantIo};
 use cetratus_io::TwinDriver;
 use cetratus_node::clock::MonotonicStopwatch;
 use cetratus_node::periodic::run_periodic;
@@ -242,8 +242,11 @@ impl Phase {
         let twin = TwinKind::Vernadat.build(1);
         let driver = TwinDriver::new(twin, program.inputs(), program.outputs())
             .map_err(|e| BenchError::from(e.to_string()))?;
-        let io =
-            PlantIo::new(Some(driver), field, None).ok_or_else(|| BenchError::from("no I/O"))?;
+        let mut drivers: Vec<Box<dyn PlantDriver>> = vec![Box::new(driver)];
+        if let Some(f) = Field::new(field, None) {
+            drivers.push(Box::new(f));
+        }
+        let io = PlantIo::new(drivers).ok_or_else(|| BenchError::from("no I/O"))?;
         let mut cycle = ScanCycle::new(Container::new(program, 0), MonotonicStopwatch::boxed());
         cycle.set_period_us(period_us);
         Ok(Phase {
@@ -271,9 +274,7 @@ impl Phase {
 
     fn figures(mut self) -> CycleFigures {
         self.cycle.set_timing(std::mem::take(&mut self.timing));
-        if let Some(f) = self.io.field_mut() {
-            f.stop();
-        }
+        self.io.stop();
         self.cycle.figures()
     }
 }
@@ -324,7 +325,7 @@ fn scan_latency(
         }
         round += 1;
     }
-    let device = on.io.field().and_then(|f| f.status().into_iter().next());
+    let device = on.io.report().io.and_then(|all| all.into_iter().next());
     Ok((off.figures(), on.figures(), rt, device))
 }
 

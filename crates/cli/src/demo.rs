@@ -8,13 +8,12 @@ use std::path::PathBuf;
 use std::sync::Arc;
 
 use anyhow::Context;
-use cetratus_io::TwinDriver;
-use cetratus_node::clock::MonotonicStopwatch;
 use cetratus_node::demo::{default_dir, diagram, prepare, scripted, table, DemoFiles};
-use cetratus_node::{Echo, Node, NodeOptions};
+use cetratus_node::plant::PlantSpec;
+use cetratus_node::services::Services;
+use cetratus_node::{Echo, NodeSpec, Notice, StateDir, TimeMode};
 use cetratus_program::Program;
-use cetratus_runtime::Plc;
-use cetratus_twin::{Plant, TwinKind};
+use cetratus_twin::TwinKind;
 
 /// Arguments of `cetratus demo`.
 #[derive(clap::Args, Debug)]
@@ -115,47 +114,66 @@ fn live(args: &DemoArgs, files: &DemoFiles) -> anyhow::Result<()> {
     use std::sync::atomic::{AtomicBool, Ordering};
 
     let program = Arc::new(Program::load(&files.program)?);
-    let io = TwinDriver::new(
-        TwinKind::Vernadat.build(1),
-        program.inputs(),
-        program.outputs(),
-    )?;
-    let mut plc = Plc::new(program, 0, MonotonicStopwatch::boxed());
     let local = args.config.load()?;
-    plc.set_limits(local.limits(plc.limits()));
     let until_us = match &args.for_ {
         Some(d) => crate::parse_duration_us(d)?,
         None => u64::MAX,
     };
+    let plc_id = args.mqtt.plc_id();
+    let plant = PlantSpec {
+        twin: Some(TwinKind::Vernadat),
+        settings: cetratus_twin::TwinSettings {
+            seed: 1,
+            defect_ppm: 0,
+        },
+        ..PlantSpec::default()
+    };
+    let mut spec = NodeSpec::new(program, &plc_id, local, plant);
     // The demo key, and whatever the local configuration trusts.
     let mut trust = files.trust.clone();
-    trust.merge(&local.trust);
-    let period_us = plc.primary_program().scan_period().as_micros() as u64;
-    let (link, services) = crate::mqtt_args::start_services(
-        &args.mqtt,
-        &local,
-        crate::mqtt_args::Wanted {
-            dashboard: Some(&args.http),
-            announce: false,
-        },
-    )?;
-    let load = cetratus_node::load::LoadPolicy {
-        trust,
-        unsigned: cetratus_program::Unsigned::allowed_if(local.allow_unsigned),
-        gate: local.gate,
+    trust.merge(&spec.local.trust);
+    spec.trust = Some(trust);
+    spec.time = TimeMode::Real {
+        speed: args.speed,
+        rt: false,
     };
-    let link = crate::mqtt_args::control_link(link, &plc, load.clone(), args.speed, period_us);
-    let speed = if args.speed.is_finite() && args.speed > 0.0 {
-        args.speed
-    } else {
-        1.0
+    spec.state = StateDir::Nowhere;
+    spec.mqtt = Some(args.mqtt.spec(&spec.local, Some(&args.http), false)?);
+    spec.echo = Some(Box::new(|e| {
+        if let Echo::Event(e) = e {
+            crate::summary::print_event(&e, false);
+        }
+    }));
+    let speed = spec.time.speed();
+    let mut say = |n: Notice| match n {
+        Notice::Warning(line) => eprintln!("warning: {line}"),
+        Notice::Started(line) | Notice::Info(line) => eprintln!("{line}"),
     };
-    let plc_id = args.mqtt.plc_id();
-    let broker_url = services.broker_url().to_string();
+    let mut node = spec.start(&mut say)?;
+    if let Some(services) = node.services() {
+        banner(files, services, speed, &plc_id);
+    }
+    let stop = Arc::new(AtomicBool::new(false));
+    let s = stop.clone();
+    ctrlc::set_handler(move || s.store(true, Ordering::Relaxed))
+        .context("cannot install the Ctrl-C handler")?;
+    node.run(until_us, &stop, &mut say);
+    let finished = node.finish()?;
+    println!(
+        "stopped: {} parts finished, {} faults",
+        finished.plant.parts_finished, finished.plant.twin_faults
+    );
+    Ok(())
+}
+
+/// What the live demo prints first: where the dashboard and the broker are, the packages, and
+/// what to try.
+fn banner(files: &DemoFiles, services: &Services, speed: f64, plc_id: &str) {
+    let broker_url = services.broker_url();
     println!(
         "Cetratus demo: the Vernadat cell runs in real time (speed {speed}) with its digital twin."
     );
-    if let Some(url) = services.dashboard_login_url()? {
+    if let Some(url) = services.companion_link() {
         println!("  dashboard   {url}");
         println!("              (a one-time link: it logs one browser in)");
     }
@@ -177,32 +195,4 @@ fn live(args: &DemoArgs, files: &DemoFiles) -> anyhow::Result<()> {
         files.u1_path.display()
     );
     println!("Ctrl-C stops.");
-    let stop = Arc::new(AtomicBool::new(false));
-    let s = stop.clone();
-    ctrlc::set_handler(move || s.store(true, Ordering::Relaxed))
-        .context("cannot install the Ctrl-C handler")?;
-    let opts = NodeOptions {
-        base_us: 0,
-        load: load.clone(),
-        record_trace: false,
-        progress_every: None,
-    };
-    let node = Node::new(plc, io, opts)
-        .with_twin_validation(local.validation, period_us)
-        .with_auto_substitute(local.auto_substitute.clone());
-    let mut node = node.with_link(link).with_echo(|e| {
-        if let Echo::Event(e) = e {
-            crate::summary::print_event(&e, false);
-        }
-    });
-    node.run_realtime(period_us, until_us, speed, &stop);
-    let finished = node.finish();
-    services.stop();
-    let (_plc, io, _report) = finished?;
-    println!(
-        "stopped: {} parts finished, {} faults",
-        io.plant().counters().get("parts_finished").unwrap_or(0),
-        io.plant().faults().len()
-    );
-    Ok(())
 }

@@ -19,8 +19,6 @@ mod package;
 mod package_inspect;
 mod progress;
 mod run;
-mod run_io;
-mod run_opcua;
 mod sim;
 mod state;
 mod summary;

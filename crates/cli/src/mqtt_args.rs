@@ -1,11 +1,11 @@
-//! The MQTT flags shared by `run`, `demo`, `mct` and the client commands.
+//! The MQTT flags shared by `run`, `demo`, `dashboard` and the client commands, and the dashboard
+//! as a node's companion.
 
 use std::net::SocketAddr;
 
 use anyhow::Context;
-use cetratus_mct::{BrokerChoice, MctLink, MqttConfig};
 use cetratus_node::config::LocalConfig;
-use cetratus_node::link::ControlLink;
+use cetratus_node::services::{BrokerAccess, Companion, CompanionStart, MqttSpec};
 
 /// Where MQTT goes and who this PLC is.
 #[derive(clap::Args, Debug, Clone)]
@@ -39,24 +39,25 @@ impl MqttArgs {
         })
     }
 
-    /// The MQTT configuration of a PLC node: broker accounts, plant-broker credentials and
-    /// operator keys come from the local configuration; the command line overrides credentials.
-    pub fn config(&self, local: &LocalConfig) -> anyhow::Result<MqttConfig> {
-        let mut c = MqttConfig::new(&self.plc_id());
-        let credentials = self
-            .user
-            .clone()
-            .map(|u| (u, self.password.clone().unwrap_or_default()))
-            .or_else(|| local.credentials.clone());
-        c.broker = BrokerChoice::from_cli(
-            self.mqtt.as_deref(),
-            self.broker.as_deref(),
-            local.users.clone(),
-            local.mqtt_tls.clone(),
-            credentials,
-        )?;
-        c.operator_keys = local.operators.clone();
-        Ok(c)
+    /// How a node reaches MQTT: the flags, the dashboard at `dashboard` (`--http`) when it is
+    /// served, and whether the broker's URL and the dashboard's link are announced.
+    pub fn spec(
+        &self,
+        local: &LocalConfig,
+        dashboard: Option<&str>,
+        announce: bool,
+    ) -> anyhow::Result<MqttSpec> {
+        let companion = match dashboard {
+            Some(http) => Some(dashboard_companion(http, local)?),
+            None => None,
+        };
+        Ok(MqttSpec {
+            embedded: self.mqtt.clone(),
+            broker: self.broker.clone(),
+            login: self.user.clone().map(|u| (u, self.password.clone())),
+            companion,
+            announce,
+        })
     }
 
     /// The broker URL clients (the dashboard, the CLI client) connect to.
@@ -74,120 +75,38 @@ impl MqttArgs {
     }
 }
 
-/// The MQTT client of a PLC node, and the dashboard beside it.
-pub struct Services {
-    mqtt: cetratus_mct::MqttHandle,
-    dashboard: Option<cetratus_dashboard::DashboardHandle>,
-    broker_url: String,
-}
+/// The dashboard as a node's companion.
+struct Dashboard(cetratus_dashboard::DashboardHandle);
 
-impl Services {
-    /// Stops both.
-    pub fn stop(self) {
-        // The dashboard first: it is a client of the embedded broker, and would report losing it.
-        if let Some(d) = self.dashboard {
-            d.stop();
-        }
-        self.mqtt.shutdown();
+impl Companion for Dashboard {
+    fn link(&self) -> Option<String> {
+        self.0.login_url().ok()
     }
 
-    /// The URL clients reach the broker at.
-    pub fn broker_url(&self) -> &str {
-        &self.broker_url
-    }
-
-    /// A new one-time login link to the dashboard, when it runs.
-    pub fn dashboard_login_url(&self) -> anyhow::Result<Option<String>> {
-        Ok(match &self.dashboard {
-            Some(d) => Some(d.login_url()?),
-            None => None,
-        })
+    fn stop(self: Box<Self>) {
+        self.0.stop();
     }
 }
 
-/// What a node serves beside its MQTT client.
-pub struct Wanted<'a> {
-    /// The dashboard's address (`--http`), when it is served.
-    pub dashboard: Option<&'a str>,
-    /// Whether the broker's URL and the dashboard's login link are printed on stderr.
-    pub announce: bool,
-}
-
-/// Starts MQTT (the embedded broker or a plant broker's client) and the dashboard when asked.
-/// Called before the state directory is opened, so that a taken port stops a start before it
-/// leaves any trace.
-pub fn start_services(
-    mqtt: &MqttArgs,
-    local: &LocalConfig,
-    wanted: Wanted<'_>,
-) -> anyhow::Result<(MctLink, Services)> {
-    let mut config = mqtt.config(local)?;
-    config.publish_period = std::time::Duration::from_millis(200);
-    let plc_id = config.plc_id.clone();
-    let (link, handle) = cetratus_mct::start(config)?;
-    // The embedded broker's own address: with `--mqtt 127.0.0.1:0` it picked its port itself.
-    let broker_url = match handle.broker_addr() {
-        Some(addr) if local.mqtt_tls.is_some() => format!("mqtts://{addr}"),
-        Some(addr) => format!("mqtt://{addr}"),
-        None => mqtt.client_url()?,
-    };
-    // The dashboard beside an embedded broker logs in with the login the broker drew for it, on
-    // its loopback port; beside a plant broker, with the PLC's own credentials.
-    let (dashboard_url, user, password) =
-        match (handle.broker_local_addr(), handle.dashboard_login()) {
-            (Some(addr), Some(login)) => (
-                format!("mqtt://{addr}"),
-                Some(login.user),
-                Some(login.password),
-            ),
-            _ => {
-                let creds = mqtt
-                    .user
-                    .clone()
-                    .map(|u| (u, mqtt.password.clone()))
-                    .or_else(|| local.credentials.clone().map(|(u, p)| (u, Some(p))));
-                (
-                    broker_url.clone(),
-                    creds.as_ref().map(|c| c.0.clone()),
-                    creds.and_then(|c| c.1),
-                )
-            }
-        };
-    let dashboard = if let Some(http) = wanted.dashboard {
-        let http: SocketAddr = http.parse().with_context(|| {
-            format!("--http `{http}`: expected an address such as 127.0.0.1:8080")
+/// Starts the dashboard on `http` once the node's broker is up, logging in as the node says.
+fn dashboard_companion(http: &str, local: &LocalConfig) -> anyhow::Result<CompanionStart> {
+    let http: SocketAddr = http
+        .parse()
+        .with_context(|| format!("--http `{http}`: expected an address such as 127.0.0.1:8080"))?;
+    let (access, tls) = (access_config(local), dashboard_tls(local));
+    Ok(Box::new(move |broker: &BrokerAccess| {
+        let handle = cetratus_dashboard::serve(cetratus_dashboard::DashboardConfig {
+            http,
+            broker_url: broker.companion_url.clone(),
+            user: broker.user.clone(),
+            password: broker.password.clone(),
+            signer: None,
+            access,
+            tls,
         })?;
-        Some(cetratus_dashboard::serve(
-            cetratus_dashboard::DashboardConfig {
-                http,
-                broker_url: dashboard_url,
-                user,
-                password,
-                signer: None,
-                access: access_config(local),
-                tls: dashboard_tls(local),
-            },
-        )?)
-    } else {
-        None
-    };
-    if wanted.announce {
-        match &dashboard {
-            Some(d) => eprintln!(
-                "MQTT {broker_url} (topics cetratus/{plc_id}/…), dashboard {}",
-                d.login_url()?
-            ),
-            None => eprintln!("MQTT {broker_url} (topics cetratus/{plc_id}/…)"),
-        }
-    }
-    Ok((
-        link,
-        Services {
-            mqtt: handle,
-            dashboard,
-            broker_url,
-        },
-    ))
+        let companion: Box<dyn Companion> = Box::new(Dashboard(handle));
+        Ok(companion)
+    }))
 }
 
 /// The dashboard's TLS certificate and key, from the `[dashboard]` section.
@@ -211,24 +130,4 @@ pub fn access_config(local: &LocalConfig) -> cetratus_dashboard::AccessConfig {
             .collect(),
         hosts: local.dashboard_hosts.clone(),
     }
-}
-
-/// The node's side of MQTT for `plc`. Snapshots go out about five times a second of wall time,
-/// whatever the speed.
-pub fn control_link(
-    link: MctLink,
-    plc: &cetratus_runtime::Plc,
-    load: cetratus_node::load::LoadPolicy,
-    speed: f64,
-    period_us: u64,
-) -> ControlLink {
-    let speed = if speed.is_finite() && speed > 0.0 {
-        speed
-    } else {
-        1.0
-    };
-    let publish_every = ((200_000.0 * speed) / period_us.max(1) as f64)
-        .round()
-        .max(1.0) as u64;
-    ControlLink::start(plc, link, load, publish_every)
 }

@@ -5,11 +5,12 @@ use std::sync::atomic::AtomicBool;
 use std::sync::{Arc, Mutex};
 
 use anyhow::{bail, Context};
-use cetratus_node::clock::MonotonicStopwatch;
+use cetratus_node::plant::PlantSpec;
 use cetratus_node::script::Script;
-use cetratus_node::{state, wire, Echo, Node, NodeOptions};
+use cetratus_node::{wire, Echo, Finished, NodeSpec, Notice, StateDir, TimeMode};
 use cetratus_program::Program;
-use cetratus_runtime::{CycleFigures, Plc};
+use cetratus_runtime::CycleFigures;
+use cetratus_twin::TwinKind;
 
 use crate::summary::{print_event, print_summary, Summary, MAX_EVENTS};
 
@@ -21,8 +22,8 @@ pub struct RunArgs {
     /// The program: a TOML program file, or a PNML file that carries its program.
     program: PathBuf,
     /// The plant to drive: a digital twin (a run has --twin, --io, or both).
-    #[arg(long, value_parser = ["vernadat", "festo"])]
-    twin: Option<String>,
+    #[arg(long)]
+    twin: Option<TwinKind>,
     /// The field I/O configuration (docs/io.md); instead of the local configuration's `[io]`.
     #[arg(long = "io", value_name = "IO.toml")]
     io: Option<PathBuf>,
@@ -91,6 +92,9 @@ pub struct RunArgs {
     progress: Option<u64>,
 }
 
+/// The events a run keeps for its JSON summary, and how many it left out.
+type Kept = Arc<Mutex<(Vec<cetratus_proto::EventMsg>, u64)>>;
+
 /// Runs `cetratus run`.
 pub fn run(args: &RunArgs) -> anyhow::Result<()> {
     let program = Arc::new(
@@ -102,146 +106,100 @@ pub fn run(args: &RunArgs) -> anyhow::Result<()> {
         (None, true) => bail!("a virtual run needs a length: add --for, e.g. --for 1h"),
         (None, false) => u64::MAX,
     };
-    let settings = args.plant.settings();
-    let script = Script::parse(&args.at)?;
-    let local = args.config.load()?;
-    let trust = match &args.trust {
-        Some(dir) => cetratus_program::TrustStore::load_dir(dir)?,
-        None => local.trust.clone(),
-    };
-    let allow_unsigned = args.allow_unsigned || local.allow_unsigned;
+    let kept: Kept = Arc::default();
+    let spec = spec(args, program.clone(), kept.clone())?;
     let quiet = args.json || args.virtual_time;
-    if !quiet {
-        eprintln!(
-            "configuration {}: {} trusted package keys, {}, unsigned packages {}",
-            local.dir.display(),
-            trust.len(),
-            if local.operators.is_some() {
-                "signed commands required"
-            } else {
-                "no operator keys (commands need no signature)"
-            },
-            if allow_unsigned {
-                "ACCEPTED"
-            } else {
-                "refused"
-            }
-        );
+    let mut say = |n: Notice| match n {
+        Notice::Started(line) => eprintln!("{line}"),
+        Notice::Info(line) if !quiet => eprintln!("{line}"),
+        Notice::Info(_) => {}
+        Notice::Warning(line) => eprintln!("warning: {line}"),
+    };
+    let mut node = spec.start(&mut say)?;
+    if let Ok(mut k) = kept.lock() {
+        k.0.extend(node.start_events().iter().map(wire::event));
     }
-    let period_us = (args.period.as_deref().map(parse_duration_us).transpose()?)
-        .map_or(program.scan_period().as_micros() as u64, |p| p.max(1));
-    let crate::run_io::Opened { mut io, kind } = crate::run_io::open(
-        &program,
-        args.twin.as_deref(),
-        &settings,
-        args.io.as_deref(),
-        local.io.as_ref(),
-        args.virtual_time,
-        period_us,
-        &args.mqtt.plc_id(),
-    )?;
-    local.check_validation(io.twin().is_some())?;
-    let plant = kind.map_or("field I/O".to_string(), |k| format!("{k} twin"));
-    // Real-time runs are watched and commanded over MQTT, with the dashboard beside them; their
-    // ports are taken before anything is written, so a start that cannot bind leaves no trace.
-    let mqtt = if !args.virtual_time && !args.no_mct {
-        let wanted = crate::mqtt_args::Wanted {
-            dashboard: (!args.no_dashboard).then_some(args.http.as_str()),
-            announce: !args.json,
-        };
-        Some(crate::mqtt_args::start_services(
-            &args.mqtt, &local, wanted,
-        )?)
-    } else {
-        None
-    };
-    // A virtual run is a simulation and keeps no state unless asked to.
-    let state_dir = match (&args.state_dir, args.virtual_time) {
-        (Some(d), _) => Some(d.clone()),
-        (None, true) => None,
-        (None, false) => state::default_dir(program.name()),
-    };
-    let (mut plc, persister, start_events) = match &state_dir {
-        Some(dir) => {
-            let s = state::open(
-                dir,
-                &program,
-                args.cold,
-                period_us,
-                MonotonicStopwatch::boxed(),
-            )
-            .with_context(|| format!("the state directory {}", dir.display()))?;
-            for n in &s.notes {
-                eprintln!("{n}");
-            }
-            if !args.json {
-                eprintln!(
-                    "state: {} (a snapshot every {} cycles; see docs/persistence.md)",
-                    dir.display(),
-                    s.persister.config().every_cycles
-                );
-            }
-            (s.plc, Some(s.persister), s.events)
-        }
-        None => {
-            if args.cold && !args.json {
-                eprintln!("cold start: no state directory, nothing saved is used");
-            }
-            let mut plc = Plc::new(program.clone(), 0, MonotonicStopwatch::boxed());
-            let ev = plc.drain_events();
-            (plc, None, ev)
-        }
-    };
-    for e in &start_events {
+    for e in node.start_events() {
         print_event(e, args.json);
     }
-    if args.virtual_time {
-        plc.use_virtual_time(period_us);
-    } else if args.period.is_some() {
-        plc.set_limits(cetratus_runtime::Limits::for_period_us(period_us));
+    let plant = args
+        .twin
+        .map_or("field I/O".to_string(), |k| format!("{k} twin"));
+    let stop = Arc::new(AtomicBool::new(false));
+    if !args.virtual_time {
+        let s = stop.clone();
+        ctrlc::set_handler(move || s.store(true, std::sync::atomic::Ordering::Relaxed))
+            .context("cannot install the Ctrl-C handler")?;
+        if !args.json {
+            eprintln!(
+                "running {} on the {plant} in real time (speed {}); Ctrl-C stops",
+                program.name(),
+                args.speed
+            );
+        }
     }
-    plc.set_limits(local.limits(plc.limits()));
-    // Program time resumes after the last committed cycle; `--for`, `--at` and `--press` count
-    // from the start of this run.
-    let base_us = if plc.cycles() > 0 {
-        plc.now_us().saturating_add(period_us)
+    let reached_us = node.run(until_us, &stop, &mut say);
+    let state_dir = node.state_dir().map(|d| d.display().to_string());
+    let period_us = node.period_us();
+    let finished = node.finish()?;
+    warn_dropped(&finished, state_dir.as_deref());
+    let summary = summary(args, &program, &finished, &kept, reached_us, period_us, state_dir)?;
+    write_trace(args, &plant, &program, finished.report.trace, reached_us, period_us)?;
+    if args.json {
+        println!("{}", serde_json::to_string_pretty(&summary)?);
     } else {
-        0
-    };
-    crate::run_io::press(&mut io, &args.plant.press, base_us)?;
-    crate::run_io::admit(&io, &mut plc);
-    let load = cetratus_node::load::LoadPolicy {
-        trust: trust.clone(),
-        unsigned: cetratus_program::Unsigned::allowed_if(allow_unsigned),
-        gate: local.gate,
-    };
-    let opts = NodeOptions {
-        base_us,
-        load: load.clone(),
-        record_trace: args.trace.is_some() || args.svg.is_some(),
-        progress_every: args.progress,
-    };
-    let observer = crate::run_opcua::observer(&io);
-    let mut node = Node::new(plc, io, opts)
-        .with_script(script)
-        .with_validation(local.validation, period_us, |io| {
-            io.twin().map(|t| t.plant().clone())
-        })
-        .with_auto_substitute(local.auto_substitute.clone());
-    if let Some(observe) = observer {
-        node = node.with_observer(observe);
+        print_summary(&summary);
     }
-    if let Some(p) = persister {
-        node = node.with_persister(p);
+    Ok(())
+}
+
+/// The node `args` ask for: the command line mapped onto a [`NodeSpec`], nothing decided here.
+fn spec(args: &RunArgs, program: Arc<Program>, kept: Kept) -> anyhow::Result<NodeSpec> {
+    let local = args.config.load()?;
+    let io = args
+        .io
+        .as_deref()
+        .map(cetratus_io::config::IoConfig::load)
+        .transpose()?;
+    let plant = PlantSpec {
+        twin: args.twin,
+        settings: args.plant.settings(),
+        io,
+        presses: args.plant.press.clone(),
+    };
+    let mut spec = NodeSpec::new(program, &args.mqtt.plc_id(), local, plant);
+    spec.time = if args.virtual_time {
+        TimeMode::Virtual
+    } else {
+        TimeMode::Real {
+            speed: args.speed,
+            rt: args.rt,
+        }
+    };
+    spec.period_us = args.period.as_deref().map(parse_duration_us).transpose()?;
+    if !args.no_mct {
+        let dashboard = (!args.no_dashboard).then_some(args.http.as_str());
+        spec.mqtt = Some(args.mqtt.spec(&spec.local, dashboard, !args.json)?);
     }
-    let json = args.json;
-    // Kept for the JSON summary; on the echo thread, never on the scan thread.
-    let events = Arc::new(Mutex::new((
-        start_events.iter().map(wire::event).collect(),
-        0,
-    )));
-    let kept = events.clone();
-    node = node.with_echo(move |e| match e {
+    spec.state = args.state_dir.clone().map_or(StateDir::Default, StateDir::At);
+    spec.cold = args.cold;
+    spec.trust = args
+        .trust
+        .as_deref()
+        .map(cetratus_program::TrustStore::load_dir)
+        .transpose()?;
+    spec.allow_unsigned = args.allow_unsigned;
+    spec.script = Script::parse(&args.at)?;
+    spec.record_trace = args.trace.is_some() || args.svg.is_some();
+    spec.progress_every = args.progress;
+    spec.echo = Some(Box::new(echo(args.json, kept)));
+    Ok(spec)
+}
+
+/// Prints what the node echoes, and keeps its events for the JSON summary (on the echo thread,
+/// never on the scan thread).
+fn echo(json: bool, kept: Kept) -> impl FnMut(Echo) + Send + 'static {
+    move |e| match e {
         Echo::Event(e) => {
             print_event(&e, json);
             if let Ok(mut k) = kept.lock() {
@@ -258,126 +216,101 @@ pub fn run(args: &RunArgs) -> anyhow::Result<()> {
             "progress cycle={cycle} committed={}",
             committed.map_or(-1, |c| c as i64)
         ),
-    });
-    let mut services = None;
-    if let Some((link, s)) = mqtt {
-        let mut link =
-            crate::mqtt_args::control_link(link, node.plc(), load, args.speed, period_us);
-        if let Some(q) = crate::run_opcua::input_quality(node.io()) {
-            link.set_input_quality(q);
-        }
-        node = node.with_link(link);
-        services = Some(s);
     }
-    let reached_us = if args.virtual_time {
-        node.run_virtual(period_us, until_us)
-    } else {
-        let stop = Arc::new(AtomicBool::new(false));
-        let s = stop.clone();
-        ctrlc::set_handler(move || s.store(true, std::sync::atomic::Ordering::Relaxed))
-            .context("cannot install the Ctrl-C handler")?;
-        if args.rt {
-            let status = cetratus_node::rt::request(80);
-            for w in &status.warnings {
-                eprintln!("warning: {w}");
-            }
-            eprintln!("real time: {status}");
-        }
-        if !args.json {
-            eprintln!(
-                "running {} on the {plant} in real time (speed {}); Ctrl-C stops",
-                program.name(),
-                args.speed
-            );
-        }
-        let reached = node.run_realtime(period_us, until_us, args.speed, &stop);
-        // On a stop, the field gets its safe values before anything else is shut down.
-        if let Some(f) = node.io_mut().field_mut() {
-            f.stop();
-        }
-        reached
-    };
-    let finished = node.finish();
-    if let Some(s) = services {
-        s.stop();
-    }
-    let (plc, io, report) = finished?;
-    if let Some(c) = report.link.filter(|c| c.dropped > 0) {
+}
+
+/// Warns of what the node could not publish or save.
+fn warn_dropped(finished: &Finished, state_dir: Option<&str>) {
+    if let Some(c) = finished.report.link.filter(|c| c.dropped > 0) {
         eprintln!(
             "warning: {} events and replies were not published: the MQTT client was behind",
             c.dropped
         );
     }
-    if let (Some(stats), Some(dir)) = (&report.persist, &state_dir) {
+    if let (Some(stats), Some(dir)) = (&finished.report.persist, state_dir) {
         if let Some(err) = &stats.last_error {
-            eprintln!(
-                "warning: the state directory {} could not be written: {err}",
-                dir.display()
-            );
+            eprintln!("warning: the state directory {dir} could not be written: {err}");
         }
     }
-    let plant_report = crate::run_io::report(&io)?;
-    let mut faults = plant_report.faults;
-    faults.extend(report.faults);
-    let scan = plc.monitor().stats[plc.primary().index()].scan.summary();
+}
+
+/// The closing summary of the run.
+fn summary(
+    args: &RunArgs,
+    program: &Program,
+    f: &Finished,
+    kept: &Kept,
+    reached_us: u64,
+    period_us: u64,
+    state_dir: Option<String>,
+) -> anyhow::Result<Summary> {
+    let (plc, report, plant) = (&f.plc, &f.report, &f.plant);
+    let mut faults = plant.faults.clone();
+    faults.extend(report.faults.iter().cloned());
     let figures = CycleFigures {
         cycles: plc.cycles(),
         period_us,
-        scan,
+        scan: plc.monitor().stats[plc.primary().index()].scan.summary(),
         cycle: report.timing.cycle.summary(),
         latency: report.timing.latency.summary(),
         overruns: report.timing.overruns,
     };
     let (events, left_out) = std::mem::take(
-        &mut *events
+        &mut *kept
             .lock()
             .map_err(|_| anyhow::anyhow!("the event list was poisoned"))?,
     );
-    let summary = Summary {
+    Ok(Summary {
         events,
         events_left_out: left_out + report.echo_dropped,
         program: program.name().to_string(),
-        twin: kind.map_or_else(String::new, |k| k.to_string()),
+        twin: args.twin.map_or_else(String::new, |k| k.to_string()),
         seconds: reached_us as f64 / 1e6,
         scans: plc.cycles(),
         firings: plc.primary_container().firings().iter().sum(),
-        parts_finished: plant_report.parts_finished,
-        twin_faults: plant_report.twin_faults,
+        parts_finished: plant.parts_finished,
+        twin_faults: plant.twin_faults,
         faults,
-        counters: plant_report.counters,
-        io: plant_report.io,
-        modbus_server: plant_report.server,
-        opcua_server: plant_report.opcua,
+        counters: serde_json::to_value(&plant.counters)?,
+        io: plant.io.clone(),
+        modbus_server: plant.server,
+        opcua_server: plant.opcua,
         scan: figures,
         primary: plc.primary().as_str(),
         status: plc.status().as_str(),
-        state_dir: state_dir.as_ref().map(|d| d.display().to_string()),
-        persist: report.persist,
+        state_dir,
+        persist: report.persist.clone(),
+    })
+}
+
+/// Writes the I/O trace (`--trace`) and its timing diagram (`--svg`), when asked for.
+fn write_trace(
+    args: &RunArgs,
+    plant: &str,
+    program: &Program,
+    trace: Option<cetratus_runtime::trace::Trace>,
+    reached_us: u64,
+    period_us: u64,
+) -> anyhow::Result<()> {
+    let Some(mut trace) = trace else {
+        return Ok(());
     };
-    if let Some(mut trace) = report.trace {
-        trace.end_us = reached_us;
-        if let Some(path) = &args.trace {
-            let text = if path.extension().is_some_and(|e| e == "json") {
-                serde_json::to_string_pretty(&trace)?
-            } else {
-                trace.to_csv()
-            };
-            std::fs::write(path, text)
-                .with_context(|| format!("cannot write {}", path.display()))?;
-        }
-        if let Some(path) = &args.svg {
-            let title = format!("{} on the {plant}", program.name());
-            let mut diagram = trace.diagram(&title);
-            // In virtual time every scan is one period: the axis can number the scan steps.
-            diagram.scan_period_us = args.virtual_time.then_some(period_us);
-            std::fs::write(path, diagram.to_svg())
-                .with_context(|| format!("cannot write {}", path.display()))?;
-        }
+    trace.end_us = reached_us;
+    if let Some(path) = &args.trace {
+        let text = if path.extension().is_some_and(|e| e == "json") {
+            serde_json::to_string_pretty(&trace)?
+        } else {
+            trace.to_csv()
+        };
+        std::fs::write(path, text).with_context(|| format!("cannot write {}", path.display()))?;
     }
-    if args.json {
-        println!("{}", serde_json::to_string_pretty(&summary)?);
-    } else {
-        print_summary(&summary);
+    if let Some(path) = &args.svg {
+        let title = format!("{} on the {plant}", program.name());
+        let mut diagram = trace.diagram(&title);
+        // In virtual time every scan is one period: the axis can number the scan steps.
+        diagram.scan_period_us = args.virtual_time.then_some(period_us);
+        std::fs::write(path, diagram.to_svg())
+            .with_context(|| format!("cannot write {}", path.display()))?;
     }
     Ok(())
 }

@@ -1,6 +1,9 @@
 //! The PLC node as a library: a [`Plc`](cetratus_runtime::Plc) on its I/O, driven in virtual
 //! or real time, connected to MQTT and to its state directory.
 //!
+//! * [`NodeSpec`]: the one place a node is assembled, for `cetratus run`, `cetratus demo` and
+//!   the benches: the plant ([`plant`]), MQTT and its companion ([`services`]), the state
+//!   directory, then the node; [`NodeSpec::start`] returns it running.
 //! * [`Node`]: the node loop, one cycle at a time ([`Node::step`]), the same for `cetratus run`
 //!   and `cetratus demo`: commands (MQTT, scripted), the scan, the trace and invariant check,
 //!   events to the audit log, to MQTT and to the operator, publication, persistence.
@@ -22,10 +25,14 @@ pub mod link;
 pub mod load;
 mod node;
 pub mod periodic;
+pub mod plant;
 pub mod rt;
 pub mod script;
+pub mod services;
+pub mod spec;
 pub mod state;
 pub mod validate;
 pub mod wire;
 
 pub use node::{Echo, Node, NodeOptions, NodeReport};
+pub use spec::{Finished, NodeSpec, Notice, RunningNode, SpecError, StateDir, TimeMode};

@@ -9,20 +9,21 @@
 //! ```
 //!
 //! The directory is the one given, else `$XDG_CONFIG_HOME/cetratus`, else `~/.config/cetratus`.
-//! A missing directory is an empty configuration.
+//! A missing directory is an empty configuration. Each section of `config.toml` checks itself
+//! (`config/sections.rs`); [`LocalConfig::load`] puts them together with the keys.
 
 mod private;
+mod sections;
 
 use std::path::{Path, PathBuf};
 
 use cetratus_mct::{BrokerAccount, BrokerTls, OperatorKeys};
-use cetratus_program::duration::{self, Bare};
 use cetratus_program::{TrustStore, VerifyingKeyFile};
 use cetratus_runtime::Limits;
 
 use crate::gate::GatePolicy;
 use crate::validate::{AutoSubstitute, ValidationMode, ValidationPolicy};
-use serde::Deserialize;
+use sections::{File, Origin, Settings};
 
 /// Why the local configuration cannot be used. The PLC does not start.
 #[derive(Debug, thiserror::Error)]
@@ -108,94 +109,6 @@ pub enum ConfigError {
     },
 }
 
-#[derive(Deserialize, Default)]
-#[serde(deny_unknown_fields)]
-struct File {
-    #[serde(default)]
-    allow_unsigned: bool,
-    replay_window: Option<String>,
-    #[serde(default)]
-    mqtt: MqttSection,
-    #[serde(default)]
-    io: IoSection,
-    #[serde(default)]
-    dashboard: DashboardSection,
-    #[serde(default)]
-    updates: UpdatesSection,
-}
-
-#[derive(Deserialize, Default)]
-#[serde(deny_unknown_fields)]
-struct MqttSection {
-    #[serde(default)]
-    users: Vec<User>,
-    user: Option<String>,
-    password: Option<String>,
-    tls_cert: Option<PathBuf>,
-    tls_key: Option<PathBuf>,
-}
-
-/// `[[mqtt.users]]`: an account of the embedded broker.
-#[derive(Deserialize)]
-#[serde(deny_unknown_fields)]
-struct User {
-    name: String,
-    password_hash: Option<String>,
-    /// Earlier versions kept the password in clear; refused with what to write instead.
-    password: Option<toml::Value>,
-    #[serde(default)]
-    plcs: Vec<String>,
-}
-
-/// `[io]`: the node's I/O configuration, read and checked by `cetratus_io::config` from the
-/// file's text (so that its errors keep their lines).
-#[derive(Deserialize, Default)]
-struct IoSection {}
-
-/// `[dashboard]`: who may log in to the dashboard, and the host names it is reached under.
-#[derive(Deserialize, Default)]
-#[serde(deny_unknown_fields)]
-struct DashboardSection {
-    #[serde(default)]
-    accounts: Vec<DashboardAccount>,
-    #[serde(default)]
-    hosts: Vec<String>,
-    tls_cert: Option<PathBuf>,
-    tls_key: Option<PathBuf>,
-}
-
-/// `[[dashboard.accounts]]`: a name and the argon2 hash of its password.
-#[derive(Deserialize)]
-#[serde(deny_unknown_fields)]
-struct DashboardAccount {
-    name: String,
-    password_hash: String,
-}
-
-/// `[updates]`: update policies.
-#[derive(Deserialize, Default)]
-#[serde(deny_unknown_fields)]
-struct UpdatesSection {
-    probation: Option<String>,
-    state_trans_timeout: Option<String>,
-    candidate_work_budget: Option<u64>,
-    gate_max_states: Option<u64>,
-    gate_time: Option<String>,
-    gate_deadlock: Option<String>,
-    gate_lost_transitions: Option<String>,
-    gate_broken_invariants: Option<String>,
-    validation: Option<String>,
-    validation_twin: Option<String>,
-    horizon: Option<String>,
-    revalidate: Option<String>,
-    throughput_share: Option<f64>,
-    #[serde(default)]
-    require_verdict: bool,
-    auto_substitute: Option<String>,
-    #[serde(default)]
-    auto_substitute_keys: Vec<String>,
-}
-
 /// The probation window when `[updates] probation` is absent: a minute.
 pub const DEFAULT_PROBATION_US: u64 = 60_000_000;
 
@@ -241,6 +154,23 @@ pub struct LocalConfig {
     /// `auto_substitute = "on-pass"`: the operator key ids whose loads the PLC substitutes by
     /// itself on a passing twin verdict; `None` when off.
     pub auto_substitute: Option<AutoSubstitute>,
+}
+
+/// The keys of the configuration directory, beside `config.toml`.
+#[derive(Default)]
+struct Keys {
+    /// `trusted/`.
+    trust: TrustStore,
+    /// `operators/`; `None` when it holds none.
+    operators: Option<OperatorKeys>,
+}
+
+impl Default for LocalConfig {
+    /// No local configuration: no keys, no accounts, no field I/O, and the defaults of every
+    /// section.
+    fn default() -> Self {
+        LocalConfig::of(PathBuf::new(), Keys::default(), Settings::default())
+    }
 }
 
 /// The default configuration directory.
@@ -290,75 +220,12 @@ fn keys_in(dir: &Path, what: &'static str) -> Result<Vec<VerifyingKeyFile>, Conf
         .collect()
 }
 
-/// A section's TLS certificate and private key, when it gives them, after their checks.
-type TlsFiles = Result<Option<(PathBuf, PathBuf)>, ConfigError>;
-
-/// The TLS certificate and key of a section, under `dir`, each checked ([`private`]); `None`
-/// when neither is given, `Err` naming the one missing when only one is.
-fn tls_pair(
-    dir: &Path,
-    cert: Option<PathBuf>,
-    key: Option<PathBuf>,
-) -> Result<TlsFiles, &'static str> {
-    match (cert, key) {
-        (None, None) => Ok(Ok(None)),
-        (Some(c), Some(k)) => {
-            let (c, k) = (dir.join(c), dir.join(k));
-            Ok(private::check_not_writable_by_others(&c)
-                .and_then(|()| private::check_private_key(&k))
-                .map(|()| Some((c, k))))
-        }
-        (Some(_), None) => Err("tls_key"),
-        (None, Some(_)) => Err("tls_cert"),
-    }
-}
-
-/// `file:line:column` of a byte offset of `text`.
-fn position(path: &Path, text: &str, offset: usize) -> String {
-    let offset = offset.min(text.len());
-    let line = text[..offset].matches('\n').count() + 1;
-    let col = offset - text[..offset].rfind('\n').map_or(0, |i| i + 1) + 1;
-    format!("{}:{line}:{col}", path.display())
-}
-
 impl LocalConfig {
     /// Loads the configuration from `dir`, or from [`default_dir`].
     pub fn load(dir: Option<&Path>) -> Result<LocalConfig, ConfigError> {
         let dir = dir.map_or_else(default_dir, Path::to_path_buf);
         let file_path = dir.join("config.toml");
-        let mut io = None;
-        let file: File = match std::fs::read(&file_path) {
-            Ok(bytes) => {
-                let text = cetratus_program::toml_text(bytes, &file_path.display().to_string())
-                    .map_err(ConfigError::NotUtf8)?;
-                let file = toml::from_str(&text).map_err(|e| ConfigError::Schema {
-                    at: e.span().map_or_else(
-                        || file_path.display().to_string(),
-                        |s| position(&file_path, &text, s.start),
-                    ),
-                    message: e.message().trim_end().to_string(),
-                })?;
-                io = cetratus_io::config::IoConfig::from_local(
-                    &file_path.display().to_string(),
-                    &text,
-                )
-                .map_err(ConfigError::Io)?;
-                file
-            }
-            Err(e) if e.kind() == std::io::ErrorKind::NotFound => File::default(),
-            Err(source) => {
-                return Err(ConfigError::Read {
-                    path: file_path.display().to_string(),
-                    source,
-                })
-            }
-        };
-        let value_error = |key, value: &str, reason: String| ConfigError::Value {
-            path: file_path.display().to_string(),
-            key,
-            value: value.to_string(),
-            reason,
-        };
+        let (file, io) = File::read(&file_path)?;
         for path in [
             dir.clone(),
             file_path.clone(),
@@ -371,152 +238,56 @@ impl LocalConfig {
         for k in keys_in(&dir.join("trusted"), "trusted")? {
             trust.add(k);
         }
-        let window_s = match &file.replay_window {
-            Some(w) => {
-                duration::parse_us(w, Bare::Seconds)
-                    .map_err(|e| value_error("replay_window", w, e.to_string()))?
-                    / 1_000_000
-            }
-            None => 60,
+        let at = Origin {
+            dir: &dir,
+            file: &file_path,
         };
-        let probation_us = match &file.updates.probation {
-            Some(p) => duration::parse_us(p, Bare::Seconds)
-                .map_err(|e| value_error("[updates] probation", p, e.to_string()))?,
-            None => DEFAULT_PROBATION_US,
-        };
-        let state_trans_timeout_us = match &file.updates.state_trans_timeout {
-            Some(t) => {
-                let us = duration::parse_us(t, Bare::Seconds)
-                    .map_err(|e| value_error("[updates] state_trans_timeout", t, e.to_string()))?;
-                if us == 0 {
-                    return Err(value_error(
-                        "[updates] state_trans_timeout",
-                        t,
-                        "no install can take 0 µs; give a duration such as \"10ms\", or remove the key for one scan period".into(),
-                    ));
-                }
-                Some(us)
-            }
-            None => None,
-        };
-        if let Some(0) = file.updates.candidate_work_budget {
-            return Err(value_error(
-                "[updates] candidate_work_budget",
-                "0",
-                "a candidate could not evaluate a single guard; give a positive number, or remove the key for the default".into(),
-            ));
-        }
-        let validation = validation_policy(&file.updates, &value_error)?;
-        let auto_substitute = match file.updates.auto_substitute.as_deref() {
-            None | Some("off") => None,
-            Some("on-pass") if file.updates.auto_substitute_keys.is_empty() => {
-                return Err(value_error(
-                    "[updates] auto_substitute",
-                    "on-pass",
-                    "name the operator keys whose loads may be substituted by the PLC itself: auto_substitute_keys = [\"<key id>\"]".into(),
-                ))
-            }
-            Some("on-pass") if validation.mode == ValidationMode::Off => {
-                return Err(value_error(
-                    "[updates] auto_substitute",
-                    "on-pass",
-                    "a substitution on a passing verdict needs twin validation: set validation = \"fork\" or \"commission\"".into(),
-                ))
-            }
-            Some("on-pass") => Some(AutoSubstitute {
-                keys: file.updates.auto_substitute_keys.clone(),
-            }),
-            Some(other) => {
-                return Err(value_error(
-                    "[updates] auto_substitute",
-                    other,
-                    "write \"off\" or \"on-pass\"".into(),
-                ))
-            }
-        };
-        let gate = gate_policy(&file.updates, value_error)?;
-        let mut ops = OperatorKeys::new(std::time::Duration::from_secs(window_s.max(1)));
+        let replay_window = file.replay_window(&at)?;
+        let updates = file.updates.check(&at)?;
+        let mut ops = OperatorKeys::new(replay_window);
         for k in keys_in(&dir.join("operators"), "operator")? {
             ops.add(k.key_id(), *k.verifying_key());
         }
-        let _ = file.io;
-        let io_from_file = io;
-        let mut users = Vec::with_capacity(file.mqtt.users.len());
-        for u in file.mqtt.users {
-            let hash = match (u.password_hash, u.password) {
-                (Some(h), None) => h,
-                (_, Some(_)) => {
-                    return Err(value_error(
-                        "[[mqtt.users]] name",
-                        &u.name,
-                        "passwords are stored as hashes: replace `password = …` with \
-                         `password_hash = …`, the output of `echo -n 'PASSWORD' | cetratus \
-                         hash-password`"
-                            .into(),
-                    ))
-                }
-                (None, None) => {
-                    return Err(value_error(
-                        "[[mqtt.users]] name",
-                        &u.name,
-                        "the account has no `password_hash`; add the output of \
-                         `cetratus hash-password`"
-                            .into(),
-                    ))
-                }
-            };
-            users.push(BrokerAccount {
-                name: u.name,
-                password_hash: hash,
-                plcs: u.plcs,
-            });
-        }
-        let pair = |section, cert, key| {
-            tls_pair(&dir, cert, key).map_err(|missing| {
-                value_error(
-                    section,
-                    missing,
-                    "TLS needs both `tls_cert` (the certificate chain, PEM) and `tls_key` (its \
-                     private key, PEM); give both, or neither"
-                        .into(),
-                )
-            })?
-        };
-        let mqtt_tls = pair("[mqtt] tls", file.mqtt.tls_cert, file.mqtt.tls_key)?
-            .map(|(cert, key)| BrokerTls { cert, key });
-        let dashboard_tls = pair(
-            "[dashboard] tls",
-            file.dashboard.tls_cert,
-            file.dashboard.tls_key,
-        )?;
-        Ok(LocalConfig {
-            mqtt_tls,
-            dashboard_tls,
-            dashboard_accounts: file
-                .dashboard
-                .accounts
-                .into_iter()
-                .map(|a| (a.name, a.password_hash))
-                .collect(),
-            dashboard_hosts: file.dashboard.hosts,
-            dir,
+        let mqtt = file.mqtt.check(&at)?;
+        let dashboard = file.dashboard.check(&at)?;
+        let keys = Keys {
             trust,
-            allow_unsigned: file.allow_unsigned,
             operators: (!ops.is_empty()).then_some(ops),
-            users,
-            credentials: file
-                .mqtt
-                .user
-                .map(|u| (u, file.mqtt.password.unwrap_or_default())),
-            probation_us,
-            state_trans_timeout_us,
-            candidate_work_budget: file.updates.candidate_work_budget,
-            io: io_from_file,
-            gate,
-            validation,
-            require_verdict: file.updates.require_verdict,
-            auto_substitute,
-        })
+        };
+        let settings = Settings {
+            allow_unsigned: file.allow_unsigned,
+            io,
+            mqtt,
+            dashboard,
+            updates,
+        };
+        Ok(LocalConfig::of(dir, keys, settings))
+    }
+
+    /// The configuration of `dir`: the one place the sections' fields become its own, so that
+    /// [`LocalConfig::load`] and [`Default`] cannot map them differently.
+    fn of(dir: PathBuf, keys: Keys, s: Settings) -> LocalConfig {
+        let (mqtt, dashboard, updates) = (s.mqtt, s.dashboard, s.updates);
+        LocalConfig {
+            dir,
+            trust: keys.trust,
+            allow_unsigned: s.allow_unsigned,
+            operators: keys.operators,
+            users: mqtt.users,
+            mqtt_tls: mqtt.tls,
+            dashboard_tls: dashboard.tls,
+            credentials: mqtt.credentials,
+            probation_us: updates.probation_us,
+            dashboard_accounts: dashboard.accounts,
+            dashboard_hosts: dashboard.hosts,
+            state_trans_timeout_us: updates.state_trans_timeout_us,
+            candidate_work_budget: updates.candidate_work_budget,
+            io: s.io,
+            gate: updates.gate,
+            validation: updates.validation,
+            require_verdict: updates.require_verdict,
+            auto_substitute: updates.auto_substitute,
+        }
     }
 
     /// Refuses `validation = "fork"` for a run without an in-process twin: there is nothing to
@@ -550,116 +321,12 @@ impl LocalConfig {
     }
 }
 
-/// `[updates] validation`, `validation_twin`, `horizon`, `revalidate`, `throughput_share`.
-fn validation_policy(
-    u: &UpdatesSection,
-    value_error: &impl Fn(&'static str, &str, String) -> ConfigError,
-) -> Result<ValidationPolicy, ConfigError> {
-    let mut v = ValidationPolicy::default();
-    let twin = match &u.validation_twin {
-        None => None,
-        Some(t) => Some(
-            t.parse::<cetratus_twin::TwinKind>()
-                .map_err(|e| value_error("[updates] validation_twin", t, e.to_string()))?,
-        ),
-    };
-    v.mode = match (u.validation.as_deref(), twin) {
-        (None | Some("off"), _) => ValidationMode::Off,
-        (Some("fork"), _) => ValidationMode::Fork,
-        (Some("commission"), Some(kind)) => ValidationMode::Commission(kind),
-        (Some("commission"), None) => {
-            return Err(value_error(
-                "[updates] validation",
-                "commission",
-                "commissioning runs fresh twins of a model: name it with validation_twin = \"vernadat\" or \"festo\"".into(),
-            ))
-        }
-        (Some(other), _) => {
-            return Err(value_error(
-                "[updates] validation",
-                other,
-                "write \"off\", \"fork\" or \"commission\"".into(),
-            ))
-        }
-    };
-    if let Some(h) = &u.horizon {
-        let us = duration::parse_us(h, Bare::Seconds)
-            .map_err(|e| value_error("[updates] horizon", h, e.to_string()))?;
-        if us == 0 {
-            return Err(value_error(
-                "[updates] horizon",
-                h,
-                "a validation over no plant time says nothing; give one such as \"10min\"".into(),
-            ));
-        }
-        v.horizon_us = us;
-    }
-    if let Some(r) = &u.revalidate {
-        v.revalidate_us = duration::parse_us(r, Bare::Seconds)
-            .map_err(|e| value_error("[updates] revalidate", r, e.to_string()))?;
-    }
-    if let Some(share) = u.throughput_share {
-        if !(0.0..=1.0).contains(&share) {
-            return Err(value_error(
-                "[updates] throughput_share",
-                &share.to_string(),
-                "a share is between 0 and 1, e.g. 0.9 for 90 %".into(),
-            ));
-        }
-        v.throughput_share = share;
-    }
-    Ok(v)
-}
-
-/// `[updates] gate_*`: the analysis gate's budget and policy.
-fn gate_policy(
-    u: &UpdatesSection,
-    value_error: impl Fn(&'static str, &str, String) -> ConfigError,
-) -> Result<GatePolicy, ConfigError> {
-    let mut g = GatePolicy::default();
-    if let Some(n) = u.gate_max_states {
-        if n == 0 {
-            return Err(value_error(
-                "[updates] gate_max_states",
-                "0",
-                "the gate could not look at a single state; give a positive number, or remove the key for 200000".into(),
-            ));
-        }
-        g.max_states = n;
-    }
-    if let Some(t) = &u.gate_time {
-        let us = duration::parse_us(t, Bare::Seconds)
-            .map_err(|e| value_error("[updates] gate_time", t, e.to_string()))?;
-        g.time = std::time::Duration::from_micros(us);
-    }
-    for (key, value, slot) in [
-        ("[updates] gate_deadlock", &u.gate_deadlock, &mut g.deadlock),
-        (
-            "[updates] gate_lost_transitions",
-            &u.gate_lost_transitions,
-            &mut g.lost_transitions,
-        ),
-        (
-            "[updates] gate_broken_invariants",
-            &u.gate_broken_invariants,
-            &mut g.broken_invariants,
-        ),
-    ] {
-        if let Some(v) = value {
-            *slot = v
-                .parse()
-                .map_err(|e: cetratus_vocab::UnknownName| value_error(key, v, e.to_string()))?;
-        }
-    }
-    Ok(g)
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
     use crate::gate::Severity;
 
-    fn dir_with(config: &str) -> PathBuf {
+    fn empty_dir() -> PathBuf {
         static N: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
         let d = std::env::temp_dir().join(format!(
             "cetratus-config-{}-{}",
@@ -668,6 +335,11 @@ mod tests {
         ));
         std::fs::create_dir_all(&d).unwrap();
         owner_only(&d);
+        d
+    }
+
+    fn dir_with(config: &str) -> PathBuf {
+        let d = empty_dir();
         std::fs::write(d.join("config.toml"), config).unwrap();
         use std::os::unix::fs::PermissionsExt;
         std::fs::set_permissions(
@@ -716,6 +388,49 @@ mod tests {
         let c = LocalConfig::load(Some(Path::new("/nonexistent/cetratus-config"))).unwrap();
         assert!(!c.allow_unsigned && c.operators.is_none() && c.users.is_empty());
         assert_eq!(c.probation_us, 60_000_000, "a minute of probation");
+    }
+
+    /// Every field but `dir`, as text to compare.
+    fn comparable(c: &LocalConfig) -> String {
+        format!(
+            "{:?} {:?}",
+            (
+                c.trust.len(),
+                c.allow_unsigned,
+                c.operators.is_none(),
+                &c.users,
+                &c.mqtt_tls,
+                &c.dashboard_tls,
+                &c.credentials,
+                c.probation_us,
+                &c.dashboard_accounts,
+                &c.dashboard_hosts,
+            ),
+            (
+                c.state_trans_timeout_us,
+                c.candidate_work_budget,
+                &c.io,
+                c.gate,
+                c.validation,
+                c.require_verdict,
+                &c.auto_substitute,
+            )
+        )
+    }
+
+    #[test]
+    fn an_empty_directory_an_empty_file_and_empty_sections_are_the_default() {
+        let default = comparable(&LocalConfig::default());
+        for d in [
+            empty_dir(),
+            dir_with(""),
+            dir_with("[mqtt]\n[io]\n[dashboard]\n[updates]\n"),
+        ] {
+            let c = LocalConfig::load(Some(&d)).unwrap();
+            assert_eq!(comparable(&c), default, "{}", d.display());
+        }
+        assert_eq!(LocalConfig::default().dir, PathBuf::new());
+        assert_eq!(LocalConfig::default().probation_us, DEFAULT_PROBATION_US);
     }
 
     #[test]

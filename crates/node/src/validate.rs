@@ -312,17 +312,129 @@ fn apply_update(
 /// Runs a validation and returns its verdict.
 pub fn validate(job: &Job) -> Verdict {
     let t0 = Instant::now();
-    let fail = |reason: String| Verdict {
+    let mut pair = match Pair::set_up(job) {
+        Ok(pair) => pair,
+        Err(reason) => return failed(reason),
+    };
+    let mut outputs: Vec<Mask> =
+        Vec::with_capacity((job.policy.horizon_us / job.period_us.max(1)) as usize);
+    let bits = Mask::of;
+    let b = run(&mut pair.base, &mut pair.base_io, pair.from, job, |d| {
+        outputs.push(bits(d))
+    });
+    let mut i = 0usize;
+    let mut divergent = 0u64;
+    let c = run(
+        &mut pair.cand,
+        &mut pair.cand_io,
+        pair.cand_from,
+        job,
+        |d| {
+            if outputs.get(i).is_some_and(|o| *o != bits(d)) {
+                divergent += 1;
+            }
+            i += 1;
+        },
+    );
+    verdict(job, &b, &c, divergent, t0)
+}
+
+/// A validation that cannot run both programs says why, and does not pass.
+fn failed(reason: String) -> Verdict {
+    Verdict {
         kind: VerdictKind::Twin,
         result: VerdictResult::Fail,
         reasons: vec![reason],
         figures: BTreeMap::new(),
-    };
+    }
+}
+
+/// The baseline and the candidate, each a PLC on its twin's driver, at the cycle boundary where
+/// the comparison starts.
+struct Pair {
+    base: Plc,
+    base_io: TwinDriver<Twin>,
+    /// Program time of the baseline's first compared cycle, µs.
+    from: u64,
+    cand: Plc,
+    cand_io: TwinDriver<Twin>,
+    /// Program time of the candidate's first compared cycle, µs.
+    cand_from: u64,
+}
+
+impl Pair {
+    /// Sets both runs up from `job.start`; in fork mode the candidate takes the update first, as
+    /// the PLC would. `Err` says why the validation cannot run.
+    fn set_up(job: &Job) -> Result<Pair, String> {
+        let (mut base, base_twin, mut cand, cand_twin, from) = starting_plcs(job)?;
+        let candidate = &job.update.program;
+        let driver = |twin: Twin, p: &Program| TwinDriver::new(twin, p.inputs(), p.outputs());
+        // Each driver follows the I/O map of its PLC: the program it started with.
+        let cand_map = match job.start {
+            Start::Fork { .. } if !job.on_probation => &job.baseline,
+            _ => candidate,
+        };
+        let (Ok(mut base_io), Ok(mut cand_io)) = (
+            driver(base_twin, &job.baseline),
+            driver(cand_twin, cand_map),
+        ) else {
+            return Err("the programs' signals do not match the twin's".into());
+        };
+        // A new driver has told the plant nothing yet; it starts from what the PLC last
+        // dispatched, or the fork's first step would read as every command withdrawn at once.
+        if let Start::Fork {
+            snapshot,
+            dispatched,
+            ..
+        } = &job.start
+        {
+            for (io, program) in [(&mut base_io, &job.baseline), (&mut cand_io, cand_map)] {
+                let values: Vec<Value> = program
+                    .outputs()
+                    .iter()
+                    .map(|o| Value::Bool(dispatched.iter().any(|(n, on)| *n == o.name && *on)))
+                    .collect();
+                io.write_outputs(snapshot.time_us, &values);
+            }
+        }
+        let mut cand_from = from;
+        if matches!(job.start, Start::Fork { .. }) && !job.on_probation {
+            apply_update(
+                &mut cand,
+                &mut cand_io,
+                &job.update,
+                &mut cand_from,
+                job.period_us,
+            )
+            .map_err(|why| format!("the update does not take on the fork: {why}"))?;
+        }
+        // Both runs start at the same cycle boundary: the baseline runs on through the cycles
+        // the candidate's install and substitution took (the old program drove the plant in
+        // them on both forks), so that the same plant time is compared, cycle for cycle.
+        let mut from = from;
+        while from < cand_from {
+            base.cycle(from, &mut base_io);
+            let _ = base.drain_events();
+            drop(base.take_retired());
+            from += job.period_us;
+        }
+        Ok(Pair {
+            base,
+            base_io,
+            from,
+            cand,
+            cand_io,
+            cand_from,
+        })
+    }
+}
+
+/// The baseline PLC and its twin, the candidate PLC and its twin, and the program time both
+/// start from: forks of the running PLC's state and plant, or fresh ones in commission mode.
+fn starting_plcs(job: &Job) -> Result<(Plc, Twin, Plc, Twin, u64), String> {
     let candidate = &job.update.program;
     let programs = [&job.baseline, candidate];
-    let driver = |twin: Twin, p: &Program| TwinDriver::new(twin, p.inputs(), p.outputs());
-    // (baseline PLC, its twin, candidate PLC, its twin, program time to start from)
-    let setup = match &job.start {
+    match &job.start {
         Start::Fork {
             snapshot,
             twin,
@@ -332,7 +444,7 @@ pub fn validate(job: &Job) -> Verdict {
             let from = snapshot.time_us.saturating_add(job.period_us);
             let Some(mut base) = resume(snapshot, job.baseline_slot, &programs, job.period_us)
             else {
-                return fail("the PLC's state could not be resumed on a fork".into());
+                return Err("the PLC's state could not be resumed on a fork".into());
             };
             let cand_slot = if job.on_probation {
                 job.baseline_slot.other()
@@ -340,11 +452,11 @@ pub fn validate(job: &Job) -> Verdict {
                 job.baseline_slot
             };
             let Some(mut cand) = resume(snapshot, cand_slot, &programs, job.period_us) else {
-                return fail("the candidate's state could not be resumed on a fork".into());
+                return Err("the candidate's state could not be resumed on a fork".into());
             };
             continue_inputs(&mut base, read);
             continue_inputs(&mut cand, read);
-            (base, (**twin).clone(), cand, (**twin).clone(), from)
+            Ok((base, (**twin).clone(), cand, (**twin).clone(), from))
         }
         Start::Commission(kind) => {
             let mut base = Plc::new(job.baseline.clone(), 0, Box::new(ManualStopwatch::new()));
@@ -358,106 +470,20 @@ pub fn validate(job: &Job) -> Verdict {
                 let _ = crate::script::press_buttons(t, &[], 0);
             }
             let [a, b] = twins;
-            (base, a, cand, b, 0)
-        }
-    };
-    let (mut base, base_twin, mut cand, cand_twin, from) = setup;
-    // Each driver follows the I/O map of its PLC: the program it started with.
-    let cand_map = match job.start {
-        Start::Fork { .. } if !job.on_probation => &job.baseline,
-        _ => candidate,
-    };
-    let (Ok(mut base_io), Ok(mut cand_io)) = (
-        driver(base_twin, &job.baseline),
-        driver(cand_twin, cand_map),
-    ) else {
-        return fail("the programs' signals do not match the twin's".into());
-    };
-    // A new driver has told the plant nothing yet; it starts from what the PLC last dispatched,
-    // or the fork's first step would read as every command withdrawn at once.
-    if let Start::Fork {
-        snapshot,
-        dispatched,
-        ..
-    } = &job.start
-    {
-        for (io, program) in [(&mut base_io, &job.baseline), (&mut cand_io, cand_map)] {
-            let values: Vec<Value> = program
-                .outputs()
-                .iter()
-                .map(|o| Value::Bool(dispatched.iter().any(|(n, on)| *n == o.name && *on)))
-                .collect();
-            io.write_outputs(snapshot.time_us, &values);
+            Ok((base, a, cand, b, 0))
         }
     }
-    let mut cand_from = from;
-    if matches!(job.start, Start::Fork { .. }) && !job.on_probation {
-        if let Err(why) = apply_update(
-            &mut cand,
-            &mut cand_io,
-            &job.update,
-            &mut cand_from,
-            job.period_us,
-        ) {
-            return fail(format!("the update does not take on the fork: {why}"));
-        }
-    }
-    // Both runs start at the same cycle boundary: the baseline runs on through the cycles the
-    // candidate's install and substitution took (the old program drove the plant in them on both
-    // forks), so that the same plant time is compared, cycle for cycle.
-    let mut from = from;
-    while from < cand_from {
-        base.cycle(from, &mut base_io);
-        let _ = base.drain_events();
-        drop(base.take_retired());
-        from += job.period_us;
-    }
-    let mut outputs: Vec<Mask> =
-        Vec::with_capacity((job.policy.horizon_us / job.period_us.max(1)) as usize);
-    let bits = Mask::of;
-    let b = run(&mut base, &mut base_io, from, job, |d| {
-        outputs.push(bits(d))
-    });
-    let mut i = 0usize;
-    let mut divergent = 0u64;
-    let c = run(&mut cand, &mut cand_io, cand_from, job, |d| {
-        if outputs.get(i).is_some_and(|o| *o != bits(d)) {
-            divergent += 1;
-        }
-        i += 1;
-    });
-    let mut reasons = Vec::new();
-    for f in &c.twin_faults {
-        reasons.push(format!("twin fault: {f}"));
-    }
-    for a in &c.alarms {
-        reasons.push(a.clone());
-    }
+}
+
+/// The verdict on the candidate's run `c` against the baseline's `b`: the candidate's own
+/// trouble decides it; the rest is reported so that an operator can weigh it.
+fn verdict(job: &Job, b: &RunFigures, c: &RunFigures, divergent: u64, t0: Instant) -> Verdict {
     let share = if b.produced == 0 {
         1.0
     } else {
         c.produced as f64 / b.produced as f64
     };
-    let throughput_ok = job.update.meta.changes_throughput || share >= job.policy.throughput_share;
-    if !throughput_ok {
-        reasons.push(format!(
-            "throughput: the candidate produced {} parts in {:.0} s of plant time, {:.0} % of the {} of the program it replaces, below the {:.0} % required",
-            c.produced,
-            job.policy.horizon_us as f64 / 1e6,
-            share * 100.0,
-            b.produced,
-            job.policy.throughput_share * 100.0
-        ));
-        // A part is the unit of production: over a horizon that holds few, where a part is at
-        // its end decides more than the program does.
-        if (b.produced as f64) * (1.0 - job.policy.throughput_share) < 1.0 {
-            reasons.push(format!(
-                "the horizon holds only {} parts of the program it replaces, so one part is {:.0} % of its production: a longer horizon judges throughput rather than the phase",
-                b.produced,
-                100.0 / b.produced as f64
-            ));
-        }
-    }
+    let mut reasons = failures(job, b, c, share);
     let passed = reasons.is_empty();
     if job.update.meta.changes_throughput {
         reasons.push("the package declares that it changes throughput: not judged".into());
@@ -492,6 +518,40 @@ pub fn validate(job: &Job) -> Verdict {
         reasons,
         figures,
     }
+}
+
+/// Why the candidate may not drive the plant, if at all: its twin faults and alarms, and a
+/// production below the required `share` of the baseline's unless the package declares that
+/// it changes throughput.
+fn failures(job: &Job, b: &RunFigures, c: &RunFigures, share: f64) -> Vec<String> {
+    let mut reasons = Vec::new();
+    for f in &c.twin_faults {
+        reasons.push(format!("twin fault: {f}"));
+    }
+    for a in &c.alarms {
+        reasons.push(a.clone());
+    }
+    let throughput_ok = job.update.meta.changes_throughput || share >= job.policy.throughput_share;
+    if !throughput_ok {
+        reasons.push(format!(
+            "throughput: the candidate produced {} parts in {:.0} s of plant time, {:.0} % of the {} of the program it replaces, below the {:.0} % required",
+            c.produced,
+            job.policy.horizon_us as f64 / 1e6,
+            share * 100.0,
+            b.produced,
+            job.policy.throughput_share * 100.0
+        ));
+        // A part is the unit of production: over a horizon that holds few, where a part is at
+        // its end decides more than the program does.
+        if (b.produced as f64) * (1.0 - job.policy.throughput_share) < 1.0 {
+            reasons.push(format!(
+                "the horizon holds only {} parts of the program it replaces, so one part is {:.0} % of its production: a longer horizon judges throughput rather than the phase",
+                b.produced,
+                100.0 / b.produced as f64
+            ));
+        }
+    }
+    reasons
 }
 
 /// A finished validation: the verdict and the program it is about.

@@ -396,6 +396,329 @@ struct Tally {
     replies: BTreeMap<String, u64>,
 }
 
+impl Tally {
+    /// The figures of a kind's phase, with `sent` messages, and whether it kept within the
+    /// targets: its p99 latency within `limit` and its peak memory under 256 MiB.
+    fn kind_figures(&self, sent: u64, limit: f64, peak_mib: u64) -> (serde_json::Value, bool) {
+        let l = self.timing.latency.summary();
+        let within = (l.p99_ns as f64) <= limit;
+        let seconds = self.measured_us as f64 / 1e6;
+        let figures = serde_json::json!({
+            "sent": sent,
+            "sent_per_s": if seconds > 0.0 { sent as f64 / seconds } else { 0.0 },
+            "slices": self.slices,
+            "cycles": l.count,
+            "latency_p50_ns": l.p50_ns,
+            "latency_p99_ns": l.p99_ns,
+            "latency_max_ns": l.max_ns,
+            "overruns": self.timing.overruns,
+            "unloaded_before_latency_p99_ns": self.before.latency.summary().p99_ns,
+            "within_limit": within,
+            "peak_rss_mib": peak_mib,
+            "busy": self.busy,
+            "replies": self.replies,
+        });
+        (figures, within && peak_mib < 256)
+    }
+}
+
+/// The PLC's id in a flood run.
+const PLC: &str = "bench";
+
+/// The node that [`vernadat_node`] starts.
+type VernadatNode = cetratus_node::Node<cetratus_io::TwinDriver<cetratus_twin::Twin>>;
+
+/// How a run is cut: `kinds` each flooded for `phase_us` in all, in slices of `slice_us`, the
+/// node scanning every `period_us`.
+struct Plan<'k> {
+    phase_us: u64,
+    period_us: u64,
+    slice_us: u64,
+    kinds: &'k [FloodKind],
+}
+
+/// Peak resident memory by phase: the unloaded slices (0), then each kind (1 + its index in
+/// [`FloodKind::ALL`]), its settling included.
+struct Peaks {
+    by_phase: [AtomicU64; 1 + FloodKind::ALL.len()],
+    /// The phase that runs now.
+    phase: AtomicUsize,
+}
+
+impl Peaks {
+    fn new() -> Self {
+        Peaks {
+            by_phase: std::array::from_fn(|_| AtomicU64::new(0)),
+            phase: AtomicUsize::new(0),
+        }
+    }
+
+    /// Samples the memory into the phase that runs, every 20 ms, until `done`.
+    fn watch(&self, ctl: &Control) {
+        while !ctl.done.load(Ordering::Relaxed) {
+            self.by_phase[self.phase.load(Ordering::Relaxed)]
+                .fetch_max(rss_kib(), Ordering::Relaxed);
+            std::thread::sleep(Duration::from_millis(20));
+        }
+    }
+
+    /// The peak of phase `i`, in MiB.
+    fn mib(&self, i: usize) -> u64 {
+        self.by_phase[i].load(Ordering::Relaxed) / 1024
+    }
+}
+
+/// A client that counts the PLC's replies on `replies` by error code. It is a client of its
+/// own: the broker holds back a client that floods past its limits (and its subscriptions with
+/// it).
+fn replies_client(
+    url: &str,
+    replies: &str,
+    ctl: &Arc<Control>,
+) -> Result<rumqttc::v5::Client, BenchError> {
+    use rumqttc::v5::mqttbytes::v5::Packet;
+    use rumqttc::v5::mqttbytes::QoS;
+
+    let opts = cetratus_mct::client_options(url, "bench-flood-replies")?;
+    let (client, mut conn) = rumqttc::v5::Client::new(opts, 16);
+    let ctl = ctl.clone();
+    // Ends when the connection does.
+    std::thread::spawn(move || {
+        for ev in conn.iter() {
+            if let Ok(rumqttc::v5::Event::Incoming(Packet::Publish(p))) = ev {
+                let v: serde_json::Value = serde_json::from_slice(&p.payload).unwrap_or_default();
+                let code = v["error"]["code"].as_str().unwrap_or("ok").to_string();
+                *lock(&ctl.codes).entry(code).or_default() += 1;
+            }
+        }
+    });
+    client.subscribe(replies, QoS::AtMostOnce)?;
+    Ok(client)
+}
+
+/// Starts the threads that flood the broker at `mqtt` (`url`) while `ctl` says so, until it
+/// says done: the messages, the connections, the dashboard logins when `login` names an
+/// account, and the one that samples the peak memory.
+fn start_floods(
+    mqtt: std::net::SocketAddr,
+    url: String,
+    replies: String,
+    login: Option<(std::net::SocketAddr, String)>,
+    ctl: &Arc<Control>,
+    peaks: &Arc<Peaks>,
+) -> Vec<std::thread::JoinHandle<()>> {
+    let mut threads = Vec::new();
+    let u1 = crate::update::packages().u1;
+    let messages: Vec<_> = FloodKind::ALL
+        .iter()
+        .map(|k| k.messages(PLC, &u1))
+        .collect();
+    threads.push({
+        let ctl = ctl.clone();
+        std::thread::spawn(move || message_flood(&url, replies, &messages, &ctl))
+    });
+    threads.push({
+        let ctl = ctl.clone();
+        std::thread::spawn(move || connection_flood(mqtt, PLC, &ctl))
+    });
+    if let Some((addr, account)) = login {
+        let ctl = ctl.clone();
+        threads.push(std::thread::spawn(move || {
+            login_flood(addr, &account, &ctl)
+        }));
+    }
+    threads.push({
+        let (ctl, peaks) = (ctl.clone(), peaks.clone());
+        std::thread::spawn(move || peaks.watch(&ctl))
+    });
+    threads
+}
+
+/// Publishes the `messages` of the kind that is on (by index in [`FloodKind::ALL`]), in turn,
+/// as fast as the client takes them, until `done`; commands ask for their replies on
+/// `replies`.
+fn message_flood(
+    url: &str,
+    replies: String,
+    messages: &[Vec<(String, bytes::Bytes)>],
+    ctl: &Control,
+) {
+    use rumqttc::v5::mqttbytes::v5::PublishProperties;
+    use rumqttc::v5::mqttbytes::QoS;
+
+    let props = PublishProperties {
+        response_topic: Some(replies),
+        correlation_data: Some(b"flood".to_vec().into()),
+        ..PublishProperties::default()
+    };
+    let mut turn = 0usize;
+    // A connection per flood slice: what a slice left unsent in the client and its socket
+    // (the broker reads a client held back by its limits slowly) goes with it when the
+    // slice ends, and does not flood the slices after it. The next one connects then,
+    // while nothing is measured.
+    let mut sender = Sender::connect(url).ok();
+    let mut used = false;
+    while !ctl.done.load(Ordering::Relaxed) {
+        let Some((kind, list)) = ctl
+            .active()
+            .map(|k| (k, &messages[k.index()]))
+            .filter(|(_, list)| !list.is_empty())
+        else {
+            if std::mem::take(&mut used) {
+                drop(sender.take());
+                sender = Sender::connect(url).ok();
+            }
+            std::thread::sleep(IDLE_POLL);
+            continue;
+        };
+        used = true;
+        if sender.is_none() {
+            sender = Sender::connect(url).ok();
+        }
+        let Some(client) = sender.as_ref().map(|s| &s.client) else {
+            std::thread::sleep(IDLE_POLL);
+            continue;
+        };
+        let (topic, payload) = &list[turn % list.len()];
+        let r = if topic.contains("/cmd/") {
+            client.try_publish_with_properties(
+                topic.clone(),
+                QoS::AtMostOnce,
+                false,
+                payload.clone(),
+                props.clone(),
+            )
+        } else {
+            client.try_publish(topic.clone(), QoS::AtMostOnce, false, payload.clone())
+        };
+        if r.is_err() {
+            // The client's queue is full: the broker reads no faster.
+            std::thread::sleep(Duration::from_micros(50));
+            continue;
+        }
+        turn = turn.wrapping_add(1);
+        ctl.count_sent(kind);
+    }
+}
+
+/// The scans of a flood run, slice after slice on one clock, and what the run shares with the
+/// floods.
+struct Run<'r> {
+    node: &'r mut VernadatNode,
+    handle: &'r cetratus_mct::MqttHandle,
+    ctl: &'r Control,
+    peaks: &'r Peaks,
+    period_us: u64,
+    /// Where the next slice starts on the node's clock.
+    now_base: u64,
+    never: AtomicBool,
+}
+
+impl Run<'_> {
+    /// One slice of `length_us`; its timing, and the length it ran.
+    fn slice(&mut self, length_us: u64) -> (LoopTiming, u64) {
+        use cetratus_node::periodic::run_periodic;
+
+        let mut timing = LoopTiming::default();
+        let base = self.now_base;
+        let node = &mut *self.node;
+        let reached = run_periodic(
+            self.period_us,
+            length_us,
+            1.0,
+            &self.never,
+            &mut timing,
+            |now, t| {
+                node.step(base + now, t);
+                true
+            },
+        );
+        self.now_base += reached;
+        (timing, reached)
+    }
+
+    /// The round-robin of the plan's kinds, each flood slice after an unloaded one, until every
+    /// kind has had its phase; the unloaded slices' tally, and each kind's (by index in
+    /// [`FloodKind::ALL`]).
+    fn interleave(&mut self, plan: &Plan) -> (Tally, Vec<Tally>) {
+        let mut unloaded = Tally::default();
+        let mut tallies: Vec<Tally> = FloodKind::ALL.iter().map(|_| Tally::default()).collect();
+        let mut done_us = 0u64;
+        while done_us < plan.phase_us {
+            let length = plan.slice_us.min(plan.phase_us - done_us);
+            for &kind in plan.kinds {
+                self.peaks.phase.store(0, Ordering::Relaxed);
+                let (t, reached) = self.slice(length);
+                unloaded.timing.add(&t);
+                unloaded.slices += 1;
+                unloaded.measured_us += reached;
+                let tally = &mut tallies[kind.index()];
+                tally.before.add(&t);
+                self.flood_slice(kind, length, tally);
+            }
+            done_us += length;
+        }
+        (unloaded, tallies)
+    }
+
+    /// One slice of `length_us` flooded with `kind`, then its settling, added to `tally`.
+    fn flood_slice(&mut self, kind: FloodKind, length_us: u64, tally: &mut Tally) {
+        // Replies still arriving from the kind before are nobody's.
+        lock(&self.ctl.codes).clear();
+        let busy0 = self.handle.stats().commands_busy;
+        self.peaks.phase.store(1 + kind.index(), Ordering::Relaxed);
+        self.ctl.set(Some(kind));
+        let (t, reached) = self.slice(length_us);
+        self.ctl.set(None);
+        self.slice(SETTLE_US);
+        tally.timing.add(&t);
+        tally.slices += 1;
+        tally.measured_us += reached;
+        tally.busy += self.handle.stats().commands_busy - busy0;
+        for (code, n) in std::mem::take(&mut *lock(&self.ctl.codes)) {
+            *tally.replies.entry(code).or_default() += n;
+        }
+    }
+}
+
+/// The figures of the measured slices: the plan, the unloaded reference (whose p99 sets the
+/// latency limit) and each kind, with whether all kept within the targets.
+fn slice_figures(
+    plan: &Plan,
+    unloaded: &Tally,
+    tallies: &[Tally],
+    ctl: &Control,
+    peaks: &Peaks,
+) -> Figures {
+    let q = unloaded.timing.latency.summary();
+    let limit = 1.2 * q.p99_ns as f64 + 20_000.0;
+    let mut out = Figures::new();
+    let s = |k: &str| k.to_string();
+    out.insert(s("method"), "interleaved".into());
+    out.insert(s("period_us"), plan.period_us.into());
+    out.insert(s("phase_s"), (plan.phase_us as f64 / 1e6).into());
+    out.insert(s("slice_s"), (plan.slice_us as f64 / 1e6).into());
+    out.insert(s("settle_s"), (SETTLE_US as f64 / 1e6).into());
+    out.insert(s("unloaded_slices"), unloaded.slices.into());
+    out.insert(s("unloaded_cycles"), q.count.into());
+    out.insert(s("unloaded_latency_p50_ns"), q.p50_ns.into());
+    out.insert(s("unloaded_latency_p99_ns"), q.p99_ns.into());
+    out.insert(s("unloaded_latency_max_ns"), q.max_ns.into());
+    out.insert(s("unloaded_overruns"), unloaded.timing.overruns.into());
+    out.insert(s("unloaded_peak_rss_mib"), peaks.mib(0).into());
+    out.insert(s("limit_ns"), limit.into());
+    let mut all_within = true;
+    for &kind in plan.kinds {
+        let i = kind.index();
+        let sent = ctl.sent[i].load(Ordering::Relaxed);
+        let (figures, within) = tallies[i].kind_figures(sent, limit, peaks.mib(1 + i));
+        all_within &= within;
+        out.insert(kind.name().to_string(), figures);
+    }
+    out.insert(s("all_within_targets"), all_within.into());
+    out
+}
+
 /// Runs the Vernadat node as `cetratus run` does (embedded broker, `beside` it the dashboard,
 /// MQTT link) at `period_us`, and floods it with each of `kinds` for `phase_us` in all, sent
 /// by clients as fast as they can. The run is cut into slices of `slice_us`, round-robin: an
@@ -417,180 +740,38 @@ pub fn flood(
     kinds: &[FloodKind],
     beside: Beside<'_>,
 ) -> Result<Figures, BenchError> {
-    use cetratus_node::periodic::run_periodic;
-    use rumqttc::v5::mqttbytes::v5::{Packet, PublishProperties};
-    use rumqttc::v5::mqttbytes::QoS;
-
-    const PLC: &str = "bench";
     let slice_us = slice_us.clamp(period_us.max(1), phase_us.max(period_us.max(1)));
-    let free = || -> Result<std::net::SocketAddr, BenchError> {
-        Ok(std::net::TcpListener::bind("127.0.0.1:0")?.local_addr()?)
+    let plan = Plan {
+        phase_us,
+        period_us,
+        slice_us,
+        kinds,
     };
-    let mqtt = free()?;
+    let mqtt = std::net::TcpListener::bind("127.0.0.1:0")?.local_addr()?;
     let (mut node, handle) = vernadat_node(PLC, mqtt, period_us)?;
     let (dashboard, login_target) = beside(&format!("mqtt://{mqtt}"))?;
     let ctl = Arc::new(Control::new());
-
-    // The replies, by error code, on a client of their own: the broker holds back a client that
-    // floods past its limits (and its subscriptions with it).
     let url = format!("mqtt://{mqtt}");
     let replies = format!("cetratus/{PLC}/reply/bench-flood");
-    let replies_client = {
-        let opts = cetratus_mct::client_options(&url, "bench-flood-replies")?;
-        let (client, mut conn) = rumqttc::v5::Client::new(opts, 16);
-        let ctl = ctl.clone();
-        // Ends when the connection does.
-        std::thread::spawn(move || {
-            for ev in conn.iter() {
-                if let Ok(rumqttc::v5::Event::Incoming(Packet::Publish(p))) = ev {
-                    let v: serde_json::Value =
-                        serde_json::from_slice(&p.payload).unwrap_or_default();
-                    let code = v["error"]["code"].as_str().unwrap_or("ok").to_string();
-                    *lock(&ctl.codes).entry(code).or_default() += 1;
-                }
-            }
-        });
-        client.subscribe(replies.clone(), QoS::AtMostOnce)?;
-        client
-    };
-    let mut threads = Vec::new();
-    let u1 = crate::update::packages().u1;
-    let messages: Vec<_> = FloodKind::ALL
-        .iter()
-        .map(|k| k.messages(PLC, &u1))
-        .collect();
-    threads.push({
-        let ctl = ctl.clone();
-        let props = PublishProperties {
-            response_topic: Some(replies.clone()),
-            correlation_data: Some(b"flood".to_vec().into()),
-            ..PublishProperties::default()
-        };
-        std::thread::spawn(move || {
-            let mut turn = 0usize;
-            // A connection per flood slice: what a slice left unsent in the client and its socket
-            // (the broker reads a client held back by its limits slowly) goes with it when the
-            // slice ends, and does not flood the slices after it. The next one connects then,
-            // while nothing is measured.
-            let mut sender = Sender::connect(&url).ok();
-            let mut used = false;
-            while !ctl.done.load(Ordering::Relaxed) {
-                let Some((kind, list)) = ctl
-                    .active()
-                    .map(|k| (k, &messages[k.index()]))
-                    .filter(|(_, list)| !list.is_empty())
-                else {
-                    if std::mem::take(&mut used) {
-                        drop(sender.take());
-                        sender = Sender::connect(&url).ok();
-                    }
-                    std::thread::sleep(IDLE_POLL);
-                    continue;
-                };
-                used = true;
-                if sender.is_none() {
-                    sender = Sender::connect(&url).ok();
-                }
-                let Some(client) = sender.as_ref().map(|s| &s.client) else {
-                    std::thread::sleep(IDLE_POLL);
-                    continue;
-                };
-                let (topic, payload) = &list[turn % list.len()];
-                let r = if topic.contains("/cmd/") {
-                    client.try_publish_with_properties(
-                        topic.clone(),
-                        QoS::AtMostOnce,
-                        false,
-                        payload.clone(),
-                        props.clone(),
-                    )
-                } else {
-                    client.try_publish(topic.clone(), QoS::AtMostOnce, false, payload.clone())
-                };
-                if r.is_err() {
-                    // The client's queue is full: the broker reads no faster.
-                    std::thread::sleep(Duration::from_micros(50));
-                    continue;
-                }
-                turn = turn.wrapping_add(1);
-                ctl.count_sent(kind);
-            }
-        })
-    });
-    threads.push({
-        let ctl = ctl.clone();
-        std::thread::spawn(move || connection_flood(mqtt, PLC, &ctl))
-    });
-    if let Some((addr, account)) = login_target.clone() {
-        let ctl = ctl.clone();
-        threads.push(std::thread::spawn(move || {
-            login_flood(addr, &account, &ctl)
-        }));
-    }
-    // Peak resident memory by phase: the unloaded slices, then each kind (its settling included).
-    let peaks: Arc<[AtomicU64; 1 + FloodKind::ALL.len()]> =
-        Arc::new(std::array::from_fn(|_| AtomicU64::new(0)));
-    let rss_phase = Arc::new(AtomicUsize::new(0));
-    threads.push({
-        let (ctl, peaks, rss_phase) = (ctl.clone(), peaks.clone(), rss_phase.clone());
-        std::thread::spawn(move || {
-            while !ctl.done.load(Ordering::Relaxed) {
-                peaks[rss_phase.load(Ordering::Relaxed)].fetch_max(rss_kib(), Ordering::Relaxed);
-                std::thread::sleep(Duration::from_millis(20));
-            }
-        })
-    });
+    let replies_client = replies_client(&url, &replies, &ctl)?;
+    let peaks = Arc::new(Peaks::new());
+    let threads = start_floods(mqtt, url, replies, login_target, &ctl, &peaks);
 
     // Every thread of the node and of the floods is running by now, so only the scan thread is
     // real-time, on its CPU of its own.
     let rt_status = rt.then(|| cetratus_node::rt::request(80).to_string());
-    let mut now_base = 0u64;
-    let never = AtomicBool::new(false);
-    // One slice of `length_us`; its timing, and the length it ran.
-    let mut slice = |node: &mut cetratus_node::Node<_>, length_us: u64| {
-        let mut timing = LoopTiming::default();
-        let base = now_base;
-        let reached = run_periodic(period_us, length_us, 1.0, &never, &mut timing, |now, t| {
-            node.step(base + now, t);
-            true
-        });
-        now_base += reached;
-        (timing, reached)
+    let mut run = Run {
+        node: &mut node,
+        handle: &handle,
+        ctl: &ctl,
+        peaks: &peaks,
+        period_us,
+        now_base: 0,
+        never: AtomicBool::new(false),
     };
     // The MQTT link connected, the dashboard subscribed, the first snapshots sent.
-    slice(&mut node, SETTLE_US);
-    let mut unloaded = Tally::default();
-    let mut tallies: Vec<Tally> = FloodKind::ALL.iter().map(|_| Tally::default()).collect();
-    let mut done_us = 0u64;
-    while done_us < phase_us {
-        let length = slice_us.min(phase_us - done_us);
-        for &kind in kinds {
-            let i = kind.index();
-            rss_phase.store(0, Ordering::Relaxed);
-            let (t, reached) = slice(&mut node, length);
-            unloaded.timing.add(&t);
-            unloaded.slices += 1;
-            unloaded.measured_us += reached;
-            let tally = &mut tallies[i];
-            tally.before.add(&t);
-            // Replies still arriving from the kind before are nobody's.
-            lock(&ctl.codes).clear();
-            let busy0 = handle.stats().commands_busy;
-            rss_phase.store(1 + i, Ordering::Relaxed);
-            ctl.set(Some(kind));
-            let (t, reached) = slice(&mut node, length);
-            ctl.set(None);
-            slice(&mut node, SETTLE_US);
-            tally.timing.add(&t);
-            tally.slices += 1;
-            tally.measured_us += reached;
-            tally.busy += handle.stats().commands_busy - busy0;
-            for (code, n) in std::mem::take(&mut *lock(&ctl.codes)) {
-                *tally.replies.entry(code).or_default() += n;
-            }
-        }
-        done_us += length;
-    }
+    run.slice(SETTLE_US);
+    let (unloaded, tallies) = run.interleave(&plan);
     ctl.done.store(true, Ordering::Relaxed);
     for t in threads {
         let _ = t.join();
@@ -599,57 +780,13 @@ pub fn flood(
     // and timer slack cyclictest inherits), for as long as one kind was measured (at most 30 s).
     let machine = crate::cyclictest::measure(period_us, phase_us.min(30_000_000), rt);
 
-    let q = unloaded.timing.latency.summary();
-    let limit = 1.2 * q.p99_ns as f64 + 20_000.0;
-    let mib = |i: usize| peaks[i].load(Ordering::Relaxed) / 1024;
-    let mut out = Figures::new();
-    let s = |k: &str| k.to_string();
-    out.insert(s("method"), "interleaved".into());
-    out.insert(s("period_us"), period_us.into());
-    out.insert(s("phase_s"), (phase_us as f64 / 1e6).into());
-    out.insert(s("slice_s"), (slice_us as f64 / 1e6).into());
-    out.insert(s("settle_s"), (SETTLE_US as f64 / 1e6).into());
-    out.insert(s("unloaded_slices"), unloaded.slices.into());
-    out.insert(s("unloaded_cycles"), q.count.into());
-    out.insert(s("unloaded_latency_p50_ns"), q.p50_ns.into());
-    out.insert(s("unloaded_latency_p99_ns"), q.p99_ns.into());
-    out.insert(s("unloaded_latency_max_ns"), q.max_ns.into());
-    out.insert(s("unloaded_overruns"), unloaded.timing.overruns.into());
-    out.insert(s("unloaded_peak_rss_mib"), mib(0).into());
-    out.insert(s("limit_ns"), limit.into());
-    let mut all_within = true;
-    for &kind in kinds {
-        let (i, tally) = (kind.index(), &tallies[kind.index()]);
-        let l = tally.timing.latency.summary();
-        let within = (l.p99_ns as f64) <= limit;
-        all_within &= within && mib(1 + i) < 256;
-        let sent = ctl.sent[i].load(Ordering::Relaxed);
-        let seconds = tally.measured_us as f64 / 1e6;
-        out.insert(
-            kind.name().to_string(),
-            serde_json::json!({
-                "sent": sent,
-                "sent_per_s": if seconds > 0.0 { sent as f64 / seconds } else { 0.0 },
-                "slices": tally.slices,
-                "cycles": l.count,
-                "latency_p50_ns": l.p50_ns,
-                "latency_p99_ns": l.p99_ns,
-                "latency_max_ns": l.max_ns,
-                "overruns": tally.timing.overruns,
-                "unloaded_before_latency_p99_ns": tally.before.latency.summary().p99_ns,
-                "within_limit": within,
-                "peak_rss_mib": mib(1 + i),
-                "busy": tally.busy,
-                "replies": tally.replies,
-            }),
-        );
-    }
+    let mut out = slice_figures(&plan, &unloaded, &tallies, &ctl, &peaks);
     let (plc, _, report) = node.finish()?;
     drop(dashboard);
     drop(replies_client);
     let stats = handle.stats();
     handle.shutdown();
-    out.insert(s("all_within_targets"), all_within.into());
+    let s = |k: &str| k.to_string();
     out.insert(
         s("machine"),
         serde_json::to_value(machine).unwrap_or_default(),

@@ -326,48 +326,53 @@ fn cpu_seconds(pid: u32) -> Result<f64, BenchError> {
     Ok((ticks(11) + ticks(12)) / 100.0)
 }
 
-/// Starts a Mosquitto, `n` runtime processes publishing to it, and one `cetratus mct`; then
-/// measures, for `for_us` of wall time, the dashboard update latency (PLC publish → event
-/// delivered by the dashboard's stream) and the CPU the MCT uses.
-/// `exe` is the `cetratus` binary to start.
-pub fn fleet(
-    exe: &std::path::Path,
-    n: usize,
-    period: &str,
-    for_us: u64,
-) -> Result<Figures, BenchError> {
-    use std::io::{BufRead, BufReader, Write};
-    use std::process::{Command, Stdio};
-    use std::time::{Duration, Instant};
+/// A free TCP port on the loopback interface.
+fn free_port() -> Result<u16, BenchError> {
+    Ok(std::net::TcpListener::bind("127.0.0.1:0")?
+        .local_addr()?
+        .port())
+}
 
-    let free = || -> Result<u16, BenchError> {
-        Ok(std::net::TcpListener::bind("127.0.0.1:0")?
-            .local_addr()?
-            .port())
-    };
-    let wait = |port: u16| {
-        let end = Instant::now() + Duration::from_secs(20);
-        while Instant::now() < end && std::net::TcpStream::connect(("127.0.0.1", port)).is_err() {
-            std::thread::sleep(Duration::from_millis(50));
-        }
-    };
+/// Waits until a process listens on `port`, for 20 s at most: what it serves is then asked for,
+/// and fails clearly if it is still missing.
+fn wait_for_port(port: u16) {
+    use std::time::{Duration, Instant};
+    let end = Instant::now() + Duration::from_secs(20);
+    while Instant::now() < end && std::net::TcpStream::connect(("127.0.0.1", port)).is_err() {
+        std::thread::sleep(Duration::from_millis(50));
+    }
+}
+
+/// Starts a Mosquitto on a free port, and returns it with the port.
+fn start_mosquitto() -> Result<(Child, u16), BenchError> {
+    use std::process::{Command, Stdio};
     let mosquitto = ["/usr/sbin/mosquitto", "/usr/bin/mosquitto"]
         .into_iter()
         .find(|p| std::path::Path::new(p).exists())
         .ok_or("mosquitto is missing: apt-get install mosquitto")?;
-    let port = free()?;
-    let _broker = Child(
+    let port = free_port()?;
+    let broker = Child(
         Command::new(mosquitto)
             .args(["-p", &port.to_string()])
             .stdout(Stdio::null())
             .stderr(Stdio::null())
             .spawn()?,
     );
-    wait(port);
-    let dir = std::env::temp_dir().join(format!("cetratus-fleet-{}", std::process::id()));
-    std::fs::create_dir_all(&dir)?;
+    wait_for_port(port);
+    Ok((broker, port))
+}
+
+/// Starts `n` runtime processes of the Vernadat program on its twin (`cell0`, `cell1`, …) with
+/// the `cetratus` binary `exe`, publishing to the broker at `url`, each with its state in `dir`.
+fn start_plcs(
+    exe: &std::path::Path,
+    n: usize,
+    period: &str,
+    url: &str,
+    dir: &std::path::Path,
+) -> Result<Vec<Child>, BenchError> {
+    use std::process::{Command, Stdio};
     let program = program::examples_dir().join("vernadat/vernadat.toml");
-    let url = format!("mqtt://127.0.0.1:{port}");
     let mut plcs = Vec::with_capacity(n);
     for k in 0..n {
         plcs.push(Child(
@@ -385,7 +390,7 @@ pub fn fleet(
                     "--plc",
                     &format!("cell{k}"),
                     "--broker",
-                    &url,
+                    url,
                     "--state-dir",
                 ])
                 .arg(dir.join(format!("cell{k}")))
@@ -394,7 +399,14 @@ pub fn fleet(
                 .spawn()?,
         ));
     }
-    let http = free()?;
+    Ok(plcs)
+}
+
+/// Starts `cetratus mct` on the broker at `url` with its dashboard on a free port, and logs in;
+/// the process, the dashboard's port and the session's `Cookie` header line.
+fn start_mct(exe: &std::path::Path, url: &str) -> Result<(Child, u16, String), BenchError> {
+    use std::process::{Command, Stdio};
+    let http = free_port()?;
     let mut mct = Child(
         Command::new(exe)
             .args([
@@ -402,33 +414,44 @@ pub fn fleet(
                 "--http",
                 &format!("127.0.0.1:{http}"),
                 "--broker",
-                &url,
+                url,
             ])
             .stdout(Stdio::piped())
             .stderr(Stdio::null())
             .spawn()?,
     );
-    wait(http);
+    wait_for_port(http);
     let cookie = dashboard_login(&mut mct.0, http)?;
-    // Let every PLC connect before measuring.
-    std::thread::sleep(Duration::from_secs(5));
-    let plcs_seen = {
-        let mut stream = std::net::TcpStream::connect(("127.0.0.1", http))?;
-        write!(
-            stream,
-            "GET /api/plcs HTTP/1.0\r\nHost: 127.0.0.1\r\n{cookie}\r\n\r\n"
-        )?;
-        let mut body = String::new();
-        std::io::Read::read_to_string(&mut stream, &mut body)?;
-        let json = body.split_once("\r\n\r\n").map_or("", |(_, b)| b);
-        serde_json::from_str::<serde_json::Value>(json)
-            .ok()
-            .and_then(|v| v.as_array().map(Vec::len))
-            .unwrap_or(0)
-    };
-    let cpu0 = cpu_seconds(mct.0.id())?;
-    let t0 = Instant::now();
-    // A stream client of the dashboard, as a browser is: latency of every io message of cell0.
+    Ok((mct, http, cookie))
+}
+
+/// How many PLCs the dashboard at port `http` lists.
+fn plcs_listed(http: u16, cookie: &str) -> Result<usize, BenchError> {
+    use std::io::Write;
+    let mut stream = std::net::TcpStream::connect(("127.0.0.1", http))?;
+    write!(
+        stream,
+        "GET /api/plcs HTTP/1.0\r\nHost: 127.0.0.1\r\n{cookie}\r\n\r\n"
+    )?;
+    let mut body = String::new();
+    std::io::Read::read_to_string(&mut stream, &mut body)?;
+    let json = body.split_once("\r\n\r\n").map_or("", |(_, b)| b);
+    Ok(serde_json::from_str::<serde_json::Value>(json)
+        .ok()
+        .and_then(|v| v.as_array().map(Vec::len))
+        .unwrap_or(0))
+}
+
+/// The update latency, in ms, of every io message of `cell0` that the dashboard at port `http`
+/// delivers to a stream client, as a browser is one, until `for_us` after `t0`.
+fn update_latencies(
+    http: u16,
+    cookie: &str,
+    t0: std::time::Instant,
+    for_us: u64,
+) -> Result<Vec<f64>, BenchError> {
+    use std::io::{BufRead, BufReader, Write};
+    use std::time::Duration;
     let mut stream = std::net::TcpStream::connect(("127.0.0.1", http))?;
     stream.set_read_timeout(Some(Duration::from_millis(500)))?;
     write!(stream, "GET /api/stream?plc=cell0 HTTP/1.0\r\nHost: 127.0.0.1\r\n{cookie}\r\nAccept: text/event-stream\r\n\r\n")?;
@@ -455,6 +478,33 @@ pub fn fleet(
             lat_ms.push(now - sent);
         }
     }
+    Ok(lat_ms)
+}
+
+/// Starts a Mosquitto, `n` runtime processes publishing to it, and one `cetratus mct`; then
+/// measures, for `for_us` of wall time, the dashboard update latency (PLC publish → event
+/// delivered by the dashboard's stream) and the CPU the MCT uses.
+/// `exe` is the `cetratus` binary to start.
+pub fn fleet(
+    exe: &std::path::Path,
+    n: usize,
+    period: &str,
+    for_us: u64,
+) -> Result<Figures, BenchError> {
+    use std::time::{Duration, Instant};
+
+    let (_broker, port) = start_mosquitto()?;
+    let dir = std::env::temp_dir().join(format!("cetratus-fleet-{}", std::process::id()));
+    std::fs::create_dir_all(&dir)?;
+    let url = format!("mqtt://127.0.0.1:{port}");
+    let plcs = start_plcs(exe, n, period, &url, &dir)?;
+    let (mct, http, cookie) = start_mct(exe, &url)?;
+    // Let every PLC connect before measuring.
+    std::thread::sleep(Duration::from_secs(5));
+    let plcs_seen = plcs_listed(http, &cookie)?;
+    let cpu0 = cpu_seconds(mct.0.id())?;
+    let t0 = Instant::now();
+    let mut lat_ms = update_latencies(http, &cookie, t0, for_us)?;
     let wall = t0.elapsed().as_secs_f64();
     let cpu = cpu_seconds(mct.0.id())? - cpu0;
     drop(plcs);

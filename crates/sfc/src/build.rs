@@ -6,9 +6,9 @@ use std::fmt::Write as _;
 use cetratus_net::{ArcKind, Net, NetBuilder, Place, Transition as NetTransition};
 use cetratus_program::guard::{Expr, ExprKind};
 
-use crate::chart::{ActionRef, Chart, Qualifier};
+use crate::chart::{ActionRef, Association, Chart, Condition, Qualifier, Transition};
 use crate::nest::{Nest, SEP};
-use crate::pou::{Body, Pou, VarKind};
+use crate::pou::{Body, Named, Pou, VarKind};
 use crate::source::Source;
 use crate::st::{self, Names, Resolved, StError, Stmt, Ty};
 use crate::SfcError;
@@ -189,6 +189,12 @@ fn check_networks(source: &Source, chart: &Chart) -> Result<(), SfcError> {
     Ok(())
 }
 
+/// A variable left out of the program, and why: a name that reads it is refused with that reason.
+type Unusable = (String, String);
+
+/// A body of `[bodies]`: its name, and its statements in the program format.
+type NamedBody = (String, String);
+
 /// A signal of the generated program.
 struct Signal {
     name: String,
@@ -201,7 +207,7 @@ struct Signal {
 /// Resolves names in a condition or an action body.
 struct Scope<'c> {
     signals: &'c [Signal],
-    unusable: &'c [(String, String)],
+    unusable: &'c [Unusable],
     chart: &'c Chart,
     in_condition: bool,
     /// The action whose nested chart the text belongs to: its own steps are found first.
@@ -250,103 +256,369 @@ pub(crate) fn program_toml(
     net_file: &str,
     notes: &mut Vec<String>,
 ) -> Result<String, SfcError> {
-    let st_err = |base: usize, e: StError| match e.construct {
-        Some(construct) => SfcError::Unsupported {
-            pos: source.pos(base + e.offset),
-            pou: pou.name.clone(),
-            construct,
-            message: e.message,
-        },
-        None => SfcError::St {
-            pos: source.pos(base + e.offset),
-            pou: pou.name.clone(),
-            message: e.message,
-        },
+    let mapping = Mapping {
+        source,
+        pou,
+        chart,
+        nests,
     };
-    // Signals.
-    let mut signals: Vec<Signal> = Vec::new();
-    let mut unusable: Vec<(String, String)> = Vec::new();
-    for v in &pou.variables {
-        let clash = signals.iter().any(|s| s.name.eq_ignore_ascii_case(&v.name))
-            || chart.step_index(&v.name).is_some();
-        if clash {
-            return Err(SfcError::Chart {
-                pos: source.pos(v.at),
-                pou: pou.name.clone(),
-                message: format!(
-                    "the name `{}` is declared twice among the POU's variables and steps (IEC names are case-insensitive); rename one",
-                    v.name
-                ),
-            });
+    let (signals, unusable) = mapping.signals(notes)?;
+    let mut out = mapping.header(net_file);
+    write_signals(&mut out, &signals);
+    let cond_scope = Scope {
+        signals: &signals,
+        unusable: &unusable,
+        chart,
+        in_condition: true,
+        prefix: None,
+    };
+    let guards = mapping.guards(&cond_scope, ids, extra)?;
+    if !guards.is_empty() {
+        let _ = write!(out, "\n[guards]\n{guards}");
+    }
+    let body_scope = Scope {
+        in_condition: false,
+        ..cond_scope
+    };
+    let (actions, bodies) = mapping.actions(&body_scope, notes)?;
+    write_actions(&mut out, &bodies, &actions);
+    for (name, count) in &chart.ignored_vendor_data {
+        notes.push(format!(
+            "{}: vendor data `{name}` ({count}×) is not read; it holds editor settings the mapping does not use",
+            source.label
+        ));
+    }
+    Ok(out)
+}
+
+/// What a program is mapped from: the file (for positions in messages), the POU, and its chart
+/// with the nested charts merged in.
+struct Mapping<'m> {
+    source: &'m Source<'m>,
+    pou: &'m Pou<'m, 'm>,
+    chart: &'m Chart,
+    nests: &'m [Nest],
+}
+
+impl Mapping<'_> {
+    /// A refusal that the POU's author fixes in the chart or its declarations.
+    fn chart_err(&self, at: usize, message: String) -> SfcError {
+        SfcError::Chart {
+            pos: self.source.pos(at),
+            pou: self.pou.name.clone(),
+            message,
         }
-        let ty = match v.ty.to_ascii_uppercase().as_str() {
-            "BOOL" => Ty::Bool,
-            "SINT" | "INT" | "DINT" | "LINT" | "USINT" | "UINT" | "UDINT" | "ULINT" | "BYTE"
-            | "WORD" | "DWORD" | "LWORD" => Ty::Int,
-            "REAL" | "LREAL" => Ty::Real,
-            other => {
+    }
+
+    /// A refusal of what the mapping does not import, named as `construct`.
+    fn unsupported(&self, at: usize, construct: String, message: &str) -> SfcError {
+        SfcError::Unsupported {
+            pos: self.source.pos(at),
+            pou: self.pou.name.clone(),
+            construct,
+            message: message.to_string(),
+        }
+    }
+
+    /// An ST error placed in the file: its offset counts from `base`, where the text starts.
+    fn st_err(&self, base: usize, e: StError) -> SfcError {
+        match e.construct {
+            Some(construct) => SfcError::Unsupported {
+                pos: self.source.pos(base + e.offset),
+                pou: self.pou.name.clone(),
+                construct,
+                message: e.message,
+            },
+            None => SfcError::St {
+                pos: self.source.pos(base + e.offset),
+                pou: self.pou.name.clone(),
+                message: e.message,
+            },
+        }
+    }
+
+    /// The program's signals: the POU's variables of the subset's types, then the `Q` of each
+    /// action with a nested chart; and the variables left out, with why, so that a name that
+    /// reads one is refused with that reason.
+    fn signals(&self, notes: &mut Vec<String>) -> Result<(Vec<Signal>, Vec<Unusable>), SfcError> {
+        let mut signals: Vec<Signal> = Vec::new();
+        let mut unusable: Vec<Unusable> = Vec::new();
+        for v in &self.pou.variables {
+            let clash = signals.iter().any(|s| s.name.eq_ignore_ascii_case(&v.name))
+                || self.chart.step_index(&v.name).is_some();
+            if clash {
+                return Err(self.chart_err(
+                    v.at,
+                    format!(
+                        "the name `{}` is declared twice among the POU's variables and steps (IEC names are case-insensitive); rename one",
+                        v.name
+                    ),
+                ));
+            }
+            let iec = v.ty.to_ascii_uppercase();
+            let Some(ty) = signal_type(&iec) else {
                 let why = format!(
-                    "`{}` has the type {other}, outside the subset (BOOL, integer types, REAL, LREAL)",
+                    "`{}` has the type {iec}, outside the subset (BOOL, integer types, REAL, LREAL)",
                     v.name
                 );
                 notes.push(format!(
                     "{}: variable not imported: {why}",
-                    source.pos(v.at)
+                    self.source.pos(v.at)
                 ));
                 unusable.push((v.name.clone(), why));
                 continue;
-            }
-        };
-        signals.push(Signal {
-            name: v.name.clone(),
-            kind: v.kind,
-            ty,
-            address: v.address.clone(),
-            initial: v.initial.clone(),
-        });
-    }
-    // The `Q` of each action with a nested chart, as a BOOL variable named after the action.
-    for n in nests {
-        if let Some(v) = pou
-            .variables
-            .iter()
-            .find(|v| v.name.eq_ignore_ascii_case(&n.action))
-        {
-            return Err(SfcError::Chart {
-                pos: source.pos(v.at),
-                pou: pou.name.clone(),
-                message: format!(
-                    "the action `{}` has a nested chart, whose state is the BOOL variable `{0}`, and a variable of the POU has that name; rename one",
-                    n.action
-                ),
+            };
+            signals.push(Signal {
+                name: v.name.clone(),
+                kind: v.kind,
+                ty,
+                address: v.address.clone(),
+                initial: v.initial.clone(),
             });
         }
-        signals.push(Signal {
-            name: n.action.clone(),
-            kind: VarKind::Local,
-            ty: Ty::Bool,
-            address: None,
-            initial: None,
-        });
+        // The `Q` of each action with a nested chart, as a BOOL variable named after the action.
+        for n in self.nests {
+            if let Some(v) = self
+                .pou
+                .variables
+                .iter()
+                .find(|v| v.name.eq_ignore_ascii_case(&n.action))
+            {
+                return Err(self.chart_err(
+                    v.at,
+                    format!(
+                        "the action `{}` has a nested chart, whose state is the BOOL variable `{0}`, and a variable of the POU has that name; rename one",
+                        n.action
+                    ),
+                ));
+            }
+            signals.push(Signal {
+                name: n.action.clone(),
+                kind: VarKind::Local,
+                ty: Ty::Bool,
+                address: None,
+                initial: None,
+            });
+        }
+        Ok((signals, unusable))
     }
 
-    let mut out = String::new();
-    let _ = writeln!(
-        out,
-        "# Imported from {} (PLCopen TC6 XML), POU {}.",
-        file_name(source.label),
-        pou.name
-    );
-    let _ = writeln!(out, "[program]");
-    let _ = writeln!(out, "name = {}", q(&pou.name));
-    let _ = writeln!(out, "version = \"1\"");
-    let _ = writeln!(
-        out,
-        "description = {}",
-        q(&format!("SFC {} of {}", pou.name, file_name(source.label)))
-    );
-    let _ = writeln!(out, "net = {}", q(net_file));
-    let _ = writeln!(out, "chart = \"sfc\"");
+    /// The `[program]` table, which names the file and the POU the program came from.
+    fn header(&self, net_file: &str) -> String {
+        let (file, pou) = (file_name(self.source.label), &self.pou.name);
+        let mut out = String::new();
+        let _ = writeln!(out, "# Imported from {file} (PLCopen TC6 XML), POU {pou}.");
+        let _ = writeln!(out, "[program]");
+        let _ = writeln!(out, "name = {}", q(pou));
+        let _ = writeln!(out, "version = \"1\"");
+        let _ = writeln!(out, "description = {}", q(&format!("SFC {pou} of {file}")));
+        let _ = writeln!(out, "net = {}", q(net_file));
+        let _ = writeln!(out, "chart = \"sfc\"");
+        out
+    }
+
+    /// The lines of `[guards]`: a transition whose guard is always true has none, and the hold
+    /// and resume transitions of nested steps come last.
+    fn guards(
+        &self,
+        scope: &Scope,
+        ids: &[String],
+        extra: &[ExtraGuard],
+    ) -> Result<String, SfcError> {
+        let mut guards = String::new();
+        for (i, (t, id)) in self.chart.transitions.iter().zip(ids).enumerate() {
+            let e = self.guard(i, t, id, scope)?;
+            if e.kind == ExprKind::Bool(true) {
+                continue;
+            }
+            let _ = writeln!(guards, "{id} = {}", q(&e.to_string()));
+        }
+        for (id, guard) in extra {
+            let _ = writeln!(guards, "{id} = {}", q(guard));
+        }
+        Ok(guards)
+    }
+
+    /// The guard of transition `i` (net id `id`): its ST condition, negated as its box says,
+    /// and for a nested chart's transition only while the chart's action is on.
+    fn guard(&self, i: usize, t: &Transition, id: &str, scope: &Scope) -> Result<Expr, SfcError> {
+        let nest = Nest::of_transition(self.nests, i);
+        let scope = Scope {
+            prefix: nest.map(|n| n.action.as_str()),
+            ..*scope
+        };
+        let (text, at, negated) = match &t.condition {
+            Condition::St { text, at, negated } => (text, *at, *negated),
+            Condition::Unsupported { form, at } => {
+                return Err(self.unsupported(
+                    *at,
+                    form.clone(),
+                    &format!(
+                        "the condition of transition {id} must be Structured Text (inline, in an inVariable box, or a named transition's ST body)"
+                    ),
+                ))
+            }
+        };
+        let mut e = st::condition(text, &scope).map_err(|e| self.st_err(at, e))?;
+        if negated {
+            e = Expr::new(ExprKind::Unary(
+                cetratus_program::guard::UnOp::Not,
+                Box::new(e),
+            ));
+        }
+        if let Some(n) = nest {
+            // A nested chart evolves only while its action is on.
+            let on = Expr::new(ExprKind::Name(n.action.clone()));
+            e = match e.kind {
+                ExprKind::Bool(true) => on,
+                _ => Expr::new(ExprKind::Binary(
+                    cetratus_program::guard::BinOp::And,
+                    Box::new(on),
+                    Box::new(e),
+                )),
+            };
+        }
+        Ok(e)
+    }
+
+    /// The `[[action]]`s and the `[bodies]` they run: each association drives a BOOL variable
+    /// under its qualifier, or a body that the runtime's statement executor runs under it.
+    fn actions(
+        &self,
+        scope: &Scope,
+        notes: &mut Vec<String>,
+    ) -> Result<(Vec<Action>, Vec<NamedBody>), SfcError> {
+        let mut actions = Vec::new();
+        let mut bodies: Vec<NamedBody> = Vec::new();
+        for (k, a) in self.chart.associations.iter().enumerate() {
+            let step = self.chart.steps[a.step].name.clone();
+            let scope = Scope {
+                prefix: Nest::of_step(self.nests, a.step).map(|n| n.action.as_str()),
+                ..*scope
+            };
+            if let Some(ind) = &a.indicator {
+                notes.push(format!("{}: the indicator variable `{ind}` is not imported (it has no effect on execution)", self.source.pos(a.at)));
+            }
+            let duration = self.duration(a)?;
+            let qualifier = qualifier_name(a.qualifier);
+            let drive = match self.runs(k, a, &step, &scope)? {
+                Runs::Target(target) => Drive::Target(target),
+                Runs::St { name, text, at } => {
+                    // A named action associated with several steps is one body, with one
+                    // action control.
+                    match bodies.iter().find(|(n, _)| n.eq_ignore_ascii_case(&name)) {
+                        Some((n, _)) => Drive::Body(n.clone()),
+                        None => {
+                            let stmts = st::body(&text, &scope).map_err(|e| self.st_err(at, e))?;
+                            bodies.push((name.clone(), print_body(&stmts)));
+                            Drive::Body(name)
+                        }
+                    }
+                }
+            };
+            actions.push(Action {
+                place: step,
+                qualifier,
+                drive,
+                duration,
+            });
+        }
+        Ok((actions, bodies))
+    }
+
+    /// The duration of a timed qualifier, in microseconds; a timed qualifier needs one.
+    fn duration(&self, a: &Association) -> Result<Option<u64>, SfcError> {
+        if !a.qualifier.is_timed() {
+            return Ok(None);
+        }
+        let Some(d) = &a.duration else {
+            return Err(self.chart_err(
+                a.at,
+                format!(
+                    "the qualifier {} needs a duration; add duration=\"T#…\"",
+                    a.qualifier
+                ),
+            ));
+        };
+        Ok(Some(st::duration(d).map_err(|e| self.st_err(a.at, e))?))
+    }
+
+    /// What association `k` (of step `step`) runs: a BOOL variable, or Structured Text to
+    /// compile; a body in another language is refused.
+    fn runs(&self, k: usize, a: &Association, step: &str, scope: &Scope) -> Result<Runs, SfcError> {
+        match &a.action {
+            ActionRef::Reference(name) => match self
+                .pou
+                .actions
+                .iter()
+                .find(|n| n.name.eq_ignore_ascii_case(name))
+            {
+                Some(named) => self.named_action(named, name, a.at),
+                None => self.variable_action(name, a.at, scope),
+            },
+            ActionRef::Inline(Body::St { text, at }) => Ok(Runs::St {
+                name: format!("{step}_inline{}", k + 1),
+                text: text.clone(),
+                at: *at,
+            }),
+            ActionRef::Inline(Body::Other { language, .. }) => Err(self.unsupported(
+                a.at,
+                format!("an inline {language} action"),
+                "action bodies must be Structured Text",
+            )),
+        }
+    }
+
+    /// What a named action of the POU runs, associated as `name` at byte `assoc_at`.
+    fn named_action(&self, named: &Named, name: &str, assoc_at: usize) -> Result<Runs, SfcError> {
+        match &named.body {
+            Body::St { text, at } => Ok(Runs::St {
+                name: named.name.clone(),
+                text: text.clone(),
+                at: *at,
+            }),
+            // An action with a nested chart: its Q drives the chart's variable.
+            Body::Other { .. } if self.nests.iter().any(|n| n.action == named.name) => {
+                Ok(Runs::Target(named.name.clone()))
+            }
+            Body::Other { language, .. } => Err(self.unsupported(
+                assoc_at,
+                format!("the action `{name}` with a {language} body"),
+                "action bodies must be Structured Text or a chart (an FBD, LD or IL body is not imported)",
+            )),
+        }
+    }
+
+    /// A variable named as an action, which the association sets: it must be a BOOL.
+    fn variable_action(&self, name: &str, at: usize, scope: &Scope) -> Result<Runs, SfcError> {
+        match scope.resolve(name) {
+            Some(Resolved::Var(v, Ty::Bool)) => Ok(Runs::Target(v)),
+            Some(Resolved::Var(v, ty)) => Err(self.unsupported(
+                at,
+                format!("the {} variable `{v}` as an action", ty.iec()),
+                "a variable named as an action must be BOOL",
+            )),
+            _ => Err(self.chart_err(
+                at,
+                format!("the action `{name}` is neither an action of the POU nor a BOOL variable; declare it"),
+            )),
+        }
+    }
+}
+
+/// The type of a signal declared with the IEC type `iec` (upper case), when the subset has it.
+fn signal_type(iec: &str) -> Option<Ty> {
+    match iec {
+        "BOOL" => Some(Ty::Bool),
+        "SINT" | "INT" | "DINT" | "LINT" | "USINT" | "UINT" | "UDINT" | "ULINT" | "BYTE"
+        | "WORD" | "DWORD" | "LWORD" => Some(Ty::Int),
+        "REAL" | "LREAL" => Some(Ty::Real),
+        _ => None,
+    }
+}
+
+/// The `[[input]]`, `[[output]]` and `[[variable]]` tables, in that order.
+fn write_signals(out: &mut String, signals: &[Signal]) {
     for (kind, section) in [
         (VarKind::Input, "input"),
         (VarKind::Output, "output"),
@@ -371,204 +643,39 @@ pub(crate) fn program_toml(
             }
         }
     }
+}
 
-    // Guards.
-    let cond_scope = Scope {
-        signals: &signals,
-        unusable: &unusable,
-        chart,
-        in_condition: true,
-        prefix: None,
-    };
-    let mut guards = String::new();
-    for (i, (t, id)) in chart.transitions.iter().zip(ids).enumerate() {
-        let nest = Nest::of_transition(nests, i);
-        let cond_scope = Scope {
-            prefix: nest.map(|n| n.action.as_str()),
-            ..cond_scope
-        };
-        let (text, at, negated) = match &t.condition {
-            crate::chart::Condition::St { text, at, negated } => (text, *at, *negated),
-            crate::chart::Condition::Unsupported { form, at } => {
-                return Err(SfcError::Unsupported {
-                    pos: source.pos(*at),
-                    pou: pou.name.clone(),
-                    construct: form.clone(),
-                    message: format!(
-                        "the condition of transition {id} must be Structured Text (inline, in an inVariable box, or a named transition's ST body)"
-                    ),
-                })
-            }
-        };
-        let mut e = st::condition(text, &cond_scope).map_err(|e| st_err(at, e))?;
-        if negated {
-            e = Expr::new(ExprKind::Unary(
-                cetratus_program::guard::UnOp::Not,
-                Box::new(e),
-            ));
-        }
-        if let Some(n) = nest {
-            // A nested chart evolves only while its action is on.
-            let on = Expr::new(ExprKind::Name(n.action.clone()));
-            e = match e.kind {
-                ExprKind::Bool(true) => on,
-                _ => Expr::new(ExprKind::Binary(
-                    cetratus_program::guard::BinOp::And,
-                    Box::new(on),
-                    Box::new(e),
-                )),
-            };
-        }
-        if e.kind == ExprKind::Bool(true) {
-            continue;
-        }
-        let _ = writeln!(guards, "{id} = {}", q(&e.to_string()));
+/// The qualifier as the program format names it.
+fn qualifier_name(qualifier: Qualifier) -> &'static str {
+    match qualifier {
+        Qualifier::N => "N",
+        Qualifier::S => "S",
+        Qualifier::R => "R",
+        // P is the IEC pulse: on in the scan the step is entered, as P1.
+        Qualifier::P | Qualifier::P1 => "P1",
+        Qualifier::P0 => "P0",
+        Qualifier::L => "L",
+        Qualifier::D => "D",
+        Qualifier::SD => "SD",
+        Qualifier::DS => "DS",
+        Qualifier::SL => "SL",
     }
-    for (id, guard) in extra {
-        let _ = writeln!(guards, "{id} = {}", q(guard));
-    }
-    if !guards.is_empty() {
-        let _ = write!(out, "\n[guards]\n{guards}");
-    }
+}
 
-    // Actions: a BOOL variable under its qualifier, or a body that the runtime's statement
-    // executor runs under it.
-    let body_scope = Scope {
-        signals: &signals,
-        unusable: &unusable,
-        chart,
-        in_condition: false,
-        prefix: None,
-    };
-    let mut actions: Vec<(String, &'static str, Drive, Option<u64>)> = Vec::new();
-    let mut bodies: Vec<(String, String)> = Vec::new();
-    for (k, a) in chart.associations.iter().enumerate() {
-        let step = chart.steps[a.step].name.clone();
-        let body_scope = Scope {
-            prefix: Nest::of_step(nests, a.step).map(|n| n.action.as_str()),
-            ..body_scope
-        };
-        if let Some(ind) = &a.indicator {
-            notes.push(format!("{}: the indicator variable `{ind}` is not imported (it has no effect on execution)", source.pos(a.at)));
-        }
-        let unsupported = |construct: String, message: &str| SfcError::Unsupported {
-            pos: source.pos(a.at),
-            pou: pou.name.clone(),
-            construct,
-            message: message.to_string(),
-        };
-        let duration = if a.qualifier.is_timed() {
-            let Some(d) = &a.duration else {
-                return Err(SfcError::Chart {
-                    pos: source.pos(a.at),
-                    pou: pou.name.clone(),
-                    message: format!(
-                        "the qualifier {} needs a duration; add duration=\"T#…\"",
-                        a.qualifier
-                    ),
-                });
-            };
-            Some(st::duration(d).map_err(|e| st_err(a.at, e))?)
-        } else {
-            None
-        };
-        let qualifier = match a.qualifier {
-            Qualifier::N => "N",
-            Qualifier::S => "S",
-            Qualifier::R => "R",
-            // P is the IEC pulse: on in the scan the step is entered, as P1.
-            Qualifier::P | Qualifier::P1 => "P1",
-            Qualifier::P0 => "P0",
-            Qualifier::L => "L",
-            Qualifier::D => "D",
-            Qualifier::SD => "SD",
-            Qualifier::DS => "DS",
-            Qualifier::SL => "SL",
-        };
-        // What the association runs: a Boolean variable, or a body.
-        let (name, text, at) = match &a.action {
-            ActionRef::Reference(name) => {
-                if let Some(named) = pou
-                    .actions
-                    .iter()
-                    .find(|n| n.name.eq_ignore_ascii_case(name))
-                {
-                    match &named.body {
-                        Body::St { text, at } => (named.name.clone(), text.clone(), *at),
-                        // An action with a nested chart: its Q drives the chart's variable.
-                        Body::Other { .. }
-                            if nests.iter().any(|n| n.action == named.name) =>
-                        {
-                            actions.push((
-                                step,
-                                qualifier,
-                                Drive::Target(named.name.clone()),
-                                duration,
-                            ));
-                            continue;
-                        }
-                        Body::Other { language, .. } => {
-                            return Err(unsupported(
-                                format!("the action `{name}` with a {language} body"),
-                                "action bodies must be Structured Text or a chart (an FBD, LD or IL body is not imported)",
-                            ))
-                        }
-                    }
-                } else {
-                    match body_scope.resolve(name) {
-                        Some(Resolved::Var(v, Ty::Bool)) => {
-                            actions.push((step, qualifier, Drive::Target(v), duration));
-                            continue;
-                        }
-                        Some(Resolved::Var(v, ty)) => {
-                            return Err(unsupported(
-                                format!("the {} variable `{v}` as an action", ty.iec()),
-                                "a variable named as an action must be BOOL",
-                            ))
-                        }
-                        _ => {
-                            return Err(SfcError::Chart {
-                                pos: source.pos(a.at),
-                                pou: pou.name.clone(),
-                                message: format!("the action `{name}` is neither an action of the POU nor a BOOL variable; declare it"),
-                            })
-                        }
-                    }
-                }
-            }
-            ActionRef::Inline(Body::St { text, at }) => {
-                (format!("{step}_inline{}", k + 1), text.clone(), *at)
-            }
-            ActionRef::Inline(Body::Other { language, .. }) => {
-                return Err(unsupported(
-                    format!("an inline {language} action"),
-                    "action bodies must be Structured Text",
-                ))
-            }
-        };
-        // A named action associated with several steps is one body, with one action control.
-        let key = match bodies.iter().find(|(n, _)| n.eq_ignore_ascii_case(&name)) {
-            Some((n, _)) => n.clone(),
-            None => {
-                let stmts = st::body(&text, &body_scope).map_err(|e| st_err(at, e))?;
-                bodies.push((name.clone(), print_body(&stmts)));
-                name
-            }
-        };
-        actions.push((step, qualifier, Drive::Body(key), duration));
-    }
+/// The `[bodies]` table, then the `[[action]]` tables.
+fn write_actions(out: &mut String, bodies: &[NamedBody], actions: &[Action]) {
     if !bodies.is_empty() {
         let _ = writeln!(out, "\n[bodies]");
-        for (name, text) in &bodies {
+        for (name, text) in bodies {
             // A literal string: the body has no quotes to escape, and positions map one to one.
             let _ = writeln!(out, "{} = '''\n{text}'''", q(name));
         }
     }
-    for (step, qualifier, drive, duration) in &actions {
+    for a in actions {
         let _ = writeln!(out, "\n[[action]]");
-        let _ = writeln!(out, "place = {}", q(step));
-        let _ = writeln!(out, "qualifier = \"{qualifier}\"");
-        match drive {
+        let _ = writeln!(out, "place = {}", q(&a.place));
+        let _ = writeln!(out, "qualifier = \"{}\"", a.qualifier);
+        match &a.drive {
             Drive::Target(t) => {
                 let _ = writeln!(out, "target = {}", q(t));
             }
@@ -576,17 +683,33 @@ pub(crate) fn program_toml(
                 let _ = writeln!(out, "body = {}", q(b));
             }
         }
-        if let Some(d) = duration {
+        if let Some(d) = a.duration {
             let _ = writeln!(out, "duration = \"{d}us\"");
         }
     }
-    for (name, count) in &chart.ignored_vendor_data {
-        notes.push(format!(
-            "{}: vendor data `{name}` ({count}×) is not read; it holds editor settings the mapping does not use",
-            source.label
-        ));
-    }
-    Ok(out)
+}
+
+/// An `[[action]]` of the program: one action association of the chart.
+struct Action {
+    /// The step's place.
+    place: String,
+    /// The qualifier, as the program format names it.
+    qualifier: &'static str,
+    drive: Drive,
+    /// The duration of a timed qualifier, in microseconds.
+    duration: Option<u64>,
+}
+
+/// What an association runs, before its body is compiled.
+enum Runs {
+    /// A BOOL variable, by its Cetratus name.
+    Target(String),
+    /// Structured Text: the body's name, its text, and where the text starts.
+    St {
+        name: String,
+        text: String,
+        at: usize,
+    },
 }
 
 /// What an action association drives in the program.

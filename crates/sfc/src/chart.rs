@@ -228,32 +228,109 @@ pub(crate) fn read(
     location: &str,
     sfc: Node,
 ) -> Result<Chart, SfcError> {
-    let chart_err = |at: usize, message: String| SfcError::Chart {
-        pos: source.pos(at),
-        pou: pou.name.clone(),
-        message,
-    };
-    let elements: Vec<Node> = sfc.children().collect();
-    let mut by_id: HashMap<&str, usize> = HashMap::with_capacity(elements.len());
-    let mut kinds = Vec::with_capacity(elements.len());
-    let mut chart = Chart {
-        pou: pou.name.clone(),
-        location: location.to_string(),
-        steps: Vec::new(),
-        transitions: Vec::new(),
-        selection_divergences: 0,
-        selection_convergences: 0,
-        simultaneous_divergences: 0,
-        simultaneous_convergences: 0,
-        jumps: Vec::new(),
-        action_blocks: 0,
-        associations: Vec::new(),
-        ignored_vendor_data: Vec::new(),
-    };
-    // Element index -> step index.
-    let mut step_of: HashMap<usize, usize> = HashMap::new();
-    for (i, e) in elements.iter().enumerate() {
-        let kind = match e.name() {
+    let mut reader = Reader::new(source, pou, location, sfc)?;
+    let links = reader.links()?;
+    reader.transitions(&links)?;
+    for j in reader.elements.iter().filter(|e| e.name() == "jumpStep") {
+        reader.named_step(j.attribute("targetName").unwrap_or(""), j.range().start)?;
+    }
+    reader.action_blocks()?;
+    reader.step_actions();
+    reader.chart.ignored_vendor_data = ignored_vendor_data(sfc);
+    Ok(reader.chart)
+}
+
+/// A chart being read: the `<SFC>` element's children, what each of them is, and the chart so
+/// far.
+struct Reader<'r, 'a, 'i> {
+    source: &'r Source<'r>,
+    pou: &'r Pou<'a, 'i>,
+    elements: Vec<Node<'a, 'i>>,
+    kinds: Vec<Kind>,
+    /// Element index by `localId`.
+    by_id: HashMap<&'a str, usize>,
+    /// Element index -> step index.
+    step_of: HashMap<usize, usize>,
+    chart: Chart,
+}
+
+/// The sequence's links: for each element, the elements it follows (its inputs) and those
+/// that follow it (the reverse index).
+struct Links {
+    inputs: Vec<Vec<usize>>,
+    outputs: Vec<Vec<usize>>,
+}
+
+impl<'r, 'a, 'i> Reader<'r, 'a, 'i> {
+    /// Sorts the chart's elements into kinds, counting the branches and action blocks, and
+    /// reads the steps and jumps.
+    fn new(
+        source: &'r Source<'r>,
+        pou: &'r Pou<'a, 'i>,
+        location: &str,
+        sfc: Node<'a, 'i>,
+    ) -> Result<Self, SfcError> {
+        let elements: Vec<Node> = sfc.children().collect();
+        let mut reader = Reader {
+            source,
+            pou,
+            kinds: Vec::with_capacity(elements.len()),
+            by_id: HashMap::with_capacity(elements.len()),
+            step_of: HashMap::new(),
+            elements,
+            chart: Chart {
+                pou: pou.name.clone(),
+                location: location.to_string(),
+                steps: Vec::new(),
+                transitions: Vec::new(),
+                selection_divergences: 0,
+                selection_convergences: 0,
+                simultaneous_divergences: 0,
+                simultaneous_convergences: 0,
+                jumps: Vec::new(),
+                action_blocks: 0,
+                associations: Vec::new(),
+                ignored_vendor_data: Vec::new(),
+            },
+        };
+        for i in 0..reader.elements.len() {
+            let e = reader.elements[i];
+            let kind = reader.kind(e)?;
+            if let Some(id) = e.attribute("localId") {
+                if reader.by_id.insert(id, i).is_some() && kind != Kind::Other {
+                    return Err(reader.err(
+                        e.range().start,
+                        format!("two elements have localId {id}; every element needs its own id"),
+                    ));
+                }
+            }
+            if kind == Kind::Step {
+                reader.step(i, e)?;
+            }
+            if kind == Kind::Jump {
+                reader
+                    .chart
+                    .jumps
+                    .push(e.attribute("targetName").unwrap_or("").to_string());
+            }
+            reader.kinds.push(kind);
+        }
+        Ok(reader)
+    }
+
+    /// A refusal of the chart as drawn, at byte `at`.
+    fn err(&self, at: usize, message: String) -> SfcError {
+        SfcError::Chart {
+            pos: self.source.pos(at),
+            pou: self.pou.name.clone(),
+            message,
+        }
+    }
+
+    /// The kind of element `e`, counted in the chart; a macro step is refused.
+    fn kind(&mut self, e: Node) -> Result<Kind, SfcError> {
+        let chart = &mut self.chart;
+        Ok(match e.name() {
             "step" => Kind::Step,
             "transition" => Kind::Transition,
             "jumpStep" => Kind::Jump,
@@ -275,8 +352,8 @@ pub(crate) fn read(
             }
             "macroStep" => {
                 return Err(SfcError::Unsupported {
-                    pos: source.pos(e.range().start),
-                    pou: pou.name.clone(),
+                    pos: self.source.pos(e.range().start),
+                    pou: self.pou.name.clone(),
                     construct: "a macro step".into(),
                     message: "expand the macro step into its steps in the editor before exporting"
                         .into(),
@@ -287,142 +364,109 @@ pub(crate) fn read(
                 Kind::Other
             }
             _ => Kind::Other,
+        })
+    }
+
+    /// Adds the step of element `i`: it needs a name of its own.
+    fn step(&mut self, i: usize, e: Node) -> Result<(), SfcError> {
+        let name = e.attribute("name").unwrap_or("").trim().to_string();
+        if name.is_empty() {
+            return Err(self.err(
+                e.range().start,
+                "a step has no name; name every step".into(),
+            ));
+        }
+        if self.chart.step_index(&name).is_some() {
+            return Err(self.err(
+                e.range().start,
+                format!(
+                    "two steps are named `{name}` (IEC names are case-insensitive); rename one"
+                ),
+            ));
+        }
+        self.step_of.insert(i, self.chart.steps.len());
+        self.chart.steps.push(Step {
+            name,
+            initial: e.attribute("initialStep") == Some("true"),
+            at: e.range().start,
+        });
+        Ok(())
+    }
+
+    /// The links of the sequence's elements, from their `connectionPointIn`s; a connection to
+    /// an id no element has is refused.
+    fn links(&self) -> Result<Links, SfcError> {
+        let n = self.elements.len();
+        let mut links = Links {
+            inputs: vec![Vec::new(); n],
+            outputs: vec![Vec::new(); n],
         };
-        if let Some(id) = e.attribute("localId") {
-            if by_id.insert(id, i).is_some() && kind != Kind::Other {
-                return Err(chart_err(
-                    e.range().start,
-                    format!("two elements have localId {id}; every element needs its own id"),
-                ));
+        for (i, e) in self.elements.iter().enumerate() {
+            if self.kinds[i] == Kind::Other {
+                continue;
+            }
+            for cp in children(*e, "connectionPointIn") {
+                for c in children(cp, "connection") {
+                    let Some(r) = c.attribute("refLocalId") else {
+                        continue;
+                    };
+                    let Some(&j) = self.by_id.get(r) else {
+                        return Err(self.err(
+                            c.range().start,
+                            format!("a connection refers to localId {r}, which no element of this chart has"),
+                        ));
+                    };
+                    links.inputs[i].push(j);
+                    links.outputs[j].push(i);
+                }
             }
         }
-        if kind == Kind::Step {
-            let name = e.attribute("name").unwrap_or("").trim().to_string();
-            if name.is_empty() {
-                return Err(chart_err(
-                    e.range().start,
-                    "a step has no name; name every step".into(),
-                ));
-            }
-            if chart.step_index(&name).is_some() {
-                return Err(chart_err(
-                    e.range().start,
-                    format!(
-                        "two steps are named `{name}` (IEC names are case-insensitive); rename one"
-                    ),
-                ));
-            }
-            step_of.insert(i, chart.steps.len());
-            chart.steps.push(Step {
-                name,
-                initial: e.attribute("initialStep") == Some("true"),
-                at: e.range().start,
-            });
-        }
-        if kind == Kind::Jump {
-            chart
-                .jumps
-                .push(e.attribute("targetName").unwrap_or("").to_string());
-        }
-        kinds.push(kind);
+        Ok(links)
     }
 
-    // Inputs per element (the elements it follows) and the reverse index.
-    let mut inputs: Vec<Vec<usize>> = vec![Vec::new(); elements.len()];
-    let mut outputs: Vec<Vec<usize>> = vec![Vec::new(); elements.len()];
-    for (i, e) in elements.iter().enumerate() {
-        if kinds[i] == Kind::Other {
-            continue;
-        }
-        for cp in children(*e, "connectionPointIn") {
-            for c in children(cp, "connection") {
-                let Some(r) = c.attribute("refLocalId") else {
-                    continue;
-                };
-                let Some(&j) = by_id.get(r) else {
-                    return Err(chart_err(
-                        c.range().start,
-                        format!("a connection refers to localId {r}, which no element of this chart has"),
-                    ));
-                };
-                inputs[i].push(j);
-                outputs[j].push(i);
-            }
-        }
-    }
-
-    let steps = chart.steps.clone();
-    let named_step = |name: &str, at: usize| -> Result<usize, SfcError> {
-        steps.iter().position(|s| s.name.eq_ignore_ascii_case(name.trim())).ok_or_else(|| {
-            chart_err(
+    /// The step that a jump at byte `at` goes to.
+    fn named_step(&self, name: &str, at: usize) -> Result<usize, SfcError> {
+        self.chart.step_index(name.trim()).ok_or_else(|| {
+            self.err(
                 at,
                 format!("the jump goes to `{name}`, which is no step of this chart; name an existing step"),
             )
         })
-    };
+    }
 
-    let mut seen = vec![u32::MAX; elements.len()];
-    for (i, e) in elements.iter().enumerate() {
-        if kinds[i] != Kind::Transition {
-            continue;
+    /// Reads every transition with its source and target steps.
+    fn transitions(&mut self, links: &Links) -> Result<(), SfcError> {
+        // The walks of transition `i` mark what they visit with `i`: no clearing between them.
+        let mut seen = vec![u32::MAX; self.elements.len()];
+        for i in 0..self.elements.len() {
+            if self.kinds[i] != Kind::Transition {
+                continue;
+            }
+            let t = self.transition(i, links, &mut seen)?;
+            self.chart.transitions.push(t);
         }
-        let stamp = i as u32;
+        Ok(())
+    }
+
+    /// The transition of element `i`, its walks marking `seen`.
+    fn transition(
+        &self,
+        i: usize,
+        links: &Links,
+        seen: &mut [u32],
+    ) -> Result<Transition, SfcError> {
+        let e = self.elements[i];
         let at = e.range().start;
-        // Walk back to the source steps.
-        let mut from = Vec::new();
-        let mut stack: Vec<usize> = inputs[i].clone();
-        while let Some(j) = stack.pop() {
-            if seen[j] == stamp {
-                continue;
-            }
-            seen[j] = stamp;
-            match kinds[j] {
-                Kind::Step => push_unique(&mut from, step_of[&j]),
-                Kind::Branch => stack.extend(inputs[j].iter().copied()),
-                Kind::Transition | Kind::Jump | Kind::Other => {
-                    return Err(chart_err(
-                        at,
-                        format!(
-                            "the transition follows a <{}> (localId {}), not a step; a transition must follow steps",
-                            elements[j].name(),
-                            elements[j].attribute("localId").unwrap_or("?")
-                        ),
-                    ))
-                }
-            }
-        }
-        // Walk forward to the target steps.
-        let mut to = Vec::new();
-        let mut stack: Vec<usize> = outputs[i].clone();
-        while let Some(j) = stack.pop() {
-            if seen[j] == stamp {
-                continue;
-            }
-            seen[j] = stamp;
-            match kinds[j] {
-                Kind::Step => push_unique(&mut to, step_of[&j]),
-                Kind::Jump => {
-                    let target = elements[j].attribute("targetName").unwrap_or("");
-                    push_unique(&mut to, named_step(target, elements[j].range().start)?);
-                }
-                Kind::Branch => stack.extend(outputs[j].iter().copied()),
-                Kind::Transition | Kind::Other => {
-                    return Err(chart_err(
-                        at,
-                        "the transition is followed by another transition; put a step between them"
-                            .into(),
-                    ))
-                }
-            }
-        }
+        let mut from = self.sources(i, links, seen)?;
+        let mut to = self.targets(i, links, seen)?;
         if from.is_empty() {
-            return Err(chart_err(
+            return Err(self.err(
                 at,
                 "the transition has no source step; connect it below a step".into(),
             ));
         }
         if to.is_empty() {
-            return Err(chart_err(
+            return Err(self.err(
                 at,
                 "the transition has no target; connect a step or a jump below it".into(),
             ));
@@ -430,13 +474,13 @@ pub(crate) fn read(
         // Steps in the order the chart declares them, so the net does not depend on the walk.
         from.sort_unstable();
         to.sort_unstable();
-        let x = child(*e, "position")
+        let x = child(e, "position")
             .and_then(|p| p.attribute("x"))
             .and_then(|x| x.trim().parse::<f64>().ok())
             .filter(|x| x.is_finite())
             .unwrap_or(0.0);
-        let condition = condition(source, pou, &elements, &by_id, *e)?;
-        chart.transitions.push(Transition {
+        let condition = condition(self.source, self.pou, &self.elements, &self.by_id, e)?;
+        Ok(Transition {
             local_id: e.attribute("localId").unwrap_or("").to_string(),
             name: e.attribute("name").map(str::to_string),
             from,
@@ -444,111 +488,178 @@ pub(crate) fn read(
             condition,
             x,
             at,
-        });
-    }
-    for j in elements.iter().filter(|e| e.name() == "jumpStep") {
-        named_step(j.attribute("targetName").unwrap_or(""), j.range().start)?;
+        })
     }
 
-    // Action associations.
-    for (i, e) in elements.iter().enumerate() {
-        if e.name() != "actionBlock" {
-            continue;
-        }
-        let step = children(*e, "connectionPointIn")
-            .flat_map(|cp| children(cp, "connection"))
-            .filter_map(|c| by_id.get(c.attribute("refLocalId")?).copied())
-            .find_map(|j| step_of.get(&j).copied());
-        let Some(step) = step else {
-            return Err(chart_err(
-                elements[i].range().start,
-                "the action block is not connected to a step; connect it to one".into(),
-            ));
-        };
-        for a in children(*e, "action") {
-            let at = a.range().start;
-            let qualifier = match a.attribute("qualifier") {
-                None => Qualifier::N,
-                Some(q) => Qualifier::parse(q.trim()).ok_or_else(|| {
-                    chart_err(
-                        at,
-                        format!("unknown action qualifier `{q}`; IEC 61131-3 has N, S, R, P, P0, P1, L, D, SD, DS and SL"),
-                    )
-                })?,
-            };
-            let action = if let Some(r) = child(a, "reference") {
-                ActionRef::Reference(r.attribute("name").unwrap_or("").to_string())
-            } else if let Some(lang) = child(a, "inline").and_then(|i| i.children().next()) {
-                match (lang.name(), body_text(source, lang)) {
-                    ("ST", Some((text, at))) => ActionRef::Inline(Body::St { text, at }),
-                    (other, _) => ActionRef::Inline(Body::Other {
-                        language: other.to_string(),
-                        at: lang.range().start,
-                    }),
-                }
-            } else {
-                return Err(chart_err(
-                    at,
-                    "the action names no action and has no inline body; add one".into(),
-                ));
-            };
-            let nonempty = |v: Option<&str>| {
-                v.map(str::trim)
-                    .filter(|s| !s.is_empty())
-                    .map(str::to_string)
-            };
-            chart.associations.push(Association {
-                step,
-                qualifier,
-                duration: nonempty(a.attribute("duration")),
-                indicator: nonempty(a.attribute("indicator")),
-                action,
-                at,
-            });
-        }
-    }
-
-    // CODESYS and TwinCAT keep a step's entry, active and exit actions in the step's own
-    // `addData` (`…/plcopenxml/sfc/element`), one attribute each, by GUID, naming an action of
-    // the POU (empty when the step has none). They become P1, N and P0 associations.
-    for e in elements.iter().filter(|e| e.name() == "step") {
-        let Some(&step) = by_id
-            .get(e.attribute("localId").unwrap_or(""))
-            .and_then(|i| step_of.get(i))
-        else {
-            continue;
-        };
-        let attributes = children(*e, "addData")
-            .flat_map(|d| children(d, "data"))
-            .filter(|d| {
-                d.attribute("name")
-                    .is_some_and(|n| n.ends_with("/plcopenxml/sfc/element"))
-            })
-            .flat_map(|d| children(d, "attributes"))
-            .flat_map(|a| children(a, "attribute"));
-        for attr in attributes {
-            let qualifier = match attr.attribute("guid").map(|g| g.trim_matches(['{', '}'])) {
-                Some(STEP_ENTRY_ACTION) => Qualifier::P1,
-                Some(STEP_ACTIVE_ACTION) => Qualifier::N,
-                Some(STEP_EXIT_ACTION) => Qualifier::P0,
-                _ => continue,
-            };
-            let name = attr.text().unwrap_or("").trim();
-            if name.is_empty() {
+    /// The source steps of transition `i`, walking back through branches.
+    fn sources(&self, i: usize, links: &Links, seen: &mut [u32]) -> Result<Vec<usize>, SfcError> {
+        let stamp = i as u32;
+        let mut from = Vec::new();
+        let mut stack: Vec<usize> = links.inputs[i].clone();
+        while let Some(j) = stack.pop() {
+            if seen[j] == stamp {
                 continue;
             }
-            chart.associations.push(Association {
-                step,
-                qualifier,
-                duration: None,
-                indicator: None,
-                action: ActionRef::Reference(name.to_string()),
-                at: attr.range().start,
-            });
+            seen[j] = stamp;
+            match self.kinds[j] {
+                Kind::Step => push_unique(&mut from, self.step_of[&j]),
+                Kind::Branch => stack.extend(links.inputs[j].iter().copied()),
+                Kind::Transition | Kind::Jump | Kind::Other => {
+                    return Err(self.err(
+                        self.elements[i].range().start,
+                        format!(
+                            "the transition follows a <{}> (localId {}), not a step; a transition must follow steps",
+                            self.elements[j].name(),
+                            self.elements[j].attribute("localId").unwrap_or("?")
+                        ),
+                    ))
+                }
+            }
         }
+        Ok(from)
     }
 
-    // Vendor data that is not read: noted, not silently dropped.
+    /// The target steps of transition `i`, walking forward through branches and jumps.
+    fn targets(&self, i: usize, links: &Links, seen: &mut [u32]) -> Result<Vec<usize>, SfcError> {
+        let stamp = i as u32;
+        let mut to = Vec::new();
+        let mut stack: Vec<usize> = links.outputs[i].clone();
+        while let Some(j) = stack.pop() {
+            if seen[j] == stamp {
+                continue;
+            }
+            seen[j] = stamp;
+            match self.kinds[j] {
+                Kind::Step => push_unique(&mut to, self.step_of[&j]),
+                Kind::Jump => {
+                    let jump = self.elements[j];
+                    let target = jump.attribute("targetName").unwrap_or("");
+                    push_unique(&mut to, self.named_step(target, jump.range().start)?);
+                }
+                Kind::Branch => stack.extend(links.outputs[j].iter().copied()),
+                Kind::Transition | Kind::Other => {
+                    return Err(self.err(
+                        self.elements[i].range().start,
+                        "the transition is followed by another transition; put a step between them"
+                            .into(),
+                    ))
+                }
+            }
+        }
+        Ok(to)
+    }
+
+    /// Reads the action associations of every action block.
+    fn action_blocks(&mut self) -> Result<(), SfcError> {
+        for e in self.elements.iter().filter(|e| e.name() == "actionBlock") {
+            let step = children(*e, "connectionPointIn")
+                .flat_map(|cp| children(cp, "connection"))
+                .filter_map(|c| self.by_id.get(c.attribute("refLocalId")?).copied())
+                .find_map(|j| self.step_of.get(&j).copied());
+            let Some(step) = step else {
+                return Err(self.err(
+                    e.range().start,
+                    "the action block is not connected to a step; connect it to one".into(),
+                ));
+            };
+            for a in children(*e, "action") {
+                let association = self.association(step, a)?;
+                self.chart.associations.push(association);
+            }
+        }
+        Ok(())
+    }
+
+    /// One `<action>` of an action block connected to `step`.
+    fn association(&self, step: usize, a: Node) -> Result<Association, SfcError> {
+        let at = a.range().start;
+        let qualifier = match a.attribute("qualifier") {
+            None => Qualifier::N,
+            Some(q) => Qualifier::parse(q.trim()).ok_or_else(|| {
+                self.err(
+                    at,
+                    format!("unknown action qualifier `{q}`; IEC 61131-3 has N, S, R, P, P0, P1, L, D, SD, DS and SL"),
+                )
+            })?,
+        };
+        let action = if let Some(r) = child(a, "reference") {
+            ActionRef::Reference(r.attribute("name").unwrap_or("").to_string())
+        } else if let Some(lang) = child(a, "inline").and_then(|i| i.children().next()) {
+            match (lang.name(), body_text(self.source, lang)) {
+                ("ST", Some((text, at))) => ActionRef::Inline(Body::St { text, at }),
+                (other, _) => ActionRef::Inline(Body::Other {
+                    language: other.to_string(),
+                    at: lang.range().start,
+                }),
+            }
+        } else {
+            return Err(self.err(
+                at,
+                "the action names no action and has no inline body; add one".into(),
+            ));
+        };
+        let nonempty = |v: Option<&str>| {
+            v.map(str::trim)
+                .filter(|s| !s.is_empty())
+                .map(str::to_string)
+        };
+        Ok(Association {
+            step,
+            qualifier,
+            duration: nonempty(a.attribute("duration")),
+            indicator: nonempty(a.attribute("indicator")),
+            action,
+            at,
+        })
+    }
+
+    /// CODESYS and TwinCAT keep a step's entry, active and exit actions in the step's own
+    /// `addData` (`…/plcopenxml/sfc/element`), one attribute each, by GUID, naming an action of
+    /// the POU (empty when the step has none). They become P1, N and P0 associations.
+    fn step_actions(&mut self) {
+        for e in self.elements.iter().filter(|e| e.name() == "step") {
+            let Some(&step) = self
+                .by_id
+                .get(e.attribute("localId").unwrap_or(""))
+                .and_then(|i| self.step_of.get(i))
+            else {
+                continue;
+            };
+            let attributes = children(*e, "addData")
+                .flat_map(|d| children(d, "data"))
+                .filter(|d| {
+                    d.attribute("name")
+                        .is_some_and(|n| n.ends_with("/plcopenxml/sfc/element"))
+                })
+                .flat_map(|d| children(d, "attributes"))
+                .flat_map(|a| children(a, "attribute"));
+            for attr in attributes {
+                let qualifier = match attr.attribute("guid").map(|g| g.trim_matches(['{', '}'])) {
+                    Some(STEP_ENTRY_ACTION) => Qualifier::P1,
+                    Some(STEP_ACTIVE_ACTION) => Qualifier::N,
+                    Some(STEP_EXIT_ACTION) => Qualifier::P0,
+                    _ => continue,
+                };
+                let name = attr.text().unwrap_or("").trim();
+                if name.is_empty() {
+                    continue;
+                }
+                self.chart.associations.push(Association {
+                    step,
+                    qualifier,
+                    duration: None,
+                    indicator: None,
+                    action: ActionRef::Reference(name.to_string()),
+                    at: attr.range().start,
+                });
+            }
+        }
+    }
+}
+
+/// The vendor data (`addData`) of a chart, by name, with a count: not read, but noted rather
+/// than silently dropped.
+fn ignored_vendor_data(sfc: Node) -> Vec<(String, usize)> {
     let mut ignored: Vec<(String, usize)> = Vec::new();
     for d in sfc.descendants().filter(|n| n.name() == "data") {
         let name = d.attribute("name").unwrap_or("").to_string();
@@ -557,8 +668,7 @@ pub(crate) fn read(
             None => ignored.push((name, 1)),
         }
     }
-    chart.ignored_vendor_data = ignored;
-    Ok(chart)
+    ignored
 }
 
 fn push_unique(v: &mut Vec<usize>, x: usize) {

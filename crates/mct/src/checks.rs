@@ -17,7 +17,7 @@ use crate::acl::{Acl, Checked, Who};
 use crate::broker::{LOGINS_PER_S, LOGIN_BURST};
 use crate::budget::TokenBucket as Bucket;
 use crate::password::HashedPassword;
-use crate::topics::check_topic;
+use crate::topics::{check_topic, TopicRefusal};
 
 /// Counts one kind of refusal; a log line goes out for the 1st, 2nd, 4th… of them, with the
 /// count, so that a flood is reported with its size and costs no line a packet.
@@ -29,6 +29,19 @@ impl Tally {
     fn count(&self) -> Option<u64> {
         let n = self.0.fetch_add(1, Ordering::Relaxed) + 1;
         crate::budget::worth_logging(n).then_some(n)
+    }
+
+    /// Counts a packet refused for the shape of its topic, and logs it with its client when
+    /// worth a line; `what` says what the broker refused, and what it did about it.
+    fn refused(&self, client: &rmqtt::types::Id, what: &str, why: &TopicRefusal) {
+        if let Some(n) = self.count() {
+            tracing::warn!(
+                user = %client.username_ref(),
+                from = ?client.remote_addr,
+                refused = n,
+                "the embedded broker refused {what}: {why}"
+            );
+        }
     }
 }
 
@@ -195,14 +208,8 @@ impl Handler for PublishAcl {
         };
         // The topic's shape first: a deep topic must reach no tree.
         if let Err(why) = check_topic(&publish.topic) {
-            if let Some(n) = self.shapes.count() {
-                tracing::warn!(
-                    user = %session.id.username_ref(),
-                    from = ?session.id.remote_addr,
-                    refused = n,
-                    "the embedded broker refused a publish and closed the connection: {why}"
-                );
-            }
+            self.shapes
+                .refused(&session.id, "a publish and closed the connection", &why);
             let refused = rmqtt::types::PublishResult::reason_code(
                 rmqtt::codec::v5::PublishAckReason::TopicNameInvalid,
                 Some(why.to_string().into()),
@@ -241,14 +248,7 @@ impl Handler for SubscribeLimits {
         match check_topic(&sub.topic_filter) {
             Ok(()) => (true, acc),
             Err(why) => {
-                if let Some(n) = self.0.count() {
-                    tracing::warn!(
-                        user = %session.id.username_ref(),
-                        from = ?session.id.remote_addr,
-                        refused = n,
-                        "the embedded broker refused a subscription: {why}"
-                    );
-                }
+                self.0.refused(&session.id, "a subscription", &why);
                 let refused = rmqtt::types::SubscribeAclResult::new_failure(
                     rmqtt::codec::v5::SubscribeAckReason::TopicFilterInvalid,
                 );

@@ -45,13 +45,8 @@ pub struct BodyError {
 
 impl fmt::Display for BodyError {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        let what = match self.kind {
-            EvalErrorKind::DivisionByZero => "division by zero",
-            EvalErrorKind::Overflow => "arithmetic overflow",
-            EvalErrorKind::MissingValue | EvalErrorKind::WrongType => {
-                "the state does not match the program's signals"
-            }
-        };
+        let mismatch = "the state does not match the program's signals";
+        let what = self.kind.describe(mismatch, mismatch);
         write!(
             f,
             "action body `{}` failed at line {}, column {}: {what}",
@@ -118,143 +113,25 @@ impl Body {
                 ),
             ));
         }
-        let mut c = Compiler {
-            scope,
-            code: Vec::new(),
-            base: 0,
-            depth: 0,
-            max: 0,
-            inputs: Vec::new(),
+        let mut b = Builder {
+            c: Compiler {
+                body: true,
+                ..Compiler::new(scope)
+            },
+            open: Vec::new(),
+            outputs: Vec::new(),
             vars: Vec::new(),
-            places: Vec::new(),
-            timers: Vec::new(),
-            body: true,
         };
-        let mut open: Vec<Open> = Vec::new();
-        let (mut outputs, mut vars) = (Vec::new(), Vec::new());
-        let mut statements = 0usize;
-        for (line, at) in lines(source) {
-            statements += 1;
-            if statements > MAX_STATEMENTS {
+        for (n, (line, at)) in lines(source).enumerate() {
+            if n >= MAX_STATEMENTS {
                 return Err(SyntaxError::new(
                     at,
                     format!("the body has more than {MAX_STATEMENTS} statements; split it into several actions"),
                 ));
             }
-            match classify(line, at)? {
-                Line::Assign {
-                    name,
-                    at,
-                    expr,
-                    expr_at,
-                } => {
-                    let store = if let Some(i) = scope.vars.iter().position(|s| s.name == name) {
-                        vars.push(i as u32);
-                        Op::StoreVar(i as u32, scope.vars[i].ty)
-                    } else if let Some(i) = scope.outputs.iter().position(|s| s.name == name) {
-                        outputs.push(i as u32);
-                        Op::StoreOut(i as u32, scope.outputs[i].ty)
-                    } else if scope.inputs.iter().any(|s| s.name == name) {
-                        return Err(SyntaxError::new(at, format!("`{name}` is an input, which the program cannot assign; assign a variable or an output")));
-                    } else {
-                        return Err(SyntaxError::new(
-                            at,
-                            format!(
-                                "`{name}` is not declared; a body assigns a variable or an output"
-                            ),
-                        ));
-                    };
-                    let (Op::StoreVar(_, want) | Op::StoreOut(_, want)) = store else {
-                        unreachable!("built above")
-                    };
-                    let got = expression(&mut c, expr, expr_at)?;
-                    if got != want {
-                        return Err(SyntaxError::new(
-                            expr_at,
-                            format!("`{name}` is {want} but the value is {got}; ints and reals convert with `real(…)` and `int(…)`"),
-                        ));
-                    }
-                    c.emit(store, at, -1);
-                }
-                Line::If(cond, cat) => {
-                    if open.len() >= MAX_IF_NESTING {
-                        return Err(SyntaxError::new(
-                            at,
-                            format!("`if` nested more than {MAX_IF_NESTING} deep; simplify the body or split it"),
-                        ));
-                    }
-                    let j = condition(&mut c, cond, cat)?;
-                    open.push(Open {
-                        next_arm: Some(j),
-                        ends: Vec::new(),
-                        has_else: false,
-                        at,
-                    });
-                }
-                Line::Elif(cond, cat) => {
-                    let o = arm_of(&mut open, at, "elif")?;
-                    let jump = c.code.len();
-                    c.emit(Op::Jump(0), at, 0);
-                    o.ends.push(jump);
-                    let here = c.code.len() as u32;
-                    if let Some(j) = o.next_arm.take() {
-                        c.code[j].0 = Op::JumpIfFalse(here);
-                    }
-                    let j = condition(&mut c, cond, cat)?;
-                    open.last_mut().expect("checked by arm_of").next_arm = Some(j);
-                }
-                Line::Else(at) => {
-                    let o = arm_of(&mut open, at, "else")?;
-                    let jump = c.code.len();
-                    c.emit(Op::Jump(0), at, 0);
-                    o.ends.push(jump);
-                    let here = c.code.len() as u32;
-                    if let Some(j) = o.next_arm.take() {
-                        c.code[j].0 = Op::JumpIfFalse(here);
-                    }
-                    open.last_mut().expect("checked by arm_of").has_else = true;
-                }
-                Line::End(at) => {
-                    let Some(o) = open.pop() else {
-                        return Err(SyntaxError::new(at, "`end` without an `if`; remove it"));
-                    };
-                    let here = c.code.len() as u32;
-                    if let Some(j) = o.next_arm {
-                        c.code[j].0 = Op::JumpIfFalse(here);
-                    }
-                    for j in o.ends {
-                        c.code[j].0 = Op::Jump(here);
-                    }
-                }
-            }
+            b.statement(classify(line, at)?, at)?;
         }
-        if let Some(o) = open.last() {
-            return Err(SyntaxError::new(
-                o.at,
-                "this `if` has no `end`; close it with a line `end`",
-            ));
-        }
-        if c.max > guard::MAX_STACK {
-            return Err(SyntaxError::new(
-                0,
-                format!(
-                    "an expression of this body needs {} evaluation stack slots but the evaluator has {}; split it",
-                    c.max,
-                    guard::MAX_STACK
-                ),
-            ));
-        }
-        for v in [&mut outputs, &mut vars] {
-            v.sort_unstable();
-            v.dedup();
-        }
-        Ok(Body {
-            name: name.to_string(),
-            source: source.to_string(),
-            code: c.code,
-            outputs,
-            vars,
-        })
+        b.finish(name, source)
     }
 
     /// Runs the body once: reads `ctx` (its `vars` are ignored) and `vars`, assigns `vars` and
@@ -287,6 +164,159 @@ impl Body {
             column,
             kind: e.kind,
         }
+    }
+}
+
+/// A body being compiled: the expression compiler, the `if`s still open, what it assigns.
+struct Builder<'s, 'a> {
+    c: Compiler<'s, 'a>,
+    open: Vec<Open>,
+    outputs: Vec<u32>,
+    vars: Vec<u32>,
+}
+
+impl Builder<'_, '_> {
+    /// Compiles one statement at `at`; the jumps of an `if` wait in `open` until its arms and
+    /// its `end` are known.
+    fn statement(&mut self, line: Line, at: usize) -> Result<(), SyntaxError> {
+        match line {
+            Line::Assign {
+                name,
+                at,
+                expr,
+                expr_at,
+            } => self.assign(name, at, expr, expr_at),
+            Line::If(cond, cond_at) => self.open_if(cond, cond_at, at),
+            Line::Elif(cond, cond_at) => {
+                self.next_arm(at, "elif")?;
+                let j = condition(&mut self.c, cond, cond_at)?;
+                self.open.last_mut().expect("checked by next_arm").next_arm = Some(j);
+                Ok(())
+            }
+            Line::Else(at) => {
+                self.next_arm(at, "else")?.has_else = true;
+                Ok(())
+            }
+            Line::End(at) => self.end(at),
+        }
+    }
+
+    /// `name := expr` stores into a variable or an output, whose type the value must have
+    /// exactly: nothing converts implicitly.
+    fn assign(
+        &mut self,
+        name: &str,
+        at: usize,
+        expr: &str,
+        expr_at: usize,
+    ) -> Result<(), SyntaxError> {
+        let scope = self.c.scope;
+        let (store, want) = if let Some(i) = scope.vars.iter().position(|s| s.name == name) {
+            self.vars.push(i as u32);
+            (Op::StoreVar(i as u32, scope.vars[i].ty), scope.vars[i].ty)
+        } else if let Some(i) = scope.outputs.iter().position(|s| s.name == name) {
+            self.outputs.push(i as u32);
+            (
+                Op::StoreOut(i as u32, scope.outputs[i].ty),
+                scope.outputs[i].ty,
+            )
+        } else if scope.inputs.iter().any(|s| s.name == name) {
+            return Err(SyntaxError::new(at, format!("`{name}` is an input, which the program cannot assign; assign a variable or an output")));
+        } else {
+            return Err(SyntaxError::new(
+                at,
+                format!("`{name}` is not declared; a body assigns a variable or an output"),
+            ));
+        };
+        let got = expression(&mut self.c, expr, expr_at)?;
+        if got != want {
+            return Err(SyntaxError::new(
+                expr_at,
+                format!("`{name}` is {want} but the value is {got}; ints and reals convert with `real(…)` and `int(…)`"),
+            ));
+        }
+        self.c.emit(store, at, -1);
+        Ok(())
+    }
+
+    /// `if cond then` opens an arm; the nesting is bounded, and with it the stack of open `if`s.
+    fn open_if(&mut self, cond: &str, cond_at: usize, at: usize) -> Result<(), SyntaxError> {
+        if self.open.len() >= MAX_IF_NESTING {
+            return Err(SyntaxError::new(
+                at,
+                format!(
+                    "`if` nested more than {MAX_IF_NESTING} deep; simplify the body or split it"
+                ),
+            ));
+        }
+        let j = condition(&mut self.c, cond, cond_at)?;
+        self.open.push(Open {
+            next_arm: Some(j),
+            ends: Vec::new(),
+            has_else: false,
+            at,
+        });
+        Ok(())
+    }
+
+    /// Closes the arm before an `elif` or `else`: a jump past the `end` ends it, and the
+    /// previous condition, when false, now jumps here.
+    fn next_arm(&mut self, at: usize, what: &str) -> Result<&mut Open, SyntaxError> {
+        let o = arm_of(&mut self.open, at, what)?;
+        let jump = self.c.code.len();
+        self.c.emit(Op::Jump(0), at, 0);
+        o.ends.push(jump);
+        let here = self.c.code.len() as u32;
+        if let Some(j) = o.next_arm.take() {
+            self.c.code[j].0 = Op::JumpIfFalse(here);
+        }
+        Ok(o)
+    }
+
+    /// `end`: the pending jumps of the innermost `if` learn where it ends.
+    fn end(&mut self, at: usize) -> Result<(), SyntaxError> {
+        let Some(o) = self.open.pop() else {
+            return Err(SyntaxError::new(at, "`end` without an `if`; remove it"));
+        };
+        let here = self.c.code.len() as u32;
+        if let Some(j) = o.next_arm {
+            self.c.code[j].0 = Op::JumpIfFalse(here);
+        }
+        for j in o.ends {
+            self.c.code[j].0 = Op::Jump(here);
+        }
+        Ok(())
+    }
+
+    /// The checks only the whole body allows: every `if` closed, the evaluator's stack enough.
+    fn finish(mut self, name: &str, source: &str) -> Result<Body, SyntaxError> {
+        if let Some(o) = self.open.last() {
+            return Err(SyntaxError::new(
+                o.at,
+                "this `if` has no `end`; close it with a line `end`",
+            ));
+        }
+        if self.c.max > guard::MAX_STACK {
+            return Err(SyntaxError::new(
+                0,
+                format!(
+                    "an expression of this body needs {} evaluation stack slots but the evaluator has {}; split it",
+                    self.c.max,
+                    guard::MAX_STACK
+                ),
+            ));
+        }
+        for v in [&mut self.outputs, &mut self.vars] {
+            v.sort_unstable();
+            v.dedup();
+        }
+        Ok(Body {
+            name: name.to_string(),
+            source: source.to_string(),
+            code: self.c.code,
+            outputs: self.outputs,
+            vars: self.vars,
+        })
     }
 }
 

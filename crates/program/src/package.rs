@@ -11,7 +11,7 @@ use std::sync::Arc;
 
 use base64::engine::general_purpose::STANDARD as B64;
 use base64::Engine as _;
-use cetratus_net::SourcePos;
+use cetratus_net::{Net, SourcePos};
 use ed25519_dalek::Signature;
 use serde::{Deserialize, Serialize};
 use sha2::{Digest, Sha256};
@@ -25,7 +25,10 @@ pub use build::{
 };
 
 use crate::source::{NetOnly, Origin};
-use crate::transform::{DenseMatrix, Projection, StateTransform, TransformError};
+use crate::transform::{
+    explicit_dense, explicit_sparse, Between, DenseMatrix, Projection, StateTransform,
+    TransformError,
+};
 use crate::{Program, ProgramError};
 
 /// The `format` of a package file this version writes and reads.
@@ -488,9 +491,36 @@ fn resolve_transform(
     old: &Program,
     new: &Program,
 ) -> Result<StateTransform, TransformError> {
+    resolve(spec, old.net(), new.net(), |removed| {
+        StateTransform::generated(old, new, removed)
+    })
+}
+
+fn resolve_projection(
+    spec: Option<&TransformSpec>,
+    old: &Program,
+    new: &Program,
+) -> Result<Projection, TransformError> {
     let (on, nn) = (old.net().as_ref(), new.net().as_ref());
     match spec {
-        TransformSpec::Generated { removed } => StateTransform::generated(old, new, removed),
+        None => Ok(Projection::generated(on, nn)),
+        Some(spec) => resolve(spec, on, nn, |removed| match removed.keys().next() {
+            None => Ok(Projection::generated(on, nn)),
+            Some(id) => Err(TransformError::RemovedIsKept { id: id.clone() }),
+        }),
+    }
+}
+
+/// A spec as a map of kind `M`: the explicit forms read alike for both kinds, the generated
+/// form is each kind's own.
+fn resolve<M: Between>(
+    spec: &TransformSpec,
+    on: &Net,
+    nn: &Net,
+    generated: impl FnOnce(&BTreeMap<String, String>) -> Result<M, TransformError>,
+) -> Result<M, TransformError> {
+    match spec {
+        TransformSpec::Generated { removed } => generated(removed),
         TransformSpec::Dense {
             rows,
             cols,
@@ -505,49 +535,17 @@ fn resolve_transform(
                     &zeros
                 }
             };
-            StateTransform::dense(on, nn, rows, cols, matrix, base)
+            explicit_dense(on, nn, rows, cols, matrix, base)
         }
         TransformSpec::Sparse {
             entries,
             base,
             identity_on_kept,
-        } => StateTransform::sparse(on, nn, &triples(entries, *identity_on_kept, nn, on), base),
-    }
-}
-
-fn resolve_projection(
-    spec: Option<&TransformSpec>,
-    old: &Program,
-    new: &Program,
-) -> Result<Projection, TransformError> {
-    let (on, nn) = (old.net().as_ref(), new.net().as_ref());
-    match spec {
-        None => Ok(Projection::generated(on, nn)),
-        Some(TransformSpec::Generated { removed }) => match removed.keys().next() {
-            None => Ok(Projection::generated(on, nn)),
-            Some(id) => Err(TransformError::RemovedIsKept { id: id.clone() }),
-        },
-        Some(TransformSpec::Dense {
-            rows,
-            cols,
-            matrix,
-            base,
-        }) => {
-            let zeros;
-            let base = match base {
-                Some(b) => b.as_slice(),
-                None => {
-                    zeros = vec![0; rows.len()];
-                    &zeros
-                }
-            };
-            Projection::dense(on, nn, rows, cols, matrix, base)
+        } => {
+            let (row_net, col_net) = M::axes(on, nn);
+            let entries = triples(entries, *identity_on_kept, row_net, col_net);
+            explicit_sparse(on, nn, &entries, base)
         }
-        Some(TransformSpec::Sparse {
-            entries,
-            base,
-            identity_on_kept,
-        }) => Projection::sparse(on, nn, &triples(entries, *identity_on_kept, on, nn), base),
     }
 }
 
@@ -555,8 +553,8 @@ fn resolve_projection(
 fn triples(
     entries: &[SparseEntry],
     identity: bool,
-    row_net: &cetratus_net::Net,
-    col_net: &cetratus_net::Net,
+    row_net: &Net,
+    col_net: &Net,
 ) -> Vec<(String, String, i64)> {
     let mut out: Vec<(String, String, i64)> = entries
         .iter()

@@ -188,7 +188,7 @@ const OLD: &str = "running (old)";
 
 /// A sparse linear map `y = A·x + b` between two place spaces, with the ids of both.
 #[derive(Clone, Debug, PartialEq)]
-struct Linear {
+pub(crate) struct Linear {
     /// `entries[row_start[r]..row_start[r + 1]]` are row r's (column, coefficient), no zeros.
     row_start: Vec<usize>,
     entries: Vec<(u32, i64)>,
@@ -199,7 +199,7 @@ struct Linear {
 
 /// Which map and which nets, for messages.
 #[derive(Clone, Copy)]
-struct Role {
+pub(crate) struct Role {
     what: &'static str,
     row_net: &'static str,
     col_net: &'static str,
@@ -482,6 +482,43 @@ fn check_ids(
     Ok(())
 }
 
+/// A linear map between the running (old) and the new net's place spaces: [`StateTransform`]
+/// and [`Projection`] resolve their matrices alike and differ in which net gives the rows.
+pub(crate) trait Between: Sized {
+    /// The map's name and the nets of its rows and columns, for messages.
+    const ROLE: Role;
+    /// The nets whose places are the rows and the columns.
+    fn axes<'n>(old: &'n Net, new: &'n Net) -> (&'n Net, &'n Net);
+    /// Wraps a resolved matrix with what the map keeps of the two nets (timers, places to check).
+    fn from_map(map: Linear, old: &Net, new: &Net) -> Self;
+}
+
+/// A map from a dense matrix whose row and column ids are its nets' place ids, in order.
+pub(crate) fn explicit_dense<M: Between>(
+    old: &Net,
+    new: &Net,
+    row_ids: &[String],
+    col_ids: &[String],
+    matrix: &[Vec<i64>],
+    base: &[i64],
+) -> Result<M, TransformError> {
+    let (rows, cols) = M::axes(old, new);
+    let map = Linear::dense(M::ROLE, rows, cols, row_ids, col_ids, matrix, base)?;
+    Ok(M::from_map(map, old, new))
+}
+
+/// A map from `(row place, column place, coefficient)` entries and a base keyed by row place.
+pub(crate) fn explicit_sparse<M: Between>(
+    old: &Net,
+    new: &Net,
+    entries: &[(String, String, i64)],
+    base: &BTreeMap<String, i64>,
+) -> Result<M, TransformError> {
+    let (rows, cols) = M::axes(old, new);
+    let map = Linear::sparse(M::ROLE, rows, cols, entries, base)?;
+    Ok(M::from_map(map, old, new))
+}
+
 /// A state transformation `M_new = ST·M_old + ST_base`, resolved against an old and a new net.
 #[derive(Clone, Debug, PartialEq)]
 pub struct StateTransform {
@@ -551,13 +588,7 @@ impl StateTransform {
         matrix: &[Vec<i64>],
         base: &[i64],
     ) -> Result<Self, TransformError> {
-        let role = Role {
-            what: ST,
-            row_net: NEW,
-            col_net: OLD,
-        };
-        let map = Linear::dense(role, new, old, row_ids, col_ids, matrix, base)?;
-        Ok(Self::from_map(map, old, new))
+        explicit_dense(old, new, row_ids, col_ids, matrix, base)
     }
 
     /// An explicit transformation from `(new place, old place, coefficient)` entries and a base
@@ -568,33 +599,7 @@ impl StateTransform {
         entries: &[(String, String, i64)],
         base: &BTreeMap<String, i64>,
     ) -> Result<Self, TransformError> {
-        let role = Role {
-            what: ST,
-            row_net: NEW,
-            col_net: OLD,
-        };
-        let map = Linear::sparse(role, new, old, entries, base)?;
-        Ok(Self::from_map(map, old, new))
-    }
-
-    fn from_map(map: Linear, old: &Net, new: &Net) -> Self {
-        let timer_from = new
-            .places()
-            .iter()
-            .map(|p| old.place_by_id(&p.id))
-            .collect();
-        let must_be_empty = old
-            .places()
-            .iter()
-            .enumerate()
-            .filter(|(c, p)| new.place_by_id(&p.id).is_none() && !map.reads(*c as u32))
-            .map(|(c, _)| PlaceIdx(c as u32))
-            .collect();
-        StateTransform {
-            map,
-            timer_from,
-            must_be_empty,
-        }
+        explicit_sparse(old, new, entries, base)
     }
 
     /// Places of the new net.
@@ -641,6 +646,38 @@ impl StateTransform {
     /// The matrix and base in dense form, with the place ids of rows (new) and columns (old).
     pub fn to_dense(&self) -> DenseMatrix {
         self.map.to_dense()
+    }
+}
+
+impl Between for StateTransform {
+    const ROLE: Role = Role {
+        what: ST,
+        row_net: NEW,
+        col_net: OLD,
+    };
+
+    fn axes<'n>(old: &'n Net, new: &'n Net) -> (&'n Net, &'n Net) {
+        (new, old)
+    }
+
+    fn from_map(map: Linear, old: &Net, new: &Net) -> Self {
+        let timer_from = new
+            .places()
+            .iter()
+            .map(|p| old.place_by_id(&p.id))
+            .collect();
+        let must_be_empty = old
+            .places()
+            .iter()
+            .enumerate()
+            .filter(|(c, p)| new.place_by_id(&p.id).is_none() && !map.reads(*c as u32))
+            .map(|(c, _)| PlaceIdx(c as u32))
+            .collect();
+        StateTransform {
+            map,
+            timer_from,
+            must_be_empty,
+        }
     }
 }
 
@@ -705,13 +742,7 @@ impl Projection {
         matrix: &[Vec<i64>],
         base: &[i64],
     ) -> Result<Self, TransformError> {
-        let role = Role {
-            what: PROJ,
-            row_net: OLD,
-            col_net: NEW,
-        };
-        let map = Linear::dense(role, old, new, row_ids, col_ids, matrix, base)?;
-        Ok(Self::from_map(map, old, new))
+        explicit_dense(old, new, row_ids, col_ids, matrix, base)
     }
 
     /// An explicit projection from `(old place, new place, coefficient)` entries and a base keyed
@@ -722,22 +753,7 @@ impl Projection {
         entries: &[(String, String, i64)],
         base: &BTreeMap<String, i64>,
     ) -> Result<Self, TransformError> {
-        let role = Role {
-            what: PROJ,
-            row_net: OLD,
-            col_net: NEW,
-        };
-        let map = Linear::sparse(role, old, new, entries, base)?;
-        Ok(Self::from_map(map, old, new))
-    }
-
-    fn from_map(map: Linear, old: &Net, new: &Net) -> Self {
-        let timer_from = old
-            .places()
-            .iter()
-            .map(|p| new.place_by_id(&p.id))
-            .collect();
-        Projection { map, timer_from }
+        explicit_sparse(old, new, entries, base)
     }
 
     /// Places of the old net.
@@ -790,6 +806,27 @@ impl Projection {
     /// The matrix and base in dense form, with the place ids of rows (old) and columns (new).
     pub fn to_dense(&self) -> DenseMatrix {
         self.map.to_dense()
+    }
+}
+
+impl Between for Projection {
+    const ROLE: Role = Role {
+        what: PROJ,
+        row_net: OLD,
+        col_net: NEW,
+    };
+
+    fn axes<'n>(old: &'n Net, new: &'n Net) -> (&'n Net, &'n Net) {
+        (old, new)
+    }
+
+    fn from_map(map: Linear, old: &Net, new: &Net) -> Self {
+        let timer_from = old
+            .places()
+            .iter()
+            .map(|p| new.place_by_id(&p.id))
+            .collect();
+        Projection { map, timer_from }
     }
 }
 

@@ -45,10 +45,43 @@ pub struct Container {
     always_full: bool,
 }
 
+/// Which scan computes the actions: one that fired, or a quiet one that skipped firing.
+#[derive(Clone, Copy, PartialEq, Eq)]
+enum Scan {
+    Full,
+    Quiet,
+}
+
 /// Why a guard stopped a scan: its evaluation failed, or the scan ran out of its work budget.
 enum Stop {
     Guard(cetratus_program::EvalError),
     Budget,
+}
+
+/// A failed firing in the program's words: transition and place ids rather than indices.
+#[cold]
+fn fire_error(program: &Program, e: FireError<Stop>, work_budget: u64) -> RuntimeError {
+    let net = program.net();
+    match e {
+        FireError::Guard {
+            transition,
+            error: Stop::Guard(error),
+        } => RuntimeError::Guard {
+            transition: net.transition(transition).id.clone(),
+            message: error.to_string(),
+        },
+        FireError::Guard {
+            transition,
+            error: Stop::Budget,
+        } => RuntimeError::WorkBudget {
+            budget: work_budget,
+            transition: net.transition(transition).id.clone(),
+        },
+        FireError::Overflow { transition, place } => RuntimeError::Overflow {
+            transition: net.transition(transition).id.clone(),
+            place: net.place(place).id.clone(),
+        },
+    }
 }
 
 /// Why a transition did not fire in a container's last scan.
@@ -230,6 +263,16 @@ impl Container {
             return self.quiet_scan(now_us);
         }
         self.force_full = false;
+        self.take_inputs(inputs);
+        let fired = self.fire(now_us, work_budget)?;
+        self.follow_changes(now_us);
+        self.act(now_us, Scan::Full)?;
+        Ok(self.outcome(fired))
+    }
+
+    /// Takes the scan's input image, keeping the last one for `rise`/`fall`.
+    #[inline]
+    fn take_inputs(&mut self, inputs: &[Value]) {
         if self.edge_memory {
             self.prev_inputs.copy_from_slice(&self.inputs);
         } else {
@@ -239,7 +282,12 @@ impl Container {
         self.inputs.copy_from_slice(inputs);
         self.edge_memory = true;
         self.inputs_steady = self.prev_inputs == self.inputs;
+    }
 
+    /// Fires under the program's policy, each guard reading the marking as it was at the start
+    /// of the scan and costing work from `work_budget`; returns how many transitions fired.
+    #[inline]
+    fn fire(&mut self, now_us: u64, work_budget: u64) -> Result<usize, RuntimeError> {
         let program = &*self.program;
         let ctx = EvalCtx {
             inputs: &self.inputs,
@@ -264,37 +312,17 @@ impl Container {
                 Ok(holds)
             })
             .map(|f| f.len());
-        if result.is_err() {
+        result.map_err(|e| {
             // The failing guard must fail again on the next scan, not be skipped as quiet.
             self.force_full = true;
-        }
-        let fired = match result {
-            Ok(n) => n,
-            Err(FireError::Guard {
-                transition,
-                error: Stop::Guard(error),
-            }) => {
-                return Err(RuntimeError::Guard {
-                    transition: program.net().transition(transition).id.clone(),
-                    message: error.to_string(),
-                })
-            }
-            Err(FireError::Guard {
-                transition,
-                error: Stop::Budget,
-            }) => {
-                return Err(RuntimeError::WorkBudget {
-                    budget: work_budget,
-                    transition: program.net().transition(transition).id.clone(),
-                })
-            }
-            Err(FireError::Overflow { transition, place }) => {
-                return Err(RuntimeError::Overflow {
-                    transition: program.net().transition(transition).id.clone(),
-                    place: program.net().place(place).id.clone(),
-                })
-            }
-        };
+            fire_error(program, e, work_budget)
+        })
+    }
+
+    /// Counts the firings and moves the place timers with the marking's changes, which the
+    /// guards of the next scan read.
+    #[inline]
+    fn follow_changes(&mut self, now_us: u64) {
         for &t in self.engine.fired() {
             self.firings[t.index()] += 1;
         }
@@ -311,37 +339,53 @@ impl Container {
                 }
             }
         }
+    }
+
+    /// Computes the actions from the marking after firing, and counts the scan even when a
+    /// body fails (which forces the next scan to run in full, so it fails again). The first full
+    /// scan from a fresh state enters every marked place, unless it resumes; a quiet scan
+    /// changed no place.
+    #[inline]
+    fn act(&mut self, now_us: u64, scan: Scan) -> Result<(), RuntimeError> {
+        let program = &*self.program;
         let view = EvalCtx {
             inputs: &self.inputs,
             prev_inputs: &self.prev_inputs,
             vars: &[],
-            marking,
+            marking: self.engine.marking(),
             place_since_us: &self.place_since_us,
             place_dwell_us: &self.place_dwell_us,
             now_us,
         };
-        let acted = if std::mem::take(&mut self.fresh_state) && !std::mem::take(&mut self.resume) {
+        let changes = match scan {
+            Scan::Full => self.engine.changes(),
+            Scan::Quiet => &[],
+        };
+        let enters_all = scan == Scan::Full
+            && std::mem::take(&mut self.fresh_state)
+            && !std::mem::take(&mut self.resume);
+        let acted = if enters_all {
             // The first scan enters every marked place: P1 and S actions of M0 take effect.
             self.actions
                 .start(program, &view, &mut self.outputs, &mut self.vars)
         } else {
-            self.actions.apply(
-                program,
-                &view,
-                self.engine.changes(),
-                &mut self.outputs,
-                &mut self.vars,
-            )
+            self.actions
+                .apply(program, &view, changes, &mut self.outputs, &mut self.vars)
         };
         self.scans += 1;
-        if let Err(e) = acted {
+        acted.map_err(|e| {
             self.force_full = true;
-            return Err(RuntimeError::Body(e));
-        }
-        Ok(ScanOutcome {
+            RuntimeError::Body(e)
+        })
+    }
+
+    /// What a scan that fired `fired` transitions leaves behind.
+    #[inline]
+    fn outcome(&self, fired: usize) -> ScanOutcome {
+        ScanOutcome {
             fired,
             deadlocked: self.engine.enabled().is_empty(),
-        })
+        }
     }
 
     /// Whether this scan can be skipped: nothing fired in the last scan, the input image has not
@@ -366,27 +410,8 @@ impl Container {
 
     /// A scan that fires nothing: the actions still run, for their timers.
     fn quiet_scan(&mut self, now_us: u64) -> Result<ScanOutcome, RuntimeError> {
-        let view = EvalCtx {
-            inputs: &self.inputs,
-            prev_inputs: &self.prev_inputs,
-            vars: &[],
-            marking: self.engine.marking(),
-            place_since_us: &self.place_since_us,
-            place_dwell_us: &self.place_dwell_us,
-            now_us,
-        };
-        let acted =
-            self.actions
-                .apply(&self.program, &view, &[], &mut self.outputs, &mut self.vars);
-        self.scans += 1;
-        if let Err(e) = acted {
-            self.force_full = true;
-            return Err(RuntimeError::Body(e));
-        }
-        Ok(ScanOutcome {
-            fired: 0,
-            deadlocked: self.engine.enabled().is_empty(),
-        })
+        self.act(now_us, Scan::Quiet)?;
+        Ok(self.outcome(0))
     }
 
     /// False when the last scan certainly left the outputs and variables as they were.

@@ -6,6 +6,7 @@
 //! then the candidate and the Monitor, so a candidate never delays the plant's outputs. Commands ([`Plc::command`]) are accepted or refused between cycles; everything
 //! they cause happens at the next boundary, so nothing is ever half-applied.
 
+use std::ops::ControlFlow;
 use std::panic::{catch_unwind, AssertUnwindSafe};
 use std::sync::Arc;
 
@@ -285,6 +286,29 @@ impl Plc {
 
     /// One cycle at program time `now_us`.
     pub fn cycle<IO: Provider + Dispatcher + ?Sized>(&mut self, now_us: u64, io: &mut IO) {
+        self.boundary(now_us, io);
+        if self.updater.status() == Status::Fault {
+            self.core.router.dispatch_safe(now_us, io);
+            self.end_cycle(now_us, None);
+            return;
+        }
+        // One reading before the primary, one after it, and in quarantine one after the
+        // Dispatcher and one after the candidate.
+        let t0 = self.core.stopwatch.now_ns();
+        let mut mark = t0;
+        let p = self.core.primary_slot;
+        if self.primary_cycle(p, now_us, io, &mut mark).is_break() {
+            self.end_cycle(now_us, None);
+            return;
+        }
+        self.secondary_cycle(p, now_us, &mut mark);
+        self.end_cycle(now_us, Some(mark.saturating_sub(t0)));
+    }
+
+    /// What is due at the cycle boundary, then the Provider: the I/O hears of grown signals and
+    /// new safe values before it is read.
+    #[inline]
+    fn boundary<IO: Provider + Dispatcher + ?Sized>(&mut self, now_us: u64, io: &mut IO) {
         self.core.log.now_us = now_us;
         self.updater.boundary(&mut self.core);
         if let Some(g) = self.core.grown.take() {
@@ -296,29 +320,27 @@ impl Plc {
             io.safe_outputs(self.core.router.safe());
         }
         self.core.router.read(now_us, io);
+    }
 
-        if self.updater.status() == Status::Fault {
-            self.core.router.dispatch_safe(now_us, io);
-            self.end_cycle(now_us, None);
-            return;
-        }
-
-        // One reading before the primary, one after it, and in quarantine one after the
-        // Dispatcher and one after the candidate.
-        let t0 = self.core.stopwatch.now_ns();
-        let mut mark = t0;
+    /// Scans the primary `p` and dispatches its outputs; `Break` when it faulted outside
+    /// probation, which puts the PLC in fault with the outputs at their safe values.
+    #[inline]
+    fn primary_cycle<IO: Provider + Dispatcher + ?Sized>(
+        &mut self,
+        p: Slot,
+        now_us: u64,
+        io: &mut IO,
+        mark: &mut u64,
+    ) -> ControlFlow<()> {
         let core = &mut self.core;
-        let p = core.primary_slot;
         let limits = self.updater.limits;
         let in_probation = matches!(self.updater.phase, Phase::Probation(_));
-        let scanned = scan_slot(core, None, p, now_us, &mut mark, &limits);
-        if let Err(e) = &scanned {
+        if let Err(e) = scan_slot(core, None, p, now_us, mark, &limits) {
             let why = format!("primary {} faulted: {e}", p.as_str());
             if !in_probation {
                 core.router.dispatch_safe(now_us, io);
                 self.updater.primary_fault(core, why);
-                self.end_cycle(now_us, None);
-                return;
+                return ControlFlow::Break(());
             }
             // In probation the fault is a cause to revert, and the old program takes over at
             // the next boundary. For this one cycle the outputs hold their last values (the
@@ -327,82 +349,59 @@ impl Plc {
             // projection be refused.
             core.router.dispatch(p.index(), now_us, io);
             self.updater.request_revert(core, RevertReason::Fault, why);
-        } else {
-            // Dispatcher: PRIMARY's outputs only, before the candidate runs, so that the time
-            // the candidate takes never delays the plant's outputs.
-            core.router.dispatch(p.index(), now_us, io);
-            self.deadlock_alarm(p);
-            self.stall_watchdog(p, now_us);
-            let core = &mut self.core;
-            // A new primary on probation that breaks an invariant its program declares is
-            // reverted; the marking only changes when something fires.
-            if in_probation && !core.primary.fired().is_empty() {
-                if let Err(v) = core
-                    .primary
-                    .program()
-                    .check_invariants(core.primary.marking())
-                {
-                    self.updater.request_revert(
-                        core,
-                        RevertReason::Invariant,
-                        format!("primary {} reached an invalid marking: {v}", p.as_str()),
-                    );
-                }
-            }
+            return ControlFlow::Continue(());
         }
-        let core = &mut self.core;
+        // Dispatcher: PRIMARY's outputs only, before the candidate runs, so that the time
+        // the candidate takes never delays the plant's outputs.
+        core.router.dispatch(p.index(), now_us, io);
+        self.deadlock_alarm(p);
+        self.stall_watchdog(p, now_us);
+        if in_probation {
+            self.probation_invariants(p);
+        }
+        ControlFlow::Continue(())
+    }
 
-        // The secondary, isolated: the candidate in quarantine or the shadow in probation. An
-        // error, a panic, an invalid marking, a scan stopped by its work budget or one that
-        // overran its time budget takes it out of service after its scan.
+    /// A new primary on probation that breaks an invariant its program declares is reverted;
+    /// the marking only changes when something fires.
+    fn probation_invariants(&mut self, p: Slot) {
+        let core = &mut self.core;
+        if core.primary.fired().is_empty() {
+            return;
+        }
+        if let Err(v) = core
+            .primary
+            .program()
+            .check_invariants(core.primary.marking())
+        {
+            self.updater.request_revert(
+                core,
+                RevertReason::Invariant,
+                format!("primary {} reached an invalid marking: {v}", p.as_str()),
+            );
+        }
+    }
+
+    /// The secondary, isolated: the candidate in quarantine or the shadow in probation, none
+    /// otherwise. An error, a panic, an invalid marking, a scan stopped by its work budget or
+    /// one that overran its time budget takes it out of service after its scan.
+    #[inline]
+    fn secondary_cycle(&mut self, p: Slot, now_us: u64, mark: &mut u64) {
+        let core = &mut self.core;
+        let limits = self.updater.limits;
         let (secondary, plan, shadow) = match &mut self.updater.phase {
             Phase::Quarantine(q) => (&mut q.candidate, &q.plan, false),
             Phase::Probation(pr) => (&mut pr.shadow, &pr.plan, true),
-            _ => {
-                self.end_cycle(now_us, Some(mark.saturating_sub(t0)));
-                return;
-            }
+            _ => return,
         };
         let c = p.other();
         let role = if shadow { "shadow" } else { "candidate" };
-        mark = core.stopwatch.now_ns();
+        *mark = core.stopwatch.now_ns();
         let outcome = catch_unwind(AssertUnwindSafe(|| {
-            scan_slot(core, Some(&mut *secondary), c, now_us, &mut mark, &limits)
+            scan_slot(core, Some(&mut *secondary), c, now_us, mark, &limits)
         }));
         let took = core.monitor.stats[c.index()].scan.summary_last();
-        let fault = match outcome {
-            Err(panic) => Some(format!(
-                "{role} panicked: {}",
-                panic
-                    .downcast_ref::<&str>()
-                    .map(|s| s.to_string())
-                    .or_else(|| panic.downcast_ref::<String>().cloned())
-                    .unwrap_or_else(|| "unknown panic".into())
-            )),
-            Ok(Err(e)) => Some(format!("{role} faulted: {e}")),
-            Ok(Ok(())) => {
-                // The marking only changes when something fires.
-                let broken = (!secondary.fired().is_empty())
-                    .then(|| {
-                        secondary
-                            .program()
-                            .check_invariants(secondary.marking())
-                            .err()
-                    })
-                    .flatten();
-                if let Some(v) = broken {
-                    Some(format!("{role} reached an invalid marking: {v}"))
-                } else if took > limits.candidate_budget_ns {
-                    Some(format!(
-                        "{role} scan took {} µs, over its budget of {} µs",
-                        took / 1000,
-                        limits.candidate_budget_ns / 1000
-                    ))
-                } else {
-                    None
-                }
-            }
-        };
+        let fault = secondary_fault(role, outcome, secondary, took, &limits);
         if fault.is_none() {
             // In probation the shadow is the old program: its transitions map onto the new
             // primary's the other way round, and the projection reads the primary's marking.
@@ -433,7 +432,6 @@ impl Plc {
             ),
             None => {}
         }
-        self.end_cycle(now_us, Some(mark.saturating_sub(t0)));
     }
 
     /// Deadlock alarm: no transition of the primary enabled while the inputs change; once per
@@ -596,6 +594,50 @@ impl Plc {
     /// Enters fault (a warm start of a PLC that was in fault).
     pub(crate) fn enter_fault(&mut self) {
         self.updater.phase = Phase::Fault;
+    }
+}
+
+/// Why a secondary's scan takes it out of service, `None` when it does not: a panic, an
+/// error, an invalid marking, or a scan over its time budget.
+fn secondary_fault(
+    role: &str,
+    outcome: std::thread::Result<Result<(), RuntimeError>>,
+    secondary: &Container,
+    took: u64,
+    limits: &Limits,
+) -> Option<String> {
+    match outcome {
+        Err(panic) => Some(format!(
+            "{role} panicked: {}",
+            panic
+                .downcast_ref::<&str>()
+                .map(|s| s.to_string())
+                .or_else(|| panic.downcast_ref::<String>().cloned())
+                .unwrap_or_else(|| "unknown panic".into())
+        )),
+        Ok(Err(e)) => Some(format!("{role} faulted: {e}")),
+        Ok(Ok(())) => {
+            // The marking only changes when something fires.
+            let broken = (!secondary.fired().is_empty())
+                .then(|| {
+                    secondary
+                        .program()
+                        .check_invariants(secondary.marking())
+                        .err()
+                })
+                .flatten();
+            if let Some(v) = broken {
+                Some(format!("{role} reached an invalid marking: {v}"))
+            } else if took > limits.candidate_budget_ns {
+                Some(format!(
+                    "{role} scan took {} µs, over its budget of {} µs",
+                    took / 1000,
+                    limits.candidate_budget_ns / 1000
+                ))
+            } else {
+                None
+            }
+        }
     }
 }
 

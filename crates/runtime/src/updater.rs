@@ -8,16 +8,17 @@
 //! only the install, which is bounded by the size of the transformation, runs in the cycle (the
 //! preparation is in `prepare.rs`).
 
-use cetratus_program::{EvalCtx, Guard, Value};
+use cetratus_net::NetError;
+use cetratus_program::{EvalCtx, Guard, TransformError, Value};
 
 use crate::clock::InstallTiming;
 use crate::error::CommandError;
 use crate::event::{EventDetail, EventKind, RevertReason};
 use crate::monitor::{ContainerStats, VerdictKind, VerdictResult};
-use crate::phase::{Ending, Phase, Probation, Quarantine};
+use crate::phase::{Ending, Phase, Probation, Quarantine, UpdatePlan};
 use crate::plc::Core;
 pub use crate::prepare::{PreparedUpdate, UpdateContext};
-use crate::{Slot, Status};
+use crate::{Container, Slot, Status};
 use cetratus_vocab::Verb;
 
 pub use cetratus_vocab::SubstituteMode;
@@ -370,29 +371,7 @@ impl Updater {
         let Quarantine {
             candidate, plan, ..
         } = &mut *up.quarantine;
-        let result = plan
-            .transform
-            .apply(
-                primary.marking(),
-                candidate.program(),
-                &mut plan.scratch_marking,
-            )
-            .map_err(|e| e.to_string())
-            .and_then(|()| {
-                plan.transform.apply_timers(
-                    primary.place_since_us(),
-                    &plan.scratch_marking,
-                    now_us,
-                    &mut plan.scratch_since,
-                );
-                candidate
-                    .set_state(&plan.scratch_marking, &plan.scratch_since)
-                    .map_err(|e| e.to_string())?;
-                // Latches and variables the program shares with the primary carry over, as the
-                // marking does: an S that latched before the update stays latched.
-                candidate.carry_from(primary, &plan.latch_map, &plan.var_map);
-                Ok(())
-            });
+        let result = carry_state(plan, candidate, primary, now_us);
         let took = match self.install_timing {
             InstallTiming::Measured => core.stopwatch.now_ns().saturating_sub(start),
             InstallTiming::Model { ns_per_entry } => up.work.saturating_mul(ns_per_entry),
@@ -456,6 +435,8 @@ impl Updater {
         core.log.push(EventKind::QuarantineStarted, message, detail);
     }
 
+    /// Substitutes once a pending request may: its condition holds, the candidate's drift
+    /// allows its mode, and a retransform succeeds; a request that cannot is given up.
     fn try_substitute(&mut self, core: &mut Core) {
         let now_us = core.log.now_us;
         let Phase::Quarantine(q) = &mut self.phase else {
@@ -464,33 +445,11 @@ impl Updater {
         let Some((req, deadline)) = q.pending.as_ref() else {
             return;
         };
-        if let Some((text, guard)) = &req.when {
-            let primary = &core.primary;
-            let ctx = EvalCtx {
-                // The condition is compiled against the primary: it reads the primary's image.
-                inputs: primary.inputs(),
-                prev_inputs: primary.inputs(),
-                vars: primary.variables(),
-                marking: primary.marking(),
-                place_since_us: primary.place_since_us(),
-                place_dwell_us: primary.place_dwell_us(),
-                now_us,
-            };
-            let holds = match guard.eval(&ctx) {
-                Ok(b) => b,
-                Err(e) => {
-                    let msg = format!("substitution given up: the condition `{text}` failed to evaluate ({e}); the candidate stays in quarantine");
-                    q.pending = None;
-                    core.log.push(EventKind::SubstituteTimeout, msg, None);
-                    return;
-                }
-            };
-            if !holds {
-                if now_us >= *deadline {
-                    let msg = format!("substitution given up: `{text}` did not hold within the time allowed; the candidate stays in quarantine");
-                    q.pending = None;
-                    core.log.push(EventKind::SubstituteTimeout, msg, None);
-                }
+        match condition_met(req, *deadline, &core.primary, now_us) {
+            Ok(true) => {}
+            Ok(false) => return,
+            Err(why) => {
+                give_up(q, core, EventKind::SubstituteTimeout, why, None);
                 return;
             }
         }
@@ -498,54 +457,46 @@ impl Updater {
         let c = core.primary_slot.other();
         let drift = core.monitor.stats[c.index()].drift;
         if mode == SubstituteMode::Keep && drift != 0 && !force {
-            q.pending = None;
-            core.log.push(EventKind::Refused, format!("substitute refused: mode keep needs drift 0 but the candidate has drifted by {drift} tokens; use retransform, or force"), Some(EventDetail::Drift { drift }));
+            let why = format!("substitute refused: mode keep needs drift 0 but the candidate has drifted by {drift} tokens; use retransform, or force");
+            give_up(
+                q,
+                core,
+                EventKind::Refused,
+                why,
+                Some(EventDetail::Drift { drift }),
+            );
             return;
         }
         if mode == SubstituteMode::Retransform {
-            let plan = &mut q.plan;
-            let primary = &core.primary;
-            let res = plan
-                .transform
-                .apply(
-                    primary.marking(),
-                    q.candidate.program(),
-                    &mut plan.scratch_marking,
-                )
-                .map_err(|e| e.to_string());
-            if let Err(reason) = res {
-                q.pending = None;
-                core.log.push(EventKind::Refused, format!("substitute refused: the retransform failed: {reason}; the candidate stays in quarantine"), None);
+            let Quarantine {
+                candidate, plan, ..
+            } = &mut **q;
+            if let Err(e) = carry_state(plan, candidate, &core.primary, now_us) {
+                let why = match e {
+                    CarryError::Transform(reason) => format!("substitute refused: the retransform failed: {reason}; the candidate stays in quarantine"),
+                    CarryError::State(e) => format!("substitute refused: {e}"),
+                };
+                give_up(q, core, EventKind::Refused, why, None);
                 return;
             }
-            plan.transform.apply_timers(
-                primary.place_since_us(),
-                &plan.scratch_marking,
-                now_us,
-                &mut plan.scratch_since,
-            );
-            if let Err(e) = q
-                .candidate
-                .set_state(&plan.scratch_marking, &plan.scratch_since)
-            {
-                q.pending = None;
-                core.log
-                    .push(EventKind::Refused, format!("substitute refused: {e}"), None);
-                return;
-            }
-            // Consistent with the plant by construction: the latches and variables too.
-            q.candidate
-                .carry_from(primary, &plan.latch_map, &plan.var_map);
             core.router.mark_stale(c.index());
         }
+        self.switch(core, mode, drift);
+    }
+
+    /// PRIMARY flips to the candidate, whose safe values now drive the outputs; the old
+    /// primary stops, or stays as a shadow for the probation window.
+    fn switch(&mut self, core: &mut Core, mode: SubstituteMode, drift: u64) {
+        let now_us = core.log.now_us;
+        let c = core.primary_slot.other();
+        let Phase::Quarantine(q) = std::mem::replace(&mut self.phase, Phase::Idle) else {
+            unreachable!("a substitution switches from quarantine");
+        };
+        let mut q = *q;
         // The new primary's edge memory continues from the inputs the old primary saw in its
         // last scan, so that an edge in the switch cycle is not lost.
         q.candidate
             .continue_edges_from(core.router.last_inputs_for(c.index()));
-        let Phase::Quarantine(q) = std::mem::replace(&mut self.phase, Phase::Idle) else {
-            unreachable!("matched above");
-        };
-        let mut q = *q;
         // The safe values of the program that now drives the outputs.
         core.router.drive_safe(c.index(), &mut q.plan.safe);
         let old = core.primary_slot;
@@ -576,7 +527,14 @@ impl Updater {
             core.retired.push(old_primary);
             return;
         }
-        // Quarantine reversed: the old program runs on the same inputs, its outputs withheld.
+        self.start_probation(core, old, old_primary, q.plan);
+    }
+
+    /// Quarantine reversed: the old program runs in slot `old` on the same inputs, its outputs
+    /// withheld, until the window ends or the new primary gives a cause to revert.
+    fn start_probation(&mut self, core: &mut Core, old: Slot, shadow: Container, plan: UpdatePlan) {
+        let now_us = core.log.now_us;
+        let window = self.limits.probation_us;
         let ends_us = now_us.saturating_add(window);
         core.monitor.stats[old.index()] = ContainerStats::new(core.router.io_outputs().len());
         core.log.push(
@@ -585,19 +543,108 @@ impl Updater {
                 "probation for {:.1} s: {} runs the old program as a shadow; the PLC reverts to it if {} {} faults, stalls or breaks an invariant, or on `revert`; `accept` ends probation",
                 window as f64 / 1e6,
                 old.as_str(),
-                q.plan.meta.name,
-                q.plan.meta.version,
+                plan.meta.name,
+                plan.meta.version,
             ),
             Some(EventDetail::Probation { ends_us }),
         );
         self.phase = Phase::Probation(Box::new(Probation {
-            shadow: old_primary,
-            plan: q.plan,
+            shadow,
+            plan,
             started_us: now_us,
             ends_us,
             ending: None,
         }));
     }
+}
+
+/// Whether a pending substitution's condition holds over the primary now (no condition always
+/// does); `Err` gives the request up, saying why: its condition failed, or its time ran out.
+fn condition_met(
+    req: &SubstituteRequest,
+    deadline: u64,
+    primary: &Container,
+    now_us: u64,
+) -> Result<bool, String> {
+    let Some((text, guard)) = &req.when else {
+        return Ok(true);
+    };
+    let ctx = EvalCtx {
+        // The condition is compiled against the primary: it reads the primary's image.
+        inputs: primary.inputs(),
+        prev_inputs: primary.inputs(),
+        vars: primary.variables(),
+        marking: primary.marking(),
+        place_since_us: primary.place_since_us(),
+        place_dwell_us: primary.place_dwell_us(),
+        now_us,
+    };
+    match guard.eval(&ctx) {
+        Ok(true) => Ok(true),
+        Ok(false) if now_us >= deadline => Err(format!("substitution given up: `{text}` did not hold within the time allowed; the candidate stays in quarantine")),
+        Ok(false) => Ok(false),
+        Err(e) => Err(format!("substitution given up: the condition `{text}` failed to evaluate ({e}); the candidate stays in quarantine")),
+    }
+}
+
+/// Drops the pending substitution with the event that says why; the candidate stays in
+/// quarantine, and a new request may follow.
+fn give_up(
+    q: &mut Quarantine,
+    core: &mut Core,
+    kind: EventKind,
+    message: String,
+    detail: Option<EventDetail>,
+) {
+    q.pending = None;
+    core.log.push(kind, message, detail);
+}
+
+/// Why the primary's state could not be carried into the candidate: the transform refused the
+/// marking, or the candidate refused the transformed state.
+enum CarryError {
+    Transform(TransformError),
+    State(NetError),
+}
+
+impl std::fmt::Display for CarryError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            CarryError::Transform(e) => e.fmt(f),
+            CarryError::State(e) => e.fmt(f),
+        }
+    }
+}
+
+/// Carries the primary's state into the candidate through the plan, at an install and at a
+/// retransforming substitution alike: marking, timers, then the latches and variables the
+/// programs share. Allocates nothing but an error.
+fn carry_state(
+    plan: &mut UpdatePlan,
+    candidate: &mut Container,
+    primary: &Container,
+    now_us: u64,
+) -> Result<(), CarryError> {
+    plan.transform
+        .apply(
+            primary.marking(),
+            candidate.program(),
+            &mut plan.scratch_marking,
+        )
+        .map_err(CarryError::Transform)?;
+    plan.transform.apply_timers(
+        primary.place_since_us(),
+        &plan.scratch_marking,
+        now_us,
+        &mut plan.scratch_since,
+    );
+    candidate
+        .set_state(&plan.scratch_marking, &plan.scratch_since)
+        .map_err(CarryError::State)?;
+    // Latches and variables the program shares with the primary carry over, as the marking
+    // does: an S that latched before the update stays latched.
+    candidate.carry_from(primary, &plan.latch_map, &plan.var_map);
+    Ok(())
 }
 
 /// A value as plain JSON.

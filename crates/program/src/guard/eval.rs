@@ -1,7 +1,7 @@
 //! The evaluator of the flat postfix code that guards and action bodies compile to: a loop over
 //! the instructions on a fixed-size stack, never allocating, never looping back.
 
-use super::{Cmp, EvalCtx, EvalError, EvalErrorKind, Op, MAX_STACK};
+use super::{BinOp, EvalCtx, EvalError, EvalErrorKind, Op, MAX_STACK};
 use crate::value::{Type, Value};
 
 /// Runs a guard's postfix code: one bool left on the stack.
@@ -121,33 +121,13 @@ pub(crate) fn run(
                 push!(u64::from(*m))
             }
             Op::Timer(p) => {
-                let m = *ctx
-                    .marking
-                    .get(p as usize)
-                    .ok_or(err(EvalErrorKind::MissingValue))?;
-                let since = *ctx
-                    .place_since_us
-                    .get(p as usize)
-                    .ok_or(err(EvalErrorKind::MissingValue))?;
-                let t = match since {
-                    Some(s) if m > 0 => ctx.now_us.saturating_sub(s).min(i64::MAX as u64),
-                    _ => 0,
-                };
-                push!(t)
+                let marked = marked_for(ctx, p).ok_or(err(EvalErrorKind::MissingValue))?;
+                push!(marked.map_or(0, |t| t.min(i64::MAX as u64)))
             }
             Op::Dwell(p) => {
-                let m = *ctx
-                    .marking
-                    .get(p as usize)
-                    .ok_or(err(EvalErrorKind::MissingValue))?;
-                let since = *ctx
-                    .place_since_us
-                    .get(p as usize)
-                    .ok_or(err(EvalErrorKind::MissingValue))?;
-                let t = match since {
-                    Some(s) if m > 0 => ctx.now_us.saturating_sub(s),
-                    _ => ctx.place_dwell_us.get(p as usize).copied().unwrap_or(0),
-                };
+                let marked = marked_for(ctx, p).ok_or(err(EvalErrorKind::MissingValue))?;
+                let t = marked
+                    .unwrap_or_else(|| ctx.place_dwell_us.get(p as usize).copied().unwrap_or(0));
                 push!(t.min(i64::MAX as u64))
             }
             Op::Rise(i) => {
@@ -238,18 +218,34 @@ pub(crate) fn run(
     Ok(sp)
 }
 
-pub(super) fn compare(c: Cmp, o: Option<std::cmp::Ordering>) -> bool {
+/// How long place `p` has been marked at `ctx.now_us`, `None` while it is empty; the outer
+/// `None` is a context shorter than the net.
+#[inline]
+fn marked_for(ctx: &EvalCtx, p: u32) -> Option<Option<u64>> {
+    let m = *ctx.marking.get(p as usize)?;
+    let since = *ctx.place_since_us.get(p as usize)?;
+    Some(
+        since
+            .filter(|_| m > 0)
+            .map(|s| ctx.now_us.saturating_sub(s)),
+    )
+}
+
+/// Applies a comparison operator to an ordering; the compiler emits compare instructions for
+/// the six comparisons only, so any other operator is false.
+pub(super) fn compare(op: BinOp, o: Option<std::cmp::Ordering>) -> bool {
     use std::cmp::Ordering::*;
-    match (c, o) {
+    match (op, o) {
         // Computed reals are checked finite, but a real input may carry NaN: every comparison
         // with it is false except `!=`, as in IEEE 754.
-        (Cmp::Ne, None) => true,
+        (BinOp::Ne, None) => true,
         (_, None) => false,
-        (Cmp::Eq, Some(o)) => o == Equal,
-        (Cmp::Ne, Some(o)) => o != Equal,
-        (Cmp::Lt, Some(o)) => o == Less,
-        (Cmp::Le, Some(o)) => o != Greater,
-        (Cmp::Gt, Some(o)) => o == Greater,
-        (Cmp::Ge, Some(o)) => o != Less,
+        (BinOp::Eq, Some(o)) => o == Equal,
+        (BinOp::Ne, Some(o)) => o != Equal,
+        (BinOp::Lt, Some(o)) => o == Less,
+        (BinOp::Le, Some(o)) => o != Greater,
+        (BinOp::Gt, Some(o)) => o == Greater,
+        (BinOp::Ge, Some(o)) => o != Less,
+        (BinOp::Or | BinOp::And | BinOp::Add | BinOp::Sub | BinOp::Mul | BinOp::Div, _) => false,
     }
 }

@@ -71,18 +71,25 @@ pub struct EvalError {
     pub column: u32,
 }
 
-impl fmt::Display for EvalError {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        let what = match self.kind {
+impl EvalErrorKind {
+    /// The fault in words; a context that does not fit the program is worded by the caller,
+    /// which knows who built that context.
+    pub(crate) fn describe(self, missing: &'static str, wrong_type: &'static str) -> &'static str {
+        match self {
             EvalErrorKind::DivisionByZero => "division by zero",
             EvalErrorKind::Overflow => "arithmetic overflow",
-            EvalErrorKind::MissingValue => {
-                "the evaluation context is shorter than the program's signals or places"
-            }
-            EvalErrorKind::WrongType => {
-                "a signal in the evaluation context does not have its declared type"
-            }
-        };
+            EvalErrorKind::MissingValue => missing,
+            EvalErrorKind::WrongType => wrong_type,
+        }
+    }
+}
+
+impl fmt::Display for EvalError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let what = self.kind.describe(
+            "the evaluation context is shorter than the program's signals or places",
+            "a signal in the evaluation context does not have its declared type",
+        );
         write!(f, "{what} at column {} of the guard", self.column)
     }
 }
@@ -109,17 +116,6 @@ pub struct EvalCtx<'a> {
     pub now_us: u64,
 }
 
-/// A comparison, as carried by the typed compare instructions.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub(crate) enum Cmp {
-    Eq,
-    Ne,
-    Lt,
-    Le,
-    Gt,
-    Ge,
-}
-
 /// One instruction of the postfix code. Values on the stack are 64-bit patterns whose meaning
 /// the type checker fixed: bools are 0/1, ints and durations (µs) are i64, reals are f64 bits.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -143,8 +139,10 @@ pub(crate) enum Op {
     SubReal,
     MulReal,
     DivReal,
-    CmpInt(Cmp),
-    CmpReal(Cmp),
+    /// Compares two ints (or durations, or bools) with a comparison operator of the guard.
+    CmpInt(BinOp),
+    /// Compares two reals with a comparison operator of the guard.
+    CmpReal(BinOp),
     ToReal,
     ToInt,
     /// `&&`: if the top is false jump (keeping it), else pop it and go on with the right side.
@@ -247,18 +245,7 @@ impl Guard {
     /// Parses, type-checks and compiles a guard; it must be a bool.
     pub(crate) fn compile(source: &str, scope: &Scope) -> Result<Guard, SyntaxError> {
         let expr = parse(source)?;
-        let mut c = Compiler {
-            scope,
-            code: Vec::new(),
-            base: 0,
-            depth: 0,
-            max: 0,
-            inputs: Vec::new(),
-            vars: Vec::new(),
-            places: Vec::new(),
-            timers: Vec::new(),
-            body: false,
-        };
+        let mut c = Compiler::new(scope);
         let ty = c.expr(&expr)?;
         if ty != GType::Bool {
             return Err(SyntaxError::new(
@@ -324,7 +311,23 @@ pub(crate) struct Compiler<'s, 'a> {
     pub(crate) body: bool,
 }
 
-impl Compiler<'_, '_> {
+impl<'s, 'a> Compiler<'s, 'a> {
+    /// A compiler for a guard, which reads no output; an action body sets `body`.
+    pub(crate) fn new(scope: &'s Scope<'a>) -> Self {
+        Compiler {
+            scope,
+            code: Vec::new(),
+            base: 0,
+            depth: 0,
+            max: 0,
+            inputs: Vec::new(),
+            vars: Vec::new(),
+            places: Vec::new(),
+            timers: Vec::new(),
+            body: false,
+        }
+    }
+
     pub(crate) fn emit(&mut self, op: Op, pos: usize, stack_change: isize) {
         self.code.push((op, (pos + self.base) as u32));
         self.depth = self.depth.saturating_add_signed(stack_change);
@@ -390,251 +393,292 @@ impl Compiler<'_, '_> {
         }
     }
 
+    /// Type-checks and compiles `e`. Every recursive call is made here, never in a helper, so a
+    /// level of the tree costs one frame of this function; the parser's [`MAX_DEPTH`] bounds them.
     fn expr(&mut self, e: &Expr) -> Result<GType, SyntaxError> {
         let pos = e.pos;
         match &e.kind {
-            ExprKind::Bool(b) => {
-                self.emit(Op::Const(u64::from(*b)), pos, 1);
-                Ok(GType::Bool)
-            }
-            ExprKind::Int(i) => {
-                self.emit(Op::Const(*i as u64), pos, 1);
-                Ok(GType::Int)
-            }
-            ExprKind::Real(r) => {
-                self.emit(Op::Const(r.to_bits()), pos, 1);
-                Ok(GType::Real)
-            }
-            ExprKind::Duration(d) => {
-                // The lexer refuses durations above i64::MAX µs.
-                self.emit(Op::Const(*d), pos, 1);
-                Ok(GType::Duration)
-            }
-            ExprKind::Name(n) => {
-                if let Some(i) = self.scope.inputs.iter().position(|s| &s.name == n) {
-                    let ty = self.scope.inputs[i].ty;
-                    self.inputs.push(i as u32);
-                    self.emit(Op::Input(i as u32, ty), pos, 1);
-                    Ok(ty.into())
-                } else if let Some(i) = self.scope.vars.iter().position(|s| &s.name == n) {
-                    let ty = self.scope.vars[i].ty;
-                    self.vars.push(i as u32);
-                    self.emit(Op::Var(i as u32, ty), pos, 1);
-                    Ok(ty.into())
-                } else if let Some(p) = self.scope.net.place_by_id(n) {
-                    self.places.push(p.0);
-                    self.emit(Op::Tokens(p.0), pos, 1);
-                    Ok(GType::Int)
-                } else if let (true, Some(i)) = (
-                    self.body,
-                    self.scope.outputs.iter().position(|s| &s.name == n),
-                ) {
-                    let ty = self.scope.outputs[i].ty;
-                    self.emit(Op::Out(i as u32, ty), pos, 1);
-                    Ok(ty.into())
-                } else if self.scope.outputs.iter().any(|s| &s.name == n) {
-                    Err(SyntaxError::new(
-                        pos,
-                        format!("`{n}` is an output; guards read inputs, variables, places (token count) and place timers"),
-                    ))
-                } else {
-                    Err(SyntaxError::new(
-                        pos,
-                        format!(
-                            "unknown name `{n}`; expected an input, a variable or a place (signals: {})",
-                            self.known_names()
-                        ),
-                    ))
-                }
-            }
-            ExprKind::Timer(p) => {
-                let p = self.place(p, pos, "a timer")?;
-                self.timers.push(p);
-                self.emit(Op::Timer(p), pos, 1);
-                Ok(GType::Duration)
-            }
-            ExprKind::Dwell(p) => {
-                let p = self.place(p, pos, "a step time")?;
-                self.timers.push(p);
-                self.emit(Op::Dwell(p), pos, 1);
-                Ok(GType::Duration)
-            }
-            ExprKind::Rise(x) => {
-                let i = self.bool_input(x, pos, "rise")?;
-                self.emit(Op::Rise(i), pos, 1);
-                Ok(GType::Bool)
-            }
-            ExprKind::Fall(x) => {
-                let i = self.bool_input(x, pos, "fall")?;
-                self.emit(Op::Fall(i), pos, 1);
-                Ok(GType::Bool)
-            }
+            ExprKind::Bool(b) => Ok(self.constant(u64::from(*b), pos, GType::Bool)),
+            ExprKind::Int(i) => Ok(self.constant(*i as u64, pos, GType::Int)),
+            ExprKind::Real(r) => Ok(self.constant(r.to_bits(), pos, GType::Real)),
+            // The lexer refuses durations above i64::MAX µs.
+            ExprKind::Duration(d) => Ok(self.constant(*d, pos, GType::Duration)),
+            ExprKind::Name(n) => self.name(n, pos),
+            ExprKind::Timer(p) => self.place_time(p, pos, "a timer", Op::Timer),
+            ExprKind::Dwell(p) => self.place_time(p, pos, "a step time", Op::Dwell),
+            ExprKind::Rise(x) => self.edge(x, pos, "rise", Op::Rise),
+            ExprKind::Fall(x) => self.edge(x, pos, "fall", Op::Fall),
             ExprKind::Call(func, arg) => {
                 let t = self.expr(arg)?;
-                match (func, t) {
-                    (Func::Real, GType::Int) => {
-                        self.emit(Op::ToReal, pos, 0);
-                        Ok(GType::Real)
-                    }
-                    (Func::Int, GType::Real) => {
-                        self.emit(Op::ToInt, pos, 0);
-                        Ok(GType::Int)
-                    }
-                    (Func::Real, t) => Err(SyntaxError::new(
-                        pos,
-                        format!(
-                            "`real(…)` converts an int, but its argument is {} {}",
-                            article(t),
-                            t.name()
-                        ),
-                    )),
-                    (Func::Int, t) => Err(SyntaxError::new(
-                        pos,
-                        format!(
-                            "`int(…)` converts a real, but its argument is {} {}",
-                            article(t),
-                            t.name()
-                        ),
-                    )),
-                }
+                self.call(*func, t, pos)
             }
             ExprKind::Unary(op, arg) => {
                 let t = self.expr(arg)?;
-                match (op, t) {
-                    (UnOp::Not, GType::Bool) => self.emit(Op::Not, pos, 0),
-                    (UnOp::Neg, GType::Int) => self.emit(Op::NegInt, pos, 0),
-                    (UnOp::Neg, GType::Real) => self.emit(Op::NegReal, pos, 0),
-                    (UnOp::Not, t) => {
-                        return Err(SyntaxError::new(
-                            pos,
-                            format!("`!` needs a bool but got {} {}", article(t), t.name()),
-                        ))
-                    }
-                    (UnOp::Neg, t) => {
-                        return Err(SyntaxError::new(
-                            pos,
-                            format!(
-                                "`-` needs an int or a real but got {} {}",
-                                article(t),
-                                t.name()
-                            ),
-                        ))
-                    }
-                }
-                Ok(t)
+                self.unary(*op, t, pos)
             }
             ExprKind::Binary(op @ (BinOp::And | BinOp::Or), l, r) => {
                 let lt = self.expr(l)?;
                 let jump_at = self.code.len();
-                let jump = if *op == BinOp::And {
-                    Op::AndJump(0)
-                } else {
-                    Op::OrJump(0)
-                };
                 // Not taken, the jump pops the left value; the right side pushes one again.
-                self.emit(jump, pos, -1);
+                self.emit(short_circuit(*op, 0), pos, -1);
                 let rt = self.expr(r)?;
-                for (side, t) in [("left", lt), ("right", rt)] {
-                    if t != GType::Bool {
-                        return Err(SyntaxError::new(
-                            pos,
-                            format!(
-                                "`{}` needs bools on both sides but the {side} side is {} {}",
-                                op.symbol(),
-                                article(t),
-                                t.name()
-                            ),
-                        ));
-                    }
-                }
-                let target = self.code.len() as u32;
-                self.code[jump_at].0 = if *op == BinOp::And {
-                    Op::AndJump(target)
-                } else {
-                    Op::OrJump(target)
-                };
+                logical_operands(*op, lt, rt, pos)?;
+                self.code[jump_at].0 = short_circuit(*op, self.code.len() as u32);
                 Ok(GType::Bool)
             }
             ExprKind::Binary(op, l, r) => {
                 let lt = self.expr(l)?;
                 let rt = self.expr(r)?;
-                if lt != rt {
-                    let verb = if op.is_comparison() {
-                        "compare"
-                    } else {
-                        "combine"
-                    };
-                    let hint = match (lt, rt) {
-                        (GType::Int, GType::Real) | (GType::Real, GType::Int) => {
-                            "; ints and reals do not mix implicitly, convert with `real(…)` or `int(…)`"
-                        }
-                        (GType::Duration, _) | (_, GType::Duration) => {
-                            "; a duration goes with a duration, e.g. `P30.t >= 3s`"
-                        }
-                        _ => "",
-                    };
-                    return Err(SyntaxError::new(
-                        pos,
-                        format!(
-                            "cannot {verb} {} with {} using `{}`{hint}",
-                            lt.name(),
-                            rt.name(),
-                            op.symbol()
-                        ),
-                    ));
-                }
-                let cmp = match op {
-                    BinOp::Eq => Some(Cmp::Eq),
-                    BinOp::Ne => Some(Cmp::Ne),
-                    BinOp::Lt => Some(Cmp::Lt),
-                    BinOp::Le => Some(Cmp::Le),
-                    BinOp::Gt => Some(Cmp::Gt),
-                    BinOp::Ge => Some(Cmp::Ge),
-                    _ => None,
-                };
-                if let Some(c) = cmp {
-                    let inst = match lt {
-                        GType::Bool if matches!(c, Cmp::Eq | Cmp::Ne) => Op::CmpInt(c),
-                        GType::Bool => {
-                            return Err(SyntaxError::new(
-                                pos,
-                                format!("`{}` does not order bools; use `==` or `!=`", op.symbol()),
-                            ))
-                        }
-                        GType::Int | GType::Duration => Op::CmpInt(c),
-                        GType::Real => Op::CmpReal(c),
-                    };
-                    self.emit(inst, pos, -1);
-                    return Ok(GType::Bool);
-                }
-                let inst = match (op, lt) {
-                    (BinOp::Add, GType::Int | GType::Duration) => Op::AddInt,
-                    (BinOp::Sub, GType::Int | GType::Duration) => Op::SubInt,
-                    (BinOp::Mul, GType::Int) => Op::MulInt,
-                    (BinOp::Div, GType::Int) => Op::DivInt,
-                    (BinOp::Add, GType::Real) => Op::AddReal,
-                    (BinOp::Sub, GType::Real) => Op::SubReal,
-                    (BinOp::Mul, GType::Real) => Op::MulReal,
-                    (BinOp::Div, GType::Real) => Op::DivReal,
-                    (_, t) => {
-                        let allowed = if matches!(op, BinOp::Add | BinOp::Sub) {
-                            "ints, reals or durations"
-                        } else {
-                            "ints or reals"
-                        };
-                        return Err(SyntaxError::new(
-                            pos,
-                            format!(
-                                "`{}` applies to {allowed}, not to {}",
-                                op.symbol(),
-                                t.name()
-                            ),
-                        ));
-                    }
-                };
-                self.emit(inst, pos, -1);
-                Ok(lt)
+                self.binary(*op, lt, rt, pos)
             }
+        }
+    }
+
+    /// A literal is its value's bits, already in the evaluator's representation of `ty`.
+    fn constant(&mut self, bits: u64, pos: usize, ty: GType) -> GType {
+        self.emit(Op::Const(bits), pos, 1);
+        ty
+    }
+
+    /// A bare name reads an input, a variable or a place's token count (the program keeps
+    /// signal names and place ids apart); only a body may read an output.
+    fn name(&mut self, n: &str, pos: usize) -> Result<GType, SyntaxError> {
+        let find = |signals: &[Signal]| signals.iter().position(|s| s.name == n);
+        if let Some(i) = find(self.scope.inputs) {
+            let ty = self.scope.inputs[i].ty;
+            self.inputs.push(i as u32);
+            self.emit(Op::Input(i as u32, ty), pos, 1);
+            Ok(ty.into())
+        } else if let Some(i) = find(self.scope.vars) {
+            let ty = self.scope.vars[i].ty;
+            self.vars.push(i as u32);
+            self.emit(Op::Var(i as u32, ty), pos, 1);
+            Ok(ty.into())
+        } else if let Some(p) = self.scope.net.place_by_id(n) {
+            self.places.push(p.0);
+            self.emit(Op::Tokens(p.0), pos, 1);
+            Ok(GType::Int)
+        } else if let (true, Some(i)) = (self.body, find(self.scope.outputs)) {
+            let ty = self.scope.outputs[i].ty;
+            self.emit(Op::Out(i as u32, ty), pos, 1);
+            Ok(ty.into())
+        } else if find(self.scope.outputs).is_some() {
+            Err(SyntaxError::new(
+                pos,
+                format!("`{n}` is an output; guards read inputs, variables, places (token count) and place timers"),
+            ))
+        } else {
+            Err(SyntaxError::new(
+                pos,
+                format!(
+                    "unknown name `{n}`; expected an input, a variable or a place (signals: {})",
+                    self.known_names()
+                ),
+            ))
+        }
+    }
+
+    /// `P.t` and `P.dwell` read a place's timer, so the place joins [`Guard::timers`].
+    fn place_time(
+        &mut self,
+        place: &str,
+        pos: usize,
+        what: &str,
+        op: fn(u32) -> Op,
+    ) -> Result<GType, SyntaxError> {
+        let p = self.place(place, pos, what)?;
+        self.timers.push(p);
+        self.emit(op(p), pos, 1);
+        Ok(GType::Duration)
+    }
+
+    /// `rise(x)` and `fall(x)` compare a bool input with its previous scan's value, which only
+    /// inputs have.
+    fn edge(
+        &mut self,
+        x: &str,
+        pos: usize,
+        func: &str,
+        op: fn(u32) -> Op,
+    ) -> Result<GType, SyntaxError> {
+        let i = self.bool_input(x, pos, func)?;
+        self.emit(op(i), pos, 1);
+        Ok(GType::Bool)
+    }
+
+    /// `real(…)` and `int(…)` are the only conversions: ints and reals never mix implicitly.
+    fn call(&mut self, func: Func, t: GType, pos: usize) -> Result<GType, SyntaxError> {
+        match (func, t) {
+            (Func::Real, GType::Int) => {
+                self.emit(Op::ToReal, pos, 0);
+                Ok(GType::Real)
+            }
+            (Func::Int, GType::Real) => {
+                self.emit(Op::ToInt, pos, 0);
+                Ok(GType::Int)
+            }
+            (Func::Real, t) => Err(SyntaxError::new(
+                pos,
+                format!(
+                    "`real(…)` converts an int, but its argument is {} {}",
+                    article(t),
+                    t.name()
+                ),
+            )),
+            (Func::Int, t) => Err(SyntaxError::new(
+                pos,
+                format!(
+                    "`int(…)` converts a real, but its argument is {} {}",
+                    article(t),
+                    t.name()
+                ),
+            )),
+        }
+    }
+
+    /// `!` and `-` keep their operand's type, so the instruction depends on it.
+    fn unary(&mut self, op: UnOp, t: GType, pos: usize) -> Result<GType, SyntaxError> {
+        match (op, t) {
+            (UnOp::Not, GType::Bool) => self.emit(Op::Not, pos, 0),
+            (UnOp::Neg, GType::Int) => self.emit(Op::NegInt, pos, 0),
+            (UnOp::Neg, GType::Real) => self.emit(Op::NegReal, pos, 0),
+            (UnOp::Not, t) => {
+                return Err(SyntaxError::new(
+                    pos,
+                    format!("`!` needs a bool but got {} {}", article(t), t.name()),
+                ))
+            }
+            (UnOp::Neg, t) => {
+                return Err(SyntaxError::new(
+                    pos,
+                    format!(
+                        "`-` needs an int or a real but got {} {}",
+                        article(t),
+                        t.name()
+                    ),
+                ))
+            }
+        }
+        Ok(t)
+    }
+
+    /// An arithmetic operator or a comparison: both operands have one type, which picks the
+    /// instruction (there is no implicit conversion).
+    fn binary(
+        &mut self,
+        op: BinOp,
+        lt: GType,
+        rt: GType,
+        pos: usize,
+    ) -> Result<GType, SyntaxError> {
+        if lt != rt {
+            return Err(mixed_operands(op, lt, rt, pos));
+        }
+        let (inst, ty) = if op.is_comparison() {
+            (comparison(op, lt, pos)?, GType::Bool)
+        } else {
+            (arithmetic(op, lt, pos)?, lt)
+        };
+        self.emit(inst, pos, -1);
+        Ok(ty)
+    }
+}
+
+/// The jump of `&&` or `||`, taken when the left side alone decides; `target` is patched once
+/// the right side is compiled.
+fn short_circuit(op: BinOp, target: u32) -> Op {
+    if op == BinOp::And {
+        Op::AndJump(target)
+    } else {
+        Op::OrJump(target)
+    }
+}
+
+/// `&&` and `||` take bools only; the left side is reported first.
+fn logical_operands(op: BinOp, lt: GType, rt: GType, pos: usize) -> Result<(), SyntaxError> {
+    for (side, t) in [("left", lt), ("right", rt)] {
+        if t != GType::Bool {
+            return Err(SyntaxError::new(
+                pos,
+                format!(
+                    "`{}` needs bools on both sides but the {side} side is {} {}",
+                    op.symbol(),
+                    article(t),
+                    t.name()
+                ),
+            ));
+        }
+    }
+    Ok(())
+}
+
+/// Operands of two types, with a hint at the conversion or the unit that would make them agree.
+fn mixed_operands(op: BinOp, lt: GType, rt: GType, pos: usize) -> SyntaxError {
+    let verb = if op.is_comparison() {
+        "compare"
+    } else {
+        "combine"
+    };
+    let hint = match (lt, rt) {
+        (GType::Int, GType::Real) | (GType::Real, GType::Int) => {
+            "; ints and reals do not mix implicitly, convert with `real(…)` or `int(…)`"
+        }
+        (GType::Duration, _) | (_, GType::Duration) => {
+            "; a duration goes with a duration, e.g. `P30.t >= 3s`"
+        }
+        _ => "",
+    };
+    SyntaxError::new(
+        pos,
+        format!(
+            "cannot {verb} {} with {} using `{}`{hint}",
+            lt.name(),
+            rt.name(),
+            op.symbol()
+        ),
+    )
+}
+
+/// The compare instruction for two operands of type `t`: durations compare as ints, and bools
+/// are equal or not but never ordered.
+fn comparison(op: BinOp, t: GType, pos: usize) -> Result<Op, SyntaxError> {
+    match t {
+        GType::Bool if matches!(op, BinOp::Eq | BinOp::Ne) => Ok(Op::CmpInt(op)),
+        GType::Bool => Err(SyntaxError::new(
+            pos,
+            format!("`{}` does not order bools; use `==` or `!=`", op.symbol()),
+        )),
+        GType::Int | GType::Duration => Ok(Op::CmpInt(op)),
+        GType::Real => Ok(Op::CmpReal(op)),
+    }
+}
+
+/// The arithmetic instruction for two operands of type `t`: durations add and subtract as
+/// ints, but a product or quotient of durations would not be a duration.
+fn arithmetic(op: BinOp, t: GType, pos: usize) -> Result<Op, SyntaxError> {
+    match (op, t) {
+        (BinOp::Add, GType::Int | GType::Duration) => Ok(Op::AddInt),
+        (BinOp::Sub, GType::Int | GType::Duration) => Ok(Op::SubInt),
+        (BinOp::Mul, GType::Int) => Ok(Op::MulInt),
+        (BinOp::Div, GType::Int) => Ok(Op::DivInt),
+        (BinOp::Add, GType::Real) => Ok(Op::AddReal),
+        (BinOp::Sub, GType::Real) => Ok(Op::SubReal),
+        (BinOp::Mul, GType::Real) => Ok(Op::MulReal),
+        (BinOp::Div, GType::Real) => Ok(Op::DivReal),
+        (_, t) => {
+            let allowed = if matches!(op, BinOp::Add | BinOp::Sub) {
+                "ints, reals or durations"
+            } else {
+                "ints or reals"
+            };
+            Err(SyntaxError::new(
+                pos,
+                format!(
+                    "`{}` applies to {allowed}, not to {}",
+                    op.symbol(),
+                    t.name()
+                ),
+            ))
         }
     }
 }

@@ -426,7 +426,14 @@ impl Tally {
 const PLC: &str = "bench";
 
 /// The node that [`vernadat_node`] starts.
-type VernadatNode = cetratus_node::Node<cetratus_io::TwinDriver<cetratus_twin::Twin>>;
+type VernadatNode = cetratus_node::RunningNode;
+
+/// What the node's MQTT client turned away or lost so far.
+fn link_stats(node: &VernadatNode) -> cetratus_mct::LinkStats {
+    node.services()
+        .map(|s| s.mqtt().stats())
+        .unwrap_or_default()
+}
 
 /// How a run is cut: `kinds` each flooded for `phase_us` in all, in slices of `slice_us`, the
 /// node scanning every `period_us`.
@@ -605,7 +612,6 @@ fn message_flood(
 /// floods.
 struct Run<'r> {
     node: &'r mut VernadatNode,
-    handle: &'r cetratus_mct::MqttHandle,
     ctl: &'r Control,
     peaks: &'r Peaks,
     period_us: u64,
@@ -615,6 +621,11 @@ struct Run<'r> {
 }
 
 impl Run<'_> {
+    /// What the node's MQTT client turned away or lost so far.
+    fn link_stats(&self) -> cetratus_mct::LinkStats {
+        link_stats(self.node)
+    }
+
     /// One slice of `length_us`; its timing, and the length it ran.
     fn slice(&mut self, length_us: u64) -> (LoopTiming, u64) {
         use cetratus_node::periodic::run_periodic;
@@ -629,7 +640,7 @@ impl Run<'_> {
             &self.never,
             &mut timing,
             |now, t| {
-                node.step(base + now, t);
+                node.node_mut().step(base + now, t);
                 true
             },
         );
@@ -665,7 +676,7 @@ impl Run<'_> {
     fn flood_slice(&mut self, kind: FloodKind, length_us: u64, tally: &mut Tally) {
         // Replies still arriving from the kind before are nobody's.
         lock(&self.ctl.codes).clear();
-        let busy0 = self.handle.stats().commands_busy;
+        let busy0 = self.link_stats().commands_busy;
         self.peaks.phase.store(1 + kind.index(), Ordering::Relaxed);
         self.ctl.set(Some(kind));
         let (t, reached) = self.slice(length_us);
@@ -674,7 +685,7 @@ impl Run<'_> {
         tally.timing.add(&t);
         tally.slices += 1;
         tally.measured_us += reached;
-        tally.busy += self.handle.stats().commands_busy - busy0;
+        tally.busy += self.link_stats().commands_busy - busy0;
         for (code, n) in std::mem::take(&mut *lock(&self.ctl.codes)) {
             *tally.replies.entry(code).or_default() += n;
         }
@@ -748,7 +759,7 @@ pub fn flood(
         kinds,
     };
     let mqtt = std::net::TcpListener::bind("127.0.0.1:0")?.local_addr()?;
-    let (mut node, handle) = vernadat_node(PLC, mqtt, period_us)?;
+    let mut node = vernadat_node(PLC, mqtt, period_us)?;
     let (dashboard, login_target) = beside(&format!("mqtt://{mqtt}"))?;
     let ctl = Arc::new(Control::new());
     let url = format!("mqtt://{mqtt}");
@@ -762,7 +773,6 @@ pub fn flood(
     let rt_status = rt.then(|| cetratus_node::rt::request(80).to_string());
     let mut run = Run {
         node: &mut node,
-        handle: &handle,
         ctl: &ctl,
         peaks: &peaks,
         period_us,
@@ -781,11 +791,11 @@ pub fn flood(
     let machine = crate::cyclictest::measure(period_us, phase_us.min(30_000_000), rt);
 
     let mut out = slice_figures(&plan, &unloaded, &tallies, &ctl, &peaks);
-    let (plc, _, report) = node.finish()?;
+    let stats = link_stats(&node);
+    let finished = node.finish()?;
+    let (plc, report) = (finished.plc, finished.report);
     drop(dashboard);
     drop(replies_client);
-    let stats = handle.stats();
-    handle.shutdown();
     let s = |k: &str| k.to_string();
     out.insert(
         s("machine"),

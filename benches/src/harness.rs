@@ -122,50 +122,40 @@ pub fn jitter_figures(period_us: u64, for_us: u64, rt: bool) -> Figures {
     out
 }
 
-/// The Vernadat PLC on its twin as `cetratus run` has it: an embedded broker on `addr`, the node's
-/// MQTT link, and snapshots published five times a second.
+/// The Vernadat PLC on its twin as `cetratus run --period` has it, assembled by the same
+/// [`NodeSpec`](cetratus_node::NodeSpec): an embedded broker on `addr`, the node's MQTT link,
+/// snapshots published five times a second, no local configuration and no state directory. The
+/// MQTT client is connected when it returns.
 pub fn vernadat_node(
     plc_id: &str,
     addr: std::net::SocketAddr,
     period_us: u64,
-) -> Result<
-    (
-        cetratus_node::Node<cetratus_io::TwinDriver<cetratus_twin::Twin>>,
-        cetratus_mct::MqttHandle,
-    ),
-    BenchError,
-> {
-    use cetratus_node::clock::MonotonicStopwatch;
-    use cetratus_node::link::ControlLink;
-    use cetratus_node::{Node, NodeOptions};
-    use std::time::Duration;
+) -> Result<cetratus_node::RunningNode, BenchError> {
+    use cetratus_node::plant::PlantSpec;
+    use cetratus_node::services::MqttSpec;
+    use cetratus_node::{NodeSpec, StateDir};
 
-    let program = program::vernadat_program();
-    let io = cetratus_io::TwinDriver::new(
-        cetratus_twin::TwinKind::Vernadat.build(1),
-        program.inputs(),
-        program.outputs(),
-    )?;
-    let plc = cetratus_runtime::Plc::new(program, 0, MonotonicStopwatch::boxed());
-    let mut config = cetratus_mct::MqttConfig::new(plc_id);
-    config.broker = cetratus_mct::BrokerChoice::Embedded(cetratus_mct::BrokerSettings::open(addr));
-    config.publish_period = Duration::from_millis(200);
-    let (link, handle) = cetratus_mct::start(config)?;
-    handle.wait_connected(Duration::from_secs(10));
-    let load = cetratus_node::load::LoadPolicy::default();
-    let link = ControlLink::start(
-        &plc,
-        link,
-        load.clone(),
-        (200_000 / period_us.max(1)).max(1),
-    );
-    let opts = NodeOptions {
-        base_us: 0,
-        load,
-        record_trace: false,
-        progress_every: None,
+    let plant = PlantSpec {
+        twin: Some(cetratus_twin::TwinKind::Vernadat),
+        settings: cetratus_twin::TwinSettings {
+            seed: 1,
+            defect_ppm: 0,
+        },
+        ..PlantSpec::default()
     };
-    Ok((Node::new(plc, io, opts).with_link(link), handle))
+    let local = cetratus_node::config::LocalConfig::default();
+    let mut spec = NodeSpec::new(program::vernadat_program(), plc_id, local, plant);
+    spec.period_us = Some(period_us);
+    spec.state = StateDir::Nowhere;
+    spec.mqtt = Some(MqttSpec {
+        embedded: Some(addr.to_string()),
+        ..MqttSpec::default()
+    });
+    let node = spec.start(&mut |_| {})?;
+    if let Some(s) = node.services() {
+        s.mqtt().wait_connected(std::time::Duration::from_secs(10));
+    }
+    Ok(node)
 }
 
 /// Runs the Vernadat node on an embedded broker at `period_us`, first alone for `phase_us`, then
@@ -176,25 +166,24 @@ pub fn command_load(rate: u32, phase_us: u64, period_us: u64) -> Result<Figures,
     use std::time::{Duration, Instant};
 
     use cetratus_node::periodic::run_periodic;
-    use cetratus_node::Node;
     use cetratus_runtime::LoopTiming;
     use rumqttc::v5::mqttbytes::QoS;
 
     let port = std::net::TcpListener::bind("127.0.0.1:0")?
         .local_addr()?
         .port();
-    let (mut node, handle) = vernadat_node(
+    let mut node = vernadat_node(
         "bench",
         std::net::SocketAddr::from(([127, 0, 0, 1], port)),
         period_us,
     )?;
     let mut now_base = 0u64;
-    let mut phase = |node: &mut Node<cetratus_io::TwinDriver<cetratus_twin::Twin>>| {
+    let mut phase = |node: &mut cetratus_node::RunningNode| {
         let stop = AtomicBool::new(false);
         let mut timing = LoopTiming::default();
         let base = now_base;
         let reached = run_periodic(period_us, phase_us, 1.0, &stop, &mut timing, |now, t| {
-            node.step(base + now, t);
+            node.node_mut().step(base + now, t);
             true
         });
         now_base += reached;
@@ -250,8 +239,7 @@ pub fn command_load(rate: u32, phase_us: u64, period_us: u64) -> Result<Figures,
     let loaded = phase(&mut node);
     stop_flood.store(true, Ordering::Relaxed);
     let _ = flood.join();
-    let (plc, _, _) = node.finish()?;
-    handle.shutdown();
+    let plc = node.finish()?.plc;
 
     let (q, l) = (quiet.latency.summary(), loaded.latency.summary());
     let limit = 1.2 * q.p99_ns as f64 + 20_000.0;

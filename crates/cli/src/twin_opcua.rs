@@ -5,7 +5,7 @@ use std::sync::atomic::AtomicBool;
 
 use anyhow::{bail, Context};
 use cetratus_io::opcua::config::Policy;
-use cetratus_io::opcua::twin_client::{prepare_pki, serve, ClientSecurity};
+use cetratus_io::opcua::twin_client::{prepare_pki, serve, ClientSecurity, PlcTarget};
 use cetratus_twin::{Plant, Twin};
 
 /// The environment variable that holds the password of `--user`.
@@ -101,7 +101,8 @@ pub fn run(
     if !json {
         eprintln!("the {name} twin connects to {url} (retrying until the PLC is up); Ctrl-C stops");
     }
-    let report = serve(twin, url, plc, until_us, stop, security, |plc| {
+    let target = PlcTarget { url, plc, security };
+    let report = serve(twin, target, until_us, stop, |plc| {
         if !json {
             eprintln!("connected: the {name} twin is the plant of {plc}");
         }

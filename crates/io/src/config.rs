@@ -245,20 +245,48 @@ pub(crate) fn position(file: &str, text: &str, at: usize) -> String {
     format!("{file}:{line}:{column}")
 }
 
-struct Reader<'a> {
-    file: &'a str,
-    text: &'a str,
+/// A configuration text being read, to place what is wrong in it.
+pub(crate) struct Reader<'a> {
+    /// The file, as messages name it.
+    pub(crate) file: &'a str,
+    /// Its text.
+    pub(crate) text: &'a str,
 }
 
 impl Reader<'_> {
-    fn err(&self, span: Range<usize>, message: impl Into<String>) -> IoError {
+    /// The error `message` at the start of `span`.
+    pub(crate) fn err(&self, span: Range<usize>, message: impl Into<String>) -> IoError {
         IoError::Config {
-            at: position(self.file, self.text, span.start),
+            at: self.at(span),
             message: message.into(),
         }
     }
 
-    fn duration(
+    /// Where `span` starts, as `file:line:column`.
+    pub(crate) fn at(&self, span: Range<usize>) -> String {
+        position(self.file, self.text, span.start)
+    }
+
+    /// A stale policy, [`StalePolicy::Hold`] when none is written.
+    pub(crate) fn stale(&self, s: &Option<Spanned<String>>) -> Result<StalePolicy, IoError> {
+        match s {
+            None => Ok(StalePolicy::default()),
+            Some(s) => match s.get_ref().as_str() {
+                "hold" => Ok(StalePolicy::Hold),
+                "safe" => Ok(StalePolicy::Safe),
+                "fault" => Ok(StalePolicy::Fault),
+                other => Err(self.err(
+                    s.span(),
+                    format!(
+                        "unknown stale policy `{other}`; expected \"hold\", \"safe\" or \"fault\""
+                    ),
+                )),
+            },
+        }
+    }
+
+    /// A duration longer than 0, in µs; `default_us` when none is written.
+    pub(crate) fn duration(
         &self,
         d: &Option<Spanned<String>>,
         default_us: u64,
@@ -280,7 +308,8 @@ impl Reader<'_> {
         }
     }
 
-    fn count(
+    /// A whole number from 1 to `max`; `default` when none is written.
+    pub(crate) fn count(
         &self,
         n: &Option<Spanned<i64>>,
         default: u32,
@@ -301,6 +330,7 @@ impl Reader<'_> {
         }
     }
 
+    /// An IEC address.
     fn address(&self, s: &Spanned<String>) -> Result<IecAddress, IoError> {
         s.get_ref()
             .parse()
@@ -341,163 +371,21 @@ impl IoConfig {
     fn build(r: &Reader<'_>, src: FileSrc) -> Result<IoConfig, IoError> {
         let mut devices: Vec<Device> = Vec::new();
         for d in &src.device {
-            let name = d.name.get_ref().trim();
-            if name.is_empty() || name.len() > 64 {
-                return Err(r.err(d.name.span(), "a device needs a name of 1 to 64 characters"));
-            }
-            if devices.iter().any(|o| o.name == name) {
-                return Err(r.err(
-                    d.name.span(),
-                    format!("device `{name}` is declared twice; give each device its own name"),
-                ));
-            }
-            let transport = match d.transport.get_ref().as_str() {
-                "modbus-tcp" => {
-                    let a = d.address.get_ref();
-                    match a.rsplit_once(':') {
-                        Some((host, port))
-                            if !host.is_empty() && port.parse::<u16>().is_ok_and(|p| p > 0) => {}
-                        _ => {
-                            return Err(r.err(
-                                d.address.span(),
-                                format!("`{a}` is not host:port; write e.g. \"192.168.0.10:502\""),
-                            ))
-                        }
-                    }
-                    Transport::ModbusTcp(a.clone())
-                }
-                other => {
-                    return Err(r.err(
-                        d.transport.span(),
-                        format!("unknown transport `{other}`; this version knows \"modbus-tcp\""),
-                    ))
-                }
-            };
-            let unit = match &d.unit {
-                None => 1,
-                Some(u) => u8::try_from(*u.get_ref()).map_err(|_| {
-                    r.err(u.span(), "`unit` must be a Modbus unit id from 0 to 255")
-                })?,
-            };
-            let word_order = match &d.word_order {
-                None => WordOrder::default(),
-                Some(w) => match w.get_ref().as_str() {
-                    "high_first" => WordOrder::HighFirst,
-                    "low_first" => WordOrder::LowFirst,
-                    other => {
-                        return Err(r.err(w.span(), format!("unknown word order `{other}`; expected \"high_first\" or \"low_first\"")))
-                    }
-                },
-            };
-            let stale = match &d.stale {
-                None => StalePolicy::default(),
-                Some(s) => match s.get_ref().as_str() {
-                    "hold" => StalePolicy::Hold,
-                    "safe" => StalePolicy::Safe,
-                    "fault" => StalePolicy::Fault,
-                    other => {
-                        return Err(r.err(s.span(), format!("unknown stale policy `{other}`; expected \"hold\", \"safe\" or \"fault\"")))
-                    }
-                },
-            };
-            let reconnect_min = r.duration(&d.reconnect_min, 100_000, "reconnect_min")?;
-            let reconnect_max = r.duration(&d.reconnect_max, 5_000_000, "reconnect_max")?;
-            if reconnect_max < reconnect_min {
-                let span = d
-                    .reconnect_max
-                    .as_ref()
-                    .or(d.reconnect_min.as_ref())
-                    .map_or(d.name.span(), |s| s.span());
-                return Err(r.err(span, "`reconnect_max` is shorter than `reconnect_min`"));
-            }
-            if d.serves.is_empty() {
-                return Err(r.err(d.name.span(), format!("device `{name}` serves no address; add e.g. serves = [{{ from = \"%IX0.0\", to = \"%IX0.7\" }}]")));
-            }
-            let mut ranges = Vec::new();
-            for s in &d.serves {
-                ranges.push(served_range(r, s)?);
-            }
-            devices.push(Device {
-                name: name.to_string(),
-                transport,
-                unit,
-                timeout_us: r.duration(&d.timeout, 100_000, "timeout")?,
-                word_order,
-                rewrite_every: r.count(&d.rewrite_every, 100, "rewrite_every", 1_000_000)?,
-                stale,
-                stale_after: r.count(&d.stale_after, 3, "stale_after", 1_000_000)?,
-                reconnect_us: (reconnect_min, reconnect_max),
-                ranges,
-                at: position(r.file, r.text, d.name.span().start),
-            });
+            let device = device(r, d, &devices)?;
+            devices.push(device);
         }
         check_overlaps(r, &src, &devices)?;
         let mut channels = BTreeMap::new();
         for c in &src.channel {
-            let a = r.address(&c.address)?;
-            let scale = match &c.scale {
-                None => None,
-                Some(s) => {
-                    let ScaleSrc { raw, value } = s.get_ref();
-                    let finite = raw.iter().chain(value).all(|x| x.is_finite());
-                    if !finite || raw[0] == raw[1] || value[0] == value[1] {
-                        return Err(r.err(s.span(), "a scale needs two different finite raw values and two different finite values, e.g. { raw = [0, 27648], value = [0.0, 100.0] }"));
-                    }
-                    if a.size == crate::address::Size::Bit {
-                        return Err(r.err(
-                            s.span(),
-                            format!("{a} is a bit; only words and double words are scaled"),
-                        ));
-                    }
-                    Some(Scale {
-                        raw: *raw,
-                        value: *value,
-                    })
-                }
-            };
-            if c.hmi_writable && a.area == Area::Output {
-                return Err(r.err(c.address.span(), format!("{a} is an output; only inputs can be marked hmi_writable (the program drives outputs)")));
-            }
-            if channels
-                .insert(
-                    a,
-                    ChannelOptions {
-                        scale,
-                        hmi_writable: c.hmi_writable,
-                    },
-                )
-                .is_some()
-            {
+            let (a, options) = channel(r, c)?;
+            if channels.insert(a, options).is_some() {
                 return Err(r.err(
                     c.address.span(),
                     format!("{a} has two [[channel]] entries; merge them"),
                 ));
             }
         }
-        let server = match &src.server {
-            None => None,
-            Some(s) => {
-                let span = s.span();
-                let s = s.get_ref();
-                let listen = s.modbus.get_ref();
-                if listen.parse::<std::net::SocketAddr>().is_err() {
-                    return Err(r.err(s.modbus.span(), format!("`{listen}` is not an IP address and port; write e.g. \"127.0.0.1:15021\"")));
-                }
-                let mut write_from = Vec::new();
-                for w in &s.write_from {
-                    write_from.push(w.get_ref().parse().map_err(|_| {
-                        r.err(w.span(), format!("`{}` is not an IP address", w.get_ref()))
-                    })?);
-                }
-                let _ = span;
-                Some(ServerConfig {
-                    listen: listen.clone(),
-                    max_connections: r.count(&s.max_connections, 8, "max_connections", 256)?
-                        as usize,
-                    write_from,
-                })
-            }
-        };
+        let server = src.server.as_ref().map(|s| server(r, s)).transpose()?;
         Ok(IoConfig {
             file: r.file.to_string(),
             devices,
@@ -506,11 +394,168 @@ impl IoConfig {
             opcua: src
                 .opcua
                 .as_ref()
-                .map(|o| crate::opcua::config::OpcUaConfig::build(r.file, r.text, o))
+                .map(|o| crate::opcua::config::OpcUaConfig::build(r, o))
                 .transpose()?,
             start_timeout_us: r.duration(&src.start_timeout, 2_000_000, "start_timeout")?,
         })
     }
+}
+
+/// A `[[device]]`, checked against the devices declared before it (`earlier`) for its name.
+fn device(r: &Reader<'_>, d: &DeviceSrc, earlier: &[Device]) -> Result<Device, IoError> {
+    let name = d.name.get_ref().trim();
+    if name.is_empty() || name.len() > 64 {
+        return Err(r.err(d.name.span(), "a device needs a name of 1 to 64 characters"));
+    }
+    if earlier.iter().any(|o| o.name == name) {
+        return Err(r.err(
+            d.name.span(),
+            format!("device `{name}` is declared twice; give each device its own name"),
+        ));
+    }
+    let transport = transport(r, d)?;
+    let unit = match &d.unit {
+        None => 1,
+        Some(u) => u8::try_from(*u.get_ref())
+            .map_err(|_| r.err(u.span(), "`unit` must be a Modbus unit id from 0 to 255"))?,
+    };
+    let word_order = word_order(r, &d.word_order)?;
+    let stale = r.stale(&d.stale)?;
+    let reconnect_us = reconnect(r, d)?;
+    if d.serves.is_empty() {
+        return Err(r.err(d.name.span(), format!("device `{name}` serves no address; add e.g. serves = [{{ from = \"%IX0.0\", to = \"%IX0.7\" }}]")));
+    }
+    let ranges = d
+        .serves
+        .iter()
+        .map(|s| served_range(r, s))
+        .collect::<Result<_, _>>()?;
+    Ok(Device {
+        name: name.to_string(),
+        transport,
+        unit,
+        timeout_us: r.duration(&d.timeout, 100_000, "timeout")?,
+        word_order,
+        rewrite_every: r.count(&d.rewrite_every, 100, "rewrite_every", 1_000_000)?,
+        stale,
+        stale_after: r.count(&d.stale_after, 3, "stale_after", 1_000_000)?,
+        reconnect_us,
+        ranges,
+        at: r.at(d.name.span()),
+    })
+}
+
+/// How a device is reached; the one transport this version knows needs a `host:port`.
+fn transport(r: &Reader<'_>, d: &DeviceSrc) -> Result<Transport, IoError> {
+    match d.transport.get_ref().as_str() {
+        "modbus-tcp" => {
+            let a = d.address.get_ref();
+            match a.rsplit_once(':') {
+                Some((host, port))
+                    if !host.is_empty() && port.parse::<u16>().is_ok_and(|p| p > 0) =>
+                {
+                    Ok(Transport::ModbusTcp(a.clone()))
+                }
+                _ => Err(r.err(
+                    d.address.span(),
+                    format!("`{a}` is not host:port; write e.g. \"192.168.0.10:502\""),
+                )),
+            }
+        }
+        other => Err(r.err(
+            d.transport.span(),
+            format!("unknown transport `{other}`; this version knows \"modbus-tcp\""),
+        )),
+    }
+}
+
+/// A device's `word_order`, high word first when it has none.
+fn word_order(r: &Reader<'_>, w: &Option<Spanned<String>>) -> Result<WordOrder, IoError> {
+    match w {
+        None => Ok(WordOrder::default()),
+        Some(w) => match w.get_ref().as_str() {
+            "high_first" => Ok(WordOrder::HighFirst),
+            "low_first" => Ok(WordOrder::LowFirst),
+            other => Err(r.err(
+                w.span(),
+                format!("unknown word order `{other}`; expected \"high_first\" or \"low_first\""),
+            )),
+        },
+    }
+}
+
+/// A device's first and longest wait between connection attempts (µs), the first no longer
+/// than the second.
+fn reconnect(r: &Reader<'_>, d: &DeviceSrc) -> Result<(u64, u64), IoError> {
+    let min = r.duration(&d.reconnect_min, 100_000, "reconnect_min")?;
+    let max = r.duration(&d.reconnect_max, 5_000_000, "reconnect_max")?;
+    if max < min {
+        let span = d
+            .reconnect_max
+            .as_ref()
+            .or(d.reconnect_min.as_ref())
+            .map_or(d.name.span(), |s| s.span());
+        return Err(r.err(span, "`reconnect_max` is shorter than `reconnect_min`"));
+    }
+    Ok((min, max))
+}
+
+/// A `[[channel]]`: the address it is about and its options.
+fn channel(r: &Reader<'_>, c: &ChannelSrc) -> Result<(IecAddress, ChannelOptions), IoError> {
+    let a = r.address(&c.address)?;
+    let scale = c.scale.as_ref().map(|s| scale(r, s, a)).transpose()?;
+    if c.hmi_writable && a.area == Area::Output {
+        return Err(r.err(c.address.span(), format!("{a} is an output; only inputs can be marked hmi_writable (the program drives outputs)")));
+    }
+    let options = ChannelOptions {
+        scale,
+        hmi_writable: c.hmi_writable,
+    };
+    Ok((a, options))
+}
+
+/// The scale of the word or double word at `a`; two equal points would divide by zero.
+fn scale(r: &Reader<'_>, s: &Spanned<ScaleSrc>, a: IecAddress) -> Result<Scale, IoError> {
+    let ScaleSrc { raw, value } = s.get_ref();
+    let finite = raw.iter().chain(value).all(|x| x.is_finite());
+    if !finite || raw[0] == raw[1] || value[0] == value[1] {
+        return Err(r.err(s.span(), "a scale needs two different finite raw values and two different finite values, e.g. { raw = [0, 27648], value = [0.0, 100.0] }"));
+    }
+    if a.size == crate::address::Size::Bit {
+        return Err(r.err(
+            s.span(),
+            format!("{a} is a bit; only words and double words are scaled"),
+        ));
+    }
+    Ok(Scale {
+        raw: *raw,
+        value: *value,
+    })
+}
+
+/// The `[server]` section: the Modbus server of the process image.
+fn server(r: &Reader<'_>, s: &Spanned<ServerSrc>) -> Result<ServerConfig, IoError> {
+    let s = s.get_ref();
+    let listen = s.modbus.get_ref();
+    if listen.parse::<std::net::SocketAddr>().is_err() {
+        return Err(r.err(
+            s.modbus.span(),
+            format!("`{listen}` is not an IP address and port; write e.g. \"127.0.0.1:15021\""),
+        ));
+    }
+    let mut write_from = Vec::new();
+    for w in &s.write_from {
+        write_from.push(
+            w.get_ref()
+                .parse()
+                .map_err(|_| r.err(w.span(), format!("`{}` is not an IP address", w.get_ref())))?,
+        );
+    }
+    Ok(ServerConfig {
+        listen: listen.clone(),
+        max_connections: r.count(&s.max_connections, 8, "max_connections", 256)? as usize,
+        write_from,
+    })
 }
 
 fn served_range(r: &Reader<'_>, s: &Spanned<RangeSrc>) -> Result<ServedRange, IoError> {

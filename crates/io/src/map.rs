@@ -314,10 +314,11 @@ impl Channel {
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
 
-    fn signal(name: &str, ty: Type, address: &str) -> Signal {
+    /// A signal of type `ty` at `address`, with nothing else declared.
+    pub(crate) fn signal(name: &str, ty: Type, address: &str) -> Signal {
         Signal {
             name: name.into(),
             ty,

@@ -431,19 +431,8 @@ impl StatusBoard {
 mod tests {
     use super::*;
     use crate::config::IoConfig;
-    use cetratus_program::{Signal, Type};
-
-    fn signal(name: &str, ty: Type, address: &str) -> Signal {
-        Signal {
-            name: name.into(),
-            ty,
-            address: Some(address.into()),
-            description: String::new(),
-            safe: None,
-            initial: ty.zero(),
-            retain: false,
-        }
-    }
+    use crate::map::tests::signal;
+    use cetratus_program::Type;
 
     #[test]
     fn a_signal_among_the_servers_own_entries_is_refused_before_listening() {

@@ -10,7 +10,9 @@ use std::borrow::Cow;
 use std::collections::{HashSet, VecDeque};
 use std::fmt::Write as _;
 
-use crate::{xml_escape, ArcKind, Net, NodeRef, PlaceIdx, Position, Tokens, TransIdx};
+use crate::{
+    xml_escape, Arc, ArcKind, Net, NodeRef, Place, PlaceIdx, Position, Tokens, TransIdx, Transition,
+};
 
 /// Radius of a place, in drawing units.
 const PLACE_R: f64 = 18.0;
@@ -330,6 +332,28 @@ fn write_svg(
     lay: &Layout,
     w: &mut String,
 ) -> std::fmt::Result {
+    write_svg_head(net, lay, w)?;
+    writeln!(w, "  <g class=\"arcs\">")?;
+    for a in net.arcs() {
+        write_arc(a, lay, w)?;
+    }
+    writeln!(w, "  </g>")?;
+    writeln!(w, "  <g class=\"places\">")?;
+    for (i, p) in net.places().iter().enumerate() {
+        write_place(p, lay.places[i], tokens_of(net, marking, i), w)?;
+    }
+    writeln!(w, "  </g>")?;
+    writeln!(w, "  <g class=\"transitions\">")?;
+    for (i, t) in net.transitions().iter().enumerate() {
+        write_transition(t, lay.transitions[i], w)?;
+    }
+    writeln!(w, "  </g>")?;
+    writeln!(w, "</svg>")
+}
+
+/// The smallest box holding every node centre and every bend point: the drawing's extent
+/// before the margin, as `(x0, y0, x1, y1)`.
+fn extent(net: &Net, lay: &Layout) -> (f64, f64, f64, f64) {
     let all = lay.places.iter().chain(&lay.transitions);
     let (mut x0, mut y0, mut x1, mut y1) = (0.0f64, 0.0f64, 0.0f64, 0.0f64);
     for (i, p) in all.enumerate() {
@@ -349,6 +373,12 @@ fn write_svg(
             y1 = y1.max(p.y);
         }
     }
+    (x0, y0, x1, y1)
+}
+
+/// The `<svg>` element's opening, title, arrow markers and style: everything before the nodes.
+fn write_svg_head(net: &Net, lay: &Layout, w: &mut String) -> std::fmt::Result {
+    let (x0, y0, x1, y1) = extent(net, lay);
     let (vx, vy) = (x0 - MARGIN, y0 - MARGIN);
     let (vw, vh) = (x1 - x0 + 2.0 * MARGIN, y1 - y0 + 2.0 * MARGIN);
     writeln!(
@@ -369,120 +399,108 @@ fn write_svg(
     writeln!(w, "    <marker id=\"cetratus-arrow\" viewBox=\"0 0 10 10\" refX=\"10\" refY=\"5\" markerWidth=\"8\" markerHeight=\"8\" orient=\"auto\"><path d=\"M0,0 L10,5 L0,10 z\" fill=\"#222\"/></marker>")?;
     writeln!(w, "    <marker id=\"cetratus-inhibitor\" viewBox=\"0 0 10 10\" refX=\"9\" refY=\"5\" markerWidth=\"8\" markerHeight=\"8\" orient=\"auto\"><circle cx=\"5\" cy=\"5\" r=\"4\" fill=\"#fff\" stroke=\"#222\" stroke-width=\"1.5\"/></marker>")?;
     writeln!(w, "  </defs>")?;
-    writeln!(w, "  <style>.cetratus-net text{{font-family:Helvetica,Arial,sans-serif;font-size:11px;text-anchor:middle}} .arc{{fill:none;stroke:#222;stroke-width:1.3}} .place circle.node{{fill:#fff;stroke:#222;stroke-width:1.5}} .transition rect{{fill:#222}} .tokens circle{{fill:#222}} .weight{{fill:#036}} .label,.weight{{paint-order:stroke;stroke:#fff;stroke-width:3px;stroke-linejoin:round}}</style>")?;
-
-    writeln!(w, "  <g class=\"arcs\">")?;
-    for a in net.arcs() {
-        let from = lay.at(a.source);
-        let to = lay.at(a.target);
-        let mut points = Vec::with_capacity(a.path.len() + 2);
-        let first_aim = a.path.first().copied().unwrap_or(to);
-        let last_aim = a.path.last().copied().unwrap_or(from);
-        points.push(clip(a.source, from, first_aim));
-        points.extend(a.path.iter().copied());
-        points.push(clip(a.target, to, last_aim));
-        let d: Vec<String> = points
-            .iter()
-            .enumerate()
-            .map(|(i, p)| format!("{}{},{}", if i == 0 { "M" } else { "L" }, n(p.x), n(p.y)))
-            .collect();
-        let (class, marker) = match a.kind {
-            ArcKind::Normal => ("arc", "cetratus-arrow"),
-            ArcKind::Inhibitor => ("arc inhibitor", "cetratus-inhibitor"),
-        };
-        writeln!(
-            w,
-            "    <path id=\"arc-{}\" class=\"{class}\" d=\"{}\" marker-end=\"url(#{marker})\"/>",
-            xml_escape(&a.id),
-            d.join(" ")
-        )?;
-        if a.weight > 1 {
-            let mid = points.len() / 2;
-            let (p, q) = (points[mid - 1], points[mid]);
-            writeln!(
-                w,
-                "    <text class=\"weight\" x=\"{}\" y=\"{}\">{}</text>",
-                n((p.x + q.x) / 2.0),
-                n((p.y + q.y) / 2.0 - 4.0),
-                a.weight
-            )?;
-        }
-    }
-    writeln!(w, "  </g>")?;
-
-    writeln!(w, "  <g class=\"places\">")?;
-    for (i, p) in net.places().iter().enumerate() {
-        let c = lay.places[i];
-        let tokens = tokens_of(net, marking, i);
-        writeln!(
-            w,
-            "    <g id=\"place-{}\" class=\"place\" data-tokens=\"{tokens}\">",
-            xml_escape(&p.id)
-        )?;
-        writeln!(
-            w,
-            "      <title>{}</title>",
-            xml_escape(&node_title(&p.id, p.name.as_deref()))
-        )?;
-        writeln!(
-            w,
-            "      <circle class=\"node\" cx=\"{}\" cy=\"{}\" r=\"{PLACE_R}\"/>",
-            n(c.x),
-            n(c.y)
-        )?;
-        write!(w, "      <g class=\"tokens\">")?;
-        write_tokens(w, c, tokens)?;
-        writeln!(w, "</g>")?;
-        writeln!(
-            w,
-            "      <text class=\"label\" x=\"{}\" y=\"{}\">{}</text>",
-            n(c.x),
-            n(c.y + PLACE_R + 13.0),
-            xml_escape(p.label())
-        )?;
-        writeln!(w, "    </g>")?;
-    }
-    writeln!(w, "  </g>")?;
-
-    writeln!(w, "  <g class=\"transitions\">")?;
-    for (i, t) in net.transitions().iter().enumerate() {
-        let c = lay.transitions[i];
-        writeln!(
-            w,
-            "    <g id=\"trans-{}\" class=\"transition\">",
-            xml_escape(&t.id)
-        )?;
-        writeln!(
-            w,
-            "      <title>{}</title>",
-            xml_escape(&node_title(&t.id, t.name.as_deref()))
-        )?;
-        writeln!(
-            w,
-            "      <rect x=\"{}\" y=\"{}\" width=\"{}\" height=\"{}\"/>",
-            n(c.x - TRANS_HW),
-            n(c.y - TRANS_HH),
-            n(2.0 * TRANS_HW),
-            n(2.0 * TRANS_HH)
-        )?;
-        writeln!(
-            w,
-            "      <text class=\"label\" x=\"{}\" y=\"{}\">{}</text>",
-            n(c.x),
-            n(c.y + TRANS_HH + 13.0),
-            xml_escape(t.label())
-        )?;
-        writeln!(w, "    </g>")?;
-    }
-    writeln!(w, "  </g>")?;
-    writeln!(w, "</svg>")
+    writeln!(w, "  <style>.cetratus-net text{{font-family:Helvetica,Arial,sans-serif;font-size:11px;text-anchor:middle}} .arc{{fill:none;stroke:#222;stroke-width:1.3}} .place circle.node{{fill:#fff;stroke:#222;stroke-width:1.5}} .transition rect{{fill:#222}} .tokens circle{{fill:#222}} .weight{{fill:#036}} .label,.weight{{paint-order:stroke;stroke:#fff;stroke-width:3px;stroke-linejoin:round}}</style>")
 }
 
-fn node_title(id: &str, name: Option<&str>) -> String {
-    match name {
+/// An arc as a path from border to border through its bend points, its weight above 1 at the
+/// middle segment.
+fn write_arc(a: &Arc, lay: &Layout, w: &mut String) -> std::fmt::Result {
+    let from = lay.at(a.source);
+    let to = lay.at(a.target);
+    let mut points = Vec::with_capacity(a.path.len() + 2);
+    let first_aim = a.path.first().copied().unwrap_or(to);
+    let last_aim = a.path.last().copied().unwrap_or(from);
+    points.push(clip(a.source, from, first_aim));
+    points.extend(a.path.iter().copied());
+    points.push(clip(a.target, to, last_aim));
+    let d: Vec<String> = points
+        .iter()
+        .enumerate()
+        .map(|(i, p)| format!("{}{},{}", if i == 0 { "M" } else { "L" }, n(p.x), n(p.y)))
+        .collect();
+    let (class, marker) = match a.kind {
+        ArcKind::Normal => ("arc", "cetratus-arrow"),
+        ArcKind::Inhibitor => ("arc inhibitor", "cetratus-inhibitor"),
+    };
+    writeln!(
+        w,
+        "    <path id=\"arc-{}\" class=\"{class}\" d=\"{}\" marker-end=\"url(#{marker})\"/>",
+        xml_escape(&a.id),
+        d.join(" ")
+    )?;
+    if a.weight > 1 {
+        let mid = points.len() / 2;
+        let (p, q) = (points[mid - 1], points[mid]);
+        writeln!(
+            w,
+            "    <text class=\"weight\" x=\"{}\" y=\"{}\">{}</text>",
+            n((p.x + q.x) / 2.0),
+            n((p.y + q.y) / 2.0 - 4.0),
+            a.weight
+        )?;
+    }
+    Ok(())
+}
+
+/// A place centred on `c` with its `tokens`, in the `<g>` the dashboard finds by id to update.
+fn write_place(p: &Place, c: Position, tokens: Tokens, w: &mut String) -> std::fmt::Result {
+    writeln!(
+        w,
+        "    <g id=\"place-{}\" class=\"place\" data-tokens=\"{tokens}\">",
+        xml_escape(&p.id)
+    )?;
+    write_title(w, &p.id, p.name.as_deref())?;
+    writeln!(
+        w,
+        "      <circle class=\"node\" cx=\"{}\" cy=\"{}\" r=\"{PLACE_R}\"/>",
+        n(c.x),
+        n(c.y)
+    )?;
+    write!(w, "      <g class=\"tokens\">")?;
+    write_tokens(w, c, tokens)?;
+    writeln!(w, "</g>")?;
+    write_label(w, c.x, c.y + PLACE_R + 13.0, p.label())?;
+    writeln!(w, "    </g>")
+}
+
+/// A transition as a bar centred on `c`, in the `<g>` the dashboard finds by id.
+fn write_transition(t: &Transition, c: Position, w: &mut String) -> std::fmt::Result {
+    writeln!(
+        w,
+        "    <g id=\"trans-{}\" class=\"transition\">",
+        xml_escape(&t.id)
+    )?;
+    write_title(w, &t.id, t.name.as_deref())?;
+    writeln!(
+        w,
+        "      <rect x=\"{}\" y=\"{}\" width=\"{}\" height=\"{}\"/>",
+        n(c.x - TRANS_HW),
+        n(c.y - TRANS_HH),
+        n(2.0 * TRANS_HW),
+        n(2.0 * TRANS_HH)
+    )?;
+    write_label(w, c.x, c.y + TRANS_HH + 13.0, t.label())?;
+    writeln!(w, "    </g>")
+}
+
+/// A node's tooltip: its name and id, so that a named node can still be found by id.
+fn write_title(w: &mut String, id: &str, name: Option<&str>) -> std::fmt::Result {
+    let title = match name {
         Some(name) if name != id => format!("{name} ({id})"),
         _ => id.to_string(),
-    }
+    };
+    writeln!(w, "      <title>{}</title>", xml_escape(&title))
+}
+
+/// A node's label at `(x, y)`, below the node.
+fn write_label(w: &mut String, x: f64, y: f64, label: &str) -> std::fmt::Result {
+    writeln!(
+        w,
+        "      <text class=\"label\" x=\"{}\" y=\"{}\">{}</text>",
+        n(x),
+        n(y),
+        xml_escape(label)
+    )
 }
 
 /// Up to five tokens as dots in the usual dice patterns, more as a number.

@@ -187,6 +187,20 @@ pub struct Net {
     trans_index: HashMap<String, TransIdx>,
 }
 
+/// The accessors of the sparse tables, each one row of a table by the index the table is kept
+/// by: written once, so that every one stays `#[inline]` on the engine's hot path.
+macro_rules! rows {
+    ($($(#[$doc:meta])* $name:ident($i:ident: $idx:ty) -> [$item:ty] = $table:ident;)*) => {
+        $(
+            $(#[$doc])*
+            #[inline]
+            pub fn $name(&self, $i: $idx) -> &[$item] {
+                self.$table.row($i.index())
+            }
+        )*
+    };
+}
+
 impl Net {
     /// The net's id.
     pub fn id(&self) -> &str {
@@ -240,45 +254,23 @@ impl Net {
     pub fn initial_marking(&self) -> crate::Marking {
         crate::Marking(self.places.iter().map(|p| p.initial).collect())
     }
-    /// `Pre[·,t]`: the places t consumes from, with weights, sorted by place.
-    #[inline]
-    pub fn pre(&self, t: TransIdx) -> &[(PlaceIdx, Tokens)] {
-        self.pre.row(t.index())
-    }
-    /// `Post[·,t]`: the places t produces into, with weights, sorted by place.
-    #[inline]
-    pub fn post(&self, t: TransIdx) -> &[(PlaceIdx, Tokens)] {
-        self.post.row(t.index())
-    }
-    /// The inhibitor arcs of t: t needs `M[p] < w` for each `(p, w)`.
-    #[inline]
-    pub fn inhibitors(&self, t: TransIdx) -> &[(PlaceIdx, Tokens)] {
-        self.inhibitors.row(t.index())
-    }
-    /// `C[·,t] = Post[·,t] − Pre[·,t]`, nonzero entries only, sorted by place.
-    #[inline]
-    pub fn delta(&self, t: TransIdx) -> &[(PlaceIdx, i64)] {
-        self.delta.row(t.index())
-    }
-    /// `p•`: the transitions consuming from p, with weights.
-    #[inline]
-    pub fn consumers(&self, p: PlaceIdx) -> &[(TransIdx, Tokens)] {
-        self.place_consumers.row(p.index())
-    }
-    /// `•p`: the transitions producing into p, with weights.
-    #[inline]
-    pub fn producers(&self, p: PlaceIdx) -> &[(TransIdx, Tokens)] {
-        self.place_producers.row(p.index())
-    }
-    /// The transitions p inhibits, with thresholds.
-    #[inline]
-    pub fn inhibited(&self, p: PlaceIdx) -> &[(TransIdx, Tokens)] {
-        self.place_inhibited.row(p.index())
-    }
-    /// The transitions whose enabling can change when M[p] changes.
-    #[inline]
-    pub fn dependents(&self, p: PlaceIdx) -> &[TransIdx] {
-        self.dependents.row(p.index())
+    rows! {
+        /// `Pre[·,t]`: the places t consumes from, with weights, sorted by place.
+        pre(t: TransIdx) -> [(PlaceIdx, Tokens)] = pre;
+        /// `Post[·,t]`: the places t produces into, with weights, sorted by place.
+        post(t: TransIdx) -> [(PlaceIdx, Tokens)] = post;
+        /// The inhibitor arcs of t: t needs `M[p] < w` for each `(p, w)`.
+        inhibitors(t: TransIdx) -> [(PlaceIdx, Tokens)] = inhibitors;
+        /// `C[·,t] = Post[·,t] − Pre[·,t]`, nonzero entries only, sorted by place.
+        delta(t: TransIdx) -> [(PlaceIdx, i64)] = delta;
+        /// `p•`: the transitions consuming from p, with weights.
+        consumers(p: PlaceIdx) -> [(TransIdx, Tokens)] = place_consumers;
+        /// `•p`: the transitions producing into p, with weights.
+        producers(p: PlaceIdx) -> [(TransIdx, Tokens)] = place_producers;
+        /// The transitions p inhibits, with thresholds.
+        inhibited(p: PlaceIdx) -> [(TransIdx, Tokens)] = place_inhibited;
+        /// The transitions whose enabling can change when M[p] changes.
+        dependents(p: PlaceIdx) -> [TransIdx] = dependents;
     }
     /// The visiting rank of t: 0 is visited first (highest priority, then earliest declared).
     #[inline]

@@ -11,9 +11,7 @@
 use serde::{Deserialize, Serialize};
 
 use crate::rng::SplitMix64;
-use crate::{
-    check_image, monotonic, out, Counters, Fault, FaultKind, FaultLog, Plant, TwinError, SECOND_US,
-};
+use crate::{out, Counters, Fault, FaultKind, FaultLog, Physics, Plant, TwinError, SECOND_US};
 
 /// The twin's name.
 pub const NAME: &str = "festo";
@@ -489,22 +487,6 @@ impl FestoStation {
         best
     }
 
-    fn run_events_until(&mut self, now: u64) {
-        loop {
-            let (t, ev) = self.next_event();
-            if t > now {
-                break;
-            }
-            self.table.sync(t, &self.params);
-            self.feed.sync(t, &self.params);
-            self.handle(t, ev);
-            self.place_waiting_part(t);
-            self.check_engagement(t);
-        }
-        self.table.sync(now, &self.params);
-        self.feed.sync(now, &self.params);
-    }
-
     fn handle(&mut self, t: u64, ev: Event) {
         let jitter = self.params.jitter_us;
         match ev {
@@ -662,6 +644,36 @@ impl FestoStation {
         self.misaligned_latched = misaligned;
     }
 
+    fn pressed(&self, index: usize) -> bool {
+        matches!(self.presses[index], Some((from, until)) if from <= self.now && self.now < until)
+    }
+}
+
+impl Physics for FestoStation {
+    fn books(&mut self) -> (&mut u64, &mut FaultLog, &mut bool) {
+        (
+            &mut self.now,
+            &mut self.faults,
+            &mut self.image_size_reported,
+        )
+    }
+
+    fn run_events_until(&mut self, now: u64) {
+        loop {
+            let (t, ev) = self.next_event();
+            if t > now {
+                break;
+            }
+            self.table.sync(t, &self.params);
+            self.feed.sync(t, &self.params);
+            self.handle(t, ev);
+            self.place_waiting_part(t);
+            self.check_engagement(t);
+        }
+        self.table.sync(now, &self.params);
+        self.feed.sync(now, &self.params);
+    }
+
     fn apply(&mut self, now: u64, outputs: &[bool]) {
         let p = &self.params;
         let jitter = p.jitter_us;
@@ -708,10 +720,6 @@ impl FestoStation {
         self.place_waiting_part(now);
         self.check_engagement(now);
     }
-
-    fn pressed(&self, index: usize) -> bool {
-        matches!(self.presses[index], Some((from, until)) if from <= self.now && self.now < until)
-    }
 }
 
 impl Plant for FestoStation {
@@ -728,19 +736,7 @@ impl Plant for FestoStation {
     }
 
     fn step(&mut self, now_us: u64, outputs: &[bool]) {
-        let now = monotonic(&mut self.faults, self.now, now_us);
-        check_image(
-            &mut self.faults,
-            &mut self.image_size_reported,
-            now,
-            outputs.len(),
-            OUTPUT_NAMES.len(),
-        );
-        self.run_events_until(now);
-        self.now = now;
-        self.apply(now, outputs);
-        // Zero-length strokes (a parameter of 0) complete at once.
-        self.run_events_until(now);
+        self.advance(now_us, outputs);
     }
 
     fn inputs(&self, buf: &mut [bool]) {

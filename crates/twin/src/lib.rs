@@ -641,14 +641,33 @@ impl Plant for Twin {
     }
 }
 
+/// What a twin supplies so that [`Physics::advance`] keeps the step contract for it: where it
+/// keeps its clock, how its events happen, and how it takes an output image.
+pub(crate) trait Physics: Plant {
+    /// The twin's clock, its fault log, and whether it has reported a wrong-sized image yet.
+    fn books(&mut self) -> (&mut u64, &mut FaultLog, &mut bool);
+    /// Lets every event due at or before `now` happen, at its own time, in time order.
+    fn run_events_until(&mut self, now: u64);
+    /// Takes the output image at `now`.
+    fn apply(&mut self, now: u64, outputs: &[bool]);
+
+    /// [`Plant::step`] of every twin, so that all keep the step contract alike.
+    fn advance(&mut self, now_us: u64, outputs: &[bool]) {
+        let want = self.output_names().len();
+        let (clock, faults, reported) = self.books();
+        let now = monotonic(faults, *clock, now_us);
+        check_image(faults, reported, now, outputs.len(), want);
+        self.run_events_until(now);
+        // Only now: the events before happened each at its own time, not at `now`.
+        *self.books().0 = now;
+        self.apply(now, outputs);
+        // Zero-length strokes and durations (a parameter of 0) complete at once.
+        self.run_events_until(now);
+    }
+}
+
 /// Checks the image length once per twin, so that a wrong-sized image is reported without flooding.
-pub(crate) fn check_image(
-    log: &mut FaultLog,
-    reported: &mut bool,
-    now_us: u64,
-    got: usize,
-    want: usize,
-) {
+fn check_image(log: &mut FaultLog, reported: &mut bool, now_us: u64, got: usize, want: usize) {
     if got != want && !*reported {
         *reported = true;
         log.push(
@@ -660,7 +679,7 @@ pub(crate) fn check_image(
 }
 
 /// Clamps a requested time to the twin's clock, reporting a regression once per occurrence.
-pub(crate) fn monotonic(log: &mut FaultLog, current_us: u64, now_us: u64) -> u64 {
+fn monotonic(log: &mut FaultLog, current_us: u64, now_us: u64) -> u64 {
     if now_us < current_us {
         log.push(
             FaultKind::ClockRegression,

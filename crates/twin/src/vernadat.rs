@@ -5,9 +5,7 @@
 use serde::{Deserialize, Serialize};
 
 use crate::rng::SplitMix64;
-use crate::{
-    check_image, monotonic, out, Counters, Fault, FaultKind, FaultLog, Plant, TwinError, SECOND_US,
-};
+use crate::{out, Counters, Fault, FaultKind, FaultLog, Physics, Plant, TwinError, SECOND_US};
 
 /// The twin's name.
 pub const NAME: &str = "vernadat";
@@ -329,15 +327,6 @@ impl VernadatCell {
         best
     }
 
-    fn run_events_until(&mut self, now: u64) {
-        while let Some((t, ev)) = self.next_event() {
-            if t > now {
-                break;
-            }
-            self.handle(t, ev);
-        }
-    }
-
     fn handle(&mut self, t: u64, ev: Event) {
         match ev {
             Event::Robot => {
@@ -467,6 +456,48 @@ impl VernadatCell {
             Move::Dm2 => self.finished += 1,
         }
     }
+}
+
+fn pick_from_machine(
+    m: &mut Machine,
+    faults: &mut FaultLog,
+    now: u64,
+    empty: &'static str,
+    not_ready: &'static str,
+) -> bool {
+    match m.work {
+        Work::Finished if !m.pm => {
+            m.work = Work::Empty;
+            true
+        }
+        Work::Empty => {
+            faults.push(FaultKind::EmptySource, now, empty);
+            false
+        }
+        _ => {
+            faults.push(FaultKind::PartNotReady, now, not_ready);
+            false
+        }
+    }
+}
+
+impl Physics for VernadatCell {
+    fn books(&mut self) -> (&mut u64, &mut FaultLog, &mut bool) {
+        (
+            &mut self.now,
+            &mut self.faults,
+            &mut self.image_size_reported,
+        )
+    }
+
+    fn run_events_until(&mut self, now: u64) {
+        while let Some((t, ev)) = self.next_event() {
+            if t > now {
+                break;
+            }
+            self.handle(t, ev);
+        }
+    }
 
     fn apply(&mut self, now: u64, outputs: &[bool]) {
         // Withdrawals first, so that one image may end a move and command the next.
@@ -549,29 +580,6 @@ impl VernadatCell {
     }
 }
 
-fn pick_from_machine(
-    m: &mut Machine,
-    faults: &mut FaultLog,
-    now: u64,
-    empty: &'static str,
-    not_ready: &'static str,
-) -> bool {
-    match m.work {
-        Work::Finished if !m.pm => {
-            m.work = Work::Empty;
-            true
-        }
-        Work::Empty => {
-            faults.push(FaultKind::EmptySource, now, empty);
-            false
-        }
-        _ => {
-            faults.push(FaultKind::PartNotReady, now, not_ready);
-            false
-        }
-    }
-}
-
 impl Plant for VernadatCell {
     fn name(&self) -> &'static str {
         NAME
@@ -586,19 +594,7 @@ impl Plant for VernadatCell {
     }
 
     fn step(&mut self, now_us: u64, outputs: &[bool]) {
-        let now = monotonic(&mut self.faults, self.now, now_us);
-        check_image(
-            &mut self.faults,
-            &mut self.image_size_reported,
-            now,
-            outputs.len(),
-            OUTPUT_NAMES.len(),
-        );
-        self.run_events_until(now);
-        self.now = now;
-        self.apply(now, outputs);
-        // Zero-length durations (a parameter of 0) complete at once.
-        self.run_events_until(now);
+        self.advance(now_us, outputs);
     }
 
     fn inputs(&self, buf: &mut [bool]) {

@@ -9,7 +9,7 @@ use std::path::PathBuf;
 use serde::Deserialize;
 use toml::Spanned;
 
-use crate::config::{position, StalePolicy};
+use crate::config::{Reader, StalePolicy};
 use crate::IoError;
 
 /// The security policies offered with `security = "sign-and-encrypt"`.
@@ -138,29 +138,14 @@ pub fn parse_url(url: &str) -> Result<SocketAddr, IoError> {
 }
 
 impl OpcUaConfig {
-    /// Checks the `[opcua]` section; `file` and `text` place the errors; `dir` is the directory
-    /// relative paths are read from.
-    pub(crate) fn build(
-        file: &str,
-        text: &str,
-        src: &Spanned<OpcUaSrc>,
-    ) -> Result<OpcUaConfig, IoError> {
-        let err = |span: std::ops::Range<usize>, message: String| IoError::Config {
-            at: position(file, text, span.start),
-            message,
-        };
+    /// Checks the `[opcua]` section of the text `r` reads; relative paths are read from the
+    /// directory of `r.file`.
+    pub(crate) fn build(r: &Reader<'_>, src: &Spanned<OpcUaSrc>) -> Result<OpcUaConfig, IoError> {
         let s = src.get_ref();
         let url = s.listen.get_ref().clone();
-        let listen = parse_url(&url).map_err(|m| err(s.listen.span(), m.to_string()))?;
-        let count = |n: &Option<Spanned<i64>>, default: usize, what: &str| match n {
-            None => Ok(default),
-            Some(v) => usize::try_from(*v.get_ref())
-                .ok()
-                .filter(|k| (1..=256).contains(k))
-                .ok_or_else(|| err(v.span(), format!("`{what}` must be from 1 to 256"))),
-        };
-        let max_sessions = count(&s.max_sessions, 8, "max_sessions")?;
-        let max_connections = count(&s.max_connections, 16, "max_connections")?;
+        let listen = parse_url(&url).map_err(|m| r.err(s.listen.span(), m.to_string()))?;
+        let max_sessions = limit(r, &s.max_sessions, 8, "max_sessions")?;
+        let max_connections = limit(r, &s.max_connections, 16, "max_connections")?;
         if !s.inputs {
             if let Some(span) = s
                 .stale
@@ -168,118 +153,20 @@ impl OpcUaConfig {
                 .map(|x| x.span())
                 .or(s.stale_after.as_ref().map(|x| x.span()))
             {
-                return Err(err(span, "`stale` and `stale_after` apply to inputs written by OPC UA clients: set inputs = true, or leave them out".into()));
+                return Err(r.err(span, "`stale` and `stale_after` apply to inputs written by OPC UA clients: set inputs = true, or leave them out"));
             }
         }
-        let stale = match &s.stale {
-            None => StalePolicy::default(),
-            Some(x) => match x.get_ref().as_str() {
-                "hold" => StalePolicy::Hold,
-                "safe" => StalePolicy::Safe,
-                "fault" => StalePolicy::Fault,
-                other => {
-                    return Err(err(
-                        x.span(),
-                        format!(
-                        "unknown stale policy `{other}`; expected \"hold\", \"safe\" or \"fault\""
-                    ),
-                    ))
-                }
-            },
-        };
-        let stale_after = match &s.stale_after {
-            None => DEFAULT_STALE_AFTER,
-            Some(v) => u32::try_from(*v.get_ref())
-                .ok()
-                .filter(|k| (1..=1_000_000).contains(k))
-                .ok_or_else(|| {
-                    err(
-                        v.span(),
-                        "`stale_after` must be a whole number from 1 to 1000000".into(),
-                    )
-                })?,
-        };
-        let security = match s.security.as_ref().map(|x| x.get_ref().as_str()) {
-            None | Some("none") => {
-                if let Some(p) = &s.policies {
-                    return Err(err(
-                        p.span(),
-                        "`policies` needs security = \"sign-and-encrypt\"".into(),
-                    ));
-                }
-                if !listen.ip().is_loopback() {
-                    let span = s.security.as_ref().map_or(s.listen.span(), |x| x.span());
-                    return Err(err(span, format!("the OPC UA server would listen on {listen} without security: policy None is only for loopback. Listen on 127.0.0.1, or set security = \"sign-and-encrypt\" with a pki directory and users")));
-                }
-                Security::None
-            }
-            Some("sign-and-encrypt") => {
-                let mut policies = Vec::new();
-                match &s.policies {
-                    None => policies.extend(Policy::ALL),
-                    Some(list) => {
-                        for p in list.get_ref() {
-                            let found = Policy::ALL
-                                .into_iter()
-                                .find(|k| k.name() == p.get_ref())
-                                .ok_or_else(|| {
-                                    err(p.span(), format!("unknown security policy `{}`; expected \"Basic256Sha256\", \"Aes128_Sha256_RsaOaep\" or \"Aes256_Sha256_RsaPss\"", p.get_ref()))
-                                })?;
-                            if !policies.contains(&found) {
-                                policies.push(found);
-                            }
-                        }
-                        if policies.is_empty() {
-                            return Err(err(
-                                list.span(),
-                                "`policies` is empty; leave it out to offer all three".into(),
-                            ));
-                        }
-                    }
-                }
-                let Some(pki) = &s.pki else {
-                    return Err(err(src.span(), "security = \"sign-and-encrypt\" needs `pki`, the directory of the server's certificate and of the trusted client certificates".into()));
-                };
-                let base = std::path::Path::new(file)
-                    .parent()
-                    .map(|p| p.to_path_buf())
-                    .unwrap_or_default();
-                Security::SignAndEncrypt {
-                    policies,
-                    pki: base.join(pki.get_ref()),
-                }
-            }
-            Some(other) => {
-                let span = s.security.as_ref().map_or(s.listen.span(), |x| x.span());
-                return Err(err(span, format!("unknown security `{other}`; expected \"none\" (loopback only) or \"sign-and-encrypt\"")));
-            }
-        };
-        let mut users: Vec<User> = Vec::new();
-        for u in &s.user {
-            let name = u.name.get_ref();
-            if name.is_empty() || name.len() > 64 {
-                return Err(err(
-                    u.name.span(),
-                    "a user needs a name of 1 to 64 characters".into(),
-                ));
-            }
-            if users.iter().any(|o| &o.name == name) {
-                return Err(err(
-                    u.name.span(),
-                    format!("user `{name}` is declared twice"),
-                ));
-            }
-            if !u.password_hash.get_ref().starts_with("$argon2") {
-                return Err(err(u.password_hash.span(), format!("the password of `{name}` must be an argon2 hash as `cetratus hash-password` prints it, never the password itself")));
-            }
-            users.push(User {
-                name: name.clone(),
-                password_hash: u.password_hash.get_ref().clone(),
-                at: position(file, text, u.name.span().start),
-            });
-        }
+        let stale = r.stale(&s.stale)?;
+        let stale_after = r.count(
+            &s.stale_after,
+            DEFAULT_STALE_AFTER,
+            "stale_after",
+            1_000_000,
+        )?;
+        let security = security(r, src, listen)?;
+        let users = users(r, &s.user)?;
         if matches!(security, Security::None) && !users.is_empty() {
-            return Err(err(s.user[0].name.span(), "users log in only with security = \"sign-and-encrypt\": a password over policy None would travel in clear".into()));
+            return Err(r.err(s.user[0].name.span(), "users log in only with security = \"sign-and-encrypt\": a password over policy None would travel in clear"));
         }
         Ok(OpcUaConfig {
             url,
@@ -291,9 +178,116 @@ impl OpcUaConfig {
             max_connections,
             security,
             users,
-            at: position(file, text, src.span().start),
+            at: r.at(src.span()),
         })
     }
+}
+
+/// A limit of the server (sessions, connections): from 1 to 256, `default` when none is written.
+fn limit(
+    r: &Reader<'_>,
+    n: &Option<Spanned<i64>>,
+    default: usize,
+    what: &str,
+) -> Result<usize, IoError> {
+    match n {
+        None => Ok(default),
+        Some(v) => usize::try_from(*v.get_ref())
+            .ok()
+            .filter(|k| (1..=256).contains(k))
+            .ok_or_else(|| r.err(v.span(), format!("`{what}` must be from 1 to 256"))),
+    }
+}
+
+/// How clients reach a server listening on `listen`: policy None is refused beyond loopback.
+fn security(
+    r: &Reader<'_>,
+    src: &Spanned<OpcUaSrc>,
+    listen: SocketAddr,
+) -> Result<Security, IoError> {
+    let s = src.get_ref();
+    let security_span = s.security.as_ref().map_or(s.listen.span(), |x| x.span());
+    match s.security.as_ref().map(|x| x.get_ref().as_str()) {
+        None | Some("none") => {
+            if let Some(p) = &s.policies {
+                return Err(r.err(
+                    p.span(),
+                    "`policies` needs security = \"sign-and-encrypt\"",
+                ));
+            }
+            if !listen.ip().is_loopback() {
+                return Err(r.err(security_span, format!("the OPC UA server would listen on {listen} without security: policy None is only for loopback. Listen on 127.0.0.1, or set security = \"sign-and-encrypt\" with a pki directory and users")));
+            }
+            Ok(Security::None)
+        }
+        Some("sign-and-encrypt") => {
+            let policies = policies(r, &s.policies)?;
+            let Some(pki) = &s.pki else {
+                return Err(r.err(src.span(), "security = \"sign-and-encrypt\" needs `pki`, the directory of the server's certificate and of the trusted client certificates"));
+            };
+            let base = std::path::Path::new(r.file)
+                .parent()
+                .map(|p| p.to_path_buf())
+                .unwrap_or_default();
+            Ok(Security::SignAndEncrypt {
+                policies,
+                pki: base.join(pki.get_ref()),
+            })
+        }
+        Some(other) => Err(r.err(security_span, format!("unknown security `{other}`; expected \"none\" (loopback only) or \"sign-and-encrypt\""))),
+    }
+}
+
+/// The policies offered, each once and in the order written; all of them when none is written.
+fn policies(
+    r: &Reader<'_>,
+    list: &Option<Spanned<Vec<Spanned<String>>>>,
+) -> Result<Vec<Policy>, IoError> {
+    let Some(list) = list else {
+        return Ok(Policy::ALL.to_vec());
+    };
+    let mut policies = Vec::new();
+    for p in list.get_ref() {
+        let found = Policy::ALL
+            .into_iter()
+            .find(|k| k.name() == p.get_ref())
+            .ok_or_else(|| {
+                r.err(p.span(), format!("unknown security policy `{}`; expected \"Basic256Sha256\", \"Aes128_Sha256_RsaOaep\" or \"Aes256_Sha256_RsaPss\"", p.get_ref()))
+            })?;
+        if !policies.contains(&found) {
+            policies.push(found);
+        }
+    }
+    if policies.is_empty() {
+        return Err(r.err(
+            list.span(),
+            "`policies` is empty; leave it out to offer all three",
+        ));
+    }
+    Ok(policies)
+}
+
+/// The users that may log in with a password, each with an argon2 hash and a name of its own.
+fn users(r: &Reader<'_>, list: &[UserSrc]) -> Result<Vec<User>, IoError> {
+    let mut users: Vec<User> = Vec::new();
+    for u in list {
+        let name = u.name.get_ref();
+        if name.is_empty() || name.len() > 64 {
+            return Err(r.err(u.name.span(), "a user needs a name of 1 to 64 characters"));
+        }
+        if users.iter().any(|o| &o.name == name) {
+            return Err(r.err(u.name.span(), format!("user `{name}` is declared twice")));
+        }
+        if !u.password_hash.get_ref().starts_with("$argon2") {
+            return Err(r.err(u.password_hash.span(), format!("the password of `{name}` must be an argon2 hash as `cetratus hash-password` prints it, never the password itself")));
+        }
+        users.push(User {
+            name: name.clone(),
+            password_hash: u.password_hash.get_ref().clone(),
+            at: r.at(u.name.span()),
+        });
+    }
+    Ok(users)
 }
 
 #[cfg(test)]

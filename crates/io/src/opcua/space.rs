@@ -246,100 +246,67 @@ impl Space {
             copy: Copy::default(),
             changes: 0,
         };
-        let root = NodeId::new(ns, s.plc.clone());
-        let folders = ["Inputs", "Outputs", "Marking", "ExecInfo"].map(|f| s.id(f));
         let program = lock(&s.shared.image).program.clone();
-        {
-            let a = s.manager.address_space().clone();
-            let mut a = a.write();
-            a.add_folder(
-                &root,
-                s.plc.as_str(),
-                s.plc.as_str(),
-                &NodeId::objects_folder_id(),
-            );
-            for (f, name) in folders
-                .iter()
-                .zip(["Inputs", "Outputs", "Marking", "ExecInfo"])
-            {
-                a.add_folder(f, name, name, &root);
-            }
-            variable(
-                &mut a,
-                &s.primary,
-                "PRIMARY",
-                DataTypeId::String,
-                Variant::from("A"),
-                &root,
-                false,
-            );
-            variable(
-                &mut a,
-                &s.status,
-                "STATUS",
-                DataTypeId::String,
-                Variant::from("idle"),
-                &root,
-                false,
-            );
-            for sig in &layout.inputs {
-                let id = s.id(&format!("Inputs.{}", sig.name));
-                signal_variable(&mut a, &id, sig, &folders[0], layout.writable_inputs);
-                s.inputs.push(id);
-            }
-            for sig in &layout.outputs {
-                let id = s.id(&format!("Outputs.{}", sig.name));
-                signal_variable(&mut a, &id, sig, &folders[1], false);
-                s.outputs.push(id);
-            }
-            for (name, ty) in FIGURES {
-                let id = s.id(&format!("ExecInfo.{name}"));
-                let zero = match ty {
-                    DataTypeId::UInt64 => Variant::UInt64(0),
-                    DataTypeId::Double => Variant::Double(0.0),
-                    DataTypeId::Boolean => Variant::Boolean(false),
-                    _ => Variant::from(""),
-                };
-                variable(&mut a, &id, name, ty, zero, &folders[3], false);
-                s.figures.push(id);
-            }
-            s.add_places(&mut a, &program);
-        }
+        s.add_nodes(&layout, &program);
         s.shown.inputs = vec![None; s.inputs.len()];
         s.shown.outputs = vec![None; s.outputs.len()];
         s.program = Some(program);
         if layout.writable_inputs {
             for (i, (id, sig)) in s.inputs.iter().zip(&layout.inputs).enumerate() {
-                let (shared, ty) = (s.shared.clone(), sig.ty);
-                s.manager.inner().add_write_callback(
-                    id.clone(),
-                    move |dv: DataValue, range: &NumericRange| {
-                        let refuse = |code| {
-                            shared
-                                .counters
-                                .refused_writes
-                                .fetch_add(1, Ordering::Relaxed);
-                            code
-                        };
-                        if range.has_range() {
-                            return refuse(StatusCode::BadIndexRangeInvalid);
-                        }
-                        let Some(v) = dv.value.as_ref().and_then(|v| written_value(ty, v)) else {
-                            return refuse(StatusCode::BadTypeMismatch);
-                        };
-                        let mut g = lock(&shared.written);
-                        let w = &mut *g;
-                        if let (Some(slot), Some(seen)) = (w.values.get_mut(i), w.seen.get_mut(i)) {
-                            *slot = v;
-                            *seen = true;
-                        }
-                        shared.counters.writes.fetch_add(1, Ordering::Relaxed);
-                        StatusCode::Good
-                    },
-                );
+                let write = take_write(s.shared.clone(), i, sig.ty);
+                s.manager.inner().add_write_callback(id.clone(), write);
             }
         }
         s
+    }
+
+    /// Adds the nodes under `<plc>`, each holding its zero until the first publication.
+    fn add_nodes(&mut self, layout: &Layout, program: &Program) {
+        let root = NodeId::new(self.ns, self.plc.clone());
+        let folders = ["Inputs", "Outputs", "Marking", "ExecInfo"].map(|f| self.id(f));
+        let a = self.manager.address_space().clone();
+        let mut a = a.write();
+        a.add_folder(
+            &root,
+            self.plc.as_str(),
+            self.plc.as_str(),
+            &NodeId::objects_folder_id(),
+        );
+        for (f, name) in folders
+            .iter()
+            .zip(["Inputs", "Outputs", "Marking", "ExecInfo"])
+        {
+            a.add_folder(f, name, name, &root);
+        }
+        for (id, name, zero) in [
+            (&self.primary, "PRIMARY", "A"),
+            (&self.status, "STATUS", "idle"),
+        ] {
+            let zero = Variant::from(zero);
+            variable(&mut a, id, name, DataTypeId::String, zero, &root, false);
+        }
+        for sig in &layout.inputs {
+            let id = self.id(&format!("Inputs.{}", sig.name));
+            signal_variable(&mut a, &id, sig, &folders[0], layout.writable_inputs);
+            self.inputs.push(id);
+        }
+        for sig in &layout.outputs {
+            let id = self.id(&format!("Outputs.{}", sig.name));
+            signal_variable(&mut a, &id, sig, &folders[1], false);
+            self.outputs.push(id);
+        }
+        for (name, ty) in FIGURES {
+            let id = self.id(&format!("ExecInfo.{name}"));
+            let zero = match ty {
+                DataTypeId::UInt64 => Variant::UInt64(0),
+                DataTypeId::Double => Variant::Double(0.0),
+                DataTypeId::Boolean => Variant::Boolean(false),
+                _ => Variant::from(""),
+            };
+            variable(&mut a, &id, name, ty, zero, &folders[3], false);
+            self.figures.push(id);
+        }
+        self.add_places(&mut a, program);
     }
 
     fn add_places(&mut self, a: &mut AddressSpace, program: &Program) {
@@ -547,6 +514,38 @@ impl Space {
             .counters
             .published
             .fetch_add(1, Ordering::Relaxed);
+    }
+}
+
+/// The write callback of input `i`: a client's value of the input's type `ty` goes to the
+/// written image, anything else is refused and counted.
+fn take_write(
+    shared: Arc<Shared>,
+    i: usize,
+    ty: Type,
+) -> impl Fn(DataValue, &NumericRange) -> StatusCode + Send + Sync + 'static {
+    move |dv: DataValue, range: &NumericRange| {
+        let refuse = |code| {
+            shared
+                .counters
+                .refused_writes
+                .fetch_add(1, Ordering::Relaxed);
+            code
+        };
+        if range.has_range() {
+            return refuse(StatusCode::BadIndexRangeInvalid);
+        }
+        let Some(v) = dv.value.as_ref().and_then(|v| written_value(ty, v)) else {
+            return refuse(StatusCode::BadTypeMismatch);
+        };
+        let mut g = lock(&shared.written);
+        let w = &mut *g;
+        if let (Some(slot), Some(seen)) = (w.values.get_mut(i), w.seen.get_mut(i)) {
+            *slot = v;
+            *seen = true;
+        }
+        shared.counters.writes.fetch_add(1, Ordering::Relaxed);
+        StatusCode::Good
     }
 }
 

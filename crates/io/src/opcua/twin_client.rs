@@ -17,7 +17,7 @@ use opcua::client::{ClientBuilder, IdentityToken, Session};
 use opcua::crypto::SecurityPolicy;
 use opcua::types::{
     AttributeId, BrowseDescription, BrowseDirection, BrowseResultMask, DataValue,
-    MessageSecurityMode, NodeClassMask, NodeId, ObjectId, ReadValueId, ReferenceTypeId,
+    MessageSecurityMode, NodeClassMask, NodeId, ObjectId, ReadValueId, ReferenceTypeId, StatusCode,
     TimestampsToReturn, UserTokenPolicy, Variant, WriteValue,
 };
 
@@ -107,23 +107,32 @@ pub(crate) fn client_error(e: impl std::fmt::Display) -> IoError {
     IoError::Thread(format!("OPC UA client: {e}"))
 }
 
-/// Connects to `url` (retrying until the server answers or `stop`), finds the PLC (`plc`, or
-/// the one object of the `urn:cetratus` namespace), and drives `twin` until `until_us` of twin
-/// time or `stop`. `on_connect` is told the PLC's name once the session is up.
+/// The PLC a twin is the plant of, and how its client reaches the PLC's server.
+#[derive(Clone, Copy, Debug)]
+pub struct PlcTarget<'a> {
+    /// The server's endpoint, `opc.tcp://ADDR`.
+    pub url: &'a str,
+    /// The PLC's name; the one object of the `urn:cetratus` namespace when `None`.
+    pub plc: Option<&'a str>,
+    /// How the client reaches the server.
+    pub security: &'a ClientSecurity,
+}
+
+/// Connects to `target` (retrying until the server answers or `stop`), finds the PLC, and
+/// drives `twin` until `until_us` of twin time or `stop`. `on_connect` is told the PLC's name
+/// once the session is up.
 pub fn serve(
     twin: Twin,
-    url: &str,
-    plc: Option<&str>,
+    target: PlcTarget<'_>,
     until_us: u64,
     stop: &AtomicBool,
-    security: &ClientSecurity,
     on_connect: impl FnOnce(&str),
 ) -> Result<OpcUaServeReport, IoError> {
     let rt = tokio::runtime::Builder::new_current_thread()
         .enable_all()
         .build()
         .map_err(|e| IoError::Thread(e.to_string()))?;
-    rt.block_on(run(twin, url, plc, until_us, stop, security, on_connect))
+    rt.block_on(run(twin, target, until_us, stop, on_connect))
 }
 
 pub(crate) async fn connect(
@@ -271,72 +280,94 @@ pub(crate) fn bool_of(dv: &DataValue) -> Option<bool> {
     }
 }
 
-async fn run(
-    mut twin: Twin,
-    url: &str,
-    plc: Option<&str>,
-    until_us: u64,
-    stop: &AtomicBool,
-    security: &ClientSecurity,
-    on_connect: impl FnOnce(&str),
-) -> Result<OpcUaServeReport, IoError> {
-    let mut counters = ClientCounters::default();
-    let Some(session) = connect(url, stop, &mut counters, security).await? else {
-        return Err(client_error("stopped before the server answered"));
-    };
-    let (ns, found) = find_plc(&session).await?;
-    let plc = plc.map_or(found, str::to_string);
-    on_connect(&plc);
-    let sensors: Vec<NodeId> = twin
-        .input_names()
-        .iter()
-        .map(|n| NodeId::new(ns, format!("{plc}.Inputs.{n}")))
-        .collect();
-    let actuators: Vec<ReadValueId> = twin
-        .output_names()
-        .iter()
-        .map(|n| ReadValueId::new_value(NodeId::new(ns, format!("{plc}.Outputs.{n}"))))
-        .collect();
-    let mut inputs = vec![false; sensors.len()];
-    let mut outputs = vec![false; actuators.len()];
-    let mut written: Vec<Option<bool>> = vec![None; sensors.len()];
-    twin.inputs(&mut inputs);
-    let mut start: Option<Instant> = None;
-    let mut last_write = Instant::now();
-    let mut now_us = 0;
-    while now_us < until_us && !stop.load(Ordering::Relaxed) {
-        let tick = Instant::now();
-        if let Some(s) = start {
-            match session
-                .read(&actuators, TimestampsToReturn::Neither, 0.0)
-                .await
-            {
-                Ok(values) => {
-                    counters.reads += 1;
-                    for (o, dv) in outputs.iter_mut().zip(&values) {
-                        match bool_of(dv) {
-                            Some(b) => *o = b,
-                            None => counters.errors += 1,
-                        }
+/// The client's side of the PLC: the session, the twin's signals as the PLC's nodes, what the
+/// PLC last took of each sensor, and what the client did.
+struct Link {
+    session: Arc<Session>,
+    sensors: Vec<NodeId>,
+    actuators: Vec<ReadValueId>,
+    /// Each sensor's value as the PLC last took it; `None` to write it again.
+    written: Vec<Option<bool>>,
+    last_write: Instant,
+    counters: ClientCounters,
+}
+
+/// What came of writing the sensors.
+enum Written {
+    /// None had changed.
+    Nothing,
+    /// The PLC took every one.
+    Taken,
+    /// The PLC refused the write at `index` (the first it refused) with `code`.
+    Refused { index: usize, code: StatusCode },
+    /// The request failed; every sensor is written again.
+    Failed,
+}
+
+impl Link {
+    /// The link to the twin's signals under `<plc>` in namespace `ns`, none written yet.
+    fn new(
+        session: Arc<Session>,
+        counters: ClientCounters,
+        ns: u16,
+        plc: &str,
+        twin: &Twin,
+    ) -> Link {
+        let sensors: Vec<NodeId> = twin
+            .input_names()
+            .iter()
+            .map(|n| NodeId::new(ns, format!("{plc}.Inputs.{n}")))
+            .collect();
+        let actuators = twin
+            .output_names()
+            .iter()
+            .map(|n| ReadValueId::new_value(NodeId::new(ns, format!("{plc}.Outputs.{n}"))))
+            .collect();
+        Link {
+            session,
+            written: vec![None; sensors.len()],
+            sensors,
+            actuators,
+            last_write: Instant::now(),
+            counters,
+        }
+    }
+
+    /// Reads the actuators into `outputs`; one the PLC cannot give keeps its last value.
+    async fn read_actuators(&mut self, outputs: &mut [bool]) {
+        match self
+            .session
+            .read(&self.actuators, TimestampsToReturn::Neither, 0.0)
+            .await
+        {
+            Ok(values) => {
+                self.counters.reads += 1;
+                for (o, dv) in outputs.iter_mut().zip(&values) {
+                    match bool_of(dv) {
+                        Some(b) => *o = b,
+                        None => self.counters.errors += 1,
                     }
                 }
-                Err(_) => {
-                    counters.errors += 1;
-                    // After a lost connection, every sensor is written again.
-                    written.fill(None);
-                }
             }
-            now_us = s.elapsed().as_micros() as u64;
-            twin.step(now_us, &outputs);
-            twin.inputs(&mut inputs);
+            Err(_) => {
+                self.counters.errors += 1;
+                // After a lost connection, every sensor is written again.
+                self.written.fill(None);
+            }
         }
-        if last_write.elapsed() >= KEEPALIVE {
-            written.fill(None);
+    }
+
+    /// Writes the sensors whose value the PLC has not taken yet, and all of them once per
+    /// [`KEEPALIVE`].
+    async fn write_sensors(&mut self, inputs: &[bool]) -> Written {
+        if self.last_write.elapsed() >= KEEPALIVE {
+            self.written.fill(None);
         }
-        let changed: Vec<WriteValue> = sensors
+        let changed: Vec<WriteValue> = self
+            .sensors
             .iter()
-            .zip(&inputs)
-            .zip(&written)
+            .zip(inputs)
+            .zip(&self.written)
             .filter(|((_, v), w)| **w != Some(**v))
             .map(|((id, v), _)| WriteValue {
                 node_id: id.clone(),
@@ -345,42 +376,91 @@ async fn run(
                 value: DataValue::value_only(*v),
             })
             .collect();
-        if !changed.is_empty() {
-            match session.write(&changed).await {
-                Ok(codes) if codes.iter().all(|c| c.is_good()) => {
-                    counters.writes += 1;
-                    last_write = Instant::now();
-                    for (w, v) in written.iter_mut().zip(&inputs) {
-                        *w = Some(*v);
-                    }
-                    // The plant's clock starts with its controller's first complete input image.
-                    start.get_or_insert_with(Instant::now);
+        if changed.is_empty() {
+            return Written::Nothing;
+        }
+        match self.session.write(&changed).await {
+            Ok(codes) if codes.iter().all(|c| c.is_good()) => {
+                self.counters.writes += 1;
+                self.last_write = Instant::now();
+                for (w, v) in self.written.iter_mut().zip(inputs) {
+                    *w = Some(*v);
                 }
-                Ok(codes) => {
-                    counters.writes += 1;
-                    counters.errors += codes.iter().filter(|c| !c.is_good()).count() as u64;
-                    if start.is_none() {
-                        let bad = codes.iter().position(|c| !c.is_good()).unwrap_or(0);
-                        return Err(client_error(format!(
-                            "the PLC refuses the sensor {} ({}): does its I/O configuration say that inputs come from OPC UA (inputs = true)?",
-                            sensors[bad], codes[bad]
-                        )));
-                    }
-                }
-                Err(_) => {
-                    counters.errors += 1;
-                    written.fill(None);
+                Written::Taken
+            }
+            Ok(codes) => {
+                self.counters.writes += 1;
+                self.counters.errors += codes.iter().filter(|c| !c.is_good()).count() as u64;
+                let bad = codes.iter().position(|c| !c.is_good()).unwrap_or(0);
+                Written::Refused {
+                    index: bad,
+                    code: codes[bad],
                 }
             }
+            Err(_) => {
+                self.counters.errors += 1;
+                self.written.fill(None);
+                Written::Failed
+            }
+        }
+    }
+}
+
+/// [`serve`] on the client's runtime.
+async fn run(
+    mut twin: Twin,
+    target: PlcTarget<'_>,
+    until_us: u64,
+    stop: &AtomicBool,
+    on_connect: impl FnOnce(&str),
+) -> Result<OpcUaServeReport, IoError> {
+    let mut counters = ClientCounters::default();
+    let Some(session) = connect(target.url, stop, &mut counters, target.security).await? else {
+        return Err(client_error("stopped before the server answered"));
+    };
+    let (ns, found) = find_plc(&session).await?;
+    let plc = target.plc.map_or(found, str::to_string);
+    on_connect(&plc);
+    let mut link = Link::new(session, counters, ns, &plc, &twin);
+    let mut inputs = vec![false; link.sensors.len()];
+    let mut outputs = vec![false; link.actuators.len()];
+    twin.inputs(&mut inputs);
+    let mut start: Option<Instant> = None;
+    let mut now_us = 0;
+    while now_us < until_us && !stop.load(Ordering::Relaxed) {
+        let tick = Instant::now();
+        if let Some(s) = start {
+            link.read_actuators(&mut outputs).await;
+            now_us = s.elapsed().as_micros() as u64;
+            twin.step(now_us, &outputs);
+            twin.inputs(&mut inputs);
+        }
+        match link.write_sensors(&inputs).await {
+            Written::Taken => {
+                // The plant's clock starts with its controller's first complete input image.
+                start.get_or_insert_with(Instant::now);
+            }
+            Written::Refused { index, code } if start.is_none() => {
+                return Err(client_error(format!(
+                    "the PLC refuses the sensor {} ({code}): does its I/O configuration say that inputs come from OPC UA (inputs = true)?",
+                    link.sensors[index]
+                )));
+            }
+            Written::Refused { .. } | Written::Nothing | Written::Failed => {}
         }
         let spent = tick.elapsed();
         if spent < Duration::from_millis(1) {
             tokio::time::sleep(Duration::from_millis(1) - spent).await;
         }
     }
-    let _ = session.disconnect().await;
+    let _ = link.session.disconnect().await;
+    Ok(report(&twin, plc, now_us, link.counters))
+}
+
+/// What the twin, served `now_us` of its time as the plant of `plc`, and the client did.
+fn report(twin: &Twin, plc: String, now_us: u64, opcua: ClientCounters) -> OpcUaServeReport {
     let c = twin.counters();
-    Ok(OpcUaServeReport {
+    OpcUaServeReport {
         twin: twin.name().to_string(),
         plc,
         seconds: now_us as f64 / 1e6,
@@ -391,6 +471,6 @@ async fn run(
         twin_faults: twin.faults().len() as u64 + twin.faults_dropped(),
         faults: twin.faults().iter().map(|f| f.to_string()).collect(),
         counters: serde_json::to_value(c).unwrap_or_default(),
-        opcua: counters,
-    })
+        opcua,
+    }
 }

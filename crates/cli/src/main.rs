@@ -23,6 +23,7 @@ mod sim;
 mod state;
 mod summary;
 mod twin_cmd;
+#[cfg(feature = "opcua")]
 mod twin_opcua;
 
 use clap::{Parser, Subcommand};

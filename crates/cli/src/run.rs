@@ -274,6 +274,7 @@ fn summary(
         counters: serde_json::to_value(&plant.counters)?,
         io: plant.io.clone(),
         modbus_server: plant.server,
+        #[cfg(feature = "opcua")]
         opcua_server: plant.opcua,
         scan: figures,
         primary: plc.primary().as_str(),

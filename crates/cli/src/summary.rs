@@ -32,6 +32,7 @@ pub struct Summary {
     #[serde(skip_serializing_if = "Option::is_none")]
     pub modbus_server: Option<cetratus_io::bank::BankCounters>,
     /// What the PLC's OPC UA server did, when it had one.
+    #[cfg(feature = "opcua")]
     #[serde(skip_serializing_if = "Option::is_none")]
     pub opcua_server: Option<cetratus_io::opcua::OpcUaCounters>,
     /// Scan timing figures.
@@ -122,12 +123,8 @@ pub fn print_summary(s: &Summary) {
             m.requests, m.exceptions, m.refused
         );
     }
-    if let Some(o) = &s.opcua_server {
-        println!(
-            "  opc ua server   {} cycles published, {} input writes, {} refused, {} connections refused, {} model changes; logins {} ok, {} wrong, {} refused unchecked",
-            o.published, o.writes, o.refused_writes, o.refused_connections, o.model_changes, o.logins, o.failed_logins, o.refused_logins
-        );
-    }
+    #[cfg(feature = "opcua")]
+    print_opcua(s);
     if s.faults.is_empty() {
         println!("  faults          none");
     } else {
@@ -146,6 +143,17 @@ pub fn print_event(e: &cetratus_runtime::Event, json: bool) {
             e.time_us as f64 / 1e6,
             e.kind,
             e.message
+        );
+    }
+}
+
+/// The OPC UA server's line of the summary, when the run had one.
+#[cfg(feature = "opcua")]
+fn print_opcua(s: &Summary) {
+    if let Some(o) = &s.opcua_server {
+        println!(
+            "  opc ua server   {} cycles published, {} input writes, {} refused, {} connections refused, {} model changes; logins {} ok, {} wrong, {} refused unchecked",
+            o.published, o.writes, o.refused_writes, o.refused_connections, o.model_changes, o.logins, o.failed_logins, o.refused_logins
         );
     }
 }

@@ -39,6 +39,7 @@ pub struct ServeArgs {
     /// The PLC's name in the server's nodes (`<plc>.Inputs.…`); the one PLC it shows by default.
     #[arg(long, requires = "opcua")]
     plc: Option<String>,
+    #[cfg(feature = "opcua")]
     #[command(flatten)]
     security: crate::twin_opcua::SecurityArgs,
     /// Print the address map and stop.
@@ -98,10 +99,7 @@ pub fn run(args: &TwinArgs) -> anyhow::Result<()> {
             "give the address to serve on, e.g. --modbus 127.0.0.1:15020, or the PLC's OPC UA server, e.g. --opcua opc.tcp://127.0.0.1:14840 (or --print-map)"
         );
     }
-    if let Some(url) = &a.opcua {
-        cetratus_io::opcua::config::parse_url(url).map_err(|e| anyhow::anyhow!("--opcua: {e}"))?;
-    }
-    let security = a.security.resolve(a.opcua.is_some())?;
+    let security = opcua_security(a)?;
     cetratus_node::script::press_buttons(&mut twin, &a.plant.press, 0)?;
     let until_us = match &a.for_ {
         Some(d) => parse_duration_us(d)?,
@@ -114,7 +112,7 @@ pub fn run(args: &TwinArgs) -> anyhow::Result<()> {
     let json = a.json;
     if let Some(url) = &a.opcua {
         let plc = a.plc.as_deref();
-        return crate::twin_opcua::run(twin, url, plc, until_us, &stop, &security, json);
+        return opcua_client(twin, url, plc, until_us, &stop, &security, json);
     }
     let Some(listen) = &a.modbus else {
         anyhow::bail!("give --modbus ADDR or --opcua URL");
@@ -145,4 +143,43 @@ pub fn run(args: &TwinArgs) -> anyhow::Result<()> {
         }
     }
     Ok(())
+}
+
+/// How `--opcua` reaches the PLC's server: the URL checked, the security options resolved.
+#[cfg(feature = "opcua")]
+fn opcua_security(a: &ServeArgs) -> anyhow::Result<cetratus_io::opcua::twin_client::ClientSecurity> {
+    if let Some(url) = &a.opcua {
+        cetratus_io::opcua::config::parse_url(url).map_err(|e| anyhow::anyhow!("--opcua: {e}"))?;
+    }
+    a.security.resolve(a.opcua.is_some())
+}
+
+/// A build without OPC UA refuses `--opcua` before anything starts.
+#[cfg(not(feature = "opcua"))]
+fn opcua_security(a: &ServeArgs) -> anyhow::Result<NoOpcUa> {
+    match a.opcua {
+        Some(_) => anyhow::bail!("--opcua: this build of cetratus has no OPC UA (it was built without the `opcua` feature); serve the twin with --modbus, or use a full build"),
+        None => Ok(NoOpcUa),
+    }
+}
+
+/// What a build without OPC UA has of its client's security: nothing.
+#[cfg(not(feature = "opcua"))]
+struct NoOpcUa;
+
+#[cfg(feature = "opcua")]
+use crate::twin_opcua::run as opcua_client;
+
+/// Never called: [`opcua_security`] refused `--opcua` already.
+#[cfg(not(feature = "opcua"))]
+fn opcua_client(
+    _twin: cetratus_twin::Twin,
+    url: &str,
+    _plc: Option<&str>,
+    _until_us: u64,
+    _stop: &AtomicBool,
+    _security: &NoOpcUa,
+    _json: bool,
+) -> anyhow::Result<()> {
+    anyhow::bail!("--opcua {url}: this build of cetratus has no OPC UA")
 }

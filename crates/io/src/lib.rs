@@ -11,7 +11,15 @@ pub mod config;
 pub mod field;
 pub mod map;
 mod modbus;
+#[cfg(feature = "opcua")]
 pub mod opcua;
+/// A build without the `opcua` feature still reads an I/O configuration's `[opcua]` section, so
+/// that the node can refuse it by name rather than call it an unknown key.
+#[cfg(not(feature = "opcua"))]
+pub mod opcua {
+    pub mod config;
+    pub use config::OpcUaConfig;
+}
 pub mod plant;
 pub mod server;
 pub mod twin_serve;

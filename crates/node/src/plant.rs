@@ -2,8 +2,6 @@
 //! devices and the PLC's Modbus server, and the PLC's OPC UA server, as one list of drivers
 //! ([`PlantIo`]).
 
-use std::sync::Arc;
-
 use cetratus_io::config::IoConfig;
 use cetratus_io::field::FieldIo;
 use cetratus_io::map::FieldMap;
@@ -35,6 +33,8 @@ pub(crate) struct Opening<'a> {
     pub local_io: Option<&'a IoConfig>,
     pub virtual_time: bool,
     pub period_us: u64,
+    // Names the OPC UA server's nodes, in a build that has it.
+    #[cfg_attr(not(feature = "opcua"), allow(dead_code))]
     pub plc_id: &'a str,
 }
 
@@ -182,7 +182,7 @@ fn open_opcua(
     let Some(o) = c.opcua.as_ref() else {
         return Ok(None);
     };
-    let program = Arc::new(at.program.clone());
+    let program = std::sync::Arc::new(at.program.clone());
     let server = OpcUaServer::start(
         o,
         Start {
@@ -255,7 +255,7 @@ fn password_check(
     if hashes.is_empty() {
         return Ok(None);
     }
-    Ok(Some(Arc::new(move |phc: &str, password: &[u8]| {
+    Ok(Some(std::sync::Arc::new(move |phc: &str, password: &[u8]| {
         hashes
             .iter()
             .find(|(p, _)| p == phc)

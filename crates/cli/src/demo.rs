@@ -147,7 +147,7 @@ fn live(args: &DemoArgs, files: &DemoFiles) -> anyhow::Result<()> {
     let speed = spec.time.speed();
     let mut say = |n: Notice| match n {
         Notice::Warning(line) => eprintln!("warning: {line}"),
-        Notice::Started(line) | Notice::Info(line) => eprintln!("{line}"),
+        Notice::Note(line) | Notice::Info(line) => eprintln!("{line}"),
     };
     let mut node = spec.start(&mut say)?;
     if let Some(services) = node.services() {

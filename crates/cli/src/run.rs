@@ -110,7 +110,7 @@ pub fn run(args: &RunArgs) -> anyhow::Result<()> {
     let spec = spec(args, program.clone(), kept.clone())?;
     let quiet = args.json || args.virtual_time;
     let mut say = |n: Notice| match n {
-        Notice::Started(line) => eprintln!("{line}"),
+        Notice::Note(line) => eprintln!("{line}"),
         Notice::Info(line) if !quiet => eprintln!("{line}"),
         Notice::Info(_) => {}
         Notice::Warning(line) => eprintln!("warning: {line}"),

@@ -134,7 +134,7 @@ fn open_field(
                 let all: Vec<String> = s.write_from.iter().map(|a| a.to_string()).collect();
                 all.join(", ")
             };
-            say(Notice::Started(format!(
+            say(Notice::Note(format!(
                 "Modbus server of the process image on {} (writes from {writers})",
                 server.addr()
             )));
@@ -203,7 +203,7 @@ fn open_opcua(
     } else {
         "read only"
     };
-    say(Notice::Started(format!(
+    say(Notice::Note(format!(
         "OPC UA server on {} (namespace urn:cetratus, nodes {}.*; inputs {inputs})",
         server.url(),
         at.plc_id

@@ -24,7 +24,7 @@ pub struct MqttSpec {
     pub login: Option<(String, Option<String>)>,
     /// Started once the broker is up: the dashboard.
     pub companion: Option<CompanionStart>,
-    /// Whether the broker's URL (and the companion's link) are said as [`Notice::Started`].
+    /// Whether the broker's URL (and the companion's link) are said as [`Notice::Note`].
     pub announce: bool,
 }
 
@@ -122,7 +122,7 @@ pub(crate) fn start(
     };
     if spec.announce {
         let topics = format!("MQTT {} (topics cetratus/{plc_id}/…)", access.url);
-        say(Notice::Started(
+        say(Notice::Note(
             match companion.as_ref().and_then(|c| c.link()) {
                 Some(link) => format!("{topics}, dashboard {link}"),
                 None => topics,

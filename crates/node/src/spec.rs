@@ -32,8 +32,9 @@ use crate::{Echo, Node, NodeOptions, NodeReport};
 /// Something a person should read about a node's start, printed by the caller.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub enum Notice {
-    /// Where a service the node started is reached (shown even when the caller is quiet).
-    Started(String),
+    /// What a person needs even from a quiet caller: where a service the node started is
+    /// reached, what a cold start discarded, whether real-time scheduling was granted.
+    Note(String),
     /// What the node was started with (a quiet caller leaves it out).
     Info(String),
     /// Something that went less well than asked, and what it means for the run.
@@ -354,7 +355,7 @@ impl NodeSpec {
             error,
         })?;
         for n in s.notes {
-            say(Notice::Warning(n));
+            say(Notice::Note(n));
         }
         say(Notice::Info(format!(
             "state: {} (a snapshot every {} cycles; see docs/persistence.md)",
@@ -498,7 +499,7 @@ impl RunningNode {
             for w in &status.warnings {
                 say(Notice::Warning(w.clone()));
             }
-            say(Notice::Started(format!("real time: {status}")));
+            say(Notice::Note(format!("real time: {status}")));
         }
         let speed = self.time.speed();
         let reached = self.node.run_realtime(self.period_us, until_us, speed, stop);

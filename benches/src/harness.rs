@@ -46,6 +46,13 @@ pub fn all_figures(quick: bool) -> Result<Figures, BenchError> {
         program::program_scan_full_ns(quick).into(),
     );
     out.insert(s("program_load_us"), program::program_load_us(quick).into());
+    // A chart four times longer costs four times more when the import is linear.
+    let (short, long) = (
+        program::plcopen_import_ms(5_000, 3),
+        program::plcopen_import_ms(20_000, 3),
+    );
+    out.insert(s("plcopen_import_20k_steps_ms"), long.into());
+    out.insert(s("plcopen_import_ratio_20k_vs_5k"), (long / short).into());
     let hour = program::twin_hour();
     out.insert(s("twin_hour_wall_ms"), hour.wall_ms.into());
     out.insert(s("twin_hour_parts_finished"), hour.parts_finished.into());

@@ -135,3 +135,55 @@ pub fn jitter(period_us: u64, for_us: u64, rt: bool) -> (CycleFigures, Option<St
     cycle.set_timing(timing);
     (cycle.figures(), status)
 }
+
+/// A PLCopen TC6 project whose SFC is one loop of `steps` steps, each left by a transition on
+/// the variable `go`: the shape of a long sequence as an engineer's tool exports it.
+pub fn plcopen_chain(steps: usize) -> String {
+    use std::fmt::Write;
+
+    let mut sfc = String::from(r#"<step localId="1" name="S0" initialStep="true"/>"#);
+    let (mut id, mut prev) = (2usize, 1usize);
+    for k in 1..=steps {
+        let condition = if k == steps { "NOT go" } else { "go" };
+        let _ = write!(
+            sfc,
+            r#"<transition localId="{id}"><connectionPointIn><connection refLocalId="{prev}"/></connectionPointIn><condition><inline name=""><ST><p>{condition}</p></ST></inline></condition></transition>"#
+        );
+        let t = id;
+        id += 1;
+        if k == steps {
+            let _ = write!(
+                sfc,
+                r#"<jumpStep localId="{id}" targetName="S0"><connectionPointIn><connection refLocalId="{t}"/></connectionPointIn></jumpStep>"#
+            );
+        } else {
+            let _ = write!(
+                sfc,
+                r#"<step localId="{id}" name="S{k}"><connectionPointIn><connection refLocalId="{t}"/></connectionPointIn></step>"#
+            );
+        }
+        prev = id;
+        id += 1;
+    }
+    format!(
+        r#"<?xml version="1.0"?><project xmlns="http://www.plcopen.org/xml/tc6_0201"><types><pous><pou name="P" pouType="program"><interface><localVars><variable name="go"><type><BOOL/></type></variable></localVars></interface><body><SFC>{sfc}</SFC></body></pou></pous></types></project>"#
+    )
+}
+
+/// Milliseconds to import [`plcopen_chain`] of `steps` steps (parse, read the chart, write the
+/// net and the program), the median of `runs`.
+pub fn plcopen_import_ms(steps: usize, runs: usize) -> f64 {
+    let text = plcopen_chain(steps);
+    let mut took: Vec<f64> = (0..runs.max(1))
+        .map(|_| {
+            let t0 = Instant::now();
+            black_box(
+                cetratus_sfc::import_str(&text, "chain.xml", None, "chain.pnml")
+                    .expect("the chain imports"),
+            );
+            t0.elapsed().as_secs_f64() * 1e3
+        })
+        .collect();
+    took.sort_by(|a, b| a.total_cmp(b));
+    took[took.len() / 2]
+}

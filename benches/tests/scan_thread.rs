@@ -15,7 +15,7 @@ fn the_cycles_between_publications_allocate_nothing() {
     let addr = std::net::TcpListener::bind("127.0.0.1:0")
         .and_then(|l| l.local_addr())
         .expect("a free port");
-    let (mut node, broker) =
+    let mut node =
         cetratus_bench::harness::vernadat_node("alloc", addr, PERIOD_US).expect("the node");
     let timing = LoopTiming::default();
     let mut now = 0;
@@ -23,7 +23,7 @@ fn the_cycles_between_publications_allocate_nothing() {
         (0..n)
             .map(|_| {
                 let a = ALLOC.during(|| {
-                    node.step(now, &timing).expect("the node runs");
+                    node.node_mut().step(now, &timing).expect("the node runs");
                 });
                 now += PERIOD_US;
                 a
@@ -48,6 +48,5 @@ fn the_cycles_between_publications_allocate_nothing() {
             .collect::<Vec<_>>()
     );
     assert!(allocating > 0, "no snapshot was built");
-    drop(node);
-    broker.shutdown();
+    node.finish().expect("the node stops");
 }

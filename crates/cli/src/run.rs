@@ -143,8 +143,17 @@ pub fn run(args: &RunArgs) -> anyhow::Result<()> {
     let period_us = node.period_us();
     let finished = node.finish()?;
     warn_dropped(&finished, state_dir.as_deref());
-    let summary = summary(args, &program, &finished, &kept, reached_us, period_us, state_dir)?;
-    write_trace(args, &plant, &program, finished.report.trace, reached_us, period_us)?;
+    let summary = summary(
+        args, &program, &finished, &kept, reached_us, period_us, state_dir,
+    )?;
+    write_trace(
+        args,
+        &plant,
+        &program,
+        finished.report.trace,
+        reached_us,
+        period_us,
+    )?;
     if args.json {
         println!("{}", serde_json::to_string_pretty(&summary)?);
     } else {
@@ -181,7 +190,10 @@ fn spec(args: &RunArgs, program: Arc<Program>, kept: Kept) -> anyhow::Result<Nod
         let dashboard = (!args.no_dashboard).then_some(args.http.as_str());
         spec.mqtt = Some(args.mqtt.spec(&spec.local, dashboard, !args.json)?);
     }
-    spec.state = args.state_dir.clone().map_or(StateDir::Default, StateDir::At);
+    spec.state = args
+        .state_dir
+        .clone()
+        .map_or(StateDir::Default, StateDir::At);
     spec.cold = args.cold;
     spec.trust = args
         .trust

@@ -147,7 +147,9 @@ pub fn run(args: &TwinArgs) -> anyhow::Result<()> {
 
 /// How `--opcua` reaches the PLC's server: the URL checked, the security options resolved.
 #[cfg(feature = "opcua")]
-fn opcua_security(a: &ServeArgs) -> anyhow::Result<cetratus_io::opcua::twin_client::ClientSecurity> {
+fn opcua_security(
+    a: &ServeArgs,
+) -> anyhow::Result<cetratus_io::opcua::twin_client::ClientSecurity> {
     if let Some(url) = &a.opcua {
         cetratus_io::opcua::config::parse_url(url).map_err(|e| anyhow::anyhow!("--opcua: {e}"))?;
     }

@@ -40,11 +40,7 @@ pub(crate) struct Opening<'a> {
 
 /// Opens the plant: the twin first, then the field (devices and Modbus server), then the OPC UA
 /// server, which is the order inputs are read in.
-pub(crate) fn open(
-    spec: &PlantSpec,
-    at: &Opening<'_>,
-    say: Say<'_>,
-) -> Result<PlantIo, SpecError> {
+pub(crate) fn open(spec: &PlantSpec, at: &Opening<'_>, say: Say<'_>) -> Result<PlantIo, SpecError> {
     let config = match &spec.io {
         Some(c) => Some(c.clone()),
         None if at.virtual_time => None,
@@ -111,16 +107,11 @@ fn open_field(
     others_provide: bool,
     say: Say<'_>,
 ) -> Result<Option<Field>, SpecError> {
-    let map = FieldMap::bind(
-        c,
-        at.program.inputs(),
-        at.program.outputs(),
-        others_provide,
-    )
-    .map_err(|error| SpecError::DoesNotFit {
-        file: c.file.clone(),
-        error,
-    })?;
+    let map = FieldMap::bind(c, at.program.inputs(), at.program.outputs(), others_provide)
+        .map_err(|error| SpecError::DoesNotFit {
+            file: c.file.clone(),
+            error,
+        })?;
     let server = match &c.server {
         Some(s) => {
             let server = ImageServer::start(s, &map).map_err(|error| SpecError::Server {
@@ -142,7 +133,10 @@ fn open_field(
         }
         None => None,
     };
-    Ok(Field::new(start_devices(c, map, at.period_us, say)?, server))
+    Ok(Field::new(
+        start_devices(c, map, at.period_us, say)?,
+        server,
+    ))
 }
 
 /// Starts the field devices' I/O threads and waits for the first input image; `None` when the
@@ -243,22 +237,23 @@ fn password_check(
 
     let mut hashes = Vec::new();
     for u in &o.users {
-        let h = HashedPassword::parse(&u.password_hash).map_err(|error| {
-            SpecError::PasswordHash {
+        let h =
+            HashedPassword::parse(&u.password_hash).map_err(|error| SpecError::PasswordHash {
                 at: u.at.clone(),
                 user: u.name.clone(),
                 error,
-            }
-        })?;
+            })?;
         hashes.push((u.password_hash.clone(), h));
     }
     if hashes.is_empty() {
         return Ok(None);
     }
-    Ok(Some(std::sync::Arc::new(move |phc: &str, password: &[u8]| {
-        hashes
-            .iter()
-            .find(|(p, _)| p == phc)
-            .is_some_and(|(_, h)| h.verify(password))
-    })))
+    Ok(Some(std::sync::Arc::new(
+        move |phc: &str, password: &[u8]| {
+            hashes
+                .iter()
+                .find(|(p, _)| p == phc)
+                .is_some_and(|(_, h)| h.verify(password))
+        },
+    )))
 }

@@ -51,7 +51,9 @@ pub trait Companion: Send {
 
 /// Starts a companion, given the broker's access.
 pub type CompanionStart = Box<
-    dyn FnOnce(&BrokerAccess) -> Result<Box<dyn Companion>, Box<dyn std::error::Error + Send + Sync>>,
+    dyn FnOnce(
+        &BrokerAccess,
+    ) -> Result<Box<dyn Companion>, Box<dyn std::error::Error + Send + Sync>>,
 >;
 
 /// The node's MQTT client and its companion.

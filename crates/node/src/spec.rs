@@ -136,7 +136,9 @@ pub enum SpecError {
         error: cetratus_twin::TwinError,
     },
     /// A simulation without a twin.
-    #[error("a virtual run needs a twin to simulate the plant: add --twin vernadat or --twin festo")]
+    #[error(
+        "a virtual run needs a twin to simulate the plant: add --twin vernadat or --twin festo"
+    )]
     VirtualNeedsTwin,
     /// A simulation with network I/O.
     #[error("{file}: a virtual run cannot use network I/O (its time runs faster than any device's); run in real time, or leave --io out")]
@@ -255,7 +257,10 @@ impl NodeSpec {
     /// the analysis gate.
     pub fn load_policy(&self) -> LoadPolicy {
         LoadPolicy {
-            trust: self.trust.clone().unwrap_or_else(|| self.local.trust.clone()),
+            trust: self
+                .trust
+                .clone()
+                .unwrap_or_else(|| self.local.trust.clone()),
             unsigned: Unsigned::allowed_if(self.allow_unsigned || self.local.allow_unsigned),
             gate: self.local.gate,
         }
@@ -414,7 +419,8 @@ impl NodeSpec {
         let services = match services {
             Some((link, s)) => {
                 let speed = self.time.speed();
-                let mut link = crate::services::control_link(link, node.plc(), load, speed, period_us);
+                let mut link =
+                    crate::services::control_link(link, node.plc(), load, speed, period_us);
                 if let Some(q) = quality {
                     link.set_input_quality(q);
                 }
@@ -502,7 +508,9 @@ impl RunningNode {
             say(Notice::Note(format!("real time: {status}")));
         }
         let speed = self.time.speed();
-        let reached = self.node.run_realtime(self.period_us, until_us, speed, stop);
+        let reached = self
+            .node
+            .run_realtime(self.period_us, until_us, speed, stop);
         self.node.io_mut().stop();
         reached
     }

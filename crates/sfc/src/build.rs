@@ -64,11 +64,18 @@ pub(crate) fn net(
     }
     // Left to right: among the transitions that leave a step, the leftmost has the highest
     // priority (IEC 61131-3: the first true branch from the left wins).
+    // Each step's leaving transitions, in transition order: one pass over the arcs, so that a
+    // chart of many steps costs what its size costs.
+    let mut leaving_of: Vec<Vec<usize>> = vec![Vec::new(); chart.steps.len()];
+    for (t, tr) in chart.transitions.iter().enumerate() {
+        for &s in &tr.from {
+            if leaving_of[s].last() != Some(&t) {
+                leaving_of[s].push(t);
+            }
+        }
+    }
     let mut priority = vec![0i32; chart.transitions.len()];
-    for s in 0..chart.steps.len() {
-        let mut leaving: Vec<usize> = (0..chart.transitions.len())
-            .filter(|&t| chart.transitions[t].from.contains(&s))
-            .collect();
+    for mut leaving in leaving_of {
         leaving.sort_by(|&a, &b| {
             chart.transitions[a]
                 .x

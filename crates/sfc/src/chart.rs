@@ -191,14 +191,24 @@ pub struct Chart {
     pub associations: Vec<Association>,
     /// Vendor data (`addData`) that the importer does not read, by data name, with a count.
     pub ignored_vendor_data: Vec<(String, usize)>,
+    /// Each step's index by its name in ASCII lower case (IEC names are case-insensitive), so
+    /// that a name is found in constant time however many steps the chart has.
+    step_names: HashMap<String, usize>,
 }
 
 impl Chart {
     /// The index of a step by name (IEC names are case-insensitive).
     pub fn step_index(&self, name: &str) -> Option<usize> {
-        self.steps
-            .iter()
-            .position(|s| s.name.eq_ignore_ascii_case(name))
+        self.step_names.get(&name.to_ascii_lowercase()).copied()
+    }
+
+    /// Appends a step; the first of two steps with one name keeps it.
+    pub(crate) fn push_step(&mut self, step: Step) {
+        let next = self.steps.len();
+        self.step_names
+            .entry(step.name.to_ascii_lowercase())
+            .or_insert(next);
+        self.steps.push(step);
     }
 }
 
@@ -291,6 +301,7 @@ impl<'r, 'a, 'i> Reader<'r, 'a, 'i> {
                 action_blocks: 0,
                 associations: Vec::new(),
                 ignored_vendor_data: Vec::new(),
+                step_names: HashMap::new(),
             },
         };
         for i in 0..reader.elements.len() {
@@ -385,7 +396,7 @@ impl<'r, 'a, 'i> Reader<'r, 'a, 'i> {
             ));
         }
         self.step_of.insert(i, self.chart.steps.len());
-        self.chart.steps.push(Step {
+        self.chart.push_step(Step {
             name,
             initial: e.attribute("initialStep") == Some("true"),
             at: e.range().start,

@@ -102,7 +102,7 @@ pub(crate) fn merge(
         for s in &nested.steps {
             let mut s = s.clone();
             s.name = format!("{action}{SEP}{}", s.name);
-            merged.steps.push(s);
+            merged.push_step(s);
         }
         for t in &nested.transitions {
             let mut t = t.clone();

@@ -20,6 +20,7 @@
 mod audit;
 mod exposure;
 mod inspect;
+mod sample;
 mod store;
 mod writer;
 
@@ -33,6 +34,7 @@ use cetratus_runtime::{Plc, Stopwatch, WallClock};
 pub use audit::{rfc3339_utc, AuditLog, AuditRecord};
 pub use exposure::{exposure, Exposure};
 pub use inspect::{ContainerReport, Inspection, StoredProgram};
+pub use sample::{REFUSAL_BURST, REFUSAL_EVERY_US};
 pub use store::{is_program_hash, PersistFigures, StateFile, StateStore};
 pub use writer::{PersistConfig, PersistStats, Persister, DEFAULT_INTERVAL_US};
 

@@ -81,6 +81,8 @@ pub struct PersistStats {
     pub skipped: u64,
     /// Audit records dropped because the queue was full.
     pub audit_dropped: u64,
+    /// Refused commands counted rather than logged one by one (see [`crate::REFUSAL_BURST`]).
+    pub refusals_unlogged: u64,
     /// The longest commit, microseconds.
     pub max_commit_us: u64,
     /// Write errors.
@@ -105,6 +107,7 @@ pub struct Persister {
     known_next: usize,
     audit_dropped: u64,
     audit_dropped_unreported: u64,
+    refusals: crate::sample::RefusalSampler,
     skipped: u64,
     shared: Arc<Shared>,
     handle: Option<JoinHandle<(u64, u64)>>,
@@ -140,6 +143,7 @@ impl Persister {
             known_next: 0,
             audit_dropped: 0,
             audit_dropped_unreported: 0,
+            refusals: Default::default(),
             skipped: 0,
             shared,
             handle: Some(handle),
@@ -230,9 +234,22 @@ impl Persister {
 
     /// Logs an event in the audit log, caused by `who`. Never blocks: when the queue is full the
     /// record is dropped and counted, and the count is logged as soon as there is room.
+    /// Refused commands are sampled: a burst, then one a second of program time, the rest
+    /// counted in one record.
     pub fn audit(&mut self, event: &Event, who: &str) {
         // The audit log is for people, in wall time; the engine itself still never reads a clock.
-        let rec = AuditRecord::of_event(event, who, self.wall.now());
+        let wall = self.wall.now();
+        if event.kind == cetratus_runtime::EventKind::Refused {
+            match self.refusals.admit(event.time_us) {
+                None => return,
+                Some(0) => {}
+                Some(n) => {
+                    let rec = crate::sample::unlogged_record(n, event.cycle, event.time_us, wall);
+                    self.audit_record(rec, event.cycle);
+                }
+            }
+        }
+        let rec = AuditRecord::of_event(event, who, wall);
         self.audit_record(rec, event.cycle);
     }
 
@@ -263,8 +280,19 @@ impl Persister {
         let mut stats = PersistStats {
             skipped: self.skipped,
             audit_dropped: self.audit_dropped,
+            refusals_unlogged: self.refusals.total_unlogged(),
             ..Default::default()
         };
+        let unlogged = self.refusals.take_unlogged();
+        if unlogged > 0 {
+            let rec = crate::sample::unlogged_record(
+                unlogged,
+                plc.cycles(),
+                plc.now_us(),
+                self.wall.now(),
+            );
+            let _ = self.tx.send(Msg::Audit(Box::new(rec)));
+        }
         // Off the scan loop now: blocking sends are fine, and nothing may be lost.
         let mut programs_ok = true;
         for slot in [Slot::A, Slot::B] {

@@ -349,6 +349,7 @@ pub fn figures(period_us: u64, for_us: u64, rt: bool) -> Result<IoFigures, Bench
         ServeOptions {
             unit: 1,
             max_connections: 8,
+            idle_timeout: cetratus_io::bank::DEFAULT_IDLE_TIMEOUT,
             write_from: WriteFrom::Anyone,
         },
     )

@@ -18,7 +18,13 @@ fn a_flood_of_refused_commands_logs_a_burst_and_counts_the_rest() {
     let (ops, replies) = client(plc.mqtt, "audit-flood", PLC);
     // Nothing is loaded: every `remove` reaches the scan thread and is refused there.
     for k in 0..SENT {
-        request(&ops, PLC, "remove", format!("r{k}").as_bytes(), b"{}".to_vec());
+        request(
+            &ops,
+            PLC,
+            "remove",
+            format!("r{k}").as_bytes(),
+            b"{}".to_vec(),
+        );
     }
     // The broker may turn part of a flood away; what it lets through is answered. The flood is
     // over when no answer has come for two seconds.

@@ -86,7 +86,7 @@ fn panel(dir: &Path, port: u16) -> (PathBuf, PathBuf) {
     let io = dir.join("io.toml");
     std::fs::write(
         &io,
-        format!("[[channel]]\naddress = \"%IX1.0\"\nhmi_writable = true\n\n[server]\nmodbus = \"127.0.0.1:{port}\"\nmax_connections = 4\nwrite_from = [\"127.0.0.1\"]\n"),
+        format!("[[channel]]\naddress = \"%IX1.0\"\nhmi_writable = true\n\n[server]\nmodbus = \"127.0.0.1:{port}\"\nmax_connections = 4\nidle_timeout = \"2s\"\nwrite_from = [\"127.0.0.1\"]\n"),
     )
     .expect("write io.toml");
     (program, io)
@@ -267,4 +267,35 @@ fn with_the_twin_as_the_plant_the_server_shows_the_twins_sensors_and_the_program
     let s = stop(plc);
     assert!(s["firings"].as_u64().unwrap() > 0, "{s}");
     assert_eq!(s["twin_faults"], 0, "{s}");
+}
+
+#[test]
+fn idle_sockets_from_one_host_neither_lock_the_server_nor_keep_their_slots() {
+    use std::io::Read;
+
+    let dir = tempfile::tempdir().unwrap();
+    let port = free_port();
+    let plc = start(dir.path(), port);
+    // Eight connections that never send a byte, from one host: as many as it may keep are
+    // kept open, the rest closed at once.
+    let idle: Vec<std::net::TcpStream> = (0..8)
+        .map(|_| std::net::TcpStream::connect(("127.0.0.1", port)).expect("connect"))
+        .collect();
+    std::thread::sleep(Duration::from_millis(300));
+    // An HMI on another address still gets in.
+    let got = session(port, Some("127.0.0.2"), &["read:coils:0:1"]);
+    assert_eq!(got, ["0"], "the HMI is served beside the idle sockets");
+    // The idle ones are closed after the idle timeout (2 s here): each read ends.
+    for mut s in idle {
+        s.set_read_timeout(Some(Duration::from_secs(10)))
+            .expect("a read timeout");
+        let mut buf = [0u8; 8];
+        match s.read(&mut buf) {
+            Ok(0) => {}
+            Err(e) if e.kind() == std::io::ErrorKind::ConnectionReset => {}
+            other => panic!("an idle socket was left open: {other:?}"),
+        }
+    }
+    let s = stop(plc);
+    assert!(s["modbus_server"]["refused"].as_u64().unwrap() >= 6, "{s}");
 }

@@ -13,13 +13,15 @@
 
 use std::future::{ready, Ready};
 use std::net::{IpAddr, SocketAddr};
-use std::sync::atomic::{AtomicUsize, Ordering};
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex, MutexGuard};
+use std::time::Duration;
 
-use tokio_modbus::server::tcp::{accept_tcp_connection, Server};
+use tokio_modbus::server::tcp::Server;
 use tokio_modbus::server::Service;
 use tokio_modbus::{ExceptionCode, Request, Response, SlaveRequest};
 
+use crate::slots::{Idle, Slot, Slots};
 use crate::IoError;
 
 /// The four tables of a Modbus device, and which of them clients may write.
@@ -73,11 +75,18 @@ impl WriteFrom {
 pub struct ServeOptions {
     /// The unit id it answers to (0 and 255 always reach it too).
     pub unit: u8,
-    /// Clients served at once; further connections are closed at once.
+    /// Clients served at once; further connections are closed at once (one address holds at
+    /// most half of them, and the last quarter is kept for addresses served before:
+    /// [`crate::slots`]).
     pub max_connections: usize,
+    /// A connection that sends nothing for this long is closed.
+    pub idle_timeout: Duration,
     /// Who may write.
     pub write_from: WriteFrom,
 }
+
+/// The idle timeout of a Modbus server when the configuration names none.
+pub const DEFAULT_IDLE_TIMEOUT: Duration = Duration::from_secs(60);
 
 /// What the server did.
 #[derive(Debug, Default, Clone, Copy, PartialEq, Eq, serde::Serialize)]
@@ -86,7 +95,7 @@ pub struct BankCounters {
     pub requests: u64,
     /// Requests answered with an exception.
     pub exceptions: u64,
-    /// Connections closed at once because the limit was reached.
+    /// Connections closed at once because no slot was left for them.
     pub refused: u64,
 }
 
@@ -228,18 +237,13 @@ impl Bank {
     }
 }
 
-/// One connection's service.
+/// One connection's service, holding its slot.
 struct BankService {
     bank: Arc<Mutex<Bank>>,
     unit: u8,
     may_write: bool,
-    open: Arc<AtomicUsize>,
-}
-
-impl Drop for BankService {
-    fn drop(&mut self) {
-        self.open.fetch_sub(1, Ordering::SeqCst);
-    }
+    slot: Slot,
+    served: AtomicBool,
 }
 
 impl Service for BankService {
@@ -249,6 +253,9 @@ impl Service for BankService {
     type Future = Ready<Result<Response, ExceptionCode>>;
 
     fn call(&self, req: Self::Request) -> Self::Future {
+        if !self.served.swap(true, Ordering::Relaxed) {
+            self.slot.served();
+        }
         let mut bank = lock(&self.bank);
         // 0 and 255 address "the device behind this connection" in Modbus TCP.
         if req.slave != self.unit && req.slave != 0 && req.slave != 255 {
@@ -277,6 +284,7 @@ impl BankServer {
         let ServeOptions {
             unit,
             max_connections,
+            idle_timeout,
             write_from,
         } = options;
         let listener = std::net::TcpListener::bind(addr).map_err(|e| IoError::Listen {
@@ -308,23 +316,23 @@ impl BankServer {
                         return;
                     };
                     let server = Server::new(listener);
-                    let open = Arc::new(AtomicUsize::new(0));
+                    let slots = Slots::shared(max_connections);
                     let on_connected = |stream, peer: SocketAddr| {
-                        let (bank, open) = (bank.clone(), open.clone());
+                        let (bank, slots) = (bank.clone(), slots.clone());
                         let may_write = write_from.allows(peer.ip());
                         async move {
-                            if open.load(Ordering::SeqCst) >= max_connections {
+                            let Ok(slot) = Slots::take(&slots, peer.ip()) else {
                                 lock(&bank).counters.refused += 1;
                                 return Ok(None);
-                            }
-                            open.fetch_add(1, Ordering::SeqCst);
-                            let svc = std::cell::Cell::new(Some(BankService {
+                            };
+                            let svc = BankService {
                                 bank,
                                 unit,
                                 may_write,
-                                open,
-                            }));
-                            accept_tcp_connection(stream, peer, |_| Ok(svc.take()))
+                                slot,
+                                served: AtomicBool::new(false),
+                            };
+                            Ok(Some((svc, Idle::new(stream, idle_timeout))))
                         }
                     };
                     tokio::select! {

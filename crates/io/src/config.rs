@@ -147,6 +147,8 @@ pub struct ServerConfig {
     pub listen: String,
     /// Connections served at once; more are refused.
     pub max_connections: usize,
+    /// A connection that sends nothing for this long is closed (µs).
+    pub idle_timeout_us: u64,
     /// Addresses of clients that may write; everyone else only reads.
     pub write_from: Vec<std::net::IpAddr>,
 }
@@ -227,6 +229,7 @@ struct ScaleSrc {
 struct ServerSrc {
     modbus: Spanned<String>,
     max_connections: Option<Spanned<i64>>,
+    idle_timeout: Option<Spanned<String>>,
     #[serde(default)]
     write_from: Vec<Spanned<String>>,
 }
@@ -554,6 +557,11 @@ fn server(r: &Reader<'_>, s: &Spanned<ServerSrc>) -> Result<ServerConfig, IoErro
     Ok(ServerConfig {
         listen: listen.clone(),
         max_connections: r.count(&s.max_connections, 8, "max_connections", 256)? as usize,
+        idle_timeout_us: r.duration(
+            &s.idle_timeout,
+            crate::bank::DEFAULT_IDLE_TIMEOUT.as_micros() as u64,
+            "idle_timeout",
+        )?,
         write_from,
     })
 }

@@ -272,6 +272,7 @@ impl ImageServer {
             ServeOptions {
                 unit: 1,
                 max_connections: config.max_connections,
+                idle_timeout: std::time::Duration::from_micros(config.idle_timeout_us),
                 write_from: WriteFrom::Only(config.write_from.clone()),
             },
         )?;

@@ -156,6 +156,7 @@ pub fn serve(
         ServeOptions {
             unit: 1,
             max_connections: 16,
+            idle_timeout: crate::bank::DEFAULT_IDLE_TIMEOUT,
             write_from: WriteFrom::Anyone,
         },
     )?;

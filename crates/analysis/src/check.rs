@@ -4,18 +4,17 @@ use std::sync::atomic::AtomicBool;
 use std::sync::Arc;
 use std::time::Duration;
 
-use cetratus_net::{Net, PlaceIdx, TransIdx};
+use cetratus_net::{Net, PlaceIdx};
 
 use crate::budget::{
     Clock, Deadline, PartialReason, DEFAULT_MAX_MEMORY, DEFAULT_MAX_STATES, DEFAULT_TIMEOUT,
 };
-use crate::classify::classify;
-use crate::coverability::{karp_miller, OMEGA};
+use crate::coverability::{karp_miller, Coverability, OMEGA};
 use crate::invariants::{
     p_semiflows_within, structural_bounds_within, t_semiflows_within, Semiflow, DEFAULT_MAX_ROWS,
 };
 use crate::reach::{explore, Packing, ReachOptions, ReachResult, SpareCoreFn, Stop};
-use crate::report::{Bound, Named, Report, Timings};
+use crate::report::{place_id, transition_ids, Bound, Named, Report};
 use crate::siphons::{
     holds_marked_trap, minimal_siphons_until, minimal_traps_until, MinimalSets, SetLimits,
 };
@@ -100,6 +99,24 @@ impl Default for CheckOptions {
     }
 }
 
+impl CheckOptions {
+    /// The options of an exploration within this run's budgets and threads, ending at
+    /// `deadline`.
+    pub(crate) fn reach_options(&self, deadline: Option<Deadline>) -> ReachOptions {
+        ReachOptions {
+            max_states: self.max_states,
+            max_memory: self.max_memory,
+            deadline,
+            cancel: self.cancel.clone(),
+            progress: self.progress.clone(),
+            liveness: true,
+            threads: self.threads,
+            parallel_from: self.parallel_from,
+            spare_core: self.spare_core.clone(),
+        }
+    }
+}
+
 /// Milliseconds on the options' clock since `since` (0 without a clock).
 pub(crate) fn ms(opts: &CheckOptions, since: Duration) -> f64 {
     now(opts).saturating_sub(since).as_secs_f64() * 1e3
@@ -111,17 +128,9 @@ pub(crate) fn tableau_bytes(opts: &CheckOptions) -> usize {
         .map_or(usize::MAX, |m| usize::try_from(m).unwrap_or(usize::MAX))
 }
 
+/// The time on the options' clock (0 without a clock).
 pub(crate) fn now(opts: &CheckOptions) -> Duration {
     opts.clock.as_ref().map_or(Duration::ZERO, |c| c.elapsed())
-}
-
-struct Structural {
-    p: Result<Vec<Semiflow>, AnalysisError>,
-    t: Result<Vec<Semiflow>, AnalysisError>,
-    siphons: MinimalSets,
-    traps: MinimalSets,
-    invariants_ms: f64,
-    siphons_ms: f64,
 }
 
 /// The deadline of the whole run: `timeout` after now on the options' clock.
@@ -150,22 +159,87 @@ pub(crate) fn interrupted(
         .then_some(PartialReason::Timeout)
 }
 
-fn structural(net: &Net, opts: &CheckOptions, deadline: &Option<Deadline>) -> Structural {
-    let stop = || interrupted(opts, deadline).is_some();
-    let t0 = now(opts);
-    let p = p_semiflows_within(net, opts.farkas_max_rows, tableau_bytes(opts), &stop);
-    let t = t_semiflows_within(net, opts.farkas_max_rows, tableau_bytes(opts), &stop);
-    let invariants_ms = ms(opts, t0);
-    let t1 = now(opts);
-    let siphons = minimal_siphons_until(net, opts.set_limits, &stop);
-    let traps = minimal_traps_until(net, opts.set_limits, &stop);
-    Structural {
-        p,
-        t,
-        siphons,
-        traps,
-        invariants_ms,
-        siphons_ms: ms(opts, t1),
+/// What the structural analyses found, and the milliseconds they took.
+struct Structural {
+    p: Result<Vec<Semiflow>, AnalysisError>,
+    t: Result<Vec<Semiflow>, AnalysisError>,
+    siphons: MinimalSets,
+    traps: MinimalSets,
+    invariants_ms: f64,
+    siphons_ms: f64,
+}
+
+impl Structural {
+    /// The invariants for the report: the semiflows by id, the constants `y·M0` and
+    /// conservativeness; what could not be computed stays null, with a note saying why.
+    fn report_invariants(&self, net: &Net, report: &mut Report) {
+        report.p_invariants = named_flows(net, &self.p, true, &mut report.notes);
+        report.t_invariants = named_flows(net, &self.t, false, &mut report.notes);
+        let m0 = net.initial_marking();
+        report.p_invariant_constants = self.p.as_ref().ok().and_then(|v| {
+            v.iter()
+                .map(|s| s.dot(m0.as_slice()))
+                .collect::<Option<Vec<_>>>()
+        });
+        report.conservative = self.p.as_ref().ok().map(|v| {
+            let mut covered = vec![false; net.num_places()];
+            for s in v {
+                for &(p, _) in &s.0 {
+                    covered[p] = true;
+                }
+            }
+            covered.iter().all(|&c| c)
+        });
+    }
+
+    /// The siphons and traps for the report, with Commoner's warning about the siphons that
+    /// hold no initially marked trap, and a note for each enumeration that hit its limit.
+    fn report_siphons(&self, net: &Net, limits: &SetLimits, report: &mut Report) {
+        let names = |s: &Vec<usize>| s.iter().map(|&p| place_id(net, p)).collect::<Vec<_>>();
+        let unguarded: Vec<Vec<String>> = self
+            .siphons
+            .sets
+            .iter()
+            .filter(|s| !holds_marked_trap(net, s))
+            .map(names)
+            .collect();
+        if let Some(first) = unguarded.first() {
+            report.warnings.push(format!(
+                "{} minimal siphon(s) hold no initially marked trap, e.g. {{{}}}: once such a \
+                 siphon is emptied it stays empty and its output transitions are dead (Commoner: \
+                 a free-choice net is live iff every siphon holds a marked trap); see \
+                 `siphons_without_marked_trap`",
+                unguarded.len(),
+                first.join(", ")
+            ));
+        }
+        if self.siphons.truncated {
+            report.notes.push(format!(
+                "siphon enumeration stopped at its limit ({} search nodes or {} sets)",
+                limits.max_nodes, limits.max_sets
+            ));
+        }
+        if self.traps.truncated {
+            report
+                .notes
+                .push("trap enumeration stopped at its limit".into());
+        }
+        report.siphons = self.siphons.sets.iter().map(names).collect();
+        report.siphons_truncated = self.siphons.truncated;
+        report.siphons_without_marked_trap = unguarded;
+        report.traps = self.traps.sets.iter().map(names).collect();
+        report.traps_truncated = self.traps.truncated;
+    }
+
+    /// Whether a structural analysis (the structural bounds `sb` included) stopped before its
+    /// end: interrupted, or an enumeration truncated.
+    fn cut_short(&self, sb: &Result<Vec<Option<u64>>, AnalysisError>) -> bool {
+        let cut = |r: Option<&AnalysisError>| matches!(r, Some(AnalysisError::Interrupted { .. }));
+        cut(sb.as_ref().err())
+            || cut(self.p.as_ref().err())
+            || cut(self.t.as_ref().err())
+            || self.siphons.truncated
+            || self.traps.truncated
     }
 }
 
@@ -173,51 +247,123 @@ fn structural(net: &Net, opts: &CheckOptions, deadline: &Option<Deadline>) -> St
 enum Behaviour {
     None(String),
     Reach(ReachResult),
-    Cover(crate::coverability::Coverability),
+    Cover(Coverability),
 }
 
-fn behaviour(
-    net: &Net,
-    known: &[Option<u64>],
-    opts: &CheckOptions,
-    deadline: &Option<Deadline>,
-    notes: &mut Vec<String>,
-) -> Behaviour {
-    let deadline = deadline.clone();
-    let ropts = ReachOptions {
-        max_states: opts.max_states,
-        max_memory: opts.max_memory,
-        deadline,
-        cancel: opts.cancel.clone(),
-        progress: opts.progress.clone(),
-        liveness: true,
-        threads: opts.threads,
-        parallel_from: opts.parallel_from,
-        spare_core: opts.spare_core.clone(),
-    };
-    let bounds: Vec<u64> = if known.iter().all(Option::is_some) {
-        notes.push(
-            "every place has a structural bound or a capacity, so the states are packed with \
-             those widths from the start"
-                .into(),
-        );
-        known.iter().map(|b| b.unwrap_or(0)).collect()
-    } else {
-        let km = karp_miller(net, &ropts);
-        if !km.unbounded.is_empty() || km.stopped.is_some() {
-            return Behaviour::Cover(km);
+/// One run of [`check`]: the net, the options, the deadline, and the bounds proven before
+/// exploring.
+struct Run<'a> {
+    net: &'a Net,
+    opts: &'a CheckOptions,
+    deadline: &'a Option<Deadline>,
+    known: &'a [Option<u64>],
+}
+
+impl Run<'_> {
+    /// The invariants, siphons and traps, within the run's budgets.
+    fn structural(&self) -> Structural {
+        let (net, opts) = (self.net, self.opts);
+        let stop = || interrupted(opts, self.deadline).is_some();
+        let t0 = now(opts);
+        let p = p_semiflows_within(net, opts.farkas_max_rows, tableau_bytes(opts), &stop);
+        let t = t_semiflows_within(net, opts.farkas_max_rows, tableau_bytes(opts), &stop);
+        let invariants_ms = ms(opts, t0);
+        let t1 = now(opts);
+        let siphons = minimal_siphons_until(net, opts.set_limits, &stop);
+        let traps = minimal_traps_until(net, opts.set_limits, &stop);
+        Structural {
+            p,
+            t,
+            siphons,
+            traps,
+            invariants_ms,
+            siphons_ms: ms(opts, t1),
         }
-        notes.push(
-            "some place has no structural bound; a Karp–Miller graph found the net bounded, and \
-             its exact place bounds size the packed states"
-                .into(),
-        );
-        km.max_tokens
-    };
-    let packing = Packing::new(&bounds);
-    match explore(net, &packing, &ropts) {
-        Ok(r) => Behaviour::Reach(r),
-        Err(e) => Behaviour::None(e.to_string()),
+    }
+
+    /// The state space: the reachability graph over states packed with proven widths, or the
+    /// Karp–Miller graph when the net is unbounded (or its exploration stopped). Its notes go
+    /// to `notes`.
+    fn behaviour(&self, notes: &mut Vec<String>) -> Behaviour {
+        let (net, known) = (self.net, self.known);
+        let ropts = self.opts.reach_options(self.deadline.clone());
+        let bounds: Vec<u64> = if known.iter().all(Option::is_some) {
+            notes.push(
+                "every place has a structural bound or a capacity, so the states are packed \
+                 with those widths from the start"
+                    .into(),
+            );
+            known.iter().map(|b| b.unwrap_or(0)).collect()
+        } else {
+            let km = karp_miller(net, &ropts);
+            if !km.unbounded.is_empty() || km.stopped.is_some() {
+                return Behaviour::Cover(km);
+            }
+            notes.push(
+                "some place has no structural bound; a Karp–Miller graph found the net bounded, \
+                 and its exact place bounds size the packed states"
+                    .into(),
+            );
+            km.max_tokens
+        };
+        let packing = Packing::new(&bounds);
+        match explore(net, &packing, &ropts) {
+            Ok(r) => Behaviour::Reach(r),
+            Err(e) => Behaviour::None(e.to_string()),
+        }
+    }
+
+    /// The structural analyses and the behavioural phase, side by side when there are threads
+    /// to spare, with the milliseconds the behavioural phase took. Its notes go to `notes`.
+    fn phases(&self, notes: &mut Vec<String>) -> (Structural, Behaviour, f64) {
+        let opts = self.opts;
+        let tb = now(opts);
+        if opts.threads >= 2 && opts.behaviour {
+            std::thread::scope(|s| {
+                let h = s.spawn(|| self.structural());
+                let mut n = Vec::new();
+                let b = self.behaviour(&mut n);
+                let bms = ms(opts, tb);
+                // A panic in the structural thread is a bug; surface it rather than hide it.
+                let st = match h.join() {
+                    Ok(st) => st,
+                    Err(p) => std::panic::resume_unwind(p),
+                };
+                notes.extend(n);
+                (st, b, bms)
+            })
+        } else {
+            let st = self.structural();
+            let tb = now(opts);
+            let b = if opts.behaviour {
+                self.behaviour(notes)
+            } else {
+                Behaviour::None("behaviour not requested".into())
+            };
+            (st, b, ms(opts, tb))
+        }
+    }
+}
+
+/// Semiflows by id (`places`: P-semiflows, else T-semiflows), or `None` with a note when they
+/// could not be computed.
+fn named_flows(
+    net: &Net,
+    flows: &Result<Vec<Semiflow>, AnalysisError>,
+    places: bool,
+    notes: &mut Vec<String>,
+) -> Option<Vec<Named<i64>>> {
+    match flows {
+        Ok(v) => Some(v.iter().map(|s| named_flow(net, s, places)).collect()),
+        Err(e) => {
+            let what = if places {
+                "P-invariants"
+            } else {
+                "T-invariants"
+            };
+            notes.push(format!("{what}: {e}"));
+            None
+        }
     }
 }
 
@@ -236,9 +382,42 @@ fn named_flow(net: &Net, s: &Semiflow, places: bool) -> Named<i64> {
     )
 }
 
+/// Per place, the bounds proven before anything is explored.
+pub(crate) struct ProvenBounds {
+    /// The structural bounds (`y·C ≤ 0`), or why they are not known.
+    pub(crate) structural: Result<Vec<Option<u64>>, AnalysisError>,
+    /// Per place, the structural bound or the capacity (see [`known_bounds`]).
+    pub(crate) known: Vec<Option<u64>>,
+}
+
+impl ProvenBounds {
+    /// The bounds proven within the run's budgets; when the structural bounds could not be
+    /// computed, `notes` says why.
+    pub(crate) fn prove(
+        net: &Net,
+        opts: &CheckOptions,
+        deadline: &Option<Deadline>,
+        notes: &mut Vec<String>,
+    ) -> ProvenBounds {
+        let stop = || interrupted(opts, deadline).is_some();
+        let structural =
+            structural_bounds_within(net, opts.farkas_max_rows, tableau_bytes(opts), &stop);
+        let known = known_bounds(net, &structural, notes);
+        ProvenBounds { structural, known }
+    }
+
+    /// Every place has a structural bound (`None`: they could not be computed).
+    pub(crate) fn structurally_bounded(&self) -> Option<bool> {
+        self.structural
+            .as_ref()
+            .ok()
+            .map(|b| b.iter().all(Option::is_some))
+    }
+}
+
 /// Per place, a proven bound: the structural bound (from `sb`) or the capacity, the smaller of
 /// the two when both exist.
-pub(crate) fn known_bounds(
+fn known_bounds(
     net: &Net,
     sb: &Result<Vec<Option<u64>>, AnalysisError>,
     notes: &mut Vec<String>,
@@ -269,331 +448,194 @@ pub(crate) fn known_bounds(
 /// the report and explained in its notes.
 pub fn check(net: &Net, opts: &CheckOptions) -> Report {
     let t0 = now(opts);
+    let mut report = Report::empty(net);
     let np = net.num_places();
-    let nt = net.num_transitions();
-    let pid = |p: usize| net.places()[p].id.clone();
-    let tid = |t: TransIdx| net.transitions()[t.index()].id.clone();
-    let mut notes: Vec<String> = Vec::new();
-    let mut warnings: Vec<String> = Vec::new();
-    let classification = classify(net);
-    let incidence = (np * nt <= 10_000).then(|| Incidence::of(net));
+    report.incidence = (np * net.num_transitions() <= 10_000).then(|| Incidence::of(net));
     let deadline = deadline(opts);
-    let stop = || interrupted(opts, &deadline).is_some();
-    let sb = structural_bounds_within(net, opts.farkas_max_rows, tableau_bytes(opts), &stop);
-    let known = known_bounds(net, &sb, &mut notes);
-    let structurally_bounded = sb.as_ref().ok().map(|b| b.iter().all(Option::is_some));
-    let structure_ms = ms(opts, t0);
+    let bounds = ProvenBounds::prove(net, opts, &deadline, &mut report.notes);
+    report.structurally_bounded = bounds.structurally_bounded();
+    report.bounded = report.structurally_bounded.filter(|&b| b);
+    report.max_tokens = Named(
+        (0..np)
+            .map(|p| {
+                let b = bounds.known[p].map_or(Bound::Unknown, Bound::Tokens);
+                (place_id(net, p), b)
+            })
+            .collect(),
+    );
+    report.timings.structure_ms = ms(opts, t0);
 
-    let tb = now(opts);
-    let (st, beh, behaviour_ms) = if opts.threads >= 2 && opts.behaviour {
-        std::thread::scope(|s| {
-            let h = s.spawn(|| structural(net, opts, &deadline));
-            let mut n = Vec::new();
-            let b = behaviour(net, &known, opts, &deadline, &mut n);
-            let bms = ms(opts, tb);
-            // A panic in the structural thread is a bug; surface it rather than hide it.
-            let st = match h.join() {
-                Ok(st) => st,
-                Err(p) => std::panic::resume_unwind(p),
-            };
-            notes.extend(n);
-            (st, b, bms)
-        })
-    } else {
-        let st = structural(net, opts, &deadline);
-        let tb = now(opts);
-        let b = if opts.behaviour {
-            behaviour(net, &known, opts, &deadline, &mut notes)
-        } else {
-            Behaviour::None("behaviour not requested".into())
-        };
-        (st, b, ms(opts, tb))
+    let run = Run {
+        net,
+        opts,
+        deadline: &deadline,
+        known: &bounds.known,
     };
-
-    let p_invariants = match &st.p {
-        Ok(v) => Some(
-            v.iter()
-                .map(|s| named_flow(net, s, true))
-                .collect::<Vec<_>>(),
-        ),
-        Err(e) => {
-            notes.push(format!("P-invariants: {e}"));
-            None
-        }
-    };
-    let m0 = net.initial_marking();
-    let p_invariant_constants = st.p.as_ref().ok().and_then(|v| {
-        v.iter()
-            .map(|s| s.dot(m0.as_slice()))
-            .collect::<Option<Vec<_>>>()
-    });
-    let t_invariants = match &st.t {
-        Ok(v) => Some(
-            v.iter()
-                .map(|s| named_flow(net, s, false))
-                .collect::<Vec<_>>(),
-        ),
-        Err(e) => {
-            notes.push(format!("T-invariants: {e}"));
-            None
-        }
-    };
-    let conservative = st.p.as_ref().ok().map(|v| {
-        let mut covered = vec![false; np];
-        for s in v {
-            for &(p, _) in &s.0 {
-                covered[p] = true;
-            }
-        }
-        covered.iter().all(|&c| c)
-    });
-    let set_names = |m: &MinimalSets| -> Vec<Vec<String>> {
-        m.sets
-            .iter()
-            .map(|s| s.iter().map(|&p| pid(p)).collect())
-            .collect()
-    };
-    let unguarded: Vec<Vec<String>> = st
-        .siphons
-        .sets
-        .iter()
-        .filter(|s| !holds_marked_trap(net, s))
-        .map(|s| s.iter().map(|&p| pid(p)).collect())
-        .collect();
-    if let Some(first) = unguarded.first() {
-        warnings.push(format!(
-            "{} minimal siphon(s) hold no initially marked trap, e.g. {{{}}}: once such a siphon \
-             is emptied it stays empty and its output transitions are dead (Commoner: a \
-             free-choice net is live iff every siphon holds a marked trap); see \
-             `siphons_without_marked_trap`",
-            unguarded.len(),
-            first.join(", ")
-        ));
-    }
-    if st.siphons.truncated {
-        notes.push(format!(
-            "siphon enumeration stopped at its limit ({} search nodes or {} sets)",
-            opts.set_limits.max_nodes, opts.set_limits.max_sets
-        ));
-    }
-    if st.traps.truncated {
-        notes.push("trap enumeration stopped at its limit".into());
-    }
-    if classification.inhibitor_arcs {
-        notes.push(
+    let (st, beh, behaviour_ms) = run.phases(&mut report.notes);
+    report.timings.invariants_ms = st.invariants_ms;
+    report.timings.siphons_ms = st.siphons_ms;
+    report.timings.behaviour_ms = behaviour_ms;
+    st.report_invariants(net, &mut report);
+    st.report_siphons(net, &opts.set_limits, &mut report);
+    if report.classification.inhibitor_arcs {
+        report.notes.push(
             "inhibitor arcs are honoured in the state space but ignored by invariants, siphons, \
              traps and net classes"
                 .into(),
         );
     }
-
-    let mut report = Report {
-        net: net.id().to_string(),
-        places: np,
-        transitions: nt,
-        arcs: net.arcs().len(),
-        graph: "none",
-        states: 0,
-        edges: 0,
-        deadlocks: 0,
-        deadlock_witness: None,
-        bounded: structurally_bounded.filter(|&b| b),
-        safe: None,
-        unbounded_places: Vec::new(),
-        max_tokens: Named(
-            (0..np)
-                .map(|p| (pid(p), known[p].map_or(Bound::Unknown, Bound::Tokens)))
-                .collect(),
-        ),
-        live: None,
-        non_live_transitions: Vec::new(),
-        dead_transitions: Vec::new(),
-        reversible: None,
-        p_invariants,
-        p_invariant_constants,
-        t_invariants,
-        conservative,
-        structurally_bounded,
-        classification,
-        siphons: set_names(&st.siphons),
-        siphons_truncated: st.siphons.truncated,
-        siphons_without_marked_trap: unguarded,
-        traps: set_names(&st.traps),
-        traps_truncated: st.traps.truncated,
-        warnings,
-        notes,
-        partial: false,
-        partial_reason: None,
-        bits_per_state: None,
-        bytes_per_state: None,
-        store_bytes: None,
-        incidence,
-        property: None,
-        holds: None,
-        witness: None,
-        witness_shortest: None,
-        reduction: None,
-        timings: Timings {
-            structure_ms,
-            invariants_ms: st.invariants_ms,
-            siphons_ms: st.siphons_ms,
-            behaviour_ms,
-        },
-        sfc: None,
-    };
-    let stop_note = |s: &Stop| {
-        let what = match s {
-            Stop::MaxStates(n) => format!("stopped after {n} states (raise --max-states)"),
-            Stop::MaxMemory(b) => format!(
-                "stopped before the state space would hold more than {b} bytes (raise \
-                 --max-memory)"
-            ),
-            Stop::Timeout => "stopped when the time budget ran out (raise --timeout)".into(),
-            Stop::Cancelled => "cancelled (Ctrl-C)".into(),
-        };
-        format!(
-            "{what}; counts are lower bounds and liveness, reversibility and exact bounds are \
-             not decided"
-        )
-    };
     match beh {
         Behaviour::None(why) => {
             if opts.behaviour {
-                report.partial = true;
-                report.partial_reason = Some(PartialReason::NotExplored);
-                report
-                    .notes
-                    .push(format!("the state space was not explored: {why}"));
+                report.stopped_early(
+                    PartialReason::NotExplored,
+                    format!("the state space was not explored: {why}"),
+                );
             }
         }
-        Behaviour::Reach(r) => {
-            report.graph = "reachability";
-            report.states = r.states;
-            report.edges = r.edges;
-            report.deadlocks = r.deadlocks;
-            report.deadlock_witness = r
-                .deadlock_witness
-                .as_ref()
-                .map(|w| w.iter().map(|&t| tid(t)).collect());
-            report.bits_per_state = Some(r.bits_per_state);
-            report.bytes_per_state = Some(r.peak_bytes as f64 / r.states.max(1) as f64);
-            report.store_bytes = Some(r.peak_bytes);
-            report.max_tokens = Named(
-                (0..np)
-                    .map(|p| (pid(p), Bound::Tokens(u64::from(r.max_tokens[p]))))
-                    .collect(),
-            );
-            report.dead_transitions = r.never_enabled.iter().map(|&t| tid(t)).collect();
-            // Packing widths come from proven bounds, so even a partial run knows boundedness.
-            report.bounded = Some(true);
-            match &r.stopped {
-                Some(s) => {
-                    report.partial = true;
-                    report.partial_reason = Some(s.reason());
-                    report.notes.push(stop_note(s));
-                }
-                None => {
-                    report.safe = Some(r.max_tokens.iter().all(|&m| m <= 1));
-                    if let Some(s) = &r.liveness_stopped {
-                        report.partial = true;
-                        report.partial_reason = Some(s.reason());
-                        report.notes.push(format!(
-                            "every state was explored, but the liveness pass {}",
-                            match s {
-                                Stop::MaxMemory(b) => format!(
-                                    "would have held more than {b} bytes (raise --max-memory)"
-                                ),
-                                Stop::Timeout => "ran out of time (raise --timeout)".into(),
-                                _ => "was stopped".into(),
-                            }
-                        ));
-                    }
-                    if let Some(l) = &r.liveness {
-                        report.live = Some(l.live);
-                        report.non_live_transitions = l.non_live.iter().map(|&t| tid(t)).collect();
-                        report.reversible = Some(l.reversible);
-                    }
-                }
-            }
-            if r.deadlocks > 0 {
-                report.warnings.push(format!(
-                    "{} dead state(s): no transition is enabled there{}",
-                    r.deadlocks,
-                    report
-                        .deadlock_witness
-                        .as_ref()
-                        .map(|w| format!("; shortest firing sequence to one: {}", w.join(" ")))
-                        .unwrap_or_default()
-                ));
-            }
-        }
-        Behaviour::Cover(km) => {
-            report.graph = "coverability";
-            report.states = km.nodes;
-            report.edges = km.edges;
-            report.deadlocks = km.dead;
-            report.deadlock_witness = km
-                .dead_witness
-                .as_ref()
-                .map(|w| w.iter().map(|&t| tid(t)).collect());
-            report.unbounded_places = km.unbounded.iter().map(|p| pid(p.index())).collect();
-            report.max_tokens = Named(
-                (0..np)
-                    .map(|p| {
-                        let m = km.max_tokens[p];
-                        (
-                            pid(p),
-                            if m == OMEGA {
-                                Bound::Omega
-                            } else {
-                                Bound::Tokens(m)
-                            },
-                        )
-                    })
-                    .collect(),
-            );
-            if !km.unbounded.is_empty() {
-                report.bounded = Some(false);
-                report.safe = Some(false);
-                report.warnings.push(format!(
-                    "the net is unbounded: {} can grow without limit; the figures are those of \
-                     the Karp–Miller coverability graph, and liveness and reversibility are not \
-                     decided",
-                    report.unbounded_places.join(", ")
-                ));
-                if classification_has_extras(&report) {
-                    report.notes.push(
-                        "with inhibitor arcs or capacities the coverability graph is an \
-                         approximation"
-                            .into(),
-                    );
-                }
-            }
-            if let Some(s) = &km.stopped {
-                report.partial = true;
-                report.partial_reason = Some(s.reason());
-                report.notes.push(stop_note(s));
-            }
-        }
+        Behaviour::Reach(r) => report_reachability(&mut report, net, &r),
+        Behaviour::Cover(km) => report_coverability(&mut report, net, &km),
     }
     // The structural phase honours the same time budget and Ctrl-C as the exploration.
-    let cut = |r: Option<&AnalysisError>| matches!(r, Some(AnalysisError::Interrupted { .. }));
-    if !report.partial
-        && (cut(sb.as_ref().err())
-            || cut(st.p.as_ref().err())
-            || cut(st.t.as_ref().err())
-            || st.siphons.truncated
-            || st.traps.truncated)
-    {
+    if !report.partial && st.cut_short(&bounds.structural) {
         if let Some(why) = interrupted(opts, &deadline) {
-            report.partial = true;
-            report.partial_reason = Some(why);
-            report.notes.push(format!(
+            report.stopped_early(
+                why,
+                format!(
                 "the structural analyses were cut short ({why}); what they could not finish is                  null or truncated"
-            ));
+                ),
+            );
         }
     }
     report
+}
+
+/// Why a run stopped early and which budget to raise, for the notes; `memory` names what would
+/// have outgrown `--max-memory`.
+pub(crate) fn why_stopped(s: &Stop, memory: &str) -> String {
+    match s {
+        Stop::MaxStates(n) => format!("stopped after {n} states (raise --max-states)"),
+        Stop::MaxMemory(b) => {
+            format!("stopped before {memory} more than {b} bytes (raise --max-memory)")
+        }
+        Stop::Timeout => "stopped when the time budget ran out (raise --timeout)".into(),
+        Stop::Cancelled => "cancelled (Ctrl-C)".into(),
+    }
+}
+
+/// The note of an exploration stopped early: what stopped it, and what it leaves undecided.
+fn stop_note(s: &Stop) -> String {
+    format!(
+        "{}; counts are lower bounds and liveness, reversibility and exact bounds are not \
+         decided",
+        why_stopped(s, "the state space would hold")
+    )
+}
+
+/// The reachability graph's figures for the report, and its verdicts when it is complete.
+fn report_reachability(report: &mut Report, net: &Net, r: &ReachResult) {
+    report.graph = "reachability";
+    report.states = r.states;
+    report.edges = r.edges;
+    report.deadlocks = r.deadlocks;
+    report.deadlock_witness = r
+        .deadlock_witness
+        .as_deref()
+        .map(|w| transition_ids(net, w));
+    report.bits_per_state = Some(r.bits_per_state);
+    report.bytes_per_state = Some(r.peak_bytes as f64 / r.states.max(1) as f64);
+    report.store_bytes = Some(r.peak_bytes);
+    report.max_tokens = Named(
+        (0..net.num_places())
+            .map(|p| (place_id(net, p), Bound::Tokens(u64::from(r.max_tokens[p]))))
+            .collect(),
+    );
+    report.dead_transitions = transition_ids(net, &r.never_enabled);
+    // Packing widths come from proven bounds, so even a partial run knows boundedness.
+    report.bounded = Some(true);
+    match &r.stopped {
+        Some(s) => report.stopped_early(s.reason(), stop_note(s)),
+        None => report_verdicts(report, net, r),
+    }
+    if r.deadlocks > 0 {
+        report.warnings.push(format!(
+            "{} dead state(s): no transition is enabled there{}",
+            r.deadlocks,
+            report
+                .deadlock_witness
+                .as_ref()
+                .map(|w| format!("; shortest firing sequence to one: {}", w.join(" ")))
+                .unwrap_or_default()
+        ));
+    }
+}
+
+/// Safety, liveness and reversibility, which only a complete exploration decides.
+fn report_verdicts(report: &mut Report, net: &Net, r: &ReachResult) {
+    report.safe = Some(r.max_tokens.iter().all(|&m| m <= 1));
+    if let Some(s) = &r.liveness_stopped {
+        let how = match s {
+            Stop::MaxMemory(b) => {
+                format!("would have held more than {b} bytes (raise --max-memory)")
+            }
+            Stop::Timeout => "ran out of time (raise --timeout)".into(),
+            _ => "was stopped".into(),
+        };
+        report.stopped_early(
+            s.reason(),
+            format!("every state was explored, but the liveness pass {how}"),
+        );
+    }
+    if let Some(l) = &r.liveness {
+        report.live = Some(l.live);
+        report.non_live_transitions = transition_ids(net, &l.non_live);
+        report.reversible = Some(l.reversible);
+    }
+}
+
+/// The Karp–Miller graph's figures for the report, and the unbounded places it found.
+fn report_coverability(report: &mut Report, net: &Net, km: &Coverability) {
+    report.graph = "coverability";
+    report.states = km.nodes;
+    report.edges = km.edges;
+    report.deadlocks = km.dead;
+    report.deadlock_witness = km.dead_witness.as_deref().map(|w| transition_ids(net, w));
+    report.unbounded_places = km
+        .unbounded
+        .iter()
+        .map(|p| place_id(net, p.index()))
+        .collect();
+    report.max_tokens = Named(
+        (0..net.num_places())
+            .map(|p| {
+                let m = km.max_tokens[p];
+                let b = if m == OMEGA {
+                    Bound::Omega
+                } else {
+                    Bound::Tokens(m)
+                };
+                (place_id(net, p), b)
+            })
+            .collect(),
+    );
+    if !km.unbounded.is_empty() {
+        report.bounded = Some(false);
+        report.safe = Some(false);
+        report.warnings.push(format!(
+            "the net is unbounded: {} can grow without limit; the figures are those of the \
+             Karp–Miller coverability graph, and liveness and reversibility are not decided",
+            report.unbounded_places.join(", ")
+        ));
+        if classification_has_extras(report) {
+            report.notes.push(
+                "with inhibitor arcs or capacities the coverability graph is an approximation"
+                    .into(),
+            );
+        }
+    }
+    if let Some(s) = &km.stopped {
+        report.stopped_early(s.reason(), stop_note(s));
+    }
 }
 
 fn classification_has_extras(r: &Report) -> bool {

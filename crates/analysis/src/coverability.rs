@@ -9,6 +9,8 @@
 //! explored exactly, not declared ω), and an ω place fails every inhibitor test. With either
 //! feature the unbounded places reported are a best effort, and the report says so.
 
+use std::ops::ControlFlow;
+
 use cetratus_net::{Net, PlaceIdx, TransIdx};
 
 use crate::reach::{ReachOptions, Stop};
@@ -109,6 +111,17 @@ impl Nodes {
     fn bytes(&self) -> usize {
         self.chunks.len() * NODE_CHUNK * self.width * 8
     }
+    /// The firing sequence along the BFS tree from the root to node `d`.
+    fn path_to(&self, d: usize) -> Vec<TransIdx> {
+        let mut path = Vec::new();
+        let mut v = d;
+        while let Some((p, t)) = self.parent(v) {
+            path.push(TransIdx(t));
+            v = p;
+        }
+        path.reverse();
+        path
+    }
 }
 
 fn hash_marking(m: &[u64]) -> u64 {
@@ -174,145 +187,212 @@ pub fn karp_miller_until_omega(net: &Net, opts: &ReachOptions) -> Coverability {
     build(net, opts, true)
 }
 
+/// The Karp–Miller graph, expanded breadth-first until it is complete, a budget runs out, or
+/// (with `stop_at_omega`) the first ω appears.
 fn build(net: &Net, opts: &ReachOptions, stop_at_omega: bool) -> Coverability {
-    let np = net.num_places();
-    let nt = net.num_transitions();
-    let m0: Vec<u64> = net
-        .initial_marking()
-        .as_slice()
-        .iter()
-        .map(|&v| u64::from(v))
-        .collect();
-    let frozen: Vec<bool> = (0..np)
-        .map(|p| {
-            let p = PlaceIdx(p as u32);
-            net.capacity(p).is_some() || !net.inhibited(p).is_empty()
-        })
-        .collect();
-    let accelerable = frozen.iter().any(|f| !f);
-    let mut nodes = Nodes {
-        width: np + 1,
-        chunks: Vec::new(),
-        len: 0,
-    };
-    nodes.push(&m0, NO_PARENT);
-    let mut seen = Seen {
-        slots: vec![u32::MAX; 1 << 10],
-        len: 0,
-    };
-    seen.insert(&nodes, 0);
-    let max_states = opts.state_limit();
-    let (mut edges, mut dead) = (0u64, 0u64);
-    let mut first_dead = None;
-    let mut stopped = None;
-    let mut first_omega: Option<(usize, u32)> = None;
-    let mut cur = 0usize;
-    let mut m: Vec<u64> = Vec::with_capacity(np);
-    'bfs: while cur < nodes.len {
-        // Acceleration walks the ancestors, so a node can cost its depth: check often.
-        if cur & 0xFF == 0 && cur > 0 {
-            if let Some(s) = opts.interrupted() {
-                stopped = Some(s);
-                break;
-            }
-            if let Some(p) = &opts.progress {
-                p(Progress {
-                    states: nodes.len as u64,
-                    edges,
-                    expanded: cur as u64,
-                    bytes: (nodes.bytes() + seen.slots.len() * 4) as u64,
-                });
-            }
+    let mut km = KarpMiller::new(net, opts, stop_at_omega);
+    let mut m: Vec<u64> = Vec::with_capacity(net.num_places());
+    while km.cur < km.nodes.len {
+        if let Some(s) = km.checkpoint() {
+            km.stopped = Some(s);
+            break;
         }
         m.clear();
-        m.extend_from_slice(nodes.marking(cur));
+        m.extend_from_slice(km.nodes.marking(km.cur));
+        if km.expand(&m).is_break() {
+            break;
+        }
+        km.cur += 1;
+    }
+    km.finish()
+}
+
+/// A Karp–Miller graph under construction, breadth-first.
+struct KarpMiller<'a> {
+    net: &'a Net,
+    opts: &'a ReachOptions,
+    stop_at_omega: bool,
+    /// Places never accelerated: those with a capacity or an inhibitor arc.
+    frozen: Vec<bool>,
+    /// Some place is not frozen.
+    accelerable: bool,
+    nodes: Nodes,
+    seen: Seen,
+    max_states: u64,
+    /// The node being expanded.
+    cur: usize,
+    edges: u64,
+    dead: u64,
+    first_dead: Option<usize>,
+    /// The first node to get an ω, as its parent and the transition from there.
+    first_omega: Option<(usize, u32)>,
+    stopped: Option<Stop>,
+}
+
+impl<'a> KarpMiller<'a> {
+    /// The graph holding the root, M0, alone.
+    fn new(net: &'a Net, opts: &'a ReachOptions, stop_at_omega: bool) -> Self {
+        let np = net.num_places();
+        let m0: Vec<u64> = net
+            .initial_marking()
+            .as_slice()
+            .iter()
+            .map(|&v| u64::from(v))
+            .collect();
+        let frozen: Vec<bool> = (0..np)
+            .map(|p| {
+                let p = PlaceIdx(p as u32);
+                net.capacity(p).is_some() || !net.inhibited(p).is_empty()
+            })
+            .collect();
+        let mut nodes = Nodes {
+            width: np + 1,
+            chunks: Vec::new(),
+            len: 0,
+        };
+        nodes.push(&m0, NO_PARENT);
+        let mut seen = Seen {
+            slots: vec![u32::MAX; 1 << 10],
+            len: 0,
+        };
+        seen.insert(&nodes, 0);
+        KarpMiller {
+            net,
+            opts,
+            stop_at_omega,
+            accelerable: frozen.iter().any(|f| !f),
+            frozen,
+            nodes,
+            seen,
+            max_states: opts.state_limit(),
+            cur: 0,
+            edges: 0,
+            dead: 0,
+            first_dead: None,
+            first_omega: None,
+            stopped: None,
+        }
+    }
+
+    /// Every 256 nodes (acceleration walks the ancestors, so a node can cost its depth): why
+    /// to stop (the deadline, Ctrl-C), or else a progress report.
+    fn checkpoint(&self) -> Option<Stop> {
+        if self.cur & 0xFF != 0 || self.cur == 0 {
+            return None;
+        }
+        if let Some(s) = self.opts.interrupted() {
+            return Some(s);
+        }
+        if let Some(p) = &self.opts.progress {
+            p(Progress {
+                states: self.nodes.len as u64,
+                edges: self.edges,
+                expanded: self.cur as u64,
+                bytes: (self.nodes.bytes() + self.seen.slots.len() * 4) as u64,
+            });
+        }
+        None
+    }
+
+    /// Expands the current node, whose marking is `m`. Breaks when the construction ends here.
+    fn expand(&mut self, m: &[u64]) -> ControlFlow<()> {
+        let net = self.net;
         let mut any = false;
-        for ti in 0..nt {
+        for ti in 0..net.num_transitions() {
             let t = TransIdx(ti as u32);
-            if !enabled(net, t, &m) {
+            if !enabled(net, t, m) {
                 continue;
             }
             any = true;
-            edges += 1;
-            let mut succ = fire(net, t, &m);
-            // Only places that are not frozen are accelerated: with none, the walk is skipped
-            // (it would make a long chain of states cost its length squared).
-            let mut a = accelerable.then_some(cur);
-            while let Some(ai) = a {
-                let anc = nodes.marking(ai);
-                if anc.iter().zip(&succ).all(|(x, y)| x <= y) && *anc != succ[..] {
-                    for p in 0..np {
-                        if anc[p] < succ[p] && !frozen[p] {
-                            succ[p] = OMEGA;
-                        }
-                    }
-                }
-                a = nodes.parent(ai).map(|(p, _)| p);
-            }
-            if first_omega.is_none() && succ.contains(&OMEGA) {
-                first_omega = Some((cur, ti as u32));
-                if stop_at_omega {
-                    break 'bfs;
+            self.edges += 1;
+            let mut succ = fire(net, t, m);
+            self.accelerate(&mut succ);
+            if self.first_omega.is_none() && succ.contains(&OMEGA) {
+                self.first_omega = Some((self.cur, ti as u32));
+                if self.stop_at_omega {
+                    return ControlFlow::Break(());
                 }
             }
-            if seen.find(&nodes, &succ).is_err() {
-                if nodes.len as u64 >= max_states {
-                    stopped = Some(Stop::MaxStates(max_states));
-                    break 'bfs;
-                }
-                let chunk = if nodes.len % NODE_CHUNK == 0 {
-                    NODE_CHUNK * nodes.width * 8
-                } else {
-                    0
-                };
-                if let Err(s) = opts.within_memory(nodes.bytes() + chunk + seen.bytes_to_fit_one())
-                {
-                    stopped = Some(s);
-                    break 'bfs;
-                }
-                nodes.push(&succ, (cur as u64) << 32 | ti as u64);
-                seen.insert(&nodes, nodes.len as u32 - 1);
-            }
+            self.add(&succ, ti as u32)?;
         }
         if !any {
-            dead += 1;
-            first_dead.get_or_insert(cur);
+            self.dead += 1;
+            self.first_dead.get_or_insert(self.cur);
         }
-        cur += 1;
+        ControlFlow::Continue(())
     }
-    let mut max_tokens = vec![0u64; np];
-    for i in 0..nodes.len {
-        for (x, &v) in max_tokens.iter_mut().zip(nodes.marking(i)) {
-            *x = (*x).max(v);
+
+    /// Puts ω in every place, not frozen, in which `succ` strictly exceeds an ancestor that it
+    /// covers. With no place to accelerate, the walk is skipped (it would make a long chain of
+    /// states cost its length squared).
+    fn accelerate(&self, succ: &mut [u64]) {
+        let mut a = self.accelerable.then_some(self.cur);
+        while let Some(ai) = a {
+            let anc = self.nodes.marking(ai);
+            if anc.iter().zip(&*succ).all(|(x, y)| x <= y) && anc != &*succ {
+                for p in 0..succ.len() {
+                    if anc[p] < succ[p] && !self.frozen[p] {
+                        succ[p] = OMEGA;
+                    }
+                }
+            }
+            a = self.nodes.parent(ai).map(|(p, _)| p);
         }
     }
-    let path = |d: usize| {
-        let mut path = Vec::new();
-        let mut v = d;
-        while let Some((p, t)) = nodes.parent(v) {
-            path.push(TransIdx(t));
-            v = p;
+
+    /// Adds `succ`, reached from the current node by transition `t`, unless it is known.
+    /// Breaks when the states or bytes budget would be exceeded.
+    fn add(&mut self, succ: &[u64], t: u32) -> ControlFlow<()> {
+        if self.seen.find(&self.nodes, succ).is_ok() {
+            return ControlFlow::Continue(());
         }
-        path.reverse();
-        path
-    };
-    let dead_witness = first_dead.map(path);
-    let first_omega = first_omega.map(|(v, t)| {
-        let mut p = path(v);
-        p.push(TransIdx(t));
-        p
-    });
-    Coverability {
-        nodes: nodes.len as u64,
-        edges,
-        dead,
-        dead_witness,
-        unbounded: (0..np)
-            .filter(|&p| max_tokens[p] == OMEGA)
-            .map(|p| PlaceIdx(p as u32))
-            .collect(),
-        max_tokens,
-        stopped,
-        first_omega,
+        if self.nodes.len as u64 >= self.max_states {
+            self.stopped = Some(Stop::MaxStates(self.max_states));
+            return ControlFlow::Break(());
+        }
+        let chunk = if self.nodes.len % NODE_CHUNK == 0 {
+            NODE_CHUNK * self.nodes.width * 8
+        } else {
+            0
+        };
+        let bytes = self.nodes.bytes() + chunk + self.seen.bytes_to_fit_one();
+        if let Err(s) = self.opts.within_memory(bytes) {
+            self.stopped = Some(s);
+            return ControlFlow::Break(());
+        }
+        self.nodes
+            .push(succ, (self.cur as u64) << 32 | u64::from(t));
+        self.seen.insert(&self.nodes, self.nodes.len as u32 - 1);
+        ControlFlow::Continue(())
+    }
+
+    /// The graph's figures, with the paths to its first dead node and its first ω.
+    fn finish(self) -> Coverability {
+        let np = self.frozen.len();
+        let nodes = &self.nodes;
+        let mut max_tokens = vec![0u64; np];
+        for i in 0..nodes.len {
+            for (x, &v) in max_tokens.iter_mut().zip(nodes.marking(i)) {
+                *x = (*x).max(v);
+            }
+        }
+        let first_omega = self.first_omega.map(|(v, t)| {
+            let mut p = nodes.path_to(v);
+            p.push(TransIdx(t));
+            p
+        });
+        Coverability {
+            nodes: nodes.len as u64,
+            edges: self.edges,
+            dead: self.dead,
+            dead_witness: self.first_dead.map(|d| nodes.path_to(d)),
+            unbounded: (0..np)
+                .filter(|&p| max_tokens[p] == OMEGA)
+                .map(|p| PlaceIdx(p as u32))
+                .collect(),
+            max_tokens,
+            stopped: self.stopped,
+            first_omega,
+        }
     }
 }

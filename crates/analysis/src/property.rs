@@ -20,15 +20,13 @@
 use cetratus_net::{Net, TransIdx};
 
 use crate::budget::PartialReason;
-use crate::check::{deadline, interrupted, known_bounds, ms, now, tableau_bytes};
-use crate::classify::classify;
+use crate::check::{deadline, ms, now, why_stopped, ProvenBounds};
 use crate::coverability::{karp_miller, karp_miller_until_omega};
-use crate::invariants::structural_bounds_within;
 use crate::predicate::Predicate;
-use crate::reach::search::{After, Target};
+use crate::reach::search::{After, Outcome, Target};
 use crate::reach::stubborn::Stubborn;
 use crate::reach::{Packing, ReachOptions, Stop};
-use crate::report::{Named, Report, Timings};
+use crate::report::{transition_ids, Report};
 use crate::CheckOptions;
 
 /// One question about a net.
@@ -80,74 +78,22 @@ impl Property {
     }
 }
 
+/// The report of property mode before the check: everything unknown, and a note saying that
+/// only what the property needs is computed.
 fn blank(net: &Net, property: &Property) -> Report {
-    Report {
-        net: net.id().to_string(),
-        places: net.num_places(),
-        transitions: net.num_transitions(),
-        arcs: net.arcs().len(),
-        graph: "none",
-        states: 0,
-        edges: 0,
-        deadlocks: 0,
-        deadlock_witness: None,
-        bounded: None,
-        safe: None,
-        unbounded_places: Vec::new(),
-        max_tokens: Named(Vec::new()),
-        live: None,
-        non_live_transitions: Vec::new(),
-        dead_transitions: Vec::new(),
-        reversible: None,
-        p_invariants: None,
-        p_invariant_constants: None,
-        t_invariants: None,
-        conservative: None,
-        structurally_bounded: None,
-        classification: classify(net),
-        siphons: Vec::new(),
-        siphons_truncated: false,
-        siphons_without_marked_trap: Vec::new(),
-        traps: Vec::new(),
-        traps_truncated: false,
-        warnings: Vec::new(),
-        notes: vec![
-            "property mode: only what the property needs is computed (no invariants, siphons or \
-             traps; run without --property, --reach or --always for the full report)"
-                .into(),
-        ],
-        partial: false,
-        partial_reason: None,
-        bits_per_state: None,
-        bytes_per_state: None,
-        store_bytes: None,
-        property: Some(property.label()),
-        sfc: None,
-        holds: None,
-        witness: None,
-        witness_shortest: None,
-        reduction: None,
-        incidence: None,
-        timings: Timings::default(),
-    }
+    let mut r = Report::empty(net);
+    r.notes.push(
+        "property mode: only what the property needs is computed (no invariants, siphons or \
+         traps; run without --property, --reach or --always for the full report)"
+            .into(),
+    );
+    r.property = Some(property.label());
+    r
 }
 
-fn stop_note(s: &Stop) -> String {
-    let what = match s {
-        Stop::MaxStates(n) => format!("stopped after {n} states (raise --max-states)"),
-        Stop::MaxMemory(b) => {
-            format!("stopped before holding more than {b} bytes (raise --max-memory)")
-        }
-        Stop::Timeout => "stopped when the time budget ran out (raise --timeout)".into(),
-        Stop::Cancelled => "cancelled (Ctrl-C)".into(),
-    };
-    format!("{what}; the property is not decided")
-}
-
-fn names(net: &Net, path: &[TransIdx]) -> Vec<String> {
-    path.iter()
-        .map(|t| net.transitions()[t.index()].id.clone())
-        .collect()
+/// The note of a check stopped early: what stopped it, and that the property stays open.
+fn undecided_note(s: &Stop) -> String {
+    format!("{}; the property is not decided", why_stopped(s, "holding"))
 }
 
 /// Checks one property of `net` within the budgets of `opts`. Never fails: what could not be
@@ -156,34 +102,67 @@ pub fn check_property(net: &Net, property: &Property, opts: &CheckOptions) -> Re
     let t0 = now(opts);
     let mut r = blank(net, property);
     let deadline = deadline(opts);
-    let stop = || interrupted(opts, &deadline).is_some();
-    let sb = structural_bounds_within(net, opts.farkas_max_rows, tableau_bytes(opts), &stop);
-    let known = known_bounds(net, &sb, &mut r.notes);
-    r.structurally_bounded = sb.as_ref().ok().map(|b| b.iter().all(Option::is_some));
+    let bounds = ProvenBounds::prove(net, opts, &deadline, &mut r.notes);
+    r.structurally_bounded = bounds.structurally_bounded();
     r.timings.structure_ms = ms(opts, t0);
     let tb = now(opts);
+    // The search decides liveness itself, on one thread.
     let ropts = ReachOptions {
-        max_states: opts.max_states,
-        max_memory: opts.max_memory,
-        deadline,
-        cancel: opts.cancel.clone(),
-        progress: opts.progress.clone(),
         liveness: false,
         threads: 1,
         parallel_from: 0,
         spare_core: None,
+        ..opts.reach_options(deadline)
     };
-    decide(net, property, opts, &known, &ropts, &mut r);
+    decide(net, property, opts, &bounds.known, &ropts, &mut r);
     r.timings.behaviour_ms = ms(opts, tb);
     r
 }
 
-fn partial(r: &mut Report, s: &Stop) {
-    r.partial = true;
-    r.partial_reason = Some(s.reason());
-    r.notes.push(stop_note(s));
+/// How the search answers a property.
+struct Plan<'a> {
+    /// What the search looks for.
+    target: Target<'a>,
+    /// What it decides once the exploration is complete.
+    after: After,
+    /// Stubborn sets keep the answer (and the witness real).
+    reducible: bool,
+    /// The predicate whose places the stubborn sets must watch.
+    pred: Option<&'a Predicate>,
 }
 
+impl<'a> Plan<'a> {
+    /// The plan of `property`, whose unsafe-marking predicate and, for `always`, negated
+    /// predicate the caller holds; `None` for `bounded`, which needs no search.
+    fn of(
+        net: &Net,
+        property: &'a Property,
+        unsafe_pred: &'a Predicate,
+        negated: Option<&'a Predicate>,
+    ) -> Option<Plan<'a>> {
+        let plan = |target, after, reducible, pred| Plan {
+            target,
+            after,
+            reducible,
+            pred,
+        };
+        Some(match property {
+            Property::Deadlock => plan(Target::Dead, After::Nothing, true, None),
+            Property::Safe => plan(Target::Marking(unsafe_pred), After::Nothing, false, None),
+            Property::Live if net.num_transitions() > 0 => {
+                plan(Target::Dead, After::Live, false, None)
+            }
+            Property::Live => plan(Target::None, After::Nothing, false, None),
+            Property::Reversible => plan(Target::DeadNotInitial, After::Reversible, false, None),
+            Property::Reach(p) => plan(Target::Marking(p), After::Nothing, true, Some(p)),
+            Property::Always(p) => plan(Target::Marking(negated?), After::Nothing, true, Some(p)),
+            Property::Bounded => return None,
+        })
+    }
+}
+
+/// Decides `property`: `bounded` on a Karp–Miller graph, the others by a search over states
+/// packed with proven widths.
 fn decide(
     net: &Net,
     property: &Property,
@@ -192,73 +171,112 @@ fn decide(
     ropts: &ReachOptions,
     r: &mut Report,
 ) {
-    let all_known = known.iter().all(Option::is_some);
     if *property == Property::Bounded {
-        if all_known {
-            r.holds = Some(true);
-            r.bounded = Some(true);
-            r.notes.push(
-                "every place has a structural bound or a capacity: bounded without exploring"
-                    .into(),
-            );
-            return;
-        }
-        let km = karp_miller_until_omega(net, ropts);
+        return decide_bounded(net, known, ropts, r);
+    }
+    let Some(bounds) = packing_bounds(net, property, known, ropts, r) else {
+        return;
+    };
+    let packing = Packing::new(&bounds);
+    let unsafe_pred = Predicate::unsafe_marking(net);
+    let negated = match property {
+        Property::Always(p) => Some(p.negated()),
+        _ => None,
+    };
+    let Some(plan) = Plan::of(net, property, &unsafe_pred, negated.as_ref()) else {
+        return;
+    };
+    let stubborn = (plan.reducible && opts.reduction).then(|| {
+        Stubborn::new(
+            net,
+            plan.pred.map(|p| p.support(net.num_places())).as_deref(),
+        )
+    });
+    r.reduction = Some(if stubborn.is_some() {
+        "stubborn"
+    } else {
+        "none"
+    });
+    let searched = crate::reach::search(
+        net,
+        &packing,
+        &plan.target,
+        stubborn.as_ref(),
+        plan.after,
+        ropts,
+    );
+    match searched {
+        Ok(out) => report_search(net, property, &out, stubborn.is_some(), r),
+        Err(e) => r.stopped_early(
+            PartialReason::NotExplored,
+            format!("the state space was not explored: {e}"),
+        ),
+    }
+}
+
+/// `bounded`: proven by the structural bounds and capacities, else decided by a Karp–Miller
+/// graph that stops at the first ω.
+fn decide_bounded(net: &Net, known: &[Option<u64>], ropts: &ReachOptions, r: &mut Report) {
+    if known.iter().all(Option::is_some) {
+        r.holds = Some(true);
+        r.bounded = Some(true);
+        r.notes.push(
+            "every place has a structural bound or a capacity: bounded without exploring".into(),
+        );
+        return;
+    }
+    let km = karp_miller_until_omega(net, ropts);
+    r.graph = "coverability";
+    r.states = km.nodes;
+    r.edges = km.edges;
+    if let Some(w) = &km.first_omega {
+        r.holds = Some(false);
+        r.bounded = Some(false);
+        r.witness = Some(transition_ids(net, w));
+        r.witness_shortest = Some(false);
+        r.notes.push(
+            "the witness reaches a marking that strictly covers an earlier marking on its \
+             path: the transitions between the two can fire again and again"
+                .into(),
+        );
+    } else if let Some(s) = &km.stopped {
+        r.stopped_early(s.reason(), undecided_note(s));
+    } else {
+        r.holds = Some(true);
+        r.bounded = Some(true);
+    }
+}
+
+/// The widths of the packed states' fields, or `None` when the search cannot run: the net is
+/// unbounded, or the Karp–Miller graph that would find the widths was stopped.
+fn packing_bounds(
+    net: &Net,
+    property: &Property,
+    known: &[Option<u64>],
+    ropts: &ReachOptions,
+    r: &mut Report,
+) -> Option<Vec<u64>> {
+    if *property == Property::Safe {
+        return Some(safe_widths(net, known));
+    }
+    if known.iter().all(Option::is_some) {
+        return Some(known.iter().map(|b| b.unwrap_or(0)).collect());
+    }
+    let km = karp_miller(net, ropts);
+    if let Some(s) = &km.stopped {
+        r.graph = "coverability";
+        r.states = km.nodes;
+        r.stopped_early(s.reason(), undecided_note(s));
+        return None;
+    }
+    if !km.unbounded.is_empty() {
         r.graph = "coverability";
         r.states = km.nodes;
         r.edges = km.edges;
-        if let Some(w) = &km.first_omega {
-            r.holds = Some(false);
-            r.bounded = Some(false);
-            r.witness = Some(names(net, w));
-            r.witness_shortest = Some(false);
-            r.notes.push(
-                "the witness reaches a marking that strictly covers an earlier marking on its \
-                 path: the transitions between the two can fire again and again"
-                    .into(),
-            );
-        } else if let Some(s) = &km.stopped {
-            partial(r, s);
-        } else {
-            r.holds = Some(true);
-            r.bounded = Some(true);
-        }
-        return;
-    }
-    let m0 = net.initial_marking();
-    let bounds: Vec<u64> = if *property == Property::Safe {
-        // Fields wide enough for one firing from a safe marking: the search stops at the first
-        // unsafe marking, so no field ever overflows, bounded net or not.
-        (0..net.num_places())
-            .map(|p| {
-                let most_in = net
-                    .producers(cetratus_net::PlaceIdx(p as u32))
-                    .iter()
-                    .map(|&(_, w)| u64::from(w))
-                    .max()
-                    .unwrap_or(0);
-                let wide = u64::from(m0.as_slice()[p]).max(1 + most_in);
-                known[p].map_or(wide, |k| k.min(wide))
-            })
-            .collect()
-    } else if all_known {
-        known.iter().map(|b| b.unwrap_or(0)).collect()
-    } else {
-        let km = karp_miller(net, ropts);
-        if let Some(s) = &km.stopped {
-            r.graph = "coverability";
-            r.states = km.nodes;
-            partial(r, s);
-            return;
-        }
-        if !km.unbounded.is_empty() {
-            r.graph = "coverability";
-            r.states = km.nodes;
-            r.edges = km.edges;
-            r.bounded = Some(false);
-            r.partial = true;
-            r.partial_reason = Some(PartialReason::NotExplored);
-            r.notes.push(format!(
+        r.bounded = Some(false);
+        r.stopped_early(
+            PartialReason::NotExplored,
+            format!(
                 "the net is unbounded ({} can grow without limit): {} is decided on bounded nets \
                  only",
                 km.unbounded
@@ -267,104 +285,67 @@ fn decide(
                     .collect::<Vec<_>>()
                     .join(", "),
                 property.label()
-            ));
-            return;
-        }
-        km.max_tokens
-    };
-    let packing = Packing::new(&bounds);
-    let unsafe_pred = Predicate::unsafe_marking(net);
-    let negated;
-    let (target, after, reducible, pred) = match property {
-        Property::Deadlock => (Target::Dead, After::Nothing, true, None),
-        Property::Safe => (Target::Marking(&unsafe_pred), After::Nothing, false, None),
-        Property::Live if net.num_transitions() > 0 => (Target::Dead, After::Live, false, None),
-        Property::Live => (Target::None, After::Nothing, false, None),
-        Property::Reversible => (Target::DeadNotInitial, After::Reversible, false, None),
-        Property::Reach(p) => (Target::Marking(p), After::Nothing, true, Some(p)),
-        Property::Always(p) => {
-            negated = p.negated();
-            (Target::Marking(&negated), After::Nothing, true, Some(p))
-        }
-        Property::Bounded => return,
-    };
-    let stubborn = (reducible && opts.reduction)
-        .then(|| Stubborn::new(net, pred.map(|p| p.support(net.num_places())).as_deref()));
-    r.reduction = Some(if stubborn.is_some() {
-        "stubborn"
-    } else {
-        "none"
-    });
-    let out = match crate::reach::search(net, &packing, &target, stubborn.as_ref(), after, ropts) {
-        Ok(o) => o,
-        Err(e) => {
-            r.partial = true;
-            r.partial_reason = Some(PartialReason::NotExplored);
-            r.notes
-                .push(format!("the state space was not explored: {e}"));
-            return;
-        }
-    };
+            ),
+        );
+        return None;
+    }
+    Some(km.max_tokens)
+}
+
+/// Fields wide enough for one firing from a safe marking: the search for `safe` stops at the
+/// first unsafe marking, so no field ever overflows, bounded net or not.
+fn safe_widths(net: &Net, known: &[Option<u64>]) -> Vec<u64> {
+    let m0 = net.initial_marking();
+    (0..net.num_places())
+        .map(|p| {
+            let most_in = net
+                .producers(cetratus_net::PlaceIdx(p as u32))
+                .iter()
+                .map(|&(_, w)| u64::from(w))
+                .max()
+                .unwrap_or(0);
+            let wide = u64::from(m0.as_slice()[p]).max(1 + most_in);
+            known[p].map_or(wide, |k| k.min(wide))
+        })
+        .collect()
+}
+
+/// The search's figures and, unless it was stopped, the answer it found.
+fn report_search(net: &Net, property: &Property, out: &Outcome, reduced: bool, r: &mut Report) {
     r.graph = "reachability";
     r.states = out.states;
     r.edges = out.edges;
     r.bits_per_state = Some(out.bits_per_state);
     r.store_bytes = Some(out.peak_bytes);
     r.bytes_per_state = Some(out.peak_bytes as f64 / out.states.max(1) as f64);
-    if stubborn.is_some() {
+    if reduced {
         r.notes.push(format!(
             "stubborn sets: {} of {} expanded states fired a reduced set of transitions",
             out.reduced_states, out.states
         ));
     }
-    let shortest = stubborn.is_none();
     if let Some(w) = &out.found {
-        // The target was reached: for deadlock, reach and safe it is the witness; for always,
-        // live and reversible it is a counterexample.
-        r.holds = Some(matches!(property, Property::Deadlock | Property::Reach(_)));
-        r.witness = Some(names(net, w));
-        r.witness_shortest = Some(shortest);
-        match property {
-            Property::Deadlock => r.deadlocks = 1,
-            Property::Safe => r.safe = Some(false),
-            Property::Live => {
-                r.live = Some(false);
-                r.deadlocks = 1;
-                r.notes
-                    .push("the witness reaches a dead marking: no transition fires again".into());
-            }
-            Property::Reversible => {
-                r.reversible = Some(false);
-                r.deadlocks = 1;
-                r.notes.push(
-                    "the witness reaches a dead marking other than M0: M0 is unreachable from it"
-                        .into(),
-                );
-            }
-            _ => {}
-        }
-        return;
+        return report_found(net, property, w, !reduced, r);
     }
     if let Some(s) = &out.stopped {
-        partial(r, s);
-        return;
+        return r.stopped_early(s.reason(), undecided_note(s));
     }
-    match out.verdict {
+    match &out.verdict {
         Some((holds, w)) => {
-            r.holds = Some(holds);
-            r.witness = w.map(|w| names(net, &w));
+            r.holds = Some(*holds);
+            r.witness = w.as_deref().map(|w| transition_ids(net, w));
             r.witness_shortest = r.witness.as_ref().map(|_| true);
             if let Some(t) = out.culprit {
-                r.non_live_transitions = vec![net.transitions()[t.index()].id.clone()];
+                let id = &net.transitions()[t.index()].id;
+                r.non_live_transitions = vec![id.clone()];
                 r.notes.push(format!(
-                    "from the marking the witness reaches, {} can never fire again",
-                    net.transitions()[t.index()].id
+                    "from the marking the witness reaches, {id} can never fire again"
                 ));
             }
             if *property == Property::Live {
-                r.live = Some(holds);
+                r.live = Some(*holds);
             } else {
-                r.reversible = Some(holds);
+                r.reversible = Some(*holds);
             }
         }
         None => {
@@ -376,5 +357,32 @@ fn decide(
                 _ => {}
             }
         }
+    }
+}
+
+/// The search reached its target along `path`: for deadlock, reach and safe it is the witness;
+/// for always, live and reversible it is a counterexample.
+fn report_found(net: &Net, property: &Property, path: &[TransIdx], shortest: bool, r: &mut Report) {
+    r.holds = Some(matches!(property, Property::Deadlock | Property::Reach(_)));
+    r.witness = Some(transition_ids(net, path));
+    r.witness_shortest = Some(shortest);
+    match property {
+        Property::Deadlock => r.deadlocks = 1,
+        Property::Safe => r.safe = Some(false),
+        Property::Live => {
+            r.live = Some(false);
+            r.deadlocks = 1;
+            r.notes
+                .push("the witness reaches a dead marking: no transition fires again".into());
+        }
+        Property::Reversible => {
+            r.reversible = Some(false);
+            r.deadlocks = 1;
+            r.notes.push(
+                "the witness reaches a dead marking other than M0: M0 is unreachable from it"
+                    .into(),
+            );
+        }
+        _ => {}
     }
 }

@@ -356,6 +356,11 @@ impl<const W: usize> Compiled<W> {
         }
     }
 
+    /// The number of transitions.
+    fn transitions(&self) -> usize {
+        self.offsets.len() - 1
+    }
+
     #[inline(always)]
     fn enabled(&self, key: &[u64; W], t: usize) -> bool {
         let a = self.offsets[t] as usize;
@@ -441,25 +446,6 @@ const CHUNK_BITS: u32 = 16;
 
 /// States whose successors the exploration generates and starts loading ahead of their turn.
 const AHEAD: usize = 4;
-
-/// The bytes an exploration holds once `n` new states are added: the table (old and new while it
-/// doubles), the states and their parents, and the chunks that the new states may open.
-fn bytes_to_add<const W: usize>(
-    table: &Table<W>,
-    states: &Chunked<[u64; W]>,
-    parents: &Chunked<u32>,
-    n: usize,
-) -> usize {
-    let chunk_bytes = (1 << CHUNK_BITS) * (8 * W + 4);
-    table.bytes_to_fit(n)
-        + states.bytes()
-        + parents.bytes()
-        + if (states.len & ((1 << CHUNK_BITS) - 1)) + n >= 1 << CHUNK_BITS {
-            chunk_bytes
-        } else {
-            0
-        }
-}
 
 /// An append-only array in fixed chunks, so that growing never copies (no reallocation peak).
 struct Chunked<T: Copy> {
@@ -671,172 +657,316 @@ pub(crate) fn search(
     }
 }
 
-/// Every 16,384 expanded states of a search: why it must stop (its deadline, Ctrl-C), or else a
-/// progress report.
-#[inline]
-fn checkpoint<const W: usize>(
-    opts: &ReachOptions,
-    expanded: usize,
-    edges: u64,
-    table: &Table<W>,
-    states: &Chunked<[u64; W]>,
-    parents: &Chunked<u32>,
-) -> Option<Stop> {
-    if expanded & 0x3FFF != 0 || expanded == 0 {
-        return None;
-    }
-    if let Some(s) = opts.interrupted() {
-        return Some(s);
-    }
-    if let Some(p) = &opts.progress {
-        p(Progress {
-            states: states.len as u64,
-            edges,
-            expanded: expanded as u64,
-            bytes: (table.bytes() + states.bytes() + parents.bytes()) as u64,
-        });
-    }
-    None
-}
-
-/// A search's store holding M0 alone: the table, the states by id, each state's parent, and
-/// M0 packed.
-fn seeded<const W: usize>(
-    net: &Net,
-    pk: &Packing,
-) -> (Table<W>, Chunked<[u64; W]>, Chunked<u32>, [u64; W]) {
-    let mut table = Table::<W>::new();
+/// M0 alone, packed and marked as stored: the states by id and each state's BFS parent.
+fn seed<const W: usize>(net: &Net, pk: &Packing) -> (Chunked<[u64; W]>, Chunked<u32>) {
     let mut states: Chunked<[u64; W]> = Chunked::new();
     let mut parents: Chunked<u32> = Chunked::new();
     let mut k0 = [0u64; W];
     pk.encode(net.initial_marking().as_slice(), &mut k0);
     k0[0] |= MARK;
-    table.insert(&k0);
     states.push(k0);
     parents.push(u32::MAX);
-    (table, states, parents, k0)
+    (states, parents)
 }
 
+/// The states of a one-thread search: the set of keys, the states by id (breadth-first order)
+/// and each state's BFS parent.
+struct Store<const W: usize> {
+    table: Table<W>,
+    states: Chunked<[u64; W]>,
+    parents: Chunked<u32>,
+}
+
+/// What [`Store::add`] did with a successor.
+enum Added {
+    /// It is a new state, numbered next.
+    New,
+    /// It was found before.
+    Known,
+    /// It is new, but the search may hold no more states.
+    Full,
+}
+
+impl<const W: usize> Store<W> {
+    /// A store holding M0 alone, and M0 packed.
+    fn seeded(net: &Net, pk: &Packing) -> (Store<W>, [u64; W]) {
+        let (states, parents) = seed::<W>(net, pk);
+        let k0 = states.get(0);
+        let mut table = Table::<W>::new();
+        table.insert(&k0);
+        let store = Store {
+            table,
+            states,
+            parents,
+        };
+        (store, k0)
+    }
+
+    /// The bytes held now.
+    fn bytes(&self) -> usize {
+        self.table.bytes() + self.states.bytes() + self.parents.bytes()
+    }
+
+    /// The bytes held once `n` new states are added: the table (old and new while it doubles),
+    /// the states and their parents, and the chunks that the new states may open.
+    fn bytes_to_add(&self, n: usize) -> usize {
+        let chunk_bytes = (1 << CHUNK_BITS) * (8 * W + 4);
+        self.table.bytes_to_fit(n)
+            + self.states.bytes()
+            + self.parents.bytes()
+            + if (self.states.len & ((1 << CHUNK_BITS) - 1)) + n >= 1 << CHUNK_BITS {
+                chunk_bytes
+            } else {
+                0
+            }
+    }
+
+    /// Adds `succ`, whose hash is `h`, as a successor of state `parent` unless it is known. A
+    /// new state past `max_states` is not numbered: the run is partial from there. Call
+    /// [`Table::reserve`] first.
+    #[inline(always)]
+    fn add(&mut self, succ: &[u64; W], h: u64, parent: usize, max_states: u64) -> Added {
+        if !self.table.insert_hashed(succ, h) {
+            return Added::Known;
+        }
+        if self.states.len as u64 >= max_states {
+            return Added::Full;
+        }
+        self.states.push(*succ);
+        self.parents.push(parent as u32);
+        Added::New
+    }
+
+    /// Every 16,384 expanded states of a search: why it must stop (its deadline, Ctrl-C), or
+    /// else a progress report.
+    #[inline]
+    fn checkpoint(&self, opts: &ReachOptions, expanded: usize, edges: u64) -> Option<Stop> {
+        if expanded & 0x3FFF != 0 || expanded == 0 {
+            return None;
+        }
+        if let Some(s) = opts.interrupted() {
+            return Some(s);
+        }
+        if let Some(p) = &opts.progress {
+            p(Progress {
+                states: self.states.len as u64,
+                edges,
+                expanded: expanded as u64,
+                bytes: self.bytes() as u64,
+            });
+        }
+        None
+    }
+}
+
+/// What the states expanded so far have shown.
+struct Counts {
+    edges: u64,
+    deadlocks: u64,
+    /// The first dead state, for the shortest deadlock witness.
+    first_dead: Option<usize>,
+    enabled_ever: Vec<bool>,
+    /// The largest value of each field in the states found.
+    max_fields: Vec<u64>,
+    /// Bytes held at the peak.
+    peak_bytes: usize,
+}
+
+impl Counts {
+    /// The counts before any state is expanded, M0 (`k0`) found.
+    fn new<const W: usize>(nt: usize, pk: &Packing, k0: &[u64; W]) -> Counts {
+        let mut max_fields = vec![0; pk.fields.len()];
+        observe(&mut max_fields, &pk.fields, k0);
+        Counts {
+            edges: 0,
+            deadlocks: 0,
+            first_dead: None,
+            enabled_ever: vec![false; nt],
+            max_fields,
+            peak_bytes: 0,
+        }
+    }
+}
+
+/// Where an exploration stands: the states found so far with their parents, the next state to
+/// expand, and the counts of the states expanded before it.
+struct Progressed<const W: usize> {
+    states: Chunked<[u64; W]>,
+    parents: Chunked<u32>,
+    cur: usize,
+    counts: Counts,
+}
+
+impl<const W: usize> Progressed<W> {
+    /// The result of the exploration that ended here (early when `stopped` says why), over the
+    /// finished set of states `visited`. The states and parents are freed before the liveness
+    /// pass, which runs when asked for and the exploration is complete.
+    fn finish(
+        self,
+        code: &Compiled<W>,
+        pk: &Packing,
+        stopped: Option<Stop>,
+        visited: &impl scc::Visited<W>,
+        opts: &ReachOptions,
+    ) -> ReachResult {
+        let Progressed {
+            states,
+            parents,
+            counts: c,
+            ..
+        } = self;
+        let nt = c.enabled_ever.len();
+        let peak_bytes = c
+            .peak_bytes
+            .max(visited.bytes() + states.bytes() + parents.bytes());
+        let deadlock_witness = c
+            .first_dead
+            .map(|d| search::path_to(code, &states, &parents, d, nt));
+        let (n, k0) = (states.len, states.get(0));
+        drop((states, parents));
+        let never_enabled: Vec<TransIdx> = (0..nt)
+            .filter(|&t| !c.enabled_ever[t])
+            .map(|t| TransIdx(t as u32))
+            .collect();
+        let (liveness, liveness_stopped, scc_bytes) = if opts.liveness && stopped.is_none() {
+            scc::liveness(code, visited, &k0, n, &never_enabled, opts)
+        } else {
+            (None, None, 0)
+        };
+        ReachResult {
+            states: n as u64,
+            edges: c.edges,
+            deadlocks: c.deadlocks,
+            deadlock_witness,
+            max_tokens: c.max_fields.iter().map(|&m| m as u32).collect(),
+            never_enabled,
+            stopped,
+            liveness,
+            liveness_stopped,
+            peak_bytes: peak_bytes.max(scc_bytes),
+            bits_per_state: pk.bits,
+        }
+    }
+}
+
+/// The successors of the states being expanded next, at most [`AHEAD`] of them, generated and
+/// their slots loading before the current state's inserts wait for their own: the cache misses
+/// of several states overlap.
+struct Ahead<const W: usize> {
+    ring: Vec<Vec<([u64; W], u64)>>,
+    /// The states whose successors the ring holds: `cur..prepared`.
+    prepared: usize,
+}
+
+impl<const W: usize> Ahead<W> {
+    /// An empty ring, each slot with room for the successors of one state.
+    fn new(nt: usize) -> Self {
+        Ahead {
+            ring: (0..AHEAD).map(|_| Vec::with_capacity(nt)).collect(),
+            prepared: 0,
+        }
+    }
+
+    /// The successors of state `cur`, with their hashes, once those of the states up to
+    /// [`AHEAD`] further on are generated and loading; marks the transitions enabled there.
+    #[inline(always)]
+    fn successors_of(
+        &mut self,
+        cur: usize,
+        code: &Compiled<W>,
+        store: &Store<W>,
+        enabled_ever: &mut [bool],
+    ) -> &[([u64; W], u64)] {
+        while self.prepared < store.states.len && self.prepared < cur + AHEAD {
+            let out = &mut self.ring[self.prepared % AHEAD];
+            successors(code, &store.states.get(self.prepared), enabled_ever, out);
+            for &(_, h) in out.iter() {
+                store.table.touch(h);
+            }
+            self.prepared += 1;
+        }
+        &self.ring[cur % AHEAD]
+    }
+}
+
+/// The sequential explorer; with `threads ≥ 2` it hands over to the parallel one, at once or
+/// once the state space has grown past `parallel_from` states.
 fn explore_w<const W: usize>(net: &Net, pk: &Packing, opts: &ReachOptions) -> ReachResult {
     if opts.threads >= 2 && opts.parallel_from == 0 {
         return par::explore_par::<W>(net, pk, opts);
     }
     let nt = net.num_transitions();
-    let np = net.num_places();
     let code = Compiled::<W>::new(net, pk);
-    let (mut table, mut states, mut parents, k0) = seeded::<W>(net, pk);
+    let (mut store, k0) = Store::<W>::seeded(net, pk);
+    let mut c = Counts::new(nt, pk, &k0);
     let max_states = opts.state_limit();
-    let mut max_fields: Vec<u64> = vec![0; np];
-    observe(&mut max_fields, &pk.fields, &k0);
-    let mut enabled_ever = vec![false; nt];
-    // The successors of the states being expanded next, at most AHEAD of them, generated and
-    // their slots loading before this state's inserts wait for their own: the cache misses of
-    // several states overlap.
-    let mut ring: Vec<Vec<([u64; W], u64)>> = (0..AHEAD).map(|_| Vec::with_capacity(nt)).collect();
-    // The states whose successors the ring holds: `cur..prepared`.
-    let mut prepared = 0usize;
-    let (mut edges, mut deadlocks) = (0u64, 0u64);
-    let mut first_dead: Option<usize> = None;
+    let mut ahead = Ahead::<W>::new(nt);
     let mut stopped = None;
-    let mut peak_bytes = 0usize;
     let mut cur = 0usize;
     let mut hand_over = opts.threads >= 2;
     let mut handed = false;
-    'bfs: while cur < states.len {
-        if let Some(s) = checkpoint(opts, cur, edges, &table, &states, &parents) {
+    'bfs: while cur < store.states.len {
+        if let Some(s) = store.checkpoint(opts, cur, c.edges) {
             stopped = Some(s);
             break;
         }
-        if hand_over && cur & 0x3FFF == 0 && states.len as u64 >= opts.parallel_from {
+        if hand_over && cur & 0x3FFF == 0 && store.states.len as u64 >= opts.parallel_from {
             if opts.spare_core.as_ref().is_none_or(|spare| spare()) {
                 handed = true;
                 break;
             }
             hand_over = false;
         }
-        while prepared < states.len && prepared < cur + AHEAD {
-            let out = &mut ring[prepared % AHEAD];
-            successors(&code, &states.get(prepared), &mut enabled_ever, out);
-            for &(_, h) in out.iter() {
-                table.touch(h);
-            }
-            prepared += 1;
-        }
-        let batch = &ring[cur % AHEAD];
+        let batch = ahead.successors_of(cur, &code, &store, &mut c.enabled_ever);
         // Counted before anything grows: the table (old and new while it doubles) and the
         // chunks that this state's successors may open.
-        let need = bytes_to_add(&table, &states, &parents, batch.len());
+        let need = store.bytes_to_add(batch.len());
         if let Err(s) = opts.within_memory(need) {
             stopped = Some(s);
             break;
         }
-        peak_bytes = peak_bytes.max(need);
-        edges += batch.len() as u64;
-        table.reserve(batch.len());
+        c.peak_bytes = c.peak_bytes.max(need);
+        c.edges += batch.len() as u64;
+        store.table.reserve(batch.len());
         for (succ, h) in batch {
-            if table.insert_hashed(succ, *h) {
-                if states.len as u64 >= max_states {
+            match store.add(succ, *h, cur, max_states) {
+                Added::New => observe(&mut c.max_fields, &pk.fields, succ),
+                Added::Known => {}
+                Added::Full => {
                     // One state too many: the run is partial; the expansion of this state stops.
                     stopped = Some(Stop::MaxStates(max_states));
                     break 'bfs;
                 }
-                states.push(*succ);
-                parents.push(cur as u32);
-                observe(&mut max_fields, &pk.fields, succ);
             }
         }
         if batch.is_empty() {
-            deadlocks += 1;
-            first_dead.get_or_insert(cur);
+            c.deadlocks += 1;
+            c.first_dead.get_or_insert(cur);
         }
         cur += 1;
     }
-    let peak_bytes = peak_bytes.max(table.bytes() + states.bytes() + parents.bytes());
+    c.peak_bytes = c.peak_bytes.max(store.bytes());
+    let Store {
+        table,
+        states,
+        parents,
+    } = store;
+    let done = Progressed {
+        states,
+        parents,
+        cur,
+        counts: c,
+    };
     if handed {
         drop(table);
-        let start = par::Progressed {
-            states,
-            parents,
-            cur,
-            edges,
-            deadlocks,
-            first_dead,
-            enabled_ever,
-            max_fields,
-            peak_bytes,
-        };
-        return par::continue_par(net, pk, start, opts);
+        return par::continue_par(net, pk, done, opts);
     }
-    let deadlock_witness = deadlock_witness(&code, &states, &parents, first_dead, nt);
-    let n = states.len;
-    drop((states, parents));
-    let never_enabled: Vec<TransIdx> = (0..nt)
-        .filter(|&t| !enabled_ever[t])
-        .map(|t| TransIdx(t as u32))
-        .collect();
-    let (liveness, liveness_stopped, scc_bytes) = if opts.liveness && stopped.is_none() {
-        // Not handed over: the state space is small enough for one thread here too.
-        let one = ReachOptions {
-            threads: 1,
-            ..opts.clone()
-        };
-        scc::liveness(&code, &table, &k0, n, &never_enabled, &one)
-    } else {
-        (None, None, 0)
+    // Not handed over: the state space is small enough for one thread here too.
+    let one = ReachOptions {
+        threads: 1,
+        ..opts.clone()
     };
-    ReachResult {
-        states: n as u64,
-        edges,
-        deadlocks,
-        deadlock_witness,
-        max_tokens: max_fields.iter().map(|&m| m as u32).collect(),
-        never_enabled,
-        stopped,
-        liveness,
-        liveness_stopped,
-        peak_bytes: peak_bytes.max(scc_bytes),
-        bits_per_state: pk.bits,
-    }
+    done.finish(&code, pk, stopped, &table, &one)
 }
 
 /// The successors of `key` with their hashes, into `out`; marks the transitions enabled there.
@@ -855,17 +985,6 @@ fn successors<const W: usize>(
             out.push((succ, hash(&succ)));
         }
     }
-}
-
-/// The firing sequence along the BFS parents from M0 to `first_dead`.
-fn deadlock_witness<const W: usize>(
-    code: &Compiled<W>,
-    states: &Chunked<[u64; W]>,
-    parents: &Chunked<u32>,
-    first_dead: Option<usize>,
-    nt: usize,
-) -> Option<Vec<TransIdx>> {
-    first_dead.map(|d| search::path_to(code, states, parents, d, nt))
 }
 
 /// A packing from the structural bounds and capacities alone, or `None` when some place has

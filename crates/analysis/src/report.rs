@@ -5,7 +5,10 @@ use std::fmt;
 use serde::ser::{SerializeMap, Serializer};
 use serde::Serialize;
 
+use cetratus_net::{Net, TransIdx};
+
 use crate::budget::PartialReason;
+use crate::classify::classify;
 use crate::{Classification, Incidence};
 
 /// A list of `(id, value)` pairs serialised as a JSON object in declaration order.
@@ -163,6 +166,77 @@ pub struct Report {
     pub sfc: Option<crate::sfc::SfcFindings>,
 }
 
+impl Report {
+    /// The report of `net` before any analysis has run: its size and classes, every verdict
+    /// unknown and every list empty, for the analyses to fill in.
+    pub(crate) fn empty(net: &Net) -> Report {
+        Report {
+            net: net.id().to_string(),
+            places: net.num_places(),
+            transitions: net.num_transitions(),
+            arcs: net.arcs().len(),
+            graph: "none",
+            states: 0,
+            edges: 0,
+            deadlocks: 0,
+            deadlock_witness: None,
+            bounded: None,
+            safe: None,
+            unbounded_places: Vec::new(),
+            max_tokens: Named(Vec::new()),
+            live: None,
+            non_live_transitions: Vec::new(),
+            dead_transitions: Vec::new(),
+            reversible: None,
+            p_invariants: None,
+            p_invariant_constants: None,
+            t_invariants: None,
+            conservative: None,
+            structurally_bounded: None,
+            classification: classify(net),
+            siphons: Vec::new(),
+            siphons_truncated: false,
+            siphons_without_marked_trap: Vec::new(),
+            traps: Vec::new(),
+            traps_truncated: false,
+            warnings: Vec::new(),
+            notes: Vec::new(),
+            partial: false,
+            partial_reason: None,
+            bits_per_state: None,
+            bytes_per_state: None,
+            store_bytes: None,
+            property: None,
+            holds: None,
+            witness: None,
+            witness_shortest: None,
+            reduction: None,
+            incidence: None,
+            timings: Timings::default(),
+            sfc: None,
+        }
+    }
+
+    /// Marks the report partial for `reason`, with the note that says what to raise.
+    pub(crate) fn stopped_early(&mut self, reason: PartialReason, note: String) {
+        self.partial = true;
+        self.partial_reason = Some(reason);
+        self.notes.push(note);
+    }
+}
+
+/// The file's ids of the transitions `ts` (a firing sequence or a set), for the report.
+pub(crate) fn transition_ids(net: &Net, ts: &[TransIdx]) -> Vec<String> {
+    ts.iter()
+        .map(|t| net.transitions()[t.index()].id.clone())
+        .collect()
+}
+
+/// The file's id of place `p`, for the report.
+pub(crate) fn place_id(net: &Net, p: usize) -> String {
+    net.places()[p].id.clone()
+}
+
 fn yes_no(b: Option<bool>) -> &'static str {
     match b {
         Some(true) => "yes",
@@ -184,36 +258,57 @@ fn weights(v: &Named<i64>) -> String {
         .join(" + ")
 }
 
-impl fmt::Display for Report {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        writeln!(
-            f,
-            "net {}: {} places, {} transitions, {} arcs",
-            self.net, self.places, self.transitions, self.arcs
-        )?;
-        if self.partial {
-            writeln!(
-                f,
-                "PARTIAL RESULT ({}): see the notes",
-                self.partial_reason
-                    .map_or("stopped early".into(), |r| r.to_string())
-            )?;
-        }
-        let c = &self.classification;
-        let classes: Vec<&str> = [
-            (c.ordinary, "ordinary"),
-            (c.pure, "pure"),
-            (c.state_machine, "state machine"),
-            (c.marked_graph, "marked graph"),
-            (c.free_choice, "free choice"),
-            (c.extended_free_choice, "extended free choice"),
-            (c.inhibitor_arcs, "inhibitor arcs"),
-            (c.capacities, "capacities"),
-        ]
+/// A firing sequence for people: the empty one stays visible.
+fn sequence(w: &[String]) -> String {
+    if w.is_empty() {
+        "(the initial marking)".into()
+    } else {
+        w.join(" ")
+    }
+}
+
+/// The names of the classes the net belongs to.
+fn classes(c: &Classification) -> Vec<&'static str> {
+    [
+        (c.ordinary, "ordinary"),
+        (c.pure, "pure"),
+        (c.state_machine, "state machine"),
+        (c.marked_graph, "marked graph"),
+        (c.free_choice, "free choice"),
+        (c.extended_free_choice, "extended free choice"),
+        (c.inhibitor_arcs, "inhibitor arcs"),
+        (c.capacities, "capacities"),
+    ]
+    .iter()
+    .filter(|(b, _)| *b)
+    .map(|(_, n)| *n)
+    .collect()
+}
+
+/// One line of minimal siphons or traps: how many, whether the enumeration was cut, the sets.
+fn write_sets(
+    f: &mut fmt::Formatter<'_>,
+    what: &str,
+    sets: &[Vec<String>],
+    truncated: bool,
+) -> fmt::Result {
+    let listed = sets
         .iter()
-        .filter(|(b, _)| *b)
-        .map(|(_, n)| *n)
-        .collect();
+        .map(|s| format!("{{{}}}", s.join(", ")))
+        .collect::<Vec<_>>()
+        .join(" ");
+    writeln!(
+        f,
+        "  minimal {what}: {}{} {listed}",
+        sets.len(),
+        if truncated { " (truncated)" } else { "" },
+    )
+}
+
+impl Report {
+    /// The structure section: classes, invariants, siphons and traps.
+    fn fmt_structure(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let classes = classes(&self.classification);
         writeln!(f, "\nstructure")?;
         writeln!(
             f,
@@ -248,70 +343,42 @@ impl fmt::Display for Report {
             }
             None => writeln!(f, "  T-invariants: not computed (see notes)")?,
         }
-        let sets = |v: &Vec<Vec<String>>| {
-            v.iter()
-                .map(|s| format!("{{{}}}", s.join(", ")))
-                .collect::<Vec<_>>()
-                .join(" ")
+        write_sets(f, "siphons", &self.siphons, self.siphons_truncated)?;
+        write_sets(f, "traps", &self.traps, self.traps_truncated)
+    }
+
+    /// The property section, in property mode only.
+    fn fmt_property(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let Some(p) = &self.property else {
+            return Ok(());
         };
-        writeln!(
-            f,
-            "  minimal siphons: {}{} {}",
-            self.siphons.len(),
-            if self.siphons_truncated {
-                " (truncated)"
-            } else {
-                ""
-            },
-            sets(&self.siphons)
-        )?;
-        writeln!(
-            f,
-            "  minimal traps: {}{} {}",
-            self.traps.len(),
-            if self.traps_truncated {
-                " (truncated)"
-            } else {
-                ""
-            },
-            sets(&self.traps)
-        )?;
-        if let Some(p) = &self.property {
-            writeln!(f, "\nproperty {p}: {}", yes_no(self.holds))?;
-            if let Some(w) = &self.witness {
-                writeln!(
-                    f,
-                    "  witness{}: {}",
-                    if self.witness_shortest == Some(true) {
-                        " (shortest)"
-                    } else {
-                        ""
-                    },
-                    if w.is_empty() {
-                        "(the initial marking)".into()
-                    } else {
-                        w.join(" ")
-                    }
-                )?;
-            }
-            if let Some(r) = self.reduction {
-                writeln!(f, "  reduction: {r}")?;
-            }
+        writeln!(f, "\nproperty {p}: {}", yes_no(self.holds))?;
+        if let Some(w) = &self.witness {
+            writeln!(
+                f,
+                "  witness{}: {}",
+                if self.witness_shortest == Some(true) {
+                    " (shortest)"
+                } else {
+                    ""
+                },
+                sequence(w)
+            )?;
         }
+        if let Some(r) = self.reduction {
+            writeln!(f, "  reduction: {r}")?;
+        }
+        Ok(())
+    }
+
+    /// The behaviour section: the graph's figures and the verdicts drawn from it.
+    fn fmt_behaviour(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         writeln!(f, "\nbehaviour ({} graph)", self.graph)?;
         writeln!(f, "  states: {}", self.states)?;
         writeln!(f, "  edges: {}", self.edges)?;
         writeln!(f, "  deadlocks: {}", self.deadlocks)?;
         if let Some(w) = &self.deadlock_witness {
-            writeln!(
-                f,
-                "  shortest path to a deadlock: {}",
-                if w.is_empty() {
-                    "(the initial marking)".into()
-                } else {
-                    w.join(" ")
-                }
-            )?;
+            writeln!(f, "  shortest path to a deadlock: {}", sequence(w))?;
         }
         writeln!(f, "  bounded: {}", yes_no(self.bounded))?;
         if !self.unbounded_places.is_empty() {
@@ -344,6 +411,28 @@ impl fmt::Display for Report {
                 bytes as f64 / (1024.0 * 1024.0)
             )?;
         }
+        Ok(())
+    }
+}
+
+impl fmt::Display for Report {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        writeln!(
+            f,
+            "net {}: {} places, {} transitions, {} arcs",
+            self.net, self.places, self.transitions, self.arcs
+        )?;
+        if self.partial {
+            writeln!(
+                f,
+                "PARTIAL RESULT ({}): see the notes",
+                self.partial_reason
+                    .map_or("stopped early".into(), |r| r.to_string())
+            )?;
+        }
+        self.fmt_structure(f)?;
+        self.fmt_property(f)?;
+        self.fmt_behaviour(f)?;
         if let Some(s) = &self.sfc {
             write!(f, "{s}")?;
         }

@@ -32,11 +32,11 @@
 //! ([`Padded`]): without it the threads passed the lines back and forth at every edge, and two
 //! threads were barely faster than one.
 
-use cetratus_net::{Net, TransIdx};
+use cetratus_net::Net;
 
 use super::{
-    deadlock_witness, hash, observe, prefetch, scc, Chunked, Compiled, Field, Packing,
-    ReachOptions, ReachResult, Stop, Table, CHUNK_BITS, MARK,
+    hash, observe, prefetch, scc, seed, Chunked, Compiled, Counts, Field, Packing, Progressed,
+    ReachOptions, ReachResult, Stop, Table, CHUNK_BITS,
 };
 use crate::Progress;
 
@@ -280,45 +280,19 @@ impl Crew {
     }
 }
 
-/// Where an exploration stands: the states found so far with their parents, the next state to
-/// expand, and the counts of the states expanded before it.
-pub(super) struct Progressed<const W: usize> {
-    pub(super) states: Chunked<[u64; W]>,
-    pub(super) parents: Chunked<u32>,
-    pub(super) cur: usize,
-    pub(super) edges: u64,
-    pub(super) deadlocks: u64,
-    pub(super) first_dead: Option<usize>,
-    pub(super) enabled_ever: Vec<bool>,
-    pub(super) max_fields: Vec<u64>,
-    pub(super) peak_bytes: usize,
-}
-
 /// Explores with `opts.threads` threads; the result equals the sequential one.
 pub(super) fn explore_par<const W: usize>(
     net: &Net,
     pk: &Packing,
     opts: &ReachOptions,
 ) -> ReachResult {
-    let mut states: Chunked<[u64; W]> = Chunked::new();
-    let mut parents: Chunked<u32> = Chunked::new();
-    let mut k0 = [0u64; W];
-    pk.encode(net.initial_marking().as_slice(), &mut k0);
-    k0[0] |= MARK;
-    states.push(k0);
-    parents.push(u32::MAX);
-    let mut max_fields: Vec<u64> = vec![0; net.num_places()];
-    observe(&mut max_fields, &pk.fields, &k0);
+    let (states, parents) = seed::<W>(net, pk);
+    let counts = Counts::new(net.num_transitions(), pk, &states.get(0));
     let start = Progressed {
         states,
         parents,
         cur: 0,
-        edges: 0,
-        deadlocks: 0,
-        first_dead: None,
-        enabled_ever: vec![false; net.num_transitions()],
-        max_fields,
-        peak_bytes: 0,
+        counts,
     };
     continue_par(net, pk, start, opts)
 }
@@ -333,102 +307,155 @@ pub(super) fn continue_par<const W: usize>(
     start: Progressed<W>,
     opts: &ReachOptions,
 ) -> ReachResult {
-    let threads = opts.threads.max(1);
-    let nt = net.num_transitions();
-    let code = Compiled::<W>::new(net, pk);
-    let Progressed {
-        mut states,
-        mut parents,
-        mut cur,
-        mut edges,
-        mut deadlocks,
-        mut first_dead,
-        mut enabled_ever,
-        mut max_fields,
-        mut peak_bytes,
-    } = start;
-    let k0 = states.get(0);
-    let mut owners: Vec<Padded<Owner<W>>> = (0..threads)
-        .map(|_| {
-            Padded(Owner {
-                table: Table::new(),
-                new: Vec::new(),
-                max: vec![0; pk.fields.len()],
-            })
-        })
-        .collect();
-    for i in 0..states.len {
-        let k = states.get(i);
-        let h = hash(&k);
-        let t = &mut owners[owner(h, threads)].table;
-        t.reserve(1);
-        t.insert_hashed(&k, h);
-    }
     let max_states = opts.state_limit();
+    let mut at = start;
+    let mut work = Batches::<W>::new(net, pk, opts.threads.max(1), &at.states);
     let mut stopped = None;
-    let max_batch =
-        MAX_BATCH.min((OUTBOX_BYTES / (nt.max(1) * std::mem::size_of::<Succ<W>>())).max(1));
-    // Buffers reused from batch to batch: one per thread, one per owner.
-    let mut expanded: Vec<Padded<Expanded<W>>> = (0..threads)
-        .map(|_| Padded(Expanded::new(threads, nt)))
-        .collect();
-    let mut new: Vec<Found<W>> = Vec::new();
-    let mut recount = Padded(Expanded::new(0, nt));
-    let crew = Crew::new(threads);
-    while cur < states.len {
-        if cur > 0 {
-            if let Some(s) = opts.interrupted() {
-                stopped = Some(s);
-                break;
-            }
-            if let Some(p) = &opts.progress {
-                p(Progress {
-                    states: states.len as u64,
-                    edges,
-                    expanded: cur as u64,
-                    bytes: peak_bytes as u64,
-                });
-            }
+    while at.cur < at.states.len {
+        if let Some(s) = between_batches(opts, &at) {
+            stopped = Some(s);
+            break;
         }
-        let size = (states.len - cur).min(max_batch);
-        // Counted before the batch: every table grown to take the whole batch's successors
-        // (old and new slots), full outboxes, and the chunks the new states may open.
-        let worst = size * nt;
-        let need: usize = owners
+        let size = (at.states.len - at.cur).min(work.max_batch);
+        if let Err(s) = opts.within_memory(work.bytes_before(size, &at)) {
+            stopped = Some(s);
+            break;
+        }
+        let end = at.cur + size;
+        let held = work.expand_and_insert(&at.states, at.cur..end, &pk.fields);
+        let c = &mut at.counts;
+        c.peak_bytes = c
+            .peak_bytes
+            .max(held + at.states.bytes() + at.parents.bytes());
+        stopped = work.number_new(&mut at, &pk.fields, max_states);
+        if stopped.is_some() {
+            break;
+        }
+        at.cur = end;
+    }
+    let Batches { code, owners, .. } = work;
+    let shards = Shards::new(owners.into_iter().map(|o| o.0.table).collect());
+    at.finish(&code, pk, stopped, &shards, opts)
+}
+
+/// Between two batches (not before the first state): why to stop (Ctrl-C, the deadline), or
+/// else a progress report.
+fn between_batches<const W: usize>(opts: &ReachOptions, at: &Progressed<W>) -> Option<Stop> {
+    if at.cur == 0 {
+        return None;
+    }
+    if let Some(s) = opts.interrupted() {
+        return Some(s);
+    }
+    if let Some(p) = &opts.progress {
+        p(Progress {
+            states: at.states.len as u64,
+            edges: at.counts.edges,
+            expanded: at.cur as u64,
+            bytes: at.counts.peak_bytes as u64,
+        });
+    }
+    None
+}
+
+/// What the parallel explorer keeps from batch to batch: the owners' tables, a buffer per
+/// thread, and the threads.
+struct Batches<const W: usize> {
+    code: Compiled<W>,
+    nt: usize,
+    threads: usize,
+    /// The most states a batch takes: [`MAX_BATCH`], fewer for wide nets so that the outboxes
+    /// stay within [`OUTBOX_BYTES`].
+    max_batch: usize,
+    owners: Vec<Padded<Owner<W>>>,
+    expanded: Vec<Padded<Expanded<W>>>,
+    /// The counts of a batch cut at `max_states`, recomputed up to the cut.
+    recount: Padded<Expanded<W>>,
+    crew: Crew,
+}
+
+impl<const W: usize> Batches<W> {
+    /// The working set of `threads` threads, the owners' tables filled with `states` in id
+    /// order.
+    fn new(net: &Net, pk: &Packing, threads: usize, states: &Chunked<[u64; W]>) -> Self {
+        let nt = net.num_transitions();
+        let mut owners: Vec<Padded<Owner<W>>> = (0..threads)
+            .map(|_| {
+                Padded(Owner {
+                    table: Table::new(),
+                    new: Vec::new(),
+                    max: vec![0; pk.fields.len()],
+                })
+            })
+            .collect();
+        for i in 0..states.len {
+            let k = states.get(i);
+            let h = hash(&k);
+            let t = &mut owners[owner(h, threads)].table;
+            t.reserve(1);
+            t.insert_hashed(&k, h);
+        }
+        Batches {
+            code: Compiled::<W>::new(net, pk),
+            nt,
+            threads,
+            max_batch: MAX_BATCH
+                .min((OUTBOX_BYTES / (nt.max(1) * std::mem::size_of::<Succ<W>>())).max(1)),
+            owners,
+            // Buffers reused from batch to batch: one per thread, one per owner.
+            expanded: (0..threads)
+                .map(|_| Padded(Expanded::new(threads, nt)))
+                .collect(),
+            recount: Padded(Expanded::new(0, nt)),
+            crew: Crew::new(threads),
+        }
+    }
+
+    /// The bytes that a batch of `size` states from `at` may hold, counted before it runs:
+    /// every table grown to take the whole batch's successors (old and new slots), full
+    /// outboxes, and the chunks the new states may open.
+    fn bytes_before(&self, size: usize, at: &Progressed<W>) -> usize {
+        let worst = size * self.nt;
+        self.owners
             .iter()
             .map(|o| o.table.bytes_to_fit(worst))
             .sum::<usize>()
             + OUTBOX_BYTES.min(worst * std::mem::size_of::<Succ<W>>())
-            + states.bytes()
-            + parents.bytes()
-            + worst.div_ceil(1 << CHUNK_BITS).saturating_add(1) * (1 << CHUNK_BITS) * (8 * W + 4);
-        if let Err(s) = opts.within_memory(need) {
-            stopped = Some(s);
-            break;
-        }
-        let end = cur + size;
+            + at.states.bytes()
+            + at.parents.bytes()
+            + worst.div_ceil(1 << CHUNK_BITS).saturating_add(1) * (1 << CHUNK_BITS) * (8 * W + 4)
+    }
+
+    /// Both phases of the batch `range`: its states expanded by the threads, then their
+    /// successors inserted by the owners. Returns the bytes the tables (old and new slots where
+    /// one grew) and the outboxes held meanwhile.
+    fn expand_and_insert(
+        &mut self,
+        states: &Chunked<[u64; W]>,
+        range: std::ops::Range<usize>,
+        fields: &[Field],
+    ) -> usize {
+        let (cur, end) = (range.start, range.end);
+        let size = end - cur;
         let parallel = size >= MIN_PARALLEL;
-        let step = size.div_ceil(threads);
-        {
-            let (code, states) = (&code, &states);
-            crew.each(&mut expanded, parallel, |i, ex| {
-                let a = (cur + i * step).min(end);
-                expand(code, states, a..(a + step).min(end), ex);
-            });
-        }
-        let grows: Vec<u32> = owners.iter().map(|o| o.table.grows).collect();
-        {
-            let (expanded, fields) = (&expanded, &pk.fields[..]);
-            crew.each(&mut owners, parallel, |o, own| {
-                insert(own, expanded, o, fields)
-            });
-        }
+        let step = size.div_ceil(self.threads);
+        let code = &self.code;
+        self.crew.each(&mut self.expanded, parallel, |i, ex| {
+            let a = (cur + i * step).min(end);
+            expand(code, states, a..(a + step).min(end), ex);
+        });
+        let grows: Vec<u32> = self.owners.iter().map(|o| o.table.grows).collect();
+        let expanded = &self.expanded;
+        self.crew.each(&mut self.owners, parallel, |o, own| {
+            insert(own, expanded, o, fields)
+        });
         let outbox_bytes: usize = expanded
             .iter()
             .flat_map(|e| &e.outboxes)
             .map(|b| b.capacity() * std::mem::size_of::<Succ<W>>())
             .sum();
-        let table_bytes: usize = owners
+        let table_bytes: usize = self
+            .owners
             .iter()
             .map(|o| &o.table)
             .zip(&grows)
@@ -440,78 +467,66 @@ pub(super) fn continue_par<const W: usize>(
                 }
             })
             .sum();
-        peak_bytes = peak_bytes.max(table_bytes + outbox_bytes + states.bytes() + parents.bytes());
-        let allowed = max_states.saturating_sub(states.len as u64) as usize;
-        let found: usize = owners.iter().map(|o| o.new.len()).sum();
-        let counts = if found > allowed {
-            // The sequential explorer stops at the first new state beyond the limit, inside the
-            // expansion of its parent: count exactly what it would have counted by then.
-            merge(&owners, |f| new.push(*f));
-            let parent = (new[allowed].0 >> 32) as usize;
-            new.truncate(allowed);
-            stopped = Some(Stop::MaxStates(max_states));
-            // (`parent` has a successor, so it is not dead and its dead check does not matter.)
-            expand(&code, &states, cur..parent + 1, &mut recount);
-            for (disc, key) in &new {
-                states.push(*key);
-                parents.push((disc >> 32) as u32);
-                observe(&mut max_fields, &pk.fields, key);
-            }
-            std::slice::from_ref(&recount)
-        } else {
-            merge(&owners, |(disc, key)| {
-                states.push(*key);
-                parents.push((disc >> 32) as u32);
+        table_bytes + outbox_bytes
+    }
+
+    /// Numbers the batch's new states as the sequential explorer would and adds the batch's
+    /// counts to `at`. Past `max_states`, the batch is cut where the sequential explorer stops,
+    /// and the reason is returned.
+    fn number_new(
+        &mut self,
+        at: &mut Progressed<W>,
+        fields: &[Field],
+        max_states: u64,
+    ) -> Option<Stop> {
+        let allowed = max_states.saturating_sub(at.states.len as u64) as usize;
+        let found: usize = self.owners.iter().map(|o| o.new.len()).sum();
+        let c = &mut at.counts;
+        if found <= allowed {
+            merge(&self.owners, |(disc, key)| {
+                at.states.push(*key);
+                at.parents.push((disc >> 32) as u32);
             });
-            for own in &owners {
-                for (m, &x) in max_fields.iter_mut().zip(&own.max) {
+            for own in &self.owners {
+                for (m, &x) in c.max_fields.iter_mut().zip(&own.max) {
                     *m = (*m).max(x);
                 }
             }
-            &expanded[..]
-        };
-        for ex in counts {
-            edges += ex.edges;
-            deadlocks += ex.deadlocks;
-            if first_dead.is_none() {
-                first_dead = ex.first_dead;
-            }
-            for (e, &x) in enabled_ever.iter_mut().zip(&ex.enabled_ever) {
-                *e |= x;
-            }
+            self.expanded.iter().for_each(|ex| add_counts(c, ex));
+            return None;
         }
-        if stopped.is_some() {
-            break;
+        // The sequential explorer stops at the first new state beyond the limit, inside the
+        // expansion of its parent: count exactly what it would have counted by then.
+        let mut new: Vec<Found<W>> = Vec::new();
+        merge(&self.owners, |f| new.push(*f));
+        let parent = (new[allowed].0 >> 32) as usize;
+        new.truncate(allowed);
+        // (`parent` has a successor, so it is not dead and its dead check does not matter.)
+        expand(
+            &self.code,
+            &at.states,
+            at.cur..parent + 1,
+            &mut self.recount,
+        );
+        for (disc, key) in &new {
+            at.states.push(*key);
+            at.parents.push((disc >> 32) as u32);
+            observe(&mut c.max_fields, fields, key);
         }
-        cur = end;
+        add_counts(c, &self.recount);
+        Some(Stop::MaxStates(max_states))
     }
-    let table_bytes: usize = owners.iter().map(|o| o.table.bytes()).sum();
-    let peak_bytes = peak_bytes.max(table_bytes + states.bytes() + parents.bytes());
-    let deadlock_witness = deadlock_witness(&code, &states, &parents, first_dead, nt);
-    let never_enabled: Vec<TransIdx> = (0..nt)
-        .filter(|&t| !enabled_ever[t])
-        .map(|t| TransIdx(t as u32))
-        .collect();
-    let n = states.len;
-    drop((states, parents));
-    let (liveness, liveness_stopped, scc_bytes) = if opts.liveness && stopped.is_none() {
-        let tables = owners.into_iter().map(|o| o.0.table).collect();
-        scc::liveness(&code, &Shards::new(tables), &k0, n, &never_enabled, opts)
-    } else {
-        (None, None, 0)
-    };
-    ReachResult {
-        states: n as u64,
-        edges,
-        deadlocks,
-        deadlock_witness,
-        max_tokens: max_fields.iter().map(|&m| m as u32).collect(),
-        never_enabled,
-        stopped,
-        liveness,
-        liveness_stopped,
-        peak_bytes: peak_bytes.max(scc_bytes),
-        bits_per_state: pk.bits,
+}
+
+/// Adds what one thread counted in its part of a batch.
+fn add_counts<const W: usize>(c: &mut Counts, ex: &Expanded<W>) {
+    c.edges += ex.edges;
+    c.deadlocks += ex.deadlocks;
+    if c.first_dead.is_none() {
+        c.first_dead = ex.first_dead;
+    }
+    for (e, &x) in c.enabled_ever.iter_mut().zip(&ex.enabled_ever) {
+        *e |= x;
     }
 }
 

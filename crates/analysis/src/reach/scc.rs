@@ -13,8 +13,8 @@
 //! overlap instead of waiting one after the other; the keys of the queued states load the same
 //! way. With more threads the search goes by layers over one queue, each thread taking a part
 //! of the layer the same way and claiming the states it finds with one atomic bit each
-//! ([`reaches_root_layered`]). If every state reaches M0, the graph is one strongly connected
-//! component: the net is reversible, and live exactly when every transition is enabled
+//! ([`Graph::reaches_root_layered`]). If every state reaches M0, the graph is one strongly
+//! connected component: the net is reversible, and live exactly when every transition is enabled
 //! somewhere. This is the common
 //! case of a plant model, and it costs one lookup per edge, stopping as soon as every state is
 //! found. Otherwise an iterative Tarjan (explicit frames, no recursion) finds the terminal
@@ -78,11 +78,15 @@ const BATCH: usize = 1 << 16;
 /// How many loads ahead the backward search starts loading a slot: enough to cover a miss.
 const AHEAD: usize = 64;
 
-fn bit(v: &[u64], i: usize) -> bool {
+/// Bit `i` of the bit set `v`.
+#[inline(always)]
+pub(super) fn bit(v: &[u64], i: usize) -> bool {
     v[i >> 6] >> (i & 63) & 1 == 1
 }
 
-fn set(v: &mut [u64], i: usize) {
+/// Sets bit `i` of the bit set `v`.
+#[inline(always)]
+pub(super) fn set(v: &mut [u64], i: usize) {
     v[i >> 6] |= 1 << (i & 63);
 }
 
@@ -98,7 +102,8 @@ pub(super) fn liveness<const W: usize>(
     let Some(root) = table.id_of(k0, hash(k0)) else {
         return (None, None, 0);
     };
-    match reaches_root(code, table, root, states, opts) {
+    let graph = Graph { code, table, opts };
+    match graph.reaches_root(root, states) {
         Err((s, bytes)) => (None, Some(s), bytes),
         Ok((true, bytes)) => (
             Some(Liveness {
@@ -111,7 +116,7 @@ pub(super) fn liveness<const W: usize>(
             None,
             bytes,
         ),
-        Ok((false, bytes)) => match tarjan(code, table, root, opts) {
+        Ok((false, bytes)) => match graph.tarjan(root) {
             Ok((l, b)) => (Some(l), None, bytes.max(b)),
             Err((s, b)) => (None, Some(s), bytes.max(b)),
         },
@@ -120,56 +125,12 @@ pub(super) fn liveness<const W: usize>(
 
 type Counted<T> = Result<(T, usize), (Stop, usize)>;
 
-/// Whether every one of the `states` states reaches the state in slot `root`.
-fn reaches_root<const W: usize>(
-    code: &Compiled<W>,
-    table: &impl Visited<W>,
-    root: usize,
-    states: usize,
-    opts: &ReachOptions,
-) -> Counted<bool> {
-    if opts.threads >= 2 {
-        return reaches_root_layered(code, table, root, states, opts);
-    }
-    let cap = table.ids();
-    let nt = code.offsets.len() - 1;
-    let (per_batch, batch_cap) = batch_sizes(nt, states);
-    let bytes =
-        table.bytes() + cap.div_ceil(64) * 8 + (states + 1) * 4 + (batch_cap + per_batch) * 8 * W;
-    opts.within_memory(bytes).map_err(|s| (s, bytes))?;
-    let mut seen = vec![0u64; cap.div_ceil(64)];
-    // Every state once, and one place past the last for the write that keeps nothing.
-    let mut queue: Vec<u32> = vec![0; states + 1];
-    // At its full length; `n` says how much of it a round holds, so that a predecessor is
-    // written whether or not it exists and kept only when it does, without a branch.
-    let mut batch: Vec<[u64; W]> = vec![[0; W]; batch_cap];
-    let mut keys: Vec<[u64; W]> = Vec::with_capacity(per_batch);
-    set(&mut seen, root);
-    queue[0] = root as u32;
-    let mut found = 1;
-    let mut head = 0;
-    while head < found && found < states {
-        if let Some(s) = opts.interrupted() {
-            return Err((s, bytes));
-        }
-        let end = found.min(head + per_batch);
-        gather(
-            table,
-            &queue[head..found.min(end + AHEAD)],
-            end - head,
-            &mut keys,
-        );
-        head = end;
-        each_predecessor(code, table, &keys, &mut batch, |s| {
-            // Without a branch on `seen`, whose outcome is random: the slot is written past the
-            // queue's end and kept only when it is new.
-            let new = !bit(&seen, s);
-            set(&mut seen, s);
-            queue[found] = s as u32;
-            found += new as usize;
-        });
-    }
-    Ok((found == states, bytes))
+/// The reachability graph over the finished set of states, implicit: a node is an id of
+/// `table`, and `code` computes its successors and predecessors. Searched within `opts`.
+struct Graph<'a, const W: usize, V> {
+    code: &'a Compiled<W>,
+    table: &'a V,
+    opts: &'a ReachOptions,
 }
 
 /// How many of `states` queued states the backward search takes at a time, and the
@@ -193,38 +154,6 @@ fn gather<const W: usize>(
             table.touch_id(next as usize);
         }
         keys.push(table.key(s as usize));
-    }
-}
-
-/// Calls `found` with the slot of every predecessor of every key in `keys` (with repeats), in
-/// turn: the predecessors are generated into `batch` (which holds `keys.len()` times the
-/// transitions), then looked up, each lookup starting the load of the home slot [`AHEAD`]
-/// lookups further on.
-fn each_predecessor<const W: usize>(
-    code: &Compiled<W>,
-    table: &impl Visited<W>,
-    keys: &[[u64; W]],
-    batch: &mut [[u64; W]],
-    mut found: impl FnMut(usize),
-) {
-    let nt = code.offsets.len() - 1;
-    // Written whether or not the predecessor exists, kept only when it does: no branch.
-    let mut n = 0;
-    for key in keys {
-        for t in 0..nt {
-            let (u, ok) = code.unfire_unchecked(key, t);
-            batch[n] = u;
-            n += ok as usize;
-        }
-    }
-    let batch = &batch[..n];
-    for (i, u) in batch.iter().enumerate() {
-        if let Some(v) = batch.get(i + AHEAD) {
-            table.touch(hash(v));
-        }
-        if let Some(s) = table.id_of(u, hash(u)) {
-            found(s);
-        }
     }
 }
 
@@ -260,239 +189,368 @@ struct Layer<'a> {
     tail: &'a AtomicUsize,
 }
 
-/// One thread's share of the search of `layer`: the predecessors that no thread has found yet
-/// are claimed in `seen` and appended to the queue. Stops early once the queue holds every one
-/// of the `states` states.
-fn search_part<const W: usize>(
-    code: &Compiled<W>,
-    table: &impl Visited<W>,
-    layer: &Layer,
-    seen: &[AtomicU64],
-    states: usize,
-    sc: &mut Scratch<W>,
-) {
-    let (queue, tail) = (layer.queue, layer.tail);
-    while tail.load(Relaxed) < states {
-        let head = layer.next.fetch_add(layer.chunk, Relaxed);
-        if head >= layer.end {
-            break;
+impl<const W: usize, V: Visited<W>> Graph<'_, W, V> {
+    /// Whether every one of the `states` states reaches the state in slot `root`.
+    fn reaches_root(&self, root: usize, states: usize) -> Counted<bool> {
+        if self.opts.threads >= 2 {
+            return self.reaches_root_layered(root, states);
         }
-        let end = layer.end.min(head + layer.chunk);
-        sc.ids.clear();
-        sc.ids.extend(
-            queue[head..layer.end.min(end + AHEAD)]
-                .iter()
-                .map(|x| x.load(Relaxed)),
-        );
-        gather(table, &sc.ids, end - head, &mut sc.keys);
-        let found = &mut sc.found;
-        found.clear();
-        each_predecessor(code, table, &sc.keys, &mut sc.batch, |s| {
-            if claim(seen, s) {
-                found.push(s as u32);
+        let table = self.table;
+        let cap = table.ids();
+        let (per_batch, batch_cap) = batch_sizes(self.code.transitions(), states);
+        let bytes = table.bytes()
+            + cap.div_ceil(64) * 8
+            + (states + 1) * 4
+            + (batch_cap + per_batch) * 8 * W;
+        self.opts.within_memory(bytes).map_err(|s| (s, bytes))?;
+        let mut seen = vec![0u64; cap.div_ceil(64)];
+        // Every state once, and one place past the last for the write that keeps nothing.
+        let mut queue: Vec<u32> = vec![0; states + 1];
+        // At its full length; `n` says how much of it a round holds, so that a predecessor is
+        // written whether or not it exists and kept only when it does, without a branch.
+        let mut batch: Vec<[u64; W]> = vec![[0; W]; batch_cap];
+        let mut keys: Vec<[u64; W]> = Vec::with_capacity(per_batch);
+        set(&mut seen, root);
+        queue[0] = root as u32;
+        let mut found = 1;
+        let mut head = 0;
+        while head < found && found < states {
+            if let Some(s) = self.opts.interrupted() {
+                return Err((s, bytes));
             }
-        });
-        let at = tail.fetch_add(found.len(), Relaxed);
-        for (q, &s) in queue[at..].iter().zip(found.iter()) {
-            q.store(s, Relaxed);
+            let end = found.min(head + per_batch);
+            gather(
+                table,
+                &queue[head..found.min(end + AHEAD)],
+                end - head,
+                &mut keys,
+            );
+            head = end;
+            self.each_predecessor(&keys, &mut batch, |s| {
+                // Without a branch on `seen`, whose outcome is random: the slot is written past
+                // the queue's end and kept only when it is new.
+                let new = !bit(&seen, s);
+                set(&mut seen, s);
+                queue[found] = s as u32;
+                found += new as usize;
+            });
+        }
+        Ok((found == states, bytes))
+    }
+
+    /// Calls `found` with the slot of every predecessor of every key in `keys` (with repeats),
+    /// in turn: the predecessors are generated into `batch` (which holds `keys.len()` times the
+    /// transitions), then looked up, each lookup starting the load of the home slot [`AHEAD`]
+    /// lookups further on.
+    fn each_predecessor(
+        &self,
+        keys: &[[u64; W]],
+        batch: &mut [[u64; W]],
+        mut found: impl FnMut(usize),
+    ) {
+        let nt = self.code.transitions();
+        // Written whether or not the predecessor exists, kept only when it does: no branch.
+        let mut n = 0;
+        for key in keys {
+            for t in 0..nt {
+                let (u, ok) = self.code.unfire_unchecked(key, t);
+                batch[n] = u;
+                n += ok as usize;
+            }
+        }
+        let batch = &batch[..n];
+        for (i, u) in batch.iter().enumerate() {
+            if let Some(v) = batch.get(i + AHEAD) {
+                self.table.touch(hash(v));
+            }
+            if let Some(s) = self.table.id_of(u, hash(u)) {
+                found(s);
+            }
         }
     }
-}
 
-/// [`reaches_root`] on `opts.threads` threads: a breadth-first search by layers over one queue.
-/// The threads split each layer and look up its predecessors (they only read the tables); a new
-/// state is claimed with one atomic bit in `seen` (tested with a plain load first, so only the
-/// first finding of each state writes), and appended to the queue by the thread that claimed it.
-/// The layer's end is where the threads meet, so the queue's order within a layer may differ from
-/// run to run, but its contents, the answer and the memory held do not.
-fn reaches_root_layered<const W: usize>(
-    code: &Compiled<W>,
-    table: &impl Visited<W>,
-    root: usize,
-    states: usize,
-    opts: &ReachOptions,
-) -> Counted<bool> {
-    let threads = opts.threads.max(1);
-    let (per_batch, batch_cap) = batch_sizes(code.offsets.len() - 1, states);
-    // The tables, the seen bits, the queue (every state once) and each thread's ids, keys,
-    // predecessors and finds.
-    let bytes = table.bytes()
-        + table.ids().div_ceil(64) * 8
-        + states * 4
-        + threads * ((per_batch + AHEAD) * 4 + (per_batch + batch_cap) * (8 * W + 4));
-    opts.within_memory(bytes).map_err(|s| (s, bytes))?;
-    let seen: Vec<AtomicU64> = (0..table.ids().div_ceil(64))
-        .map(|_| AtomicU64::new(0))
-        .collect();
-    let queue: Vec<AtomicU32> = (0..states).map(|_| AtomicU32::new(0)).collect();
-    claim(&seen, root);
-    queue[0].store(root as u32, Relaxed);
-    let tail = AtomicUsize::new(1);
-    let mut scratch: Vec<Padded<Scratch<W>>> = (0..threads)
-        .map(|_| {
-            Padded(Scratch {
-                ids: Vec::with_capacity(per_batch + AHEAD),
-                keys: Vec::with_capacity(per_batch),
-                batch: vec![[0; W]; batch_cap],
-                found: Vec::with_capacity(batch_cap),
+    /// One thread's share of the search of `layer`: the predecessors that no thread has found
+    /// yet are claimed in `seen` and appended to the queue. Stops early once the queue holds
+    /// every one of the `states` states.
+    fn search_part(&self, layer: &Layer, seen: &[AtomicU64], states: usize, sc: &mut Scratch<W>) {
+        let (queue, tail) = (layer.queue, layer.tail);
+        while tail.load(Relaxed) < states {
+            let head = layer.next.fetch_add(layer.chunk, Relaxed);
+            if head >= layer.end {
+                break;
+            }
+            let end = layer.end.min(head + layer.chunk);
+            sc.ids.clear();
+            sc.ids.extend(
+                queue[head..layer.end.min(end + AHEAD)]
+                    .iter()
+                    .map(|x| x.load(Relaxed)),
+            );
+            gather(self.table, &sc.ids, end - head, &mut sc.keys);
+            let found = &mut sc.found;
+            found.clear();
+            self.each_predecessor(&sc.keys, &mut sc.batch, |s| {
+                if claim(seen, s) {
+                    found.push(s as u32);
+                }
+            });
+            let at = tail.fetch_add(found.len(), Relaxed);
+            for (q, &s) in queue[at..].iter().zip(found.iter()) {
+                q.store(s, Relaxed);
+            }
+        }
+    }
+
+    /// [`Graph::reaches_root`] on `opts.threads` threads: a breadth-first search by layers over
+    /// one queue. The threads split each layer and look up its predecessors (they only read the
+    /// tables); a new state is claimed with one atomic bit in `seen` (tested with a plain load
+    /// first, so only the first finding of each state writes), and appended to the queue by the
+    /// thread that claimed it. The layer's end is where the threads meet, so the queue's order
+    /// within a layer may differ from run to run, but its contents, the answer and the memory
+    /// held do not.
+    fn reaches_root_layered(&self, root: usize, states: usize) -> Counted<bool> {
+        let (table, opts) = (self.table, self.opts);
+        let threads = opts.threads.max(1);
+        let (per_batch, batch_cap) = batch_sizes(self.code.transitions(), states);
+        // The tables, the seen bits, the queue (every state once) and each thread's ids, keys,
+        // predecessors and finds.
+        let bytes = table.bytes()
+            + table.ids().div_ceil(64) * 8
+            + states * 4
+            + threads * ((per_batch + AHEAD) * 4 + (per_batch + batch_cap) * (8 * W + 4));
+        opts.within_memory(bytes).map_err(|s| (s, bytes))?;
+        let seen: Vec<AtomicU64> = (0..table.ids().div_ceil(64))
+            .map(|_| AtomicU64::new(0))
+            .collect();
+        let queue: Vec<AtomicU32> = (0..states).map(|_| AtomicU32::new(0)).collect();
+        claim(&seen, root);
+        queue[0].store(root as u32, Relaxed);
+        let tail = AtomicUsize::new(1);
+        let mut scratch: Vec<Padded<Scratch<W>>> = (0..threads)
+            .map(|_| {
+                Padded(Scratch {
+                    ids: Vec::with_capacity(per_batch + AHEAD),
+                    keys: Vec::with_capacity(per_batch),
+                    batch: vec![[0; W]; batch_cap],
+                    found: Vec::with_capacity(batch_cap),
+                })
             })
-        })
-        .collect();
-    let crew = Crew::new(threads);
-    let mut head = 0;
-    loop {
-        let end = tail.load(Relaxed);
-        if head == end || end >= states {
-            break;
-        }
-        if let Some(s) = opts.interrupted() {
-            return Err((s, bytes));
-        }
-        let size = end - head;
-        let layer = Layer {
-            queue: &queue,
-            next: AtomicUsize::new(head),
-            end,
-            // A batch of predecessors at most, and a few chunks per thread.
-            chunk: per_batch.min(size.div_ceil(4 * threads)).max(1),
-            tail: &tail,
-        };
-        let seen = &seen;
-        crew.each(&mut scratch, size >= PARALLEL_LAYER, |_, sc| {
-            search_part(code, table, &layer, seen, states, sc);
-        });
-        head = end;
-    }
-    Ok((tail.load(Relaxed) >= states, bytes))
-}
-
-/// Iterative Tarjan over the implicit graph, nodes being table slots, recording terminal SCCs and
-/// which transitions occur inside each.
-fn tarjan<const W: usize>(
-    code: &Compiled<W>,
-    table: &impl Visited<W>,
-    root: usize,
-    opts: &ReachOptions,
-) -> Counted<Liveness> {
-    let n = table.ids();
-    let nt = code.offsets.len() - 1;
-    let fixed = table.bytes() + n * 8 + n.div_ceil(64) * 16;
-    opts.within_memory(fixed).map_err(|s| (s, fixed))?;
-    let mut index = vec![NONE; n];
-    let mut low = vec![0u32; n];
-    let mut on_stack = vec![0u64; n.div_ceil(64)];
-    let mut exits = vec![0u64; n.div_ceil(64)];
-    let mut stack: Vec<u32> = Vec::new();
-    let mut frames: Vec<(u32, u32)> = Vec::new();
-    let mut peak = fixed;
-    let mut next_index = 0u32;
-    let (mut sccs, mut terminal) = (0u64, 0u64);
-    let mut missing = vec![false; nt];
-    let mut root_terminal = false;
-    let mut occurs = vec![false; nt];
-    let mut visit = |v: usize,
-                     index: &mut Vec<u32>,
-                     low: &mut Vec<u32>,
-                     on_stack: &mut Vec<u64>,
-                     stack: &mut Vec<u32>| {
-        index[v] = next_index;
-        low[v] = next_index;
-        next_index += 1;
-        set(on_stack, v);
-        stack.push(v as u32);
-    };
-    visit(root, &mut index, &mut low, &mut on_stack, &mut stack);
-    frames.push((root as u32, 0));
-    let mut steps = 0u64;
-    while let Some(&(v, t0)) = frames.last() {
-        steps += 1;
-        if steps & 0x3FFF == 0 {
-            // The stacks grow with the search's depth: counted here, before they grow further.
-            let bytes = fixed + stack.capacity() * 4 + frames.capacity() * 8;
-            peak = peak.max(bytes);
-            if let Err(s) = opts.within_memory(bytes * 2 - fixed) {
-                return Err((s, peak));
+            .collect();
+        let crew = Crew::new(threads);
+        let mut head = 0;
+        loop {
+            let end = tail.load(Relaxed);
+            if head == end || end >= states {
+                break;
             }
             if let Some(s) = opts.interrupted() {
-                return Err((s, peak));
+                return Err((s, bytes));
+            }
+            let size = end - head;
+            let layer = Layer {
+                queue: &queue,
+                next: AtomicUsize::new(head),
+                end,
+                // A batch of predecessors at most, and a few chunks per thread.
+                chunk: per_batch.min(size.div_ceil(4 * threads)).max(1),
+                tail: &tail,
+            };
+            let seen = &seen;
+            crew.each(&mut scratch, size >= PARALLEL_LAYER, |_, sc| {
+                self.search_part(&layer, seen, states, sc);
+            });
+            head = end;
+        }
+        Ok((tail.load(Relaxed) >= states, bytes))
+    }
+
+    /// Iterative Tarjan over the graph from `root`, recording the terminal SCCs and which
+    /// transitions occur inside each.
+    fn tarjan(&self, root: usize) -> Counted<Liveness> {
+        let n = self.table.ids();
+        let fixed = self.table.bytes() + n * 8 + n.div_ceil(64) * 16;
+        self.opts.within_memory(fixed).map_err(|s| (s, fixed))?;
+        let mut tj = Tarjan::new(n, self.code.transitions(), root);
+        let mut peak = fixed;
+        tj.enter(root);
+        let mut steps = 0u64;
+        while let Some(&(v, t0)) = tj.frames.last() {
+            steps += 1;
+            if steps & 0x3FFF == 0 {
+                // The stacks grow with the search's depth: counted here, before they grow
+                // further.
+                let bytes = fixed + tj.stack_bytes();
+                peak = peak.max(bytes);
+                if let Err(s) = self.opts.within_memory(bytes * 2 - fixed) {
+                    return Err((s, peak));
+                }
+                if let Some(s) = self.opts.interrupted() {
+                    return Err((s, peak));
+                }
+            }
+            if !tj.descend(self, v as usize, t0 as usize) {
+                tj.leave(self, v as usize);
             }
         }
-        let v = v as usize;
-        let key = table.key(v);
-        let mut descended = false;
-        let mut t = t0 as usize;
-        while t < nt {
-            if code.enabled(&key, t) {
-                let succ = code.fire(&key, t);
-                let w = table.id_of(&succ, hash(&succ)).unwrap_or(root);
-                if index[w] == NONE {
-                    if let Some(f) = frames.last_mut() {
-                        f.1 = t as u32 + 1;
-                    }
-                    visit(w, &mut index, &mut low, &mut on_stack, &mut stack);
-                    frames.push((w as u32, 0));
-                    descended = true;
-                    break;
-                } else if bit(&on_stack, w) {
-                    low[v] = low[v].min(index[w]);
-                } else {
-                    // w belongs to an SCC already completed, so this edge leaves v's SCC.
-                    set(&mut exits, v);
-                }
-            }
-            t += 1;
-        }
-        if descended {
-            continue;
-        }
-        frames.pop();
-        if low[v] == index[v] {
-            sccs += 1;
-            let start = stack.iter().rposition(|&x| x as usize == v).unwrap_or(0);
-            let is_terminal = stack[start..].iter().all(|&x| !bit(&exits, x as usize));
-            occurs.iter_mut().for_each(|o| *o = false);
-            for &x in &stack[start..] {
-                let x = x as usize;
-                on_stack[x >> 6] &= !(1 << (x & 63));
-                if is_terminal {
-                    let k = table.key(x);
-                    for (t, o) in occurs.iter_mut().enumerate() {
-                        *o |= code.enabled(&k, t);
-                    }
-                }
-            }
-            stack.truncate(start);
-            if is_terminal {
-                terminal += 1;
-                for (m, o) in missing.iter_mut().zip(&occurs) {
-                    *m |= !o;
-                }
-                if v == root {
-                    root_terminal = true;
-                }
-            }
-            if let Some(&(u, _)) = frames.last() {
-                // v's SCC is finished and differs from u's: the tree edge u → v leaves u's SCC.
-                set(&mut exits, u as usize);
-            }
-        } else if let Some(&(u, _)) = frames.last() {
-            let u = u as usize;
-            low[u] = low[u].min(low[v]);
+        peak = peak.max(fixed + tj.stack_bytes());
+        Ok((tj.into_liveness(), peak))
+    }
+}
+
+/// Where the iterative Tarjan search stands, and what it has found.
+struct Tarjan {
+    root: usize,
+    /// Per id: the visiting order ([`NONE`]: not visited yet) and the lowlink.
+    index: Vec<u32>,
+    low: Vec<u32>,
+    /// Bits per id: on the Tarjan stack; an edge leaves its SCC.
+    on_stack: Vec<u64>,
+    exits: Vec<u64>,
+    stack: Vec<u32>,
+    /// The path of the depth-first search: each node with the next transition to follow.
+    frames: Vec<(u32, u32)>,
+    next_index: u32,
+    sccs: u64,
+    terminal: u64,
+    /// Transitions missing from some terminal SCC.
+    missing: Vec<bool>,
+    root_terminal: bool,
+    /// The transitions occurring in the SCC being closed.
+    occurs: Vec<bool>,
+}
+
+impl Tarjan {
+    /// A search from `root` over `n` ids and `nt` transitions, nothing visited yet.
+    fn new(n: usize, nt: usize, root: usize) -> Tarjan {
+        Tarjan {
+            root,
+            index: vec![NONE; n],
+            low: vec![0u32; n],
+            on_stack: vec![0u64; n.div_ceil(64)],
+            exits: vec![0u64; n.div_ceil(64)],
+            stack: Vec::new(),
+            frames: Vec::new(),
+            next_index: 0,
+            sccs: 0,
+            terminal: 0,
+            missing: vec![false; nt],
+            root_terminal: false,
+            occurs: vec![false; nt],
         }
     }
-    peak = peak.max(fixed + stack.capacity() * 4 + frames.capacity() * 8);
-    let non_live: Vec<TransIdx> = (0..nt)
-        .filter(|&t| missing[t])
-        .map(|t| TransIdx(t as u32))
-        .collect();
-    Ok((
+
+    /// The bytes of the stacks, which grow with the search's depth.
+    fn stack_bytes(&self) -> usize {
+        self.stack.capacity() * 4 + self.frames.capacity() * 8
+    }
+
+    /// Visits `v` and descends to it.
+    #[inline]
+    fn enter(&mut self, v: usize) {
+        self.index[v] = self.next_index;
+        self.low[v] = self.next_index;
+        self.next_index += 1;
+        set(&mut self.on_stack, v);
+        self.stack.push(v as u32);
+        self.frames.push((v as u32, 0));
+    }
+
+    /// Follows the edges of `v` from transition `t` on: true when it descended to a successor
+    /// not visited yet; the other successors lower `v`'s lowlink or mark an exit of its SCC.
+    #[inline]
+    fn descend<const W: usize, V: Visited<W>>(
+        &mut self,
+        g: &Graph<'_, W, V>,
+        v: usize,
+        t: usize,
+    ) -> bool {
+        let key = g.table.key(v);
+        for t in t..self.missing.len() {
+            if !g.code.enabled(&key, t) {
+                continue;
+            }
+            let succ = g.code.fire(&key, t);
+            let w = g.table.id_of(&succ, hash(&succ)).unwrap_or(self.root);
+            if self.index[w] == NONE {
+                if let Some(f) = self.frames.last_mut() {
+                    f.1 = t as u32 + 1;
+                }
+                self.enter(w);
+                return true;
+            } else if bit(&self.on_stack, w) {
+                self.low[v] = self.low[v].min(self.index[w]);
+            } else {
+                // w belongs to an SCC already completed, so this edge leaves v's SCC.
+                set(&mut self.exits, v);
+            }
+        }
+        false
+    }
+
+    /// Leaves `v`, whose edges are all followed: closes its SCC if `v` is the SCC's root, else
+    /// passes its lowlink to its parent.
+    #[inline]
+    fn leave<const W: usize, V: Visited<W>>(&mut self, g: &Graph<'_, W, V>, v: usize) {
+        self.frames.pop();
+        if self.low[v] == self.index[v] {
+            self.close_scc(g, v);
+            if let Some(&(u, _)) = self.frames.last() {
+                // v's SCC is finished and differs from u's: the tree edge u → v leaves u's SCC.
+                set(&mut self.exits, u as usize);
+            }
+        } else if let Some(&(u, _)) = self.frames.last() {
+            let u = u as usize;
+            self.low[u] = self.low[u].min(self.low[v]);
+        }
+    }
+
+    /// Takes the SCC of `v` (the stack down to `v`) off the stack and counts it; when no edge
+    /// leaves it, it is terminal, and the transitions that never occur inside are not live.
+    fn close_scc<const W: usize, V: Visited<W>>(&mut self, g: &Graph<'_, W, V>, v: usize) {
+        self.sccs += 1;
+        let start = self
+            .stack
+            .iter()
+            .rposition(|&x| x as usize == v)
+            .unwrap_or(0);
+        let is_terminal = self.stack[start..]
+            .iter()
+            .all(|&x| !bit(&self.exits, x as usize));
+        self.occurs.iter_mut().for_each(|o| *o = false);
+        for &x in &self.stack[start..] {
+            let x = x as usize;
+            self.on_stack[x >> 6] &= !(1 << (x & 63));
+            if is_terminal {
+                let k = g.table.key(x);
+                for (t, o) in self.occurs.iter_mut().enumerate() {
+                    *o |= g.code.enabled(&k, t);
+                }
+            }
+        }
+        self.stack.truncate(start);
+        if is_terminal {
+            self.terminal += 1;
+            for (m, o) in self.missing.iter_mut().zip(&self.occurs) {
+                *m |= !o;
+            }
+            if v == self.root {
+                self.root_terminal = true;
+            }
+        }
+    }
+
+    /// What the terminal SCCs say, once the search is complete.
+    fn into_liveness(self) -> Liveness {
+        let non_live: Vec<TransIdx> = (0..self.missing.len())
+            .filter(|&t| self.missing[t])
+            .map(|t| TransIdx(t as u32))
+            .collect();
         Liveness {
-            sccs,
-            terminal_sccs: terminal,
+            sccs: self.sccs,
+            terminal_sccs: self.terminal,
             live: non_live.is_empty(),
             non_live,
-            reversible: root_terminal && terminal == 1,
-        },
-        peak,
-    ))
+            reversible: self.root_terminal && self.terminal == 1,
+        }
+    }
 }

@@ -14,10 +14,13 @@
 //!   (liveness); the first state in BFS order that the backward search misses is the end of a
 //!   shortest path to a marking from which M0, or that transition, can never be reached again.
 
+use std::ops::ControlFlow;
+
 use cetratus_net::{Net, TransIdx};
 
-use super::stubborn::Stubborn;
-use super::{hash, scc, Chunked, Compiled, Packing, ReachOptions, Stop};
+use super::scc::{self, bit, set};
+use super::stubborn::{Scratch, Stubborn};
+use super::{hash, Added, Chunked, Compiled, Packing, ReachOptions, Stop, Store};
 use crate::predicate::Predicate;
 
 /// What the search looks for.
@@ -67,143 +70,251 @@ pub(crate) fn search<const W: usize>(
     opts: &ReachOptions,
 ) -> Outcome {
     let nt = net.num_transitions();
-    let np = net.num_places();
     let code = Compiled::<W>::new(net, pk);
-    let (mut table, mut states, mut parents, k0) = super::seeded::<W>(net, pk);
-    let max_states = opts.state_limit();
-    let field = |k: &[u64; W], p: usize| pk.fields[p].read(k);
-    let goal = |k: &[u64; W]| match target {
-        Target::Marking(pred) => pred.holds(|p| field(k, p.index())),
-        _ => false,
+    let (store, k0) = Store::<W>::seeded(net, pk);
+    let mut bfs = Bfs {
+        code: &code,
+        pk,
+        target,
+        stubborn,
+        opts,
+        max_states: opts.state_limit(),
+        store,
+        en: Vec::with_capacity(nt),
+        is_en: vec![false; nt],
+        fire_set: Vec::with_capacity(nt),
+        scratch: stubborn.map(Stubborn::scratch),
+        marking: vec![0u64; net.num_places()],
+        batch: Vec::with_capacity(nt),
+        enabled_ever: vec![false; nt],
+        edges: 0,
+        reduced_states: 0,
+        peak_bytes: 0,
+        found: None,
+        stopped: None,
     };
-    let proviso = matches!(target, Target::Marking(_));
-    let mut found: Option<usize> = goal(&k0).then_some(0);
-    let mut enabled_ever = vec![false; nt];
-    let mut en: Vec<u32> = Vec::with_capacity(nt);
-    let mut is_en = vec![false; nt];
-    let mut fire_set: Vec<u32> = Vec::with_capacity(nt);
-    let mut scratch = stubborn.map(Stubborn::scratch);
-    let mut marking = vec![0u64; np];
-    let mut batch: Vec<([u64; W], u64)> = Vec::with_capacity(nt);
-    let mut edges = 0u64;
-    let mut reduced_states = 0u64;
-    let mut stopped = None;
-    let mut peak_bytes = 0usize;
-    let mut cur = 0usize;
-    'bfs: while cur < states.len && found.is_none() {
-        if let Some(s) = super::checkpoint(opts, cur, edges, &table, &states, &parents) {
-            stopped = Some(s);
-            break;
-        }
-        let key = states.get(cur);
-        en.clear();
-        for (t, ever) in enabled_ever.iter_mut().enumerate() {
-            let e = code.enabled(&key, t);
-            is_en[t] = e;
-            if e {
-                *ever = true;
-                en.push(t as u32);
-            }
-        }
-        if en.is_empty() {
-            let hit = match target {
-                Target::Dead => true,
-                Target::DeadNotInitial => cur != 0,
-                _ => false,
-            };
-            if hit {
-                found = Some(cur);
-                break;
-            }
-            cur += 1;
-            continue;
-        }
-        let reduced = match (stubborn, scratch.as_mut()) {
-            (Some(st), Some(sc)) => {
-                for (p, m) in marking.iter_mut().enumerate() {
-                    *m = field(&key, p);
-                }
-                st.reduce(&marking, &en, &is_en, sc, &mut fire_set);
-                fire_set.len() < en.len()
-            }
-            _ => false,
-        };
-        let sets: [&[u32]; 2] = if reduced {
-            [&fire_set, &en]
-        } else {
-            [&en, &[]]
-        };
-        for (round, set) in sets.into_iter().enumerate() {
-            batch.clear();
-            for &t in set {
-                // The second round fires the transitions the reduced set left out.
-                if round == 1 && fire_set.binary_search(&t).is_ok() {
-                    continue;
-                }
-                let succ = code.fire(&key, t as usize);
-                batch.push((succ, hash(&succ)));
-            }
-            let need = super::bytes_to_add(&table, &states, &parents, batch.len());
-            if let Err(s) = opts.within_memory(need) {
-                stopped = Some(s);
-                break 'bfs;
-            }
-            peak_bytes = peak_bytes.max(need);
-            edges += batch.len() as u64;
-            table.reserve(batch.len());
-            let mut old = false;
-            for (succ, h) in &batch {
-                if table.insert_hashed(succ, *h) {
-                    if states.len as u64 >= max_states {
-                        stopped = Some(Stop::MaxStates(max_states));
-                        break 'bfs;
-                    }
-                    states.push(*succ);
-                    parents.push(cur as u32);
-                    if goal(succ) {
-                        found = Some(states.len - 1);
-                        break 'bfs;
-                    }
-                } else {
-                    old = true;
-                }
-            }
-            // Cycle proviso: a reduced state that reaches a state seen before is expanded fully.
-            if round == 0 && !(reduced && proviso && old) {
-                if reduced {
-                    reduced_states += 1;
-                }
-                break;
-            }
-        }
-        cur += 1;
-    }
-    let peak_bytes = peak_bytes.max(table.bytes() + states.bytes() + parents.bytes());
-    let path = |v: usize| path_to(&code, &states, &parents, v, nt);
-    let mut out = Outcome {
-        states: states.len as u64,
+    bfs.found = bfs.goal(&k0).then_some(0);
+    bfs.run();
+    let Bfs {
+        store,
+        enabled_ever,
         edges,
-        found: found.map(path),
+        reduced_states,
+        peak_bytes,
+        found,
+        stopped,
+        ..
+    } = bfs;
+    let mut out = Outcome {
+        states: store.states.len as u64,
+        edges,
+        found: found.map(|v| path_to(&code, &store.states, &store.parents, v, nt)),
         stopped,
         verdict: None,
         culprit: None,
-        peak_bytes,
+        peak_bytes: peak_bytes.max(store.bytes()),
         bits_per_state: pk.bits,
         reduced_states,
     };
     if after == After::Nothing || out.stopped.is_some() || out.found.is_some() {
         return out;
     }
+    decide_after(&code, &store, &k0, &enabled_ever, after, opts, &mut out);
+    out
+}
+
+/// The forward search: its store, the buffers that every state reuses, and what it found.
+struct Bfs<'a, const W: usize> {
+    code: &'a Compiled<W>,
+    pk: &'a Packing,
+    target: &'a Target<'a>,
+    stubborn: Option<&'a Stubborn>,
+    opts: &'a ReachOptions,
+    max_states: u64,
+    store: Store<W>,
+    /// The transitions enabled at the state being expanded, as a list and per transition.
+    en: Vec<u32>,
+    is_en: Vec<bool>,
+    /// The stubborn set of the state being expanded (sorted), and its scratch space.
+    fire_set: Vec<u32>,
+    scratch: Option<Scratch>,
+    /// The state being expanded, unpacked for the stubborn sets.
+    marking: Vec<u64>,
+    /// The successors of one round, with their hashes.
+    batch: Vec<([u64; W], u64)>,
+    enabled_ever: Vec<bool>,
+    edges: u64,
+    reduced_states: u64,
+    peak_bytes: usize,
+    /// The target state, once found.
+    found: Option<usize>,
+    stopped: Option<Stop>,
+}
+
+/// Which enabled transitions a round of a state's expansion fires.
+#[derive(Clone, Copy, PartialEq, Eq)]
+enum Round {
+    /// All of them (no reduction).
+    All,
+    /// The stubborn set.
+    Stubborn,
+    /// Those the stubborn set left out (the cycle proviso asked for a full expansion).
+    Rest,
+}
+
+impl<const W: usize> Bfs<'_, W> {
+    /// The marking `k` is a target marking.
+    #[inline]
+    fn goal(&self, k: &[u64; W]) -> bool {
+        match self.target {
+            Target::Marking(pred) => pred.holds(|p| self.pk.fields[p.index()].read(k)),
+            _ => false,
+        }
+    }
+
+    /// Expands the states in breadth-first order until the target is found, the state space
+    /// is exhausted, or a budget stops the search.
+    fn run(&mut self) {
+        let mut cur = 0usize;
+        while cur < self.store.states.len && self.found.is_none() {
+            if let Some(s) = self.store.checkpoint(self.opts, cur, self.edges) {
+                self.stopped = Some(s);
+                break;
+            }
+            if self.expand(cur).is_break() {
+                break;
+            }
+            cur += 1;
+        }
+    }
+
+    /// Expands state `cur`: a dead state may be the target; otherwise its stubborn set is
+    /// fired, or every enabled transition. Breaks when the search ends here.
+    #[inline]
+    fn expand(&mut self, cur: usize) -> ControlFlow<()> {
+        let key = self.store.states.get(cur);
+        self.enabled_at(&key);
+        if self.en.is_empty() {
+            let hit = match self.target {
+                Target::Dead => true,
+                Target::DeadNotInitial => cur != 0,
+                _ => false,
+            };
+            if hit {
+                self.found = Some(cur);
+                return ControlFlow::Break(());
+            }
+            return ControlFlow::Continue(());
+        }
+        if !self.reduce(&key) {
+            self.fire_round(&key, cur, Round::All)?;
+            return ControlFlow::Continue(());
+        }
+        let old = self.fire_round(&key, cur, Round::Stubborn)?;
+        // Cycle proviso: a reduced state that reaches a state seen before is expanded fully.
+        if matches!(self.target, Target::Marking(_)) && old {
+            self.fire_round(&key, cur, Round::Rest)?;
+        } else {
+            self.reduced_states += 1;
+        }
+        ControlFlow::Continue(())
+    }
+
+    /// Lists the transitions enabled at `key`, and marks them enabled somewhere.
+    #[inline(always)]
+    fn enabled_at(&mut self, key: &[u64; W]) {
+        self.en.clear();
+        for (t, ever) in self.enabled_ever.iter_mut().enumerate() {
+            let e = self.code.enabled(key, t);
+            self.is_en[t] = e;
+            if e {
+                *ever = true;
+                self.en.push(t as u32);
+            }
+        }
+    }
+
+    /// Computes the stubborn set of `key` into `fire_set`; true when it leaves out an enabled
+    /// transition.
+    #[inline]
+    fn reduce(&mut self, key: &[u64; W]) -> bool {
+        let (Some(st), Some(sc)) = (self.stubborn, self.scratch.as_mut()) else {
+            return false;
+        };
+        for (p, m) in self.marking.iter_mut().enumerate() {
+            *m = self.pk.fields[p].read(key);
+        }
+        st.reduce(&self.marking, &self.en, &self.is_en, sc, &mut self.fire_set);
+        self.fire_set.len() < self.en.len()
+    }
+
+    /// Fires the transitions of `round` at `key` (state `cur`) and adds the successors.
+    /// Continues with whether one of them was seen before; breaks when the search ends.
+    #[inline]
+    fn fire_round(&mut self, key: &[u64; W], cur: usize, round: Round) -> ControlFlow<(), bool> {
+        self.batch.clear();
+        let set: &[u32] = if round == Round::Stubborn {
+            &self.fire_set
+        } else {
+            &self.en
+        };
+        for &t in set {
+            if round == Round::Rest && self.fire_set.binary_search(&t).is_ok() {
+                continue;
+            }
+            let succ = self.code.fire(key, t as usize);
+            self.batch.push((succ, hash(&succ)));
+        }
+        let need = self.store.bytes_to_add(self.batch.len());
+        if let Err(s) = self.opts.within_memory(need) {
+            self.stopped = Some(s);
+            return ControlFlow::Break(());
+        }
+        self.peak_bytes = self.peak_bytes.max(need);
+        self.edges += self.batch.len() as u64;
+        self.store.table.reserve(self.batch.len());
+        let mut old = false;
+        for (succ, h) in &self.batch {
+            match self.store.add(succ, *h, cur, self.max_states) {
+                Added::New if self.goal(succ) => {
+                    self.found = Some(self.store.states.len - 1);
+                    return ControlFlow::Break(());
+                }
+                Added::New => {}
+                Added::Known => old = true,
+                Added::Full => {
+                    self.stopped = Some(Stop::MaxStates(self.max_states));
+                    return ControlFlow::Break(());
+                }
+            }
+        }
+        ControlFlow::Continue(old)
+    }
+}
+
+/// Liveness or reversibility over the finished table and, when it fails, the counterexample: a
+/// shortest path to the first state, in BFS order, from which the seeds of a backward search
+/// cannot be reached (M0, or the states that enable a non-live transition).
+fn decide_after<const W: usize>(
+    code: &Compiled<W>,
+    store: &Store<W>,
+    k0: &[u64; W],
+    enabled_ever: &[bool],
+    after: After,
+    opts: &ReachOptions,
+    out: &mut Outcome,
+) {
+    let nt = enabled_ever.len();
     let never: Vec<TransIdx> = (0..nt)
         .filter(|&t| !enabled_ever[t])
         .map(|t| TransIdx(t as u32))
         .collect();
-    let (l, ls, bytes) = scc::liveness(&code, &table, &k0, states.len, &never, opts);
-    let base = table.bytes() + states.bytes() + parents.bytes();
+    let (states, parents) = (&store.states, &store.parents);
+    let (l, ls, bytes) = scc::liveness(code, &store.table, k0, states.len, &never, opts);
     out.peak_bytes = out.peak_bytes.max(bytes + states.bytes() + parents.bytes());
     let Some(l) = l else {
         out.stopped = ls;
-        return out;
+        return;
     };
     let holds = if after == After::Live {
         l.live
@@ -212,9 +323,8 @@ pub(crate) fn search<const W: usize>(
     };
     if holds {
         out.verdict = Some((true, None));
-        return out;
+        return;
     }
-    // The backward search from the seeds marks every state that can reach one of them.
     let seeds: Vec<usize> = if after == After::Reversible {
         vec![0]
     } else {
@@ -224,53 +334,63 @@ pub(crate) fn search<const W: usize>(
             .filter(|&i| code.enabled(&states.get(i), t))
             .collect()
     };
+    match first_not_reaching(code, store, &seeds, opts, &mut out.peak_bytes) {
+        Ok(missed) => {
+            let path = |v| path_to(code, states, parents, v, nt);
+            out.verdict = Some((false, missed.map(path)));
+        }
+        Err(s) => out.stopped = Some(s),
+    }
+}
+
+/// The first state, in BFS order, that cannot reach any of the states `seeds`: a backward
+/// search from the seeds marks every state that can. Its bytes count into `peak_bytes`.
+fn first_not_reaching<const W: usize>(
+    code: &Compiled<W>,
+    store: &Store<W>,
+    seeds: &[usize],
+    opts: &ReachOptions,
+    peak_bytes: &mut usize,
+) -> Result<Option<usize>, Stop> {
+    let (table, states) = (&store.table, &store.states);
     let slot = |i: usize| {
         let k = states.get(i);
         table.slot_of(&k, hash(&k)).unwrap_or(0)
     };
     let cap = table.slots.len();
-    let bytes = base + cap.div_ceil(64) * 8 + states.len * 4;
-    out.peak_bytes = out.peak_bytes.max(bytes);
-    if let Err(s) = opts.within_memory(bytes) {
-        out.stopped = Some(s);
-        return out;
-    }
+    let bytes = store.bytes() + cap.div_ceil(64) * 8 + states.len * 4;
+    *peak_bytes = (*peak_bytes).max(bytes);
+    opts.within_memory(bytes)?;
     let mut seen = vec![0u64; cap.div_ceil(64)];
     let mut queue: Vec<u32> = Vec::with_capacity(seeds.len());
-    for &i in &seeds {
-        let s = slot(i);
-        if seen[s >> 6] >> (s & 63) & 1 == 0 {
-            seen[s >> 6] |= 1 << (s & 63);
+    // Queues slot `s` unless it was seen.
+    let visit = |seen: &mut [u64], queue: &mut Vec<u32>, s: usize| {
+        if !bit(seen, s) {
+            set(seen, s);
             queue.push(s as u32);
         }
+    };
+    for &i in seeds {
+        visit(&mut seen, &mut queue, slot(i));
     }
     let mut head = 0;
     while head < queue.len() {
         if head & 0x3FFF == 0 && head > 0 {
             if let Some(s) = opts.interrupted() {
-                out.stopped = Some(s);
-                return out;
+                return Err(s);
             }
         }
         let key = table.slots[queue[head] as usize];
         head += 1;
-        for t in 0..nt {
+        for t in 0..code.transitions() {
             if let Some(u) = code.unfire(&key, t) {
                 if let Some(s) = table.slot_of(&u, hash(&u)) {
-                    if seen[s >> 6] >> (s & 63) & 1 == 0 {
-                        seen[s >> 6] |= 1 << (s & 63);
-                        queue.push(s as u32);
-                    }
+                    visit(&mut seen, &mut queue, s);
                 }
             }
         }
     }
-    let missed = (0..states.len).find(|&i| {
-        let s = slot(i);
-        seen[s >> 6] >> (s & 63) & 1 == 0
-    });
-    out.verdict = Some((false, missed.map(path)));
-    out
+    Ok((0..states.len).find(|&i| !bit(&seen, slot(i))))
 }
 
 /// The firing sequence along the BFS parents from M0 to state `v`.

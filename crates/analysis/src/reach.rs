@@ -34,6 +34,9 @@ use crate::{AnalysisError, Progress, ProgressFn};
 
 mod par;
 mod scc;
+mod table;
+
+use table::{hash, Chunked, Table, CHUNK_BITS, MARK};
 pub(crate) mod search;
 pub(crate) mod stubborn;
 
@@ -442,175 +445,8 @@ pub(super) fn prefetch<T>(p: &T) {
     std::hint::black_box(p);
 }
 
-const CHUNK_BITS: u32 = 16;
-
 /// States whose successors the exploration generates and starts loading ahead of their turn.
 const AHEAD: usize = 4;
-
-/// An append-only array in fixed chunks, so that growing never copies (no reallocation peak).
-struct Chunked<T: Copy> {
-    chunks: Vec<Vec<T>>,
-    len: usize,
-}
-
-impl<T: Copy> Chunked<T> {
-    fn new() -> Self {
-        Chunked {
-            chunks: Vec::new(),
-            len: 0,
-        }
-    }
-    #[inline(always)]
-    fn push(&mut self, v: T) {
-        if self.len & ((1 << CHUNK_BITS) - 1) == 0 {
-            self.chunks.push(Vec::with_capacity(1 << CHUNK_BITS));
-        }
-        if let Some(c) = self.chunks.last_mut() {
-            c.push(v);
-        }
-        self.len += 1;
-    }
-    #[inline(always)]
-    fn get(&self, i: usize) -> T {
-        self.chunks[i >> CHUNK_BITS][i & ((1 << CHUNK_BITS) - 1)]
-    }
-    fn bytes(&self) -> usize {
-        self.chunks.len() * (1 << CHUNK_BITS) * std::mem::size_of::<T>()
-    }
-}
-
-#[inline(always)]
-fn hash<const W: usize>(k: &[u64; W]) -> u64 {
-    // A multiply-xorshift mix per word: cheap and good enough for structured keys.
-    let mut h = 0x243F_6A88_85A3_08D3u64;
-    for &w in k {
-        h = (h ^ w).wrapping_mul(0x9E37_79B9_7F4A_7C15);
-        h ^= h >> 32;
-    }
-    h.wrapping_mul(0xD6E8_FEB8_6659_FD93) ^ (h >> 29)
-}
-
-/// The first word of an empty slot.
-const EMPTY: u64 = 0;
-
-/// Set in the first word of every stored state, so that no state is [`EMPTY`].
-const MARK: u64 = 1 << 63;
-
-/// Open addressing over the keys themselves. Once an exploration is complete the table no longer
-/// moves, and a key's slot is its id for the liveness pass (module `scc`).
-struct Table<const W: usize> {
-    slots: Vec<[u64; W]>,
-    len: usize,
-    /// Bytes held during the last growth, when the old and the new slots coexist.
-    transient_bytes: usize,
-    grows: u32,
-}
-
-impl<const W: usize> Table<W> {
-    fn new() -> Self {
-        let cap = 1 << 12;
-        Table {
-            slots: vec![[EMPTY; W]; cap],
-            len: 0,
-            transient_bytes: 0,
-            grows: 0,
-        }
-    }
-
-    fn bytes(&self) -> usize {
-        self.slots.len() * 8 * W
-    }
-
-    /// Bytes held while growing to fit `n` more keys (old and new slots), or the current bytes
-    /// when no growth is needed.
-    fn bytes_to_fit(&self, n: usize) -> usize {
-        let mut cap = self.slots.len();
-        while (self.len + n) * 4 > cap * 3 {
-            cap *= 2;
-        }
-        if cap == self.slots.len() {
-            self.bytes()
-        } else {
-            (self.slots.len() + cap) * 8 * W
-        }
-    }
-
-    /// Makes room for `n` more keys, so that slot positions computed now stay valid.
-    #[inline(always)]
-    fn reserve(&mut self, n: usize) {
-        while (self.len + n) * 4 > self.slots.len() * 3 {
-            self.grow();
-        }
-    }
-
-    /// Starts loading the first slot of a key's probe sequence (a prefetch: nothing waits for
-    /// it), so that the cache misses of the lookups to come overlap.
-    #[inline(always)]
-    fn touch(&self, h: u64) {
-        prefetch(&self.slots[h as usize & (self.slots.len() - 1)]);
-    }
-
-    /// Inserts the key whose hash is `h`; true when it was new. Call [`Table::reserve`] first.
-    #[inline(always)]
-    fn insert_hashed(&mut self, key: &[u64; W], h: u64) -> bool {
-        let mask = self.slots.len() - 1;
-        let mut i = h as usize & mask;
-        loop {
-            let s = &self.slots[i];
-            if s[0] == EMPTY {
-                self.slots[i] = *key;
-                self.len += 1;
-                return true;
-            }
-            if s == key {
-                return false;
-            }
-            i = (i + 1) & mask;
-        }
-    }
-
-    /// Inserts the key; true when it was new.
-    fn insert(&mut self, key: &[u64; W]) -> bool {
-        self.reserve(1);
-        self.insert_hashed(key, hash(key))
-    }
-
-    /// The slot holding the key whose hash is `h`.
-    #[inline(always)]
-    fn slot_of(&self, key: &[u64; W], h: u64) -> Option<usize> {
-        let mask = self.slots.len() - 1;
-        let mut i = h as usize & mask;
-        loop {
-            let s = &self.slots[i];
-            if s[0] == EMPTY {
-                return None;
-            }
-            if s == key {
-                return Some(i);
-            }
-            i = (i + 1) & mask;
-        }
-    }
-
-    fn grow(&mut self) {
-        let cap = self.slots.len() * 2;
-        let old = std::mem::replace(&mut self.slots, vec![[EMPTY; W]; cap]);
-        // Both tables are alive here: this is the peak of the table's memory.
-        self.transient_bytes = (old.len() + cap) * 8 * W;
-        self.grows += 1;
-        let mask = cap - 1;
-        for k in old.iter() {
-            if k[0] == EMPTY {
-                continue;
-            }
-            let mut i = hash(k) as usize & mask;
-            while self.slots[i][0] != EMPTY {
-                i = (i + 1) & mask;
-            }
-            self.slots[i] = *k;
-        }
-    }
-}
 
 /// Explores the reachability graph of `net` with states packed by `packing`, whose field widths
 /// must hold every reachable marking (see the module documentation).

@@ -642,6 +642,8 @@ fn functions_in(source: &str) -> Vec<(String, usize, usize)> {
 fn end_of_item(lines: &[&str], start: usize) -> Option<usize> {
     let mut depth = 0i64;
     let mut opened = false;
+    // Brackets and parentheses of the signature: a `;` inside them (`[u64; W]`) ends nothing.
+    let mut nested = 0i64;
     for (k, line) in lines.iter().enumerate().skip(start) {
         for c in line.chars() {
             match c {
@@ -650,7 +652,9 @@ fn end_of_item(lines: &[&str], start: usize) -> Option<usize> {
                     opened = true;
                 }
                 '}' => depth -= 1,
-                ';' if !opened && depth == 0 => return None,
+                '(' | '[' if !opened => nested += 1,
+                ')' | ']' if !opened => nested -= 1,
+                ';' if !opened && depth == 0 && nested == 0 => return None,
                 _ => {}
             }
             if opened && depth == 0 {
@@ -664,44 +668,12 @@ fn end_of_item(lines: &[&str], start: usize) -> Option<usize> {
 /// Functions allowed over [`FUNCTION_LINES`]: file, function, the most lines it may keep, and
 /// why. A function here may shrink, never grow; once under the limit, its row goes.
 const LONG_FUNCTIONS: &[(&str, &str, usize, &str)] = &[
-    ("crates/analysis/src/check.rs", "check", 328, "to be split"),
     (
-        "crates/analysis/src/coverability.rs",
-        "build",
-        142,
-        "to be split",
+        "crates/program/src/guard/eval.rs",
+        "run",
+        190,
+        "the interpreter of compiled guards and bodies: one loop over the instructions, each arm of its match an instruction; split, every instruction would pay a call on the scan's hot path",
     ),
-    (
-        "crates/analysis/src/property.rs",
-        "decide",
-        194,
-        "to be split",
-    ),
-    (
-        "crates/analysis/src/reach/par.rs",
-        "continue_par",
-        187,
-        "to be split",
-    ),
-    (
-        "crates/analysis/src/reach/scc.rs",
-        "tarjan",
-        128,
-        "to be split",
-    ),
-    (
-        "crates/analysis/src/reach/search.rs",
-        "search",
-        214,
-        "to be split",
-    ),
-    (
-        "crates/analysis/src/reach.rs",
-        "explore_w",
-        121,
-        "to be split",
-    ),
-    ("crates/analysis/src/report.rs", "fmt", 175, "to be split"),
     (
         "crates/sfc/src/st/lex.rs",
         "lex",
@@ -772,11 +744,11 @@ fn a_long_function_is_found_with_its_length_and_braces_in_text_do_not_count() {
     let in_test = format!("fn in_test() {{\n{body}}}\n");
     let source = format!(
         "pub(crate) fn long(x: u8) -> u8\nwhere u8: Copy,\n{{\n{body}    r#\"{{\"#;\n}}\n\
-         fn short() {{}}\ntrait T {{ fn declared(&self); }}\n#[cfg(test)]\nmod tests {{\n{in_test}}}\n"
+         fn short() {{}}\nfn sized(a: [u64; 4]) -> u64 {{ a[0] }}\ntrait T {{ fn declared(&self); }}\n#[cfg(test)]\nmod tests {{\n{in_test}}}\n"
     );
     let fns = functions_in(&source);
     let names: Vec<&str> = fns.iter().map(|(n, _, _)| n.as_str()).collect();
-    assert_eq!(names, ["long", "short"], "{fns:?}");
+    assert_eq!(names, ["long", "short", "sized"], "{fns:?}");
     assert_eq!(fns[0], ("long".to_string(), 1, FUNCTION_LINES + 5));
     let files = [("crates/x/src/lib.rs".to_string(), source)];
     let found = function_violations(&files, &[]);

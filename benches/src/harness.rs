@@ -46,6 +46,9 @@ pub fn all_figures(quick: bool) -> Result<Figures, BenchError> {
         program::program_scan_full_ns(quick).into(),
     );
     out.insert(s("program_load_us"), program::program_load_us(quick).into());
+    let (guard_ns, body_ns) = program::ns_per_instruction(quick);
+    out.insert(s("guard_ns_per_instruction"), guard_ns.into());
+    out.insert(s("body_ns_per_instruction"), body_ns.into());
     // A chart four times longer costs four times more when the import is linear.
     let (short, long) = (
         program::plcopen_import_ms(5_000, 3),

@@ -187,3 +187,59 @@ pub fn plcopen_import_ms(steps: usize, runs: usize) -> f64 {
     took.sort_by(|a, b| a.total_cmp(b));
     took[took.len() / 2]
 }
+
+/// Nanoseconds per instruction of compiled guard and body code, the unit of a candidate's work
+/// budget (`cetratus_program::Work`): the Vernadat program with T10's guard replaced by one of
+/// about a thousand instructions that reads an input and a variable, compares and combines, all
+/// of which run; then a body of about 7,500 instructions. The median of 7 timed batches each.
+pub fn ns_per_instruction(quick: bool) -> (f64, f64) {
+    use cetratus_program::EvalCtx;
+    let dir = examples_dir().join("vernadat");
+    let toml = std::fs::read_to_string(dir.join("vernadat.toml")).expect("vernadat.toml");
+    let net = cetratus_net::pnml::read_file(&dir.join("vernadat.pnml")).expect("the net");
+    let guard = (0..125)
+        .map(|k| format!("(PE or w >= {k})"))
+        .collect::<Vec<_>>()
+        .join(" and ");
+    let statement = format!("w := w{}\n", " * 1".repeat(100));
+    let toml = toml.replace("T10 = \"PE\"", &format!("T10 = \"{guard}\""))
+        + "\n[[variable]]\nname = \"w\"\ntype = \"int\"\n\
+           \n[[action]]\nplace = \"H\"\nqualifier = \"N\"\nbody = \"Heavy\"\n"
+        + &format!("\n[bodies]\nHeavy = '''\n{}'''\n", statement.repeat(37));
+    let p = Program::from_sources(&toml, "heavy.toml", net).expect("the heavy program loads");
+    let t10 = p.net().transition_by_id("T10").expect("T10");
+    // PE false and w past every bound: every instruction of the guard runs, none is jumped.
+    let inputs = vec![Value::Bool(false); p.inputs().len()];
+    let guard_vars = [Value::Int(1000)];
+    let marking = p.net().initial_marking().0;
+    let since = vec![Some(0); marking.len()];
+    let ctx = EvalCtx {
+        inputs: &inputs,
+        prev_inputs: &inputs,
+        vars: &guard_vars,
+        marking: &marking,
+        place_since_us: &since,
+        place_dwell_us: &[],
+        now_us: 0,
+    };
+    let batch = Duration::from_millis(if quick { 20 } else { 100 });
+    let guard_units = p.guard_cost(t10) as f64;
+    let guard_ns = median_ns(
+        || {
+            black_box(p.eval_guard(t10, &ctx).is_ok());
+        },
+        batch,
+        7,
+    );
+    let body = &p.bodies()[0];
+    let mut vars = vec![Value::Int(1)];
+    let mut outputs = vec![Value::Bool(false); p.outputs().len()];
+    let body_ns = median_ns(
+        || {
+            black_box(body.run(&ctx, &mut vars, &mut outputs).is_ok());
+        },
+        batch,
+        7,
+    );
+    (guard_ns / guard_units, body_ns / body.cost() as f64)
+}

@@ -266,6 +266,15 @@ fn print_state(v: &Value) {
         "  cycles {}  scan p99 {} ns  overruns {}",
         v["cycle"]["cycles"], v["cycle"]["scan"]["p99_ns"], v["cycle"]["overruns"]
     );
+    let f = &v["persist_fault"];
+    if !f.is_null() {
+        println!(
+            "  PERSISTENCE FAULT since cycle {}: {} (last saved: cycle {})",
+            f["since_cycle"],
+            f["error"].as_str().unwrap_or("?"),
+            f["saved_cycle"]
+        );
+    }
 }
 
 /// `cetratus watch`: state changes and events as they happen.

@@ -138,7 +138,19 @@ fn init_logging() {
     }
 }
 
+/// Keeps backtraces for panics only. Under `RUST_BACKTRACE=1`, anyhow (in rmqtt) captures one
+/// for every error, and the broker logs each error a client causes (a reset, a malformed packet)
+/// with it: a symbolized backtrace a connection, and the symbols kept in memory, hundreds of MiB.
+/// `RUST_LIB_BACKTRACE=0`, unless the operator set it, turns off the capture for errors and
+/// leaves it on for panics (docs/operations.md, *Logs*). Runs first, before any thread exists.
+fn errors_without_backtraces() {
+    if std::env::var_os("RUST_LIB_BACKTRACE").is_none() {
+        std::env::set_var("RUST_LIB_BACKTRACE", "0");
+    }
+}
+
 fn main() -> std::process::ExitCode {
+    errors_without_backtraces();
     init_logging();
     let cli = Cli::parse();
     let result = match &cli.command {

@@ -223,7 +223,6 @@ fn echo(json: bool, kept: Kept) -> impl FnMut(Echo) + Send + 'static {
                 }
             }
         }
-        Echo::Warning(w) => eprintln!("warning: {w}"),
         Echo::Progress { cycle, committed } => eprintln!(
             "progress cycle={cycle} committed={}",
             committed.map_or(-1, |c| c as i64)

@@ -157,6 +157,8 @@ struct FloodTally {
     refused: u64,
     reasons: std::collections::BTreeSet<String>,
     last_ack: Option<Instant>,
+    /// Times the broker dropped the flood's connection.
+    disconnects: u64,
     replies: BTreeMap<String, u64>,
     busy_messages: std::collections::BTreeSet<String>,
 }
@@ -201,8 +203,10 @@ fn a_flood_of_small_commands_is_passed_on_only_at_the_brokers_command_rate() {
                             ));
                         }
                     }
+                    Ok(Event::Incoming(Packet::Disconnect(_))) => t.disconnects += 1,
                     Ok(_) => {}
                     Err(_) => {
+                        t.disconnects += 1;
                         drop(t);
                         std::thread::sleep(Duration::from_millis(50));
                     }
@@ -234,12 +238,17 @@ fn a_flood_of_small_commands_is_passed_on_only_at_the_brokers_command_rate() {
             )
             .expect("the flood client queues a command");
     }
+    // The broker disconnects a client it goes on refusing, with what it had queued: the rest
+    // of the flood is sent again on each new connection, or lost with one.
     common::wait_for(
-        "the broker's acknowledgement of every command",
+        "the broker to acknowledge or drop every command",
         Duration::from_secs(300),
         || {
             let t = tally.lock().expect("tally");
-            t.accepted + t.refused == N
+            let quiet = t
+                .last_ack
+                .is_some_and(|l| l.elapsed() > Duration::from_secs(3));
+            t.accepted + t.refused >= N || (t.disconnects > 0 && quiet)
         },
     );
     // Every command the broker passed on was charged between the first publish and the last
@@ -307,6 +316,10 @@ fn a_flood_of_small_commands_is_passed_on_only_at_the_brokers_command_rate() {
         t.reasons
     );
     assert!(
+        t.disconnects > 0,
+        "a client refused without a break is disconnected, with its backlog"
+    );
+    assert!(
         t.busy_messages
             .iter()
             .any(|m| m.contains("embedded broker passes them on")),
@@ -327,4 +340,80 @@ fn a_flood_of_small_commands_is_passed_on_only_at_the_brokers_command_rate() {
         "the PLC went on cycling: {before} then {after}"
     );
     drop(plc);
+}
+
+/// A bare MQTT 5 client `id` (clean start, keep-alive 300 s, no properties), connected.
+fn connect_v5(port: u16, id: &str) -> std::net::TcpStream {
+    use std::io::{Read, Write};
+    let mut body = common::raw_mqtt::mqtt_str("MQTT");
+    body.extend_from_slice(&[5, 0x02, 0x01, 0x2C, 0]);
+    body.extend_from_slice(&common::raw_mqtt::mqtt_str(id));
+    let mut s = std::net::TcpStream::connect(("127.0.0.1", port)).expect("connects");
+    s.write_all(&common::raw_mqtt::packet(0x10, &body))
+        .expect("CONNECT");
+    let mut connack = [0u8; 4];
+    s.read_exact(&mut connack).expect("CONNACK");
+    assert_eq!((connack[0], connack[3]), (0x20, 0), "accepted: {connack:?}");
+    s
+}
+
+/// An MQTT 5 PUBLISH at QoS 0 of a command on `topic` that asks for its reply on `reply_to`.
+fn command_v5(topic: &str, reply_to: &str, correlation: &[u8]) -> Vec<u8> {
+    let mut props = vec![0x08];
+    props.extend_from_slice(&common::raw_mqtt::mqtt_str(reply_to));
+    props.push(0x09);
+    props.extend_from_slice(&(correlation.len() as u16).to_be_bytes());
+    props.extend_from_slice(correlation);
+    let mut body = common::raw_mqtt::mqtt_str(topic);
+    assert!(props.len() < 128, "one byte of property length");
+    body.push(props.len() as u8);
+    body.extend_from_slice(&props);
+    body.extend_from_slice(b"{}");
+    common::raw_mqtt::packet(0x30, &body)
+}
+
+#[test]
+fn a_flood_that_stops_leaves_no_backlog_that_keeps_operators_waiting() {
+    use std::io::Write;
+
+    let plc = RunningPlc::start(PLC, &[]);
+    let (probe, replies) = client(plc.mqtt, "probe", PLC);
+    first_answer(&probe, &replies, PLC, Duration::from_secs(30));
+
+    // A bare MQTT 5 client writes `exec_info` requests, each asking for a reply, at QoS 0 as
+    // fast as its socket takes them, for 5 s; then it stops writing and keeps its connection
+    // open: what it wrote and the broker has not read waits in the two sockets.
+    let command = command_v5(
+        &format!("cetratus/{PLC}/cmd/exec_info"),
+        &reply_topic(PLC),
+        b"flood",
+    );
+    let batch = command.repeat(256);
+    let mut flood = connect_v5(plc.mqtt, "flood");
+    flood
+        .set_write_timeout(Some(Duration::from_millis(100)))
+        .expect("a write timeout");
+    let (start, mut written) = (Instant::now(), 0u64);
+    while start.elapsed() < Duration::from_secs(5) {
+        match flood.write(&batch) {
+            Ok(n) => written += n as u64,
+            // Full, or closed by the broker.
+            Err(_) => std::thread::sleep(Duration::from_millis(10)),
+        }
+    }
+    eprintln!(
+        "the flood wrote {} commands",
+        written / command.len() as u64
+    );
+
+    // An operator asks once the flood has stopped: the broker must not still be busy with it.
+    let asked = Instant::now();
+    request(&probe, PLC, "exec_info", b"after-flood", b"{}".to_vec());
+    let answer = reply(&replies, b"after-flood", Duration::from_secs(10));
+    assert_eq!(
+        answer["ok"], true,
+        "the operator's command after the flood: {answer}"
+    );
+    eprintln!("answered {:?} after the flood stopped", asked.elapsed());
+    drop(flood);
 }

@@ -154,6 +154,9 @@
       $('status').textContent = st.status;
       $('status').dataset.status = st.status;
     }
+    // A complete state: a fault it no longer carries is over.
+    st.persist_fault = s.persist_fault;
+    renderPersistFault(st.persist_fault);
     const progs = st.programs || {};
     $('program-A').textContent = programText(progs.A);
     $('program-B').textContent = programText(progs.B);
@@ -184,6 +187,16 @@
       box.querySelector('.role').textContent = role ? `(${role})` : '';
     }
     enableButtons();
+  }
+
+  // The state directory cannot be written (docs/persistence.md, "When the disk fails").
+  function renderPersistFault(f) {
+    const box = $('persist-fault');
+    box.hidden = !f;
+    if (!f) return;
+    const saved = f.saved_cycle === undefined ? 'the state saved before this run' : `cycle ${f.saved_cycle}`;
+    box.textContent = `The state directory cannot be written since cycle ${f.since_cycle}: ${f.error}. ` +
+      `The PLC runs on and tries again at every snapshot; a restart now would start from ${saved}.`;
   }
 
   function fmt(v) {

@@ -31,11 +31,12 @@ use std::time::{Duration, Instant};
 
 use async_trait::async_trait;
 use rmqtt::hook::{Handler, HookResult, Parameter, ReturnType};
-use rmqtt::types::Publish;
+use rmqtt::types::{Publish, PublishAclResult};
 
 use crate::acl::{Acl, PLC_USER};
 use crate::broker::{detached, BROKER_MAX_PACKET};
 use crate::budget::{worth_logging, TokenBucket as Bucket};
+use crate::strikes::{Strikes, STRIKES, STRIKE_WINDOW};
 
 /// Bytes per second the broker takes from all clients together but the PLC's own: sixteen
 /// full-size packages a second, far more than operators and dashboards send, and less than the
@@ -190,6 +191,8 @@ pub(crate) struct Ingress {
     acl: Arc<Acl>,
     buckets: Mutex<Buckets>,
     counts: Counts,
+    strikes: Strikes,
+    struck_out: AtomicU64,
 }
 
 impl Ingress {
@@ -198,7 +201,42 @@ impl Ingress {
             acl,
             buckets: Mutex::new(Buckets::new(Instant::now())),
             counts: Counts::default(),
+            strikes: Strikes::default(),
+            struck_out: AtomicU64::new(0),
         }
+    }
+
+    /// Refuses a message of `client` for `why`, after [`REFUSAL_PAUSE`]; disconnects the client
+    /// when it has been refused [`STRIKES`] times in [`STRIKE_WINDOW`] (`crate::strikes`).
+    async fn refuse(&self, client: &str, why: TurnedAway) -> ReturnType {
+        tokio::time::sleep(REFUSAL_PAUSE).await;
+        if !self.strikes.refuse(client, Instant::now()) {
+            return refused(why);
+        }
+        let n = self.struck_out.fetch_add(1, Ordering::Relaxed) + 1;
+        if worth_logging(n) {
+            tracing::warn!(
+                client,
+                count = n,
+                "a client went on sending past the embedded broker's limits and was \
+                 disconnected, with what it had not yet sent"
+            );
+        }
+        let reason = format!(
+            "{} {STRIKES} messages of this client were refused within {} s: it is disconnected, \
+             with what it had queued; send fewer messages, and wait for each reply",
+            refusal(why),
+            STRIKE_WINDOW.as_secs()
+        );
+        let r = rmqtt::types::PublishResult::reason_code(
+            rmqtt::codec::v5::PublishAckReason::QuotaExceeded,
+            Some(reason.into()),
+            true,
+        );
+        (
+            false,
+            Some(HookResult::PublishAclResult(PublishAclResult(r))),
+        )
     }
 
     /// Charges `publish` from the client `client`, logged in as `user`.
@@ -279,7 +317,7 @@ fn refusal(why: TurnedAway) -> String {
 }
 
 fn refused(why: TurnedAway) -> ReturnType {
-    let r = rmqtt::types::PublishAclResult::rejected(false, Some(refusal(why).into()));
+    let r = PublishAclResult::rejected(false, Some(refusal(why).into()));
     (false, Some(HookResult::PublishAclResult(r)))
 }
 
@@ -321,8 +359,9 @@ impl Handler for Ingress {
             Parameter::MessagePublishCheckAcl(session, publish) if is_command(publish) => {
                 let user = session.id.username.as_deref();
                 if user != Some(PLC_USER) && marked_refused(publish) {
-                    tokio::time::sleep(REFUSAL_PAUSE).await;
-                    return refused(TurnedAway::Commands);
+                    return self
+                        .refuse(&session.id.client_id, TurnedAway::Commands)
+                        .await;
                 }
                 (true, acc)
             }
@@ -332,8 +371,7 @@ impl Handler for Ingress {
                 match self.judge(&session.id.client_id, user, publish, false) {
                     Verdict::Pass => (true, acc),
                     Verdict::TurnAway(why) | Verdict::Refuse(why) => {
-                        tokio::time::sleep(REFUSAL_PAUSE).await;
-                        refused(why)
+                        self.refuse(&session.id.client_id, why).await
                     }
                 }
             }

@@ -45,6 +45,7 @@ mod inbound;
 mod ingress;
 mod link;
 pub mod password;
+mod strikes;
 pub mod topics;
 
 pub use acl::{BrokerAccount, BrokerSettings, BrokerTls, Login, DASHBOARD_USER, PLC_USER};
@@ -71,4 +72,5 @@ pub use link::{
     MqttHandle, Outgoing, StatsReader, COMMAND_QUEUE_BYTES, DEFAULT_MQTT_ADDR, STOP_WITHIN,
 };
 pub use rumqttc::v5::MqttOptions;
+pub use strikes::{STRIKES, STRIKE_WINDOW};
 pub use topics::{MAX_TOPIC_BYTES, MAX_TOPIC_LEVELS};

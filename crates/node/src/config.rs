@@ -142,7 +142,7 @@ pub struct LocalConfig {
     pub state_trans_timeout_us: Option<u64>,
     /// The work budget of a candidate scan (guard evaluations and firings); `None`: the default
     /// for the scan period.
-    pub candidate_work_budget: Option<u64>,
+    pub candidate_instruction_budget: Option<u64>,
     /// The node's I/O configuration from `[io]`, when it names a device or a server.
     pub io: Option<cetratus_io::config::IoConfig>,
     /// The analysis gate at load: its budget and what each finding does.
@@ -281,7 +281,7 @@ impl LocalConfig {
             dashboard_accounts: dashboard.accounts,
             dashboard_hosts: dashboard.hosts,
             state_trans_timeout_us: updates.state_trans_timeout_us,
-            candidate_work_budget: updates.candidate_work_budget,
+            candidate_instruction_budget: updates.candidate_instruction_budget,
             io: s.io,
             gate: updates.gate,
             validation: updates.validation,
@@ -313,9 +313,9 @@ impl LocalConfig {
             state_trans_timeout_ns: self
                 .state_trans_timeout_us
                 .map_or(limits.state_trans_timeout_ns, |us| us.saturating_mul(1000)),
-            candidate_work_budget: self
-                .candidate_work_budget
-                .unwrap_or(limits.candidate_work_budget),
+            candidate_instruction_budget: self
+                .candidate_instruction_budget
+                .unwrap_or(limits.candidate_instruction_budget),
             ..limits
         }
     }
@@ -408,7 +408,7 @@ mod tests {
             ),
             (
                 c.state_trans_timeout_us,
-                c.candidate_work_budget,
+                c.candidate_instruction_budget,
                 &c.io,
                 c.gate,
                 c.validation,
@@ -565,14 +565,15 @@ mod tests {
     }
 
     #[test]
-    fn state_trans_timeout_and_the_candidate_work_budget_replace_the_limits_of_the_period() {
+    fn state_trans_timeout_and_the_candidate_instruction_budget_replace_the_limits_of_the_period() {
         let period = Limits::for_period_us(10_000);
-        let d =
-            dir_with("[updates]\nstate_trans_timeout = \"25ms\"\ncandidate_work_budget = 500\n");
+        let d = dir_with(
+            "[updates]\nstate_trans_timeout = \"25ms\"\ncandidate_instruction_budget = 500\n",
+        );
         let c = LocalConfig::load(Some(&d)).unwrap();
         let l = c.limits(period);
         assert_eq!(l.state_trans_timeout_ns, 25_000_000);
-        assert_eq!(l.candidate_work_budget, 500);
+        assert_eq!(l.candidate_instruction_budget, 500);
         assert_eq!(l.watchdog_ns, period.watchdog_ns);
         let c = LocalConfig::load(Some(Path::new("/nonexistent/cetratus-config"))).unwrap();
         assert_eq!(
@@ -590,9 +591,9 @@ mod tests {
             e.contains("[updates] state_trans_timeout") && e.contains("10ms"),
             "{e}"
         );
-        let d = dir_with("[updates]\ncandidate_work_budget = 0\n");
+        let d = dir_with("[updates]\ncandidate_instruction_budget = 0\n");
         let e = LocalConfig::load(Some(&d)).err().unwrap().to_string();
-        assert!(e.contains("[updates] candidate_work_budget"), "{e}");
+        assert!(e.contains("[updates] candidate_instruction_budget"), "{e}");
     }
 
     #[test]

@@ -9,7 +9,9 @@
 //!   events to the audit log, to MQTT and to the operator, publication, persistence.
 //! * [`link`]: the scan thread's side of MQTT, with the preparer thread (verifies and builds
 //!   packages, compiles conditions) and the publisher thread.
-//! * [`periodic`]: the real-time loop at absolute deadlines; [`rt`]: SCHED_FIFO and mlockall.
+//! * [`periodic`]: the real-time loop at absolute deadlines; [`rt`]: SCHED_FIFO and mlockall;
+//!   [`overruns`]: a candidate that makes the primary overrun more than before its load is
+//!   faulted.
 //! * [`clock`]: the machine's clocks, injected into the runtime.
 //! * [`gate`]: the analysis gate at load, run by the preparers; [`validate`]: twin validation
 //!   of an update on forked or fresh twins, on a thread of its own.
@@ -24,6 +26,7 @@ pub mod gate;
 pub mod link;
 pub mod load;
 mod node;
+pub mod overruns;
 pub mod periodic;
 pub mod plant;
 pub mod rt;

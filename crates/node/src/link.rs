@@ -112,6 +112,7 @@ pub struct ControlLink {
     quality: QualitySource,
     // The operator key that signed the last accepted load (auto substitution checks it).
     load_key: Option<String>,
+    persist_fault: Option<cetratus_proto::PersistFault>,
 }
 
 /// Reads the input quality of every source of inputs (field devices, OPC UA clients), from the
@@ -179,6 +180,7 @@ impl ControlLink {
             mqtt_stats: stats,
             quality,
             load_key: None,
+            persist_fault: None,
         }
     }
 
@@ -245,6 +247,13 @@ impl ControlLink {
         }
         self.pending_bytes += size;
         self.pending.push_back((m, size));
+    }
+
+    /// Whether the state directory can be written, for `state`: published at once when it
+    /// changes.
+    pub fn set_persist_fault(&mut self, fault: Option<cetratus_proto::PersistFault>) {
+        self.persist_fault = fault;
+        self.first = true;
     }
 
     /// Queues events (those of a command taken between cycles) for publication.
@@ -325,6 +334,7 @@ impl ControlLink {
             }
             let mut state = wire::state(plc, timing);
             state.control = self.control_counters();
+            state.persist_fault = self.persist_fault.clone();
             let snap = Snapshot {
                 state,
                 exec_info: plc.exec_info(),

@@ -17,6 +17,7 @@ use cetratus_runtime::{
 };
 
 use crate::link::{ControlLink, LinkCounters};
+use crate::overruns::OverrunWatch;
 use crate::periodic::run_periodic;
 use crate::script::{Pace, Script, ScriptError};
 use crate::validate::{self, AutoSubstitute, Start, ValidationMode, ValidationPolicy, Validator};
@@ -36,8 +37,6 @@ pub enum Echo {
         /// Cycle of the last committed snapshot.
         committed: Option<u64>,
     },
-    /// Something went wrong beside the scan (the state directory cannot be written).
-    Warning(String),
 }
 
 /// How a node runs.
@@ -71,10 +70,12 @@ pub struct Node<IO> {
     faults_dropped: u64,
     echo: Option<(SyncSender<Echo>, JoinHandle<()>)>,
     echo_dropped: u64,
-    persist_warned: bool,
+    /// Set while the state directory cannot be written.
+    persist_fault: Option<cetratus_proto::PersistFault>,
     script_error: Option<ScriptError>,
     timing: LoopTiming,
     pace: Pace,
+    overruns: OverrunWatch,
     observer: Option<Observer>,
     validation: Option<NodeValidation<IO>>,
 }
@@ -126,10 +127,11 @@ impl<IO: Provider + Dispatcher> Node<IO> {
             faults_dropped: 0,
             echo: None,
             echo_dropped: 0,
-            persist_warned: false,
+            persist_fault: None,
             script_error: None,
             timing: LoopTiming::default(),
             pace: Pace::Virtual,
+            overruns: OverrunWatch::default(),
             observer: None,
             validation: None,
         }
@@ -369,6 +371,12 @@ impl<IO: Provider + Dispatcher> Node<IO> {
                 return None;
             }
         }
+        if self.pace == Pace::Real {
+            let quarantine = self.plc.status() == Status::Quarantine;
+            if let Some(why) = self.overruns.cycle(timing.overruns, quarantine) {
+                self.plc.fault_candidate(&why);
+            }
+        }
         self.plc.cycle(now, &mut self.io);
         if let Some(t) = self.trace.as_mut() {
             t.observe(
@@ -393,26 +401,66 @@ impl<IO: Provider + Dispatcher> Node<IO> {
         }
         if let Some(p) = self.persister.as_mut() {
             p.offer(&self.plc);
-            // Said once: a full disk fails every commit, and the report gives the count.
-            let err = (!self.persist_warned).then(|| p.take_error()).flatten();
             let progress = self
                 .opts
                 .progress_every
                 .filter(|&n| n > 0 && self.plc.cycles() % n == 0)
                 .map(|_| p.committed_cycle());
-            if let Some(err) = err {
-                self.persist_warned = true;
-                self.echo(Echo::Warning(format!(
-                    "the state directory could not be written: {err}"
-                )));
-            }
             if let Some(committed) = progress {
                 let cycle = self.plc.cycles();
                 self.echo(Echo::Progress { cycle, committed });
             }
+            self.persist_health(now);
         }
         drop(self.plc.take_retired());
         Some(ev)
+    }
+
+    /// Raises `persist_failed` when the state directory stops taking writes and
+    /// `persist_recovered` when it takes them again, and keeps `state` saying which
+    /// (docs/persistence.md, *When the disk fails*). One atomic load a cycle otherwise.
+    fn persist_health(&mut self, now: u64) {
+        let Some(p) = self.persister.as_ref() else {
+            return;
+        };
+        let failing = p.is_failing();
+        if failing == self.persist_fault.is_some() {
+            return;
+        }
+        let cycle = self.plc.cycles();
+        let (kind, message, fault) = if failing {
+            let error = p.last_error().unwrap_or_else(|| "a write failed".into());
+            let saved_cycle = p.committed_cycle();
+            let saved = saved_cycle.map_or("none saved in this run".into(), |c| {
+                format!("the last saved is of cycle {c}")
+            });
+            let message = format!(
+                "the state directory cannot be written ({error}); the PLC runs on, but a restart now would \
+                 start from the state saved before ({saved}); free space or mend the directory: \
+                 every snapshot tries again"
+            );
+            let fault = cetratus_proto::PersistFault {
+                error,
+                since_cycle: cycle,
+                saved_cycle,
+            };
+            (EventKind::PersistFailed, message, Some(fault))
+        } else {
+            let message = "the state directory takes writes again; the state is saved as before";
+            (EventKind::PersistRecovered, message.to_string(), None)
+        };
+        self.persist_fault = fault.clone();
+        if let Some(link) = self.link.as_mut() {
+            link.set_persist_fault(fault);
+        }
+        let event = Event {
+            cycle,
+            time_us: now,
+            kind,
+            message,
+            detail: None,
+        };
+        self.events(vec![event], "local", true);
     }
 
     /// Runs cycles every `period_us` of virtual time until `until_us`. Returns the time reached.

@@ -144,8 +144,9 @@ pub fn state(plc: &Plc, loop_timing: &LoopTiming) -> proto::StateMsg {
                 .update_meta()
                 .map(|m| format!("{} {}", m.name, m.version)),
         },
-        // The control link fills this in; a node without one drops nothing.
+        // The control link fills these in; a node without one drops nothing.
         control: proto::ControlCounters::default(),
+        persist_fault: None,
     }
 }
 

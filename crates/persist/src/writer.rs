@@ -1,6 +1,6 @@
 //! The writer thread, and the scan thread's side of it that never waits for the disk.
 
-use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::mpsc::{sync_channel, Receiver, SyncSender, TrySendError};
 use std::sync::{Arc, Mutex};
 use std::thread::JoinHandle;
@@ -59,6 +59,10 @@ struct Shared {
     max_commit_ns: AtomicU64,
     errors: AtomicU64,
     last_error: Mutex<Option<String>>,
+    /// The last write failed, and none has succeeded since.
+    failing: AtomicBool,
+    /// A program could not be saved: the scan thread sends its programs again.
+    resend_programs: AtomicBool,
 }
 
 impl Shared {
@@ -67,6 +71,7 @@ impl Shared {
         if let Ok(mut g) = self.last_error.lock() {
             *g = Some(e.to_string());
         }
+        self.failing.store(true, Ordering::Release);
     }
 }
 
@@ -161,8 +166,15 @@ impl Persister {
             .then(|| self.shared.committed_cycle.load(Ordering::Relaxed))
     }
 
-    /// The last write error since the previous call, if any (never waits for the writer).
-    pub fn take_error(&self) -> Option<String> {
+    /// True while the state directory cannot be written: the last write failed and none has
+    /// succeeded since. Every snapshot due is a new try, so it turns false by itself once the
+    /// cause is gone (docs/persistence.md, *When the disk fails*). One atomic load.
+    pub fn is_failing(&self) -> bool {
+        self.shared.failing.load(Ordering::Acquire)
+    }
+
+    /// The last write error, if any (never waits for the writer; `None` while it holds the lock).
+    pub fn last_error(&self) -> Option<String> {
         if self.shared.errors.load(Ordering::Relaxed) == 0 {
             return None;
         }
@@ -170,7 +182,7 @@ impl Persister {
             .last_error
             .try_lock()
             .ok()
-            .and_then(|mut g| g.take())
+            .and_then(|g| g.clone())
     }
 
     fn ensure_programs(&mut self, plc: &Plc) -> bool {
@@ -200,6 +212,10 @@ impl Persister {
     pub fn offer(&mut self, plc: &Plc) {
         while let Ok(b) = self.free_rx.try_recv() {
             self.free.push(b);
+        }
+        if self.shared.resend_programs.swap(false, Ordering::AcqRel) {
+            // A program could not be saved: no snapshot is committed until it is.
+            self.known = [[0; 32]; 4];
         }
         let state = (plc.primary(), plc.status());
         let due = self.last_state != Some(state)
@@ -354,10 +370,12 @@ fn writer(
         let mut newest: Option<Box<PlcSnapshot>> = None;
         let mut stop = false;
         let mut logged = false;
+        let mut unsaved = false;
         for m in batch.drain(..) {
             match m {
                 Msg::Program(p) => {
                     if let Err(e) = store.save_program(&p) {
+                        unsaved = true;
                         shared.fail(&e);
                     }
                 }
@@ -396,6 +414,14 @@ fn writer(
                 shared.fail(&e);
             }
         }
+        if unsaved {
+            // A snapshot must not name a program that is not on disk: the scan thread sends
+            // the programs again, and the next snapshot is committed once they are saved.
+            shared.resend_programs.store(true, Ordering::Release);
+            if let Some(s) = newest.take() {
+                let _ = free_tx.try_send(s);
+            }
+        }
         if let Some(s) = newest {
             let t = Instant::now();
             match store.commit(&s, &figures) {
@@ -407,6 +433,7 @@ fn writer(
                     shared.max_commit_ns.store(max_ns, Ordering::Relaxed);
                     shared.committed_cycle.store(s.cycle, Ordering::Relaxed);
                     shared.commits.fetch_add(1, Ordering::Relaxed);
+                    shared.failing.store(false, Ordering::Release);
                 }
                 Err(e) => shared.fail(&e),
             }

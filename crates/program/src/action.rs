@@ -7,7 +7,26 @@ use cetratus_net::{PlaceIdx, Tokens};
 use crate::body::BodyError;
 use crate::guard::EvalCtx;
 use crate::value::Value;
-use crate::Program;
+use crate::{Program, Work};
+
+/// Why the actions of a scan stopped: a body failed, or running the next body would have passed
+/// the scan's work budget (it did not run).
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum ActError {
+    /// A body failed; its assignments before the failing statement have taken effect.
+    Body(BodyError),
+    /// The body `body` was not run: it costs more work than the scan had left.
+    OutOfWork {
+        /// The body's name.
+        body: String,
+    },
+}
+
+impl From<BodyError> for ActError {
+    fn from(e: BodyError) -> Self {
+        ActError::Body(e)
+    }
+}
 
 /// An SFC action qualifier.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
@@ -154,7 +173,8 @@ impl ActionState {
         ctx: &EvalCtx,
         outputs: &mut [Value],
         vars: &mut [Value],
-    ) -> Result<(), BodyError> {
+        work: &mut Work,
+    ) -> Result<(), ActError> {
         // A first scan always recomputes, whatever the state did before it.
         self.quiet = false;
         self.begin();
@@ -163,7 +183,7 @@ impl ActionState {
                 self.edge(program, PlaceIdx(p as u32), true, ctx.now_us);
             }
         }
-        self.finish(program, ctx, outputs, vars)
+        self.finish(program, ctx, outputs, vars, work)
     }
 
     /// Computes the driven outputs and variables after this scan's marking update, and runs the
@@ -176,7 +196,9 @@ impl ActionState {
     /// set to their type's zero; outputs a body assigns keep their value; variables are left
     /// alone unless driven. `outputs` and `vars` must be the buffers of the previous scan: a scan
     /// in which no place changed, no pulse ends, no timer is due and no body runs leaves them as
-    /// they are. Never allocates, unless a body fails (the error names it).
+    /// they are. Each body that runs is charged to `work` first ([`Body::cost`](crate::Body::cost));
+    /// one that would pass its budget does not run. Never allocates, unless a body fails or
+    /// is not run (the error names it).
     pub fn apply(
         &mut self,
         program: &Program,
@@ -184,7 +206,8 @@ impl ActionState {
         changes: &[(PlaceIdx, Tokens)],
         outputs: &mut [Value],
         vars: &mut [Value],
-    ) -> Result<(), BodyError> {
+        work: &mut Work,
+    ) -> Result<(), ActError> {
         if self.settled
             && !self.never_quiet
             && changes.is_empty()
@@ -203,7 +226,7 @@ impl ActionState {
                 self.edge(program, p, false, ctx.now_us);
             }
         }
-        self.finish(program, ctx, outputs, vars)
+        self.finish(program, ctx, outputs, vars, work)
     }
 
     /// True when the last `apply` changed nothing: no place changed, no pulse ended, no timer was
@@ -337,7 +360,8 @@ impl ActionState {
         ctx: &EvalCtx,
         outputs: &mut [Value],
         vars: &mut [Value],
-    ) -> Result<(), BodyError> {
+        work: &mut Work,
+    ) -> Result<(), ActError> {
         let now_us = ctx.now_us;
         self.stored_timers(program, now_us);
         for (a, &slot) in program.actions.iter().zip(&program.action_slot) {
@@ -405,6 +429,11 @@ impl ActionState {
                 // Q, or the IEC final run in the scan in which a non-pulse Q falls.
                 if q || was {
                     if let Some(body) = program.bodies.get(b as usize) {
+                        if !work.charge(body.cost()) {
+                            return Err(ActError::OutOfWork {
+                                body: body.name().to_string(),
+                            });
+                        }
                         body.run(ctx, vars, outputs)?;
                     }
                 }

@@ -102,6 +102,10 @@ impl Body {
     pub fn code_len(&self) -> usize {
         self.code.len()
     }
+    /// What one run costs in units of [`crate::Work`]: the length of its code, at least 1.
+    pub fn cost(&self) -> u64 {
+        (self.code.len() as u64).max(1)
+    }
 
     /// Parses, type-checks and compiles a body; the error's offset is in `source`.
     pub(crate) fn compile(name: &str, source: &str, scope: &Scope) -> Result<Body, SyntaxError> {

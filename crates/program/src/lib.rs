@@ -24,10 +24,11 @@ mod program;
 mod source;
 pub mod transform;
 mod value;
+mod work;
 
 use std::path::Path;
 
-pub use action::{Action, ActionState, Qualifier, Target};
+pub use action::{ActError, Action, ActionState, Qualifier, Target};
 pub use body::{Body, BodyError};
 pub use error::ProgramError;
 pub use guard::{EvalCtx, EvalError, EvalErrorKind, Guard};
@@ -40,6 +41,7 @@ pub use program::{Program, Watchdog, DEFAULT_SCAN_PERIOD, TOOL};
 pub use source::{toml_text, NotUtf8};
 pub use transform::{DenseMatrix, Projection, StateTransform, TransformError};
 pub use value::{Signal, Type, Value};
+pub use work::Work;
 
 use cetratus_net::Net;
 

@@ -355,6 +355,12 @@ impl Program {
     pub fn has_guard(&self, t: TransIdx) -> bool {
         self.guard(t).is_some()
     }
+    /// What evaluating a transition's guard costs in units of [`crate::Work`]: its code's
+    /// length, or 1 to look at a transition without one.
+    #[inline]
+    pub fn guard_cost(&self, t: TransIdx) -> u64 {
+        self.guard(t).map_or(1, Guard::cost)
+    }
     /// Evaluates a transition's guard; a transition without one is always true. Never allocates.
     pub fn eval_guard(&self, t: TransIdx, ctx: &EvalCtx) -> Result<bool, EvalError> {
         match self.guard(t) {

@@ -3,7 +3,7 @@
 mod common;
 
 use cetratus_net::{PlaceIdx, Tokens};
-use cetratus_program::{ActionState, EvalCtx, Program, Value};
+use cetratus_program::{ActError, ActionState, EvalCtx, Program, Value, Work};
 
 const A: PlaceIdx = PlaceIdx(0);
 const B: PlaceIdx = PlaceIdx(1);
@@ -64,7 +64,7 @@ impl Cell {
             since,
         };
         let ctx = view(&c.m, &c.since, 0);
-        c.st.start(&c.p, &ctx, &mut c.out, &mut c.vars)
+        c.st.start(&c.p, &ctx, &mut c.out, &mut c.vars, &mut Work::unlimited())
             .expect("no body");
         c
     }
@@ -86,7 +86,14 @@ impl Cell {
         }
         let ctx = view(&self.m, &self.since, now);
         self.st
-            .apply(&self.p, &ctx, &changes, &mut self.out, &mut self.vars)
+            .apply(
+                &self.p,
+                &ctx,
+                &changes,
+                &mut self.out,
+                &mut self.vars,
+                &mut Work::unlimited(),
+            )
             .expect("no body");
         self.bools()
     }
@@ -358,9 +365,16 @@ fn an_overflowing_body_fails_naming_its_line_and_column() {
         vec![Value::Bool(false); 4],
         vec![Value::Int(0), Value::Bool(false)],
     );
-    let err = st
-        .start(&p, &view(&m, &since, 0), &mut out, &mut vars)
-        .expect_err("overflow");
+    let err = st.start(
+        &p,
+        &view(&m, &since, 0),
+        &mut out,
+        &mut vars,
+        &mut Work::unlimited(),
+    );
+    let Err(ActError::Body(err)) = err else {
+        panic!("not a body's overflow: {err:?}")
+    };
     assert_eq!((err.line, err.column), (2, 8), "{err}");
     assert!(
         err.to_string()
@@ -382,4 +396,34 @@ fn sd_ds_and_sl_bodies_follow_the_same_q_as_targets() {
     c.scan(1_000_000, &[]);
     c.scan(1_100_000, &[]);
     assert_eq!(c.vars[0], Value::Int(7));
+}
+
+#[test]
+fn a_body_that_would_pass_the_work_left_is_not_run_and_is_named() {
+    let p = with_bodies(
+        &body_action("B", "N", "Count", None),
+        "Count = '''\nv := v + 1\n'''",
+    );
+    let cost = p.bodies()[0].cost();
+    let (m, since) = (vec![0, 1, 2], vec![None, Some(0), Some(0)]);
+    let ctx = view(&m, &since, 0);
+    let (mut out, mut vars) = (
+        vec![Value::Bool(false); 4],
+        vec![Value::Int(5), Value::Bool(false)],
+    );
+    let mut st = ActionState::new(&p);
+    let mut short = Work::within(cost - 1);
+    let err = st.start(&p, &ctx, &mut out, &mut vars, &mut short);
+    assert_eq!(
+        err,
+        Err(ActError::OutOfWork {
+            body: "Count".into()
+        })
+    );
+    assert_eq!(vars[0], Value::Int(5), "the body did not run");
+    let mut enough = Work::within(cost);
+    let mut st = ActionState::new(&p);
+    st.start(&p, &ctx, &mut out, &mut vars, &mut enough)
+        .expect("within its work");
+    assert_eq!((vars[0], enough.used()), (Value::Int(6), cost));
 }

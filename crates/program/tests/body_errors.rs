@@ -75,7 +75,7 @@ fn if_nested_past_the_limit_is_refused_and_any_depth_is_no_crash() {
 }
 
 mod fuzz {
-    use cetratus_program::{ActionState, EvalCtx, Program, Value};
+    use cetratus_program::{ActionState, EvalCtx, Program, Value, Work};
     use proptest::prelude::*;
 
     fn token() -> impl Strategy<Value = &'static str> {
@@ -152,7 +152,7 @@ mod fuzz {
                 now_us: 5_000_000,
             };
             let (mut out, mut vars) = (vec![Value::Int(0)], vec![Value::Int(3), Value::Real(0.5)]);
-            let _ = st.start(&p, &ctx, &mut out, &mut vars);
+            let _ = st.start(&p, &ctx, &mut out, &mut vars, &mut Work::unlimited());
             prop_assert!(matches!(vars[0], Value::Int(_)) && matches!(vars[1], Value::Real(_)));
             prop_assert!(matches!(out[0], Value::Int(_)));
         }

@@ -4,7 +4,7 @@
 mod common;
 
 use cetratus_net::{PlaceIdx, TransIdx};
-use cetratus_program::{ActionState, EvalCtx, Value};
+use cetratus_program::{ActionState, EvalCtx, Value, Work};
 use cetratus_testkit::CountingAlloc;
 
 #[global_allocator]
@@ -52,7 +52,8 @@ fn evaluating_guards_and_applying_actions_does_not_allocate() {
             results[0] = p.eval_guard(TransIdx(0), &ctx);
             results[1] = p.eval_guard(TransIdx(1), &ctx);
             inv = p.check_invariants(&marking);
-            let _ = state.apply(&p, &ctx, &changes, &mut out, &mut vars_out);
+            let mut work = Work::unlimited();
+            let _ = state.apply(&p, &ctx, &changes, &mut out, &mut vars_out, &mut work);
         }
     });
     assert_eq!(n, 0, "allocations in the scan path");

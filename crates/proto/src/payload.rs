@@ -239,6 +239,23 @@ pub struct StateMsg {
     /// What the control plane turned away or dropped; absent from PLCs older than it.
     #[serde(default)]
     pub control: ControlCounters,
+    /// Present while the state directory cannot be written; absent when it can.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub persist_fault: Option<PersistFault>,
+}
+
+/// The state directory cannot be written: the PLC runs on, and tries again at every snapshot,
+/// but a restart now would start from the state saved at `saved_cycle` (docs/persistence.md,
+/// *When the disk fails*).
+#[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub struct PersistFault {
+    /// The last write error, in words.
+    pub error: String,
+    /// The cycle at which writes began to fail.
+    pub since_cycle: u64,
+    /// The cycle of the last state saved in this run; absent when none was.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub saved_cycle: Option<u64>,
 }
 
 /// What the retained `state` topic holds: the PLC's state, or `{"online": false}` (its last

@@ -3,7 +3,7 @@
 use std::sync::Arc;
 
 use cetratus_net::{Engine, FireError, PlaceIdx, Tokens, TransIdx};
-use cetratus_program::{ActionState, EvalCtx, Program, Value};
+use cetratus_program::{ActError, ActionState, EvalCtx, Program, Value, Work};
 
 use crate::RuntimeError;
 
@@ -75,7 +75,7 @@ fn fire_error(program: &Program, e: FireError<Stop>, work_budget: u64) -> Runtim
             error: Stop::Budget,
         } => RuntimeError::WorkBudget {
             budget: work_budget,
-            transition: net.transition(transition).id.clone(),
+            at: format!("transition `{}`", net.transition(transition).id),
         },
         FireError::Overflow { transition, place } => RuntimeError::Overflow {
             transition: net.transition(transition).id.clone(),
@@ -242,10 +242,10 @@ impl Container {
         self.scan_within(now_us, inputs, unchanged, u64::MAX)
     }
 
-    /// [`Container::scan_hinted`] stopped midway once it has done `work_budget` units of work:
-    /// each guard evaluation is one unit, and each guard that holds one more (the firing it
-    /// allows). A stopped scan is rolled back like a failed one ([`RuntimeError::WorkBudget`]).
-    /// This bounds a runaway scan by what it does, not by a clock.
+    /// [`Container::scan_hinted`] stopped midway before it does more than `work_budget` units
+    /// of [`Work`]: each guard evaluation costs its code's length, each firing one unit, and each
+    /// action body that runs its code's length. A stopped scan fails like a faulted one
+    /// ([`RuntimeError::WorkBudget`]). This bounds a runaway scan by what it does, not by a clock.
     pub fn scan_within(
         &mut self,
         now_us: u64,
@@ -260,13 +260,14 @@ impl Container {
             });
         }
         if self.is_quiet(inputs, unchanged) {
-            return self.quiet_scan(now_us);
+            return self.quiet_scan(now_us, work_budget);
         }
         self.force_full = false;
         self.take_inputs(inputs);
-        let fired = self.fire(now_us, work_budget)?;
+        let mut work = Work::within(work_budget);
+        let fired = self.fire(now_us, &mut work)?;
         self.follow_changes(now_us);
-        self.act(now_us, Scan::Full)?;
+        self.act(now_us, Scan::Full, &mut work)?;
         Ok(self.outcome(fired))
     }
 
@@ -285,9 +286,9 @@ impl Container {
     }
 
     /// Fires under the program's policy, each guard reading the marking as it was at the start
-    /// of the scan and costing work from `work_budget`; returns how many transitions fired.
+    /// of the scan and charging its cost to `work`; returns how many transitions fired.
     #[inline]
-    fn fire(&mut self, now_us: u64, work_budget: u64) -> Result<usize, RuntimeError> {
+    fn fire(&mut self, now_us: u64, work: &mut Work) -> Result<usize, RuntimeError> {
         let program = &*self.program;
         let ctx = EvalCtx {
             inputs: &self.inputs,
@@ -299,23 +300,23 @@ impl Container {
             now_us,
         };
         let policy = program.policy();
-        let mut work = 0u64;
         let result = self
             .engine
             .scan(policy, |t| {
-                work += 1;
-                if work > work_budget {
+                if !work.charge(program.guard_cost(t)) {
                     return Err(Stop::Budget);
                 }
                 let holds = program.eval_guard(t, &ctx).map_err(Stop::Guard)?;
-                work += u64::from(holds);
+                if holds && !work.charge(1) {
+                    return Err(Stop::Budget);
+                }
                 Ok(holds)
             })
             .map(|f| f.len());
         result.map_err(|e| {
             // The failing guard must fail again on the next scan, not be skipped as quiet.
             self.force_full = true;
-            fire_error(program, e, work_budget)
+            fire_error(program, e, work.budget())
         })
     }
 
@@ -346,7 +347,7 @@ impl Container {
     /// scan from a fresh state enters every marked place, unless it resumes; a quiet scan
     /// changed no place.
     #[inline]
-    fn act(&mut self, now_us: u64, scan: Scan) -> Result<(), RuntimeError> {
+    fn act(&mut self, now_us: u64, scan: Scan, work: &mut Work) -> Result<(), RuntimeError> {
         let program = &*self.program;
         let view = EvalCtx {
             inputs: &self.inputs,
@@ -367,15 +368,22 @@ impl Container {
         let acted = if enters_all {
             // The first scan enters every marked place: P1 and S actions of M0 take effect.
             self.actions
-                .start(program, &view, &mut self.outputs, &mut self.vars)
+                .start(program, &view, &mut self.outputs, &mut self.vars, work)
         } else {
+            let (outputs, vars) = (&mut self.outputs, &mut self.vars);
             self.actions
-                .apply(program, &view, changes, &mut self.outputs, &mut self.vars)
+                .apply(program, &view, changes, outputs, vars, work)
         };
         self.scans += 1;
         acted.map_err(|e| {
             self.force_full = true;
-            RuntimeError::Body(e)
+            match e {
+                ActError::Body(e) => RuntimeError::Body(e),
+                ActError::OutOfWork { body } => RuntimeError::WorkBudget {
+                    budget: work.budget(),
+                    at: format!("action body `{body}`"),
+                },
+            }
         })
     }
 
@@ -409,8 +417,8 @@ impl Container {
     }
 
     /// A scan that fires nothing: the actions still run, for their timers.
-    fn quiet_scan(&mut self, now_us: u64) -> Result<ScanOutcome, RuntimeError> {
-        self.act(now_us, Scan::Quiet)?;
+    fn quiet_scan(&mut self, now_us: u64, work_budget: u64) -> Result<ScanOutcome, RuntimeError> {
+        self.act(now_us, Scan::Quiet, &mut Work::within(work_budget))?;
         Ok(self.outcome(0))
     }
 

@@ -32,14 +32,14 @@ pub enum RuntimeError {
         /// The watchdog time.
         limit_us: u64,
     },
-    /// A scan ran out of its work budget (guard evaluations and firings) and was stopped
-    /// midway; it was rolled back.
-    #[error("the scan was stopped at transition `{transition}` after {budget} guard evaluations and firings, its work budget; the program does more work in one scan than the PLC allows a candidate; make its scans do less, or raise the candidate work budget")]
+    /// A scan would have passed its work budget (instructions of guards and action bodies,
+    /// and firings) and was stopped midway.
+    #[error("the scan was stopped at {at}, which would have taken it past its work budget of {budget} units (instructions of guards and action bodies, and firings); the program does more work in one scan than the PLC allows a candidate: make its scans do less, or raise `candidate_instruction_budget`")]
     WorkBudget {
         /// The budget that ran out.
         budget: u64,
-        /// The transition whose guard was next.
-        transition: String,
+        /// What was next: ``transition `T3` `` or ``action body `B` ``.
+        at: String,
     },
     /// An action body failed (overflow, division by zero); the scan's firings have happened,
     /// the body's assignments before the failing statement too.

@@ -53,5 +53,5 @@ pub use snapshot::{ContainerSnapshot, PlcSnapshot};
 pub use stats::{Summary, TimingStats};
 pub use updater::{
     value_json, Command, Limits, PreparedUpdate, SubstituteMode, SubstituteRequest, UpdateContext,
-    Updater, VIRTUAL_NS_PER_ENTRY,
+    Updater, INSTRUCTIONS_PER_US, VIRTUAL_NS_PER_ENTRY,
 };

@@ -284,6 +284,22 @@ impl Plc {
         res
     }
 
+    /// Takes the candidate in quarantine out of service for `reason`, as a fault of its own
+    /// scan would (`candidate_fault`; the primary goes on). For what the node sees and the
+    /// runtime does not, such as the primary's overruns in real time. False, and nothing done,
+    /// when no candidate is in quarantine.
+    pub fn fault_candidate(&mut self, reason: &str) -> bool {
+        if self.updater.status() != Status::Quarantine {
+            return false;
+        }
+        self.updater.drop_candidate(
+            &mut self.core,
+            EventKind::CandidateFault,
+            format!("{reason}; the update is aborted and the primary goes on"),
+        );
+        true
+    }
+
     /// One cycle at program time `now_us`.
     pub fn cycle<IO: Provider + Dispatcher + ?Sized>(&mut self, now_us: u64, io: &mut IO) {
         self.boundary(now_us, io);
@@ -654,7 +670,7 @@ fn scan_slot(
     let i = slot.index();
     let is_primary = candidate.is_none();
     let (c, work_budget) = match candidate {
-        Some(c) => (c, limits.candidate_work_budget),
+        Some(c) => (c, limits.candidate_instruction_budget),
         None => (&mut core.primary, u64::MAX),
     };
     #[cfg(feature = "fault-injection")]

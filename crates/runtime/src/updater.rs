@@ -52,6 +52,13 @@ impl SubstituteRequest {
 /// [`crate::Plc::program_exec_info`]; the Updater refuses it.
 pub type Command = cetratus_vocab::Command<Box<PreparedUpdate>, SubstituteRequest>;
 
+/// The default candidate budget, in instructions per microsecond of the scan period. The
+/// interpreter runs about 200 to 400 instructions a microsecond on a current x86 core
+/// (docs/performance.md, *A candidate's work in instructions*), so a candidate at its budget
+/// takes about a tenth of the period or less, and the primary keeps the rest; the programs a
+/// cell runs need far less (Vernadat: under 200 a scan).
+pub const INSTRUCTIONS_PER_US: u64 = 25;
+
 /// Limits of the Updater and the watchdog.
 #[derive(Clone, Copy, Debug)]
 pub struct Limits {
@@ -59,10 +66,11 @@ pub struct Limits {
     pub state_trans_timeout_ns: u64,
     /// A candidate scan longer than this (ns) in quarantine aborts the update, after the scan.
     pub candidate_budget_ns: u64,
-    /// A candidate scan is stopped midway, and the update aborted, once it has done this many
-    /// units of work: guard evaluations plus guards that held (docs/design.md §2: a runaway candidate
-    /// must not take the primary's time). Counted, not timed, so a virtual run decides the same.
-    pub candidate_work_budget: u64,
+    /// A candidate scan is stopped midway, and the update aborted, before it does more than
+    /// this many units of [`cetratus_program::Work`]: the instructions of the guards it evaluates
+    /// and of the bodies it runs, and one per firing (docs/design.md §2: a runaway candidate must
+    /// not take the primary's time). Counted, not timed, so a virtual run decides the same.
+    pub candidate_instruction_budget: u64,
     /// A primary scan longer than this (ns) is a primary fault.
     pub watchdog_ns: u64,
     /// The probation window after a substitution, in µs of program time; 0: none, the old
@@ -80,18 +88,17 @@ impl Limits {
         Limits {
             state_trans_timeout_ns: period_us.saturating_mul(1000),
             candidate_budget_ns: 1_000_000_000,
-            candidate_work_budget: Self::work_budget_for_period_us(period_us),
+            candidate_instruction_budget: Self::work_budget_for_period_us(period_us),
             watchdog_ns: 1_000_000_000,
             probation_us: 0,
             require_verdict: false,
         }
     }
 
-    /// The default work budget of a candidate scan: ten units per microsecond of the period
-    /// (100 000 for 10 ms), far above what a net that fits its period needs, far below what a
-    /// runaway scan would do.
+    /// The default work budget of a candidate scan: [`INSTRUCTIONS_PER_US`] per microsecond of
+    /// the period (250 000 for 10 ms, 50 000 for 2 ms), at least 1 000.
     pub fn work_budget_for_period_us(period_us: u64) -> u64 {
-        period_us.saturating_mul(10).max(1000)
+        period_us.saturating_mul(INSTRUCTIONS_PER_US).max(1000)
     }
 
     /// The defaults for a scan period: stateTransTimeout is one period (the paper's "within one
@@ -103,7 +110,7 @@ impl Limits {
         Limits {
             state_trans_timeout_ns: ns,
             candidate_budget_ns: ns.saturating_mul(10),
-            candidate_work_budget: Self::work_budget_for_period_us(period_us),
+            candidate_instruction_budget: Self::work_budget_for_period_us(period_us),
             watchdog_ns: ns.saturating_mul(10),
             probation_us: 0,
             require_verdict: false,

@@ -215,17 +215,27 @@ fn a_candidate_over_its_time_budget_is_removed_after_its_scan_without_delaying_t
     );
 }
 
+/// The work a scan of [`wide`] does before its first U when B is marked and x is false: T2's
+/// guard (which holds, and T2 fires) and T3's.
+fn guards_cost(p: &Program) -> u64 {
+    let cost = |id| p.guard_cost(p.net().transition_by_id(id).expect("transition"));
+    cost("T2") + 1 + cost("T3")
+}
+
 #[test]
 fn a_runaway_candidate_scan_is_stopped_midway_by_its_work_budget_and_the_primary_goes_on() {
     let p = small("p");
     let mut r = Rig::new(&p);
     r.run(4);
-    // T1 and T3 are evaluated (false): 2 units; each U fires: 2 units. U0..U48 make 100.
+    // B is marked at this cycle and x is false: T2 (`!x`) is evaluated and fires, T3 is
+    // evaluated, false ([`guards_cost`]); each U is looked at and fires: 2 units. U0..U47 fit,
+    // and U48 would pass the budget.
+    let w = wide(1000);
     r.plc.set_limits(Limits {
-        candidate_work_budget: 100,
+        candidate_instruction_budget: guards_cost(&w) + 2 * 48,
         ..r.plc.limits()
     });
-    r.load(&wide(1000));
+    r.load(&w);
     r.run(1);
     assert_eq!(
         r.plc.status(),
@@ -234,7 +244,7 @@ fn a_runaway_candidate_scan_is_stopped_midway_by_its_work_budget_and_the_primary
     );
     let e = r.event(EventKind::CandidateFault).expect("candidate_fault");
     assert!(
-        e.message.contains("stopped at transition `U49`"),
+        e.message.contains("stopped at transition `U48`"),
         "the scan went past its budget: {}",
         e.message
     );
@@ -249,11 +259,12 @@ fn a_candidate_within_its_work_budget_runs_in_quarantine() {
     let p = small("p");
     let mut r = Rig::new(&p);
     r.run(4);
+    let w = wide(1000);
     r.plc.set_limits(Limits {
-        candidate_work_budget: 2 + 2 * 1000,
+        candidate_instruction_budget: guards_cost(&w) + 2 * 1000,
         ..r.plc.limits()
     });
-    r.load(&wide(1000));
+    r.load(&w);
     r.run(5);
     assert_eq!(r.plc.status(), Status::Quarantine, "{:?}", r.events);
 }

@@ -90,7 +90,7 @@ fn a_pnml_file_is_not_taken_for_plcopen() {
 
 #[test]
 fn beremiz_counter_bodies_count_in_every_scan_of_their_step_with_the_iec_final_run() {
-    use cetratus_program::{ActionState, EvalCtx, Value};
+    use cetratus_program::{ActionState, EvalCtx, Value, Work};
     let imported = import("beremiz-first-steps.xml", Some("CounterSFC")).expect("imports");
     let p = &imported.program;
     assert!(
@@ -120,7 +120,8 @@ fn beremiz_counter_bodies_count_in_every_scan_of_their_step_with_the_iec_final_r
             place_dwell_us: &[],
             now_us: now,
         };
-        st.apply(p, &c, changes, o, v).expect("runs");
+        st.apply(p, &c, changes, o, v, &mut Work::unlimited())
+            .expect("runs");
     };
     // Start -> Count.
     marking[start] = 0;

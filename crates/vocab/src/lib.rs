@@ -292,6 +292,11 @@ names! {
         /// The broker dropped the PLC's connection because another client connected with its
         /// client id: two PLCs on one broker share an id.
         IdTakenOver = "id_taken_over",
+        /// The state directory cannot be written (a full disk, a lost mount): the PLC runs on,
+        /// but a restart would start from the last state saved. Every snapshot due tries again.
+        PersistFailed = "persist_failed",
+        /// The state directory can be written again, after a `persist_failed`.
+        PersistRecovered = "persist_recovered",
     }
 }
 
@@ -300,7 +305,10 @@ impl EventKind {
     pub fn is_alarm(self) -> bool {
         matches!(
             self,
-            EventKind::PrimaryFault | EventKind::DeadlockAlarm | EventKind::StallAlarm
+            EventKind::PrimaryFault
+                | EventKind::DeadlockAlarm
+                | EventKind::StallAlarm
+                | EventKind::PersistFailed
         )
     }
 }
@@ -523,7 +531,7 @@ mod tests {
         reads_back(LinkState::ALL);
         reads_back(EventKind::ALL);
         reads_back(Verb::ALL);
-        assert_eq!(EventKind::ALL.len(), 25);
+        assert_eq!(EventKind::ALL.len(), 27);
     }
 
     #[test]

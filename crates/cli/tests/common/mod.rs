@@ -308,7 +308,12 @@ pub fn assert_cycles_on(ops: &Client, replies: &Replies, plc: &str, corr: &[u8],
 
 /// Every payload published on `topic` while the returned client lives.
 pub fn watch(port: u16, topic: &str) -> (Client, Arc<Mutex<Vec<Vec<u8>>>>) {
-    let mut opts = MqttOptions::new("watcher", "127.0.0.1", port);
+    watch_all(port, "watcher", &[topic])
+}
+
+/// Every payload published on any of `topics`, seen by the client `id`, while it lives.
+pub fn watch_all(port: u16, id: &str, topics: &[&str]) -> (Client, Arc<Mutex<Vec<Vec<u8>>>>) {
+    let mut opts = MqttOptions::new(id, "127.0.0.1", port);
     opts.set_keep_alive(Duration::from_secs(30));
     let (c, mut conn) = Client::new(opts, 64);
     let seen: Arc<Mutex<Vec<Vec<u8>>>> = Arc::default();
@@ -324,6 +329,8 @@ pub fn watch(port: u16, topic: &str) -> (Client, Arc<Mutex<Vec<Vec<u8>>>>) {
             }
         }
     });
-    c.subscribe(topic, QoS::AtLeastOnce).expect("subscribes");
+    for topic in topics {
+        c.subscribe(*topic, QoS::AtLeastOnce).expect("subscribes");
+    }
     (c, seen)
 }

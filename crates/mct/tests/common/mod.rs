@@ -225,6 +225,7 @@ pub fn state(primary: &str, status: &str) -> StateMsg {
         },
         cycle: CycleFigures::default(),
         control: Default::default(),
+        persist_fault: None,
     }
 }
 

@@ -296,7 +296,9 @@ impl DashboardSection {
 pub(super) struct UpdatesSection {
     probation: Option<String>,
     state_trans_timeout: Option<String>,
-    candidate_work_budget: Option<u64>,
+    candidate_instruction_budget: Option<u64>,
+    /// Retired: its unit changed (guard evaluations, now instructions); refused with the new key.
+    candidate_work_budget: Option<toml::Value>,
     gate_max_states: Option<u64>,
     gate_time: Option<String>,
     gate_deadlock: Option<String>,
@@ -318,7 +320,7 @@ pub(super) struct UpdatesSection {
 pub(super) struct Updates {
     pub probation_us: u64,
     pub state_trans_timeout_us: Option<u64>,
-    pub candidate_work_budget: Option<u64>,
+    pub candidate_instruction_budget: Option<u64>,
     pub gate: GatePolicy,
     pub validation: ValidationPolicy,
     pub require_verdict: bool,
@@ -330,7 +332,7 @@ impl Default for Updates {
         Updates {
             probation_us: DEFAULT_PROBATION_US,
             state_trans_timeout_us: None,
-            candidate_work_budget: None,
+            candidate_instruction_budget: None,
             gate: GatePolicy::default(),
             validation: ValidationPolicy::default(),
             require_verdict: false,
@@ -358,9 +360,16 @@ impl UpdatesSection {
             },
             None => d.state_trans_timeout_us,
         };
-        if let Some(0) = self.candidate_work_budget {
+        if let Some(old) = &self.candidate_work_budget {
             return Err(at.refuse(
                 "[updates] candidate_work_budget",
+                &old.to_string(),
+                "this key is retired: it counted guard evaluations, whatever their size; write `candidate_instruction_budget`, which counts the instructions of guards and action bodies (the default is 25 per µs of the scan period), or remove the key for the default",
+            ));
+        }
+        if let Some(0) = self.candidate_instruction_budget {
+            return Err(at.refuse(
+                "[updates] candidate_instruction_budget",
                 "0",
                 "a candidate could not evaluate a single guard; give a positive number, or remove the key for the default",
             ));
@@ -371,7 +380,9 @@ impl UpdatesSection {
         Ok(Updates {
             probation_us,
             state_trans_timeout_us,
-            candidate_work_budget: self.candidate_work_budget.or(d.candidate_work_budget),
+            candidate_instruction_budget: self
+                .candidate_instruction_budget
+                .or(d.candidate_instruction_budget),
             gate,
             validation,
             require_verdict: self.require_verdict,

@@ -283,6 +283,11 @@ impl Guard {
         })
     }
 
+    /// What one evaluation costs in units of [`crate::Work`]: the length of its code, at least 1.
+    pub fn cost(&self) -> u64 {
+        (self.code.len() as u64).max(1)
+    }
+
     /// Evaluates the guard. Never allocates.
     pub fn eval(&self, ctx: &EvalCtx) -> Result<bool, EvalError> {
         eval(&self.code, ctx)

@@ -44,11 +44,17 @@ pub enum FloodKind {
     Wills,
     /// Connections that take the client id of the PLC's own client (refused at CONNECT).
     IdTakeover,
+    /// TCP connections to the broker that send nothing, [`IDLE_HELD`] held open at once, the
+    /// oldest replaced by a new one.
+    IdleSockets,
 }
+
+/// Silent connections [`FloodKind::IdleSockets`] holds open at once.
+pub const IDLE_HELD: usize = 200;
 
 impl FloodKind {
     /// Every kind, in the order a run floods them.
-    pub const ALL: [FloodKind; 9] = [
+    pub const ALL: [FloodKind; 10] = [
         FloodKind::Garbage,
         FloodKind::RefusedLoads,
         FloodKind::ExecInfo,
@@ -58,6 +64,7 @@ impl FloodKind {
         FloodKind::DeepTopics,
         FloodKind::Wills,
         FloodKind::IdTakeover,
+        FloodKind::IdleSockets,
     ];
 
     /// Its place in [`FloodKind::ALL`].
@@ -110,6 +117,7 @@ impl FloodKind {
             FloodKind::DeepTopics => "deep_topics",
             FloodKind::Wills => "wills",
             FloodKind::IdTakeover => "id_takeover",
+            FloodKind::IdleSockets => "idle_sockets",
         }
     }
 
@@ -155,7 +163,8 @@ impl FloodKind {
             FloodKind::Logins
             | FloodKind::DeepTopics
             | FloodKind::Wills
-            | FloodKind::IdTakeover => Vec::new(),
+            | FloodKind::IdTakeover
+            | FloodKind::IdleSockets => Vec::new(),
         }
     }
 }
@@ -270,17 +279,26 @@ fn login_flood(addr: std::net::SocketAddr, account: &str, ctl: &Control) {
 }
 
 /// The attacks that are connections of their own ([`FloodKind::DeepTopics`],
-/// [`FloodKind::Wills`], [`FloodKind::IdTakeover`]), one after the other while their kind is on,
-/// each counted once the broker has answered it; what it answered is tallied as a code
-/// (`connack_<return code>`, `suback_<return code>`, `closed`).
+/// [`FloodKind::Wills`], [`FloodKind::IdTakeover`], [`FloodKind::IdleSockets`]), one after the
+/// other while their kind is on, each counted once the broker has answered it; what it answered
+/// is tallied as a code (`connack_<return code>`, `suback_<return code>`, `closed`,
+/// `idle_open`).
 fn connection_flood(broker: std::net::SocketAddr, plc: &str, ctl: &Control) {
     let deep_filter = vec!["a"; 6000].join("/");
     let deep_topic = vec!["b"; 8000].join("/");
     let state = format!("cetratus/{plc}/state");
     let plc_id = cetratus_mct::acl::plc_client_id(plc);
+    let mut held = std::collections::VecDeque::with_capacity(IDLE_HELD);
     while !ctl.done.load(Ordering::Relaxed) {
         let kind = ctl.active();
+        if kind != Some(FloodKind::IdleSockets) {
+            held.clear();
+        }
         let (id, will) = match kind {
+            Some(FloodKind::IdleSockets) => {
+                idle_socket(broker, &mut held, ctl);
+                continue;
+            }
             Some(FloodKind::DeepTopics) => ("flood-deep", None),
             Some(FloodKind::Wills) => ("flood-will", Some(state.as_str())),
             Some(FloodKind::IdTakeover) => (plc_id.as_str(), None),
@@ -300,6 +318,28 @@ fn connection_flood(broker: std::net::SocketAddr, plc: &str, ctl: &Control) {
         }
         *lock(&ctl.codes).entry(code).or_default() += 1;
     }
+}
+
+/// Opens one silent connection to `broker` and holds it, the oldest dropped past [`IDLE_HELD`].
+fn idle_socket(
+    broker: std::net::SocketAddr,
+    held: &mut std::collections::VecDeque<std::net::TcpStream>,
+    ctl: &Control,
+) {
+    let code = match std::net::TcpStream::connect_timeout(&broker, Duration::from_secs(1)) {
+        Ok(s) => {
+            if held.len() >= IDLE_HELD {
+                held.pop_front();
+            }
+            held.push_back(s);
+            "idle_open"
+        }
+        Err(_) => "idle_refused",
+    };
+    ctl.count_sent(FloodKind::IdleSockets);
+    *lock(&ctl.codes).entry(code.to_string()).or_default() += 1;
+    // A new connection a millisecond at most: the attack is to hold them, not to open them.
+    std::thread::sleep(Duration::from_millis(1));
 }
 
 /// One connection of [`connection_flood`], MQTT 3.1.1 packets written by rumqttc's encoder on a

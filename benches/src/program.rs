@@ -198,9 +198,9 @@ pub fn ns_per_instruction(quick: bool) -> (f64, f64) {
     let toml = std::fs::read_to_string(dir.join("vernadat.toml")).expect("vernadat.toml");
     let net = cetratus_net::pnml::read_file(&dir.join("vernadat.pnml")).expect("the net");
     let guard = (0..125)
-        .map(|k| format!("(PE or w >= {k})"))
+        .map(|k| format!("(PE || w >= {k})"))
         .collect::<Vec<_>>()
-        .join(" and ");
+        .join(" && ");
     let statement = format!("w := w{}\n", " * 1".repeat(100));
     let toml = toml.replace("T10 = \"PE\"", &format!("T10 = \"{guard}\""))
         + "\n[[variable]]\nname = \"w\"\ntype = \"int\"\n\

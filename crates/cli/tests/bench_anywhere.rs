@@ -112,9 +112,10 @@ fn bench_flood_measures_every_kind_in_slices_between_unloaded_ones() {
         "deep_topics",
         "wills",
         "id_takeover",
+        "idle_sockets",
     ];
-    // Two rounds of nine kinds, each flood slice after an unloaded one.
-    assert_eq!(v["unloaded_slices"], 18, "{v}");
+    // Two rounds of ten kinds, each flood slice after an unloaded one.
+    assert_eq!(v["unloaded_slices"], 20, "{v}");
     assert!(v["unloaded_cycles"].as_u64().is_some_and(|n| n > 0), "{v}");
     let limit = v["limit_ns"].as_f64().expect("the limit");
     let p99 = v["unloaded_latency_p99_ns"]
@@ -150,6 +151,7 @@ fn bench_flood_measures_every_kind_in_slices_between_unloaded_ones() {
         ("deep_topics", "suback_128_closed"),
         ("wills", "connack_5"),
         ("id_takeover", "connack_5"),
+        ("idle_sockets", "idle_open"),
     ] {
         let replies = &v[kind]["replies"];
         let only = replies
@@ -195,6 +197,7 @@ fn bench_flood_runs_only_the_kinds_asked_for() {
         "deep_topics",
         "wills",
         "id_takeover",
+        "idle_sockets",
     ] {
         assert!(v.get(other).is_none(), "{other} was not asked for: {v}");
     }

@@ -202,3 +202,63 @@ fn a_clear_text_broker_password_stops_the_start_and_says_how_to_hash_it() {
         "{err}"
     );
 }
+
+#[test]
+fn wrong_logins_by_the_hundred_do_not_lock_out_an_account_that_logged_in_before() {
+    use cetratus_testkit::raw_mqtt::{try_connect, ConnectOptions};
+    use std::sync::atomic::{AtomicBool, Ordering};
+    use std::sync::Arc;
+
+    let h = hash("pw");
+    let cfg = config_dir(&format!(
+        "[mqtt]\nusers = [{{ name = \"ops\", password_hash = \"{h}\", plcs = [\"acc1\"] }}]\n"
+    ));
+    let port = free_port();
+    let _plc = ChildGuard::spawn(
+        run(cfg.path(), &format!("127.0.0.1:{port}"), "127.0.0.1:0")
+            .arg("--no-dashboard")
+            .stdout(Stdio::null())
+            .stderr(Stdio::null()),
+    );
+    wait_for_port(port, "the embedded broker", Duration::from_secs(30));
+    let login = |user: &str, password: &str, id: &str| {
+        let options = ConnectOptions {
+            login: Some((user, password)),
+            will: None,
+        };
+        try_connect(("127.0.0.1", port), id, options).1
+    };
+    assert_eq!(login("ops", "pw", "ops-1"), 0, "the operator logs in");
+
+    // Guessers on another account, from four connections at once: far past the login rate.
+    let stop = Arc::new(AtomicBool::new(false));
+    let guessers: Vec<_> = (0..4)
+        .map(|k| {
+            let stop = stop.clone();
+            std::thread::spawn(move || {
+                let mut n = 0u32;
+                while !stop.load(Ordering::Relaxed) {
+                    let options = ConnectOptions {
+                        login: Some(("admin", "guess")),
+                        will: None,
+                    };
+                    try_connect(("127.0.0.1", port), &format!("guess-{k}"), options);
+                    n += 1;
+                }
+                n
+            })
+        })
+        .collect();
+    std::thread::sleep(Duration::from_secs(2));
+    let during = login("ops", "pw", "ops-2");
+    stop.store(true, Ordering::Relaxed);
+    let guesses: u32 = guessers
+        .into_iter()
+        .map(|g| g.join().expect("a guesser"))
+        .sum();
+    assert!(guesses > 40, "the flood guessed {guesses} times");
+    assert_eq!(
+        during, 0,
+        "the account that logged in before was refused during {guesses} guesses"
+    );
+}

@@ -12,9 +12,16 @@ use cetratus_testkit::process::{login_link, stderr_lines, stdout_lines, ChildGua
 
 const BIN: &str = env!("CARGO_BIN_EXE_cetratus");
 
-#[test]
-fn three_hundred_wrong_logins_are_refused_and_logged_a_handful_of_times() {
-    let dir = tempfile::tempdir().expect("temp dir");
+/// `cetratus dashboard` on a Mosquitto broker with the account `ops` (password `correct
+/// horse`): the process, its address, its log lines, and what must live as long.
+fn dashboard_with_ops(
+    dir: &std::path::Path,
+) -> (
+    ChildGuard,
+    std::net::SocketAddr,
+    std::sync::mpsc::Receiver<String>,
+    Mosquitto,
+) {
     let mut hash = Command::new(BIN)
         .arg("hash-password")
         .stdin(Stdio::piped())
@@ -29,7 +36,7 @@ fn three_hundred_wrong_logins_are_refused_and_logged_a_handful_of_times() {
     let out = hash.wait_with_output().expect("the hash");
     let hash = String::from_utf8(out.stdout).expect("UTF-8");
     assert!(hash.starts_with("$argon2id$"), "{hash}");
-    let config = dir.path().join("config");
+    let config = dir.join("config");
     std::fs::create_dir(&config).expect("config dir");
     std::fs::write(
         config.join("config.toml"),
@@ -56,17 +63,28 @@ fn three_hundred_wrong_logins_are_refused_and_logged_a_handful_of_times() {
     let _link = login_link(&stdout_lines(&mut mct.0), Duration::from_secs(30));
     wait_for_port(port, "the dashboard", Duration::from_secs(30));
     let addr = std::net::SocketAddr::from(([127, 0, 0, 1], port));
-    let login = |password: &str| {
-        let body = format!("{{\"account\": \"ops\", \"password\": \"{password}\"}}");
-        http::request(
-            addr,
-            "POST",
-            "/api/login",
-            &[&format!("Host: {addr}"), "Content-Type: application/json"],
-            body.as_bytes(),
-        )
-        .status
-    };
+    (mct, addr, stderr, broker)
+}
+
+/// A login as `ops` with `password` from `source`: the HTTP status.
+fn login_from(source: [u8; 4], addr: std::net::SocketAddr, password: &str) -> u16 {
+    let body = format!("{{\"account\": \"ops\", \"password\": \"{password}\"}}");
+    http::request_from(
+        source.into(),
+        addr,
+        "POST",
+        "/api/login",
+        &[&format!("Host: {addr}"), "Content-Type: application/json"],
+        body.as_bytes(),
+    )
+    .status
+}
+
+#[test]
+fn three_hundred_wrong_logins_are_refused_and_logged_a_handful_of_times() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let (mct, addr, stderr, _broker) = dashboard_with_ops(dir.path());
+    let login = |password: &str| login_from([127, 0, 0, 1], addr, password);
     let statuses: Vec<u16> = (0..300).map(|k| login(&format!("guess-{k}"))).collect();
     assert!(
         statuses.iter().all(|s| *s == 401 || *s == 429),
@@ -88,5 +106,43 @@ fn three_hundred_wrong_logins_are_refused_and_logged_a_handful_of_times() {
         (1..=12).contains(&logged),
         "{refused} refusals gave {logged} log lines:\n{}",
         lines.join("\n")
+    );
+}
+
+#[test]
+fn guesses_from_forty_addresses_do_not_lock_out_an_operator_who_logged_in_before() {
+    use std::sync::atomic::{AtomicBool, Ordering};
+    use std::sync::Arc;
+
+    let dir = tempfile::tempdir().expect("temp dir");
+    let (_mct, addr, _stderr, _broker) = dashboard_with_ops(dir.path());
+    assert_eq!(login_from([127, 0, 0, 1], addr, "correct horse"), 200);
+
+    // Forty other hosts guess, each as fast as its replies come: twenty times the rate for all.
+    let stop = Arc::new(AtomicBool::new(false));
+    let guessers: Vec<_> = (2..42u8)
+        .map(|k| {
+            let stop = stop.clone();
+            std::thread::spawn(move || {
+                let mut n = 0;
+                while !stop.load(Ordering::Relaxed) {
+                    login_from([127, 0, 0, k], addr, "guess");
+                    n += 1;
+                }
+                n
+            })
+        })
+        .collect();
+    std::thread::sleep(Duration::from_secs(2));
+    let during = login_from([127, 0, 0, 1], addr, "correct horse");
+    stop.store(true, Ordering::Relaxed);
+    let guesses: u32 = guessers
+        .into_iter()
+        .map(|g| g.join().expect("a guesser"))
+        .sum();
+    assert!(guesses > 100, "the flood guessed {guesses} times");
+    assert_eq!(
+        during, 200,
+        "the operator who logged in before was refused during {guesses} guesses"
     );
 }

@@ -26,6 +26,7 @@ use std::time::{Duration, Instant};
 
 use axum::http::{header, HeaderMap};
 use cetratus_mct::budget::TokenBucket;
+use cetratus_mct::logins::LoginGate;
 pub use cetratus_mct::password::hash_password;
 use cetratus_mct::password::HashedPassword;
 
@@ -126,7 +127,8 @@ struct Session {
 }
 
 struct Limits {
-    all: TokenBucket,
+    /// All clients together, with a share for those who logged in before.
+    all: LoginGate,
     by_addr: HashMap<IpAddr, TokenBucket>,
 }
 
@@ -196,7 +198,7 @@ impl Access {
             sessions: Mutex::new(HashMap::new()),
             links: Mutex::new(HashMap::new()),
             limits: Mutex::new(Limits {
-                all: TokenBucket::new(LOGINS_PER_S, LOGIN_BURST, Instant::now()),
+                all: LoginGate::new(LOGINS_PER_S, LOGIN_BURST, Instant::now()),
                 by_addr: HashMap::new(),
             }),
             refused: std::sync::atomic::AtomicU64::new(0),
@@ -248,7 +250,7 @@ impl Access {
         name: String,
         password: String,
     ) -> Result<String, LoginError> {
-        if !self.may_try(from, Instant::now()) {
+        if !self.may_try(from, &name, Instant::now()) {
             // Counted, and logged on the 1st, 2nd, 4th… refusal: a flood of guesses must not
             // become a flood of log lines.
             let n = self
@@ -275,11 +277,16 @@ impl Access {
             return Err(LoginError::Wrong);
         }
         tracing::info!(%from, account = %name, "dashboard login");
+        let mut limits = self.limits.lock().unwrap_or_else(|e| e.into_inner());
+        limits.all.succeeded(Some(from), &name);
+        drop(limits);
         self.open_session(&name).ok_or(LoginError::Wrong)
     }
 
-    /// Whether a login attempt from `from` at `now` is within the rate limits; takes its token.
-    fn may_try(&self, from: IpAddr, now: Instant) -> bool {
+    /// Whether a login attempt of `account` from `from` at `now` is within the rate limits;
+    /// takes its token (from the reserve of [`LoginGate`] when the common rate is spent and this
+    /// address logged in to this account before).
+    fn may_try(&self, from: IpAddr, account: &str, now: Instant) -> bool {
         let mut limits = self.limits.lock().unwrap_or_else(|e| e.into_inner());
         if limits.by_addr.len() >= MAX_TRACKED_ADDRS && !limits.by_addr.contains_key(&from) {
             limits.by_addr.clear();
@@ -289,7 +296,7 @@ impl Access {
             .entry(from)
             .or_insert_with(|| TokenBucket::new(LOGINS_PER_S_PER_ADDR, LOGIN_BURST_PER_ADDR, now))
             .take(1.0, now);
-        mine && limits.all.take(1.0, now)
+        mine && limits.all.admit(Some(from), account, now)
     }
 
     fn open_session(&self, account: &str) -> Option<String> {
@@ -484,14 +491,14 @@ mod tests {
         let a = access(&[]);
         let t0 = Instant::now();
         let one = IpAddr::from([192, 0, 2, 1]);
-        let tries: Vec<bool> = (0..6).map(|_| a.may_try(one, t0)).collect();
+        let tries: Vec<bool> = (0..6).map(|_| a.may_try(one, "ops", t0)).collect();
         assert_eq!(
             tries,
             [true, true, true, true, false, false],
             "a burst of 4 per address"
         );
         let others: Vec<bool> = (10..30)
-            .map(|k| a.may_try(IpAddr::from([192, 0, 2, k]), t0))
+            .map(|k| a.may_try(IpAddr::from([192, 0, 2, k]), "ops", t0))
             .collect();
         let allowed = others.iter().filter(|ok| **ok).count();
         assert_eq!(
@@ -499,9 +506,30 @@ mod tests {
             "a burst of 8 for everyone, 4 of it used already: {others:?}"
         );
         assert!(
-            a.may_try(one, t0 + Duration::from_secs(2)),
+            a.may_try(one, "ops", t0 + Duration::from_secs(2)),
             "one more after 2 s"
         );
+    }
+
+    #[test]
+    fn an_operator_who_logged_in_before_gets_in_while_others_spend_the_common_rate() {
+        let a = access(&[]);
+        let t0 = Instant::now();
+        let ops = IpAddr::from([192, 0, 2, 1]);
+        assert!(a.may_try(ops, "ops", t0));
+        a.limits
+            .lock()
+            .expect("limits")
+            .all
+            .succeeded(Some(ops), "ops");
+        let flood = (10..60).filter(|&k| a.may_try(IpAddr::from([192, 0, 2, k]), "ops", t0));
+        assert_eq!(
+            flood.count(),
+            7,
+            "the common burst, one used by the operator"
+        );
+        assert!(a.may_try(ops, "ops", t0), "the operator, from the reserve");
+        assert!(!a.may_try(IpAddr::from([192, 0, 2, 77]), "ops", t0));
     }
 
     #[test]

@@ -1,22 +1,31 @@
 //! TLS for the page (rustls): an [`axum::serve::Listener`] that accepts TCP connections and hands
-//! axum only those whose handshake finished. Handshakes run in tasks of their own, at most
-//! [`HANDSHAKES`] at once and each within [`HANDSHAKE_TIMEOUT`], so a client that opens a
-//! connection and says nothing holds up neither other clients nor the accept loop.
+//! axum only those whose handshake finished. Handshakes run in tasks of their own, each in a slot
+//! of [`HANDSHAKES`] ([`cetratus_slots`]): one address holds at most half of them, and the last
+//! quarter is kept for addresses that completed a handshake before; a connection that gets no
+//! slot is closed at once. A client must send its first byte within [`HELLO_TIMEOUT`] and finish
+//! within [`HANDSHAKE_TIMEOUT`], so a host that opens connections and says nothing holds up
+//! neither other clients nor the accept loop (docs/security.md).
 
 use std::net::SocketAddr;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::time::Duration;
 
+use cetratus_slots::Slots;
 use rustls::pki_types::pem::PemObject as _;
 use rustls::pki_types::{CertificateDer, PrivateKeyDer};
 use tokio::net::{TcpListener, TcpStream};
-use tokio::sync::{mpsc, Semaphore};
+use tokio::sync::mpsc;
 use tokio_rustls::server::TlsStream;
 use tokio_rustls::TlsAcceptor;
 
-/// Handshakes under way at once; past it, new connections wait in the kernel's backlog.
+/// Handshakes under way at once; past it, or past an address's share, a new connection is
+/// closed at once.
 pub const HANDSHAKES: usize = 64;
+
+/// How long a client may take to send the first byte of its handshake (the ClientHello, which
+/// a browser sends at once).
+pub const HELLO_TIMEOUT: Duration = Duration::from_secs(2);
 
 /// How long a client may take to finish its TLS handshake.
 pub const HANDSHAKE_TIMEOUT: Duration = Duration::from_secs(10);
@@ -63,12 +72,9 @@ impl TlsListener {
     pub(crate) fn start(tcp: TcpListener, acceptor: TlsAcceptor) -> std::io::Result<Self> {
         let addr = tcp.local_addr()?;
         let (tx, ready) = mpsc::channel(HANDSHAKES);
-        let slots = Arc::new(Semaphore::new(HANDSHAKES));
+        let slots = Slots::shared(HANDSHAKES);
         tokio::spawn(async move {
             loop {
-                let Ok(permit) = slots.clone().acquire_owned().await else {
-                    return;
-                };
                 let (stream, from) = match tcp.accept().await {
                     Ok(s) => s,
                     Err(e) => {
@@ -80,25 +86,53 @@ impl TlsListener {
                 if tx.is_closed() {
                     return;
                 }
+                let slot = match Slots::take(&slots, from.ip()) {
+                    Ok(slot) => slot,
+                    Err(why) => {
+                        tracing::debug!(%from, ?why, "a TLS handshake with the dashboard got no slot");
+                        continue;
+                    }
+                };
                 let (acceptor, tx) = (acceptor.clone(), tx.clone());
                 tokio::spawn(async move {
-                    let shake = tokio::time::timeout(HANDSHAKE_TIMEOUT, acceptor.accept(stream));
-                    match shake.await {
-                        Ok(Ok(tls)) => {
-                            drop(permit);
-                            let _ = tx.send((tls, from)).await;
-                        }
-                        Ok(Err(e)) => {
-                            tracing::debug!(%from, error = %e, "a TLS handshake with the dashboard failed")
-                        }
-                        Err(_) => {
-                            tracing::debug!(%from, "a TLS handshake with the dashboard timed out")
-                        }
+                    if let Some(tls) = handshake(&acceptor, stream, from).await {
+                        slot.served();
+                        drop(slot);
+                        let _ = tx.send((tls, from)).await;
                     }
                 });
             }
         });
         Ok(TlsListener { ready, addr })
+    }
+}
+
+/// The handshake with the client at `from`: its first byte within [`HELLO_TIMEOUT`], all of it
+/// within [`HANDSHAKE_TIMEOUT`]; `None` when it failed or was too slow.
+async fn handshake(
+    acceptor: &TlsAcceptor,
+    stream: TcpStream,
+    from: SocketAddr,
+) -> Option<TlsStream<TcpStream>> {
+    let mut first = [0u8; 1];
+    match tokio::time::timeout(HELLO_TIMEOUT, stream.peek(&mut first)).await {
+        Ok(Ok(n)) if n > 0 => {}
+        Ok(_) => return None,
+        Err(_) => {
+            tracing::debug!(%from, "a client of the dashboard sent no handshake");
+            return None;
+        }
+    }
+    match tokio::time::timeout(HANDSHAKE_TIMEOUT, acceptor.accept(stream)).await {
+        Ok(Ok(tls)) => Some(tls),
+        Ok(Err(e)) => {
+            tracing::debug!(%from, error = %e, "a TLS handshake with the dashboard failed");
+            None
+        }
+        Err(_) => {
+            tracing::debug!(%from, "a TLS handshake with the dashboard timed out");
+            None
+        }
     }
 }
 

@@ -1,5 +1,6 @@
 //! The dashboard over TLS, against the real server: beyond loopback it does not start without
-//! TLS; with TLS it speaks nothing else, and its session cookie is `Secure`.
+//! TLS; with TLS it speaks nothing else, and its session cookie is `Secure`; connections that
+//! never send a ClientHello neither lock out a browser that came before nor hold their slots.
 
 use std::io::{Read, Write};
 use std::net::{SocketAddr, TcpStream};
@@ -106,5 +107,79 @@ fn with_tls_the_page_speaks_only_tls_and_its_session_cookie_is_secure() {
             && cookie.contains("; Secure"),
         "{cookie}"
     );
+    h.stop();
+}
+
+/// `n` TCP connections to `addr` from the source address `from`, that send nothing.
+fn silent_connections(addr: SocketAddr, from: &str, n: usize) -> Vec<std::net::TcpStream> {
+    let rt = tokio::runtime::Builder::new_current_thread()
+        .enable_all()
+        .build()
+        .expect("a runtime");
+    rt.block_on(async {
+        let mut out = Vec::new();
+        for _ in 0..n {
+            let s = tokio::net::TcpSocket::new_v4().expect("a socket");
+            s.bind(format!("{from}:0").parse().expect("an address"))
+                .expect("bind the source");
+            let c = s.connect(addr).await.expect("connects");
+            out.push(c.into_std().expect("a std stream"));
+        }
+        out
+    })
+}
+
+/// The dashboard over TLS on loopback, with a fresh self-signed certificate for `localhost`.
+fn tls_dashboard(dir: &std::path::Path) -> (cetratus_dashboard::DashboardHandle, String) {
+    let cert = rcgen::generate_simple_self_signed(vec!["localhost".into()]).expect("cert");
+    std::fs::write(dir.join("cert.pem"), cert.cert.pem()).expect("write");
+    std::fs::write(dir.join("key.pem"), cert.key_pair.serialize_pem()).expect("write");
+    let tls = DashboardTls {
+        cert: dir.join("cert.pem"),
+        key: dir.join("key.pem"),
+    };
+    let h = serve(config("127.0.0.1:0".parse().expect("addr"), Some(tls))).expect("starts");
+    (h, cert.cert.pem())
+}
+
+#[test]
+fn seventy_silent_connections_neither_lock_out_a_known_browser_nor_keep_their_slots() {
+    use cetratus_dashboard::tls::{HANDSHAKES, HELLO_TIMEOUT};
+    use std::time::{Duration, Instant};
+
+    let dir = tempfile::tempdir().expect("tempdir");
+    let (h, cert_pem) = tls_dashboard(dir.path());
+    let addr = h.local_addr();
+    let get = "GET /login HTTP/1.1\r\nHost: localhost\r\nConnection: close\r\n\r\n";
+    // A browser on 127.0.0.1 completes a handshake: its address is known from now on.
+    assert!(over_tls(addr, &cert_pem, get).starts_with("HTTP/1.1"));
+
+    // Another host opens more connections than there are handshake slots and sends nothing.
+    let mut silent = silent_connections(addr, "127.0.0.2", HANDSHAKES + 6);
+    let t0 = Instant::now();
+    let page = over_tls(addr, &cert_pem, get);
+    let waited = t0.elapsed();
+    assert!(page.starts_with("HTTP/1.1"), "{page}");
+    assert!(
+        waited < Duration::from_secs(2),
+        "the known browser waited {waited:?} behind the silent connections"
+    );
+
+    // Every silent connection is closed: at once past its address's share, at the hello
+    // timeout otherwise.
+    std::thread::sleep(HELLO_TIMEOUT + Duration::from_secs(1));
+    for s in &mut silent {
+        s.set_read_timeout(Some(Duration::from_secs(1)))
+            .expect("a timeout");
+        let mut buf = [0u8; 16];
+        let closed = match s.read(&mut buf) {
+            Ok(n) => n == 0,
+            Err(e) => !matches!(
+                e.kind(),
+                std::io::ErrorKind::WouldBlock | std::io::ErrorKind::TimedOut
+            ),
+        };
+        assert!(closed, "a silent connection is still open");
+    }
     h.stop();
 }

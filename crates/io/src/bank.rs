@@ -21,8 +21,8 @@ use tokio_modbus::server::tcp::Server;
 use tokio_modbus::server::Service;
 use tokio_modbus::{ExceptionCode, Request, Response, SlaveRequest};
 
-use crate::slots::{Idle, Slot, Slots};
 use crate::IoError;
+use cetratus_slots::{Idle, Slot, Slots};
 
 /// The four tables of a Modbus device, and which of them clients may write.
 #[derive(Debug, Default, Clone)]
@@ -77,7 +77,7 @@ pub struct ServeOptions {
     pub unit: u8,
     /// Clients served at once; further connections are closed at once (one address holds at
     /// most half of them, and the last quarter is kept for addresses served before:
-    /// [`crate::slots`]).
+    /// [`cetratus_slots`]).
     pub max_connections: usize,
     /// A connection that sends nothing for this long is closed.
     pub idle_timeout: Duration,

@@ -22,7 +22,6 @@ pub mod opcua {
 }
 pub mod plant;
 pub mod server;
-pub mod slots;
 pub mod twin_serve;
 
 use cetratus_program::{Signal, Type, Value};

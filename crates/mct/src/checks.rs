@@ -15,7 +15,7 @@ use rmqtt::types::AuthResult;
 
 use crate::acl::{Acl, Checked, Who};
 use crate::broker::{LOGINS_PER_S, LOGIN_BURST};
-use crate::budget::TokenBucket as Bucket;
+use crate::logins::LoginGate;
 use crate::password::HashedPassword;
 use crate::topics::{check_topic, TopicRefusal};
 
@@ -46,7 +46,8 @@ impl Tally {
 }
 
 /// Checks logins: the internal ones against their secrets at once, an account's password with
-/// argon2 on a blocking thread, one at a time and at most [`LOGINS_PER_S`] a second. Then what
+/// argon2 on a blocking thread, one at a time and at most [`LOGINS_PER_S`] a second, with a share
+/// kept for those who logged in before ([`crate::logins`]). Then what
 /// the client asked for at CONNECT: a client id reserved for the process's own clients
 /// ([`crate::acl::is_internal_client_id`]) is refused to everyone else, before any password is
 /// checked, and so is a last will that the login could not publish itself (its topic's shape,
@@ -54,7 +55,7 @@ impl Tally {
 pub(crate) struct Auth {
     acl: Arc<Acl>,
     one_at_a_time: tokio::sync::Semaphore,
-    rate: Mutex<Bucket>,
+    rate: Mutex<LoginGate>,
     reserved_ids: Tally,
     wills: Tally,
 }
@@ -73,7 +74,7 @@ impl Auth {
         Auth {
             acl,
             one_at_a_time: tokio::sync::Semaphore::new(1),
-            rate: Mutex::new(Bucket::new(LOGINS_PER_S, LOGIN_BURST, Instant::now())),
+            rate: Mutex::new(LoginGate::new(LOGINS_PER_S, LOGIN_BURST, Instant::now())),
             reserved_ids: Tally::default(),
             wills: Tally::default(),
         }
@@ -145,11 +146,12 @@ impl Auth {
         user: &str,
         from: Option<SocketAddr>,
     ) -> Result<(), AuthResult> {
-        let taken = self
-            .rate
-            .lock()
-            .unwrap_or_else(|e| e.into_inner())
-            .take(1.0, Instant::now());
+        let ip = from.map(|a| a.ip());
+        let taken =
+            self.rate
+                .lock()
+                .unwrap_or_else(|e| e.into_inner())
+                .admit(ip, user, Instant::now());
         if !taken {
             tracing::warn!(?from, user = %user.escape_debug(), "MQTT login refused: more than {LOGINS_PER_S} logins a second");
             return Err(AuthResult::NotAuthorized);
@@ -163,6 +165,8 @@ impl Auth {
             Err(_) => false,
         };
         if right && known {
+            let mut gate = self.rate.lock().unwrap_or_else(|e| e.into_inner());
+            gate.succeeded(ip, user);
             Ok(())
         } else {
             tracing::warn!(?from, user = %user.escape_debug(), "MQTT login failed: wrong user name or password");

@@ -44,6 +44,7 @@ mod error;
 mod inbound;
 mod ingress;
 mod link;
+pub mod logins;
 pub mod password;
 mod strikes;
 pub mod topics;

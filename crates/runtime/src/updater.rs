@@ -53,10 +53,10 @@ impl SubstituteRequest {
 pub type Command = cetratus_vocab::Command<Box<PreparedUpdate>, SubstituteRequest>;
 
 /// The default candidate budget, in instructions per microsecond of the scan period. The
-/// interpreter runs about 200 to 400 instructions a microsecond on a current x86 core
-/// (docs/performance.md, *A candidate's work in instructions*), so a candidate at its budget
-/// takes about a tenth of the period or less, and the primary keeps the rest; the programs a
-/// cell runs need far less (Vernadat: under 200 a scan).
+/// interpreter takes 1.7 to 2.7 ns an instruction on the development machine (docs/performance.md,
+/// *A candidate's work in instructions*), so a candidate at its budget takes 4 to 7 % of the
+/// period, and the primary keeps the rest; the programs a cell runs need far less (Vernadat:
+/// under 200 a scan).
 pub const INSTRUCTIONS_PER_US: u64 = 25;
 
 /// Limits of the Updater and the watchdog.

@@ -2,7 +2,7 @@
 //! script or an attacker would, and the dashboard's one-time login links.
 
 use std::io::{Read, Write};
-use std::net::SocketAddr;
+use std::net::{IpAddr, SocketAddr};
 
 /// A response: status, head (status line and headers) and body.
 #[derive(Debug)]
@@ -38,7 +38,36 @@ pub fn request(
     headers: &[&str],
     body: &[u8],
 ) -> Response {
-    let mut s = std::net::TcpStream::connect(addr).expect("the dashboard accepts a connection");
+    let s = std::net::TcpStream::connect(addr).expect("the dashboard accepts a connection");
+    exchange(s, method, path, headers, body)
+}
+
+/// [`request`] from the local address `source` (another address of the loopback network,
+/// 127.0.0.2 and up, stands for another host).
+pub fn request_from(
+    source: IpAddr,
+    addr: SocketAddr,
+    method: &str,
+    path: &str,
+    headers: &[&str],
+    body: &[u8],
+) -> Response {
+    use socket2::{Domain, Socket, Type};
+    let s = Socket::new(Domain::for_address(addr), Type::STREAM, None).expect("a socket");
+    s.bind(&SocketAddr::new(source, 0).into())
+        .expect("bind the source address");
+    s.connect(&addr.into())
+        .expect("the dashboard accepts a connection");
+    exchange(s.into(), method, path, headers, body)
+}
+
+fn exchange(
+    mut s: std::net::TcpStream,
+    method: &str,
+    path: &str,
+    headers: &[&str],
+    body: &[u8],
+) -> Response {
     let mut head = format!(
         "{method} {path} HTTP/1.0\r\nContent-Length: {}\r\n",
         body.len()

@@ -29,6 +29,7 @@ const RULES: &[(&str, Allowed)] = &[
     ("cetratus-vocab", Only(&[])),
     ("cetratus-net", Only(&["cetratus-vocab"])),
     ("cetratus-twin", Only(&[])),
+    ("cetratus-slots", Only(&[])),
     ("cetratus-proto", Only(&["cetratus-vocab"])),
     ("cetratus-analysis", Only(&["cetratus-net"])),
     (
@@ -52,6 +53,7 @@ const RULES: &[(&str, Allowed)] = &[
             "cetratus-program",
             "cetratus-runtime",
             "cetratus-twin",
+            "cetratus-slots",
         ]),
     ),
     ("cetratus-mct", Only(&["cetratus-vocab", "cetratus-proto"])),
@@ -62,6 +64,7 @@ const RULES: &[(&str, Allowed)] = &[
             "cetratus-proto",
             "cetratus-mct",
             "cetratus-net",
+            "cetratus-slots",
         ]),
     ),
     (

@@ -13,7 +13,7 @@ use std::sync::Arc;
 use tokio::net::{TcpListener, TcpStream};
 
 use super::Shared;
-use crate::slots::Idle;
+use cetratus_slots::Idle;
 
 /// A connection whose client sends no byte for this long is closed. An OPC UA client with a
 /// session publishes, reads or renews far more often; one that only said hello does not.

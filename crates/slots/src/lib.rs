@@ -1,9 +1,10 @@
-//! Who gets one of a server's connection slots, and how long an idle connection keeps it
-//! (docs/io.md, *Connections*).
+//! Who gets one of a server's connection slots, and how long an idle connection keeps it. The
+//! Modbus servers, the OPC UA server's front listener and the dashboard's TLS handshakes use it
+//! (docs/io.md, *Connections*; docs/security.md).
 //!
 //! A server has `max` slots. One address holds at most [`Slots::per_address`] of them, and the
-//! last [`Slots::reserve`] go only to addresses that completed a request before (a real HMI or
-//! device, remembered for the server's lifetime, at most [`KNOWN_ADDRESSES`] of them): a host
+//! last [`Slots::reserve`] go only to addresses that were served before (a real HMI, device or
+//! browser, remembered for the server's lifetime, at most [`KNOWN_ADDRESSES`] of them): a host
 //! that opens sockets and sends nothing can neither take every slot nor keep the known clients
 //! out. A connection that sends nothing for the idle timeout is closed ([`Idle`]), so that even
 //! slots taken by one address come back.
@@ -19,7 +20,7 @@ use std::time::Duration;
 
 use tokio::io::{AsyncRead, AsyncWrite, ReadBuf};
 
-/// Addresses remembered as having completed a request; the oldest is forgotten first.
+/// Addresses remembered as served before; the oldest is forgotten first.
 pub const KNOWN_ADDRESSES: usize = 64;
 
 /// The slots of one server.

@@ -157,22 +157,27 @@ fn fault_holds_inputs_and_outputs_safe_until_a_restart_even_when_the_device_is_b
 fn a_device_that_answers_three_cycles_late_goes_stale_without_stalling_the_scan() {
     let dir = tempfile::tempdir().expect("temp dir");
     let (port, server) = (free_port(), free_port());
-    // 30 ms per answer at a 10 ms cycle, well within the timeout: every read completes three
-    // cycles after the one it was for, past `stale_after = 2`.
-    let _dev = modbus::device(port, &["--di", "1", "--delay-ms", "30"]);
+    // 100 ms per answer at a 10 ms cycle, well within the timeout: every read completes about
+    // ten cycles after the one it was for, past `stale_after = 2` even when a loaded machine
+    // stretches the cycles threefold.
+    let _dev = modbus::device(port, &["--di", "1", "--delay-ms", "100"]);
     let io = io_file(
         dir.path(),
         port,
         server,
         "timeout = \"500ms\"\nstale = \"safe\"\nstale_after = 2\n",
     );
-    let plc = start(&io, dir.path(), "4s");
+    let plc = start(&io, dir.path(), "8s");
     wait_for_port(server, "the PLC's Modbus server", Duration::from_secs(30));
     // A late read is not taken as fresh: PE, on at the device, is held at its safe value while
-    // the device is stale, which is most of the time. Read the program's PE a few times.
+    // the device is stale, which is most of the time. Read the program's PE until it is seen
+    // safe, a few times at most.
     let mut seen = Vec::new();
     for _ in 0..20 {
         seen.push(read(server, "di", 0, 1));
+        if seen.last().is_some_and(|v| v == "0") {
+            break;
+        }
         std::thread::sleep(Duration::from_millis(50));
     }
     let s = finish(plc);

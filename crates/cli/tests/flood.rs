@@ -17,7 +17,7 @@ use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use base64::Engine as _;
-use cetratus_mct::{BUSY_ANSWERS_PER_S, BUSY_BURST, COMMANDS_PER_S, COMMAND_BURST};
+use cetratus_mct::{BUSY_ANSWERS_PER_S, BUSY_BURST, COMMANDS_PER_S, COMMAND_BURST, STRIKES};
 use rumqttc::v5::mqttbytes::QoS;
 use serde_json::Value;
 
@@ -308,23 +308,30 @@ fn a_flood_of_small_commands_is_passed_on_only_at_the_brokers_command_rate() {
         "the commands within the rate are answered: {:?}",
         t.replies
     );
+    // A flood that a loaded machine sends no faster than the limits is only held to them; one
+    // that goes past them must have been answered busy, and then refused.
+    if (N as f64) > passed_bound {
+        assert!(
+            t.busy_messages
+                .iter()
+                .any(|m| m.contains("embedded broker passes them on")),
+            "some commands past the rate are answered busy, saying why: {:?}",
+            t.busy_messages
+        );
+    }
+    if (N as f64) > passed_bound + busy_bound {
+        assert!(
+            t.reasons.iter().any(|r| r.starts_with("NotAuthorized")
+                && r.contains("commands a second")
+                && r.contains("wait for each reply")),
+            "a refused sender hears what and what to do: {:?}",
+            t.reasons
+        );
+    }
     assert!(
-        t.reasons.iter().any(|r| r.starts_with("NotAuthorized")
-            && r.contains("commands a second")
-            && r.contains("wait for each reply")),
-        "a refused sender hears what and what to do: {:?}",
-        t.reasons
-    );
-    assert!(
-        t.disconnects > 0,
-        "a client refused without a break is disconnected, with its backlog"
-    );
-    assert!(
-        t.busy_messages
-            .iter()
-            .any(|m| m.contains("embedded broker passes them on")),
-        "some commands past the rate are answered busy, saying why: {:?}",
-        t.busy_messages
+        t.refused < u64::from(STRIKES) || t.disconnects > 0,
+        "a client refused {} times without a break is disconnected, with its backlog",
+        t.refused
     );
 
     // The PLC kept cycling, and a command once the bucket has refilled is answered normally.

@@ -76,6 +76,8 @@ pub struct Node<IO> {
     timing: LoopTiming,
     pace: Pace,
     overruns: OverrunWatch,
+    /// The real-time loop's period in wall-clock ns (the program's period over the speed).
+    wall_period_ns: u64,
     observer: Option<Observer>,
     validation: Option<NodeValidation<IO>>,
 }
@@ -132,6 +134,7 @@ impl<IO: Provider + Dispatcher> Node<IO> {
             timing: LoopTiming::default(),
             pace: Pace::Virtual,
             overruns: OverrunWatch::default(),
+            wall_period_ns: 0,
             observer: None,
             validation: None,
         }
@@ -372,8 +375,8 @@ impl<IO: Provider + Dispatcher> Node<IO> {
             }
         }
         if self.pace == Pace::Real {
-            let quarantine = self.plc.status() == Status::Quarantine;
-            if let Some(why) = self.overruns.cycle(timing.overruns, quarantine) {
+            let candidate = self.candidate_share();
+            if let Some(why) = self.overruns.cycle(timing.overruns, candidate) {
                 self.plc.fault_candidate(&why);
             }
         }
@@ -463,6 +466,16 @@ impl<IO: Provider + Dispatcher> Node<IO> {
         self.events(vec![event], "local", true);
     }
 
+    /// While a candidate is in quarantine, the part of the wall-clock period its last scan took.
+    fn candidate_share(&self) -> Option<f64> {
+        if self.plc.status() != Status::Quarantine {
+            return None;
+        }
+        let slot = self.plc.primary().other();
+        let took_ns = self.plc.monitor().stats[slot.index()].scan.summary_last();
+        Some(took_ns as f64 / self.wall_period_ns.max(1) as f64)
+    }
+
     /// Runs cycles every `period_us` of virtual time until `until_us`. Returns the time reached.
     pub fn run_virtual(&mut self, period_us: u64, until_us: u64) -> u64 {
         let (mut clock, idle) = (VirtualClock::new(), LoopTiming::default());
@@ -484,6 +497,13 @@ impl<IO: Provider + Dispatcher> Node<IO> {
     ) -> u64 {
         let mut timing = std::mem::take(&mut self.timing);
         self.pace = Pace::Real;
+        // As the loop takes it: a speed that is not a positive number runs at 1.
+        let wall_speed = if speed.is_finite() && speed > 0.0 {
+            speed
+        } else {
+            1.0
+        };
+        self.wall_period_ns = (period_us as f64 * 1e3 / wall_speed) as u64;
         let reached = run_periodic(period_us, until_us, speed, stop, &mut timing, |now, t| {
             self.step(now, t).is_some()
         });

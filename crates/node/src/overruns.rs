@@ -9,12 +9,16 @@
 //! * the level before the load is the share of the last [`BEFORE_CYCLES`] cycles that overran;
 //! * in quarantine, once [`WINDOW`] cycles have run, the share of the last [`WINDOW`] cycles
 //!   that overran is compared with it at every cycle;
+//! * an overrun counts against the candidate only when the candidate's scan in the cycle before
+//!   took at least [`CANDIDATE_SHARE`] of the period: a machine that is busy with something else
+//!   makes the primary overrun whatever the candidate does, and must not abort an update whose
+//!   candidate takes a few microseconds;
 //! * the candidate is faulted when at least [`MIN_OVERRUNS`] of those cycles overran and their
 //!   share is over twice the level before plus [`MARGIN`] (2.5 % before: over 7 % in quarantine).
 //!
-//! The margin and the least count keep a machine's ordinary jitter from aborting an update; a
-//! candidate that makes the primary overrun one cycle in ten or more is caught within a second
-//! at a 1 ms period.
+//! The margin, the least count and the candidate's share keep a machine's ordinary jitter, and
+//! its load, from aborting an update; a candidate that makes the primary overrun one cycle in ten
+//! or more is caught within a second at a 1 ms period.
 
 /// Cycles before the load whose overruns set the level.
 pub const BEFORE_CYCLES: usize = 1024;
@@ -27,6 +31,11 @@ pub const MIN_OVERRUNS: usize = 10;
 
 /// Share of cycles, over twice the level before the load, that the overruns may add.
 pub const MARGIN: f64 = 0.02;
+
+/// The least part of the period the candidate's scan must take for an overrun to count
+/// against it. The default instruction budget keeps a candidate under about 7 % of the period,
+/// so the rule matters for a budget raised, or a slower machine.
+pub const CANDIDATE_SHARE: f64 = 0.1;
 
 /// The last `N` cycles, one bit each: overran or not.
 struct Bits<const W: usize> {
@@ -87,16 +96,18 @@ impl Default for OverrunWatch {
 }
 
 impl OverrunWatch {
-    /// Takes one cycle: `overruns` is the loop's count so far, `quarantine` whether a candidate
-    /// is in quarantine now. Returns why the candidate is to be faulted, when it is.
-    pub fn cycle(&mut self, overruns: u64, quarantine: bool) -> Option<String> {
+    /// Takes one cycle: `overruns` is the loop's count so far; `candidate`, while a candidate is
+    /// in quarantine, the part of the period its last scan took. Returns why the candidate is to
+    /// be faulted, when it is.
+    pub fn cycle(&mut self, overruns: u64, candidate: Option<f64>) -> Option<String> {
         let overran = overruns > self.seen;
         self.seen = overruns;
-        if !quarantine {
+        let Some(share) = candidate else {
             self.level = None;
             self.before.push(overran);
             return None;
-        }
+        };
+        let overran = overran && share >= CANDIDATE_SHARE;
         let level = *self.level.get_or_insert_with(|| {
             self.during = Bits::new();
             self.before.share()
@@ -121,16 +132,35 @@ impl OverrunWatch {
 mod tests {
     use super::*;
 
-    /// Feeds `n` cycles in which every `every`-th overran (none when 0).
+    /// Feeds `n` cycles in which every `every`-th overran (none when 0), with a candidate whose
+    /// scans take half the period when `q`.
     fn feed(w: &mut OverrunWatch, total: &mut u64, n: usize, every: usize, q: bool) -> Vec<String> {
+        feed_with(w, total, n, every, q.then_some(0.5))
+    }
+
+    fn feed_with(
+        w: &mut OverrunWatch,
+        total: &mut u64,
+        n: usize,
+        every: usize,
+        candidate: Option<f64>,
+    ) -> Vec<String> {
         (1..=n)
             .filter_map(|k| {
                 if every > 0 && k % every == 0 {
                     *total += 1;
                 }
-                w.cycle(*total, q)
+                w.cycle(*total, candidate)
             })
             .collect()
+    }
+
+    #[test]
+    fn overruns_of_a_busy_machine_are_not_blamed_on_a_candidate_that_takes_a_few_microseconds() {
+        let (mut w, mut total) = (OverrunWatch::default(), 0);
+        feed(&mut w, &mut total, 2000, 0, false);
+        // Every cycle overruns, but the candidate's scans take 1 % of the period.
+        assert!(feed_with(&mut w, &mut total, 2000, 1, Some(0.01)).is_empty());
     }
 
     #[test]

@@ -64,10 +64,8 @@ async fn an_operator_loads_u1_in_the_browser_sees_quarantine_substitutes_and_pri
     c.wait_text("status", "quarantine", Duration::from_secs(20))
         .await;
     wait_reply(&c, "load: quarantine_started").await;
-    assert!(
-        c.net_drawn("B").await,
-        "the candidate's net is drawn in container B"
-    );
+    // The candidate's net is drawn in container B.
+    c.wait_net_drawn("B", Duration::from_secs(10)).await;
     // Let the candidate run beside the primary for a while of plant time.
     tokio::time::sleep(Duration::from_secs(2)).await;
 

@@ -80,7 +80,8 @@ async fn an_operator_loads_f1_substitutes_it_and_the_dashboard_shows_the_reject_
     c.load_package(&package).await;
     c.wait_text("status", "quarantine", Duration::from_secs(20))
         .await;
-    assert!(c.net_drawn("B").await, "F.1's net is drawn in container B");
+    // F.1's net is drawn in container B.
+    c.wait_net_drawn("B", Duration::from_secs(10)).await;
     // In quarantine the candidate counts rejects; its lamp is withheld from the plant.
     tokio::time::sleep(Duration::from_secs(2)).await;
     assert_eq!(
@@ -92,7 +93,7 @@ async fn an_operator_loads_f1_substitutes_it_and_the_dashboard_shows_the_reject_
     c.click_and_confirm("substitute").await;
     c.wait_text("primary", "B", Duration::from_secs(20)).await;
     // Five rejects after the switch (about 25 parts, two virtual minutes) light the lamp.
-    c.wait_lane_level("dispatched", LAMP, true, Duration::from_secs(60))
+    c.wait_lane_level("dispatched", LAMP, true, Duration::from_secs(120))
         .await;
     let png = c.screenshot().await.expect("screenshot");
     std::fs::write(artifacts_dir().join("festo-f1-dashboard.png"), &png)

@@ -452,10 +452,8 @@ async fn operator_loads_u1_then_substitutes_and_primary_flips_in_the_browser() {
         reply.starts_with("load: quarantine_started"),
         "the page shows the outcome, not only the acceptance: {reply}"
     );
-    assert!(
-        c.net_drawn("B").await,
-        "the candidate's net is drawn in container B"
-    );
+    // The candidate's net is drawn in container B.
+    c.wait_net_drawn("B", Duration::from_secs(10)).await;
 
     // Substitute: PRIMARY flips.
     c.click_and_confirm("substitute").await;

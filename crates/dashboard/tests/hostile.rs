@@ -107,11 +107,7 @@ async fn a_hostile_retained_net_neither_restyles_the_page_nor_runs_script() {
     c.wait_text("status", "idle", Duration::from_secs(15)).await;
     c.wait_text("primary", "A", Duration::from_secs(5)).await;
     // The drawing arrives with the snapshot; give it a moment to be drawn and to try.
-    let end = Instant::now() + Duration::from_secs(10);
-    while !c.net_drawn("A").await {
-        assert!(Instant::now() < end, "the net's shapes are drawn");
-        tokio::time::sleep(Duration::from_millis(100)).await;
-    }
+    c.wait_net_drawn("A", Duration::from_secs(10)).await;
     // Click whatever the drawing holds, as an operator would.
     c.js(
         "for (const e of document.querySelectorAll('#net-A *, #net-B *')) {

@@ -8,6 +8,7 @@ use std::path::Path;
 use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
+use fantoccini::wd::TimeoutConfiguration;
 use fantoccini::{Client, ClientBuilder};
 use serde_json::{json, Value};
 
@@ -23,6 +24,9 @@ pub const CHROMEDRIVER: &str = "/usr/bin/chromedriver";
 
 /// How long ChromeDriver may take to listen; a loaded test machine needs seconds.
 const DRIVER_START: Duration = Duration::from_secs(30);
+
+/// How long a script or a page load may run before WebDriver interrupts it.
+const SCRIPT_TIMEOUT: Duration = Duration::from_secs(120);
 
 /// Fails, saying what to install, when Chromium or ChromeDriver is missing.
 pub fn require_chromium() {
@@ -88,6 +92,16 @@ impl Browser {
             .connect(&format!("http://127.0.0.1:{port}"))
             .await
             .expect("chromedriver starts a Chromium session");
+        // A page that draws a wide net on a machine whose both cores are busy can hold a
+        // script past the WebDriver default of 30 s; a test's own waits bound the time instead.
+        client
+            .update_timeouts(TimeoutConfiguration::new(
+                Some(SCRIPT_TIMEOUT),
+                Some(SCRIPT_TIMEOUT),
+                None,
+            ))
+            .await
+            .expect("the session takes its timeouts");
         Browser {
             client,
             _driver: driver,
@@ -174,12 +188,30 @@ impl Browser {
     }
 
     /// Whether the dashboard draws a net in container `slot`.
-    pub async fn net_drawn(&self, slot: &str) -> bool {
+    async fn net_drawn(&self, slot: &str) -> bool {
         self.js(&format!(
             "return !!document.querySelector('#net-{slot} svg .place');"
         ))
         .await
             == Value::Bool(true)
+    }
+
+    /// Waits until container `slot` holds a drawn net: the drawing follows the status that
+    /// announced it by one round trip for the net's layout.
+    ///
+    /// # Panics
+    ///
+    /// After `within`, with the dashboard's `#reply`.
+    pub async fn wait_net_drawn(&self, slot: &str, within: Duration) {
+        let end = Instant::now() + within;
+        while Instant::now() < end {
+            if self.net_drawn(slot).await {
+                return;
+            }
+            tokio::time::sleep(Duration::from_millis(50)).await;
+        }
+        let reply = self.text_of("reply").await;
+        panic!("no net is drawn in container {slot} after {within:?} (#reply: {reply:?})");
     }
 
     /// The places of container `slot`'s net as the dashboard draws them: `id=tokens:dots` per

@@ -51,8 +51,9 @@ pub struct RunArgs {
     #[arg(long)]
     json: bool,
     /// Scripted operator commands at program times (repeatable): `10s load PKG`,
-    /// `60s substitute [keep|retransform]`, `70s remove`, `70s abort`, `80s reset`. Times count
-    /// from the start of this run; commands due in the same cycle run one per cycle, in order.
+    /// `60s substitute [keep|retransform]`, `70s remove`, `70s abort`, `80s reset`, and in
+    /// probation `90s revert` or `90s accept`. Times count from the start of this run; commands
+    /// due in the same cycle run one per cycle, in order.
     #[arg(long = "at")]
     at: Vec<String>,
     /// MQTT (real-time runs): the embedded broker by default, or a plant broker.

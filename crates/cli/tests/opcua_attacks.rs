@@ -1,15 +1,19 @@
 //! Attacks on the PLC's OPC UA server with a real client (asyncua, FreeOpcUa's Python stack)
 //! against the real `cetratus run`: a flood of wrong-password logins is limited before the
 //! password check and the right password still logs in afterwards; a flood of malformed writes
-//! and of connections leaves the PLC scanning and answering (docs/security.md, *OPC UA*).
+//! and of connections leaves the PLC scanning and answering; connections that say hello and
+//! nothing more, from other hosts, keep neither every slot nor a known client out
+//! (docs/security.md, *OPC UA*).
 
+use std::io::{Read, Write};
+use std::net::{IpAddr, Ipv4Addr, SocketAddr, TcpStream};
 use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
 use cetratus_testkit::opcua::{hash_password, run as peer};
 use cetratus_testkit::paths::workspace_root;
-use cetratus_testkit::ports::{free_port, wait_for_port};
+use cetratus_testkit::ports::{connect_from, free_port, wait_for_port};
 use cetratus_testkit::process::{run_vernadat, stop_with_sigterm as stop, ChildGuard};
 
 const BIN: &str = env!("CARGO_BIN_EXE_cetratus");
@@ -222,4 +226,68 @@ fn floods_of_malformed_writes_and_of_connections_leave_the_plc_scanning_and_answ
     assert_eq!(o["writes"], 0, "{s}");
     assert!(o["refused_writes"].as_u64().unwrap() >= 300, "{s}");
     assert!(o["refused_connections"].as_u64().unwrap() >= 50, "{s}");
+}
+
+/// Says hello (OPC UA's HEL) to the server at `addr` from the local address `source`, as a
+/// client that then says nothing more: the connection while it holds a slot (the server
+/// acknowledged), `None` when the front listener closed it at once.
+fn hello_from(source: Ipv4Addr, addr: SocketAddr, url: &str) -> Option<TcpStream> {
+    let mut s = connect_from(IpAddr::V4(source), addr);
+    // Protocol version, receive and send buffer sizes, no message size or chunk count limit.
+    let mut body: Vec<u8> = [0u32, 65_536, 65_536, 0, 0]
+        .iter()
+        .flat_map(|v| v.to_le_bytes())
+        .collect();
+    body.extend((url.len() as i32).to_le_bytes());
+    body.extend(url.bytes());
+    let mut message = b"HELF".to_vec();
+    message.extend(((8 + body.len()) as u32).to_le_bytes());
+    message.extend(body);
+    s.set_read_timeout(Some(Duration::from_secs(5))).unwrap();
+    // A refused connection may be gone before the hello is written: its answer tells.
+    let _ = s.write_all(&message);
+    let mut head = [0u8; 8];
+    match s.read_exact(&mut head) {
+        Ok(()) if &head[..3] == b"ACK" => Some(s),
+        _ => None,
+    }
+}
+
+#[test]
+fn hellos_from_other_hosts_hold_half_the_connections_at_most_and_a_known_client_still_reads() {
+    let dir = tempfile::tempdir().unwrap();
+    let port = free_port();
+    let url = format!("opc.tcp://127.0.0.1:{port}");
+    let addr = SocketAddr::from(([127, 0, 0, 1], port));
+    // Eight connections: one address holds four at most, and the last two are kept.
+    let plc = start(
+        dir.path(),
+        &format!("start_timeout = \"1s\"\n\n[opcua]\nlisten = \"{url}\"\ninputs = true\nmax_connections = 8\n"),
+        port,
+        &[],
+    );
+    // The HMI reads once: its address opened a secure channel, and is known from then on.
+    let before = cycles(&url);
+    std::thread::sleep(Duration::from_secs(1));
+    let held = |source: Ipv4Addr, n: usize| -> Vec<TcpStream> {
+        (0..n)
+            .filter_map(|_| hello_from(source, addr, &url))
+            .collect()
+    };
+    let first = held(Ipv4Addr::new(127, 0, 0, 2), 8);
+    assert_eq!(first.len(), 4, "one address holds half the connections");
+    let second = held(Ipv4Addr::new(127, 0, 0, 3), 8);
+    assert_eq!(second.len(), 2, "a new address does not get the reserve");
+    assert!(
+        hello_from(Ipv4Addr::new(127, 0, 0, 4), addr, &url).is_none(),
+        "only the reserve is left, for addresses known before"
+    );
+    // Six silent connections are held, and the HMI still reads, through the reserve.
+    let after = cycles(&url);
+    assert!(after > before, "cycles {before} then {after}");
+    drop((first, second));
+    let s = stop(plc);
+    let refused = s["opcua_server"]["refused_connections"].as_u64().unwrap();
+    // Four from the first address, six from the second, one from the third.
+    assert!(refused >= 11, "{refused} refused: {s}");
 }

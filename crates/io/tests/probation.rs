@@ -168,6 +168,8 @@ fn revert_gives_the_old_program_the_projected_marking_and_the_outputs_in_the_sam
             reason: RevertReason::Operator,
             detected_cycle: asked,
             marking: RevertMarking::Projection,
+            drift: 0,
+            outputs_differing: 0,
         })
     );
     assert_eq!(
@@ -205,7 +207,7 @@ fn revert_gives_the_old_program_the_projected_marking_and_the_outputs_in_the_sam
 }
 
 #[test]
-fn a_revert_keeps_the_shadows_own_marking_when_the_projected_one_breaks_the_old_invariants() {
+fn an_operators_revert_with_u1s_extra_slots_full_waits_for_the_plant_or_is_refused() {
     let _turn = TURN.lock().unwrap_or_else(|e| e.into_inner());
     let w = Workshop::new();
     let window = 600_000_000;
@@ -219,24 +221,49 @@ fn a_revert_keeps_the_shadows_own_marking_when_the_projected_one_breaks_the_old_
         assert!(waited < 400_000, "U.1's buffer fills");
     }
     assert_eq!(cell.plc.status(), Status::Probation);
+    let seen = cell.events.len();
     cell.plc.command(Command::Revert).expect("revert");
-    cell.step();
-    let e = last(&cell, EventKind::Reverted);
+    // The revert waits at most two seconds of program time for a marking that agrees.
+    cell.run_for(2_000_000 + 2 * updates::PERIOD);
+    let ended: Vec<&Event> = cell.events[seen..]
+        .iter()
+        .filter(|e| matches!(e.kind, EventKind::Reverted | EventKind::Refused))
+        .collect();
+    assert_eq!(ended.len(), 1, "{ended:#?}");
+    let e = ended[0];
+    if e.kind == EventKind::Reverted {
+        let Some(EventDetail::Revert {
+            marking,
+            outputs_differing,
+            ..
+        }) = e.detail
+        else {
+            panic!("{e:?}")
+        };
+        assert_eq!(outputs_differing, 0, "{}", e.message);
+        assert!(e.message.contains("agrees with the plant"), "{}", e.message);
+        if marking == RevertMarking::Shadow {
+            assert!(e.message.contains("own marking"), "{}", e.message);
+        }
+        assert_eq!(cell.plc.primary(), Slot::A);
+        let a = cell.plc.primary_container().program().clone();
+        a.check_invariants(cell.plc.primary_container().marking())
+            .expect("the old program's invariants hold");
+    } else {
+        assert!(e.message.starts_with("revert refused: "), "{}", e.message);
+        assert!(e.message.contains("stays in control"), "{}", e.message);
+        assert_eq!(
+            (cell.plc.primary(), cell.plc.status()),
+            (Slot::B, Status::Probation),
+            "the new program stays in control"
+        );
+    }
+    cell.run_for(30_000_000);
     assert!(
-        matches!(
-            e.detail,
-            Some(EventDetail::Revert {
-                marking: RevertMarking::Shadow,
-                ..
-            })
-        ),
-        "{e:?}"
+        cell.io.plant().faults().is_empty(),
+        "{:?}",
+        cell.io.plant().faults()
     );
-    assert!(e.message.contains("own marking"), "{}", e.message);
-    assert_eq!(cell.plc.primary(), Slot::A);
-    let a = cell.plc.primary_container().program().clone();
-    a.check_invariants(cell.plc.primary_container().marking())
-        .expect("the old program's invariants hold");
 }
 
 #[test]

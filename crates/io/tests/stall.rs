@@ -161,3 +161,59 @@ fn a_new_primary_that_stalls_on_probation_is_reverted_and_the_cell_goes_on() {
         "the old program drives the cell again"
     );
 }
+
+/// A warm start against a plant that was started afresh: the saved marking has a part where the
+/// new twin has none, the cell waits on places no watchdog covers, and `[stall] no_firing`
+/// counts whatever is marked until the first firing: the alarm says the state may not match.
+#[test]
+fn after_a_warm_start_against_a_fresh_plant_no_firing_is_a_stall_whatever_is_marked() {
+    let w = Workshop::new();
+    let program = w.program("vernadat.toml");
+    let limit = program
+        .no_firing_us()
+        .expect("the example declares [stall] no_firing");
+    // Every saved state of the first minute, warm-started against a fresh twin: the cell either
+    // fires within `no_firing`, or is told why it does not.
+    let mut warm = Cell::new(program.clone());
+    let mut told = 0;
+    for _ in 0..12 {
+        warm.run_for(5_000_000);
+        let mut snap = cetratus_runtime::PlcSnapshot::default();
+        warm.plc.snapshot_into(&mut snap);
+        let plc = cetratus_runtime::Plc::warm_start(
+            &snap,
+            |_| Some(program.clone()),
+            program.clone(),
+            cetratus_testkit::stopwatch(),
+        )
+        .expect("warm start");
+        let mut cell = Cell::new(program.clone());
+        cell.plc = plc;
+        cell.plc.use_virtual_time(updates::PERIOD);
+        cell.now = snap.time_us;
+        cell.run_for(limit + 2_000_000);
+        let fired: u64 = cell.plc.primary_container().firings().iter().sum();
+        let alarms = stalls(&cell);
+        if fired == 0 {
+            assert_eq!(alarms.len(), 1, "{:#?}", cell.events);
+            assert!(
+                alarms[0].message.contains("since the warm start")
+                    && alarms[0].message.contains("may not match the plant")
+                    && alarms[0].message.contains("--cold"),
+                "{}",
+                alarms[0].message
+            );
+            told += 1;
+        } else {
+            // A cell that moved is watched as always: a watched place may still stall.
+            assert!(
+                alarms.iter().all(|a| !a.message.contains("warm start")),
+                "{alarms:#?}"
+            );
+        }
+    }
+    assert!(
+        told > 0,
+        "some saved state leaves the cell waiting on a fresh plant"
+    );
+}

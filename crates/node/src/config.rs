@@ -132,6 +132,8 @@ pub struct LocalConfig {
     pub credentials: Option<(String, String)>,
     /// The probation window after a substitution, in microseconds (0: none).
     pub probation_us: u64,
+    /// How long an operator's revert may wait for a marking that agrees with the plant, µs.
+    pub revert_wait_us: u64,
     /// Dashboard accounts: (name, argon2 hash of the password as a PHC string); the dashboard
     /// checks them when it starts.
     pub dashboard_accounts: Vec<(String, String)>,
@@ -278,6 +280,7 @@ impl LocalConfig {
             dashboard_tls: dashboard.tls,
             credentials: mqtt.credentials,
             probation_us: updates.probation_us,
+            revert_wait_us: updates.revert_wait_us,
             dashboard_accounts: dashboard.accounts,
             dashboard_hosts: dashboard.hosts,
             state_trans_timeout_us: updates.state_trans_timeout_us,
@@ -309,6 +312,7 @@ impl LocalConfig {
     pub fn limits(&self, limits: Limits) -> Limits {
         Limits {
             probation_us: self.probation_us,
+            revert_wait_us: self.revert_wait_us,
             require_verdict: self.require_verdict,
             state_trans_timeout_ns: self
                 .state_trans_timeout_us
@@ -562,6 +566,17 @@ mod tests {
         let d = dir_with("[updates]\nprobation = \"soon\"\n");
         let e = LocalConfig::load(Some(&d)).err().unwrap().to_string();
         assert!(e.contains("[updates] probation"), "{e}");
+    }
+
+    #[test]
+    fn an_operators_revert_waits_two_seconds_unless_revert_wait_says_otherwise() {
+        let limits = |c: &LocalConfig| c.limits(Limits::for_period_us(10_000)).revert_wait_us;
+        assert_eq!(limits(&LocalConfig::default()), 2_000_000);
+        let d = dir_with("[updates]\nrevert_wait = \"500ms\"\n");
+        assert_eq!(limits(&LocalConfig::load(Some(&d)).unwrap()), 500_000);
+        let d = dir_with("[updates]\nrevert_wait = \"a while\"\n");
+        let e = LocalConfig::load(Some(&d)).err().unwrap().to_string();
+        assert!(e.contains("[updates] revert_wait"), "{e}");
     }
 
     #[test]

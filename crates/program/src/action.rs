@@ -159,6 +159,28 @@ impl ActionState {
         }
     }
 
+    /// Becomes a copy of `other`, a state of the same program, without allocating (a rehearsal of
+    /// what the program would drive from another marking). Of a state made for another program,
+    /// only what fits is copied.
+    pub fn copy_from(&mut self, other: &ActionState) {
+        fn copy<T: Copy>(to: &mut [T], from: &[T]) {
+            for (t, f) in to.iter_mut().zip(from) {
+                *t = *f;
+            }
+        }
+        copy(&mut self.latch, &other.latch);
+        copy(&mut self.on, &other.on);
+        copy(&mut self.pulse, &other.pulse);
+        copy(&mut self.reset, &other.reset);
+        copy(&mut self.was_on, &other.was_on);
+        copy(&mut self.stored_since, &other.stored_since);
+        self.deadline = other.deadline;
+        self.settled = other.settled;
+        self.pulsed = other.pulsed;
+        self.quiet = other.quiet;
+        self.never_quiet = other.never_quiet;
+    }
+
     /// Makes every `apply` recompute in full, for comparing against the settled shortcut in
     /// tests.
     pub fn set_never_quiet(&mut self, on: bool) {

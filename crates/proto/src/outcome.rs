@@ -51,8 +51,10 @@ pub fn endings(verb: Verb) -> &'static [(EventKind, Ending)] {
         Verb::ExecInfo => &[],
         // Probation can also end by itself before the command's boundary: a revert the PLC
         // decided ends an `accept`, the window's end ends a `revert`.
+        // An operator's revert that finds no marking agreeing with the plant is refused.
         Verb::Revert => &[
             (EventKind::Reverted, Ending::Done),
+            (EventKind::Refused, Ending::Failed),
             (EventKind::Accepted, Ending::Failed),
         ],
         Verb::Accept => &[

@@ -58,6 +58,75 @@ enum Stop {
     Budget,
 }
 
+/// A failed action body in the runtime's words.
+#[cold]
+fn act_error(e: ActError, budget: u64) -> RuntimeError {
+    match e {
+        ActError::Body(e) => RuntimeError::Body(e),
+        ActError::OutOfWork { body } => RuntimeError::WorkBudget {
+            budget,
+            at: format!("action body `{body}`"),
+        },
+    }
+}
+
+/// Takes over the S/R latches and the variables of `from` through the maps built by the
+/// Updater: `latch_map[i]` is `from`'s latch for latch `i`, `var_map[i]` `from`'s variable for
+/// variable `i`.
+fn carry(
+    actions: &mut ActionState,
+    vars: &mut [Value],
+    from: &Container,
+    latch_map: &[Option<u32>],
+    var_map: &[Option<u32>],
+) {
+    for (i, m) in latch_map.iter().enumerate() {
+        if let Some(&on) = m.and_then(|j| from.latches().get(j as usize)) {
+            actions.set_latch(i, on);
+        }
+    }
+    for (v, m) in vars.iter_mut().zip(var_map) {
+        if let Some(&x) = m.and_then(|j| from.vars.get(j as usize)) {
+            *v = x;
+        }
+    }
+}
+
+/// Copies `from` into `to` element by element, as far as both go.
+fn copy_into<T: Copy>(to: &mut [T], from: &[T]) {
+    for (t, f) in to.iter_mut().zip(from) {
+        *t = *f;
+    }
+}
+
+/// Where the state to rehearse from comes from: the latches and variables of another
+/// container, through the maps of [`Container::carry_from`].
+pub(crate) struct Carry<'a> {
+    pub from: &'a Container,
+    pub latch_map: &'a [Option<u32>],
+    pub var_map: &'a [Option<u32>],
+}
+
+/// Scratch for rehearsing what a program would drive from a marking, sized once for it (away
+/// from the scan thread): its action state, outputs and variables.
+pub(crate) struct Rehearsal {
+    actions: ActionState,
+    /// The outputs the rehearsed scan drives, in the program's output order.
+    pub outputs: Vec<Value>,
+    vars: Vec<Value>,
+}
+
+impl Rehearsal {
+    /// Scratch for `program`.
+    pub fn new(program: &Program) -> Self {
+        Rehearsal {
+            actions: ActionState::new(program),
+            outputs: program.outputs().iter().map(|s| s.initial).collect(),
+            vars: program.variables().iter().map(|s| s.initial).collect(),
+        }
+    }
+}
+
 /// A failed firing in the program's words: transition and place ids rather than indices.
 #[cold]
 fn fire_error(program: &Program, e: FireError<Stop>, work_budget: u64) -> RuntimeError {
@@ -377,13 +446,7 @@ impl Container {
         self.scans += 1;
         acted.map_err(|e| {
             self.force_full = true;
-            match e {
-                ActError::Body(e) => RuntimeError::Body(e),
-                ActError::OutOfWork { body } => RuntimeError::WorkBudget {
-                    budget: work.budget(),
-                    at: format!("action body `{body}`"),
-                },
-            }
+            act_error(e, work.budget())
         })
     }
 
@@ -436,17 +499,43 @@ impl Container {
         latch_map: &[Option<u32>],
         var_map: &[Option<u32>],
     ) {
-        for (i, m) in latch_map.iter().enumerate() {
-            if let Some(&on) = m.and_then(|j| from.latches().get(j as usize)) {
-                self.actions.set_latch(i, on);
-            }
-        }
-        for (v, m) in self.vars.iter_mut().zip(var_map) {
-            if let Some(&x) = m.and_then(|j| from.vars.get(j as usize)) {
-                *v = x;
-            }
-        }
+        carry(&mut self.actions, &mut self.vars, from, latch_map, var_map);
         self.force_full = true;
+    }
+
+    /// What this program would drive if its state became `marking` (entered at `since`), with
+    /// the latches and variables of `carried` if given: the first scan after a
+    /// [`Container::set_state`], before any firing, rehearsed on the inputs of the last scan in
+    /// `r`. The container is left as it is, and nothing is allocated unless a body fails; the
+    /// outputs are in `r.outputs`.
+    pub(crate) fn rehearse(
+        &self,
+        marking: &[Tokens],
+        since: &[Option<u64>],
+        carried: Option<Carry<'_>>,
+        now_us: u64,
+        budget: u64,
+        r: &mut Rehearsal,
+    ) -> Result<(), RuntimeError> {
+        r.actions.copy_from(&self.actions);
+        copy_into(&mut r.outputs, &self.outputs);
+        copy_into(&mut r.vars, &self.vars);
+        if let Some(c) = carried {
+            carry(&mut r.actions, &mut r.vars, c.from, c.latch_map, c.var_map);
+        }
+        let view = EvalCtx {
+            inputs: &self.inputs,
+            prev_inputs: &self.inputs,
+            vars: &[],
+            marking,
+            place_since_us: since,
+            place_dwell_us: &[],
+            now_us,
+        };
+        let mut work = Work::within(budget);
+        r.actions
+            .start(&self.program, &view, &mut r.outputs, &mut r.vars, &mut work)
+            .map_err(|e| act_error(e, budget))
     }
 
     /// Continues edge detection from `previous`, the input image (in this program's input order)

@@ -41,7 +41,8 @@ impl RevertReason {
 pub enum RevertMarking {
     /// The projection of the new primary's marking, `Π·M + Π_base`.
     Projection,
-    /// The shadow's own marking, because the projected one broke an invariant of the old program.
+    /// The shadow's own marking: the projected one was refused (it broke an invariant of the
+    /// old program), or it did not agree with the plant and the shadow's did.
     Shadow,
 }
 
@@ -71,6 +72,11 @@ pub enum EventDetail {
         detected_cycle: u64,
         /// Projection or shadow.
         marking: RevertMarking,
+        /// ‖Π·M_new + Π_base − M_old‖₁ of the marking taken over: 0 for the projection.
+        drift: u64,
+        /// The outputs that changed at the revert because no marking of the old program
+        /// agreed with the plant: 0 unless an automatic revert had to accept it.
+        outputs_differing: u32,
     },
     /// A verdict: which validation and its result.
     Verdict {

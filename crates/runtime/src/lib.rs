@@ -29,6 +29,7 @@ mod plc;
 mod prepare;
 mod probation;
 mod recent;
+mod revert;
 mod router;
 mod snapshot;
 mod stats;
@@ -53,5 +54,5 @@ pub use snapshot::{ContainerSnapshot, PlcSnapshot};
 pub use stats::{Summary, TimingStats};
 pub use updater::{
     value_json, Command, Limits, PreparedUpdate, SubstituteMode, SubstituteRequest, UpdateContext,
-    Updater, INSTRUCTIONS_PER_US, VIRTUAL_NS_PER_ENTRY,
+    Updater, DEFAULT_REVERT_WAIT_US, INSTRUCTIONS_PER_US, VIRTUAL_NS_PER_ENTRY,
 };

@@ -4,6 +4,7 @@
 use cetratus_net::{Tokens, TransIdx};
 use cetratus_program::{PackageMeta, Projection, StateTransform, Value};
 
+use crate::container::Rehearsal;
 use crate::event::RevertReason;
 use crate::updater::{PreparedUpdate, SubstituteRequest};
 use crate::Container;
@@ -36,6 +37,8 @@ pub(crate) struct UpdatePlan {
     pub back_var_map: Vec<Option<u32>>,
     pub back_marking: Vec<Tokens>,
     pub back_since: Vec<Option<u64>>,
+    // Scratch for rehearsing what the old program would drive from a marking, at a revert.
+    pub rehearsal: Rehearsal,
 }
 
 /// A candidate running in quarantine.
@@ -71,6 +74,9 @@ pub(crate) enum Ending {
         detected_cycle: u64,
         /// What was seen, in words.
         why: String,
+        /// Program time of the request: an operator's revert waits from then on for a marking
+        /// that agrees with the plant, at most `revert_wait_us`.
+        asked_us: u64,
     },
 }
 

@@ -19,7 +19,7 @@ use crate::monitor::{ExecInfo, Monitor, Pair, Role, Verdict, VerdictResult};
 use crate::phase::Phase;
 use crate::router::{IoGrowth, MessageRouter};
 use crate::updater::{Command, Limits, UpdateContext, Updater, VIRTUAL_NS_PER_ENTRY};
-use crate::watchdog::{Stall, StallWatch};
+use crate::watchdog::StallWatch;
 use crate::{
     Container, Dispatcher, Provider, RuntimeError, SharedAdmission, Slot, Status, TimingStats,
 };
@@ -64,7 +64,7 @@ pub struct Plc {
     updater: Updater,
     deadlock_alarmed: bool,
     // The stall watchdog of the primary, and the container it watches.
-    stall: StallWatch,
+    pub(crate) stall: StallWatch,
     stall_slot: Slot,
     cycle_stats: TimingStats,
     // The generation of the safe values the I/O was last given.
@@ -483,13 +483,14 @@ impl Plc {
             let why = format!(
                 "primary {} stalls: {}",
                 p.as_str(),
-                StallWatch::describe(stall, &core.primary)
+                self.stall.describe(stall, &core.primary)
             );
-            let (Stall::Dwell { dwell_us: us, .. } | Stall::NoFiring { idle_us: us, .. }) = stall;
             core.log.push(
                 EventKind::StallAlarm,
                 why.clone(),
-                Some(EventDetail::Stall { waited_us: us }),
+                Some(EventDetail::Stall {
+                    waited_us: stall.waited_us(),
+                }),
             );
             self.updater.request_revert(core, RevertReason::Stall, why);
         }

@@ -10,6 +10,7 @@ use cetratus_program::{
     UpdatePackage, Value,
 };
 
+use crate::container::Rehearsal;
 use crate::error::PrepareError;
 use crate::monitor::{ContainerStats, Verdict};
 use crate::phase::{Quarantine, UpdatePlan};
@@ -201,6 +202,7 @@ impl UpdateContext {
             verdicts: Vec::new(),
             back_marking: vec![0; pn.num_places()],
             back_since: vec![None; pn.num_places()],
+            rehearsal: Rehearsal::new(primary),
             meta: update.meta,
             transform: update.transform,
             projection: update.projection,

@@ -257,6 +257,30 @@ impl MessageRouter {
         io.write_outputs(now_us, &self.dispatched);
     }
 
+    /// The outputs of the I/O map that would change if container `slot`'s program took over
+    /// driving `outputs` (in its own output order), against what is dispatched now: its own
+    /// outputs, and for those it lacks the safe value they would hold. Calls `each` with the
+    /// index of each one in the I/O map, and returns how many there are. Allocates nothing.
+    pub(crate) fn differing(
+        &self,
+        slot: usize,
+        outputs: &[Value],
+        mut each: impl FnMut(usize),
+    ) -> u32 {
+        let mut n = 0;
+        for (j, (m, now)) in self.out_maps[slot].iter().zip(&self.dispatched).enumerate() {
+            let would = match m {
+                Some(k) => outputs.get(*k).copied(),
+                None => self.held.get(j).copied(),
+            };
+            if would.is_some_and(|v| v != *now) {
+                n += 1;
+                each(j);
+            }
+        }
+        n
+    }
+
     /// Hands the safe values to the Dispatcher (fault).
     pub(crate) fn dispatch_safe<D: Dispatcher + ?Sized>(&mut self, now_us: u64, io: &mut D) {
         io.write_outputs(now_us, &self.safe);

@@ -126,6 +126,7 @@ impl Plc {
         container.resume_without_entry();
         let image = container.inputs().to_vec();
         let mut plc = Plc::bare(container, primary, now, &io_program, stopwatch);
+        plc.stall.warm_started();
         let i = primary.index();
         let core = plc.core_mut();
         core.router

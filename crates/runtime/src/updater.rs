@@ -78,7 +78,15 @@ pub struct Limits {
     pub probation_us: u64,
     /// A substitution is refused unless the latest twin verdict on the candidate passed.
     pub require_verdict: bool,
+    /// How long an operator's `revert` may wait, in µs of program time, for a cycle boundary
+    /// at which a marking of the old program agrees with the plant; past it the revert is
+    /// refused and the new program stays in control (docs/live-update.md, *Probation and
+    /// rollback*).
+    pub revert_wait_us: u64,
 }
+
+/// The default of [`Limits::revert_wait_us`]: two seconds of program time.
+pub const DEFAULT_REVERT_WAIT_US: u64 = 2_000_000;
 
 impl Limits {
     /// Limits for a run in virtual time: the install budget is one period, and the measured
@@ -92,6 +100,7 @@ impl Limits {
             watchdog_ns: 1_000_000_000,
             probation_us: 0,
             require_verdict: false,
+            revert_wait_us: DEFAULT_REVERT_WAIT_US,
         }
     }
 
@@ -114,6 +123,7 @@ impl Limits {
             watchdog_ns: ns.saturating_mul(10),
             probation_us: 0,
             require_verdict: false,
+            revert_wait_us: DEFAULT_REVERT_WAIT_US,
         }
     }
 }
@@ -156,6 +166,7 @@ impl Updater {
                     reason: RevertReason::Operator,
                     detected_cycle: core.log.cycle,
                     why: "the operator reverted".into(),
+                    asked_us: core.log.now_us,
                 },
             ),
             Command::Accept => self.ask_probation_end("accept", Ending::Accept),

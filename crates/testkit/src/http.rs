@@ -52,13 +52,13 @@ pub fn request_from(
     headers: &[&str],
     body: &[u8],
 ) -> Response {
-    use socket2::{Domain, Socket, Type};
-    let s = Socket::new(Domain::for_address(addr), Type::STREAM, None).expect("a socket");
-    s.bind(&SocketAddr::new(source, 0).into())
-        .expect("bind the source address");
-    s.connect(&addr.into())
-        .expect("the dashboard accepts a connection");
-    exchange(s.into(), method, path, headers, body)
+    exchange(
+        crate::ports::connect_from(source, addr),
+        method,
+        path,
+        headers,
+        body,
+    )
 }
 
 fn exchange(

@@ -2,7 +2,7 @@
 //! is listened on.
 
 use std::collections::BTreeSet;
-use std::net::{SocketAddr, TcpListener, TcpStream};
+use std::net::{IpAddr, SocketAddr, TcpListener, TcpStream};
 use std::sync::Mutex;
 use std::time::{Duration, Instant};
 
@@ -57,4 +57,20 @@ pub fn wait_for_port(port: u16, what: &str, within: Duration) {
         port_opens(port, within),
         "{what} did not listen on 127.0.0.1:{port} within {within:?}"
     );
+}
+
+/// A connection to `addr` from the local address `source`: another address of the loopback
+/// network (127.0.0.2 and up) stands for another host.
+///
+/// # Panics
+///
+/// When the source cannot be bound or nothing accepts the connection.
+pub fn connect_from(source: IpAddr, addr: SocketAddr) -> TcpStream {
+    use socket2::{Domain, Socket, Type};
+    let s = Socket::new(Domain::for_address(addr), Type::STREAM, None).expect("a socket");
+    s.bind(&SocketAddr::new(source, 0).into())
+        .expect("bind the source address");
+    s.connect(&addr.into())
+        .unwrap_or_else(|e| panic!("{addr} accepts a connection from {source}: {e}"));
+    s.into()
 }

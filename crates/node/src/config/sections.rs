@@ -295,6 +295,7 @@ impl DashboardSection {
 #[serde(deny_unknown_fields)]
 pub(super) struct UpdatesSection {
     probation: Option<String>,
+    revert_wait: Option<String>,
     state_trans_timeout: Option<String>,
     candidate_instruction_budget: Option<u64>,
     /// Retired: its unit changed (guard evaluations, now instructions); refused with the new key.
@@ -319,6 +320,7 @@ pub(super) struct UpdatesSection {
 /// `[updates]`, checked (the fields of the same names in [`super::LocalConfig`]).
 pub(super) struct Updates {
     pub probation_us: u64,
+    pub revert_wait_us: u64,
     pub state_trans_timeout_us: Option<u64>,
     pub candidate_instruction_budget: Option<u64>,
     pub gate: GatePolicy,
@@ -331,6 +333,7 @@ impl Default for Updates {
     fn default() -> Self {
         Updates {
             probation_us: DEFAULT_PROBATION_US,
+            revert_wait_us: cetratus_runtime::DEFAULT_REVERT_WAIT_US,
             state_trans_timeout_us: None,
             candidate_instruction_budget: None,
             gate: GatePolicy::default(),
@@ -348,6 +351,10 @@ impl UpdatesSection {
         let probation_us = match &self.probation {
             Some(p) => at.duration("[updates] probation", p)?,
             None => d.probation_us,
+        };
+        let revert_wait_us = match &self.revert_wait {
+            Some(w) => at.duration("[updates] revert_wait", w)?,
+            None => d.revert_wait_us,
         };
         let state_trans_timeout_us = match &self.state_trans_timeout {
             Some(t) => match at.duration("[updates] state_trans_timeout", t)? {
@@ -379,6 +386,7 @@ impl UpdatesSection {
         let gate = self.gate_policy(d.gate, at)?;
         Ok(Updates {
             probation_us,
+            revert_wait_us,
             state_trans_timeout_us,
             candidate_instruction_budget: self
                 .candidate_instruction_budget

@@ -80,6 +80,7 @@ pub fn inspect(a: &InspectArgs) -> anyhow::Result<()> {
         p.net().num_transitions()
     );
     println!("built for   program {}", m.base_program_hash);
+    print_changes(m);
     println!();
     match &resolved {
         Some((old, matches, up)) => {
@@ -119,6 +120,19 @@ pub fn inspect(a: &InspectArgs) -> anyhow::Result<()> {
 }
 
 /// A declared transformation, as far as it can be shown without the running program.
+/// What the package declares it changes on purpose (`[changes]`, signed with it).
+fn print_changes(m: &cetratus_program::PackageMeta) {
+    if !m.changes.outputs.is_empty() {
+        println!("changes     outputs {}", m.changes.outputs.join(", "));
+    }
+    if let Some(share) = m.declared_share() {
+        println!(
+            "changes     production may drop to {:.0} % of the old program's",
+            share * 100.0
+        );
+    }
+}
+
 fn print_spec(spec: &TransformSpec, rows: &str, cols: &str) {
     match spec {
         TransformSpec::Generated { removed } => {

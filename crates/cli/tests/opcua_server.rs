@@ -43,7 +43,9 @@ fn a_scada_client_browses_reads_and_subscribes_and_cannot_write_a_read_only_node
     let url = format!("opc.tcp://127.0.0.1:{port}");
     let io = write_io(
         dir.path(),
-        &format!("[opcua]\nlisten = \"{url}\"\nmax_sessions = 2\nmax_connections = 4\n"),
+        // Eight connections: the three sessions below come from one address, which may hold
+        // half of them.
+        &format!("[opcua]\nlisten = \"{url}\"\nmax_sessions = 2\nmax_connections = 8\n"),
     );
     let plc = start(dir.path(), &io, port, &["--twin", "vernadat"]);
     let nodes = peer(&["browse", &url]);

@@ -11,8 +11,8 @@
 //!
 //! A verdict passes when the candidate causes no twin fault, no primary fault, no deadlock alarm
 //! and no stall alarm, and its throughput (the twin's production counter) is at least the
-//! configured share of the baseline's, unless the package declares that it changes throughput.
-//! Output divergence is reported, not judged. Both runs are the real `Plc` on the real twin, so a
+//! configured share of the baseline's, or the share the package declares it may drop to. Output
+//! divergence is reported per output, marked where the package declares it. Both runs are the real `Plc` on the real twin, so a
 //! verdict is deterministic for a given state. Runs on a thread of the node, never the scan
 //! thread.
 
@@ -322,6 +322,13 @@ pub fn validate(job: &Job) -> Verdict {
     let b = run(&mut pair.base, &mut pair.base_io, pair.from, job, |d| {
         outputs.push(bits(d))
     });
+    // The candidate's outputs by name against the baseline's: one it adds is compared with off.
+    let names = pair.cand.io_outputs().to_vec();
+    let in_base: Vec<Option<usize>> = names
+        .iter()
+        .map(|n| pair.base.io_outputs().iter().position(|m| m == n))
+        .collect();
+    let mut per_output = vec![0u64; names.len()];
     let mut i = 0usize;
     let mut divergent = 0u64;
     let c = run(
@@ -330,13 +337,27 @@ pub fn validate(job: &Job) -> Verdict {
         pair.cand_from,
         job,
         |d| {
-            if outputs.get(i).is_some_and(|o| *o != bits(d)) {
-                divergent += 1;
+            let Some(base) = outputs.get(i) else {
+                return;
+            };
+            let mut differs = false;
+            for (j, v) in d.iter().enumerate() {
+                let theirs = in_base[j].is_some_and(|k| base.get(k));
+                if matches!(v, Value::Bool(true)) != theirs {
+                    per_output[j] += 1;
+                    differs = true;
+                }
             }
+            divergent += u64::from(differs);
             i += 1;
         },
     );
-    verdict(job, &b, &c, divergent, t0)
+    let diverged: Vec<(String, u64)> = names
+        .into_iter()
+        .zip(per_output)
+        .filter(|(_, n)| *n > 0)
+        .collect();
+    verdict(job, &b, &c, (divergent, &diverged), t0)
 }
 
 /// A validation that cannot run both programs says why, and does not pass.
@@ -476,8 +497,15 @@ fn starting_plcs(job: &Job) -> Result<(Plc, Twin, Plc, Twin, u64), String> {
 }
 
 /// The verdict on the candidate's run `c` against the baseline's `b`: the candidate's own
-/// trouble decides it; the rest is reported so that an operator can weigh it.
-fn verdict(job: &Job, b: &RunFigures, c: &RunFigures, divergent: u64, t0: Instant) -> Verdict {
+/// trouble decides it; the rest is reported so that an operator can weigh it (the cycles each
+/// output diverged, apart for those the package declares it changes).
+fn verdict(
+    job: &Job,
+    b: &RunFigures,
+    c: &RunFigures,
+    (divergent, diverged): (u64, &[(String, u64)]),
+    t0: Instant,
+) -> Verdict {
     let share = if b.produced == 0 {
         1.0
     } else {
@@ -485,9 +513,13 @@ fn verdict(job: &Job, b: &RunFigures, c: &RunFigures, divergent: u64, t0: Instan
     };
     let mut reasons = failures(job, b, c, share);
     let passed = reasons.is_empty();
-    if job.update.meta.changes_throughput {
-        reasons.push("the package declares that it changes throughput: not judged".into());
+    if let Some(d) = job.update.meta.declared_share() {
+        reasons.push(format!(
+            "the package declares that its production may drop to {:.0} % of the old program's: judged against that",
+            d * 100.0
+        ));
     }
+
     if !b.twin_faults.is_empty() || !b.alarms.is_empty() {
         reasons.push(format!(
             "the program it replaces also had trouble on its fork: {}",
@@ -505,6 +537,16 @@ fn verdict(job: &Job, b: &RunFigures, c: &RunFigures, divergent: u64, t0: Instan
     figures.insert("parts_candidate".into(), c.produced as f64);
     figures.insert("throughput_share".into(), share);
     figures.insert("divergent_cycles".into(), divergent as f64);
+    // Per output that diverged: `divergent_cycles.OUT`, or `declared_divergent_cycles.OUT` for
+    // one the package declares it changes.
+    for (name, n) in diverged {
+        let key = if job.update.meta.may_differ(name) {
+            "declared_divergent_cycles"
+        } else {
+            "divergent_cycles"
+        };
+        figures.insert(format!("{key}.{name}"), *n as f64);
+    }
     figures.insert("twin_faults".into(), c.twin_faults.len() as f64);
     figures.insert("alarms".into(), c.alarms.len() as f64);
     figures.insert("validation_ms".into(), t0.elapsed().as_secs_f64() * 1e3);
@@ -521,8 +563,7 @@ fn verdict(job: &Job, b: &RunFigures, c: &RunFigures, divergent: u64, t0: Instan
 }
 
 /// Why the candidate may not drive the plant, if at all: its twin faults and alarms, and a
-/// production below the required `share` of the baseline's unless the package declares that
-/// it changes throughput.
+/// production below the share the package declares it may drop to, or else the node's `share`.
 fn failures(job: &Job, b: &RunFigures, c: &RunFigures, share: f64) -> Vec<String> {
     let mut reasons = Vec::new();
     for f in &c.twin_faults {
@@ -531,19 +572,24 @@ fn failures(job: &Job, b: &RunFigures, c: &RunFigures, share: f64) -> Vec<String
     for a in &c.alarms {
         reasons.push(a.clone());
     }
-    let throughput_ok = job.update.meta.changes_throughput || share >= job.policy.throughput_share;
-    if !throughput_ok {
+    // The package's own declaration, signed with it, takes the place of the node's share.
+    let required = job
+        .update
+        .meta
+        .declared_share()
+        .unwrap_or(job.policy.throughput_share);
+    if share < required {
         reasons.push(format!(
             "throughput: the candidate produced {} parts in {:.0} s of plant time, {:.0} % of the {} of the program it replaces, below the {:.0} % required",
             c.produced,
             job.policy.horizon_us as f64 / 1e6,
             share * 100.0,
             b.produced,
-            job.policy.throughput_share * 100.0
+            required * 100.0
         ));
         // A part is the unit of production: over a horizon that holds few, where a part is at
         // its end decides more than the program does.
-        if (b.produced as f64) * (1.0 - job.policy.throughput_share) < 1.0 {
+        if (b.produced as f64) * (1.0 - required) < 1.0 {
             reasons.push(format!(
                 "the horizon holds only {} parts of the program it replaces, so one part is {:.0} % of its production: a longer horizon judges throughput rather than the phase",
                 b.produced,

@@ -34,12 +34,13 @@ pub use error::ProgramError;
 pub use guard::{EvalCtx, EvalError, EvalErrorKind, Guard};
 pub use invariant::{Invariant, InvariantViolation};
 pub use package::{
-    build_package, BuildReport, KeyPair, OtherBase, PackageError, PackageMeta, ProgramImporter,
-    ResolvedUpdate, TransformSpec, TrustStore, Unsigned, UpdatePackage, VerifyingKeyFile,
+    build_package, BuildReport, Changes, KeyPair, OtherBase, PackageError, PackageMeta,
+    ProgramImporter, ResolvedUpdate, TransformSpec, TrustStore, Unsigned, UpdatePackage,
+    VerifyingKeyFile,
 };
 pub use program::{Program, Watchdog, DEFAULT_SCAN_PERIOD, TOOL};
 pub use source::{toml_text, NotUtf8};
-pub use transform::{DenseMatrix, Projection, StateTransform, TransformError};
+pub use transform::{DenseMatrix, Derivation, Projection, StateTransform, TransformError};
 pub use value::{Signal, Type, Value};
 pub use work::Work;
 

@@ -65,6 +65,14 @@ pub enum PackageError {
         /// Why (boxed: it is large, and this is a build-time error).
         source: Box<TransformError>,
     },
+    /// The manifest's `[changes]` declare something that cannot be.
+    #[error("{path}: [changes]: {message}")]
+    ManifestChanges {
+        /// The manifest.
+        path: String,
+        /// What, and what to write instead.
+        message: String,
+    },
     /// The bytes are not a package (not JSON of the right shape, truncated, bad base64).
     #[error("not a Cetratus update package: {reason}; a package is the single JSON file `cetratus package build` writes (was it truncated or edited?)")]
     Malformed {
@@ -121,7 +129,7 @@ pub enum PackageError {
 }
 
 /// Who made a package, of what, and against which program.
-#[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct PackageMeta {
     /// Name of the update, e.g. "U.2 lubrication".
@@ -136,10 +144,51 @@ pub struct PackageMeta {
     pub created: String,
     /// [`Program::hash_hex`] of the program the package was built against.
     pub base_program_hash: String,
-    /// The update changes the cell's throughput on purpose: a twin validation does not judge
-    /// the candidate's throughput against the primary's. Absent (false) in older packages.
+    /// The update changes the cell's throughput on purpose, with no share declared: the older
+    /// form of [`Changes::throughput_share`] = 0 (a twin validation does not hold the
+    /// candidate's throughput against the primary's). Read from older packages; a build writes
+    /// [`PackageMeta::changes`] instead.
     #[serde(default, skip_serializing_if = "std::ops::Not::not")]
     pub changes_throughput: bool,
+    /// What the update changes on purpose, signed with it (`[changes]` of the manifest).
+    #[serde(default, skip_serializing_if = "Changes::is_empty")]
+    pub changes: Changes,
+}
+
+/// The changes an update declares it makes on purpose (docs/package-format.md, *Declared
+/// changes*): the one place where divergence from the program it replaces is allowed. Twin
+/// validation judges the candidate against them; the fleet rollout reads them too.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Changes {
+    /// Outputs whose values may differ from those the old program drives.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub outputs: Vec<String>,
+    /// The least share of the old program's production the update may drop to, from 0 to 1.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub throughput_share: Option<f64>,
+}
+
+impl Changes {
+    /// Whether nothing is declared.
+    pub fn is_empty(&self) -> bool {
+        self.outputs.is_empty() && self.throughput_share.is_none()
+    }
+}
+
+impl PackageMeta {
+    /// The least share of the old program's production the update declares it may drop to:
+    /// its `[changes] throughput_share`, or 0 for the older `changes_throughput = true`.
+    pub fn declared_share(&self) -> Option<f64> {
+        self.changes
+            .throughput_share
+            .or(self.changes_throughput.then_some(0.0))
+    }
+
+    /// Whether the update declares that `output` may differ from the old program's.
+    pub fn may_differ(&self, output: &str) -> bool {
+        self.changes.outputs.iter().any(|o| o == output)
+    }
 }
 
 /// A transformation or projection as the manifest declares it, before it meets the nets.
@@ -503,9 +552,9 @@ fn resolve_projection(
 ) -> Result<Projection, TransformError> {
     let (on, nn) = (old.net().as_ref(), new.net().as_ref());
     match spec {
-        None => Ok(Projection::generated(on, nn)),
+        None => Projection::generated(on, nn),
         Some(spec) => resolve(spec, on, nn, |removed| match removed.keys().next() {
-            None => Ok(Projection::generated(on, nn)),
+            None => Projection::generated(on, nn),
             Some(id) => Err(TransformError::RemovedIsKept { id: id.clone() }),
         }),
     }

@@ -13,173 +13,12 @@ use cetratus_net::{Net, PlaceIdx, Tokens};
 use crate::{InvariantViolation, Program};
 
 mod chart;
+mod derive;
+mod error;
 
 pub use chart::markable_places;
 use chart::networks_without_kept_places;
-
-/// Why a transform or projection could not be resolved, or refused to apply.
-#[derive(Debug, thiserror::Error)]
-pub enum TransformError {
-    /// The matrix has the wrong number of rows or columns for a net.
-    #[error("the {what} has {found} {axis}, but the {net} net has {expected} places; {axis} follow its places in declaration order")]
-    Dimensions {
-        /// "state transform" or "projection".
-        what: &'static str,
-        /// "rows" or "columns".
-        axis: &'static str,
-        /// Which net the axis follows.
-        net: &'static str,
-        /// Places of that net.
-        expected: usize,
-        /// What the matrix has.
-        found: usize,
-    },
-    /// A row of a dense matrix has the wrong length.
-    #[error("row {row} (`{id}`) of the {what} has {found} entries; it needs one per place of the {net} net ({expected})")]
-    RowLength {
-        /// "state transform" or "projection".
-        what: &'static str,
-        /// The row, from 1.
-        row: usize,
-        /// The row's place id.
-        id: String,
-        /// Which net the columns follow.
-        net: &'static str,
-        /// Places of that net.
-        expected: usize,
-        /// What the row has.
-        found: usize,
-    },
-    /// The base vector has the wrong length.
-    #[error("the base of the {what} has {found} entries; it needs one per row ({expected})")]
-    BaseLength {
-        /// "state transform" or "projection".
-        what: &'static str,
-        /// Rows.
-        expected: usize,
-        /// What the base has.
-        found: usize,
-    },
-    /// A row or column id of a dense matrix differs from the net's place at that position.
-    #[error("{axis} {index} of the {what} is `{found}`, but place {index} of the {net} net is `{expected}`; list the {net} net's place ids in declaration order")]
-    PlaceId {
-        /// "state transform" or "projection".
-        what: &'static str,
-        /// "row" or "column".
-        axis: &'static str,
-        /// The position, from 1.
-        index: usize,
-        /// Which net.
-        net: &'static str,
-        /// The net's place id there.
-        expected: String,
-        /// The id the matrix gives.
-        found: String,
-    },
-    /// A sparse entry or base key names a place the net does not have.
-    #[error("the {what} names `{id}` as {role}, which is not a place of the {net} net")]
-    UnknownPlace {
-        /// "state transform" or "projection".
-        what: &'static str,
-        /// The id.
-        id: String,
-        /// Where it was used ("a target (`to`)", "a source (`from`)", "a base key").
-        role: &'static str,
-        /// Which net.
-        net: &'static str,
-    },
-    /// A sparse matrix gives the same (to, from) pair twice.
-    #[error("the {what} gives `{to}` <- `{from}` twice; give each pair once")]
-    DuplicateEntry {
-        /// "state transform" or "projection".
-        what: &'static str,
-        /// Row place.
-        to: String,
-        /// Column place.
-        from: String,
-    },
-    /// A chart's step that the new version removes, that the old version can reach, and that
-    /// `removed` does not map.
-    #[error("step `{id}` is removed by the new version, and the running chart can reach it (its net lets it be marked, guards ignored); map it to a step of the new version with `[transform.removed] {id} = \"…\"`")]
-    RemovedReachable {
-        /// The step.
-        id: String,
-    },
-    /// `removed` names a place the new net still has.
-    #[error("`{id}` is listed in `removed`, but the new net still has a place `{id}`, which keeps its tokens; remove it from `removed`")]
-    RemovedIsKept {
-        /// The place.
-        id: String,
-    },
-    /// `removed` names a place the old net does not have.
-    #[error("`{id}` is listed in `removed`, but the running program's net has no such place")]
-    RemovedUnknown {
-        /// The place.
-        id: String,
-    },
-    /// `removed` sends tokens to a place the new net does not have.
-    #[error(
-        "removed place `{from}` sends its tokens to `{to}`, which is not a place of the new net"
-    )]
-    RemovedTargetUnknown {
-        /// The removed place.
-        from: String,
-        /// The missing destination.
-        to: String,
-    },
-    /// A marking or output buffer has a length other than the one the transform was resolved for.
-    #[error("the {what} was resolved for {expected} places, but the {which} has {found}; resolve it against this program")]
-    MarkingLength {
-        /// "state transform" or "projection".
-        what: &'static str,
-        /// "old marking", "new program" or "output marking".
-        which: &'static str,
-        /// Places the transform expects.
-        expected: usize,
-        /// What was given.
-        found: usize,
-    },
-    /// A row evaluates to a negative token count.
-    #[error("place `{place}` would get {value} tokens, a negative count; check the coefficients and base of its row")]
-    Negative {
-        /// The new place.
-        place: String,
-        /// The value computed.
-        value: i128,
-    },
-    /// A row evaluates to more tokens than a count can hold.
-    #[error("place `{place}` would get {value} tokens, more than a token count can hold ({max})", max = Tokens::MAX)]
-    Overflow {
-        /// The new place.
-        place: String,
-        /// The value computed.
-        value: i128,
-    },
-    /// A row evaluates above the place's capacity in the new net.
-    #[error("place `{place}` would get {value} tokens, above its capacity {capacity} in the new net; wait for a marking that fits, or fix the transform")]
-    AboveCapacity {
-        /// The new place.
-        place: String,
-        /// The value computed.
-        value: u64,
-        /// Its capacity.
-        capacity: Tokens,
-    },
-    /// A place the update removes holds tokens and the package says nowhere for them to go.
-    #[error("place `{place}` is removed by the update and holds {tokens} token(s) that would be lost; apply the update when it is empty, or send its tokens to a new place (generated: `removed = {{ {place} = \"…\" }}`; dense or sparse: a nonzero coefficient in its column)")]
-    RemovedNotEmpty {
-        /// The old place.
-        place: String,
-        /// Its tokens.
-        tokens: Tokens,
-    },
-    /// The transformed marking breaks an invariant the new program declares.
-    #[error("the transformed marking breaks the new program's {violation}; fix the transform's matrix or base so that it holds")]
-    Invariant {
-        /// Which invariant and by how much.
-        violation: InvariantViolation,
-    },
-}
+pub use error::{Derivation, TransformError};
 
 const ST: &str = "state transform";
 const PROJ: &str = "projection";
@@ -533,6 +372,9 @@ impl StateTransform {
     /// The transformation generated from place ids: a place kept by id keeps its tokens and
     /// timer, a new place starts at its initial marking, and a removed place either sends its
     /// tokens to the new place `removed` names for it or must be empty when the update applies.
+    /// Where the initial markings of kept places differ, the base is derived from the
+    /// invariants of the new net so that they hold after the transform (`derive.rs`), or the
+    /// transform is refused with the invariant named.
     pub fn generated(
         old: &Program,
         new: &Program,
@@ -571,6 +413,7 @@ impl StateTransform {
             };
             rows[r.index()].push((q.0, 1));
         }
+        derive::correct_base(Self::ROLE, &rows, &mut base, nn, on)?;
         Ok(Self::from_map(
             Linear::from_rows(rows, base, nn, on),
             on,
@@ -715,9 +558,12 @@ pub struct Projection {
 
 impl Projection {
     /// The projection generated from place ids: each old place kept by id reads its new place;
-    /// places only in the new net are dropped, places only in the old net read 0.
-    pub fn generated(old: &Net, new: &Net) -> Projection {
-        let rows = old
+    /// places only in the new net are dropped, places only in the old net read 0. Where the
+    /// initial markings of kept places differ, the base is derived from the invariants of the
+    /// old net so that they hold after the projection (`derive.rs`), or the projection is
+    /// refused with the invariant named.
+    pub fn generated(old: &Net, new: &Net) -> Result<Projection, TransformError> {
+        let rows: Vec<Vec<(u32, i64)>> = old
             .places()
             .iter()
             .map(|p| match new.place_by_id(&p.id) {
@@ -725,11 +571,13 @@ impl Projection {
                 None => Vec::new(),
             })
             .collect();
-        Self::from_map(
-            Linear::from_rows(rows, vec![0; old.num_places()], old, new),
+        let mut base = vec![0; old.num_places()];
+        derive::correct_base(Self::ROLE, &rows, &mut base, old, new)?;
+        Ok(Self::from_map(
+            Linear::from_rows(rows, base, old, new),
             old,
             new,
-        )
+        ))
     }
 
     /// An explicit projection from a dense `|P_old| × |P_new|` matrix whose row ids are the old

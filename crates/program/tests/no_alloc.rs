@@ -75,7 +75,7 @@ fn applying_a_state_transform_and_measuring_drift_does_not_allocate() {
     let new = cetratus_testkit::programs::example("vernadat/u2.toml");
     let st =
         StateTransform::generated(&old, &new, &BTreeMap::new()).unwrap_or_else(|e| panic!("{e}"));
-    let pi = Projection::generated(old.net(), new.net());
+    let pi = Projection::generated(old.net(), new.net()).expect("projection");
     let m_old = old.net().initial_marking();
     let since_old = [Some(5u64); 13];
     let mut m_new = [0u32; 15];

@@ -402,20 +402,15 @@ fn a_broken_invariant_of_the_new_program_is_refused_naming_it() {
     assert!(err.to_string().contains("H + B + P14 = 9"), "{err}");
     assert_eq!(out, [0; 13], "nothing written");
 
-    // The generated transform keeps H as it is, so it breaks U.1's invariant the same way: that
-    // is why U.1 declares its transform.
+    // The generated transform derives H + 2 from the invariants, so it keeps U.1's invariant
+    // (transform/derive.rs), and a build against the base program has nothing to warn about.
     let st = ok(StateTransform::generated(&old, &new, &BTreeMap::new()));
-    let err = st
-        .apply(old.net().initial_marking().as_slice(), &new, &mut out)
-        .unwrap_err();
-    assert!(err.to_string().contains("H + B + P14 = 9"), "{err}");
-
-    // A build against the base program warns about it.
+    ok(st.apply(old.net().initial_marking().as_slice(), &new, &mut out));
+    new.check_invariants(&out).expect("H + B + P14 = 9 holds");
     let dir = ok(tempfile::tempdir());
     let m = u1_manifest(dir.path(), "[transform]\nkind = \"generated\"\n");
     let (_, report) = ok(build_package(&m, None, 1_700_000_000));
-    assert_eq!(report.warnings.len(), 1);
-    assert!(report.warnings[0].contains("H + B + P14 = 9"));
+    assert_eq!(report.warnings, Vec::<String>::new());
 }
 
 #[test]
@@ -460,4 +455,41 @@ fn a_missing_program_file_is_reported_at_the_manifest_line() {
     ));
     let err = build_package(&path, None, 1_700_000_000).unwrap_err();
     assert!(err.to_string().contains("m.toml:4:"), "{err}");
+}
+
+#[test]
+fn declared_changes_are_signed_into_the_package_and_checked_when_it_is_built() {
+    let dir = ok(tempfile::tempdir());
+    let m = u1_manifest(
+        dir.path(),
+        "[changes]\noutputs = [\"DM1\"]\nthroughput_share = 0.8\n",
+    );
+    let s = Signer::new();
+    let (bytes, _) = s.build(&m);
+    let pkg = ok(UpdatePackage::verify(
+        &bytes,
+        &s.trust(),
+        cetratus_program::Unsigned::Refused,
+    ));
+    assert_eq!(pkg.meta().changes.outputs, ["DM1"]);
+    assert_eq!(pkg.meta().declared_share(), Some(0.8));
+    // The older boolean reads as a share of 0, and is written as that.
+    let m = u1_manifest(dir.path(), "");
+    let text =
+        ok(std::fs::read_to_string(&m)).replace("base = ", "changes_throughput = true\nbase = ");
+    ok(std::fs::write(&m, text));
+    let (_, report) = ok(build_package(&m, None, 1_700_000_000));
+    assert!(!report.meta.changes_throughput);
+    assert_eq!(report.meta.declared_share(), Some(0.0));
+    for (changes, says) in [
+        ("[changes]\noutputs = [\"NOPE\"]\n", "`NOPE`"),
+        ("[changes]\nthroughput_share = 1.5\n", "between 0 and 1"),
+        ("[changes]\ncolour = \"red\"\n", "colour"),
+    ] {
+        let m = u1_manifest(dir.path(), changes);
+        let e = build_package(&m, None, 1_700_000_000)
+            .err()
+            .unwrap_or_else(|| panic!("{changes} is refused"));
+        assert!(e.to_string().contains(says), "{changes}: {e}");
+    }
 }

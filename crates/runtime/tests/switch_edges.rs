@@ -64,13 +64,14 @@ fn load_itself(plc: &mut Plc, p: &Arc<Program>) {
         created: String::new(),
         base_program_hash: p.hash_hex().to_string(),
         changes_throughput: false,
+        changes: Default::default(),
     };
     let up = plc
         .update_context()
         .prepare(ResolvedUpdate {
             program: p.clone(),
             transform: StateTransform::generated(p, p, &BTreeMap::new()).expect("transform"),
-            projection: Projection::generated(p.net(), p.net()),
+            projection: Projection::generated(p.net(), p.net()).expect("projection"),
             meta,
         })
         .expect("prepared");

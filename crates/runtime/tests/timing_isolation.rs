@@ -154,6 +154,7 @@ impl Rig {
             created: String::new(),
             base_program_hash: old.hash_hex().to_string(),
             changes_throughput: false,
+            changes: Default::default(),
         };
         let up = self
             .plc
@@ -162,7 +163,7 @@ impl Rig {
                 program: new.clone(),
                 transform: StateTransform::generated(&old, new, &BTreeMap::new())
                     .expect("transform"),
-                projection: Projection::generated(old.net(), new.net()),
+                projection: Projection::generated(old.net(), new.net()).expect("projection"),
                 meta,
             })
             .expect("prepared");

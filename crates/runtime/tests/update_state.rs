@@ -139,6 +139,7 @@ impl Rig {
             created: String::new(),
             base_program_hash: old.hash_hex().to_string(),
             changes_throughput: false,
+            changes: Default::default(),
         };
         let up = UpdateContext {
             primary: old.clone(),
@@ -151,7 +152,7 @@ impl Rig {
         .prepare(ResolvedUpdate {
             program: new.clone(),
             transform,
-            projection: Projection::generated(old.net(), new.net()),
+            projection: Projection::generated(old.net(), new.net()).expect("projection"),
             meta,
         })
         .expect("prepared");

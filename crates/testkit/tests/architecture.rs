@@ -34,7 +34,7 @@ const RULES: &[(&str, Allowed)] = &[
     ("cetratus-analysis", Only(&["cetratus-net"])),
     (
         "cetratus-program",
-        Only(&["cetratus-vocab", "cetratus-net"]),
+        Only(&["cetratus-vocab", "cetratus-net", "cetratus-analysis"]),
     ),
     ("cetratus-sfc", Only(&["cetratus-net", "cetratus-program"])),
     (

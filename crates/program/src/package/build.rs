@@ -12,6 +12,9 @@ struct Manifest {
     transform: TransformSpec,
     #[serde(default)]
     projection: Option<TransformSpec>,
+    /// What the update changes on purpose.
+    #[serde(default)]
+    changes: Changes,
 }
 
 #[derive(Deserialize)]
@@ -161,7 +164,9 @@ pub fn build_package_with(
         None => Program::load(&base_path)?,
     };
 
-    let meta = m.package.meta(created_unix_secs, &base);
+    let meta = m
+        .package
+        .meta(created_unix_secs, &base, &m.changes, &label)?;
     let payload = Payload {
         format: PAYLOAD_FORMAT.to_string(),
         meta: meta.clone(),
@@ -173,6 +178,7 @@ pub fn build_package_with(
     // The program is taken from the payload, as the PLC will load it, so that what is resolved
     // here is what runs there.
     let new = load_embedded(&payload)?;
+    declared_outputs(&meta.changes, &base, &new, &label)?;
     let manifest_err = |section, source| PackageError::ManifestTransform {
         path: label.clone(),
         section,
@@ -186,15 +192,7 @@ pub fn build_package_with(
     let projection = resolve_projection(payload.projection.as_ref(), &base, &new)
         .map_err(|e| manifest_err("projection", e))?;
 
-    let mut warnings = Vec::new();
-    let m0 = base.net().initial_marking();
-    let mut out = vec![0; transform.rows()];
-    if let Err(e) = transform.apply(m0.as_slice(), &new, &mut out) {
-        warnings.push(format!(
-            "applied to the initial marking of the base program, the transform is refused: {e}"
-        ));
-    }
-
+    let warnings = initial_marking_warnings(&transform, &base, &new);
     let bytes = seal(&payload, key)?;
 
     let report = BuildReport {
@@ -216,19 +214,77 @@ pub fn build_package_with(
     Ok((bytes, report))
 }
 
+/// What is worth a look before the package goes out: the transform refused on the base
+/// program's initial marking (the marking at load time is the PLC's, so not an error).
+fn initial_marking_warnings(
+    transform: &StateTransform,
+    base: &Program,
+    new: &Program,
+) -> Vec<String> {
+    let m0 = base.net().initial_marking();
+    let mut out = vec![0; transform.rows()];
+    match transform.apply(m0.as_slice(), new, &mut out) {
+        Ok(()) => Vec::new(),
+        Err(e) => vec![format!(
+            "applied to the initial marking of the base program, the transform is refused: {e}"
+        )],
+    }
+}
+
 impl ManifestPackage {
-    /// The package's metadata, created at `created_unix_secs`, bound to `base`.
-    fn meta(&self, created_unix_secs: u64, base: &Program) -> PackageMeta {
+    /// The package's metadata, created at `created_unix_secs`, bound to `base`, with the
+    /// changes it declares. `changes_throughput = true` is the older form of
+    /// `[changes] throughput_share = 0`, and is written as that.
+    fn meta(
+        &self,
+        created_unix_secs: u64,
+        base: &Program,
+        changes: &Changes,
+        label: &str,
+    ) -> Result<PackageMeta, PackageError> {
         let created = std::time::UNIX_EPOCH + std::time::Duration::from_secs(created_unix_secs);
-        PackageMeta {
+        let mut changes = changes.clone();
+        let bad = |message: String| PackageError::ManifestChanges {
+            path: label.to_string(),
+            message,
+        };
+        match (self.changes_throughput, changes.throughput_share) {
+            (true, Some(_)) => return Err(bad("the manifest gives both `changes_throughput` and `throughput_share`; keep `throughput_share`, which says how far production may drop".into())),
+            (true, None) => changes.throughput_share = Some(0.0),
+            (false, Some(s)) if !(0.0..=1.0).contains(&s) => return Err(bad(format!("`throughput_share = {s}` is not a share; give one between 0 and 1, e.g. 0.7 for 70 % of the old program's production"))),
+            _ => {}
+        }
+        Ok(PackageMeta {
             name: self.name.get_ref().clone(),
             version: self.version.get_ref().clone(),
             author: self.author.clone(),
             description: self.description.clone(),
             created: humantime::format_rfc3339_seconds(created).to_string(),
             base_program_hash: base.hash_hex().to_string(),
-            changes_throughput: self.changes_throughput,
-        }
+            changes_throughput: false,
+            changes,
+        })
+    }
+}
+
+/// Every output `[changes] outputs` names is an output of the new program or of the base.
+fn declared_outputs(
+    changes: &Changes,
+    base: &Program,
+    new: &Program,
+    label: &str,
+) -> Result<(), PackageError> {
+    let known = |n: &str| {
+        [base, new]
+            .iter()
+            .any(|p| p.outputs().iter().any(|s| s.name == n))
+    };
+    match changes.outputs.iter().find(|n| !known(n)) {
+        None => Ok(()),
+        Some(n) => Err(PackageError::ManifestChanges {
+            path: label.to_string(),
+            message: format!("`outputs` names `{n}`, which neither the new program nor the base declares as an output; name outputs by their signal names"),
+        }),
     }
 }
 

@@ -27,7 +27,7 @@ fn s(v: &[&str]) -> Vec<String> {
 #[test]
 fn generated_keeps_kept_places_and_starts_new_ones_at_their_initial_marking() {
     let old = program(&[("A", 1), ("B", 0)], &[]);
-    let new = program(&[("B", 0), ("C", 2), ("A", 0)], &[]);
+    let new = program(&[("B", 0), ("C", 2), ("A", 1)], &[]);
     let st =
         StateTransform::generated(&old, &new, &BTreeMap::new()).unwrap_or_else(|e| panic!("{e}"));
     assert_eq!((st.rows(), st.cols()), (3, 2));
@@ -104,7 +104,7 @@ fn sparse_refuses_unknown_places_and_duplicates() {
 #[test]
 fn timers_of_kept_places_carry_over_and_new_marked_places_start_now() {
     let old = program(&[("A", 1), ("B", 0)], &[]);
-    let new = program(&[("A", 0), ("N", 1), ("B", 0)], &[]);
+    let new = program(&[("A", 1), ("N", 1), ("B", 0)], &[]);
     let st =
         StateTransform::generated(&old, &new, &BTreeMap::new()).unwrap_or_else(|e| panic!("{e}"));
     let mut m = [0; 3];
@@ -136,7 +136,7 @@ fn the_dense_form_prints_aligned_with_place_ids() {
 fn drift_counts_every_token_of_difference() {
     let old = net(&[("A", 0), ("B", 0)]);
     let new = net(&[("B", 0), ("C", 0)]);
-    let pi = Projection::generated(&old, &new);
+    let pi = Projection::generated(&old, &new).expect("projection");
     assert_eq!((pi.rows(), pi.cols()), (2, 2));
     // A reads nothing (0 vs 2), B reads B (1 vs 4).
     assert_eq!(pi.drift(&[1, 9], &[2, 4]), 5);
@@ -179,11 +179,101 @@ fn a_projection_gives_the_old_program_a_marking_and_its_timers_back_by_place_id(
 fn a_projection_that_breaks_an_invariant_of_the_old_program_is_refused_and_writes_nothing() {
     let old = program(&[("A", 1), ("B", 0)], &["A + B = 1"]);
     let new = program(&[("A", 1), ("B", 0), ("C", 0)], &[]);
-    let proj = Projection::generated(old.net(), new.net());
+    let proj = Projection::generated(old.net(), new.net()).expect("projection");
     let mut out = [7; 2];
     let e = proj
         .apply(&[1, 1, 0], &old, &mut out)
         .expect_err("A + B = 2 breaks the old invariant");
     assert!(e.to_string().contains("A + B"), "{e}");
     assert_eq!(out, [7, 7]);
+}
+
+/// A program whose net has `places` and the transitions `(id, from, to)`, each moving one token.
+fn cyclic(places: &[(&str, Tokens)], moves: &[(&str, &str, &str)]) -> Program {
+    let mut b = NetBuilder::new("n");
+    for &(id, m) in places {
+        b.add_place(Place::new(id, m))
+            .unwrap_or_else(|e| panic!("{e}"));
+    }
+    for &(t, from, to) in moves {
+        b.add_transition(cetratus_net::Transition::new(t))
+            .unwrap_or_else(|e| panic!("{e}"));
+        let kind = cetratus_net::ArcKind::Normal;
+        b.add_arc(&format!("{t}i"), from, t, 1, kind)
+            .unwrap_or_else(|e| panic!("{e}"));
+        b.add_arc(&format!("{t}o"), t, to, 1, kind)
+            .unwrap_or_else(|e| panic!("{e}"));
+    }
+    let net = b.build().unwrap_or_else(|e| panic!("{e}"));
+    let src = "[program]\nname = \"t\"\nversion = \"1\"\n";
+    Program::from_sources(src, "t.toml", net).unwrap_or_else(|e| panic!("{e}"))
+}
+
+const RING: &[(&str, &str, &str)] = &[("t1", "A", "B"), ("t2", "B", "A")];
+
+#[test]
+fn a_changed_initial_marking_goes_into_the_base_so_that_the_ring_keeps_its_new_count() {
+    // The ring's invariant A + B goes from 1 to 3: only A changed its initial marking, so A
+    // takes the two tokens, and the projection gives them back.
+    let old = cyclic(&[("A", 1), ("B", 0)], RING);
+    let new = cyclic(&[("A", 3), ("B", 0)], RING);
+    let st =
+        StateTransform::generated(&old, &new, &BTreeMap::new()).unwrap_or_else(|e| panic!("{e}"));
+    let mut out = [0; 2];
+    st.apply(&[0, 1], &new, &mut out)
+        .unwrap_or_else(|e| panic!("{e}"));
+    assert_eq!(out, [2, 1]);
+    let pi = Projection::generated(old.net(), new.net()).unwrap_or_else(|e| panic!("{e}"));
+    let mut back = [9; 2];
+    pi.apply(&out, &old, &mut back)
+        .unwrap_or_else(|e| panic!("{e}"));
+    assert_eq!(back, [0, 1]);
+}
+
+#[test]
+fn two_changed_places_in_one_invariant_are_ambiguous_and_refused_with_what_to_write() {
+    let old = cyclic(&[("A", 1), ("B", 0)], RING);
+    let new = cyclic(&[("A", 2), ("B", 1)], RING);
+    let e = StateTransform::generated(&old, &new, &BTreeMap::new())
+        .err()
+        .unwrap_or_else(|| panic!("ambiguous"));
+    let text = e.to_string();
+    assert!(matches!(e, TransformError::InvariantAmbiguous(_)), "{text}");
+    for part in [
+        "`A + B`",
+        "holds 3",
+        "carried over 1",
+        "A, B",
+        "base = { A = 2 }",
+    ] {
+        assert!(text.contains(part), "{part}: {text}");
+    }
+}
+
+#[test]
+fn an_invariant_no_changed_place_can_make_up_for_is_impossible_and_refused() {
+    // X is removed and its token sent to A, but the new ring starts empty and nothing in it
+    // changed its initial marking: A + B would hold 1 where the new net says 0.
+    let old = cyclic(
+        &[("A", 0), ("B", 0), ("X", 1)],
+        &[("t1", "A", "X"), ("t2", "X", "B"), ("t3", "B", "A")],
+    );
+    let new = cyclic(&[("A", 0), ("B", 0)], RING);
+    let removed = BTreeMap::from([("X".to_string(), "A".to_string())]);
+    let e = StateTransform::generated(&old, &new, &removed)
+        .err()
+        .unwrap_or_else(|| panic!("impossible"));
+    let text = e.to_string();
+    assert!(
+        matches!(e, TransformError::InvariantImpossible(_)),
+        "{text}"
+    );
+    for part in [
+        "`A + B`",
+        "holds 0",
+        "carried over 1",
+        "fix the initial marking",
+    ] {
+        assert!(text.contains(part), "{part}: {text}");
+    }
 }

@@ -1,5 +1,6 @@
 //! Live-update figures: the quarantine cycle against a single-program cycle, the setup of the U.2
-//! package away from the scan thread, and the in-cycle state transformation and install.
+//! package away from the scan thread, the in-cycle state transformation and install, the cycle
+//! of a revert against a probation cycle, and the derivation of U.1's generated bases.
 
 use std::collections::BTreeMap;
 use std::hint::black_box;
@@ -8,8 +9,12 @@ use std::sync::Arc;
 use std::time::Instant;
 
 use cetratus_node::clock::MonotonicStopwatch;
-use cetratus_program::{build_package, KeyPair, Program, StateTransform, TrustStore, Value};
-use cetratus_runtime::{Command, Container, Dispatcher, Plc, Provider};
+use cetratus_program::{
+    build_package, KeyPair, Program, Projection, StateTransform, TrustStore, Value,
+};
+use cetratus_runtime::{
+    Command, Container, Dispatcher, Plc, Provider, SubstituteMode, SubstituteRequest,
+};
 use serde::Serialize;
 
 use crate::program::{examples_dir, recorded_inputs};
@@ -118,6 +123,15 @@ pub struct UpdateFigures {
     pub state_transform_us: f64,
     /// The same for a net of 10⁵ places, µs (median).
     pub state_transform_100k_places_us: f64,
+    /// A cycle of U.2 on probation with U.1 as its shadow, µs (median): the baseline of the
+    /// next figure.
+    pub probation_cycle_us: f64,
+    /// The cycle in which U.2 on probation reverts to U.1: both markings of U.1 rehearsed
+    /// against the outputs being dispatched, the shadow takes over and scans, µs (median).
+    pub revert_cycle_us: f64,
+    /// U.1's generated transformation and projection, their bases derived from the invariants
+    /// of both nets (away from the scan thread), µs (median).
+    pub derive_u1_us: f64,
 }
 
 fn median(mut v: Vec<f64>) -> f64 {
@@ -226,6 +240,16 @@ pub fn update_figures(quick: bool) -> UpdateFigures {
     let state_transform_100k_places_us =
         transform_install_us(&st, &old, &new, if quick { 10 } else { 50 });
 
+    let (probation_cycle_us, revert_cycle_us) = revert_cycles_us(&pk, if quick { 30 } else { 200 });
+    let derive: Vec<f64> = (0..if quick { 200 } else { 2_000 })
+        .map(|_| {
+            let t0 = Instant::now();
+            black_box(StateTransform::generated(&vernadat, &u1_program, &BTreeMap::new()).ok());
+            black_box(Projection::generated(vernadat.net(), u1_program.net()).ok());
+            t0.elapsed().as_secs_f64() * 1e6
+        })
+        .collect();
+
     UpdateFigures {
         single_cycle_ns,
         quarantine_cycle_ns,
@@ -236,7 +260,57 @@ pub fn update_figures(quick: bool) -> UpdateFigures {
         setup_us: median(setup),
         state_transform_us,
         state_transform_100k_places_us,
+        probation_cycle_us,
+        revert_cycle_us,
+        derive_u1_us: median(derive),
     }
+}
+
+/// Median µs of a probation cycle of U.2 over U.1, and of the cycle in which an operator's
+/// revert takes U.1 back, on replayed inputs: `n` reverts, each from a fresh substitution (a
+/// revert that waits for the plant to agree is not counted).
+fn revert_cycles_us(pk: &Packages, n: usize) -> (f64, f64) {
+    let u1 = Arc::new(Program::load(&examples_dir().join("vernadat/u1.toml")).expect("U.1 loads"));
+    let images = recorded_inputs(&u1, 2_000);
+    let (mut probation, mut revert) = (Vec::new(), Vec::new());
+    let timed = |plc: &mut Plc, now: u64, replay: &mut Replay| {
+        let t0 = Instant::now();
+        plc.cycle(now, replay);
+        t0.elapsed().as_secs_f64() * 1e6
+    };
+    for _ in 0..n * 3 {
+        if revert.len() == n {
+            break;
+        }
+        let mut replay = Replay::new(images.clone());
+        let mut plc = Plc::new(u1.clone(), 0, MonotonicStopwatch::boxed());
+        let mut limits = plc.limits();
+        limits.probation_us = 600_000_000;
+        plc.set_limits(limits);
+        let prepared = pk.prepare(&plc.update_context(), &pk.u2);
+        plc.command(Command::Load(Box::new(prepared)))
+            .expect("accepted");
+        plc.cycle(0, &mut replay);
+        plc.command(Command::Substitute(SubstituteRequest::now(
+            SubstituteMode::Retransform,
+        )))
+        .expect("accepted");
+        let mut now = 10_000;
+        for _ in 0..200 {
+            plc.cycle(now, &mut replay);
+            now += 10_000;
+        }
+        assert_eq!(plc.status(), cetratus_runtime::Status::Probation);
+        probation.push(timed(&mut plc, now, &mut replay));
+        plc.command(Command::Revert).expect("accepted");
+        let took = timed(&mut plc, now + 10_000, &mut replay);
+        if plc.status() == cetratus_runtime::Status::Idle {
+            revert.push(took);
+        }
+        drop(plc.drain_events());
+        drop(plc.take_retired());
+    }
+    (median(probation), median(revert))
 }
 
 /// Median µs of `M_new = ST·M_old + ST_base`, the timers, and the install into a container built

@@ -163,14 +163,22 @@ fn an_update_adds_signals_on_configured_channels_and_undriven_outputs_hold_their
     assert!(out.status.success(), "{}", text(&out));
     std::fs::create_dir_all(d.join("trusted")).expect("mkdir");
     std::fs::copy(d.join("k.key.pub"), d.join("trusted/k.pub")).expect("copy the key");
-    // The tokens of x1's loop, which the update removes, go to x5's.
+    // The tokens of x1's loop, which the update removes, go to x5's (whose own initial token
+    // the derivation gives up, so that the loop holds one). A revert gives x1's loop its token
+    // back at p1: the generated projection would leave it empty and is refused, so the package
+    // writes it.
     let grown = package(
         d,
         &key,
         "grown",
-        "[transform]\nkind = \"generated\"\nremoved = { p1 = \"p5\", q1 = \"p5\" }\n",
+        "[transform]\nkind = \"generated\"\nremoved = { p1 = \"p5\", q1 = \"p5\" }\n[projection]\nkind = \"sparse\"\nidentity_on_kept = true\nbase = { p1 = 1 }\n",
     );
-    let unserved = package(d, &key, "unserved", "");
+    let unserved = package(
+        d,
+        &key,
+        "unserved",
+        "[projection]\nkind = \"sparse\"\nidentity_on_kept = true\nbase = { p1 = 1 }\n",
+    );
 
     // The device has x0 on, x1 and x5 off.
     let (device, mqtt, server) = (free_port(), free_port(), free_port());

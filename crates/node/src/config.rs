@@ -134,6 +134,8 @@ pub struct LocalConfig {
     pub probation_us: u64,
     /// How long an operator's revert may wait for a marking that agrees with the plant, µs.
     pub revert_wait_us: u64,
+    /// The least cycles of quarantine, compared with the twin's signature, before a pass.
+    pub quarantine_cycles: u64,
     /// Dashboard accounts: (name, argon2 hash of the password as a PHC string); the dashboard
     /// checks them when it starts.
     pub dashboard_accounts: Vec<(String, String)>,
@@ -281,6 +283,7 @@ impl LocalConfig {
             credentials: mqtt.credentials,
             probation_us: updates.probation_us,
             revert_wait_us: updates.revert_wait_us,
+            quarantine_cycles: updates.quarantine_cycles,
             dashboard_accounts: dashboard.accounts,
             dashboard_hosts: dashboard.hosts,
             state_trans_timeout_us: updates.state_trans_timeout_us,
@@ -313,6 +316,7 @@ impl LocalConfig {
         Limits {
             probation_us: self.probation_us,
             revert_wait_us: self.revert_wait_us,
+            quarantine_cycles: self.quarantine_cycles,
             require_verdict: self.require_verdict,
             state_trans_timeout_ns: self
                 .state_trans_timeout_us

@@ -248,6 +248,7 @@ pub fn run(ctx: &UpdateContext, update: &PreparedUpdate, policy: &GatePolicy) ->
             result,
             reasons,
             figures,
+            signature: None,
         },
         refusal,
     }

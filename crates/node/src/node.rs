@@ -13,7 +13,7 @@ use cetratus_persist::{PersistStats, Persister};
 use cetratus_runtime::trace::Trace;
 use cetratus_runtime::{
     Clock, Command, CommandError, Dispatcher, Event, EventKind, LoopTiming, Plc, Provider, Status,
-    SubstituteMode, SubstituteRequest, VerdictResult, VirtualClock,
+    SubstituteMode, SubstituteRequest, VirtualClock,
 };
 
 use crate::link::{ControlLink, LinkCounters};
@@ -206,19 +206,23 @@ impl<IO: Provider + Dispatcher> Node<IO> {
         } else {
             v.validator.try_done()
         };
-        let Some(d) = done else {
+        let attached = done.is_some_and(|d| self.plc.add_verdict(&d.program_hash, d.verdict));
+        // A quarantine verdict comes from the PLC itself, in the cycle's events.
+        if !attached && !events.iter().any(|e| e.kind == EventKind::Verdict) {
             return;
-        };
-        let passed = d.verdict.result == VerdictResult::Pass;
-        let attached = self.plc.add_verdict(&d.program_hash, d.verdict);
-        // Substitutes by itself only a load that an allowed operator key signed.
+        }
+        // Substitutes by itself only a load that an allowed operator key signed, once the
+        // verdicts allow it: the twin's, and the quarantine's when the twin brought a signature.
         let key = self.link.as_ref().and_then(|l| l.load_key());
         let allowed = v
             .auto
             .as_ref()
             .zip(key)
             .is_some_and(|(a, k)| a.keys.iter().any(|x| x == k));
-        if attached && passed && allowed && self.plc.status() == Status::Quarantine {
+        if allowed
+            && self.plc.status() == Status::Quarantine
+            && self.plc.verdicts_allow_substitution()
+        {
             let who = format!("auto:{}", key.unwrap_or_default());
             let r = self.plc.command(Command::Substitute(SubstituteRequest::now(
                 SubstituteMode::Retransform,

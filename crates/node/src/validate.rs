@@ -316,12 +316,19 @@ pub fn validate(job: &Job) -> Verdict {
         Ok(pair) => pair,
         Err(reason) => return failed(reason),
     };
+    // In quarantine the baseline's run carries the candidate in quarantine beside it, as the
+    // plant will: what the Monitor puts its divergences down to is the signature.
+    let watching = !job.on_probation && watch_candidate(&mut pair.base, job);
     let mut outputs: Vec<Mask> =
         Vec::with_capacity((job.policy.horizon_us / job.period_us.max(1)) as usize);
     let bits = Mask::of;
     let b = run(&mut pair.base, &mut pair.base_io, pair.from, job, |d| {
         outputs.push(bits(d))
     });
+    let signature = watching
+        .then(|| pair.base.divergence_signature())
+        .flatten()
+        .map(Arc::new);
     // The candidate's outputs by name against the baseline's: one it adds is compared with off.
     let names = pair.cand.io_outputs().to_vec();
     let in_base: Vec<Option<usize>> = names
@@ -357,7 +364,23 @@ pub fn validate(job: &Job) -> Verdict {
         .zip(per_output)
         .filter(|(_, n)| *n > 0)
         .collect();
-    verdict(job, &b, &c, (divergent, &diverged), t0)
+    let mut v = verdict(job, &b, &c, (divergent, &diverged), t0);
+    if let Some(sig) = &signature {
+        v.figures
+            .insert("signature_kinds".into(), sig.kinds.len() as f64);
+    }
+    v.signature = signature;
+    v
+}
+
+/// Puts the candidate into quarantine beside the baseline `base`, whose I/O admits the outputs
+/// it adds (the twin ignores them); false when it does not take.
+fn watch_candidate(base: &mut Plc, job: &Job) -> bool {
+    base.set_io_admission(Arc::new(ForkOutputs));
+    let Ok(prepared) = base.update_context().prepare(job.update.clone()) else {
+        return false;
+    };
+    base.command(Command::Load(Box::new(prepared))).is_ok()
 }
 
 /// A validation that cannot run both programs says why, and does not pass.
@@ -367,6 +390,7 @@ fn failed(reason: String) -> Verdict {
         result: VerdictResult::Fail,
         reasons: vec![reason],
         figures: BTreeMap::new(),
+        signature: None,
     }
 }
 
@@ -559,6 +583,7 @@ fn verdict(
         },
         reasons,
         figures,
+        signature: None,
     }
 }
 

@@ -13,7 +13,7 @@ use cetratus_runtime::{
     Command, EventKind, ManualStopwatch, Plc, RevertReason, Slot, Status, SubstituteMode,
     SubstituteRequest, VerdictResult,
 };
-use cetratus_twin::{Twin, TwinKind};
+use cetratus_twin::{Twin, TwinKind, VernadatCell, VernadatParams};
 
 const VERNADAT: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../../examples/vernadat");
 const FESTO: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../../examples/festo");
@@ -569,4 +569,103 @@ fn u2_passes_with_its_declared_changes_and_fails_without_them() {
         v.reasons.join("\n").contains("below the 90 % required"),
         "{v:?}"
     );
+}
+
+/// The paper's last step, the twin against the quarantine: U.1, its guard of T22 replaced by
+/// `t22`, is validated in commission mode on a fresh twin of the model (ten minutes), and then
+/// runs in quarantine on `plant` for `for_s` seconds (no substitution). Returns the events.
+fn u1_quarantined_on(plant: VernadatParams, t22: &str, for_s: u64) -> Vec<cetratus_runtime::Event> {
+    use cetratus_node::script::Script;
+    use cetratus_node::{Node, NodeOptions};
+    use cetratus_runtime::LoopTiming;
+
+    let dir = workshop(VERNADAT);
+    edit(
+        dir.path(),
+        "u1.toml",
+        "T22 = \"FPM2\"",
+        &format!("T22 = \"{t22}\""),
+    );
+    let (bytes, _) =
+        build_package(&dir.path().join("u1.package.toml"), None, 1_700_000_000).expect("U.1");
+    let pkg = dir.path().join("u1.cpkg");
+    std::fs::write(&pkg, bytes).expect("write");
+    let program = Arc::new(Program::load(&dir.path().join("vernadat.toml")).expect("program"));
+    let twin = Twin::Vernadat(VernadatCell::new(plant, 1).expect("valid parameters"));
+    let io = TwinDriver::new(twin, program.inputs(), program.outputs()).expect("signals match");
+    let mut plc = Plc::new(program, 0, Box::new(ManualStopwatch::new()));
+    plc.use_virtual_time(PERIOD);
+    let opts = NodeOptions {
+        base_us: 0,
+        load: cetratus_node::load::LoadPolicy {
+            trust: TrustStore::empty(),
+            unsigned: cetratus_program::Unsigned::Allowed,
+            gate: Default::default(),
+        },
+        record_trace: false,
+        progress_every: None,
+    };
+    let script = Script::parse(&[format!("2s load {}", pkg.display())]).expect("script");
+    let mut node = Node::new(plc, io, opts)
+        .with_script(script)
+        .with_twin_validation(
+            ValidationPolicy {
+                mode: ValidationMode::Commission(TwinKind::Vernadat),
+                ..ValidationPolicy::default()
+            },
+            PERIOD,
+        );
+    let idle = LoopTiming::default();
+    let mut events = Vec::new();
+    let mut now = 0;
+    while now < for_s * 1_000_000 {
+        events.extend(node.step(now, &idle).expect("a cycle"));
+        now += PERIOD;
+    }
+    events
+}
+
+fn verdicts<'e>(events: &'e [cetratus_runtime::Event], kind: &str) -> Vec<&'e str> {
+    events
+        .iter()
+        .filter(|e| e.kind == EventKind::Verdict && e.message.starts_with(kind))
+        .map(|e| e.message.as_str())
+        .collect()
+}
+
+/// A plant that is not the model: its machine 2 takes 24 s where the twin's takes 6. The
+/// candidate is U.1 with a timeout bug: it unloads M2 when M2 says it is finished *or* after
+/// 10 s (`T22 = "FPM2 || P21.t >= 10s"`). On the twin the machine is always done first, so the
+/// candidate passes there and its signature holds only U.1's buffer; on the slow plant it
+/// unloads a part mid-cut (T22 fires in the candidate only; in the primary its guard is false),
+/// which the twin never showed: the quarantine verdict fails and names it. Without the
+/// comparison it would have passed. The same candidate on a plant like the model, and plain
+/// U.1 on the slow plant, pass.
+#[test]
+fn a_candidate_that_passed_on_the_twin_fails_in_quarantine_on_a_plant_the_twin_did_not_model() {
+    let slow = VernadatParams {
+        m2_machining_us: 24_000_000,
+        ..VernadatParams::default()
+    };
+    let timeout = "FPM2 || P21.t >= 10s";
+    let events = u1_quarantined_on(slow.clone(), timeout, 120);
+    let twin = verdicts(&events, "twin");
+    assert!(twin.len() == 1 && twin[0].contains(": pass"), "{twin:#?}");
+    let q = verdicts(&events, "quarantine");
+    let fail = q
+        .iter()
+        .find(|m| m.contains(": fail"))
+        .unwrap_or_else(|| panic!("no failing quarantine verdict: {q:#?}"));
+    assert!(fail.contains("unexplained divergence"), "{fail}");
+    assert!(fail.contains("T22 fired in the candidate only"), "{fail}");
+    assert!(fail.contains("the twin never showed it"), "{fail}");
+
+    for (plant, t22) in [(VernadatParams::default(), timeout), (slow, "FPM2")] {
+        let events = u1_quarantined_on(plant, t22, 120);
+        let q = verdicts(&events, "quarantine");
+        assert!(
+            !q.is_empty() && q.iter().all(|m| m.contains(": pass")),
+            "{t22}: {q:#?}"
+        );
+    }
 }

@@ -56,14 +56,15 @@ pub enum PackageError {
         message: String,
     },
     /// The manifest's transform or projection does not resolve against its programs.
-    #[error("{path}: in [{section}]: {source}")]
+    #[error("{path}: in [{section}]: {reason}")]
     ManifestTransform {
         /// The manifest.
         path: String,
         /// `transform` or `projection`.
         section: &'static str,
-        /// Why (boxed: it is large, and this is a build-time error).
-        source: Box<TransformError>,
+        /// Why (boxed: it is large, and this is a build-time error). Not a `source`: the
+        /// message says it already, and a reader of the chain would see it twice.
+        reason: Box<TransformError>,
     },
     /// The manifest's `[changes]` declare something that cannot be.
     #[error("{path}: [changes]: {message}")]

@@ -96,7 +96,7 @@ pub enum CommandError {
         status: Status,
     },
     /// A substitution without a passing twin verdict while the PLC requires one.
-    #[error("substitute refused: this PLC requires a passing twin verdict on the candidate ([updates] require_verdict) and has {have}; wait for the `verdict` event, or remove the candidate")]
+    #[error("substitute refused: this PLC requires a passing twin verdict on the candidate, and a passing quarantine verdict when the twin recorded how the candidate diverges ([updates] require_verdict), and has {have}; wait for the `verdict` event, or remove the candidate")]
     VerdictRequired {
         /// What it has instead.
         have: &'static str,

@@ -31,6 +31,7 @@ mod probation;
 mod recent;
 mod revert;
 mod router;
+pub mod signature;
 mod snapshot;
 mod stats;
 pub mod trace;
@@ -54,5 +55,6 @@ pub use snapshot::{ContainerSnapshot, PlcSnapshot};
 pub use stats::{Summary, TimingStats};
 pub use updater::{
     value_json, Command, Limits, PreparedUpdate, SubstituteMode, SubstituteRequest, UpdateContext,
-    Updater, DEFAULT_REVERT_WAIT_US, INSTRUCTIONS_PER_US, VIRTUAL_NS_PER_ENTRY,
+    Updater, DEFAULT_QUARANTINE_CYCLES, DEFAULT_REVERT_WAIT_US, INSTRUCTIONS_PER_US,
+    VIRTUAL_NS_PER_ENTRY,
 };

@@ -11,6 +11,7 @@ use serde::Serialize;
 use crate::mask::for_each_difference;
 pub use crate::recent::{CycleRecord, RecentCycles};
 use crate::router::MessageRouter;
+use crate::signature::{CauseKey, Comparison, Divergences};
 use crate::updater::value_json;
 use crate::{Blocker, Container, Slot, Summary, TimingStats};
 
@@ -51,6 +52,11 @@ pub struct ContainerStats {
     pub deadlocked: bool,
     /// The stall watchdog sees a stall (primaries only).
     pub stalled: bool,
+    /// The kinds of divergence from the primary seen so far, each an output with its cause
+    /// (candidates only; `signature.rs`).
+    pub divergences: Divergences,
+    /// The quarantine compared with a twin validation's signature, once a verdict brought one.
+    pub comparison: Option<Comparison>,
 }
 
 impl ContainerStats {
@@ -58,7 +64,18 @@ impl ContainerStats {
     pub fn new(outputs: usize) -> Self {
         ContainerStats {
             divergent_cycles: vec![0; outputs],
+            divergences: Divergences::new(outputs),
             ..Default::default()
+        }
+    }
+
+    /// Output `k` diverged in this cycle for `cause`: a kind seen for the first time is
+    /// recorded, and compared with the twin's signature when there is one.
+    fn diverged(&mut self, k: usize, cause: Option<CauseKey>) {
+        if let Some(kind) = self.divergences.record(k, cause) {
+            if let Some(c) = self.comparison.as_mut() {
+                c.observe(kind);
+            }
         }
     }
 }
@@ -119,6 +136,11 @@ pub struct Verdict {
     pub reasons: Vec<String>,
     /// Figures by name.
     pub figures: BTreeMap<String, f64>,
+    /// A twin verdict given in quarantine: the kinds of divergence the candidate showed on
+    /// the twin, which its quarantine on the plant is compared with (`signature.rs`). Not
+    /// published: the reasons say it in words.
+    #[serde(skip)]
+    pub signature: Option<std::sync::Arc<crate::signature::Signature>>,
 }
 
 /// `program_exec_info` of one container, as published.
@@ -207,6 +229,31 @@ impl Monitor {
         stats.max_drift = stats.max_drift.max(drift);
         stats.deadlocked = cc.engine().enabled().is_empty();
 
+        // The cause of this cycle's divergence: the firing difference of this cycle, or else
+        // the latest one before it.
+        let fresh = if quiet {
+            None
+        } else {
+            first_difference(pair).map(|(slot, t)| {
+                let (other, other_t) = if slot == p {
+                    (cc, pair.from_primary[t.index()])
+                } else {
+                    (pc, pair.to_primary[t.index()])
+                };
+                Cause {
+                    cycle,
+                    time_us: now_us,
+                    fired_in: slot,
+                    transition: t,
+                    blocked: other_t.map_or(Blocker::Absent, |u| other.blocker(u)),
+                }
+            })
+        };
+        let key = fresh.or(stats.last_cause).map(|k| CauseKey {
+            in_candidate: k.fired_in == c,
+            transition: k.transition,
+            blocked: k.blocked,
+        });
         // Divergence per signal. Boolean images compare as bit masks: most cycles the two agree
         // and this is one comparison.
         let mut differs = false;
@@ -214,6 +261,7 @@ impl Monitor {
             let (a, b) = (router.output_bits(p.index()), router.output_bits(c.index()));
             for_each_difference(a.words(), b.words(), |k| {
                 stats.divergent_cycles[k] += 1;
+                stats.diverged(k, key);
                 differs = true;
             });
         } else {
@@ -224,26 +272,12 @@ impl Monitor {
             for (k, (a, b)) in outs.enumerate() {
                 if a != b {
                     stats.divergent_cycles[k] += 1;
+                    stats.diverged(k, key);
                     differs = true;
                 }
             }
         }
-        if quiet {
-            return;
-        }
-        if let Some((slot, t)) = first_difference(pair) {
-            let (other, other_t) = if slot == p {
-                (cc, pair.from_primary[t.index()])
-            } else {
-                (pc, pair.to_primary[t.index()])
-            };
-            let cause = Cause {
-                cycle,
-                time_us: now_us,
-                fired_in: slot,
-                transition: t,
-                blocked: other_t.map_or(Blocker::Absent, |u| other.blocker(u)),
-            };
+        if let Some(cause) = fresh {
             if differs || stats.last_cause.is_none() {
                 stats.last_cause = Some(cause);
                 if stats.first_cause.is_none() {
@@ -358,18 +392,40 @@ fn first_difference(pair: &Pair<'_>) -> Option<(Slot, TransIdx)> {
 pub fn describe_cause(cause: &Cause, fired: &Container, other: &Container) -> String {
     let t = &fired.program().net().transition(cause.transition).id;
     let (a, b) = (cause.fired_in.as_str(), cause.fired_in.other().as_str());
-    let why = match cause.blocked {
-        Blocker::Place(p) => format!("it was blocked by {}", other.program().net().place(p).id),
-        Blocker::Inhibitor(p) => {
-            format!("it was inhibited by {}", other.program().net().place(p).id)
-        }
-        Blocker::Capacity(p) => format!(
-            "it was blocked by the capacity of {}",
-            other.program().net().place(p).id
-        ),
+    let why = blocker_words(cause.blocked, other);
+    format!("{t} fired in {a} only; in {b} {why}")
+}
+
+/// Why a transition did not fire in `other`, in words.
+fn blocker_words(blocked: Blocker, other: &Container) -> String {
+    let id = |p: cetratus_net::PlaceIdx| &other.program().net().place(p).id;
+    match blocked {
+        Blocker::Place(p) => format!("it was blocked by {}", id(p)),
+        Blocker::Inhibitor(p) => format!("it was inhibited by {}", id(p)),
+        Blocker::Capacity(p) => format!("it was blocked by the capacity of {}", id(p)),
         Blocker::Guard => "its guard was false".to_string(),
         Blocker::Conflict => "it lost a conflict to a transition of higher rank".to_string(),
         Blocker::Absent => "it does not exist".to_string(),
+    }
+}
+
+/// A kind of divergence of output `output`, in words, with ids from both containers' nets:
+/// `DM1: T13 fired in the candidate only; in the primary it was blocked by H`.
+pub fn describe_kind(
+    output: &str,
+    cause: Option<CauseKey>,
+    candidate: &Container,
+    primary: &Container,
+) -> String {
+    let Some(c) = cause else {
+        return format!("{output}: from the install on, before any firing differed");
     };
-    format!("{t} fired in {a} only; in {b} {why}")
+    let (fired, other, who, whom) = if c.in_candidate {
+        (candidate, primary, "the candidate", "the primary")
+    } else {
+        (primary, candidate, "the primary", "the candidate")
+    };
+    let t = &fired.program().net().transition(c.transition).id;
+    let why = blocker_words(c.blocked, other);
+    format!("{output}: {t} fired in {who} only; in {whom} {why}")
 }

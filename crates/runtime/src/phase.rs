@@ -41,6 +41,34 @@ pub(crate) struct UpdatePlan {
     pub rehearsal: Rehearsal,
 }
 
+impl UpdatePlan {
+    /// What the verdicts lack for a substitution that requires them, in words; `None` when they
+    /// allow it: a passing twin verdict (or a warning), and when that verdict brought a
+    /// divergence signature, a passing quarantine verdict too.
+    pub fn verdict_gap(&self) -> Option<&'static str> {
+        use cetratus_vocab::{VerdictKind, VerdictResult};
+        let of = |kind| self.verdicts.iter().find(|v| v.kind == kind);
+        let twin = of(VerdictKind::Twin);
+        match twin.map(|v| v.result) {
+            None => return Some("no twin verdict yet"),
+            Some(VerdictResult::Fail) => return Some("a failing twin verdict"),
+            Some(VerdictResult::Pass | VerdictResult::Warn) => {}
+        }
+        if twin.is_some_and(|v| v.signature.is_none()) {
+            return None;
+        }
+        match of(VerdictKind::Quarantine).map(|v| v.result) {
+            Some(VerdictResult::Pass | VerdictResult::Warn) => None,
+            Some(VerdictResult::Fail) => {
+                Some("a failing quarantine verdict: a divergence the twin never showed")
+            }
+            None => Some(
+                "no quarantine verdict yet: the quarantine has not yet shown what the twin showed",
+            ),
+        }
+    }
+}
+
 /// A candidate running in quarantine.
 pub(crate) struct Quarantine {
     pub candidate: Container,

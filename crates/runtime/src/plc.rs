@@ -15,9 +15,10 @@ use cetratus_program::{PackageMeta, Program, Value};
 use crate::clock::{InstallTiming, Stopwatch};
 use crate::error::CommandError;
 use crate::event::{Event, EventDetail, EventKind, EventLog, RevertReason};
-use crate::monitor::{ExecInfo, Monitor, Pair, Role, Verdict, VerdictResult};
+use crate::monitor::{describe_kind, ExecInfo, Monitor, Pair, Role, Verdict, VerdictResult};
 use crate::phase::Phase;
 use crate::router::{IoGrowth, MessageRouter};
+use crate::signature::{Comparison, Signature};
 use crate::updater::{Command, Limits, UpdateContext, Updater, VIRTUAL_NS_PER_ENTRY};
 use crate::watchdog::StallWatch;
 use crate::{
@@ -446,6 +447,7 @@ impl Plc {
                 EventKind::CandidateFault,
                 format!("{reason}; the update is aborted and the primary goes on"),
             ),
+            None if !shadow => self.judge_quarantine(c),
             None => {}
         }
     }
@@ -569,17 +571,42 @@ impl Plc {
 
     /// Attaches a verdict on the update under way, when its program is still `program_hash`
     /// (in quarantine or probation), with a `verdict` event. A failing verdict during probation
-    /// reverts at the next cycle boundary. Returns whether it was attached.
+    /// reverts at the next cycle boundary. A twin verdict in quarantine that brings a
+    /// divergence signature starts the comparison of the quarantine with it. Returns whether
+    /// it was attached.
     pub fn add_verdict(&mut self, program_hash: &[u8; 32], verdict: Verdict) -> bool {
         let core = &mut self.core;
-        let (program, plan, probation) = match &mut self.updater.phase {
-            Phase::Quarantine(q) => (q.candidate.program().clone(), &mut q.plan, false),
-            Phase::Probation(p) => (core.primary.program().clone(), &mut p.plan, true),
+        let (program, scans) = match &self.updater.phase {
+            Phase::Quarantine(q) => (q.candidate.program(), Some(q.candidate.scans())),
+            Phase::Probation(_) => (core.primary.program(), None),
             _ => return false,
         };
         if program.hash() != *program_hash {
             return false;
         }
+        if let (Some(signature), Some(scans)) = (&verdict.signature, scans) {
+            let c = core.primary_slot.other();
+            let stats = &mut core.monitor.stats[c.index()];
+            stats.comparison = Some(Comparison::new(
+                signature.clone(),
+                core.router.io_outputs(),
+                &stats.divergences,
+                scans,
+            ));
+        }
+        self.record_verdict(verdict);
+        true
+    }
+
+    /// Keeps `verdict` as the latest of its kind on the update under way, with its event; a
+    /// failing one during probation reverts at the next cycle boundary.
+    fn record_verdict(&mut self, verdict: Verdict) {
+        let core = &mut self.core;
+        let (plan, probation) = match &mut self.updater.phase {
+            Phase::Quarantine(q) => (&mut q.plan, false),
+            Phase::Probation(p) => (&mut p.plan, true),
+            _ => return,
+        };
         let text = format!(
             "{} verdict on {} {}: {}{}",
             verdict.kind.as_str(),
@@ -597,7 +624,6 @@ impl Plc {
             result: verdict.result,
         });
         let failed = verdict.result == VerdictResult::Fail;
-        // The latest verdict of a kind replaces the earlier one.
         plan.verdicts.retain(|v| v.kind != verdict.kind);
         plan.verdicts.push(verdict);
         core.log.push(EventKind::Verdict, text.clone(), detail);
@@ -605,7 +631,63 @@ impl Plc {
             self.updater
                 .request_revert(core, RevertReason::Verdict, text);
         }
-        true
+    }
+
+    /// Whether the verdicts on the candidate in quarantine allow its substitution where a
+    /// verdict is required ([`UpdatePlan::verdict_gap`](crate::phase::UpdatePlan)).
+    pub fn verdicts_allow_substitution(&self) -> bool {
+        matches!(&self.updater.phase, Phase::Quarantine(q) if q.plan.verdict_gap().is_none())
+    }
+
+    /// The kinds of divergence the candidate in quarantine has shown so far, as the signature
+    /// a quarantine on the plant is compared with (`signature.rs`); `None` outside quarantine.
+    pub fn divergence_signature(&self) -> Option<Signature> {
+        let Phase::Quarantine(q) = &self.updater.phase else {
+            return None;
+        };
+        let core = &self.core;
+        let seen = &core.monitor.stats[core.primary_slot.other().index()].divergences;
+        let names = core.router.io_outputs();
+        let (mut kinds, mut words) = (Vec::new(), Vec::new());
+        for k in seen.kinds() {
+            let Some(name) = names.get(k.output as usize) else {
+                continue;
+            };
+            words.push(describe_kind(name, k.cause, &q.candidate, &core.primary));
+            kinds.push((name.clone(), k.cause));
+        }
+        Some(Signature {
+            kinds,
+            words,
+            complete: !seen.overflowed(),
+        })
+    }
+
+    /// The quarantine verdict, when the comparison of the quarantine with the twin's signature
+    /// makes one due: a fail at the first divergence the twin never showed, a pass once the
+    /// quarantine has run `quarantine_cycles` and shown every output the twin showed diverging.
+    fn judge_quarantine(&mut self, c: Slot) {
+        let min = self.updater.limits.quarantine_cycles;
+        let core = &mut self.core;
+        let Phase::Quarantine(q) = &self.updater.phase else {
+            return;
+        };
+        let Some(cmp) = core.monitor.stats[c.index()].comparison.as_mut() else {
+            return;
+        };
+        let scans = q.candidate.scans();
+        let Some(result) = cmp.due(scans, min) else {
+            return;
+        };
+        cmp.given = Some(result);
+        let verdict = crate::signature::verdict(
+            cmp,
+            result,
+            scans,
+            core.router.io_outputs(),
+            (&q.candidate, &core.primary),
+        );
+        self.record_verdict(verdict);
     }
 
     /// Enters fault (a warm start of a PLC that was in fault).

@@ -14,7 +14,7 @@ use cetratus_program::{EvalCtx, Guard, TransformError, Value};
 use crate::clock::InstallTiming;
 use crate::error::CommandError;
 use crate::event::{EventDetail, EventKind, RevertReason};
-use crate::monitor::{ContainerStats, VerdictKind, VerdictResult};
+use crate::monitor::ContainerStats;
 use crate::phase::{Ending, Phase, Probation, Quarantine, UpdatePlan};
 use crate::plc::Core;
 pub use crate::prepare::{PreparedUpdate, UpdateContext};
@@ -76,14 +76,21 @@ pub struct Limits {
     /// The probation window after a substitution, in µs of program time; 0: none, the old
     /// program stops at the switch.
     pub probation_us: u64,
-    /// A substitution is refused unless the latest twin verdict on the candidate passed.
+    /// A substitution is refused unless the latest twin verdict on the candidate passed (and
+    /// the quarantine verdict, when the twin recorded a divergence signature).
     pub require_verdict: bool,
+    /// The least cycles a candidate's quarantine runs, compared with the twin's signature,
+    /// before its quarantine verdict may pass.
+    pub quarantine_cycles: u64,
     /// How long an operator's `revert` may wait, in µs of program time, for a cycle boundary
     /// at which a marking of the old program agrees with the plant; past it the revert is
     /// refused and the new program stays in control (docs/live-update.md, *Probation and
     /// rollback*).
     pub revert_wait_us: u64,
 }
+
+/// The default of [`Limits::quarantine_cycles`]: five seconds at a 10 ms period.
+pub const DEFAULT_QUARANTINE_CYCLES: u64 = 500;
 
 /// The default of [`Limits::revert_wait_us`]: two seconds of program time.
 pub const DEFAULT_REVERT_WAIT_US: u64 = 2_000_000;
@@ -100,6 +107,7 @@ impl Limits {
             watchdog_ns: 1_000_000_000,
             probation_us: 0,
             require_verdict: false,
+            quarantine_cycles: DEFAULT_QUARANTINE_CYCLES,
             revert_wait_us: DEFAULT_REVERT_WAIT_US,
         }
     }
@@ -123,6 +131,7 @@ impl Limits {
             watchdog_ns: ns.saturating_mul(10),
             probation_us: 0,
             require_verdict: false,
+            quarantine_cycles: DEFAULT_QUARANTINE_CYCLES,
             revert_wait_us: DEFAULT_REVERT_WAIT_US,
         }
     }
@@ -233,19 +242,8 @@ impl Updater {
             return Err(CommandError::SubstitutionWaiting);
         }
         if require_verdict {
-            let twin = q.plan.verdicts.iter().find(|v| v.kind == VerdictKind::Twin);
-            match twin.map(|v| v.result) {
-                Some(VerdictResult::Pass) | Some(VerdictResult::Warn) => {}
-                Some(VerdictResult::Fail) => {
-                    return Err(CommandError::VerdictRequired {
-                        have: "a failing twin verdict",
-                    })
-                }
-                None => {
-                    return Err(CommandError::VerdictRequired {
-                        have: "no twin verdict yet",
-                    })
-                }
+            if let Some(have) = q.plan.verdict_gap() {
+                return Err(CommandError::VerdictRequired { have });
             }
         }
         let deadline = req

@@ -178,11 +178,13 @@ impl Default for SubstituteMode {
 
 names! {
     /// Which validation a verdict comes from.
-    VerdictKind, "verdict kind", "analysis or twin" {
+    VerdictKind, "verdict kind", "analysis, twin or quarantine" {
         /// The analysis gate at load.
         Analysis = "analysis",
         /// A run on the digital twin.
         Twin = "twin",
+        /// The quarantine on the plant, compared with the twin run's divergence signature.
+        Quarantine = "quarantine",
     }
 }
 

@@ -296,6 +296,7 @@ impl DashboardSection {
 pub(super) struct UpdatesSection {
     probation: Option<String>,
     revert_wait: Option<String>,
+    quarantine_cycles: Option<u64>,
     state_trans_timeout: Option<String>,
     candidate_instruction_budget: Option<u64>,
     /// Retired: its unit changed (guard evaluations, now instructions); refused with the new key.
@@ -321,6 +322,7 @@ pub(super) struct UpdatesSection {
 pub(super) struct Updates {
     pub probation_us: u64,
     pub revert_wait_us: u64,
+    pub quarantine_cycles: u64,
     pub state_trans_timeout_us: Option<u64>,
     pub candidate_instruction_budget: Option<u64>,
     pub gate: GatePolicy,
@@ -334,6 +336,7 @@ impl Default for Updates {
         Updates {
             probation_us: DEFAULT_PROBATION_US,
             revert_wait_us: cetratus_runtime::DEFAULT_REVERT_WAIT_US,
+            quarantine_cycles: cetratus_runtime::DEFAULT_QUARANTINE_CYCLES,
             state_trans_timeout_us: None,
             candidate_instruction_budget: None,
             gate: GatePolicy::default(),
@@ -356,6 +359,13 @@ impl UpdatesSection {
             Some(w) => at.duration("[updates] revert_wait", w)?,
             None => d.revert_wait_us,
         };
+        if let Some(0) = self.quarantine_cycles {
+            return Err(at.refuse(
+                "[updates] quarantine_cycles",
+                "0",
+                "a quarantine verdict needs some cycles on the plant; give a positive number, or remove the key for 500",
+            ));
+        }
         let state_trans_timeout_us = match &self.state_trans_timeout {
             Some(t) => match at.duration("[updates] state_trans_timeout", t)? {
                 0 => return Err(at.refuse(
@@ -387,6 +397,7 @@ impl UpdatesSection {
         Ok(Updates {
             probation_us,
             revert_wait_us,
+            quarantine_cycles: self.quarantine_cycles.unwrap_or(d.quarantine_cycles),
             state_trans_timeout_us,
             candidate_instruction_budget: self
                 .candidate_instruction_budget

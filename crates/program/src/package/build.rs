@@ -179,10 +179,10 @@ pub fn build_package_with(
     // here is what runs there.
     let new = load_embedded(&payload)?;
     declared_outputs(&meta.changes, &base, &new, &label)?;
-    let manifest_err = |section, source| PackageError::ManifestTransform {
+    let manifest_err = |section, reason| PackageError::ManifestTransform {
         path: label.clone(),
         section,
-        source: Box::new(source),
+        reason: Box::new(reason),
     };
     if let Some(e) = removed_reachable(&base, &new, &payload.transform) {
         return Err(manifest_err("transform", e));

@@ -12,13 +12,15 @@
 //!   is an invariant the map carries: `y·(L·M) = v·M = v·M0` for every marking the column net
 //!   reaches, so after the map `y·M'` is `v·M0_col + y·base`, where `y·M0_row` is needed;
 //! * the unknowns are corrections to the base on the row places whose initial marking differs
-//!   from that of the column place of the same id, and each carried invariant gives one linear
-//!   equation on them;
+//!   from that of the column place of the same id, and on those that receive the tokens of a
+//!   removed place (`removed = { X = "A" }`: A starts from X's tokens, not from its initial
+//!   marking); each carried invariant gives one linear equation on them;
 //! * a unique integer solution is the derived base; several solutions are ambiguous, none is
 //!   impossible, and both are refused with the invariant named and what to write.
 //!
-//! When no kept place changed its initial marking and no place is mapped to another id, the map
-//! is the identity where it matters and nothing is derived (no semiflows are computed).
+//! When no kept place changed its initial marking, no place receives another's tokens and no
+//! marked place is left without tokens to read, the map is the identity where it matters and
+//! nothing is derived (no semiflows are computed).
 
 use std::fmt::Write;
 
@@ -50,13 +52,24 @@ pub(super) fn correct_base(
     row_net: &Net,
     col_net: &Net,
 ) -> Result<(), TransformError> {
-    let unknowns = changed_places(row_net, col_net);
-    let renamed = rows.iter().enumerate().any(|(r, entries)| {
-        entries
+    let mut unknowns = changed_places(row_net, col_net);
+    // A place that receives another place's tokens (`removed`) starts from them, not from its
+    // initial marking: its base is an unknown too.
+    for (r, entries) in rows.iter().enumerate() {
+        let receives = entries
             .iter()
-            .any(|&(c, _)| col_net.places()[c as usize].id != row_net.places()[r].id)
+            .any(|&(c, _)| col_net.places()[c as usize].id != row_net.places()[r].id);
+        if receives && !unknowns.contains(&r) {
+            unknowns.push(r);
+        }
+    }
+    // A marked place the map gives nothing to (a place the other net lacks) can leave an
+    // invariant short even when nothing is unknown: checked too.
+    let dropped = rows.iter().enumerate().any(|(r, entries)| {
+        let p = &row_net.places()[r];
+        entries.is_empty() && p.initial > 0 && col_net.place_by_id(&p.id).is_none()
     });
-    if unknowns.is_empty() && !renamed {
+    if unknowns.is_empty() && !dropped {
         return Ok(());
     }
     let Ok(flows) = p_semiflows_within(row_net, MAX_ROWS, MAX_BYTES, &|| false) else {
@@ -70,7 +83,7 @@ pub(super) fn correct_base(
     if reqs.iter().all(|q| q.needed == q.carried) {
         return Ok(());
     }
-    let fix = solve(role, &reqs, &unknowns, row_net)?;
+    let fix = solve(role, &reqs, &unknowns, (row_net, col_net))?;
     for (&p, d) in unknowns.iter().zip(fix) {
         base[p] = i64::try_from(i128::from(base[p]) + d).map_err(|_| TransformError::Overflow {
             place: row_net.places()[p].id.clone(),
@@ -164,7 +177,7 @@ fn solve(
     role: Role,
     reqs: &[Requirement],
     unknowns: &[usize],
-    net: &Net,
+    (net, other): (&Net, &Net),
 ) -> Result<Vec<i128>, TransformError> {
     let n = unknowns.len();
     let mut m: Vec<(Vec<i128>, i128, usize)> = reqs
@@ -202,7 +215,7 @@ fn solve(
         .iter()
         .find(|(row, d, _)| *d != 0 && row.iter().all(|&a| a == 0))
     {
-        return Err(refuse(*i, "no place whose initial marking changed can make up the difference without breaking another invariant".into()));
+        return Err(refuse(*i, short_of(&reqs[*i], net, (other, role.col_net))));
     }
     if let Some(free) =
         (0..n).find(|c| !pivots.contains(c) && m.iter().any(|(row, _, _)| row[*c] != 0))
@@ -238,6 +251,25 @@ fn solve(
         fix[c] = d / row[c];
     }
     Ok(fix)
+}
+
+/// Why nothing makes up `q`'s difference, in words: a marked place of it that the other net
+/// lacks (its tokens are given nothing to come from), with the base that gives them back.
+fn short_of(q: &Requirement, net: &Net, (other, other_name): (&Net, &str)) -> String {
+    let lacking = q.y.0.iter().find(|&&(p, _)| {
+        let place = &net.places()[p];
+        place.initial > 0 && other.place_by_id(&place.id).is_none()
+    });
+    match lacking {
+        Some(&(p, _)) => {
+            let place = &net.places()[p];
+            format!(
+                "its place `{}` is not in the {} net, so nothing gives it its tokens: write the base yourself, e.g. kind = \"sparse\", identity_on_kept = true, base = {{ {} = {} }} (its initial marking)",
+                place.id, other_name, place.id, place.initial
+            )
+        }
+        None => "no place whose initial marking changed can make up the difference without breaking another invariant".into(),
+    }
 }
 
 /// Brings `m` (rows of coefficients, right side, requirement) to reduced row echelon form over

@@ -391,6 +391,9 @@
     for (const s of [...signals].sort()) row(`divergence ${s} (cycles)`, (x) => (x.divergence || {})[s] ?? 0, 'num');
     row('first cause', (x) => x.first_cause ?? '–');
     row('last cause', (x) => x.last_cause ?? '–');
+    row('quarantine coverage', (x) => x.coverage
+      ? `${x.coverage.cycles} cycles; ${x.coverage.outputs_covered} of ${x.coverage.outputs_expected} outputs the twin showed diverging; ${x.coverage.unexplained} unexplained`
+      : '–');
     // A verdict is {kind, result, reasons, figures} (docs/mqtt.md).
     row('verdicts', (x) => (x.verdicts || []).map((v) =>
       `${v.kind} ${v.result}${(v.reasons || []).length ? ': ' + v.reasons.join(', ') : ''}`).join('; ') || '–');

@@ -90,6 +90,13 @@ pub fn exec_info(e: &ExecInfo) -> proto::ExecInfo {
         role: e.role,
         scan: timing(e.scan),
         verdicts: e.verdicts.iter().map(verdict).collect(),
+        coverage: e.coverage.map(|c| proto::Coverage {
+            cycles: c.cycles,
+            outputs_covered: c.outputs_covered as u64,
+            outputs_expected: c.outputs_expected as u64,
+            unexplained: c.unexplained,
+            signature_kinds: c.signature_kinds as u64,
+        }),
     }
 }
 

@@ -363,6 +363,26 @@ pub struct ExecInfo {
     pub scan: TimingSummary,
     /// Validation verdicts.
     pub verdicts: Vec<Verdict>,
+    /// A candidate's quarantine compared with the twin's divergence signature: how far it has
+    /// come (absent without a signature, and from PLCs that predate it).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub coverage: Option<Coverage>,
+}
+
+/// How far a quarantine's comparison with the twin's divergence signature has come
+/// (docs/live-update.md, *The twin against the quarantine*).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub struct Coverage {
+    /// Cycles of the candidate compared since the signature came.
+    pub cycles: u64,
+    /// Outputs the twin showed diverging that the quarantine has shown diverging too.
+    pub outputs_covered: u64,
+    /// Outputs the twin showed diverging.
+    pub outputs_expected: u64,
+    /// Kinds of divergence the twin never showed.
+    pub unexplained: u64,
+    /// Kinds of divergence in the twin's signature.
+    pub signature_kinds: u64,
 }
 
 /// What one field device's inputs were worth in the last cycle (docs/io.md, *Quality*).

@@ -180,6 +180,10 @@ pub struct ExecInfo {
     pub stall: bool,
     /// Validation verdicts.
     pub verdicts: Vec<Verdict>,
+    /// A candidate's quarantine compared with the twin's divergence signature: how far it has
+    /// come (`None` without a signature).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub coverage: Option<crate::signature::Coverage>,
 }
 
 fn values_by_name<S: serde::Serializer>(
@@ -361,6 +365,7 @@ impl Monitor {
                 deadlock: s.deadlocked,
                 stall: is_primary && s.stalled,
                 verdicts: Vec::new(),
+                coverage: s.comparison.as_ref().map(|k| k.progress(c.scans())),
             })
         })
     }

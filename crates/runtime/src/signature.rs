@@ -115,6 +115,22 @@ pub struct Signature {
     pub complete: bool,
 }
 
+/// How far a quarantine's comparison with the twin's signature has come (`exec_info`'s
+/// `coverage`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
+pub struct Coverage {
+    /// Cycles of the candidate compared since the signature came.
+    pub cycles: u64,
+    /// Outputs the twin showed diverging that the quarantine has shown diverging too.
+    pub outputs_covered: usize,
+    /// Outputs the twin showed diverging.
+    pub outputs_expected: usize,
+    /// Kinds of divergence the twin never showed.
+    pub unexplained: u64,
+    /// Kinds of divergence in the twin's signature.
+    pub signature_kinds: usize,
+}
+
 /// A quarantine compared with a signature, kept with the candidate's figures.
 #[derive(Clone, Debug)]
 pub struct Comparison {
@@ -184,6 +200,18 @@ impl Comparison {
         if !self.expected.contains(&kind) {
             self.unexplained_count += 1;
             self.unexplained.get_or_insert(kind);
+        }
+    }
+
+    /// How far the comparison has come after `scans` of the candidate, for `exec_info`.
+    pub fn progress(&self, scans: u64) -> Coverage {
+        let (outputs_covered, outputs_expected) = self.coverage();
+        Coverage {
+            cycles: scans.saturating_sub(self.from_scans),
+            outputs_covered,
+            outputs_expected,
+            unexplained: self.unexplained_count,
+            signature_kinds: self.signature.kinds.len(),
         }
     }
 

@@ -136,6 +136,47 @@ impl Browser {
         v.as_str().unwrap_or("").trim().to_string()
     }
 
+    /// The text of the exec-info table's row `label` in container `slot`'s column ("A" or
+    /// "B"); empty when there is no such row.
+    pub async fn exec_info_cell(&self, label: &str, slot: &str) -> String {
+        let column = if slot == "A" { 1 } else { 2 };
+        self.js(&format!(
+            "for (const tr of document.querySelectorAll('#exec-info tbody tr')) {{
+               if (tr.cells[0].textContent === {label:?}) return tr.cells[{column}].textContent;
+             }}
+             return '';"
+        ))
+        .await
+        .as_str()
+        .unwrap_or("")
+        .to_string()
+    }
+
+    /// Waits until the exec-info table's row `label` in container `slot`'s column holds
+    /// `want`, and returns it.
+    ///
+    /// # Panics
+    ///
+    /// After `within`, with what it read instead.
+    pub async fn wait_exec_info(
+        &self,
+        label: &str,
+        slot: &str,
+        want: &str,
+        within: Duration,
+    ) -> String {
+        let end = Instant::now() + within;
+        let mut seen = String::new();
+        while Instant::now() < end {
+            seen = self.exec_info_cell(label, slot).await;
+            if seen.contains(want) {
+                return seen;
+            }
+            tokio::time::sleep(Duration::from_millis(100)).await;
+        }
+        panic!("exec-info `{label}` of {slot} is {seen:?}, without {want:?}, after {within:?}");
+    }
+
     /// Waits until the element with id `id` reads `want`.
     ///
     /// # Panics

@@ -1,0 +1,107 @@
+//! The twin against the quarantine in a real browser: `cetratus run` drives the Vernadat twin in
+//! real time (ten times faster than the wall clock) with fork validation on; the operator loads
+//! U.1 through the page, and the dashboard shows the twin verdict, how far the quarantine's
+//! comparison with the twin's divergence signature has come, and then the quarantine verdict
+//! (docs/live-update.md, *The twin against the quarantine*).
+
+use std::process::{Command, Stdio};
+use std::time::Duration;
+
+use cetratus_testkit::browser::{require_chromium, Browser};
+use cetratus_testkit::paths::example;
+use cetratus_testkit::ports::{free_port, wait_for_port};
+use cetratus_testkit::process::{login_link, stderr_lines, ChildGuard};
+
+const BIN: &str = env!("CARGO_BIN_EXE_cetratus");
+
+/// Runs `cetratus` with `args` to its end, failing with its stderr.
+fn cetratus(args: &[&std::ffi::OsStr]) {
+    let out = Command::new(BIN).args(args).output().expect("run cetratus");
+    assert!(
+        out.status.success(),
+        "cetratus {args:?}: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn the_dashboard_shows_the_twin_verdict_the_quarantine_coverage_and_the_quarantine_verdict() {
+    require_chromium();
+    let dir = tempfile::tempdir().expect("temp dir");
+    let key = dir.path().join("u1.key");
+    let package = dir.path().join("u1.cpkg");
+    let config = dir.path().join("config");
+    std::fs::create_dir_all(config.join("trusted")).expect("config dir");
+    cetratus(&[
+        "package".as_ref(),
+        "keygen".as_ref(),
+        "--out".as_ref(),
+        key.as_os_str(),
+    ]);
+    std::fs::copy(dir.path().join("u1.key.pub"), config.join("trusted/u1.pub"))
+        .expect("trust the key");
+    let manifest = example("vernadat/u1.package.toml");
+    cetratus(&[
+        "package".as_ref(),
+        "build".as_ref(),
+        manifest.as_os_str(),
+        "--key".as_ref(),
+        key.as_os_str(),
+        "-o".as_ref(),
+        package.as_os_str(),
+    ]);
+    // Thirty seconds of plant time from the load on a fork of the twin the PLC drives: what U.1
+    // does there is what it does in quarantine, and the quarantine passes after 500 cycles and
+    // whatever the twin showed diverging.
+    std::fs::write(
+        config.join("config.toml"),
+        "[updates]\nvalidation = \"fork\"\nhorizon = \"30s\"\n",
+    )
+    .expect("config.toml");
+
+    let (mqtt, http) = (free_port(), free_port());
+    let mut plc = ChildGuard::spawn(
+        Command::new(BIN)
+            .arg("run")
+            .arg(example("vernadat/vernadat.toml"))
+            .args([
+                "--twin", "vernadat", "--speed", "10", "--for", "2h", "--plc", "val1",
+            ])
+            .args(["--mqtt", &format!("127.0.0.1:{mqtt}")])
+            .args(["--http", &format!("127.0.0.1:{http}")])
+            .arg("--config")
+            .arg(&config)
+            .arg("--state-dir")
+            .arg(dir.path().join("state"))
+            .stdout(Stdio::null())
+            .stderr(Stdio::piped()),
+    );
+    wait_for_port(http, "the dashboard", Duration::from_secs(30));
+    let link = login_link(&stderr_lines(&mut plc.0), Duration::from_secs(30));
+    let c = Browser::start().await;
+    c.goto(&link).await.expect("the page loads");
+    c.wait_text("status", "idle", Duration::from_secs(30)).await;
+
+    c.load_package(&package).await;
+    c.wait_text("status", "quarantine", Duration::from_secs(20))
+        .await;
+    c.wait_exec_info("verdicts", "B", "twin pass", Duration::from_secs(30))
+        .await;
+    let coverage = c
+        .wait_exec_info(
+            "quarantine coverage",
+            "B",
+            "outputs the twin showed diverging; 0 unexplained",
+            Duration::from_secs(30),
+        )
+        .await;
+    assert!(coverage.contains(" cycles; "), "{coverage}");
+    let verdicts = c
+        .wait_exec_info("verdicts", "B", "quarantine pass", Duration::from_secs(60))
+        .await;
+    assert!(
+        verdicts.contains("no divergence the twin did not show"),
+        "{verdicts}"
+    );
+    c.close().await;
+}

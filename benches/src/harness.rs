@@ -149,7 +149,7 @@ pub fn vernadat_node(
         twin: Some(cetratus_twin::TwinKind::Vernadat),
         settings: cetratus_twin::TwinSettings {
             seed: 1,
-            defect_ppm: 0,
+            ..Default::default()
         },
         ..PlantSpec::default()
     };

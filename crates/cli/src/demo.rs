@@ -124,7 +124,7 @@ fn live(args: &DemoArgs, files: &DemoFiles) -> anyhow::Result<()> {
         twin: Some(TwinKind::Vernadat),
         settings: cetratus_twin::TwinSettings {
             seed: 1,
-            defect_ppm: 0,
+            ..Default::default()
         },
         ..PlantSpec::default()
     };

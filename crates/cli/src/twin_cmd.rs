@@ -5,7 +5,7 @@ use std::sync::Arc;
 
 use anyhow::Context;
 use cetratus_io::twin_serve::{serve, TwinMap};
-use cetratus_twin::{parse_defect_rate, TwinKind, TwinSettings};
+use cetratus_twin::{parse_defect_rate, ParamValue, TwinKind, TwinParam, TwinSettings};
 
 use crate::parse_duration_us;
 
@@ -69,6 +69,10 @@ pub struct PlantArgs {
     /// `RESET@100ms` and `START@500ms` when none is given.
     #[arg(long = "press")]
     pub press: Vec<String>,
+    /// Change one of the twin's parameters, e.g. `m2_machining=24s` or `buffer_capacity=7`
+    /// (repeatable): a plant that is not quite the model (docs/operations.md, *The digital twins*).
+    #[arg(long = "twin-param", value_name = "NAME=VALUE", value_parser = parse_twin_param)]
+    pub params: Vec<TwinParam>,
 }
 
 impl PlantArgs {
@@ -77,8 +81,29 @@ impl PlantArgs {
         TwinSettings {
             seed: self.seed,
             defect_ppm: self.defect_ppm,
+            params: self.params.clone(),
         }
     }
+}
+
+/// `NAME=VALUE`: a whole number is a count, anything else a duration (`24s`, `500ms`).
+fn parse_twin_param(text: &str) -> Result<TwinParam, String> {
+    let Some((name, value)) = text.split_once('=') else {
+        return Err(format!(
+            "`{text}` is not NAME=VALUE; write e.g. m2_machining=24s or buffer_capacity=7"
+        ));
+    };
+    let value = match value.trim().parse::<u64>() {
+        Ok(n) => ParamValue::Count(n),
+        Err(_) => ParamValue::Micros(
+            crate::parse_duration_us(value.trim())
+                .map_err(|e| format!("`{value}` is neither a count nor a duration: {e}"))?,
+        ),
+    };
+    Ok(TwinParam {
+        name: name.trim().to_string(),
+        value,
+    })
 }
 
 /// Runs `cetratus twin`.

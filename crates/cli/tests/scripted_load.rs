@@ -465,3 +465,77 @@ fn the_scripted_demo_gates_its_loads_as_a_run_does() {
         "{err}"
     );
 }
+
+/// A plant that is not the model, from the command line: `--twin-param m2_machining=24s` makes
+/// machine 2 four times slower than the commissioning twin's. U.1 with a timeout bug (it unloads
+/// M2 after 10 s whether or not M2 is done) passes on the twin, where M2 is always done first,
+/// and fails in quarantine on the plant with the divergence the twin never showed; on a plant
+/// like the model its quarantine passes. A parameter the twin lacks is refused, naming those it
+/// has.
+#[test]
+fn a_plant_given_other_twin_parameters_fails_the_quarantine_of_a_candidate_the_twin_passed() {
+    let demo = demo_files(BIN);
+    let d = demo.path();
+    let u1 = std::fs::read_to_string(d.join("u1.toml")).expect("u1.toml");
+    std::fs::write(
+        d.join("u1.toml"),
+        u1.replace("T22 = \"FPM2\"", "T22 = \"FPM2 || P21.t >= 10s\""),
+    )
+    .expect("write");
+    let pkg = d.join("u1-timeout.cpkg");
+    let out = Command::new(BIN)
+        .args(["package", "build", &p(&d.join("u1.package.toml"))])
+        .args(["--key", &p(&d.join("demo.key")), "-o", &p(&pkg)])
+        .output()
+        .expect("cetratus package build");
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let config = d.join("commission");
+    std::fs::create_dir(&config).expect("a configuration directory");
+    std::fs::write(
+        config.join("config.toml"),
+        "[updates]\nvalidation = \"commission\"\nvalidation_twin = \"vernadat\"\n",
+    )
+    .expect("config.toml");
+    let run = |params: &[&str]| {
+        Command::new(BIN)
+            .arg("run")
+            .arg(d.join("vernadat.toml"))
+            .args(["--twin", "vernadat", "--virtual", "--for", "120s", "--json"])
+            .args(params)
+            .args(["--trust", &p(&d.join("trusted"))])
+            .args(["--config", &p(&config)])
+            .args(["--at", &format!("2s load {}", p(&pkg))])
+            .output()
+            .expect("cetratus run")
+    };
+    let quarantine = |out: &std::process::Output| -> Vec<String> {
+        summary_events(out)
+            .into_iter()
+            .filter(|(k, m)| k == "verdict" && m.starts_with("quarantine verdict"))
+            .map(|(_, m)| m)
+            .collect()
+    };
+    let slow = quarantine(&run(&["--twin-param", "m2_machining=24s"]));
+    assert!(
+        slow.iter().any(|m| m.contains(": fail")
+            && m.contains("T22 fired in the candidate only")
+            && m.contains("the twin never showed it")),
+        "{slow:#?}"
+    );
+    let like = quarantine(&run(&[]));
+    assert!(
+        !like.is_empty() && like.iter().all(|m| m.contains(": pass")),
+        "{like:#?}"
+    );
+    let out = run(&["--twin-param", "m3_machining=24s"]);
+    assert!(!out.status.success());
+    let said = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        said.contains("m3_machining") && said.contains("m2_machining"),
+        "{said}"
+    );
+}

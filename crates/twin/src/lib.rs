@@ -141,6 +141,7 @@
 #![warn(missing_docs)]
 
 pub mod festo;
+mod params;
 pub mod rng;
 pub mod vernadat;
 
@@ -150,6 +151,7 @@ use std::str::FromStr;
 use serde::{Serialize, Serializer};
 
 pub use festo::{FestoParams, FestoStation, PPM};
+pub use params::{ParamValue, TwinParam};
 pub use vernadat::{VernadatCell, VernadatParams};
 
 /// One second of virtual time, in the microseconds every twin counts in.
@@ -434,6 +436,16 @@ pub enum TwinError {
         /// Why, and what to do.
         reason: &'static str,
     },
+    /// A parameter given by name does not exist, or its value is of the wrong kind.
+    #[error("twin `{twin}` cannot take the parameter `{name}`: {reason}")]
+    UnknownParameter {
+        /// The twin.
+        twin: &'static str,
+        /// The parameter as given.
+        name: String,
+        /// Why, and what it has.
+        reason: String,
+    },
     /// A parameter is out of range.
     #[error("invalid parameter `{name}` of twin `{twin}`: {reason}")]
     InvalidParameter {
@@ -489,25 +501,37 @@ impl TwinKind {
                 setting: "defect rate",
                 reason: "the Vernadat cell makes no defective parts; leave the defect rate out",
             }),
-            Self::Vernadat => Ok(self.build(settings.seed)),
+            Self::Vernadat => {
+                let mut params = VernadatParams::default();
+                for p in &settings.params {
+                    params.set(p)?;
+                }
+                Ok(Twin::Vernadat(VernadatCell::new(params, settings.seed)?))
+            }
             Self::Festo => {
-                let params = FestoParams {
+                let mut params = FestoParams {
                     defect_ppm: settings.defect_ppm,
                     ..FestoParams::default()
                 };
+                for p in &settings.params {
+                    params.set(p)?;
+                }
                 Ok(Twin::Festo(FestoStation::new(params, settings.seed)?))
             }
         }
     }
 }
 
-/// What a twin chosen by name can be given from outside (`cetratus run --seed --defect-rate`).
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+/// What a twin chosen by name can be given from outside (`cetratus run --seed --defect-rate
+/// --twin-param`).
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
 pub struct TwinSettings {
     /// The seed of the twin's randomness (jitter, defective parts).
     pub seed: u64,
     /// Defective parts per million supplied (Festo station only).
     pub defect_ppm: u32,
+    /// Parameters changed from their defaults, in order.
+    pub params: Vec<TwinParam>,
 }
 
 /// Parses a defect rate into parts per million: `5%`, `0.05` or `50000ppm`, between 0 and 1.
@@ -734,6 +758,7 @@ mod tests {
         let settings = TwinSettings {
             seed: 1,
             defect_ppm: 50_000,
+            params: Vec::new(),
         };
         assert!(matches!(
             TwinKind::Vernadat.configure(&settings),

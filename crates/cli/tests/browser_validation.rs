@@ -1,8 +1,8 @@
 //! The twin against the quarantine in a real browser: `cetratus run` drives the Vernadat twin in
 //! real time (ten times faster than the wall clock) with fork validation on; the operator loads
-//! U.1 through the page, and the dashboard shows the twin verdict, how far the quarantine's
-//! comparison with the twin's divergence signature has come, and then the quarantine verdict
-//! (docs/live-update.md, *The twin against the quarantine*).
+//! U.1 through the page, and the dashboard shows what its package declares it changes, the twin
+//! verdict, how far the quarantine's comparison with the twin's divergence signature has come,
+//! and then the quarantine verdict (docs/live-update.md, *The twin against the quarantine*).
 
 use std::process::{Command, Stdio};
 use std::time::Duration;
@@ -25,7 +25,8 @@ fn cetratus(args: &[&std::ffi::OsStr]) {
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
-async fn the_dashboard_shows_the_twin_verdict_the_quarantine_coverage_and_the_quarantine_verdict() {
+async fn the_dashboard_shows_the_declared_changes_the_twin_verdict_and_the_quarantine_coverage_and_verdict(
+) {
     require_chromium();
     let dir = tempfile::tempdir().expect("temp dir");
     let key = dir.path().join("u1.key");
@@ -40,7 +41,25 @@ async fn the_dashboard_shows_the_twin_verdict_the_quarantine_coverage_and_the_qu
     ]);
     std::fs::copy(dir.path().join("u1.key.pub"), config.join("trusted/u1.pub"))
         .expect("trust the key");
-    let manifest = example("vernadat/u1.package.toml");
+    // U.1 as the example has it, its package declaring that DM1 may differ.
+    let src = dir.path().join("src");
+    std::fs::create_dir_all(&src).expect("a source directory");
+    for name in [
+        "vernadat.toml",
+        "vernadat.pnml",
+        "u1.toml",
+        "u1.pnml",
+        "u1.package.toml",
+    ] {
+        std::fs::copy(example(&format!("vernadat/{name}")), src.join(name)).expect("copy");
+    }
+    let manifest = src.join("u1.package.toml");
+    let text = std::fs::read_to_string(&manifest).expect("the manifest");
+    std::fs::write(
+        &manifest,
+        format!("{text}\n[changes]\noutputs = [\"DM1\"]\n"),
+    )
+    .expect("write the manifest");
     cetratus(&[
         "package".as_ref(),
         "build".as_ref(),
@@ -87,6 +106,13 @@ async fn the_dashboard_shows_the_twin_verdict_the_quarantine_coverage_and_the_qu
         .await;
     c.wait_exec_info("verdicts", "B", "twin pass", Duration::from_secs(30))
         .await;
+    c.wait_exec_info(
+        "declared changes",
+        "B",
+        "outputs DM1",
+        Duration::from_secs(10),
+    )
+    .await;
     let coverage = c
         .wait_exec_info(
             "quarantine coverage",

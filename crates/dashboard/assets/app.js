@@ -391,6 +391,14 @@
     for (const s of [...signals].sort()) row(`divergence ${s} (cycles)`, (x) => (x.divergence || {})[s] ?? 0, 'num');
     row('first cause', (x) => x.first_cause ?? '–');
     row('last cause', (x) => x.last_cause ?? '–');
+    row('declared changes', (x) => {
+      const c = x.changes;
+      if (!c) return '–';
+      const parts = [];
+      if ((c.outputs || []).length) parts.push(`outputs ${c.outputs.join(', ')}`);
+      if (c.throughput_share != null) parts.push(`production may drop to ${Math.round(c.throughput_share * 100)} %`);
+      return parts.join('; ');
+    });
     row('quarantine coverage', (x) => x.coverage
       ? `${x.coverage.cycles} cycles; ${x.coverage.outputs_covered} of ${x.coverage.outputs_expected} outputs the twin showed diverging; ${x.coverage.unexplained} unexplained`
       : '–');

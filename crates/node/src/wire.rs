@@ -97,6 +97,10 @@ pub fn exec_info(e: &ExecInfo) -> proto::ExecInfo {
             unexplained: c.unexplained,
             signature_kinds: c.signature_kinds as u64,
         }),
+        changes: e.changes.as_ref().map(|c| proto::DeclaredChanges {
+            outputs: c.outputs.clone(),
+            throughput_share: c.throughput_share,
+        }),
     }
 }
 

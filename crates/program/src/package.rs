@@ -186,6 +186,16 @@ impl PackageMeta {
             .or(self.changes_throughput.then_some(0.0))
     }
 
+    /// What the update declares it changes on purpose, the older `changes_throughput` read as
+    /// a share of 0; `None` when it declares nothing.
+    pub fn declared_changes(&self) -> Option<Changes> {
+        let changes = Changes {
+            outputs: self.changes.outputs.clone(),
+            throughput_share: self.declared_share(),
+        };
+        (!changes.is_empty()).then_some(changes)
+    }
+
     /// Whether the update declares that `output` may differ from the old program's.
     pub fn may_differ(&self, output: &str) -> bool {
         self.changes.outputs.iter().any(|o| o == output)

@@ -32,9 +32,9 @@ pub use names::{
 pub use outcome::{ending, endings, Ending};
 pub use payload::{
     command_body, command_from_body, decode, encode, within_error, Accepted, Command,
-    ControlCounters, Coverage, CycleFigures, ErrorBody, EventMsg, ExecInfo, ExecInfoMsg,
-    InputQuality, IoMsg, IoNames, LoadArgs, NetMsg, NoArgs, PersistFault, ProgramInfo, Programs,
-    Reply, ReplyFields, Sample, SignalMask, SignalValue, Signals, StateMsg, StatePayload,
+    ControlCounters, Coverage, CycleFigures, DeclaredChanges, ErrorBody, EventMsg, ExecInfo,
+    ExecInfoMsg, InputQuality, IoMsg, IoNames, LoadArgs, NetMsg, NoArgs, PersistFault, ProgramInfo,
+    Programs, Reply, ReplyFields, Sample, SignalMask, SignalValue, Signals, StateMsg, StatePayload,
     SubstituteArgs, TimingSummary, Verdict, MAX_PAYLOAD, MAX_WITHIN_MS,
 };
 pub use topic::{parse_topic, parse_verb, Leaf, PlcId, Topics, Verb, ALL_PLCS_FILTER, ROOT};

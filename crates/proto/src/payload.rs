@@ -367,6 +367,22 @@ pub struct ExecInfo {
     /// come (absent without a signature, and from PLCs that predate it).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub coverage: Option<Coverage>,
+    /// What the update's package declares it changes on purpose (the container that runs the
+    /// update's program; absent when it declares nothing, and from PLCs that predate it).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub changes: Option<DeclaredChanges>,
+}
+
+/// The changes an update's package declares it makes on purpose (docs/package-format.md,
+/// *Declared changes*).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct DeclaredChanges {
+    /// Outputs whose values may differ from the old program's.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub outputs: Vec<String>,
+    /// The least share of the old program's production it may drop to.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub throughput_share: Option<f64>,
 }
 
 /// How far a quarantine's comparison with the twin's divergence signature has come

@@ -184,6 +184,10 @@ pub struct ExecInfo {
     /// come (`None` without a signature).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub coverage: Option<crate::signature::Coverage>,
+    /// What the update's package declares it changes on purpose (the container that runs the
+    /// update's program), signed with it.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub changes: Option<cetratus_program::Changes>,
 }
 
 fn values_by_name<S: serde::Serializer>(
@@ -366,6 +370,7 @@ impl Monitor {
                 stall: is_primary && s.stalled,
                 verdicts: Vec::new(),
                 coverage: s.comparison.as_ref().map(|k| k.progress(c.scans())),
+                changes: None,
             })
         })
     }

@@ -549,6 +549,7 @@ impl Plc {
         };
         if let Some(e) = info[slot.index()].as_mut() {
             e.verdicts = plan.verdicts.clone();
+            e.changes = plan.meta.declared_changes();
         }
         info
     }

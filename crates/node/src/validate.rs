@@ -24,6 +24,7 @@ use std::time::Instant;
 use cetratus_io::TwinDriver;
 use cetratus_program::{Program, ResolvedUpdate, Value};
 use cetratus_runtime::mask::Mask;
+use cetratus_runtime::signature::Signature;
 use cetratus_runtime::{
     Command, Dispatcher, EventKind, IoAdmission, ManualStopwatch, Plc, PlcSnapshot, Slot, Status,
     SubstituteMode, SubstituteRequest, Verdict, VerdictKind, VerdictResult,
@@ -328,7 +329,12 @@ pub fn validate(job: &Job) -> Verdict {
     let signature = watching
         .then(|| pair.base.divergence_signature())
         .flatten()
-        .map(Arc::new);
+        .map(|s| {
+            Arc::new(Signature {
+                horizon_cycles: job.policy.horizon_us / job.period_us.max(1),
+                ..s
+            })
+        });
     // The candidate's outputs by name against the baseline's: one it adds is compared with off.
     let names = pair.cand.io_outputs().to_vec();
     let in_base: Vec<Option<usize>> = names

@@ -669,3 +669,76 @@ fn a_candidate_that_passed_on_the_twin_fails_in_quarantine_on_a_plant_the_twin_d
         );
     }
 }
+
+/// The paper's U.2 with `require_verdict = true`, validated on a fork of the plant: its package
+/// declares its lubrication outputs and its slower production, the twin verdict passes against
+/// them, the quarantine shows the divergences the twin showed and nothing else, and the
+/// substitution asked for once the quarantine has run its course is taken.
+#[test]
+fn u2_with_its_declared_changes_is_substituted_where_a_verdict_is_required() {
+    use cetratus_node::script::Script;
+    use cetratus_node::{Node, NodeOptions};
+    use cetratus_runtime::LoopTiming;
+
+    let dir = workshop(VERNADAT);
+    let (bytes, _) =
+        build_package(&dir.path().join("u2.package.toml"), None, 1_700_000_000).expect("U.2");
+    let pkg = dir.path().join("u2.cpkg");
+    std::fs::write(&pkg, bytes).expect("write");
+    let program = Arc::new(Program::load(&dir.path().join("u1.toml")).expect("program"));
+    let io = TwinDriver::new(
+        TwinKind::Vernadat.build(1),
+        program.inputs(),
+        program.outputs(),
+    )
+    .expect("signals match");
+    let mut plc = Plc::new(program, 0, Box::new(ManualStopwatch::new()));
+    plc.use_virtual_time(PERIOD);
+    let mut limits = plc.limits();
+    limits.require_verdict = true;
+    plc.set_limits(limits);
+    let opts = NodeOptions {
+        base_us: 0,
+        load: cetratus_node::load::LoadPolicy {
+            trust: TrustStore::empty(),
+            unsigned: cetratus_program::Unsigned::Allowed,
+            gate: Default::default(),
+        },
+        record_trace: false,
+        progress_every: None,
+    };
+    let script = Script::parse(&[
+        format!("2s load {}", pkg.display()),
+        "150s substitute".to_string(),
+    ])
+    .expect("script");
+    let mut node = Node::new(plc, io, opts)
+        .with_script(script)
+        .with_twin_validation(policy(120), PERIOD);
+    let idle = LoopTiming::default();
+    let mut events = Vec::new();
+    let mut now = 0;
+    while now < 160_000_000 {
+        events.extend(node.step(now, &idle).expect("a cycle"));
+        now += PERIOD;
+    }
+    let said: Vec<String> = events
+        .iter()
+        .filter(|e| {
+            matches!(
+                e.kind,
+                EventKind::Verdict | EventKind::Substituted | EventKind::Refused
+            )
+        })
+        .map(|e| format!("{:.1} s {}: {}", e.time_us as f64 / 1e6, e.kind, e.message))
+        .collect();
+    assert!(
+        events.iter().any(|e| e.kind == EventKind::Substituted),
+        "{said:#?}"
+    );
+    let q = verdicts(&events, "quarantine");
+    assert!(
+        !q.is_empty() && q.iter().all(|m| m.contains(": pass")),
+        "{said:#?}"
+    );
+}

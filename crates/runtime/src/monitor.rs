@@ -69,12 +69,12 @@ impl ContainerStats {
         }
     }
 
-    /// Output `k` diverged in this cycle for `cause`: a kind seen for the first time is
-    /// recorded, and compared with the twin's signature when there is one.
-    fn diverged(&mut self, k: usize, cause: Option<CauseKey>) {
+    /// Output `k` diverged in this cycle, the candidate's `scans`th, for `cause`: a kind seen
+    /// for the first time is recorded, and compared with the twin's signature when there is one.
+    fn diverged(&mut self, k: usize, cause: Option<CauseKey>, scans: u64) {
         if let Some(kind) = self.divergences.record(k, cause) {
             if let Some(c) = self.comparison.as_mut() {
-                c.observe(kind);
+                c.observe(kind, scans);
             }
         }
     }
@@ -257,6 +257,7 @@ impl Monitor {
                 }
             })
         };
+        let scans = cc.scans();
         let key = fresh.or(stats.last_cause).map(|k| CauseKey {
             in_candidate: k.fired_in == c,
             transition: k.transition,
@@ -269,7 +270,7 @@ impl Monitor {
             let (a, b) = (router.output_bits(p.index()), router.output_bits(c.index()));
             for_each_difference(a.words(), b.words(), |k| {
                 stats.divergent_cycles[k] += 1;
-                stats.diverged(k, key);
+                stats.diverged(k, key, scans);
                 differs = true;
             });
         } else {
@@ -280,7 +281,7 @@ impl Monitor {
             for (k, (a, b)) in outs.enumerate() {
                 if a != b {
                     stats.divergent_cycles[k] += 1;
-                    stats.diverged(k, key);
+                    stats.diverged(k, key, scans);
                     differs = true;
                 }
             }

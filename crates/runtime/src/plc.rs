@@ -661,6 +661,7 @@ impl Plc {
             kinds,
             words,
             complete: !seen.overflowed(),
+            horizon_cycles: u64::MAX,
         })
     }
 

@@ -113,6 +113,9 @@ pub struct Signature {
     pub words: Vec<String>,
     /// The record held every kind the run showed.
     pub complete: bool,
+    /// The cycles the twin run covered: a quarantine that runs longer meets what the twin never
+    /// simulated, and its kinds after these cycles are not judged.
+    pub horizon_cycles: u64,
 }
 
 /// How far a quarantine's comparison with the twin's signature has come (`exec_info`'s
@@ -146,6 +149,9 @@ pub struct Comparison {
     pub unexplained_count: u64,
     /// The candidate's scans when the comparison started.
     pub from_scans: u64,
+    /// The candidate's scans past which the twin simulated nothing: kinds seen later are not
+    /// judged.
+    until_scans: u64,
     /// The verdict given last, if any.
     pub given: Option<VerdictResult>,
 }
@@ -177,6 +183,7 @@ impl Comparison {
                 outputs.push((k.output, false));
             }
         }
+        let until_scans = scans.saturating_add(signature.horizon_cycles);
         let mut c = Comparison {
             signature,
             expected,
@@ -184,16 +191,21 @@ impl Comparison {
             unexplained: None,
             unexplained_count: 0,
             from_scans: scans,
+            until_scans,
             given: None,
         };
         for &k in seen.kinds() {
-            c.observe(k);
+            c.observe(k, scans);
         }
         c
     }
 
-    /// A kind the quarantine showed for the first time.
-    pub fn observe(&mut self, kind: Kind) {
+    /// A kind the quarantine showed for the first time, at the candidate's `scans`; past the
+    /// twin's horizon it is not judged.
+    pub fn observe(&mut self, kind: Kind, scans: u64) {
+        if scans > self.until_scans {
+            return;
+        }
         if let Some(o) = self.outputs.iter_mut().find(|(o, _)| *o == kind.output) {
             o.1 = true;
         }
@@ -329,21 +341,40 @@ mod tests {
             kinds: vec![("B".into(), cause(1))],
             words: vec!["B: T".into()],
             complete: true,
+            horizon_cycles: 1_000,
         });
         let mut c = Comparison::new(sig.clone(), &names, &Divergences::new(2), 10);
         assert_eq!(c.due(500, 100), None, "B has not diverged yet");
-        c.observe(Kind {
-            output: 1,
-            cause: cause(1),
-        });
+        c.observe(
+            Kind {
+                output: 1,
+                cause: cause(1),
+            },
+            20,
+        );
         assert_eq!(c.due(50, 100), None, "too few cycles");
         assert_eq!(c.due(110, 100), Some(VerdictResult::Pass));
         c.given = Some(VerdictResult::Pass);
         assert_eq!(c.due(200, 100), None, "given already");
-        c.observe(Kind {
-            output: 0,
-            cause: cause(1),
-        });
+        c.observe(
+            Kind {
+                output: 0,
+                cause: cause(2),
+            },
+            2_000,
+        );
+        assert_eq!(
+            c.due(2_000, 100),
+            None,
+            "past the twin's horizon: not judged"
+        );
+        c.observe(
+            Kind {
+                output: 0,
+                cause: cause(1),
+            },
+            200,
+        );
         assert_eq!(c.due(200, 100), Some(VerdictResult::Fail));
         assert_eq!(c.unexplained_count, 1);
     }

@@ -49,14 +49,6 @@ fn last(cell: &Cell, kind: EventKind) -> &Event {
         .unwrap_or_else(|| panic!("no {kind} event in {:#?}", cell.events))
 }
 
-fn parts(cell: &Cell) -> u64 {
-    cell.io
-        .plant()
-        .counters()
-        .get("parts_finished")
-        .expect("the Vernadat twin counts finished parts")
-}
-
 #[test]
 fn a_substitution_with_a_window_keeps_the_old_program_as_a_shadow_until_the_window_ends() {
     let _turn = TURN.lock().unwrap_or_else(|e| e.into_inner());
@@ -146,7 +138,7 @@ fn revert_gives_the_old_program_the_projected_marking_and_the_outputs_in_the_sam
     let w = Workshop::new();
     let mut cell = on_probation(&w, &w.package("u1.package.toml"), 2_000_000);
     cell.run_for(1_000_000);
-    let before = parts(&cell);
+    let before = cell.parts();
     let new_marking = cell.plc.primary_container().marking().to_vec();
     cell.plc
         .command(Command::Revert)
@@ -194,10 +186,10 @@ fn revert_gives_the_old_program_the_projected_marking_and_the_outputs_in_the_sam
     let mut reference = Cell::new(w.program("vernadat.toml"));
     reference.run_for(cell.now);
     assert!(
-        parts(&cell) + 1 >= parts(&reference) && parts(&cell) > before,
+        cell.parts() + 1 >= reference.parts() && cell.parts() > before,
         "the cell goes on producing as without the update: {} parts, {} without",
-        parts(&cell),
-        parts(&reference)
+        cell.parts(),
+        reference.parts()
     );
     assert!(
         cell.io.plant().faults().is_empty(),
@@ -322,21 +314,7 @@ fn a_new_primary_that_faults_on_probation_is_reverted_at_the_next_cycle() {
 fn a_new_primary_that_breaks_a_declared_invariant_on_probation_is_reverted() {
     let _turn = TURN.lock().unwrap_or_else(|e| e.into_inner());
     let w = Workshop::new();
-    // A U.1 that declares a wrong invariant: H + B = 9 holds until a part leaves M1 for the
-    // buffer (T13 takes a free slot and P14 holds the part).
-    let text = std::fs::read_to_string(w.path("u1.toml")).expect("u1.toml");
-    std::fs::write(
-        w.path("u1-wrong.toml"),
-        format!("{text}\n[[invariant]]\nexpr = \"H + B = 9\"\n"),
-    )
-    .expect("write");
-    let manifest = std::fs::read_to_string(w.path("u1.package.toml")).expect("u1.package.toml");
-    std::fs::write(
-        w.path("u1-wrong.package.toml"),
-        manifest.replace("program = \"u1.toml\"", "program = \"u1-wrong.toml\""),
-    )
-    .expect("write");
-    let mut cell = on_probation(&w, &w.package("u1-wrong.package.toml"), 100_000);
+    let mut cell = on_probation(&w, &w.u1_breaking_an_invariant(), 100_000);
     assert_eq!(cell.plc.status(), Status::Probation, "{:#?}", cell.events);
     cell.run_for(WINDOW_US - 2 * updates::PERIOD);
     let e = last(&cell, EventKind::Reverted);

@@ -24,14 +24,6 @@ const TAIL_US: u64 = 10_000_000;
 /// The instants of the operator's revert: every 100 ms of the window.
 const STEP_US: u64 = 100_000;
 
-fn parts(cell: &Cell) -> u64 {
-    cell.io
-        .plant()
-        .counters()
-        .get("parts_finished")
-        .unwrap_or(0)
-}
-
 /// What a run left: its twin faults and scrapped parts, in words, and its finished parts.
 struct Ran {
     trouble: Vec<String>,
@@ -57,7 +49,7 @@ fn ran(cell: &Cell) -> Ran {
     }
     Ran {
         trouble,
-        parts: parts(cell),
+        parts: cell.parts(),
     }
 }
 
@@ -113,7 +105,7 @@ fn references(w: &Workshop, package: &Package) -> [Vec<u64>; 2] {
     let mut curves = [Vec::new(), Vec::new()];
     for _ in 0..span / STEP_US {
         for (curve, cell) in curves.iter_mut().zip([&mut kept, &mut plain]) {
-            curve.push(parts(cell));
+            curve.push(cell.parts());
             cell.run_for(STEP_US);
         }
     }
@@ -234,23 +226,9 @@ fn an_operators_revert_at_every_100_ms_of_u2s_probation_never_disturbs_the_plant
 #[test]
 fn an_automatic_revert_at_any_phase_of_the_cell_never_disturbs_the_plant() {
     let w = Workshop::new();
-    // A U.1 that declares a wrong invariant: H + B = 9 breaks when a part leaves M1 for the
-    // buffer (T13 takes a free slot and P14 holds the part).
-    let text = std::fs::read_to_string(w.path("u1.toml")).expect("u1.toml");
-    std::fs::write(
-        w.path("u1-wrong.toml"),
-        format!("{text}\n[[invariant]]\nexpr = \"H + B = 9\"\n"),
-    )
-    .expect("write");
-    let manifest = std::fs::read_to_string(w.path("u1.package.toml")).expect("u1.package.toml");
-    std::fs::write(
-        w.path("u1-wrong.package.toml"),
-        manifest.replace("program = \"u1.toml\"", "program = \"u1-wrong.toml\""),
-    )
-    .expect("write");
     let package = Package {
         manifest: "u1-wrong.package.toml",
-        bytes: w.package("u1-wrong.package.toml"),
+        bytes: w.u1_breaking_an_invariant(),
     };
     let mut plain = Cell::new(w.program("vernadat.toml"));
     // Substituted at 25 instants 1.37 s apart, across the cell's cycle of about 8 s.
@@ -276,10 +254,10 @@ fn an_automatic_revert_at_any_phase_of_the_cell_never_disturbs_the_plant() {
             plain.step();
         }
         assert!(
-            r.parts + 1 >= parts(&plain) && r.parts <= parts(&plain) + 1,
+            r.parts + 1 >= plain.parts() && r.parts <= plain.parts() + 1,
             "after {warmup} µs: {} parts, {} without the update",
             r.parts,
-            parts(&plain)
+            plain.parts()
         );
     }
 }

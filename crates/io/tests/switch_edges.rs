@@ -24,14 +24,6 @@ fn rising_workshop() -> Workshop {
     w
 }
 
-fn parts(cell: &Cell) -> u64 {
-    cell.io
-        .plant()
-        .counters()
-        .get("parts_finished")
-        .unwrap_or(0)
-}
-
 /// Runs the rising-edge cell for `end_us`, loading U.1 at 10 s and substituting it so that the
 /// switch happens in the cycle at `switch_us`; returns the parts finished.
 fn parts_with_switch_at(w: &Workshop, u1: &[u8], switch_us: u64, end_us: u64) -> u64 {
@@ -55,13 +47,13 @@ fn parts_with_switch_at(w: &Workshop, u1: &[u8], switch_us: u64, end_us: u64) ->
         "{:?}",
         cell.io.plant().faults()
     );
-    parts(&cell)
+    cell.parts()
 }
 
 fn parts_without_switch(w: &Workshop, end_us: u64) -> u64 {
     let mut cell = Cell::new(w.program("vernadat.toml"));
     cell.run_for(end_us);
-    parts(&cell)
+    cell.parts()
 }
 
 #[test]

@@ -98,6 +98,64 @@ fn policy(horizon_s: u64) -> ValidationPolicy {
     }
 }
 
+/// `manifest` of the workshop `dir` built unsigned into a package file beside it; its path.
+fn package_file(dir: &Path, manifest: &str) -> std::path::PathBuf {
+    let (bytes, _) = build_package(&dir.join(manifest), None, 1_700_000_000).expect("it builds");
+    let pkg = dir.join(manifest.replace(".package.toml", ".cpkg"));
+    std::fs::write(&pkg, bytes).expect("write");
+    pkg
+}
+
+/// A node in virtual time: `program` against `twin`, its limits changed by `tune`, the
+/// scripted commands `script`, unsigned loads allowed, and twin validation by `policy`.
+fn validated_node(
+    program: Arc<Program>,
+    twin: Twin,
+    tune: impl FnOnce(&mut cetratus_runtime::Limits),
+    script: &[String],
+    policy: ValidationPolicy,
+) -> cetratus_node::Node<TwinDriver<Twin>> {
+    use cetratus_node::script::Script;
+    use cetratus_node::{Node, NodeOptions};
+
+    let io = TwinDriver::new(twin, program.inputs(), program.outputs()).expect("signals match");
+    let mut plc = Plc::new(program, 0, Box::new(ManualStopwatch::new()));
+    plc.use_virtual_time(PERIOD);
+    let mut limits = plc.limits();
+    tune(&mut limits);
+    plc.set_limits(limits);
+    let opts = NodeOptions {
+        base_us: 0,
+        load: cetratus_node::load::LoadPolicy {
+            trust: TrustStore::empty(),
+            unsigned: cetratus_program::Unsigned::Allowed,
+            gate: Default::default(),
+        },
+        record_trace: false,
+        progress_every: None,
+    };
+    Node::new(plc, io, opts)
+        .with_script(Script::parse(script).expect("script"))
+        .with_twin_validation(policy, PERIOD)
+}
+
+/// Steps `node` from 0 until `until_us` of virtual time, or until `done` holds of the events
+/// so far; the events.
+fn run_node(
+    node: &mut cetratus_node::Node<TwinDriver<Twin>>,
+    until_us: u64,
+    done: impl Fn(&[cetratus_runtime::Event]) -> bool,
+) -> Vec<cetratus_runtime::Event> {
+    let idle = cetratus_runtime::LoopTiming::default();
+    let mut events = Vec::new();
+    let mut now = 0;
+    while now < until_us && !done(&events) {
+        events.extend(node.step(now, &idle).expect("a cycle"));
+        now += PERIOD;
+    }
+    events
+}
+
 #[test]
 fn u1_forked_from_a_running_cell_passes_over_ten_minutes_of_plant_time() {
     let dir = workshop(VERNADAT);
@@ -390,9 +448,7 @@ fn a_fork_taken_just_before_an_edge_sees_it() {
 /// pass; a later one does, fails, and the PLC reverts to the old program for it.
 #[test]
 fn during_probation_validation_runs_again_and_a_later_failing_verdict_reverts() {
-    use cetratus_node::script::Script;
-    use cetratus_node::{Node, NodeOptions};
-    use cetratus_runtime::{Event, LoopTiming};
+    use cetratus_runtime::Event;
 
     let dir = workshop(VERNADAT);
     edit(
@@ -401,53 +457,24 @@ fn during_probation_validation_runs_again_and_a_later_failing_verdict_reverts() 
         "T20 = \"SB\"",
         "T20 = \"SB && B < 4\"",
     );
-    let (bytes, _) =
-        build_package(&dir.path().join("u1.package.toml"), None, 1_700_000_000).expect("U.1");
-    let pkg = dir.path().join("u1.cpkg");
-    std::fs::write(&pkg, bytes).expect("write");
+    let pkg = package_file(dir.path(), "u1.package.toml");
     let program = Arc::new(Program::load(&dir.path().join("vernadat.toml")).expect("program"));
-    let io = TwinDriver::new(
+    let mut node = validated_node(
+        program,
         TwinKind::Vernadat.build(1),
-        program.inputs(),
-        program.outputs(),
-    )
-    .expect("the signals match");
-    let mut plc = Plc::new(program, 0, Box::new(ManualStopwatch::new()));
-    plc.use_virtual_time(PERIOD);
-    let mut limits = plc.limits();
-    limits.probation_us = 600_000_000;
-    plc.set_limits(limits);
-    let opts = NodeOptions {
-        base_us: 0,
-        load: cetratus_node::load::LoadPolicy {
-            trust: TrustStore::empty(),
-            unsigned: cetratus_program::Unsigned::Allowed,
-            gate: Default::default(),
+        |l| l.probation_us = 600_000_000,
+        &[
+            format!("2s load {}", pkg.display()),
+            "3s substitute".to_string(),
+        ],
+        ValidationPolicy {
+            revalidate_us: 5_000_000,
+            ..policy(10)
         },
-        record_trace: false,
-        progress_every: None,
-    };
-    let script = Script::parse(&[
-        format!("2s load {}", pkg.display()),
-        "3s substitute".to_string(),
-    ])
-    .expect("script");
-    let mut node = Node::new(plc, io, opts)
-        .with_script(script)
-        .with_twin_validation(
-            ValidationPolicy {
-                revalidate_us: 5_000_000,
-                ..policy(10)
-            },
-            PERIOD,
-        );
-    let idle = LoopTiming::default();
-    let mut events: Vec<Event> = Vec::new();
-    let mut now = 0;
-    while now < 300_000_000 && !events.iter().any(|e| e.kind == EventKind::Reverted) {
-        events.extend(node.step(now, &idle).expect("a cycle"));
-        now += PERIOD;
-    }
+    );
+    let events = run_node(&mut node, 300_000_000, |e| {
+        e.iter().any(|e| e.kind == EventKind::Reverted)
+    });
     let probation = events
         .iter()
         .position(|e| e.kind == EventKind::ProbationStarted)
@@ -575,10 +602,6 @@ fn u2_passes_with_its_declared_changes_and_fails_without_them() {
 /// `t22`, is validated in commission mode on a fresh twin of the model (ten minutes), and then
 /// runs in quarantine on `plant` for `for_s` seconds (no substitution). Returns the events.
 fn u1_quarantined_on(plant: VernadatParams, t22: &str, for_s: u64) -> Vec<cetratus_runtime::Event> {
-    use cetratus_node::script::Script;
-    use cetratus_node::{Node, NodeOptions};
-    use cetratus_runtime::LoopTiming;
-
     let dir = workshop(VERNADAT);
     edit(
         dir.path(),
@@ -586,43 +609,20 @@ fn u1_quarantined_on(plant: VernadatParams, t22: &str, for_s: u64) -> Vec<cetrat
         "T22 = \"FPM2\"",
         &format!("T22 = \"{t22}\""),
     );
-    let (bytes, _) =
-        build_package(&dir.path().join("u1.package.toml"), None, 1_700_000_000).expect("U.1");
-    let pkg = dir.path().join("u1.cpkg");
-    std::fs::write(&pkg, bytes).expect("write");
+    let pkg = package_file(dir.path(), "u1.package.toml");
     let program = Arc::new(Program::load(&dir.path().join("vernadat.toml")).expect("program"));
     let twin = Twin::Vernadat(VernadatCell::new(plant, 1).expect("valid parameters"));
-    let io = TwinDriver::new(twin, program.inputs(), program.outputs()).expect("signals match");
-    let mut plc = Plc::new(program, 0, Box::new(ManualStopwatch::new()));
-    plc.use_virtual_time(PERIOD);
-    let opts = NodeOptions {
-        base_us: 0,
-        load: cetratus_node::load::LoadPolicy {
-            trust: TrustStore::empty(),
-            unsigned: cetratus_program::Unsigned::Allowed,
-            gate: Default::default(),
+    let mut node = validated_node(
+        program,
+        twin,
+        |_| {},
+        &[format!("2s load {}", pkg.display())],
+        ValidationPolicy {
+            mode: ValidationMode::Commission(TwinKind::Vernadat),
+            ..ValidationPolicy::default()
         },
-        record_trace: false,
-        progress_every: None,
-    };
-    let script = Script::parse(&[format!("2s load {}", pkg.display())]).expect("script");
-    let mut node = Node::new(plc, io, opts)
-        .with_script(script)
-        .with_twin_validation(
-            ValidationPolicy {
-                mode: ValidationMode::Commission(TwinKind::Vernadat),
-                ..ValidationPolicy::default()
-            },
-            PERIOD,
-        );
-    let idle = LoopTiming::default();
-    let mut events = Vec::new();
-    let mut now = 0;
-    while now < for_s * 1_000_000 {
-        events.extend(node.step(now, &idle).expect("a cycle"));
-        now += PERIOD;
-    }
-    events
+    );
+    run_node(&mut node, for_s * 1_000_000, |_| false)
 }
 
 fn verdicts<'e>(events: &'e [cetratus_runtime::Event], kind: &str) -> Vec<&'e str> {
@@ -676,52 +676,20 @@ fn a_candidate_that_passed_on_the_twin_fails_in_quarantine_on_a_plant_the_twin_d
 /// substitution asked for once the quarantine has run its course is taken.
 #[test]
 fn u2_with_its_declared_changes_is_substituted_where_a_verdict_is_required() {
-    use cetratus_node::script::Script;
-    use cetratus_node::{Node, NodeOptions};
-    use cetratus_runtime::LoopTiming;
-
     let dir = workshop(VERNADAT);
-    let (bytes, _) =
-        build_package(&dir.path().join("u2.package.toml"), None, 1_700_000_000).expect("U.2");
-    let pkg = dir.path().join("u2.cpkg");
-    std::fs::write(&pkg, bytes).expect("write");
+    let pkg = package_file(dir.path(), "u2.package.toml");
     let program = Arc::new(Program::load(&dir.path().join("u1.toml")).expect("program"));
-    let io = TwinDriver::new(
+    let mut node = validated_node(
+        program,
         TwinKind::Vernadat.build(1),
-        program.inputs(),
-        program.outputs(),
-    )
-    .expect("signals match");
-    let mut plc = Plc::new(program, 0, Box::new(ManualStopwatch::new()));
-    plc.use_virtual_time(PERIOD);
-    let mut limits = plc.limits();
-    limits.require_verdict = true;
-    plc.set_limits(limits);
-    let opts = NodeOptions {
-        base_us: 0,
-        load: cetratus_node::load::LoadPolicy {
-            trust: TrustStore::empty(),
-            unsigned: cetratus_program::Unsigned::Allowed,
-            gate: Default::default(),
-        },
-        record_trace: false,
-        progress_every: None,
-    };
-    let script = Script::parse(&[
-        format!("2s load {}", pkg.display()),
-        "150s substitute".to_string(),
-    ])
-    .expect("script");
-    let mut node = Node::new(plc, io, opts)
-        .with_script(script)
-        .with_twin_validation(policy(120), PERIOD);
-    let idle = LoopTiming::default();
-    let mut events = Vec::new();
-    let mut now = 0;
-    while now < 160_000_000 {
-        events.extend(node.step(now, &idle).expect("a cycle"));
-        now += PERIOD;
-    }
+        |l| l.require_verdict = true,
+        &[
+            format!("2s load {}", pkg.display()),
+            "150s substitute".to_string(),
+        ],
+        policy(120),
+    );
+    let events = run_node(&mut node, 160_000_000, |_| false);
     let said: Vec<String> = events
         .iter()
         .filter(|e| {

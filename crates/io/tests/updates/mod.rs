@@ -68,6 +68,24 @@ impl Workshop {
         self.package("u1-bad.package.toml")
     }
 
+    /// U.1 declaring a wrong invariant: H + B = 9 breaks when a part leaves M1 for the buffer
+    /// (T13 takes a free slot and P14 holds the part). Its manifest is `u1-wrong.package.toml`.
+    pub fn u1_breaking_an_invariant(&self) -> Vec<u8> {
+        let text = std::fs::read_to_string(self.path("u1.toml")).expect("u1.toml");
+        std::fs::write(
+            self.path("u1-wrong.toml"),
+            format!("{text}\n[[invariant]]\nexpr = \"H + B = 9\"\n"),
+        )
+        .expect("write");
+        let manifest = std::fs::read_to_string(self.path("u1.package.toml")).expect("manifest");
+        std::fs::write(
+            self.path("u1-wrong.package.toml"),
+            manifest.replace("program = \"u1.toml\"", "program = \"u1-wrong.toml\""),
+        )
+        .expect("write");
+        self.package("u1-wrong.package.toml")
+    }
+
     pub fn program(&self, name: &str) -> Arc<Program> {
         Arc::new(Program::load(&self.path(name)).expect("program loads"))
     }
@@ -160,6 +178,16 @@ impl Cell {
         ids.iter()
             .map(|id| c.marking()[net.place_by_id(id).expect("place").index()])
             .sum()
+    }
+
+    /// The parts the Vernadat twin finished so far.
+    pub fn parts(&self) -> u64 {
+        use cetratus_twin::Plant;
+        self.io
+            .plant()
+            .counters()
+            .get("parts_finished")
+            .expect("the Vernadat twin counts finished parts")
     }
 
     pub fn has_event(&self, kind: EventKind) -> bool {

@@ -9,46 +9,23 @@ use std::time::Duration;
 use cetratus_testkit::browser::{require_chromium, Browser};
 use cetratus_testkit::paths::{artifacts_dir, example};
 use cetratus_testkit::ports::{free_port, wait_for_port};
-use cetratus_testkit::process::{login_link, stderr_lines, ChildGuard};
+use cetratus_testkit::process::{login_link, signed_package, stderr_lines, ChildGuard};
 
 const BIN: &str = env!("CARGO_BIN_EXE_cetratus");
 const LAMP: &str = "REJECT_BIN_FULL";
-
-/// Runs `cetratus` with `args` to its end, failing with its stderr.
-fn cetratus(args: &[&std::ffi::OsStr]) {
-    let out = Command::new(BIN).args(args).output().expect("run cetratus");
-    assert!(
-        out.status.success(),
-        "cetratus {args:?}: {}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-}
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn an_operator_loads_f1_substitutes_it_and_the_dashboard_shows_the_reject_bin_lamp_lit() {
     require_chromium();
     let dir = tempfile::tempdir().expect("temp dir");
-    let key = dir.path().join("f1.key");
-    let package = dir.path().join("f1.cpkg");
     let trusted = dir.path().join("trusted");
-    std::fs::create_dir_all(&trusted).expect("trusted dir");
-    cetratus(&[
-        "package".as_ref(),
-        "keygen".as_ref(),
-        "--out".as_ref(),
-        key.as_os_str(),
-    ]);
-    std::fs::copy(dir.path().join("f1.key.pub"), trusted.join("f1.pub")).expect("trust the key");
-    let manifest = example("festo/f1.package.toml");
-    cetratus(&[
-        "package".as_ref(),
-        "build".as_ref(),
-        manifest.as_os_str(),
-        "--key".as_ref(),
-        key.as_os_str(),
-        "-o".as_ref(),
-        package.as_os_str(),
-    ]);
+    let package = signed_package(
+        BIN,
+        &example("festo/f1.package.toml"),
+        "f1",
+        dir.path(),
+        &trusted,
+    );
 
     let (mqtt, http) = (free_port(), free_port());
     let mut plc = ChildGuard::spawn(

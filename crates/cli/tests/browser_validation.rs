@@ -10,37 +10,16 @@ use std::time::Duration;
 use cetratus_testkit::browser::{require_chromium, Browser};
 use cetratus_testkit::paths::example;
 use cetratus_testkit::ports::{free_port, wait_for_port};
-use cetratus_testkit::process::{login_link, stderr_lines, ChildGuard};
+use cetratus_testkit::process::{login_link, signed_package, stderr_lines, ChildGuard};
 
 const BIN: &str = env!("CARGO_BIN_EXE_cetratus");
-
-/// Runs `cetratus` with `args` to its end, failing with its stderr.
-fn cetratus(args: &[&std::ffi::OsStr]) {
-    let out = Command::new(BIN).args(args).output().expect("run cetratus");
-    assert!(
-        out.status.success(),
-        "cetratus {args:?}: {}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-}
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn the_dashboard_shows_the_declared_changes_the_twin_verdict_and_the_quarantine_coverage_and_verdict(
 ) {
     require_chromium();
     let dir = tempfile::tempdir().expect("temp dir");
-    let key = dir.path().join("u1.key");
-    let package = dir.path().join("u1.cpkg");
     let config = dir.path().join("config");
-    std::fs::create_dir_all(config.join("trusted")).expect("config dir");
-    cetratus(&[
-        "package".as_ref(),
-        "keygen".as_ref(),
-        "--out".as_ref(),
-        key.as_os_str(),
-    ]);
-    std::fs::copy(dir.path().join("u1.key.pub"), config.join("trusted/u1.pub"))
-        .expect("trust the key");
     // U.1 as the example has it, its package declaring that DM1 may differ.
     let src = dir.path().join("src");
     std::fs::create_dir_all(&src).expect("a source directory");
@@ -60,15 +39,7 @@ async fn the_dashboard_shows_the_declared_changes_the_twin_verdict_and_the_quara
         format!("{text}\n[changes]\noutputs = [\"DM1\"]\n"),
     )
     .expect("write the manifest");
-    cetratus(&[
-        "package".as_ref(),
-        "build".as_ref(),
-        manifest.as_os_str(),
-        "--key".as_ref(),
-        key.as_os_str(),
-        "-o".as_ref(),
-        package.as_os_str(),
-    ]);
+    let package = signed_package(BIN, &manifest, "u1", dir.path(), &config.join("trusted"));
     // Thirty seconds of plant time from the load on a fork of the twin the PLC drives: what U.1
     // does there is what it does in quarantine, and the quarantine passes after 500 cycles and
     // whatever the twin showed diverging.

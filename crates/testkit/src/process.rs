@@ -197,3 +197,47 @@ pub fn run_vernadat(bin: &str, io: &std::path::Path, dir: &std::path::Path) -> C
         .arg(dir.join("config"));
     cmd
 }
+
+/// `bin package keygen` into `dir/<name>.key`, that key trusted in `trusted` (made if missing),
+/// and `bin package build` of `manifest` signed with it into `dir/<name>.cpkg`; the package's
+/// path. Fails with the binary's stderr.
+pub fn signed_package(
+    bin: &str,
+    manifest: &std::path::Path,
+    name: &str,
+    dir: &std::path::Path,
+    trusted: &std::path::Path,
+) -> PathBuf {
+    let run = |args: &[&std::ffi::OsStr]| {
+        let out = Command::new(bin).args(args).output().expect("run cetratus");
+        assert!(
+            out.status.success(),
+            "cetratus {args:?}: {}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+    };
+    let key = dir.join(format!("{name}.key"));
+    let package = dir.join(format!("{name}.cpkg"));
+    run(&[
+        "package".as_ref(),
+        "keygen".as_ref(),
+        "--out".as_ref(),
+        key.as_os_str(),
+    ]);
+    std::fs::create_dir_all(trusted).expect("the trusted keys' directory");
+    std::fs::copy(
+        dir.join(format!("{name}.key.pub")),
+        trusted.join(format!("{name}.pub")),
+    )
+    .expect("trust the key");
+    run(&[
+        "package".as_ref(),
+        "build".as_ref(),
+        manifest.as_os_str(),
+        "--key".as_ref(),
+        key.as_os_str(),
+        "-o".as_ref(),
+        package.as_os_str(),
+    ]);
+    package
+}

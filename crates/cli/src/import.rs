@@ -1,4 +1,5 @@
-//! `cetratus import plcopen`: an SFC chart of a PLCopen XML file written as a Cetratus program.
+//! `cetratus import plcopen` and `cetratus import st`: an SFC chart of a PLCopen XML file, or a
+//! POU of a Structured Text file, written as a Cetratus program.
 
 use std::path::PathBuf;
 
@@ -16,6 +17,22 @@ enum From {
     /// An IEC 61131-3 SFC from PLCopen TC6 XML (CODESYS, TwinCAT, Beremiz, OpenPLC Editor);
     /// docs/sfc.md has the mapping.
     Plcopen(PlcopenArgs),
+    /// A PROGRAM or FUNCTION_BLOCK of an IEC 61131-3 Structured Text file; docs/st.md says
+    /// what is accepted and how it runs.
+    St(StArgs),
+}
+
+/// Arguments of `cetratus import st`.
+#[derive(clap::Args, Debug)]
+struct StArgs {
+    /// The Structured Text file.
+    file: PathBuf,
+    /// The PROGRAM or FUNCTION_BLOCK to import; needed when the file has several PROGRAMs.
+    #[arg(long)]
+    pou: Option<String>,
+    /// The directory to write the program to (`POU.toml` and `POU.pnml`); created if needed.
+    #[arg(short, long)]
+    output: PathBuf,
 }
 
 /// Arguments of `cetratus import plcopen`.
@@ -33,7 +50,10 @@ struct PlcopenArgs {
 
 /// Runs `cetratus import`.
 pub fn run(args: &ImportArgs) -> anyhow::Result<()> {
-    let From::Plcopen(a) = &args.from;
+    let a = match &args.from {
+        From::Plcopen(a) => a,
+        From::St(a) => return structured_text(a),
+    };
     let label = a.file.display().to_string();
     let text = std::fs::read_to_string(&a.file)
         .with_context(|| format!("cannot read {label} as UTF-8 text"))?;
@@ -70,6 +90,34 @@ pub fn run(args: &ImportArgs) -> anyhow::Result<()> {
             format!(" (with the nested charts of {})", nested.join(", "))
         },
         imported.program.hash_hex()
+    );
+    Ok(())
+}
+
+/// `cetratus import st`.
+fn structured_text(a: &StArgs) -> anyhow::Result<()> {
+    let label = a.file.display().to_string();
+    let text = std::fs::read_to_string(&a.file)
+        .with_context(|| format!("cannot read {label} as UTF-8 text"))?;
+    let imported = cetratus_sfc::structured::import_st(&text, &label, a.pou.as_deref())?;
+    let stem = imported.program.name().to_string();
+    std::fs::create_dir_all(&a.output)
+        .with_context(|| format!("cannot create {}", a.output.display()))?;
+    let toml_path = a.output.join(format!("{stem}.toml"));
+    cetratus_net::pnml::write_file(&imported.net, &a.output.join(format!("{stem}.pnml")))?;
+    std::fs::write(&toml_path, &imported.toml)
+        .with_context(|| format!("cannot write {}", toml_path.display()))?;
+    for note in &imported.notes {
+        eprintln!("note: {note}");
+    }
+    let p = &imported.program;
+    println!(
+        "{}: POU {stem}, {} inputs, {} outputs, scan period {:?}; program hash {}",
+        toml_path.display(),
+        p.inputs().len(),
+        p.outputs().len(),
+        p.scan_period(),
+        p.hash_hex()
     );
     Ok(())
 }

@@ -38,6 +38,10 @@ pub struct RunArgs {
     speed: f64,
     #[command(flatten)]
     plant: crate::twin_cmd::PlantArgs,
+    /// Play back recorded inputs, one row per scan, from a CSV in the format `--trace` writes
+    /// (instead of a twin; docs/operations.md, *Replaying a trace*).
+    #[arg(long, value_name = "TRACE.csv")]
+    replay: Option<PathBuf>,
     /// Write the I/O trace: `.csv` or `.json`.
     #[arg(long)]
     trace: Option<PathBuf>,
@@ -176,6 +180,7 @@ fn spec(args: &RunArgs, program: Arc<Program>, kept: Kept) -> anyhow::Result<Nod
         settings: args.plant.settings(),
         io,
         presses: args.plant.press.clone(),
+        replay: args.replay.clone(),
     };
     let mut spec = NodeSpec::new(program, &args.mqtt.plc_id(), local, plant);
     spec.time = if args.virtual_time {

@@ -227,7 +227,7 @@ fn a_virtual_run_needs_a_twin_and_refuses_network_io() {
         .arg(&io)
         .output()
         .unwrap();
-    assert!(String::from_utf8_lossy(&out.stderr).contains("a virtual run needs a twin"));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("a virtual run needs a plant"));
     let out = Command::new(BIN)
         .arg("run")
         .arg(&program)

@@ -21,6 +21,7 @@ pub mod opcua {
     pub use config::OpcUaConfig;
 }
 pub mod plant;
+pub mod replay;
 pub mod server;
 pub mod twin_serve;
 

@@ -184,6 +184,13 @@ impl Engine {
         &self.enabled
     }
 
+    /// True when the net has transitions and none is enabled: it can never fire again. A net
+    /// without transitions (a program whose behaviour is its action bodies, such as an imported
+    /// Structured Text POU) is never dead.
+    pub fn deadlocked(&self) -> bool {
+        self.enabled.is_empty() && self.net.num_transitions() > 0
+    }
+
     /// True when t is enabled at the current marking.
     pub fn is_enabled(&self, t: TransIdx) -> bool {
         self.enabled_pos[t.index()] != NONE

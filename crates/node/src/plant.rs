@@ -25,6 +25,8 @@ pub struct PlantSpec {
     pub io: Option<IoConfig>,
     /// Twin button presses, `BUTTON@TIME`; the twin's own start presses when empty.
     pub presses: Vec<String>,
+    /// Recorded inputs to play back, one row per scan (`--replay`), instead of a twin.
+    pub replay: Option<std::path::PathBuf>,
 }
 
 /// What [`open`] needs besides the spec.
@@ -46,8 +48,12 @@ pub(crate) fn open(spec: &PlantSpec, at: &Opening<'_>, say: Say<'_>) -> Result<P
         None if at.virtual_time => None,
         None => at.local_io.cloned(),
     };
-    check_sources(spec.twin, config.as_ref(), at.virtual_time)?;
+    check_sources(spec, config.as_ref(), at.virtual_time)?;
     let mut drivers: Vec<Box<dyn PlantDriver>> = Vec::new();
+    if let Some(path) = &spec.replay {
+        let replay = cetratus_io::replay::Replay::open(path, at.program.inputs())?;
+        drivers.push(Box::new(replay));
+    }
     if let Some(k) = spec.twin {
         let t = k
             .configure(&spec.settings)
@@ -75,12 +81,16 @@ fn opcua_inputs(c: &IoConfig) -> bool {
 
 /// Refuses a plant whose inputs would have no source, or two.
 fn check_sources(
-    twin: Option<TwinKind>,
+    spec: &PlantSpec,
     config: Option<&IoConfig>,
     virtual_time: bool,
 ) -> Result<(), SpecError> {
+    let twin = spec.twin;
+    if spec.replay.is_some() && (twin.is_some() || config.is_some()) {
+        return Err(SpecError::ReplayAndPlant);
+    }
     if virtual_time {
-        if twin.is_none() {
+        if twin.is_none() && spec.replay.is_none() {
             return Err(SpecError::VirtualNeedsTwin);
         }
         if let Some(c) = config {

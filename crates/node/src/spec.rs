@@ -137,7 +137,7 @@ pub enum SpecError {
     },
     /// A simulation without a twin.
     #[error(
-        "a virtual run needs a twin to simulate the plant: add --twin vernadat or --twin festo"
+        "a virtual run needs a plant: add --twin vernadat or --twin festo, or --replay TRACE.csv"
     )]
     VirtualNeedsTwin,
     /// A simulation with network I/O.
@@ -194,6 +194,12 @@ pub enum SpecError {
     /// A button press that cannot be given.
     #[error(transparent)]
     Press(#[from] PressError),
+    /// `--replay` beside a twin or field I/O: the inputs would have two sources.
+    #[error("--replay gives the inputs of every scan; leave out --twin and --io")]
+    ReplayAndPlant,
+    /// The replay file was refused.
+    #[error(transparent)]
+    Replay(#[from] cetratus_io::replay::ReplayError),
     /// `--press` without a twin.
     #[error("--press needs a twin; with field I/O, press the machine's own buttons")]
     PressNeedsTwin,

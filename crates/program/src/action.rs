@@ -138,6 +138,8 @@ pub struct ActionState {
     quiet: bool,
     // Tests compare against a state that always recomputes.
     never_quiet: bool,
+    /// The state of the program's Structured Text, if it has some (`[st]`).
+    st: Option<cetratus_st::State>,
 }
 
 impl ActionState {
@@ -156,6 +158,7 @@ impl ActionState {
             pulsed: false,
             quiet: false,
             never_quiet: false,
+            st: program.st().map(|s| s.unit().new_state()),
         }
     }
 
@@ -179,6 +182,22 @@ impl ActionState {
         self.pulsed = other.pulsed;
         self.quiet = other.quiet;
         self.never_quiet = other.never_quiet;
+        if let (Some(to), Some(from)) = (self.st.as_mut(), other.st.as_ref()) {
+            if to.slots.len() == from.slots.len() && to.text.len() == from.text.len() {
+                to.slots.copy_from_slice(&from.slots);
+                to.text.copy_from_slice(&from.text);
+            }
+        }
+    }
+
+    /// The state of the program's Structured Text, if it has some.
+    pub fn st_state(&self) -> Option<&cetratus_st::State> {
+        self.st.as_ref()
+    }
+
+    /// The state of the program's Structured Text, to carry values into it.
+    pub fn st_state_mut(&mut self) -> Option<&mut cetratus_st::State> {
+        self.st.as_mut()
     }
 
     /// Makes every `apply` recompute in full, for comparing against the settled shortcut in
@@ -456,7 +475,12 @@ impl ActionState {
                                 body: body.name().to_string(),
                             });
                         }
-                        body.run(ctx, vars, outputs)?;
+                        match (body.st(), self.st.as_mut()) {
+                            (Some(st), Some(state)) => st
+                                .run(ctx.inputs, outputs, state, now_us, work)
+                                .map_err(|f| st_fault(body, f))?,
+                            _ => body.run(ctx, vars, outputs)?,
+                        }
                     }
                 }
                 running |= stored;
@@ -466,4 +490,20 @@ impl ActionState {
         self.settled = !self.pulsed && !running;
         Ok(())
     }
+}
+
+/// A fault of a Structured Text body in the words of the action machinery.
+#[cold]
+fn st_fault(body: &crate::Body, f: cetratus_st::Fault) -> ActError {
+    use cetratus_st::code::FaultKind;
+    let kind = match f.kind {
+        FaultKind::Budget => {
+            return ActError::OutOfWork {
+                body: body.name().to_string(),
+            }
+        }
+        FaultKind::DivisionByZero => crate::EvalErrorKind::DivisionByZero,
+        FaultKind::IndexOutOfRange { .. } => crate::EvalErrorKind::IndexOutOfRange,
+    };
+    ActError::Body(body.st_error(kind, f.pos))
 }

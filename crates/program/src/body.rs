@@ -10,7 +10,10 @@
 
 use std::fmt;
 
+use std::sync::Arc;
+
 use crate::guard::{self, Compiler, EvalCtx, EvalError, EvalErrorKind, Op, Scope, SyntaxError};
+use crate::st::StProgram;
 use crate::value::{Type, Value};
 
 /// Most bytes in one body.
@@ -28,6 +31,8 @@ pub struct Body {
     code: Vec<(Op, u32)>,
     outputs: Vec<u32>,
     vars: Vec<u32>,
+    /// A POU of the program's Structured Text (`[st]`) instead of guard-language code.
+    st: Option<Arc<StProgram>>,
 }
 
 /// A body that failed while running: which, where in its text, and why.
@@ -102,9 +107,43 @@ impl Body {
     pub fn code_len(&self) -> usize {
         self.code.len()
     }
-    /// What one run costs in units of [`crate::Work`]: the length of its code, at least 1.
+    /// What one run costs in units of [`crate::Work`]: the length of its code, at least 1 (for
+    /// Structured Text, its straight-line cost; its loops charge more as they go round).
     pub fn cost(&self) -> u64 {
-        (self.code.len() as u64).max(1)
+        match &self.st {
+            Some(st) => st.unit().cost.max(1),
+            None => (self.code.len() as u64).max(1),
+        }
+    }
+
+    /// The program's Structured Text POU this body runs, if it is one.
+    pub fn st(&self) -> Option<&StProgram> {
+        self.st.as_deref()
+    }
+
+    /// A body that runs the POU of the program's Structured Text; `source` is the ST text.
+    pub(crate) fn structured_text(name: &str, source: &str, st: Arc<StProgram>) -> Body {
+        let mut outputs: Vec<u32> = st.driven_outputs().map(|i| i as u32).collect();
+        outputs.sort_unstable();
+        Body {
+            name: name.to_string(),
+            source: source.to_string(),
+            code: Vec::new(),
+            outputs,
+            vars: Vec::new(),
+            st: Some(st),
+        }
+    }
+
+    /// A fault of the ST this body runs, located in its text.
+    pub(crate) fn st_error(&self, kind: EvalErrorKind, pos: u32) -> BodyError {
+        let (line, column) = line_col(&self.source, pos as usize);
+        BodyError {
+            body: self.name.clone(),
+            line,
+            column,
+            kind,
+        }
     }
 
     /// Parses, type-checks and compiles a body; the error's offset is in `source`.
@@ -320,6 +359,7 @@ impl Builder<'_, '_> {
             code: self.c.code,
             outputs: self.outputs,
             vars: self.vars,
+            st: None,
         })
     }
 }

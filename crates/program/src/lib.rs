@@ -22,14 +22,15 @@ pub mod keys;
 pub mod package;
 mod program;
 mod source;
+pub mod st;
 pub mod transform;
 mod value;
-mod work;
 
 use std::path::Path;
 
 pub use action::{ActError, Action, ActionState, Qualifier, Target};
 pub use body::{Body, BodyError};
+pub use cetratus_st::Work;
 pub use error::ProgramError;
 pub use guard::{EvalCtx, EvalError, EvalErrorKind, Guard};
 pub use invariant::{Invariant, InvariantViolation};
@@ -42,7 +43,6 @@ pub use program::{Program, Watchdog, DEFAULT_SCAN_PERIOD, TOOL};
 pub use source::{toml_text, NotUtf8};
 pub use transform::{DenseMatrix, Derivation, Projection, StateTransform, TransformError};
 pub use value::{Signal, Type, Value};
-pub use work::Work;
 
 use cetratus_net::Net;
 

@@ -14,6 +14,7 @@ use crate::body::Body;
 use crate::guard::{EvalCtx, EvalError, Guard, Scope};
 use crate::invariant::{self, Invariant, InvariantViolation};
 use crate::source::{Doc, Origin, SignalDecl};
+use crate::st::StProgram;
 use crate::value::{Signal, Value};
 use crate::ProgramError;
 
@@ -21,7 +22,7 @@ mod resolve;
 
 use resolve::{
     action_slots, actions, actions_by_place, bodies, guards, invariants, settings, signal,
-    watchdogs, Kind, Settings,
+    structured_text, watchdogs, Kind, Settings,
 };
 
 /// The tool name of the net-level `<toolspecific>` element that carries a program in a PNML file.
@@ -60,6 +61,8 @@ pub struct Program {
     pub(crate) actions: Vec<Action>,
     /// Action bodies, in declaration order.
     pub(crate) bodies: Vec<Body>,
+    /// The program's Structured Text, compiled and wired to its signals (`[st]`).
+    st: Option<Arc<StProgram>>,
     /// Per output: a body assigns it, so it keeps its value from scan to scan.
     pub(crate) output_held: Vec<bool>,
     /// Per action, its index in `action_targets`.
@@ -191,7 +194,8 @@ impl Program {
         };
         let guards = guards(&o, &doc, &scope)?;
         // Bodies, then the actions that run them or drive a signal.
-        let bodies = bodies(&o, &doc, &scope)?;
+        let st = structured_text(&o, &doc, &inputs, &outputs)?;
+        let bodies = bodies(&o, &doc, &scope, st.as_ref())?;
         let mut output_held = vec![false; outputs.len()];
         for b in &bodies {
             for &i in b.outputs() {
@@ -222,6 +226,7 @@ impl Program {
             guards,
             actions,
             bodies,
+            st,
             output_held,
             action_slot,
             action_targets,
@@ -323,6 +328,10 @@ impl Program {
     /// The action bodies, in declaration order ([`Target::Body`] indexes them).
     pub fn bodies(&self) -> &[Body] {
         &self.bodies
+    }
+    /// The program's Structured Text, if it has some (`[st]`).
+    pub fn st(&self) -> Option<&StProgram> {
+        self.st.as_deref()
     }
     /// The distinct signals actions drive; [`crate::ActionState::latches`] follows this order.
     pub fn action_targets(&self) -> &[Target] {

@@ -31,6 +31,15 @@ pub(crate) struct Doc {
     #[serde(default)]
     pub watchdog: Vec<Spanned<WatchdogDecl>>,
     pub stall: Option<Spanned<StallDecl>>,
+    pub st: Option<Spanned<StDecl>>,
+}
+
+/// `[st]`: the program's Structured Text and the POU an action runs.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(crate) struct StDecl {
+    pub pou: Spanned<String>,
+    pub source: Spanned<String>,
 }
 
 /// `[program]`.

@@ -455,7 +455,7 @@ impl Container {
     fn outcome(&self, fired: usize) -> ScanOutcome {
         ScanOutcome {
             fired,
-            deadlocked: self.engine.enabled().is_empty(),
+            deadlocked: self.engine.deadlocked(),
         }
     }
 

@@ -235,7 +235,7 @@ impl Monitor {
         stats.drift = drift;
         stats.drift_valid = true;
         stats.max_drift = stats.max_drift.max(drift);
-        stats.deadlocked = cc.engine().enabled().is_empty();
+        stats.deadlocked = cc.engine().deadlocked();
 
         // The cause of this cycle's divergence: the firing difference of this cycle, or else
         // the latest one before it.

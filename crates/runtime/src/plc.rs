@@ -456,7 +456,7 @@ impl Plc {
     /// episode.
     fn deadlock_alarm(&mut self, p: Slot) {
         let core = &mut self.core;
-        let deadlocked = core.primary.engine().enabled().is_empty();
+        let deadlocked = core.primary.engine().deadlocked();
         core.monitor.stats[p.index()].deadlocked = deadlocked;
         if !deadlocked {
             self.deadlock_alarmed = false;

@@ -774,7 +774,7 @@ fn file_name(label: &str) -> &str {
 }
 
 /// A TOML basic string.
-fn q(s: &str) -> String {
+pub(crate) fn q(s: &str) -> String {
     let mut out = String::with_capacity(s.len() + 2);
     out.push('"');
     for c in s.chars() {

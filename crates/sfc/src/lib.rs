@@ -20,6 +20,7 @@ mod nest;
 mod pou;
 mod source;
 pub mod st;
+pub mod structured;
 
 use cetratus_net::Net;
 use cetratus_program::Program;

@@ -6,6 +6,9 @@
 //! The parts that pull in heavy crates sit behind features (`nets`, `programs`, `stopwatch`,
 //! `browser`), so that a suite compiles only what it uses.
 //!
+//! `matiec` runs batches of Structured Text programs through MATIEC, the compiler of OpenPLC and
+//! Beremiz, as an independent second implementation of the language.
+//!
 //! # Where the Vernadat net lives
 //!
 //! The bare Vernadat net is built in code exactly once, in `cetratus_bench::workloads::vernadat`:
@@ -19,6 +22,7 @@
 pub mod browser;
 pub mod counting;
 pub mod http;
+pub mod matiec;
 pub mod modbus;
 pub mod mqtt;
 #[cfg(feature = "nets")]

@@ -32,11 +32,20 @@ const RULES: &[(&str, Allowed)] = &[
     ("cetratus-slots", Only(&[])),
     ("cetratus-proto", Only(&["cetratus-vocab"])),
     ("cetratus-analysis", Only(&["cetratus-net"])),
+    ("cetratus-st", Only(&[])),
     (
         "cetratus-program",
-        Only(&["cetratus-vocab", "cetratus-net", "cetratus-analysis"]),
+        Only(&[
+            "cetratus-vocab",
+            "cetratus-net",
+            "cetratus-analysis",
+            "cetratus-st",
+        ]),
     ),
-    ("cetratus-sfc", Only(&["cetratus-net", "cetratus-program"])),
+    (
+        "cetratus-sfc",
+        Only(&["cetratus-net", "cetratus-program", "cetratus-st"]),
+    ),
     (
         "cetratus-runtime",
         Only(&["cetratus-vocab", "cetratus-net", "cetratus-program"]),

@@ -60,6 +60,8 @@ pub enum EvalErrorKind {
     MissingValue,
     /// An input or variable in the context does not have its declared type.
     WrongType,
+    /// Structured Text indexed an array outside its bounds.
+    IndexOutOfRange,
 }
 
 /// A guard evaluation failure; the column is 1-based within the guard text.
@@ -80,6 +82,7 @@ impl EvalErrorKind {
             EvalErrorKind::Overflow => "arithmetic overflow",
             EvalErrorKind::MissingValue => missing,
             EvalErrorKind::WrongType => wrong_type,
+            EvalErrorKind::IndexOutOfRange => "array index out of its bounds",
         }
     }
 }

@@ -15,8 +15,10 @@ use crate::body::Body;
 use crate::guard::{Guard, Scope, SyntaxError};
 use crate::invariant::Invariant;
 use crate::source::{Doc, Origin, ProgramSection, SignalDecl};
+use crate::st::StProgram;
 use crate::value::{Signal, Type, Value};
 use crate::ProgramError;
+use std::sync::Arc;
 
 #[derive(Clone, Copy, PartialEq, Eq)]
 pub(super) enum Kind {
@@ -156,9 +158,22 @@ pub(super) fn guards(
 }
 
 /// `[bodies]` compiled, in document order, the order actions name them by index.
-pub(super) fn bodies(o: &Origin, doc: &Doc, scope: &Scope) -> Result<Vec<Body>, ProgramError> {
+pub(super) fn bodies(
+    o: &Origin,
+    doc: &Doc,
+    scope: &Scope,
+    st: Option<&Arc<StProgram>>,
+) -> Result<Vec<Body>, ProgramError> {
     let entries = in_document_order(&doc.bodies);
-    let mut bodies: Vec<Body> = Vec::with_capacity(entries.len());
+    let mut bodies: Vec<Body> = Vec::with_capacity(entries.len() + 1);
+    if let (Some(st), Some(decl)) = (st, &doc.st) {
+        let decl = decl.get_ref();
+        bodies.push(Body::structured_text(
+            decl.pou.get_ref(),
+            decl.source.get_ref(),
+            st.clone(),
+        ));
+    }
     for (key, text) in entries {
         let b = Body::compile(key.get_ref(), text.get_ref(), scope).map_err(|e| {
             o.err(
@@ -513,4 +528,31 @@ pub(super) fn watchdogs(
         }
     };
     Ok((out, no_firing))
+}
+
+/// `[st]` compiled: the POU named, wired to the program's inputs and outputs. An error in the
+/// ST is placed in the file where the text of `source` says (exact for a literal string,
+/// `'''…'''`, whose characters are the text's).
+pub(super) fn structured_text(
+    o: &Origin,
+    doc: &Doc,
+    inputs: &[Signal],
+    outputs: &[Signal],
+) -> Result<Option<Arc<StProgram>>, ProgramError> {
+    let Some(decl) = &doc.st else {
+        return Ok(None);
+    };
+    let decl = decl.get_ref();
+    let text = decl.source.get_ref();
+    let located = |d: cetratus_st::Diagnostic| {
+        o.err(
+            o.in_string(&decl.source, d.pos as usize),
+            format!("in the Structured Text: {}", d.message),
+        )
+    };
+    let lib = cetratus_st::parse::parse_library(text).map_err(located)?;
+    let unit = cetratus_st::compile(&lib, Some(decl.pou.get_ref())).map_err(located)?;
+    let st = StProgram::wire(unit, inputs, outputs)
+        .map_err(|w| o.err(decl.pou.span().start, format!("`[st] pou`: {}", w.message)))?;
+    Ok(Some(Arc::new(st)))
 }

@@ -1,0 +1,135 @@
+//! `cetratus import st` writes a program whose POU runs every scan, and `cetratus run --replay`
+//! drives it from a recorded trace; bad ST and bad traces are refused with their place.
+
+use std::path::Path;
+use std::process::{Command, Output};
+
+const BIN: &str = env!("CARGO_BIN_EXE_cetratus");
+
+const COUNTER: &str = "\
+PROGRAM Counter
+VAR_INPUT run : BOOL; END_VAR
+VAR_OUTPUT count : INT; q : BOOL; END_VAR
+VAR t : TON; END_VAR
+count := count + 1;
+t(IN := run, PT := T#100ms);
+q := t.Q;
+END_PROGRAM
+";
+
+fn cetratus(args: &[&str]) -> Output {
+    Command::new(BIN)
+        .args(args)
+        .output()
+        .expect("cetratus runs")
+}
+
+fn ok(out: &Output) -> String {
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    String::from_utf8_lossy(&out.stdout).into_owned()
+}
+
+fn refused(out: &Output) -> String {
+    assert!(
+        !out.status.success(),
+        "accepted: {}",
+        String::from_utf8_lossy(&out.stdout)
+    );
+    String::from_utf8_lossy(&out.stderr).into_owned()
+}
+
+fn path(p: &Path) -> &str {
+    p.to_str().expect("a UTF-8 path")
+}
+
+/// Imports `text` as `name.st` into `dir`; the program file.
+fn import(dir: &Path, name: &str, text: &str) -> Output {
+    let st = dir.join(format!("{name}.st"));
+    std::fs::write(&st, text).expect("write the ST file");
+    cetratus(&["import", "st", path(&st), "-o", path(dir)])
+}
+
+#[test]
+fn an_imported_st_program_runs_every_scan_from_a_replayed_trace() {
+    let dir = tempfile::tempdir().expect("a temporary directory");
+    let printed = ok(&import(dir.path(), "counter", COUNTER));
+    assert!(printed.contains("1 inputs, 2 outputs"), "{printed}");
+    let replay = dir.path().join("in.csv");
+    // `run` rises at scan 3 and holds: rows only where something changes, as --trace writes.
+    std::fs::write(&replay, "scan,time_ms,run\n0,0.000,0\n3,30.000,1\n").expect("write");
+    let trace = dir.path().join("out.csv");
+    let program = dir.path().join("Counter.toml");
+    ok(&cetratus(&[
+        "run",
+        path(&program),
+        "--replay",
+        path(&replay),
+        "--virtual",
+        "--for",
+        "200ms",
+        "--trace",
+        path(&trace),
+        "--no-mct",
+    ]));
+    let csv = std::fs::read_to_string(&trace).expect("the trace");
+    let rows: Vec<Vec<&str>> = csv
+        .lines()
+        .skip(1)
+        .map(|l| l.split(',').collect())
+        .collect();
+    assert_eq!(csv.lines().next(), Some("scan,time_ms,run,count,q"));
+    // The body runs in every scan: the count is the scan number plus one.
+    for r in &rows {
+        let scan: i64 = r[0].parse().expect("scan");
+        assert_eq!(r[3].parse::<i64>().expect("count"), scan + 1, "{csv}");
+    }
+    // The TON started at 30 ms; Q from 130 ms (scan 13), as MATIEC's TON does it.
+    let q_from = rows.iter().find(|r| r[4] == "1").map(|r| r[0]);
+    assert_eq!(q_from, Some("13"), "{csv}");
+}
+
+#[test]
+fn st_that_does_not_type_check_is_refused_at_its_line_and_column() {
+    let dir = tempfile::tempdir().expect("a temporary directory");
+    let bad = COUNTER.replace("count := count + 1;", "count := count + DINT#1;");
+    let err = refused(&import(dir.path(), "bad", &bad));
+    assert!(err.contains("bad.st:5:"), "{err}");
+    assert!(err.contains("INT") && err.contains("DINT"), "{err}");
+    assert!(!dir.path().join("Counter.toml").exists());
+}
+
+#[test]
+fn a_trace_that_does_not_fit_the_program_is_refused_before_the_first_scan() {
+    let dir = tempfile::tempdir().expect("a temporary directory");
+    ok(&import(dir.path(), "counter", COUNTER));
+    let program = dir.path().join("Counter.toml");
+    let replay = dir.path().join("in.csv");
+    let run = |csv: &str, extra: &[&str]| {
+        std::fs::write(&replay, csv).expect("write");
+        let mut args = vec![
+            "run",
+            path(&program),
+            "--replay",
+            path(&replay),
+            "--virtual",
+            "--for",
+            "50ms",
+            "--no-mct",
+        ];
+        args.extend_from_slice(extra);
+        refused(&cetratus(&args))
+    };
+    let err = run("scan,time_ms,run\n0,0,maybe\n", &[]);
+    assert!(
+        err.contains("in.csv:2") && err.contains("`run`") && err.contains("maybe"),
+        "{err}"
+    );
+    let err = run("scan,time_ms,other\n0,0,1\n", &[]);
+    assert!(err.contains("no column for the input `run`"), "{err}");
+    let err = run("scan,time_ms,run\n0,0,1\n", &["--twin", "vernadat"]);
+    assert!(err.contains("--replay"), "{err}");
+}

@@ -1,0 +1,179 @@
+//! A program's Structured Text (`[st]`, docs/program-format.md): the IEC 61131-3 source it
+//! carries, compiled at load by `cetratus-st`, and the wiring of its POU's VAR_INPUTs and
+//! VAR_OUTPUTs to the program's input and output signals.
+//!
+//! The POU runs as an action body (an `[[action]]` whose `body` names it). Each run copies the
+//! input image into its VAR_INPUTs, runs one pass of its code, and copies its VAR_OUTPUTs to the
+//! output image. How a value crosses between a signal and an IEC variable:
+//!
+//! | IEC type | signal | crossing |
+//! |---|---|---|
+//! | BOOL | `bool` | as is |
+//! | SINT … LINT, USINT … ULINT, BYTE … LWORD | `int` | the low bits of the i64 in, the value out (a ULINT above 2⁶³ reads negative) |
+//! | TIME | `int` | milliseconds |
+//! | REAL, LREAL | `real` | rounded to the nearest `f32` in, exact out |
+//!
+//! Other types (STRING, arrays, structures, instances) are not signals: they stay in the ST
+//! state, which the container keeps with its program's other state.
+
+use std::sync::Arc;
+
+use cetratus_st::ast::Section;
+use cetratus_st::types::{wrap, Elem, Ty};
+use cetratus_st::{Fault, State, Unit, Var, Work};
+
+use crate::value::{Signal, Type, Value};
+
+/// Nanoseconds in a millisecond, the unit a TIME signal counts.
+const NS_PER_MS: i64 = 1_000_000;
+
+/// The compiled ST of a program and its wiring to the I/O images.
+#[derive(Clone, Debug)]
+pub struct StProgram {
+    unit: Arc<Unit>,
+    /// Per VAR_INPUT wired to a signal: the input's index and the variable.
+    inputs: Vec<(u32, Elem, u32)>,
+    /// Per VAR_OUTPUT wired to a signal: the output's index and the variable.
+    outputs: Vec<(u32, Elem, u32)>,
+}
+
+/// Why a POU's variables do not fit the program's signals.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Wiring {
+    /// The variable or signal.
+    pub name: String,
+    /// What is wrong and what to do.
+    pub message: String,
+}
+
+/// The signal type an IEC elementary type crosses as.
+pub fn signal_type(e: Elem) -> Type {
+    match e {
+        Elem::Bool => Type::Bool,
+        Elem::Real | Elem::Lreal => Type::Real,
+        _ => Type::Int,
+    }
+}
+
+impl StProgram {
+    /// Wires `unit`'s VAR_INPUTs and VAR_OUTPUTs of elementary types to the signals of the same
+    /// names (case-insensitive), which must have the matching type; a variable of another type
+    /// stays unwired, and a signal with no variable is refused.
+    pub fn wire(unit: Unit, inputs: &[Signal], outputs: &[Signal]) -> Result<StProgram, Wiring> {
+        let wire_one = |signals: &[Signal],
+                        section: Section|
+         -> Result<Vec<(u32, Elem, u32)>, Wiring> {
+            let mut out = Vec::new();
+            for (i, s) in signals.iter().enumerate() {
+                let v = unit
+                    .vars
+                    .iter()
+                    .find(|v| v.name.eq_ignore_ascii_case(&s.name) && crosses(v) == Some(section));
+                let Some(Var {
+                    ty: Ty::Elem(e),
+                    at,
+                    ..
+                }) = v
+                else {
+                    return Err(Wiring {
+                        name: s.name.clone(),
+                        message: format!("the signal `{}` is not a {} of an elementary type in the POU `{}`; declare it there, or remove the signal", s.name, section.keyword(), unit.name),
+                    });
+                };
+                if signal_type(*e) != s.ty {
+                    return Err(Wiring {
+                        name: s.name.clone(),
+                        message: format!("the signal `{}` is declared `{}`, but the POU's variable is {e}, which crosses as `{}`", s.name, s.ty, signal_type(*e)),
+                    });
+                }
+                out.push((i as u32, *e, at.slots));
+            }
+            Ok(out)
+        };
+        Ok(StProgram {
+            inputs: wire_one(inputs, Section::Input)?,
+            outputs: wire_one(outputs, Section::Output)?,
+            unit: Arc::new(unit),
+        })
+    }
+
+    /// The compiled POU.
+    pub fn unit(&self) -> &Unit {
+        &self.unit
+    }
+
+    /// The indices of the output signals the POU drives.
+    pub fn driven_outputs(&self) -> impl Iterator<Item = usize> + '_ {
+        self.outputs.iter().map(|&(i, _, _)| i as usize)
+    }
+
+    /// One run of the POU on `state` at `now_us`: the inputs copied in, its code run within
+    /// `work`, its outputs copied out. Never allocates.
+    pub fn run(
+        &self,
+        inputs: &[Value],
+        outputs: &mut [Value],
+        state: &mut State,
+        now_us: u64,
+        work: &mut Work,
+    ) -> Result<(), Fault> {
+        for &(i, e, slot) in &self.inputs {
+            if let (Some(&v), Some(s)) =
+                (inputs.get(i as usize), state.slots.get_mut(slot as usize))
+            {
+                *s = to_slot(e, v);
+            }
+        }
+        let now = i64::try_from(now_us)
+            .unwrap_or(i64::MAX / 1000)
+            .saturating_mul(1000);
+        let ran = self.unit.run(state, now, work);
+        for &(i, e, slot) in &self.outputs {
+            if let (Some(o), Some(&s)) =
+                (outputs.get_mut(i as usize), state.slots.get(slot as usize))
+            {
+                *o = from_slot(e, s);
+            }
+        }
+        ran
+    }
+}
+
+/// The section a variable crosses the I/O image as: its own when it is VAR_INPUT or VAR_OUTPUT,
+/// else [`Section::Input`] when it is located at `%I…` and [`Section::Output`] at `%Q…`.
+pub fn crosses(v: &Var) -> Option<Section> {
+    let located = |prefix: &str| {
+        v.address
+            .as_deref()
+            .is_some_and(|a| a.get(..2).is_some_and(|p| p.eq_ignore_ascii_case(prefix)))
+    };
+    match v.section {
+        Section::Input | Section::Output => Some(v.section),
+        _ if located("%I") => Some(Section::Input),
+        _ if located("%Q") => Some(Section::Output),
+        _ => None,
+    }
+}
+
+/// A signal's value as the slot of an IEC variable of type `e`.
+fn to_slot(e: Elem, v: Value) -> u64 {
+    match (e, v) {
+        (Elem::Real, Value::Real(x)) => u64::from((x as f32).to_bits()),
+        (Elem::Lreal, Value::Real(x)) => x.to_bits(),
+        (Elem::Time, Value::Int(ms)) => ms.saturating_mul(NS_PER_MS) as u64,
+        (_, Value::Int(i)) => wrap(e, i as u64),
+        (_, Value::Bool(b)) => u64::from(b),
+        (_, Value::Real(_)) => 0,
+    }
+}
+
+/// An IEC variable's slot as a signal's value.
+fn from_slot(e: Elem, s: u64) -> Value {
+    match e {
+        Elem::Bool => Value::Bool(s != 0),
+        Elem::Real => Value::Real(f64::from(f32::from_bits(s as u32))),
+        Elem::Lreal => Value::Real(f64::from_bits(s)),
+        Elem::Time => Value::Int((s as i64) / NS_PER_MS),
+        _ => Value::Int(s as i64),
+    }
+}

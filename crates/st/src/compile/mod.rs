@@ -1,0 +1,429 @@
+//! From a parsed file to a [`Unit`]: names resolved, types checked, and the PROGRAM's body
+//! compiled to register-machine code (`crate::code`), with every call of a function or function
+//! block expanded where it is made.
+//!
+//! Expanding calls keeps the machine simple and fast (absolute operands, no frames, no call
+//! stack), and is possible because IEC 61131-3 forbids recursion (§6.1.4: "recursive calls of
+//! … POUs are not allowed"), which the compiler checks. Its cost is code size, which is bounded
+//! ([`MAX_OPS`]); a call chain deeper than [`MAX_CALL_DEPTH`] is refused, which also bounds the
+//! compiler's own recursion.
+//!
+//! Typing is strict, as MATIEC's is and as the 3rd edition's: the two operands of an operator
+//! have the same type, and a value is converted with an explicit `*_TO_*`. A literal without a
+//! type prefix takes the type its context needs (`x + 1` with `x : INT` is INT).
+
+mod call;
+mod decl;
+mod expr;
+mod konst;
+mod operator;
+mod stdfn;
+mod stmt;
+
+use std::collections::HashMap;
+
+use crate::ast::{Library, Pos, Pou, PouKind, Section};
+use crate::code::{Code, Op, Slot};
+use crate::error::Diagnostic;
+use crate::stdfb::StdFb;
+use crate::types::{FbId, Field, Size, Ty, Types};
+use crate::vm::State;
+
+pub use decl::Var;
+
+/// Most instructions in one compiled program, after expanding calls.
+pub const MAX_OPS: usize = 1 << 22;
+/// Deepest chain of calls of user functions and function blocks.
+pub const MAX_CALL_DEPTH: usize = 32;
+/// Most slots in one program's state (8 MiB).
+pub const MAX_SLOTS: u32 = 1 << 20;
+/// Most bytes of text in one program's state.
+pub const MAX_TEXT: u32 = 1 << 22;
+
+/// A function block type: standard, or declared in the file.
+#[derive(Clone, Debug)]
+pub(crate) enum FbKind<'a> {
+    /// One of the standard blocks, run natively.
+    Std(StdFb),
+    /// A FUNCTION_BLOCK of the file, expanded where it is called.
+    User(&'a Pou),
+}
+
+/// A function block type with its instance layout.
+#[derive(Clone, Debug)]
+pub(crate) struct FbDef<'a> {
+    /// Its name as declared.
+    pub name: String,
+    /// What runs it.
+    pub kind: FbKind<'a>,
+    /// Its members at their offsets, with their sections.
+    pub fields: Vec<(Field, Section)>,
+    /// The size of an instance.
+    pub size: Size,
+}
+
+/// Where a value is: at a fixed place, or at a place computed at run time (an array element
+/// indexed by a variable), whose slot and text offsets are held in two slots.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) enum Loc {
+    /// At `at`.
+    Static(Size),
+    /// At `slots[slot_addr] + off.slots` and `slots[text_addr] + off.text`.
+    Dynamic {
+        /// The slot that holds the slot offset.
+        slot_addr: Slot,
+        /// The slot that holds the text offset.
+        text_addr: Slot,
+        /// Added to both.
+        off: Size,
+    },
+}
+
+impl Loc {
+    /// The place `off` further on.
+    pub fn offset(self, by: Size) -> Loc {
+        match self {
+            Loc::Static(at) => Loc::Static(Size {
+                slots: at.slots + by.slots,
+                text: at.text + by.text,
+            }),
+            Loc::Dynamic {
+                slot_addr,
+                text_addr,
+                off,
+            } => Loc::Dynamic {
+                slot_addr,
+                text_addr,
+                off: Size {
+                    slots: off.slots + by.slots,
+                    text: off.text + by.text,
+                },
+            },
+        }
+    }
+}
+
+/// A variable as a body sees it.
+#[derive(Clone, Debug)]
+pub(crate) struct VarRef {
+    /// Its type.
+    pub ty: Ty,
+    /// Where it is.
+    pub loc: Loc,
+    /// `CONSTANT`: not assignable.
+    pub constant: bool,
+}
+
+/// The names a body can see: its POU's variables.
+#[derive(Clone, Debug, Default)]
+pub(crate) struct Scope {
+    /// By upper-case name.
+    pub vars: HashMap<String, VarRef>,
+    /// The POU, upper case, for messages and recursion checks.
+    pub pou: String,
+}
+
+/// A loop being compiled: the jumps its `EXIT`s make, to point past its end.
+#[derive(Debug, Default)]
+pub(crate) struct LoopCtx {
+    pub exits: Vec<usize>,
+}
+
+/// The compiler's state while it works on one file.
+pub(crate) struct Compiler<'a> {
+    /// The file.
+    pub lib: &'a Library,
+    /// The types declared so far.
+    pub types: Types,
+    /// Declared types by upper-case name, resolved.
+    pub named: HashMap<String, decl::Named>,
+    /// Types being resolved, to refuse a type that contains itself.
+    pub resolving: Vec<String>,
+    /// FUNCTIONs by upper-case name.
+    pub functions: HashMap<String, &'a Pou>,
+    /// Function block types, by [`FbId`].
+    pub fbs: Vec<FbDef<'a>>,
+    /// FB ids by upper-case name.
+    pub fb_by_key: HashMap<String, FbId>,
+    /// The code so far.
+    pub code: Code,
+    /// The state's initial values so far; its length is where the next allocation goes.
+    pub init: State,
+    /// The innermost scope is the body being compiled.
+    pub scopes: Vec<Scope>,
+    /// The enclosing loops of the statement being compiled (of the innermost body).
+    pub loops: Vec<LoopCtx>,
+    /// For each body being compiled, the jumps of its `RETURN`s.
+    pub returns: Vec<Vec<usize>>,
+    /// Slots holding constants, by their bits.
+    pub consts: HashMap<u64, Slot>,
+    /// Temporaries: slots that hold one operation's result for one reader.
+    pub temps: std::collections::HashSet<Slot>,
+}
+
+/// A compiled PROGRAM: its code, its state's layout and initial values, and its variables.
+#[derive(Clone, Debug)]
+pub struct Unit {
+    /// The PROGRAM's name.
+    pub name: String,
+    /// The code of one scan.
+    pub code: Code,
+    /// What running the straight-line code once costs, in units of work.
+    pub cost: u64,
+    /// The state before the first scan.
+    pub init: State,
+    /// The declared types.
+    pub types: Types,
+    /// The PROGRAM's own variables, in declaration order.
+    pub vars: Vec<Var>,
+    /// The interval of the TASK that runs the program, if the file has one (nanoseconds).
+    pub interval: Option<i64>,
+    /// The names of the function block types, by id.
+    pub fb_names: Vec<String>,
+}
+
+impl Unit {
+    /// A new state, as before the first scan.
+    pub fn new_state(&self) -> State {
+        self.init.clone()
+    }
+
+    /// Runs one scan at time `now` (nanoseconds), within `work`.
+    pub fn run(
+        &self,
+        state: &mut State,
+        now: i64,
+        work: &mut crate::Work,
+    ) -> Result<(), crate::vm::Fault> {
+        crate::vm::run(&self.code, self.cost, state, now, work)
+    }
+
+    /// The PROGRAM's variable named `name` (case-insensitive).
+    pub fn var(&self, name: &str) -> Option<&Var> {
+        let key = name.to_ascii_uppercase();
+        self.vars.iter().find(|v| v.name.eq_ignore_ascii_case(&key))
+    }
+
+    /// The name of a type, for messages.
+    pub fn describe(&self, ty: Ty) -> String {
+        self.types
+            .describe(ty, &|id| self.fb_names[id as usize].clone())
+    }
+}
+
+/// Compiles the PROGRAM (or FUNCTION_BLOCK) named `pou` of `lib`, or the file's only PROGRAM
+/// when `pou` is `None`.
+pub fn compile(lib: &Library, pou: Option<&str>) -> Result<Unit, Diagnostic> {
+    let main = pick(lib, pou)?;
+    let mut c = Compiler::new(lib)?;
+    let vars = c.program_vars(main)?;
+    c.body(&main.body)?;
+    c.finish(main, vars)
+}
+
+/// The POU to compile.
+fn pick<'a>(lib: &'a Library, pou: Option<&str>) -> Result<&'a Pou, Diagnostic> {
+    let runnable = |p: &&Pou| matches!(p.kind, PouKind::Program | PouKind::FunctionBlock);
+    match pou {
+        Some(name) => lib
+            .pous
+            .iter()
+            .find(|p| p.name.text.eq_ignore_ascii_case(name))
+            .filter(runnable)
+            .ok_or_else(|| {
+                let names: Vec<&str> = lib
+                    .pous
+                    .iter()
+                    .filter(runnable)
+                    .map(|p| p.name.text.as_str())
+                    .collect();
+                Diagnostic::new(
+                    0,
+                    format!(
+                        "no PROGRAM or FUNCTION_BLOCK named `{name}` in the file; it has: {}",
+                        names.join(", ")
+                    ),
+                )
+            }),
+        None => {
+            let programs: Vec<&Pou> = lib
+                .pous
+                .iter()
+                .filter(|p| matches!(p.kind, PouKind::Program))
+                .collect();
+            match programs.as_slice() {
+                [one] => Ok(one),
+                [] => Err(Diagnostic::new(
+                    0,
+                    "the file has no PROGRAM; name the POU to run",
+                )),
+                many => Err(Diagnostic::new(
+                    many[1].pos,
+                    format!(
+                        "the file has {} PROGRAMs ({}); name the one to run",
+                        many.len(),
+                        many.iter()
+                            .map(|p| p.name.text.as_str())
+                            .collect::<Vec<_>>()
+                            .join(", ")
+                    ),
+                )),
+            }
+        }
+    }
+}
+
+impl<'a> Compiler<'a> {
+    fn new(lib: &'a Library) -> Result<Self, Diagnostic> {
+        let mut c = Compiler {
+            lib,
+            types: Types::default(),
+            named: HashMap::new(),
+            resolving: Vec::new(),
+            functions: HashMap::new(),
+            fbs: Vec::new(),
+            fb_by_key: HashMap::new(),
+            code: Code::default(),
+            init: State {
+                slots: Vec::new(),
+                text: Vec::new(),
+            },
+            scopes: vec![Scope::default()],
+            loops: Vec::new(),
+            returns: Vec::new(),
+            consts: HashMap::new(),
+            temps: std::collections::HashSet::new(),
+        };
+        c.index_pous()?;
+        Ok(c)
+    }
+
+    /// Records the file's functions, and refuses two POUs of one name.
+    fn index_pous(&mut self) -> Result<(), Diagnostic> {
+        let mut seen: HashMap<String, Pos> = HashMap::new();
+        for pou in &self.lib.pous {
+            let key = pou.name.key();
+            if seen.insert(key.clone(), pou.pos).is_some() {
+                return Err(Diagnostic::new(
+                    pou.name.pos,
+                    format!("`{}` is declared twice", pou.name.text),
+                ));
+            }
+            if crate::stdfb::StdFb::from_name(&key).is_some() || stdfn::is_standard(&key) {
+                return Err(Diagnostic::new(
+                    pou.name.pos,
+                    format!(
+                        "`{}` is the name of a standard function or function block; rename the POU",
+                        pou.name.text
+                    ),
+                ));
+            }
+            if let PouKind::Function(_) = pou.kind {
+                self.functions.insert(key, pou);
+            }
+        }
+        Ok(())
+    }
+
+    /// The unit, once the body is compiled.
+    fn finish(self, main: &Pou, vars: Vec<Var>) -> Result<Unit, Diagnostic> {
+        let interval = self.task_interval(main)?;
+        let cost = self.code.ops.iter().map(|op| op.cost(&self.code)).sum();
+        Ok(Unit {
+            name: main.name.text.clone(),
+            code: self.code,
+            cost,
+            init: self.init,
+            types: self.types,
+            vars,
+            interval,
+            fb_names: self.fbs.iter().map(|f| f.name.clone()).collect(),
+        })
+    }
+
+    /// The INTERVAL of the task that runs `main` in the file's configuration, if any.
+    fn task_interval(&self, main: &Pou) -> Result<Option<i64>, Diagnostic> {
+        for config in &self.lib.configs {
+            for inst in &config.programs {
+                if !inst.program.text.eq_ignore_ascii_case(&main.name.text) {
+                    continue;
+                }
+                let task = inst.task.as_ref().and_then(|t| {
+                    config
+                        .tasks
+                        .iter()
+                        .find(|task| task.name.text.eq_ignore_ascii_case(&t.text))
+                });
+                if let Some(interval) = task.and_then(|t| t.interval.as_ref()) {
+                    return self.const_time(interval).map(Some);
+                }
+            }
+        }
+        Ok(None)
+    }
+
+    /// Appends an instruction compiled from the text at `pos`; its index.
+    pub fn emit(&mut self, op: Op, pos: Pos) -> Result<usize, Diagnostic> {
+        if self.code.ops.len() >= MAX_OPS {
+            return Err(Diagnostic::new(
+                pos,
+                format!("the program is too large: more than {MAX_OPS} instructions once its calls are expanded; split it, or call fewer function blocks from inside other function blocks"),
+            ));
+        }
+        self.code.ops.push(op);
+        self.code.pos.push(pos);
+        Ok(self.code.ops.len() - 1)
+    }
+
+    /// The index of the next instruction.
+    pub fn here(&self) -> u32 {
+        self.code.ops.len() as u32
+    }
+
+    /// Points the jump at `at` to `to`.
+    pub fn patch(&mut self, at: usize, to: u32) {
+        match &mut self.code.ops[at] {
+            Op::Jump { to: t } | Op::JumpIf { to: t, .. } | Op::JumpUnless { to: t, .. } => *t = to,
+            _ => {}
+        }
+    }
+
+    /// Room for a value of `size`, zeroed; where it starts.
+    pub fn alloc(&mut self, size: Size, pos: Pos) -> Result<Size, Diagnostic> {
+        let at = Size {
+            slots: self.init.slots.len() as u32,
+            text: self.init.text.len() as u32,
+        };
+        let end = at
+            .plus(size)
+            .filter(|e| e.slots <= MAX_SLOTS && e.text <= MAX_TEXT);
+        let Some(end) = end else {
+            return Err(Diagnostic::new(
+                pos,
+                format!("the program's variables are too large: at most {MAX_SLOTS} values and {MAX_TEXT} bytes of strings in all"),
+            ));
+        };
+        self.init.slots.resize(end.slots as usize, 0);
+        self.init.text.resize(end.text as usize, 0);
+        Ok(at)
+    }
+
+    /// A fresh temporary slot.
+    pub fn temp(&mut self, pos: Pos) -> Result<Slot, Diagnostic> {
+        let slot = self.alloc(Size { slots: 1, text: 0 }, pos)?.slots;
+        self.temps.insert(slot);
+        Ok(slot)
+    }
+
+    /// The scope of the body being compiled.
+    pub fn scope(&self) -> &Scope {
+        // The root scope is never popped, so there is always a last one.
+        &self.scopes[self.scopes.len() - 1]
+    }
+
+    /// The name of a type, for messages.
+    pub fn describe(&self, ty: Ty) -> String {
+        self.types
+            .describe(ty, &|id| self.fbs[id as usize].name.clone())
+    }
+}

@@ -1,0 +1,1398 @@
+//! MATIEC, the IEC 61131-3 compiler of OpenPLC and Beremiz, as an independent second
+//! implementation of Structured Text: the tests run a batch of PROGRAMs through it and compare
+//! their outputs, scan for scan, with what the project's own implementation computes.
+//!
+//! # A run
+//!
+//! [`Matiec::run`] appends to the caller's POUs one CONFIGURATION `Cetratus_Config` with one
+//! RESOURCE `Cetratus_Res`, one TASK `Cetratus_Tick` whose interval is the tick, and one program
+//! instance `Cetratus_Case<i>` per [`Case`] (so POU names starting with `Cetratus_` are
+//! reserved). One `iec2c` and one build turn the whole batch into one executable, whose harness
+//! reads the input values from a file and writes the output values to standard output; with
+//! [`Matiec::compile`], a new input sequence for the same cases costs a run of the [`Batch`]
+//! (milliseconds), not a compile. Scan `k` (0-based) of the batch:
+//!
+//! 1. writes the inputs of scan `k` into each case's program instance (`__SET_VAR` on the
+//!    instance struct, as the generated code does; no located variables);
+//! 2. sets `__CURRENT_TIME` to `k × tick` (normalized: `tv_sec` and `tv_nsec` of one sign), so
+//!    the first scan sees time 0, and a TON started in scan `j` with `PT = n × tick` has `Q`
+//!    TRUE from scan `j + n` on (for a PT that is exact: MATIEC computes many TIME literals
+//!    1 ns short, `T#1ms` for one): the implementation under test must give scan `k` the time
+//!    `k × tick`, exactly;
+//! 3. calls `config_run__(k)`, which runs every instance once, in case order;
+//! 4. reads the outputs of each case.
+//!
+//! A case with fewer scans than the longest one keeps its last inputs and goes on running (the
+//! task runs every instance), but its outputs are no longer read: its result has one entry per
+//! scan it gave. Variables keep their values from scan to scan; `config_init__()` runs once.
+//!
+//! # Canonical value text
+//!
+//! Inputs and outputs are text, one value each, the same in both directions:
+//!
+//! | type | text |
+//! |---|---|
+//! | BOOL | `TRUE` or `FALSE` (a stored byte other than 0 or 1 comes out as `BOOL#<n>`) |
+//! | SINT, INT, DINT, LINT | signed decimal, e.g. `-32768` |
+//! | USINT … ULINT, BYTE … LWORD | unsigned decimal, e.g. `65535` |
+//! | REAL | `r` + the 8 lowercase hex digits of the f32 bits, e.g. `r3fc00000` (1.5) |
+//! | LREAL | `l` + the 16 lowercase hex digits of the f64 bits |
+//! | TIME | `t` + the signed total of nanoseconds, e.g. `t-1500000000` (MATIEC's TIME is `tv_sec`/`tv_nsec`; beyond ±292 years it cannot be written) |
+//! | STRING | `'` bytes `'`, where `$` is `$$`, `'` is `$'`, and a byte < 0x20 or ≥ 0x7f is `$XX` (two uppercase hex digits); at most 126 bytes (MATIEC's `STR_MAX_LEN`) |
+//!
+//! Input text is checked before anything is compiled, and must be exactly canonical (no `+5`,
+//! no `007`, no `$41` for `A`), so that a generator's mistake is found where it is made.
+//!
+//! # Compiling
+//!
+//! `iec2c -f -O p` writes each POU to a file of its own, which the harness compiles in as many
+//! translation units as the machine has cores, in parallel: `cc` is the slow part, and a batch
+//! of 500 small programs is otherwise one 30 000-line C file that `cc -O2` needs 26 s for on
+//! one core. (So beside `Cetratus_*`, a POU must not be named `POUS`; the harness's own files
+//! are named `cetratus-…`, which no POU can be.) Every unit is compiled with
+//! `cc -O2 -fwrapv -ffp-contract=off`:
+//!
+//! * `-fwrapv`: IEC integer arithmetic wraps at the type's width, and MATIEC emits plain C
+//!   arithmetic (`a + b`), in which DINT and LINT overflow is undefined behaviour; with
+//!   `-fwrapv` gcc wraps. (SINT and INT arithmetic happens in C `int` and wraps when stored.)
+//! * `-ffp-contract=off`: gcc otherwise fuses `a * b + c` into one FMA where the target has one
+//!   (aarch64), which rounds once instead of twice, unlike the interpreter.
+//! * `-O2`, always: what the undefined behaviour that `-fwrapv` leaves yields (a shift by the
+//!   width or more, a REAL out of an integer's range) depends on the level and on what gcc
+//!   folds at compile time, so one level is used everywhere.
+//!
+//! The harness asserts at compile time that each input and output has the C type of its
+//! [`IecType`] (so a mistyped case fails in `cc`, naming the case and the variable); types
+//! that MATIEC stores alike (BOOL, BYTE and USINT are all `uint8_t`) cannot be told apart.
+//!
+//! # Cost
+//!
+//! Wall times of [`Matiec::run_timed`] on a quiet 2-core x86-64 machine (gcc 12), for programs
+//! of some 30 lines each (three inputs, four outputs, an IF, a FOR loop, a TON), 10 scans:
+//!
+//! | programs | iec2c | cc | run |
+//! |---|---|---|---|
+//! | 1 | 0.6 s | 0.8 s | 2 ms |
+//! | 50 | 1.1 s | 2.7 s | 6 ms |
+//! | 200 | 3.1 s | 7.8 s | 9 ms |
+//! | 500 | 6.8 s | 17.0 s | 33 ms |
+//!
+//! `iec2c` costs about 0.4 s plus 13 ms a program, on one core; `cc -O2` about 1.5 s plus
+//! 48 ms of CPU a program, spread over the cores (as one unit, 500 programs take 26 s; at `-O1`
+//! 14 s, at `-O0` 7 s). A run is milliseconds, so one compile should serve many input
+//! sequences. On a machine busy with other builds the figures double or triple.
+//!
+//! # Errors
+//!
+//! Every stage that can fail has its variant of [`MatiecError`], with what the tool said: the
+//! first error of `iec2c` with the offending source line, the first error of `cc` with the
+//! offending C line, or how and in which scan the executable failed (an integer division by
+//! zero kills it with SIGFPE). The temporary directory is removed in every case.
+
+use std::fmt;
+use std::fs;
+use std::io;
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, ExitStatus, Stdio};
+use std::sync::OnceLock;
+use std::time::{Duration, Instant};
+
+use crate::paths;
+use crate::process::find_program;
+
+/// The flags every translation unit is compiled with (the module doc says why).
+const CFLAGS: [&str; 3] = ["-O2", "-fwrapv", "-ffp-contract=off"];
+
+/// The first line of the harness's input, so that a stale executable refuses new input.
+const INPUT_HEADER: &str = "cetratus-matiec-input 1";
+
+/// The longest STRING MATIEC stores (`STR_MAX_LEN` in `iec_types.h`).
+const STR_MAX_LEN: usize = 126;
+
+/// How long a run may take before it is taken for an endless loop, unless
+/// [`Matiec::with_run_timeout`] says otherwise.
+const DEFAULT_RUN_TIMEOUT: Duration = Duration::from_secs(120);
+
+/// IEC elementary types the harness can pass in and read out.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum IecType {
+    /// BOOL, stored by MATIEC as `uint8_t`.
+    Bool,
+    /// SINT, 8-bit signed.
+    Sint,
+    /// INT, 16-bit signed.
+    Int,
+    /// DINT, 32-bit signed.
+    Dint,
+    /// LINT, 64-bit signed.
+    Lint,
+    /// USINT, 8-bit unsigned.
+    Usint,
+    /// UINT, 16-bit unsigned.
+    Uint,
+    /// UDINT, 32-bit unsigned.
+    Udint,
+    /// ULINT, 64-bit unsigned.
+    Ulint,
+    /// BYTE, 8 bits.
+    Byte,
+    /// WORD, 16 bits.
+    Word,
+    /// DWORD, 32 bits.
+    Dword,
+    /// LWORD, 64 bits.
+    Lword,
+    /// REAL, an f32.
+    Real,
+    /// LREAL, an f64.
+    Lreal,
+    /// TIME, seconds and nanoseconds.
+    Time,
+    /// STRING of at most 126 bytes.
+    String,
+}
+
+impl IecType {
+    /// The type's IEC name, which is also its C name in MATIEC's headers.
+    pub fn name(self) -> &'static str {
+        match self {
+            IecType::Bool => "BOOL",
+            IecType::Sint => "SINT",
+            IecType::Int => "INT",
+            IecType::Dint => "DINT",
+            IecType::Lint => "LINT",
+            IecType::Usint => "USINT",
+            IecType::Uint => "UINT",
+            IecType::Udint => "UDINT",
+            IecType::Ulint => "ULINT",
+            IecType::Byte => "BYTE",
+            IecType::Word => "WORD",
+            IecType::Dword => "DWORD",
+            IecType::Lword => "LWORD",
+            IecType::Real => "REAL",
+            IecType::Lreal => "LREAL",
+            IecType::Time => "TIME",
+            IecType::String => "STRING",
+        }
+    }
+
+    /// Whether `text` is a value of this type in canonical text; if not, what was expected.
+    fn check(self, text: &str) -> Result<(), &'static str> {
+        let ok = match self {
+            IecType::Bool => text == "TRUE" || text == "FALSE",
+            IecType::Sint => signed_in(text, i8::MIN.into(), i8::MAX.into()),
+            IecType::Int => signed_in(text, i16::MIN.into(), i16::MAX.into()),
+            IecType::Dint => signed_in(text, i32::MIN.into(), i32::MAX.into()),
+            IecType::Lint => signed_in(text, i64::MIN, i64::MAX),
+            IecType::Usint | IecType::Byte => unsigned_in(text, u8::MAX.into()),
+            IecType::Uint | IecType::Word => unsigned_in(text, u16::MAX.into()),
+            IecType::Udint | IecType::Dword => unsigned_in(text, u32::MAX.into()),
+            IecType::Ulint | IecType::Lword => unsigned_in(text, u64::MAX),
+            IecType::Real => bits(text, 'r', 8),
+            IecType::Lreal => bits(text, 'l', 16),
+            IecType::Time => text
+                .strip_prefix('t')
+                .is_some_and(|ns| signed_in(ns, i64::MIN, i64::MAX)),
+            IecType::String => canonical_string(text),
+        };
+        if ok {
+            return Ok(());
+        }
+        Err(match self {
+            IecType::Bool => "TRUE or FALSE",
+            IecType::Sint | IecType::Int | IecType::Dint | IecType::Lint => {
+                "a signed decimal in the type's range, without `+` or leading zeros"
+            }
+            IecType::Real => "`r` and the 8 lowercase hex digits of the f32 bits",
+            IecType::Lreal => "`l` and the 16 lowercase hex digits of the f64 bits",
+            IecType::Time => "`t` and a signed decimal number of nanoseconds",
+            IecType::String => {
+                "`'…'` with `$$`, `$'` and `$XX` (uppercase) for bytes < 0x20 or >= 0x7f, \
+                 and only there, at most 126 bytes"
+            }
+            _ => "an unsigned decimal in the type's range, without `+` or leading zeros",
+        })
+    }
+}
+
+impl fmt::Display for IecType {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+fn signed_in(text: &str, min: i64, max: i64) -> bool {
+    text.parse::<i64>()
+        .is_ok_and(|v| (min..=max).contains(&v) && v.to_string() == text)
+}
+
+fn unsigned_in(text: &str, max: u64) -> bool {
+    text.parse::<u64>()
+        .is_ok_and(|v| v <= max && v.to_string() == text)
+}
+
+fn bits(text: &str, tag: char, digits: usize) -> bool {
+    text.strip_prefix(tag).is_some_and(|hex| {
+        hex.len() == digits && hex.bytes().all(|b| matches!(b, b'0'..=b'9' | b'a'..=b'f'))
+    })
+}
+
+/// Whether `text` is a STRING in canonical text (see the module doc).
+fn canonical_string(text: &str) -> bool {
+    let Some(body) = text.strip_prefix('\'').and_then(|t| t.strip_suffix('\'')) else {
+        return false;
+    };
+    let body = body.as_bytes();
+    let (mut i, mut len) = (0, 0);
+    while i < body.len() {
+        i += match body[i..] {
+            [b'$', b'$' | b'\'', ..] => 2,
+            [b'$', h, l, ..] => match (upper_hex(h), upper_hex(l)) {
+                (Some(h), Some(l)) if !(0x20..0x7f).contains(&(h * 16 + l)) => 3,
+                _ => return false,
+            },
+            [0x20..=0x7e, ..] if !matches!(body[i], b'$' | b'\'') => 1,
+            _ => return false,
+        };
+        len += 1;
+    }
+    len <= STR_MAX_LEN
+}
+
+fn upper_hex(c: u8) -> Option<u8> {
+    match c {
+        b'0'..=b'9' => Some(c - b'0'),
+        b'A'..=b'F' => Some(c - b'A' + 10),
+        _ => None,
+    }
+}
+
+/// One PROGRAM of a batch, its inputs (VAR_INPUT) and outputs (VAR_OUTPUT) by name and type,
+/// and the input values of each scan, as canonical text (see the module doc).
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Case {
+    /// The name of the PROGRAM, declared in the batch's source.
+    pub program: String,
+    /// The variables written before each scan, in the order of each scan's values.
+    pub inputs: Vec<(String, IecType)>,
+    /// The variables read after each scan, in the order of each scan's results.
+    pub outputs: Vec<(String, IecType)>,
+    /// Per scan, one value per input.
+    pub scans: Vec<Vec<String>>,
+}
+
+/// The outputs of a batch: per case, per scan of the case, one canonical value per output.
+pub type Outputs = Vec<Vec<Vec<String>>>;
+
+/// What each stage of [`Matiec::run_timed`] took.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Timings {
+    /// Translating the ST to C.
+    pub iec2c: Duration,
+    /// Compiling and linking the C (wall time; the units compile in parallel).
+    pub cc: Duration,
+    /// Running every scan of every case.
+    pub run: Duration,
+}
+
+/// A stage of a batch that failed, with what the tool said.
+#[derive(Debug)]
+pub enum MatiecError {
+    /// MATIEC is not installed and cannot be built, or a tool it needs is missing.
+    Build {
+        /// What is missing, and how to get it.
+        message: String,
+    },
+    /// The batch is malformed (a name that is no identifier, a value not in canonical text, a
+    /// scan with the wrong number of values, a zero tick); nothing was compiled.
+    Invalid {
+        /// What is wrong, naming the case, the scan and the variable.
+        message: String,
+    },
+    /// `iec2c` rejected the source.
+    Iec2c {
+        /// The line of the batch's source where the first error is, when `iec2c` says; the
+        /// caller's source comes first, so its line numbers are the caller's.
+        line: Option<usize>,
+        /// That line of the source.
+        source_line: Option<String>,
+        /// The first error line `iec2c` printed.
+        first_error: String,
+        /// All that `iec2c` printed on standard error.
+        output: String,
+    },
+    /// `cc` rejected the C that `iec2c` and the harness generated.
+    Cc {
+        /// The first error line `cc` printed.
+        first_error: String,
+        /// The C line it points at, when there is one.
+        c_line: Option<String>,
+        /// All that `cc` printed on standard error.
+        output: String,
+    },
+    /// The compiled batch failed while running.
+    Run {
+        /// The scan that was running, when the failure came during one.
+        scan: Option<usize>,
+        /// How it failed: the exit status or signal, the timeout, or what was wrong with its
+        /// output, and what it printed on standard error.
+        message: String,
+    },
+    /// A file of the batch could not be written or read, or a tool could not be started.
+    Io {
+        /// What was being done.
+        what: String,
+        /// Why it failed.
+        source: io::Error,
+    },
+}
+
+impl fmt::Display for MatiecError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            MatiecError::Build { message } => write!(f, "MATIEC is not available: {message}"),
+            MatiecError::Invalid { message } => write!(f, "malformed MATIEC batch: {message}"),
+            MatiecError::Iec2c {
+                line,
+                source_line,
+                first_error,
+                output,
+            } => {
+                match line {
+                    Some(line) => write!(f, "iec2c rejected the source at line {line}: ")?,
+                    None => write!(f, "iec2c rejected the source: ")?,
+                }
+                write!(f, "{first_error}")?;
+                if let (Some(line), Some(text)) = (line, source_line) {
+                    write!(f, "\n  {line} | {text}")?;
+                }
+                write!(f, "\niec2c's output:\n{}", first_lines(output, 30))
+            }
+            MatiecError::Cc {
+                first_error,
+                c_line,
+                output,
+            } => {
+                write!(f, "cc rejected the generated C: {first_error}")?;
+                if let Some(text) = c_line {
+                    write!(f, "\n  | {text}")?;
+                }
+                write!(f, "\ncc's output:\n{}", first_lines(output, 30))
+            }
+            MatiecError::Run {
+                scan: Some(scan),
+                message,
+            } => write!(
+                f,
+                "the compiled MATIEC batch failed in scan {scan}: {message}"
+            ),
+            MatiecError::Run {
+                scan: None,
+                message,
+            } => write!(f, "the compiled MATIEC batch failed: {message}"),
+            MatiecError::Io { what, source } => write!(f, "{what}: {source}"),
+        }
+    }
+}
+
+impl std::error::Error for MatiecError {
+    fn source(&self) -> Option<&(dyn std::error::Error + 'static)> {
+        match self {
+            MatiecError::Io { source, .. } => Some(source),
+            _ => None,
+        }
+    }
+}
+
+/// The first `n` lines of `text`, and how many more there were.
+fn first_lines(text: &str, n: usize) -> String {
+    let lines: Vec<&str> = text.lines().collect();
+    let mut shown = lines[..lines.len().min(n)].join("\n");
+    if lines.len() > n {
+        shown.push_str(&format!("\n… and {} more lines", lines.len() - n));
+    }
+    shown
+}
+
+fn io_error(what: impl Into<String>) -> impl FnOnce(io::Error) -> MatiecError {
+    let what = what.into();
+    move |source| MatiecError::Io { what, source }
+}
+
+/// An installed MATIEC: `DIR/bin/iec2c`, its ST library `DIR/lib` and its C headers
+/// `DIR/lib/C`.
+#[derive(Debug, Clone)]
+pub struct Matiec {
+    dir: PathBuf,
+    run_timeout: Duration,
+}
+
+impl Matiec {
+    /// Builds MATIEC once with the shared `build.sh` (found at
+    /// `workspace_root()/../shared/tools/matiec/build.sh`; the environment variable
+    /// `CETRATUS_MATIEC_DIR` overrides it with an install dir) and returns it; `Err` with a
+    /// clear message naming what is missing otherwise.
+    ///
+    /// The build runs once per process however many tests ask at once, and under `flock`
+    /// (when installed) so that two test processes never build at the same time.
+    pub fn get() -> Result<Matiec, MatiecError> {
+        if let Some(dir) = std::env::var_os("CETRATUS_MATIEC_DIR") {
+            return Matiec::at(PathBuf::from(dir));
+        }
+        static BUILT: OnceLock<Result<PathBuf, String>> = OnceLock::new();
+        let dir = BUILT
+            .get_or_init(build)
+            .clone()
+            .map_err(|message| MatiecError::Build { message })?;
+        Matiec::at(dir)
+    }
+
+    /// The MATIEC installed in `dir`, once `iec2c`, its library and `cc` are found.
+    pub fn at(dir: PathBuf) -> Result<Matiec, MatiecError> {
+        for needed in ["bin/iec2c", "lib/ieclib.txt", "lib/C/iec_std_lib.h"] {
+            if !dir.join(needed).is_file() {
+                return Err(MatiecError::Build {
+                    message: format!(
+                        "{} is missing: {} is no MATIEC install dir (build one with \
+                         ../shared/tools/matiec/build.sh DIR)",
+                        dir.join(needed).display(),
+                        dir.display()
+                    ),
+                });
+            }
+        }
+        if find_program("cc").is_none() {
+            return Err(MatiecError::Build {
+                message: "`cc` is missing: install the Debian package `build-essential`".into(),
+            });
+        }
+        Ok(Matiec {
+            dir,
+            run_timeout: DEFAULT_RUN_TIMEOUT,
+        })
+    }
+
+    /// The install dir.
+    pub fn dir(&self) -> &Path {
+        &self.dir
+    }
+
+    /// The same MATIEC, whose runs are killed after `timeout` (two minutes unless set): a
+    /// generated program may loop for ever.
+    pub fn with_run_timeout(self, timeout: Duration) -> Matiec {
+        Matiec {
+            run_timeout: timeout,
+            ..self
+        }
+    }
+
+    /// Compiles `source` (ST text holding all the POUs, e.g. many PROGRAMs) with iec2c and cc in
+    /// ONE compile, as one CONFIGURATION/RESOURCE with one TASK of interval `tick` and one
+    /// instance per case, runs every case for its scans, and returns, per case, per scan, the
+    /// output values in canonical text.
+    pub fn run(
+        &self,
+        source: &str,
+        cases: &[Case],
+        tick: Duration,
+    ) -> Result<Outputs, MatiecError> {
+        self.run_timed(source, cases, tick)
+            .map(|(outputs, _)| outputs)
+    }
+
+    /// [`Matiec::run`], and what each stage took.
+    pub fn run_timed(
+        &self,
+        source: &str,
+        cases: &[Case],
+        tick: Duration,
+    ) -> Result<(Outputs, Timings), MatiecError> {
+        let (batch, iec2c, cc) = self.compile_timed(source, cases, tick)?;
+        let start = Instant::now();
+        let outputs = batch.run(cases)?;
+        let run = start.elapsed();
+        Ok((outputs, Timings { iec2c, cc, run }))
+    }
+
+    /// Compiles `source` for `cases` as [`Matiec::run`] does, without running it: the
+    /// [`Batch`] runs any number of input sequences for the same cases, a process each.
+    pub fn compile(
+        &self,
+        source: &str,
+        cases: &[Case],
+        tick: Duration,
+    ) -> Result<Batch, MatiecError> {
+        self.compile_timed(source, cases, tick)
+            .map(|(batch, _, _)| batch)
+    }
+
+    /// [`Matiec::compile`], and what `iec2c` and `cc` took.
+    fn compile_timed(
+        &self,
+        source: &str,
+        cases: &[Case],
+        tick: Duration,
+    ) -> Result<(Batch, Duration, Duration), MatiecError> {
+        check_batch(cases, tick)?;
+        let tmp = tempfile::Builder::new()
+            .prefix("cetratus-matiec-")
+            .tempdir()
+            .map_err(io_error("cannot create a temporary directory"))?;
+        let dir = tmp.path();
+
+        let start = Instant::now();
+        self.iec2c(dir, &batch_source(source, cases, tick))?;
+        let iec2c = start.elapsed();
+
+        let start = Instant::now();
+        write(&dir.join("cetratus-harness.c"), &harness_c(cases))?;
+        self.cc(dir)?;
+        let cc = start.elapsed();
+
+        let schema = cases
+            .iter()
+            .map(|c| Case {
+                scans: Vec::new(),
+                ..c.clone()
+            })
+            .collect();
+        let batch = Batch {
+            dir: tmp,
+            cases: schema,
+            tick,
+            run_timeout: self.run_timeout,
+        };
+        Ok((batch, iec2c, cc))
+    }
+
+    /// Translates the batch `text` into C in `dir`, one file per POU (`-O p`).
+    fn iec2c(&self, dir: &Path, text: &str) -> Result<(), MatiecError> {
+        write(&dir.join("cetratus-batch.st"), text)?;
+        let out = Command::new(self.dir.join("bin/iec2c"))
+            .args(["-f", "-O", "p", "-I"])
+            .arg(self.dir.join("lib"))
+            .arg("-T")
+            .arg(dir)
+            .arg("cetratus-batch.st")
+            .current_dir(dir)
+            .output()
+            .map_err(io_error("cannot start iec2c"))?;
+        if out.status.success() {
+            return Ok(());
+        }
+        let output = String::from_utf8_lossy(&out.stderr).into_owned();
+        let first_error = output
+            .lines()
+            .find(|l| l.contains("error"))
+            .map(str::to_owned)
+            .unwrap_or_else(|| format!("iec2c failed ({}) without an error line", out.status));
+        let line = first_error
+            .strip_prefix("cetratus-batch.st:")
+            .and_then(|rest| {
+                let digits = rest.bytes().take_while(u8::is_ascii_digit).count();
+                rest[..digits].parse::<usize>().ok()
+            });
+        let source_line = line
+            .and_then(|n| text.lines().nth(n.checked_sub(1)?))
+            .map(str::to_owned);
+        Err(MatiecError::Iec2c {
+            line,
+            source_line,
+            first_error,
+            output,
+        })
+    }
+
+    /// Compiles the translation units of `dir` in parallel and links them into
+    /// `dir/cetratus-harness`.
+    fn cc(&self, dir: &Path) -> Result<(), MatiecError> {
+        let units = translation_units(dir)?;
+        let mut jobs = Vec::new();
+        let mut error = None;
+        for (i, unit) in units.iter().enumerate() {
+            match self.spawn_cc(dir, unit, i) {
+                Ok(job) => jobs.push(job),
+                Err(e) => {
+                    error = Some(e);
+                    break;
+                }
+            }
+        }
+        // Every job started is waited for, even after a failure, so that none writes into the
+        // temporary directory while it is removed.
+        let (mut failed, mut messages) = (false, String::new());
+        for (mut child, log) in jobs {
+            match child.wait() {
+                Ok(status) if status.success() => {}
+                Ok(_) => {
+                    failed = true;
+                    messages.push_str(&fs::read_to_string(&log).unwrap_or_default());
+                }
+                Err(e) => error = error.or(Some(io_error("cannot wait for cc")(e))),
+            }
+        }
+        if let Some(e) = error {
+            return Err(e);
+        }
+        if failed {
+            return Err(cc_error(dir, &messages));
+        }
+        let out = Command::new("cc")
+            .args((0..units.len()).map(|i| format!("cetratus-unit-{i}.o")))
+            .args(["-lm", "-o", "cetratus-harness"])
+            .current_dir(dir)
+            .output()
+            .map_err(io_error("cannot start cc to link"))?;
+        if !out.status.success() {
+            return Err(cc_error(dir, &String::from_utf8_lossy(&out.stderr)));
+        }
+        Ok(())
+    }
+
+    /// Starts `cc -c` on `unit`, its messages going to a log file; returns it and the log.
+    fn spawn_cc(&self, dir: &Path, unit: &str, i: usize) -> Result<(Child, PathBuf), MatiecError> {
+        let log = dir.join(format!("cetratus-cc-{i}.log"));
+        let child = Command::new("cc")
+            .args(CFLAGS)
+            .arg("-I")
+            .arg(self.dir.join("lib/C"))
+            .args(["-I", ".", "-c", unit, "-o"])
+            .arg(format!("cetratus-unit-{i}.o"))
+            .current_dir(dir)
+            .stdin(Stdio::null())
+            .stdout(Stdio::null())
+            .stderr(file(&log)?)
+            .spawn()
+            .map_err(io_error("cannot start cc"))?;
+        Ok((child, log))
+    }
+}
+
+/// A batch that `iec2c` and `cc` compiled: one executable for its cases, which runs any number
+/// of input sequences, each in a process of its own (so each starts from the initial values).
+/// The temporary directory goes when the batch is dropped.
+#[derive(Debug)]
+pub struct Batch {
+    dir: tempfile::TempDir,
+    /// The cases compiled, without scans.
+    cases: Vec<Case>,
+    tick: Duration,
+    run_timeout: Duration,
+}
+
+impl Batch {
+    /// Runs `cases`, which must be the cases the batch was compiled with (the same programs,
+    /// inputs and outputs, in the same order) with any scans; returns per case, per scan, the
+    /// output values in canonical text.
+    pub fn run(&self, cases: &[Case]) -> Result<Outputs, MatiecError> {
+        check_batch(cases, self.tick)?;
+        if cases.len() != self.cases.len() {
+            return Err(MatiecError::Invalid {
+                message: format!(
+                    "{} cases given to a batch compiled for {}",
+                    cases.len(),
+                    self.cases.len()
+                ),
+            });
+        }
+        for (i, (given, compiled)) in cases.iter().zip(&self.cases).enumerate() {
+            if (&given.program, &given.inputs, &given.outputs)
+                != (&compiled.program, &compiled.inputs, &compiled.outputs)
+            {
+                return Err(MatiecError::Invalid {
+                    message: format!(
+                        "case {i} ({}) is not the case {i} the batch was compiled with ({})",
+                        given.program, compiled.program
+                    ),
+                });
+            }
+        }
+        // A directory per run, so that runs of one batch on several threads do not meet.
+        let run = tempfile::Builder::new()
+            .prefix("run-")
+            .tempdir_in(self.dir.path())
+            .map_err(io_error("cannot create a directory for the run"))?;
+        write(
+            &run.path().join("cetratus-input.txt"),
+            &input_text(cases, self.tick),
+        )?;
+        let output = self.execute(run.path())?;
+        parse_output(&output, cases)
+    }
+
+    /// Runs the executable on the input file in `dir`; returns its standard output.
+    fn execute(&self, dir: &Path) -> Result<String, MatiecError> {
+        let (out_path, err_path) = (
+            dir.join("cetratus-output.txt"),
+            dir.join("cetratus-stderr.txt"),
+        );
+        let input = fs::File::open(dir.join("cetratus-input.txt"))
+            .map_err(io_error("cannot read input"))?;
+        let mut child = Command::new(self.dir.path().join("cetratus-harness"))
+            .current_dir(dir)
+            .stdin(input)
+            .stdout(file(&out_path)?)
+            .stderr(file(&err_path)?)
+            .spawn()
+            .map_err(io_error("cannot start the compiled batch"))?;
+        let status = wait_with_timeout(&mut child, self.run_timeout)?;
+        let output = fs::read_to_string(&out_path).map_err(io_error("cannot read the output"))?;
+        let stderr = fs::read_to_string(&err_path).unwrap_or_default();
+        let scan = last_scan(&output);
+        match status {
+            None => Err(MatiecError::Run {
+                scan,
+                message: format!(
+                    "still running after {:?}, and killed (an endless loop?){}",
+                    self.run_timeout,
+                    stderr_note(&stderr)
+                ),
+            }),
+            Some(status) if !status.success() => Err(MatiecError::Run {
+                scan,
+                message: format!("{}{}", describe(status), stderr_note(&stderr)),
+            }),
+            Some(_) => Ok(output),
+        }
+    }
+}
+
+/// Runs `build.sh` (under `flock` when there is one) and returns the dir it printed.
+fn build() -> Result<PathBuf, String> {
+    let script = paths::workspace_root().join("../shared/tools/matiec/build.sh");
+    if !script.is_file() {
+        return Err(format!(
+            "{} is missing (it builds MATIEC from the archive beside it); or set \
+             CETRATUS_MATIEC_DIR to a MATIEC install dir",
+            script.display()
+        ));
+    }
+    let mut cmd = match find_program("flock") {
+        Some(flock) => {
+            let mut cmd = Command::new(flock);
+            cmd.arg(std::env::temp_dir().join("cetratus-matiec-build.lock"))
+                .arg("bash");
+            cmd
+        }
+        None => Command::new("bash"),
+    };
+    let out = cmd
+        .arg(&script)
+        .stdin(Stdio::null())
+        .output()
+        .map_err(|e| format!("cannot start {}: {e}", script.display()))?;
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    if !out.status.success() {
+        return Err(format!(
+            "{} failed ({}):\n{}",
+            script.display(),
+            out.status,
+            String::from_utf8_lossy(&out.stderr).trim_end()
+        ));
+    }
+    stdout
+        .lines()
+        .rev()
+        .find(|l| !l.trim().is_empty())
+        .map(|l| PathBuf::from(l.trim()))
+        .ok_or_else(|| format!("{} printed no install dir", script.display()))
+}
+
+/// Checks the batch before anything is compiled or run.
+fn check_batch(cases: &[Case], tick: Duration) -> Result<(), MatiecError> {
+    let invalid = |message: String| Err(MatiecError::Invalid { message });
+    if tick.is_zero() {
+        return invalid("the tick is zero; a TASK needs a positive interval".into());
+    }
+    if cases.is_empty() {
+        return invalid("no cases; a batch runs at least one PROGRAM instance".into());
+    }
+    for (i, case) in cases.iter().enumerate() {
+        let names = std::iter::once(&case.program)
+            .chain(case.inputs.iter().map(|(n, _)| n))
+            .chain(case.outputs.iter().map(|(n, _)| n));
+        for name in names {
+            if !is_identifier(name) {
+                return invalid(format!("case {i}: `{name}` is not an IEC identifier"));
+            }
+        }
+        for (k, values) in case.scans.iter().enumerate() {
+            if values.len() != case.inputs.len() {
+                return invalid(format!(
+                    "case {i} ({}), scan {k}: {} values for {} inputs",
+                    case.program,
+                    values.len(),
+                    case.inputs.len()
+                ));
+            }
+            for ((name, ty), value) in case.inputs.iter().zip(values) {
+                if let Err(expected) = ty.check(value) {
+                    return invalid(format!(
+                        "case {i} ({}), scan {k}, input `{name}` ({ty}): `{value}` is not \
+                         canonical text; expected {expected}",
+                        case.program
+                    ));
+                }
+            }
+        }
+    }
+    Ok(())
+}
+
+fn is_identifier(name: &str) -> bool {
+    let mut bytes = name.bytes();
+    bytes
+        .next()
+        .is_some_and(|b| b.is_ascii_alphabetic() || b == b'_')
+        && bytes.all(|b| b.is_ascii_alphanumeric() || b == b'_')
+}
+
+/// The caller's source, then the configuration that instantiates each case.
+fn batch_source(source: &str, cases: &[Case], tick: Duration) -> String {
+    let mut text = String::from(source);
+    if !text.ends_with('\n') {
+        text.push('\n');
+    }
+    text.push_str(&format!(
+        "\nCONFIGURATION Cetratus_Config\n  RESOURCE Cetratus_Res ON PLC\n    \
+         TASK Cetratus_Tick(INTERVAL := {}, PRIORITY := 0);\n",
+        time_literal(tick)
+    ));
+    for (i, case) in cases.iter().enumerate() {
+        text.push_str(&format!(
+            "    PROGRAM Cetratus_Case{i} WITH Cetratus_Tick : {};\n",
+            case.program
+        ));
+    }
+    text.push_str("  END_RESOURCE\nEND_CONFIGURATION\n");
+    text
+}
+
+/// `tick` as an IEC duration literal; milliseconds are its smallest unit, with a fraction.
+fn time_literal(tick: Duration) -> String {
+    let ns = tick.as_nanos();
+    let (ms, frac) = (ns / 1_000_000, ns % 1_000_000);
+    if frac == 0 {
+        format!("T#{ms}ms")
+    } else {
+        let frac = format!("{frac:06}");
+        format!("T#{ms}.{}ms", frac.trim_end_matches('0'))
+    }
+}
+
+/// The C name of case `i`'s program instance: MATIEC upper-cases identifiers and prefixes the
+/// resource.
+fn instance(i: usize) -> String {
+    format!("CETRATUS_RES__CETRATUS_CASE{i}")
+}
+
+/// The harness: the fixed part, then per case a type check of each variable, a function that
+/// writes the inputs of a scan and one that prints the outputs, then their tables.
+fn harness_c(cases: &[Case]) -> String {
+    let mut c = String::from(HARNESS_PRELUDE);
+    for (i, case) in cases.iter().enumerate() {
+        let inst = instance(i);
+        let program = case.program.to_uppercase();
+        c.push_str(&format!("\n/* case {i}: PROGRAM {} */\n", case.program));
+        c.push_str(&format!("extern {program} {inst};\n"));
+        for (name, ty) in case.inputs.iter().chain(&case.outputs) {
+            c.push_str(&format!(
+                "_Static_assert(__builtin_types_compatible_p(__typeof__({inst}.{}.value), {ty}), \
+                 \"case {i} (PROGRAM {}): `{name}` is not declared {ty}\");\n",
+                name.to_uppercase(),
+                case.program
+            ));
+        }
+        c.push_str(&format!("static void write_inputs_{i}(void) {{\n"));
+        for (name, ty) in &case.inputs {
+            c.push_str(&format!(
+                "  __SET_VAR({inst}., {}, , rd_{ty}());\n",
+                name.to_uppercase()
+            ));
+        }
+        c.push_str(&format!("}}\nstatic void print_outputs_{i}(void) {{\n"));
+        for (name, ty) in &case.outputs {
+            c.push_str(&format!(
+                "  wr_{ty}(__GET_VAR({inst}.{}));\n",
+                name.to_uppercase()
+            ));
+        }
+        c.push_str("}\n");
+    }
+    let table = |prefix: &str| {
+        (0..cases.len())
+            .map(|i| format!("{prefix}_{i}"))
+            .collect::<Vec<_>>()
+            .join(", ")
+    };
+    c.push_str(&format!(
+        "\n#define INPUT_HEADER \"{INPUT_HEADER}\"\n#define CASES {}\n\
+         static void (*const write_inputs[CASES])(void) = {{{}}};\n\
+         static void (*const print_outputs[CASES])(void) = {{{}}};\n",
+        cases.len(),
+        table("write_inputs"),
+        table("print_outputs")
+    ));
+    c.push_str(HARNESS_MAIN);
+    c
+}
+
+/// The C files to compile: the harness, the configuration, and the resource with the POUs,
+/// the POUs split into as many units as there are cores when `POUS.c` is only the list of
+/// their files that `-O p` makes (the resource then compiled without it).
+fn translation_units(dir: &Path) -> Result<Vec<String>, MatiecError> {
+    let read = |name: &str| {
+        fs::read_to_string(dir.join(name)).map_err(io_error(format!("cannot read iec2c's {name}")))
+    };
+    let mut units = vec![
+        "cetratus-harness.c".to_owned(),
+        "Cetratus_Config.c".to_owned(),
+    ];
+    let resource = read("Cetratus_Res.c")?;
+    let pous = read("POUS.c")?;
+    let files: Option<Vec<&str>> = pous
+        .lines()
+        .filter(|l| !l.trim().is_empty())
+        .map(|l| {
+            l.strip_prefix("#include \"")
+                .and_then(|l| l.strip_suffix(".c\""))
+        })
+        .collect();
+    let include = "#include \"POUS.c\"";
+    let (Some(files), 1) = (files, resource.matches(include).count()) else {
+        units.push("Cetratus_Res.c".to_owned());
+        return Ok(units);
+    };
+    write(
+        &dir.join("cetratus-resource.c"),
+        &resource.replace(include, ""),
+    )?;
+    units.push("cetratus-resource.c".to_owned());
+    let parallel = std::thread::available_parallelism().map_or(1, |n| n.get());
+    let chunks = parallel.min(files.len()).max(1);
+    for (j, chunk) in balance(dir, &files, chunks).into_iter().enumerate() {
+        let mut text = String::from(
+            "#include \"iec_std_lib.h\"\n#include \"accessor.h\"\n#include \"POUS.h\"\n",
+        );
+        for name in chunk {
+            text.push_str(&format!("#include \"{name}.c\"\n"));
+        }
+        let unit = format!("cetratus-pous-{j}.c");
+        write(&dir.join(&unit), &text)?;
+        units.push(unit);
+    }
+    Ok(units)
+}
+
+/// `files` in `n` groups of about equal size, the largest placed first.
+fn balance<'a>(dir: &Path, files: &[&'a str], n: usize) -> Vec<Vec<&'a str>> {
+    let size = |f: &str| fs::metadata(dir.join(format!("{f}.c"))).map_or(0, |m| m.len());
+    let mut sized: Vec<(u64, &str)> = files.iter().map(|f| (size(f), *f)).collect();
+    sized.sort_by(|a, b| b.cmp(a));
+    let mut groups: Vec<(u64, Vec<&str>)> = vec![(0, Vec::new()); n];
+    for (bytes, file) in sized {
+        let lightest = groups
+            .iter_mut()
+            .min_by_key(|(total, _)| *total)
+            .expect("at least one group");
+        lightest.0 += bytes;
+        lightest.1.push(file);
+    }
+    groups.into_iter().map(|(_, g)| g).collect()
+}
+
+/// The error of a failed `cc`: its first error line, and the C line it points at.
+fn cc_error(dir: &Path, output: &str) -> MatiecError {
+    let first_error = output
+        .lines()
+        .find(|l| l.contains("error") || l.contains("undefined reference"))
+        .unwrap_or_else(|| output.lines().next().unwrap_or("cc failed without output"))
+        .to_owned();
+    // `FILE:LINE:COLUMN: error: …`
+    let mut parts = first_error.splitn(3, ':');
+    let c_line = match (
+        parts.next(),
+        parts.next().and_then(|l| l.parse::<usize>().ok()),
+    ) {
+        (Some(file), Some(line)) => fs::read_to_string(dir.join(file))
+            .ok()
+            .and_then(|text| text.lines().nth(line.checked_sub(1)?).map(str::to_owned)),
+        _ => None,
+    };
+    MatiecError::Cc {
+        first_error,
+        c_line,
+        output: output.to_owned(),
+    }
+}
+
+/// The harness's input: the header, the number of cases, the tick in nanoseconds, each case's
+/// number of scans, then per scan, per case that has it, one line per input value.
+fn input_text(cases: &[Case], tick: Duration) -> String {
+    let mut text = format!("{INPUT_HEADER}\n{}\n{}\n", cases.len(), tick.as_nanos());
+    for case in cases {
+        text.push_str(&format!("{}\n", case.scans.len()));
+    }
+    let scans = cases.iter().map(|c| c.scans.len()).max().unwrap_or(0);
+    for k in 0..scans {
+        for values in cases.iter().filter_map(|c| c.scans.get(k)) {
+            for value in values {
+                text.push_str(value);
+                text.push('\n');
+            }
+        }
+    }
+    text
+}
+
+/// The outputs of each case in each of its scans, from the harness's output: per scan a line
+/// `scan k`, then per case that has the scan one line per output value; then `end`.
+fn parse_output(output: &str, cases: &[Case]) -> Result<Outputs, MatiecError> {
+    let mut lines = output.lines();
+    let mut results: Outputs = cases
+        .iter()
+        .map(|c| Vec::with_capacity(c.scans.len()))
+        .collect();
+    let scans = cases.iter().map(|c| c.scans.len()).max().unwrap_or(0);
+    let malformed = |scan: Option<usize>, what: String| MatiecError::Run {
+        scan,
+        message: format!("its output is malformed: {what}"),
+    };
+    for k in 0..scans {
+        let marker = format!("scan {k}");
+        match lines.next() {
+            Some(line) if line == marker => {}
+            other => {
+                return Err(malformed(
+                    Some(k),
+                    format!("expected `{marker}`, found {other:?}"),
+                ))
+            }
+        }
+        for (i, case) in cases.iter().enumerate().filter(|(_, c)| k < c.scans.len()) {
+            let mut values = Vec::with_capacity(case.outputs.len());
+            for (name, _) in &case.outputs {
+                let value = lines.next().ok_or_else(|| {
+                    malformed(
+                        Some(k),
+                        format!("it ends before output `{name}` of case {i}"),
+                    )
+                })?;
+                values.push(value.to_owned());
+            }
+            results[i].push(values);
+        }
+    }
+    match lines.next() {
+        Some("end") => Ok(results),
+        other => Err(malformed(None, format!("expected `end`, found {other:?}"))),
+    }
+}
+
+/// The scan the harness last started, from the markers it flushes before each.
+fn last_scan(output: &str) -> Option<usize> {
+    output
+        .lines()
+        .rev()
+        .find_map(|l| l.strip_prefix("scan ")?.parse().ok())
+}
+
+/// Waits for `child` at most `timeout`; kills it and returns `None` when it is still running.
+fn wait_with_timeout(
+    child: &mut Child,
+    timeout: Duration,
+) -> Result<Option<ExitStatus>, MatiecError> {
+    let deadline = Instant::now() + timeout;
+    let mut pause = Duration::from_millis(1);
+    loop {
+        if let Some(status) = child
+            .try_wait()
+            .map_err(io_error("cannot wait for the batch"))?
+        {
+            return Ok(Some(status));
+        }
+        if Instant::now() >= deadline {
+            let _ = child.kill();
+            let _ = child.wait();
+            return Ok(None);
+        }
+        std::thread::sleep(pause);
+        pause = (pause * 2).min(Duration::from_millis(50));
+    }
+}
+
+/// How a process ended, naming the signal, and what SIGFPE means in generated code.
+fn describe(status: ExitStatus) -> String {
+    use std::os::unix::process::ExitStatusExt;
+    match status.signal() {
+        Some(8) => {
+            "killed by SIGFPE: an integer division by zero, or MIN / -1 or MIN MOD -1 in DINT \
+             or LINT"
+                .into()
+        }
+        Some(11) => "killed by SIGSEGV (an array index out of its bounds?)".into(),
+        Some(signal) => format!("killed by signal {signal}"),
+        None => format!("it exited with {status}"),
+    }
+}
+
+fn stderr_note(stderr: &str) -> String {
+    if stderr.trim().is_empty() {
+        String::new()
+    } else {
+        format!(
+            "; its standard error:\n{}",
+            first_lines(stderr.trim_end(), 20)
+        )
+    }
+}
+
+fn write(path: &Path, text: &str) -> Result<(), MatiecError> {
+    fs::write(path, text).map_err(io_error(format!("cannot write {}", path.display())))
+}
+
+fn file(path: &Path) -> Result<fs::File, MatiecError> {
+    fs::File::create(path).map_err(io_error(format!("cannot create {}", path.display())))
+}
+
+/// The fixed first part of the harness: MATIEC's runtime symbols, and one reader and one
+/// printer of canonical text per type.
+const HARNESS_PRELUDE: &str = r#"/* The harness of cetratus-testkit's matiec.rs: reads each scan's inputs from standard input,
+ * runs one cycle, prints the outputs on standard output, all in canonical text. */
+#include <errno.h>
+#include <limits.h>
+#include <stdint.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include "iec_std_lib.h"
+#include "POUS.h"
+
+TIME __CURRENT_TIME;
+BOOL __DEBUG;
+
+/* Located variables, should a program declare some: plain variables, as in MATIEC's plc.c. */
+#define __LOCATED_VAR(type, name, ...) type __##name;
+#include "LOCATED_VARIABLES.h"
+#undef __LOCATED_VAR
+#define __LOCATED_VAR(type, name, ...) type *name = &__##name;
+#include "LOCATED_VARIABLES.h"
+#undef __LOCATED_VAR
+
+void config_init__(void);
+void config_run__(unsigned long tick);
+
+static char line[1024];
+static long line_no;
+
+static void bad_input(const char *expected) {
+  fprintf(stderr, "input line %ld: expected %s, found \"%s\"\n", line_no, expected, line);
+  exit(2);
+}
+
+static const char *next_line(void) {
+  size_t n;
+  line_no++;
+  if (fgets(line, sizeof line, stdin) == NULL) {
+    line[0] = 0;
+    bad_input("one more line");
+  }
+  n = strlen(line);
+  if (n > 0 && line[n - 1] == '\n') line[--n] = 0;
+  return line;
+}
+
+static long long rd_signed(long long lo, long long hi) {
+  const char *s = next_line();
+  char *end;
+  long long v;
+  errno = 0;
+  v = strtoll(s, &end, 10);
+  if (errno != 0 || end == s || *end != 0 || v < lo || v > hi) bad_input("a signed integer in range");
+  return v;
+}
+
+static unsigned long long rd_unsigned(unsigned long long hi) {
+  const char *s = next_line();
+  char *end;
+  unsigned long long v;
+  errno = 0;
+  v = strtoull(s, &end, 10);
+  if (errno != 0 || s[0] < '0' || s[0] > '9' || *end != 0 || v > hi) bad_input("an unsigned integer in range");
+  return v;
+}
+
+static unsigned long long rd_bits(char tag, size_t digits) {
+  const char *s = next_line();
+  char *end;
+  unsigned long long v;
+  if (s[0] != tag || strlen(s) != digits + 1) bad_input("a tag and hex digits");
+  errno = 0;
+  v = strtoull(s + 1, &end, 16);
+  if (errno != 0 || *end != 0) bad_input("a tag and hex digits");
+  return v;
+}
+
+static int hex_digit(char c) {
+  if (c >= '0' && c <= '9') return c - '0';
+  if (c >= 'A' && c <= 'F') return c - 'A' + 10;
+  return -1;
+}
+
+static BOOL rd_BOOL(void) {
+  const char *s = next_line();
+  if (strcmp(s, "TRUE") == 0) return 1;
+  if (strcmp(s, "FALSE") != 0) bad_input("TRUE or FALSE");
+  return 0;
+}
+static SINT rd_SINT(void) { return (SINT)rd_signed(INT8_MIN, INT8_MAX); }
+static INT rd_INT(void) { return (INT)rd_signed(INT16_MIN, INT16_MAX); }
+static DINT rd_DINT(void) { return (DINT)rd_signed(INT32_MIN, INT32_MAX); }
+static LINT rd_LINT(void) { return (LINT)rd_signed(INT64_MIN, INT64_MAX); }
+static USINT rd_USINT(void) { return (USINT)rd_unsigned(UINT8_MAX); }
+static UINT rd_UINT(void) { return (UINT)rd_unsigned(UINT16_MAX); }
+static UDINT rd_UDINT(void) { return (UDINT)rd_unsigned(UINT32_MAX); }
+static ULINT rd_ULINT(void) { return (ULINT)rd_unsigned(UINT64_MAX); }
+static BYTE rd_BYTE(void) { return (BYTE)rd_unsigned(UINT8_MAX); }
+static WORD rd_WORD(void) { return (WORD)rd_unsigned(UINT16_MAX); }
+static DWORD rd_DWORD(void) { return (DWORD)rd_unsigned(UINT32_MAX); }
+static LWORD rd_LWORD(void) { return (LWORD)rd_unsigned(UINT64_MAX); }
+
+static REAL rd_REAL(void) {
+  uint32_t b = (uint32_t)rd_bits('r', 8);
+  REAL v;
+  memcpy(&v, &b, sizeof v);
+  return v;
+}
+
+static LREAL rd_LREAL(void) {
+  uint64_t b = (uint64_t)rd_bits('l', 16);
+  LREAL v;
+  memcpy(&v, &b, sizeof v);
+  return v;
+}
+
+/* Normalized as MATIEC normalizes: tv_sec and tv_nsec of one sign. */
+static TIME rd_TIME(void) {
+  const char *s = next_line();
+  char *end;
+  long long ns;
+  TIME t;
+  if (s[0] != 't') bad_input("t and nanoseconds");
+  errno = 0;
+  ns = strtoll(s + 1, &end, 10);
+  if (errno != 0 || end == s + 1 || *end != 0) bad_input("t and nanoseconds");
+  t.tv_sec = (long)(ns / 1000000000LL);
+  t.tv_nsec = (long)(ns % 1000000000LL);
+  return t;
+}
+
+static STRING rd_STRING(void) {
+  const char *s = next_line();
+  size_t n = strlen(s), i;
+  STRING v;
+  /* Zeroed beyond the length, as MATIEC's own strings are: STRING_TO_REAL reads past it. */
+  memset(&v, 0, sizeof v);
+  if (n < 2 || s[0] != '\'' || s[n - 1] != '\'') bad_input("a quoted string");
+  for (i = 1; i < n - 1; i++) {
+    int c = (unsigned char)s[i];
+    if (c == '$') {
+      if (i + 1 < n - 1 && (s[i + 1] == '$' || s[i + 1] == '\'')) {
+        c = s[++i];
+      } else {
+        int h = i + 2 < n - 1 ? hex_digit(s[i + 1]) : -1;
+        int l = h < 0 ? -1 : hex_digit(s[i + 2]);
+        if (l < 0) bad_input("$$, $' or $ and two hex digits");
+        c = h * 16 + l;
+        i += 2;
+      }
+    } else if (c == '\'') {
+      bad_input("$' for a quote");
+    }
+    if (v.len >= STR_MAX_LEN) bad_input("at most STR_MAX_LEN bytes");
+    v.body[v.len++] = (uint8_t)c;
+  }
+  return v;
+}
+
+static void wr_signed(long long v) { printf("%lld\n", v); }
+static void wr_unsigned(unsigned long long v) { printf("%llu\n", v); }
+
+static void wr_BOOL(BOOL v) {
+  if (v == 0) puts("FALSE");
+  else if (v == 1) puts("TRUE");
+  else printf("BOOL#%u\n", (unsigned)v);
+}
+static void wr_SINT(SINT v) { wr_signed(v); }
+static void wr_INT(INT v) { wr_signed(v); }
+static void wr_DINT(DINT v) { wr_signed(v); }
+static void wr_LINT(LINT v) { wr_signed(v); }
+static void wr_USINT(USINT v) { wr_unsigned(v); }
+static void wr_UINT(UINT v) { wr_unsigned(v); }
+static void wr_UDINT(UDINT v) { wr_unsigned(v); }
+static void wr_ULINT(ULINT v) { wr_unsigned(v); }
+static void wr_BYTE(BYTE v) { wr_unsigned(v); }
+static void wr_WORD(WORD v) { wr_unsigned(v); }
+static void wr_DWORD(DWORD v) { wr_unsigned(v); }
+static void wr_LWORD(LWORD v) { wr_unsigned(v); }
+
+static void wr_REAL(REAL v) {
+  uint32_t b;
+  memcpy(&b, &v, sizeof b);
+  printf("r%08lx\n", (unsigned long)b);
+}
+
+static void wr_LREAL(LREAL v) {
+  uint64_t b;
+  memcpy(&b, &v, sizeof b);
+  printf("l%016llx\n", (unsigned long long)b);
+}
+
+static void wr_TIME(TIME v) { printf("t%lld\n", (long long)v.tv_sec * 1000000000LL + (long long)v.tv_nsec); }
+
+static void wr_STRING(STRING v) {
+  size_t i, n = v.len > STR_MAX_LEN ? STR_MAX_LEN : v.len;
+  putchar('\'');
+  for (i = 0; i < n; i++) {
+    unsigned c = v.body[i];
+    if (c == '$') fputs("$$", stdout);
+    else if (c == '\'') fputs("$'", stdout);
+    else if (c < 0x20 || c >= 0x7f) printf("$%02X", c);
+    else putchar((int)c);
+  }
+  puts("'");
+}
+"#;
+
+/// The fixed last part of the harness: the scan loop (the module doc's steps 1 to 4).
+const HARNESS_MAIN: &str = r#"
+int main(void) {
+  static long scans[CASES];
+  long cases, k, i, max_scans = 0;
+  long long tick_ns;
+  if (strcmp(next_line(), INPUT_HEADER) != 0) bad_input("the header " INPUT_HEADER);
+  cases = (long)rd_signed(0, LONG_MAX);
+  if (cases != CASES) bad_input("the number of cases compiled in");
+  tick_ns = rd_signed(1, LLONG_MAX);
+  for (i = 0; i < CASES; i++) {
+    scans[i] = (long)rd_signed(0, LONG_MAX);
+    if (scans[i] > max_scans) max_scans = scans[i];
+  }
+  config_init__();
+  for (k = 0; k < max_scans; k++) {
+    long long now = (long long)k * tick_ns;
+    for (i = 0; i < CASES; i++)
+      if (k < scans[i]) write_inputs[i]();
+    __CURRENT_TIME.tv_sec = (long)(now / 1000000000LL);
+    __CURRENT_TIME.tv_nsec = (long)(now % 1000000000LL);
+    /* Flushed, so that a crash in this scan can be told. */
+    printf("scan %ld\n", k);
+    fflush(stdout);
+    config_run__((unsigned long)k);
+    for (i = 0; i < CASES; i++)
+      if (k < scans[i]) print_outputs[i]();
+  }
+  puts("end");
+  return fflush(stdout) == 0 ? 0 : 1;
+}
+"#;

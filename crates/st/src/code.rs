@@ -316,6 +316,20 @@ pub enum Op {
         a: TextAt,
         b: TextAt,
     },
+    /// `dst := <e>_TO_STRING(a)`, cut to `cap`.
+    ToStr {
+        e: Elem,
+        dst: TextAt,
+        cap: u16,
+        a: Slot,
+    },
+    /// `dst := a * f` (or `a / f` when `div`): a TIME scaled by the LREAL in slot `f`.
+    TimeScale {
+        div: bool,
+        dst: Slot,
+        a: Slot,
+        f: Slot,
+    },
     /// A string function; its operands are [`Code::string_args`]`[args]`.
     Str { f: StrFn, args: u32 },
     /// Runs a standard function block whose instance starts at slot `base`.
@@ -333,7 +347,9 @@ impl Op {
             | Op::CopyToInd { len, .. }
             | Op::TextFromInd { len, .. }
             | Op::TextToInd { len, .. } => u64::from(len),
-            Op::StrLit { cap, .. } | Op::StrMove { cap, .. } => u64::from(cap),
+            Op::StrLit { cap, .. } | Op::StrMove { cap, .. } | Op::ToStr { cap, .. } => {
+                u64::from(cap)
+            }
             Op::StrLen { .. } => 0,
             Op::StrFind { .. } | Op::StrCmp { .. } => u64::from(crate::types::MAX_STRING),
             Op::Str { args, .. } => u64::from(code.string_args[args as usize].cap) * 2,

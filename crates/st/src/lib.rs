@@ -10,6 +10,7 @@ pub mod ast;
 pub mod code;
 pub mod compile;
 pub mod error;
+mod format;
 mod lex;
 pub mod parse;
 pub mod stdfb;

@@ -168,6 +168,16 @@ pub fn run(
                 s[dst as usize] = op.holds(str_of(t, a).cmp(str_of(t, b))) as u64
             }
             Op::Str { f, args } => string_fn(f, &code.string_args[args as usize], s, t),
+            Op::ToStr { e, dst, cap, a } => {
+                let mut buf = [0u8; 48];
+                let n = crate::format::iec_text(e, s[a as usize], &mut buf);
+                set_str(t, dst, cap, &buf[..n]);
+            }
+            Op::TimeScale { div, dst, a, f } => {
+                let factor = f64::from_bits(s[f as usize]);
+                s[dst as usize] =
+                    crate::format::time_scale(div, s[a as usize] as i64, factor) as u64
+            }
             Op::StdFb { fb, base } => fb.step(&mut s[base as usize..], now),
         }
     }

@@ -18,6 +18,7 @@ mod expr;
 mod konst;
 mod operator;
 mod stdfn;
+mod stdstr;
 mod stmt;
 
 use std::collections::HashMap;

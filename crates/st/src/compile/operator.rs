@@ -171,6 +171,11 @@ impl<'a> Compiler<'a> {
             return self.power(a, b, hint, pos);
         }
         let (x, wx) = self.operand(a, hint)?;
+        if matches!(op, BinOp::Mul | BinOp::Div) && x.ty() == Ty::Elem(Elem::Time) {
+            return self
+                .time_scale(op == BinOp::Div, x, b, pos)
+                .map(|v| (v, false));
+        }
         let (y, wy) = self.operand(b, Some(hint.unwrap_or(x.ty())))?;
         if compare {
             return Ok((self.comparison(op, (x, wx), (y, wy), pos)?, false));
@@ -233,6 +238,39 @@ impl<'a> Compiler<'a> {
             Val::Scalar(tx, dst),
             if bitwise { wx || wy } else { promoted(e) },
         ))
+    }
+
+    /// `t * x`, `t / x`: a TIME scaled by a number, which is converted to LREAL first, as
+    /// MATIEC's `__time_mul` and `__time_div` take it.
+    fn time_scale(&mut self, div: bool, t: Val, b: &Expr, pos: Pos) -> Result<Val, Diagnostic> {
+        let Val::Scalar(_, a) = t else {
+            return Err(Diagnostic::new(pos, "expected a TIME"));
+        };
+        let y = self.expr(b, None)?;
+        let Val::Scalar(Ty::Elem(e), sb) = y else {
+            return Err(Diagnostic::new(
+                b.pos,
+                "a TIME is multiplied or divided by a number",
+            ));
+        };
+        if !e.is_num() {
+            return Err(Diagnostic::new(
+                b.pos,
+                format!("a TIME is multiplied or divided by a number, not by {e}"),
+            ));
+        }
+        let (f, dst) = (self.temp(pos)?, self.temp(pos)?);
+        self.emit(
+            Op::Conv {
+                from: e,
+                to: Elem::Lreal,
+                dst: f,
+                a: sb,
+            },
+            pos,
+        )?;
+        self.emit(Op::TimeScale { div, dst, a, f }, pos)?;
+        Ok(Val::Scalar(Ty::Elem(Elem::Time), dst))
     }
 
     /// `a ** b`: MATIEC's `pow` on two LREALs; for a REAL `a`, an LREAL that flows on wide.

@@ -62,6 +62,10 @@ const OPERATORS: [(&str, BinOp); 13] = [
 /// Whether `key` (upper case) names a standard function.
 pub fn is_standard(key: &str) -> bool {
     conversion(key).is_some()
+        || key
+            .strip_suffix("_TO_STRING")
+            .and_then(Elem::from_name)
+            .is_some()
         || MATH.iter().any(|m| m.0 == key)
         || OPERATORS.iter().any(|o| o.0 == key)
         || PARAMS.iter().any(|p| p.0 == key)
@@ -161,6 +165,15 @@ impl<'a> Compiler<'a> {
                 ))
             }
         };
+        if let Some(from) = key.strip_suffix("_TO_STRING").and_then(Elem::from_name) {
+            arity(1)?;
+            return self.to_string(args[0], from, pos);
+        }
+        if matches!(key.as_str(), "MAX" | "MIN" | "LIMIT" | "MUX") {
+            if let Some(v) = self.string_selection(&key, &args, pos) {
+                return v;
+            }
+        }
         if let Some((from, to)) = conversion(&key) {
             arity(1)?;
             return self.convert(args[0], from, to, pos);
@@ -228,6 +241,9 @@ impl<'a> Compiler<'a> {
     pub fn peek_standard(&mut self, key: &str, args: &[Arg]) -> Option<Ty> {
         if let Some((_, to)) = conversion(key) {
             return Some(Ty::Elem(to));
+        }
+        if key.ends_with("_TO_STRING") {
+            return Some(Ty::String(40));
         }
         let first = args.first().and_then(|a| match a {
             Arg::Positional(e) | Arg::Input(_, e) => Some(e.clone()),

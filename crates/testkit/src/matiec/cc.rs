@@ -25,6 +25,9 @@ pub(super) fn translation_units(dir: &Path) -> Result<Vec<String>, MatiecError> 
         units.push("Cetratus_Res.c".to_owned());
         return Ok(units);
     };
+    for name in &files {
+        guard_array_types(&dir.join(format!("{name}.h")))?;
+    }
     write_file(
         &dir.join("cetratus-resource.c"),
         &resource.replace(include, ""),
@@ -44,6 +47,34 @@ pub(super) fn translation_units(dir: &Path) -> Result<Vec<String>, MatiecError> 
         units.push(unit);
     }
     Ok(units)
+}
+
+/// Puts each anonymous array type of a POU's header under an include guard of its own: iec2c's
+/// one-file-per-POU mode (`-f`) declares `ARRAY [1..3] OF DINT` as `__ARRAY_OF_DINT_3` in every
+/// header that uses it, and the harness includes them all in one translation unit.
+pub(super) fn guard_array_types(header: &Path) -> Result<(), MatiecError> {
+    let Ok(text) = fs::read_to_string(header) else {
+        return Ok(());
+    };
+    let mut out = String::with_capacity(text.len());
+    for line in text.lines() {
+        let name = line
+            .strip_prefix("__DECLARE_ARRAY_TYPE(")
+            .and_then(|rest| rest.split(',').next());
+        match name {
+            Some(name) => {
+                let guard = format!("CETRATUS_DECLARED{name}");
+                out.push_str(&format!(
+                    "#ifndef {guard}\n#define {guard}\n{line}\n#endif\n"
+                ));
+            }
+            None => {
+                out.push_str(line);
+                out.push('\n');
+            }
+        }
+    }
+    write_file(header, &out)
 }
 
 /// `files` in `n` groups of about equal size, the largest placed first.

@@ -57,9 +57,11 @@
 //!   `-fwrapv` gcc wraps. (SINT and INT arithmetic happens in C `int` and wraps when stored.)
 //! * `-ffp-contract=off`: gcc otherwise fuses `a * b + c` into one FMA where the target has one
 //!   (aarch64), which rounds once instead of twice, unlike the interpreter.
-//! * `-O2`, always: what the undefined behaviour that `-fwrapv` leaves yields (a shift by the
-//!   width or more, a REAL out of an integer's range) depends on the level and on what gcc
-//!   folds at compile time, so one level is used everywhere.
+//! * `-O2` unless [`Matiec::with_optimisation`] says otherwise: what the undefined behaviour
+//!   that `-fwrapv` leaves yields (a shift by the width or more, a REAL out of an integer's
+//!   range) depends on the level and on what gcc folds at compile time. A program free of it
+//!   (every generated one is) computes the same at every level, so a differential test may
+//!   trade `-O2` for a faster compile; a benchmark keeps `-O2`.
 //!
 //! The harness asserts at compile time that each input and output has the C type of its
 //! [`IecType`] (so a mistyped case fails in `cc`, naming the case and the variable); types
@@ -100,8 +102,9 @@ use std::time::{Duration, Instant};
 use crate::paths;
 use crate::process::find_program;
 
-/// The flags every translation unit is compiled with (the module doc says why).
-const CFLAGS: [&str; 3] = ["-O2", "-fwrapv", "-ffp-contract=off"];
+/// The flags every translation unit is compiled with (the module doc says why), besides the
+/// optimisation level ([`Matiec::with_optimisation`]).
+const CFLAGS: [&str; 2] = ["-fwrapv", "-ffp-contract=off"];
 
 /// The first line of the harness's input, so that a stale executable refuses new input.
 const INPUT_HEADER: &str = "cetratus-matiec-input 1";
@@ -425,6 +428,8 @@ fn io_error(what: impl Into<String>) -> impl FnOnce(io::Error) -> MatiecError {
 pub struct Matiec {
     dir: PathBuf,
     run_timeout: Duration,
+    /// `-O2` unless set.
+    optimisation: &'static str,
 }
 
 impl Matiec {
@@ -469,12 +474,23 @@ impl Matiec {
         Ok(Matiec {
             dir,
             run_timeout: DEFAULT_RUN_TIMEOUT,
+            optimisation: "-O2",
         })
     }
 
     /// The install dir.
     pub fn dir(&self) -> &Path {
         &self.dir
+    }
+
+    /// The same MATIEC, compiling the generated C at `level` (`-O0` … `-O2`) instead of `-O2`:
+    /// a differential test of many programs spends most of its time in `cc -O2`, and the
+    /// flags that fix the semantics (`-fwrapv`, `-ffp-contract=off`) stay.
+    pub fn with_optimisation(self, level: &'static str) -> Matiec {
+        Matiec {
+            optimisation: level,
+            ..self
+        }
     }
 
     /// The same MATIEC, whose runs are killed after `timeout` (two minutes unless set): a
@@ -653,6 +669,7 @@ impl Matiec {
     fn spawn_cc(&self, dir: &Path, unit: &str, i: usize) -> Result<(Child, PathBuf), MatiecError> {
         let log = dir.join(format!("cetratus-cc-{i}.log"));
         let child = Command::new("cc")
+            .arg(self.optimisation)
             .args(CFLAGS)
             .arg("-I")
             .arg(self.dir.join("lib/C"))

@@ -158,21 +158,13 @@ pub fn run(
                 src,
                 len,
             } => copy_text(t, ind(s, addr, off) as u32, src, len),
-            Op::StrLit { dst, cap, lit } => set_str(t, dst, cap, &code.literals[lit as usize]),
-            Op::StrMove { dst, cap, src } => str_move(t, dst, cap, src),
-            Op::StrLen { e, dst, s: at } => s[dst as usize] = wrap(e, str_len(t, at) as u64),
-            Op::StrFind { e, dst, a, b } => {
-                s[dst as usize] = wrap(e, find(str_of(t, a), str_of(t, b)))
-            }
-            Op::StrCmp { op, dst, a, b } => {
-                s[dst as usize] = op.holds(str_of(t, a).cmp(str_of(t, b))) as u64
-            }
-            Op::Str { f, args } => string_fn(f, &code.string_args[args as usize], s, t),
-            Op::ToStr { e, dst, cap, a } => {
-                let mut buf = [0u8; 48];
-                let n = crate::format::iec_text(e, s[a as usize], &mut buf);
-                set_str(t, dst, cap, &buf[..n]);
-            }
+            Op::StrLit { .. }
+            | Op::StrMove { .. }
+            | Op::StrLen { .. }
+            | Op::StrFind { .. }
+            | Op::StrCmp { .. }
+            | Op::Str { .. }
+            | Op::ToStr { .. } => text_op(*op, code, s, t),
             Op::TimeScale { div, dst, a, f } => {
                 let factor = f64::from_bits(s[f as usize]);
                 s[dst as usize] =
@@ -182,6 +174,27 @@ pub fn run(
         }
     }
     Ok(())
+}
+
+/// The instructions on strings, out of the dispatch loop: each moves up to a string's bytes,
+/// so one call more is nothing beside its work.
+fn text_op(op: Op, code: &Code, s: &mut [u64], t: &mut [u8]) {
+    match op {
+        Op::StrLit { dst, cap, lit } => set_str(t, dst, cap, &code.literals[lit as usize]),
+        Op::StrMove { dst, cap, src } => str_move(t, dst, cap, src),
+        Op::StrLen { e, dst, s: at } => s[dst as usize] = wrap(e, str_len(t, at) as u64),
+        Op::StrFind { e, dst, a, b } => s[dst as usize] = wrap(e, find(str_of(t, a), str_of(t, b))),
+        Op::StrCmp { op, dst, a, b } => {
+            s[dst as usize] = op.holds(str_of(t, a).cmp(str_of(t, b))) as u64
+        }
+        Op::Str { f, args } => string_fn(f, &code.string_args[args as usize], s, t),
+        Op::ToStr { e, dst, cap, a } => {
+            let mut buf = [0u8; 48];
+            let n = crate::format::iec_text(e, s[a as usize], &mut buf);
+            set_str(t, dst, cap, &buf[..n]);
+        }
+        _ => {}
+    }
 }
 
 /// The slot `slots[addr] + off`.

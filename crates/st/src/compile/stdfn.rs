@@ -245,32 +245,26 @@ impl<'a> Compiler<'a> {
         if key.ends_with("_TO_STRING") {
             return Some(Ty::String(40));
         }
-        let first = args.first().and_then(|a| match a {
-            Arg::Positional(e) | Arg::Input(_, e) => Some(e.clone()),
-            Arg::Output { .. } => None,
-        });
-        match key {
-            "GT" | "GE" | "EQ" | "LE" | "LT" | "NE" => Some(Ty::Elem(Elem::Bool)),
-            "LEN" | "FIND" | "TRUNC" => None,
+        let values: Vec<Expr> = args
+            .iter()
+            .filter_map(|a| match a {
+                Arg::Positional(e) | Arg::Input(_, e) => Some(e.clone()),
+                Arg::Output { .. } => None,
+            })
+            .collect();
+        // The inputs whose type is the result's: all of them, but for the selector of SEL and
+        // MUX and the bit count of the shifts.
+        let typed = match key {
+            "GT" | "GE" | "EQ" | "LE" | "LT" | "NE" => return Some(Ty::Elem(Elem::Bool)),
+            "LEN" | "FIND" | "TRUNC" => return None,
             "LEFT" | "RIGHT" | "MID" | "INSERT" | "DELETE" | "REPLACE" | "CONCAT" => {
-                Some(Ty::String(MAX_STRING))
+                return Some(Ty::String(MAX_STRING))
             }
-            "SEL" | "MUX" | "LIMIT" => {
-                let rest: Vec<Expr> = args
-                    .iter()
-                    .skip(1)
-                    .filter_map(|a| match a {
-                        Arg::Positional(e) | Arg::Input(_, e) => Some(e.clone()),
-                        Arg::Output { .. } => None,
-                    })
-                    .collect();
-                let both = first.into_iter().chain(rest);
-                both.into_iter()
-                    .skip(if key == "LIMIT" { 0 } else { 1 })
-                    .find_map(|e| self.peek(&e))
-            }
-            _ => first.and_then(|e| self.peek(&e)),
-        }
+            "SEL" | "MUX" => values.get(1..).unwrap_or_default(),
+            "SHL" | "SHR" | "ROL" | "ROR" | "EXPT" => values.get(..1).unwrap_or_default(),
+            _ => &values[..],
+        };
+        typed.iter().find_map(|e| self.peek(e))
     }
 
     fn convert(&mut self, arg: &Expr, from: Elem, to: Elem, pos: Pos) -> Result<Val, Diagnostic> {

@@ -8,6 +8,7 @@
 //!
 //! `matiec` runs batches of Structured Text programs through MATIEC, the compiler of OpenPLC and
 //! Beremiz, as an independent second implementation of the language.
+//! `stgen` writes random, well-typed, deterministic ST programs and input sequences for it.
 //!
 //! # Where the Vernadat net lives
 //!
@@ -34,6 +35,7 @@ pub mod process;
 #[cfg(feature = "programs")]
 pub mod programs;
 pub mod raw_mqtt;
+pub mod stgen;
 
 pub use counting::CountingAlloc;
 

@@ -167,7 +167,7 @@ impl<'a> Compiler<'a> {
         };
         if let Some(from) = key.strip_suffix("_TO_STRING").and_then(Elem::from_name) {
             arity(1)?;
-            return self.to_string(args[0], from, pos);
+            return self.converted_to_string(args[0], from, pos);
         }
         if matches!(key.as_str(), "MAX" | "MIN" | "LIMIT" | "MUX") {
             if let Some(v) = self.string_selection(&key, &args, pos) {

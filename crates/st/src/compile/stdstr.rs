@@ -215,7 +215,12 @@ impl<'a> Compiler<'a> {
 
     /// `<from>_TO_STRING(x)`, as MATIEC prints: `TRUE`/`FALSE`, decimal integers, bit strings
     /// as `16#…` in lower-case hex, reals as C's `%.10g`.
-    pub fn to_string(&mut self, arg: &Expr, from: Elem, pos: Pos) -> Result<Val, Diagnostic> {
+    pub fn converted_to_string(
+        &mut self,
+        arg: &Expr,
+        from: Elem,
+        pos: Pos,
+    ) -> Result<Val, Diagnostic> {
         if from == Elem::Time {
             return Err(Diagnostic::new(pos, "TIME_TO_STRING is not supported yet: convert the duration to an integer of milliseconds with TIME_TO_DINT, then to a STRING"));
         }

@@ -100,14 +100,14 @@
 //!    (MATIEC writes `16#ff`, a format IEC does not fix) and `STRING_TO_<int>` only of the
 //!    `<int>_TO_STRING` of at most 32-bit integers (MATIEC's parser overflows at 19 digits).
 //! 10. Loops terminate and do what both read: a FOR's bounds and step are literals or depend on
-//!    inputs only (MATIEC re-evaluates them every iteration), its counter is never assigned and
-//!    never read after the loop (its final value is implementation-dependent), and a FOR runs
-//!    either zero times or at least twice: MATIEC's FOR tests `i + step <= end` *before* the
-//!    first iteration, so `FOR i := 1 TO 1` runs zero times there. WHILE and REPEAT count with a
-//!    dedicated counter that bounds the trip count (≤ 8).
+//!     inputs only (MATIEC re-evaluates them every iteration), its counter is never assigned and
+//!     never read after the loop (its final value is implementation-dependent), and a FOR runs
+//!     either zero times or at least twice: MATIEC's FOR tests `i + step <= end` *before* the
+//!     first iteration, so `FOR i := 1 TO 1` runs zero times there. WHILE and REPEAT count with a
+//!     dedicated counter that bounds the trip count (≤ 8).
 //! 11. Generic functions whose result type comes from the context (LEN, FIND, TRUNC, MIN of
-//!    literals…) only appear where the context types them: in comparisons, array indices, MUX
-//!    selectors and shift counts at least one operand is typed (a variable or a typed literal).
+//!     literals…) only appear where the context types them: in comparisons, array indices, MUX
+//!     selectors and shift counts at least one operand is typed (a variable or a typed literal).
 //! 12. CASE labels never overlap; every enumeration value is `<TYPE>_<NAME>`, unique in a batch.
 //!
 //! What both must agree on, and MATIEC does in a particular way that the interpreter must match:

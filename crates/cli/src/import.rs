@@ -54,22 +54,15 @@ pub fn run(args: &ImportArgs) -> anyhow::Result<()> {
         From::Plcopen(a) => a,
         From::St(a) => return structured_text(a),
     };
-    let label = a.file.display().to_string();
-    let text = std::fs::read_to_string(&a.file)
-        .with_context(|| format!("cannot read {label} as UTF-8 text"))?;
+    let (label, text) = read(&a.file)?;
     let imported = cetratus_sfc::import_program(&text, &label, a.pou.as_deref())?;
-    let stem = imported.program.name().to_string();
-    let net_file = format!("{stem}.pnml");
-    std::fs::create_dir_all(&a.output)
-        .with_context(|| format!("cannot create {}", a.output.display()))?;
-    let toml_path = a.output.join(format!("{stem}.toml"));
-    let net_path = a.output.join(&net_file);
-    cetratus_net::pnml::write_file(&imported.net, &net_path)?;
-    std::fs::write(&toml_path, &imported.toml)
-        .with_context(|| format!("cannot write {}", toml_path.display()))?;
-    for note in &imported.notes {
-        eprintln!("note: {note}");
-    }
+    let toml_path = write(
+        &a.output,
+        &imported.program,
+        &imported.net,
+        &imported.toml,
+        &imported.notes,
+    )?;
     // Counted as drawn: the chart and its nested charts (not their held places and hold and
     // resume transitions).
     let charts = || std::iter::once(&imported.chart).chain(&imported.nested);
@@ -96,28 +89,54 @@ pub fn run(args: &ImportArgs) -> anyhow::Result<()> {
 
 /// `cetratus import st`.
 fn structured_text(a: &StArgs) -> anyhow::Result<()> {
-    let label = a.file.display().to_string();
-    let text = std::fs::read_to_string(&a.file)
-        .with_context(|| format!("cannot read {label} as UTF-8 text"))?;
+    let (label, text) = read(&a.file)?;
     let imported = cetratus_sfc::structured::import_st(&text, &label, a.pou.as_deref())?;
-    let stem = imported.program.name().to_string();
-    std::fs::create_dir_all(&a.output)
-        .with_context(|| format!("cannot create {}", a.output.display()))?;
-    let toml_path = a.output.join(format!("{stem}.toml"));
-    cetratus_net::pnml::write_file(&imported.net, &a.output.join(format!("{stem}.pnml")))?;
-    std::fs::write(&toml_path, &imported.toml)
-        .with_context(|| format!("cannot write {}", toml_path.display()))?;
-    for note in &imported.notes {
-        eprintln!("note: {note}");
-    }
+    let toml_path = write(
+        &a.output,
+        &imported.program,
+        &imported.net,
+        &imported.toml,
+        &imported.notes,
+    )?;
     let p = &imported.program;
     println!(
-        "{}: POU {stem}, {} inputs, {} outputs, scan period {:?}; program hash {}",
+        "{}: POU {}, {} inputs, {} outputs, scan period {:?}; program hash {}",
         toml_path.display(),
+        p.name(),
         p.inputs().len(),
         p.outputs().len(),
         p.scan_period(),
         p.hash_hex()
     );
     Ok(())
+}
+
+/// The file to import, as UTF-8 text, with its name for messages.
+fn read(file: &std::path::Path) -> anyhow::Result<(String, String)> {
+    let label = file.display().to_string();
+    let text = std::fs::read_to_string(file)
+        .with_context(|| format!("cannot read {label} as UTF-8 text"))?;
+    Ok((label, text))
+}
+
+/// Writes an imported program to `output` (`NAME.toml` beside `NAME.pnml`, as its `net =`
+/// names it) and prints what the importer noted; the TOML file's path.
+fn write(
+    output: &std::path::Path,
+    program: &cetratus_program::Program,
+    net: &cetratus_net::Net,
+    toml: &str,
+    notes: &[String],
+) -> anyhow::Result<PathBuf> {
+    let stem = program.name();
+    std::fs::create_dir_all(output)
+        .with_context(|| format!("cannot create {}", output.display()))?;
+    let toml_path = output.join(format!("{stem}.toml"));
+    cetratus_net::pnml::write_file(net, &output.join(format!("{stem}.pnml")))?;
+    std::fs::write(&toml_path, toml)
+        .with_context(|| format!("cannot write {}", toml_path.display()))?;
+    for note in notes {
+        eprintln!("note: {note}");
+    }
+    Ok(toml_path)
 }

@@ -121,15 +121,7 @@ impl<'a> Compiler<'a> {
                 .ok_or_else(|| {
                     Diagnostic::new(pos, "the string literal is longer than a STRING can be")
                 })?;
-            let at = self
-                .alloc(
-                    Size {
-                        slots: 0,
-                        text: u32::from(cap) + 2,
-                    },
-                    pos,
-                )?
-                .text as usize;
+            let at = self.string_temp(cap, pos)? as usize;
             self.init.text[at..at + 2].copy_from_slice(&cap.to_le_bytes());
             self.init.text[at + 2..at + 2 + bytes.len()].copy_from_slice(bytes);
             return Ok(Val::Str(cap, at as TextAt));
@@ -254,15 +246,7 @@ impl<'a> Compiler<'a> {
             }
             (Ty::String(cap), Loc::Static(at)) => Ok(Val::Str(cap, at.text)),
             (Ty::String(cap), Loc::Dynamic { text_addr, off, .. }) => {
-                let dst = self
-                    .alloc(
-                        Size {
-                            slots: 0,
-                            text: u32::from(cap) + 2,
-                        },
-                        pos,
-                    )?
-                    .text;
+                let dst = self.string_temp(cap, pos)?;
                 self.emit(
                     Op::TextFromInd {
                         dst,
@@ -372,22 +356,7 @@ impl<'a> Compiler<'a> {
         let acc = self.temp(pos)?;
         self.emit(Op::Const { dst: acc, bits: 0 }, pos)?;
         for (&(lo, hi), i) in a.dims.iter().zip(idx) {
-            let v = self.expr(i, Some(Ty::Elem(Elem::Dint)))?;
-            let Val::Scalar(Ty::Elem(e), slot) = v else {
-                return Err(Diagnostic::new(
-                    i.pos,
-                    format!(
-                        "an array index is an integer, found {}",
-                        self.describe(v.ty())
-                    ),
-                ));
-            };
-            if !e.is_int() {
-                return Err(Diagnostic::new(
-                    i.pos,
-                    format!("an array index is an integer, found {e}"),
-                ));
-            }
+            let (e, slot) = self.integer(i, "an array index")?;
             self.emit(
                 Op::Index {
                     e,
@@ -577,15 +546,7 @@ impl<'a> Compiler<'a> {
                 )?;
             }
             Loc::Dynamic { text_addr, off, .. } => {
-                let tmp = self
-                    .alloc(
-                        Size {
-                            slots: 0,
-                            text: u32::from(cap) + 2,
-                        },
-                        pos,
-                    )?
-                    .text;
+                let tmp = self.string_temp(cap, pos)?;
                 self.emit(Op::StrMove { dst: tmp, cap, src }, pos)?;
                 self.emit(
                     Op::TextToInd {

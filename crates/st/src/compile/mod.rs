@@ -23,12 +23,13 @@ mod stmt;
 
 use std::collections::HashMap;
 
-use crate::ast::{Library, Pos, Pou, PouKind, Section};
-use crate::code::{Code, Op, Slot};
+use crate::ast::{Expr, Library, Pos, Pou, PouKind, Section};
+use crate::code::{Code, Op, Slot, TextAt};
 use crate::error::Diagnostic;
 use crate::stdfb::StdFb;
-use crate::types::{FbId, Field, Size, Ty, Types};
+use crate::types::{Elem, FbId, Field, Size, Ty, Types};
 use crate::vm::State;
+use expr::Val;
 
 pub use decl::Var;
 
@@ -414,6 +415,23 @@ impl<'a> Compiler<'a> {
         let slot = self.alloc(Size { slots: 1, text: 0 }, pos)?.slots;
         self.temps.insert(slot);
         Ok(slot)
+    }
+
+    /// Room for a string temporary of capacity `cap`; where its text starts.
+    pub fn string_temp(&mut self, cap: u16, pos: Pos) -> Result<TextAt, Diagnostic> {
+        Ok(self.alloc(self.size_of(Ty::String(cap)), pos)?.text)
+    }
+
+    /// `e` compiled as an integer (of any integer type, a literal a DINT): its type and slot;
+    /// `what` names it in the error (`"an array index"`).
+    pub fn integer(&mut self, e: &Expr, what: &str) -> Result<(Elem, Slot), Diagnostic> {
+        match self.expr(e, Some(Ty::Elem(Elem::Dint)))? {
+            Val::Scalar(Ty::Elem(t), slot) if t.is_int() => Ok((t, slot)),
+            v => Err(Diagnostic::new(
+                e.pos,
+                format!("{what} is an integer, found {}", self.describe(v.ty())),
+            )),
+        }
     }
 
     /// The scope of the body being compiled.

@@ -5,7 +5,7 @@
 use crate::ast::{Arg, BinOp, Expr, ExprKind, Ident, Pos, UnOp};
 use crate::code::{Arith, MathFn, Op, Rel, ShiftFn, Slot, StrArgs, StrFn};
 use crate::error::Diagnostic;
-use crate::types::{Elem, Size, Ty, MAX_STRING};
+use crate::types::{Elem, Ty, MAX_STRING};
 
 use super::expr::Val;
 use super::Compiler;
@@ -393,16 +393,7 @@ impl<'a> Compiler<'a> {
                 format!("{key} takes a bit string (BYTE, WORD, DWORD, LWORD), found {e}"),
             ));
         }
-        let nv = self.expr(n, Some(Ty::Elem(Elem::Dint)))?;
-        let Val::Scalar(Ty::Elem(ne), ns) = nv else {
-            return Err(Diagnostic::new(n.pos, "the bit count N is an integer"));
-        };
-        if !ne.is_int() {
-            return Err(Diagnostic::new(
-                n.pos,
-                format!("the bit count N is an integer, found {ne}"),
-            ));
-        }
+        let (_, ns) = self.integer(n, "the bit count N")?;
         let dst = self.temp(pos)?;
         self.emit(
             Op::Shift {
@@ -454,18 +445,7 @@ impl<'a> Compiler<'a> {
             ));
         }
         let (ty, slots) = self.same_scalars(args, want, pos)?;
-        let Some(e) = ty
-            .elem()
-            .filter(|e| e.is_num() || e.is_bits() || *e == Elem::Time)
-        else {
-            return Err(Diagnostic::new(
-                pos,
-                format!(
-                    "{key} takes numbers, bit strings or durations, found {}",
-                    self.describe(ty)
-                ),
-            ));
-        };
+        let e = self.ordered(ty, key, pos)?;
         let op = if key == "MAX" { Arith::Max } else { Arith::Min };
         let mut acc = slots[0];
         for &b in &slots[1..] {
@@ -485,21 +465,26 @@ impl<'a> Compiler<'a> {
         Ok(Val::Scalar(ty, acc))
     }
 
+    /// The elementary type of the inputs of MAX, MIN or LIMIT (`name`): numbers, bit strings or
+    /// durations (strings go through `string_selection`).
+    fn ordered(&self, ty: Ty, name: &str, pos: Pos) -> Result<Elem, Diagnostic> {
+        ty.elem()
+            .filter(|e| e.is_num() || e.is_bits() || *e == Elem::Time)
+            .ok_or_else(|| {
+                Diagnostic::new(
+                    pos,
+                    format!(
+                        "{name} takes numbers, bit strings or durations, found {}",
+                        self.describe(ty)
+                    ),
+                )
+            })
+    }
+
     /// LIMIT(MN, IN, MX) as MATIEC computes it: `IN > MN ? (IN < MX ? IN : MX) : MN`.
     fn limit(&mut self, args: &[&Expr], want: Option<Ty>, pos: Pos) -> Result<Val, Diagnostic> {
         let (ty, s) = self.same_scalars(args, want, pos)?;
-        let Some(e) = ty
-            .elem()
-            .filter(|e| e.is_num() || e.is_bits() || *e == Elem::Time)
-        else {
-            return Err(Diagnostic::new(
-                pos,
-                format!(
-                    "LIMIT takes numbers, bit strings or durations, found {}",
-                    self.describe(ty)
-                ),
-            ));
-        };
+        let e = self.ordered(ty, "LIMIT", pos)?;
         let (mn, x, mx) = (s[0], s[1], s[2]);
         let (above, below, inner, dst) = (
             self.temp(pos)?,
@@ -557,15 +542,7 @@ impl<'a> Compiler<'a> {
                 return Err(Diagnostic::new(pos, "SEL takes two values of one type"));
             };
             let cap = ca.max(cb);
-            let dst = self
-                .alloc(
-                    Size {
-                        slots: 0,
-                        text: u32::from(cap) + 2,
-                    },
-                    pos,
-                )?
-                .text;
+            let dst = self.string_temp(cap, pos)?;
             let skip = self.emit(Op::JumpIf { c: g, to: 0 }, pos)?;
             self.emit(Op::StrMove { dst, cap, src: ta }, pos)?;
             let end = self.emit(Op::Jump { to: 0 }, pos)?;
@@ -598,19 +575,7 @@ impl<'a> Compiler<'a> {
                 "MUX takes a selector K and at least one input",
             ));
         }
-        let kv = self.expr(args[0], Some(Ty::Elem(Elem::Dint)))?;
-        let Val::Scalar(Ty::Elem(ke), k) = kv else {
-            return Err(Diagnostic::new(
-                args[0].pos,
-                "MUX's selector K is an integer",
-            ));
-        };
-        if !ke.is_int() {
-            return Err(Diagnostic::new(
-                args[0].pos,
-                format!("MUX's selector K is an integer, found {ke}"),
-            ));
-        }
+        let (ke, k) = self.integer(args[0], "MUX's selector K")?;
         let (ty, s) = self.same_scalars(&args[1..], want, pos)?;
         let dst = self.temp(pos)?;
         let zero = self.const_slot(0, pos)?;
@@ -728,15 +693,7 @@ impl<'a> Compiler<'a> {
                     .map(|t| u32::from(t.0))
                     .sum::<u32>()
                     .min(u32::from(MAX_STRING)) as u16;
-                let dst = self
-                    .alloc(
-                        Size {
-                            slots: 0,
-                            text: u32::from(cap) + 2,
-                        },
-                        pos,
-                    )?
-                    .text;
+                let dst = self.string_temp(cap, pos)?;
                 let b = texts.get(1).map_or(texts[0].1, |t| t.1);
                 let args = StrArgs {
                     dst,
@@ -789,15 +746,7 @@ impl<'a> Compiler<'a> {
         let mut acc = texts[0];
         for &(cap, at) in &texts[1..] {
             let cap = (u32::from(acc.0) + u32::from(cap)).min(u32::from(MAX_STRING)) as u16;
-            let dst = self
-                .alloc(
-                    Size {
-                        slots: 0,
-                        text: u32::from(cap) + 2,
-                    },
-                    pos,
-                )?
-                .text;
+            let dst = self.string_temp(cap, pos)?;
             self.string_op(
                 StrFn::Concat,
                 StrArgs {

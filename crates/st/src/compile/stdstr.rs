@@ -4,7 +4,7 @@
 use crate::ast::{Expr, Pos};
 use crate::code::{Op, Rel, Slot, TextAt};
 use crate::error::Diagnostic;
-use crate::types::{Elem, Size, Ty, MAX_STRING};
+use crate::types::{Elem, Ty, MAX_STRING};
 
 use super::expr::Val;
 use super::Compiler;
@@ -51,15 +51,7 @@ impl<'a> Compiler<'a> {
         pos: Pos,
     ) -> Result<(u16, TextAt), Diagnostic> {
         let cap = texts.iter().map(|t| t.0).max().unwrap_or(1).min(MAX_STRING);
-        let at = self
-            .alloc(
-                Size {
-                    slots: 0,
-                    text: u32::from(cap) + 2,
-                },
-                pos,
-            )?
-            .text;
+        let at = self.string_temp(cap, pos)?;
         Ok((cap, at))
     }
 
@@ -171,19 +163,7 @@ impl<'a> Compiler<'a> {
 
     /// MUX(K, IN0, …) on strings: the input numbered K, or '' when K is out of range.
     fn string_mux(&mut self, args: &[&Expr], pos: Pos) -> Result<Val, Diagnostic> {
-        let kv = self.expr(args[0], Some(Ty::Elem(Elem::Dint)))?;
-        let Val::Scalar(Ty::Elem(ke), k) = kv else {
-            return Err(Diagnostic::new(
-                args[0].pos,
-                "MUX's selector K is an integer",
-            ));
-        };
-        if !ke.is_int() {
-            return Err(Diagnostic::new(
-                args[0].pos,
-                format!("MUX's selector K is an integer, found {ke}"),
-            ));
-        }
+        let (ke, k) = self.integer(args[0], "MUX's selector K")?;
         let texts = self.strings(&args[1..])?;
         let out = self.string_result(&texts, pos)?;
         self.code.literals.push(Vec::new());
@@ -226,15 +206,7 @@ impl<'a> Compiler<'a> {
         }
         let a = self.scalar(arg, Ty::Elem(from))?;
         let cap = 40;
-        let dst = self
-            .alloc(
-                Size {
-                    slots: 0,
-                    text: u32::from(cap) + 2,
-                },
-                pos,
-            )?
-            .text;
+        let dst = self.string_temp(cap, pos)?;
         self.emit(
             Op::ToStr {
                 e: from,

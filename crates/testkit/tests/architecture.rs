@@ -693,18 +693,6 @@ const LONG_FUNCTIONS: &[(&str, &str, usize, &str)] = &[
         "the register machine of Structured Text: one loop over the instructions, each arm of its match an instruction; split, every instruction would pay a call on the scan's hot path",
     ),
     (
-        "crates/testkit/src/stgen/ints.rs",
-        "int_op",
-        170,
-        "the random integer operation: one weighted choice among the operators and one match with an arm per operator, each arm the range arithmetic that keeps its result defined; split, the arms would lose the choice they belong to",
-    ),
-    (
-        "crates/testkit/src/stgen/reals.rs",
-        "string",
-        130,
-        "the random string expression: one choice among the string functions and one match with an arm per function, each arm the length budget that keeps the result under the capacity",
-    ),
-    (
         "crates/sfc/src/st/lex.rs",
         "lex",
         140,

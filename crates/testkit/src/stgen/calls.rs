@@ -73,7 +73,15 @@ impl ProgramGen<'_> {
         if fns.is_empty() || d == 0 {
             return None;
         }
-        let f = self.funcs[*self.rng.pick(&fns)].clone();
+        let f = *self.rng.pick(&fns);
+        Some(self.call_fn(f, d))
+    }
+
+    /// A call of user function `f`, with positional or formal arguments in its parameters'
+    /// domains.
+    pub(super) fn call_fn(&mut self, f: usize, d: u32) -> Expr {
+        let f = self.funcs[f].clone();
+        let d = d.max(1);
         let formal = self.rng.pct(40);
         let mut args = Vec::new();
         for p in &f.params {
@@ -84,11 +92,7 @@ impl ProgramGen<'_> {
                 a.text
             });
         }
-        Some(Expr::atom(
-            format!("{}({})", f.name, args.join(", ")),
-            f.dom,
-            true,
-        ))
+        Expr::atom(format!("{}({})", f.name, args.join(", ")), f.dom, true)
     }
 
     /// An expression of `sty` whose value fits the domain `dom` (bit strings may be dirty:
@@ -99,7 +103,7 @@ impl ProgramGen<'_> {
             (Sty::E(Ty::Bool), _) => self.boolean(d),
             (Sty::E(t), Val::Int(iv)) => self.int(t, iv, false, d),
             (Sty::E(t), Val::Real(rv)) => self.real(t, rv, false, d),
-            (Sty::E(Ty::Time), Val::Time { clean }) => self.time(clean, d),
+            (Sty::E(Ty::Time), Val::Time { clean, range }) => self.time(clean, range, d),
             (Sty::E(Ty::String), Val::Str { max, .. }) => self.string(max, d),
             (Sty::E(t), _) => self.bits(t, false, false, d),
         }
@@ -208,7 +212,10 @@ impl ProgramGen<'_> {
         let (l, r) = match sty {
             Sty::Enum(e) => (self.enumeration(e), self.enumeration(e)),
             Sty::E(Ty::Bool) => (self.boolean(d - 1), self.boolean(d - 1)),
-            Sty::E(Ty::Time) => (self.time(true, d - 1), self.time(true, d - 1)),
+            Sty::E(Ty::Time) => (
+                self.time(true, TIME_FREE, d - 1),
+                self.time(true, TIME_FREE, d - 1),
+            ),
             Sty::E(Ty::String) => (self.string(STR_CAP, d - 1), self.string(STR_CAP, d - 1)),
             Sty::E(t) if t.is_int() => {
                 let l = self.int(t, t.full(), false, d - 1);
@@ -252,7 +259,6 @@ impl ProgramGen<'_> {
         if d == 0 || self.rng.pct(30) {
             return self.bits_leaf(ty, typed);
         }
-        let w = i128::from(ty.width());
         match self.rng.below(26) {
             0..=8 => {
                 let (op, prec) =
@@ -282,21 +288,7 @@ impl ProgramGen<'_> {
                     konst: false,
                 }
             }
-            12..=16 => {
-                let name = *self.rng.pick(&["SHL", "SHR", "ROL", "ROR"]);
-                let x = self.bits(ty, false, typed, d - 1);
-                let nty = *self.rng.pick(&INT_TYPES);
-                let n = if name.starts_with("RO") {
-                    // A rotation by 0 is a C shift by the width (rule 4).
-                    self.rotation(nty, w, d - 1)
-                } else {
-                    self.int(nty, Iv::new(0, w - 1), true, d - 1)
-                };
-                let typed = x.typed;
-                let mut e = self.call(name, &[x, n], Val::Bits { dirty: false });
-                e.typed = typed;
-                e
-            }
+            12..=16 => self.bits_shift(ty, typed, d),
             17..=18 => {
                 let n = self.rng.range(2, 3);
                 let args: Vec<Expr> = (0..n)
@@ -336,6 +328,24 @@ impl ProgramGen<'_> {
                 None => self.bits_leaf(ty, typed),
             },
         }
+    }
+
+    /// SHL, SHR (by 0 … width-1), ROL, ROR (by 1 … width-1) (rule 4).
+    pub(super) fn bits_shift(&mut self, ty: Ty, typed: bool, d: u32) -> Expr {
+        let w = i128::from(ty.width());
+        let name = *self.rng.pick(&["SHL", "SHR", "ROL", "ROR"]);
+        let x = self.bits(ty, false, typed, d - 1);
+        let nty = *self.rng.pick(&INT_TYPES);
+        let n = if name.starts_with("RO") {
+            // A rotation by 0 is a C shift by the width (rule 4).
+            self.rotation(nty, w, d - 1)
+        } else {
+            self.int(nty, Iv::new(0, w - 1), true, d - 1)
+        };
+        let typed = x.typed;
+        let mut e = self.call(name, &[x, n], Val::Bits { dirty: false });
+        e.typed = typed;
+        e
     }
 
     /// A rotation count in `1..w`.

@@ -51,7 +51,12 @@ impl<'r> ProgramGen<'r> {
                 Val::Real(Rv::new(-b, b))
             }
             Ty::Time => Val::Time {
-                clean: role == Role::Input || self.rng.pct(50),
+                clean: role == Role::Input || self.rng.pct(70),
+                range: if role == Role::Input {
+                    Iv::new(0, TIME_INPUT)
+                } else {
+                    Iv::new(-TIME_VAR, TIME_VAR)
+                },
             },
             Ty::String => Val::Str {
                 min: 0,
@@ -108,7 +113,7 @@ impl<'r> ProgramGen<'r> {
             }
             (Sty::E(t), Val::Bits { .. }) => self.bits_lit(t, false).text,
             (Sty::E(t), Val::Real(rv)) => self.real_lit(t, rv, false).text,
-            (_, Val::Time { .. }) => self.time_lit(false).text,
+            (_, Val::Time { range, .. }) => self.time_lit(false, range.hi).text,
             (_, Val::Str { max, .. }) => self.str_lit(0, max.min(10)).text,
             _ => return None,
         };
@@ -378,7 +383,10 @@ impl<'r> ProgramGen<'r> {
                         min: 0,
                         max: STR_CAP,
                     },
-                    Ty::Time => Val::Time { clean: false },
+                    Ty::Time => Val::Time {
+                        clean: false,
+                        range: Iv::new(-TIME_VAR, TIME_VAR),
+                    },
                     t => self.dom(t, Role::Other),
                 };
                 Param {
@@ -407,8 +415,7 @@ impl<'r> ProgramGen<'r> {
         let n = self.rng.range(1, 3);
         self.block(&mut body, 1, n, 1);
         for p in &outputs {
-            let e = self.rhs(p.sty, p.dom, &p.name);
-            line(&mut body, 1, format!("{} := {};", p.name, e.text));
+            self.store(&mut body, 1, &p.name, p.sty, p.dom);
         }
         let mut out = vec![format!("FUNCTION_BLOCK {name}")];
         self.var_blocks(&mut out);

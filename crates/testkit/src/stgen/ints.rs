@@ -29,6 +29,9 @@ impl ProgramGen<'_> {
     /// whose every subexpression stays in `ty`'s range; `typed`: MATIEC must see its type.
     pub(super) fn int(&mut self, ty: Ty, want: Iv, typed: bool, d: u32) -> Expr {
         debug_assert!(want.lo <= 0 && 0 <= want.hi && want.within(ty.full()));
+        if want.lo == want.hi {
+            return self.int_lit(ty, want.lo, typed);
+        }
         let e = if d == 0 || self.rng.pct(30) {
             None
         } else {
@@ -71,7 +74,30 @@ impl ProgramGen<'_> {
             (if typed { 0 } else { 2 }, IntOp::Len),
             (if typed { 0 } else { 1 }, IntOp::Find),
         ]);
-        let full = ty.full();
+        match op {
+            IntOp::Add | IntOp::Sub | IntOp::Mul => self.int_arith(op, ty, want, typed, d),
+            IntOp::Div => self.int_div(ty, want, typed, d),
+            IntOp::Mod => self.int_mod(ty, want, typed, d),
+            IntOp::Neg | IntOp::Abs => Some(self.int_sign(op, ty, want, typed, d)),
+            IntOp::MinMax | IntOp::Limit | IntOp::Sel | IntOp::Mux => {
+                Some(self.int_select(op, ty, want, typed, d))
+            }
+            IntOp::Conv => self.conv_to_int(ty, want, d),
+            IntOp::Call => self.user_call(Sty::E(ty), d),
+            IntOp::Len | IntOp::Find => Some(self.int_of_string(op, d)),
+        }
+    }
+
+    /// `+`, `-` and `*`, each operand budgeted so that the result stays in `want`.
+    pub(super) fn int_arith(
+        &mut self,
+        op: IntOp,
+        ty: Ty,
+        want: Iv,
+        typed: bool,
+        d: u32,
+    ) -> Option<Expr> {
+        let (signed, full) = (ty.signed(), ty.full());
         match op {
             IntOp::Add => {
                 let lb = if self.rng.pct(30) { want } else { want.half() };
@@ -80,13 +106,8 @@ impl ProgramGen<'_> {
                 let rb = Iv::new(want.lo - li.lo, want.hi - li.hi).meet(full);
                 let r = self.int(ty, rb, typed && !l.typed, d - 1);
                 let ri = r.val.iv();
-                Some(self.binop(
-                    l,
-                    "+",
-                    P_ADD,
-                    r,
-                    Val::Int(Iv::new(li.lo + ri.lo, li.hi + ri.hi)),
-                ))
+                let val = Val::Int(Iv::new(li.lo + ri.lo, li.hi + ri.hi));
+                Some(self.binop(l, "+", P_ADD, r, val))
             }
             IntOp::Sub if signed => {
                 let lb = if self.rng.pct(30) { want } else { want.half() };
@@ -95,16 +116,11 @@ impl ProgramGen<'_> {
                 let rb = Iv::new(li.hi - want.hi, li.lo - want.lo).meet(full);
                 let r = self.int(ty, rb, typed && !l.typed, d - 1);
                 let ri = r.val.iv();
-                Some(self.binop(
-                    l,
-                    "-",
-                    P_ADD,
-                    r,
-                    Val::Int(Iv::new(li.lo - ri.hi, li.hi - ri.lo)),
-                ))
+                let val = Val::Int(Iv::new(li.lo - ri.hi, li.hi - ri.lo));
+                Some(self.binop(l, "-", P_ADD, r, val))
             }
             IntOp::Sub => self.unsigned_sub(ty, want, typed, d),
-            IntOp::Mul => {
+            _ => {
                 let k = self.rng.int(1, 6).min(want.mag().max(1));
                 let rb = if signed {
                     Iv::new(-k, k)
@@ -132,88 +148,87 @@ impl ProgramGen<'_> {
                     self.binop(r, "*", P_MUL, l, val)
                 })
             }
-            IntOp::Div => self.int_div(ty, want, typed, d),
-            IntOp::Mod => self.int_mod(ty, want, typed, d),
-            IntOp::Neg => {
-                let l = self.int(ty, Iv::new(-want.hi, -want.lo).meet(full), typed, d - 1);
-                let li = l.val.iv();
-                let text = format!("-{}", self.operand(&l, P_ATOM + u8::from(l.konst)));
-                Some(Expr {
-                    text,
-                    prec: P_UNARY,
-                    val: Val::Int(Iv::new(-li.hi, -li.lo)),
-                    typed: l.typed,
-                    konst: l.konst,
-                })
-            }
-            IntOp::Abs => {
-                let l = self.int(ty, Iv::new(-want.hi, want.hi).meet(full), typed, d - 1);
-                let li = l.val.iv();
-                let val = if li.lo >= 0 {
-                    li
-                } else if li.hi <= 0 {
-                    Iv::new(-li.hi, -li.lo)
-                } else {
-                    Iv::new(0, li.mag())
-                };
-                Some(self.call("ABS", &[l], Val::Int(val)))
-            }
+        }
+    }
+
+    /// Unary `-` and ABS, never of the most negative value (rule 2).
+    pub(super) fn int_sign(&mut self, op: IntOp, ty: Ty, want: Iv, typed: bool, d: u32) -> Expr {
+        let full = ty.full();
+        if let IntOp::Neg = op {
+            let l = self.int(ty, Iv::new(-want.hi, -want.lo).meet(full), typed, d - 1);
+            let li = l.val.iv();
+            let text = format!("-{}", l.at(P_ATOM + u8::from(l.konst)));
+            return Expr {
+                text,
+                prec: P_UNARY,
+                val: Val::Int(Iv::new(-li.hi, -li.lo)),
+                typed: l.typed,
+                konst: l.konst,
+            };
+        }
+        let l = self.int(ty, Iv::new(-want.hi, want.hi).meet(full), typed, d - 1);
+        let li = l.val.iv();
+        let val = if li.lo >= 0 {
+            li
+        } else if li.hi <= 0 {
+            Iv::new(-li.hi, -li.lo)
+        } else {
+            Iv::new(0, li.mag())
+        };
+        self.call("ABS", &[l], Val::Int(val))
+    }
+
+    /// MIN, MAX, LIMIT, SEL and MUX of integers.
+    pub(super) fn int_select(&mut self, op: IntOp, ty: Ty, want: Iv, typed: bool, d: u32) -> Expr {
+        match op {
             IntOp::MinMax => {
                 let n = self.rng.range(2, 3);
                 let args: Vec<Expr> = (0..n)
                     .map(|i| self.int(ty, want, typed && i == 0, d - 1))
                     .collect();
                 let ivs: Vec<Iv> = args.iter().map(|a| a.val.iv()).collect();
+                let lo = ivs.iter().map(|i| i.lo);
+                let hi = ivs.iter().map(|i| i.hi);
                 let (name, iv) = if self.rng.pct(50) {
-                    let lo = ivs.iter().map(|i| i.lo).min()?;
-                    ("MIN", Iv::new(lo, ivs.iter().map(|i| i.hi).min()?))
+                    ("MIN", Iv::new(lo.min().unwrap_or(0), hi.min().unwrap_or(0)))
                 } else {
-                    let lo = ivs.iter().map(|i| i.lo).max()?;
-                    ("MAX", Iv::new(lo, ivs.iter().map(|i| i.hi).max()?))
+                    ("MAX", Iv::new(lo.max().unwrap_or(0), hi.max().unwrap_or(0)))
                 };
-                Some(self.call(name, &args, Val::Int(iv)))
+                self.call(name, &args, Val::Int(iv))
             }
             IntOp::Limit => {
                 let mn = self.int(ty, Iv::new(want.lo, 0), false, 0);
-                let x = self.int(ty, full, typed && !mn.typed, d - 1);
+                let x = self.int(ty, ty.full(), typed && !mn.typed, d - 1);
                 let mx = self.int(ty, Iv::new(0, want.hi), false, 0);
                 let val = limit_range(mn.val.iv(), x.val.iv(), mx.val.iv());
-                Some(self.call("LIMIT", &[mn, x, mx], Val::Int(val)))
+                self.call("LIMIT", &[mn, x, mx], Val::Int(val))
             }
             IntOp::Sel => {
-                let g = self.boolean(d - 1);
                 let a = self.int(ty, want, typed, d - 1);
                 let b = self.int(ty, want, false, d - 1);
-                let val = a.val.join(b.val);
-                let typed = a.typed || b.typed;
-                let mut e = self.call("SEL", &[g, a, b], val);
-                e.typed = typed;
-                Some(e)
+                self.sel(a, b, d)
             }
-            IntOp::Mux => {
+            _ => {
                 let args = (0..self.rng.range(2, 4))
                     .map(|i| self.int(ty, want, typed && i == 0, d - 1))
                     .collect();
-                Some(self.mux(args, d))
-            }
-            IntOp::Conv => self.conv_to_int(ty, want, d),
-            IntOp::Call => self.user_call(Sty::E(ty), d),
-            IntOp::Len => {
-                let s = self.string(STR_CAP, d - 1);
-                let (min, max) = s.val.strlen();
-                let mut e = self.call("LEN", &[s], Val::Int(Iv::new(min.into(), max.into())));
-                e.typed = false;
-                Some(e)
-            }
-            IntOp::Find => {
-                let s = self.string(STR_CAP, d - 1);
-                let (_, max) = s.val.strlen();
-                let c = self.needle();
-                let mut e = self.call("FIND", &[s, c], Val::Int(Iv::new(0, max.into())));
-                e.typed = false;
-                Some(e)
+                self.mux(args, d)
             }
         }
+    }
+
+    /// LEN and FIND, untyped: MATIEC takes their type from the context (rule 11).
+    pub(super) fn int_of_string(&mut self, op: IntOp, d: u32) -> Expr {
+        let s = self.string(STR_CAP, d - 1);
+        let (min, max) = s.val.strlen();
+        let mut e = if let IntOp::Len = op {
+            self.call("LEN", &[s], Val::Int(Iv::new(min.into(), max.into())))
+        } else {
+            let c = self.needle();
+            self.call("FIND", &[s, c], Val::Int(Iv::new(0, max.into())))
+        };
+        e.typed = false;
+        e
     }
 
     /// `l + c - r` with `r <= c + l`: a subtraction of unsigned values that stays unsigned.
@@ -324,7 +339,7 @@ impl ProgramGen<'_> {
         };
         match self.rng.below(4) {
             0 if side >= 1 && !e.konst => {
-                let m = self.rng.int(2, (side + 1).min(1000));
+                let m = self.rng.int(2, (side + 1).min(1000).min(ty.full().hi));
                 let text = format!("{} MOD {m}", e.at(P_MUL));
                 let (text, prec) = if abs {
                     (format!("ABS({text})"), P_ATOM)

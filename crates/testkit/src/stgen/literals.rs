@@ -221,14 +221,24 @@ impl ProgramGen<'_> {
         (0.0, "0.0".to_string())
     }
 
-    pub(super) fn time_lit(&mut self, preset: bool) -> Expr {
+    /// A TIME literal of at most `max` ns (a timer preset if `preset`).
+    pub(super) fn time_lit(&mut self, preset: bool, max: i128) -> Expr {
         let n = if preset {
             PT_LITERALS
         } else {
             TIME_LITERALS.len()
         };
-        let (text, _) = TIME_LITERALS[self.rng.below(n as u64) as usize];
-        Expr::lit(text.to_string(), Val::Time { clean: true }, true)
+        let fit: Vec<&(&str, i64)> = TIME_LITERALS[..n]
+            .iter()
+            .filter(|l| i128::from(l.1) <= max)
+            .collect();
+        let (text, ns) = if fit.is_empty() {
+            ("T#0s", 0)
+        } else {
+            **self.rng.pick(&fit)
+        };
+        let range = Iv::point(ns.into());
+        Expr::lit(text.to_string(), Val::Time { clean: true, range }, true)
     }
 
     /// A string literal of `min..=max` characters (rule 9 says which escapes are safe).

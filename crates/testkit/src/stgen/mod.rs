@@ -1,128 +1,141 @@
 //! Random, well-typed, deterministic IEC 61131-3 Structured Text programs for differential tests
-//! against MATIEC ([`crate::matiec`]): [`generate`] writes one ST source that holds `count`
-//! PROGRAMs `P0`, `P1`, … (each with its own TYPEs, FUNCTIONs and FUNCTION_BLOCKs, all named
-//! `P<k>_…`) and, per program, a [`Case`] with a random input sequence. The same seed gives the
-//! same bytes: the only source of randomness is the splitmix64 generator below, seeded from the
-//! seed and the program's index, so program `k` of a batch does not depend on the batch's size.
+//! against MATIEC ([`crate::matiec`]).
 //!
-//! Every program is correct by construction rather than filtered afterwards: each expression is
-//! generated for a *budget* (the set of values its context accepts) and carries what is known
-//! about its value (an integer interval, a float interval, a string's length range, whether a
-//! TIME is normalised). A variable has a *domain* that every assignment to it respects, which is
+//! [`generate`] writes one ST source that holds `count` PROGRAMs `P0`, `P1`, … (each after its
+//! own TYPEs, FUNCTIONs and FUNCTION_BLOCKs, all named `P<k>_…`, and a comment
+//! `(* ---- P<k> ---- *)`) and, per program, a [`Case`] with a random input sequence. The same
+//! arguments give the same bytes: the only randomness is the splitmix64 generator below, seeded
+//! from the seed and the program's index, so program `k` does not depend on the size of its
+//! batch either.
+//!
+//! Programs are correct by construction, not filtered afterwards. Each expression is generated
+//! for a *budget*, the values its context accepts, and carries what is known of its value: an
+//! integer interval, a float interval, a string's length range, whether a TIME is normalised,
+//! whether a BYTE or WORD has C bits above its width. Each variable has a *domain* that every
+//! assignment to it keeps (`LIMIT`, `MOD` or a division bring a value back into it), which is
 //! what lets state live across scans without ever leaving the defined part of the language.
 //!
-//! # The grammar subset generated
+//! # The subset generated
 //!
-//! An interpreter that runs these programs must support:
+//! What an implementation must support to run every generated program:
 //!
-//! * Declarations: `TYPE … END_TYPE` with enumerations `P0_E1 : (P0_E1_A, P0_E1_B, …);` and
-//!   structures `P0_S1 : STRUCT f1 : INT; … END_STRUCT;` (fields of elementary or enum type);
-//!   `FUNCTION P0_F1 : <elementary>` with `VAR_INPUT` and `VAR`; `FUNCTION_BLOCK P0_B1` with
-//!   `VAR_INPUT`, `VAR_OUTPUT`, `VAR_IN_OUT` and `VAR` (which may hold standard FB instances);
-//!   `PROGRAM P0` with `VAR_INPUT`, `VAR_OUTPUT` and `VAR`. Initial values `:= literal`, array
-//!   initialisers `[1, 2, 3]` and `[4(0)]`, structure initialisers `(f1 := 1, f2 := REAL#2.5)`.
-//! * Types: all elementary types but the dates (BOOL, SINT, INT, DINT, LINT, USINT, UINT, UDINT,
-//!   ULINT, BYTE, WORD, DWORD, LWORD, REAL, LREAL, TIME, STRING); `ARRAY[a..b] OF t` and
-//!   `ARRAY[a..b, c..d] OF t` (bounds may be negative) of elementary, enum or structure types;
-//!   the user structures and enumerations; instances of TON, TOF, TP, CTU, CTD, CTUD, R_TRIG,
+//! * POUs: `TYPE … END_TYPE` with enumerations `P0_E1 : (P0_E1_A, P0_E1_B);` and structures
+//!   `P0_S1 : STRUCT f1 : INT; f2 : P0_E1; END_STRUCT;`; `FUNCTION P0_F1 : <elementary type>`
+//!   with `VAR_INPUT` and `VAR`, assigning its name and reading it back; `FUNCTION_BLOCK P0_B1`
+//!   with `VAR_INPUT`, `VAR_OUTPUT`, `VAR_IN_OUT` and `VAR` (which may hold a standard FB);
+//!   `PROGRAM P0` with `VAR_INPUT`, `VAR_OUTPUT` and `VAR`. One to three declarations a line;
+//!   initial values `:= <literal>`, array initialisers `[1, 2, 3]` and `[4(0)]`, structure
+//!   initialisers `(f1 := 1, f3 := REAL#2.5)`.
+//! * Types: the elementary types but the dates: BOOL, SINT, INT, DINT, LINT, USINT, UINT,
+//!   UDINT, ULINT, BYTE, WORD, DWORD, LWORD, REAL, LREAL, TIME, STRING (plain, no length);
+//!   `ARRAY[a..b] OF t` and `ARRAY[a..b, c..d] OF t` (bounds from -2 to 10) of elementary,
+//!   enumeration and structure types; instances of TON, TOF, TP, CTU, CTD, CTUD, R_TRIG,
 //!   F_TRIG, SR, RS and of the user FBs.
-//! * Statements: `:=`; `IF … THEN … ELSIF … ELSE … END_IF`; `CASE e OF 1, 2: … 3..7: … ELSE …
-//!   END_CASE` on integers (negative labels and ranges too) and on enumerations; `FOR i := a TO b
-//!   BY c DO … END_FOR` (c negative too); `WHILE … DO … END_WHILE`; `REPEAT … UNTIL … END_REPEAT`;
-//!   `EXIT`; `RETURN` (in functions); FB calls with formal arguments, `=>` output binding and
-//!   `VAR_IN_OUT` arguments, e.g. `t1(IN := in1, PT := T#30ms, Q => st2);`.
-//! * Expressions, with the precedence of IEC 61131-3 (parentheses are printed only where the
-//!   precedence needs them, and now and then where it does not): `OR`, `XOR`, `AND`/`&`, `=` `<>`,
-//!   `<` `>` `<=` `>=`, `+` `-`, `*` `/` `MOD`, unary `-` and `NOT`, `**`; variables, array
-//!   elements `a[i]`, `m[i, j]`, fields `r.f`, `a[i].f`, FB outputs `t1.Q`, `c1.CV`; function calls
-//!   with positional (`P0_F1(x, 3)`) and formal (`P0_F1(a1 := x, a2 := 3)`) arguments.
-//! * Literals: `123`, `1_000`, `-5`, `16#FF`, `2#1010`, `8#17`, `INT#-5`, `DINT#100`,
-//!   `WORD#16#8001`, `UDINT#4000000000`, `TRUE`, `REAL#1.5`, `REAL#-2.5E2`, `LREAL#0.125`, `2.5`,
-//!   `T#1s500ms`, `T#1s_500ms`, `TIME#20ms`, `t#1m`, `T#1.5s`, `'text'` with `$$ $' $N $T $R $P
-//!   $hh`, enum values `P0_E1_B` and `P0_E1#P0_E1_B`.
-//! * Standard functions: ABS, SQRT, EXPT, MIN, MAX, LIMIT, SEL, MUX, SHL, SHR, ROL, ROR, TRUNC,
-//!   LEN, LEFT, RIGHT, MID, CONCAT (2 and 3 inputs), INSERT, DELETE, REPLACE, FIND; the
-//!   conversions `<A>_TO_<B>` between any two of SINT…ULINT, BYTE…LWORD, REAL, LREAL and BOOL,
-//!   `<int>_TO_STRING`, `BOOL_TO_STRING` and `STRING_TO_<int>`.
+//! * Statements: `:=`; `IF … THEN … ELSIF … ELSE … END_IF`; `CASE e OF 1, 3..7: … ELSE …
+//!   END_CASE` on integers (negative labels too) and on enumerations; `FOR i := a TO b BY c DO
+//!   … END_FOR` (`c` negative too, `b` possibly `LIMIT(…)` of inputs); `WHILE`; `REPEAT …
+//!   UNTIL … END_REPEAT`; `EXIT`; `RETURN` in functions; FB calls with formal arguments only,
+//!   some inputs left out (they keep their value), `VAR_IN_OUT` arguments and `=>` bindings:
+//!   `t1(IN := in1, PT := T#30ms, Q => st2);`.
+//! * Expressions with the precedence of IEC 61131-3 (parentheses only where needed, and now and
+//!   then where not): `OR`, `XOR`, `AND` and `&`, `=` `<>`, `<` `>` `<=` `>=`, `+` `-`, `*` `/`
+//!   `MOD`, `**`, unary `-` and `NOT` (of a primary expression: `NOT (a)`, `-(x)`), on TIME
+//!   `+`, `-`, `* 1`, `* 2` and `/ 2`, on STRING and TIME the comparisons too; variables,
+//!   elements `a[i]`, `m[i, j]`, fields `r.f`, `a[i].f`, FB outputs `t1.Q`, `c1.CV`, `u1.y1`;
+//!   calls of user functions with positional (`P0_F1(x, 3)`) or formal (`P0_F1(a1 := x)`)
+//!   arguments.
+//! * Literals: `123`, `-5`, `1_000`, `16#FF`, `16#FFFF_0000`, `2#1010`, `8#17`, `INT#-5`,
+//!   `DINT#100`, `INT#16#7F`, `WORD#16#8001`, `UDINT#4000000000`, `TRUE`, `REAL#1.5`,
+//!   `REAL#-2.5E2`, `LREAL#0.125`, `2.5`, `1.25e-1`, `1_024.5`, `T#1s500ms`, `T#1s_500ms`,
+//!   `TIME#20ms`, `t#1m`, `T#1.5s`, `TIME#1h`, `'text'` with `$$ $' $N $T $R $P $hh`,
+//!   enumeration values `P0_E1_B` and `P0_E1#P0_E1_B`.
+//! * Standard functions: ABS, SQRT, EXPT, MIN and MAX (2 or 3 inputs), LIMIT, SEL, MUX (2 to 4
+//!   inputs), SHL, SHR, ROL, ROR, TRUNC, LEN, LEFT, RIGHT, MID, CONCAT (2 or 3 inputs), INSERT,
+//!   DELETE, REPLACE, FIND; the conversions `<A>_TO_<B>` between any two of BOOL, SINT…ULINT,
+//!   BYTE…LWORD, REAL and LREAL; `<integer or BOOL>_TO_STRING`.
 //!
 //! # What is never generated, and why
 //!
-//! The programs stay inside what both IEC 61131-3 and C (MATIEC translates to C, compiled by gcc)
-//! define, and inside what MATIEC gets right. Each rule is enforced by the budgets:
+//! Only what both IEC 61131-3 and C define (MATIEC translates to C), and what MATIEC gets right:
 //!
-//! 1. Integer arithmetic never leaves its type's range, except as the whole right-hand side of an
-//!    assignment of SINT, INT, USINT, UINT (MATIEC computes these in C `int`, so an out-of-range
-//!    value inside an expression would not wrap in C as it does in IEC; the store wraps, as
-//!    two's complement) and of UDINT, ULINT (C unsigned arithmetic wraps everywhere, like IEC).
-//!    DINT and LINT never overflow: signed overflow is undefined in C. So `st1 := st1 + 1` with
-//!    an INT at 32767 wraps to -32768 and is generated on purpose (state near the limits), while
-//!    `(st1 + 1) / 2` is not. Overflow of an expression made only of literals is refused by
-//!    MATIEC's constant folding ("Data type mismatch"), so a wrapping expression has a variable.
-//! 2. Integer `/` and `MOD` divide by a literal other than 0 and -1, or by a guarded expression
-//!    `(ABS(e MOD 10) + 1)`; the most negative value is never divided by -1 nor negated (`-x`
-//!    and `ABS(x)` only where x cannot be the minimum).
-//! 3. Narrowing integer conversions (`DINT_TO_SINT(300)`) wrap modulo 2^n, as gcc does; REAL→
-//!    integer conversions only see values that round into the target's range (MATIEC rounds half
-//!    to even, via `__real_round`), and never negative values for unsigned targets (MATIEC
-//!    returns 0 there); TRUNC only as the whole right-hand side of an assignment (elsewhere
-//!    MATIEC may pick `TRUNC__ULINT__REAL`), with a value in range.
-//! 4. Shifts: `SHL`/`SHR` by 0 … width-1, `ROL`/`ROR` by 1 … width-1 (MATIEC's ROL of a DWORD by
-//!    0 shifts by 32, undefined in C).
-//! 5. `NOT` of a BYTE or WORD is `~x` in C on an `int`: its high bits are set. Such a value is
-//!    only stored, passed to a function, or masked by AND with a clean value; never compared.
-//! 6. Arrays are indexed by a literal, a loop counter whose range lies in the bounds,
-//!    `LIMIT(lo, e, hi)` or `lo + ABS(e MOD n)`: never out of bounds.
-//! 7. REAL and LREAL: every value is finite (no NaN, no infinity): divisors are literals with
-//!    |d| ≥ 0.5 or `(ABS(e) + REAL#1.0)`, SQRT and EXPT see bases ≥ 0 and exponents 0.5 … 3,
-//!    and every intermediate stays within known bounds (±1e6 REAL, ±1e9 LREAL). REAL literals
-//!    are always typed (`REAL#1.5`): MATIEC prints an untyped `1.5` as a C `double`, which makes
-//!    gcc compute the whole REAL expression in double precision. For the same reason `**` on
-//!    REAL (MATIEC: `__expt(double, double)`, a double) is only the whole right-hand side of an
-//!    assignment; elsewhere `EXPT` (a function returning REAL) is used. Decimal literals are
-//!    chosen so that decimal→f64→f32 and decimal→f32 agree. No REAL_TO_STRING (its format is
-//!    C's `%.10g`, not IEC), no trigonometry or logarithms (libm-dependent).
-//! 8. TIME: no conversion from or to TIME (MATIEC's `INT_TO_TIME(5)` is 5 *seconds*,
-//!    `TIME_TO_INT` whole seconds); literals only with millisecond parts that MATIEC's long
-//!    double arithmetic converts exactly (`T#1ms` is 999 999 ns in MATIEC; so are 2, 4, 8, 16,
-//!    32, 63-65, 126, 128, 130, 252, 256, 260, 265, 504, 507, 512, 517, 520, 525, 530 and 533 ms)
-//!    and dyadic seconds (`T#1.5s`, not `T#0.3s`); the result of `+`, `-`, `* 2`, `/ 2` on TIME
-//!    may be unnormalised in MATIEC (`T#600ms + T#400ms` is {0 s, 1e9 ns}, which compares less
-//!    than `T#1s`), so such values are only stored, selected or printed, never compared nor given
-//!    to MIN, MAX, LIMIT or a timer's PT. `* 2` and `/ 2` only see normalised, non-negative TIMEs.
-//! 9. STRING: every string value, intermediate ones included, is at most 80 characters long
-//!    (MATIEC's capacity is 126, ours 80); LEFT, RIGHT, MID, DELETE, INSERT and REPLACE only take
-//!    positions and lengths inside the string (known from its minimum length, e.g. of
-//!    `CONCAT(s, 'abc')`); REPLACE's IN2 is never longer than L (MATIEC copies only L characters
-//!    of it); FIND only searches one-character strings (MATIEC's search skips candidates after a
-//!    partial match: `FIND('aab', 'ab')` is 0). Literals avoid `$L` (MATIEC prints a raw newline
-//!    into C), a `$N` or `$hh` followed by a hex digit (MATIEC prints `\x0A` followed by the
-//!    digit, which C reads as one escape), `?` (C trigraphs) and `$00`. No `<bits>_TO_STRING`
-//!    (MATIEC writes `16#ff`, a format IEC does not fix) and `STRING_TO_<int>` only of the
-//!    `<int>_TO_STRING` of at most 32-bit integers (MATIEC's parser overflows at 19 digits).
-//! 10. Loops terminate and do what both read: a FOR's bounds and step are literals or depend on
-//!     inputs only (MATIEC re-evaluates them every iteration), its counter is never assigned and
-//!     never read after the loop (its final value is implementation-dependent), and a FOR runs
-//!     either zero times or at least twice: MATIEC's FOR tests `i + step <= end` *before* the
-//!     first iteration, so `FOR i := 1 TO 1` runs zero times there. WHILE and REPEAT count with a
-//!     dedicated counter that bounds the trip count (≤ 8).
+//! 1. Integer arithmetic never leaves its type inside an expression. The whole right-hand side
+//!    of an assignment may wrap around, in two's complement (`st1 := st1 + 1` with an INT at
+//!    32767 gives -32768, and state starts near the limits on purpose): MATIEC computes SINT,
+//!    INT, USINT and UINT in C `int` (so `(x + 1) / 2` would not wrap in C as in IEC, while the
+//!    store does wrap), UDINT and ULINT in C unsigned arithmetic, and DINT and LINT wrap because
+//!    [`crate::matiec`] compiles with `-fwrapv`. MATIEC folds expressions of literals and
+//!    refuses them when they overflow ("Data type mismatch"), so a wrapping one reads a variable.
+//! 2. Integer `/` and `MOD` divide by a literal other than 0 and -1, or by a guarded
+//!    `(ABS(e MOD m) + 1)`; the most negative value is never negated nor given to ABS.
+//! 3. Narrowing integer conversions (`DINT_TO_SINT(300)`) wrap modulo 2^n (gcc's choice, as
+//!    for rule 1). REAL→integer and REAL→bit-string conversions only see values that round into
+//!    the target (MATIEC rounds half to even) and no negative value for unsigned targets (MATIEC
+//!    gives 0); TRUNC only as the whole right-hand side of an assignment, which types it
+//!    (MATIEC types `TRUNC(r) > 5` as `TRUNC__ULINT__REAL`).
+//! 4. `SHL`/`SHR` shift by 0 … width-1, `ROL`/`ROR` by 1 … width-1 (MATIEC's `ROL` of a DWORD
+//!    by 0 is a C shift by 32).
+//! 5. `NOT` of a BYTE or WORD is C `~` on an `int`, whose bits above the width are set: such a
+//!    value is only stored, passed to a function or masked by `AND` with a clean one, never
+//!    compared. `NOT`'s operand is typed (MATIEC cannot type `NOT 16#F0F`), and neither `NOT`
+//!    nor `-` applies to another unary operation (`NOT NOT x` is not IEC; MATIEC refuses it).
+//! 6. Array indices are literals, loop counters whose range lies in the bounds, `LIMIT(lo, e,
+//!    hi)` or `lo + ABS(e MOD n)`: never out of bounds.
+//! 7. REAL and LREAL values are finite: divisors are literals with |d| ≥ 0.5 or `(ABS(e) +
+//!    REAL#1.0)`, SQRT and EXPT see bases ≥ 0 and exponents 0.5 … 3, and every value stays in
+//!    known bounds (±1e6 REAL, ±1e9 LREAL). REAL literals are always typed (`REAL#1.5`): MATIEC
+//!    prints `1.5` as a C `double`, which makes gcc compute the whole REAL expression in double.
+//!    For the same reason REAL `**` (MATIEC: `__expt(double, double)`) is only the whole
+//!    right-hand side of an assignment; elsewhere `EXPT` (a function returning REAL). Decimal
+//!    literals are ones for which decimal→f64→f32 is decimal→f32. No REAL_TO_STRING (C's
+//!    `%.10g`), no trigonometry or logarithms (libm-dependent).
+//! 8. TIME: no conversion from or to TIME (MATIEC's `INT_TO_TIME(5)` is 5 *seconds*, its
+//!    `TIME_TO_INT` whole seconds); only literals MATIEC's long double arithmetic makes exact
+//!    (`T#1ms` is 999 999 ns in MATIEC, as are 2, 4, 8, 16, 32, 63-65, 126, 128, 130, 252, 256,
+//!    260, 265, 504, 507, 512, 517, 520, 525, 530 and 533 ms, `T#0.3s`, and most `T#<s>s<ms>ms`).
+//!    The result of `+`, `-`, `* 2` or `/ 2` may be unnormalised in MATIEC (`T#600ms +
+//!    T#400ms` is {0 s, 1e9 ns}, which compares less than `T#1s`): such a value is stored,
+//!    selected or output as it is, and before a comparison, MIN, MAX, LIMIT or `* 2` it is
+//!    normalised by `* 1` (MATIEC's `__time_mul` normalises). Every TIME stays within a day
+//!    (comparisons: ten days), so that doubling state cannot overflow MATIEC's `tv_sec`.
+//! 9. STRING: every value, intermediate ones too, has at most 80 characters (MATIEC's capacity
+//!    is 126, ours 80). LEFT, RIGHT, MID, DELETE, INSERT and REPLACE take positions and lengths
+//!    inside the string (known from its minimum length, e.g. of `CONCAT(s, 'abc')`); REPLACE's
+//!    IN2 is never longer than L (MATIEC copies only L characters of it); FIND searches one
+//!    character (MATIEC's search skips candidates after a partial match: `FIND('aab', 'ab')` is
+//!    0). Literals have no `$L` (MATIEC prints a raw newline into C), no `$N` or `$hh` before a
+//!    hex digit (MATIEC writes `\x0A` and C reads the digit into the escape), no `?` (C
+//!    trigraphs), no `$00`, no `{` (MATIEC's lexer, looking for the first `;` of a body, takes it
+//!    for a pragma and scans for the `}`: quadratic time, and a failure past 16 KB). No
+//!    `<bit string>_TO_STRING` (MATIEC writes `16#ff`, which IEC does not fix), no
+//!    `STRING_TO_<type>` (MATIEC's parser skips what is not a digit and overflows at 19 digits;
+//!    `cetratus-st` has none yet).
+//! 10. Loops terminate and mean the same to both. A FOR's bounds and step are literals or read
+//!     inputs only (MATIEC evaluates them in every iteration) and have the counter's type; its
+//!     counter is never assigned and never read after the loop (its last value is
+//!     implementation-dependent); it runs zero times or at least twice: MATIEC tests
+//!     `i + step <= end` before the first iteration, so `FOR i := 1 TO 1` runs zero times there.
+//!     WHILE and REPEAT count with a counter of their own that ends them after at most 8 trips.
 //! 11. Generic functions whose result type comes from the context (LEN, FIND, TRUNC, MIN of
-//!     literals…) only appear where the context types them: in comparisons, array indices, MUX
-//!     selectors and shift counts at least one operand is typed (a variable or a typed literal).
-//! 12. CASE labels never overlap; every enumeration value is `<TYPE>_<NAME>`, unique in a batch.
+//!     literals…) appear only where the context types them: in comparisons, indices, MUX
+//!     selectors and shift counts at least one operand is typed (a variable, a typed literal).
+//! 12. No enumeration value in a structure or array initialiser (MATIEC stops with an internal
+//!     error in `enum_declaration_check.cc`); CASE labels never overlap; statement lists are
+//!     never empty.
 //!
-//! What both must agree on, and MATIEC does in a particular way that the interpreter must match:
-//! CTU counts only while `CV < PV` and CTD only while `CV > 0` (MATIEC's library), `F_TRIG` is
-//! TRUE in the first scan when CLK is FALSE (M starts FALSE), MIN/MAX/LIMIT compare with `<`/`>`
-//! (so `MAX(-0.0, 0.0)` is the first argument), `EXPT`/`**` compute `pow` in double precision
-//! and round to REAL, a narrowing conversion wraps, and REAL→integer rounds half to even.
+//! What MATIEC does in its own way, which the implementation under test must do too: CTU
+//! counts only while `CV < PV` and CTD only while `CV > 0`; F_TRIG's Q is TRUE in the first scan
+//! if CLK is FALSE (M starts FALSE); MIN, MAX and LIMIT compare with `<` and `>` (`MAX(-0.0,
+//! 0.0)` is the first) and ABS of a REAL is `x < 0 ? -x : x` (`ABS(-0.0)` is -0.0); EXPT and
+//! `**` compute C `pow` in double and round; REAL→integer rounds half to even; integer `/`
+//! truncates and `MOD` has the dividend's sign; string comparison is bytewise.
 //!
 //! # Inputs
 //!
-//! Integers and bit strings take values near their limits (`INT` -32768, 32767, …), small values
-//! and random ones, held for a few scans; REALs are "nice" values (multiples of 1/4 and 1/10 up to
-//! ±1000) given as exact bit patterns; TIMEs are multiples of 10 ms; STRINGs are printable ASCII
-//! of at most 20 characters; BOOLs are square waves, random or rarely flipping, so that timers,
-//! counters and edge detectors fire.
+//! Integers and bit strings take values at their limits (`INT` -32768, 32767, …), small values
+//! and random ones, held for a few scans, or count up through their maximum; REALs are multiples
+//! of 1/4 and 1/10 up to ±1000 given as exact bit patterns; TIMEs multiples of 10 ms; STRINGs
+//! printable ASCII of at most 20 characters; BOOLs square waves, random, or rarely flipping, so
+//! that timers, counters and edge detectors fire.
 
 use crate::matiec::{Case, IecType};
 
@@ -401,9 +414,11 @@ enum Val {
         dirty: bool,
     },
     Real(Rv),
-    /// A TIME; `clean` when it is normalised and non-negative, so that it may be compared.
+    /// A TIME of `range` nanoseconds; `clean` when MATIEC holds it normalised (rule 8), so
+    /// that it may be compared.
     Time {
         clean: bool,
+        range: Iv,
     },
     Str {
         min: u32,
@@ -434,15 +449,18 @@ impl Val {
     fn dirty(self) -> bool {
         matches!(self, Val::Bits { dirty: true })
     }
-    fn clean_time(self) -> bool {
-        matches!(self, Val::Time { clean: true })
-    }
     /// Whether a value known as `self` may be stored into a variable of domain `dom`.
     fn fits(self, dom: Val) -> bool {
         match (self, dom) {
             (Val::Int(a), Val::Int(b)) => a.within(b),
             (Val::Real(a), Val::Real(b)) => a.within(b),
-            (Val::Time { clean }, Val::Time { clean: need }) => clean || !need,
+            (
+                Val::Time { clean, range },
+                Val::Time {
+                    clean: need,
+                    range: dom,
+                },
+            ) => (clean || !need) && range.within(dom),
             (Val::Str { max, .. }, Val::Str { max: cap, .. }) => max <= cap,
             (Val::Bits { .. }, Val::Bits { .. }) | (Val::Bool, Val::Bool) => true,
             (Val::Enum(a), Val::Enum(b)) => a == b,
@@ -455,7 +473,10 @@ impl Val {
             (Val::Int(a), Val::Int(b)) => Val::Int(a.join(b)),
             (Val::Real(a), Val::Real(b)) => Val::Real(a.join(b)),
             (Val::Bits { dirty: a }, Val::Bits { dirty: b }) => Val::Bits { dirty: a || b },
-            (Val::Time { clean: a }, Val::Time { clean: b }) => Val::Time { clean: a && b },
+            (Val::Time { clean: a, range: r }, Val::Time { clean: b, range: s }) => Val::Time {
+                clean: a && b,
+                range: r.join(s),
+            },
             (Val::Str { min: a, max: b }, Val::Str { min: c, max: d }) => Val::Str {
                 min: a.min(c),
                 max: b.max(d),
@@ -489,6 +510,14 @@ struct Expr {
 }
 
 impl Expr {
+    /// The value of a TIME literal.
+    fn val_time_lo(&self) -> i128 {
+        match self.val {
+            Val::Time { range, .. } => range.lo,
+            other => unreachable!("not a TIME: {other:?}"),
+        }
+    }
+
     fn atom(text: String, val: Val, typed: bool) -> Expr {
         Expr {
             text,
@@ -536,6 +565,14 @@ const LREAL_INPUT: f64 = 1e5;
 /// STRING inputs are at most this long; no string value is ever longer than `STR_CAP`.
 const STR_INPUT: u32 = 20;
 const STR_CAP: u32 = 80;
+/// TIME bounds, in ns: variables (and timer presets) within a day either way, inputs 0 … 10 s,
+/// comparisons of values within ten days (far from where MATIEC's `tv_sec` would overflow).
+const TIME_VAR: i128 = 86_400_000_000_000;
+const TIME_INPUT: i128 = 10_000_000_000;
+const TIME_FREE: Iv = Iv {
+    lo: -10 * TIME_VAR,
+    hi: 10 * TIME_VAR,
+};
 
 fn free_real(ty: Ty) -> Rv {
     let b = if ty == Ty::Real {

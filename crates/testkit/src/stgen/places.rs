@@ -68,7 +68,10 @@ impl ProgramGen<'_> {
                 .map(|&(_, t)| {
                     let dom = match t {
                         Ty::Bool => Val::Bool,
-                        Ty::Time => Val::Time { clean: true },
+                        Ty::Time => Val::Time {
+                            clean: true,
+                            range: Iv::new(0, TIME_VAR),
+                        },
                         _ => Val::Int(pv.join(Iv::point(0))),
                     };
                     (Sty::E(t), dom)

@@ -37,6 +37,9 @@ impl ProgramGen<'_> {
             let text = self.fb_call_text(i);
             line(&mut body, 1, text);
         }
+        for f in 0..self.funcs.len() {
+            self.fn_call_stmt(&mut body, f);
+        }
         // Every output is assigned in every scan.
         let outputs: Vec<(String, Sty, Val)> = self
             .pou
@@ -49,8 +52,7 @@ impl ProgramGen<'_> {
             })
             .collect();
         for (name, sty, dom) in outputs {
-            let e = self.rhs(sty, dom, &name);
-            line(&mut body, 1, format!("{name} := {};", e.text));
+            self.store(&mut body, 1, &name, sty, dom);
         }
         let mut out = vec![format!("PROGRAM {}", self.prefix)];
         self.var_blocks(&mut out);
@@ -77,6 +79,35 @@ impl ProgramGen<'_> {
             inputs: interface(Section::Input),
             outputs: interface(Section::Output),
         }
+    }
+
+    /// `v := P0_F1(…);` into a variable of the function's type whose domain holds the result
+    /// (after LIMIT and the like for numbers), if there is one.
+    pub(super) fn fn_call_stmt(&mut self, body: &mut Vec<String>, f: usize) {
+        let (ret, fdom) = (self.funcs[f].ret, self.funcs[f].dom);
+        let targets: Vec<(String, Val)> = self
+            .pou
+            .vars
+            .iter()
+            .filter(|v| v.section != Section::Input)
+            .filter_map(|v| match v.kind {
+                Kind::Scalar(Sty::E(t), dom) if t == ret => Some((v.name.clone(), dom)),
+                _ => None,
+            })
+            .collect();
+        if targets.is_empty() || self.rng.pct(15) {
+            return;
+        }
+        let (lv, dom) = self.rng.pick(&targets).clone();
+        let e = self.call_fn(f, 2);
+        let e = match dom {
+            Val::Int(iv) => self.fit_int(e, ret, iv, false),
+            Val::Real(rv) => self.fit_real(e, ret, rv, false),
+            Val::Time { clean, range } => self.fit_time(e, range, clean),
+            Val::Str { max, .. } if fdom.strlen().1 > max => return,
+            _ => e,
+        };
+        line(body, 1, format!("{lv} := {};", e.text));
     }
 
     pub(super) fn interface(&mut self) {

@@ -21,6 +21,9 @@ pub(super) const REAL_DIVISORS: [(f64, &str); 9] = [
 impl ProgramGen<'_> {
     /// A REAL/LREAL expression whose value is finite and always in `want` (which holds 0).
     pub(super) fn real(&mut self, ty: Ty, want: Rv, typed: bool, d: u32) -> Expr {
+        if want.lo == want.hi {
+            return self.real_lit(ty, want, typed);
+        }
         let e = if d == 0 || self.rng.pct(30) {
             None
         } else {
@@ -54,71 +57,12 @@ impl ProgramGen<'_> {
     }
 
     pub(super) fn real_op(&mut self, ty: Ty, want: Rv, typed: bool, d: u32) -> Option<Expr> {
-        let free = free_real(ty);
         Some(match self.rng.below(30) {
-            0..=5 => {
-                let l = self.real(ty, want.scaled(0.49), false, d - 1);
-                let r = self.real(ty, want.scaled(0.49), typed && !l.typed, d - 1);
-                let (a, b) = (l.val.rv(), r.val.rv());
-                if self.rng.pct(50) {
-                    self.binop(
-                        l,
-                        "+",
-                        P_ADD,
-                        r,
-                        Val::Real(Rv::padded(a.lo + b.lo, a.hi + b.hi)),
-                    )
-                } else {
-                    self.binop(
-                        l,
-                        "-",
-                        P_ADD,
-                        r,
-                        Val::Real(Rv::padded(a.lo - b.hi, a.hi - b.lo)),
-                    )
-                }
-            }
-            6..=9 => {
-                let r = if self.rng.pct(60) {
-                    let (v, t) = *self.rng.pick(&REAL_DIVISORS);
-                    self.real_const(ty, t, v)
-                } else {
-                    self.real(ty, Rv::new(-4.0, 4.0), false, d - 1)
-                };
-                let m = r.val.rv().mag().max(1e-3);
-                let lb = want.scaled(0.99 / m);
-                let lb = Rv::new(lb.lo.max(free.lo), lb.hi.min(free.hi));
-                let l = self.real(ty, lb, typed && !r.typed, d - 1);
-                let val = Val::Real(rcorners(l.val.rv(), r.val.rv(), |a, b| a * b));
-                self.binop(l, "*", P_MUL, r, val)
-            }
+            0..=9 => self.real_arith(ty, want, typed, d),
             10..=12 => self.real_div(ty, want, typed, d),
-            13..=14 => {
-                let l = self.real(ty, Rv::new(-want.hi, -want.lo), typed, d - 1);
-                let a = l.val.rv();
-                let text = format!("-{}", self.operand(&l, P_ATOM + u8::from(l.konst)));
-                Expr {
-                    text,
-                    prec: P_UNARY,
-                    val: Val::Real(Rv::new(-a.hi, -a.lo)),
-                    typed: l.typed,
-                    konst: l.konst,
-                }
-            }
-            15..=16 => {
-                let l = self.real(ty, Rv::new(-want.hi, want.hi), typed, d - 1);
-                let a = l.val.rv();
-                let val = if a.lo >= 0.0 {
-                    a
-                } else if a.hi <= 0.0 {
-                    Rv::new(-a.hi, -a.lo)
-                } else {
-                    Rv::new(0.0, a.mag())
-                };
-                self.call("ABS", &[l], Val::Real(val))
-            }
+            13..=16 => self.real_sign(ty, want, typed, d),
             17..=18 if want.hi >= 1.0 => {
-                let m = (want.hi * 0.99).powi(2).min(free.hi);
+                let m = (want.hi * 0.99).powi(2).min(free_real(ty).hi);
                 let x = self.non_negative(ty, m, typed, d - 1);
                 let a = x.val.rv();
                 self.call(
@@ -128,48 +72,122 @@ impl ProgramGen<'_> {
                 )
             }
             19..=20 if want.hi >= 1.0 => self.expt(ty, want, typed, d, false),
-            21..=22 => {
+            21..=25 => self.real_select(ty, want, typed, d),
+            26..=28 => return self.conv_to_real(ty, want, d),
+            _ => return self.user_call(Sty::E(ty), d),
+        })
+    }
+
+    /// `+`, `-` (operands in half the budget each) and `*` (by a factor of known size).
+    pub(super) fn real_arith(&mut self, ty: Ty, want: Rv, typed: bool, d: u32) -> Expr {
+        if self.rng.pct(60) {
+            let l = self.real(ty, want.scaled(0.49), false, d - 1);
+            let r = self.real(ty, want.scaled(0.49), typed && !l.typed, d - 1);
+            let (a, b) = (l.val.rv(), r.val.rv());
+            return if self.rng.pct(50) {
+                self.binop(
+                    l,
+                    "+",
+                    P_ADD,
+                    r,
+                    Val::Real(Rv::padded(a.lo + b.lo, a.hi + b.hi)),
+                )
+            } else {
+                self.binop(
+                    l,
+                    "-",
+                    P_ADD,
+                    r,
+                    Val::Real(Rv::padded(a.lo - b.hi, a.hi - b.lo)),
+                )
+            };
+        }
+        let free = free_real(ty);
+        let r = if self.rng.pct(60) {
+            let (v, t) = *self.rng.pick(&REAL_DIVISORS);
+            self.real_const(ty, t, v)
+        } else {
+            self.real(ty, Rv::new(-4.0, 4.0), false, d - 1)
+        };
+        let m = r.val.rv().mag().max(1e-3);
+        let lb = want.scaled(0.99 / m);
+        let lb = Rv::new(lb.lo.max(free.lo), lb.hi.min(free.hi));
+        let l = self.real(ty, lb, typed && !r.typed, d - 1);
+        let val = Val::Real(rcorners(l.val.rv(), r.val.rv(), |a, b| a * b));
+        self.binop(l, "*", P_MUL, r, val)
+    }
+
+    /// Unary `-` and ABS.
+    pub(super) fn real_sign(&mut self, ty: Ty, want: Rv, typed: bool, d: u32) -> Expr {
+        if self.rng.pct(50) {
+            let l = self.real(ty, Rv::new(-want.hi, -want.lo), typed, d - 1);
+            let a = l.val.rv();
+            let text = format!("-{}", l.at(P_ATOM + u8::from(l.konst)));
+            return Expr {
+                text,
+                prec: P_UNARY,
+                val: Val::Real(Rv::new(-a.hi, -a.lo)),
+                typed: l.typed,
+                konst: l.konst,
+            };
+        }
+        let l = self.real(ty, Rv::new(-want.hi, want.hi), typed, d - 1);
+        let a = l.val.rv();
+        let val = if a.lo >= 0.0 {
+            a
+        } else if a.hi <= 0.0 {
+            Rv::new(-a.hi, -a.lo)
+        } else {
+            Rv::new(0.0, a.mag())
+        };
+        self.call("ABS", &[l], Val::Real(val))
+    }
+
+    /// MIN, MAX, LIMIT, SEL and MUX of reals.
+    pub(super) fn real_select(&mut self, ty: Ty, want: Rv, typed: bool, d: u32) -> Expr {
+        match self.rng.below(5) {
+            0 | 1 => {
                 let n = self.rng.range(2, 3);
                 let args: Vec<Expr> = (0..n)
                     .map(|i| self.real(ty, want, typed && i == 0, d - 1))
                     .collect();
-                let rvs: Vec<Rv> = args.iter().map(|a| a.val.rv()).collect();
+                let lo = args.iter().map(|a| a.val.rv().lo);
+                let hi = args.iter().map(|a| a.val.rv().hi);
                 let (name, rv) = if self.rng.pct(50) {
-                    let lo = rvs.iter().map(|r| r.lo).fold(f64::INFINITY, f64::min);
                     (
                         "MIN",
-                        Rv::new(lo, rvs.iter().map(|r| r.hi).fold(f64::INFINITY, f64::min)),
+                        Rv::new(
+                            lo.fold(f64::INFINITY, f64::min),
+                            hi.fold(f64::INFINITY, f64::min),
+                        ),
                     )
                 } else {
-                    let lo = rvs.iter().map(|r| r.lo).fold(f64::NEG_INFINITY, f64::max);
                     (
                         "MAX",
                         Rv::new(
-                            lo,
-                            rvs.iter().map(|r| r.hi).fold(f64::NEG_INFINITY, f64::max),
+                            lo.fold(f64::NEG_INFINITY, f64::max),
+                            hi.fold(f64::NEG_INFINITY, f64::max),
                         ),
                     )
                 };
                 self.call(name, &args, Val::Real(rv))
             }
-            23 => {
-                let x = self.real(ty, free, typed, d - 1);
+            2 => {
+                let x = self.real(ty, free_real(ty), typed, d - 1);
                 self.limit_real(x, ty, want)
             }
-            24 => {
+            3 => {
                 let a = self.real(ty, want, typed, d - 1);
                 let b = self.real(ty, want, false, d - 1);
                 self.sel(a, b, d)
             }
-            25 => {
+            _ => {
                 let args = (0..self.rng.range(2, 4))
                     .map(|i| self.real(ty, want, typed && i == 0, d - 1))
                     .collect();
                 self.mux(args, d)
             }
-            26..=28 => return self.conv_to_real(ty, want, d),
-            _ => return self.user_call(Sty::E(ty), d),
-        })
+        }
     }
 
     pub(super) fn real_div(&mut self, ty: Ty, want: Rv, typed: bool, d: u32) -> Expr {
@@ -310,72 +328,161 @@ impl ProgramGen<'_> {
     // --------------------------------------------------------------------------------------
     // TIME
 
-    /// A TIME; `clean`: normalised and non-negative, so that it may be compared (rule 8).
-    pub(super) fn time(&mut self, clean: bool, d: u32) -> Expr {
-        if d == 0 || self.rng.pct(35) {
-            return self.time_leaf(clean);
+    /// A TIME of at most `want` (which holds 0) nanoseconds; `clean`: normalised in MATIEC,
+    /// so that it may be compared (rule 8).
+    pub(super) fn time(&mut self, clean: bool, want: Iv, d: u32) -> Expr {
+        if want.hi == 0 {
+            return self.time_lit(false, 0);
         }
-        match self.rng.below(12) {
+        let e = if d == 0 || self.rng.pct(35) {
+            None
+        } else {
+            self.time_op(clean, want, d)
+        };
+        let e = match e {
+            Some(e) => e,
+            None => self.time_leaf(want),
+        };
+        self.fit_time(e, want, clean)
+    }
+
+    pub(super) fn time_op(&mut self, clean: bool, want: Iv, d: u32) -> Option<Expr> {
+        let range = |e: &Expr| match e.val {
+            Val::Time { range, .. } => range,
+            other => unreachable!("not a TIME: {other:?}"),
+        };
+        let dirty = |range| Val::Time {
+            clean: false,
+            range,
+        };
+        Some(match self.rng.below(12) {
             0..=3 if !clean => {
-                let l = self.time(false, d - 1);
-                let r = self.time(false, d - 1);
-                let op = if self.rng.pct(50) { "+" } else { "-" };
-                self.binop(l, op, P_ADD, r, Val::Time { clean: false })
+                let l = self.time(false, want.half(), d - 1);
+                let a = range(&l);
+                if self.rng.pct(50) {
+                    let r = self.time(false, Iv::new(want.lo - a.lo, want.hi - a.hi), d - 1);
+                    let b = range(&r);
+                    self.binop(l, "+", P_ADD, r, dirty(Iv::new(a.lo + b.lo, a.hi + b.hi)))
+                } else {
+                    let r = self.time(false, Iv::new(a.hi - want.hi, a.lo - want.lo), d - 1);
+                    let b = range(&r);
+                    self.binop(l, "-", P_ADD, r, dirty(Iv::new(a.lo - b.hi, a.hi - b.lo)))
+                }
             }
             4 if !clean => {
-                let t = self.time(true, d - 1);
                 let op = if self.rng.pct(50) { "*" } else { "/" };
+                let t = self.time(true, Iv::new(want.lo / 2, want.hi / 2), d - 1);
+                let a = range(&t);
+                let val = if op == "*" {
+                    Iv::new(a.lo * 2, a.hi * 2)
+                } else {
+                    Iv::new(a.lo / 2, a.hi / 2)
+                };
                 let two = Expr::lit("2".to_string(), Val::Int(Iv::point(2)), false);
-                self.binop(t, op, P_MUL, two, Val::Time { clean: false })
+                self.binop(t, op, P_MUL, two, dirty(val))
             }
             5..=6 => {
                 let args: Vec<Expr> = (0..self.rng.range(2, 3))
-                    .map(|_| self.time(true, d - 1))
+                    .map(|_| self.time(true, want, d - 1))
                     .collect();
-                let name = if self.rng.pct(50) { "MIN" } else { "MAX" };
-                self.call(name, &args, Val::Time { clean: true })
+                let rs: Vec<Iv> = args.iter().map(range).collect();
+                let (name, iv) = if self.rng.pct(50) {
+                    (
+                        "MIN",
+                        Iv::new(
+                            rs.iter().map(|r| r.lo).min()?,
+                            rs.iter().map(|r| r.hi).min()?,
+                        ),
+                    )
+                } else {
+                    (
+                        "MAX",
+                        Iv::new(
+                            rs.iter().map(|r| r.lo).max()?,
+                            rs.iter().map(|r| r.hi).max()?,
+                        ),
+                    )
+                };
+                self.call(
+                    name,
+                    &args,
+                    Val::Time {
+                        clean: true,
+                        range: iv,
+                    },
+                )
             }
             7 => {
-                let (a, b) = (
-                    self.rng.below(PT_LITERALS as u64),
-                    self.rng.below(TIME_LITERALS.len() as u64),
-                );
-                let (a, b) = (TIME_LITERALS[a as usize], TIME_LITERALS[b as usize]);
-                let (lo, hi) = if a.1 <= b.1 { (a, b) } else { (b, a) };
-                let x = self.time(true, d - 1);
-                let mn = Expr::lit(lo.0.to_string(), Val::Time { clean: true }, true);
-                let mx = Expr::lit(hi.0.to_string(), Val::Time { clean: true }, true);
-                self.call("LIMIT", &[mn, x, mx], Val::Time { clean: true })
+                let x = self.time(true, TIME_FREE, d - 1);
+                self.limit_time(x, want)
             }
             8 => {
-                let (a, b) = (self.time(clean, d - 1), self.time(clean, d - 1));
+                let (a, b) = (self.time(clean, want, d - 1), self.time(clean, want, d - 1));
                 self.sel(a, b, d)
             }
             9 => {
                 let args = (0..self.rng.range(2, 3))
-                    .map(|_| self.time(clean, d - 1))
+                    .map(|_| self.time(clean, want, d - 1))
                     .collect();
                 self.mux(args, d)
             }
-            10..=11 => match self.user_call(Sty::E(Ty::Time), d) {
-                Some(e) if e.val.clean_time() || !clean => e,
-                _ => self.time_leaf(clean),
-            },
-            _ => self.time_leaf(clean),
-        }
+            _ => return self.user_call(Sty::E(Ty::Time), d),
+        })
     }
 
-    pub(super) fn time_leaf(&mut self, clean: bool) -> Expr {
-        let places: Vec<(Place, Val)> = self
-            .places(Sty::E(Ty::Time), false)
-            .into_iter()
-            .filter(|(_, dom)| dom.clean_time() || !clean)
-            .collect();
+    pub(super) fn time_leaf(&mut self, want: Iv) -> Expr {
+        let places = self.places(Sty::E(Ty::Time), false);
         if !places.is_empty() && self.rng.pct(70) {
             let (p, dom) = *self.rng.pick(&places);
             return self.read(p, dom);
         }
-        self.time_lit(false)
+        self.time_lit(false, want.hi)
+    }
+
+    /// `e` within `want` and, if `clean`, normalised: `e * 1` normalises (MATIEC's
+    /// `__time_mul`), then `LIMIT(T#0s, e, T#…)` bounds.
+    pub(super) fn fit_time(&mut self, e: Expr, want: Iv, clean: bool) -> Expr {
+        let Val::Time { clean: c, range } = e.val else {
+            unreachable!("not a TIME: {:?}", e.val);
+        };
+        if range.within(want) && (c || !clean) {
+            return e;
+        }
+        let e = if c {
+            e
+        } else {
+            let one = Expr::lit("1".to_string(), Val::Int(Iv::point(1)), false);
+            self.binop(e, "*", P_MUL, one, Val::Time { clean: true, range })
+        };
+        if range.within(want) {
+            return e;
+        }
+        self.limit_time(e, want)
+    }
+
+    /// `LIMIT(T#a, e, T#b)` of a clean `e`, with `0 <= a <= b <= want.hi`.
+    pub(super) fn limit_time(&mut self, e: Expr, want: Iv) -> Expr {
+        let range = match e.val {
+            Val::Time { range, .. } => range,
+            other => unreachable!("not a TIME: {other:?}"),
+        };
+        let a = self.time_lit(true, want.hi);
+        let b = self.time_lit(false, want.hi);
+        let (a, b) = if a.val_time_lo() <= b.val_time_lo() {
+            (a, b)
+        } else {
+            (b, a)
+        };
+        let (lo, hi) = (a.val_time_lo(), b.val_time_lo());
+        let val = limit_range(Iv::point(lo), range, Iv::point(hi));
+        self.call(
+            "LIMIT",
+            &[a, e, b],
+            Val::Time {
+                clean: true,
+                range: val,
+            },
+        )
     }
 
     // --------------------------------------------------------------------------------------
@@ -406,69 +513,7 @@ impl ProgramGen<'_> {
                 let max = args.iter().map(|a| a.val.strlen().1).sum();
                 self.call("CONCAT", &args, Val::Str { min, max })
             }
-            5..=6 => {
-                let k = self.rng.int(0, max.min(10).into()) as u32;
-                let s = self.str_min(k, STR_CAP, d);
-                let name = if self.rng.pct(50) { "LEFT" } else { "RIGHT" };
-                let n = self.count(k);
-                self.call(name, &[s, n], Val::Str { min: k, max: k })
-            }
-            7 => {
-                let l = self.rng.int(0, max.min(8).into()) as u32;
-                let p = self.rng.int(1, 6) as u32;
-                let s = self.str_min(p + l - 1, STR_CAP, d);
-                let (l_e, p_e) = (self.count(l), self.count(p));
-                self.call("MID", &[s, l_e, p_e], Val::Str { min: l, max: l })
-            }
-            8 => {
-                let p = self.rng.int(0, 5.min(max).into()) as u32;
-                let b1 = self.rng.int(p.into(), max.into()) as u32;
-                let s1 = self.str_min(p, b1, d);
-                let (m1, x1) = s1.val.strlen();
-                let s2 = self.string(max - x1, d);
-                let (m2, x2) = s2.val.strlen();
-                let p_e = self.count(p);
-                self.call(
-                    "INSERT",
-                    &[s1, s2, p_e],
-                    Val::Str {
-                        min: m1 + m2,
-                        max: x1 + x2,
-                    },
-                )
-            }
-            9 => {
-                let l = self.rng.int(0, 5) as u32;
-                let p = self.rng.int(1, (max + 1).min(5).into()) as u32;
-                let s = self.str_min(p + l - 1, STR_CAP.min(max + l), d);
-                let (m, x) = s.val.strlen();
-                let (l_e, p_e) = (self.count(l), self.count(p));
-                self.call(
-                    "DELETE",
-                    &[s, l_e, p_e],
-                    Val::Str {
-                        min: m - l,
-                        max: x - l,
-                    },
-                )
-            }
-            10 => {
-                let (l, p) = (self.rng.int(0, 6) as u32, self.rng.int(1, 5) as u32);
-                let s2 = self.string(l.min(max), d);
-                let (m2, x2) = s2.val.strlen();
-                let b1 = STR_CAP.min(max + l - x2);
-                if p + l - 1 > b1 {
-                    return self.str_leaf(max);
-                }
-                let s1 = self.str_min(p + l - 1, b1, d);
-                let (m1, x1) = s1.val.strlen();
-                let (l_e, p_e) = (self.count(l), self.count(p));
-                let val = Val::Str {
-                    min: m1 - l + m2,
-                    max: x1 - l + x2,
-                };
-                self.call("REPLACE", &[s1, s2, l_e, p_e], val)
-            }
+            5..=10 => self.substring(max, d),
             11 => {
                 let args: Vec<Expr> = (0..self.rng.range(2, 3))
                     .map(|_| self.string(max, d))
@@ -506,6 +551,76 @@ impl ProgramGen<'_> {
                 _ => self.str_leaf(max),
             },
             _ => self.str_leaf(max),
+        }
+    }
+
+    /// LEFT, RIGHT, MID, INSERT, DELETE and REPLACE, with positions and lengths inside the
+    /// string (rule 9), of at most `max` characters.
+    pub(super) fn substring(&mut self, max: u32, d: u32) -> Expr {
+        match self.rng.below(6) {
+            0 | 1 => {
+                let k = self.rng.int(0, max.min(10).into()) as u32;
+                let s = self.str_min(k, STR_CAP, d);
+                let name = if self.rng.pct(50) { "LEFT" } else { "RIGHT" };
+                let n = self.count(k);
+                self.call(name, &[s, n], Val::Str { min: k, max: k })
+            }
+            2 => {
+                let l = self.rng.int(0, max.min(8).into()) as u32;
+                let p = self.rng.int(1, 6) as u32;
+                let s = self.str_min(p + l - 1, STR_CAP, d);
+                let (l_e, p_e) = (self.count(l), self.count(p));
+                self.call("MID", &[s, l_e, p_e], Val::Str { min: l, max: l })
+            }
+            3 => {
+                let p = self.rng.int(0, 5.min(max).into()) as u32;
+                let b1 = self.rng.int(p.into(), max.into()) as u32;
+                let s1 = self.str_min(p, b1, d);
+                let (m1, x1) = s1.val.strlen();
+                let s2 = self.string(max - x1, d);
+                let (m2, x2) = s2.val.strlen();
+                let p_e = self.count(p);
+                self.call(
+                    "INSERT",
+                    &[s1, s2, p_e],
+                    Val::Str {
+                        min: m1 + m2,
+                        max: x1 + x2,
+                    },
+                )
+            }
+            4 => {
+                let l = self.rng.int(0, 5) as u32;
+                let p = self.rng.int(1, (max + 1).min(5).into()) as u32;
+                let s = self.str_min(p + l - 1, STR_CAP.min(max + l), d);
+                let (m, x) = s.val.strlen();
+                let (l_e, p_e) = (self.count(l), self.count(p));
+                self.call(
+                    "DELETE",
+                    &[s, l_e, p_e],
+                    Val::Str {
+                        min: m - l,
+                        max: x - l,
+                    },
+                )
+            }
+            _ => {
+                let (l, p) = (self.rng.int(0, 6) as u32, self.rng.int(1, 5) as u32);
+                let s2 = self.string(l.min(max), d);
+                let (m2, x2) = s2.val.strlen();
+                let b1 = STR_CAP.min(max + l - x2);
+                if p + l - 1 > b1 {
+                    return self.str_leaf(max);
+                }
+                let s1 = self.str_min(p + l - 1, b1, d);
+                let (m1, x1) = s1.val.strlen();
+                let (l_e, p_e) = (self.count(l), self.count(p));
+                let val = Val::Str {
+                    min: m1 - l + m2,
+                    max: x1 - l + x2,
+                };
+                self.call("REPLACE", &[s1, s2, l_e, p_e], val)
+            }
         }
     }
 

@@ -17,6 +17,20 @@ pub(super) enum Stmt {
     Exit,
 }
 
+/// A FOR loop's numbers: `FOR i := start TO end BY by`.
+pub(super) struct ForBounds {
+    start: i128,
+    /// `None`: a `LIMIT(…)` of inputs, to be generated.
+    end: Option<i128>,
+    by: i128,
+    /// The values of the counter inside the loop.
+    range: Iv,
+    /// The counter must be of a signed type.
+    signed: bool,
+    /// The array variable the loop runs over, whose elements its body writes first.
+    array: Option<usize>,
+}
+
 pub(super) fn line(out: &mut Vec<String>, ind: usize, text: impl AsRef<str>) {
     out.push(format!("{:w$}{}", "", text.as_ref(), w = ind * 2));
 }
@@ -38,7 +52,13 @@ impl ProgramGen<'_> {
         let Some((lv, sty, dom)) = self.target() else {
             unreachable!("every POU has a variable to write");
         };
-        let e = match (sty, dom) {
+        let e = self.literal(sty, dom);
+        line(out, ind, format!("{lv} := {};", e.text));
+    }
+
+    /// A literal of `sty` in `dom`.
+    pub(super) fn literal(&mut self, sty: Sty, dom: Val) -> Expr {
+        match (sty, dom) {
             (Sty::Enum(e), _) => {
                 let v = self.rng.pick(&self.enums[e].values).clone();
                 Expr::atom(v, dom, true)
@@ -49,11 +69,10 @@ impl ProgramGen<'_> {
                 self.int_lit(t, v, false)
             }
             (Sty::E(t), Val::Real(rv)) => self.real_lit(t, rv, false),
-            (_, Val::Time { .. }) => self.time_lit(false),
+            (_, Val::Time { range, .. }) => self.time_lit(false, range.hi),
             (_, Val::Str { max, .. }) => self.str_lit(0, max.min(10)),
             (Sty::E(t), _) => self.bits_lit(t, false),
-        };
-        line(out, ind, format!("{lv} := {};", e.text));
+        }
     }
 
     pub(super) fn stmt(&mut self, out: &mut Vec<String>, ind: usize, depth: u32) {
@@ -88,15 +107,28 @@ impl ProgramGen<'_> {
 
     pub(super) fn assign(&mut self, out: &mut Vec<String>, ind: usize) {
         if let Some((lv, sty, dom)) = self.target() {
-            // `x := x;` says nothing: one more try.
-            for _ in 0..2 {
-                let rhs = self.rhs(sty, dom, &lv);
-                if rhs.text != lv {
-                    line(out, ind, format!("{lv} := {};", rhs.text));
-                    return;
-                }
+            self.store(out, ind, &lv, sty, dom);
+        }
+    }
+
+    /// `lv := …;`, but not `lv := lv;`, which says nothing.
+    pub(super) fn store(
+        &mut self,
+        out: &mut Vec<String>,
+        ind: usize,
+        lv: &str,
+        sty: Sty,
+        dom: Val,
+    ) {
+        for _ in 0..3 {
+            let rhs = self.rhs(sty, dom, lv);
+            if rhs.text != lv {
+                line(out, ind, format!("{lv} := {};", rhs.text));
+                return;
             }
         }
+        let e = self.literal(sty, dom);
+        line(out, ind, format!("{lv} := {};", e.text));
     }
 
     /// The right-hand side of an assignment to `lv`: where wrapping (rule 1), TRUNC (rule 3)
@@ -282,9 +314,33 @@ impl ProgramGen<'_> {
         name
     }
 
-    pub(super) fn in_loop(&mut self, out: &mut Vec<String>, ind: usize, depth: u32, live: Live) {
+    /// The body of a loop whose counter is `live`; over an array, its first statement writes
+    /// an element of `array`.
+    pub(super) fn in_loop(
+        &mut self,
+        out: &mut Vec<String>,
+        ind: usize,
+        depth: u32,
+        live: Live,
+        array: Option<usize>,
+    ) {
         self.pou.live.push(live);
         self.pou.loops += 1;
+        if let Some(i) = array {
+            let Kind::Array(_, elem) = self.pou.vars[i].kind.clone() else {
+                unreachable!("an array");
+            };
+            let (field, sty, dom) = match elem {
+                Elem::Scalar(sty, dom) => (None, sty, dom),
+                Elem::Struct(s) => {
+                    let f = self.rng.below(self.structs[s].fields.len() as u64) as usize;
+                    let p = &self.structs[s].fields[f];
+                    (Some(f), p.sty, p.dom)
+                }
+            };
+            let lv = self.place_text(Place::Elem(i, field));
+            self.store(out, ind, &lv, sty, dom);
+        }
         let n = self.rng.range(1, 2);
         self.block(out, ind, n, depth - 1);
         self.pou.loops -= 1;
@@ -294,60 +350,14 @@ impl ProgramGen<'_> {
     /// A FOR that runs zero times or at least twice (rule 10), over an array's bounds, over
     /// literals, or up to a bound that depends on inputs only.
     pub(super) fn for_loop(&mut self, out: &mut Vec<String>, ind: usize, depth: u32) {
-        let dims: Vec<(i128, i128)> = self
-            .pou
-            .vars
-            .iter()
-            .filter_map(|v| match &v.kind {
-                Kind::Array(dims, _) => Some(dims.clone()),
-                _ => None,
-            })
-            .flatten()
-            .collect();
-        let mode = self.rng.below(3);
-        let (start, end, by, range, signed) = if mode == 0 && !dims.is_empty() {
-            let (lo, hi) = *self.rng.pick(&dims);
-            match self.rng.below(6) {
-                // A negative step only with a signed counter (UDINT would wrap below 0).
-                0 | 1 => (hi, lo.to_string(), -1, Iv::new(lo, hi), true),
-                2 if hi - lo >= 2 => (lo, hi.to_string(), 2, Iv::new(lo, hi), lo < 0),
-                _ => (lo, hi.to_string(), 1, Iv::new(lo, hi), lo < 0),
-            }
-        } else {
-            let signed = self.rng.pct(70);
-            let by = if signed {
-                *self.rng.pick(&[1, 1, 2, 3, -1, -2])
-            } else {
-                *self.rng.pick(&[1, 1, 2, 3])
-            };
-            let s = if signed {
-                self.rng.int(-5, 5)
-            } else {
-                self.rng.int(3, 6)
-            };
-            if mode == 1 {
-                let trips = if self.rng.pct(10) {
-                    0
-                } else {
-                    self.rng.int(2, 6)
-                };
-                let last = s + by * (trips - 1).max(0);
-                let end = if trips == 0 {
-                    s - by.signum() * self.rng.int(1, 3)
-                } else {
-                    last + by.signum() * self.rng.int(0, by.abs() - 1)
-                };
-                (
-                    s,
-                    end.to_string(),
-                    by,
-                    Iv::new(s.min(last), s.max(last)),
-                    signed,
-                )
-            } else {
-                (s, String::new(), by, Iv::point(s), signed)
-            }
-        };
+        let ForBounds {
+            start,
+            end,
+            by,
+            range,
+            signed,
+            array,
+        } = self.for_bounds();
         let ty = if signed {
             *self
                 .rng
@@ -357,20 +367,19 @@ impl ProgramGen<'_> {
                 .rng
                 .pick(&[Ty::Int, Ty::Uint, Ty::Usint, Ty::Udint, Ty::Dint])
         };
-        let (end, range) = if end.is_empty() {
-            // LIMIT(start + by, e, start + by * (n - 1)) over inputs: 2..=n trips.
-            let n = self.rng.int(3, 6);
-            let (a, b) = (start + by, start + by * (n - 1));
-            self.pou.stable = true;
-            let e = self.int(ty, ty.full(), true, 1);
-            self.pou.stable = false;
-            let (mn, mx) = (a.min(b), a.max(b));
-            (
-                format!("LIMIT({mn}, {}, {mx})", e.text),
-                Iv::new(start.min(mn), start.max(mx)),
-            )
-        } else {
-            (end, range)
+        let (end, range) = match end {
+            Some(end) => (end.to_string(), range),
+            None => {
+                // LIMIT(start + by, e, start + by * (n - 1)) over inputs: 2..=n trips.
+                let n = self.rng.int(3, 6);
+                let (a, b) = (start + by, start + by * (n - 1));
+                self.pou.stable = true;
+                let e = self.int(ty, ty.full(), true, 1);
+                self.pou.stable = false;
+                let (mn, mx) = (a.min(b), a.max(b));
+                let range = Iv::new(start.min(mn), start.max(mx));
+                (format!("LIMIT({mn}, {}, {mx})", e.text), range)
+            }
         };
         let name = self.counter(ty, "i");
         let step = if by == 1 && self.rng.pct(60) {
@@ -379,8 +388,77 @@ impl ProgramGen<'_> {
             format!(" BY {by}")
         };
         line(out, ind, format!("FOR {name} := {start} TO {end}{step} DO"));
-        self.in_loop(out, ind + 1, depth, Live { name, ty, range });
+        self.in_loop(out, ind + 1, depth, Live { name, ty, range }, array);
         line(out, ind, "END_FOR;");
+    }
+
+    pub(super) fn for_bounds(&mut self) -> ForBounds {
+        let dims: Vec<(usize, (i128, i128))> = (0..self.pou.vars.len())
+            .filter(|&i| self.pou.vars[i].section != Section::Input)
+            .flat_map(|i| match &self.pou.vars[i].kind {
+                Kind::Array(dims, _) => dims.iter().map(|&d| (i, d)).collect(),
+                _ => Vec::new(),
+            })
+            .collect();
+        let mode = self.rng.below(3);
+        if mode == 0 && !dims.is_empty() {
+            let (i, (lo, hi)) = *self.rng.pick(&dims);
+            let range = Iv::new(lo, hi);
+            let (start, end, by) = match self.rng.below(6) {
+                0 | 1 => (hi, lo, -1),
+                2 if hi - lo >= 2 => (lo, hi, 2),
+                _ => (lo, hi, 1),
+            };
+            return ForBounds {
+                start,
+                end: Some(end),
+                by,
+                range,
+                // A negative step only with a signed counter (UDINT would wrap below 0).
+                signed: lo < 0 || by < 0,
+                array: Some(i),
+            };
+        }
+        let signed = self.rng.pct(70);
+        let by = if signed {
+            *self.rng.pick(&[1, 1, 2, 3, -1, -2])
+        } else {
+            *self.rng.pick(&[1, 1, 2, 3])
+        };
+        let s = if signed {
+            self.rng.int(-5, 5)
+        } else {
+            self.rng.int(3, 6)
+        };
+        if mode == 2 {
+            return ForBounds {
+                start: s,
+                end: None,
+                by,
+                range: Iv::point(s),
+                signed,
+                array: None,
+            };
+        }
+        let trips = if self.rng.pct(10) {
+            0
+        } else {
+            self.rng.int(2, 6)
+        };
+        let last = s + by * (trips - 1).max(0);
+        let end = if trips == 0 {
+            s - by.signum() * self.rng.int(1, 3)
+        } else {
+            last + by.signum() * self.rng.int(0, by.abs() - 1)
+        };
+        ForBounds {
+            start: s,
+            end: Some(end),
+            by,
+            range: Iv::new(s.min(last), s.max(last)),
+            signed,
+            array: None,
+        }
     }
 
     /// `WHILE n < N …` with a counter that ends it after at most N (≤ 8) trips.
@@ -403,7 +481,7 @@ impl ProgramGen<'_> {
             ty,
             range: Iv::new(0, n - 1),
         };
-        self.in_loop(out, ind + 1, depth, live);
+        self.in_loop(out, ind + 1, depth, live, None);
         line(out, ind + 1, format!("{name} := {name} + 1;"));
         line(out, ind, "END_WHILE;");
     }
@@ -421,7 +499,7 @@ impl ProgramGen<'_> {
             ty,
             range: Iv::new(0, n - 1),
         };
-        self.in_loop(out, ind + 1, depth, live);
+        self.in_loop(out, ind + 1, depth, live, None);
         line(out, ind + 1, format!("{name} := {name} + 1;"));
         let until = if self.rng.pct(50) {
             format!("{name} >= {n}")
@@ -458,9 +536,9 @@ impl ProgramGen<'_> {
                     StdFb::Ton | StdFb::Tof | StdFb::Tp => {
                         args.push(b(self, "IN"));
                         let pt = if self.rng.pct(75) {
-                            self.time_lit(true)
+                            self.time_lit(true, TIME_VAR)
                         } else {
-                            self.time(true, 1)
+                            self.time(true, Iv::new(0, TIME_VAR), 1)
                         };
                         args.push(format!("PT := {}", pt.text));
                     }

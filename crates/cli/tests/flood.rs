@@ -28,7 +28,9 @@ const PLC: &str = "cell1";
 
 mod common;
 
-use common::{client, first_answer, reply, reply_topic, request, rss_kb, RssSampler, RunningPlc};
+use common::{
+    client, first_answer, poll_reply, reply, reply_topic, request, rss_kb, RssSampler, RunningPlc,
+};
 
 /// Bytes that look random and are the same on every run (SplitMix64).
 fn noise(n: usize) -> Vec<u8> {
@@ -415,21 +417,24 @@ fn a_flood_that_stops_leaves_no_backlog_that_keeps_operators_waiting() {
 
     // An operator asks once the flood has stopped: the broker must not still be busy with it.
     let asked = Instant::now();
-    // The requests of the flood already queued at the PLC (at most 64) are answered first: the
-    // operator asks again, as one clicks again, up to five times a second apart.
+    // The requests of the flood already queued at the PLC (at most 64) are answered first, and
+    // a QoS 0 command may be dropped by a bounded queue while the backlog drains: the operator
+    // asks again, as one clicks again, every 2 s, for at most 30 s.
     let mut answer = Value::Null;
-    for k in 0..5u8 {
+    for k in 0..15u8 {
         let corr = format!("after-flood-{k}").into_bytes();
         request(&probe, PLC, "exec_info", &corr, b"{}".to_vec());
-        answer = reply(&replies, &corr, Duration::from_secs(10));
+        answer = poll_reply(&replies, &corr, Duration::from_secs(2)).unwrap_or(Value::Null);
         if answer["ok"] == true {
             break;
         }
-        std::thread::sleep(Duration::from_secs(1));
+        if !answer.is_null() {
+            std::thread::sleep(Duration::from_secs(1));
+        }
     }
     assert_eq!(
         answer["ok"], true,
-        "the operator's command after the flood: {answer}"
+        "the operator's command within 30 s of the flood: {answer}"
     );
     eprintln!("answered {:?} after the flood stopped", asked.elapsed());
     drop(flood);

@@ -160,16 +160,26 @@ pub fn wait_for(what: &str, within: Duration, mut ok: impl FnMut() -> bool) {
 
 /// Waits until the reply with correlation data `corr` is in, and returns it.
 pub fn reply(replies: &Replies, corr: &[u8], within: Duration) -> Value {
-    let mut got = None;
-    wait_for(
-        &format!("a reply to `{}`", String::from_utf8_lossy(corr)),
-        within,
-        || {
-            got = replies.lock().expect("replies").get(corr).cloned();
-            got.is_some()
-        },
-    );
-    got.unwrap_or(Value::Null)
+    poll_reply(replies, corr, within).unwrap_or_else(|| {
+        panic!(
+            "a reply to `{}` within {within:?}",
+            String::from_utf8_lossy(corr)
+        )
+    })
+}
+
+/// The reply with correlation data `corr`, if it comes in within `within`.
+pub fn poll_reply(replies: &Replies, corr: &[u8], within: Duration) -> Option<Value> {
+    let end = Instant::now() + within;
+    loop {
+        if let Some(v) = replies.lock().expect("replies").get(corr) {
+            return Some(v.clone());
+        }
+        if Instant::now() >= end {
+            return None;
+        }
+        std::thread::sleep(Duration::from_millis(20));
+    }
 }
 
 /// Sends `exec_info` to `plc` once a second until it answers (a command sent before the PLC has

@@ -127,9 +127,7 @@ pub fn run(args: &RunArgs) -> anyhow::Result<()> {
     for e in node.start_events() {
         print_event(e, args.json);
     }
-    let plant = args
-        .twin
-        .map_or("field I/O".to_string(), |k| format!("{k} twin"));
+    let plant = plant_label(args);
     let stop = Arc::new(AtomicBool::new(false));
     if !args.virtual_time {
         let s = stop.clone();
@@ -165,6 +163,15 @@ pub fn run(args: &RunArgs) -> anyhow::Result<()> {
         print_summary(&summary);
     }
     Ok(())
+}
+
+/// What the run drives, in words.
+fn plant_label(args: &RunArgs) -> String {
+    match (args.twin, &args.replay) {
+        (Some(k), _) => format!("{k} twin"),
+        (None, Some(_)) => "replayed trace".to_string(),
+        (None, None) => "field I/O".to_string(),
+    }
 }
 
 /// The node `args` ask for: the command line mapped onto a [`NodeSpec`], nothing decided here.
@@ -282,6 +289,7 @@ fn summary(
         events_left_out: left_out + report.echo_dropped,
         program: program.name().to_string(),
         twin: args.twin.map_or_else(String::new, |k| k.to_string()),
+        plant: plant_label(args),
         seconds: reached_us as f64 / 1e6,
         scans: plc.cycles(),
         firings: plc.primary_container().firings().iter().sum(),

@@ -11,6 +11,8 @@ pub struct Summary {
     pub program: String,
     /// Twin name (empty without a twin).
     pub twin: String,
+    /// What the program ran against, in words: `vernadat twin`, `field I/O`, `replayed trace`.
+    pub plant: String,
     /// Program time run, in seconds.
     pub seconds: f64,
     /// Scans run.
@@ -57,11 +59,7 @@ pub struct Summary {
 pub const MAX_EVENTS: usize = 10_000;
 
 pub fn print_summary(s: &Summary) {
-    let plant = if s.twin.is_empty() {
-        "field I/O".to_string()
-    } else {
-        format!("{} twin", s.twin)
-    };
+    let plant = &s.plant;
     println!(
         "{} on the {plant}: {:.1} s of program time",
         s.program, s.seconds

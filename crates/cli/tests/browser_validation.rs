@@ -40,12 +40,12 @@ async fn the_dashboard_shows_the_declared_changes_the_twin_verdict_and_the_quara
     )
     .expect("write the manifest");
     let package = signed_package(BIN, &manifest, "u1", dir.path(), &config.join("trusted"));
-    // Thirty seconds of plant time from the load on a fork of the twin the PLC drives: what U.1
+    // Two minutes of plant time from the load on a fork of the twin the PLC drives: what U.1
     // does there is what it does in quarantine, and the quarantine passes after 500 cycles and
     // whatever the twin showed diverging.
     std::fs::write(
         config.join("config.toml"),
-        "[updates]\nvalidation = \"fork\"\nhorizon = \"30s\"\n",
+        "[updates]\nvalidation = \"fork\"\nhorizon = \"120s\"\n",
     )
     .expect("config.toml");
 

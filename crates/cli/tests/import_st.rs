@@ -133,3 +133,41 @@ fn a_trace_that_does_not_fit_the_program_is_refused_before_the_first_scan() {
     let err = run("scan,time_ms,run\n0,0,1\n", &["--twin", "vernadat"]);
     assert!(err.contains("--replay"), "{err}");
 }
+
+#[test]
+fn a_loop_that_never_ends_faults_the_primary_at_its_work_budget_with_safe_outputs() {
+    let dir = tempfile::tempdir().expect("a temporary directory");
+    let spin = "PROGRAM Spin
+VAR_INPUT run : BOOL; END_VAR
+VAR_OUTPUT count : DINT; lamp : BOOL; END_VAR
+lamp := TRUE;
+IF run THEN
+  WHILE TRUE DO count := count + 1; END_WHILE
+END_IF
+END_PROGRAM
+";
+    ok(&import(dir.path(), "spin", spin));
+    let replay = dir.path().join("in.csv");
+    std::fs::write(&replay, "scan,time_ms,run\n0,0,0\n3,30,1\n").expect("write");
+    let trace = dir.path().join("out.csv");
+    let program = dir.path().join("Spin.toml");
+    let run = cetratus(&[
+        "run",
+        path(&program),
+        "--replay",
+        path(&replay),
+        "--virtual",
+        "--for",
+        "100ms",
+        "--trace",
+        path(&trace),
+        "--no-mct",
+    ]);
+    let out = ok(&run) + &String::from_utf8_lossy(&run.stderr);
+    assert!(out.contains("Spin on the replayed trace"), "{out}");
+    assert!(out.contains("primary_fault"), "{out}");
+    assert!(out.contains("work budget of 2500000 units"), "{out}");
+    let csv = std::fs::read_to_string(&trace).expect("the trace");
+    // From the scan the loop starts in, the outputs are at their safe values (lamp off).
+    assert_eq!(csv.lines().last(), Some("3,30.000,1,0,0"), "{csv}");
+}

@@ -147,6 +147,8 @@ pub struct LocalConfig {
     /// The work budget of a candidate scan (guard evaluations and firings); `None`: the default
     /// for the scan period.
     pub candidate_instruction_budget: Option<u64>,
+    /// The work budget of a primary scan; `None`: ten times a candidate's default.
+    pub primary_instruction_budget: Option<u64>,
     /// The node's I/O configuration from `[io]`, when it names a device or a server.
     pub io: Option<cetratus_io::config::IoConfig>,
     /// The analysis gate at load: its budget and what each finding does.
@@ -288,6 +290,7 @@ impl LocalConfig {
             dashboard_hosts: dashboard.hosts,
             state_trans_timeout_us: updates.state_trans_timeout_us,
             candidate_instruction_budget: updates.candidate_instruction_budget,
+            primary_instruction_budget: updates.primary_instruction_budget,
             io: s.io,
             gate: updates.gate,
             validation: updates.validation,
@@ -324,6 +327,9 @@ impl LocalConfig {
             candidate_instruction_budget: self
                 .candidate_instruction_budget
                 .unwrap_or(limits.candidate_instruction_budget),
+            primary_instruction_budget: self
+                .primary_instruction_budget
+                .unwrap_or(limits.primary_instruction_budget),
             ..limits
         }
     }

@@ -34,7 +34,7 @@ pub enum RuntimeError {
     },
     /// A scan would have passed its work budget (instructions of guards and action bodies,
     /// and firings) and was stopped midway.
-    #[error("the scan was stopped at {at}, which would have taken it past its work budget of {budget} units (instructions of guards and action bodies, and firings); the program does more work in one scan than the PLC allows a candidate: make its scans do less, or raise `candidate_instruction_budget`")]
+    #[error("the scan was stopped at {at}, which would have taken it past its work budget of {budget} units (instructions of guards, action bodies and Structured Text, and firings); the program does more work in one scan than the PLC allows: make its scans do less (a loop that never ends is stopped here), or raise `[updates] candidate_instruction_budget` (a candidate) or `primary_instruction_budget` (the running program)")]
     WorkBudget {
         /// The budget that ran out.
         budget: u64,

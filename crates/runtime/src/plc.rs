@@ -756,7 +756,7 @@ fn scan_slot(
     let is_primary = candidate.is_none();
     let (c, work_budget) = match candidate {
         Some(c) => (c, limits.candidate_instruction_budget),
-        None => (&mut core.primary, u64::MAX),
+        None => (&mut core.primary, limits.primary_instruction_budget),
     };
     #[cfg(feature = "fault-injection")]
     crate::inject::before_scan(c.program().name(), c.program().version())?;

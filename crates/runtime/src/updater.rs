@@ -71,6 +71,9 @@ pub struct Limits {
     /// and of the bodies it runs, and one per firing (docs/design.md §2: a runaway candidate must
     /// not take the primary's time). Counted, not timed, so a virtual run decides the same.
     pub candidate_instruction_budget: u64,
+    /// A primary scan is stopped midway, and the PLC faults (safe outputs), before it does more
+    /// than this many units of work: what bounds a loop of Structured Text that would never end.
+    pub primary_instruction_budget: u64,
     /// A primary scan longer than this (ns) is a primary fault.
     pub watchdog_ns: u64,
     /// The probation window after a substitution, in µs of program time; 0: none, the old
@@ -104,6 +107,7 @@ impl Limits {
             state_trans_timeout_ns: period_us.saturating_mul(1000),
             candidate_budget_ns: 1_000_000_000,
             candidate_instruction_budget: Self::work_budget_for_period_us(period_us),
+            primary_instruction_budget: Self::primary_budget_for_period_us(period_us),
             watchdog_ns: 1_000_000_000,
             probation_us: 0,
             require_verdict: false,
@@ -118,6 +122,13 @@ impl Limits {
         period_us.saturating_mul(INSTRUCTIONS_PER_US).max(1000)
     }
 
+    /// The default work budget of a primary scan: ten times a candidate's, as the watchdog is
+    /// ten periods: room for a scan that does more than usual, and still a bound on a loop
+    /// that never ends (2 500 000 for 10 ms).
+    pub fn primary_budget_for_period_us(period_us: u64) -> u64 {
+        Self::work_budget_for_period_us(period_us).saturating_mul(10)
+    }
+
     /// The defaults for a scan period: stateTransTimeout is one period (the paper's "within one
     /// execution cycle"); the watchdog and the candidate's budget are ten periods, so that a scan
     /// the operating system preempted once does not stop a cell or abort an update, while a
@@ -128,6 +139,7 @@ impl Limits {
             state_trans_timeout_ns: ns,
             candidate_budget_ns: ns.saturating_mul(10),
             candidate_instruction_budget: Self::work_budget_for_period_us(period_us),
+            primary_instruction_budget: Self::primary_budget_for_period_us(period_us),
             watchdog_ns: ns.saturating_mul(10),
             probation_us: 0,
             require_verdict: false,

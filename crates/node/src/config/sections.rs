@@ -299,6 +299,7 @@ pub(super) struct UpdatesSection {
     quarantine_cycles: Option<u64>,
     state_trans_timeout: Option<String>,
     candidate_instruction_budget: Option<u64>,
+    primary_instruction_budget: Option<u64>,
     /// Retired: its unit changed (guard evaluations, now instructions); refused with the new key.
     candidate_work_budget: Option<toml::Value>,
     gate_max_states: Option<u64>,
@@ -325,6 +326,7 @@ pub(super) struct Updates {
     pub quarantine_cycles: u64,
     pub state_trans_timeout_us: Option<u64>,
     pub candidate_instruction_budget: Option<u64>,
+    pub primary_instruction_budget: Option<u64>,
     pub gate: GatePolicy,
     pub validation: ValidationPolicy,
     pub require_verdict: bool,
@@ -339,6 +341,7 @@ impl Default for Updates {
             quarantine_cycles: cetratus_runtime::DEFAULT_QUARANTINE_CYCLES,
             state_trans_timeout_us: None,
             candidate_instruction_budget: None,
+            primary_instruction_budget: None,
             gate: GatePolicy::default(),
             validation: ValidationPolicy::default(),
             require_verdict: false,
@@ -391,6 +394,13 @@ impl UpdatesSection {
                 "a candidate could not evaluate a single guard; give a positive number, or remove the key for the default",
             ));
         }
+        if let Some(0) = self.primary_instruction_budget {
+            return Err(at.refuse(
+                "[updates] primary_instruction_budget",
+                "0",
+                "the running program could not evaluate a single guard; give a positive number, or remove the key for the default",
+            ));
+        }
         let validation = self.validation_policy(d.validation, at)?;
         let auto_substitute = self.auto_substitute(validation.mode, at)?;
         let gate = self.gate_policy(d.gate, at)?;
@@ -402,6 +412,9 @@ impl UpdatesSection {
             candidate_instruction_budget: self
                 .candidate_instruction_budget
                 .or(d.candidate_instruction_budget),
+            primary_instruction_budget: self
+                .primary_instruction_budget
+                .or(d.primary_instruction_budget),
             gate,
             validation,
             require_verdict: self.require_verdict,

@@ -13,5 +13,6 @@ pub mod harness;
 pub mod io;
 pub mod measure;
 pub mod program;
+pub mod st;
 pub mod update;
 pub mod workloads;

@@ -22,6 +22,8 @@ pub struct BenchArgs {
 
 #[derive(clap::Subcommand, Debug)]
 enum What {
+    /// Structured Text scans against MATIEC's compiled C, and a 5 000-line import.
+    St(crate::bench_st::StArgs),
     /// OPC UA write → scan → read latency of the real binary (p50, p99).
     Opcua(crate::bench_opcua::OpcuaArgs),
     /// Write a member of a benchmark family as ISO PNML, for `cetratus check` and other tools.
@@ -167,6 +169,9 @@ fn flood_dashboard(broker: &str) -> Result<harness::BesideParts, harness::BenchE
 pub fn run(args: &BenchArgs) -> anyhow::Result<()> {
     if let Some(What::Opcua(a)) = &args.what {
         return crate::bench_opcua::run(a);
+    }
+    if let Some(What::St(a)) = &args.what {
+        return crate::bench_st::run(a);
     }
     if let Some(What::Net { family, n, out }) = &args.what {
         let net = match family.to_ascii_lowercase().as_str() {

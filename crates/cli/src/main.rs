@@ -7,6 +7,8 @@
 mod bench;
 #[cfg(feature = "bench")]
 mod bench_opcua;
+#[cfg(feature = "bench")]
+mod bench_st;
 mod check;
 mod client;
 mod config;

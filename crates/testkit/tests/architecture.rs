@@ -33,6 +33,7 @@ const RULES: &[(&str, Allowed)] = &[
     ("cetratus-proto", Only(&["cetratus-vocab"])),
     ("cetratus-analysis", Only(&["cetratus-net"])),
     ("cetratus-st", Only(&[])),
+    ("cetratus-matiec", Only(&[])),
     (
         "cetratus-program",
         Only(&[
@@ -99,6 +100,8 @@ const RESTRICTED: &[(&str, &[&str])] = &[
     ("cetratus-dashboard", &["cetratus-cli"]),
     ("cetratus-bench", &["cetratus-cli"]),
     ("anyhow", &["cetratus-cli"]),
+    // A tool that compiles C: the benches and the tests drive it, a PLC never does.
+    ("cetratus-matiec", &["cetratus-bench", "cetratus-testkit"]),
 ];
 /// Crates every other crate may have as dev-dependencies only.
 const DEV_ONLY: &[&str] = &["cetratus-testkit"];

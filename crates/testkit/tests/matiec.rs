@@ -301,3 +301,35 @@ fn a_value_not_in_canonical_text_is_refused_before_compiling() {
         assert!(err.to_string().contains(value), "{err}");
     }
 }
+
+/// The timed loop runs exactly the scans asked for, on the first scan's inputs held, with the
+/// time of each scan: a counter counts them, and a TON started in the first scan has run out.
+#[test]
+fn a_timed_run_runs_the_scans_asked_for_and_reports_the_last_outputs() {
+    use IecType::*;
+    let source = "
+PROGRAM Count
+  VAR_INPUT inc : DINT; go : BOOL; END_VAR
+  VAR_OUTPUT n : DINT; q : BOOL; END_VAR
+  VAR t : TON; END_VAR
+  n := n + inc;
+  t(IN := go, PT := T#500ms);
+  q := t.Q;
+END_PROGRAM
+";
+    let case = Case {
+        program: "Count".into(),
+        inputs: vec![("inc".into(), Dint), ("go".into(), Bool)],
+        outputs: vec![("n".into(), Dint), ("q".into(), Bool)],
+        scans: vec![texts(&["3", "TRUE"])],
+    };
+    let cases = [case];
+    let batch = matiec()
+        .compile(source, &cases, TICK)
+        .unwrap_or_else(|e| panic!("{e}"));
+    let (took, last) = batch.time(&cases, 1000).unwrap_or_else(|e| panic!("{e}"));
+    assert_eq!(last, vec![texts(&["3000", "TRUE"])]);
+    assert!(took > Duration::ZERO, "{took:?}");
+    let (_, short) = batch.time(&cases, 40).unwrap_or_else(|e| panic!("{e}"));
+    assert_eq!(short, vec![texts(&["120", "FALSE"])], "40 scans are 390 ms");
+}

@@ -156,6 +156,36 @@ pub(super) fn parse_output(output: &str, cases: &[Case]) -> Result<Outputs, Mati
     }
 }
 
+/// What the timed loop printed: `ns <total>`, then per case one line per output value, then
+/// `end`.
+pub(super) fn parse_timed(
+    output: &str,
+    cases: &[Case],
+) -> Result<(Duration, Vec<Vec<String>>), MatiecError> {
+    let malformed = |what: String| MatiecError::Run {
+        scan: None,
+        message: format!("its timed output is malformed: {what}"),
+    };
+    let mut lines = output.lines();
+    let first = lines.next().unwrap_or_default();
+    let ns: u64 = first
+        .strip_prefix("ns ")
+        .and_then(|n| n.parse().ok())
+        .ok_or_else(|| malformed(format!("expected `ns <total>`, found {first:?}")))?;
+    let mut last = Vec::with_capacity(cases.len());
+    for (i, case) in cases.iter().enumerate() {
+        let values = (0..case.outputs.len())
+            .map(|_| lines.next().map(str::to_owned))
+            .collect::<Option<Vec<_>>>()
+            .ok_or_else(|| malformed(format!("it ends before the outputs of case {i}")))?;
+        last.push(values);
+    }
+    match lines.next() {
+        Some("end") => Ok((Duration::from_nanos(ns), last)),
+        other => Err(malformed(format!("expected `end`, found {other:?}"))),
+    }
+}
+
 /// The scan the harness last started, from the markers it flushes before each.
 pub(super) fn last_scan(output: &str) -> Option<usize> {
     output
@@ -167,7 +197,7 @@ pub(super) fn last_scan(output: &str) -> Option<usize> {
 /// Waits for `child` at most `timeout`; kills it and returns `None` when it is still running.
 /// The fixed first part of the harness: MATIEC's runtime symbols, and one reader and one
 /// printer of canonical text per type.
-pub(super) const HARNESS_PRELUDE: &str = r#"/* The harness of cetratus-testkit's matiec.rs: reads each scan's inputs from standard input,
+pub(super) const HARNESS_PRELUDE: &str = r#"/* The harness of cetratus-matiec: reads each scan's inputs from standard input,
  * runs one cycle, prints the outputs on standard output, all in canonical text. */
 #include <errno.h>
 #include <limits.h>
@@ -175,6 +205,7 @@ pub(super) const HARNESS_PRELUDE: &str = r#"/* The harness of cetratus-testkit's
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <time.h>
 #include "iec_std_lib.h"
 #include "POUS.h"
 
@@ -374,9 +405,29 @@ static void wr_STRING(STRING v) {
 }
 "#;
 
-/// The fixed last part of the harness: the scan loop (the module doc's steps 1 to 4).
+/// The fixed last part of the harness: the scan loop (the module doc's steps 1 to 4), and the
+/// timed loop (`--time N`: the inputs of the first scan, then N scans with nothing else in
+/// the loop, timed with the monotonic clock; then the outputs of the last).
 pub(super) const HARNESS_MAIN: &str = r#"
-int main(void) {
+static int time_scans(long n, long long tick_ns) {
+  struct timespec a, b;
+  long k, i;
+  for (i = 0; i < CASES; i++) write_inputs[i]();
+  clock_gettime(CLOCK_MONOTONIC, &a);
+  for (k = 0; k < n; k++) {
+    long long now = (long long)k * tick_ns;
+    __CURRENT_TIME.tv_sec = (long)(now / 1000000000LL);
+    __CURRENT_TIME.tv_nsec = (long)(now % 1000000000LL);
+    config_run__((unsigned long)k);
+  }
+  clock_gettime(CLOCK_MONOTONIC, &b);
+  printf("ns %lld\n", (long long)(b.tv_sec - a.tv_sec) * 1000000000LL + (b.tv_nsec - a.tv_nsec));
+  for (i = 0; i < CASES; i++) print_outputs[i]();
+  puts("end");
+  return fflush(stdout) == 0 ? 0 : 1;
+}
+
+int main(int argc, char **argv) {
   static long scans[CASES];
   long cases, k, i, max_scans = 0;
   long long tick_ns;
@@ -389,6 +440,7 @@ int main(void) {
     if (scans[i] > max_scans) max_scans = scans[i];
   }
   config_init__();
+  if (argc == 3 && strcmp(argv[1], "--time") == 0) return time_scans(atol(argv[2]), tick_ns);
   for (k = 0; k < max_scans; k++) {
     long long now = (long long)k * tick_ns;
     for (i = 0; i < CASES; i++)

@@ -99,9 +99,6 @@ use std::process::{Child, Command, ExitStatus, Stdio};
 use std::sync::OnceLock;
 use std::time::{Duration, Instant};
 
-use crate::paths;
-use crate::process::find_program;
-
 /// The flags every translation unit is compiled with (the module doc says why), besides the
 /// optimisation level ([`Matiec::with_optimisation`]).
 const CFLAGS: [&str; 2] = ["-fwrapv", "-ffp-contract=off"];
@@ -434,7 +431,7 @@ pub struct Matiec {
 
 impl Matiec {
     /// Builds MATIEC once with the shared `build.sh` (found at
-    /// `workspace_root()/../shared/tools/matiec/build.sh`; the environment variable
+    /// `../shared/tools/matiec/build.sh` beside the workspace of a source checkout; the environment variable
     /// `CETRATUS_MATIEC_DIR` overrides it with an install dir) and returns it; `Err` with a
     /// clear message naming what is missing otherwise.
     ///
@@ -702,6 +699,31 @@ impl Batch {
     /// inputs and outputs, in the same order) with any scans; returns per case, per scan, the
     /// output values in canonical text.
     pub fn run(&self, cases: &[Case]) -> Result<Outputs, MatiecError> {
+        let output = self.start(cases, &[])?;
+        parse_output(&output, cases)
+    }
+
+    /// Runs `scans` scans of every case, each case's inputs held at its first scan's values,
+    /// with nothing else in the loop (no input, no output), and returns how long they took on
+    /// the monotonic clock, and per case the output values after the last scan: what the
+    /// compiled C costs a scan, measured as `cetratus bench st` measures the interpreter.
+    pub fn time(
+        &self,
+        cases: &[Case],
+        scans: u64,
+    ) -> Result<(Duration, Vec<Vec<String>>), MatiecError> {
+        if let Some((i, _)) = cases.iter().enumerate().find(|(_, c)| c.scans.is_empty()) {
+            return Err(MatiecError::Invalid {
+                message: format!("case {i} has no scan of inputs to hold"),
+            });
+        }
+        let output = self.start(cases, &["--time".to_string(), scans.to_string()])?;
+        parse_timed(&output, cases)
+    }
+
+    /// Checks `cases` against the compiled ones, writes their inputs and runs the executable
+    /// with `args`; returns its standard output.
+    fn start(&self, cases: &[Case], args: &[String]) -> Result<String, MatiecError> {
         check_batch(cases, self.tick)?;
         if cases.len() != self.cases.len() {
             return Err(MatiecError::Invalid {
@@ -733,12 +755,11 @@ impl Batch {
             &run.path().join("cetratus-input.txt"),
             &input_text(cases, self.tick),
         )?;
-        let output = self.execute(run.path())?;
-        parse_output(&output, cases)
+        self.execute(run.path(), args)
     }
 
     /// Runs the executable on the input file in `dir`; returns its standard output.
-    fn execute(&self, dir: &Path) -> Result<String, MatiecError> {
+    fn execute(&self, dir: &Path, args: &[String]) -> Result<String, MatiecError> {
         let (out_path, err_path) = (
             dir.join("cetratus-output.txt"),
             dir.join("cetratus-stderr.txt"),
@@ -746,6 +767,7 @@ impl Batch {
         let input = fs::File::open(dir.join("cetratus-input.txt"))
             .map_err(io_error("cannot read input"))?;
         let mut child = Command::new(self.dir.path().join("cetratus-harness"))
+            .args(args)
             .current_dir(dir)
             .stdin(input)
             .stdout(file(&out_path)?)
@@ -776,7 +798,8 @@ impl Batch {
 
 /// Runs `build.sh` (under `flock` when there is one) and returns the dir it printed.
 fn build() -> Result<PathBuf, String> {
-    let script = paths::workspace_root().join("../shared/tools/matiec/build.sh");
+    let script =
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("../../../shared/tools/matiec/build.sh");
     if !script.is_file() {
         return Err(format!(
             "{} is missing (it builds MATIEC from the archive beside it); or set \
@@ -870,3 +893,15 @@ mod harness;
 
 use cc::*;
 use harness::*;
+
+/// Where the program `name` is installed: on `PATH`, or in an `sbin` directory.
+fn find_program(name: &str) -> Option<PathBuf> {
+    let on_path = std::env::var_os("PATH")
+        .map(|paths| std::env::split_paths(&paths).collect::<Vec<_>>())
+        .unwrap_or_default();
+    on_path
+        .into_iter()
+        .chain(["/usr/local/sbin", "/usr/sbin", "/sbin"].map(PathBuf::from))
+        .map(|dir| dir.join(name))
+        .find(|p| p.is_file())
+}

@@ -1,0 +1,55 @@
+//! `cetratus bench st`: Structured Text scans on Cetratus against the same programs compiled by
+//! MATIEC and `cc -O2`, and the import of a 5 000-line file (docs/performance.md).
+
+use std::path::PathBuf;
+
+use cetratus_bench::st;
+
+/// Arguments of `cetratus bench st`.
+#[derive(clap::Args, Debug)]
+pub struct StArgs {
+    /// A MATIEC install dir (`bin/iec2c`, `lib/`), for the compiled-C baseline; without it
+    /// only Cetratus's side is measured, and the output says so.
+    #[arg(long)]
+    matiec: Option<PathBuf>,
+    /// Fewer scans: a smoke run, not a figure.
+    #[arg(long)]
+    quick: bool,
+    /// Print one JSON object.
+    #[arg(long)]
+    json: bool,
+}
+
+/// Runs `cetratus bench st`.
+pub fn run(args: &StArgs) -> anyhow::Result<()> {
+    let f = st::figures(args.matiec.as_deref(), args.quick).map_err(|e| anyhow::anyhow!("{e}"))?;
+    if args.json {
+        println!("{}", serde_json::to_string_pretty(&f)?);
+        return Ok(());
+    }
+    if let Some(why) = &f.matiec_skipped {
+        println!("MATIEC's side skipped: {why}");
+    }
+    println!(
+        "{:<8} {:>8} {:>12} {:>12} {:>12} {:>7}",
+        "program", "scans", "cetratus ns", "st pass ns", "matiec ns", "ratio"
+    );
+    for p in &f.programs {
+        let or_dash =
+            |x: Option<f64>, digits: usize| x.map_or("-".to_string(), |v| format!("{v:.digits$}"));
+        println!(
+            "{:<8} {:>8} {:>12.0} {:>12.0} {:>12} {:>7}",
+            p.name,
+            p.scans,
+            p.cetratus_ns,
+            p.vm_ns,
+            or_dash(p.matiec_ns, 0),
+            or_dash(p.ratio, 2)
+        );
+    }
+    println!(
+        "import and compile of {} lines of ST: {:.1} ms",
+        f.import_lines, f.import_ms
+    );
+    Ok(())
+}

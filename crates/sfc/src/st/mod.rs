@@ -427,7 +427,11 @@ impl Parser<'_> {
                     ));
                 }
                 self.bump();
-                self.expect_sym(";", "after END_IF")?;
+                // CODESYS and TwinCAT accept a body that ends in `END_IF` without its `;`
+                // (docs/sfc.md); anywhere else the `;` is required.
+                if !matches!(self.peek(), Tok::End) {
+                    self.expect_sym(";", "after END_IF")?;
+                }
                 break;
             }
             self.depth -= 1;

@@ -77,6 +77,19 @@ fn statements_parse_with_if_elsif_else() {
     assert_eq!((arms.len(), otherwise.len()), (2, 1));
 }
 
+/// CODESYS writes an action body that ends in `END_IF` without its `;`; inside a body the `;`
+/// is still required.
+#[test]
+fn a_body_may_end_in_end_if_without_its_semicolon_as_codesys_writes_it() {
+    let body = body("n := 1;\nIF a THEN\n  b := TRUE;\nEND_IF\n", &Pou).expect("parses");
+    assert_eq!(body.len(), 2);
+    let nested = "IF a THEN IF b THEN n := 1; END_IF END_IF";
+    let e = super::body(nested, &Pou).expect_err("an inner END_IF needs its `;`");
+    assert!(e.message.contains("after END_IF"), "{}", e.message);
+    let e = super::body("IF a THEN n := 1; END_IF m := 2;", &Pou).expect_err("mid-body");
+    assert!(e.message.contains("after END_IF"), "{}", e.message);
+}
+
 #[test]
 fn constructs_outside_the_subset_are_named_with_their_offset() {
     for (text, construct, offset) in [

@@ -171,3 +171,58 @@ END_PROGRAM
     // From the scan the loop starts in, the outputs are at their safe values (lamp off).
     assert_eq!(csv.lines().last(), Some("3,30.000,1,0,0"), "{csv}");
 }
+
+/// A warm restart keeps the RETAIN variables of an ST program and initializes the others, as
+/// IEC 61131-3 wants (docs/st.md, *Restarts*): the second run picks up the RETAIN count where
+/// the first left it, and the plain count starts again from its initial value.
+#[test]
+fn a_warm_restart_keeps_the_retain_variables_and_initializes_the_others() {
+    let dir = tempfile::tempdir().expect("a temporary directory");
+    let keep = "\
+PROGRAM Keep
+VAR_OUTPUT kept : DINT; fresh : DINT; END_VAR
+VAR RETAIN total : DINT; END_VAR
+VAR plain : DINT; END_VAR
+total := total + 1;
+plain := plain + 1;
+kept := total;
+fresh := plain;
+END_PROGRAM
+";
+    ok(&import(dir.path(), "keep", keep));
+    let (program, replay) = (dir.path().join("Keep.toml"), dir.path().join("in.csv"));
+    std::fs::write(&replay, "scan,time_ms\n0,0.000\n").expect("write");
+    let state = dir.path().join("state");
+    let run = |for_: &str, trace: &Path| {
+        ok(&cetratus(&[
+            "run",
+            path(&program),
+            "--replay",
+            path(&replay),
+            "--virtual",
+            "--for",
+            for_,
+            "--state-dir",
+            path(&state),
+            "--trace",
+            path(trace),
+            "--no-mct",
+        ]))
+    };
+    let (first, second) = (dir.path().join("first.csv"), dir.path().join("second.csv"));
+    run("200ms", &first);
+    run("100ms", &second);
+    let rows = |p: &Path| -> Vec<String> {
+        let csv = std::fs::read_to_string(p).expect("the trace");
+        csv.lines().skip(1).map(str::to_owned).collect()
+    };
+    let (first, second) = (rows(&first), rows(&second));
+    assert_eq!(first.first().map(String::as_str), Some("0,0.000,1,1"));
+    assert_eq!(first.last().map(String::as_str), Some("19,190.000,20,20"));
+    // Scan 20 is the first of the second run: 21 scans counted in all, one since the restart.
+    assert_eq!(
+        second.first().map(String::as_str),
+        Some("20,200.000,21,1"),
+        "{second:?}"
+    );
+}

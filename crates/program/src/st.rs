@@ -37,6 +37,18 @@ pub struct StProgram {
     outputs: Vec<(u32, Elem, u32)>,
 }
 
+/// A RETAIN variable of a POU as persisted: its name and its part of the state.
+#[derive(Clone, Debug, Default, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct RetainedSt {
+    /// The variable's name as declared.
+    pub name: String,
+    /// Its slots (one `u64` per elementary value, instances and arrays flattened).
+    pub slots: Vec<u64>,
+    /// Its bytes of string text.
+    #[serde(default)]
+    pub text: Vec<u8>,
+}
+
 /// Why a POU's variables do not fit the program's signals.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct Wiring {
@@ -100,6 +112,43 @@ impl StProgram {
     /// The compiled POU.
     pub fn unit(&self) -> &Unit {
         &self.unit
+    }
+
+    /// Copies the RETAIN variables of `state` into `out`, in declaration order, reusing its
+    /// buffers (no allocation once they have their sizes): what a warm restart keeps.
+    pub fn retained_into(&self, state: &State, out: &mut Vec<RetainedSt>) {
+        let retained = self.unit.vars.iter().filter(|v| v.retain);
+        out.resize_with(retained.clone().count(), RetainedSt::default);
+        for (v, saved) in retained.zip(out.iter_mut()) {
+            if saved.name != v.name {
+                saved.name.clone_from(&v.name);
+            }
+            let (slots, text) = self.unit.image(state, v);
+            saved.slots.clear();
+            saved.slots.extend_from_slice(slots);
+            saved.text.clear();
+            saved.text.extend_from_slice(text);
+        }
+    }
+
+    /// A warm restart (docs/st.md, *Restarts*): the RETAIN variables of `saved` are written back
+    /// into `state` by name (case-insensitive); every other variable keeps the initial value
+    /// `state` holds, as IEC 61131-3 initializes non-RETAIN variables on a warm restart. A saved
+    /// variable this POU does not declare RETAIN, or whose size has changed, is not restored;
+    /// the names of those are returned.
+    pub fn restore_retained(&self, state: &mut State, saved: &[RetainedSt]) -> Vec<String> {
+        let mut left = Vec::new();
+        for r in saved {
+            let restored = self
+                .unit
+                .var(&r.name)
+                .filter(|v| v.retain)
+                .is_some_and(|v| self.unit.restore(state, v, &r.slots, &r.text));
+            if !restored {
+                left.push(r.name.clone());
+            }
+        }
+        left
     }
 
     /// The indices of the output signals the POU drives.

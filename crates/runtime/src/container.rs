@@ -3,6 +3,7 @@
 use std::sync::Arc;
 
 use cetratus_net::{Engine, FireError, PlaceIdx, Tokens, TransIdx};
+use cetratus_program::st::RetainedSt;
 use cetratus_program::{ActError, ActionState, EvalCtx, Program, Value, Work};
 
 use crate::RuntimeError;
@@ -630,6 +631,27 @@ impl Container {
     /// The S/R latches of the action state, in the program's action-target order.
     pub fn latches(&self) -> &[bool] {
         self.actions.latches()
+    }
+
+    /// Copies the RETAIN variables of the program's Structured Text into `out` (cleared when it
+    /// has none), reusing its buffers.
+    pub fn st_retained_into(&self, out: &mut Vec<RetainedSt>) {
+        match (self.program.st(), self.actions.st_state()) {
+            (Some(st), Some(state)) => st.retained_into(state, out),
+            _ => out.clear(),
+        }
+    }
+
+    /// Restores the RETAIN variables of the program's Structured Text (warm start); returns the
+    /// names of saved variables it could not restore.
+    pub fn restore_st_retained(&mut self, saved: &[RetainedSt]) -> Vec<String> {
+        let program = self.program.clone();
+        let restored = match (program.st(), self.actions.st_state_mut()) {
+            (Some(st), Some(state)) => st.restore_retained(state, saved),
+            _ => saved.iter().map(|r| r.name.clone()).collect(),
+        };
+        self.force_full = true;
+        restored
     }
 
     /// Restores variables and latches (warm start).

@@ -3,6 +3,7 @@
 use std::sync::Arc;
 
 use cetratus_net::Tokens;
+use cetratus_program::st::RetainedSt;
 use cetratus_program::{Program, Type, Value};
 use serde::{Deserialize, Serialize};
 
@@ -26,6 +27,9 @@ pub struct ContainerSnapshot {
     pub variables: Vec<serde_json::Value>,
     /// The S/R latches.
     pub latches: Vec<bool>,
+    /// The RETAIN variables of the program's Structured Text (docs/st.md, *Restarts*).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub st_retained: Vec<RetainedSt>,
 }
 
 /// Everything a warm start needs, written by the persistence thread.
@@ -73,6 +77,7 @@ impl Plc {
                         .extend(c.variables().iter().map(|v| value_json(*v)));
                     s.latches.clear();
                     s.latches.extend_from_slice(c.latches());
+                    c.st_retained_into(&mut s.st_retained);
                 }
             }
         }
@@ -123,6 +128,8 @@ impl Plc {
             })
             .collect();
         container.restore_retained(&vars, &cs.latches);
+        // The program is the one saved (its hash), so every saved RETAIN variable is there.
+        container.restore_st_retained(&cs.st_retained);
         container.resume_without_entry();
         let image = container.inputs().to_vec();
         let mut plc = Plc::bare(container, primary, now, &io_program, stopwatch);

@@ -32,6 +32,8 @@ pub struct Var {
     pub ty: Ty,
     /// Where it is in the state.
     pub at: Size,
+    /// How much of the state it takes, from `at`.
+    pub size: Size,
     /// RETAIN.
     pub retain: bool,
     /// CONSTANT.
@@ -358,7 +360,8 @@ impl<'a> Compiler<'a> {
                 ));
             }
             let ty = self.resolve_type(&m.decl.ty)?;
-            let at = self.alloc(self.size_of(ty), name.pos)?;
+            let size = self.size_of(ty);
+            let at = self.alloc(size, name.pos)?;
             self.init_var(ty, at, m.decl.init.as_ref())?;
             if scope.vars.contains_key(&name.key()) {
                 return Err(Diagnostic::new(
@@ -379,6 +382,7 @@ impl<'a> Compiler<'a> {
                 section: m.section,
                 ty,
                 at,
+                size,
                 retain: m.retain,
                 constant: m.constant,
                 address: m.decl.at.as_ref().map(|a| a.text.clone()),

@@ -206,6 +206,33 @@ impl Unit {
         self.vars.iter().find(|v| v.name.eq_ignore_ascii_case(&key))
     }
 
+    /// The part of `state` that holds `v`: its slots and its bytes of text.
+    pub fn image<'s>(&self, state: &'s State, v: &Var) -> (&'s [u64], &'s [u8]) {
+        let (s, t) = (v.at.slots as usize, v.at.text as usize);
+        (
+            state.slots.get(s..s + v.size.slots as usize).unwrap_or(&[]),
+            state.text.get(t..t + v.size.text as usize).unwrap_or(&[]),
+        )
+    }
+
+    /// Writes an image taken by [`Unit::image`] back into `v`'s part of `state`; false, and
+    /// nothing written, when it is not the size of `v`.
+    pub fn restore(&self, state: &mut State, v: &Var, slots: &[u64], text: &[u8]) -> bool {
+        let (s, t) = (v.at.slots as usize, v.at.text as usize);
+        let (Some(to_slots), Some(to_text)) = (
+            state.slots.get_mut(s..s + v.size.slots as usize),
+            state.text.get_mut(t..t + v.size.text as usize),
+        ) else {
+            return false;
+        };
+        if to_slots.len() != slots.len() || to_text.len() != text.len() {
+            return false;
+        }
+        to_slots.copy_from_slice(slots);
+        to_text.copy_from_slice(text);
+        true
+    }
+
     /// The name of a type, for messages.
     pub fn describe(&self, ty: Ty) -> String {
         self.types

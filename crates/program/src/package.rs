@@ -168,12 +168,18 @@ pub struct Changes {
     /// The least share of the old program's production the update may drop to, from 0 to 1.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub throughput_share: Option<f64>,
+    /// Structured Text variables whose values do not carry over by name and type
+    /// (docs/package-format.md, *Variables of Structured Text*): old name → new name (a rename,
+    /// same type), or old name → `""` (not carried: the new program starts it from its initial
+    /// value, and a RETAIN value is given up on purpose).
+    #[serde(default, skip_serializing_if = "std::collections::BTreeMap::is_empty")]
+    pub variables: std::collections::BTreeMap<String, String>,
 }
 
 impl Changes {
     /// Whether nothing is declared.
     pub fn is_empty(&self) -> bool {
-        self.outputs.is_empty() && self.throughput_share.is_none()
+        self.outputs.is_empty() && self.throughput_share.is_none() && self.variables.is_empty()
     }
 }
 
@@ -192,6 +198,7 @@ impl PackageMeta {
         let changes = Changes {
             outputs: self.changes.outputs.clone(),
             throughput_share: self.declared_share(),
+            variables: self.changes.variables.clone(),
         };
         (!changes.is_empty()).then_some(changes)
     }

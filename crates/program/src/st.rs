@@ -16,10 +16,11 @@
 //! Other types (STRING, arrays, structures, instances) are not signals: they stay in the ST
 //! state, which the container keeps with its program's other state.
 
+use std::collections::BTreeMap;
 use std::sync::Arc;
 
 use cetratus_st::ast::Section;
-use cetratus_st::types::{wrap, Elem, Ty};
+use cetratus_st::types::{wrap, Elem, Size, Ty};
 use cetratus_st::{Fault, State, Unit, Var, Work};
 
 use crate::value::{Signal, Type, Value};
@@ -224,5 +225,149 @@ fn from_slot(e: Elem, s: u64) -> Value {
         Elem::Lreal => Value::Real(f64::from_bits(s)),
         Elem::Time => Value::Int((s as i64) / NS_PER_MS),
         _ => Value::Int(s as i64),
+    }
+}
+
+/// How the state of one program's Structured Text carries into another's at an online change:
+/// the parts of the old state copied into the new, worked out once, away from the scan thread.
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct StCarry {
+    /// Per variable carried: where it is in the old state, where in the new, and its size.
+    ranges: Vec<(Size, Size, Size)>,
+}
+
+impl StCarry {
+    /// Copies the carried variables of `from` into `to`. Never allocates.
+    pub fn apply(&self, to: &mut State, from: &State) {
+        for &(src, dst, len) in &self.ranges {
+            let copy = |to: &mut [u64], from: &[u64], s: u32, d: u32, n: u32| {
+                let (s, d, n) = (s as usize, d as usize, n as usize);
+                if let (Some(t), Some(f)) = (to.get_mut(d..d + n), from.get(s..s + n)) {
+                    t.copy_from_slice(f);
+                }
+            };
+            copy(&mut to.slots, &from.slots, src.slots, dst.slots, len.slots);
+            let (s, d, n) = (src.text as usize, dst.text as usize, len.text as usize);
+            if let (Some(t), Some(f)) = (to.text.get_mut(d..d + n), from.text.get(s..s + n)) {
+                t.copy_from_slice(f);
+            }
+        }
+    }
+
+    /// How many variables carry.
+    pub fn len(&self) -> usize {
+        self.ranges.len()
+    }
+
+    /// Whether none does.
+    pub fn is_empty(&self) -> bool {
+        self.ranges.is_empty()
+    }
+}
+
+/// How the Structured Text of `old` carries into that of `new` (docs/st.md, *Online change*):
+/// every variable of `new` (constants aside) takes the value of the variable of `old` of the
+/// same name (case-insensitive) and the same layout, function block instances with their inner
+/// state, so a running TON keeps its elapsed time; a new variable starts from its initial
+/// value. `map` ([`crate::Changes::variables`]) renames (`old → new`) or lets go (`old → ""`).
+///
+/// Refused, naming the variable: a variable whose type changed, and a RETAIN variable of `old`
+/// that nothing carries, unless `map` names them; and a `map` entry that names a variable
+/// neither program has.
+pub fn carry_plan(
+    old: Option<&StProgram>,
+    new: Option<&StProgram>,
+    map: &BTreeMap<String, String>,
+) -> Result<StCarry, Wiring> {
+    let (plan, problems) = plan_with_problems(old, new, map);
+    match problems.into_iter().next() {
+        Some(p) => Err(p),
+        None => Ok(plan),
+    }
+}
+
+/// What [`carry_plan`] carries when nothing is refused: every variable of the same name and
+/// layout, the rest given up (the way back of a revert, to a program built without them).
+pub fn carry_what_fits(old: Option<&StProgram>, new: Option<&StProgram>) -> StCarry {
+    plan_with_problems(old, new, &BTreeMap::new()).0
+}
+
+/// The carry of [`carry_plan`], and what it would refuse.
+fn plan_with_problems(
+    old: Option<&StProgram>,
+    new: Option<&StProgram>,
+    map: &BTreeMap<String, String>,
+) -> (StCarry, Vec<Wiring>) {
+    let none = Vec::new();
+    let old_vars = old.map_or(&none, |o| &o.unit.vars);
+    let new_vars = new.map_or(&none, |n| &n.unit.vars);
+    let mut problems = map_problems(old_vars, new_vars, map);
+    let mut plan = StCarry::default();
+    let mut carried = vec![false; old_vars.len()];
+    if let (Some(old), Some(new)) = (old, new) {
+        for v in new.unit.vars.iter().filter(|v| !v.constant) {
+            let renamed = map.iter().find(|(_, to)| to.eq_ignore_ascii_case(&v.name));
+            let source = match renamed {
+                Some((from, _)) => Some(from.as_str()),
+                None if map.keys().any(|k| k.eq_ignore_ascii_case(&v.name)) => None,
+                None => Some(v.name.as_str()),
+            };
+            let Some(j) = source.and_then(|name| position(&old.unit.vars, name)) else {
+                continue;
+            };
+            let w = &old.unit.vars[j];
+            if old.unit.layout(w.ty) != new.unit.layout(v.ty) || w.size != v.size {
+                problems.push(Wiring {
+                    name: v.name.clone(),
+                    message: format!("`{}` was {} and is {}: its value cannot carry over; say in the manifest's `[changes] variables` what becomes of it (`{} = \"\"` starts it from its initial value)", v.name, old.unit.describe(w.ty), new.unit.describe(v.ty), w.name),
+                });
+                continue;
+            }
+            carried[j] = true;
+            plan.ranges.push((w.at, v.at, v.size));
+        }
+    }
+    let gone: Vec<&Var> = old_vars
+        .iter()
+        .zip(&carried)
+        .filter(|(_, c)| !**c)
+        .map(|(v, _)| v)
+        .collect();
+    problems.extend(unmapped_retain(&gone, map).err());
+    (plan, problems)
+}
+
+/// The position of the variable `name` (case-insensitive) among `vars`.
+fn position(vars: &[Var], name: &str) -> Option<usize> {
+    vars.iter().position(|v| v.name.eq_ignore_ascii_case(name))
+}
+
+/// The entries of `map` that name a variable neither program declares.
+fn map_problems(old: &[Var], new: &[Var], map: &BTreeMap<String, String>) -> Vec<Wiring> {
+    let mut out = Vec::new();
+    for (from, to) in map {
+        if position(old, from).is_none() {
+            out.push(Wiring {
+                name: from.clone(),
+                message: format!("the manifest's `[changes] variables` names `{from}`, which the running program's Structured Text does not declare; name variables of the running program on the left"),
+            });
+        } else if !to.is_empty() && position(new, to).is_none() {
+            out.push(Wiring {
+                name: to.clone(),
+                message: format!("the manifest's `[changes] variables` carries `{from}` into `{to}`, which the new program's Structured Text does not declare"),
+            });
+        }
+    }
+    out
+}
+
+/// The first RETAIN variable among `gone` (not carried) that `map` does not name, as a refusal.
+fn unmapped_retain(gone: &[&Var], map: &BTreeMap<String, String>) -> Result<(), Wiring> {
+    match gone.iter().find(|v| v.retain && !map.keys().any(|k| k.eq_ignore_ascii_case(&v.name))) {
+        None => Ok(()),
+        Some(v) => Err(Wiring {
+            name: v.name.clone(),
+            message: format!("the RETAIN variable `{}` of the running program has nothing to carry into in the new one, so its value would be lost; keep it, or give it up on purpose in the manifest's `[changes] variables` (`{} = \"\"`)", v.name, v.name),
+        }),
     }
 }

@@ -3,7 +3,7 @@
 use std::sync::Arc;
 
 use cetratus_net::{Engine, FireError, PlaceIdx, Tokens, TransIdx};
-use cetratus_program::st::RetainedSt;
+use cetratus_program::st::{RetainedSt, StCarry};
 use cetratus_program::{ActError, ActionState, EvalCtx, Program, Value, Work};
 
 use crate::RuntimeError;
@@ -80,7 +80,11 @@ fn carry(
     from: &Container,
     latch_map: &[Option<u32>],
     var_map: &[Option<u32>],
+    st: &StCarry,
 ) {
+    if let (Some(to), Some(f)) = (actions.st_state_mut(), from.actions.st_state()) {
+        st.apply(to, f);
+    }
     for (i, m) in latch_map.iter().enumerate() {
         if let Some(&on) = m.and_then(|j| from.latches().get(j as usize)) {
             actions.set_latch(i, on);
@@ -106,6 +110,7 @@ pub(crate) struct Carry<'a> {
     pub from: &'a Container,
     pub latch_map: &'a [Option<u32>],
     pub var_map: &'a [Option<u32>],
+    pub st: &'a StCarry,
 }
 
 /// Scratch for rehearsing what a program would drive from a marking, sized once for it (away
@@ -493,14 +498,23 @@ impl Container {
 
     /// Takes over the S/R latches and the variables of `from` (the primary) through the maps
     /// built by the Updater: `latch_map[i]` is `from`'s latch for this program's latch `i`,
-    /// `var_map[i]` `from`'s variable for variable `i`. Allocates nothing.
+    /// `var_map[i]` `from`'s variable for variable `i`, and `st` the variables of its
+    /// Structured Text. Allocates nothing.
     pub fn carry_from(
         &mut self,
         from: &Container,
         latch_map: &[Option<u32>],
         var_map: &[Option<u32>],
+        st: &StCarry,
     ) {
-        carry(&mut self.actions, &mut self.vars, from, latch_map, var_map);
+        carry(
+            &mut self.actions,
+            &mut self.vars,
+            from,
+            latch_map,
+            var_map,
+            st,
+        );
         self.force_full = true;
     }
 
@@ -522,7 +536,14 @@ impl Container {
         copy_into(&mut r.outputs, &self.outputs);
         copy_into(&mut r.vars, &self.vars);
         if let Some(c) = carried {
-            carry(&mut r.actions, &mut r.vars, c.from, c.latch_map, c.var_map);
+            carry(
+                &mut r.actions,
+                &mut r.vars,
+                c.from,
+                c.latch_map,
+                c.var_map,
+                c.st,
+            );
         }
         let view = EvalCtx {
             inputs: &self.inputs,

@@ -136,6 +136,14 @@ pub enum PrepareError {
     /// The package did not verify or does not fit the running program.
     #[error("package refused: {0}")]
     Package(#[from] cetratus_program::PackageError),
+    /// A variable of the running program's Structured Text cannot carry into the candidate.
+    #[error("package refused: Structured Text variable `{variable}`: {message}")]
+    StState {
+        /// The variable.
+        variable: String,
+        /// What is wrong and what to do.
+        message: String,
+    },
     /// The candidate reads an input the I/O map lacks.
     #[error("package refused: the candidate reads input `{signal}`, which the running I/O map does not provide ({available}); keep the I/O map or restart with the new program")]
     MissingInput {

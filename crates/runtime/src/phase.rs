@@ -28,6 +28,8 @@ pub(crate) struct UpdatePlan {
     // Candidate latch / variable → the primary's of the same name, carried over at the switch.
     pub latch_map: Vec<Option<u32>>,
     pub var_map: Vec<Option<u32>>,
+    // The candidate's Structured Text variables from the primary's, by name and layout.
+    pub st_map: cetratus_program::st::StCarry,
     // The way back, for a revert in probation, sized once away from the scan thread: the
     // primary's latch / variable → the candidate's of the same name, and buffers of the
     // projection into the primary's place space.
@@ -35,6 +37,7 @@ pub(crate) struct UpdatePlan {
     // What validation said of the update's program, for its exec_info.
     pub verdicts: Vec<crate::monitor::Verdict>,
     pub back_var_map: Vec<Option<u32>>,
+    pub back_st_map: cetratus_program::st::StCarry,
     pub back_marking: Vec<Tokens>,
     pub back_since: Vec<Option<u64>>,
     // Scratch for rehearsing what the old program would drive from a marking, at a revert.

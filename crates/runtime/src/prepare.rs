@@ -10,6 +10,8 @@ use cetratus_program::{
     UpdatePackage, Value,
 };
 
+use cetratus_program::st::{carry_plan, carry_what_fits, StCarry};
+
 use crate::container::Rehearsal;
 use crate::error::PrepareError;
 use crate::monitor::{ContainerStats, Verdict};
@@ -177,6 +179,7 @@ impl UpdateContext {
             .filter_map(|s| io_inputs.iter().position(|n| *n == s.name))
             .collect();
         let out_map = map_by_name(&io_outputs, program.outputs());
+        let (st_map, back_st_map) = st_maps(primary, &program, &update.meta.changes.variables)?;
         let (pn, cn) = (primary.net(), program.net());
         let np = cn.num_places();
         let work =
@@ -197,6 +200,8 @@ impl UpdateContext {
             safe: safe_image(&out_map, &program),
             latch_map: retained_latch_map(&program, primary),
             var_map: retained_var_map(&program, primary),
+            st_map,
+            back_st_map,
             back_latch_map: retained_latch_map(primary, &program),
             back_var_map: retained_var_map(primary, &program),
             verdicts: Vec::new(),
@@ -237,6 +242,22 @@ impl UpdateContext {
             work,
         })
     }
+}
+
+/// How the primary's Structured Text carries into the candidate's at the switch (refused, naming
+/// the variable, when a type changed or a RETAIN value would be lost and the manifest does not
+/// say so), and back at a revert, which carries whatever keeps its name and layout.
+fn st_maps(
+    primary: &Program,
+    program: &Program,
+    map: &std::collections::BTreeMap<String, String>,
+) -> Result<(StCarry, StCarry), PrepareError> {
+    let forward =
+        carry_plan(primary.st(), program.st(), map).map_err(|w| PrepareError::StState {
+            variable: w.name,
+            message: w.message,
+        })?;
+    Ok((forward, carry_what_fits(program.st(), primary.st())))
 }
 
 /// For each variable of `program`, the variable of `primary` of the same name and type.

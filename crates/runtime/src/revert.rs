@@ -87,6 +87,7 @@ fn weigh(core: &Core, p: &mut Probation, budget: u64) -> Weighed {
                 from: primary,
                 latch_map: &plan.back_latch_map,
                 var_map: &plan.back_var_map,
+                st: &plan.back_st_map,
             };
             shadow
                 .rehearse(
@@ -221,8 +222,12 @@ fn take_over(core: &mut Core, mut p: Box<Probation>, fit: Fit, weighed: &Weighed
         let plan = &p.plan;
         // Sized for the shadow's program when the update was prepared: cannot fail.
         let _ = p.shadow.set_state(&plan.back_marking, &plan.back_since);
-        p.shadow
-            .carry_from(&core.primary, &plan.back_latch_map, &plan.back_var_map);
+        p.shadow.carry_from(
+            &core.primary,
+            &plan.back_latch_map,
+            &plan.back_var_map,
+            &plan.back_st_map,
+        );
         core.router.mark_stale(s.index());
     }
     p.shadow

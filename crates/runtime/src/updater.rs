@@ -671,7 +671,7 @@ fn carry_state(
         .map_err(CarryError::State)?;
     // Latches and variables the program shares with the primary carry over, as the marking
     // does: an S that latched before the update stays latched.
-    candidate.carry_from(primary, &plan.latch_map, &plan.var_map);
+    candidate.carry_from(primary, &plan.latch_map, &plan.var_map, &plan.st_map);
     Ok(())
 }
 

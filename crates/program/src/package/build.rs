@@ -179,6 +179,13 @@ pub fn build_package_with(
     // here is what runs there.
     let new = load_embedded(&payload)?;
     declared_outputs(&meta.changes, &base, &new, &label)?;
+    // The PLC checks this again at load; the engineer hears of it at build.
+    crate::st::carry_plan(base.st(), new.st(), &meta.changes.variables).map_err(|w| {
+        PackageError::ManifestChanges {
+            path: label.clone(),
+            message: format!("Structured Text variable `{}`: {}", w.name, w.message),
+        }
+    })?;
     let manifest_err = |section, reason| PackageError::ManifestTransform {
         path: label.clone(),
         section,

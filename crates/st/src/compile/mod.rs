@@ -182,6 +182,8 @@ pub struct Unit {
     pub interval: Option<i64>,
     /// The names of the function block types, by id.
     pub fb_names: Vec<String>,
+    /// The members of the function block types, by id.
+    pub fb_fields: Vec<Vec<Field>>,
 }
 
 impl Unit {
@@ -231,6 +233,40 @@ impl Unit {
         to_slots.copy_from_slice(slots);
         to_text.copy_from_slice(text);
         true
+    }
+
+    /// The layout of `ty`, spelled out: two variables whose layouts are equal hold their values
+    /// in the same slots and bytes the same way, so one's state can be copied into the other's
+    /// (an online change, docs/st.md). Names, member types and array bounds all count; an
+    /// instance of a function block whose members changed has another layout. Its recursion is
+    /// bounded by the compiler's limit on nested types.
+    pub fn layout(&self, ty: Ty) -> String {
+        let members = |name: &str, fields: &[Field]| {
+            let inner: Vec<String> = fields
+                .iter()
+                .map(|f| format!("{}:{}", f.key, self.layout(f.ty)))
+                .collect();
+            format!("{name}{{{}}}", inner.join(";"))
+        };
+        match ty {
+            Ty::Struct(id) => {
+                let s = &self.types.structs[id as usize];
+                members(&s.name, &s.fields)
+            }
+            Ty::Fb(id) => members(&self.fb_names[id as usize], &self.fb_fields[id as usize]),
+            Ty::Array(id) => {
+                let a = &self.types.arrays[id as usize];
+                let dims: Vec<String> = a.dims.iter().map(|(l, h)| format!("{l}..{h}")).collect();
+                format!("ARRAY[{}]OF {}", dims.join(","), self.layout(a.elem))
+            }
+            Ty::Enum(id) => {
+                let e = &self.types.enums[id as usize];
+                let values: Vec<String> =
+                    e.values.iter().map(|(n, v)| format!("{n}={v}")).collect();
+                format!("{}({})", e.name, values.join(","))
+            }
+            Ty::Elem(_) | Ty::String(_) => self.describe(ty),
+        }
     }
 
     /// The name of a type, for messages.
@@ -367,6 +403,11 @@ impl<'a> Compiler<'a> {
             vars,
             interval,
             fb_names: self.fbs.iter().map(|f| f.name.clone()).collect(),
+            fb_fields: self
+                .fbs
+                .iter()
+                .map(|f| f.fields.iter().map(|(field, _)| field.clone()).collect())
+                .collect(),
         })
     }
 

@@ -129,7 +129,7 @@ fn build(a: &BuildArgs) -> anyhow::Result<()> {
             .map_or(0, |d| d.as_secs()),
     };
     // A manifest may name PLCopen XML files, imported as `cetratus import plcopen` does.
-    let importer = cetratus_sfc::PlcopenImporter;
+    let importer = cetratus_sfc::IecImporter;
     let (bytes, report) = build_package_with(&a.manifest, key.as_ref(), secs, Some(&importer))?;
     write_file(&a.out, &bytes)?;
     print_report(&report);

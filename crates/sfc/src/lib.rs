@@ -190,24 +190,29 @@ pub fn import_str(
     })
 }
 
-/// The PLCopen importer for package manifests: a `program` or `base` that is PLCopen XML is
-/// imported as `cetratus import plcopen` writes it ([`import_program`]), so the package binds to
+/// The IEC 61131-3 importer for package manifests: a `program` or `base` that is PLCopen XML
+/// (`.xml`) or Structured Text (`.st`) is imported as `cetratus import plcopen` or `cetratus
+/// import st` writes it ([`import_program`], [`structured::import_st`]), so the package binds to
 /// the same program hash.
-pub struct PlcopenImporter;
+pub struct IecImporter;
 
 use cetratus_program::package::{ImportError, ProgramText};
 
-impl cetratus_program::ProgramImporter for PlcopenImporter {
+impl cetratus_program::ProgramImporter for IecImporter {
     fn import(
         &self,
         path: &std::path::Path,
         pou: Option<&str>,
     ) -> Option<Result<ProgramText, ImportError>> {
-        let is_xml = path
+        let ext = path
             .extension()
             .and_then(|e| e.to_str())
-            .is_some_and(|e| e.eq_ignore_ascii_case("xml"));
-        if !is_xml {
+            .unwrap_or_default();
+        let (is_xml, is_st) = (
+            ext.eq_ignore_ascii_case("xml"),
+            ext.eq_ignore_ascii_case("st"),
+        );
+        if !is_xml && !is_st {
             return None;
         }
         let label = path.display().to_string();
@@ -215,6 +220,16 @@ impl cetratus_program::ProgramImporter for PlcopenImporter {
             Ok(t) => t,
             Err(e) => return Some(Err(ImportError(format!("cannot read `{label}`: {e}")))),
         };
+        if is_st {
+            return Some(
+                structured::import_st(&text, &label, pou)
+                    .map(|i| ProgramText {
+                        pnml: cetratus_net::pnml::write_string(&i.net),
+                        toml: i.toml,
+                    })
+                    .map_err(|e| ImportError(e.to_string())),
+            );
+        }
         if !is_plcopen(text.strip_prefix('\u{feff}').unwrap_or(&text)) {
             return None;
         }

@@ -107,8 +107,12 @@ fn program_toml(
         out,
         "description = {}",
         q(&format!(
-            "IEC 61131-3 Structured Text: POU {} of {label}",
-            unit.name
+            "IEC 61131-3 Structured Text: POU {} of {}",
+            unit.name,
+            // The file's name, not the path it was read by: the program hash covers the text.
+            std::path::Path::new(label)
+                .file_name()
+                .map_or(label.into(), |f| f.to_string_lossy())
         ))
     );
     let _ = writeln!(out, "net = {}", q(net_file));

@@ -316,6 +316,8 @@ pub enum Op {
         a: TextAt,
         b: TextAt,
     },
+    /// `dst := STRING_TO_<e>(s)`, read as MATIEC's library reads it.
+    FromStr { e: Elem, dst: Slot, s: TextAt },
     /// `dst := <e>_TO_STRING(a)`, cut to `cap`.
     ToStr {
         e: Elem,
@@ -351,6 +353,7 @@ impl Op {
                 u64::from(cap)
             }
             Op::StrLen { .. } => 0,
+            Op::FromStr { .. } => u64::from(crate::types::MAX_STRING),
             Op::StrFind { .. } | Op::StrCmp { .. } => u64::from(crate::types::MAX_STRING),
             Op::Str { args, .. } => u64::from(code.string_args[args as usize].cap) * 2,
             Op::StdFb { .. } => 16,

@@ -161,6 +161,7 @@ pub fn run(
             Op::StrLit { .. }
             | Op::StrMove { .. }
             | Op::StrLen { .. }
+            | Op::FromStr { .. }
             | Op::StrFind { .. }
             | Op::StrCmp { .. }
             | Op::Str { .. }
@@ -183,6 +184,9 @@ fn text_op(op: Op, code: &Code, s: &mut [u64], t: &mut [u8]) {
         Op::StrLit { dst, cap, lit } => set_str(t, dst, cap, &code.literals[lit as usize]),
         Op::StrMove { dst, cap, src } => str_move(t, dst, cap, src),
         Op::StrLen { e, dst, s: at } => s[dst as usize] = wrap(e, str_len(t, at) as u64),
+        Op::FromStr { e, dst, s: at } => {
+            s[dst as usize] = crate::format::from_text(e, str_of(t, at))
+        }
         Op::StrFind { e, dst, a, b } => s[dst as usize] = wrap(e, find(str_of(t, a), str_of(t, b))),
         Op::StrCmp { op, dst, a, b } => {
             s[dst as usize] = op.holds(str_of(t, a).cmp(str_of(t, b))) as u64

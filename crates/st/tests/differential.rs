@@ -275,3 +275,116 @@ fn every_generated_program_compiles() {
         }
     }
 }
+
+/// STRING_TO_* and TIME_TO_STRING on strings and durations chosen at MATIEC's edges: based
+/// literals, underscores, signs, more digits than fit, text after a number, reals with and
+/// without a dot, negative durations and fractions of a millisecond. (STRING_TO_TIME is a
+/// deliberate difference, docs/st.md, and binary or octal literals of more than 31 bits are
+/// undefined behaviour in MATIEC's C.)
+#[test]
+fn string_conversions_agree_with_matiec() {
+    use IecType::*;
+    let source = "
+PROGRAM Conversions
+  VAR_INPUT s : STRING; t : TIME; END_VAR
+  VAR_OUTPUT
+    b : BOOL; i : INT; d : DINT; l : LINT; w : WORD; u : UDINT; ul : ULINT;
+    r : REAL; lr : LREAL; ts : STRING;
+  END_VAR
+  b := STRING_TO_BOOL(s);
+  i := STRING_TO_INT(s);
+  d := STRING_TO_DINT(s);
+  l := STRING_TO_LINT(s);
+  w := STRING_TO_WORD(s);
+  u := STRING_TO_UDINT(s);
+  ul := STRING_TO_ULINT(s);
+  r := STRING_TO_REAL(s);
+  lr := STRING_TO_LREAL(s);
+  ts := TIME_TO_STRING(t);
+END_PROGRAM
+";
+    let strings = [
+        "",
+        "0",
+        "1",
+        "TRUE",
+        "true",
+        "True ",
+        "FALSE",
+        "42",
+        "-42",
+        "+42",
+        "1_000",
+        "2#1010",
+        "2#1111_0000",
+        "8#777",
+        "16#FF",
+        "16#dead_BEEF",
+        "16#FFFFFFFFFFFFFFFF",
+        "99999",
+        "-32769",
+        "12345678901234567890123",
+        "3.14",
+        "-2.5e3",
+        "1.5abc",
+        "abc",
+        " 7",
+        "7 ",
+        ".5",
+        "1.",
+        "12.34.56",
+        "1e5",
+        "0.000001",
+        "-0.0",
+    ];
+    let times: [i64; 8] = [
+        0,
+        1_500_000_000,
+        86_400_000_000_000,
+        5_400_000_000_000,
+        -90_000_000_000,
+        123_456_789,
+        3_723_000_250_000,
+        -1_250_000,
+    ];
+    let scans: Vec<Vec<std::string::String>> = strings
+        .iter()
+        .enumerate()
+        .map(|(k, s)| vec![format!("'{s}'"), format!("t{}", times[k % times.len()])])
+        .collect();
+    let outputs = [
+        ("b", Bool),
+        ("i", Int),
+        ("d", Dint),
+        ("l", Lint),
+        ("w", Word),
+        ("u", Udint),
+        ("ul", Ulint),
+        ("r", Real),
+        ("lr", Lreal),
+        ("ts", String),
+    ];
+    let case = Case {
+        program: "Conversions".into(),
+        inputs: vec![("s".into(), String), ("t".into(), Time)],
+        outputs: outputs.iter().map(|(n, t)| (n.to_string(), *t)).collect(),
+        scans,
+    };
+    let matiec = Matiec::get().unwrap_or_else(|e| panic!("MATIEC is needed: {e}"));
+    let tick = std::time::Duration::from_millis(TICK_MS);
+    let want = matiec
+        .run(source, std::slice::from_ref(&case), tick)
+        .unwrap_or_else(|e| panic!("{e}"));
+    let lib = parse::parse_library(source).unwrap_or_else(|d| panic!("{}", d.message));
+    let unit = compile(&lib, None).unwrap_or_else(|d| panic!("{}", d.message));
+    let got = run_here(&unit, &case);
+    for (k, (g, w)) in got.iter().zip(&want[0]).enumerate() {
+        assert_eq!(g, w, "scan {k}: s = {:?}, outputs {outputs:?}", strings[k]);
+    }
+    assert_eq!(got.len(), want[0].len());
+    // Spot checks, so that agreeing on nothing cannot pass: 16#FF, and 1.5 s printed.
+    let ff = strings.iter().position(|s| *s == "16#FF").expect("16#FF");
+    assert_eq!(got[ff][4], "255");
+    assert_eq!(got[1][9], "'T#0d0h0m1s500ms'");
+    assert_eq!(got[4][9], "'T#0d0h-1m-30s'");
+}

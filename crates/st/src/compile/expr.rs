@@ -516,6 +516,7 @@ impl<'a> Compiler<'a> {
             | Op::Shift { dst, .. }
             | Op::LoadInd { dst, .. }
             | Op::StrLen { dst, .. }
+            | Op::FromStr { dst, .. }
             | Op::StrFind { dst, .. }
             | Op::StrCmp { dst, .. } => dst,
             _ => return false,

@@ -62,6 +62,7 @@ const OPERATORS: [(&str, BinOp); 13] = [
 /// Whether `key` (upper case) names a standard function.
 pub fn is_standard(key: &str) -> bool {
     conversion(key).is_some()
+        || from_string(key).is_some()
         || key
             .strip_suffix("_TO_STRING")
             .and_then(Elem::from_name)
@@ -73,6 +74,11 @@ pub fn is_standard(key: &str) -> bool {
             key,
             "TRUNC" | "MOVE" | "NOT" | "NE" | "MAX" | "MIN" | "MUX" | "CONCAT"
         )
+}
+
+/// `STRING_TO_B` for an elementary type B.
+fn from_string(key: &str) -> Option<Elem> {
+    key.strip_prefix("STRING_TO_").and_then(Elem::from_name)
 }
 
 /// `A_TO_B` between elementary types.
@@ -178,6 +184,10 @@ impl<'a> Compiler<'a> {
             arity(1)?;
             return self.convert(args[0], from, to, pos);
         }
+        if let Some(to) = from_string(&key) {
+            arity(1)?;
+            return self.converted_from_string(args[0], to, pos);
+        }
         if let Some(&(_, f)) = MATH.iter().find(|m| m.0 == key) {
             arity(1)?;
             return self.math(f, args[0], want, pos);
@@ -240,6 +250,9 @@ impl<'a> Compiler<'a> {
     /// The result type of a standard function, if it can be told without context.
     pub fn peek_standard(&mut self, key: &str, args: &[Arg]) -> Option<Ty> {
         if let Some((_, to)) = conversion(key) {
+            return Some(Ty::Elem(to));
+        }
+        if let Some(to) = from_string(key) {
             return Some(Ty::Elem(to));
         }
         if key.ends_with("_TO_STRING") {

@@ -201,9 +201,6 @@ impl<'a> Compiler<'a> {
         from: Elem,
         pos: Pos,
     ) -> Result<Val, Diagnostic> {
-        if from == Elem::Time {
-            return Err(Diagnostic::new(pos, "TIME_TO_STRING is not supported yet: convert the duration to an integer of milliseconds with TIME_TO_DINT, then to a STRING"));
-        }
         let a = self.scalar(arg, Ty::Elem(from))?;
         let cap = 40;
         let dst = self.string_temp(cap, pos)?;
@@ -217,5 +214,25 @@ impl<'a> Compiler<'a> {
             pos,
         )?;
         Ok(Val::Str(cap, dst))
+    }
+
+    /// `STRING_TO_<to>(s)`, read as MATIEC's library reads it (docs/st.md, *Strings*).
+    pub fn converted_from_string(
+        &mut self,
+        arg: &Expr,
+        to: Elem,
+        pos: Pos,
+    ) -> Result<Val, Diagnostic> {
+        let texts = self.strings(&[arg])?;
+        let dst = self.temp(pos)?;
+        self.emit(
+            Op::FromStr {
+                e: to,
+                dst,
+                s: texts[0].1,
+            },
+            pos,
+        )?;
+        Ok(Val::Scalar(Ty::Elem(to), dst))
     }
 }

@@ -257,6 +257,17 @@ pub enum Op {
         lo: i32,
         len: u32,
     },
+    /// `dst := base + (idx - lo)`, after checking `lo <= idx < lo + len`: the slot of an element
+    /// of a one-dimensional array of an elementary type at the fixed slot `base`, in one
+    /// instruction (an `Index` and its `Addr`s otherwise).
+    Index1 {
+        e: Elem,
+        dst: Slot,
+        idx: Slot,
+        lo: i32,
+        len: u32,
+        base: u32,
+    },
     /// `dst := base + lin * stride`: an element's slot or text offset from its linear index.
     Addr {
         dst: Slot,

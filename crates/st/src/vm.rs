@@ -107,24 +107,19 @@ pub fn run(
                 lo,
                 len,
             } => {
-                let i = s[idx as usize];
-                let at = if e.is_signed() || e == Elem::Bool {
-                    (i as i64).checked_sub(i64::from(lo))
-                } else {
-                    i64::try_from(i)
-                        .ok()
-                        .and_then(|i| i.checked_sub(i64::from(lo)))
-                };
-                match at {
-                    Some(at) if (0..i64::from(len)).contains(&at) => {
-                        s[acc as usize] = s[acc as usize] * u64::from(len) + at as u64
-                    }
-                    _ => {
-                        let hi = (i64::from(lo) + i64::from(len) - 1) as i32;
-                        let index = i as i64;
-                        return Err(fault(pc - 1, FaultKind::IndexOutOfRange { index, lo, hi }));
-                    }
-                }
+                let at = index(e, s[idx as usize], lo, len).map_err(|k| fault(pc - 1, k))?;
+                s[acc as usize] = s[acc as usize] * u64::from(len) + at;
+            }
+            Op::Index1 {
+                e,
+                dst,
+                idx,
+                lo,
+                len,
+                base,
+            } => {
+                let at = index(e, s[idx as usize], lo, len).map_err(|k| fault(pc - 1, k))?;
+                s[dst as usize] = u64::from(base) + at;
             }
             Op::Addr {
                 dst,
@@ -231,6 +226,29 @@ fn of_f32(x: f32) -> u64 {
 
 /// `a op b` in type `e`; integer division and MOD as MATIEC's C: `/` truncates toward zero (a
 /// division by zero faults, where C would trap), MOD by zero is 0 (MATIEC's `MOD` function).
+/// `i - lo` for an index `i` of integer type `e`, when `lo <= i < lo + len`.
+#[inline]
+fn index(e: Elem, i: u64, lo: i32, len: u32) -> Result<u64, FaultKind> {
+    let at = if e.is_signed() || e == Elem::Bool {
+        (i as i64).checked_sub(i64::from(lo))
+    } else {
+        i64::try_from(i)
+            .ok()
+            .and_then(|i| i.checked_sub(i64::from(lo)))
+    };
+    match at {
+        Some(at) if (0..i64::from(len)).contains(&at) => Ok(at as u64),
+        _ => {
+            let hi = (i64::from(lo) + i64::from(len) - 1) as i32;
+            Err(FaultKind::IndexOutOfRange {
+                index: i as i64,
+                lo,
+                hi,
+            })
+        }
+    }
+}
+
 fn arith(op: Arith, e: Elem, a: u64, b: u64) -> Result<u64, FaultKind> {
     match e {
         Elem::Real => Ok(of_f32(

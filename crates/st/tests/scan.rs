@@ -146,3 +146,42 @@ fn small_integers_are_computed_in_32_bits_and_cut_where_stored() {
     assert_eq!(slot(&u, &s, "c") as i64, -32768);
     assert_eq!(slot(&u, &s, "d"), 65535);
 }
+
+/// An index outside an array's bounds faults, naming the index and the bounds, in the
+/// one-instruction path of a one-dimensional array of an elementary type and in the general
+/// one (two dimensions, structures); a negative lower bound counts as declared.
+#[test]
+fn an_index_outside_the_bounds_faults_naming_it_in_every_addressing_path() {
+    use cetratus_st::code::FaultKind;
+    let u = build(
+        "TYPE Pt : STRUCT x : INT; s : STRING[4]; END_STRUCT; END_TYPE
+         PROGRAM P
+         VAR i : INT; j : INT; k : INT; v : INT;
+             a : ARRAY[-2..2] OF INT; m : ARRAY[0..1, 0..2] OF INT; p : ARRAY[0..1] OF Pt;
+         END_VAR
+         CASE k OF
+           0: a[i] := 7; v := a[i];
+           1: m[i, j] := 7; v := m[i, j];
+           2: p[i].x := 7; v := p[i].x;
+         END_CASE;
+         END_PROGRAM",
+    );
+    let run = |k: u64, i: i64, j: i64| {
+        let mut s = u.new_state();
+        set(&u, &mut s, "k", k);
+        set(&u, &mut s, "i", i as u64);
+        set(&u, &mut s, "j", j as u64);
+        u.run(&mut s, 0, &mut Work::unlimited())
+            .map(|()| slot(&u, &s, "v"))
+            .map_err(|f| f.kind)
+    };
+    assert_eq!(run(0, -2, 0), Ok(7));
+    assert_eq!(run(0, 2, 0), Ok(7));
+    let out = |index, lo, hi| Err(FaultKind::IndexOutOfRange { index, lo, hi });
+    assert_eq!(run(0, 3, 0), out(3, -2, 2));
+    assert_eq!(run(0, -3, 0), out(-3, -2, 2));
+    assert_eq!(run(1, 1, 2), Ok(7));
+    assert_eq!(run(1, 1, 3), out(3, 0, 2));
+    assert_eq!(run(2, 1, 0), Ok(7));
+    assert_eq!(run(2, 2, 0), out(2, 0, 1));
+}

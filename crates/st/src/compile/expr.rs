@@ -353,6 +353,31 @@ impl<'a> Compiler<'a> {
                 write: b.write,
             });
         }
+        if let Some((fused, base)) = self.index1(b.loc, &a, pos)? {
+            let i = &idx[0];
+            let (e, slot) = self.integer(i, "an array index")?;
+            let (lo, hi) = a.dims[0];
+            self.emit(
+                Op::Index1 {
+                    e,
+                    dst: fused,
+                    idx: slot,
+                    lo: lo as i32,
+                    len: (hi - lo + 1) as u32,
+                    base,
+                },
+                i.pos,
+            )?;
+            return Ok(Place {
+                ty: a.elem,
+                loc: Loc::Dynamic {
+                    slot_addr: fused,
+                    text_addr: fused,
+                    off: Size::default(),
+                },
+                write: b.write,
+            });
+        }
         let acc = self.temp(pos)?;
         self.emit(Op::Const { dst: acc, bits: 0 }, pos)?;
         for (&(lo, hi), i) in a.dims.iter().zip(idx) {
@@ -374,6 +399,24 @@ impl<'a> Compiler<'a> {
             loc,
             write: b.write,
         })
+    }
+
+    /// A temporary for [`Op::Index1`] and the array's slot, when an element of `a` at `base` can
+    /// be addressed in one instruction: a fixed place, one dimension, elements of one slot and
+    /// no text (an elementary type or an enumeration; only their slot address is ever read).
+    fn index1(
+        &mut self,
+        base: Loc,
+        a: &crate::types::ArrayTy,
+        pos: Pos,
+    ) -> Result<Option<(Slot, u32)>, Diagnostic> {
+        let one = Size { slots: 1, text: 0 };
+        match base {
+            Loc::Static(at) if a.dims.len() == 1 && a.elem_size == one => {
+                Ok(Some((self.temp(pos)?, at.slots)))
+            }
+            _ => Ok(None),
+        }
     }
 
     /// The linear index of constant indices, checked against the bounds.

@@ -894,8 +894,9 @@ mod harness;
 use cc::*;
 use harness::*;
 
-/// Where the program `name` is installed: on `PATH`, or in an `sbin` directory.
-fn find_program(name: &str) -> Option<PathBuf> {
+/// Where the program `name` is installed: on `PATH`, or in an `sbin` directory, which Debian
+/// keeps off an ordinary user's `PATH` although it installs Mosquitto there.
+pub fn find_program(name: &str) -> Option<PathBuf> {
     let on_path = std::env::var_os("PATH")
         .map(|paths| std::env::split_paths(&paths).collect::<Vec<_>>())
         .unwrap_or_default();

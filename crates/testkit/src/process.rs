@@ -39,18 +39,7 @@ impl Drop for ChildGuard {
     }
 }
 
-/// Where the program `name` is installed: on `PATH`, or in an `sbin` directory, which Debian
-/// keeps off an ordinary user's `PATH` although it installs Mosquitto there.
-pub fn find_program(name: &str) -> Option<PathBuf> {
-    let on_path = std::env::var_os("PATH")
-        .map(|paths| std::env::split_paths(&paths).collect::<Vec<_>>())
-        .unwrap_or_default();
-    on_path
-        .into_iter()
-        .chain(["/usr/local/sbin", "/usr/sbin", "/sbin"].map(PathBuf::from))
-        .map(|dir| dir.join(name))
-        .find(|p| p.is_file())
-}
+pub use cetratus_matiec::find_program;
 
 /// Where the program `name` is installed.
 ///

@@ -135,21 +135,13 @@ impl StProgram {
     /// A warm restart (docs/st.md, *Restarts*): the RETAIN variables of `saved` are written back
     /// into `state` by name (case-insensitive); every other variable keeps the initial value
     /// `state` holds, as IEC 61131-3 initializes non-RETAIN variables on a warm restart. A saved
-    /// variable this POU does not declare RETAIN, or whose size has changed, is not restored;
-    /// the names of those are returned.
-    pub fn restore_retained(&self, state: &mut State, saved: &[RetainedSt]) -> Vec<String> {
-        let mut left = Vec::new();
+    /// variable this POU does not declare RETAIN, or whose size has changed, is not restored.
+    pub fn restore_retained(&self, state: &mut State, saved: &[RetainedSt]) {
         for r in saved {
-            let restored = self
-                .unit
-                .var(&r.name)
-                .filter(|v| v.retain)
-                .is_some_and(|v| self.unit.restore(state, v, &r.slots, &r.text));
-            if !restored {
-                left.push(r.name.clone());
+            if let Some(v) = self.unit.var(&r.name).filter(|v| v.retain) {
+                self.unit.restore(state, v, &r.slots, &r.text);
             }
         }
-        left
     }
 
     /// The indices of the output signals the POU drives.
@@ -252,16 +244,6 @@ impl StCarry {
                 t.copy_from_slice(f);
             }
         }
-    }
-
-    /// How many variables carry.
-    pub fn len(&self) -> usize {
-        self.ranges.len()
-    }
-
-    /// Whether none does.
-    pub fn is_empty(&self) -> bool {
-        self.ranges.is_empty()
     }
 }
 

@@ -663,16 +663,13 @@ impl Container {
         }
     }
 
-    /// Restores the RETAIN variables of the program's Structured Text (warm start); returns the
-    /// names of saved variables it could not restore.
-    pub fn restore_st_retained(&mut self, saved: &[RetainedSt]) -> Vec<String> {
+    /// Restores the RETAIN variables of the program's Structured Text (warm start).
+    pub fn restore_st_retained(&mut self, saved: &[RetainedSt]) {
         let program = self.program.clone();
-        let restored = match (program.st(), self.actions.st_state_mut()) {
-            (Some(st), Some(state)) => st.restore_retained(state, saved),
-            _ => saved.iter().map(|r| r.name.clone()).collect(),
-        };
+        if let (Some(st), Some(state)) = (program.st(), self.actions.st_state_mut()) {
+            st.restore_retained(state, saved);
+        }
         self.force_full = true;
-        restored
     }
 
     /// Restores variables and latches (warm start).

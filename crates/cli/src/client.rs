@@ -1,4 +1,4 @@
-//! The CLI client of the MCT: `load`, `substitute`, `remove`, `abort`, `reset`, `status`, `watch`
+//! The CLI's client commands: `load`, `substitute`, `remove`, `abort`, `reset`, `status`, `watch`
 //! and `exec-info`, spoken over MQTT 5 request/reply to a PLC.
 
 use std::path::PathBuf;

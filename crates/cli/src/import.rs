@@ -1,5 +1,5 @@
-//! `cetratus import plcopen` and `cetratus import st`: an SFC chart of a PLCopen XML file, or a
-//! POU of a Structured Text file, written as a Cetratus program.
+//! `cetratus import plcopen` and `cetratus import st`: a POU of a PLCopen XML file (an SFC chart,
+//! or an ST, LD or FBD body), or of a Structured Text file, written as a Cetratus program.
 
 use std::path::PathBuf;
 
@@ -14,8 +14,8 @@ pub struct ImportArgs {
 
 #[derive(clap::Subcommand, Debug)]
 enum From {
-    /// An IEC 61131-3 SFC from PLCopen TC6 XML (CODESYS, TwinCAT, Beremiz, OpenPLC Editor);
-    /// docs/sfc.md has the mapping.
+    /// A POU of PLCopen TC6 XML (CODESYS, TwinCAT, Beremiz, OpenPLC Editor): an SFC chart
+    /// (docs/sfc.md), or an ST, LD or FBD body (docs/st.md).
     Plcopen(PlcopenArgs),
     /// A PROGRAM or FUNCTION_BLOCK of an IEC 61131-3 Structured Text file; docs/st.md says
     /// what is accepted and how it runs.
@@ -40,7 +40,7 @@ struct StArgs {
 struct PlcopenArgs {
     /// The PLCopen XML file.
     file: PathBuf,
-    /// The SFC POU to import; needed when the file has several.
+    /// The POU to import; needed unless the file has one SFC POU, or none and one PROGRAM.
     #[arg(long)]
     pou: Option<String>,
     /// The directory to write the program to (`POU.toml` and `POU.pnml`); created if needed.
@@ -55,7 +55,10 @@ pub fn run(args: &ImportArgs) -> anyhow::Result<()> {
         From::St(a) => return structured_text(a),
     };
     let (label, text) = read(&a.file)?;
-    let imported = cetratus_sfc::import_program(&text, &label, a.pou.as_deref())?;
+    let imported = match cetratus_sfc::import_pou(&text, &label, a.pou.as_deref())? {
+        cetratus_sfc::ImportedPou::Chart(chart) => *chart,
+        cetratus_sfc::ImportedPou::Text(pou) => return print_pou(&a.output, &pou),
+    };
     let toml_path = write(
         &a.output,
         &imported.program,
@@ -91,8 +94,16 @@ pub fn run(args: &ImportArgs) -> anyhow::Result<()> {
 fn structured_text(a: &StArgs) -> anyhow::Result<()> {
     let (label, text) = read(&a.file)?;
     let imported = cetratus_sfc::structured::import_st(&text, &label, a.pou.as_deref())?;
+    print_pou(&a.output, &imported)
+}
+
+/// Writes a POU imported as Structured Text and says what it became.
+fn print_pou(
+    output: &std::path::Path,
+    imported: &cetratus_sfc::structured::ImportedSt,
+) -> anyhow::Result<()> {
     let toml_path = write(
-        &a.output,
+        output,
         &imported.program,
         &imported.net,
         &imported.toml,

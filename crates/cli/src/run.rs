@@ -45,6 +45,10 @@ pub struct RunArgs {
     /// Write the I/O trace: `.csv` or `.json`.
     #[arg(long)]
     trace: Option<PathBuf>,
+    /// Record a variable of the program's Structured Text in the trace too, as a column after
+    /// the outputs: `NAME` or `INSTANCE.MEMBER`, of an elementary type (repeatable).
+    #[arg(long, value_name = "NAME")]
+    watch: Vec<String>,
     /// Write an SVG timing diagram of inputs and outputs.
     #[arg(long)]
     svg: Option<PathBuf>,
@@ -216,9 +220,37 @@ fn spec(args: &RunArgs, program: Arc<Program>, kept: Kept) -> anyhow::Result<Nod
     spec.allow_unsigned = args.allow_unsigned;
     spec.script = Script::parse(&args.at)?;
     spec.record_trace = args.trace.is_some() || args.svg.is_some();
+    spec.watch = watched(args, &spec.program)?;
     spec.progress_every = args.progress;
     spec.echo = Some(Box::new(echo(args.json, kept)));
     Ok(spec)
+}
+
+/// The `--watch` names, each a variable of an elementary type of the program's Structured Text.
+fn watched(args: &RunArgs, program: &Program) -> anyhow::Result<Vec<String>> {
+    if args.watch.is_empty() {
+        return Ok(Vec::new());
+    }
+    if args.trace.is_none() && args.svg.is_none() {
+        bail!("--watch adds columns to the trace: add --trace FILE.csv (or --svg)");
+    }
+    let Some(st) = program.st() else {
+        bail!(
+            "--watch names variables of a program's Structured Text, and `{}` has none; watch its signals in the trace as they are",
+            program.name()
+        );
+    };
+    for name in &args.watch {
+        if st.locate(name).is_none() {
+            let vars: Vec<&str> = st.unit().vars.iter().map(|v| v.name.as_str()).collect();
+            bail!(
+                "--watch {name}: `{}` has no variable `{name}` of an elementary type (its variables: {}; a member is INSTANCE.MEMBER)",
+                program.name(),
+                vars.join(", ")
+            );
+        }
+    }
+    Ok(args.watch.clone())
 }
 
 /// Prints what the node echoes, and keeps its events for the JSON summary (on the echo thread,

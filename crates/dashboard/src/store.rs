@@ -181,7 +181,8 @@ pub struct Update {
 pub struct PlcView {
     /// The latest `state`.
     pub state: Option<Stamped>,
-    /// The latest `exec_info`, as `{"A": …|null, "B": …|null}`.
+    /// The latest `exec_info`, as the pair `[A, B]` ([`ExecInfoMsg`]): container A's figures, then
+    /// B's, each `null` when the container is empty.
     pub exec_info: Option<Stamped>,
     /// The latest `net`, as `{"A": "<svg…>"|null, "B": …}`.
     pub net: Option<Stamped>,

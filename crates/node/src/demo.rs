@@ -358,6 +358,7 @@ pub fn scripted(files: &DemoFiles, gate: GatePolicy) -> Result<DemoRecord, DemoE
         base_us: 0,
         load: load.clone(),
         record_trace: false,
+        watch: Vec::new(),
         progress_every: None,
     };
     let mut r = Run {

@@ -47,6 +47,8 @@ pub struct NodeOptions {
     pub load: crate::load::LoadPolicy,
     /// Record the I/O trace (`--trace`, `--svg`).
     pub record_trace: bool,
+    /// Program variables the trace records too (`--watch`).
+    pub watch: Vec<String>,
     /// Echo [`Echo::Progress`] every this many cycles.
     pub progress_every: Option<u64>,
 }
@@ -114,9 +116,10 @@ pub struct NodeReport {
 impl<IO: Provider + Dispatcher> Node<IO> {
     /// A node around `plc` and its I/O.
     pub fn new(plc: Plc, io: IO, opts: NodeOptions) -> Self {
-        let trace = opts
-            .record_trace
-            .then(|| Trace::new(plc.io_inputs().to_vec(), plc.io_outputs().to_vec()));
+        let trace = opts.record_trace.then(|| {
+            Trace::new(plc.io_inputs().to_vec(), plc.io_outputs().to_vec())
+                .watching(opts.watch.clone())
+        });
         Node {
             plc,
             io,
@@ -386,11 +389,19 @@ impl<IO: Provider + Dispatcher> Node<IO> {
         }
         self.plc.cycle(now, &mut self.io);
         if let Some(t) = self.trace.as_mut() {
-            t.observe(
+            let k = self.plc.primary_container();
+            let watched: Vec<cetratus_program::Value> = (t.watched_names.iter())
+                .map(|n| {
+                    k.st_watch(n)
+                        .unwrap_or(cetratus_program::Value::Bool(false))
+                })
+                .collect();
+            t.observe_watched(
                 self.plc.cycles() - 1,
                 now,
                 self.plc.inputs(),
                 self.plc.dispatched(),
+                &watched,
             );
         }
         if let Some(observe) = self.observer.as_mut() {

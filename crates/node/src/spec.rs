@@ -112,6 +112,8 @@ pub struct NodeSpec {
     pub script: Script,
     /// Record the I/O trace.
     pub record_trace: bool,
+    /// Program variables the trace records too.
+    pub watch: Vec<String>,
     /// Echo progress every this many cycles.
     pub progress_every: Option<u64>,
     /// Where events, progress and warnings are echoed, on a thread of their own.
@@ -248,6 +250,7 @@ impl NodeSpec {
             allow_unsigned: false,
             script: Script::default(),
             record_trace: false,
+            watch: Vec::new(),
             progress_every: None,
             echo: None,
         }
@@ -405,6 +408,7 @@ impl NodeSpec {
             base_us,
             load: load.clone(),
             record_trace: self.record_trace,
+            watch: self.watch.clone(),
             progress_every: self.progress_every,
         };
         let observer = io.observer();

@@ -173,6 +173,7 @@ fn a_scripted_load_is_gated_from_the_marking_of_the_boundary_it_is_installed_at(
             gate: Default::default(),
         },
         record_trace: false,
+        watch: Vec::new(),
         progress_every: None,
     };
     let script = Script::parse(&[format!("{}us load {}", DUE, pkg.display())]).expect("script");

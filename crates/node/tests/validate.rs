@@ -132,6 +132,7 @@ fn validated_node(
             gate: Default::default(),
         },
         record_trace: false,
+        watch: Vec::new(),
         progress_every: None,
     };
     Node::new(plc, io, opts)

@@ -149,6 +149,36 @@ impl StProgram {
         self.outputs.iter().map(|&(i, _, _)| i as usize)
     }
 
+    /// The value in `state` of the variable `path` of an elementary type: a name, or a member
+    /// of an instance or structure (`TON0.ET`), for traces (`cetratus run --watch`).
+    pub fn watch(&self, state: &State, path: &str) -> Option<Value> {
+        let (e, slot) = self.locate(path)?;
+        state.slots.get(slot).map(|&s| from_slot(e, s))
+    }
+
+    /// The elementary type and slot of the variable `path` (see [`StProgram::watch`]).
+    pub fn locate(&self, path: &str) -> Option<(Elem, usize)> {
+        let mut parts = path.split('.');
+        let v = self.unit.var(parts.next()?.trim())?;
+        let (mut ty, mut at) = (v.ty, v.at.slots);
+        for member in parts {
+            let fields = match ty {
+                Ty::Fb(id) => self.unit.fb_fields.get(id as usize)?,
+                Ty::Struct(id) => &self.unit.types.structs.get(id as usize)?.fields,
+                _ => return None,
+            };
+            let f = fields
+                .iter()
+                .find(|f| f.key.eq_ignore_ascii_case(member.trim()))?;
+            ty = f.ty;
+            at += f.at.slots;
+        }
+        match ty {
+            Ty::Elem(e) => Some((e, at as usize)),
+            _ => None,
+        }
+    }
+
     /// One run of the POU on `state` at `now_us`: the inputs copied in, its code run within
     /// `work`, its outputs copied out. Never allocates.
     pub fn run(

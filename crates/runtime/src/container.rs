@@ -663,6 +663,13 @@ impl Container {
         }
     }
 
+    /// The value of the program's Structured Text variable `path` (see
+    /// [`cetratus_program::st::StProgram::watch`]), if the program has one of that name.
+    pub fn st_watch(&self, path: &str) -> Option<Value> {
+        let (st, state) = (self.program.st()?, self.actions.st_state()?);
+        st.watch(state, path)
+    }
+
     /// Restores the RETAIN variables of the program's Structured Text (warm start).
     pub fn restore_st_retained(&mut self, saved: &[RetainedSt]) {
         let program = self.program.clone();

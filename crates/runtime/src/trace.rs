@@ -28,6 +28,9 @@ pub struct TraceRow {
     /// Outputs, in declared order.
     #[serde(serialize_with = "values")]
     pub outputs: Vec<Value>,
+    /// The watched program variables, in the order asked for.
+    #[serde(serialize_with = "values", skip_serializing_if = "Vec::is_empty")]
+    pub watched: Vec<Value>,
 }
 
 /// The changes of the I/O image over a run.
@@ -37,7 +40,11 @@ pub struct Trace {
     pub input_names: Vec<String>,
     /// Output names.
     pub output_names: Vec<String>,
-    /// One row per scan in which an input or output changed (and the first scan).
+    /// Names of the watched program variables (`cetratus run --watch`).
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub watched_names: Vec<String>,
+    /// One row per scan in which an input, output or watched variable changed (and the first
+    /// scan).
     pub rows: Vec<TraceRow>,
     /// Program time of the last scan recorded or seen.
     pub end_us: u64,
@@ -49,16 +56,35 @@ impl Trace {
         Trace {
             input_names,
             output_names,
+            watched_names: Vec::new(),
             rows: Vec::new(),
             end_us: 0,
         }
     }
 
+    /// The trace also records these program variables, as columns after the outputs.
+    pub fn watching(mut self, names: Vec<String>) -> Self {
+        self.watched_names = names;
+        self
+    }
+
     /// Records the images of a scan if they differ from the last row.
     pub fn observe(&mut self, scan: u64, time_us: u64, inputs: &[Value], outputs: &[Value]) {
+        self.observe_watched(scan, time_us, inputs, outputs, &[]);
+    }
+
+    /// [`Trace::observe`], with the values of the watched variables.
+    pub fn observe_watched(
+        &mut self,
+        scan: u64,
+        time_us: u64,
+        inputs: &[Value],
+        outputs: &[Value],
+        watched: &[Value],
+    ) {
         self.end_us = time_us;
         if let Some(last) = self.rows.last() {
-            if last.inputs == inputs && last.outputs == outputs {
+            if last.inputs == inputs && last.outputs == outputs && last.watched == watched {
                 return;
             }
         }
@@ -67,19 +93,21 @@ impl Trace {
             time_us,
             inputs: inputs.to_vec(),
             outputs: outputs.to_vec(),
+            watched: watched.to_vec(),
         });
     }
 
-    /// CSV: `scan,time_ms,<inputs>,<outputs>` with booleans as 0/1.
+    /// CSV: `scan,time_ms,<inputs>,<outputs>,<watched>` with booleans as 0/1.
     pub fn to_csv(&self) -> String {
         let mut s = String::from("scan,time_ms");
-        for n in self.input_names.iter().chain(&self.output_names) {
+        let names = self.input_names.iter().chain(&self.output_names);
+        for n in names.chain(&self.watched_names) {
             let _ = write!(s, ",{n}");
         }
         s.push('\n');
         for r in &self.rows {
             let _ = write!(s, "{},{:.3}", r.scan, r.time_us as f64 / 1000.0);
-            for v in r.inputs.iter().chain(&r.outputs) {
+            for v in r.inputs.iter().chain(&r.outputs).chain(&r.watched) {
                 let _ = write!(s, ",{}", value_text(*v));
             }
             s.push('\n');
@@ -109,6 +137,8 @@ impl Trace {
             .extend(lanes(&|r| &r.inputs, &self.input_names, "inputs"));
         d.lanes
             .extend(lanes(&|r| &r.outputs, &self.output_names, "outputs"));
+        d.lanes
+            .extend(lanes(&|r| &r.watched, &self.watched_names, "variables"));
         d
     }
 }

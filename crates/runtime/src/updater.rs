@@ -47,7 +47,7 @@ impl SubstituteRequest {
     }
 }
 
-/// A command from the operator or the MCT: a prepared update to install, a substitution
+/// A command from the operator or the dashboard: a prepared update to install, a substitution
 /// request, or a verb without arguments. `exec_info` is a query that the node answers from
 /// [`crate::Plc::program_exec_info`]; the Updater refuses it.
 pub type Command = cetratus_vocab::Command<Box<PreparedUpdate>, SubstituteRequest>;

@@ -16,6 +16,7 @@
 mod build;
 mod chart;
 mod error;
+mod lower;
 mod nest;
 mod pou;
 mod source;
@@ -190,6 +191,97 @@ pub fn import_str(
     })
 }
 
+/// A POU of a PLCopen file imported as a program.
+#[derive(Debug)]
+pub enum ImportedPou {
+    /// An SFC POU: its chart, as [`import_program`] imports it.
+    Chart(Box<Imported>),
+    /// A POU with an ST, LD or FBD body, written out as Structured Text with the file's other
+    /// POUs, data types and configuration (docs/st.md, *PLCopen XML*).
+    Text(Box<structured::ImportedSt>),
+}
+
+impl ImportedPou {
+    /// The program.
+    pub fn program(&self) -> &Program {
+        match self {
+            ImportedPou::Chart(c) => &c.program,
+            ImportedPou::Text(t) => &t.program,
+        }
+    }
+
+    /// The program's net.
+    pub fn net(&self) -> &Net {
+        match self {
+            ImportedPou::Chart(c) => &c.net,
+            ImportedPou::Text(t) => &t.net,
+        }
+    }
+
+    /// The program's TOML text.
+    pub fn toml(&self) -> &str {
+        match self {
+            ImportedPou::Chart(c) => &c.toml,
+            ImportedPou::Text(t) => &t.toml,
+        }
+    }
+
+    /// What was read but not imported, one line each.
+    pub fn notes(&self) -> &[String] {
+        match self {
+            ImportedPou::Chart(c) => &c.notes,
+            ImportedPou::Text(t) => &t.notes,
+        }
+    }
+}
+
+/// Imports the POU `pou` of a PLCopen file, whatever its body's language: an SFC as
+/// [`import_program`] does, an ST, LD or FBD body as Structured Text. Without a name, the file's
+/// only SFC POU, else its only PROGRAM. IL is refused by name.
+pub fn import_pou(text: &str, label: &str, pou: Option<&str>) -> Result<ImportedPou, SfcError> {
+    let bare = text.strip_prefix('\u{feff}').unwrap_or(text);
+    let source = Source { label, text: bare };
+    let doc = source.parse()?;
+    let pous = pou::pous(&source, &doc);
+    let language = |p: &pou::Pou| lower::body_language(p).unwrap_or("no body").to_string();
+    let name = match pou {
+        Some(name) => {
+            let found = pous.iter().find(|p| p.name.eq_ignore_ascii_case(name));
+            if found.is_some_and(|p| language(p) == "SFC") {
+                return import_program(text, label, Some(name))
+                    .map(|c| ImportedPou::Chart(Box::new(c)));
+            }
+            name.to_string()
+        }
+        None if pous.iter().any(|p| language(p) == "SFC") => {
+            return import_program(text, label, None).map(|c| ImportedPou::Chart(Box::new(c)));
+        }
+        None => {
+            let programs: Vec<&pou::Pou> = pous
+                .iter()
+                .filter(|p| p.node.attribute("pouType") == Some("program"))
+                .collect();
+            match programs.as_slice() {
+                [one] => one.name.clone(),
+                _ => {
+                    return Err(SfcError::Pou {
+                        file: label.to_string(),
+                        message: format!(
+                            "name the POU to import with --pou; the file's POUs are: {}",
+                            lower::listing(&pous)
+                        ),
+                    })
+                }
+            }
+        }
+    };
+    let mut notes = Vec::new();
+    let mut imported = lower::import(&source, &doc, &name, &mut notes)?;
+    notes.append(&mut imported.notes);
+    imported.notes = notes;
+    Ok(ImportedPou::Text(Box::new(imported)))
+}
+
 /// The IEC 61131-3 importer for package manifests: a `program` or `base` that is PLCopen XML
 /// (`.xml`) or Structured Text (`.st`) is imported as `cetratus import plcopen` or `cetratus
 /// import st` writes it ([`import_program`], [`structured::import_st`]), so the package binds to
@@ -234,10 +326,10 @@ impl cetratus_program::ProgramImporter for IecImporter {
             return None;
         }
         Some(
-            import_program(&text, &label, pou)
+            import_pou(&text, &label, pou)
                 .map(|i| ProgramText {
-                    pnml: cetratus_net::pnml::write_string(&i.net),
-                    toml: i.toml,
+                    pnml: cetratus_net::pnml::write_string(i.net()),
+                    toml: i.toml().to_string(),
                 })
                 .map_err(|e| ImportError(e.to_string())),
         )

@@ -120,7 +120,11 @@ fn read_pou<'a, 'i>(source: &Source, node: Node<'a, 'i>, in_add_data: bool) -> P
                     initial: child(v, "initialValue")
                         .and_then(|i| child(i, "simpleValue"))
                         .and_then(|s| s.attribute("value"))
-                        .map(str::to_string),
+                        .map(str::to_string)
+                        .or_else(|| {
+                            let external = section.name() == "externalVars";
+                            external.then(|| global_initial(node, v.attribute("name")?))?
+                        }),
                     at: v.range().start,
                 });
             }
@@ -146,6 +150,26 @@ fn read_pou<'a, 'i>(source: &Source, node: Node<'a, 'i>, in_add_data: bool) -> P
         node,
         in_add_data,
     }
+}
+
+/// The initial value of the configuration's global variable `name`, which a VAR_EXTERNAL of the
+/// POU at `node` names: the global's value is the one the POU sees.
+fn global_initial(node: Node, name: &str) -> Option<String> {
+    let mut root = node;
+    while let Some(up) = root.parent() {
+        root = up;
+    }
+    root.descendants()
+        .filter(|n| n.name() == "globalVars")
+        .flat_map(|g| children(g, "variable"))
+        .find(|g| {
+            g.attribute("name")
+                .is_some_and(|n| n.eq_ignore_ascii_case(name))
+        })
+        .and_then(|g| child(g, "initialValue"))
+        .and_then(|i| child(i, "simpleValue"))
+        .and_then(|s| s.attribute("value"))
+        .map(str::to_string)
 }
 
 /// The body of a named action or transition.

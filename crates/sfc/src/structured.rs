@@ -40,20 +40,44 @@ pub struct ImportedSt {
 /// named after the POU: what `cetratus import st` writes.
 pub fn import_st(text: &str, label: &str, pou: Option<&str>) -> Result<ImportedSt, SfcError> {
     let text = text.strip_prefix('\u{feff}').unwrap_or(text);
+    let at = |line, column| {
+        let file = label.to_string();
+        (SourcePos { file, line, column }, None)
+    };
+    import_st_from(text, label, pou, "Structured Text", &at)
+}
+
+/// Where a line and column of Structured Text is in the file it came from, and the line itself
+/// when the text was written from the file rather than read from it.
+pub(crate) type Locate<'a> = dyn Fn(u32, u32) -> (SourcePos, Option<String>) + 'a;
+
+/// Imports the POU `pou` of the ST text `text`, which came from the file `label` as `what`
+/// (`Structured Text`, `FBD from PLCopen XML`, …) and whose positions `locate` maps to it.
+pub(crate) fn import_st_from(
+    text: &str,
+    label: &str,
+    pou: Option<&str>,
+    what: &str,
+    locate: &Locate,
+) -> Result<ImportedSt, SfcError> {
     let src = Source {
         origin: label,
         text,
     };
     let located = |d: cetratus_st::Diagnostic, pou: &str| {
         let e = src.error(d);
+        let (pos, written) = locate(e.line, e.column);
+        let message = match written {
+            Some(line) => format!(
+                "{} (in the Structured Text written for it: `{line}`)",
+                e.message
+            ),
+            None => e.message,
+        };
         SfcError::St {
-            pos: SourcePos {
-                file: label.to_string(),
-                line: e.line,
-                column: e.column,
-            },
+            pos,
             pou: pou.to_string(),
-            message: e.message,
+            message,
         }
     };
     let lib =
@@ -74,7 +98,7 @@ pub fn import_st(text: &str, label: &str, pou: Option<&str>) -> Result<ImportedS
     let toml = program_toml(
         &unit,
         text,
-        label,
+        (label, what),
         &format!("{}.pnml", unit.name),
         &mut notes,
     );
@@ -95,7 +119,7 @@ pub fn import_st(text: &str, label: &str, pou: Option<&str>) -> Result<ImportedS
 fn program_toml(
     unit: &Unit,
     text: &str,
-    label: &str,
+    (label, what): (&str, &str),
     net_file: &str,
     notes: &mut Vec<String>,
 ) -> String {
@@ -107,7 +131,7 @@ fn program_toml(
         out,
         "description = {}",
         q(&format!(
-            "IEC 61131-3 Structured Text: POU {} of {}",
+            "IEC 61131-3 {what}: POU {} of {}",
             unit.name,
             // The file's name, not the path it was read by: the program hash covers the text.
             std::path::Path::new(label)

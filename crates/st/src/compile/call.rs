@@ -144,6 +144,9 @@ impl<'a> Compiler<'a> {
             at: result,
         });
         for (name, m) in members(pou) {
+            if m.section == Section::External {
+                continue;
+            }
             let ty = self.resolve_type(&m.decl.ty)?;
             let at = self.alloc(self.size_of(ty), name.pos)?;
             self.init_var(ty, at, m.decl.init.as_ref())?;
@@ -336,6 +339,12 @@ impl<'a> Compiler<'a> {
             );
             if in_fb && p.section == Section::Temp {
                 temps.push((p.at, self.size_of(p.ty)));
+            }
+        }
+        for (name, m) in members(pou) {
+            if m.section == Section::External {
+                let global = self.external(&name, &m)?;
+                scope.vars.insert(name.key(), global);
             }
         }
         self.scopes.push(scope);

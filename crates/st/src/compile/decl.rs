@@ -291,8 +291,9 @@ impl<'a> Compiler<'a> {
         let mut fields = Vec::new();
         let mut size = Size::default();
         for (name, m) in members(pou) {
-            if matches!(m.section, Section::External | Section::Global) {
-                return Err(Diagnostic::new(name.pos, format!("{} in a function block is not supported: pass the value as a VAR_INPUT or VAR_IN_OUT", m.section.keyword())));
+            // A VAR_EXTERNAL is the global itself, reached when the body is compiled.
+            if m.section == Section::External {
+                continue;
             }
             let ty = self.resolve_type(&m.decl.ty)?;
             if fields
@@ -350,14 +351,26 @@ impl<'a> Compiler<'a> {
         };
         let mut vars = Vec::new();
         for (name, m) in members(main) {
-            if matches!(m.section, Section::External | Section::Global) {
-                return Err(Diagnostic::new(
-                    name.pos,
-                    format!(
-                        "{} is not supported: declare the variable in the PROGRAM",
-                        m.section.keyword()
-                    ),
-                ));
+            if m.section == Section::External {
+                let global = self.external(&name, &m)?;
+                let Loc::Static(at) = global.loc else {
+                    return Err(Diagnostic::new(
+                        name.pos,
+                        "a global variable at a computed place",
+                    ));
+                };
+                vars.push(Var {
+                    name: name.text.clone(),
+                    section: m.section,
+                    ty: global.ty,
+                    at,
+                    size: self.size_of(global.ty),
+                    retain: false,
+                    constant: global.constant,
+                    address: None,
+                });
+                scope.vars.insert(name.key(), global);
+                continue;
             }
             let ty = self.resolve_type(&m.decl.ty)?;
             let size = self.size_of(ty);
@@ -390,6 +403,73 @@ impl<'a> Compiler<'a> {
         }
         self.scopes.push(scope);
         Ok(vars)
+    }
+
+    /// Allocates and initialises the `VAR_GLOBAL`s of the file's configurations, which
+    /// `VAR_EXTERNAL` declarations reach by name.
+    pub fn global_vars(&mut self) -> Result<Vec<Var>, Diagnostic> {
+        let mut vars = Vec::new();
+        let lib = self.lib;
+        for block in lib.configs.iter().flat_map(|c| &c.globals) {
+            for decl in &block.decls {
+                for name in &decl.names {
+                    if self.globals.contains_key(&name.key()) {
+                        return Err(Diagnostic::new(
+                            name.pos,
+                            format!("the global variable `{}` is declared twice", name.text),
+                        ));
+                    }
+                    let ty = self.resolve_type(&decl.ty)?;
+                    let size = self.size_of(ty);
+                    let at = self.alloc(size, name.pos)?;
+                    self.init_var(ty, at, decl.init.as_ref())?;
+                    let global = VarRef {
+                        ty,
+                        loc: Loc::Static(at),
+                        constant: block.constant,
+                    };
+                    self.globals.insert(name.key(), global);
+                    vars.push(Var {
+                        name: name.text.clone(),
+                        section: Section::Global,
+                        ty,
+                        at,
+                        size,
+                        retain: block.retain,
+                        constant: block.constant,
+                        address: decl.at.as_ref().map(|a| a.text.clone()),
+                    });
+                }
+            }
+        }
+        Ok(vars)
+    }
+
+    /// The global variable that `VAR_EXTERNAL name : T` names, of the same type; constant if
+    /// either declaration says so.
+    pub fn external(&mut self, name: &crate::ast::Ident, m: &Member) -> Result<VarRef, Diagnostic> {
+        let Some(global) = self.globals.get(&name.key()).cloned() else {
+            return Err(Diagnostic::new(
+                name.pos,
+                format!("VAR_EXTERNAL `{}` names no VAR_GLOBAL of the file's CONFIGURATION; declare it there", name.text),
+            ));
+        };
+        let ty = self.resolve_type(&m.decl.ty)?;
+        if ty != global.ty {
+            return Err(Diagnostic::new(
+                name.pos,
+                format!(
+                    "VAR_EXTERNAL `{}` is declared {} but the global is {}; declare both with one type",
+                    name.text,
+                    self.describe(ty),
+                    self.describe(global.ty)
+                ),
+            ));
+        }
+        Ok(VarRef {
+            constant: global.constant || m.constant,
+            ..global
+        })
     }
 
     /// Writes the initial value of a variable of `ty` at `at`: `init` if given, else its type's.

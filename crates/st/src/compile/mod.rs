@@ -161,6 +161,8 @@ pub(crate) struct Compiler<'a> {
     pub consts: HashMap<u64, Slot>,
     /// Temporaries: slots that hold one operation's result for one reader.
     pub temps: std::collections::HashSet<Slot>,
+    /// The configuration's `VAR_GLOBAL`s, by upper-case name, for `VAR_EXTERNAL`.
+    pub globals: HashMap<String, VarRef>,
 }
 
 /// A compiled PROGRAM: its code, its state's layout and initial values, and its variables.
@@ -176,7 +178,8 @@ pub struct Unit {
     pub init: State,
     /// The declared types.
     pub types: Types,
-    /// The PROGRAM's own variables, in declaration order.
+    /// The PROGRAM's own variables, in declaration order, then the configuration's global
+    /// variables (section [`Section::Global`]).
     pub vars: Vec<Var>,
     /// The interval of the TASK that runs the program, if the file has one (nanoseconds).
     pub interval: Option<i64>,
@@ -281,7 +284,20 @@ impl Unit {
 pub fn compile(lib: &Library, pou: Option<&str>) -> Result<Unit, Diagnostic> {
     let main = pick(lib, pou)?;
     let mut c = Compiler::new(lib)?;
-    let vars = c.program_vars(main)?;
+    let globals = c.global_vars()?;
+    let mut vars = c.program_vars(main)?;
+    for g in globals {
+        if let Some(v) = vars.iter().find(|v| v.name.eq_ignore_ascii_case(&g.name)) {
+            if v.section != Section::External {
+                return Err(Diagnostic::new(
+                    main.name.pos,
+                    format!("`{}` of `{}` has the name of a VAR_GLOBAL of the configuration; rename one, or declare it VAR_EXTERNAL to use the global", v.name, main.name.text),
+                ));
+            }
+        }
+        vars.push(g);
+    }
+    vars.retain(|v| v.section != Section::External);
     c.body(&main.body)?;
     c.finish(main, vars)
 }
@@ -358,6 +374,7 @@ impl<'a> Compiler<'a> {
             returns: Vec::new(),
             consts: HashMap::new(),
             temps: std::collections::HashSet::new(),
+            globals: HashMap::new(),
         };
         c.index_pous()?;
         Ok(c)

@@ -185,3 +185,78 @@ fn an_index_outside_the_bounds_faults_naming_it_in_every_addressing_path() {
     assert_eq!(run(2, 1, 0), Ok(7));
     assert_eq!(run(2, 2, 0), out(2, 0, 1));
 }
+
+/// The error `text` is refused with, as file:line:column: message.
+fn refusal(text: &str) -> String {
+    let src = Source {
+        origin: "test.st",
+        text,
+    };
+    let lib = parse::parse_library(text).unwrap_or_else(|d| panic!("{}", src.error(d)));
+    match compile(&lib, None) {
+        Ok(_) => panic!("compiled"),
+        Err(d) => src.error(d).to_string(),
+    }
+}
+
+const GLOBALS: &str = "
+CONFIGURATION C
+  VAR_GLOBAL total : DINT := 100; END_VAR
+  VAR_GLOBAL CONSTANT step_size : DINT := 5; END_VAR
+  RESOURCE R ON PLC
+    TASK T(INTERVAL := T#10ms, PRIORITY := 1);
+    PROGRAM main WITH T : P;
+  END_RESOURCE
+END_CONFIGURATION";
+
+#[test]
+fn var_external_reaches_the_configuration_s_globals_from_programs_functions_and_blocks() {
+    let u = build(&format!(
+        "FUNCTION Next : DINT VAR_INPUT v : DINT; END_VAR
+           VAR_EXTERNAL CONSTANT step_size : DINT; END_VAR
+           Next := v + step_size; END_FUNCTION
+         FUNCTION_BLOCK Bump VAR_EXTERNAL total : DINT; END_VAR
+           total := Next(total); END_FUNCTION_BLOCK
+         PROGRAM P VAR_EXTERNAL total : DINT; END_VAR
+           VAR b1 : Bump; b2 : Bump; END_VAR VAR_OUTPUT seen : DINT; END_VAR
+           b1(); b2(); seen := total; END_PROGRAM
+         {GLOBALS}"
+    ));
+    let mut s = u.new_state();
+    scan(&u, &mut s, 0);
+    // Both instances bump the one global: it is shared, not copied into each.
+    assert_eq!(slot(&u, &s, "seen") as i64, 110);
+    scan(&u, &mut s, 1);
+    assert_eq!(slot(&u, &s, "total") as i64, 120);
+    // The globals are variables of the unit, as the Monitor and persistence see them.
+    let g = u.var("step_size").expect("the global");
+    assert_eq!(g.section, cetratus_st::ast::Section::Global);
+    assert!(g.constant);
+}
+
+#[test]
+fn a_var_external_that_does_not_match_a_global_is_refused_at_its_place() {
+    let missing = refusal(&format!(
+        "PROGRAM P VAR_EXTERNAL nothing : DINT; END_VAR nothing := 1; END_PROGRAM {GLOBALS}"
+    ));
+    assert!(missing.contains("test.st:1:"), "{missing}");
+    assert!(missing.contains("names no VAR_GLOBAL"), "{missing}");
+    let retyped = refusal(&format!(
+        "PROGRAM P VAR_EXTERNAL total : INT; END_VAR total := 1; END_PROGRAM {GLOBALS}"
+    ));
+    assert!(
+        retyped.contains("declared INT but the global is DINT"),
+        "{retyped}"
+    );
+    let constant = refusal(&format!(
+        "PROGRAM P VAR_EXTERNAL step_size : DINT; END_VAR step_size := 1; END_PROGRAM {GLOBALS}"
+    ));
+    assert!(
+        constant.to_ascii_lowercase().contains("constant"),
+        "{constant}"
+    );
+    let shadow = refusal(&format!(
+        "PROGRAM P VAR total : DINT; END_VAR total := 1; END_PROGRAM {GLOBALS}"
+    ));
+    assert!(shadow.contains("has the name of a VAR_GLOBAL"), "{shadow}");
+}

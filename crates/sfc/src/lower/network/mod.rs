@@ -1,0 +1,218 @@
+//! An LD or FBD body as the Structured Text statements its network means (docs/st.md, *LD and
+//! FBD*).
+//!
+//! Every element is read with the elements it reads from. They run in execution order: by
+//! `executionOrderId` where the editor wrote one, else top to bottom and left to right, and
+//! always after the elements whose outputs they read (data-flow order, found by a depth-first
+//! walk with a stack of its own, so no recursion follows the input's depth). A loop in the
+//! network must pass through a function block instance or an in-out variable, whose output then
+//! holds the value of the scan before, as IEC 61131-3 says of feedback; another loop is refused.
+//!
+//! A value that one element reads is written into the reader's expression; a value that several
+//! read, or that is read after a statement could have changed what it depends on, is kept in a
+//! VAR_TEMP of the POU at the place its element runs, so that every element reads what the
+//! network computed at its own place in the order.
+
+mod element;
+mod order;
+mod writer;
+
+use element::{name_block_outputs, read_element, Kind};
+use order::execution_order;
+use writer::Writer;
+
+use std::collections::HashMap;
+
+use cetratus_net::xml::{Document, Node};
+
+use super::Written;
+use crate::pou::Pou;
+use crate::source::{child, children, Source};
+use crate::SfcError;
+
+/// The types that a network needs to know for the values it keeps: the outputs of function
+/// blocks, the return types of functions, and the global variables.
+pub(crate) struct Names {
+    /// Per function block type (upper case), its outputs (upper case) with their types.
+    fb_outputs: HashMap<String, Vec<(String, String)>>,
+    /// Per function (upper case), its return type.
+    functions: HashMap<String, String>,
+    /// The global variables of the configurations (upper case), with their types.
+    globals: HashMap<String, String>,
+}
+
+/// The outputs of the standard function blocks, with their types.
+const STANDARD_FB_OUTPUTS: &[(&str, &[(&str, &str)])] = &[
+    ("TON", &[("Q", "BOOL"), ("ET", "TIME")]),
+    ("TOF", &[("Q", "BOOL"), ("ET", "TIME")]),
+    ("TP", &[("Q", "BOOL"), ("ET", "TIME")]),
+    ("CTU", &[("Q", "BOOL"), ("CV", "INT")]),
+    ("CTD", &[("Q", "BOOL"), ("CV", "INT")]),
+    ("CTUD", &[("QU", "BOOL"), ("QD", "BOOL"), ("CV", "INT")]),
+    ("R_TRIG", &[("Q", "BOOL")]),
+    ("F_TRIG", &[("Q", "BOOL")]),
+    ("SR", &[("Q1", "BOOL")]),
+    ("RS", &[("Q1", "BOOL")]),
+];
+
+impl Names {
+    /// The names of a file's POUs and configurations.
+    pub fn of(doc: &Document, pous: &[Pou]) -> Names {
+        let mut fb_outputs: HashMap<String, Vec<(String, String)>> = STANDARD_FB_OUTPUTS
+            .iter()
+            .map(|(fb, outs)| {
+                let outs = outs.iter().map(|(o, t)| (o.to_string(), t.to_string()));
+                (fb.to_string(), outs.collect())
+            })
+            .collect();
+        let mut functions = HashMap::new();
+        for p in pous {
+            let key = p.name.to_ascii_uppercase();
+            match p.node.attribute("pouType") {
+                Some("function") => {
+                    let ret = child(p.node, "interface")
+                        .and_then(|i| child(i, "returnType"))
+                        .and_then(|r| r.children().next())
+                        .map(elementary_or_derived);
+                    if let Some(ret) = ret {
+                        functions.insert(key, ret);
+                    }
+                }
+                _ => {
+                    let outs = p
+                        .variables
+                        .iter()
+                        .filter(|v| v.kind == crate::VarKind::Output);
+                    let outs = outs.map(|v| (v.name.to_ascii_uppercase(), v.ty.clone()));
+                    fb_outputs.insert(key, outs.collect());
+                }
+            }
+        }
+        let globals = doc
+            .root_element()
+            .descendants()
+            .filter(|n| n.name() == "globalVars")
+            .flat_map(|g| children(g, "variable"))
+            .filter_map(|v| {
+                let ty = child(v, "type")?
+                    .children()
+                    .next()
+                    .map(elementary_or_derived)?;
+                Some((v.attribute("name")?.to_ascii_uppercase(), ty))
+            })
+            .collect();
+        Names {
+            fb_outputs,
+            functions,
+            globals,
+        }
+    }
+}
+
+/// The name of an elementary (`<INT/>`) or derived (`<derived name="T"/>`) type element.
+fn elementary_or_derived(t: Node) -> String {
+    match t.name() {
+        "derived" => t.attribute("name").unwrap_or_default().to_string(),
+        "string" => "STRING".into(),
+        other => other.to_string(),
+    }
+}
+
+/// A network written as Structured Text.
+pub(super) struct Lowered {
+    /// The statements, in order, each with the byte offset of the element it comes from.
+    stmts: Vec<(usize, String)>,
+    /// The values kept between elements (VAR_TEMP): name and type.
+    temps: Vec<(String, String)>,
+    /// The function block instances the network adds (VAR): the edge detectors of edge
+    /// contacts, coils and block inputs, and the blocks' instances that the interface does not
+    /// declare. Name and type.
+    instances: Vec<(String, String)>,
+    /// What the importer added that the file did not say: where, and what.
+    pub notes: Vec<(usize, String)>,
+}
+
+impl Lowered {
+    /// Writes the variables the network needs, then its statements.
+    pub fn write(&self, at: usize, out: &mut Written) {
+        if !self.instances.is_empty() {
+            out.line(at, "VAR");
+            for (name, ty) in &self.instances {
+                out.line(at, &format!("  {name} : {ty};"));
+            }
+            out.line(at, "END_VAR");
+        }
+        if !self.temps.is_empty() {
+            out.line(at, "VAR_TEMP");
+            for (name, ty) in &self.temps {
+                out.line(at, &format!("  {name} : {ty};"));
+            }
+            out.line(at, "END_VAR");
+        }
+        for (at, s) in &self.stmts {
+            out.line(*at, s);
+        }
+    }
+}
+
+/// Lowers the LD or FBD body `body` of `pou`.
+pub(super) fn lower(
+    source: &Source,
+    pou: &Pou,
+    body: Node,
+    names: &Names,
+) -> Result<Lowered, SfcError> {
+    let fail = |at: usize, construct: String, message: &str| SfcError::Unsupported {
+        pos: source.pos(at),
+        pou: pou.name.clone(),
+        construct,
+        message: message.to_string(),
+    };
+    let mut elements = Vec::new();
+    for node in body.children() {
+        elements.push(read_element(node).map_err(|(at, c, m)| fail(at, c, &m))?);
+    }
+    name_block_outputs(&mut elements);
+    let order = execution_order(&elements).map_err(|(at, c, m)| fail(at, c, &m))?;
+    let mut w = Writer::new(&pou.variables, names, &elements);
+    let mut notes = Vec::new();
+    for e in &elements {
+        let Kind::Block {
+            ty,
+            instance: Some(instance),
+            ..
+        } = &e.kind
+        else {
+            continue;
+        };
+        let declared = pou
+            .variables
+            .iter()
+            .any(|v| v.name.eq_ignore_ascii_case(instance));
+        if !declared
+            && !w
+                .instances
+                .iter()
+                .any(|(n, _)| n.eq_ignore_ascii_case(instance))
+        {
+            w.instances.push((instance.clone(), ty.clone()));
+            notes.push((
+                e.at,
+                format!(
+                    "the block instance `{instance}` ({ty}) is not declared in `{}`'s interface: declared as a VAR",
+                    pou.name
+                ),
+            ));
+        }
+    }
+    for index in order {
+        w.element(&elements[index])
+            .map_err(|(at, c, m)| fail(at, c, &m))?;
+    }
+    let mut lowered = w.finish();
+    lowered.notes = notes;
+    Ok(lowered)
+}
+
+/// Why an element cannot be written: where, the construct, and what to do.
+type Refused = (usize, String, String);

@@ -31,6 +31,9 @@ pub struct ImportedSt {
     pub toml: String,
     /// The program, loaded from `net` and `toml`.
     pub program: Program,
+    /// The Structured Text the program runs: the file's, or what the importer wrote for a
+    /// PLCopen POU.
+    pub source: String,
     /// Variables that are not signals (strings, arrays, instances are state, not I/O), one line
     /// each.
     pub notes: Vec<String>,
@@ -111,6 +114,7 @@ pub(crate) fn import_st_from(
         net,
         toml,
         program,
+        source: text.to_string(),
         notes,
     })
 }

@@ -7,9 +7,14 @@
 use cetratus_program::{Program, Value};
 use cetratus_sfc::{import_pou, ImportedPou};
 
-/// A PLCopen project of one PROGRAM `P` with BOOL inputs `a`, `b`, `c`, BOOL outputs `x`, `y`,
-/// `z`, the locals `locals` (declarations as XML) and the body `body` (an `<LD>` or `<FBD>`).
+/// A PLCopen project of one PROGRAM `P` (see [`project_named`]).
 fn project(locals: &str, body: &str) -> String {
+    project_named("P", locals, body)
+}
+
+/// A PLCopen project of one PROGRAM `name` with BOOL inputs `a`, `b`, `c`, BOOL outputs `x`, `y`,
+/// `z`, the locals `locals` (declarations as XML) and the body `body` (an `<LD>` or `<FBD>`).
+fn project_named(name: &str, locals: &str, body: &str) -> String {
     let vars = |names: &[&str]| -> String {
         names
             .iter()
@@ -20,7 +25,7 @@ fn project(locals: &str, body: &str) -> String {
         r#"<?xml version="1.0" encoding="utf-8"?>
 <project xmlns="http://www.plcopen.org/xml/tc6_0201">
 <types><dataTypes/><pous>
-<pou name="P" pouType="program">
+<pou name="{name}" pouType="program">
 <interface>
 <inputVars>{}</inputVars>
 <outputVars>{}</outputVars>
@@ -157,9 +162,21 @@ fn refusal(xml: &str) -> String {
 const T: bool = true;
 const F: bool = false;
 
-#[test]
-fn contacts_in_series_and_parallel_drive_plain_negated_set_and_reset_coils() {
-    // Rung 1: x := a AND NOT b, wired OR with c; y := NOT x. Rung 2: z set by a, reset by b.
+/// A network to run: its locals (XML), its body, and the inputs of each scan.
+struct Net {
+    locals: &'static str,
+    body: String,
+    inputs: Vec<[bool; 3]>,
+}
+
+impl Net {
+    fn run(&self) -> Vec<[bool; 3]> {
+        scans(&project(self.locals, &self.body), &self.inputs)
+    }
+}
+
+/// Rung 1: x := a AND NOT b, wired OR with c; y := NOT x. Rungs 2 and 3: z set by a, reset by b.
+fn rungs() -> Net {
     let body = format!(
         "<LD>{}{}{}{}{}{}{}{}{}</LD>",
         rail(1),
@@ -172,32 +189,23 @@ fn contacts_in_series_and_parallel_drive_plain_negated_set_and_reset_coils() {
         coil(8, 30, "z", r#"storage="set""#, &["7"]),
         coil(9, 40, "z", r#"storage="reset""#, &["10"]) + &contact(10, 40, "b", "", &["1"]),
     );
-    let got = scans(
-        &project("", &body),
-        &[
-            [F, F, F],
-            [T, F, F],
-            [F, F, F],
-            [T, T, F],
-            [F, F, T],
-            [F, T, F],
-        ],
-    );
-    assert_eq!(
-        got,
-        [
-            [F, T, F],
-            [T, F, T],
-            [F, T, T],
-            [F, T, F],
-            [T, F, F],
-            [F, T, F]
-        ]
-    );
+    let inputs = vec![
+        [F, F, F],
+        [T, F, F],
+        [F, F, F],
+        [T, T, F],
+        [F, F, T],
+        [F, T, F],
+    ];
+    Net {
+        locals: "",
+        body,
+        inputs,
+    }
 }
 
-#[test]
-fn edge_contacts_and_coils_see_one_scan_of_each_change() {
+/// x := a rising-edge contact; y := a falling-edge coil on b.
+fn edges() -> Net {
     let body = format!(
         "<LD>{}{}{}{}{}</LD>",
         rail(1),
@@ -206,21 +214,17 @@ fn edge_contacts_and_coils_see_one_scan_of_each_change() {
         contact(4, 20, "b", "", &["1"]),
         coil(5, 20, "y", r#"edge="falling""#, &["4"]),
     );
-    let got = scans(
-        &project("", &body),
-        &[[F, T, F], [T, T, F], [T, F, F], [F, F, F], [T, F, F]],
-    );
-    let x: Vec<bool> = got.iter().map(|r| r[0]).collect();
-    let y: Vec<bool> = got.iter().map(|r| r[1]).collect();
-    assert_eq!(x, [F, T, F, F, T]);
-    assert_eq!(y, [F, F, T, F, F]);
+    let inputs = vec![[F, T, F], [T, T, F], [T, F, F], [F, F, F], [T, F, F]];
+    Net {
+        locals: "",
+        body,
+        inputs,
+    }
 }
 
-#[test]
-fn blocks_with_en_eno_negated_and_edge_inputs_and_connectors_compute_in_data_flow_order() {
-    let locals = r#"<variable name="n"><type><INT/></type></variable><variable name="ctr"><type><derived name="CTU"/></type></variable>"#;
-    // y := NOT (a AND b) through a negated output; a counter counts rising edges of c while a
-    // (EN) holds, x := its Q at PV 2, and z reads x back through a connector and continuation.
+/// y := NOT (a AND b) through a negated output; a counter counts rising edges of c while a (EN)
+/// holds, x := its Q at PV 2, and z reads x back through a connector and continuation.
+fn blocks() -> Net {
     let body = format!(
         "<FBD>{}{}{}{}{}{}{}{}{}{}{}</FBD>",
         in_var(1, 0, "a"),
@@ -252,32 +256,24 @@ fn blocks_with_en_eno_negated_and_edge_inputs_and_connectors_compute_in_data_flo
         out_var(10, 40, "z", &["9"]),
         out_var(11, 30, "x", &["7:Q"]),
     );
-    let got = scans(
-        &project(locals, &body),
-        &[
-            [T, F, F],
-            [T, F, T],
-            [T, F, F],
-            [F, F, T],
-            [T, F, F],
-            [T, F, T],
-            [T, T, F],
-        ],
-    );
-    let y: Vec<bool> = got.iter().map(|r| r[1]).collect();
-    assert_eq!(y, [T, T, T, T, T, T, F]);
-    // Counted edges: scan 1 (EN on) and scan 5; scan 3's edge falls while EN is off, and the
-    // block's edge detector, outside the EN, still sees it go.
-    let x: Vec<bool> = got.iter().map(|r| r[0]).collect();
-    assert_eq!(x, [F, F, F, F, F, T, F]);
-    let z: Vec<bool> = got.iter().map(|r| r[2]).collect();
-    assert_eq!(z, x);
+    let inputs = vec![
+        [T, F, F],
+        [T, F, T],
+        [T, F, F],
+        [F, F, T],
+        [T, F, F],
+        [T, F, T],
+        [T, T, F],
+    ];
+    Net {
+        locals: r#"<variable name="ctr"><type><derived name="CTU"/></type></variable>"#,
+        body,
+        inputs,
+    }
 }
 
-#[test]
-fn a_feedback_loop_through_an_in_out_variable_reads_the_scan_before() {
-    let locals = r#"<variable name="n"><type><INT/></type></variable>"#;
-    // n := n + 1 drawn as a loop; x := n > 2.
+/// n := n + 1 drawn as a loop through an in-out variable; x := n > 2.
+fn feedback() -> Net {
     let body = format!(
         "<FBD>{}{}{}{}{}{}</FBD>",
         in_var(1, 0, "1"),
@@ -299,9 +295,103 @@ fn a_feedback_loop_through_an_in_out_variable_reads_the_scan_before() {
         ),
         out_var(6, 30, "x", &["5:OUT"]),
     );
-    let got = scans(&project(locals, &body), &[[F, F, F]; 4]);
-    let x: Vec<bool> = got.iter().map(|r| r[0]).collect();
-    assert_eq!(x, [F, F, T, T]);
+    Net {
+        locals: r#"<variable name="n"><type><INT/></type></variable>"#,
+        body,
+        inputs: vec![[F, F, F]; 4],
+    }
+}
+
+fn column(rows: &[[bool; 3]], k: usize) -> Vec<bool> {
+    rows.iter().map(|r| r[k]).collect()
+}
+
+#[test]
+fn contacts_in_series_and_parallel_drive_plain_negated_set_and_reset_coils() {
+    assert_eq!(
+        rungs().run(),
+        [
+            [F, T, F],
+            [T, F, T],
+            [F, T, T],
+            [F, T, F],
+            [T, F, F],
+            [F, T, F]
+        ]
+    );
+}
+
+#[test]
+fn edge_contacts_and_coils_see_one_scan_of_each_change() {
+    let got = edges().run();
+    assert_eq!(column(&got, 0), [F, T, F, F, T]);
+    assert_eq!(column(&got, 1), [F, F, T, F, F]);
+}
+
+#[test]
+fn blocks_with_en_eno_negated_and_edge_inputs_and_connectors_compute_in_data_flow_order() {
+    let got = blocks().run();
+    assert_eq!(column(&got, 1), [T, T, T, T, T, T, F]);
+    // Counted edges: scan 1 (EN on) and scan 5; scan 3's edge falls while EN is off, and the
+    // block's edge detector, outside the EN, still sees it go.
+    assert_eq!(column(&got, 0), [F, F, F, F, F, T, F]);
+    assert_eq!(column(&got, 2), column(&got, 0));
+}
+
+#[test]
+fn a_feedback_loop_through_an_in_out_variable_reads_the_scan_before() {
+    assert_eq!(column(&feedback().run(), 0), [F, F, T, T]);
+}
+
+#[test]
+fn the_structured_text_written_for_each_network_runs_the_same_on_matiec() {
+    use cetratus_testkit::matiec::{Case, IecType, Matiec};
+    let nets = [rungs(), edges(), blocks(), feedback()];
+    let mut source = String::new();
+    let mut cases = Vec::new();
+    for (k, net) in nets.iter().enumerate() {
+        let name = format!("Net{k}");
+        let xml = project_named(&name, net.locals, &net.body);
+        let Ok(ImportedPou::Text(imported)) = import_pou(&xml, "net.xml", Some(&name)) else {
+            panic!("{name} imports");
+        };
+        // The harness brings its own configuration.
+        let text = &imported.source;
+        source.push_str(&text[..text.find("CONFIGURATION").unwrap_or(text.len())]);
+        let bools = |names: &[&str]| {
+            names
+                .iter()
+                .map(|n| (n.to_string(), IecType::Bool))
+                .collect()
+        };
+        let text_of = |b: bool| if b { "TRUE" } else { "FALSE" }.to_string();
+        cases.push(Case {
+            program: name,
+            inputs: bools(&["a", "b", "c"]),
+            outputs: bools(&["x", "y", "z"]),
+            scans: net
+                .inputs
+                .iter()
+                .map(|r| r.iter().map(|&b| text_of(b)).collect())
+                .collect(),
+        });
+    }
+    let matiec = Matiec::get().expect("MATIEC builds with the shared build.sh");
+    let theirs = matiec
+        .run(&source, &cases, std::time::Duration::from_millis(10))
+        .unwrap_or_else(|e| panic!("{e}\n{source}"));
+    for ((net, case), theirs) in nets.iter().zip(&cases).zip(theirs) {
+        let ours: Vec<Vec<String>> = net
+            .run()
+            .iter()
+            .map(|r| {
+                r.iter()
+                    .map(|&b| if b { "TRUE" } else { "FALSE" }.to_string())
+                    .collect()
+            })
+            .collect();
+        assert_eq!(ours, theirs, "{}", case.program);
+    }
 }
 
 #[test]

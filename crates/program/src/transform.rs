@@ -321,6 +321,44 @@ fn check_ids(
     Ok(())
 }
 
+/// The constructors from explicit matrices and the sizes that a transformation and a projection
+/// share (the doc lines differ: which net is a row), written once.
+macro_rules! explicit_constructors_and_sizes {
+    ($dense:literal, $sparse:literal, $rows:literal, $cols:literal) => {
+        #[doc = $dense]
+        pub fn dense(
+            old: &Net,
+            new: &Net,
+            row_ids: &[String],
+            col_ids: &[String],
+            matrix: &[Vec<i64>],
+            base: &[i64],
+        ) -> Result<Self, TransformError> {
+            explicit_dense(old, new, row_ids, col_ids, matrix, base)
+        }
+
+        #[doc = $sparse]
+        pub fn sparse(
+            old: &Net,
+            new: &Net,
+            entries: &[(String, String, i64)],
+            base: &BTreeMap<String, i64>,
+        ) -> Result<Self, TransformError> {
+            explicit_sparse(old, new, entries, base)
+        }
+
+        #[doc = $rows]
+        pub fn rows(&self) -> usize {
+            self.map.rows()
+        }
+
+        #[doc = $cols]
+        pub fn cols(&self) -> usize {
+            self.map.cols()
+        }
+    };
+}
+
 /// A linear map between the running (old) and the new net's place spaces: [`StateTransform`]
 /// and [`Projection`] resolve their matrices alike and differ in which net gives the rows.
 pub(crate) trait Between: Sized {
@@ -421,38 +459,11 @@ impl StateTransform {
         ))
     }
 
-    /// An explicit transformation from a dense `|P_new| × |P_old|` matrix whose row ids are the
-    /// new net's place ids in order and whose column ids are the old net's.
-    pub fn dense(
-        old: &Net,
-        new: &Net,
-        row_ids: &[String],
-        col_ids: &[String],
-        matrix: &[Vec<i64>],
-        base: &[i64],
-    ) -> Result<Self, TransformError> {
-        explicit_dense(old, new, row_ids, col_ids, matrix, base)
-    }
-
-    /// An explicit transformation from `(new place, old place, coefficient)` entries and a base
-    /// keyed by new place (missing entries are 0).
-    pub fn sparse(
-        old: &Net,
-        new: &Net,
-        entries: &[(String, String, i64)],
-        base: &BTreeMap<String, i64>,
-    ) -> Result<Self, TransformError> {
-        explicit_sparse(old, new, entries, base)
-    }
-
-    /// Places of the new net.
-    pub fn rows(&self) -> usize {
-        self.map.rows()
-    }
-
-    /// Places of the old net.
-    pub fn cols(&self) -> usize {
-        self.map.cols()
+    explicit_constructors_and_sizes! {
+        "An explicit transformation from a dense `|P_new| × |P_old|` matrix whose row ids are the new net's place ids in order and whose column ids are the old net's.",
+        "An explicit transformation from `(new place, old place, coefficient)` entries and a base keyed by new place (missing entries are 0).",
+        "Places of the new net.",
+        "Places of the old net."
     }
 
     /// Old places whose tokens this transform drops, so they must be empty when it applies.
@@ -580,38 +591,11 @@ impl Projection {
         ))
     }
 
-    /// An explicit projection from a dense `|P_old| × |P_new|` matrix whose row ids are the old
-    /// net's place ids in order and whose column ids are the new net's.
-    pub fn dense(
-        old: &Net,
-        new: &Net,
-        row_ids: &[String],
-        col_ids: &[String],
-        matrix: &[Vec<i64>],
-        base: &[i64],
-    ) -> Result<Self, TransformError> {
-        explicit_dense(old, new, row_ids, col_ids, matrix, base)
-    }
-
-    /// An explicit projection from `(old place, new place, coefficient)` entries and a base keyed
-    /// by old place (missing entries are 0).
-    pub fn sparse(
-        old: &Net,
-        new: &Net,
-        entries: &[(String, String, i64)],
-        base: &BTreeMap<String, i64>,
-    ) -> Result<Self, TransformError> {
-        explicit_sparse(old, new, entries, base)
-    }
-
-    /// Places of the old net.
-    pub fn rows(&self) -> usize {
-        self.map.rows()
-    }
-
-    /// Places of the new net.
-    pub fn cols(&self) -> usize {
-        self.map.cols()
+    explicit_constructors_and_sizes! {
+        "An explicit projection from a dense `|P_old| × |P_new|` matrix whose row ids are the old net's place ids in order and whose column ids are the new net's.",
+        "An explicit projection from `(old place, new place, coefficient)` entries and a base keyed by old place (missing entries are 0).",
+        "Places of the old net.",
+        "Places of the new net."
     }
 
     /// `M_old = Π·M_new + Π_base`, the marking a revert gives the old program back, written into

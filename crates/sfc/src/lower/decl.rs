@@ -179,16 +179,7 @@ fn write_pou(
     let interface = child(pou.node, "interface");
     let (open, close) = match pou_kind(pou) {
         PouKind::Function => {
-            let ret = interface
-                .and_then(|i| child(i, "returnType"))
-                .ok_or_else(|| {
-                    (
-                        at,
-                        "a FUNCTION without a return type".into(),
-                        "give it one".into(),
-                    )
-                })
-                .and_then(type_text)?;
+            let ret = return_type(pou)?;
             (format!("FUNCTION {} : {ret}", pou.name), "END_FUNCTION")
         }
         PouKind::FunctionBlock => (format!("FUNCTION_BLOCK {}", pou.name), "END_FUNCTION_BLOCK"),
@@ -457,21 +448,27 @@ fn data_type(dt: Node, out: &mut Written, notes: &mut Notes) -> Result<(), Refus
     Ok(())
 }
 
-/// For a FUNCTION imported as a program: a PROGRAM `NAME_CALL` whose inputs are the function's
-/// and whose output `RESULT` is what the function returns, every scan.
-fn call_program(f: &Pou, out: &mut Written, notes: &mut Notes) -> Result<String, Refused> {
-    let at = f.node.range().start;
-    let interface = child(f.node, "interface");
-    let ret = interface
+/// The ST type a FUNCTION returns.
+fn return_type(f: &Pou) -> Result<String, Refused> {
+    child(f.node, "interface")
         .and_then(|i| child(i, "returnType"))
         .ok_or_else(|| {
+            let at = f.node.range().start;
             (
                 at,
                 "a FUNCTION without a return type".into(),
                 "give it one".into(),
             )
         })
-        .and_then(type_text)?;
+        .and_then(type_text)
+}
+
+/// For a FUNCTION imported as a program: a PROGRAM `NAME_CALL` whose inputs are the function's
+/// and whose output `RESULT` is what the function returns, every scan.
+fn call_program(f: &Pou, out: &mut Written, notes: &mut Notes) -> Result<String, Refused> {
+    let at = f.node.range().start;
+    let interface = child(f.node, "interface");
+    let ret = return_type(f)?;
     let name = format!("{}_CALL", f.name);
     out.line(at, &format!("PROGRAM {name}"));
     let mut args = Vec::new();

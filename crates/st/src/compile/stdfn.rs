@@ -285,8 +285,19 @@ impl<'a> Compiler<'a> {
         if from == to {
             return Ok(Val::Scalar(Ty::Elem(to), a));
         }
+        self.emit_to_temp(to, pos, |dst| Op::Conv { from, to, dst, a })
+    }
+
+    /// Emits the operation `op` makes for a new temporary, and gives the temporary as a value
+    /// of type `to`.
+    fn emit_to_temp(
+        &mut self,
+        to: Elem,
+        pos: Pos,
+        op: impl FnOnce(Slot) -> Op,
+    ) -> Result<Val, Diagnostic> {
         let dst = self.temp(pos)?;
-        self.emit(Op::Conv { from, to, dst, a }, pos)?;
+        self.emit(op(dst), pos)?;
         Ok(Val::Scalar(Ty::Elem(to), dst))
     }
 
@@ -342,9 +353,7 @@ impl<'a> Compiler<'a> {
                 format!("TRUNC takes a REAL or LREAL, found {from}"),
             ));
         }
-        let dst = self.temp(pos)?;
-        self.emit(Op::Trunc { from, to, dst, a }, pos)?;
-        Ok(Val::Scalar(Ty::Elem(to), dst))
+        self.emit_to_temp(to, pos, |dst| Op::Trunc { from, to, dst, a })
     }
 
     /// `ADD(a, b, c)` as `(a + b) + c`; the comparisons take two arguments.
@@ -581,6 +590,26 @@ impl<'a> Compiler<'a> {
     }
 
     /// MUX(K, IN0, …): the input numbered K, or the type's zero when K is out of range (MATIEC).
+    /// A temporary that holds whether MUX's selector `k` (of type `ke`) picks input `i`.
+    pub(crate) fn selects(
+        &mut self,
+        ke: Elem,
+        k: Slot,
+        i: usize,
+        pos: Pos,
+    ) -> Result<Slot, Diagnostic> {
+        let (idx, hit) = (self.const_slot(i as u64, pos)?, self.temp(pos)?);
+        let cmp = Op::Cmp {
+            op: Rel::Eq,
+            e: ke,
+            dst: hit,
+            a: k,
+            b: idx,
+        };
+        self.emit(cmp, pos)?;
+        Ok(hit)
+    }
+
     fn mux(&mut self, args: &[&Expr], want: Option<Ty>, pos: Pos) -> Result<Val, Diagnostic> {
         if args.len() < 2 {
             return Err(Diagnostic::new(
@@ -594,17 +623,7 @@ impl<'a> Compiler<'a> {
         let zero = self.const_slot(0, pos)?;
         self.emit(Op::Move { dst, src: zero }, pos)?;
         for (i, &input) in s.iter().enumerate() {
-            let (idx, hit) = (self.const_slot(i as u64, pos)?, self.temp(pos)?);
-            self.emit(
-                Op::Cmp {
-                    op: Rel::Eq,
-                    e: ke,
-                    dst: hit,
-                    a: k,
-                    b: idx,
-                },
-                pos,
-            )?;
+            let hit = self.selects(ke, k, i, pos)?;
             self.emit(
                 Op::Select {
                     dst,

@@ -177,17 +177,7 @@ impl<'a> Compiler<'a> {
             pos,
         )?;
         for (i, &(_, at)) in texts.iter().enumerate() {
-            let (idx, hit) = (self.const_slot(i as u64, pos)?, self.temp(pos)?);
-            self.emit(
-                Op::Cmp {
-                    op: Rel::Eq,
-                    e: ke,
-                    dst: hit,
-                    a: k,
-                    b: idx,
-                },
-                pos,
-            )?;
+            let hit = self.selects(ke, k, i, pos)?;
             self.move_if(hit, out, at, pos)?;
         }
         Ok(Val::Str(out.0, out.1))

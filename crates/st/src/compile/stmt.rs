@@ -95,12 +95,21 @@ impl<'a> Compiler<'a> {
             if i + 1 < arms.len() || !otherwise.is_empty() {
                 ends.push(self.emit(Op::Jump { to: 0 }, cond.pos)?);
             }
-            let next = self.here();
-            self.patch(skip, next);
+            self.patch_here(skip);
         }
+        self.close_arms(otherwise, ends)
+    }
+
+    /// Points the jump at `j` here.
+    fn patch_here(&mut self, j: usize) {
+        let here = self.here();
+        self.patch(j, here);
+    }
+
+    /// The ELSE of an IF or CASE, then the end its arms' jumps `ends` go to.
+    fn close_arms(&mut self, otherwise: &[Stmt], ends: Vec<usize>) -> Result<(), Diagnostic> {
         self.statements(otherwise)?;
-        let end = self.here();
-        ends.into_iter().for_each(|j| self.patch(j, end));
+        ends.into_iter().for_each(|j| self.patch_here(j));
         Ok(())
     }
 
@@ -137,13 +146,9 @@ impl<'a> Compiler<'a> {
             hits.into_iter().for_each(|j| self.patch(j, start));
             self.statements(body)?;
             ends.push(self.emit(Op::Jump { to: 0 }, pos)?);
-            let next = self.here();
-            self.patch(miss, next);
+            self.patch_here(miss);
         }
-        self.statements(otherwise)?;
-        let end = self.here();
-        ends.into_iter().for_each(|j| self.patch(j, end));
-        Ok(())
+        self.close_arms(otherwise, ends)
     }
 
     /// The test of one CASE label: a jump taken when the selector `s` matches.

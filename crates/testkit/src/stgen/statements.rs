@@ -461,14 +461,20 @@ impl ProgramGen<'_> {
         }
     }
 
-    /// `WHILE n < N …` with a counter that ends it after at most N (≤ 8) trips.
-    pub(super) fn while_loop(&mut self, out: &mut Vec<String>, ind: usize, depth: u32) {
+    /// A counter of a loop's trips, set to 0 here: its name, its type, and the trips (2 to 8).
+    fn trip_counter(&mut self, out: &mut Vec<String>, ind: usize) -> (String, Ty, i128) {
         let ty = *self
             .rng
             .pick(&[Ty::Int, Ty::Dint, Ty::Uint, Ty::Sint, Ty::Usint]);
         let name = self.counter(ty, "n");
         let n = self.rng.int(2, 8);
         line(out, ind, format!("{name} := 0;"));
+        (name, ty, n)
+    }
+
+    /// `WHILE n < N …` with a counter that ends it after at most N (≤ 8) trips.
+    pub(super) fn while_loop(&mut self, out: &mut Vec<String>, ind: usize, depth: u32) {
+        let (name, ty, n) = self.trip_counter(out, ind);
         let bound = format!("{name} < {n}");
         let cond = match self.rng.below(3) {
             0 => bound,
@@ -487,12 +493,7 @@ impl ProgramGen<'_> {
     }
 
     pub(super) fn repeat_loop(&mut self, out: &mut Vec<String>, ind: usize, depth: u32) {
-        let ty = *self
-            .rng
-            .pick(&[Ty::Int, Ty::Dint, Ty::Uint, Ty::Sint, Ty::Usint]);
-        let name = self.counter(ty, "n");
-        let n = self.rng.int(2, 8);
-        line(out, ind, format!("{name} := 0;"));
+        let (name, ty, n) = self.trip_counter(out, ind);
         line(out, ind, "REPEAT");
         let live = Live {
             name: name.clone(),

@@ -1,7 +1,7 @@
 //! The measuring harnesses behind `cetratus bench`: the full run of every figure, the real-time
 //! jitter, the command flood against a running node, the floods of what others can send
 //! ([`crate::flood`]), and a fleet of PLC processes
-//! watched by one MCT. Each returns its figures as one JSON object by name.
+//! watched by one dashboard. Each returns its figures as one JSON object by name.
 
 use std::collections::BTreeMap;
 
@@ -275,20 +275,24 @@ pub fn command_load(rate: u32, phase_us: u64, period_us: u64) -> Result<Figures,
     Ok(out)
 }
 
-/// Reads the one-time login link `cetratus mct` prints on its first line of output, opens it
+/// Reads the one-time login link `cetratus dashboard` prints on its first line of output, opens it
 /// on the dashboard at port `http`, and returns the session's `Cookie` header line.
-fn dashboard_login(mct: &mut std::process::Child, http: u16) -> Result<String, BenchError> {
+fn dashboard_login(process: &mut std::process::Child, http: u16) -> Result<String, BenchError> {
     use std::io::{BufRead, BufReader, Read, Write};
-    let out = mct
+    let out = process
         .stdout
         .take()
-        .ok_or_else(|| BenchError::from("`cetratus mct` has no piped output"))?;
+        .ok_or_else(|| BenchError::from("`cetratus dashboard` has no piped output"))?;
     let mut line = String::new();
     BufReader::new(out).read_line(&mut line)?;
     let path = line
         .split_whitespace()
         .find_map(|w| w.find("/login?token=").map(|i| w[i..].to_string()))
-        .ok_or_else(|| BenchError::from(format!("`cetratus mct` printed no login link: {line}")))?;
+        .ok_or_else(|| {
+            BenchError::from(format!(
+                "`cetratus dashboard` printed no login link: {line}"
+            ))
+        })?;
     let mut stream = std::net::TcpStream::connect(("127.0.0.1", http))?;
     write!(stream, "GET {path} HTTP/1.0\r\nHost: 127.0.0.1\r\n\r\n")?;
     let mut head = String::new();
@@ -400,15 +404,15 @@ fn start_plcs(
     Ok(plcs)
 }
 
-/// Starts `cetratus mct` on the broker at `url` with its dashboard on a free port, and logs in;
+/// Starts `cetratus dashboard` on the broker at `url` with its dashboard on a free port, and logs in;
 /// the process, the dashboard's port and the session's `Cookie` header line.
-fn start_mct(exe: &std::path::Path, url: &str) -> Result<(Child, u16, String), BenchError> {
+fn start_dashboard(exe: &std::path::Path, url: &str) -> Result<(Child, u16, String), BenchError> {
     use std::process::{Command, Stdio};
     let http = free_port()?;
-    let mut mct = Child(
+    let mut dashboard = Child(
         Command::new(exe)
             .args([
-                "mct",
+                "dashboard",
                 "--http",
                 &format!("127.0.0.1:{http}"),
                 "--broker",
@@ -419,8 +423,8 @@ fn start_mct(exe: &std::path::Path, url: &str) -> Result<(Child, u16, String), B
             .spawn()?,
     );
     wait_for_port(http);
-    let cookie = dashboard_login(&mut mct.0, http)?;
-    Ok((mct, http, cookie))
+    let cookie = dashboard_login(&mut dashboard.0, http)?;
+    Ok((dashboard, http, cookie))
 }
 
 /// How many PLCs the dashboard at port `http` lists.
@@ -479,9 +483,9 @@ fn update_latencies(
     Ok(lat_ms)
 }
 
-/// Starts a Mosquitto, `n` runtime processes publishing to it, and one `cetratus mct`; then
+/// Starts a Mosquitto, `n` runtime processes publishing to it, and one `cetratus dashboard`; then
 /// measures, for `for_us` of wall time, the dashboard update latency (PLC publish → event
-/// delivered by the dashboard's stream) and the CPU the MCT uses.
+/// delivered by the dashboard's stream) and the CPU the dashboard uses.
 /// `exe` is the `cetratus` binary to start.
 pub fn fleet(
     exe: &std::path::Path,
@@ -496,17 +500,17 @@ pub fn fleet(
     std::fs::create_dir_all(&dir)?;
     let url = format!("mqtt://127.0.0.1:{port}");
     let plcs = start_plcs(exe, n, period, &url, &dir)?;
-    let (mct, http, cookie) = start_mct(exe, &url)?;
+    let (dashboard, http, cookie) = start_dashboard(exe, &url)?;
     // Let every PLC connect before measuring.
     std::thread::sleep(Duration::from_secs(5));
     let plcs_seen = plcs_listed(http, &cookie)?;
-    let cpu0 = cpu_seconds(mct.0.id())?;
+    let cpu0 = cpu_seconds(dashboard.0.id())?;
     let t0 = Instant::now();
     let mut lat_ms = update_latencies(http, &cookie, t0, for_us)?;
     let wall = t0.elapsed().as_secs_f64();
-    let cpu = cpu_seconds(mct.0.id())? - cpu0;
+    let cpu = cpu_seconds(dashboard.0.id())? - cpu0;
     drop(plcs);
-    drop(mct);
+    drop(dashboard);
     let _ = std::fs::remove_dir_all(&dir);
     lat_ms.sort_by(|a, b| a.total_cmp(b));
     let q = |p: f64| {
@@ -517,7 +521,7 @@ pub fn fleet(
     };
     let mut out: BTreeMap<String, serde_json::Value> = BTreeMap::new();
     out.insert(s("plcs"), n.into());
-    out.insert(s("plcs_seen_by_mct"), plcs_seen.into());
+    out.insert(s("plcs_seen_by_dashboard"), plcs_seen.into());
     out.insert(s("period"), period.into());
     out.insert(s("seconds"), wall.into());
     out.insert(s("io_messages_measured"), lat_ms.len().into());
@@ -525,7 +529,7 @@ pub fn fleet(
     out.insert(s("update_latency_ms_p99"), q(0.99).into());
     out.insert(s("update_latency_ms_max"), q(1.0).into());
     out.insert(
-        s("mct_cpu_percent_of_one_core"),
+        s("dashboard_cpu_percent_of_one_core"),
         (100.0 * cpu / wall).into(),
     );
     Ok(out)

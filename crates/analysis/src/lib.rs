@@ -31,6 +31,7 @@ pub mod reach;
 mod report;
 pub mod sfc;
 pub mod siphons;
+pub mod spare;
 
 pub use budget::{Clock, Deadline, PartialReason};
 pub use check::{check, CheckOptions, Progress, ProgressFn, PARALLEL_FROM};

@@ -94,7 +94,7 @@ pub fn run(a: &OpcuaArgs) -> anyhow::Result<()> {
         .arg(d.join("mirror.toml"))
         .arg("--io")
         .arg(d.join("io.toml"))
-        .args(["--no-mct", "--cold", "--plc", "bench"])
+        .args(["--no-mqtt", "--cold", "--plc", "bench"])
         .arg("--state-dir")
         .arg(d.join("state"))
         .arg("--config")

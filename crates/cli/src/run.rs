@@ -70,9 +70,9 @@ pub struct RunArgs {
     /// Where the dashboard listens (real-time runs).
     #[arg(long, default_value = "127.0.0.1:8080")]
     http: String,
-    /// Real-time runs without MQTT and dashboard.
-    #[arg(long)]
-    no_mct: bool,
+    /// Real-time runs without MQTT and dashboard (`--no-mct`, its old name, still works).
+    #[arg(long, alias = "no-mct")]
+    no_mqtt: bool,
     /// Real-time runs with MQTT but without the dashboard (e.g. a fleet watched by one `cetratus dashboard`).
     #[arg(long)]
     no_dashboard: bool,
@@ -203,7 +203,7 @@ fn spec(args: &RunArgs, program: Arc<Program>, kept: Kept) -> anyhow::Result<Nod
         }
     };
     spec.period_us = args.period.as_deref().map(parse_duration_us).transpose()?;
-    if !args.no_mct {
+    if !args.no_mqtt {
         let dashboard = (!args.no_dashboard).then_some(args.http.as_str());
         spec.mqtt = Some(args.mqtt.spec(&spec.local, dashboard, !args.json)?);
     }

@@ -142,7 +142,7 @@ fn sigkill_at_random_moments_leaves_a_consistent_state_within_the_loss_bound() {
                 .args([
                     "--twin",
                     "vernadat",
-                    "--no-mct",
+                    "--no-mqtt",
                     "--speed",
                     &SPEED.to_string(),
                     "--for",
@@ -303,7 +303,7 @@ fn sigkill_at_random_moments_leaves_a_consistent_state_within_the_loss_bound() {
             .args([
                 "--twin",
                 "vernadat",
-                "--no-mct",
+                "--no-mqtt",
                 "--speed",
                 &SPEED.to_string(),
                 "--for",

@@ -52,7 +52,7 @@ fn start(io: &Path, dir: &Path, length: &str) -> ChildGuard {
             .arg(example("vernadat/vernadat.toml"))
             .arg("--io")
             .arg(io)
-            .args(["--for", length, "--json", "--no-mct", "--cold"])
+            .args(["--for", length, "--json", "--no-mqtt", "--cold"])
             .arg("--state-dir")
             .arg(dir.join("state"))
             .arg("--config")

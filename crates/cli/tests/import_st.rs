@@ -73,7 +73,7 @@ fn an_imported_st_program_runs_every_scan_from_a_replayed_trace() {
         "200ms",
         "--trace",
         path(&trace),
-        "--no-mct",
+        "--no-mqtt",
     ]));
     let csv = std::fs::read_to_string(&trace).expect("the trace");
     let rows: Vec<Vec<&str>> = csv
@@ -118,7 +118,7 @@ fn a_trace_that_does_not_fit_the_program_is_refused_before_the_first_scan() {
             "--virtual",
             "--for",
             "50ms",
-            "--no-mct",
+            "--no-mqtt",
         ];
         args.extend_from_slice(extra);
         refused(&cetratus(&args))
@@ -161,7 +161,7 @@ END_PROGRAM
         "100ms",
         "--trace",
         path(&trace),
-        "--no-mct",
+        "--no-mqtt",
     ]);
     let out = ok(&run) + &String::from_utf8_lossy(&run.stderr);
     assert!(out.contains("Spin on the replayed trace"), "{out}");
@@ -206,7 +206,7 @@ END_PROGRAM
             path(&state),
             "--trace",
             path(trace),
-            "--no-mct",
+            "--no-mqtt",
         ]))
     };
     let (first, second) = (dir.path().join("first.csv"), dir.path().join("second.csv"));

@@ -23,7 +23,7 @@ fn start(dir: &Path, io_body: &str, port: u16, extra: &[&str]) -> ChildGuard {
     std::fs::write(&io, io_body).unwrap();
     let plc = ChildGuard::spawn(
         run_vernadat(BIN, &io, dir)
-            .arg("--no-mct")
+            .arg("--no-mqtt")
             .args(extra)
             .stdout(Stdio::piped())
             .stderr(std::fs::File::create(dir.join("plc.err")).unwrap()),

@@ -27,7 +27,7 @@ fn write_io(dir: &Path, body: &str) -> PathBuf {
 fn start(dir: &Path, io: &Path, port: u16, extra: &[&str]) -> ChildGuard {
     let plc = ChildGuard::spawn(
         run_vernadat(BIN, io, dir)
-            .arg("--no-mct")
+            .arg("--no-mqtt")
             .args(extra)
             .stdout(Stdio::piped())
             .stderr(Stdio::piped()),
@@ -178,7 +178,7 @@ fn a_server_beyond_loopback_without_security_is_refused_with_the_reason() {
     let out = Command::new(BIN)
         .arg("run")
         .arg(example("vernadat/vernadat.toml"))
-        .args(["--twin", "vernadat", "--no-mct", "--cold", "--for", "1s"])
+        .args(["--twin", "vernadat", "--no-mqtt", "--cold", "--for", "1s"])
         .arg("--io")
         .arg(&io)
         .arg("--config")
@@ -236,7 +236,13 @@ fn a_minute_with_the_twin_as_the_plcs_opcua_client_finishes_as_many_parts_as_in_
             .arg("--io")
             .arg(&io)
             .args([
-                "--no-mct", "--cold", "--json", "--plc", "cell", "--for", "62s",
+                "--no-mqtt",
+                "--cold",
+                "--json",
+                "--plc",
+                "cell",
+                "--for",
+                "62s",
             ])
             .args(&script)
             .arg("--state-dir")

@@ -58,7 +58,7 @@ fn the_twin_logs_in_over_sign_and_encrypt_and_finishes_parts() {
     .unwrap();
     let plc = ChildGuard::spawn(
         run_vernadat(BIN, &io, d)
-            .arg("--no-mct")
+            .arg("--no-mqtt")
             .stdout(Stdio::piped())
             .stderr(Stdio::null()),
     );

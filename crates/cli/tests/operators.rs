@@ -121,7 +121,7 @@ fn with_operator_keys_only_signed_commands_are_carried_out_and_the_audit_log_nam
         let http = free_port();
         let mut cmd = Command::new(BIN);
         cmd.args([
-            "mct",
+            "dashboard",
             "--http",
             &format!("127.0.0.1:{http}"),
             "--broker",
@@ -130,9 +130,9 @@ fn with_operator_keys_only_signed_commands_are_carried_out_and_the_audit_log_nam
         if let Some(k) = key {
             cmd.args(["--key", path(k)]);
         }
-        let mut mct = ChildGuard::spawn(cmd.stdout(Stdio::piped()).stderr(Stdio::null()));
+        let mut dashboard = ChildGuard::spawn(cmd.stdout(Stdio::piped()).stderr(Stdio::null()));
         let cookie = cetratus_testkit::http::login(&login_link(
-            &stdout_lines(&mut mct.0),
+            &stdout_lines(&mut dashboard.0),
             Duration::from_secs(20),
         ));
         let addr = std::net::SocketAddr::from(([127, 0, 0, 1], http));

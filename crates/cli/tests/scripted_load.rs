@@ -101,7 +101,7 @@ fn a_scripted_load_whose_file_cannot_be_read_yet_does_not_stop_the_scans() {
     let mut child = Command::new(BIN)
         .arg("run")
         .arg(d.join("vernadat.toml"))
-        .args(["--twin", "vernadat", "--no-mct", "--for", "10min"])
+        .args(["--twin", "vernadat", "--no-mqtt", "--for", "10min"])
         .args(["--trust", &p(&d.join("trusted"))])
         .args(["--config", &p(&d.join("config"))])
         .args(["--at", &format!("200ms load {}", p(&fifo))])

@@ -94,7 +94,7 @@ fn version_2_of_the_press_cell_goes_live_with_its_count_kept_and_its_new_press_t
         "8s substitute",
         "--trace",
         path(&trace),
-        "--no-mct",
+        "--no-mqtt",
     ]);
     let csv = std::fs::read_to_string(&trace).expect("the trace");
     let mut edges = press_edges(&csv);

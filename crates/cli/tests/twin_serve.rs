@@ -108,7 +108,7 @@ fn a_minute_with_the_twin_in_its_own_process_takes_u1_and_finishes_as_many_parts
             .arg(demo.join("vernadat.toml"))
             .arg("--io")
             .arg(&io)
-            .args(["--no-mct", "--cold", "--json"])
+            .args(["--no-mqtt", "--cold", "--json"])
             .arg("--trust")
             .arg(demo.join("trusted"))
             .args(&script)

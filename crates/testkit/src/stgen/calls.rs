@@ -105,7 +105,7 @@ impl ProgramGen<'_> {
             (Sty::E(t), Val::Real(rv)) => self.real(t, rv, false, d),
             (Sty::E(Ty::Time), Val::Time { clean, range }) => self.time(clean, range, d),
             (Sty::E(Ty::String), Val::Str { max, .. }) => self.string(max, d),
-            (Sty::E(t), _) => self.bits(t, false, false, d),
+            (Sty::E(t), _) => self.bits(t, Bits::PLAIN, d),
         }
     }
 
@@ -194,7 +194,7 @@ impl ProgramGen<'_> {
         if ty.is_int() {
             self.int(ty, ty.full(), false, d)
         } else if ty.is_bits() {
-            self.bits(ty, false, false, d)
+            self.bits(ty, Bits::PLAIN, d)
         } else if ty.is_real() {
             self.real(ty, free_real(ty), false, d)
         } else {
@@ -223,8 +223,22 @@ impl ProgramGen<'_> {
                 (l, r)
             }
             Sty::E(t) if t.is_bits() => {
-                let l = self.bits(t, true, false, d - 1);
-                let r = self.bits(t, true, !l.typed, d - 1);
+                let l = self.bits(
+                    t,
+                    Bits {
+                        clean: true,
+                        typed: false,
+                    },
+                    d - 1,
+                );
+                let r = self.bits(
+                    t,
+                    Bits {
+                        clean: true,
+                        typed: !l.typed,
+                    },
+                    d - 1,
+                );
                 (l, r)
             }
             Sty::E(t) => {
@@ -255,7 +269,8 @@ impl ProgramGen<'_> {
     // BYTE, WORD, DWORD, LWORD
 
     /// A bit string of type `ty`; `clean`: no bits above its width in C (rule 5).
-    pub(super) fn bits(&mut self, ty: Ty, clean: bool, typed: bool, d: u32) -> Expr {
+    pub(super) fn bits(&mut self, ty: Ty, want: Bits, d: u32) -> Expr {
+        let Bits { clean, typed } = want;
         if d == 0 || self.rng.pct(30) {
             return self.bits_leaf(ty, typed);
         }
@@ -266,8 +281,22 @@ impl ProgramGen<'_> {
                         .rng
                         .pick(&[("AND", P_AND), ("&", P_AND), ("OR", P_OR), ("XOR", P_XOR)]);
                 let and = prec == P_AND;
-                let l = self.bits(ty, clean && !and, typed, d - 1);
-                let r = self.bits(ty, clean && (!and || l.val.dirty()), false, d - 1);
+                let l = self.bits(
+                    ty,
+                    Bits {
+                        clean: clean && !and,
+                        typed,
+                    },
+                    d - 1,
+                );
+                let r = self.bits(
+                    ty,
+                    Bits {
+                        clean: clean && (!and || l.val.dirty()),
+                        typed: false,
+                    },
+                    d - 1,
+                );
                 let dirty = if and {
                     l.val.dirty() && r.val.dirty()
                 } else {
@@ -277,7 +306,14 @@ impl ProgramGen<'_> {
             }
             9..=11 if !clean || !ty.narrow() => {
                 // MATIEC cannot type `NOT 16#F0F`: the operand is typed.
-                let x = self.bits(ty, false, true, d - 1);
+                let x = self.bits(
+                    ty,
+                    Bits {
+                        clean: false,
+                        typed: true,
+                    },
+                    d - 1,
+                );
                 let text = format!("NOT {}", x.at(P_ATOM));
                 let val = Val::Bits { dirty: ty.narrow() };
                 Expr {
@@ -292,14 +328,23 @@ impl ProgramGen<'_> {
             17..=18 => {
                 let n = self.rng.range(2, 3);
                 let args: Vec<Expr> = (0..n)
-                    .map(|i| self.bits(ty, false, typed && i == 0, d - 1))
+                    .map(|i| {
+                        self.bits(
+                            ty,
+                            Bits {
+                                clean: false,
+                                typed: typed && i == 0,
+                            },
+                            d - 1,
+                        )
+                    })
                     .collect();
                 let name = if self.rng.pct(50) { "MIN" } else { "MAX" };
                 self.call(name, &args, Val::Bits { dirty: false })
             }
             19 => {
                 let mn = self.bits_lit(ty, typed);
-                let x = self.bits(ty, false, false, d - 1);
+                let x = self.bits(ty, Bits::PLAIN, d - 1);
                 let mx = Expr::lit(
                     format!("{}#{}", ty.name(), ty.full().hi),
                     Val::Bits { dirty: false },
@@ -308,15 +353,31 @@ impl ProgramGen<'_> {
                 self.call("LIMIT", &[mn, x, mx], Val::Bits { dirty: false })
             }
             20 => {
-                let a = self.bits(ty, clean, typed, d - 1);
-                let b = self.bits(ty, clean, false, d - 1);
+                let a = self.bits(ty, Bits { clean, typed }, d - 1);
+                let b = self.bits(
+                    ty,
+                    Bits {
+                        clean,
+                        typed: false,
+                    },
+                    d - 1,
+                );
                 let mut e = self.sel(a, b, d);
                 e.val = Val::Bits { dirty: false };
                 e
             }
             21 => {
                 let args = (0..self.rng.range(2, 4))
-                    .map(|i| self.bits(ty, false, typed && i == 0, d - 1))
+                    .map(|i| {
+                        self.bits(
+                            ty,
+                            Bits {
+                                clean: false,
+                                typed: typed && i == 0,
+                            },
+                            d - 1,
+                        )
+                    })
                     .collect();
                 let mut e = self.mux(args, d);
                 e.val = Val::Bits { dirty: false };
@@ -334,7 +395,14 @@ impl ProgramGen<'_> {
     pub(super) fn bits_shift(&mut self, ty: Ty, typed: bool, d: u32) -> Expr {
         let w = i128::from(ty.width());
         let name = *self.rng.pick(&["SHL", "SHR", "ROL", "ROR"]);
-        let x = self.bits(ty, false, typed, d - 1);
+        let x = self.bits(
+            ty,
+            Bits {
+                clean: false,
+                typed,
+            },
+            d - 1,
+        );
         let nty = *self.rng.pick(&INT_TYPES);
         let n = if name.starts_with("RO") {
             // A rotation by 0 is a C shift by the width (rule 4).

@@ -410,7 +410,7 @@ impl ProgramGen<'_> {
             let ai = a.val.iv();
             (a, if ai.within(full) { ai } else { full })
         } else if src.is_bits() {
-            let a = self.bits(src, false, false, d - 1);
+            let a = self.bits(src, Bits::PLAIN, d - 1);
             let sf = src.full();
             (a, if sf.within(full) { sf } else { full })
         } else {

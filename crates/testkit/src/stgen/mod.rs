@@ -792,6 +792,30 @@ struct ProgramGen<'r> {
     groups: Vec<usize>,
 }
 
+/// What a bit-string expression must be: `clean`, with no bits above its width in C (rule 5),
+/// and `typed`, a typed literal where a literal stands at its root.
+#[derive(Clone, Copy)]
+struct Bits {
+    clean: bool,
+    typed: bool,
+}
+
+impl Bits {
+    /// Neither clean nor typed.
+    const PLAIN: Bits = Bits {
+        clean: false,
+        typed: false,
+    };
+}
+
+/// Where an expression stands: the whole right-hand side of an assignment, or inside another
+/// expression (rule 7).
+#[derive(Clone, Copy, PartialEq, Eq)]
+enum Depth {
+    Statement,
+    Nested,
+}
+
 mod calls;
 mod declarations;
 mod inputs;

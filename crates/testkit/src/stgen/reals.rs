@@ -71,7 +71,7 @@ impl ProgramGen<'_> {
                     Val::Real(Rv::padded(a.lo.sqrt(), a.hi.sqrt())),
                 )
             }
-            19..=20 if want.hi >= 1.0 => self.expt(ty, want, typed, d, false),
+            19..=20 if want.hi >= 1.0 => self.expt(ty, want, typed, d, Depth::Nested),
             21..=25 => self.real_select(ty, want, typed, d),
             26..=28 => return self.conv_to_real(ty, want, d),
             _ => return self.user_call(Sty::E(ty), d),
@@ -223,9 +223,10 @@ impl ProgramGen<'_> {
         }
     }
 
-    /// `EXPT(b, p)` with `b >= 0` and a small exponent; `**` for LREAL, or for REAL when
-    /// `top` (the whole right-hand side of an assignment, rule 7).
-    pub(super) fn expt(&mut self, ty: Ty, want: Rv, typed: bool, d: u32, top: bool) -> Expr {
+    /// `EXPT(b, p)` with `b >= 0` and a small exponent; `**` for LREAL, or for REAL at
+    /// [`Depth::Statement`] (the whole right-hand side of an assignment, rule 7).
+    pub(super) fn expt(&mut self, ty: Ty, want: Rv, typed: bool, d: u32, at: Depth) -> Expr {
+        let top = at == Depth::Statement;
         let (p, pt) = *self.rng.pick(&[
             (2.0, "2"),
             (3.0, "3"),
@@ -273,7 +274,7 @@ impl ProgramGen<'_> {
             let ai = a.val.iv();
             (a, Rv::padded(ai.lo as f64, ai.hi as f64))
         } else if src.is_bits() {
-            let a = self.bits(src, false, false, d - 1);
+            let a = self.bits(src, Bits::PLAIN, d - 1);
             (a, Rv::padded(0.0, src.full().hi as f64))
         } else {
             let free = free_real(src);

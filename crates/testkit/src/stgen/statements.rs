@@ -158,7 +158,7 @@ impl ProgramGen<'_> {
         }
         if let (Sty::E(Ty::Real), Val::Real(rv)) = (sty, dom) {
             if rv.hi >= 1.0 && self.rng.pct(10) {
-                return self.expt(Ty::Real, rv, false, d, true);
+                return self.expt(Ty::Real, rv, false, d, Depth::Statement);
             }
         }
         self.value(sty, dom, d)

@@ -49,6 +49,9 @@ pub enum DemoError {
     /// A step of the experiment did not happen.
     #[error("{0}")]
     Experiment(String),
+    /// A package of the experiment was refused.
+    #[error(transparent)]
+    Load(#[from] crate::load::LoadRefusal),
 }
 
 fn io_err(path: &Path) -> impl FnOnce(std::io::Error) -> DemoError + '_ {
@@ -323,10 +326,7 @@ impl Run {
     /// Prepares and gates a package as a run's preparer does, then loads it.
     fn load(&mut self, bytes: &[u8]) -> Result<(), DemoError> {
         let ctx = self.node.plc().update_context();
-        let prepared = self
-            .load
-            .prepare(&ctx, bytes)
-            .map_err(|e| DemoError::Experiment(e.to_string()))?;
+        let prepared = self.load.prepare(&ctx, bytes)?;
         self.command(Command::Load(Box::new(prepared)))
     }
     fn substitute(&mut self) -> Result<(), DemoError> {

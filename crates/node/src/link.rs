@@ -444,7 +444,7 @@ impl Preparer {
             let (mut extra, mut newer) = (None, None);
             let prepared = cmd.request.as_ref().try_map(
                 |package| {
-                    let (p, e, n) = self.load(c, package)?;
+                    let (p, e, n) = self.load(c, package).map_err(|e| e.to_string())?;
                     (extra, newer) = (Some(e), n);
                     Ok(p)
                 },
@@ -497,18 +497,15 @@ impl Preparer {
             serde_json::Value,
             Option<UpdateContext>,
         ),
-        String,
+        crate::load::LoadRefusal,
     > {
-        let mut p = self
-            .policy
-            .build(before, package)
-            .map_err(|e| e.to_string())?;
+        let mut p = self.policy.build(before, package)?;
         let newer = self.fresh_context();
         let c = newer.as_ref().unwrap_or(before);
         if c.primary.hash() != before.primary.hash() {
-            p = self.policy.build(c, package).map_err(|e| e.to_string())?;
+            p = self.policy.build(c, package)?;
         }
-        let p = self.policy.gate(c, p).map_err(|e| e.to_string())?;
+        let p = self.policy.gate(c, p)?;
         let extra = json!({
             "accepted": true,
             "verdicts": p.verdicts().last().map(wire::verdict).into_iter().collect::<Vec<_>>(),

@@ -31,6 +31,14 @@ pub enum LoadRefusal {
     /// The analysis gate refused the candidate; the text names the findings.
     #[error("{0}")]
     Gate(String),
+    /// The package file could not be read.
+    #[error("cannot read the package file: {source}")]
+    Unreadable {
+        /// The file.
+        path: String,
+        /// Why.
+        source: std::io::Error,
+    },
 }
 
 impl LoadPolicy {
@@ -53,6 +61,19 @@ impl LoadPolicy {
         }
         update.add_verdict(outcome.verdict);
         Ok(update)
+    }
+
+    /// Reads the package file `path`, then [`LoadPolicy::prepare`]s it.
+    pub fn prepare_file(
+        &self,
+        ctx: &UpdateContext,
+        path: &std::path::Path,
+    ) -> Result<PreparedUpdate, LoadRefusal> {
+        let bytes = std::fs::read(path).map_err(|source| LoadRefusal::Unreadable {
+            path: path.display().to_string(),
+            source,
+        })?;
+        self.prepare(ctx, &bytes)
     }
 
     /// [`LoadPolicy::build`], then [`LoadPolicy::gate`], against the same context.

@@ -37,6 +37,14 @@ pub enum ScriptError {
     /// A command's argument cannot be used.
     #[error("{0}")]
     Command(String),
+    /// A scripted load was refused.
+    #[error("{path}: {refusal}")]
+    Load {
+        /// The package file.
+        path: String,
+        /// Why it does not load.
+        refusal: Box<crate::load::LoadRefusal>,
+    },
 }
 
 /// A scripted command: a load names its package file, a substitution its mode.
@@ -70,7 +78,7 @@ struct Job {
 struct Done {
     item: usize,
     base: [u8; 32],
-    result: Result<PreparedUpdate, String>,
+    result: Result<PreparedUpdate, ScriptError>,
 }
 
 /// The script's preparer thread, started with the first load to prepare.
@@ -95,12 +103,11 @@ impl Preparer {
                 while let Ok(Job { item, path, ctx }) = job_rx.recv() {
                     // The analysis gate, here on the script's thread as on the MQTT
                     // preparer's: never on the scan thread.
-                    let result = std::fs::read(&path)
-                        .map_err(|e| format!("cannot read {path}: {e}"))
-                        .and_then(|bytes| {
-                            policy
-                                .prepare(&ctx, &bytes)
-                                .map_err(|e| format!("{path}: {e}"))
+                    let result = policy
+                        .prepare_file(&ctx, std::path::Path::new(&path))
+                        .map_err(|refusal| ScriptError::Load {
+                            path: path.clone(),
+                            refusal: Box::new(refusal),
                         });
                     let base = ctx.primary.hash();
                     if done_tx.send(Done { item, base, result }).is_err() {
@@ -136,7 +143,7 @@ impl Preparer {
     }
 
     /// The result for `item` prepared against the primary `base`, if there is one.
-    fn take(&mut self, item: usize, base: [u8; 32]) -> Option<Result<PreparedUpdate, String>> {
+    fn take(&mut self, item: usize, base: [u8; 32]) -> Option<Result<PreparedUpdate, ScriptError>> {
         match &self.ready {
             Some(d) if d.item == item && d.base == base => self.ready.take().map(|d| d.result),
             _ => None,
@@ -284,11 +291,7 @@ impl Script {
             prep.collect(pace == Pace::Virtual);
             if let Some(result) = prep.take(item, base) {
                 *next += 1;
-                return Some(
-                    result
-                        .map(|p| Command::Load(Box::new(p)))
-                        .map_err(ScriptError::Command),
-                );
+                return Some(result.map(|p| Command::Load(Box::new(p))));
             }
             // Not prepared, or prepared against a primary that has changed since.
             prep.ensure(item, path, plc);

@@ -7,7 +7,10 @@ use std::time::Duration;
 use anyhow::{bail, Context};
 use base64::Engine as _;
 use cetratus_mct::client::{Message, OperatorKey, Outcome, Session, SessionConfig};
-use cetratus_proto::{Command, Leaf, PlcId, Reply, SubstituteMode};
+use cetratus_proto::{
+    Command, EventMsg, ExecInfoMsg, Leaf, PlcId, ProgramInfo, Reply, Slot, StatePayload,
+    SubstituteMode,
+};
 use serde_json::{json, Value};
 
 use crate::mqtt_args::MqttArgs;
@@ -234,47 +237,48 @@ pub fn status(args: &PlainArgs) -> anyhow::Result<()> {
         println!("{}", serde_json::to_string_pretty(&v)?);
         return Ok(());
     }
-    print_state(&v);
+    print_state(v);
     Ok(())
 }
 
-fn print_state(v: &Value) {
-    if v["online"] == Value::Bool(false) {
-        println!("offline");
-        return;
-    }
-    let prog = |p: &Value| {
-        if p.is_null() {
-            "(empty)".to_string()
-        } else {
-            format!(
-                "{} {} ({})",
-                p["name"].as_str().unwrap_or("?"),
-                p["version"].as_str().unwrap_or("?"),
-                &p["hash"].as_str().unwrap_or("")[..12.min(p["hash"].as_str().unwrap_or("").len())]
-            )
+/// Prints a `state` payload; one this client cannot read (a PLC of another version) is printed
+/// as it came, with why.
+fn print_state(v: Value) {
+    let state = match serde_json::from_value::<StatePayload>(v.clone()) {
+        Ok(StatePayload::Online(state)) => state,
+        Ok(StatePayload::Offline) => {
+            println!("offline");
+            return;
+        }
+        Err(e) => {
+            println!("state (not read: {e}): {v}");
+            return;
         }
     };
-    println!(
-        "PRIMARY {}   STATUS {}",
-        v["primary"].as_str().unwrap_or("?"),
-        v["status"].as_str().unwrap_or("?")
-    );
-    println!("  A  {}", prog(&v["programs"]["A"]));
-    println!("  B  {}", prog(&v["programs"]["B"]));
+    let prog = |p: Option<&ProgramInfo>| match p {
+        None => "(empty)".to_string(),
+        Some(p) => format!("{} {} ({})", p.name, p.version, short_hash(&p.hash)),
+    };
+    println!("PRIMARY {}   STATUS {}", state.primary, state.status);
+    println!("  A  {}", prog(state.programs.get(Slot::A)));
+    println!("  B  {}", prog(state.programs.get(Slot::B)));
+    let c = &state.cycle;
     println!(
         "  cycles {}  scan p99 {} ns  overruns {}",
-        v["cycle"]["cycles"], v["cycle"]["scan"]["p99_ns"], v["cycle"]["overruns"]
+        c.cycles, c.scan.p99_ns, c.overruns
     );
-    let f = &v["persist_fault"];
-    if !f.is_null() {
+    if let Some(f) = &state.persist_fault {
+        let saved = f.saved_cycle.map_or("none".into(), |c| c.to_string());
         println!(
-            "  PERSISTENCE FAULT since cycle {}: {} (last saved: cycle {})",
-            f["since_cycle"],
-            f["error"].as_str().unwrap_or("?"),
-            f["saved_cycle"]
+            "  PERSISTENCE FAULT since cycle {}: {} (last saved: cycle {saved})",
+            f.since_cycle, f.error
         );
     }
+}
+
+/// The first twelve digits of a program hash.
+fn short_hash(hash: &str) -> &str {
+    hash.get(..12).unwrap_or(hash)
 }
 
 /// `cetratus watch`: state changes and events as they happen.
@@ -285,15 +289,18 @@ pub fn watch(args: &PlainArgs) -> anyhow::Result<()> {
     while let Some(Message { leaf, payload: v }) = s.next_message(None)? {
         if args.opts.json {
             println!("{}", json!({ "topic": leaf, "payload": v }));
-        } else if leaf == "events" {
-            println!(
-                "{:>10.3} s  {:<20} {}",
-                v["time_us"].as_f64().unwrap_or(0.0) / 1e6,
-                v["kind"].as_str().unwrap_or(""),
-                v["message"].as_str().unwrap_or("")
-            );
+        } else if leaf == Leaf::Events.as_str() {
+            match serde_json::from_value::<EventMsg>(v.clone()) {
+                Ok(e) => println!(
+                    "{:>10.3} s  {:<20} {}",
+                    e.time_us.unwrap_or(0) as f64 / 1e6,
+                    e.kind.to_string(),
+                    e.message
+                ),
+                Err(e) => println!("event (not read: {e}): {v}"),
+            }
         } else {
-            print_state(&v);
+            print_state(v);
         }
     }
     Ok(())
@@ -307,28 +314,30 @@ pub fn exec_info(args: &PlainArgs) -> anyhow::Result<()> {
         return print_reply(&reply, true);
     }
     let result = reply.result.unwrap_or(Value::Null);
-    for c in result
-        .as_array()
-        .into_iter()
-        .flatten()
-        .filter(|c| !c.is_null())
-    {
+    let info: ExecInfoMsg = match serde_json::from_value(result.clone()) {
+        Ok(info) => info,
+        Err(e) => {
+            println!("exec_info (not read: {e}): {result}");
+            return Ok(());
+        }
+    };
+    for c in info.0.iter().flatten() {
         println!(
             "{} ({}): {} {}  cycles {}  scan mean {} ns p99 {} ns  drift {}  deadlock {}",
-            c["container"].as_str().unwrap_or("?"),
-            c["role"].as_str().unwrap_or("?"),
-            c["program"]["name"].as_str().unwrap_or("?"),
-            c["program"]["version"].as_str().unwrap_or("?"),
-            c["cycles"],
-            c["scan"]["mean_ns"],
-            c["scan"]["p99_ns"],
-            c["drift"],
-            c["deadlock"]
+            c.container,
+            c.role,
+            c.program.name,
+            c.program.version,
+            c.cycles,
+            c.scan.mean_ns,
+            c.scan.p99_ns,
+            c.drift,
+            c.deadlock
         );
-        if let Some(d) = c["divergence"].as_object().filter(|d| !d.is_empty()) {
-            println!("   divergence {}", Value::Object(d.clone()));
+        if !c.divergence.is_empty() {
+            println!("   divergence {}", json!(c.divergence));
         }
-        if let Some(cause) = c["first_cause"].as_str() {
+        if let Some(cause) = &c.first_cause {
             println!("   cause      {cause}");
         }
     }

@@ -82,20 +82,15 @@ pub fn run(args: &DemoArgs) -> anyhow::Result<()> {
         );
     }
     for info in &rec.exec_info {
-        for c in info
-            .as_array()
-            .into_iter()
-            .flatten()
-            .filter(|c| !c.is_null())
-        {
-            if c["role"] == "candidate" {
+        for c in info.0.iter().flatten() {
+            if c.role == cetratus_proto::Role::Candidate {
                 println!(
                     "\nquarantine of {} {}: divergence {}, cause: {}, max drift {}",
-                    c["program"]["name"],
-                    c["program"]["version"],
-                    c["divergence"],
-                    c["first_cause"],
-                    c["max_drift"]
+                    c.program.name,
+                    c.program.version,
+                    serde_json::json!(c.divergence),
+                    c.first_cause.as_deref().unwrap_or("none"),
+                    c.max_drift
                 );
             }
         }

@@ -162,6 +162,16 @@ fn revert_and_accept_end_probation_wait_for_their_outcome_and_exit_by_it() {
         (Some("B"), Some("probation")),
         "{state}"
     );
+    // The same state and figures as text, read through proto's types.
+    let out = c.run(&["status"]);
+    assert!(
+        stdout(&out).contains("PRIMARY B   STATUS probation"),
+        "{}",
+        text(&out)
+    );
+    let out = c.run(&["exec-info"]);
+    assert!(stdout(&out).contains("B (primary): "), "{}", text(&out));
+    assert!(!stdout(&out).contains("not read"), "{}", text(&out));
     let out = c.run(&["revert", "--json"]);
     assert_eq!(out.status.code(), Some(0), "{}", text(&out));
     let v: serde_json::Value = serde_json::from_slice(&out.stdout).expect("one JSON object");

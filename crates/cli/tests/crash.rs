@@ -11,7 +11,7 @@ use std::process::{Command, Stdio};
 use std::time::Duration;
 
 use cetratus_persist::{Inspection, PersistConfig, StateStore};
-use cetratus_runtime::Status;
+use cetratus_runtime::{Role, Status};
 
 const BIN: &str = env!("CARGO_BIN_EXE_cetratus");
 /// Program time runs this many times faster than the wall clock, so updates happen within tens
@@ -70,7 +70,7 @@ fn inspect(state: &Path) -> Inspection {
 fn saved_primary_version(ins: &Inspection) -> Option<String> {
     ins.containers
         .iter()
-        .find(|c| c.role == "primary")
+        .find(|c| c.role == Role::Primary)
         .and_then(|c| c.program.rsplit(' ').next().map(str::to_string))
 }
 

@@ -214,8 +214,8 @@ pub struct DemoRecord {
     pub parts_finished: u64,
     /// Faults the twin saw.
     pub faults: Vec<String>,
-    /// program_exec_info at the end of each quarantine, in order.
-    pub exec_info: Vec<serde_json::Value>,
+    /// program_exec_info at the end of each quarantine, in order, as the wire carries it.
+    pub exec_info: Vec<cetratus_proto::ExecInfoMsg>,
 }
 
 fn named(names: &[String], values: &[Value]) -> BTreeMap<String, bool> {
@@ -336,8 +336,8 @@ impl Run {
         self.step();
         Ok(())
     }
-    fn exec_info(&self) -> serde_json::Value {
-        serde_json::to_value(self.node.plc().exec_info()).unwrap_or(serde_json::Value::Null)
+    fn exec_info(&self) -> cetratus_proto::ExecInfoMsg {
+        crate::wire::exec_info_msg(self.node.plc())
     }
 }
 

@@ -1,7 +1,7 @@
 //! What `cetratus state` reports: the saved state checked against its rules.
 
 use cetratus_program::Program;
-use cetratus_runtime::{ContainerSnapshot, PlcSnapshot, Slot, Status};
+use cetratus_runtime::{ContainerSnapshot, PlcSnapshot, Role, Slot, Status};
 use serde::Serialize;
 
 use crate::*;
@@ -20,12 +20,12 @@ pub struct StoredProgram {
 }
 
 /// One container of the saved state, resolved against its program.
-#[derive(Clone, Debug, Default, Serialize)]
+#[derive(Clone, Debug, Serialize)]
 pub struct ContainerReport {
     /// A or B.
-    pub slot: String,
-    /// `primary` or `candidate`.
-    pub role: String,
+    pub slot: Slot,
+    /// Primary or candidate.
+    pub role: Role,
     /// Program name and version, when it loads.
     pub program: String,
     /// Its hash.
@@ -100,15 +100,17 @@ pub(crate) fn check_snapshot(store: &StateStore, snap: &PlcSnapshot, ins: &mut I
             continue;
         };
         let role = if slot == primary {
-            "primary"
+            Role::Primary
         } else {
-            "candidate"
+            Role::Candidate
         };
         let mut rep = ContainerReport {
-            slot: slot.as_str().into(),
-            role: role.into(),
+            slot,
+            role,
+            program: String::new(),
             program_hash: cs.program_hash.clone(),
-            ..Default::default()
+            marking: Vec::new(),
+            violation: None,
         };
         match store.load_program(&cs.program_hash) {
             Ok(p) => {
@@ -142,7 +144,7 @@ pub(crate) fn check_snapshot(store: &StateStore, snap: &PlcSnapshot, ins: &mut I
     let resumes = ins
         .containers
         .iter()
-        .find(|c| c.role == "primary")
+        .find(|c| c.role == Role::Primary)
         .map_or(String::new(), |c| c.program.clone());
     ins.warm_start = format!(
         "PRIMARY = {} resumes {} at cycle {} ({:.3} s){}{}",

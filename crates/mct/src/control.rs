@@ -45,7 +45,11 @@ pub fn refused(message: impl Into<String>) -> ErrorBody {
 
 /// The outcome of an accepted command: `{"accepted": true}`.
 pub fn accepted() -> Outcome {
-    Ok(serde_json::to_value(Accepted { accepted: true }).ok())
+    let accepted = Accepted {
+        accepted: true,
+        verdicts: Vec::new(),
+    };
+    Ok(serde_json::to_value(accepted).ok())
 }
 
 /// A command, parsed and authorised: a load carries the package's bytes (base64-decoded here, so

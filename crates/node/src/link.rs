@@ -506,10 +506,11 @@ impl Preparer {
             p = self.policy.build(c, package)?;
         }
         let p = self.policy.gate(c, p)?;
-        let extra = json!({
-            "accepted": true,
-            "verdicts": p.verdicts().last().map(wire::verdict).into_iter().collect::<Vec<_>>(),
-        });
+        let accepted = cetratus_proto::Accepted {
+            accepted: true,
+            verdicts: p.verdicts().last().map(wire::verdict).into_iter().collect(),
+        };
+        let extra = serde_json::to_value(accepted).unwrap_or_default();
         Ok((Box::new(p), extra, newer))
     }
 

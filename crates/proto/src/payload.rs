@@ -659,10 +659,14 @@ pub struct ErrorBody {
 }
 
 /// The `result` of an accepted `load`, `substitute`, `remove`, `abort` or `reset`.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Accepted {
     /// Always `true`.
     pub accepted: bool,
+    /// A load's: the analysis gate's verdict on the candidate (absent for the other verbs, and
+    /// from PLCs that predate it).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub verdicts: Vec<Verdict>,
 }
 
 /// A reply to a command, on the response topic (or the payload's `reply_to`).

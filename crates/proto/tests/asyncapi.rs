@@ -177,3 +177,44 @@ fn every_field_the_plc_publishes_is_declared_in_its_message() {
         }
     }
 }
+
+#[test]
+fn the_results_of_accepted_commands_are_declared() {
+    use cetratus_proto::{Accepted, Verdict};
+    let doc = asyncapi();
+    let reply = block(&doc, "  messages:", "    Reply:");
+    assert!(
+        reply
+            .iter()
+            .any(|l| l.contains("#/components/schemas/Accepted"))
+            && reply
+                .iter()
+                .any(|l| l.contains("#/components/schemas/ExecInfo")),
+        "asyncapi.yaml's Reply result names neither Accepted nor ExecInfo: {reply:#?}"
+    );
+    // A load's result, with the analysis gate's verdict, as the PLC writes it.
+    let accepted = Accepted {
+        accepted: true,
+        verdicts: vec![Verdict {
+            figures: [("states".to_string(), 12.0)].into(),
+            kind: VerdictKind::Analysis,
+            reasons: vec!["no deadlock".into()],
+            result: VerdictResult::Pass,
+        }],
+    };
+    let v = serde_json::to_value(&accepted).expect("JSON");
+    let schema = block(&doc, "  schemas:", "    Accepted:");
+    for key in v.as_object().expect("an object").keys() {
+        assert!(
+            declares(&schema, key),
+            "asyncapi.yaml's Accepted does not declare `{key}`"
+        );
+    }
+    let verdict = block(&doc, "  schemas:", "    Verdict:");
+    for key in v["verdicts"][0].as_object().expect("an object").keys() {
+        assert!(
+            declares(&verdict, key),
+            "asyncapi.yaml's Verdict does not declare `{key}`"
+        );
+    }
+}

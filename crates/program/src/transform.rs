@@ -321,10 +321,10 @@ fn check_ids(
     Ok(())
 }
 
-/// The constructors from explicit matrices and the sizes that a transformation and a projection
-/// share (the doc lines differ: which net is a row), written once.
+/// The constructors from explicit matrices, the sizes and the dense form that a transformation
+/// and a projection share (the doc lines differ: which net is a row), written once.
 macro_rules! explicit_constructors_and_sizes {
-    ($dense:literal, $sparse:literal, $rows:literal, $cols:literal) => {
+    ($dense:literal, $sparse:literal, $rows:literal, $cols:literal, $to_dense:literal) => {
         #[doc = $dense]
         pub fn dense(
             old: &Net,
@@ -355,6 +355,11 @@ macro_rules! explicit_constructors_and_sizes {
         #[doc = $cols]
         pub fn cols(&self) -> usize {
             self.map.cols()
+        }
+
+        #[doc = $to_dense]
+        pub fn to_dense(&self) -> DenseMatrix {
+            self.map.to_dense()
         }
     };
 }
@@ -463,7 +468,8 @@ impl StateTransform {
         "An explicit transformation from a dense `|P_new| × |P_old|` matrix whose row ids are the new net's place ids in order and whose column ids are the old net's.",
         "An explicit transformation from `(new place, old place, coefficient)` entries and a base keyed by new place (missing entries are 0).",
         "Places of the new net.",
-        "Places of the old net."
+        "Places of the old net.",
+        "The matrix and base in dense form, with the place ids of rows (new) and columns (old)."
     }
 
     /// Old places whose tokens this transform drops, so they must be empty when it applies.
@@ -495,11 +501,6 @@ impl StateTransform {
         out: &mut [Option<u64>],
     ) {
         carry_timers(&self.timer_from, old_since, new_marking, now_us, out);
-    }
-
-    /// The matrix and base in dense form, with the place ids of rows (new) and columns (old).
-    pub fn to_dense(&self) -> DenseMatrix {
-        self.map.to_dense()
     }
 }
 
@@ -595,7 +596,8 @@ impl Projection {
         "An explicit projection from a dense `|P_old| × |P_new|` matrix whose row ids are the old net's place ids in order and whose column ids are the new net's.",
         "An explicit projection from `(old place, new place, coefficient)` entries and a base keyed by old place (missing entries are 0).",
         "Places of the old net.",
-        "Places of the new net."
+        "Places of the new net.",
+        "The matrix and base in dense form, with the place ids of rows (old) and columns (new)."
     }
 
     /// `M_old = Π·M_new + Π_base`, the marking a revert gives the old program back, written into
@@ -633,11 +635,6 @@ impl Projection {
             sum = sum.saturating_add(d.unsigned_abs());
         }
         u64::try_from(sum).unwrap_or(u64::MAX)
-    }
-
-    /// The matrix and base in dense form, with the place ids of rows (old) and columns (new).
-    pub fn to_dense(&self) -> DenseMatrix {
-        self.map.to_dense()
     }
 }
 

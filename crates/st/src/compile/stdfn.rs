@@ -508,50 +508,10 @@ impl<'a> Compiler<'a> {
         let (ty, s) = self.same_scalars(args, want, pos)?;
         let e = self.ordered(ty, "LIMIT", pos)?;
         let (mn, x, mx) = (s[0], s[1], s[2]);
-        let (above, below, inner, dst) = (
-            self.temp(pos)?,
-            self.temp(pos)?,
-            self.temp(pos)?,
-            self.temp(pos)?,
-        );
-        self.emit(
-            Op::Cmp {
-                op: Rel::Gt,
-                e,
-                dst: above,
-                a: x,
-                b: mn,
-            },
-            pos,
-        )?;
-        self.emit(
-            Op::Cmp {
-                op: Rel::Lt,
-                e,
-                dst: below,
-                a: x,
-                b: mx,
-            },
-            pos,
-        )?;
-        self.emit(
-            Op::Select {
-                dst: inner,
-                c: below,
-                a: x,
-                b: mx,
-            },
-            pos,
-        )?;
-        self.emit(
-            Op::Select {
-                dst,
-                c: above,
-                a: inner,
-                b: mn,
-            },
-            pos,
-        )?;
+        let above = self.compare(Rel::Gt, e, x, mn, pos)?;
+        let below = self.compare(Rel::Lt, e, x, mx, pos)?;
+        let inner = self.choose(below, x, mx, pos)?;
+        let dst = self.choose(above, inner, mn, pos)?;
         Ok(Val::Scalar(ty, dst))
     }
 
@@ -589,7 +549,6 @@ impl<'a> Compiler<'a> {
         Ok(Val::Scalar(ty, dst))
     }
 
-    /// MUX(K, IN0, …): the input numbered K, or the type's zero when K is out of range (MATIEC).
     /// A temporary that holds whether MUX's selector `k` (of type `ke`) picks input `i`.
     pub(crate) fn selects(
         &mut self,
@@ -598,18 +557,32 @@ impl<'a> Compiler<'a> {
         i: usize,
         pos: Pos,
     ) -> Result<Slot, Diagnostic> {
-        let (idx, hit) = (self.const_slot(i as u64, pos)?, self.temp(pos)?);
-        let cmp = Op::Cmp {
-            op: Rel::Eq,
-            e: ke,
-            dst: hit,
-            a: k,
-            b: idx,
-        };
-        self.emit(cmp, pos)?;
-        Ok(hit)
+        let idx = self.const_slot(i as u64, pos)?;
+        self.compare(Rel::Eq, ke, k, idx, pos)
     }
 
+    /// A temporary that holds `a op b`, both of type `e`.
+    pub(crate) fn compare(
+        &mut self,
+        op: Rel,
+        e: Elem,
+        a: Slot,
+        b: Slot,
+        pos: Pos,
+    ) -> Result<Slot, Diagnostic> {
+        let dst = self.temp(pos)?;
+        self.emit(Op::Cmp { op, e, dst, a, b }, pos)?;
+        Ok(dst)
+    }
+
+    /// A temporary that holds `a` when `c`, else `b`.
+    fn choose(&mut self, c: Slot, a: Slot, b: Slot, pos: Pos) -> Result<Slot, Diagnostic> {
+        let dst = self.temp(pos)?;
+        self.emit(Op::Select { dst, c, a, b }, pos)?;
+        Ok(dst)
+    }
+
+    /// MUX(K, IN0, …): the input numbered K, or the type's zero when K is out of range (MATIEC).
     fn mux(&mut self, args: &[&Expr], want: Option<Ty>, pos: Pos) -> Result<Val, Diagnostic> {
         if args.len() < 2 {
             return Err(Diagnostic::new(

@@ -109,6 +109,13 @@ impl<'a> Compiler<'a> {
         Ok(Val::Str(out.0, out.1))
     }
 
+    /// A temporary that holds `a op b` of two strings.
+    fn str_compare(&mut self, op: Rel, a: TextAt, b: TextAt, pos: Pos) -> Result<Slot, Diagnostic> {
+        let dst = self.temp(pos)?;
+        self.emit(Op::StrCmp { op, dst, a, b }, pos)?;
+        Ok(dst)
+    }
+
     /// LIMIT(MN, IN, MX) on strings: `IN > MN ? (IN < MX ? IN : MX) : MN`.
     fn string_limit(&mut self, args: &[&Expr], pos: Pos) -> Result<Val, Diagnostic> {
         if args.len() != 3 {
@@ -120,25 +127,9 @@ impl<'a> Compiler<'a> {
         let t = self.strings(args)?;
         let (mn, x, mx) = (t[0].1, t[1].1, t[2].1);
         let out = self.string_result(&t, pos)?;
-        let (above, below, not_above) = (self.temp(pos)?, self.temp(pos)?, self.temp(pos)?);
-        self.emit(
-            Op::StrCmp {
-                op: Rel::Gt,
-                dst: above,
-                a: x,
-                b: mn,
-            },
-            pos,
-        )?;
-        self.emit(
-            Op::StrCmp {
-                op: Rel::Lt,
-                dst: below,
-                a: x,
-                b: mx,
-            },
-            pos,
-        )?;
+        let above = self.str_compare(Rel::Gt, x, mn, pos)?;
+        let below = self.str_compare(Rel::Lt, x, mx, pos)?;
+        let not_above = self.temp(pos)?;
         self.emit(
             Op::Not {
                 e: Elem::Bool,

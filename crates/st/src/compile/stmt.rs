@@ -299,109 +299,38 @@ impl<'a> Compiler<'a> {
         direction: Option<i128>,
         pos: Pos,
     ) -> Result<Slot, Diagnostic> {
-        let t = self.temp(pos)?;
         match direction {
-            Some(d) if d > 0 => self.emit(
-                Op::Cmp {
-                    op: Rel::Le,
-                    e,
-                    dst: t,
-                    a: v,
-                    b: last,
-                },
-                pos,
-            )?,
-            Some(d) if d < 0 => self.emit(
-                Op::Cmp {
-                    op: Rel::Ge,
-                    e,
-                    dst: t,
-                    a: v,
-                    b: last,
-                },
-                pos,
-            )?,
+            Some(d) if d > 0 => self.compare(Rel::Le, e, v, last, pos),
+            Some(d) if d < 0 => self.compare(Rel::Ge, e, v, last, pos),
             _ => {
+                // (step > 0 AND v <= last) OR (NOT step > 0 AND v >= last)
                 let zero = self.const_slot(0, pos)?;
-                let (up, le, ge, a, b) = (
-                    self.temp(pos)?,
-                    self.temp(pos)?,
-                    self.temp(pos)?,
-                    self.temp(pos)?,
-                    self.temp(pos)?,
-                );
+                let up = self.compare(Rel::Gt, e, step, zero, pos)?;
+                let le = self.compare(Rel::Le, e, v, last, pos)?;
+                let ge = self.compare(Rel::Ge, e, v, last, pos)?;
+                let rising = self.logic(Arith::And, up, le, pos)?;
+                let down = self.temp(pos)?;
                 let bool_ = Elem::Bool;
-                self.emit(
-                    Op::Cmp {
-                        op: Rel::Gt,
-                        e,
-                        dst: up,
-                        a: step,
-                        b: zero,
-                    },
-                    pos,
-                )?;
-                self.emit(
-                    Op::Cmp {
-                        op: Rel::Le,
-                        e,
-                        dst: le,
-                        a: v,
-                        b: last,
-                    },
-                    pos,
-                )?;
-                self.emit(
-                    Op::Cmp {
-                        op: Rel::Ge,
-                        e,
-                        dst: ge,
-                        a: v,
-                        b: last,
-                    },
-                    pos,
-                )?;
-                self.emit(
-                    Op::Arith {
-                        op: Arith::And,
-                        e: bool_,
-                        dst: a,
-                        a: up,
-                        b: le,
-                    },
-                    pos,
-                )?;
                 self.emit(
                     Op::Not {
                         e: bool_,
-                        dst: up,
+                        dst: down,
                         a: up,
                     },
                     pos,
                 )?;
-                self.emit(
-                    Op::Arith {
-                        op: Arith::And,
-                        e: bool_,
-                        dst: b,
-                        a: up,
-                        b: ge,
-                    },
-                    pos,
-                )?;
-                self.emit(
-                    Op::Arith {
-                        op: Arith::Or,
-                        e: bool_,
-                        dst: t,
-                        a,
-                        b,
-                    },
-                    pos,
-                )?
+                let falling = self.logic(Arith::And, down, ge, pos)?;
+                self.logic(Arith::Or, rising, falling, pos)
             }
-        };
-        Ok(t)
+        }
+    }
+
+    /// A temporary that holds `a op b` of two BOOLs.
+    fn logic(&mut self, op: Arith, a: Slot, b: Slot, pos: Pos) -> Result<Slot, Diagnostic> {
+        let dst = self.temp(pos)?;
+        let e = Elem::Bool;
+        self.emit(Op::Arith { op, e, dst, a, b }, pos)?;
+        Ok(dst)
     }
 
     fn while_stmt(&mut self, cond: &Expr, body: &[Stmt], pos: Pos) -> Result<(), Diagnostic> {

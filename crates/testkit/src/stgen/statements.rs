@@ -472,6 +472,25 @@ impl ProgramGen<'_> {
         (name, ty, n)
     }
 
+    /// The body of a WHILE or REPEAT loop that counts its trips with `counter` (name, type,
+    /// trips), the count last.
+    fn counted_body(
+        &mut self,
+        out: &mut Vec<String>,
+        ind: usize,
+        depth: u32,
+        counter: (&str, Ty, i128),
+    ) {
+        let (name, ty, n) = counter;
+        let live = Live {
+            name: name.to_string(),
+            ty,
+            range: Iv::new(0, n - 1),
+        };
+        self.in_loop(out, ind + 1, depth, live, None);
+        line(out, ind + 1, format!("{name} := {name} + 1;"));
+    }
+
     /// `WHILE n < N …` with a counter that ends it after at most N (≤ 8) trips.
     pub(super) fn while_loop(&mut self, out: &mut Vec<String>, ind: usize, depth: u32) {
         let (name, ty, n) = self.trip_counter(out, ind);
@@ -482,26 +501,14 @@ impl ProgramGen<'_> {
             _ => format!("{} AND {bound}", self.boolean(1).at(P_AND)),
         };
         line(out, ind, format!("WHILE {cond} DO"));
-        let live = Live {
-            name: name.clone(),
-            ty,
-            range: Iv::new(0, n - 1),
-        };
-        self.in_loop(out, ind + 1, depth, live, None);
-        line(out, ind + 1, format!("{name} := {name} + 1;"));
+        self.counted_body(out, ind, depth, (&name, ty, n));
         line(out, ind, "END_WHILE;");
     }
 
     pub(super) fn repeat_loop(&mut self, out: &mut Vec<String>, ind: usize, depth: u32) {
         let (name, ty, n) = self.trip_counter(out, ind);
         line(out, ind, "REPEAT");
-        let live = Live {
-            name: name.clone(),
-            ty,
-            range: Iv::new(0, n - 1),
-        };
-        self.in_loop(out, ind + 1, depth, live, None);
-        line(out, ind + 1, format!("{name} := {name} + 1;"));
+        self.counted_body(out, ind, depth, (&name, ty, n));
         let until = if self.rng.pct(50) {
             format!("{name} >= {n}")
         } else {

@@ -17,9 +17,10 @@ use crate::progress::TerminalProgress;
 #[derive(clap::Args, Debug)]
 pub struct CheckArgs {
     /// A PNML file (ISO/IEC 15909-2 or PIPE dialect), a program file (.toml), or a PLCopen TC6
-    /// XML file, whose SFC POU is checked as `cetratus import plcopen` imports it.
+    /// XML file, whose POU is checked as `cetratus import plcopen` imports it (an SFC POU with the
+    /// chart checks).
     pub file: PathBuf,
-    /// The SFC POU of a PLCopen file (needed when the file has several).
+    /// The POU of a PLCopen file (needed unless the file has one SFC POU, or one PROGRAM).
     #[arg(long, value_name = "NAME")]
     pub pou: Option<String>,
     /// Print the report as JSON on stdout.
@@ -96,12 +97,13 @@ fn load(path: &Path, pou: Option<&str>) -> anyhow::Result<(Net, bool)> {
         let text = std::fs::read_to_string(path)
             .with_context(|| format!("cannot read {}", path.display()))?;
         if cetratus_sfc::is_plcopen(text.strip_prefix('\u{feff}').unwrap_or(&text)) {
-            // The program `import plcopen` would write, with the chart checks.
-            let imported = cetratus_sfc::import_program(&text, &path.display().to_string(), pou)?;
-            for note in &imported.notes {
+            // The program `import plcopen` would write, with the chart checks for a chart.
+            let imported = cetratus_sfc::import_pou(&text, &path.display().to_string(), pou)?;
+            for note in imported.notes() {
                 eprintln!("note: {note}");
             }
-            return Ok((imported.net, true));
+            let is_chart = matches!(imported, cetratus_sfc::ImportedPou::Chart(_));
+            return Ok((imported.net().clone(), is_chart));
         }
     }
     if let Some(pou) = pou {

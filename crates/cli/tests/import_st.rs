@@ -226,3 +226,70 @@ END_PROGRAM
         "{second:?}"
     );
 }
+
+/// A saved state is read from disk before the first scan: a RETAIN string whose saved length
+/// is longer than its capacity (a damaged or edited `state.json`) is not restored, and the PLC
+/// starts; a state file larger than any PLC writes is refused before it is read.
+#[test]
+fn a_damaged_retained_string_in_the_saved_state_is_not_restored_and_the_plc_starts() {
+    let dir = tempfile::tempdir().expect("a temporary directory");
+    let text = "\
+PROGRAM Words
+VAR_OUTPUT n : DINT; len_out : INT; END_VAR
+VAR RETAIN word : STRING[8] := 'ab'; count : DINT; END_VAR
+count := count + 1;
+n := count;
+len_out := LEN(word);
+END_PROGRAM
+";
+    ok(&import(dir.path(), "words", text));
+    let (program, replay) = (dir.path().join("Words.toml"), dir.path().join("in.csv"));
+    std::fs::write(&replay, "scan,time_ms\n0,0.000\n").expect("write");
+    let state = dir.path().join("state");
+    let trace = dir.path().join("t.csv");
+    let run = || {
+        cetratus(&[
+            "run",
+            path(&program),
+            "--replay",
+            path(&replay),
+            "--virtual",
+            "--for",
+            "50ms",
+            "--state-dir",
+            path(&state),
+            "--trace",
+            path(&trace),
+            "--no-mqtt",
+        ])
+    };
+    ok(&run());
+    // The saved string: two bytes of length, then its capacity of characters. Say 65,535.
+    let file = state.join("state.json");
+    let mut saved: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&file).expect("state.json")).expect("JSON");
+    let retained = saved["snapshot"]["containers"][0]["st_retained"]
+        .as_array_mut()
+        .expect("the retained variables");
+    let word = retained
+        .iter_mut()
+        .find(|r| r["name"] == "word")
+        .expect("the saved string");
+    assert_eq!(word["text"][0], 2, "{word}");
+    word["text"][0] = 255.into();
+    word["text"][1] = 255.into();
+    std::fs::write(&file, serde_json::to_string(&saved).expect("JSON")).expect("write");
+    let out = ok(&run());
+    assert!(out.contains("faults          none"), "{out}");
+    let csv = std::fs::read_to_string(&trace).expect("the trace");
+    let first = csv.lines().nth(1).expect("a row");
+    // count kept (6 scans before), word back at its initial 'ab'.
+    assert_eq!(first, "5,50.000,6,2", "{csv}");
+
+    let huge = std::fs::File::create(&file).expect("state.json");
+    huge.set_len(cetratus_persist::MAX_STATE_BYTES + 1)
+        .expect("a sparse file");
+    let err = refused(&run());
+    assert!(err.contains("state.json"), "{err}");
+    assert!(err.contains("more than the"), "{err}");
+}

@@ -51,6 +51,11 @@ pub(crate) const LOCK_FILE: &str = "lock";
 /// and counting on from it would wrap.
 pub const MAX_COUNTER: u64 = (1 << 53) - 1;
 
+/// Most bytes a `state.json` may have. The largest state a program can have (2²⁰ slots and
+/// 4 MiB of strings of Structured Text, its markings and variables) is tens of megabytes in
+/// JSON; a larger file was not written by a PLC and is refused before it is read.
+pub const MAX_STATE_BYTES: u64 = 256 << 20;
+
 /// Everything that can go wrong with a state directory (this module's own error type: the
 /// scan engine's `RuntimeError` never meets a disk).
 #[derive(Debug, thiserror::Error)]

@@ -265,6 +265,15 @@ impl StateStore {
     /// Reads `state.json`; `None` when there is none (a first start).
     pub fn load_state(&self) -> Result<Option<StateFile>, PersistError> {
         let path = self.dir.join(STATE_FILE);
+        let size = std::fs::metadata(&path).map_or(0, |m| m.len());
+        if size > MAX_STATE_BYTES {
+            return Err(PersistError::Malformed {
+                path: path.display().to_string(),
+                reason: format!(
+                    "{size} bytes, more than the {MAX_STATE_BYTES} a state file may have"
+                ),
+            });
+        }
         let text = match std::fs::read_to_string(&path) {
             Ok(t) => t,
             Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(None),

@@ -221,8 +221,13 @@ impl Unit {
     }
 
     /// Writes an image taken by [`Unit::image`] back into `v`'s part of `state`; false, and
-    /// nothing written, when it is not the size of `v`.
+    /// nothing written, when it is not the size of `v` or a string of it says it holds more
+    /// characters than its capacity (an image from outside, a saved state, is checked before the
+    /// scan reads it).
     pub fn restore(&self, state: &mut State, v: &Var, slots: &[u64], text: &[u8]) -> bool {
+        if !self.strings_fit(v.ty, text) {
+            return false;
+        }
         let (s, t) = (v.at.slots as usize, v.at.text as usize);
         let (Some(to_slots), Some(to_text)) = (
             state.slots.get_mut(s..s + v.size.slots as usize),
@@ -235,6 +240,44 @@ impl Unit {
         }
         to_slots.copy_from_slice(slots);
         to_text.copy_from_slice(text);
+        true
+    }
+
+    /// Whether every string in `text`, the bytes of a value of type `ty`, holds no more
+    /// characters than its capacity. A walk with a stack of its own; an array of strings is
+    /// visited element by element.
+    pub fn strings_fit(&self, ty: Ty, text: &[u8]) -> bool {
+        let mut todo = vec![(ty, 0usize)];
+        while let Some((ty, at)) = todo.pop() {
+            match ty {
+                Ty::String(cap) => match text.get(at..at + 2) {
+                    Some(&[lo, hi]) if u16::from_le_bytes([lo, hi]) <= cap => {}
+                    _ => return false,
+                },
+                Ty::Array(id) => {
+                    let Some(a) = self.types.arrays.get(id as usize) else {
+                        return false;
+                    };
+                    let step = a.elem_size.text as usize;
+                    if step > 0 {
+                        todo.extend((0..a.count() as usize).map(|i| (a.elem, at + i * step)));
+                    }
+                }
+                Ty::Struct(id) => {
+                    let Some(s) = self.types.structs.get(id as usize) else {
+                        return false;
+                    };
+                    todo.extend(s.fields.iter().map(|f| (f.ty, at + f.at.text as usize)));
+                }
+                Ty::Fb(id) => {
+                    let Some(fields) = self.fb_fields.get(id as usize) else {
+                        return false;
+                    };
+                    todo.extend(fields.iter().map(|f| (f.ty, at + f.at.text as usize)));
+                }
+                Ty::Elem(_) | Ty::Enum(_) => {}
+            }
+        }
         true
     }
 

@@ -37,9 +37,16 @@ impl ProgramGen<'_> {
         } else {
             self.int_op(ty, want, typed, d)
         };
-        // Whatever `fit_int` does to it, a value outside the type never existed (rule 1).
+        // Whatever `fit_int` does to it, a value outside the type never existed, and an
+        // operation on untyped literals stays within C `int` (rule 1).
+        let c_int = Iv::new(i128::from(i32::MIN), i128::from(i32::MAX));
         let e = match e {
-            Some(e) if e.val.iv().within(ty.full()) => e,
+            Some(e)
+                if e.val.iv().within(ty.full())
+                    && (!e.konst || e.typed || e.prec == P_ATOM || e.val.iv().within(c_int)) =>
+            {
+                e
+            }
             _ => self.int_leaf(ty, want, typed),
         };
         self.fit_int(e, ty, want, typed)

@@ -65,13 +65,17 @@
 //!    store does wrap), UDINT and ULINT in C unsigned arithmetic, and DINT and LINT wrap because
 //!    [`crate::matiec`] compiles with `-fwrapv`. MATIEC folds expressions of literals and
 //!    refuses them when they overflow ("Data type mismatch"), so a wrapping one reads a variable.
+//!    An operation on untyped literals is computed in C `int` whatever the context's type (in a
+//!    UDINT expression, MATIEC's `2_147_483_647 * 16#2` is -2), so its value stays within 32
+//!    bits; with a typed literal (`UDINT#2_147_483_647 * 2`) it is computed in the type.
 //! 2. Integer `/` and `MOD` divide by a literal other than 0 and -1, or by a guarded
 //!    `(ABS(e MOD m) + 1)`; the most negative value is never negated nor given to ABS.
 //! 3. Narrowing integer conversions (`DINT_TO_SINT(300)`) wrap modulo 2^n (gcc's choice, as
 //!    for rule 1). REAL→integer and REAL→bit-string conversions only see values that round into
 //!    the target (MATIEC rounds half to even) and no negative value for unsigned targets (MATIEC
 //!    gives 0); TRUNC only as the whole right-hand side of an assignment, which types it
-//!    (MATIEC types `TRUNC(r) > 5` as `TRUNC__ULINT__REAL`).
+//!    (MATIEC types `TRUNC(r) > 5` as `TRUNC__ULINT__REAL`), and of a typed argument (of
+//!    untyped literals only, `TRUNC(79.92 ** 2.0)`, MATIEC takes the REAL TRUNC).
 //! 4. `SHL`/`SHR` shift by 0 … width-1, `ROL`/`ROR` by 1 … width-1 (MATIEC's `ROL` of a DWORD
 //!    by 0 is a C shift by 32).
 //! 5. `NOT` of a BYTE or WORD is C `~` on an `int`, whose bits above the width are set: such a

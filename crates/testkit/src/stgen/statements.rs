@@ -147,7 +147,9 @@ impl ProgramGen<'_> {
                 };
                 let free = free_real(src);
                 let rb = Rv::new((iv.lo as f64).max(free.lo), (iv.hi as f64).min(free.hi));
-                let x = self.real(src, rb, false, d);
+                // Typed: of an argument of untyped literals only, MATIEC takes the REAL
+                // TRUNC where an LREAL was meant (rule 3).
+                let x = self.real(src, rb, true, d);
                 return Expr::atom(format!("TRUNC({})", x.text), dom, true);
             }
             if self.rng.pct(25) {
@@ -591,15 +593,19 @@ impl ProgramGen<'_> {
             }
         }
         if self.rng.pct(35) {
-            if let Some(bind) = self.output_binding(fb) {
+            // Never the variable of an in-out of the same call: IEC leaves the order of its
+            // two writes open (docs/st.md, VAR_IN_OUT).
+            let in_outs = self.pou.vars[i].binds.clone();
+            if let Some(bind) = self.output_binding(fb, &in_outs) {
                 args.push(bind);
             }
         }
         format!("{}({});", self.pou.vars[i].name, args.join(", "))
     }
 
-    /// `Q => v` for an output of instance `i` and a variable whose domain holds it.
-    pub(super) fn output_binding(&mut self, fb: Fb) -> Option<String> {
+    /// `Q => v` for an output of instance `i` and a variable whose domain holds it, other than
+    /// the variables the call binds to in-outs (`in_outs`).
+    pub(super) fn output_binding(&mut self, fb: Fb, in_outs: &[String]) -> Option<String> {
         let outs = self.fb_outputs(fb);
         let k = self.rng.below(outs.len() as u64) as usize;
         let (sty, dom) = outs[k];
@@ -607,7 +613,7 @@ impl ProgramGen<'_> {
             .pou
             .vars
             .iter()
-            .filter(|v| v.section != Section::Input)
+            .filter(|v| v.section != Section::Input && !in_outs.contains(&v.name))
             .filter(|v| matches!(v.kind, Kind::Scalar(t, d) if t == sty && dom.fits(d)))
             .map(|v| v.name.clone())
             .collect();

@@ -399,13 +399,24 @@ fn check_on_a_plcopen_file_runs_the_chart_checks_of_the_imported_program() {
         check.contains("parallel branches that never join: none"),
         "{check}"
     );
-    // --pou chooses the POU as the import does: an unknown one lists the file's SFC POUs.
+    // --pou chooses the POU as the import does: an unknown one lists the file's POUs with the
+    // language of each.
     let beremiz = fixture("beremiz-first-steps.xml");
     let out = cetratus(&["check", beremiz.to_str().expect("UTF-8"), "--pou", "Nope"]);
     assert_eq!(out.status.code(), Some(1));
     let err = String::from_utf8_lossy(&out.stderr);
-    assert!(err.contains("no POU `Nope` with an SFC body"), "{err}");
-    assert!(err.contains("CounterSFC"), "{err}");
+    assert!(err.contains("no POU `Nope`"), "{err}");
+    assert!(err.contains("CounterSFC (SFC)"), "{err}");
+    assert!(err.contains("CounterLD (LD)"), "{err}");
+    // A POU of another language is checked as the program it imports as: one step, no chart.
+    let ld = ok(&cetratus(&[
+        "check",
+        beremiz.to_str().expect("UTF-8"),
+        "--pou",
+        "CounterLD",
+    ]));
+    assert!(ld.contains("net CounterLD: 1 places"), "{ld}");
+    assert!(!ld.contains("sfc chart"), "{ld}");
     let check = ok(&cetratus(&[
         "check",
         beremiz.to_str().expect("UTF-8"),

@@ -223,22 +223,9 @@ impl ProgramGen<'_> {
                 (l, r)
             }
             Sty::E(t) if t.is_bits() => {
-                let l = self.bits(
-                    t,
-                    Bits {
-                        clean: true,
-                        typed: false,
-                    },
-                    d - 1,
-                );
-                let r = self.bits(
-                    t,
-                    Bits {
-                        clean: true,
-                        typed: !l.typed,
-                    },
-                    d - 1,
-                );
+                let clean = Bits::PLAIN.with_clean(true);
+                let l = self.bits(t, clean, d - 1);
+                let r = self.bits(t, clean.with_typed(!l.typed), d - 1);
                 (l, r)
             }
             Sty::E(t) => {
@@ -281,20 +268,10 @@ impl ProgramGen<'_> {
                         .rng
                         .pick(&[("AND", P_AND), ("&", P_AND), ("OR", P_OR), ("XOR", P_XOR)]);
                 let and = prec == P_AND;
-                let l = self.bits(
-                    ty,
-                    Bits {
-                        clean: clean && !and,
-                        typed,
-                    },
-                    d - 1,
-                );
+                let l = self.bits(ty, want.with_clean(clean && !and), d - 1);
                 let r = self.bits(
                     ty,
-                    Bits {
-                        clean: clean && (!and || l.val.dirty()),
-                        typed: false,
-                    },
+                    Bits::PLAIN.with_clean(clean && (!and || l.val.dirty())),
                     d - 1,
                 );
                 let dirty = if and {
@@ -306,14 +283,7 @@ impl ProgramGen<'_> {
             }
             9..=11 if !clean || !ty.narrow() => {
                 // MATIEC cannot type `NOT 16#F0F`: the operand is typed.
-                let x = self.bits(
-                    ty,
-                    Bits {
-                        clean: false,
-                        typed: true,
-                    },
-                    d - 1,
-                );
+                let x = self.bits(ty, Bits::PLAIN.with_typed(true), d - 1);
                 let text = format!("NOT {}", x.at(P_ATOM));
                 let val = Val::Bits { dirty: ty.narrow() };
                 Expr {
@@ -328,16 +298,7 @@ impl ProgramGen<'_> {
             17..=18 => {
                 let n = self.rng.range(2, 3);
                 let args: Vec<Expr> = (0..n)
-                    .map(|i| {
-                        self.bits(
-                            ty,
-                            Bits {
-                                clean: false,
-                                typed: typed && i == 0,
-                            },
-                            d - 1,
-                        )
-                    })
+                    .map(|i| self.bits(ty, Bits::PLAIN.with_typed(typed && i == 0), d - 1))
                     .collect();
                 let name = if self.rng.pct(50) { "MIN" } else { "MAX" };
                 self.call(name, &args, Val::Bits { dirty: false })
@@ -353,31 +314,15 @@ impl ProgramGen<'_> {
                 self.call("LIMIT", &[mn, x, mx], Val::Bits { dirty: false })
             }
             20 => {
-                let a = self.bits(ty, Bits { clean, typed }, d - 1);
-                let b = self.bits(
-                    ty,
-                    Bits {
-                        clean,
-                        typed: false,
-                    },
-                    d - 1,
-                );
+                let a = self.bits(ty, want, d - 1);
+                let b = self.bits(ty, Bits::PLAIN.with_clean(clean), d - 1);
                 let mut e = self.sel(a, b, d);
                 e.val = Val::Bits { dirty: false };
                 e
             }
             21 => {
                 let args = (0..self.rng.range(2, 4))
-                    .map(|i| {
-                        self.bits(
-                            ty,
-                            Bits {
-                                clean: false,
-                                typed: typed && i == 0,
-                            },
-                            d - 1,
-                        )
-                    })
+                    .map(|i| self.bits(ty, Bits::PLAIN.with_typed(typed && i == 0), d - 1))
                     .collect();
                 let mut e = self.mux(args, d);
                 e.val = Val::Bits { dirty: false };

@@ -810,6 +810,16 @@ impl Bits {
         clean: false,
         typed: false,
     };
+
+    /// The same, clean or not.
+    fn with_clean(self, clean: bool) -> Bits {
+        Bits { clean, ..self }
+    }
+
+    /// The same, typed or not.
+    fn with_typed(self, typed: bool) -> Bits {
+        Bits { typed, ..self }
+    }
 }
 
 /// Where an expression stands: the whole right-hand side of an assignment, or inside another

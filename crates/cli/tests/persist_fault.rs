@@ -57,7 +57,13 @@ fn a_state_directory_that_cannot_be_written_raises_an_alarm_and_the_plc_saves_ag
     });
 
     let block = state.join("state.json.tmp");
-    std::fs::create_dir(&block).expect("a directory in the way of the commit");
+    // The writer holds a `state.json.tmp` of its own for an instant at each commit: the directory
+    // goes in between two.
+    common::wait_for(
+        "a directory in the way of the commit",
+        Duration::from_secs(10),
+        || std::fs::create_dir(&block).is_ok(),
+    );
     std::fs::write(block.join("keep"), b"x").expect("a file in it");
     common::wait_for("persist_failed on events", Duration::from_secs(20), || {
         event_seen(&seen, "persist_failed").is_some()

@@ -2,51 +2,11 @@
 //! virtual time from replayed inputs: the public fixtures behave as IEC 61131-3 makes them
 //! (docs/st.md, *PLCopen XML*), and what cannot be imported is refused by name and place.
 
-use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+use std::path::Path;
+use std::process::Output;
 
-const BIN: &str = env!("CARGO_BIN_EXE_cetratus");
-
-fn fixture(name: &str) -> PathBuf {
-    let path = Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../../../shared/fixtures/plcopen")
-        .join(name);
-    assert!(
-        path.exists(),
-        "{} is missing; the PLCopen fixtures live beside the workspace in ../shared/fixtures",
-        path.display()
-    );
-    path
-}
-
-fn cetratus(args: &[&str]) -> Output {
-    Command::new(BIN)
-        .args(args)
-        .output()
-        .expect("cetratus runs")
-}
-
-fn ok(out: &Output) -> String {
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    String::from_utf8_lossy(&out.stdout).into_owned()
-}
-
-fn refused(out: &Output) -> String {
-    assert!(
-        !out.status.success(),
-        "accepted: {}",
-        String::from_utf8_lossy(&out.stdout)
-    );
-    String::from_utf8_lossy(&out.stderr).into_owned()
-}
-
-fn path(p: &Path) -> &str {
-    p.to_str().expect("a UTF-8 path")
-}
+mod binary;
+use binary::{cetratus, fixture, ok, path, refused};
 
 /// Imports POU `pou` of `file` into `dir`; what the importer printed.
 fn import(dir: &Path, file: &Path, pou: &str) -> Output {

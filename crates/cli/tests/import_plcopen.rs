@@ -1,38 +1,10 @@
 //! `cetratus import plcopen` writes a program that `check`, `sim` and `run --virtual` accept, and
 //! refuses a chart outside the mapping with the construct and its position.
 
-use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+use std::path::Path;
 
-const BIN: &str = env!("CARGO_BIN_EXE_cetratus");
-
-fn fixture(name: &str) -> PathBuf {
-    let path = Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../../../shared/fixtures/plcopen")
-        .join(name);
-    assert!(
-        path.exists(),
-        "{} is missing; the PLCopen fixtures live beside the workspace in ../shared/fixtures",
-        path.display()
-    );
-    path
-}
-
-fn cetratus(args: &[&str]) -> Output {
-    Command::new(BIN)
-        .args(args)
-        .output()
-        .expect("cetratus runs")
-}
-
-fn ok(out: &Output) -> String {
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    String::from_utf8_lossy(&out.stdout).into_owned()
-}
+mod binary;
+use binary::{cetratus, fixture, ok};
 
 #[test]
 fn an_imported_twincat_chart_is_checked_simulated_and_run_in_virtual_time() {

@@ -2,9 +2,10 @@
 //! drives it from a recorded trace; bad ST and bad traces are refused with their place.
 
 use std::path::Path;
-use std::process::{Command, Output};
+use std::process::Output;
 
-const BIN: &str = env!("CARGO_BIN_EXE_cetratus");
+mod binary;
+use binary::{cetratus, ok, path, refused};
 
 const COUNTER: &str = "\
 PROGRAM Counter
@@ -16,35 +17,6 @@ t(IN := run, PT := T#100ms);
 q := t.Q;
 END_PROGRAM
 ";
-
-fn cetratus(args: &[&str]) -> Output {
-    Command::new(BIN)
-        .args(args)
-        .output()
-        .expect("cetratus runs")
-}
-
-fn ok(out: &Output) -> String {
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    String::from_utf8_lossy(&out.stdout).into_owned()
-}
-
-fn refused(out: &Output) -> String {
-    assert!(
-        !out.status.success(),
-        "accepted: {}",
-        String::from_utf8_lossy(&out.stdout)
-    );
-    String::from_utf8_lossy(&out.stderr).into_owned()
-}
-
-fn path(p: &Path) -> &str {
-    p.to_str().expect("a UTF-8 path")
-}
 
 /// Imports `text` as `name.st` into `dir`; the program file.
 fn import(dir: &Path, name: &str, text: &str) -> Output {

@@ -5,10 +5,23 @@
 use std::path::{Path, PathBuf};
 use std::sync::OnceLock;
 
+/// The Festo station, which `cetratus bench export` exports.
+const FESTO: [(&str, &str); 2] = [
+    (
+        "festo.toml",
+        include_str!("../../examples/festo/festo.toml"),
+    ),
+    (
+        "festo.pnml",
+        include_str!("../../examples/festo/festo.pnml"),
+    ),
+];
+
 /// The plain-Python BFS baseline of the analysis figures.
 const BFS_BASELINE: &str = include_str!("../../scripts/bfs_baseline.py");
 
-/// Where the embedded files are: `examples/vernadat/*` and `scripts/bfs_baseline.py`, as in the
+/// Where the embedded files are: `examples/vernadat/*`, the Festo station and
+/// `scripts/bfs_baseline.py`, as in the
 /// source tree.
 pub fn root() -> &'static Path {
     static ROOT: OnceLock<PathBuf> = OnceLock::new();
@@ -26,6 +39,9 @@ pub fn root() -> &'static Path {
         };
         for (name, text) in cetratus_node::demo::FILES {
             write(&format!("examples/vernadat/{name}"), text);
+        }
+        for (name, text) in FESTO {
+            write(&format!("examples/festo/{name}"), text);
         }
         write("scripts/bfs_baseline.py", BFS_BASELINE);
         root

@@ -7,6 +7,7 @@ pub mod analysis;
 pub mod cyclictest;
 pub mod dense;
 pub mod embedded;
+pub mod export;
 pub mod flood;
 pub mod fuzz;
 pub mod harness;

@@ -386,7 +386,7 @@ fn import_figure(quick: bool) -> Result<(usize, f64), BenchError> {
 }
 
 /// The median of `runs`, in ns.
-fn median(runs: impl Iterator<Item = Duration>) -> f64 {
+pub(crate) fn median(runs: impl Iterator<Item = Duration>) -> f64 {
     let mut ns: Vec<f64> = runs.map(|d| d.as_nanos() as f64).collect();
     ns.sort_by(|a, b| a.total_cmp(b));
     ns.get(ns.len() / 2).copied().unwrap_or(f64::NAN)
@@ -416,7 +416,7 @@ fn value_of(ty: IecType, text: &str) -> Result<Value, BenchError> {
 }
 
 /// A signal's value in MATIEC's canonical text for `ty`.
-fn canonical(ty: IecType, v: Value) -> String {
+pub(crate) fn canonical(ty: IecType, v: Value) -> String {
     match (ty, v) {
         (_, Value::Bool(b)) => if b { "TRUE" } else { "FALSE" }.to_string(),
         (IecType::Real, Value::Real(r)) => format!("r{:08x}", (r as f32).to_bits()),

@@ -24,6 +24,9 @@ pub struct BenchArgs {
 enum What {
     /// Structured Text scans against MATIEC's compiled C, and a 5 000-line import.
     St(crate::bench_st::StArgs),
+    /// The export compiled by MATIEC and `cc -O2` against the interpreted scan, its data's bytes
+    /// and its time.
+    Export(crate::bench_st::StArgs),
     /// OPC UA write → scan → read latency of the real binary (p50, p99).
     Opcua(crate::bench_opcua::OpcuaArgs),
     /// Write a member of a benchmark family as ISO PNML, for `cetratus check` and other tools.
@@ -172,6 +175,9 @@ pub fn run(args: &BenchArgs) -> anyhow::Result<()> {
     }
     if let Some(What::St(a)) = &args.what {
         return crate::bench_st::run(a);
+    }
+    if let Some(What::Export(a)) = &args.what {
+        return crate::bench_st::export(a);
     }
     if let Some(What::Net { family, n, out }) = &args.what {
         let net = match family.to_ascii_lowercase().as_str() {

@@ -1,11 +1,12 @@
 //! `cetratus bench st`: Structured Text scans on Cetratus against the same programs compiled by
-//! MATIEC and `cc -O2`, and the import of a 5 000-line file (docs/performance.md).
+//! MATIEC and `cc -O2`, and the import of a 5 000-line file; `cetratus bench export`: the
+//! exported programs compiled the same way against their interpreted scans (docs/performance.md).
 
 use std::path::PathBuf;
 
 use cetratus_bench::st;
 
-/// Arguments of `cetratus bench st`.
+/// Arguments of `cetratus bench st` and `cetratus bench export`.
 #[derive(clap::Args, Debug)]
 pub struct StArgs {
     /// A MATIEC install dir (`bin/iec2c`, `lib/`), for the compiled-C baseline; without it
@@ -51,5 +52,35 @@ pub fn run(args: &StArgs) -> anyhow::Result<()> {
         "import and compile of {} lines of ST: {:.1} ms",
         f.import_lines, f.import_ms
     );
+    Ok(())
+}
+
+/// Runs `cetratus bench export`.
+pub fn export(args: &StArgs) -> anyhow::Result<()> {
+    let f = cetratus_bench::export::figures(args.matiec.as_deref(), args.quick)
+        .map_err(|e| anyhow::anyhow!("{e}"))?;
+    if args.json {
+        println!("{}", serde_json::to_string_pretty(&f)?);
+        return Ok(());
+    }
+    if let Some(why) = &f.matiec_skipped {
+        println!("the compiled side skipped: {why}");
+    }
+    println!(
+        "{:<18} {:>6} {:>9} {:>8} {:>8} {:>12} {:>12}",
+        "program", "P×T", "export ms", "sparse B", "dense B", "cetratus ns", "compiled ns"
+    );
+    for p in &f.programs {
+        println!(
+            "{:<18} {:>6} {:>9.3} {:>8} {:>8} {:>12.0} {:>12}",
+            p.name,
+            format!("{}×{}", p.places, p.transitions),
+            p.export_ms,
+            p.sparse_bytes,
+            p.dense_bytes,
+            p.cetratus_ns,
+            p.compiled_ns.map_or("-".to_string(), |v| format!("{v:.0}"))
+        );
+    }
     Ok(())
 }

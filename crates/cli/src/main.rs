@@ -15,6 +15,7 @@ mod config;
 mod convert;
 mod dashboard_cmd;
 mod demo;
+mod export;
 mod import;
 mod mqtt_args;
 mod package;
@@ -57,6 +58,8 @@ enum Command {
     Sim(sim::SimArgs),
     /// Convert a net to PNML, DOT or SVG.
     Convert(convert::ConvertArgs),
+    /// Write a program for a vendor PLC: `export PROGRAM --to st -o DIR` (IEC 61131-3 ST).
+    Export(export::ExportArgs),
     /// Analyse a net: invariants, reachability, deadlocks, boundedness, liveness.
     Check(check::CheckArgs),
     /// Write a program from another tool's file: `import plcopen CHART.xml -o DIR`.
@@ -158,6 +161,7 @@ fn main() -> std::process::ExitCode {
     let result = match &cli.command {
         Command::Sim(a) => sim::run(a),
         Command::Convert(a) => convert::run(a),
+        Command::Export(a) => export::run(a),
         Command::Check(a) => check::run(a),
         Command::Import(a) => import::run(a),
         Command::Demo(a) => demo::run(a),

@@ -36,8 +36,11 @@ pub(super) fn translation_units(dir: &Path) -> Result<Vec<String>, MatiecError> 
     let parallel = std::thread::available_parallelism().map_or(1, |n| n.get());
     let chunks = parallel.min(files.len()).max(1);
     for (j, chunk) in balance(dir, &files, chunks).into_iter().enumerate() {
+        // The configuration's header declares the accessors of its globals, which a POU's
+        // VAR_EXTERNAL calls.
         let mut text = String::from(
-            "#include \"iec_std_lib.h\"\n#include \"accessor.h\"\n#include \"POUS.h\"\n",
+            "#include \"iec_std_lib.h\"\n#include \"accessor.h\"\n#include \"POUS.h\"\n\
+             #include \"Cetratus_Config.h\"\n",
         );
         for name in chunk {
             text.push_str(&format!("#include \"{name}.c\"\n"));

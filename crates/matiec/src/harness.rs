@@ -3,13 +3,13 @@
 
 use super::*;
 
-pub(super) fn batch_source(source: &str, cases: &[Case], tick: Duration) -> String {
+pub(super) fn batch_source(source: &str, globals: &str, cases: &[Case], tick: Duration) -> String {
     let mut text = String::from(source);
     if !text.ends_with('\n') {
         text.push('\n');
     }
     text.push_str(&format!(
-        "\nCONFIGURATION Cetratus_Config\n  RESOURCE Cetratus_Res ON PLC\n    \
+        "\nCONFIGURATION Cetratus_Config\n{globals}  RESOURCE Cetratus_Res ON PLC\n    \
          TASK Cetratus_Tick(INTERVAL := {}, PRIORITY := 0);\n",
         time_literal(tick)
     ));
@@ -35,6 +35,23 @@ pub(super) fn time_literal(tick: Duration) -> String {
     }
 }
 
+/// The C name of the pointer MATIEC's code reads a located variable through (`%IX0.1` is
+/// `__IX0_1`), when `name` is an address rather than a variable of the program.
+pub(super) fn located(name: &str) -> Option<String> {
+    let rest = name.strip_prefix('%')?;
+    Some(format!("__{}", rest.to_uppercase().replace('.', "_")))
+}
+
+/// `LOCATED_VARIABLES.h` with only its `__LOCATED_VAR(…)` lines: iec2c also writes the names of
+/// the configuration's global variables into it, run together on one line, which no C
+/// compiler reads.
+pub(super) fn located_only(text: &str) -> String {
+    text.lines()
+        .filter(|l| l.starts_with("__LOCATED_VAR(") && l.ends_with(')'))
+        .map(|l| format!("{l}\n"))
+        .collect()
+}
+
 /// The C name of case `i`'s program instance: MATIEC upper-cases identifiers and prefixes the
 /// resource.
 pub(super) fn instance(i: usize) -> String {
@@ -51,26 +68,32 @@ pub(super) fn harness_c(cases: &[Case]) -> String {
         c.push_str(&format!("\n/* case {i}: PROGRAM {} */\n", case.program));
         c.push_str(&format!("extern {program} {inst};\n"));
         for (name, ty) in case.inputs.iter().chain(&case.outputs) {
+            let var = match located(name) {
+                Some(c_name) => format!("*{c_name}"),
+                None => format!("{inst}.{}.value", name.to_uppercase()),
+            };
             c.push_str(&format!(
-                "_Static_assert(__builtin_types_compatible_p(__typeof__({inst}.{}.value), {ty}), \
+                "_Static_assert(__builtin_types_compatible_p(__typeof__({var}), {ty}), \
                  \"case {i} (PROGRAM {}): `{name}` is not declared {ty}\");\n",
-                name.to_uppercase(),
                 case.program
             ));
         }
         c.push_str(&format!("static void write_inputs_{i}(void) {{\n"));
         for (name, ty) in &case.inputs {
-            c.push_str(&format!(
-                "  __SET_VAR({inst}., {}, , rd_{ty}());\n",
-                name.to_uppercase()
-            ));
+            c.push_str(&match located(name) {
+                Some(c_name) => format!("  *{c_name} = rd_{ty}();\n"),
+                None => format!(
+                    "  __SET_VAR({inst}., {}, , rd_{ty}());\n",
+                    name.to_uppercase()
+                ),
+            });
         }
         c.push_str(&format!("}}\nstatic void print_outputs_{i}(void) {{\n"));
         for (name, ty) in &case.outputs {
-            c.push_str(&format!(
-                "  wr_{ty}(__GET_VAR({inst}.{}));\n",
-                name.to_uppercase()
-            ));
+            c.push_str(&match located(name) {
+                Some(c_name) => format!("  wr_{ty}(*{c_name});\n"),
+                None => format!("  wr_{ty}(__GET_VAR({inst}.{}));\n", name.to_uppercase()),
+            });
         }
         c.push_str("}\n");
     }

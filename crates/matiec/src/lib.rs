@@ -13,7 +13,8 @@
 //! (milliseconds), not a compile. Scan `k` (0-based) of the batch:
 //!
 //! 1. writes the inputs of scan `k` into each case's program instance (`__SET_VAR` on the
-//!    instance struct, as the generated code does; no located variables);
+//!    instance struct, as the generated code does), or, for an input named by its address
+//!    (`%IX0.1`), into the located variable, as a PLC runtime's I/O does (outputs likewise);
 //! 2. sets `__CURRENT_TIME` to `k × tick` (normalized: `tv_sec` and `tv_nsec` of one sign), so
 //!    the first scan sees time 0, and a TON started in scan `j` with `PT = n × tick` has `Q`
 //!    TRUE from scan `j + n` on (for a PT that is exact: MATIEC computes many TIME literals
@@ -50,13 +51,15 @@
 //! of 500 small programs is otherwise one 30 000-line C file that `cc -O2` needs 26 s for on
 //! one core. (So beside `Cetratus_*`, a POU must not be named `POUS`; the harness's own files
 //! are named `cetratus-…`, which no POU can be.) Every unit is compiled with
-//! `cc -O2 -fwrapv -ffp-contract=off`:
+//! `cc -O2 -fwrapv -ffp-contract=off -Werror=implicit-function-declaration`:
 //!
 //! * `-fwrapv`: IEC integer arithmetic wraps at the type's width, and MATIEC emits plain C
 //!   arithmetic (`a + b`), in which DINT and LINT overflow is undefined behaviour; with
 //!   `-fwrapv` gcc wraps. (SINT and INT arithmetic happens in C `int` and wraps when stored.)
 //! * `-ffp-contract=off`: gcc otherwise fuses `a * b + c` into one FMA where the target has one
 //!   (aarch64), which rounds once instead of twice, unlike the interpreter.
+//! * `-Werror=implicit-function-declaration`: a function C does not know (the accessor of a
+//!   global a unit was not shown) would return a truncated `int`; it is an error instead.
 //! * `-O2` unless [`Matiec::with_optimisation`] says otherwise: what the undefined behaviour
 //!   that `-fwrapv` leaves yields (a shift by the width or more, a REAL out of an integer's
 //!   range) depends on the level and on what gcc folds at compile time. A program free of it
@@ -101,7 +104,11 @@ use std::time::{Duration, Instant};
 
 /// The flags every translation unit is compiled with (the module doc says why), besides the
 /// optimisation level ([`Matiec::with_optimisation`]).
-const CFLAGS: [&str; 2] = ["-fwrapv", "-ffp-contract=off"];
+const CFLAGS: [&str; 3] = [
+    "-fwrapv",
+    "-ffp-contract=off",
+    "-Werror=implicit-function-declaration",
+];
 
 /// The first line of the harness's input, so that a stale executable refuses new input.
 const INPUT_HEADER: &str = "cetratus-matiec-input 1";
@@ -427,6 +434,8 @@ pub struct Matiec {
     run_timeout: Duration,
     /// `-O2` unless set.
     optimisation: &'static str,
+    /// VAR_GLOBAL blocks of the configuration.
+    globals: String,
 }
 
 impl Matiec {
@@ -472,6 +481,7 @@ impl Matiec {
             dir,
             run_timeout: DEFAULT_RUN_TIMEOUT,
             optimisation: "-O2",
+            globals: String::new(),
         })
     }
 
@@ -486,6 +496,15 @@ impl Matiec {
     pub fn with_optimisation(self, level: &'static str) -> Matiec {
         Matiec {
             optimisation: level,
+            ..self
+        }
+    }
+
+    /// The same MATIEC, whose configuration declares `globals` (whole `VAR_GLOBAL … END_VAR`
+    /// blocks) for the programs of its batches to read as `VAR_EXTERNAL`.
+    pub fn with_globals(self, globals: impl Into<String>) -> Matiec {
+        Matiec {
+            globals: globals.into(),
             ..self
         }
     }
@@ -554,7 +573,7 @@ impl Matiec {
         let dir = tmp.path();
 
         let start = Instant::now();
-        self.iec2c(dir, &batch_source(source, cases, tick))?;
+        self.iec2c(dir, &batch_source(source, &self.globals, cases, tick))?;
         let iec2c = start.elapsed();
 
         let start = Instant::now();
@@ -591,7 +610,10 @@ impl Matiec {
             .output()
             .map_err(io_error("cannot start iec2c"))?;
         if out.status.success() {
-            return Ok(());
+            let header = dir.join("LOCATED_VARIABLES.h");
+            let text = fs::read_to_string(&header)
+                .map_err(io_error("cannot read iec2c's LOCATED_VARIABLES.h"))?;
+            return write_file(&header, &located_only(&text));
         }
         let output = String::from_utf8_lossy(&out.stderr).into_owned();
         let first_error = output
@@ -734,12 +756,19 @@ fn check_batch(cases: &[Case], tick: Duration) -> Result<(), MatiecError> {
         return invalid("no cases; a batch runs at least one PROGRAM instance".into());
     }
     for (i, case) in cases.iter().enumerate() {
-        let names = std::iter::once(&case.program)
-            .chain(case.inputs.iter().map(|(n, _)| n))
-            .chain(case.outputs.iter().map(|(n, _)| n));
-        for name in names {
-            if !is_identifier(name) {
-                return invalid(format!("case {i}: `{name}` is not an IEC identifier"));
+        if !is_identifier(&case.program) {
+            return invalid(format!(
+                "case {i}: `{}` is not an IEC identifier",
+                case.program
+            ));
+        }
+        let signals =
+            (case.inputs.iter().map(|(n, _)| n)).chain(case.outputs.iter().map(|(n, _)| n));
+        for name in signals {
+            if !is_identifier(name) && !is_address(name) {
+                return invalid(format!(
+                    "case {i}: `{name}` is neither an IEC identifier nor a direct address such as %IX0.1"
+                ));
             }
         }
         for (k, values) in case.scans.iter().enumerate() {
@@ -763,6 +792,23 @@ fn check_batch(cases: &[Case], tick: Duration) -> Result<(), MatiecError> {
         }
     }
     Ok(())
+}
+
+/// `%IX0.1`, `%QW3`, `%MD2`: an area, a size and a number, with a bit for `X`.
+fn is_address(name: &str) -> bool {
+    let b = name.as_bytes();
+    let digits = |t: &[u8]| !t.is_empty() && t.iter().all(u8::is_ascii_digit);
+    match b {
+        [b'%', area, size, rest @ ..] if b"IQM".contains(area) => match size {
+            b'X' => match rest.iter().position(|&c| c == b'.') {
+                Some(dot) => digits(&rest[..dot]) && digits(&rest[dot + 1..]),
+                None => false,
+            },
+            b'B' | b'W' | b'D' | b'L' => digits(rest),
+            _ => false,
+        },
+        _ => false,
+    }
 }
 
 fn is_identifier(name: &str) -> bool {

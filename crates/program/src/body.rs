@@ -12,7 +12,9 @@ use std::fmt;
 
 use std::sync::Arc;
 
-use crate::guard::{self, Compiler, EvalCtx, EvalError, EvalErrorKind, Op, Scope, SyntaxError};
+use crate::guard::{
+    self, Compiler, EvalCtx, EvalError, EvalErrorKind, Expr, Op, Scope, SyntaxError,
+};
 use crate::st::StProgram;
 use crate::value::{Type, Value};
 
@@ -61,6 +63,29 @@ impl fmt::Display for BodyError {
 }
 
 impl std::error::Error for BodyError {}
+
+/// A statement of a guard-language body ([`Body::statements`]): an `if` opens arms that
+/// `elif`, `else` and `end` continue and close, as the lines of the text do.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Statement {
+    /// `name := expr`, on the body's 1-based `line`.
+    Assign {
+        /// The variable or output assigned.
+        name: String,
+        /// The value.
+        expr: Expr,
+        /// The line in the body text.
+        line: u32,
+    },
+    /// `if cond then`
+    If(Expr),
+    /// `elif cond then`
+    Elif(Expr),
+    /// `else`
+    Else,
+    /// `end`
+    End,
+}
 
 /// One statement line, its parts located in the body text.
 enum Line<'a> {
@@ -114,6 +139,38 @@ impl Body {
             Some(st) => st.unit().cost.max(1),
             None => (self.code.len() as u64).max(1),
         }
+    }
+
+    /// The statements of a guard-language body as written, each expression parsed (for writing
+    /// the body in another language, as `cetratus export` does); a Structured Text body has
+    /// none. The body compiled at load, so its text parses again.
+    pub fn statements(&self) -> Result<Vec<Statement>, SyntaxError> {
+        if self.st.is_some() {
+            return Ok(Vec::new());
+        }
+        let parse = |text: &str, at: usize| {
+            guard::parse(text).map_err(|e| SyntaxError::new(at + e.offset, e.message))
+        };
+        lines(&self.source)
+            .map(|(line, at)| {
+                Ok(match classify(line, at)? {
+                    Line::Assign {
+                        name,
+                        expr,
+                        expr_at,
+                        ..
+                    } => Statement::Assign {
+                        name: name.to_string(),
+                        expr: parse(expr, expr_at)?,
+                        line: line_col(&self.source, at).0,
+                    },
+                    Line::If(c, at) => Statement::If(parse(c, at)?),
+                    Line::Elif(c, at) => Statement::Elif(parse(c, at)?),
+                    Line::Else(_) => Statement::Else,
+                    Line::End(_) => Statement::End,
+                })
+            })
+            .collect()
     }
 
     /// The program's Structured Text POU this body runs, if it is one.

@@ -29,7 +29,7 @@ mod value;
 use std::path::Path;
 
 pub use action::{ActError, Action, ActionState, Qualifier, Target};
-pub use body::{Body, BodyError};
+pub use body::{Body, BodyError, Statement};
 pub use cetratus_st::Work;
 pub use error::ProgramError;
 pub use guard::{EvalCtx, EvalError, EvalErrorKind, Guard};

@@ -48,6 +48,10 @@ const RULES: &[(&str, Allowed)] = &[
         Only(&["cetratus-net", "cetratus-program", "cetratus-st"]),
     ),
     (
+        "cetratus-export",
+        Only(&["cetratus-net", "cetratus-program"]),
+    ),
+    (
         "cetratus-runtime",
         Only(&["cetratus-vocab", "cetratus-net", "cetratus-program"]),
     ),

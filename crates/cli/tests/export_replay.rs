@@ -1,0 +1,644 @@
+//! `cetratus export --to st`, proven as docs/export.md says: each program runs one virtual
+//! hour against its twin with `--trace`; its export, compiled by MATIEC (the compiler of OpenPLC
+//! and Beremiz), is driven with the trace's inputs at every scan through its located variables,
+//! as a PLC's I/O would, and must give the trace's outputs at every scan of the hour.
+
+mod binary;
+
+use std::path::{Path, PathBuf};
+
+use binary::*;
+use cetratus_testkit::matiec::{Case, IecType, Matiec};
+use serde_json::Value;
+
+fn examples() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../../examples")
+}
+
+/// One row of the export's I/O map.
+struct IoRow {
+    address: String,
+    ty: IecType,
+    input: bool,
+}
+
+fn io_map(csv: &str) -> Vec<IoRow> {
+    let mut rows = csv.lines();
+    assert_eq!(rows.next(), Some("signal,address,type,direction,name"));
+    rows.map(|l| {
+        let f: Vec<&str> = l.split(',').collect();
+        let ty = match f[2] {
+            "BOOL" => IecType::Bool,
+            "INT" => IecType::Int,
+            "DINT" => IecType::Dint,
+            "LINT" => IecType::Lint,
+            "REAL" => IecType::Real,
+            "LREAL" => IecType::Lreal,
+            other => panic!("the map has type {other}"),
+        };
+        IoRow {
+            address: f[1].to_string(),
+            ty,
+            input: f[3] == "input",
+        }
+    })
+    .collect()
+}
+
+/// A trace value as MATIEC's harness writes one of `ty`.
+fn canonical(v: &Value, ty: IecType) -> String {
+    match ty {
+        IecType::Bool => (if v.as_bool().expect("a bool") {
+            "TRUE"
+        } else {
+            "FALSE"
+        })
+        .into(),
+        IecType::Real => format!("r{:08x}", (v.as_f64().expect("a real") as f32).to_bits()),
+        IecType::Lreal => format!("l{:016x}", v.as_f64().expect("a real").to_bits()),
+        IecType::Int => (v.as_i64().expect("an int") as i16).to_string(),
+        IecType::Dint => (v.as_i64().expect("an int") as i32).to_string(),
+        _ => v.as_i64().expect("an int").to_string(),
+    }
+}
+
+/// Every scan's values of one side of the trace (which records a row only when something
+/// changed), each row checked to be at `scan × period`.
+fn every_scan(trace: &Value, side: &str, types: &[IecType], period_us: u64) -> Vec<Vec<String>> {
+    let rows = trace["rows"].as_array().expect("rows");
+    // A virtual run scans while its clock is before the end: at 0, period, …, end − period.
+    let scans = trace["end_us"]
+        .as_u64()
+        .expect("end_us")
+        .div_ceil(period_us);
+    let mut out = Vec::with_capacity(scans as usize);
+    let mut next = rows.iter().peekable();
+    let mut current: Vec<String> = Vec::new();
+    for k in 0..scans {
+        if let Some(r) = next.next_if(|r| r["scan"].as_u64() == Some(k)) {
+            assert_eq!(
+                r["time_us"].as_u64(),
+                Some(k * period_us),
+                "scan {k} is not at k × period"
+            );
+            let values = r[side].as_array().expect("values");
+            current = values
+                .iter()
+                .zip(types)
+                .map(|(v, &t)| canonical(v, t))
+                .collect();
+        }
+        out.push(current.clone());
+    }
+    assert!(next.next().is_none(), "the trace has rows past its end");
+    out
+}
+
+/// The proof for one program: run it with `run_args` (its plant and how long), export it,
+/// replay the trace's inputs through MATIEC, and compare every scan's outputs; returns them.
+fn prove(program: &Path, run_args: &[&str]) -> Vec<Vec<String>> {
+    let dir = tempfile::tempdir().unwrap();
+    let trace_path = dir.path().join("trace.json");
+    let mut args = vec!["run", path(program), "--virtual", "--trace"];
+    args.push(path(&trace_path));
+    args.extend_from_slice(run_args);
+    ok(&cetratus(&args));
+    let out = dir.path().join("export");
+    let printed = ok(&cetratus(&[
+        "export",
+        path(program),
+        "--to",
+        "st",
+        "-o",
+        path(&out),
+    ]));
+    let st_file = out
+        .read_dir()
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .find(|p| p.extension().is_some_and(|e| e == "st"))
+        .unwrap_or_else(|| panic!("no .st file written: {printed}"));
+    let text = std::fs::read_to_string(&st_file).unwrap();
+    let csv = std::fs::read_to_string(st_file.with_extension("io.csv")).unwrap();
+    let (pous, config) = text
+        .split_once("\nCONFIGURATION CETRATUS_CONFIG\n")
+        .expect("a configuration");
+    let globals = &config[..config.find("  RESOURCE").expect("a resource")];
+    let name = pous
+        .lines()
+        .rev()
+        .find_map(|l| l.strip_prefix("PROGRAM "))
+        .expect("a PROGRAM");
+    let period_us: u64 = text
+        .split("scan period ")
+        .nth(1)
+        .and_then(|s| s.split(' ').next())
+        .and_then(|s| s.parse().ok())
+        .expect("the header gives the scan period");
+
+    let map = io_map(&csv);
+    let (ins, outs): (Vec<&IoRow>, Vec<&IoRow>) = map.iter().partition(|r| r.input);
+    let trace: Value = serde_json::from_slice(&std::fs::read(&trace_path).unwrap()).unwrap();
+    let in_types: Vec<IecType> = ins.iter().map(|r| r.ty).collect();
+    let out_types: Vec<IecType> = outs.iter().map(|r| r.ty).collect();
+    let inputs = every_scan(&trace, "inputs", &in_types, period_us);
+    let expected = every_scan(&trace, "outputs", &out_types, period_us);
+    let case = Case {
+        program: name.to_string(),
+        inputs: ins.iter().map(|r| (r.address.clone(), r.ty)).collect(),
+        outputs: outs.iter().map(|r| (r.address.clone(), r.ty)).collect(),
+        scans: inputs,
+    };
+    let matiec = Matiec::get()
+        .expect("MATIEC builds with the shared build.sh")
+        .with_globals(globals);
+    let tick = std::time::Duration::from_micros(period_us);
+    let got = matiec
+        .run(pous, &[case], tick)
+        .unwrap_or_else(|e| panic!("{}: {e}", program.display()));
+    assert_eq!(got[0].len(), expected.len());
+    for (k, (g, e)) in got[0].iter().zip(&expected).enumerate() {
+        assert_eq!(
+            g,
+            e,
+            "{}: scan {k} ({} ms): the export's outputs differ from the run's",
+            program.display(),
+            k as u64 * period_us / 1000
+        );
+    }
+    let changes = trace["rows"].as_array().unwrap().len();
+    eprintln!(
+        "{}: {} scans agree ({changes} changes of the I/O image)",
+        program.display(),
+        expected.len()
+    );
+    expected
+}
+
+#[test]
+fn the_vernadat_cell_and_its_updates_replay_an_hour_scan_for_scan() {
+    for p in ["vernadat.toml", "u1.toml", "u2.toml"] {
+        let _ = prove(
+            &examples().join("vernadat").join(p),
+            &["--twin", "vernadat", "--for", "1h"],
+        );
+    }
+}
+
+#[test]
+fn the_festo_station_with_defective_parts_replays_an_hour_scan_for_scan() {
+    for p in ["festo.toml", "f1.toml"] {
+        let _ = prove(
+            &examples().join("festo").join(p),
+            &["--twin", "festo", "--defect-rate", "5%", "--for", "1h"],
+        );
+    }
+}
+
+#[test]
+fn the_vernadat_sfc_chart_replays_an_hour_scan_for_scan() {
+    let dir = tempfile::tempdir().unwrap();
+    let chart = examples().join("vernadat-sfc/vernadat-sfc.xml");
+    ok(&cetratus(&[
+        "import",
+        "plcopen",
+        path(&chart),
+        "-o",
+        path(dir.path()),
+    ]));
+    let _ = prove(
+        &dir.path().join("Cell.toml"),
+        &["--twin", "vernadat", "--for", "1h"],
+    );
+}
+
+/// A net with every construct the kernel and the action control have: a bounded place, an
+/// inhibitor arc, priorities, place timers and dwell, edges, all ten qualifiers, bodies with
+/// `if`/`elif`/`else` over ints and reals, an int input at a word and a real one without an
+/// address (the export assigns it one).
+const SINK_NET: &str = r#"<pnml><net id="sink">
+  <place id="Idle"><initialMarking><value>Default,1</value></initialMarking></place>
+  <place id="Run"/><place id="Hold"/><place id="Out"/><place id="Block"/>
+  <place id="Buf"><capacity><value>3</value></capacity></place>
+  <transition id="Start"/><transition id="Pause"/><transition id="Resume"/>
+  <transition id="Make"/><transition id="Take"><priority><value>2</value></priority></transition>
+  <transition id="Ship"/><transition id="Inhib"/><transition id="Unblock"/>
+  <transition id="Stop"><priority><value>1</value></priority></transition>
+  <arc id="a1" source="Idle" target="Start"/><arc id="a2" source="Start" target="Run"/>
+  <arc id="a3" source="Run" target="Pause"/><arc id="a4" source="Pause" target="Hold"/>
+  <arc id="a5" source="Hold" target="Resume"/><arc id="a6" source="Resume" target="Run"/>
+  <arc id="a7" source="Run" target="Make"/><arc id="a8" source="Make" target="Run"/>
+  <arc id="a9" source="Make" target="Buf"/>
+  <arc id="a10" source="Buf" target="Take"/><arc id="a11" source="Take" target="Out"/>
+  <arc id="a12" source="Out" target="Ship"/>
+  <arc id="a13" source="Idle" target="Inhib"/><arc id="a14" source="Inhib" target="Block"/>
+  <arc id="a15" source="Buf" target="Inhib"><inscription><value>Default,3</value></inscription><type value="inhibitor"/></arc>
+  <arc id="a16" source="Block" target="Unblock"/><arc id="a17" source="Unblock" target="Idle"/>
+  <arc id="a18" source="Run" target="Stop"/><arc id="a19" source="Stop" target="Idle"/>
+</net></pnml>"#;
+
+const SINK: &str = r#"[program]
+name = "sink"
+version = "1"
+net = "sink.pnml"
+policy = "POLICY"
+scan_period = "10ms"
+
+[[input]]
+name = "go"
+type = "bool"
+[[input]]
+name = "stop"
+type = "bool"
+[[input]]
+name = "btn"
+type = "bool"
+[[input]]
+name = "n"
+type = "int"
+address = "%IW0"
+[[input]]
+name = "level"
+type = "real"
+
+[[output]]
+name = "out1"
+type = "bool"
+[[output]]
+name = "out2"
+type = "bool"
+[[output]]
+name = "out3"
+type = "bool"
+[[output]]
+name = "out4"
+type = "bool"
+[[output]]
+name = "out5"
+type = "bool"
+[[output]]
+name = "out6"
+type = "bool"
+[[output]]
+name = "cnt"
+type = "int"
+address = "%QW0"
+[[output]]
+name = "lvl"
+type = "real"
+
+[[variable]]
+name = "count"
+type = "int"
+[[variable]]
+name = "flag"
+type = "bool"
+[[variable]]
+name = "acc"
+type = "real"
+initial = 1.0
+
+[guards]
+Start = "go && !stop"
+Pause = "rise(btn)"
+Resume = "Hold.t >= 50ms || fall(btn)"
+Make = "n > 2"
+Take = "real(n) * 0.5 < level"
+Ship = "Out.dwell >= 20ms || Out.t > 30ms"
+Inhib = "!go || stop"
+Unblock = "Block.t >= 40ms && Idle.dwell < 1s"
+Stop = "stop"
+
+[bodies]
+Count = "count := count + 1"
+Leave = """
+if count > 3 then
+  acc := acc + 1.5
+elif flag then
+  acc := acc - 0.25
+else
+  acc := acc * 2.0
+end
+cnt := count * 2
+"""
+Track = """
+lvl := acc + real(n)
+if rise(btn) then
+  count := count + int(level)
+end
+"""
+
+[[action]]
+place = "Run"
+qualifier = "N"
+target = "out1"
+[[action]]
+place = "Hold"
+qualifier = "S"
+target = "out2"
+[[action]]
+place = "Idle"
+qualifier = "R"
+target = "out2"
+[[action]]
+place = "Out"
+qualifier = "P1"
+body = "Count"
+[[action]]
+place = "Run"
+qualifier = "P0"
+body = "Leave"
+[[action]]
+place = "Run"
+qualifier = "L"
+duration = "30ms"
+target = "out3"
+[[action]]
+place = "Hold"
+qualifier = "D"
+duration = "20ms"
+target = "out4"
+[[action]]
+place = "Block"
+qualifier = "SD"
+duration = "50ms"
+target = "out5"
+[[action]]
+place = "Run"
+qualifier = "R"
+target = "out5"
+[[action]]
+place = "Buf"
+qualifier = "DS"
+duration = "30ms"
+target = "flag"
+[[action]]
+place = "Out"
+qualifier = "R"
+target = "flag"
+[[action]]
+place = "Idle"
+qualifier = "SL"
+duration = "40ms"
+target = "out6"
+[[action]]
+place = "Run"
+qualifier = "N"
+body = "Track"
+"#;
+
+/// Inputs for `scans` scans that change often: a deterministic pseudo-random walk.
+fn random_inputs(scans: u64) -> String {
+    let mut s = String::from("scan,time_ms,go,stop,btn,n,level\n");
+    let mut x: u64 = 0x9e37_79b9_7f4a_7c15;
+    for k in 0..scans {
+        x = x
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        let r = x >> 33;
+        let bit = |i: u32, odds: u64| u8::from((r >> i) % odds == 0);
+        s.push_str(&format!(
+            "{k},{},{},{},{},{},{}\n",
+            k * 10,
+            bit(0, 2),
+            bit(3, 9),
+            bit(7, 3),
+            (r >> 11) % 6,
+            ((r >> 17) % 16) as f64 * 0.25
+        ));
+    }
+    s
+}
+
+#[test]
+fn every_construct_replays_scan_for_scan_under_each_policy() {
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::write(dir.path().join("sink.pnml"), SINK_NET).unwrap();
+    let inputs = dir.path().join("inputs.csv");
+    std::fs::write(&inputs, random_inputs(3000)).unwrap();
+    let names = ["out1", "out2", "out3", "out4", "out5", "out6", "cnt", "lvl"];
+    let mut changes = [0usize; 8];
+    for policy in ["step", "single-last", "single-first", "single-priority"] {
+        let program = dir.path().join(format!("sink-{policy}.toml"));
+        std::fs::write(&program, SINK.replace("POLICY", policy)).unwrap();
+        let outputs = prove(&program, &["--replay", path(&inputs), "--for", "30s"]);
+        let mut moved = 0;
+        for (i, c) in changes.iter_mut().enumerate() {
+            let n = outputs.windows(2).filter(|w| w[0][i] != w[1][i]).count();
+            *c += n;
+            moved += usize::from(n > 2);
+        }
+        assert!(
+            moved >= 6,
+            "{policy}: only {moved} outputs changed; the run exercises little"
+        );
+    }
+    // Each qualifier and body was compared acting, under some policy.
+    for (name, c) in names.iter().zip(changes) {
+        assert!(
+            c > 10,
+            "{name} changed {c} times in all; the test exercises nothing of it"
+        );
+    }
+}
+
+/// A program whose signals are IEC keywords and standard names, a lower-case twin of another
+/// and one not even a valid identifier in IEC (`a__b`): each is renamed by the rule, listed,
+/// and the export still replays.
+const CLASH: &str = r#"[program]
+name = "clash"
+version = "1"
+net = "clash.pnml"
+
+[[input]]
+name = "TON"
+type = "bool"
+[[input]]
+name = "ton"
+type = "bool"
+[[output]]
+name = "END_IF"
+type = "bool"
+[[output]]
+name = "a__b"
+type = "bool"
+
+[guards]
+Go = "TON && !ton"
+Back = "ton"
+
+[[action]]
+place = "B"
+qualifier = "N"
+target = "END_IF"
+[[action]]
+place = "A"
+qualifier = "N"
+target = "a__b"
+"#;
+
+const CLASH_NET: &str = r#"<pnml><net id="clash">
+  <place id="A"><initialMarking><value>Default,1</value></initialMarking></place><place id="B"/>
+  <transition id="Go"/><transition id="Back"/>
+  <arc id="a1" source="A" target="Go"/><arc id="a2" source="Go" target="B"/>
+  <arc id="a3" source="B" target="Back"/><arc id="a4" source="Back" target="A"/>
+</net></pnml>"#;
+
+#[test]
+fn names_that_clash_with_iec_are_renamed_listed_and_still_replay() {
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::write(dir.path().join("clash.pnml"), CLASH_NET).unwrap();
+    let program = dir.path().join("clash.toml");
+    std::fs::write(&program, CLASH).unwrap();
+    let out = dir.path().join("out");
+    let printed = ok(&cetratus(&[
+        "export",
+        path(&program),
+        "--to",
+        "st",
+        "-o",
+        path(&out),
+    ]));
+    for line in [
+        "input `TON` renamed TON_2",
+        "input `ton` renamed ton_3",
+        "output `END_IF` renamed END_IF_2",
+        "output `a__b` renamed a_b",
+    ] {
+        assert!(printed.contains(line), "{line} missing from: {printed}");
+    }
+    let csv = std::fs::read_to_string(out.join("clash.io.csv")).unwrap();
+    assert!(
+        csv.contains("TON,%IX0.0,BOOL,input,TON_2\nton,%IX0.1,BOOL,input,ton_3\n"),
+        "{csv}"
+    );
+    assert!(csv.contains("a__b,%QX0.1,BOOL,output,a_b\n"), "{csv}");
+    let inputs = dir.path().join("inputs.csv");
+    let rows: String = (0..400)
+        .map(|k| format!("{k},{},{},{}\n", k * 10, (k / 3) % 2, (k / 7) % 2))
+        .collect();
+    std::fs::write(&inputs, format!("scan,time_ms,TON,ton\n{rows}")).unwrap();
+    let _ = prove(&program, &["--replay", path(&inputs), "--for", "4s"]);
+}
+
+#[test]
+fn bad_exports_are_refused_clearly_and_write_nothing() {
+    let dir = tempfile::tempdir().unwrap();
+    let vernadat = examples().join("vernadat/vernadat.toml");
+    let out = dir.path().join("out");
+
+    let e = refused(&cetratus(&[
+        "export",
+        path(&vernadat),
+        "--to",
+        "st",
+        "--dialect",
+        "siemens",
+        "-o",
+        path(&out),
+    ]));
+    assert!(
+        e.contains("unknown dialect `siemens`; the dialects are: iec"),
+        "{e}"
+    );
+    assert!(!out.exists());
+
+    let broken = dir.path().join("broken.toml");
+    std::fs::write(&broken, "[program]\nname = \"x\"\nversion = 1\n").unwrap();
+    let e = refused(&cetratus(&[
+        "export",
+        path(&broken),
+        "--to",
+        "st",
+        "-o",
+        path(&out),
+    ]));
+    assert!(
+        e.contains("cannot load the program") && e.contains("broken.toml"),
+        "{e}"
+    );
+    assert!(!out.exists());
+
+    std::fs::create_dir(&out).unwrap();
+    std::fs::write(out.join("notes.txt"), "mine").unwrap();
+    let e = refused(&cetratus(&[
+        "export",
+        path(&vernadat),
+        "--to",
+        "st",
+        "-o",
+        path(&out),
+    ]));
+    assert!(
+        e.contains("already holds files") && e.contains("--force"),
+        "{e}"
+    );
+    assert_eq!(std::fs::read_dir(&out).unwrap().count(), 1);
+    ok(&cetratus(&[
+        "export",
+        path(&vernadat),
+        "--to",
+        "st",
+        "-o",
+        path(&out),
+        "--force",
+    ]));
+    assert_eq!(
+        std::fs::read_to_string(out.join("notes.txt")).unwrap(),
+        "mine"
+    );
+    assert!(out.join("vernadat-cell.st").is_file() && out.join("vernadat-cell.io.csv").is_file());
+
+    let st = dir.path().join("st");
+    let cell = examples().join("st-cell/cell.st");
+    ok(&cetratus(&["import", "st", path(&cell), "-o", path(&st)]));
+    let toml = st
+        .read_dir()
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .find(|p| p.extension().is_some_and(|e| e == "toml"))
+        .unwrap();
+    let empty = dir.path().join("empty");
+    let e = refused(&cetratus(&[
+        "export",
+        path(&toml),
+        "--to",
+        "st",
+        "-o",
+        path(&empty),
+    ]));
+    assert!(e.contains("runs Structured Text ([st])"), "{e}");
+    assert!(!empty.exists());
+}
+
+#[test]
+fn the_same_program_exports_to_the_same_bytes() {
+    let dir = tempfile::tempdir().unwrap();
+    let festo = examples().join("festo/festo.toml");
+    let (a, b) = (dir.path().join("a"), dir.path().join("b"));
+    ok(&cetratus(&[
+        "export",
+        path(&festo),
+        "--to",
+        "st",
+        "-o",
+        path(&a),
+    ]));
+    ok(&cetratus(&[
+        "export",
+        path(&festo),
+        "--to",
+        "st",
+        "-o",
+        path(&b),
+    ]));
+    for f in ["festo-processing.st", "festo-processing.io.csv"] {
+        let (x, y) = (std::fs::read(a.join(f)), std::fs::read(b.join(f)));
+        assert_eq!(
+            x.as_ref().ok(),
+            y.as_ref().ok(),
+            "{f} differs between two exports"
+        );
+        assert!(x.is_ok(), "{f} was not written");
+    }
+}

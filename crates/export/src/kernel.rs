@@ -1,0 +1,242 @@
+//! Part 1 of the export: the kernel, the semi-compiled Petri-net algorithm as one
+//! FUNCTION_BLOCK that reads the net from the constants of part 2 and knows nothing else of it.
+//!
+//! Its phases are those of docs/export.md: startup (M := M0 and the incidence C = Post − Pre,
+//! on the first scan only), enabling (recomputed only after a firing changed the marking), the
+//! decision under the program's policy (firable = enabled ∧ condition), and the marking update,
+//! which reports the places entered and left for the actions. The text is the same for every
+//! program; only the sizes of its array types (part 2) differ. Its loops are WHILE loops: the
+//! dialects disagree on FOR (MATIEC runs `FOR i := 3 TO 3` no time and evaluates the bounds
+//! again in every iteration), and a WHILE means the same everywhere.
+
+/// The kernel's declarations and body, in IEC 61131-3 Structured Text.
+pub(crate) const KERNEL: &str = r#"FUNCTION_BLOCK CETRATUS_KERNEL
+(* The semi-compiled Petri-net algorithm. It reads the net from the constants NET_* and keeps
+   nothing of it in its code: called once with STARTUP on the first scan, then once a scan after
+   the conditions of the transitions are computed. *)
+VAR_INPUT
+  STARTUP : BOOL;                       (* TRUE: M := M0, derive the incidence, and return *)
+END_VAR
+VAR_IN_OUT
+  M : CETRATUS_PLACES;                  (* the marking *)
+  COND : CETRATUS_TRANSITION_FLAGS;     (* each transition's condition in this scan *)
+  ENABLED : CETRATUS_TRANSITION_FLAGS;  (* enabled at M *)
+  ENTERED : CETRATUS_PLACE_FLAGS;       (* count went from 0 to more in this scan *)
+  EXITED : CETRATUS_PLACE_FLAGS;        (* count went to 0 in this scan *)
+END_VAR
+VAR_EXTERNAL CONSTANT
+  NET_PLACES : DINT;
+  NET_TRANSITIONS : DINT;
+  NET_POLICY : DINT;
+  NET_M0 : CETRATUS_PLACES;
+  NET_CAPACITY : CETRATUS_PLACES;
+  NET_PRE_START : CETRATUS_ROWS;
+  NET_PRE_PLACE : CETRATUS_PRE_ARCS;
+  NET_PRE_WEIGHT : CETRATUS_PRE_ARCS;
+  NET_POST_START : CETRATUS_ROWS;
+  NET_POST_PLACE : CETRATUS_POST_ARCS;
+  NET_POST_WEIGHT : CETRATUS_POST_ARCS;
+  NET_INHIBITOR_START : CETRATUS_ROWS;
+  NET_INHIBITOR_PLACE : CETRATUS_INHIBITOR_ARCS;
+  NET_INHIBITOR_WEIGHT : CETRATUS_INHIBITOR_ARCS;
+  NET_ORDER : CETRATUS_TRANSITIONS;
+  NET_PRIORITY : CETRATUS_TRANSITIONS;
+END_VAR
+VAR
+  C_START : CETRATUS_ROWS;              (* the incidence C = Post - Pre, by transition *)
+  C_PLACE : CETRATUS_DELTAS;
+  C_DELTA : CETRATUS_DELTAS;
+  LATE : CETRATUS_TRANSITION_FLAGS;     (* may join a step though not enabled at M *)
+  AVAIL : CETRATUS_PLACES;              (* M minus what the step consumes *)
+  NEXT : CETRATUS_PLACES;               (* M plus the step's C columns *)
+  DIRTY : BOOL;
+  STARTED : BOOL;
+  OK : BOOL;
+  P : DINT;
+  T : DINT;
+  R : DINT;
+  I : DINT;
+  J : DINT;
+  K : DINT;
+  CHOSEN : DINT;
+END_VAR
+IF STARTUP THEN
+  (* Startup: M := M0, and C from Pre and Post, sparse. *)
+  P := 1;
+  WHILE P <= NET_PLACES DO
+    M[P] := NET_M0[P];
+    P := P + 1;
+  END_WHILE;
+  K := 1;
+  T := 1;
+  WHILE T <= NET_TRANSITIONS DO
+    C_START[T] := K;
+    LATE[T] := NET_INHIBITOR_START[T + 1] > NET_INHIBITOR_START[T];
+    I := NET_PRE_START[T];
+    WHILE I < NET_PRE_START[T + 1] DO
+      C_PLACE[K] := NET_PRE_PLACE[I];
+      C_DELTA[K] := -NET_PRE_WEIGHT[I];
+      K := K + 1;
+      I := I + 1;
+    END_WHILE;
+    I := NET_POST_START[T];
+    WHILE I < NET_POST_START[T + 1] DO
+      P := NET_POST_PLACE[I];
+      R := 0;
+      J := C_START[T];
+      WHILE J < K DO
+        IF C_PLACE[J] = P THEN
+          R := J;
+        END_IF;
+        J := J + 1;
+      END_WHILE;
+      IF R = 0 THEN
+        R := K;
+        C_PLACE[K] := P;
+        C_DELTA[K] := 0;
+        K := K + 1;
+      END_IF;
+      C_DELTA[R] := C_DELTA[R] + NET_POST_WEIGHT[I];
+      IF NET_CAPACITY[P] > 0 AND C_DELTA[R] > 0 THEN
+        LATE[T] := TRUE;
+      END_IF;
+      I := I + 1;
+    END_WHILE;
+    T := T + 1;
+  END_WHILE;
+  C_START[NET_TRANSITIONS + 1] := K;
+  DIRTY := TRUE;
+  STARTED := FALSE;
+ELSE
+  P := 1;
+  WHILE P <= NET_PLACES DO
+    AVAIL[P] := M[P];
+    NEXT[P] := M[P];
+    P := P + 1;
+  END_WHILE;
+  IF NET_POLICY = 0 THEN
+    (* Step: visit by priority, then declaration order; a transition joins when its condition
+       holds, Pre <= M - Pre(chosen), its inhibitors hold and its outputs fit in
+       M + C(chosen). *)
+    R := 1;
+    WHILE R <= NET_TRANSITIONS DO
+      T := NET_ORDER[R];
+      IF COND[T] AND (ENABLED[T] OR LATE[T]) THEN
+        OK := TRUE;
+        I := NET_PRE_START[T];
+        WHILE I < NET_PRE_START[T + 1] DO
+          IF AVAIL[NET_PRE_PLACE[I]] < NET_PRE_WEIGHT[I] THEN
+            OK := FALSE;
+          END_IF;
+          I := I + 1;
+        END_WHILE;
+        I := NET_INHIBITOR_START[T];
+        WHILE I < NET_INHIBITOR_START[T + 1] DO
+          IF NEXT[NET_INHIBITOR_PLACE[I]] >= NET_INHIBITOR_WEIGHT[I] THEN
+            OK := FALSE;
+          END_IF;
+          I := I + 1;
+        END_WHILE;
+        I := C_START[T];
+        WHILE I < C_START[T + 1] DO
+          P := C_PLACE[I];
+          IF NET_CAPACITY[P] > 0 AND C_DELTA[I] > 0 THEN
+            IF NEXT[P] + C_DELTA[I] > NET_CAPACITY[P] THEN
+              OK := FALSE;
+            END_IF;
+          END_IF;
+          I := I + 1;
+        END_WHILE;
+        IF OK THEN
+          I := NET_PRE_START[T];
+          WHILE I < NET_PRE_START[T + 1] DO
+            AVAIL[NET_PRE_PLACE[I]] := AVAIL[NET_PRE_PLACE[I]] - NET_PRE_WEIGHT[I];
+            I := I + 1;
+          END_WHILE;
+          I := C_START[T];
+          WHILE I < C_START[T + 1] DO
+            NEXT[C_PLACE[I]] := NEXT[C_PLACE[I]] + C_DELTA[I];
+            I := I + 1;
+          END_WHILE;
+        END_IF;
+      END_IF;
+      R := R + 1;
+    END_WHILE;
+  ELSE
+    (* Single: one firing among the firable, the last (1), the first (2) or the highest
+       priority, ties to the first declared (3). *)
+    CHOSEN := 0;
+    T := 1;
+    WHILE T <= NET_TRANSITIONS DO
+      IF ENABLED[T] AND COND[T] THEN
+        IF NET_POLICY = 1 OR CHOSEN = 0 THEN
+          CHOSEN := T;
+        ELSIF NET_POLICY = 3 THEN
+          IF NET_PRIORITY[T] > NET_PRIORITY[CHOSEN] THEN
+            CHOSEN := T;
+          END_IF;
+        END_IF;
+      END_IF;
+      T := T + 1;
+    END_WHILE;
+    IF CHOSEN > 0 THEN
+      I := C_START[CHOSEN];
+      WHILE I < C_START[CHOSEN + 1] DO
+        NEXT[C_PLACE[I]] := NEXT[C_PLACE[I]] + C_DELTA[I];
+        I := I + 1;
+      END_WHILE;
+    END_IF;
+  END_IF;
+  (* The marking update; the first scan enters every place marked after it. *)
+  P := 1;
+  WHILE P <= NET_PLACES DO
+    IF STARTED THEN
+      ENTERED[P] := M[P] = 0 AND NEXT[P] > 0;
+    ELSE
+      ENTERED[P] := NEXT[P] > 0;
+    END_IF;
+    EXITED[P] := M[P] > 0 AND NEXT[P] = 0;
+    IF NEXT[P] <> M[P] THEN
+      DIRTY := TRUE;
+      M[P] := NEXT[P];
+    END_IF;
+    P := P + 1;
+  END_WHILE;
+  STARTED := TRUE;
+END_IF;
+IF DIRTY THEN
+  (* Enabling at M: Pre <= M, every inhibitor arc M < w, M + C within the capacities. *)
+  T := 1;
+  WHILE T <= NET_TRANSITIONS DO
+    OK := TRUE;
+    I := NET_PRE_START[T];
+    WHILE I < NET_PRE_START[T + 1] DO
+      IF M[NET_PRE_PLACE[I]] < NET_PRE_WEIGHT[I] THEN
+        OK := FALSE;
+      END_IF;
+      I := I + 1;
+    END_WHILE;
+    I := NET_INHIBITOR_START[T];
+    WHILE I < NET_INHIBITOR_START[T + 1] DO
+      IF M[NET_INHIBITOR_PLACE[I]] >= NET_INHIBITOR_WEIGHT[I] THEN
+        OK := FALSE;
+      END_IF;
+      I := I + 1;
+    END_WHILE;
+    I := C_START[T];
+    WHILE I < C_START[T + 1] DO
+      P := C_PLACE[I];
+      IF NET_CAPACITY[P] > 0 AND C_DELTA[I] > 0 THEN
+        IF M[P] + C_DELTA[I] > NET_CAPACITY[P] THEN
+          OK := FALSE;
+        END_IF;
+      END_IF;
+      I := I + 1;
+    END_WHILE;
+    ENABLED[T] := OK;
+    T := T + 1;
+  END_WHILE;
+  DIRTY := FALSE;
+END_IF;
+END_FUNCTION_BLOCK
+"#;

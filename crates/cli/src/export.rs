@@ -9,7 +9,8 @@ use cetratus_export::{Dialect, StExport};
 /// What `cetratus export` writes.
 #[derive(clap::ValueEnum, Clone, Copy, Debug)]
 pub enum Target {
-    /// IEC 61131-3 Structured Text: `DIR/<program>.st` and its I/O map `DIR/<program>.io.csv`.
+    /// IEC 61131-3 Structured Text: `DIR/<program>.st` (`.scl` for TIA) and its I/O map
+    /// `DIR/<program>.io.csv`.
     St,
 }
 
@@ -21,7 +22,8 @@ pub struct ExportArgs {
     /// What to write.
     #[arg(long)]
     to: Target,
-    /// The ST dialect: iec (MATIEC, OpenPLC, Beremiz).
+    /// The ST dialect: iec (MATIEC, OpenPLC, Beremiz), codesys (also TwinCAT), tia (Siemens SCL,
+    /// written as `.scl`) or omron (Sysmac Studio).
     #[arg(long, default_value = "iec")]
     dialect: String,
     /// The directory to write into; one that holds files is refused unless --force.
@@ -41,7 +43,9 @@ pub fn run(args: &ExportArgs) -> anyhow::Result<()> {
     let export = cetratus_export::to_st(&program, dialect)
         .with_context(|| format!("cannot export {}", args.program.display()))?;
     ready(&args.output, args.force)?;
-    let stem = export.file_name.trim_end_matches(".st").to_string();
+    let stem = Path::new(&export.file_name)
+        .file_stem()
+        .map_or_else(String::new, |s| s.to_string_lossy().into_owned());
     let files = [
         (export.file_name.clone(), export.text.as_str()),
         (format!("{stem}.io.csv"), export.io_csv.as_str()),

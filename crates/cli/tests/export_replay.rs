@@ -642,3 +642,68 @@ fn the_same_program_exports_to_the_same_bytes() {
         assert!(x.is_ok(), "{f} was not written");
     }
 }
+
+/// The CODESYS (and TwinCAT) dialect, read by `blark`, an open parser of TwinCAT Structured
+/// Text (PyPI), which fails on what it cannot parse: the examples that hold between them every
+/// construct (U.2's timers, the Festo station, the SFC cell's bodies, the sink's qualifiers and
+/// policies), each parsed by a process of its own, at once (blark takes seconds a file).
+#[test]
+fn the_codesys_dialect_parses_with_blark() {
+    let dir = tempfile::tempdir().unwrap();
+    let sfc = dir.path().join("sfc");
+    let chart = examples().join("vernadat-sfc/vernadat-sfc.xml");
+    ok(&cetratus(&[
+        "import",
+        "plcopen",
+        path(&chart),
+        "-o",
+        path(&sfc),
+    ]));
+    std::fs::write(dir.path().join("sink.pnml"), SINK_NET).unwrap();
+    let sink = dir.path().join("sink.toml");
+    std::fs::write(&sink, SINK.replace("POLICY", "single-priority")).unwrap();
+    let programs = [
+        examples().join("vernadat/u2.toml"),
+        examples().join("festo/festo.toml"),
+        sfc.join("Cell.toml"),
+        sink,
+    ];
+    let parsers: Vec<_> = programs
+        .iter()
+        .enumerate()
+        .map(|(i, program)| {
+            let out = dir.path().join(format!("out{i}"));
+            ok(&cetratus(&[
+                "export",
+                path(program),
+                "--to",
+                "st",
+                "--dialect",
+                "codesys",
+                "-o",
+                path(&out),
+            ]));
+            let st = (out.read_dir().unwrap().map(|e| e.unwrap().path()))
+                .find(|p| p.extension().is_some_and(|e| e == "st"))
+                .unwrap();
+            let child = std::process::Command::new("python3")
+                .args(["-m", "blark", "parse", "-if", "plain"])
+                .arg(&st)
+                .stdout(std::process::Stdio::piped())
+                .stderr(std::process::Stdio::piped())
+                .spawn()
+                .expect("python3 runs; scripts/test installs blark");
+            (program, child)
+        })
+        .collect();
+    for (program, child) in parsers {
+        let parsed = child.wait_with_output().unwrap();
+        assert!(
+            parsed.status.success(),
+            "blark cannot parse the CODESYS export of {}:\n{}{}",
+            program.display(),
+            String::from_utf8_lossy(&parsed.stdout),
+            String::from_utf8_lossy(&parsed.stderr)
+        );
+    }
+}

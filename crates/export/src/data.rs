@@ -91,13 +91,13 @@ impl NetData {
         }
     }
 
-    /// The array types the kernel and the interpretation declare their data with.
-    pub(crate) fn types(&self) -> String {
+    /// The array types the kernel and the interpretation declare their data with: name,
+    /// length, element type, what it holds.
+    pub(crate) fn types(&self) -> Vec<ArrayType> {
         let (p, t) = (self.places.max(1), self.transitions.max(1));
         let len = |r: &Rows| r.place.len().max(1);
         let deltas = (self.pre.place.len() + self.post.place.len()).max(1);
-        let mut s = String::from("TYPE\n");
-        for (name, size, ty, what) in [
+        [
             ("CETRATUS_PLACES", p, "DINT", "one count per place"),
             ("CETRATUS_PLACE_FLAGS", p, "BOOL", "one flag per place"),
             (
@@ -137,25 +137,32 @@ impl NetData {
                 "DINT",
                 "the nonzero entries of C",
             ),
-        ] {
-            let _ = writeln!(s, "  {name} : ARRAY[1..{size}] OF {ty};  (* {what} *)");
-        }
-        s.push_str("END_TYPE\n");
-        s
+        ]
+        .into_iter()
+        .map(|(name, len, element, about)| ArrayType {
+            name,
+            len,
+            element,
+            about,
+        })
+        .collect()
     }
 
-    /// The declarations of the net's constants, one per line, each `NAME : TYPE := value;`.
-    pub(crate) fn constants(&self) -> Vec<String> {
+    /// The net's constants: name, array type (`None` for a DINT), value text.
+    pub(crate) fn constants(&self) -> Vec<Constant> {
         let mut v = vec![
-            format!("NET_PLACES : DINT := {};", self.places),
-            format!("NET_TRANSITIONS : DINT := {};", self.transitions),
-            format!(
-                "NET_POLICY : DINT := {};  (* 0 step, 1 single-last, 2 single-first, 3 single-priority *)",
-                self.policy
-            ),
+            Constant::scalar("NET_PLACES", self.places.to_string()),
+            Constant::scalar("NET_TRANSITIONS", self.transitions.to_string()),
+            Constant {
+                note: "0 step, 1 single-last, 2 single-first, 3 single-priority",
+                ..Constant::scalar("NET_POLICY", self.policy.to_string())
+            },
         ];
-        let mut put = |name: &str, ty: &str, values: Vec<i64>| {
-            v.push(format!("{name} : {ty} := {};", list(&values)));
+        let mut put = |name: &str, ty: &'static str, values: Vec<i64>| {
+            v.push(Constant {
+                ty: Some(ty),
+                ..Constant::scalar(name, list(&values))
+            });
         };
         let wide = |v: &[u32]| v.iter().map(|&x| i64::from(x)).collect::<Vec<_>>();
         put("NET_M0", "CETRATUS_PLACES", wide(&self.m0));
@@ -174,6 +181,43 @@ impl NetData {
         let priority = self.priority.iter().map(|&x| i64::from(x)).collect();
         put("NET_PRIORITY", "CETRATUS_TRANSITIONS", priority);
         v
+    }
+}
+
+/// An array type of the export.
+pub(crate) struct ArrayType {
+    pub(crate) name: &'static str,
+    pub(crate) len: usize,
+    pub(crate) element: &'static str,
+    pub(crate) about: &'static str,
+}
+
+impl ArrayType {
+    /// `ARRAY[1..n] OF T`.
+    pub(crate) fn spelled(&self) -> String {
+        format!("ARRAY[1..{}] OF {}", self.len, self.element)
+    }
+}
+
+/// One of the net's constants.
+pub(crate) struct Constant {
+    pub(crate) name: String,
+    /// Its array type, or `None` for a DINT.
+    pub(crate) ty: Option<&'static str>,
+    /// Its value: a number or `[a, b, …]`.
+    pub(crate) value: String,
+    /// A comment for the reader, or empty.
+    pub(crate) note: &'static str,
+}
+
+impl Constant {
+    fn scalar(name: &str, value: String) -> Self {
+        Constant {
+            name: name.to_string(),
+            ty: None,
+            value,
+            note: "",
+        }
     }
 }
 

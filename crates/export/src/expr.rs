@@ -24,6 +24,8 @@ pub(crate) struct Symbols {
     pub(crate) previous: HashMap<String, String>,
     /// The marking array's name.
     pub(crate) marking: String,
+    /// The dialect's words for `&&` and `||`.
+    pub(crate) and_or: (&'static str, &'static str),
 }
 
 impl Symbols {
@@ -115,7 +117,12 @@ fn write(s: &mut String, e: &Expr, sym: &Symbols) {
         ExprKind::Binary(op, l, r) => {
             s.push('(');
             write(s, l, sym);
-            let _ = write!(s, " {} ", operator(*op));
+            let word = match op {
+                BinOp::And => sym.and_or.0,
+                BinOp::Or => sym.and_or.1,
+                _ => operator(*op),
+            };
+            let _ = write!(s, " {word} ");
             write(s, r, sym);
             s.push(')');
         }

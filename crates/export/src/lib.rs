@@ -8,51 +8,21 @@
 //! that wires the signals to located addresses ([`io`]) with a CONFIGURATION whose TASK runs at
 //! the program's scan period. The same program always gives the same bytes.
 
-use std::fmt;
-
 use cetratus_program::Program;
 
 mod data;
+mod dialect;
 mod expr;
 mod io;
 mod kernel;
 mod logic;
 mod names;
+mod tia;
 
 pub use data::DataSize;
+pub use dialect::Dialect;
 pub use io::IoRow;
 pub use names::Rename;
-
-/// The ST dialect of an export.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
-pub enum Dialect {
-    /// IEC 61131-3 as MATIEC (OpenPLC, Beremiz) compiles it.
-    #[default]
-    Iec,
-}
-
-impl Dialect {
-    /// Every dialect, by name.
-    pub const ALL: &'static [(&'static str, Dialect)] = &[("iec", Dialect::Iec)];
-
-    /// The dialect's name.
-    pub fn name(self) -> &'static str {
-        match self {
-            Dialect::Iec => "iec",
-        }
-    }
-}
-
-impl std::str::FromStr for Dialect {
-    type Err = ExportError;
-    fn from_str(s: &str) -> Result<Self, ExportError> {
-        Dialect::ALL
-            .iter()
-            .find(|(n, _)| *n == s)
-            .map(|&(_, d)| d)
-            .ok_or_else(|| ExportError::Dialect(s.to_string()))
-    }
-}
 
 /// Why a program cannot be exported.
 #[derive(Debug, thiserror::Error, PartialEq, Eq)]
@@ -83,7 +53,8 @@ pub enum ExportError {
 /// An exported program.
 #[derive(Clone, Debug)]
 pub struct StExport {
-    /// The file's name: the program's name (made a valid file name) and `.st`.
+    /// The file's name: the program's name (made a valid file name) and `.st` (`.scl` for
+    /// TIA).
     pub file_name: String,
     /// The whole file.
     pub text: String,
@@ -106,9 +77,8 @@ pub struct StExport {
 
 /// Writes `program` as IEC 61131-3 Structured Text in `dialect`.
 pub fn to_st(program: &Program, dialect: Dialect) -> Result<StExport, ExportError> {
-    let Dialect::Iec = dialect;
-    let net = program.net();
-    let data = data::NetData::new(net, program.policy());
+    let d = dialect;
+    let data = data::NetData::new(program.net(), program.policy());
     let mut global = names::Names::new(data::GLOBALS);
     for fixed in [
         "CETRATUS_CONFIG",
@@ -120,36 +90,37 @@ pub fn to_st(program: &Program, dialect: Dialect) -> Result<StExport, ExportErro
     }
     let name = global.claim(None, program.name());
     let fb = global.claim(None, &format!("{name}_LOGIC"));
-    let logic = logic::Logic::new(program, global)?;
+    let logic = logic::Logic::new(program, global, d)?;
     let io = io::map(program.inputs(), program.outputs(), |s| logic.signal(s))?;
-    let size = data.size();
-    let mut globals = format!(
-        "  VAR_GLOBAL CONSTANT\n    (* The net as data: {} bytes sparse; Pre, Post and M0 dense would take {}. *)\n",
-        size.sparse_bytes, size.dense_bytes
-    );
-    for c in data.constants() {
-        globals.push_str("    ");
-        globals.push_str(&c);
-        globals.push('\n');
+    let (size, types, constants) = (data.size(), data.types(), data.constants());
+    let period_us = program.scan_period().as_micros() as u64;
+    let mut pous = header(program, &logic, &io, size, d);
+    pous.push_str("\n(* Part 2: the net as data. *)\n");
+    pous.push_str(&dialect::types(d, &types));
+    if !d.externals() {
+        pous.push_str(&dialect::globals(d, &constants, &types, size, ""));
     }
-    globals.push_str("  END_VAR\n");
-    let mut pous = header(program, &logic, &io, size);
-    pous.push_str(
-        "\n(* Part 2: the net's array types; its values are the CONFIGURATION's constants. *)\n",
-    );
-    pous.push_str(&data.types());
     pous.push_str("\n(* Part 1: the kernel. *)\n");
-    pous.push_str(kernel::KERNEL);
+    pous.push_str(&dialect::kernel(d));
     pous.push_str("\n(* Part 3: the interpretation. *)\n");
     pous.push_str(&logic.pou(&fb)?);
     pous.push_str("\n(* Part 4: the program at its addresses, and its task. *)\n");
-    pous.push_str(&logic::program_pou(&name, &fb, &io, program));
-    let text = format!(
-        "{pous}\n{}",
-        logic::configuration(&globals, &name, program.scan_period().as_micros() as u64)
-    );
+    pous.push_str(&logic::program_pou(&name, &fb, &io, program, d));
+    let globals = dialect::globals(d, &constants, &types, size, "  ");
+    let tail = match d {
+        Dialect::Iec => logic::configuration(&globals, &name, period_us),
+        Dialect::Tia => String::new(),
+        _ => format!(
+            "(* The task: run PROGRAM {name} every {} in a cyclic task of that interval. *)\n",
+            expr::time_literal(period_us)
+        ),
+    };
+    let mut text = format!("{pous}\n{tail}");
+    if d == Dialect::Tia {
+        text = tia::rewrite(&text, &types)?;
+    }
     Ok(StExport {
-        file_name: format!("{}.st", file_stem(program.name())),
+        file_name: format!("{}.{}", file_stem(program.name()), d.extension()),
         text,
         pous,
         globals,
@@ -162,9 +133,15 @@ pub fn to_st(program: &Program, dialect: Dialect) -> Result<StExport, ExportErro
 }
 
 /// The file's opening comment: what it is, from which program, and the renames.
-fn header(program: &Program, logic: &logic::Logic, io: &[IoRow], size: DataSize) -> String {
+fn header(
+    program: &Program,
+    logic: &logic::Logic,
+    io: &[IoRow],
+    size: DataSize,
+    d: Dialect,
+) -> String {
     let mut s = format!(
-        "(* {} {}, exported by Cetratus as IEC 61131-3 Structured Text.\n   Program hash {}.\n   Policy {}, scan period {} us; {} places, {} transitions.\n   The net's data: {} bytes sparse ({} dense).\n",
+        "(* {} {}, exported by Cetratus as IEC 61131-3 Structured Text, dialect {d}.\n   Program hash {}.\n   Policy {}, scan period {} us; {} places, {} transitions.\n   The net's data: {} bytes sparse ({} dense).\n",
         comment(program.name()),
         comment(program.version()),
         program.hash_hex(),
@@ -226,11 +203,5 @@ fn file_stem(name: &str) -> String {
         format!("program{s}")
     } else {
         s
-    }
-}
-
-impl fmt::Display for Dialect {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        f.write_str(self.name())
     }
 }

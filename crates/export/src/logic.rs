@@ -120,7 +120,11 @@ impl Reads {
 impl<'p> Logic<'p> {
     /// Names everything in the interpretation's scope: the signals first, so that they keep
     /// their names when they can, then the state the export adds.
-    pub(crate) fn new(program: &'p Program, mut names: Names) -> Result<Self, ExportError> {
+    pub(crate) fn new(
+        program: &'p Program,
+        mut names: Names,
+        dialect: crate::Dialect,
+    ) -> Result<Self, ExportError> {
         let mut signals = HashMap::new();
         for (kind, list) in [
             ("input", program.inputs()),
@@ -172,6 +176,7 @@ impl<'p> Logic<'p> {
             dwells,
             previous,
             marking: locals.marking.clone(),
+            and_or: dialect.and_or(),
         };
         Ok(Logic {
             program,

@@ -172,18 +172,55 @@ pub(super) fn sorted(map: &HashMap<String, String>) -> Vec<(&String, &String)> {
 }
 
 /// Part 4: the PROGRAM that wires the signals to their addresses and runs the interpretation.
-pub(crate) fn program_pou(name: &str, fb: &str, rows: &[IoRow], program: &Program) -> String {
+/// Where the dialect locates no variable (OMRON), the signals are global variables, each with
+/// its address in a comment, which the engineer assigns to the controller's I/O.
+pub(crate) fn program_pou(
+    name: &str,
+    fb: &str,
+    rows: &[IoRow],
+    program: &Program,
+    d: crate::Dialect,
+) -> String {
     let mut names = Names::new(&[name, fb]);
     for r in rows {
         names.claim(None, &r.name);
     }
     let logic = names.claim(None, "LOGIC");
-    let mut s = format!(
-        "PROGRAM {name}\n(* The signals of {} at their addresses (the I/O map), and the interpretation,\n   run once a scan. *)\nVAR\n",
+    let mut s = String::new();
+    if !d.located() {
+        s.push_str(
+            "VAR_GLOBAL
+",
+        );
+        for r in rows {
+            let _ = writeln!(
+                s,
+                "  {} : {};  (* {} {} *)",
+                r.name, r.iec_type, r.direction, r.address
+            );
+        }
+        s.push_str(
+            "END_VAR
+
+",
+        );
+    }
+    let _ = write!(
+        s,
+        "PROGRAM {name}\n(* The signals of {} at their addresses (the I/O map), and the interpretation,\n   run once a scan. *)\n",
         comment(program.name())
     );
+    s.push_str(if d.located() {
+        "VAR\n"
+    } else {
+        "VAR_EXTERNAL\n"
+    });
     for r in rows {
-        let _ = writeln!(s, "  {} AT {} : {};", r.name, r.address, r.iec_type);
+        match d.located() {
+            true => writeln!(s, "  {} AT {} : {};", r.name, r.address, r.iec_type),
+            false => writeln!(s, "  {} : {};", r.name, r.iec_type),
+        }
+        .expect("a String takes every write");
     }
     let _ = writeln!(s, "END_VAR\nVAR\n  {logic} : {fb};\nEND_VAR");
     let args: Vec<String> = (rows.iter().filter(|r| r.direction == "input"))

@@ -226,7 +226,8 @@ fn spec(args: &RunArgs, program: Arc<Program>, kept: Kept) -> anyhow::Result<Nod
     Ok(spec)
 }
 
-/// The `--watch` names, each a variable of an elementary type of the program's Structured Text.
+/// The `--watch` names, each a variable of the program (`[[variable]]`) or one of an elementary
+/// type of its Structured Text.
 fn watched(args: &RunArgs, program: &Program) -> anyhow::Result<Vec<String>> {
     if args.watch.is_empty() {
         return Ok(Vec::new());
@@ -234,21 +235,33 @@ fn watched(args: &RunArgs, program: &Program) -> anyhow::Result<Vec<String>> {
     if args.trace.is_none() && args.svg.is_none() {
         bail!("--watch adds columns to the trace: add --trace FILE.csv (or --svg)");
     }
-    let Some(st) = program.st() else {
+    for name in &args.watch {
+        if program.variable_index(name).is_some() {
+            continue;
+        }
+        let st = program.st();
+        if st.is_some_and(|st| st.locate(name).is_some()) {
+            continue;
+        }
+        let mut vars: Vec<&str> = program
+            .variables()
+            .iter()
+            .map(|v| v.name.as_str())
+            .collect();
+        if let Some(st) = st {
+            vars.extend(st.unit().vars.iter().map(|v| v.name.as_str()));
+        }
+        let listed = match vars.is_empty() {
+            true => "it has none; watch its signals in the trace as they are".to_string(),
+            false => format!(
+                "its variables: {}; a member of an ST instance is INSTANCE.MEMBER",
+                vars.join(", ")
+            ),
+        };
         bail!(
-            "--watch names variables of a program's Structured Text, and `{}` has none; watch its signals in the trace as they are",
+            "--watch {name}: `{}` has no variable `{name}` ({listed})",
             program.name()
         );
-    };
-    for name in &args.watch {
-        if st.locate(name).is_none() {
-            let vars: Vec<&str> = st.unit().vars.iter().map(|v| v.name.as_str()).collect();
-            bail!(
-                "--watch {name}: `{}` has no variable `{name}` of an elementary type (its variables: {}; a member is INSTANCE.MEMBER)",
-                program.name(),
-                vars.join(", ")
-            );
-        }
     }
     Ok(args.watch.clone())
 }

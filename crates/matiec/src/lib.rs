@@ -765,9 +765,10 @@ fn check_batch(cases: &[Case], tick: Duration) -> Result<(), MatiecError> {
         let signals =
             (case.inputs.iter().map(|(n, _)| n)).chain(case.outputs.iter().map(|(n, _)| n));
         for name in signals {
-            if !is_identifier(name) && !is_address(name) {
+            if !name.split('.').all(is_identifier) && !is_address(name) {
                 return invalid(format!(
-                    "case {i}: `{name}` is neither an IEC identifier nor a direct address such as %IX0.1"
+                    "case {i}: `{name}` is neither an IEC identifier (or a member path such as \
+                     LOGIC.COUNT) nor a direct address such as %IX0.1"
                 ));
             }
         }

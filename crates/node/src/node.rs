@@ -391,10 +391,7 @@ impl<IO: Provider + Dispatcher> Node<IO> {
         if let Some(t) = self.trace.as_mut() {
             let k = self.plc.primary_container();
             let watched: Vec<cetratus_program::Value> = (t.watched_names.iter())
-                .map(|n| {
-                    k.st_watch(n)
-                        .unwrap_or(cetratus_program::Value::Bool(false))
-                })
+                .map(|n| k.watch(n).unwrap_or(cetratus_program::Value::Bool(false)))
                 .collect();
             t.observe_watched(
                 self.plc.cycles() - 1,

@@ -670,6 +670,15 @@ impl Container {
         st.watch(state, path)
     }
 
+    /// The value of a watched name (`cetratus run --watch`): a variable of the program
+    /// (`[[variable]]`), else one of its Structured Text ([`Container::st_watch`]).
+    pub fn watch(&self, name: &str) -> Option<Value> {
+        match self.program.variable_index(name) {
+            Some(i) => self.vars.get(i).copied(),
+            None => self.st_watch(name),
+        }
+    }
+
     /// Restores the RETAIN variables of the program's Structured Text (warm start).
     pub fn restore_st_retained(&mut self, saved: &[RetainedSt]) {
         let program = self.program.clone();

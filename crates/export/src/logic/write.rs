@@ -187,42 +187,35 @@ pub(crate) fn program_pou(
     }
     let logic = names.claim(None, "LOGIC");
     let mut s = String::new();
-    if !d.located() {
-        s.push_str(
-            "VAR_GLOBAL
-",
-        );
+    if !d.located() && !rows.is_empty() {
+        s.push_str("VAR_GLOBAL\n");
         for r in rows {
-            let _ = writeln!(
-                s,
-                "  {} : {};  (* {} {} *)",
-                r.name, r.iec_type, r.direction, r.address
-            );
+            let (n, t) = (&r.name, r.iec_type);
+            let _ = writeln!(s, "  {n} : {t};  (* {} {} *)", r.direction, r.address);
         }
-        s.push_str(
-            "END_VAR
-
-",
-        );
+        s.push_str("END_VAR\n\n");
     }
     let _ = write!(
         s,
         "PROGRAM {name}\n(* The signals of {} at their addresses (the I/O map), and the interpretation,\n   run once a scan. *)\n",
         comment(program.name())
     );
-    s.push_str(if d.located() {
-        "VAR\n"
-    } else {
-        "VAR_EXTERNAL\n"
-    });
-    for r in rows {
-        match d.located() {
-            true => writeln!(s, "  {} AT {} : {};", r.name, r.address, r.iec_type),
-            false => writeln!(s, "  {} : {};", r.name, r.iec_type),
+    if !rows.is_empty() {
+        s.push_str(if d.located() {
+            "VAR\n"
+        } else {
+            "VAR_EXTERNAL\n"
+        });
+        for r in rows {
+            let at = match d.located() {
+                true => format!(" AT {}", r.address),
+                false => String::new(),
+            };
+            let _ = writeln!(s, "  {}{at} : {};", r.name, r.iec_type);
         }
-        .expect("a String takes every write");
+        s.push_str("END_VAR\n");
     }
-    let _ = writeln!(s, "END_VAR\nVAR\n  {logic} : {fb};\nEND_VAR");
+    let _ = writeln!(s, "VAR\n  {logic} : {fb};\nEND_VAR");
     let args: Vec<String> = (rows.iter().filter(|r| r.direction == "input"))
         .map(|r| format!("{} := {}", r.name, widen(r.iec_type, &r.name)))
         .collect();

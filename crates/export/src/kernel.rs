@@ -13,14 +13,14 @@
 pub(crate) const KERNEL: &str = r#"FUNCTION_BLOCK CETRATUS_KERNEL
 (* The semi-compiled Petri-net algorithm. It reads the net from the constants NET_* and keeps
    nothing of it in its code: called once with STARTUP on the first scan, then once a scan after
-   the conditions of the transitions are computed. *)
+   the caller has written the condition of each CANDIDATE into COND. *)
 VAR_INPUT
   STARTUP : BOOL;                       (* TRUE: M := M0, derive the incidence, and return *)
+  COND : CETRATUS_TRANSITION_FLAGS;     (* each candidate's condition in this scan *)
 END_VAR
-VAR_IN_OUT
+VAR_OUTPUT
   M : CETRATUS_PLACES;                  (* the marking *)
-  COND : CETRATUS_TRANSITION_FLAGS;     (* each transition's condition in this scan *)
-  ENABLED : CETRATUS_TRANSITION_FLAGS;  (* enabled at M *)
+  CANDIDATE : CETRATUS_TRANSITION_FLAGS;(* enabled at M, or may join a step though not *)
   ENTERED : CETRATUS_PLACE_FLAGS;       (* count went from 0 to more in this scan *)
   EXITED : CETRATUS_PLACE_FLAGS;        (* count went to 0 in this scan *)
 END_VAR
@@ -46,6 +46,7 @@ VAR
   C_START : CETRATUS_ROWS;              (* the incidence C = Post - Pre, by transition *)
   C_PLACE : CETRATUS_DELTAS;
   C_DELTA : CETRATUS_DELTAS;
+  ENABLED : CETRATUS_TRANSITION_FLAGS;  (* enabled at M *)
   LATE : CETRATUS_TRANSITION_FLAGS;     (* may join a step though not enabled at M *)
   AVAIL : CETRATUS_PLACES;              (* M minus what the step consumes *)
   NEXT : CETRATUS_PLACES;               (* M plus the step's C columns *)
@@ -234,6 +235,7 @@ IF DIRTY THEN
       I := I + 1;
     END_WHILE;
     ENABLED[T] := OK;
+    CANDIDATE[T] := OK OR (NET_POLICY = 0 AND LATE[T]);
     T := T + 1;
   END_WHILE;
   DIRTY := FALSE;

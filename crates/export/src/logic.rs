@@ -16,13 +16,14 @@ use crate::{comment, ExportError};
 /// How long a place timer may count: the largest TIME every dialect holds (32-bit ms).
 const TIMER_RANGE: &str = "T#24d";
 
-/// The names of the interpretation's own state, besides the signals.
+/// The names of the interpretation's own state, besides the signals: the kernel's instance,
+/// the first-scan flag, and the kernel's members the interpretation reads and writes.
 struct Locals {
     kernel: String,
     first: String,
     marking: String,
     cond: String,
-    enabled: String,
+    candidate: String,
     entered: String,
     left: String,
 }
@@ -138,14 +139,16 @@ impl<'p> Logic<'p> {
         let reads = reads(program)?;
         let net = program.net();
         let mut claim = |n: &str| names.claim(None, n);
+        let kernel = claim("KERNEL");
+        let member = |m: &str| format!("{kernel}.{m}");
         let locals = Locals {
-            kernel: claim("KERNEL"),
             first: claim("FIRST"),
-            marking: claim("M"),
-            cond: claim("COND"),
-            enabled: claim("ENABLED"),
-            entered: claim("ENTERED"),
-            left: claim("EXITED"),
+            marking: member("M"),
+            cond: member("COND"),
+            candidate: member("CANDIDATE"),
+            entered: member("ENTERED"),
+            left: member("EXITED"),
+            kernel,
         };
         let places = (net.places().iter().enumerate())
             .map(|(i, p)| (p.id.clone(), i + 1))

@@ -12,12 +12,7 @@ impl Logic<'_> {
         );
         self.declarations(&mut s);
         let l = &self.locals;
-        let call = |startup: &str| {
-            format!(
-                "{}(STARTUP := {startup}, M := {}, COND := {}, ENABLED := {}, ENTERED := {}, EXITED := {});\n",
-                l.kernel, l.marking, l.cond, l.enabled, l.entered, l.left
-            )
-        };
+        let call = |startup: &str| format!("{}(STARTUP := {startup});\n", l.kernel);
         let _ = write!(s, "IF {} THEN\n  {}", l.first, call("TRUE"));
         for (x, prev) in sorted(&self.sym.previous) {
             let _ = writeln!(s, "  {prev} := {};", self.signal(x));
@@ -67,16 +62,7 @@ impl Logic<'_> {
         }
         s.push_str("VAR\n");
         let l = &self.locals;
-        for (name, ty) in [
-            (&l.kernel, "CETRATUS_KERNEL"),
-            (&l.marking, "CETRATUS_PLACES"),
-            (&l.cond, "CETRATUS_TRANSITION_FLAGS"),
-            (&l.enabled, "CETRATUS_TRANSITION_FLAGS"),
-            (&l.entered, "CETRATUS_PLACE_FLAGS"),
-            (&l.left, "CETRATUS_PLACE_FLAGS"),
-        ] {
-            let _ = writeln!(s, "  {name} : {ty};");
-        }
+        let _ = writeln!(s, "  {} : CETRATUS_KERNEL;", l.kernel);
         let _ = writeln!(s, "  {} : BOOL := TRUE;", l.first);
         for (p, t) in sorted(&self.sym.timers) {
             let _ = writeln!(
@@ -133,25 +119,25 @@ impl Logic<'_> {
     fn conditions(&self, s: &mut String) {
         let p = self.program;
         let net = p.net();
-        s.push_str("(* The condition of each transition; one without a guard is always TRUE. *)\n");
+        s.push_str("(* The condition of each candidate transition (enabled, or able to join the step);\n   one without a guard is always TRUE. *)\n");
         for (j, tr) in net.transitions().iter().enumerate() {
             let t = cetratus_net::TransIdx(j as u32);
-            let c = &self.locals.cond;
+            let (c, n) = (&self.locals.cond, j + 1);
             match p.guard(t) {
                 Some(g) => {
                     let line = source_line(p.source(), "[guards]", |l| key_is(l, &tr.id));
                     let at = line.map(|n| format!(", line {n}")).unwrap_or_default();
                     let _ = writeln!(
                         s,
-                        "{c}[{}] := {};  (* {}{at}: {} *)",
-                        j + 1,
-                        st(g.expr(), &self.sym),
+                        "IF {}[{n}] THEN  (* {}{at}: {} *)\n  {c}[{n}] := {};\nEND_IF;",
+                        self.locals.candidate,
                         comment(&tr.id),
-                        comment(g.source())
+                        comment(g.source()),
+                        st(g.expr(), &self.sym),
                     );
                 }
                 None => {
-                    let _ = writeln!(s, "{c}[{}] := TRUE;  (* {} *)", j + 1, comment(&tr.id));
+                    let _ = writeln!(s, "{c}[{n}] := TRUE;  (* {} *)", comment(&tr.id));
                 }
             }
         }

@@ -177,9 +177,13 @@ impl NetData {
             put(&format!("NET_{name}_PLACE"), ty, padded(wide(&r.place)));
             put(&format!("NET_{name}_WEIGHT"), ty, padded(wide(&r.weight)));
         }
-        put("NET_ORDER", "CETRATUS_TRANSITIONS", wide(&self.order));
+        put(
+            "NET_ORDER",
+            "CETRATUS_TRANSITIONS",
+            padded(wide(&self.order)),
+        );
         let priority = self.priority.iter().map(|&x| i64::from(x)).collect();
-        put("NET_PRIORITY", "CETRATUS_TRANSITIONS", priority);
+        put("NET_PRIORITY", "CETRATUS_TRANSITIONS", padded(priority));
         v
     }
 }

@@ -88,6 +88,9 @@ pub fn to_st(program: &Program, dialect: Dialect) -> Result<StExport, ExportErro
     ] {
         global.claim(None, fixed);
     }
+    for pou in logic::library_names(program) {
+        global.claim(None, &pou);
+    }
     let name = global.claim(None, program.name());
     let fb = global.claim(None, &format!("{name}_LOGIC"));
     let logic = logic::Logic::new(program, global, d)?;
@@ -102,6 +105,12 @@ pub fn to_st(program: &Program, dialect: Dialect) -> Result<StExport, ExportErro
     }
     pous.push_str("\n(* Part 1: the kernel. *)\n");
     pous.push_str(&dialect::kernel(d));
+    if let Some(library) = logic.st_library() {
+        pous.push_str(
+            "\n(* Part 3: the program's Structured Text, its PROGRAM made a FUNCTION_BLOCK. *)\n",
+        );
+        pous.push_str(library);
+    }
     pous.push_str("\n(* Part 3: the interpretation. *)\n");
     pous.push_str(&logic.pou(&fb)?);
     pous.push_str("\n(* Part 4: the program at its addresses, and its task. *)\n");

@@ -67,6 +67,8 @@ pub(crate) struct Logic<'p> {
     slots: Vec<Slot>,
     /// Per action: the run flag and the TON of its SD or SL timer.
     stored: Vec<Option<(String, String)>>,
+    /// The program's Structured Text body, if it has one.
+    st_body: Option<st_body::StBody>,
 }
 
 /// The ST type of a signal inside the interpretation.
@@ -172,6 +174,7 @@ impl<'p> Logic<'p> {
             .map(|x| (x.clone(), claim(&format!("PREV_{x}"))))
             .collect();
         let (slots, stored) = slots(program, &mut claim);
+        let st_body = st_body::prepare(program, &mut claim)?;
         let sym = Symbols {
             signals,
             places,
@@ -188,7 +191,13 @@ impl<'p> Logic<'p> {
             locals,
             slots,
             stored,
+            st_body,
         })
+    }
+
+    /// The program's ST library as the export writes it, if it has one.
+    pub(crate) fn st_library(&self) -> Option<&str> {
+        self.st_body.as_ref().map(|b| b.text.as_str())
     }
 
     /// The renames of the program's own names.
@@ -210,7 +219,7 @@ fn reads(program: &Program) -> Result<Reads, ExportError> {
             r.walk(g.expr());
         }
     }
-    for b in program.bodies() {
+    for b in program.bodies().iter().filter(|b| b.st().is_none()) {
         for s in statements(b)? {
             match s {
                 Statement::Assign { expr: e, .. } | Statement::If(e) | Statement::Elif(e) => {
@@ -332,6 +341,9 @@ fn value(v: cetratus_program::Value) -> String {
 }
 
 mod actions;
+mod st_body;
 mod write;
+
+pub(crate) use self::st_body::library_names;
 
 pub(crate) use self::write::{configuration, program_pou};

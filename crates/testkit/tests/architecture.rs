@@ -49,7 +49,7 @@ const RULES: &[(&str, Allowed)] = &[
     ),
     (
         "cetratus-export",
-        Only(&["cetratus-net", "cetratus-program"]),
+        Only(&["cetratus-net", "cetratus-program", "cetratus-st"]),
     ),
     (
         "cetratus-runtime",

@@ -176,7 +176,10 @@ impl Logic<'_> {
                         None => slot.q(),
                     };
                     let _ = writeln!(s, "IF {run} THEN  (* body {} *)", comment(body.name()));
-                    self.body(s, body)?;
+                    match &self.st_body {
+                        Some(st) if body.st().is_some() => self.st_call(s, st),
+                        _ => self.body(s, body)?,
+                    }
                     s.push_str("END_IF;\n");
                     if let Some(was) = &slot.was {
                         let _ = writeln!(s, "{was} := {};", slot.stored());
@@ -185,6 +188,28 @@ impl Logic<'_> {
             }
         }
         Ok(())
+    }
+
+    /// A Structured Text body: its inputs copied in, one pass, its outputs copied out.
+    fn st_call(&self, s: &mut String, st: &super::st_body::StBody) {
+        let args: Vec<String> = (st.wires.iter().filter(|w| w.3))
+            .map(|(var, e, sig, _)| {
+                format!(
+                    "{var} := {}",
+                    super::st_body::into_pou(*e, &self.signal(sig))
+                )
+            })
+            .collect();
+        let _ = writeln!(s, "  {}({});", st.instance, args.join(", "));
+        for (var, e, sig, _) in st.wires.iter().filter(|w| !w.3) {
+            let from = format!("{}.{var}", st.instance);
+            let _ = writeln!(
+                s,
+                "  {} := {};",
+                self.signal(sig),
+                super::st_body::from_pou(*e, &from)
+            );
+        }
     }
 
     /// A guard-language body as ST statements, indented under its `IF`.

@@ -63,6 +63,13 @@ impl Logic<'_> {
         s.push_str("VAR\n");
         let l = &self.locals;
         let _ = writeln!(s, "  {} : CETRATUS_KERNEL;", l.kernel);
+        if let Some(b) = &self.st_body {
+            let _ = writeln!(
+                s,
+                "  {} : {};  (* the program's Structured Text *)",
+                b.instance, b.pou
+            );
+        }
         let _ = writeln!(s, "  {} : BOOL := TRUE;", l.first);
         for (p, t) in sorted(&self.sym.timers) {
             let _ = writeln!(

@@ -12,6 +12,9 @@ pub enum Target {
     /// IEC 61131-3 Structured Text: `DIR/<program>.st` (`.scl` for TIA) and its I/O map
     /// `DIR/<program>.io.csv`.
     St,
+    /// A PLCopen TC6 XML project (Beremiz, OpenPLC Editor, CODESYS): `DIR/<program>.xml`, its
+    /// POUs with ST bodies, and the I/O map.
+    Plcopen,
 }
 
 /// Arguments of `cetratus export`.
@@ -39,9 +42,14 @@ pub struct ExportArgs {
 pub fn run(args: &ExportArgs) -> anyhow::Result<()> {
     let dialect: Dialect = args.dialect.parse()?;
     let program = crate::package::load_program(&args.program)?;
-    let Target::St = args.to;
-    let export = cetratus_export::to_st(&program, dialect)
-        .with_context(|| format!("cannot export {}", args.program.display()))?;
+    let export = match args.to {
+        Target::St => cetratus_export::to_st(&program, dialect),
+        Target::Plcopen if dialect != Dialect::Iec => {
+            bail!("--dialect applies to --to st; PLCopen XML is one format for every editor")
+        }
+        Target::Plcopen => cetratus_export::to_plcopen(&program),
+    }
+    .with_context(|| format!("cannot export {}", args.program.display()))?;
     ready(&args.output, args.force)?;
     let stem = Path::new(&export.file_name)
         .file_stem()
@@ -86,7 +94,7 @@ fn write_whole(path: &Path, text: &str) -> anyhow::Result<()> {
 
 fn summary(dir: &Path, export: &StExport, dialect: Dialect) {
     println!(
-        "{}: PROGRAM {} in {dialect} Structured Text, {} lines; the net's data {} bytes sparse ({} dense)",
+        "{}: PROGRAM {} ({dialect}), {} lines; the net's data {} bytes sparse ({} dense)",
         dir.join(&export.file_name).display(),
         export.program,
         export.text.lines().count(),

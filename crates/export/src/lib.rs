@@ -17,12 +17,14 @@ mod io;
 mod kernel;
 mod logic;
 mod names;
+mod plcopen;
 mod tia;
 
 pub use data::DataSize;
 pub use dialect::Dialect;
 pub use io::IoRow;
 pub use names::Rename;
+pub use plcopen::to_plcopen;
 
 /// Why a program cannot be exported.
 #[derive(Debug, thiserror::Error, PartialEq, Eq)]

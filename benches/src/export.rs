@@ -11,7 +11,7 @@
 use std::hint::black_box;
 use std::path::Path;
 use std::sync::Arc;
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
 use cetratus_matiec::{Case, IecType, Matiec};
 use cetratus_program::{Program, Type, Value};
@@ -19,10 +19,7 @@ use cetratus_runtime::Container;
 use serde::Serialize;
 
 use crate::harness::BenchError;
-use crate::st::{canonical, median};
-
-/// Runs of each side; the figure is the median.
-const RUNS: usize = 5;
+use crate::st::{canonical, time_batch, time_scans};
 
 /// The figures of one program.
 #[derive(Debug, Serialize)]
@@ -141,22 +138,12 @@ fn interpreted(
     let inputs: Vec<Value> = program.inputs().iter().map(|s| held(s.ty)).collect();
     let period = program.scan_period().as_micros() as u64;
     let fresh = Container::new(program.clone(), 0);
-    let mut last = fresh.clone();
-    let ns = median((0..RUNS).map(|_| {
-        let mut c = fresh.clone();
-        let t0 = Instant::now();
-        for k in 0..scans {
-            black_box(c.scan(k * period, &inputs).map(|o| o.fired).ok());
-        }
-        let took = t0.elapsed();
-        last = c;
-        took
-    }));
+    let (ns, last) = time_scans(&fresh, &inputs, period, scans);
     let outs = (export.io.iter().filter(|r| r.direction == "output"))
         .zip(last.outputs())
         .map(|(r, &v)| canonical(iec_type(r), v))
         .collect();
-    (ns / scans as f64, outs)
+    (ns, outs)
 }
 
 /// Median ns of one scan of the compiled export, after checking it ends with `ours`.
@@ -182,20 +169,5 @@ fn compiled(
     }];
     let m = m.clone().with_globals(export.globals.clone());
     let batch = m.compile(&export.pous, &cases, program.scan_period())?;
-    let mut last = Vec::new();
-    let mut took = Vec::with_capacity(RUNS);
-    for _ in 0..RUNS {
-        let (t, outputs) = batch.time(&cases, scans)?;
-        took.push(t);
-        last = outputs;
-    }
-    if last.first().map(Vec::as_slice) != Some(ours) {
-        return Err(format!(
-            "{}: after {scans} scans the compiled export's outputs are {last:?} and Cetratus's {ours:?}; \
-             they do not run the same program, so their times do not compare",
-            program.name()
-        )
-        .into());
-    }
-    Ok(median(took.into_iter()) / scans as f64)
+    time_batch(&batch, &cases, scans, ours, program.name())
 }

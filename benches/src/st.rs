@@ -237,7 +237,7 @@ pub fn rungs(n: usize) -> String {
 }
 
 /// Runs of each side; the figure is the median.
-const RUNS: usize = 5;
+pub(crate) const RUNS: usize = 5;
 
 /// Measures every program on Cetratus, and on MATIEC when `matiec` is its install dir (a
 /// missing or broken install is reported in [`StFigures::matiec_skipped`], not an error).
@@ -290,19 +290,8 @@ fn cetratus_side(p: &StBench, scans: u64) -> Result<(f64, f64, Vec<String>), Ben
             value_of(*ty, text)
         })
         .collect::<Result<Vec<Value>, BenchError>>()?;
-    let period_us = TICK.as_micros() as u64;
     let fresh = Container::new(program.clone(), 0);
-    let mut last = fresh.clone();
-    let ns = median((0..RUNS).map(|_| {
-        let mut c = fresh.clone();
-        let t0 = Instant::now();
-        for k in 0..scans {
-            black_box(c.scan(k * period_us, &inputs).map(|o| o.fired).ok());
-        }
-        let took = t0.elapsed();
-        last = c;
-        took
-    }));
+    let (ns, last) = time_scans(&fresh, &inputs, TICK.as_micros() as u64, scans);
     let outputs = p
         .outputs
         .iter()
@@ -316,7 +305,29 @@ fn cetratus_side(p: &StBench, scans: u64) -> Result<(f64, f64, Vec<String>), Ben
         })
         .collect::<Result<Vec<String>, BenchError>>()?;
     let vm = vm_pass_ns(p, scans)?;
-    Ok((ns / scans as f64, vm, outputs))
+    Ok((ns, vm, outputs))
+}
+
+/// Median ns of one scan of a copy of `fresh` over `scans` scans (of [`RUNS`] runs), `inputs`
+/// held and the scan's time advancing by `period_us`; and the container after the last run.
+pub(crate) fn time_scans(
+    fresh: &Container,
+    inputs: &[Value],
+    period_us: u64,
+    scans: u64,
+) -> (f64, Container) {
+    let mut last = fresh.clone();
+    let ns = median((0..RUNS).map(|_| {
+        let mut c = fresh.clone();
+        let t0 = Instant::now();
+        for k in 0..scans {
+            black_box(c.scan(k * period_us, inputs).map(|o| o.fired).ok());
+        }
+        let took = t0.elapsed();
+        last = c;
+        took
+    }));
+    (ns / scans as f64, last)
 }
 
 /// Median ns of one pass of the compiled ST alone, its inputs written once.
@@ -351,18 +362,29 @@ fn matiec_side(m: &Matiec, p: &StBench, scans: u64, ours: &[String]) -> Result<f
     };
     let cases = [case];
     let batch = m.compile(&p.source, &cases, TICK)?;
+    time_batch(&batch, &cases, scans, ours, p.name)
+}
+
+/// Median ns of one scan of a compiled batch of one case over `scans` scans (of [`RUNS`] runs),
+/// after checking that its outputs after the last scan are `ours`.
+pub(crate) fn time_batch(
+    batch: &cetratus_matiec::Batch,
+    cases: &[Case],
+    scans: u64,
+    ours: &[String],
+    name: &str,
+) -> Result<f64, BenchError> {
     let mut last = Vec::new();
     let mut took = Vec::with_capacity(RUNS);
     for _ in 0..RUNS {
-        let (t, outputs) = batch.time(&cases, scans)?;
+        let (t, outputs) = batch.time(cases, scans)?;
         took.push(t);
         last = outputs;
     }
     if last.first().map(Vec::as_slice) != Some(ours) {
         return Err(format!(
-            "{}: after {scans} scans MATIEC's outputs are {last:?} and Cetratus's {ours:?}; \
-             the two do not run the same program, so their times do not compare",
-            p.name
+            "{name}: after {scans} scans MATIEC's outputs are {last:?} and Cetratus's {ours:?}; \
+             the two do not run the same program, so their times do not compare"
         )
         .into());
     }

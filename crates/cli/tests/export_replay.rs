@@ -106,14 +106,7 @@ fn prove(program: &Path, run_args: &[&str]) -> Vec<Vec<String>> {
     args.extend_from_slice(run_args);
     ok(&cetratus(&args));
     let out = dir.path().join("export");
-    let printed = ok(&cetratus(&[
-        "export",
-        path(program),
-        "--to",
-        "st",
-        "-o",
-        path(&out),
-    ]));
+    let printed = ok(&export(program, &["--to", "st"], &out));
     let st_file = out
         .read_dir()
         .unwrap()
@@ -162,7 +155,7 @@ fn prove(program: &Path, run_args: &[&str]) -> Vec<Vec<String>> {
             row.extend(w);
         }
         // A program variable is the interpretation's; any other, its ST body instance's.
-        let vars = variables(&std::fs::read_to_string(program).unwrap());
+        let vars = toml_names(&std::fs::read_to_string(program).unwrap(), "variable");
         let body = (text.lines())
             .find(|l| l.ends_with("(* the program's Structured Text *)"))
             .and_then(|l| l.split(" : ").next())
@@ -231,16 +224,8 @@ fn the_festo_station_with_defective_parts_replays_an_hour_scan_for_scan() {
 #[test]
 fn the_vernadat_sfc_chart_replays_an_hour_scan_for_scan() {
     let dir = tempfile::tempdir().unwrap();
-    let chart = examples().join("vernadat-sfc/vernadat-sfc.xml");
-    ok(&cetratus(&[
-        "import",
-        "plcopen",
-        path(&chart),
-        "-o",
-        path(dir.path()),
-    ]));
     let _ = prove(
-        &dir.path().join("Cell.toml"),
+        &sfc_cell(dir.path()),
         &["--twin", "vernadat", "--for", "1h"],
     );
 }
@@ -524,14 +509,7 @@ fn names_that_clash_with_iec_are_renamed_listed_and_still_replay() {
     let program = dir.path().join("clash.toml");
     std::fs::write(&program, CLASH).unwrap();
     let out = dir.path().join("out");
-    let printed = ok(&cetratus(&[
-        "export",
-        path(&program),
-        "--to",
-        "st",
-        "-o",
-        path(&out),
-    ]));
+    let printed = ok(&export(&program, &["--to", "st"], &out));
     for line in [
         "input `TON` renamed TON_2",
         "input `ton` renamed ton_3",
@@ -560,16 +538,11 @@ fn bad_exports_are_refused_clearly_and_write_nothing() {
     let vernadat = examples().join("vernadat/vernadat.toml");
     let out = dir.path().join("out");
 
-    let e = refused(&cetratus(&[
-        "export",
-        path(&vernadat),
-        "--to",
-        "st",
-        "--dialect",
-        "siemens",
-        "-o",
-        path(&out),
-    ]));
+    let e = refused(&export(
+        &vernadat,
+        &["--to", "st", "--dialect", "siemens"],
+        &out,
+    ));
     assert!(
         e.contains("unknown dialect `siemens`; the dialects are: iec"),
         "{e}"
@@ -578,14 +551,7 @@ fn bad_exports_are_refused_clearly_and_write_nothing() {
 
     let broken = dir.path().join("broken.toml");
     std::fs::write(&broken, "[program]\nname = \"x\"\nversion = 1\n").unwrap();
-    let e = refused(&cetratus(&[
-        "export",
-        path(&broken),
-        "--to",
-        "st",
-        "-o",
-        path(&out),
-    ]));
+    let e = refused(&export(&broken, &["--to", "st"], &out));
     assert!(
         e.contains("cannot load the program") && e.contains("broken.toml"),
         "{e}"
@@ -594,28 +560,13 @@ fn bad_exports_are_refused_clearly_and_write_nothing() {
 
     std::fs::create_dir(&out).unwrap();
     std::fs::write(out.join("notes.txt"), "mine").unwrap();
-    let e = refused(&cetratus(&[
-        "export",
-        path(&vernadat),
-        "--to",
-        "st",
-        "-o",
-        path(&out),
-    ]));
+    let e = refused(&export(&vernadat, &["--to", "st"], &out));
     assert!(
         e.contains("already holds files") && e.contains("--force"),
         "{e}"
     );
     assert_eq!(std::fs::read_dir(&out).unwrap().count(), 1);
-    ok(&cetratus(&[
-        "export",
-        path(&vernadat),
-        "--to",
-        "st",
-        "-o",
-        path(&out),
-        "--force",
-    ]));
+    ok(&export(&vernadat, &["--to", "st", "--force"], &out));
     assert_eq!(
         std::fs::read_to_string(out.join("notes.txt")).unwrap(),
         "mine"
@@ -632,16 +583,9 @@ fn bad_exports_are_refused_clearly_and_write_nothing() {
     )
     .unwrap();
     let st = dir.path().join("st");
-    ok(&cetratus(&["import", "st", path(&source), "-o", path(&st)]));
+    import("st", &source, &st);
     let empty = dir.path().join("empty");
-    let e = refused(&cetratus(&[
-        "export",
-        path(&st.join("P.toml")),
-        "--to",
-        "st",
-        "-o",
-        path(&empty),
-    ]));
+    let e = refused(&export(&st.join("P.toml"), &["--to", "st"], &empty));
     assert!(
         e.contains("declares global variables in its CONFIGURATION"),
         "{e}"
@@ -649,35 +593,21 @@ fn bad_exports_are_refused_clearly_and_write_nothing() {
     assert!(!empty.exists());
 
     let cell = dir.path().join("cell");
-    ok(&cetratus(&[
-        "import",
-        "st",
-        path(&examples().join("st-cell/cell.st")),
-        "-o",
-        path(&cell),
-    ]));
-    let e = refused(&cetratus(&[
-        "export",
-        path(&cell.join("Cell.toml")),
-        "--to",
-        "plcopen",
-        "-o",
-        path(&empty),
-    ]));
+    import("st", &examples().join("st-cell/cell.st"), &cell);
+    let e = refused(&export(
+        &cell.join("Cell.toml"),
+        &["--to", "plcopen"],
+        &empty,
+    ));
     assert!(
         e.contains("Structured Text body as PLCopen XML") && e.contains("--to st"),
         "{e}"
     );
-    let e = refused(&cetratus(&[
-        "export",
-        path(&vernadat),
-        "--to",
-        "plcopen",
-        "--dialect",
-        "tia",
-        "-o",
-        path(&empty),
-    ]));
+    let e = refused(&export(
+        &vernadat,
+        &["--to", "plcopen", "--dialect", "tia"],
+        &empty,
+    ));
     assert!(e.contains("--dialect applies to --to st"), "{e}");
     assert!(!empty.exists());
 }
@@ -687,22 +617,8 @@ fn the_same_program_exports_to_the_same_bytes() {
     let dir = tempfile::tempdir().unwrap();
     let festo = examples().join("festo/festo.toml");
     let (a, b) = (dir.path().join("a"), dir.path().join("b"));
-    ok(&cetratus(&[
-        "export",
-        path(&festo),
-        "--to",
-        "st",
-        "-o",
-        path(&a),
-    ]));
-    ok(&cetratus(&[
-        "export",
-        path(&festo),
-        "--to",
-        "st",
-        "-o",
-        path(&b),
-    ]));
+    ok(&export(&festo, &["--to", "st"], &a));
+    ok(&export(&festo, &["--to", "st"], &b));
     for f in ["festo-processing.st", "festo-processing.io.csv"] {
         let (x, y) = (std::fs::read(a.join(f)), std::fs::read(b.join(f)));
         assert_eq!(
@@ -721,22 +637,14 @@ fn the_same_program_exports_to_the_same_bytes() {
 #[test]
 fn the_codesys_dialect_parses_with_blark() {
     let dir = tempfile::tempdir().unwrap();
-    let sfc = dir.path().join("sfc");
-    let chart = examples().join("vernadat-sfc/vernadat-sfc.xml");
-    ok(&cetratus(&[
-        "import",
-        "plcopen",
-        path(&chart),
-        "-o",
-        path(&sfc),
-    ]));
+    let sfc = sfc_cell(dir.path());
     std::fs::write(dir.path().join("sink.pnml"), SINK_NET).unwrap();
     let sink = dir.path().join("sink.toml");
     std::fs::write(&sink, SINK.replace("POLICY", "single-priority")).unwrap();
     let programs = [
         examples().join("vernadat/u2.toml"),
         examples().join("festo/festo.toml"),
-        sfc.join("Cell.toml"),
+        sfc.clone(),
         sink,
     ];
     let parsers: Vec<_> = programs
@@ -744,16 +652,11 @@ fn the_codesys_dialect_parses_with_blark() {
         .enumerate()
         .map(|(i, program)| {
             let out = dir.path().join(format!("out{i}"));
-            ok(&cetratus(&[
-                "export",
-                path(program),
-                "--to",
-                "st",
-                "--dialect",
-                "codesys",
-                "-o",
-                path(&out),
-            ]));
+            ok(&export(
+                program,
+                &["--to", "st", "--dialect", "codesys"],
+                &out,
+            ));
             let st = (out.read_dir().unwrap().map(|e| e.unwrap().path()))
                 .find(|p| p.extension().is_some_and(|e| e == "st"))
                 .unwrap();
@@ -807,14 +710,15 @@ fn random_inputs_of(map: &[IoRow], scans: u64) -> String {
     s
 }
 
-/// The `[[variable]]` names of a program's TOML.
-fn variables(toml: &str) -> Vec<String> {
+/// The names of a program's TOML in the tables `[[section]]` (`variable`, `output`).
+fn toml_names(toml: &str, section: &str) -> Vec<String> {
+    let header = format!("[[{section}]]");
     let mut names = Vec::new();
-    let mut in_variable = false;
+    let mut inside = false;
     for line in toml.lines().map(str::trim) {
         if line.starts_with('[') {
-            in_variable = line == "[[variable]]";
-        } else if let (true, Some(v)) = (in_variable, line.strip_prefix("name = ")) {
+            inside = line == header;
+        } else if let (true, Some(v)) = (inside, line.strip_prefix("name = ")) {
             names.push(v.trim_matches('"').to_string());
         }
     }
@@ -836,27 +740,14 @@ fn the_sfc_programs_of_the_plcopen_fixtures_replay_scan_for_scan() {
         ("twincat-sfc-evolution-6.xml", "Main", false),
     ] {
         let imported = dir.path().join(fixture);
-        ok(&cetratus(&[
-            "import",
-            "plcopen",
-            path(&binary::fixture(fixture)),
-            "-o",
-            path(&imported),
-        ]));
+        import("plcopen", &binary::fixture(fixture), &imported);
         let program = imported.join(format!("{pou}.toml"));
         let probe = imported.join("probe");
-        ok(&cetratus(&[
-            "export",
-            path(&program),
-            "--to",
-            "st",
-            "-o",
-            path(&probe),
-        ]));
+        ok(&export(&program, &["--to", "st"], &probe));
         let csv = std::fs::read_to_string(probe.join(format!("{pou}.io.csv"))).unwrap();
         let inputs = imported.join("inputs.csv");
         std::fs::write(&inputs, random_inputs_of(&io_map(&csv), 2000)).unwrap();
-        let vars = variables(&std::fs::read_to_string(&program).unwrap());
+        let vars = toml_names(&std::fs::read_to_string(&program).unwrap(), "variable");
         let mut args = vec!["--replay", path(&inputs), "--for", "20s"];
         for v in &vars {
             args.extend(["--watch", v.as_str()]);
@@ -880,41 +771,20 @@ fn the_sfc_programs_of_the_plcopen_fixtures_replay_scan_for_scan() {
 fn programs_with_structured_text_bodies_replay_scan_for_scan() {
     let dir = tempfile::tempdir().unwrap();
     let cell = dir.path().join("cell");
-    ok(&cetratus(&[
-        "import",
-        "st",
-        path(&examples().join("st-cell/cell.st")),
-        "-o",
-        path(&cell),
-    ]));
+    import("st", &examples().join("st-cell/cell.st"), &cell);
     let blink = dir.path().join("blink");
-    ok(&cetratus(&[
-        "import",
-        "plcopen",
-        path(&binary::fixture("openplc-blink-ld.xml")),
-        "-o",
-        path(&blink),
-    ]));
+    import("plcopen", &binary::fixture("openplc-blink-ld.xml"), &blink);
     let light = dir.path().join("light");
-    ok(&cetratus(&[
-        "import",
+    import(
         "plcopen",
-        path(&binary::fixture("openplc-traffic-light-fbd.xml")),
-        "-o",
-        path(&light),
-    ]));
+        &binary::fixture("openplc-traffic-light-fbd.xml"),
+        &light,
+    );
     let none = dir.path().join("none.csv");
     std::fs::write(&none, "scan,time_ms\n0,0\n").unwrap();
     let probe = dir.path().join("probe");
     let program = cell.join("Cell.toml");
-    ok(&cetratus(&[
-        "export",
-        path(&program),
-        "--to",
-        "st",
-        "-o",
-        path(&probe),
-    ]));
+    ok(&export(&program, &["--to", "st"], &probe));
     let csv = std::fs::read_to_string(probe.join("Cell.io.csv")).unwrap();
     let inputs = dir.path().join("cell.csv");
     std::fs::write(&inputs, random_inputs_of(&io_map(&csv), 4000)).unwrap();
@@ -1009,15 +879,7 @@ fn tc6_errors(files: &[PathBuf]) -> String {
 #[test]
 fn plcopen_projects_are_valid_tc6_and_import_back_to_the_same_behaviour() {
     let dir = tempfile::tempdir().unwrap();
-    let sfc = dir.path().join("sfc");
-    let chart = examples().join("vernadat-sfc/vernadat-sfc.xml");
-    ok(&cetratus(&[
-        "import",
-        "plcopen",
-        path(&chart),
-        "-o",
-        path(&sfc),
-    ]));
+    let sfc = sfc_cell(dir.path());
     let cases: [(PathBuf, &[&str]); 4] = [
         (
             examples().join("vernadat/vernadat.toml"),
@@ -1028,31 +890,17 @@ fn plcopen_projects_are_valid_tc6_and_import_back_to_the_same_behaviour() {
             examples().join("festo/festo.toml"),
             &["--twin", "festo", "--defect-rate", "5%"],
         ),
-        (sfc.join("Cell.toml"), &["--twin", "vernadat"]),
+        (sfc.clone(), &["--twin", "vernadat"]),
     ];
     let mut projects = Vec::new();
     for (i, (program, plant)) in cases.iter().enumerate() {
         let out = dir.path().join(format!("p{i}"));
-        ok(&cetratus(&[
-            "export",
-            path(program),
-            "--to",
-            "plcopen",
-            "-o",
-            path(&out),
-        ]));
+        ok(&export(program, &["--to", "plcopen"], &out));
         let xml = (out.read_dir().unwrap().map(|e| e.unwrap().path()))
             .find(|p| p.extension().is_some_and(|e| e == "xml"))
             .unwrap();
         let again = dir.path().join(format!("again{i}"));
-        ok(&cetratus(&[
-            "export",
-            path(program),
-            "--to",
-            "plcopen",
-            "-o",
-            path(&again),
-        ]));
+        ok(&export(program, &["--to", "plcopen"], &again));
         let name = xml.file_name().unwrap();
         assert_eq!(
             std::fs::read(&xml).unwrap(),
@@ -1119,7 +967,7 @@ fn same_outputs(a: &Path, b: &Path, what: &Path) {
         (header, rows)
     };
     let ((ha, ra), (hb, rb)) = (read(a), read(b));
-    let program = cetratus_program_outputs(what);
+    let program = toml_names(&std::fs::read_to_string(what).unwrap(), "output");
     let cols = |h: &[String]| {
         program
             .iter()
@@ -1156,17 +1004,26 @@ fn same_outputs(a: &Path, b: &Path, what: &Path) {
     }
 }
 
-/// The output names of a program, from its TOML.
-fn cetratus_program_outputs(program: &Path) -> Vec<String> {
-    let toml = std::fs::read_to_string(program).unwrap();
-    let mut names = Vec::new();
-    let mut in_output = false;
-    for line in toml.lines().map(str::trim) {
-        if line.starts_with('[') {
-            in_output = line == "[[output]]";
-        } else if let (true, Some(v)) = (in_output, line.strip_prefix("name = ")) {
-            names.push(v.trim_matches('"').to_string());
-        }
-    }
-    names
+/// The Vernadat SFC example imported into `dir`: its program file.
+fn sfc_cell(dir: &Path) -> PathBuf {
+    let out = dir.join("sfc");
+    import(
+        "plcopen",
+        &examples().join("vernadat-sfc/vernadat-sfc.xml"),
+        &out,
+    );
+    out.join("Cell.toml")
+}
+
+/// `cetratus import KIND FILE -o OUT`, which must succeed.
+fn import(kind: &str, file: &Path, out: &Path) {
+    ok(&cetratus(&["import", kind, path(file), "-o", path(out)]));
+}
+
+/// `cetratus export PROGRAM ARGS… -o OUT`.
+fn export(program: &Path, args: &[&str], out: &Path) -> std::process::Output {
+    let mut all = vec!["export", path(program)];
+    all.extend_from_slice(args);
+    all.extend(["-o", path(out)]);
+    cetratus(&all)
 }

@@ -129,20 +129,14 @@ fn write(s: &mut String, e: &Expr, sym: &Symbols) {
     }
 }
 
+/// IEC's spelling of an operator where it differs from the guard language's.
 fn operator(op: BinOp) -> &'static str {
     match op {
         BinOp::Or => "OR",
         BinOp::And => "AND",
         BinOp::Eq => "=",
         BinOp::Ne => "<>",
-        BinOp::Lt => "<",
-        BinOp::Le => "<=",
-        BinOp::Gt => ">",
-        BinOp::Ge => ">=",
-        BinOp::Add => "+",
-        BinOp::Sub => "-",
-        BinOp::Mul => "*",
-        BinOp::Div => "/",
+        _ => op.symbol(),
     }
 }
 

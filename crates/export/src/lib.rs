@@ -131,7 +131,7 @@ pub fn to_st(program: &Program, dialect: Dialect) -> Result<StExport, ExportErro
         text = tia::rewrite(&text, &types)?;
     }
     Ok(StExport {
-        file_name: format!("{}.{}", file_stem(program.name()), d.extension()),
+        file_name: format!("{}.{}", program.file_stem(), d.extension()),
         text,
         pous,
         globals,
@@ -196,23 +196,4 @@ pub(crate) fn comment(text: &str) -> String {
     text.replace("*)", "* )")
         .replace("(*", "( *")
         .replace(['\n', '\r'], " ")
-}
-
-/// A program's name as a file name: letters, digits, `-`, `_` and `.` kept, others `_`.
-fn file_stem(name: &str) -> String {
-    let s: String = name
-        .chars()
-        .map(|c| {
-            if c.is_ascii_alphanumeric() || "-_.".contains(c) {
-                c
-            } else {
-                '_'
-            }
-        })
-        .collect();
-    if s.is_empty() || s.starts_with('.') {
-        format!("program{s}")
-    } else {
-        s
-    }
 }

@@ -337,9 +337,7 @@ impl NodeSpec {
     fn open_plc(&self, period_us: u64, say: Say<'_>) -> Result<Opened, SpecError> {
         let dir = match (&self.state, self.time) {
             (StateDir::At(d), _) => Some(d.clone()),
-            (StateDir::Default, TimeMode::Real { .. }) => {
-                crate::state::default_dir(self.program.name())
-            }
+            (StateDir::Default, TimeMode::Real { .. }) => crate::state::default_dir(&self.program),
             (StateDir::Default, TimeMode::Virtual) | (StateDir::Nowhere, _) => None,
         };
         let Some(dir) = dir else {

@@ -11,25 +11,11 @@ use cetratus_program::Program;
 use cetratus_runtime::{Event, Plc, Slot, Stopwatch};
 
 /// The default state directory of a program: `$XDG_STATE_HOME/cetratus/<program name>`, or
-/// `~/.local/state/cetratus/<program name>`. Only a safe subset of the name's characters is kept.
-pub fn default_dir(program_name: &str) -> Option<PathBuf> {
+/// `~/.local/state/cetratus/<program name>`, the name made a file name
+/// ([`Program::file_stem`]).
+pub fn default_dir(program: &Program) -> Option<PathBuf> {
     let base = crate::dirs::xdg("XDG_STATE_HOME", ".local/state")?;
-    let name: String = program_name
-        .chars()
-        .map(|c| {
-            if c.is_ascii_alphanumeric() || "-_.".contains(c) {
-                c
-            } else {
-                '_'
-            }
-        })
-        .collect();
-    let name = if name.trim_matches('.').is_empty() {
-        "program".to_string()
-    } else {
-        name
-    };
-    Some(base.join("cetratus").join(name))
+    Some(base.join("cetratus").join(program.file_stem()))
 }
 
 /// A PLC started from a state directory, with its writer.

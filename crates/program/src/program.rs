@@ -242,6 +242,22 @@ impl Program {
     pub fn name(&self) -> &str {
         &self.name
     }
+
+    /// The program's name as a file name: letters, digits, `-`, `_` and `.` kept, every other
+    /// character `_`, and `program` when nothing but dots would be left (a name is free text;
+    /// a path built from it must stay in its directory).
+    pub fn file_stem(&self) -> String {
+        let name: String = (self.name.chars())
+            .map(|c| match c.is_ascii_alphanumeric() || "-_.".contains(c) {
+                true => c,
+                false => '_',
+            })
+            .collect();
+        match name.trim_matches('.').is_empty() {
+            true => "program".to_string(),
+            false => name,
+        }
+    }
     /// The program's version, as written.
     pub fn version(&self) -> &str {
         &self.version

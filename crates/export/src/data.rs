@@ -52,6 +52,10 @@ pub(crate) struct NetData {
     inhibitors: Rows,
     order: Vec<u32>,
     priority: Vec<i32>,
+    /// Per place, where its dependents start in `dependents` (1-based, one past the last).
+    dependent_start: Vec<usize>,
+    /// The transitions whose enabling can change when a place's count changes.
+    dependents: Vec<u32>,
 }
 
 impl NetData {
@@ -77,6 +81,8 @@ impl NetData {
             inhibitors: rows(net, |t| net.inhibitors(t).to_vec()),
             order: (0..n as u32).map(|r| net.by_rank(r).0 + 1).collect(),
             priority: net.transitions().iter().map(|t| t.priority).collect(),
+            dependent_start: dependent_rows(net).0,
+            dependents: dependent_rows(net).1,
         }
     }
 
@@ -84,7 +90,14 @@ impl NetData {
     pub(crate) fn size(&self) -> DataSize {
         let (p, t) = (self.places, self.transitions);
         let arcs = |r: &Rows| r.start.len() + 2 * r.place.len();
-        let dints = 3 + 2 * p + arcs(&self.pre) + arcs(&self.post) + arcs(&self.inhibitors) + 2 * t;
+        let dependents = self.dependent_start.len() + self.dependents.len().max(1);
+        let dints = 3
+            + 2 * p
+            + arcs(&self.pre)
+            + arcs(&self.post)
+            + arcs(&self.inhibitors)
+            + 2 * t
+            + dependents;
         DataSize {
             sparse_bytes: 4 * dints,
             dense_bytes: 4 * (2 * p * t + p),
@@ -130,6 +143,18 @@ impl NetData {
                 len(&self.inhibitors),
                 "DINT",
                 "the inhibitor arcs",
+            ),
+            (
+                "CETRATUS_PLACE_ROWS",
+                p + 1,
+                "DINT",
+                "where each place's dependents start",
+            ),
+            (
+                "CETRATUS_DEPENDENTS",
+                self.dependents.len().max(1),
+                "DINT",
+                "the transitions a place's count can enable or disable",
             ),
             (
                 "CETRATUS_DELTAS",
@@ -184,6 +209,13 @@ impl NetData {
         );
         let priority = self.priority.iter().map(|&x| i64::from(x)).collect();
         put("NET_PRIORITY", "CETRATUS_TRANSITIONS", padded(priority));
+        let start = self.dependent_start.iter().map(|&x| x as i64).collect();
+        put("NET_DEPENDENT_START", "CETRATUS_PLACE_ROWS", start);
+        put(
+            "NET_DEPENDENT",
+            "CETRATUS_DEPENDENTS",
+            padded(wide(&self.dependents)),
+        );
         v
     }
 }
@@ -225,6 +257,19 @@ impl Constant {
     }
 }
 
+/// Per place, the transitions whose enabling its count can change (consumers, inhibited
+/// transitions, producers of a bounded place), as compressed rows: where each place's start
+/// (1-based, with one past the last) and the transitions, 1-based.
+fn dependent_rows(net: &Net) -> (Vec<usize>, Vec<u32>) {
+    let (mut start, mut all) = (Vec::with_capacity(net.num_places() + 1), Vec::new());
+    for p in 0..net.num_places() {
+        start.push(all.len() + 1);
+        all.extend(net.dependents(PlaceIdx(p as u32)).iter().map(|t| t.0 + 1));
+    }
+    start.push(all.len() + 1);
+    (start, all)
+}
+
 /// An empty table still has one element: IEC arrays are never empty.
 fn padded(mut v: Vec<i64>) -> Vec<i64> {
     if v.is_empty() {
@@ -257,6 +302,8 @@ pub(crate) const GLOBALS: &[&str] = &[
     "CETRATUS_POST_ARCS",
     "CETRATUS_INHIBITOR_ARCS",
     "CETRATUS_DELTAS",
+    "CETRATUS_PLACE_ROWS",
+    "CETRATUS_DEPENDENTS",
     "CETRATUS_KERNEL",
     "NET_PLACES",
     "NET_TRANSITIONS",
@@ -274,4 +321,6 @@ pub(crate) const GLOBALS: &[&str] = &[
     "NET_INHIBITOR_WEIGHT",
     "NET_ORDER",
     "NET_PRIORITY",
+    "NET_DEPENDENT_START",
+    "NET_DEPENDENT",
 ];

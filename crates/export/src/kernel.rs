@@ -41,12 +41,15 @@ VAR_EXTERNAL CONSTANT
   NET_INHIBITOR_WEIGHT : CETRATUS_INHIBITOR_ARCS;
   NET_ORDER : CETRATUS_TRANSITIONS;
   NET_PRIORITY : CETRATUS_TRANSITIONS;
+  NET_DEPENDENT_START : CETRATUS_PLACE_ROWS;
+  NET_DEPENDENT : CETRATUS_DEPENDENTS;
 END_VAR
 VAR
   C_START : CETRATUS_ROWS;              (* the incidence C = Post - Pre, by transition *)
   C_PLACE : CETRATUS_DELTAS;
   C_DELTA : CETRATUS_DELTAS;
   ENABLED : CETRATUS_TRANSITION_FLAGS;  (* enabled at M *)
+  STALE : CETRATUS_TRANSITION_FLAGS;    (* its enabling is to be computed again *)
   LATE : CETRATUS_TRANSITION_FLAGS;     (* may join a step though not enabled at M *)
   AVAIL : CETRATUS_PLACES;              (* M minus what the step consumes *)
   NEXT : CETRATUS_PLACES;               (* M plus the step's C columns *)
@@ -72,6 +75,7 @@ IF STARTUP THEN
   T := 1;
   WHILE T <= NET_TRANSITIONS DO
     C_START[T] := K;
+    STALE[T] := TRUE;
     LATE[T] := NET_INHIBITOR_START[T + 1] > NET_INHIBITOR_START[T];
     I := NET_PRE_START[T];
     WHILE I < NET_PRE_START[T + 1] DO
@@ -198,44 +202,54 @@ ELSE
     END_IF;
     EXITED[P] := M[P] > 0 AND NEXT[P] = 0;
     IF NEXT[P] <> M[P] THEN
+      (* Only the transitions this place's count can enable or disable are tested again. *)
       DIRTY := TRUE;
       M[P] := NEXT[P];
+      I := NET_DEPENDENT_START[P];
+      WHILE I < NET_DEPENDENT_START[P + 1] DO
+        STALE[NET_DEPENDENT[I]] := TRUE;
+        I := I + 1;
+      END_WHILE;
     END_IF;
     P := P + 1;
   END_WHILE;
   STARTED := TRUE;
 END_IF;
 IF DIRTY THEN
-  (* Enabling at M: Pre <= M, every inhibitor arc M < w, M + C within the capacities. *)
+  (* Enabling at M, of the stale transitions: Pre <= M, every inhibitor arc M < w, M + C
+     within the capacities. *)
   T := 1;
   WHILE T <= NET_TRANSITIONS DO
-    OK := TRUE;
-    I := NET_PRE_START[T];
-    WHILE I < NET_PRE_START[T + 1] DO
-      IF M[NET_PRE_PLACE[I]] < NET_PRE_WEIGHT[I] THEN
-        OK := FALSE;
-      END_IF;
-      I := I + 1;
-    END_WHILE;
-    I := NET_INHIBITOR_START[T];
-    WHILE I < NET_INHIBITOR_START[T + 1] DO
-      IF M[NET_INHIBITOR_PLACE[I]] >= NET_INHIBITOR_WEIGHT[I] THEN
-        OK := FALSE;
-      END_IF;
-      I := I + 1;
-    END_WHILE;
-    I := C_START[T];
-    WHILE I < C_START[T + 1] DO
-      P := C_PLACE[I];
-      IF NET_CAPACITY[P] > 0 AND C_DELTA[I] > 0 THEN
-        IF M[P] + C_DELTA[I] > NET_CAPACITY[P] THEN
+    IF STALE[T] THEN
+      OK := TRUE;
+      I := NET_PRE_START[T];
+      WHILE I < NET_PRE_START[T + 1] DO
+        IF M[NET_PRE_PLACE[I]] < NET_PRE_WEIGHT[I] THEN
           OK := FALSE;
         END_IF;
-      END_IF;
-      I := I + 1;
-    END_WHILE;
-    ENABLED[T] := OK;
-    CANDIDATE[T] := OK OR (NET_POLICY = 0 AND LATE[T]);
+        I := I + 1;
+      END_WHILE;
+      I := NET_INHIBITOR_START[T];
+      WHILE I < NET_INHIBITOR_START[T + 1] DO
+        IF M[NET_INHIBITOR_PLACE[I]] >= NET_INHIBITOR_WEIGHT[I] THEN
+          OK := FALSE;
+        END_IF;
+        I := I + 1;
+      END_WHILE;
+      I := C_START[T];
+      WHILE I < C_START[T + 1] DO
+        P := C_PLACE[I];
+        IF NET_CAPACITY[P] > 0 AND C_DELTA[I] > 0 THEN
+          IF M[P] + C_DELTA[I] > NET_CAPACITY[P] THEN
+            OK := FALSE;
+          END_IF;
+        END_IF;
+        I := I + 1;
+      END_WHILE;
+      ENABLED[T] := OK;
+      CANDIDATE[T] := OK OR (NET_POLICY = 0 AND LATE[T]);
+      STALE[T] := FALSE;
+    END_IF;
     T := T + 1;
   END_WHILE;
   DIRTY := FALSE;

@@ -33,7 +33,7 @@ pub enum ExportError {
     #[error("unknown dialect `{0}`; the dialects are: {names}", names = Dialect::ALL.iter().map(|(n, _)| *n).collect::<Vec<_>>().join(", "))]
     Dialect(String),
     /// A part of the program the export cannot write.
-    #[error("cannot export: {what}; {hint}")]
+    #[error("{what}; {hint}")]
     Unsupported {
         /// What it is.
         what: String,
@@ -41,7 +41,7 @@ pub enum ExportError {
         hint: &'static str,
     },
     /// A signal's address that is no located address of its type.
-    #[error("cannot export: {signal}'s address `{address}`: {why}")]
+    #[error("{signal}'s address `{address}`: {why}")]
     Address {
         /// The signal.
         signal: String,

@@ -68,6 +68,8 @@ pub struct Node<IO> {
     link: Option<ControlLink>,
     script: Script,
     trace: Option<Trace>,
+    /// The watched variables' values of the cycle, one per watched name, filled in place.
+    watched: Vec<cetratus_program::Value>,
     faults: Vec<String>,
     faults_dropped: u64,
     echo: Option<(SyncSender<Echo>, JoinHandle<()>)>,
@@ -120,6 +122,7 @@ impl<IO: Provider + Dispatcher> Node<IO> {
             Trace::new(plc.io_inputs().to_vec(), plc.io_outputs().to_vec())
                 .watching(opts.watch.clone())
         });
+        let watched = vec![cetratus_program::Value::Bool(false); opts.watch.len()];
         Node {
             plc,
             io,
@@ -128,6 +131,7 @@ impl<IO: Provider + Dispatcher> Node<IO> {
             link: None,
             script: Script::default(),
             trace,
+            watched,
             faults: Vec::new(),
             faults_dropped: 0,
             echo: None,
@@ -390,15 +394,16 @@ impl<IO: Provider + Dispatcher> Node<IO> {
         self.plc.cycle(now, &mut self.io);
         if let Some(t) = self.trace.as_mut() {
             let k = self.plc.primary_container();
-            let watched: Vec<cetratus_program::Value> = (t.watched_names.iter())
-                .map(|n| k.watch(n).unwrap_or(cetratus_program::Value::Bool(false)))
-                .collect();
+            // Filled in place: a watched run allocates nothing per cycle.
+            for (v, n) in self.watched.iter_mut().zip(&t.watched_names) {
+                *v = k.watch(n).unwrap_or(cetratus_program::Value::Bool(false));
+            }
             t.observe_watched(
                 self.plc.cycles() - 1,
                 now,
                 self.plc.inputs(),
                 self.plc.dispatched(),
-                &watched,
+                &self.watched,
             );
         }
         if let Some(observe) = self.observer.as_mut() {

@@ -516,11 +516,7 @@ impl Between for StateTransform {
     }
 
     fn from_map(map: Linear, old: &Net, new: &Net) -> Self {
-        let timer_from = new
-            .places()
-            .iter()
-            .map(|p| old.place_by_id(&p.id))
-            .collect();
+        let timer_from = timer_sources(new, old);
         let must_be_empty = old
             .places()
             .iter()
@@ -650,13 +646,17 @@ impl Between for Projection {
     }
 
     fn from_map(map: Linear, old: &Net, new: &Net) -> Self {
-        let timer_from = old
-            .places()
-            .iter()
-            .map(|p| new.place_by_id(&p.id))
-            .collect();
+        let timer_from = timer_sources(old, new);
         Projection { map, timer_from }
     }
+}
+
+/// Per place of `to`, the place of `from` with the same id, whose timer it carries.
+fn timer_sources(to: &Net, from: &Net) -> Vec<Option<PlaceIdx>> {
+    to.places()
+        .iter()
+        .map(|p| from.place_by_id(&p.id))
+        .collect()
 }
 
 /// A matrix and base in dense form with the place ids of its rows and columns, for reports.

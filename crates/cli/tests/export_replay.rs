@@ -549,6 +549,23 @@ fn bad_exports_are_refused_clearly_and_write_nothing() {
     );
     assert!(!out.exists());
 
+    // A hostile address: a number past every integer type is refused, not an overflow.
+    let hostile = dir.path().join("hostile.toml");
+    let toml = std::fs::read_to_string(&vernadat)
+        .unwrap()
+        .replace("%IX0.0", "%IX18446744073709551615.0")
+        .replace(
+            "net = \"vernadat.pnml\"",
+            &format!("net = {:?}", examples().join("vernadat/vernadat.pnml")),
+        );
+    std::fs::write(&hostile, toml).unwrap();
+    let e = refused(&export(&hostile, &["--to", "st"], &out));
+    assert!(
+        e.contains("`%IX18446744073709551615.0`") && e.contains("below 2^32"),
+        "{e}"
+    );
+    assert!(!out.exists());
+
     let broken = dir.path().join("broken.toml");
     std::fs::write(&broken, "[program]\nname = \"x\"\nversion = 1\n").unwrap();
     let e = refused(&export(&broken, &["--to", "st"], &out));

@@ -42,12 +42,13 @@ fn parse(address: &str) -> Option<Located> {
     if !matches!(area, 'I' | 'Q' | 'M') || !matches!(size, 'X' | 'W' | 'D' | 'L') {
         return None;
     }
+    // Numbers are 32-bit at most, so that every address arithmetic below fits in a u64.
     let number = match (size, digits.split_once('.')) {
         ('X', Some((byte, bit))) => {
-            let (byte, bit) = (byte.parse::<u64>().ok()?, bit.parse::<u64>().ok()?);
-            (bit < 8).then_some(byte.checked_mul(8)?.checked_add(bit)?)?
+            let (byte, bit) = (byte.parse::<u32>().ok()?, bit.parse::<u8>().ok()?);
+            (bit < 8).then_some(u64::from(byte) * 8 + u64::from(bit))?
         }
-        (_, None) => digits.parse().ok()?,
+        (_, None) => u64::from(digits.parse::<u32>().ok()?),
         _ => return None,
     };
     Some(Located { area, size, number })
@@ -91,7 +92,9 @@ pub(crate) fn map(
             let l = parse(a).ok_or_else(|| ExportError::Address {
                 signal: s.name.clone(),
                 address: a.clone(),
-                why: "it is not an IEC 61131-3 direct address such as %IX0.0, %IW3 or %QD1".into(),
+                why: "it is not an IEC 61131-3 direct address such as %IX0.0, %IW3 or %QD1 \
+                      (numbers below 2^32, bits 0 to 7)"
+                    .into(),
             })?;
             iec_type(s.ty, l.size).ok_or_else(|| ExportError::Address {
                 signal: s.name.clone(),
@@ -187,6 +190,10 @@ mod tests {
         assert_eq!(text(l), "%IX1.3");
         assert!(parse("%IX0.8").is_none());
         assert!(parse("IX0.0").is_none());
+        assert!(parse("%IW18446744073709551615").is_none());
+        assert!(parse("%IX4294967296.0").is_none());
+        let top = parse("%IW4294967295").unwrap();
+        assert_eq!(text(next_free(&[top], 'I', 'W')), "%IW4294967296");
         let used = [l, parse("%IW2").unwrap()];
         assert_eq!(text(next_free(&used, 'I', 'X')), "%IX6.0");
         assert_eq!(text(next_free(&[l], 'I', 'X')), "%IX1.4");

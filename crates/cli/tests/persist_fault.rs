@@ -65,7 +65,7 @@ fn a_state_directory_that_cannot_be_written_raises_an_alarm_and_the_plc_saves_ag
         || std::fs::create_dir(&block).is_ok(),
     );
     std::fs::write(block.join("keep"), b"x").expect("a file in it");
-    common::wait_for("persist_failed on events", Duration::from_secs(20), || {
+    common::wait_for("persist_failed on events", Duration::from_secs(60), || {
         event_seen(&seen, "persist_failed").is_some()
     });
     let failed = event_seen(&seen, "persist_failed").expect("seen");

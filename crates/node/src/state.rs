@@ -96,6 +96,7 @@ pub fn open(
         },
     )?;
     let persister = Persister::start(store, config)?;
+    persister.committed_before(snap.cycle);
     Ok(Started {
         plc,
         persister,

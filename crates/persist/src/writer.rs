@@ -56,6 +56,8 @@ enum Msg {
 struct Shared {
     commits: AtomicU64,
     committed_cycle: AtomicU64,
+    /// A snapshot of this run is on disk: the writer's, or the one the start committed.
+    saved: AtomicBool,
     max_commit_ns: AtomicU64,
     errors: AtomicU64,
     last_error: Mutex<Option<String>>,
@@ -162,8 +164,16 @@ impl Persister {
 
     /// Cycle count of the last committed snapshot, if any.
     pub fn committed_cycle(&self) -> Option<u64> {
-        (self.shared.commits.load(Ordering::Relaxed) > 0)
+        (self.shared.saved.load(Ordering::Acquire))
             .then(|| self.shared.committed_cycle.load(Ordering::Relaxed))
+    }
+
+    /// Records the snapshot of `cycle` that was committed to the store before the writer
+    /// started (a start's own), so that [`Persister::committed_cycle`] names it until the
+    /// writer commits one: a disk that fails at once is then reported with what it holds.
+    pub fn committed_before(&self, cycle: u64) {
+        self.shared.committed_cycle.store(cycle, Ordering::Relaxed);
+        self.shared.saved.store(true, Ordering::Release);
     }
 
     /// True while the state directory cannot be written: the last write failed and none has
@@ -432,6 +442,7 @@ fn writer(
                     figures.commits += 1;
                     shared.max_commit_ns.store(max_ns, Ordering::Relaxed);
                     shared.committed_cycle.store(s.cycle, Ordering::Relaxed);
+                    shared.saved.store(true, Ordering::Release);
                     shared.commits.fetch_add(1, Ordering::Relaxed);
                     shared.failing.store(false, Ordering::Release);
                 }

@@ -87,11 +87,24 @@ impl Browser {
             "goog:chromeOptions".into(),
             json!({"binary": CHROMIUM, "args": args}),
         );
-        let client = ClientBuilder::new(hyper_util::client::legacy::connect::HttpConnector::new())
-            .capabilities(caps)
-            .connect(&format!("http://127.0.0.1:{port}"))
-            .await
-            .expect("chromedriver starts a Chromium session");
+        // ChromeDriver's port opens before it always answers: on a busy machine the first
+        // session request can meet a reset connection, so a few are tried before giving up.
+        let mut tries = 0;
+        let client = loop {
+            let connector = hyper_util::client::legacy::connect::HttpConnector::new();
+            let session = ClientBuilder::new(connector)
+                .capabilities(caps.clone())
+                .connect(&format!("http://127.0.0.1:{port}"))
+                .await;
+            match session {
+                Ok(client) => break client,
+                Err(e) if tries >= 4 => panic!("chromedriver starts a Chromium session: {e:?}"),
+                Err(_) => {
+                    tries += 1;
+                    tokio::time::sleep(std::time::Duration::from_millis(300)).await;
+                }
+            }
+        };
         // A page that draws a wide net on a machine whose both cores are busy can hold a
         // script past the WebDriver default of 30 s; a test's own waits bound the time instead.
         client

@@ -770,9 +770,7 @@ fn the_sfc_programs_of_the_plcopen_fixtures_replay_scan_for_scan() {
             args.extend(["--watch", v.as_str()]);
         }
         let compared = prove(&program, &args);
-        let moving = (0..compared[0].len())
-            .filter(|&i| compared.windows(2).any(|w| w[0][i] != w[1][i]))
-            .count();
+        let moving = columns_changing(&compared);
         assert_eq!(
             moving > 0,
             moves,
@@ -824,9 +822,7 @@ fn programs_with_structured_text_bodies_replay_scan_for_scan() {
         ),
     ] {
         let compared = prove(&program, &args);
-        let moving = (0..compared[0].len())
-            .filter(|&i| compared.windows(2).any(|w| w[0][i] != w[1][i]))
-            .count();
+        let moving = columns_changing(&compared);
         assert!(
             moving > 0,
             "{}: nothing compared ever changes",
@@ -1043,4 +1039,11 @@ fn export(program: &Path, args: &[&str], out: &Path) -> std::process::Output {
     all.extend_from_slice(args);
     all.extend(["-o", path(out)]);
     cetratus(&all)
+}
+
+/// How many columns of a run's compared values change at least once.
+fn columns_changing(compared: &[Vec<String>]) -> usize {
+    (0..compared[0].len())
+        .filter(|&i| compared.windows(2).any(|w| w[0][i] != w[1][i]))
+        .count()
 }

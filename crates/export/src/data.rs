@@ -61,6 +61,7 @@ pub(crate) struct NetData {
 impl NetData {
     pub(crate) fn new(net: &Net, policy: Policy) -> Self {
         let n = net.num_transitions();
+        let (dependent_start, dependents) = dependent_rows(net);
         NetData {
             places: net.num_places(),
             transitions: n,
@@ -81,8 +82,8 @@ impl NetData {
             inhibitors: rows(net, |t| net.inhibitors(t).to_vec()),
             order: (0..n as u32).map(|r| net.by_rank(r).0 + 1).collect(),
             priority: net.transitions().iter().map(|t| t.priority).collect(),
-            dependent_start: dependent_rows(net).0,
-            dependents: dependent_rows(net).1,
+            dependent_start,
+            dependents,
         }
     }
 

@@ -86,32 +86,21 @@ pub(crate) fn map(
             .map(|s| (s, "input", 'I'))
             .chain(outputs.iter().map(|s| (s, "output", 'Q')))
     };
-    let mut used = Vec::new();
+    // Every declared address checked first, so that an assigned one never overlaps it.
+    let mut declared = Vec::new();
     for (s, direction, _) in all() {
-        if let Some(a) = &s.address {
-            let l = parse(a).ok_or_else(|| ExportError::Address {
-                signal: s.name.clone(),
-                address: a.clone(),
-                why: "it is not an IEC 61131-3 direct address such as %IX0.0, %IW3 or %QD1 \
-                      (numbers below 2^32, bits 0 to 7)"
-                    .into(),
-            })?;
-            iec_type(s.ty, l.size).ok_or_else(|| ExportError::Address {
-                signal: s.name.clone(),
-                address: a.clone(),
-                why: format!(
-                    "the {direction} is {} and this size holds none; give it {}",
-                    s.ty,
-                    wanted(s.ty)
-                ),
-            })?;
-            used.push(l);
-        }
+        declared.push(
+            s.address
+                .as_ref()
+                .map(|a| located(s, direction, a))
+                .transpose()?,
+        );
     }
+    let mut used: Vec<Located> = declared.iter().flatten().copied().collect();
     let mut rows = Vec::new();
-    for (s, direction, area) in all() {
-        let (l, assigned) = match &s.address {
-            Some(a) => (parse(a).expect("checked above"), false),
+    for ((s, direction, area), declared) in all().zip(declared) {
+        let (l, assigned) = match declared {
+            Some(l) => (l, false),
             None => {
                 let size = match s.ty {
                     Type::Bool => 'X',
@@ -128,11 +117,36 @@ pub(crate) fn map(
             name: name(&s.name),
             direction,
             address: text(l),
-            iec_type: iec_type(s.ty, l.size).expect("checked above"),
+            iec_type: iec_type(s.ty, l.size)
+                .expect("declared addresses are checked, and assigned ones fit"),
             assigned,
         });
     }
     Ok(rows)
+}
+
+/// A signal's declared address, if it is a direct address of a size that holds its type.
+fn located(s: &Signal, direction: &str, a: &str) -> Result<Located, ExportError> {
+    let refuse = |why: String| ExportError::Address {
+        signal: s.name.clone(),
+        address: a.to_string(),
+        why,
+    };
+    let l = parse(a).ok_or_else(|| {
+        refuse(
+            "it is not an IEC 61131-3 direct address such as %IX0.0, %IW3 or %QD1 \
+             (numbers below 2^32, bits 0 to 7)"
+                .into(),
+        )
+    })?;
+    iec_type(s.ty, l.size).ok_or_else(|| {
+        refuse(format!(
+            "the {direction} is {} and this size holds none; give it {}",
+            s.ty,
+            wanted(s.ty)
+        ))
+    })?;
+    Ok(l)
 }
 
 fn wanted(ty: Type) -> &'static str {

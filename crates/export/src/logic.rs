@@ -255,7 +255,7 @@ fn slots(
     let mut slots: Vec<Slot> = targets.iter().map(|_| Slot::default()).collect();
     let mut stored = Vec::new();
     for (k, a) in program.actions().iter().enumerate() {
-        let s = slot_of(program, a.target);
+        let s = program.action_slots()[k] as usize;
         let q = s + 1;
         let slot = &mut slots[s];
         let mut flag = |f: &mut Option<String>, what: &str| {
@@ -282,13 +282,6 @@ fn slots(
         });
     }
     (slots, stored)
-}
-
-/// The index of a target among the program's driven targets.
-fn slot_of(program: &Program, target: Target) -> usize {
-    (program.action_targets().iter())
-        .position(|&t| t == target)
-        .expect("every action's target is a driven target")
 }
 
 /// The 1-based line of the source at which `matches` first holds for a trimmed line after the

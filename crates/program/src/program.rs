@@ -353,6 +353,11 @@ impl Program {
     pub fn action_targets(&self) -> &[Target] {
         &self.action_targets
     }
+    /// Per action (in [`Program::actions`] order), the index of its target in
+    /// [`Program::action_targets`].
+    pub fn action_slots(&self) -> &[u32] {
+        &self.action_slot
+    }
     /// The program TOML text as loaded (without the net).
     pub fn source(&self) -> &str {
         &self.source

@@ -32,8 +32,9 @@ impl Logic<'_> {
     /// is not running, SL restarts its time.
     fn edges(&self, s: &mut String) {
         let l = &self.locals;
+        let slots = self.program.action_slots();
         for (k, a) in self.program.actions().iter().enumerate() {
-            let slot = &self.slots[slot_of(self.program, a.target)];
+            let slot = &self.slots[slots[k] as usize];
             let (i, id) = self.place(a.place);
             let (edge, set) = match (a.qualifier, &self.stored[k]) {
                 (Qualifier::S, _) => (&l.entered, slot.latch.clone()),
@@ -70,11 +71,12 @@ impl Logic<'_> {
                 let _ = writeln!(s, "IF {r} THEN\n  {latch} := FALSE;\nEND_IF;");
             }
         }
+        let slots = self.program.action_slots();
         for (k, a) in self.program.actions().iter().enumerate() {
             let Some((run, timer)) = &self.stored[k] else {
                 continue;
             };
-            let slot = &self.slots[slot_of(self.program, a.target)];
+            let slot = &self.slots[slots[k] as usize];
             let on = slot.on.as_deref().expect("SD and SL drive the on flag");
             if let Some(r) = &slot.reset {
                 let _ = writeln!(s, "IF {r} THEN\n  {run} := FALSE;\nEND_IF;");
@@ -99,8 +101,9 @@ impl Logic<'_> {
     /// it unless reset in this scan.
     fn marked(&self, s: &mut String) {
         let m = &self.locals.marking;
-        for a in self.program.actions() {
-            let slot = &self.slots[slot_of(self.program, a.target)];
+        let slots = self.program.action_slots();
+        for (k, a) in self.program.actions().iter().enumerate() {
+            let slot = &self.slots[slots[k] as usize];
             let (i, id) = self.place(a.place);
             let timer = || &self.sym.timers[&self.program.net().place(a.place).id];
             let (cond, flag) = match a.qualifier {

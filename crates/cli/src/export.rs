@@ -13,7 +13,7 @@ pub enum Target {
     /// `DIR/<program>.io.csv`.
     St,
     /// A PLCopen TC6 XML project (Beremiz, OpenPLC Editor, CODESYS): `DIR/<program>.xml`, its
-    /// POUs with ST bodies, and the I/O map.
+    /// POUs with ST bodies (a program imported from an SFC chart: that chart), and the I/O map.
     Plcopen,
 }
 
@@ -93,6 +93,18 @@ fn write_whole(path: &Path, text: &str) -> anyhow::Result<()> {
 }
 
 fn summary(dir: &Path, export: &StExport, dialect: Dialect) {
+    for note in &export.notes {
+        eprintln!("note: {note}");
+    }
+    if export.chart {
+        println!(
+            "{}: the SFC chart {}, {} lines",
+            dir.join(&export.file_name).display(),
+            export.program,
+            export.text.lines().count()
+        );
+        return;
+    }
     println!(
         "{}: PROGRAM {} ({dialect}), {} lines; the net's data {} bytes sparse ({} dense)",
         dir.join(&export.file_name).display(),

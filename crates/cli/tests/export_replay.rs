@@ -968,6 +968,72 @@ fn plcopen_projects_are_valid_tc6_and_import_back_to_the_same_behaviour() {
     assert!(errors.is_empty(), "not valid TC6 XML:\n{errors}");
 }
 
+/// `--to plcopen` of a program imported from an SFC chart writes the chart back: the Vernadat
+/// SFC cell, its U.1 version and the flat charts of the PLCopen fixtures each import from their
+/// export as the same program text with the same hash, and each export is valid TC6 XML. The
+/// CODESYS chart with a nested chart, which the chart writer does not draw, is written as ST
+/// POUs with a note that says why, and is valid TC6 XML too.
+#[test]
+fn sfc_programs_export_as_charts_that_import_back_with_the_same_hash() {
+    let dir = tempfile::tempdir().unwrap();
+    let sources = [
+        (examples().join("vernadat-sfc/vernadat-sfc.xml"), "Cell"),
+        (examples().join("vernadat-sfc/u1.xml"), "Cell"),
+        (binary::fixture("beremiz-first-steps.xml"), "CounterSFC"),
+        (binary::fixture("twincat-sfc-evolution-1.xml"), "Main"),
+        (binary::fixture("twincat-sfc-evolution-6.xml"), "Main"),
+    ];
+    let mut projects = Vec::new();
+    for (i, (xml, pou)) in sources.iter().enumerate() {
+        let first = dir.path().join(format!("first{i}"));
+        let said = ok(&cetratus(&[
+            "import",
+            "plcopen",
+            path(xml),
+            "-o",
+            path(&first),
+        ]));
+        let toml = first.join(format!("{pou}.toml"));
+        let out = dir.path().join(format!("chart{i}"));
+        let exported = ok(&export(&toml, &["--to", "plcopen"], &out));
+        assert!(exported.contains("the SFC chart"), "{exported}");
+        let chart = out.join(format!("{pou}.xml"));
+        let again = dir.path().join(format!("again{i}"));
+        let said_again = ok(&cetratus(&[
+            "import",
+            "plcopen",
+            path(&chart),
+            "-o",
+            path(&again),
+        ]));
+        let hash = |s: &str| s.rsplit("program hash ").next().unwrap().trim().to_string();
+        assert_eq!(hash(&said), hash(&said_again), "{}", xml.display());
+        assert_eq!(
+            std::fs::read_to_string(&toml).unwrap(),
+            std::fs::read_to_string(again.join(format!("{pou}.toml"))).unwrap()
+        );
+        projects.push(chart);
+    }
+    let nested = dir.path().join("nested");
+    import(
+        "plcopen",
+        &binary::fixture("codesys-nested-sfc.xml"),
+        &nested,
+    );
+    let out = dir.path().join("nested-export");
+    let run = export(&nested.join("PLC_PRG.toml"), &["--to", "plcopen"], &out);
+    ok(&run);
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    assert!(
+        stderr.contains("written as Structured Text POUs rather than as a chart")
+            && stderr.contains("sub_sfc1__"),
+        "{stderr}"
+    );
+    projects.push(out.join("PLC_PRG.xml"));
+    let errors = tc6_errors(&projects);
+    assert!(errors.is_empty(), "not valid TC6 XML:\n{errors}");
+}
+
 /// Two CSV traces give the same outputs (by name) at every scan.
 fn same_outputs(a: &Path, b: &Path, what: &Path) {
     let read = |p: &Path| {

@@ -10,6 +10,7 @@
 
 use cetratus_program::Program;
 
+mod chart;
 mod data;
 mod dialect;
 mod expr;
@@ -75,6 +76,11 @@ pub struct StExport {
     pub renames: Vec<Rename>,
     /// The net's data, sparse, beside the dense layout.
     pub data: DataSize,
+    /// Whether the export is the program's SFC chart (`--to plcopen` of a chart), rather than
+    /// the kernel and the net's data.
+    pub chart: bool,
+    /// What the export could not do as asked, and what it did instead.
+    pub notes: Vec<String>,
 }
 
 /// Writes `program` as IEC 61131-3 Structured Text in `dialect`.
@@ -140,6 +146,8 @@ pub fn to_st(program: &Program, dialect: Dialect) -> Result<StExport, ExportErro
         io,
         renames: logic.names().renames().to_vec(),
         data: size,
+        chart: false,
+        notes: Vec::new(),
     })
 }
 

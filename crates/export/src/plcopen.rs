@@ -14,13 +14,26 @@ use cetratus_net::xml_escape;
 use cetratus_program::Program;
 
 use crate::data::{ArrayType, Constant};
+use crate::io::IoRow;
 use crate::{Dialect, ExportError, StExport};
 
 /// The TC6 namespace the project is written in (version 2.01).
 const TC6: &str = "http://www.plcopen.org/xml/tc6_0201";
 
-/// The export of `program` as a PLCopen TC6 XML project.
+/// The export of `program` as a PLCopen TC6 XML project: a program imported from an SFC chart
+/// as that chart (module `chart`), any other, or a chart the SFC POU cannot carry (said in the
+/// export's notes), as the POUs of the IEC text.
 pub fn to_plcopen(program: &Program) -> Result<StExport, ExportError> {
+    let file_name = format!("{}.xml", program.file_stem());
+    let mut notes = Vec::new();
+    if program.is_sfc() {
+        match crate::chart::project(program, &file_name) {
+            Ok((text, io)) => return Ok(chart_export(program, file_name, text, io)),
+            Err(why) => notes.push(format!(
+                "the program was imported from an SFC chart, and is written as Structured Text POUs rather than as a chart: {why}"
+            )),
+        }
+    }
     if program.bodies().iter().any(|b| b.st().is_some()) {
         return Err(ExportError::Unsupported {
             what: "a program with a Structured Text body as PLCopen XML".into(),
@@ -50,10 +63,28 @@ pub fn to_plcopen(program: &Program) -> Result<StExport, ExportError> {
     configuration(&mut x, &st.program, program, &data.constants());
     x.push_str("    </configurations>\n  </instances>\n</project>\n");
     Ok(StExport {
-        file_name: st.file_name.replace(".st", ".xml"),
+        file_name,
         text: x,
+        notes,
         ..st
     })
+}
+
+/// The export of a chart: the project, and the I/O map of the addresses the chart declares.
+fn chart_export(program: &Program, file_name: String, text: String, io: Vec<IoRow>) -> StExport {
+    StExport {
+        file_name,
+        text,
+        pous: String::new(),
+        globals: String::new(),
+        program: program.name().to_string(),
+        io_csv: crate::io::csv(&io),
+        io,
+        renames: Vec::new(),
+        data: crate::data::NetData::new(program.net(), program.policy()).size(),
+        chart: true,
+        notes: Vec::new(),
+    }
 }
 
 fn data_type(x: &mut String, t: &ArrayType) {

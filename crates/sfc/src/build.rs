@@ -249,12 +249,13 @@ impl Names for Scope<'_> {
     }
 }
 
-/// The program TOML of a chart with its nested charts merged in (`nests`), whose net has the
-/// transition ids `ids` and the hold and resume transitions `extra` (id, guard); `notes` gathers
-/// what was read but not imported.
+/// The program TOML of a chart of the project `project` with its nested charts merged in
+/// (`nests`), whose net has the transition ids `ids` and the hold and resume transitions `extra`
+/// (id, guard); `notes` gathers what was read but not imported.
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn program_toml(
     source: &Source,
+    project: &str,
     pou: &Pou,
     chart: &Chart,
     nests: &[Nest],
@@ -265,6 +266,7 @@ pub(crate) fn program_toml(
 ) -> Result<String, SfcError> {
     let mapping = Mapping {
         source,
+        project,
         pou,
         chart,
         nests,
@@ -302,6 +304,7 @@ pub(crate) fn program_toml(
 /// with the nested charts merged in.
 struct Mapping<'m> {
     source: &'m Source<'m>,
+    project: &'m str,
     pou: &'m Pou<'m, 'm>,
     chart: &'m Chart,
     nests: &'m [Nest],
@@ -410,11 +413,21 @@ impl Mapping<'_> {
         Ok((signals, unusable))
     }
 
-    /// The `[program]` table, which names the file and the POU the program came from.
+    /// The `[program]` table, which names the project and the POU the program came from: what
+    /// the file holds, not where it is or what it is called, so that the same chart is the same
+    /// program (and hash) under any file name, and a chart that `cetratus export` writes back
+    /// imports as the program it came from.
     fn header(&self, net_file: &str) -> String {
-        let (file, pou) = (file_name(self.source.label), &self.pou.name);
+        let (file, pou) = (self.project, &self.pou.name);
         let mut out = String::new();
-        let _ = writeln!(out, "# Imported from {file} (PLCopen TC6 XML), POU {pou}.");
+        // A comment is one line: a project named across lines (`&#10;`) stays in it.
+        let one_line = |s: &str| s.replace(char::is_control, " ");
+        let _ = writeln!(
+            out,
+            "# Imported from the PLCopen TC6 XML project {}, POU {}.",
+            one_line(file),
+            one_line(pou)
+        );
         let _ = writeln!(out, "[program]");
         let _ = writeln!(out, "name = {}", q(pou));
         let _ = writeln!(out, "version = \"1\"");
@@ -768,9 +781,14 @@ fn print_body(stmts: &[Stmt]) -> String {
     out
 }
 
-/// The last path component of a label, so the program does not depend on where the file was.
-fn file_name(label: &str) -> &str {
-    label.rsplit(['/', '\\']).next().unwrap_or(label)
+/// The name of the project a file holds (its `contentHeader`), or, in a file without one, the
+/// file's name without the directory (so the program does not depend on where the file was).
+pub(crate) fn project_name<'d>(doc: &'d cetratus_net::xml::Document, label: &'d str) -> &'d str {
+    crate::source::child(doc.root_element(), "contentHeader")
+        .and_then(|h| h.attribute("name"))
+        .map(str::trim)
+        .filter(|n| !n.is_empty())
+        .unwrap_or_else(|| label.rsplit(['/', '\\']).next().unwrap_or(label))
 }
 
 /// A TOML basic string.

@@ -447,7 +447,8 @@ impl<'r, 'a, 'i> Reader<'r, 'a, 'i> {
 
     /// Reads every transition with its source and target steps.
     fn transitions(&mut self, links: &Links) -> Result<(), SfcError> {
-        // The walks of transition `i` mark what they visit with `i`: no clearing between them.
+        // The walks of transition `i` mark what they visit with `2i` and `2i + 1`: no clearing
+        // between them.
         let mut seen = vec![u32::MAX; self.elements.len()];
         for i in 0..self.elements.len() {
             if self.kinds[i] != Kind::Transition {
@@ -504,7 +505,9 @@ impl<'r, 'a, 'i> Reader<'r, 'a, 'i> {
 
     /// The source steps of transition `i`, walking back through branches.
     fn sources(&self, i: usize, links: &Links, seen: &mut [u32]) -> Result<Vec<usize>, SfcError> {
-        let stamp = i as u32;
+        // Its own stamp, apart from the targets' walk: a step that is both (a transition back
+        // to the step it leaves) is found by both.
+        let stamp = 2 * i as u32;
         let mut from = Vec::new();
         let mut stack: Vec<usize> = links.inputs[i].clone();
         while let Some(j) = stack.pop() {
@@ -532,7 +535,7 @@ impl<'r, 'a, 'i> Reader<'r, 'a, 'i> {
 
     /// The target steps of transition `i`, walking forward through branches and jumps.
     fn targets(&self, i: usize, links: &Links, seen: &mut [u32]) -> Result<Vec<usize>, SfcError> {
-        let stamp = i as u32;
+        let stamp = 2 * i as u32 + 1;
         let mut to = Vec::new();
         let mut stack: Vec<usize> = links.outputs[i].clone();
         while let Some(j) = stack.pop() {

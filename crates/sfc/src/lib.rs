@@ -173,8 +173,9 @@ pub fn import_str(
         }
     }
     let (net, ids, extra) = build::net(&source, &merged, &nests)?;
+    let project = build::project_name(&doc, label);
     let toml = build::program_toml(
-        &source, chosen, &merged, &nests, &ids, &extra, net_file, &mut notes,
+        &source, project, chosen, &merged, &nests, &ids, &extra, net_file, &mut notes,
     )?;
     let program =
         Program::from_sources(&toml, label, net.clone()).map_err(|e| SfcError::Program {

@@ -236,3 +236,29 @@ fn statements_outside_the_subset_in_a_body_are_refused_by_name() {
         assert!(err.to_string().contains(construct), "{body}: {err}");
     }
 }
+
+/// The project's name goes into the program's opening comment and description: one named
+/// across lines, or with quotes and backslashes, stays a comment and a string.
+#[test]
+fn a_project_name_with_newlines_and_quotes_stays_in_its_comment() {
+    let text = evolution_1();
+    let at = text
+        .find("<contentHeader name=\"")
+        .expect("a contentHeader")
+        + 21;
+    let end = at + text[at..].find('"').unwrap();
+    let hostile = format!(
+        "{}x&#10;[program]&#10;name = &quot;evil\\&quot;{}",
+        &text[..at],
+        &text[end..]
+    );
+    let imported = import(&hostile).expect("imports");
+    assert_eq!(imported.program.name(), "Main");
+    let first = imported.toml.lines().next().unwrap();
+    assert!(
+        first.starts_with(
+            "# Imported from the PLCopen TC6 XML project x [program] name = \"evil\\\""
+        ),
+        "{first}"
+    );
+}

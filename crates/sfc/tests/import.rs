@@ -310,3 +310,24 @@ fn a_chart_nested_in_a_nested_chart_is_refused_by_name() {
         "{msg}"
     );
 }
+
+/// A transition drawn back into the step it leaves by a plain connection (not a jump): the
+/// step is its source and its target (the walks that find the two once shared their marks,
+/// and the target was not found).
+#[test]
+fn a_transition_connected_back_to_its_own_step_has_it_as_source_and_target() {
+    let text = r#"<?xml version="1.0"?>
+<project xmlns="http://www.plcopen.org/xml/tc6_0201"><types><pous>
+<pou name="P" pouType="program"><interface><localVars>
+<variable name="go"><type><BOOL/></type></variable>
+</localVars></interface>
+<body><SFC>
+<step localId="1" name="A" initialStep="true"><connectionPointIn><connection refLocalId="2"/></connectionPointIn></step>
+<transition localId="2"><connectionPointIn><connection refLocalId="1"/></connectionPointIn>
+<condition><inline name=""><ST><p>go</p></ST></inline></condition></transition>
+</SFC></body></pou></pous></types></project>"#;
+    let imported = cetratus_sfc::import_str(text, "loop.xml", None, "P.pnml").expect("imports");
+    let net = imported.program.net();
+    let ends: Vec<_> = net.arcs().iter().map(|a| a.id.as_str()).collect();
+    assert_eq!(ends, ["T2_from_A", "T2_to_A"]);
+}

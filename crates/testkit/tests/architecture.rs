@@ -49,7 +49,12 @@ const RULES: &[(&str, Allowed)] = &[
     ),
     (
         "cetratus-export",
-        Only(&["cetratus-net", "cetratus-program", "cetratus-st"]),
+        Only(&[
+            "cetratus-net",
+            "cetratus-program",
+            "cetratus-st",
+            "cetratus-sfc",
+        ]),
     ),
     (
         "cetratus-runtime",

@@ -17,6 +17,9 @@ const FESTO: [(&str, &str); 2] = [
     ),
 ];
 
+/// The Vernadat cell as an SFC chart, which `cetratus bench export` exports back as a chart.
+pub const VERNADAT_SFC: &str = include_str!("../../examples/vernadat-sfc/vernadat-sfc.xml");
+
 /// The plain-Python BFS baseline of the analysis figures.
 const BFS_BASELINE: &str = include_str!("../../scripts/bfs_baseline.py");
 

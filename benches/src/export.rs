@@ -44,11 +44,28 @@ pub struct ExportFigure {
     pub compiled_ns: Option<f64>,
 }
 
+/// The export of a program imported from an SFC chart back as that chart.
+#[derive(Debug, Serialize)]
+pub struct ChartFigure {
+    /// The chart's POU.
+    pub name: String,
+    /// Its steps.
+    pub steps: usize,
+    /// Its transitions.
+    pub transitions: usize,
+    /// Median ms of `cetratus_export::to_plcopen`, which imports the chart it writes to check it.
+    pub export_ms: f64,
+    /// Median ms of importing the chart alone (`cetratus_sfc::import_str`): the baseline.
+    pub import_ms: f64,
+}
+
 /// What `cetratus bench export` measured.
 #[derive(Debug, Serialize)]
 pub struct ExportFigures {
     /// Per program.
     pub programs: Vec<ExportFigure>,
+    /// The Vernadat SFC cell written back as its chart.
+    pub chart: ChartFigure,
     /// Why the compiled side was not measured, when it was not.
     pub matiec_skipped: Option<String>,
 }
@@ -101,7 +118,42 @@ pub fn figures(matiec: Option<&Path>, quick: bool) -> Result<ExportFigures, Benc
     }
     Ok(ExportFigures {
         programs: out,
+        chart: chart(quick)?,
         matiec_skipped: compiler.err(),
+    })
+}
+
+/// The Vernadat SFC cell's chart export, beside its import.
+fn chart(quick: bool) -> Result<ChartFigure, BenchError> {
+    let text = crate::embedded::VERNADAT_SFC;
+    let import = || cetratus_sfc::import_str(text, "vernadat-sfc.xml", None, "Cell.pnml");
+    let imported = import().map_err(|e| e.to_string())?;
+    let program = &imported.program;
+    let export = cetratus_export::to_plcopen(program).map_err(|e| e.to_string())?;
+    if !export.chart {
+        return Err(format!("the cell was not written as a chart: {:?}", export.notes).into());
+    }
+    let batch = Duration::from_millis(if quick { 50 } else { 300 });
+    let export_ns = crate::measure::median_ns(
+        || {
+            black_box(cetratus_export::to_plcopen(program).is_ok());
+        },
+        batch,
+        5,
+    );
+    let import_ns = crate::measure::median_ns(
+        || {
+            black_box(import().is_ok());
+        },
+        batch,
+        5,
+    );
+    Ok(ChartFigure {
+        name: program.name().to_string(),
+        steps: program.net().num_places(),
+        transitions: program.net().num_transitions(),
+        export_ms: export_ns / 1e6,
+        import_ms: import_ns / 1e6,
     })
 }
 

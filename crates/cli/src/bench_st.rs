@@ -82,5 +82,10 @@ pub fn export(args: &StArgs) -> anyhow::Result<()> {
             p.compiled_ns.map_or("-".to_string(), |v| format!("{v:.0}"))
         );
     }
+    let c = &f.chart;
+    println!(
+        "SFC chart {} ({} steps, {} transitions) written back as a chart: {:.3} ms, its import check included (the import alone: {:.3} ms)",
+        c.name, c.steps, c.transitions, c.export_ms, c.import_ms
+    );
     Ok(())
 }

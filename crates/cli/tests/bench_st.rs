@@ -1,6 +1,7 @@
 //! `cetratus bench st` end to end: the four programs run on both sides, agree on their outputs
 //! after the last scan (the bench refuses a figure otherwise), and each gets a ratio; without
-//! MATIEC the bench says so and measures Cetratus's side alone.
+//! MATIEC the bench says so and measures Cetratus's side alone. `cetratus bench export` the
+//! same way.
 
 use std::process::Command;
 
@@ -10,8 +11,12 @@ use serde_json::Value;
 const BIN: &str = env!("CARGO_BIN_EXE_cetratus");
 
 fn bench(args: &[&str]) -> Value {
+    bench_of("st", args)
+}
+
+fn bench_of(which: &str, args: &[&str]) -> Value {
     let out = Command::new(BIN)
-        .args(["bench", "st", "--quick", "--json"])
+        .args(["bench", which, "--quick", "--json"])
         .args(args)
         .output()
         .expect("cetratus runs");
@@ -50,4 +55,27 @@ fn without_matiec_the_bench_says_why_and_measures_cetratus_alone() {
     assert!(why.contains("no MATIEC install dir"), "{why}");
     assert!(f["programs"][0]["matiec_ns"].is_null(), "{f}");
     assert!(f["programs"][0]["cetratus_ns"].as_f64().is_some(), "{f}");
+}
+
+/// `cetratus bench export`: both programs exported, compiled and run on both sides, and the
+/// SFC cell written back as its chart beside its import.
+#[test]
+fn bench_export_measures_both_programs_and_the_chart() {
+    let matiec = Matiec::get().unwrap_or_else(|e| panic!("{e}"));
+    let dir = matiec.dir().to_str().expect("a UTF-8 path");
+    let f = bench_of("export", &["--matiec", dir]);
+    assert_eq!(f["matiec_skipped"], Value::Null, "{f}");
+    for p in f["programs"].as_array().expect("programs") {
+        for key in ["export_ms", "cetratus_ns", "compiled_ns"] {
+            assert!(p[key].as_f64().is_some_and(|v| v > 0.0), "{key}: {p}");
+        }
+    }
+    let chart = &f["chart"];
+    assert_eq!(chart["steps"], 10, "{chart}");
+    for key in ["export_ms", "import_ms"] {
+        assert!(
+            chart[key].as_f64().is_some_and(|v| v > 0.0),
+            "{key}: {chart}"
+        );
+    }
 }

@@ -609,17 +609,6 @@ fn bad_exports_are_refused_clearly_and_write_nothing() {
     );
     assert!(!empty.exists());
 
-    let cell = dir.path().join("cell");
-    import("st", &examples().join("st-cell/cell.st"), &cell);
-    let e = refused(&export(
-        &cell.join("Cell.toml"),
-        &["--to", "plcopen"],
-        &empty,
-    ));
-    assert!(
-        e.contains("Structured Text body as PLCopen XML") && e.contains("--to st"),
-        "{e}"
-    );
     let e = refused(&export(
         &vernadat,
         &["--to", "plcopen", "--dialect", "tia"],
@@ -886,27 +875,40 @@ fn tc6_errors(files: &[PathBuf]) -> String {
 
 /// `--to plcopen`: every example's project is valid TC6 XML, the same program gives the same
 /// bytes, and a project imported back with `cetratus import plcopen` runs as the program did:
-/// the Vernadat cell and U.2 on their twin, the Festo station with defects, and the SFC cell,
-/// each replayed for ten minutes with the inputs of the original run, every output equal at
-/// every scan.
+/// the Vernadat cell and U.2 on their twin, the Festo station with defects and the SFC cell
+/// for ten minutes each, and the programs with Structured Text bodies (the ST cell on random
+/// inputs, the OpenPLC traffic light and Blink) for a minute, replayed with the inputs of the
+/// original run, every output equal at every scan.
 #[test]
 fn plcopen_projects_are_valid_tc6_and_import_back_to_the_same_behaviour() {
     let dir = tempfile::tempdir().unwrap();
     let sfc = sfc_cell(dir.path());
-    let cases: [(PathBuf, &[&str]); 4] = [
+    let st = st_programs(dir.path());
+    let ten = |plant: &[&str]| {
+        let mut args = vec!["--for".to_string(), "10min".to_string()];
+        args.extend(plant.iter().map(|s| s.to_string()));
+        args
+    };
+    let mut cases: Vec<(PathBuf, Vec<String>)> = vec![
         (
             examples().join("vernadat/vernadat.toml"),
-            &["--twin", "vernadat"],
+            ten(&["--twin", "vernadat"]),
         ),
-        (examples().join("vernadat/u2.toml"), &["--twin", "vernadat"]),
+        (
+            examples().join("vernadat/u2.toml"),
+            ten(&["--twin", "vernadat"]),
+        ),
         (
             examples().join("festo/festo.toml"),
-            &["--twin", "festo", "--defect-rate", "5%"],
+            ten(&["--twin", "festo", "--defect-rate", "5%"]),
         ),
-        (sfc.clone(), &["--twin", "vernadat"]),
+        (sfc.clone(), ten(&["--twin", "vernadat"])),
     ];
+    cases.extend(st);
     let mut projects = Vec::new();
     for (i, (program, plant)) in cases.iter().enumerate() {
+        let plant: Vec<&str> = plant.iter().map(String::as_str).collect();
+        let length = &plant[..2];
         let out = dir.path().join(format!("p{i}"));
         ok(&export(program, &["--to", "plcopen"], &out));
         let xml = (out.read_dir().unwrap().map(|e| e.unwrap().path()))
@@ -922,16 +924,8 @@ fn plcopen_projects_are_valid_tc6_and_import_back_to_the_same_behaviour() {
         projects.push(xml.clone());
 
         let trace = dir.path().join(format!("t{i}.csv"));
-        let mut run = vec![
-            "run",
-            path(program),
-            "--virtual",
-            "--for",
-            "10min",
-            "--trace",
-            path(&trace),
-        ];
-        run.extend_from_slice(plant);
+        let mut run = vec!["run", path(program), "--virtual", "--trace", path(&trace)];
+        run.extend_from_slice(&plant);
         ok(&cetratus(&run));
         let text = std::fs::read_to_string(&xml).unwrap();
         let pou = text
@@ -955,8 +949,8 @@ fn plcopen_projects_are_valid_tc6_and_import_back_to_the_same_behaviour() {
             "run",
             path(&toml),
             "--virtual",
-            "--for",
-            "10min",
+            length[0],
+            length[1],
             "--replay",
             path(&trace),
             "--trace",
@@ -1032,6 +1026,36 @@ fn sfc_programs_export_as_charts_that_import_back_with_the_same_hash() {
     projects.push(out.join("PLC_PRG.xml"));
     let errors = tc6_errors(&projects);
     assert!(errors.is_empty(), "not valid TC6 XML:\n{errors}");
+}
+
+/// The programs with Structured Text bodies, imported into `dir`, each with how it runs for a
+/// minute: the ST cell on a random walk of its inputs, the OpenPLC traffic light and Blink
+/// with none.
+fn st_programs(dir: &Path) -> Vec<(PathBuf, Vec<String>)> {
+    let cell = dir.join("st-cell");
+    import("st", &examples().join("st-cell/cell.st"), &cell);
+    let probe = dir.join("st-probe");
+    ok(&export(&cell.join("Cell.toml"), &["--to", "st"], &probe));
+    let csv = std::fs::read_to_string(probe.join("Cell.io.csv")).unwrap();
+    let walk = dir.join("st-cell.csv");
+    std::fs::write(&walk, random_inputs_of(&io_map(&csv), 6000)).unwrap();
+    let none = dir.join("st-none.csv");
+    std::fs::write(&none, "scan,time_ms\n0,0\n").unwrap();
+    let mut out = vec![(cell.join("Cell.toml"), path(&walk).to_string())];
+    for (fixture, pou) in [
+        ("openplc-traffic-light-fbd.xml", "Trafic_light"),
+        ("openplc-blink-ld.xml", "Blink"),
+    ] {
+        let to = dir.join(pou);
+        import("plcopen", &binary::fixture(fixture), &to);
+        out.push((to.join(format!("{pou}.toml")), path(&none).to_string()));
+    }
+    out.into_iter()
+        .map(|(p, inputs)| {
+            let args = ["--for", "60s", "--replay", &inputs];
+            (p, args.iter().map(|s| s.to_string()).collect())
+        })
+        .collect()
 }
 
 /// Two CSV traces give the same outputs (by name) at every scan.

@@ -85,6 +85,15 @@ pub struct StExport {
 
 /// Writes `program` as IEC 61131-3 Structured Text in `dialect`.
 pub fn to_st(program: &Program, dialect: Dialect) -> Result<StExport, ExportError> {
+    Ok(st_parts(program, dialect)?.0)
+}
+
+/// [`to_st`], and the program's own Structured Text as the export writes it (its `[st]` body's
+/// library, rewritten), which is part of [`StExport::pous`].
+fn st_parts(
+    program: &Program,
+    dialect: Dialect,
+) -> Result<(StExport, Option<String>), ExportError> {
     let d = dialect;
     let data = data::NetData::new(program.net(), program.policy());
     let mut global = names::Names::new(data::GLOBALS);
@@ -136,7 +145,8 @@ pub fn to_st(program: &Program, dialect: Dialect) -> Result<StExport, ExportErro
     if d == Dialect::Tia {
         text = tia::rewrite(&text, &types)?;
     }
-    Ok(StExport {
+    let library = logic.st_library().map(str::to_string);
+    let export = StExport {
         file_name: format!("{}.{}", program.file_stem(), d.extension()),
         text,
         pous,
@@ -148,7 +158,8 @@ pub fn to_st(program: &Program, dialect: Dialect) -> Result<StExport, ExportErro
         data: size,
         chart: false,
         notes: Vec::new(),
-    })
+    };
+    Ok((export, library))
 }
 
 /// The file's opening comment: what it is, from which program, and the renames.

@@ -5,8 +5,8 @@
 //!
 //! The POUs are read back from the IEC text the exporter wrote itself, whose declarations have
 //! one shape (`NAME [AT ADDR] : TYPE [:= VALUE];`, a comment after), so a line is enough to
-//! know a variable; a program's own Structured Text, written by anyone, is not read that way,
-//! and such a program is refused for now.
+//! know a variable; a program's own Structured Text, written by anyone, is read with the ST
+//! parser instead (module `library`).
 
 use std::fmt::Write as _;
 
@@ -15,6 +15,8 @@ use cetratus_program::Program;
 
 use crate::data::{ArrayType, Constant};
 use crate::io::IoRow;
+
+mod library;
 use crate::{Dialect, ExportError, StExport};
 
 /// The TC6 namespace the project is written in (version 2.01).
@@ -34,13 +36,8 @@ pub fn to_plcopen(program: &Program) -> Result<StExport, ExportError> {
             )),
         }
     }
-    if program.bodies().iter().any(|b| b.st().is_some()) {
-        return Err(ExportError::Unsupported {
-            what: "a program with a Structured Text body as PLCopen XML".into(),
-            hint: "export it --to st, which carries its ST, and open that file in the editor",
-        });
-    }
-    let st = crate::to_st(program, Dialect::Iec)?;
+    let (st, library) = crate::st_parts(program, Dialect::Iec)?;
+    let own = library.as_deref().map(library::write).transpose()?;
     let data = crate::data::NetData::new(program.net(), program.policy());
     let mut x = String::with_capacity(st.text.len() * 3);
     let _ = write!(
@@ -55,8 +52,18 @@ pub fn to_plcopen(program: &Program) -> Result<StExport, ExportError> {
     for t in data.types() {
         data_type(&mut x, &t);
     }
+    if let Some(own) = &own {
+        x.push_str(&own.data_types);
+    }
     x.push_str("    </dataTypes>\n    <pous>\n");
-    for pou in pous(&st.pous) {
+    if let Some(own) = &own {
+        x.push_str(&own.pous);
+    }
+    let exporters = match &library {
+        Some(l) => st.pous.replacen(l.as_str(), "", 1),
+        None => st.pous.clone(),
+    };
+    for pou in pous(&exporters) {
         pou_xml(&mut x, &pou)?;
     }
     x.push_str("    </pous>\n  </types>\n  <instances>\n    <configurations>\n");

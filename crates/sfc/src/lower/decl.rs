@@ -435,10 +435,17 @@ fn data_type(dt: Node, out: &mut Written, notes: &mut Notes) -> Result<(), Refus
             out.line(at, "  END_STRUCT;");
         }
         Some(("enum", e)) => {
-            let values: Vec<&str> = child(e, "values")
+            // A value with its integer, where one is given (`Run := 5`).
+            let values: Vec<String> = child(e, "values")
                 .iter()
                 .flat_map(|v| children(*v, "value"))
-                .filter_map(|v| v.attribute("name"))
+                .filter_map(|v| {
+                    let name = v.attribute("name")?;
+                    Some(match v.attribute("value") {
+                        Some(n) => format!("{name} := {n}"),
+                        None => name.to_string(),
+                    })
+                })
                 .collect();
             out.line(at, &format!("  {name} : ({}){init};", values.join(", ")));
         }

@@ -25,9 +25,9 @@ impl Rng {
     }
 }
 
-/// A BOOL condition over the POU's inputs, variables and steps.
-fn condition(r: &mut Rng, steps: usize, depth: u32) -> String {
-    let step = format!("S{}", r.below(steps));
+/// A BOOL condition over the POU's inputs, variables and the steps named `steps`.
+fn condition(r: &mut Rng, steps: &[String], depth: u32) -> String {
+    let step = steps[r.below(steps.len())].clone();
     match (depth, r.below(9)) {
         (0, _) | (_, 0) => r.pick(&["I0", "I1", "NOT I2", "TRUE"]).to_string(),
         (_, 1) => format!("{step}.X"),
@@ -46,7 +46,7 @@ fn condition(r: &mut Rng, steps: usize, depth: u32) -> String {
 }
 
 /// An action body: assignments and an IF with ELSIF and ELSE.
-fn body(r: &mut Rng, steps: usize) -> String {
+fn body(r: &mut Rng, steps: &[String]) -> String {
     format!(
         "N := N + {};\nIF {} THEN\n  R := R * 0.5;\nELSIF {} THEN\n  B := NOT B;\nELSE\n  N := -{};\nEND_IF;\n",
         r.below(3),
@@ -67,11 +67,13 @@ fn pins(from: &[usize]) -> String {
     format!("<connectionPointIn>{c}</connectionPointIn>")
 }
 
-/// A chart of `steps` steps in one network: a tree of transitions that reaches every step from
-/// the initial one, and as many more with one or two sources and one or two targets.
-fn chart(seed: u64) -> String {
-    let mut r = Rng(seed.wrapping_mul(0x9E37_79B9_7F4A_7C15) | 1);
+/// The elements of a chart of 2 to 8 steps `{prefix}0…` in one network: a tree of
+/// transitions that reaches every step from the initial one, and as many more with one or two
+/// sources and one or two targets; conditions and bodies read `names` (its own steps and the
+/// POU's). LocalIds start at `base`; `sub` is associated from a step when given.
+fn network(r: &mut Rng, prefix: &str, names: &mut Vec<String>, base: usize, sub: bool) -> String {
     let steps = 2 + r.below(7);
+    names.extend((0..steps).map(|s| format!("{prefix}{s}")));
     let mut trans: Vec<(Vec<usize>, Vec<usize>)> =
         (1..steps).map(|s| (vec![r.below(s)], vec![s])).collect();
     for _ in 0..steps {
@@ -87,39 +89,38 @@ fn chart(seed: u64) -> String {
         to.dedup();
         trans.insert(r.below(trans.len() + 1), (from, to));
     }
-    // Steps are localIds 1..=steps, transitions 100.., blocks 500.., their actions 600...
+    // Steps are localIds base+1…, transitions base+100…, blocks base+500…, actions base+600….
     let mut x = String::new();
     for s in 0..steps {
         let entering: Vec<usize> = (trans.iter().enumerate())
             .filter(|(_, (_, to))| to.contains(&s))
-            .map(|(t, _)| 100 + t)
+            .map(|(t, _)| base + 100 + t)
             .collect();
         x += &format!(
-            "<step localId=\"{}\" name=\"S{s}\" initialStep=\"{}\"><position x=\"0\" y=\"{}\"/>{}</step>\n",
-            s + 1,
+            "<step localId=\"{}\" name=\"{prefix}{s}\" initialStep=\"{}\"><position x=\"0\" y=\"{}\"/>{}</step>\n",
+            base + s + 1,
             s == 0,
             100 * s,
             pins(&entering)
         );
     }
     for (t, (from, _)) in trans.iter().enumerate() {
-        let sources: Vec<usize> = from.iter().map(|s| s + 1).collect();
+        let sources: Vec<usize> = from.iter().map(|s| base + s + 1).collect();
         x += &format!(
             "<transition localId=\"{}\"><position x=\"{}\" y=\"0\"/>{}<condition><inline name=\"\"><ST><xhtml:p><![CDATA[{}]]></xhtml:p></ST></inline></condition></transition>\n",
-            100 + t,
+            base + 100 + t,
             r.below(4) * 50,
             pins(&sources),
-            condition(&mut r, steps, 3)
+            condition(r, names, 3)
         );
     }
     let qualifiers = ["N", "S", "R", "P", "P1", "P0", "L", "D", "SD", "DS", "SL"];
-    let mut named = false;
-    for b in 0..r.below(5) {
+    for b in 0..r.below(5) + usize::from(sub) {
         let s = r.below(steps);
         x += &format!(
             "<actionBlock localId=\"{}\"><position x=\"300\" y=\"0\"/>{}\n",
-            500 + b,
-            pins(&[s + 1])
+            base + 500 + b,
+            pins(&[base + s + 1])
         );
         for a in 0..1 + r.below(3) {
             let q = r.pick(&qualifiers);
@@ -128,32 +129,41 @@ fn chart(seed: u64) -> String {
                 true => format!(" duration=\"T#{}ms\"", 10 + 10 * r.below(30)),
                 false => String::new(),
             };
-            let what = match r.below(3) {
-                0 => format!("<reference name=\"{}\"/>", r.pick(&["Q0", "Q1", "B"])),
-                1 => {
-                    named = true;
-                    "<reference name=\"Count\"/>".to_string()
-                }
+            let what = match (sub && a == 0 && b == 0, r.below(3)) {
+                (true, _) => "<reference name=\"Sub\"/>".to_string(),
+                (_, 0) => format!("<reference name=\"{}\"/>", r.pick(&["Q0", "Q1", "B"])),
+                (_, 1) => "<reference name=\"Count\"/>".to_string(),
                 _ => format!(
                     "<inline><ST><xhtml:p><![CDATA[{}]]></xhtml:p></ST></inline>",
-                    body(&mut r, steps)
+                    body(r, names)
                 ),
             };
             x += &format!(
                 "<action localId=\"{}\" qualifier=\"{q}\"{duration}><relPosition x=\"0\" y=\"0\"/>{what}</action>\n",
-                600 + 10 * b + a
+                base + 600 + 10 * b + a
             );
         }
         x += "</actionBlock>\n";
     }
-    let actions = match named {
-        true => format!(
-            "<actions><action name=\"Count\"><body><ST><xhtml:p><![CDATA[{}]]></xhtml:p></ST></body></action></actions>",
-            body(&mut r, steps)
-        ),
-        false => String::new(),
-    };
-    project(&actions, &x)
+    x
+}
+
+/// A POU whose chart is drawn from `seed`: every other one with the action `Sub`, whose body
+/// is a nested chart of its own.
+fn chart(seed: u64) -> String {
+    let mut r = Rng(seed.wrapping_mul(0x9E37_79B9_7F4A_7C15) | 1);
+    let nested = seed % 2 == 1;
+    let mut names = Vec::new();
+    let main = network(&mut r, "S", &mut names, 0, nested);
+    let mut actions = format!(
+        "<action name=\"Count\"><body><ST><xhtml:p><![CDATA[{}]]></xhtml:p></ST></body></action>",
+        body(&mut r, &names)
+    );
+    if nested {
+        let sub = network(&mut r, "N", &mut names, 1000, false);
+        actions += &format!("<action name=\"Sub\"><body><SFC>\n{sub}</SFC></body></action>");
+    }
+    project(&format!("<actions>{actions}</actions>"), &main)
 }
 
 fn project(actions: &str, sfc: &str) -> String {
@@ -179,7 +189,7 @@ fn project(actions: &str, sfc: &str) -> String {
 
 #[test]
 fn random_charts_export_as_charts_that_import_to_the_same_hash() {
-    let mut branches = [0usize; 4];
+    let (mut branches, mut nested) = ([0usize; 4], 0);
     for seed in 0..300u64 {
         let xml = chart(seed);
         let imported = cetratus_sfc::import_str(&xml, "random.xml", None, "Random.pnml")
@@ -194,6 +204,12 @@ fn random_charts_export_as_charts_that_import_to_the_same_hash() {
             .unwrap_or_else(|e| panic!("seed {seed}: the export does not import: {e}"));
         assert_eq!(back.toml, imported.toml, "seed {seed}");
         assert_eq!(back.program.hash(), imported.program.hash(), "seed {seed}");
+        nested += usize::from(
+            export.text.contains("<action name=\"Sub\"><body><SFC>")
+                || export
+                    .text
+                    .contains("<action name=\"Sub\">\n            <body>\n              <SFC>"),
+        );
         for (k, element) in [
             "<selectionDivergence",
             "<selectionConvergence",
@@ -206,8 +222,9 @@ fn random_charts_export_as_charts_that_import_to_the_same_hash() {
             branches[k] += usize::from(export.text.contains(element));
         }
     }
-    // Every kind of branch is written by many of the charts.
+    // Every kind of branch is written by many of the charts, and half have a nested chart.
     assert!(branches.iter().all(|&n| n >= 30), "{branches:?}");
+    assert_eq!(nested, 150);
 }
 
 fn vernadat_sfc() -> cetratus_sfc::Imported {

@@ -4,21 +4,22 @@
 //! `AND` stays one level deep for the importer's nesting limit. Recursion follows the guard
 //! tree, whose depth the guard parser bounds (128 levels).
 
-use std::collections::HashSet;
+use std::collections::HashMap;
 use std::fmt::Write as _;
 
 use cetratus_program::guard::{BinOp, Expr, ExprKind, UnOp};
 use cetratus_program::Statement;
 
-/// The steps of the chart, by place id: a name among them reads the step.
-pub(crate) struct Steps<'p>(pub(crate) HashSet<&'p str>);
+/// The steps, by place id, with the name a condition reads them by (a nested chart's own steps
+/// by their name in it): a name among them reads the step.
+pub(crate) struct Steps<'p>(pub(crate) HashMap<&'p str, String>);
 
 impl Steps<'_> {
     /// The step whose activity `P > 0` reads, which the importer reads from `P.X`.
-    fn active<'e>(&self, op: BinOp, l: &'e Expr, r: &Expr) -> Option<&'e str> {
+    fn active(&self, op: BinOp, l: &Expr, r: &Expr) -> Option<&str> {
         match (op, &l.kind, &r.kind) {
-            (BinOp::Gt, ExprKind::Name(p), ExprKind::Int(0)) if self.0.contains(p.as_str()) => {
-                Some(p)
+            (BinOp::Gt, ExprKind::Name(p), ExprKind::Int(0)) => {
+                self.0.get(p.as_str()).map(|s| s.as_str())
             }
             _ => None,
         }
@@ -62,14 +63,14 @@ impl Steps<'_> {
             }
             ExprKind::Real(r) => s.push_str(&crate::expr::real_literal(*r)),
             ExprKind::Duration(us) => s.push_str(&crate::expr::time_literal(*us)),
-            ExprKind::Name(n) if self.0.contains(n.as_str()) => {
+            ExprKind::Name(n) if self.0.contains_key(n.as_str()) => {
                 return Err(format!(
                     "the token count of step `{n}` (a chart reads `{n}.X`)"
                 ))
             }
             ExprKind::Name(n) => s.push_str(n),
-            ExprKind::Dwell(p) if self.0.contains(p.as_str()) => {
-                let _ = write!(s, "{p}.T");
+            ExprKind::Dwell(p) if self.0.contains_key(p.as_str()) => {
+                let _ = write!(s, "{}.T", self.0[p.as_str()]);
             }
             ExprKind::Binary(op, l, r) => {
                 if let Some(p) = self.active(*op, l, r) {

@@ -160,6 +160,8 @@ pub struct LocalConfig {
     /// `auto_substitute = "on-pass"`: the operator key ids whose loads the PLC substitutes by
     /// itself on a passing twin verdict; `None` when off.
     pub auto_substitute: Option<AutoSubstitute>,
+    /// `[labels]`: published in the retained `state`, for selectors (docs/fleet.md).
+    pub labels: cetratus_proto::Labels,
 }
 
 /// The keys of the configuration directory, beside `config.toml`.
@@ -249,6 +251,7 @@ impl LocalConfig {
             file: &file_path,
         };
         let replay_window = file.replay_window(&at)?;
+        let labels = file.labels(&at)?;
         let updates = file.updates.check(&at)?;
         let mut ops = OperatorKeys::new(replay_window);
         for k in keys_in(&dir.join("operators"), "operator")? {
@@ -266,6 +269,7 @@ impl LocalConfig {
             mqtt,
             dashboard,
             updates,
+            labels,
         };
         Ok(LocalConfig::of(dir, keys, settings))
     }
@@ -296,6 +300,7 @@ impl LocalConfig {
             validation: updates.validation,
             require_verdict: updates.require_verdict,
             auto_substitute: updates.auto_substitute,
+            labels: s.labels,
         }
     }
 

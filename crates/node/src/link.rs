@@ -124,7 +124,14 @@ type QualitySource = Arc<Mutex<Option<InputQualityReader>>>;
 
 impl ControlLink {
     /// Starts the preparer and the publisher for `plc` on `link`; loads pass `policy`.
-    pub fn start(plc: &Plc, link: MctLink, policy: LoadPolicy, publish_every: u64) -> ControlLink {
+    /// Every `state` carries `labels`.
+    pub fn start(
+        plc: &Plc,
+        link: MctLink,
+        policy: LoadPolicy,
+        publish_every: u64,
+        labels: cetratus_proto::Labels,
+    ) -> ControlLink {
         let MctLink {
             commands,
             outgoing,
@@ -156,7 +163,7 @@ impl ControlLink {
         let pub_quality = quality.clone();
         let publisher = std::thread::Builder::new()
             .name("cetratus-publish".into())
-            .spawn(move || publish_loop(snap_rx, pub_out, pub_quality))
+            .spawn(move || publish_loop(snap_rx, pub_out, pub_quality, labels))
             .expect("spawn the publisher");
         ControlLink {
             to_scan_rx,
@@ -579,7 +586,12 @@ fn substitute(
     .map_err(|e| e.to_string())
 }
 
-fn publish_loop(rx: Receiver<ToPublisher>, out: SyncSender<Outgoing>, quality: QualitySource) {
+fn publish_loop(
+    rx: Receiver<ToPublisher>,
+    out: SyncSender<Outgoing>,
+    quality: QualitySource,
+    labels: cetratus_proto::Labels,
+) {
     // The figures of the latest snapshot, shared by every `exec_info` answer until the next.
     let mut latest: Option<Arc<ExecInfoMsg>> = None;
     // Requests that came before the first snapshot, bounded by their permits.
@@ -602,7 +614,10 @@ fn publish_loop(rx: Receiver<ToPublisher>, out: SyncSender<Outgoing>, quality: Q
             }
             ToPublisher::Snapshot(s, permit) => (s, permit),
         };
-        if out.send(Outgoing::State(Box::new(s.state))).is_err() {
+        // The labels are the publisher's to add: the scan thread never copies them.
+        let mut state = s.state;
+        state.labels.clone_from(&labels);
+        if out.send(Outgoing::State(Box::new(state))).is_err() {
             return;
         }
         let devices = quality

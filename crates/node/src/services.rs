@@ -181,11 +181,11 @@ pub(crate) fn control_link(
     link: MctLink,
     plc: &Plc,
     load: LoadPolicy,
-    speed: f64,
-    period_us: u64,
+    (speed, period_us): (f64, u64),
+    labels: cetratus_proto::Labels,
 ) -> ControlLink {
     let publish_every = ((PUBLISH_PERIOD_US as f64 * speed) / period_us.max(1) as f64)
         .round()
         .max(1.0) as u64;
-    ControlLink::start(plc, link, load, publish_every)
+    ControlLink::start(plc, link, load, publish_every, labels)
 }

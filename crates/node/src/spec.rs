@@ -427,8 +427,14 @@ impl NodeSpec {
         let services = match services {
             Some((link, s)) => {
                 let speed = self.time.speed();
-                let mut link =
-                    crate::services::control_link(link, node.plc(), load, speed, period_us);
+                let labels = self.local.labels.clone();
+                let mut link = crate::services::control_link(
+                    link,
+                    node.plc(),
+                    load,
+                    (speed, period_us),
+                    labels,
+                );
                 if let Some(q) = quality {
                     link.set_input_quality(q);
                 }

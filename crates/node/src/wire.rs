@@ -158,6 +158,7 @@ pub fn state(plc: &Plc, loop_timing: &LoopTiming) -> proto::StateMsg {
         // The control link fills these in; a node without one drops nothing.
         control: proto::ControlCounters::default(),
         persist_fault: None,
+        labels: proto::Labels::new(),
     }
 }
 

@@ -18,6 +18,7 @@
 
 mod broker;
 mod error;
+mod labels;
 mod names;
 mod outcome;
 mod payload;
@@ -25,6 +26,9 @@ mod topic;
 
 pub use broker::{BrokerUrl, DEFAULT_PORT, DEFAULT_TLS_PORT};
 pub use error::ProtoError;
+pub use labels::{
+    check_label, check_labels, Labels, Selector, MAX_LABELS, MAX_LABEL_KEY, MAX_LABEL_VALUE,
+};
 pub use names::{
     ErrorCode, EventKind, LinkState, Open, Quality, Role, Slot, Status, SubstituteMode,
     UnknownName, VerdictKind, VerdictResult,

@@ -242,6 +242,10 @@ pub struct StateMsg {
     /// Present while the state directory cannot be written; absent when it can.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub persist_fault: Option<PersistFault>,
+    /// The PLC's labels (`[labels]` of its local configuration), by which a selector picks it;
+    /// absent when it has none.
+    #[serde(default, skip_serializing_if = "crate::Labels::is_empty")]
+    pub labels: crate::Labels,
 }
 
 /// The state directory cannot be written: the PLC runs on, and tries again at every snapshot,

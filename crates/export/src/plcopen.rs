@@ -37,7 +37,9 @@ pub fn to_plcopen(program: &Program) -> Result<StExport, ExportError> {
         }
     }
     let (st, library) = crate::st_parts(program, Dialect::Iec)?;
-    let own = library.as_deref().map(library::write).transpose()?;
+    let own = (library.as_ref())
+        .map(|(l, g)| library::write(l, g))
+        .transpose()?;
     let data = crate::data::NetData::new(program.net(), program.policy());
     let mut x = String::with_capacity(st.text.len() * 3);
     let _ = write!(
@@ -60,14 +62,15 @@ pub fn to_plcopen(program: &Program) -> Result<StExport, ExportError> {
         x.push_str(&own.pous);
     }
     let exporters = match &library {
-        Some(l) => st.pous.replacen(l.as_str(), "", 1),
+        Some((l, _)) => st.pous.replacen(l.as_str(), "", 1),
         None => st.pous.clone(),
     };
     for pou in pous(&exporters) {
         pou_xml(&mut x, &pou)?;
     }
     x.push_str("    </pous>\n  </types>\n  <instances>\n    <configurations>\n");
-    configuration(&mut x, &st.program, program, &data.constants());
+    let own_globals = own.as_ref().map_or("", |o| o.globals.as_str());
+    configuration(&mut x, &st.program, program, &data.constants(), own_globals);
     x.push_str("    </configurations>\n  </instances>\n</project>\n");
     Ok(StExport {
         file_name,
@@ -268,8 +271,8 @@ fn value_xml(v: &str) -> String {
 }
 
 /// The configuration: one resource with one task at the scan period running the PROGRAM, and the
-/// net's constants as its global variables.
-fn configuration(x: &mut String, name: &str, program: &Program, constants: &[Constant]) {
+/// net's constants as its global variables, then the program's own (`own`, as TC6 XML).
+fn configuration(x: &mut String, name: &str, program: &Program, constants: &[Constant], own: &str) {
     let period = crate::expr::time_literal(program.scan_period().as_micros() as u64);
     let _ = write!(
         x,
@@ -285,5 +288,7 @@ fn configuration(x: &mut String, name: &str, program: &Program, constants: &[Con
         };
         variable(x, &d, "          ");
     }
-    x.push_str("        </globalVars>\n      </configuration>\n");
+    x.push_str("        </globalVars>\n");
+    x.push_str(own);
+    x.push_str("      </configuration>\n");
 }

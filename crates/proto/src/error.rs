@@ -57,6 +57,17 @@ pub enum ProtoError {
         #[source]
         source: serde_json::Error,
     },
+    /// A label (`[labels]` of a PLC's configuration) breaks a rule.
+    #[error("{0}")]
+    Label(String),
+    /// A selector cannot be read.
+    #[error("bad selector `{selector}`: {reason}")]
+    Selector {
+        /// The selector as given.
+        selector: String,
+        /// What is wrong, and what to write instead.
+        reason: String,
+    },
 }
 
 impl From<cetratus_vocab::UnknownName> for ProtoError {

@@ -10,6 +10,8 @@ use std::collections::BTreeMap;
 use std::fmt;
 use std::str::FromStr;
 
+use crate::ProtoError;
+
 /// A PLC's labels, by key.
 pub type Labels = BTreeMap<String, String>;
 
@@ -25,7 +27,11 @@ pub const MAX_TERMS: usize = 16;
 /// Checks a label: a key of letters, digits, `_`, `-` and `.` that starts with a letter (and is
 /// not `id`, which a selector reads as the PLC's id), and a value of printable text. The error
 /// says what is wrong and what to do.
-pub fn check_label(key: &str, value: &str) -> Result<(), String> {
+pub fn check_label(key: &str, value: &str) -> Result<(), ProtoError> {
+    label_rule(key, value).map_err(ProtoError::Label)
+}
+
+fn label_rule(key: &str, value: &str) -> Result<(), String> {
     let key_ok = key.len() <= MAX_LABEL_KEY
         && key.starts_with(|c: char| c.is_ascii_alphabetic())
         && key
@@ -51,12 +57,12 @@ pub fn check_label(key: &str, value: &str) -> Result<(), String> {
 }
 
 /// Checks a PLC's labels: at most [`MAX_LABELS`] of them, each by [`check_label`].
-pub fn check_labels(labels: &Labels) -> Result<(), String> {
+pub fn check_labels(labels: &Labels) -> Result<(), ProtoError> {
     if labels.len() > MAX_LABELS {
-        return Err(format!(
+        return Err(ProtoError::Label(format!(
             "{} labels, more than the {MAX_LABELS} a PLC may have",
             labels.len()
-        ));
+        )));
     }
     labels.iter().try_for_each(|(k, v)| check_label(k, v))
 }
@@ -94,50 +100,58 @@ impl fmt::Display for Selector {
 }
 
 impl FromStr for Selector {
-    type Err = String;
+    type Err = ProtoError;
 
     fn from_str(s: &str) -> Result<Self, Self::Err> {
-        let text = s.trim();
-        if text.is_empty() {
-            return Err(
-                "an empty selector; write `line=2`, `cell=press-*`, a PLC id, or `*` for every PLC"
-                    .into(),
-            );
-        }
-        let parts: Vec<&str> = text.split(',').map(str::trim).collect();
-        if parts.len() > MAX_TERMS {
-            return Err(format!(
-                "{} terms, more than the {MAX_TERMS} a selector may have",
-                parts.len()
-            ));
-        }
-        let terms = parts
-            .into_iter()
-            .map(|part| {
-                let (key, glob) = match part.split_once('=') {
-                    Some((k, g)) => (Some(k.trim()), g.trim()),
-                    None => (None, part),
-                };
-                if glob.is_empty() || glob.len() > MAX_LABEL_VALUE {
-                    return Err(format!(
-                        "the term `{part}` needs a pattern of 1 to {MAX_LABEL_VALUE} bytes"
-                    ));
-                }
-                match key {
-                    None => Ok(Term::Id(glob.to_string())),
-                    Some(k) if k.eq_ignore_ascii_case("id") => Ok(Term::Id(glob.to_string())),
-                    Some(k) => {
-                        check_label(k, "x").map_err(|e| format!("in `{part}`: {e}"))?;
-                        Ok(Term::Label(k.to_string(), glob.to_string()))
-                    }
-                }
-            })
-            .collect::<Result<Vec<_>, String>>()?;
-        Ok(Selector {
-            terms,
-            text: text.to_string(),
+        parse(s).map_err(|reason| ProtoError::Selector {
+            selector: s.escape_debug().to_string(),
+            reason,
         })
     }
+}
+
+/// The selector `s`, or what is wrong with it.
+fn parse(s: &str) -> Result<Selector, String> {
+    let text = s.trim();
+    if text.is_empty() {
+        return Err(
+            "an empty selector; write `line=2`, `cell=press-*`, a PLC id, or `*` for every PLC"
+                .into(),
+        );
+    }
+    let parts: Vec<&str> = text.split(',').map(str::trim).collect();
+    if parts.len() > MAX_TERMS {
+        return Err(format!(
+            "{} terms, more than the {MAX_TERMS} a selector may have",
+            parts.len()
+        ));
+    }
+    let terms = parts
+        .into_iter()
+        .map(|part| {
+            let (key, glob) = match part.split_once('=') {
+                Some((k, g)) => (Some(k.trim()), g.trim()),
+                None => (None, part),
+            };
+            if glob.is_empty() || glob.len() > MAX_LABEL_VALUE {
+                return Err(format!(
+                    "the term `{part}` needs a pattern of 1 to {MAX_LABEL_VALUE} bytes"
+                ));
+            }
+            match key {
+                None => Ok(Term::Id(glob.to_string())),
+                Some(k) if k.eq_ignore_ascii_case("id") => Ok(Term::Id(glob.to_string())),
+                Some(k) => {
+                    label_rule(k, "x").map_err(|e| format!("in `{part}`: {e}"))?;
+                    Ok(Term::Label(k.to_string(), glob.to_string()))
+                }
+            }
+        })
+        .collect::<Result<Vec<_>, String>>()?;
+    Ok(Selector {
+        terms,
+        text: text.to_string(),
+    })
 }
 
 /// Whether `text` matches the glob `pattern` (`*` any run, `?` one character): the classic
@@ -217,18 +231,15 @@ mod tests {
             (&"a,".repeat(20), "more than the 16"),
             (&format!("line={}", "x".repeat(200)), "needs a pattern"),
         ] {
-            let e = bad.parse::<Selector>().unwrap_err();
+            let e = bad.parse::<Selector>().unwrap_err().to_string();
             assert!(e.contains(says), "{bad}: {e}");
         }
         assert!(check_label("line", "2").is_ok());
-        assert!(check_label("id", "x").unwrap_err().contains("PLC's id"));
-        assert!(check_label("cell", "a\nb")
-            .unwrap_err()
-            .contains("printable"));
-        assert!(check_label("cell", "").unwrap_err().contains("1 to 128"));
+        let refused = |r: Result<(), ProtoError>| r.unwrap_err().to_string();
+        assert!(refused(check_label("id", "x")).contains("PLC's id"));
+        assert!(refused(check_label("cell", "a\nb")).contains("printable"));
+        assert!(refused(check_label("cell", "")).contains("1 to 128"));
         let many: Labels = (0..40).map(|i| (format!("k{i}"), "v".into())).collect();
-        assert!(check_labels(&many)
-            .unwrap_err()
-            .contains("more than the 32"));
+        assert!(refused(check_labels(&many)).contains("more than the 32"));
     }
 }

@@ -77,6 +77,10 @@ const RULES: &[(&str, Allowed)] = &[
     ),
     ("cetratus-mct", Only(&["cetratus-vocab", "cetratus-proto"])),
     (
+        "cetratus-fleet",
+        Only(&["cetratus-program", "cetratus-proto"]),
+    ),
+    (
         "cetratus-dashboard",
         Only(&[
             "cetratus-vocab",

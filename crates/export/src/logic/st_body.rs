@@ -17,6 +17,9 @@ pub(crate) struct StBody {
     pub(crate) instance: String,
     /// The library, rewritten.
     pub(crate) text: String,
+    /// The `VAR_GLOBAL` blocks of the library's CONFIGURATION, as written: the export declares
+    /// them beside its own, and the library's POUs reach them as they did, by `VAR_EXTERNAL`.
+    pub(crate) globals: String,
     /// The wired variables: the POU's variable, its type, the signal, whether an input.
     pub(crate) wires: Vec<(String, Elem, String, bool)>,
 }
@@ -30,8 +33,13 @@ pub(crate) fn library_names(program: &Program) -> Vec<String> {
     let Ok(lib) = cetratus_st::parse::parse_library(body.source()) else {
         return Vec::new();
     };
+    let globals = (lib.configs.iter())
+        .flat_map(|c| &c.globals)
+        .flat_map(|b| &b.decls)
+        .flat_map(|d| &d.names);
     (lib.pous.iter().map(|p| p.name.text.clone()))
         .chain(lib.types.iter().map(|t| t.name.text.clone()))
+        .chain(globals.map(|n| n.text.clone()))
         .collect()
 }
 
@@ -56,11 +64,13 @@ pub(crate) fn prepare(
             d.message
         ))
     })?;
-    if lib.configs.iter().any(|c| !c.globals.is_empty()) {
-        return Err(refuse(format!(
-            "the ST of `{}` declares global variables in its CONFIGURATION, which the export does not carry yet",
-            body.name()
-        )));
+    if let Some((f, instance)) = stateful_function(&lib) {
+        return Err(ExportError::Unsupported {
+            what: format!(
+                "the FUNCTION `{f}` declares the function block instance `{instance}`, which IEC 61131-3 allows only in a FUNCTION_BLOCK or a PROGRAM (a function keeps no state from call to call; MATIEC and CODESYS refuse it)"
+            ),
+            hint: "make it a FUNCTION_BLOCK in the source, called through an instance, and import it again",
+        });
     }
     let mut wires = Vec::new();
     for (list, input) in [(program.inputs(), true), (program.outputs(), false)] {
@@ -81,19 +91,45 @@ pub(crate) fn prepare(
             wires.push((v.name.clone(), e, s.name.clone(), input));
         }
     }
-    let text = library_text(body.source(), &unit.name)?;
+    let (text, globals) = library_text(body.source(), &unit.name)?;
     Ok(Some(StBody {
         pou: unit.name.clone(),
         instance: claim(&format!("{}_BODY", unit.name)),
         text,
+        globals,
         wires,
     }))
 }
 
-/// The library with its CONFIGURATIONs taken out and the PROGRAM `pou` made a FUNCTION_BLOCK.
-fn library_text(source: &str, pou: &str) -> Result<String, ExportError> {
+/// A FUNCTION of the library that declares an instance of a function block (standard or its
+/// own), which IEC forbids and vendor compilers refuse: its name and the instance's.
+fn stateful_function(lib: &cetratus_st::ast::Library) -> Option<(String, String)> {
+    use cetratus_st::ast::{PouKind, TypeRef};
+    let own_fbs: Vec<String> = (lib.pous.iter())
+        .filter(|p| matches!(p.kind, PouKind::FunctionBlock))
+        .map(|p| p.name.key())
+        .collect();
+    let is_fb = |t: &TypeRef| match t {
+        TypeRef::Named(n) => {
+            cetratus_st::stdfb::StdFb::from_name(&n.key()).is_some() || own_fbs.contains(&n.key())
+        }
+        _ => false,
+    };
+    lib.pous
+        .iter()
+        .filter(|p| matches!(p.kind, PouKind::Function(_)))
+        .find_map(|p| {
+            let d = (p.vars.iter().flat_map(|b| &b.decls)).find(|d| is_fb(&d.ty))?;
+            Some((p.name.text.clone(), d.names.first()?.text.clone()))
+        })
+}
+
+/// The library with its CONFIGURATIONs taken out and the PROGRAM `pou` made a FUNCTION_BLOCK,
+/// and the CONFIGURATIONs' `VAR_GLOBAL` blocks (lines as written, a block per line run).
+fn library_text(source: &str, pou: &str) -> Result<(String, String), ExportError> {
     let mut out = String::with_capacity(source.len());
-    let (mut config, mut inside) = (false, false);
+    let mut globals = String::new();
+    let (mut config, mut inside, mut global) = (false, false, false);
     let mut blocks: Vec<(String, Vec<String>)> = Vec::new();
     for line in source.lines() {
         let t = line.trim();
@@ -102,6 +138,13 @@ fn library_text(source: &str, pou: &str) -> Result<String, ExportError> {
             config = true;
         }
         if config {
+            global |= upper.starts_with("VAR_GLOBAL");
+            if global {
+                globals.push_str(t);
+                globals.push('\n');
+                global =
+                    !(upper == "END_VAR" || upper == "END_VAR;" || upper.ends_with(" END_VAR"));
+            }
             config = !upper.starts_with("END_CONFIGURATION");
             continue;
         }
@@ -134,7 +177,7 @@ fn library_text(source: &str, pou: &str) -> Result<String, ExportError> {
             out.push('\n');
         }
     }
-    Ok(out)
+    Ok((out, globals))
 }
 
 /// A declaration block of the body's POU, its `%I…` and `%Q…` variables moved into

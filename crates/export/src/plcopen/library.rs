@@ -18,6 +18,8 @@ use crate::ExportError;
 pub(super) struct Written {
     pub(super) data_types: String,
     pub(super) pous: String,
+    /// The `globalVars` of the library's CONFIGURATION, for the project's configuration.
+    pub(super) globals: String,
 }
 
 fn refuse(what: String) -> ExportError {
@@ -27,15 +29,20 @@ fn refuse(what: String) -> ExportError {
     }
 }
 
-/// The TC6 XML of the library `text`.
-pub(super) fn write(text: &str) -> Result<Written, ExportError> {
-    let lib: Library = cetratus_st::parse::parse_library(text).map_err(|d| {
+/// The TC6 XML of the library `text` and of the `VAR_GLOBAL` blocks `globals` of its
+/// CONFIGURATION.
+pub(super) fn write(text: &str, globals: &str) -> Result<Written, ExportError> {
+    let whole = match globals.is_empty() {
+        true => text.to_string(),
+        false => format!("{text}\nCONFIGURATION CETRATUS_GLOBALS\n{globals}END_CONFIGURATION\n"),
+    };
+    let lib: Library = cetratus_st::parse::parse_library(&whole).map_err(|d| {
         refuse(format!(
             "the program's ST does not parse again: {}",
             d.message
         ))
     })?;
-    let src = Source(text);
+    let src = Source(&whole);
     let mut data_types = String::new();
     for t in &lib.types {
         src.data_type(&mut data_types, t)?;
@@ -45,7 +52,24 @@ pub(super) fn write(text: &str) -> Result<Written, ExportError> {
         let end = lib.pous.get(i + 1).map_or(text.len(), |n| n.pos as usize);
         src.pou(&mut pous, p, end)?;
     }
-    Ok(Written { data_types, pous })
+    let mut global_xml = String::new();
+    for block in lib.configs.iter().flat_map(|c| &c.globals) {
+        let attrs = match (block.constant, block.retain) {
+            (true, _) => " constant=\"true\"",
+            (false, true) => " retain=\"true\"",
+            (false, false) => "",
+        };
+        let _ = writeln!(global_xml, "        <globalVars{attrs}>");
+        for d in &block.decls {
+            src.variables(&mut global_xml, d, "          ")?;
+        }
+        global_xml.push_str("        </globalVars>\n");
+    }
+    Ok(Written {
+        data_types,
+        pous,
+        globals: global_xml,
+    })
 }
 
 /// The library's text, from which values and bodies are taken as written.
@@ -395,7 +419,7 @@ END_PROGRAM
 
     #[test]
     fn every_declaration_keeps_its_type_and_its_value_as_written() {
-        let w = write(LIBRARY).expect("it writes");
+        let w = write(LIBRARY, "").expect("it writes");
         let d = &w.data_types;
         assert!(d.contains("<value name=\"Run\" value=\"5\"/>"), "{d}");
         assert!(d.contains("<simpleValue value=\"Run\"/>"), "{d}");
@@ -436,7 +460,7 @@ END_PROGRAM
     fn a_bound_that_is_an_expression_is_refused_by_what_it_reads() {
         let text =
             "FUNCTION_BLOCK F\nVAR a : ARRAY [1..N + 1] OF INT; END_VAR\nEND_FUNCTION_BLOCK\n";
-        let e = write(text).err().expect("refused").to_string();
+        let e = write(text, "").err().expect("refused").to_string();
         assert!(e.contains("is an expression"), "{e}");
     }
 }

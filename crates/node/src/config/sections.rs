@@ -112,14 +112,14 @@ pub(super) struct File {
 impl File {
     /// `[labels]`, each key and value as `cetratus_proto::check_labels` wants them.
     pub fn labels(&self, at: &Origin) -> Result<cetratus_proto::Labels, ConfigError> {
-        cetratus_proto::check_labels(&self.labels).map_err(|reason| ConfigError::Value {
+        cetratus_proto::check_labels(&self.labels).map_err(|e| ConfigError::Value {
             path: at.file.display().to_string(),
             key: "[labels]",
             value: (self.labels.iter())
                 .map(|(k, v)| format!("{k} = {v:?}"))
                 .collect::<Vec<_>>()
                 .join(", "),
-            reason,
+            reason: e.to_string(),
         })?;
         Ok(self.labels.clone())
     }

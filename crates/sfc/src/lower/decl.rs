@@ -204,7 +204,7 @@ fn write_pou(
         }
     } else {
         let mut lowered = network::lower(source, pou, body, names).map_err(Refusal::Error)?;
-        lowered.write(at, out);
+        lowered.write(at, out, matches!(pou_kind(pou), PouKind::Function));
         for (at, note) in lowered.notes.drain(..) {
             notes.at(at, note);
         }

@@ -133,8 +133,10 @@ pub(super) struct Lowered {
 }
 
 impl Lowered {
-    /// Writes the variables the network needs, then its statements.
-    pub fn write(&self, at: usize, out: &mut Written) {
+    /// Writes the variables the network needs, then its statements. In a FUNCTION the values
+    /// kept between elements are its VAR, which a function starts afresh at every call: IEC has
+    /// no VAR_TEMP in a FUNCTION, and MATIEC refuses one.
+    pub fn write(&self, at: usize, out: &mut Written, function: bool) {
         if !self.instances.is_empty() {
             out.line(at, "VAR");
             for (name, ty) in &self.instances {
@@ -143,7 +145,7 @@ impl Lowered {
             out.line(at, "END_VAR");
         }
         if !self.temps.is_empty() {
-            out.line(at, "VAR_TEMP");
+            out.line(at, if function { "VAR" } else { "VAR_TEMP" });
             for (name, ty) in &self.temps {
                 out.line(at, &format!("  {name} : {ty};"));
             }

@@ -590,24 +590,34 @@ fn bad_exports_are_refused_clearly_and_write_nothing() {
     );
     assert!(out.join("vernadat-cell.st").is_file() && out.join("vernadat-cell.io.csv").is_file());
 
-    // Structured Text that reads a global of its CONFIGURATION: not carried yet, refused.
+    // Structured Text that reads a global of its CONFIGURATION, declared on one line: the
+    // export's configuration carries it, and MATIEC compiles and runs the export as Cetratus runs
+    // the program.
     let source = dir.path().join("globals.st");
     std::fs::write(
         &source,
-        "PROGRAM P\nVAR_EXTERNAL limit : INT; END_VAR\nVAR_OUTPUT q : BOOL; END_VAR\nq := limit > 3;\nEND_PROGRAM\n\
-         CONFIGURATION C\n  VAR_GLOBAL limit : INT := 5; END_VAR\n  RESOURCE R ON PLC\n    \
+        "PROGRAM P\nVAR_EXTERNAL threshold : INT; END_VAR\nVAR_OUTPUT q : BOOL; END_VAR\nq := threshold > 3;\nEND_PROGRAM\n\
+         CONFIGURATION C\n  VAR_GLOBAL threshold : INT := 5; END_VAR\n  RESOURCE R ON PLC\n    \
          TASK t(INTERVAL := T#10ms, PRIORITY := 0);\n    PROGRAM i WITH t : P;\n  END_RESOURCE\nEND_CONFIGURATION\n",
     )
     .unwrap();
     let st = dir.path().join("st");
     import("st", &source, &st);
-    let empty = dir.path().join("empty");
-    let e = refused(&export(&st.join("P.toml"), &["--to", "st"], &empty));
+    let carried = dir.path().join("carried");
+    ok(&export(&st.join("P.toml"), &["--to", "st"], &carried));
+    let text = std::fs::read_to_string(carried.join("P.st")).unwrap();
+    let config = &text[text.find("\nCONFIGURATION ").expect("a configuration")..];
     assert!(
-        e.contains("declares global variables in its CONFIGURATION"),
-        "{e}"
+        config.contains("VAR_GLOBAL threshold : INT := 5; END_VAR"),
+        "{config}"
     );
-    assert!(!empty.exists());
+    let none = dir.path().join("none.csv");
+    std::fs::write(&none, "scan,time_ms\n0,0\n").unwrap();
+    prove(
+        &st.join("P.toml"),
+        &["--replay", path(&none), "--for", "1s"],
+    );
+    let empty = dir.path().join("empty");
 
     let e = refused(&export(
         &vernadat,

@@ -36,8 +36,6 @@ mod st;
 
 use sequence::{st_text, Part, Sequence};
 
-/// The namespace the project is written in (TC6 2.01).
-const TC6: &str = "http://www.plcopen.org/xml/tc6_0201";
 /// Between an action's name and the name of one of its nested chart's elements (as the
 /// importer writes it).
 const SEP: &str = "__";
@@ -73,13 +71,8 @@ fn header(program: &Program) -> String {
         .strip_prefix(&format!("SFC {} of ", program.name()))
         .unwrap_or(program.name());
     format!(
-        "<?xml version=\"1.0\" encoding=\"utf-8\"?>\n<project xmlns=\"{TC6}\" xmlns:xhtml=\"http://www.w3.org/1999/xhtml\">\n  \
-         <fileHeader companyName=\"Cetratus\" productName=\"cetratus export\" productVersion=\"{}\" creationDateTime=\"1970-01-01T00:00:00\"/>\n  \
-         <contentHeader name=\"{}\" version=\"{}\">\n    <coordinateInfo>\n      <fbd><scaling x=\"1\" y=\"1\"/></fbd>\n      <ld><scaling x=\"1\" y=\"1\"/></ld>\n      <sfc><scaling x=\"1\" y=\"1\"/></sfc>\n    </coordinateInfo>\n  </contentHeader>\n  \
-         <types>\n    <dataTypes/>\n    <pous>\n      <pou name=\"{}\" pouType=\"program\">\n",
-        env!("CARGO_PKG_VERSION"),
-        xml_escape(project),
-        xml_escape(program.version()),
+        "{}  <types>\n    <dataTypes/>\n    <pous>\n      <pou name=\"{}\" pouType=\"program\">\n",
+        crate::plcopen::opening(project, program.version()),
         xml_escape(program.name()),
     )
 }
@@ -159,13 +152,9 @@ fn declared_initials(program: &Program) -> Result<HashSet<String>, String> {
 
 /// The configuration: one task at the scan period running the chart.
 fn configuration(x: &mut String, program: &Program) {
-    let period = crate::expr::time_literal(program.scan_period().as_micros() as u64);
-    let _ = write!(
-        x,
-        "  <instances>\n    <configurations>\n      <configuration name=\"CETRATUS_CONFIG\">\n        <resource name=\"CETRATUS_RESOURCE\">\n          \
-         <task name=\"CETRATUS_TASK\" interval=\"{period}\" priority=\"1\">\n            <pouInstance name=\"CETRATUS_MAIN\" typeName=\"{}\"/>\n          </task>\n        </resource>\n      </configuration>\n    </configurations>\n  </instances>\n</project>\n",
-        xml_escape(program.name())
-    );
+    x.push_str("  <instances>\n    <configurations>\n");
+    x.push_str(&crate::plcopen::task(program, program.name()));
+    x.push_str("      </configuration>\n    </configurations>\n  </instances>\n</project>\n");
 }
 
 /// Imports the chart back and compares: the same program text and net, or the first line that

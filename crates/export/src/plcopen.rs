@@ -22,6 +22,44 @@ use crate::{Dialect, ExportError, StExport};
 /// The TC6 namespace the project is written in (version 2.01).
 const TC6: &str = "http://www.plcopen.org/xml/tc6_0201";
 
+/// The opening of every exported project, through its `contentHeader`: the project `name` at
+/// `version`. Its `creationDateTime` is the epoch, so the same program gives the same bytes.
+pub(crate) fn opening(name: &str, version: &str) -> String {
+    format!(
+        "<?xml version=\"1.0\" encoding=\"utf-8\"?>\n<project xmlns=\"{TC6}\" xmlns:xhtml=\"http://www.w3.org/1999/xhtml\">\n  \
+         <fileHeader companyName=\"Cetratus\" productName=\"cetratus export\" productVersion=\"{}\" creationDateTime=\"1970-01-01T00:00:00\"/>\n  \
+         <contentHeader name=\"{}\" version=\"{}\">\n    <coordinateInfo>\n      <fbd><scaling x=\"1\" y=\"1\"/></fbd>\n      <ld><scaling x=\"1\" y=\"1\"/></ld>\n      <sfc><scaling x=\"1\" y=\"1\"/></sfc>\n    </coordinateInfo>\n  </contentHeader>\n",
+        env!("CARGO_PKG_VERSION"),
+        xml_escape(name),
+        xml_escape(version),
+    )
+}
+
+/// The opening of the configuration: one resource with one task at `program`'s scan period
+/// that runs the POU `type_name`.
+pub(crate) fn task(program: &Program, type_name: &str) -> String {
+    let period = crate::expr::time_literal(program.scan_period().as_micros() as u64);
+    format!(
+        "      <configuration name=\"CETRATUS_CONFIG\">\n        <resource name=\"CETRATUS_RESOURCE\">\n          \
+         <task name=\"CETRATUS_TASK\" interval=\"{period}\" priority=\"1\">\n            <pouInstance name=\"CETRATUS_MAIN\" typeName=\"{}\"/>\n          </task>\n        </resource>\n",
+        xml_escape(type_name)
+    )
+}
+
+/// `text` as a CDATA section, a `]]>` in it split across two.
+pub(crate) fn cdata(text: &str) -> String {
+    format!("<![CDATA[{}]]>", text.replace("]]>", "]]]]><![CDATA[>"))
+}
+
+/// Whether `ty` (upper case) is an elementary type, which TC6 writes as an element of its name.
+pub(crate) fn elementary(ty: &str) -> bool {
+    const ELEMENTARY: &[&str] = &[
+        "BOOL", "SINT", "INT", "DINT", "LINT", "USINT", "UINT", "UDINT", "ULINT", "REAL", "LREAL",
+        "TIME", "DATE", "DT", "TOD", "BYTE", "WORD", "DWORD", "LWORD", "WSTRING",
+    ];
+    ELEMENTARY.contains(&ty)
+}
+
 /// The export of `program` as a PLCopen TC6 XML project: a program imported from an SFC chart
 /// as that chart (module `chart`), any other, or a chart the SFC POU cannot carry (said in the
 /// export's notes), as the POUs of the IEC text.
@@ -42,15 +80,8 @@ pub fn to_plcopen(program: &Program) -> Result<StExport, ExportError> {
         .transpose()?;
     let data = crate::data::NetData::new(program.net(), program.policy());
     let mut x = String::with_capacity(st.text.len() * 3);
-    let _ = write!(
-        x,
-        "<?xml version=\"1.0\" encoding=\"utf-8\"?>\n<project xmlns=\"{TC6}\" xmlns:xhtml=\"http://www.w3.org/1999/xhtml\">\n  \
-         <fileHeader companyName=\"Cetratus\" productName=\"cetratus export\" productVersion=\"{}\" creationDateTime=\"1970-01-01T00:00:00\"/>\n  \
-         <contentHeader name=\"{}\" version=\"{}\">\n    <coordinateInfo>\n      <fbd><scaling x=\"1\" y=\"1\"/></fbd>\n      <ld><scaling x=\"1\" y=\"1\"/></ld>\n      <sfc><scaling x=\"1\" y=\"1\"/></sfc>\n    </coordinateInfo>\n  </contentHeader>\n  <types>\n    <dataTypes>\n",
-        env!("CARGO_PKG_VERSION"),
-        xml_escape(program.name()),
-        xml_escape(program.version()),
-    );
+    x.push_str(&opening(program.name(), program.version()));
+    x.push_str("  <types>\n    <dataTypes>\n");
     for t in data.types() {
         data_type(&mut x, &t);
     }
@@ -109,11 +140,7 @@ fn data_type(x: &mut String, t: &ArrayType) {
 
 /// An IEC type as TC6 writes it: elementary types as elements of their name, others derived.
 fn type_xml(ty: &str) -> String {
-    const ELEMENTARY: &[&str] = &[
-        "BOOL", "SINT", "INT", "DINT", "LINT", "USINT", "UINT", "UDINT", "ULINT", "REAL", "LREAL",
-        "TIME", "BYTE", "WORD", "DWORD", "LWORD",
-    ];
-    if ELEMENTARY.contains(&ty) {
+    if elementary(ty) {
         format!("<{ty}/>")
     } else {
         format!("<derived name=\"{}\"/>", xml_escape(ty))
@@ -237,8 +264,8 @@ fn pou_xml(x: &mut String, pou: &Pou) -> Result<(), ExportError> {
     }
     let _ = write!(
         x,
-        "        </interface>\n        <body>\n          <ST>\n            <xhtml:p><![CDATA[{}]]></xhtml:p>\n          </ST>\n        </body>\n      </pou>\n",
-        pou.body.replace("]]>", "]]]]><![CDATA[>")
+        "        </interface>\n        <body>\n          <ST>\n            <xhtml:p>{}</xhtml:p>\n          </ST>\n        </body>\n      </pou>\n",
+        cdata(&pou.body)
     );
     Ok(())
 }
@@ -273,12 +300,8 @@ fn value_xml(v: &str) -> String {
 /// The configuration: one resource with one task at the scan period running the PROGRAM, and the
 /// net's constants as its global variables, then the program's own (`own`, as TC6 XML).
 fn configuration(x: &mut String, name: &str, program: &Program, constants: &[Constant], own: &str) {
-    let period = crate::expr::time_literal(program.scan_period().as_micros() as u64);
-    let _ = write!(
-        x,
-        "      <configuration name=\"CETRATUS_CONFIG\">\n        <resource name=\"CETRATUS_RESOURCE\">\n          \
-         <task name=\"CETRATUS_TASK\" interval=\"{period}\" priority=\"1\">\n            <pouInstance name=\"CETRATUS_MAIN\" typeName=\"{name}\"/>\n          </task>\n        </resource>\n        <globalVars constant=\"true\">\n"
-    );
+    x.push_str(&task(program, name));
+    x.push_str("        <globalVars constant=\"true\">\n");
     for c in constants {
         let d = Decl {
             name: c.name.clone(),

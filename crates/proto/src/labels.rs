@@ -32,6 +32,17 @@ pub fn check_label(key: &str, value: &str) -> Result<(), ProtoError> {
 }
 
 fn label_rule(key: &str, value: &str) -> Result<(), String> {
+    key_rule(key)?;
+    if value.len() > MAX_LABEL_VALUE || value.is_empty() || value.chars().any(char::is_control) {
+        return Err(format!(
+            "the label `{key}`'s value must be 1 to {MAX_LABEL_VALUE} bytes of printable text"
+        ));
+    }
+    Ok(())
+}
+
+/// A label key's rule, which a selector's keys follow too.
+fn key_rule(key: &str) -> Result<(), String> {
     let key_ok = key.len() <= MAX_LABEL_KEY
         && key.starts_with(|c: char| c.is_ascii_alphabetic())
         && key
@@ -47,11 +58,6 @@ fn label_rule(key: &str, value: &str) -> Result<(), String> {
         return Err(
             "the label key `id` is the PLC's id in a selector; name the label otherwise".into(),
         );
-    }
-    if value.len() > MAX_LABEL_VALUE || value.is_empty() || value.chars().any(char::is_control) {
-        return Err(format!(
-            "the label `{key}`'s value must be 1 to {MAX_LABEL_VALUE} bytes of printable text"
-        ));
     }
     Ok(())
 }
@@ -142,7 +148,7 @@ fn parse(s: &str) -> Result<Selector, String> {
                 None => Ok(Term::Id(glob.to_string())),
                 Some(k) if k.eq_ignore_ascii_case("id") => Ok(Term::Id(glob.to_string())),
                 Some(k) => {
-                    label_rule(k, "x").map_err(|e| format!("in `{part}`: {e}"))?;
+                    key_rule(k).map_err(|e| format!("in `{part}`: {e}"))?;
                     Ok(Term::Label(k.to_string(), glob.to_string()))
                 }
             }

@@ -490,8 +490,8 @@ fn inline(text: &str) -> String {
 /// ST text as a TC6 body's content.
 pub(super) fn st_text(text: &str) -> String {
     format!(
-        "<ST><xhtml:p><![CDATA[{}]]></xhtml:p></ST>",
-        text.replace("]]>", "]]]]><![CDATA[>")
+        "<ST><xhtml:p>{}</xhtml:p></ST>",
+        crate::plcopen::cdata(text)
     )
 }
 

@@ -182,8 +182,8 @@ impl Source<'_> {
         let body = self.body(p, end)?;
         let _ = writeln!(
             x,
-            "        </interface>\n        <body>\n          <ST>\n            <xhtml:p><![CDATA[{}]]></xhtml:p>\n          </ST>\n        </body>\n      </pou>",
-            body.replace("]]>", "]]]]><![CDATA[>")
+            "        </interface>\n        <body>\n          <ST>\n            <xhtml:p>{}</xhtml:p>\n          </ST>\n        </body>\n      </pou>",
+            super::cdata(&body)
         );
         Ok(())
     }
@@ -227,12 +227,7 @@ impl Source<'_> {
                     "DATE_AND_TIME" => "DT".to_string(),
                     _ => up,
                 };
-                const ELEMENTARY: &[&str] = &[
-                    "BOOL", "SINT", "INT", "DINT", "LINT", "USINT", "UINT", "UDINT", "ULINT",
-                    "REAL", "LREAL", "TIME", "DATE", "DT", "TOD", "BYTE", "WORD", "DWORD", "LWORD",
-                    "WSTRING",
-                ];
-                match ELEMENTARY.contains(&up.as_str()) {
+                match super::elementary(&up) {
                     true => format!("<{up}/>"),
                     false => format!("<derived name=\"{}\"/>", xml_escape(&id.text)),
                 }

@@ -68,27 +68,25 @@ pub struct PlainArgs {
     opts: ClientOpts,
 }
 
+/// The operator key at `path`, which signs commands; `None` without a path.
+pub fn operator_key(path: Option<&std::path::Path>) -> anyhow::Result<Option<OperatorKey>> {
+    let Some(p) = path else {
+        return Ok(None);
+    };
+    let k = cetratus_program::KeyPair::load(p)
+        .with_context(|| format!("operator key {}", p.display()))?;
+    Ok(Some(OperatorKey {
+        id: k.key_id(),
+        key: k.signing_key().clone(),
+    }))
+}
+
 /// Opens a session with the PLC the options name.
 fn open(opts: &ClientOpts) -> anyhow::Result<Session> {
-    let key = match &opts.key {
-        Some(p) => {
-            let k = cetratus_program::KeyPair::load(p)
-                .with_context(|| format!("operator key {}", p.display()))?;
-            Some(OperatorKey {
-                id: k.key_id(),
-                key: k.signing_key().clone(),
-            })
-        }
-        None => None,
-    };
-    let credentials = opts
-        .mqtt
-        .user
-        .clone()
-        .map(|u| (u, opts.mqtt.password.clone().unwrap_or_default()));
+    let key = operator_key(opts.key.as_deref())?;
     Ok(Session::open(SessionConfig {
         url: opts.mqtt.client_url()?,
-        credentials,
+        credentials: opts.mqtt.to.credentials(),
         plc: PlcId::new(opts.mqtt.plc_id())?,
         timeout: Duration::from_micros(crate::parse_duration_us(&opts.timeout)?),
         key,

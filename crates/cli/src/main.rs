@@ -21,6 +21,7 @@ mod mqtt_args;
 mod package;
 mod package_inspect;
 mod progress;
+mod rollout;
 mod run;
 mod sim;
 mod state;
@@ -102,6 +103,8 @@ enum Command {
     Watch(client::PlainArgs),
     /// program_exec_info of both containers.
     ExecInfo(client::PlainArgs),
+    /// Take one update package across many PLCs, stage by stage (docs/fleet.md).
+    Rollout(rollout::RolloutArgs),
 }
 
 /// Sends the libraries' diagnostics (`tracing` events, and `log` records from rmqtt and rumqttc) to
@@ -183,6 +186,7 @@ fn main() -> std::process::ExitCode {
         Command::Status(a) => client::status(a),
         Command::Watch(a) => client::watch(a),
         Command::ExecInfo(a) => client::exec_info(a),
+        Command::Rollout(a) => rollout::run(a),
     };
     match result {
         Ok(()) => std::process::ExitCode::SUCCESS,

@@ -13,6 +13,14 @@ pub struct MqttArgs {
     /// The PLC id: topics live under `cetratus/<id>/`. Defaults to the host name.
     #[arg(long = "plc")]
     pub plc: Option<String>,
+    /// The broker.
+    #[command(flatten)]
+    pub to: BrokerArgs,
+}
+
+/// Which broker, and who logs in to it.
+#[derive(clap::Args, Debug, Clone)]
+pub struct BrokerArgs {
     /// Address of the embedded broker (the default, on 127.0.0.1:1883).
     #[arg(long)]
     pub mqtt: Option<String>,
@@ -25,6 +33,27 @@ pub struct MqttArgs {
     /// Password for the plant broker (or set CETRATUS_MQTT_PASSWORD).
     #[arg(long, env = "CETRATUS_MQTT_PASSWORD", hide_env_values = true)]
     pub password: Option<String>,
+}
+
+impl BrokerArgs {
+    /// The broker URL clients (the dashboard, the CLI client) connect to.
+    pub fn client_url(&self) -> anyhow::Result<String> {
+        if let Some(url) = &self.broker {
+            return Ok(url.clone());
+        }
+        let addr: SocketAddr = self
+            .mqtt
+            .as_deref()
+            .unwrap_or(cetratus_mct::DEFAULT_MQTT_ADDR)
+            .parse()
+            .context("--mqtt takes an address such as 127.0.0.1:1883")?;
+        Ok(format!("mqtt://{addr}"))
+    }
+
+    /// `--user` and its password (empty when none is given), when a user is given.
+    pub fn credentials(&self) -> Option<(String, String)> {
+        (self.user.clone()).map(|u| (u, self.password.clone().unwrap_or_default()))
+    }
 }
 
 impl MqttArgs {
@@ -52,9 +81,9 @@ impl MqttArgs {
             None => None,
         };
         Ok(MqttSpec {
-            embedded: self.mqtt.clone(),
-            broker: self.broker.clone(),
-            login: self.user.clone().map(|u| (u, self.password.clone())),
+            embedded: self.to.mqtt.clone(),
+            broker: self.to.broker.clone(),
+            login: self.to.user.clone().map(|u| (u, self.to.password.clone())),
             companion,
             announce,
         })
@@ -62,16 +91,7 @@ impl MqttArgs {
 
     /// The broker URL clients (the dashboard, the CLI client) connect to.
     pub fn client_url(&self) -> anyhow::Result<String> {
-        if let Some(url) = &self.broker {
-            return Ok(url.clone());
-        }
-        let addr: SocketAddr = self
-            .mqtt
-            .as_deref()
-            .unwrap_or(cetratus_mct::DEFAULT_MQTT_ADDR)
-            .parse()
-            .context("--mqtt takes an address such as 127.0.0.1:1883")?;
-        Ok(format!("mqtt://{addr}"))
+        self.to.client_url()
     }
 }
 

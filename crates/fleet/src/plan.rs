@@ -87,7 +87,13 @@ pub struct Plan {
     pub max_parallel: usize,
     /// What a failure does.
     pub on_failure: OnFailure,
+    /// How long a PLC of the rollout may go unheard (offline, or no `state` at all) before it
+    /// counts as a failure; until then the rollout waits for it, µs.
+    pub silent_us: u64,
 }
+
+/// How long a PLC may go unheard when the plan does not say: 30 s.
+pub const DEFAULT_SILENT_US: u64 = 30_000_000;
 
 /// `rollout.toml` as serde reads it.
 #[derive(Deserialize)]
@@ -102,6 +108,7 @@ struct File {
     probation: String,
     max_parallel: usize,
     on_failure: OnFailure,
+    silent: Option<String>,
 }
 
 impl Plan {
@@ -152,6 +159,18 @@ impl Plan {
         };
         let quarantine_us = duration("quarantine", &file.quarantine)?;
         let probation_us = duration("probation", &file.probation)?;
+        let silent_us = match &file.silent {
+            Some(t) => match duration("silent", t)? {
+                0 => {
+                    return Err(bad(
+                        "silent",
+                        "is 0, so every PLC would fail at once; give a time such as \"30s\"".into(),
+                    ))
+                }
+                us => us,
+            },
+            None => DEFAULT_SILENT_US,
+        };
         if file.max_parallel == 0 {
             return Err(bad(
                 "max_parallel",
@@ -171,6 +190,7 @@ impl Plan {
             probation_us,
             max_parallel: file.max_parallel,
             on_failure: file.on_failure,
+            silent_us,
         })
     }
 

@@ -341,29 +341,42 @@ impl Session {
     /// The payload of a command: the body, or a signed envelope holding it, bound to this PLC
     /// and to the request's correlation data.
     fn body(&self, verb: Verb, correlation: &[u8], body: &Value) -> Result<Vec<u8>, MctError> {
-        let inner = serde_json::to_vec(body).map_err(|e| MctError::Client(e.to_string()))?;
-        let Some(k) = &self.key else {
-            return Ok(inner);
-        };
-        // The nonce only has to be unique per key within the replay window.
-        let nonce = unique();
-        let signed = Signed {
-            plc: self.topics.plc().as_str(),
-            verb: verb.as_str(),
-            correlation,
-            timestamp: unix_now(),
-            nonce: &nonce,
-            account: None,
-        };
-        let env = sign(&signed, &inner, &k.id, &k.key);
-        serde_json::to_vec(&serde_json::json!({ "envelope": env }))
-            .map_err(|e| MctError::Client(e.to_string()))
+        let plc = self.topics.plc().as_str();
+        command_payload(self.key.as_ref(), plc, verb, correlation, body)
     }
+}
+
+/// The payload of a command to `plc`: the body, or, with an operator key, a signed envelope
+/// holding it, bound to the PLC and to the request's correlation data.
+pub fn command_payload(
+    key: Option<&OperatorKey>,
+    plc: &str,
+    verb: Verb,
+    correlation: &[u8],
+    body: &Value,
+) -> Result<Vec<u8>, MctError> {
+    let inner = serde_json::to_vec(body).map_err(|e| MctError::Client(e.to_string()))?;
+    let Some(k) = key else {
+        return Ok(inner);
+    };
+    // The nonce only has to be unique per key within the replay window.
+    let nonce = unique();
+    let signed = Signed {
+        plc,
+        verb: verb.as_str(),
+        correlation,
+        timestamp: unix_now(),
+        nonce: &nonce,
+        account: None,
+    };
+    let env = sign(&signed, &inner, &k.id, &k.key);
+    serde_json::to_vec(&serde_json::json!({ "envelope": env }))
+        .map_err(|e| MctError::Client(e.to_string()))
 }
 
 /// A string unique to this process and instant: the process id and the nanoseconds of the wall
 /// clock.
-fn unique() -> String {
+pub fn unique() -> String {
     let nanos = std::time::SystemTime::now()
         .duration_since(std::time::UNIX_EPOCH)
         .map_or(0, |d| d.as_nanos());

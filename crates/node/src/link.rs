@@ -119,18 +119,28 @@ pub struct ControlLink {
 /// publisher's thread, never the scan's.
 pub type InputQualityReader = Arc<dyn Fn() -> Vec<DeviceStatus> + Send + Sync>;
 
+/// What the local configuration says of the PLC that every `state` carries: its labels and its
+/// update policy (docs/fleet.md).
+#[derive(Clone, Debug, Default)]
+pub struct OwnFacts {
+    /// `[labels]`.
+    pub labels: cetratus_proto::Labels,
+    /// What `[updates]` enforces of every update.
+    pub updates: cetratus_proto::UpdatePolicy,
+}
+
 /// Where the publisher reads the input quality, once the node has field I/O or OPC UA inputs.
 type QualitySource = Arc<Mutex<Option<InputQualityReader>>>;
 
 impl ControlLink {
     /// Starts the preparer and the publisher for `plc` on `link`; loads pass `policy`.
-    /// Every `state` carries `labels`.
+    /// Every `state` carries `own`.
     pub fn start(
         plc: &Plc,
         link: MctLink,
         policy: LoadPolicy,
         publish_every: u64,
-        labels: cetratus_proto::Labels,
+        own: OwnFacts,
     ) -> ControlLink {
         let MctLink {
             commands,
@@ -163,7 +173,7 @@ impl ControlLink {
         let pub_quality = quality.clone();
         let publisher = std::thread::Builder::new()
             .name("cetratus-publish".into())
-            .spawn(move || publish_loop(snap_rx, pub_out, pub_quality, labels))
+            .spawn(move || publish_loop(snap_rx, pub_out, pub_quality, own))
             .expect("spawn the publisher");
         ControlLink {
             to_scan_rx,
@@ -590,7 +600,7 @@ fn publish_loop(
     rx: Receiver<ToPublisher>,
     out: SyncSender<Outgoing>,
     quality: QualitySource,
-    labels: cetratus_proto::Labels,
+    own: OwnFacts,
 ) {
     // The figures of the latest snapshot, shared by every `exec_info` answer until the next.
     let mut latest: Option<Arc<ExecInfoMsg>> = None;
@@ -614,9 +624,11 @@ fn publish_loop(
             }
             ToPublisher::Snapshot(s, permit) => (s, permit),
         };
-        // The labels are the publisher's to add: the scan thread never copies them.
+        // The labels and the policy are the publisher's to add: the scan thread never copies
+        // them.
         let mut state = s.state;
-        state.labels.clone_from(&labels);
+        state.labels.clone_from(&own.labels);
+        state.updates = Some(own.updates);
         if out.send(Outgoing::State(Box::new(state))).is_err() {
             return;
         }

@@ -182,10 +182,10 @@ pub(crate) fn control_link(
     plc: &Plc,
     load: LoadPolicy,
     (speed, period_us): (f64, u64),
-    labels: cetratus_proto::Labels,
+    own: crate::link::OwnFacts,
 ) -> ControlLink {
     let publish_every = ((PUBLISH_PERIOD_US as f64 * speed) / period_us.max(1) as f64)
         .round()
         .max(1.0) as u64;
-    ControlLink::start(plc, link, load, publish_every, labels)
+    ControlLink::start(plc, link, load, publish_every, own)
 }

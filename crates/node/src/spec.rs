@@ -427,14 +427,15 @@ impl NodeSpec {
         let services = match services {
             Some((link, s)) => {
                 let speed = self.time.speed();
-                let labels = self.local.labels.clone();
-                let mut link = crate::services::control_link(
-                    link,
-                    node.plc(),
-                    load,
-                    (speed, period_us),
-                    labels,
-                );
+                let own = crate::link::OwnFacts {
+                    labels: self.local.labels.clone(),
+                    updates: cetratus_proto::UpdatePolicy {
+                        probation_ms: self.local.probation_us / 1000,
+                        require_verdict: self.local.require_verdict,
+                    },
+                };
+                let mut link =
+                    crate::services::control_link(link, node.plc(), load, (speed, period_us), own);
                 if let Some(q) = quality {
                     link.set_input_quality(q);
                 }

@@ -159,6 +159,7 @@ pub fn state(plc: &Plc, loop_timing: &LoopTiming) -> proto::StateMsg {
         control: proto::ControlCounters::default(),
         persist_fault: None,
         labels: proto::Labels::new(),
+        updates: None,
     }
 }
 

@@ -39,6 +39,6 @@ pub use payload::{
     ControlCounters, Coverage, CycleFigures, DeclaredChanges, ErrorBody, EventMsg, ExecInfo,
     ExecInfoMsg, InputQuality, IoMsg, IoNames, LoadArgs, NetMsg, NoArgs, PersistFault, ProgramInfo,
     Programs, Reply, ReplyFields, Sample, SignalMask, SignalValue, Signals, StateMsg, StatePayload,
-    SubstituteArgs, TimingSummary, Verdict, MAX_PAYLOAD, MAX_WITHIN_MS,
+    SubstituteArgs, TimingSummary, UpdatePolicy, Verdict, MAX_PAYLOAD, MAX_WITHIN_MS,
 };
 pub use topic::{parse_topic, parse_verb, Leaf, PlcId, Topics, Verb, ALL_PLCS_FILTER, ROOT};

@@ -246,6 +246,20 @@ pub struct StateMsg {
     /// absent when it has none.
     #[serde(default, skip_serializing_if = "crate::Labels::is_empty")]
     pub labels: crate::Labels,
+    /// The update policy of its local configuration that a fleet rollout holds its plan against;
+    /// absent from PLCs that predate it.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub updates: Option<UpdatePolicy>,
+}
+
+/// The `updates` object of `state`: what the PLC's own `[updates]` policy enforces of every
+/// update, so that a rollout plan may be checked to be at least as strict (docs/fleet.md).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+pub struct UpdatePolicy {
+    /// The probation window after a substitution, in milliseconds of program time (0: none).
+    pub probation_ms: u64,
+    /// Whether a substitution needs a passing twin verdict.
+    pub require_verdict: bool,
 }
 
 /// The state directory cannot be written: the PLC runs on, and tries again at every snapshot,

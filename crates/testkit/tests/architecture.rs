@@ -78,7 +78,7 @@ const RULES: &[(&str, Allowed)] = &[
     ("cetratus-mct", Only(&["cetratus-vocab", "cetratus-proto"])),
     (
         "cetratus-fleet",
-        Only(&["cetratus-program", "cetratus-proto"]),
+        Only(&["cetratus-program", "cetratus-proto", "cetratus-mct"]),
     ),
     (
         "cetratus-dashboard",

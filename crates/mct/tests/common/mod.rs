@@ -227,6 +227,7 @@ pub fn state(primary: &str, status: &str) -> StateMsg {
         control: Default::default(),
         persist_fault: None,
         labels: Default::default(),
+        updates: None,
     }
 }
 

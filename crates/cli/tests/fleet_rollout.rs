@@ -1,0 +1,269 @@
+//! Fleet rollouts through the real binary: real `cetratus run` PLCs (the Vernadat cell on its
+//! twin, ten times real time) on a real Mosquitto, driven by `cetratus rollout`. The fleets are
+//! heavy, so the tests take turns.
+
+#[path = "common/fleet.rs"]
+mod fleet;
+
+use std::process::Stdio;
+use std::sync::Mutex;
+use std::time::{Duration, Instant};
+
+use cetratus_testkit::process::ChildGuard;
+use fleet::{broken_u1, report, u1_declared, Fleet};
+use serde_json::Value;
+
+/// One fleet at a time: two cores run them.
+static TURN: Mutex<()> = Mutex::new(());
+
+fn turn() -> std::sync::MutexGuard<'static, ()> {
+    TURN.lock().unwrap_or_else(|p| p.into_inner())
+}
+
+/// The alarms a PLC of a rollout must never raise.
+const ALARMS: [&str; 4] = ["primary_fault", "stall_alarm", "deadlock_alarm", "reverted"];
+
+#[test]
+fn twenty_plcs_take_the_good_u1_in_four_cumulative_stages_and_keep_producing() {
+    let _t = turn();
+    let mut fleet = Fleet::new();
+    let u1 = fleet.package(&u1_declared(&fleet.root.path().join("u1")), "u1");
+    fleet.start(20, "vernadat/vernadat.toml");
+    fleet.wait_online();
+    let plan = fleet.plan(
+        &u1,
+        "line=1",
+        r#"["1", "3", "10", "20"]"#,
+        "on_failure = \"stop\"\n",
+    );
+    let state = fleet.root.path().join("rollout");
+    let out = fleet
+        .rollout(&["start"], &state)
+        .arg(&plan)
+        .args(["--wait", "--json"])
+        .output()
+        .unwrap();
+    let r = report(&out);
+    assert_eq!(r["outcome"], "done", "{r}");
+    let plcs = r["plcs"].as_object().unwrap();
+    assert_eq!(plcs.len(), 20);
+    let mut per_stage = [0usize; 4];
+    for (id, p) in plcs {
+        assert_eq!(p["step"], "done", "{id}: {p}");
+        per_stage[p["stage"].as_u64().unwrap() as usize - 1] += 1;
+    }
+    assert_eq!(per_stage, [1, 2, 7, 10]);
+    let loads = fleet.events.count("load_accepted");
+    assert_eq!(loads.len(), 20, "{loads:?}");
+    assert!(loads.values().all(|n| *n == 1), "{loads:?}");
+    assert_eq!(fleet.events.count("accepted").len(), 20);
+    for alarm in ALARMS {
+        assert!(fleet.events.count(alarm).is_empty(), "{alarm}");
+    }
+    // Every PLC runs U.1 as primary and goes on producing: its outfeed keeps firing.
+    let hash = r["program_hash"].as_str().unwrap();
+    for id in fleet.plcs.keys() {
+        let s = fleet.state(id);
+        let primary = s["primary"].as_str().unwrap();
+        assert_eq!(s["programs"][primary]["hash"], hash, "{id}");
+        assert_eq!(s["status"], "idle", "{id}");
+    }
+    let outfeed = |id: &str| -> u64 {
+        let info = fleet_exec_info(&fleet, id);
+        (info.as_array().unwrap().iter())
+            .find(|c| c["role"] == "primary")
+            .map_or(0, |c| c["firings"]["T24"].as_u64().unwrap_or(0))
+    };
+    let before: Vec<u64> = fleet.plcs.keys().map(|id| outfeed(id)).collect();
+    std::thread::sleep(Duration::from_secs(4));
+    for (id, b) in fleet.plcs.keys().zip(before) {
+        assert!(outfeed(id) > b, "{id} stopped producing");
+    }
+}
+
+/// `cetratus exec-info --json` of one PLC of the fleet: `[A, B]`.
+fn fleet_exec_info(fleet: &Fleet, id: &str) -> Value {
+    let out = std::process::Command::new(fleet::BIN)
+        .args(["exec-info", "--json", "--plc", id, "--broker", &fleet.url()])
+        .output()
+        .unwrap();
+    let v: Value = serde_json::from_slice(&out.stdout).unwrap_or(Value::Null);
+    v["result"].clone()
+}
+
+#[test]
+fn the_broken_u1_stops_at_the_canary_which_is_reverted_and_the_others_never_see_it() {
+    let _t = turn();
+    let mut fleet = Fleet::new();
+    let broken = fleet.package(&broken_u1(&fleet.root.path().join("broken")), "broken");
+    fleet.start(5, "vernadat/vernadat.toml");
+    fleet.wait_online();
+    let plan = fleet.plan(&broken, "*", r#"["1", "100%"]"#, "on_failure = \"stop\"\n");
+    // Probation as long as the PLCs' window: the stall must end it, not the clock.
+    let text = std::fs::read_to_string(&plan)
+        .unwrap()
+        .replace("probation = \"10s\"", "probation = \"20s\"");
+    std::fs::write(&plan, text).unwrap();
+    let state = fleet.root.path().join("rollout");
+    let out = fleet
+        .rollout(&["start"], &state)
+        .arg(&plan)
+        .args(["--wait", "--json"])
+        .output()
+        .unwrap();
+    assert!(!out.status.success());
+    let r = report(&out);
+    assert_eq!(r["outcome"], "halted", "{r}");
+    let canary = &r["plcs"]["plc-00"];
+    assert_eq!(canary["step"], "reverted", "{r}");
+    let why = canary["reason"].as_str().unwrap_or("");
+    assert!(why.contains("reverted"), "{why}");
+    for k in 1..5 {
+        assert_eq!(r["plcs"][format!("plc-{k:02}")]["step"], "untouched", "{r}");
+    }
+    let loads = fleet.events.count("load_accepted");
+    assert_eq!(loads.keys().collect::<Vec<_>>(), ["plc-00"], "{loads:?}");
+    assert_eq!(fleet.events.count("reverted").get("plc-00"), Some(&1));
+    let s = fleet.state("plc-00");
+    assert_eq!(s["status"], "idle");
+    let primary = s["primary"].as_str().unwrap();
+    assert_ne!(s["programs"][primary]["hash"], r["program_hash"]);
+}
+
+#[test]
+fn a_plc_on_another_base_is_skipped_and_one_already_updated_counts_as_done() {
+    let _t = turn();
+    let mut fleet = Fleet::new();
+    let u1 = fleet.package(&u1_declared(&fleet.root.path().join("u1")), "u1");
+    fleet.start(2, "vernadat/vernadat.toml");
+    fleet.add("plc-u2", "vernadat/u2.toml", "line = \"1\"");
+    fleet.add("plc-u1", "vernadat/u1.toml", "line = \"1\"");
+    fleet.wait_online();
+    let plan = fleet.plan(&u1, "line=1", r#"["1", "100%"]"#, "on_failure = \"stop\"\n");
+    let state = fleet.root.path().join("rollout");
+    let out = fleet
+        .rollout(&["start"], &state)
+        .arg(&plan)
+        .args(["--wait", "--json"])
+        .output()
+        .unwrap();
+    let r = report(&out);
+    assert_eq!(r["outcome"], "done", "{r}");
+    assert_eq!(r["plcs"]["plc-u2"]["step"], "skipped", "{r}");
+    let why = r["plcs"]["plc-u2"]["reason"].as_str().unwrap_or("");
+    assert!(why.contains("not the package's base"), "{why}");
+    assert_eq!(r["plcs"]["plc-u1"]["step"], "done");
+    let loads = fleet.events.count("load_accepted");
+    assert_eq!(
+        loads.keys().collect::<Vec<_>>(),
+        ["plc-00", "plc-01"],
+        "{loads:?}"
+    );
+}
+
+#[test]
+fn a_rollout_killed_mid_stage_resumes_and_loads_no_plc_twice() {
+    let _t = turn();
+    let mut fleet = Fleet::new();
+    let u1 = fleet.package(&u1_declared(&fleet.root.path().join("u1")), "u1");
+    fleet.start(6, "vernadat/vernadat.toml");
+    fleet.wait_online();
+    let plan = fleet.plan(&u1, "*", r#"["1", "100%"]"#, "on_failure = \"stop\"\n");
+    let state = fleet.root.path().join("rollout");
+    let first = ChildGuard::spawn(
+        fleet
+            .rollout(&["start"], &state)
+            .arg(&plan)
+            .args(["--wait", "--json"])
+            .stdout(Stdio::null())
+            .stderr(Stdio::null()),
+    );
+    // Kill it once the second stage has PLCs in quarantine.
+    let end = Instant::now() + Duration::from_secs(90);
+    loop {
+        let rec: Value = std::fs::read(state.join("rollout.json"))
+            .ok()
+            .and_then(|b| serde_json::from_slice(&b).ok())
+            .unwrap_or(Value::Null);
+        let in_quarantine = (rec["plcs"].as_object().into_iter().flatten())
+            .filter(|(_, p)| p["stage"] == 2 && p["step"] == "quarantine")
+            .count();
+        if in_quarantine >= 2 {
+            break;
+        }
+        assert!(
+            Instant::now() < end,
+            "stage 2 never reached quarantine: {rec}"
+        );
+        std::thread::sleep(Duration::from_millis(100));
+    }
+    drop(first); // SIGKILL
+    let out = fleet
+        .rollout(&["resume"], &state)
+        .args(["--wait", "--json"])
+        .output()
+        .unwrap();
+    let r = report(&out);
+    assert_eq!(r["outcome"], "done", "{r}");
+    let loads = fleet.events.count("load_accepted");
+    assert_eq!(loads.len(), 6, "{loads:?}");
+    assert!(
+        loads.values().all(|n| *n == 1),
+        "a PLC loaded twice: {loads:?}"
+    );
+}
+
+#[test]
+fn a_plc_killed_during_its_stage_halts_the_rollout_after_the_plans_silent_time() {
+    let _t = turn();
+    let mut fleet = Fleet::new();
+    let u1 = fleet.package(&u1_declared(&fleet.root.path().join("u1")), "u1");
+    fleet.start(4, "vernadat/vernadat.toml");
+    fleet.wait_online();
+    let plan = fleet.plan(
+        &u1,
+        "*",
+        r#"["1", "100%"]"#,
+        "on_failure = \"stop\"\nsilent = \"3s\"\n",
+    );
+    let text = std::fs::read_to_string(&plan)
+        .unwrap()
+        .replace("\"15s\"", "\"60s\"");
+    std::fs::write(&plan, text).unwrap();
+    let state = fleet.root.path().join("rollout");
+    let mut rollout = fleet.rollout(&["start"], &state);
+    let rollout = rollout
+        .arg(&plan)
+        .args(["--wait", "--json"])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::null())
+        .spawn()
+        .unwrap();
+    let end = Instant::now() + Duration::from_secs(60);
+    loop {
+        let rec: Value = std::fs::read(state.join("rollout.json"))
+            .ok()
+            .and_then(|b| serde_json::from_slice(&b).ok())
+            .unwrap_or(Value::Null);
+        if rec["plcs"]["plc-02"]["step"] == "quarantine" {
+            break;
+        }
+        assert!(
+            Instant::now() < end,
+            "plc-02 never reached quarantine: {rec}"
+        );
+        std::thread::sleep(Duration::from_millis(100));
+    }
+    drop(fleet.plcs.remove("plc-02"));
+    let out = rollout.wait_with_output().unwrap();
+    let r = report(&out);
+    assert_eq!(r["outcome"], "halted", "{r}");
+    let why = r["reason"].as_str().unwrap_or("");
+    assert!(why.starts_with("plc-02: offline for"), "{why}");
+    // The others of its stage were taken back out of quarantine; the canary stays done.
+    assert_eq!(r["plcs"]["plc-00"]["step"], "done", "{r}");
+    for id in ["plc-01", "plc-03"] {
+        assert_eq!(r["plcs"][id]["step"], "removed", "{r}");
+        assert_eq!(fleet.state(id)["status"], "idle", "{id}");
+    }
+}

@@ -267,3 +267,175 @@ fn a_plc_killed_during_its_stage_halts_the_rollout_after_the_plans_silent_time()
         assert_eq!(fleet.state(id)["status"], "idle", "{id}");
     }
 }
+
+/// `cetratus rollout start PLAN --wait --json` on the fleet with state in `dir`: its output.
+fn start(fleet: &Fleet, plan: &std::path::Path, dir: &str) -> std::process::Output {
+    let state = fleet.root.path().join(dir);
+    fleet
+        .rollout(&["start"], &state)
+        .arg(plan)
+        .args(["--wait", "--json", "--discover", "1s"])
+        .output()
+        .unwrap()
+}
+
+/// Every plan the rollout cannot follow is refused before anything is sent, with the file, the
+/// key and what to write; hostile files (one that never ends, one nested 30 000 deep, binary)
+/// cost no more than a refusal.
+#[test]
+fn bad_plans_are_refused_before_anything_is_sent() {
+    let _t = turn();
+    let mut fleet = Fleet::new();
+    let u1 = fleet.package(&u1_declared(&fleet.root.path().join("u1")), "u1");
+    fleet.start(2, "vernadat/vernadat.toml");
+    fleet.add("plc-u2", "vernadat/u2.toml", "line = \"2\"");
+    fleet.wait_online();
+    let good = std::fs::read_to_string(fleet.plan(
+        &u1,
+        "line=1",
+        r#"["1", "100%"]"#,
+        "on_failure = \"stop\"\n",
+    ))
+    .unwrap();
+    let path = fleet.root.path().join("bad.toml");
+    let nested = format!("stages = {}{}\n", "[".repeat(30_000), "]".repeat(30_000));
+    let cases: Vec<(Vec<u8>, &str)> = vec![
+        (b"stages = [\n".to_vec(), "bad.toml: TOML parse error"),
+        (
+            format!("{good}colour = \"red\"\n").into_bytes(),
+            "unknown field `colour`",
+        ),
+        (
+            good.replace("\"15s\"", "\"15\"").into_bytes(),
+            "`quarantine` `15`",
+        ),
+        (nested.into_bytes(), "bad.toml"),
+        (vec![0xff, 0xfe, 0x00, 0x01], "not UTF-8 text"),
+        (
+            vec![b'#'; 70_000],
+            "more than the 65536 bytes a plan may have",
+        ),
+        (
+            good.replace("line=1", "line=9").into_bytes(),
+            "picks no PLC of the fleet",
+        ),
+        (
+            good.replace("select = \"line=1\"", "select = \"line=2\"")
+                .into_bytes(),
+            "no PLC the selector `line=2` picks runs the package's base",
+        ),
+        (
+            good.replace("probation = \"10s\"", "probation = \"30s\"")
+                .into_bytes(),
+            "plc-00: its probation window is 20 s, shorter than the plan's probation of 30 s",
+        ),
+        (
+            good.replace(&u1.display().to_string(), "/dev/zero")
+                .into_bytes(),
+            "more than the 67108864 bytes a package may have",
+        ),
+    ];
+    for (text, says) in cases {
+        std::fs::write(&path, &text).unwrap();
+        let out = start(&fleet, &path, "refused");
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(!out.status.success(), "{says}: started");
+        assert!(err.contains(says), "{says}: {err}");
+    }
+    let out = start(&fleet, std::path::Path::new("/dev/zero"), "refused");
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("more than the 65536 bytes"), "{err}");
+    assert!(
+        fleet.events.count("load_accepted").is_empty(),
+        "a refused plan loaded a PLC"
+    );
+    assert!(
+        !fleet.root.path().join("refused/rollout.json").exists(),
+        "a refused plan was recorded"
+    );
+}
+
+/// A second rollout from the same state directory is refused at once; one from another reaches
+/// a PLC with an update under way and halts there, touching nothing. The first is paused,
+/// resumed and aborted from other processes, and its canary is removed.
+#[test]
+fn a_second_rollout_is_refused_or_halted_and_the_first_is_paused_and_aborted_from_outside() {
+    let _t = turn();
+    let mut fleet = Fleet::new();
+    let u1 = fleet.package(&u1_declared(&fleet.root.path().join("u1")), "u1");
+    fleet.start(3, "vernadat/vernadat.toml");
+    fleet.wait_online();
+    let plan = fleet.plan(&u1, "*", r#"["1", "100%"]"#, "on_failure = \"stop\"\n");
+    let text = std::fs::read_to_string(&plan)
+        .unwrap()
+        .replace("\"15s\"", "\"600s\"");
+    std::fs::write(&plan, text).unwrap();
+    let first_dir = fleet.root.path().join("first");
+    let first = fleet
+        .rollout(&["start"], &first_dir)
+        .arg(&plan)
+        .args(["--wait", "--json"])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::null())
+        .spawn()
+        .unwrap();
+    let record = |dir: &std::path::Path| -> Value {
+        std::fs::read(dir.join("rollout.json"))
+            .ok()
+            .and_then(|b| serde_json::from_slice(&b).ok())
+            .unwrap_or(Value::Null)
+    };
+    let end = Instant::now() + Duration::from_secs(60);
+    while record(&first_dir)["plcs"]["plc-00"]["step"] != "quarantine" {
+        assert!(Instant::now() < end, "the canary never reached quarantine");
+        std::thread::sleep(Duration::from_millis(100));
+    }
+    let same = start(&fleet, &plan, "first");
+    let err = String::from_utf8_lossy(&same.stderr);
+    assert!(err.contains("a rollout process (pid"), "{err}");
+    let other = start(&fleet, &plan, "second");
+    let r = report(&other);
+    assert_eq!(r["outcome"], "halted", "{r}");
+    let why = r["reason"].as_str().unwrap_or("");
+    assert!(
+        why.starts_with("plc-00: an update is already under way"),
+        "{why}"
+    );
+    assert!(
+        r["plcs"]
+            .as_object()
+            .unwrap()
+            .values()
+            .all(|p| p["step"] == "untouched"),
+        "{r}"
+    );
+    // Pause and resume from another process, then abort.
+    let ask = |verb: &str| {
+        let out = fleet.rollout(&[verb], &first_dir).output().unwrap();
+        assert!(
+            out.status.success(),
+            "{verb}: {}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+    };
+    let status = std::process::Command::new(fleet::BIN)
+        .args(["rollout", "pause", "--state-dir"])
+        .arg(&first_dir)
+        .output()
+        .unwrap();
+    assert!(status.status.success());
+    let end = Instant::now() + Duration::from_secs(10);
+    while record(&first_dir)["paused"] != true {
+        assert!(Instant::now() < end, "the pause was not taken");
+        std::thread::sleep(Duration::from_millis(100));
+    }
+    ask("abort");
+    let out = first.wait_with_output().unwrap();
+    let r = report(&out);
+    assert_eq!(r["outcome"], "aborted", "{r}");
+    assert_eq!(r["plcs"]["plc-00"]["step"], "removed", "{r}");
+    assert_eq!(r["plcs"]["plc-01"]["step"], "untouched", "{r}");
+    let loads = fleet.events.count("load_accepted");
+    assert_eq!(loads.keys().collect::<Vec<_>>(), ["plc-00"], "{loads:?}");
+    assert_eq!(fleet.state("plc-00")["status"], "idle");
+}

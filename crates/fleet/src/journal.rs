@@ -110,9 +110,9 @@ impl Journal {
     /// The operator's request waiting in `request`, taken (the file is removed).
     pub fn take_request(&self) -> Option<Request> {
         let path = self.dir.join("request");
-        let text = std::fs::read_to_string(&path).ok()?;
+        let text = crate::plan::read_capped(&path, 64).ok().flatten();
         let _ = std::fs::remove_file(&path);
-        parse_request(text.trim())
+        parse_request(String::from_utf8_lossy(&text?).trim())
     }
 }
 
@@ -130,17 +130,19 @@ pub fn read(dir: &Path) -> Result<Record, FleetError> {
     let path = dir.join("rollout.json");
     let shown = path.display().to_string();
     let io = |e: std::io::Error| FleetError::Io(shown.clone(), e);
-    let meta = std::fs::metadata(&path).map_err(|e| match e.kind() {
-        std::io::ErrorKind::NotFound => FleetError::NoRollout(dir.display().to_string()),
-        _ => io(e),
-    })?;
-    if meta.len() > MAX_RECORD_BYTES {
-        return Err(FleetError::Record {
-            path: shown,
-            reason: format!("{} bytes, more than a rollout's record has", meta.len()),
-        });
-    }
-    let text = std::fs::read(&path).map_err(io)?;
+    let text = match crate::plan::read_capped(&path, MAX_RECORD_BYTES) {
+        Ok(Some(text)) => text,
+        Ok(None) => {
+            return Err(FleetError::Record {
+                path: shown,
+                reason: format!("more than the {MAX_RECORD_BYTES} bytes a rollout's record has"),
+            })
+        }
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => {
+            return Err(FleetError::NoRollout(dir.display().to_string()))
+        }
+        Err(e) => return Err(io(e)),
+    };
     serde_json::from_slice(&text).map_err(|e| FleetError::Record {
         path: shown,
         reason: e.to_string(),

@@ -95,6 +95,17 @@ pub struct Plan {
 /// How long a PLC may go unheard when the plan does not say: 30 s.
 pub const DEFAULT_SILENT_US: u64 = 30_000_000;
 
+/// The file at `path` when it holds at most `max` bytes, `None` when it holds more. It is read
+/// through a limit, so a file that never ends (a device, a pipe) costs `max` bytes at most.
+pub(crate) fn read_capped(path: &Path, max: u64) -> std::io::Result<Option<Vec<u8>>> {
+    use std::io::Read as _;
+    let mut bytes = Vec::new();
+    std::fs::File::open(path)?
+        .take(max + 1)
+        .read_to_end(&mut bytes)?;
+    Ok((bytes.len() as u64 <= max).then_some(bytes))
+}
+
 /// `rollout.toml` as serde reads it.
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -119,17 +130,19 @@ impl Plan {
             path: shown.clone(),
             source,
         };
-        let meta = std::fs::metadata(path).map_err(read)?;
-        if meta.len() > MAX_PLAN_BYTES as u64 {
+        let Some(bytes) = read_capped(path, MAX_PLAN_BYTES as u64).map_err(read)? else {
             return Err(PlanError::Schema {
                 path: shown,
-                message: format!(
-                    "{} bytes, more than the {MAX_PLAN_BYTES} a plan may have",
-                    meta.len()
-                ),
+                message: format!("more than the {MAX_PLAN_BYTES} bytes a plan may have"),
             });
-        }
-        let text = std::fs::read_to_string(path).map_err(read)?;
+        };
+        let text = String::from_utf8(bytes).map_err(|e| PlanError::Schema {
+            path: shown.clone(),
+            message: format!(
+                "not UTF-8 text (byte {}); a plan is TOML",
+                e.utf8_error().valid_up_to()
+            ),
+        })?;
         let dir = path.parent().unwrap_or(Path::new("."));
         Plan::parse(&text, &shown, dir)
     }

@@ -13,6 +13,7 @@ use cetratus_proto::Labels;
 
 use crate::journal::{self, Journal};
 use crate::link::{Link, LinkConfig};
+use crate::plan::read_capped;
 use crate::record::{Outcome, Record, Target};
 use crate::rollout::{Request, Rollout};
 use crate::view::View;
@@ -57,8 +58,12 @@ pub fn start(plan_path: &Path, o: Options) -> Result<Record, FleetError> {
     let mut view = View::new(link.reply_leaf());
     listen(&link, &mut view, o.discover)?;
     let stages = check_fleet(&plan, &target, &view)?;
-    let plan_text = std::fs::read_to_string(plan_path)
-        .map_err(|e| FleetError::Io(plan_path.display().to_string(), e))?;
+    // Read again as it was checked: `Plan::load` refused anything but a small UTF-8 file.
+    let plan_text = read_capped(plan_path, crate::MAX_PLAN_BYTES as u64)
+        .ok()
+        .flatten()
+        .and_then(|b| String::from_utf8(b).ok())
+        .unwrap_or_default();
     let name = plan_path
         .file_stem()
         .map_or("rollout".into(), |s| s.to_string_lossy().into_owned());
@@ -149,14 +154,11 @@ fn read_package(path: &Path) -> Result<(Vec<u8>, Target), FleetError> {
         path: shown.clone(),
         reason,
     };
-    let meta = std::fs::metadata(path).map_err(|e| bad(e.to_string()))?;
-    if meta.len() > MAX_PACKAGE_BYTES {
+    let Some(bytes) = read_capped(path, MAX_PACKAGE_BYTES).map_err(|e| bad(e.to_string()))? else {
         return Err(bad(format!(
-            "{} bytes, more than a package may have",
-            meta.len()
+            "more than the {MAX_PACKAGE_BYTES} bytes a package may have"
         )));
-    }
-    let bytes = std::fs::read(path).map_err(|e| bad(e.to_string()))?;
+    };
     let info = package::inspect(&bytes).map_err(|e| bad(e.to_string()))?;
     let target = Target {
         update: format!("{} {}", info.meta.name, info.meta.version),

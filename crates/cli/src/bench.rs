@@ -163,6 +163,7 @@ fn flood_dashboard(broker: &str) -> Result<harness::BesideParts, harness::BenchE
             ..cetratus_dashboard::AccessConfig::default()
         },
         tls: None,
+        rollouts: None,
     })?;
     let addr = d.local_addr();
     Ok((Box::new(d), Some((addr, "ops".to_string()))))

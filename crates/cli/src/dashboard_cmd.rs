@@ -26,6 +26,13 @@ pub struct DashboardArgs {
     /// The local configuration directory, for its `[dashboard]` accounts.
     #[arg(long)]
     config: Option<std::path::PathBuf>,
+    /// A directory of rollout plans (`*.toml`) that logged-in operators may start from the
+    /// fleet page (docs/fleet.md).
+    #[arg(long)]
+    plans: Option<std::path::PathBuf>,
+    /// The state directory of the page's rollouts.
+    #[arg(long, default_value = "cetratus-rollout")]
+    rollout_state: std::path::PathBuf,
 }
 
 /// Runs `cetratus dashboard` until Ctrl-C.
@@ -48,6 +55,7 @@ pub fn run(args: &DashboardArgs) -> anyhow::Result<()> {
         },
         access: crate::mqtt_args::access_config(&local),
         tls: crate::mqtt_args::dashboard_tls(&local),
+        rollouts: rollouts(args)?,
     })?;
     println!(
         "dashboard on {} watching {}; Ctrl-C stops",
@@ -63,6 +71,30 @@ pub fn run(args: &DashboardArgs) -> anyhow::Result<()> {
     }
     d.stop();
     Ok(())
+}
+
+/// The page's rollouts, when `--plans` is given: on the dashboard's broker, signed with its key.
+fn rollouts(args: &DashboardArgs) -> anyhow::Result<Option<cetratus_dashboard::RolloutConfig>> {
+    let Some(plans) = &args.plans else {
+        return Ok(None);
+    };
+    anyhow::ensure!(
+        plans.is_dir(),
+        "--plans {}: not a directory; give the directory of the rollout plans (*.toml)",
+        plans.display()
+    );
+    Ok(Some(cetratus_dashboard::RolloutConfig {
+        plans: plans.clone(),
+        state_dir: args.rollout_state.clone(),
+        link: cetratus_fleet::LinkConfig {
+            url: args.broker.clone(),
+            credentials: (args.user.clone())
+                .map(|u| (u, args.password.clone().unwrap_or_default())),
+            key: crate::client::operator_key(args.key.as_deref())?,
+            timeout: std::time::Duration::from_secs(10),
+            account: None,
+        },
+    }))
 }
 
 /// `cetratus hash-password`: the first line of stdin (without its line end), hashed for

@@ -123,6 +123,7 @@ fn dashboard_companion(http: &str, local: &LocalConfig) -> anyhow::Result<Compan
             signer: None,
             access,
             tls,
+            rollouts: None,
         })?;
         let companion: Box<dyn Companion> = Box::new(Dashboard(handle));
         Ok(companion)

@@ -128,6 +128,7 @@ fn options(d: &DriveArgs) -> anyhow::Result<Options> {
             credentials: d.broker.credentials(),
             key: crate::client::operator_key(d.key.as_deref())?,
             timeout: Duration::from_secs(10),
+            account: None,
         },
         state_dir: d.dir.state_dir.clone(),
         discover: Duration::from_micros(crate::parse_duration_us(&d.discover)?),

@@ -623,6 +623,8 @@
     $('confirm').hidden = false;
     $('confirm-yes').focus();
   }
+  // The fleet page (fleet.js) asks through the same dialog.
+  window.cetratusAsk = ask;
   function closeDialog() {
     $('confirm').hidden = true;
     pendingAction = null;

@@ -22,12 +22,14 @@ use tokio::sync::{broadcast, watch};
 
 use crate::access::{self, Access, LoginError};
 use crate::hub::{run_mqtt, unix_ms, Hub, Push};
+use crate::rollouts::{Refusal, RolloutConfig, Rollouts};
 
 const INDEX_HTML: &str = include_str!("../assets/index.html");
 const LOGIN_HTML: &str = include_str!("../assets/login.html");
 const LOGIN_JS: &str = include_str!("../assets/login.js");
 const APP_JS: &str = include_str!("../assets/app.js");
 const STYLE_CSS: &str = include_str!("../assets/style.css");
+const FLEET_JS: &str = include_str!("../assets/fleet.js");
 
 /// The PLC refuses command payloads over 1 MiB (docs/mqtt.md); base64 grows a package by 4/3, so
 /// this is the largest package worth forwarding.
@@ -38,6 +40,7 @@ struct App {
     hub: Arc<Hub>,
     access: Arc<Access>,
     shutdown: watch::Receiver<bool>,
+    rollouts: Arc<Rollouts>,
 }
 
 /// The address a request came from, over TCP or TLS.
@@ -62,12 +65,14 @@ impl
     }
 }
 
-/// Serves until `shutdown` turns true, with the MQTT client on the same runtime.
+/// Serves until `shutdown` turns true, with the MQTT client on the same runtime. The pair after
+/// `shutdown` is what the page's operators may command besides watching: single PLCs (signed by
+/// the signer, when there is one) and rollouts (when configured).
 pub(crate) async fn run(
     listener: std::net::TcpListener,
     broker: BrokerUrl,
     shutdown: watch::Receiver<bool>,
-    signer: Option<crate::CommandSigner>,
+    (signer, rollouts): (Option<crate::CommandSigner>, Option<RolloutConfig>),
     token: String,
     access: Arc<Access>,
     tls: Option<tokio_rustls::TlsAcceptor>,
@@ -81,15 +86,18 @@ pub(crate) async fn run(
     };
     let (hub, eventloop) = Hub::new(&broker, signer, &token);
     let mqtt = tokio::spawn(run_mqtt(hub.clone(), eventloop, shutdown.clone()));
+    let rollouts = Arc::new(Rollouts::new(rollouts, hub.sender()));
     let app = App {
         hub,
         access,
         shutdown: shutdown.clone(),
+        rollouts,
     };
     let router = Router::new()
         .route("/", get(index))
         .route("/login", get(login_link))
         .route("/app.js", get(app_js))
+        .route("/fleet.js", get(fleet_js))
         .route("/login.js", get(login_js))
         .route("/style.css", get(style_css))
         .route("/api/login", post(login))
@@ -97,6 +105,8 @@ pub(crate) async fn run(
         .route("/api/plcs", get(plcs))
         .route("/api/plc/{plc}", get(snapshot))
         .route("/api/stream", get(stream))
+        .route("/api/fleet", get(fleet))
+        .route("/api/rollout/{action}", post(rollout))
         .route("/api/{plc}/{verb}", post(command))
         .layer(middleware::from_fn_with_state(app.clone(), guard))
         .layer(DefaultBodyLimit::max(2 << 20))
@@ -310,6 +320,10 @@ async fn app_js() -> Response {
     asset("text/javascript; charset=utf-8", APP_JS)
 }
 
+async fn fleet_js() -> Response {
+    asset("text/javascript; charset=utf-8", FLEET_JS)
+}
+
 async fn style_css() -> Response {
     asset("text/css; charset=utf-8", STYLE_CSS)
 }
@@ -327,6 +341,69 @@ async fn snapshot(State(app): State<App>, Path(plc): Path<String>) -> Response {
         );
     }
     Json(app.hub.fleet().snapshot(&plc)).into_response()
+}
+
+/// `GET /api/fleet`: every PLC's row, and the page's rollout.
+async fn fleet(State(app): State<App>) -> Json<Value> {
+    let rows = app.hub.fleet().rows();
+    Json(json!({ "plcs": rows, "rollout": app.rollouts.status() }))
+}
+
+#[derive(Deserialize)]
+struct StartBody {
+    plan: String,
+}
+
+/// `POST /api/rollout/<start|pause|resume|abort>`: `start` takes `{"plan": "<file name>"}`.
+async fn rollout(
+    State(app): State<App>,
+    Path(action): Path<String>,
+    headers: HeaderMap,
+    body: Bytes,
+) -> Response {
+    if let Err(r) = require_type(&headers, &["application/json"]) {
+        return r;
+    }
+    let Some(account) = app.access.account(&headers) else {
+        return error(
+            StatusCode::UNAUTHORIZED,
+            "unauthorised",
+            "log in first".into(),
+        );
+    };
+    let done = match action.as_str() {
+        "start" => match serde_json::from_slice::<StartBody>(&body) {
+            Ok(b) => app.rollouts.start(&b.plan, &account),
+            Err(e) => Err(Refusal(
+                400,
+                format!("expected {{\"plan\": \"<file name>\"}}: {e}"),
+            )),
+        },
+        "pause" => app
+            .rollouts
+            .request(cetratus_fleet::Request::Pause, &account),
+        "resume" => app
+            .rollouts
+            .request(cetratus_fleet::Request::Resume, &account),
+        "abort" => app
+            .rollouts
+            .request(cetratus_fleet::Request::Abort, &account),
+        other => Err(Refusal(
+            404,
+            format!(
+                "`{}` is not a rollout action; use start, pause, resume or abort",
+                other.escape_debug()
+            ),
+        )),
+    };
+    match done {
+        Ok(()) => (StatusCode::ACCEPTED, Json(json!({"ok": true}))).into_response(),
+        Err(Refusal(status, message)) => error(
+            StatusCode::from_u16(status).unwrap_or(StatusCode::BAD_REQUEST),
+            "refused",
+            message,
+        ),
+    }
 }
 
 fn error(status: StatusCode, code: &str, message: String) -> Response {
@@ -374,6 +451,8 @@ impl Feed {
             }
             Push::Plc(_) => {}
             Push::Restart => self.restart = true,
+            Push::Rollout(report) => self.queue.push_back(sse("rollout", &*report)),
+            Push::RolloutEnded => self.queue.push_back(sse("rollout_ended", &json!({}))),
         }
     }
 }

@@ -89,6 +89,10 @@ pub(crate) enum Push {
     Broker(bool),
     /// Updates were not pushed (the streams are behind): start over from a fresh snapshot.
     Restart,
+    /// The page's rollout changed: its report.
+    Rollout(Arc<Value>),
+    /// The page's rollout ended, or was acted on while none ran: read its status again.
+    RolloutEnded,
 }
 
 /// A command that could not be answered by the PLC: the HTTP status and the reply body.
@@ -195,6 +199,11 @@ impl Hub {
     /// A new receiver of every change.
     pub(crate) fn subscribe(&self) -> broadcast::Receiver<Push> {
         self.tx.subscribe()
+    }
+
+    /// What sends changes to the browsers.
+    pub(crate) fn sender(&self) -> broadcast::Sender<Push> {
+        self.tx.clone()
     }
 
     /// Whether the client is connected to the broker.

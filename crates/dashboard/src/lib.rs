@@ -18,6 +18,7 @@
 //!     signer: None,
 //!     access: AccessConfig::default(),
 //!     tls: None,
+//!     rollouts: None,
 //! })?;
 //! println!("dashboard on {}", handle.login_url()?);
 //! handle.stop();
@@ -30,6 +31,7 @@
 pub mod access;
 mod http;
 mod hub;
+mod rollouts;
 pub mod store;
 pub mod tls;
 
@@ -38,6 +40,7 @@ use std::sync::Arc;
 use std::thread::JoinHandle;
 
 pub use access::{hash_password, AccessConfig, AccessError, Account};
+pub use rollouts::RolloutConfig;
 pub use tls::DashboardTls;
 
 use tokio::sync::watch;
@@ -89,6 +92,8 @@ pub struct DashboardConfig {
     pub access: AccessConfig,
     /// TLS for the page; required when `http` is not a loopback address.
     pub tls: Option<DashboardTls>,
+    /// The fleet page's rollouts; `None` runs none.
+    pub rollouts: Option<RolloutConfig>,
 }
 
 /// Everything that can stop the dashboard from starting.
@@ -262,7 +267,7 @@ pub fn serve(config: DashboardConfig) -> Result<DashboardHandle, DashboardError>
                 listener,
                 broker,
                 shutdown_rx,
-                config.signer,
+                (config.signer, config.rollouts),
                 token,
                 served,
                 acceptor,
@@ -292,6 +297,7 @@ mod tests {
             signer: None,
             access: AccessConfig::default(),
             tls: None,
+            rollouts: None,
         }
     }
 

@@ -345,6 +345,23 @@ pub struct Listed {
     pub online: bool,
 }
 
+/// One PLC on the fleet page.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct Row {
+    /// The PLC id.
+    pub id: String,
+    /// Whether its last `state` said it is online.
+    pub online: bool,
+    /// PRIMARY, when online.
+    pub primary: Option<&'static str>,
+    /// STATUS, when online.
+    pub status: Option<&'static str>,
+    /// PRIMARY's program, `"<name> <version>"`.
+    pub program: Option<String>,
+    /// Its labels.
+    pub labels: cetratus_proto::Labels,
+}
+
 /// Everything a browser needs to draw one PLC at once.
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct Snapshot<'a> {
@@ -473,6 +490,27 @@ impl Fleet {
     /// What was refused or dropped so far.
     pub fn dropped(&self) -> Dropped {
         self.dropped
+    }
+
+    /// One row per PLC for the fleet page, in id order: what its last `state` says.
+    pub fn rows(&self) -> Vec<Row> {
+        let row = |(id, v): (&String, &PlcView)| {
+            let state = match v.state.as_ref().map(|s| &s.data) {
+                Some(Payload::State(StatePayload::Online(s))) => Some(s),
+                _ => None,
+            };
+            Row {
+                id: id.clone(),
+                online: state.is_some(),
+                primary: state.map(|s| s.primary.as_str()),
+                status: state.map(|s| s.status.as_str()),
+                program: state
+                    .and_then(|s| s.programs.get(s.primary))
+                    .map(|p| format!("{} {}", p.name, p.version)),
+                labels: state.map(|s| s.labels.clone()).unwrap_or_default(),
+            }
+        };
+        self.plcs.iter().map(row).collect()
     }
 
     /// The PLC ids with their `online` flag, in id order.

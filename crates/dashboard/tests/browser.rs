@@ -403,6 +403,7 @@ async fn operator_loads_u1_then_substitutes_and_primary_flips_in_the_browser() {
         signer: None,
         access: AccessConfig::default(),
         tls: None,
+        rollouts: None,
     })
     .expect("the dashboard starts");
 

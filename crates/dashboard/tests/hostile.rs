@@ -29,6 +29,7 @@ fn dashboard(broker: &Mosquitto) -> DashboardHandle {
         signer: None,
         access: AccessConfig::default(),
         tls: None,
+        rollouts: None,
     })
     .expect("the dashboard starts")
 }
@@ -425,6 +426,7 @@ fn guessing_passwords_is_rate_limited_and_never_logs_in() {
             hosts: vec![],
         },
         tls: None,
+        rollouts: None,
     })
     .expect("the dashboard starts");
     let addr = dash.local_addr();
@@ -465,6 +467,98 @@ fn guessing_passwords_is_rate_limited_and_never_logs_in() {
     assert!(
         statuses.contains(&429),
         "guesses are rate-limited: {statuses:?}"
+    );
+    dash.stop();
+}
+
+/// The fleet page's rollout actions, sent as an attacker would: a plan named outside the plans'
+/// directory, a file that is no plan, a body that is not the expected JSON, an unknown action,
+/// and any action without a session. Each is refused with what to do, and nothing starts.
+#[test]
+fn rollout_requests_outside_the_plans_directory_or_without_a_session_are_refused() {
+    let broker = Mosquitto::start();
+    let dir = tempfile::tempdir().expect("a directory");
+    let plans = dir.path().join("plans");
+    std::fs::create_dir_all(&plans).expect("plans");
+    std::fs::write(dir.path().join("outside.toml"), "package = \"x\"").expect("a plan outside");
+    std::fs::write(plans.join("notes.txt"), "not a plan").expect("a file that is no plan");
+    let dash = serve(DashboardConfig {
+        http: SocketAddr::from(([127, 0, 0, 1], 0)),
+        broker_url: format!("mqtt://127.0.0.1:{}", broker.port()),
+        user: None,
+        password: None,
+        signer: None,
+        access: AccessConfig::default(),
+        tls: None,
+        rollouts: Some(cetratus_dashboard::RolloutConfig {
+            plans: plans.clone(),
+            state_dir: dir.path().join("state"),
+            link: cetratus_fleet::LinkConfig {
+                url: format!("mqtt://127.0.0.1:{}", broker.port()),
+                credentials: None,
+                key: None,
+                timeout: Duration::from_secs(5),
+                account: None,
+            },
+        }),
+    })
+    .expect("the dashboard starts");
+    let addr = dash.local_addr();
+    let cookie = http::login(&dash.login_url().expect("a login link"));
+    for (path, body, status, says) in [
+        (
+            "/api/rollout/start",
+            r#"{"plan": "../outside.toml"}"#,
+            404,
+            "no plan `../outside.toml`",
+        ),
+        (
+            "/api/rollout/start",
+            r#"{"plan": "/etc/passwd"}"#,
+            404,
+            "no plan",
+        ),
+        (
+            "/api/rollout/start",
+            r#"{"plan": "notes.txt"}"#,
+            404,
+            "no plan `notes.txt`",
+        ),
+        (
+            "/api/rollout/start",
+            r#"{"plan": 7}"#,
+            400,
+            "expected {\"plan\"",
+        ),
+        ("/api/rollout/start", "not json", 400, "expected {\"plan\""),
+        ("/api/rollout/launch", "{}", 404, "not a rollout action"),
+    ] {
+        let (got, v) = post(addr, &cookie, path, body);
+        let message = v["error"]["message"].as_str().unwrap_or("");
+        assert_eq!(got, status, "{path} {body}: {v}");
+        assert!(message.contains(says), "{path} {body}: {message}");
+    }
+    let anonymous = http::request(
+        addr,
+        "POST",
+        "/api/rollout/abort",
+        &[&format!("Host: {addr}"), "Content-Type: application/json"],
+        b"{}",
+    );
+    assert_eq!(anonymous.status, 401, "{}", anonymous.body);
+    let r = http::request(
+        addr,
+        "GET",
+        "/api/fleet",
+        &[&format!("Host: {addr}"), &cookie],
+        b"",
+    );
+    let v = r.json();
+    assert_eq!(v["rollout"]["plans"], json!([]), "{v}");
+    assert_eq!(v["rollout"]["running"], false, "{v}");
+    assert!(
+        !dir.path().join("state/rollout.json").exists(),
+        "nothing was started"
     );
     dash.stop();
 }

@@ -18,6 +18,7 @@ fn config(http: SocketAddr, tls: Option<DashboardTls>) -> DashboardConfig {
         signer: None,
         access: AccessConfig::default(),
         tls,
+        rollouts: None,
     }
 }
 

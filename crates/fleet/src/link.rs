@@ -23,6 +23,7 @@ pub const MAX_MESSAGE: usize = 1 << 20;
 const QUEUE: usize = 4096;
 
 /// Where the broker is, and who the rollout is on it.
+#[derive(Clone)]
 pub struct LinkConfig {
     /// The broker URL (`mqtt://host:port`, `mqtts://…`).
     pub url: String,
@@ -32,6 +33,8 @@ pub struct LinkConfig {
     pub key: Option<OperatorKey>,
     /// How long to wait for the broker.
     pub timeout: Duration,
+    /// The account the signed commands name (a dashboard login), for the PLCs' audit logs.
+    pub account: Option<String>,
 }
 
 /// One message of a PLC: its id, its topic's leaf, its payload.
@@ -50,6 +53,7 @@ pub struct Link {
     client: Client,
     rx: Receiver<Option<Incoming>>,
     key: Option<OperatorKey>,
+    account: Option<String>,
     reply_leaf: String,
     package_b64: String,
 }
@@ -101,6 +105,7 @@ impl Link {
             client,
             rx,
             key: config.key,
+            account: config.account,
             reply_leaf,
             package_b64: base64::engine::general_purpose::STANDARD.encode(package),
         };
@@ -146,7 +151,7 @@ impl Link {
         };
         let correlation = format!("rollout-{verb}-{}", unique()).into_bytes();
         let body = command_payload(
-            self.key.as_ref(),
+            (self.key.as_ref(), self.account.as_deref()),
             plc,
             verb,
             &correlation,

@@ -25,7 +25,7 @@ pub const MAX_PACKAGE_BYTES: u64 = 64 << 20;
 const TICK: Duration = Duration::from_millis(100);
 
 /// Called with the record and the new log lines after each change.
-pub type Progress = Box<dyn FnMut(&Record, &[String])>;
+pub type Progress = Box<dyn FnMut(&Record, &[String]) + Send>;
 
 /// What every run needs besides the plan or the record.
 pub struct Options {

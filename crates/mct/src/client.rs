@@ -15,6 +15,7 @@ use serde_json::Value;
 use crate::{client_options, sign, unix_now, MctError, Signed};
 
 /// An operator key that signs commands: its id and the secret key.
+#[derive(Clone)]
 pub struct OperatorKey {
     /// The key id, as the PLC's `operators/` directory knows it.
     pub id: String,
@@ -342,14 +343,15 @@ impl Session {
     /// and to the request's correlation data.
     fn body(&self, verb: Verb, correlation: &[u8], body: &Value) -> Result<Vec<u8>, MctError> {
         let plc = self.topics.plc().as_str();
-        command_payload(self.key.as_ref(), plc, verb, correlation, body)
+        command_payload((self.key.as_ref(), None), plc, verb, correlation, body)
     }
 }
 
 /// The payload of a command to `plc`: the body, or, with an operator key, a signed envelope
-/// holding it, bound to the PLC and to the request's correlation data.
+/// holding it, bound to the PLC and to the request's correlation data, and naming the account
+/// the signer acts for when one is given.
 pub fn command_payload(
-    key: Option<&OperatorKey>,
+    (key, account): (Option<&OperatorKey>, Option<&str>),
     plc: &str,
     verb: Verb,
     correlation: &[u8],
@@ -367,7 +369,7 @@ pub fn command_payload(
         correlation,
         timestamp: unix_now(),
         nonce: &nonce,
-        account: None,
+        account,
     };
     let env = sign(&signed, &inner, &k.id, &k.key);
     serde_json::to_vec(&serde_json::json!({ "envelope": env }))

@@ -86,6 +86,7 @@ const RULES: &[(&str, Allowed)] = &[
             "cetratus-vocab",
             "cetratus-proto",
             "cetratus-mct",
+            "cetratus-fleet",
             "cetratus-net",
             "cetratus-slots",
         ]),

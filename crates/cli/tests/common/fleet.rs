@@ -1,6 +1,9 @@
 //! A fleet of real PLC processes (the Vernadat cell on its twin, fast) on a real Mosquitto, the
 //! packages a rollout takes across it, and a record of every event the PLCs publish.
 
+// Each test binary that includes this file uses a part of it.
+#![allow(dead_code)]
+
 use std::collections::BTreeMap;
 use std::io::{BufRead as _, BufReader};
 use std::path::{Path, PathBuf};

@@ -439,3 +439,29 @@ fn a_second_rollout_is_refused_or_halted_and_the_first_is_paused_and_aborted_fro
     assert_eq!(loads.keys().collect::<Vec<_>>(), ["plc-00"], "{loads:?}");
     assert_eq!(fleet.state("plc-00")["status"], "idle");
 }
+
+/// Two sites, each with its broker, bridged as two plants' brokers would be: half the PLCs on
+/// each, the rollout connected to one. It sees every PLC's state through the bridge, its
+/// commands reach the other site's PLCs, and their replies and events come back.
+#[test]
+fn a_rollout_on_one_of_two_bridged_brokers_updates_the_plcs_of_both() {
+    let _t = turn();
+    let mut fleet = Fleet::new();
+    let u1 = fleet.package(&u1_declared(&fleet.root.path().join("u1")), "u1");
+    let other = fleet.site();
+    fleet.start(2, "vernadat/vernadat.toml");
+    for id in ["plc-10", "plc-11"] {
+        fleet.add_at(id, "vernadat/vernadat.toml", "line = \"1\"", &other);
+    }
+    fleet.wait_online();
+    let plan = fleet.plan(&u1, "line=1", r#"["1", "100%"]"#, "on_failure = \"stop\"\n");
+    let out = start(&fleet, &plan, "rollout");
+    let r = report(&out);
+    assert_eq!(r["outcome"], "done", "{r}");
+    for id in ["plc-00", "plc-01", "plc-10", "plc-11"] {
+        assert_eq!(r["plcs"][id]["step"], "done", "{id}: {r}");
+    }
+    let loads = fleet.events.count("load_accepted");
+    assert_eq!(loads.len(), 4, "{loads:?}");
+    assert!(loads.values().all(|n| *n == 1), "{loads:?}");
+}

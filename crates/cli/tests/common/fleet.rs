@@ -28,6 +28,8 @@ pub struct Fleet {
     pub plcs: BTreeMap<String, ChildGuard>,
     pub trusted: PathBuf,
     pub events: Events,
+    /// Brokers of other sites, bridged to `broker`.
+    pub sites: Vec<Mosquitto>,
 }
 
 impl Fleet {
@@ -44,7 +46,22 @@ impl Fleet {
             plcs: BTreeMap::new(),
             trusted,
             events,
+            sites: Vec::new(),
         }
+    }
+
+    /// Starts the broker of another site, bridged to the fleet's own as two plants' brokers
+    /// would be (every `cetratus/` topic both ways); its URL.
+    pub fn site(&mut self) -> String {
+        let bridge = format!(
+            "allow_anonymous true\npersistence false\nconnection plant\n\
+             address 127.0.0.1:{}\ntopic cetratus/# both 1\ncleansession true\n",
+            self.broker.port()
+        );
+        let site = Mosquitto::start_with(&bridge);
+        let url = format!("mqtt://127.0.0.1:{}", site.port());
+        self.sites.push(site);
+        url
     }
 
     /// Starts `n` PLCs `plc-00` … of line 1, each running `program` (an example path). The
@@ -57,6 +74,12 @@ impl Fleet {
 
     /// Starts one more PLC, with `labels` and a probation window of 20 s.
     pub fn add(&mut self, id: &str, program: &str, labels: &str) {
+        let url = self.url();
+        self.add_at(id, program, labels, &url);
+    }
+
+    /// [`Fleet::add`] on the broker at `url`.
+    pub fn add_at(&mut self, id: &str, program: &str, labels: &str, url: &str) {
         let config = self.root.path().join(format!("config-{id}"));
         std::fs::create_dir_all(&config).unwrap();
         std::fs::write(
@@ -69,7 +92,7 @@ impl Fleet {
                 .arg("run")
                 .arg(example(program))
                 .args(["--twin", "vernadat", "--speed", SPEED, "--period", "20ms"])
-                .args(["--no-dashboard", "--plc", id, "--broker", &self.url()])
+                .args(["--no-dashboard", "--plc", id, "--broker", url])
                 .arg("--config")
                 .arg(&config)
                 .arg("--trust")

@@ -308,7 +308,7 @@ fn dashboard_login(process: &mut std::process::Child, http: u16) -> Result<Strin
 }
 
 /// Kills a child process when dropped.
-struct Child(std::process::Child);
+pub(crate) struct Child(pub(crate) std::process::Child);
 
 impl Drop for Child {
     fn drop(&mut self) {
@@ -318,7 +318,7 @@ impl Drop for Child {
 }
 
 /// CPU seconds (user + system) a process has used, from /proc.
-fn cpu_seconds(pid: u32) -> Result<f64, BenchError> {
+pub(crate) fn cpu_seconds(pid: u32) -> Result<f64, BenchError> {
     let stat = std::fs::read_to_string(format!("/proc/{pid}/stat"))?;
     // Fields after the command name, which is in parentheses and may hold spaces.
     let rest = stat.rsplit_once(')').map_or("", |(_, r)| r);
@@ -329,7 +329,7 @@ fn cpu_seconds(pid: u32) -> Result<f64, BenchError> {
 }
 
 /// A free TCP port on the loopback interface.
-fn free_port() -> Result<u16, BenchError> {
+pub(crate) fn free_port() -> Result<u16, BenchError> {
     Ok(std::net::TcpListener::bind("127.0.0.1:0")?
         .local_addr()?
         .port())
@@ -337,7 +337,7 @@ fn free_port() -> Result<u16, BenchError> {
 
 /// Waits until a process listens on `port`, for 20 s at most: what it serves is then asked for,
 /// and fails clearly if it is still missing.
-fn wait_for_port(port: u16) {
+pub(crate) fn wait_for_port(port: u16) {
     use std::time::{Duration, Instant};
     let end = Instant::now() + Duration::from_secs(20);
     while Instant::now() < end && std::net::TcpStream::connect(("127.0.0.1", port)).is_err() {
@@ -346,7 +346,7 @@ fn wait_for_port(port: u16) {
 }
 
 /// Starts a Mosquitto on a free port, and returns it with the port.
-fn start_mosquitto() -> Result<(Child, u16), BenchError> {
+pub(crate) fn start_mosquitto() -> Result<(Child, u16), BenchError> {
     use std::process::{Command, Stdio};
     let mosquitto = ["/usr/sbin/mosquitto", "/usr/bin/mosquitto"]
         .into_iter()
@@ -406,7 +406,10 @@ fn start_plcs(
 
 /// Starts `cetratus dashboard` on the broker at `url` with its dashboard on a free port, and logs in;
 /// the process, the dashboard's port and the session's `Cookie` header line.
-fn start_dashboard(exe: &std::path::Path, url: &str) -> Result<(Child, u16, String), BenchError> {
+pub(crate) fn start_dashboard(
+    exe: &std::path::Path,
+    url: &str,
+) -> Result<(Child, u16, String), BenchError> {
     use std::process::{Command, Stdio};
     let http = free_port()?;
     let mut dashboard = Child(
@@ -428,7 +431,7 @@ fn start_dashboard(exe: &std::path::Path, url: &str) -> Result<(Child, u16, Stri
 }
 
 /// How many PLCs the dashboard at port `http` lists.
-fn plcs_listed(http: u16, cookie: &str) -> Result<usize, BenchError> {
+pub(crate) fn plcs_listed(http: u16, cookie: &str) -> Result<usize, BenchError> {
     use std::io::Write;
     let mut stream = std::net::TcpStream::connect(("127.0.0.1", http))?;
     write!(
@@ -446,7 +449,7 @@ fn plcs_listed(http: u16, cookie: &str) -> Result<usize, BenchError> {
 
 /// The update latency, in ms, of every io message of `cell0` that the dashboard at port `http`
 /// delivers to a stream client, as a browser is one, until `for_us` after `t0`.
-fn update_latencies(
+pub(crate) fn update_latencies(
     http: u16,
     cookie: &str,
     t0: std::time::Instant,

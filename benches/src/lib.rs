@@ -14,6 +14,7 @@ pub mod harness;
 pub mod io;
 pub mod measure;
 pub mod program;
+pub mod rollout;
 pub mod st;
 pub mod update;
 pub mod workloads;

@@ -54,6 +54,19 @@ enum What {
         #[arg(long)]
         json: bool,
     },
+    /// A rollout of U.1 across N PLC processes on one Mosquitto: the control plane's own time
+    /// per PLC and per stage, the dashboard's latency meanwhile, one PLC's memory.
+    Rollout {
+        /// How many PLC processes.
+        #[arg(long, default_value_t = 50)]
+        n: usize,
+        /// Their scan period.
+        #[arg(long, default_value = "100ms")]
+        period: String,
+        /// Print one JSON object.
+        #[arg(long)]
+        json: bool,
+    },
     /// Scan latency with and without a flood of MQTT commands (mixed valid and invalid).
     CommandLoad {
         /// Commands per second during the loaded phase.
@@ -198,6 +211,12 @@ pub fn run(args: &BenchArgs) -> anyhow::Result<()> {
     {
         let exe = std::env::current_exe()?;
         let out = harness::fleet(&exe, *n, period, parse_duration_us(for_)?)
+            .map_err(|e| anyhow::anyhow!("{e}"))?;
+        return print(&out, *json || args.json);
+    }
+    if let Some(What::Rollout { n, period, json }) = &args.what {
+        let exe = std::env::current_exe()?;
+        let out = cetratus_bench::rollout::rollout(&exe, *n, period)
             .map_err(|e| anyhow::anyhow!("{e}"))?;
         return print(&out, *json || args.json);
     }

@@ -163,6 +163,7 @@ impl Hub {
         };
         let mut opts = MqttOptions::new(client_id.clone(), target.host(), target.port());
         opts.set_keep_alive(Duration::from_secs(10))
+            .set_outgoing_inflight_upper_limit(cetratus_mct::MAX_INFLIGHT)
             .set_clean_start(true)
             .set_max_packet_size(Some(MAX_PACKET));
         if let Some((u, p)) = target.credentials() {

@@ -101,10 +101,13 @@ impl Journal {
         std::fs::rename(&tmp, self.dir.join("rollout.json")).map_err(io)
     }
 
-    /// Appends `line` to `rollout.log`, with the wall-clock time.
+    /// Appends `line` to `rollout.log`, after the wall-clock time in Unix seconds (to the
+    /// millisecond).
     pub fn log(&mut self, line: &str) {
-        let now = cetratus_mct::unix_now();
-        let _ = writeln!(self.log, "{now} {line}");
+        let now = std::time::SystemTime::now()
+            .duration_since(std::time::UNIX_EPOCH)
+            .map_or(0.0, |d| d.as_secs_f64());
+        let _ = writeln!(self.log, "{now:.3} {line}");
     }
 
     /// The operator's request waiting in `request`, taken (the file is removed).

@@ -70,7 +70,8 @@ pub use ingress::{
 };
 pub use link::{
     client_options, join_within, spawn_mqtt, start, BrokerChoice, LinkStats, MctLink, MqttConfig,
-    MqttHandle, Outgoing, StatsReader, COMMAND_QUEUE_BYTES, DEFAULT_MQTT_ADDR, STOP_WITHIN,
+    MqttHandle, Outgoing, StatsReader, COMMAND_QUEUE_BYTES, DEFAULT_MQTT_ADDR, MAX_INFLIGHT,
+    STOP_WITHIN,
 };
 pub use rumqttc::v5::MqttOptions;
 pub use strikes::{STRIKES, STRIKE_WINDOW};

@@ -411,6 +411,11 @@ impl Drop for MqttHandle {
     }
 }
 
+/// Most QoS 1 publishes of one client that may await their acknowledgement at once; more wait in
+/// the client's request queue. rumqttc keeps a slot for every one that may be in flight, and its
+/// default (65,535) costs 14 MiB a client, most of a PLC's resident memory.
+pub const MAX_INFLIGHT: u16 = 256;
+
 /// Client options for a broker URL (`mqtt://[user:password@]host[:port]`, `mqtts://…`; the one
 /// parser is [`BrokerUrl`]).
 pub fn client_options(url: &str, client_id: &str) -> Result<MqttOptions, MctError> {
@@ -422,6 +427,7 @@ pub fn client_options(url: &str, client_id: &str) -> Result<MqttOptions, MctErro
         },
     })?;
     let mut o = MqttOptions::new(client_id, u.host(), u.port());
+    o.set_outgoing_inflight_upper_limit(MAX_INFLIGHT);
     if u.tls() {
         // Both ring and aws-lc-rs end up in the dependency tree, so rustls cannot choose on its
         // own and would panic on the first handshake. An `Err` means a provider is already

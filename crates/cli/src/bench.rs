@@ -202,35 +202,8 @@ pub fn run(args: &BenchArgs) -> anyhow::Result<()> {
         cetratus_net::pnml::write_file(&net, out)?;
         return Ok(());
     }
-    if let Some(What::Fleet {
-        n,
-        period,
-        for_,
-        json,
-    }) = &args.what
-    {
-        let exe = std::env::current_exe()?;
-        let out = harness::fleet(&exe, *n, period, parse_duration_us(for_)?)
-            .map_err(|e| anyhow::anyhow!("{e}"))?;
-        return print(&out, *json || args.json);
-    }
-    if let Some(What::Rollout { n, period, json }) = &args.what {
-        let exe = std::env::current_exe()?;
-        let out = cetratus_bench::rollout::rollout(&exe, *n, period)
-            .map_err(|e| anyhow::anyhow!("{e}"))?;
-        return print(&out, *json || args.json);
-    }
-    if let Some(What::CommandLoad {
-        rate,
-        for_,
-        period,
-        json,
-    }) = &args.what
-    {
-        let out =
-            harness::command_load(*rate, parse_duration_us(for_)?, parse_duration_us(period)?)
-                .map_err(|e| anyhow::anyhow!("{e}"))?;
-        return print(&out, *json || args.json);
+    if let Some(done) = over_mqtt(args) {
+        return done;
     }
     if let Some(What::Fuzz {
         for_,
@@ -307,6 +280,60 @@ pub fn run(args: &BenchArgs) -> anyhow::Result<()> {
     }
     let out = harness::all_figures(args.quick).map_err(|e| anyhow::anyhow!("{e}"))?;
     print(&out, args.json)
+}
+
+/// The harnesses of many processes over MQTT (`fleet`, `rollout`, `command-load`): their result,
+/// or `None` when `args` asks for another.
+fn over_mqtt(args: &BenchArgs) -> Option<anyhow::Result<()>> {
+    if let Some(What::Fleet {
+        n,
+        period,
+        for_,
+        json,
+    }) = &args.what
+    {
+        let exe = match std::env::current_exe() {
+            Ok(e) => e,
+            Err(e) => return Some(Err(e.into())),
+        };
+        let out = parse_duration_us(for_).and_then(|us| {
+            harness::fleet(&exe, *n, period, us).map_err(|e| anyhow::anyhow!("{e}"))
+        });
+        let out = match out {
+            Ok(out) => out,
+            Err(e) => return Some(Err(e)),
+        };
+        return Some(print(&out, *json || args.json));
+    }
+    if let Some(What::Rollout { n, period, json }) = &args.what {
+        let exe = match std::env::current_exe() {
+            Ok(e) => e,
+            Err(e) => return Some(Err(e.into())),
+        };
+        let out = match cetratus_bench::rollout::rollout(&exe, *n, period) {
+            Ok(out) => out,
+            Err(e) => return Some(Err(anyhow::anyhow!("{e}"))),
+        };
+        return Some(print(&out, *json || args.json));
+    }
+    if let Some(What::CommandLoad {
+        rate,
+        for_,
+        period,
+        json,
+    }) = &args.what
+    {
+        let out = parse_duration_us(for_).and_then(|f| {
+            let p = parse_duration_us(period)?;
+            harness::command_load(*rate, f, p).map_err(|e| anyhow::anyhow!("{e}"))
+        });
+        let out = match out {
+            Ok(out) => out,
+            Err(e) => return Some(Err(e)),
+        };
+        return Some(print(&out, *json || args.json));
+    }
+    None
 }
 
 fn print(out: &BTreeMap<String, serde_json::Value>, json: bool) -> anyhow::Result<()> {

@@ -200,8 +200,9 @@ END_PROGRAM
 }
 
 /// A saved state is read from disk before the first scan: a RETAIN string whose saved length
-/// is longer than its capacity (a damaged or edited `state.json`) is not restored, and the PLC
-/// starts; a state file larger than any PLC writes is refused before it is read.
+/// is longer than its capacity (a damaged or edited `state.json`) is not restored, the warm
+/// start says so by name, and the PLC starts; a state file larger than any PLC writes is
+/// refused before it is read.
 #[test]
 fn a_damaged_retained_string_in_the_saved_state_is_not_restored_and_the_plc_starts() {
     let dir = tempfile::tempdir().expect("a temporary directory");
@@ -251,8 +252,13 @@ END_PROGRAM
     word["text"][0] = 255.into();
     word["text"][1] = 255.into();
     std::fs::write(&file, serde_json::to_string(&saved).expect("JSON")).expect("write");
-    let out = ok(&run());
+    let warm = run();
+    let out = ok(&warm) + &String::from_utf8_lossy(&warm.stderr);
     assert!(out.contains("faults          none"), "{out}");
+    assert!(
+        out.contains("WARNING: 1 saved RETAIN variable(s)") && out.contains("initial values: word"),
+        "the warm start says what it did not restore: {out}"
+    );
     let csv = std::fs::read_to_string(&trace).expect("the trace");
     let first = csv.lines().nth(1).expect("a row");
     // count kept (6 scans before), word back at its initial 'ab'.

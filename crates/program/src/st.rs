@@ -135,13 +135,21 @@ impl StProgram {
     /// A warm restart (docs/st.md, *Restarts*): the RETAIN variables of `saved` are written back
     /// into `state` by name (case-insensitive); every other variable keeps the initial value
     /// `state` holds, as IEC 61131-3 initializes non-RETAIN variables on a warm restart. A saved
-    /// variable this POU does not declare RETAIN, or whose size has changed, is not restored.
-    pub fn restore_retained(&self, state: &mut State, saved: &[RetainedSt]) {
+    /// variable this POU does not declare RETAIN, whose size has changed, or whose STRING is
+    /// longer than its capacity (a damaged or edited state file) is not restored: it keeps its
+    /// initial value, and its name (cut to 64 characters) is returned, for the warm start to say.
+    pub fn restore_retained(&self, state: &mut State, saved: &[RetainedSt]) -> Vec<String> {
+        let mut not_restored = Vec::new();
         for r in saved {
-            if let Some(v) = self.unit.var(&r.name).filter(|v| v.retain) {
-                self.unit.restore(state, v, &r.slots, &r.text);
+            let restored = match self.unit.var(&r.name).filter(|v| v.retain) {
+                Some(v) => self.unit.restore(state, v, &r.slots, &r.text),
+                None => false,
+            };
+            if !restored {
+                not_restored.push(r.name.chars().take(64).collect());
             }
         }
+        not_restored
     }
 
     /// The indices of the output signals the POU drives.

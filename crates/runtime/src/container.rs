@@ -679,13 +679,18 @@ impl Container {
         }
     }
 
-    /// Restores the RETAIN variables of the program's Structured Text (warm start).
-    pub fn restore_st_retained(&mut self, saved: &[RetainedSt]) {
+    /// Restores the RETAIN variables of the program's Structured Text (warm start); the names of
+    /// the saved ones that could not be restored and start from their initial values.
+    pub fn restore_st_retained(&mut self, saved: &[RetainedSt]) -> Vec<String> {
         let program = self.program.clone();
-        if let (Some(st), Some(state)) = (program.st(), self.actions.st_state_mut()) {
-            st.restore_retained(state, saved);
-        }
         self.force_full = true;
+        match (program.st(), self.actions.st_state_mut()) {
+            (Some(st), Some(state)) => st.restore_retained(state, saved),
+            _ => saved
+                .iter()
+                .map(|r| r.name.chars().take(64).collect())
+                .collect(),
+        }
     }
 
     /// Restores variables and latches (warm start).

@@ -128,8 +128,9 @@ impl Plc {
             })
             .collect();
         container.restore_retained(&vars, &cs.latches);
-        // The program is the one saved (its hash), so every saved RETAIN variable is there.
-        container.restore_st_retained(&cs.st_retained);
+        // The program is the one saved (its hash), so every saved RETAIN variable is there,
+        // unless the file was damaged or edited.
+        let not_restored = container.restore_st_retained(&cs.st_retained);
         container.resume_without_entry();
         let image = container.inputs().to_vec();
         let mut plc = Plc::bare(container, primary, now, &io_program, stopwatch);
@@ -147,12 +148,13 @@ impl Plc {
         core.log.push(
             EventKind::WarmStart,
             format!(
-                "warm start: PRIMARY = {} resumes {} {} at cycle {} ({:.3} s)",
+                "warm start: PRIMARY = {} resumes {} {} at cycle {} ({:.3} s){}",
                 primary.as_str(),
                 prog.name(),
                 prog.version(),
                 snap.cycle,
-                now as f64 / 1e6
+                now as f64 / 1e6,
+                not_restored_note(&not_restored)
             ),
             None,
         );
@@ -181,4 +183,21 @@ impl Plc {
         }
         Ok(plc)
     }
+}
+
+/// What a warm start says of saved RETAIN variables it could not restore: empty when there are
+/// none, else their count and the first eight names.
+fn not_restored_note(names: &[String]) -> String {
+    if names.is_empty() {
+        return String::new();
+    }
+    let shown: Vec<&str> = names.iter().take(8).map(String::as_str).collect();
+    let more = if names.len() > 8 { ", …" } else { "" };
+    format!(
+        "; WARNING: {} saved RETAIN variable(s) of its Structured Text could not be restored \
+         (another size, or a STRING longer than its capacity: the state file was damaged or \
+         edited) and start from their initial values: {}{more}",
+        names.len(),
+        shown.join(", ")
+    )
 }

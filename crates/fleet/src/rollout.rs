@@ -137,6 +137,10 @@ impl Rollout {
             return None;
         }
         let seen = view.get(id)?;
+        if let Some(why) = self.unanswered(seen, now) {
+            self.give_up(id, &p, why);
+            return None;
+        }
         let stopping = matches!(self.record.outcome, Outcome::Stopping { .. });
         if stopping && !matches!(p.step, Step::Removing | Step::Reverting) {
             return None;
@@ -159,6 +163,29 @@ impl Rollout {
             Some(_) => format!("silent for {secs} s, past the plan's `silent`"),
             None => format!("not heard on the broker for {secs} s, past the plan's `silent`"),
         };
+        self.give_up(id, p, why);
+        true
+    }
+
+    /// Why the rollout's last command to the PLC counts as lost: no reply within the plan's
+    /// `silent` time, though the PLC is heard (a broker whose ACL drops the command, a PLC too
+    /// busy to read it).
+    fn unanswered(&self, seen: &Seen, now: Instant) -> Option<String> {
+        let p = seen.pending.as_ref().filter(|p| p.reply.is_none())?;
+        let waited = now.saturating_duration_since(p.at);
+        (waited >= Duration::from_micros(self.plan.silent_us)).then(|| {
+            format!(
+                "its {} had no reply for {} s, past the plan's `silent`; check that the broker \
+                 lets the rollout's account command it (its ACL)",
+                p.verb,
+                waited.as_secs()
+            )
+        })
+    }
+
+    /// A PLC the rollout cannot go on with: a failure, or, while the rollout stops, a PLC left
+    /// as it was, and said so, that the stop no longer waits for.
+    fn give_up(&mut self, id: &str, p: &PlcRecord, why: String) {
         if matches!(self.record.outcome, Outcome::Stopping { .. }) {
             let left = format!("{why}; left {} as it was", p.step.as_str());
             self.set(id, p.step, Some(left), None);
@@ -168,7 +195,6 @@ impl Rollout {
         } else {
             self.fail(id, p.step, why);
         }
-        true
     }
 
     /// Starts the next PLCs of the stage under way, up to `max_parallel` mid-update; moves to

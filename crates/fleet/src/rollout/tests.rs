@@ -401,3 +401,32 @@ fn pause_takes_no_plc_further_and_abort_reverts_the_one_in_probation() {
     assert_eq!(r.record.outcome, Outcome::Aborted);
     assert_eq!(r.record.plcs["p1"].step, Step::Reverted);
 }
+
+#[test]
+fn a_command_with_no_reply_past_the_silent_time_halts_the_rollout() {
+    let mut r = rollout("silent = \"5s\"", &["p1", "p2"]);
+    let mut v = View::new("reply/x");
+    let t0 = Instant::now();
+    put(
+        &mut v,
+        "p1",
+        "state",
+        &state("idle", "A", BASE, None, 0),
+        t0,
+    );
+    assert_eq!(tick(&mut r, &mut v, t0), [("p1".into(), Verb::Load)]);
+    // The PLC is heard all along, but its load is never answered (an ACL dropped it).
+    let later = t0 + Duration::from_secs(6);
+    put(
+        &mut v,
+        "p1",
+        "state",
+        &state("idle", "A", BASE, None, 60),
+        later,
+    );
+    assert!(tick(&mut r, &mut v, later).is_empty());
+    assert_eq!(r.record.outcome, Outcome::Halted);
+    assert_eq!(r.record.plcs["p1"].step, Step::Untouched);
+    let why = r.record.reason.clone().unwrap_or_default();
+    assert!(why.contains("its load had no reply for 6 s"), "{why}");
+}

@@ -125,6 +125,14 @@ struct File {
 impl Plan {
     /// Reads and checks the plan at `path`.
     pub fn load(path: &Path) -> Result<Plan, PlanError> {
+        let text = Plan::read(path)?;
+        let dir = path.parent().unwrap_or(Path::new("."));
+        Plan::parse(&text, &path.display().to_string(), dir)
+    }
+
+    /// The text of the plan file at `path`, read through the limit of [`MAX_PLAN_BYTES`]: a
+    /// larger file, or one that is not UTF-8, is refused.
+    pub fn read(path: &Path) -> Result<String, PlanError> {
         let shown = path.display().to_string();
         let read = |source| PlanError::Read {
             path: shown.clone(),
@@ -136,15 +144,13 @@ impl Plan {
                 message: format!("more than the {MAX_PLAN_BYTES} bytes a plan may have"),
             });
         };
-        let text = String::from_utf8(bytes).map_err(|e| PlanError::Schema {
+        String::from_utf8(bytes).map_err(|e| PlanError::Schema {
             path: shown.clone(),
             message: format!(
                 "not UTF-8 text (byte {}); a plan is TOML",
                 e.utf8_error().valid_up_to()
             ),
-        })?;
-        let dir = path.parent().unwrap_or(Path::new("."));
-        Plan::parse(&text, &shown, dir)
+        })
     }
 
     /// Checks the plan `text` (named `path` in messages); its package is resolved against `dir`.

@@ -41,7 +41,10 @@ pub struct Options {
 
 /// Starts the rollout of the plan at `plan_path`, and drives it to its end.
 pub fn start(plan_path: &Path, o: Options) -> Result<Record, FleetError> {
-    let plan = Plan::load(plan_path)?;
+    let shown = plan_path.display().to_string();
+    let plan_text = Plan::read(plan_path)?;
+    let plan_dir = plan_path.parent().unwrap_or(Path::new("."));
+    let plan = Plan::parse(&plan_text, &shown, plan_dir)?;
     let (bytes, target) = read_package(&plan.package)?;
     let journal = Journal::hold(&o.state_dir)?;
     if let Ok(old) = journal::read(&o.state_dir) {
@@ -58,17 +61,10 @@ pub fn start(plan_path: &Path, o: Options) -> Result<Record, FleetError> {
     let mut view = View::new(link.reply_leaf());
     listen(&link, &mut view, o.discover)?;
     let stages = check_fleet(&plan, &target, &view)?;
-    // Read again as it was checked: `Plan::load` refused anything but a small UTF-8 file.
-    let plan_text = read_capped(plan_path, crate::MAX_PLAN_BYTES as u64)
-        .ok()
-        .flatten()
-        .and_then(|b| String::from_utf8(b).ok())
-        .unwrap_or_default();
     let name = plan_path
         .file_stem()
         .map_or("rollout".into(), |s| s.to_string_lossy().into_owned());
     let id = format!("{name}-{}", cetratus_mct::unix_now());
-    let shown = plan_path.display().to_string();
     let record = Record::new(id, (&shown, &plan_text), target, stages);
     journal.save(&record)?;
     drive(journal, link, view, Rollout::new(plan, record), o.progress)

@@ -7,34 +7,37 @@ use std::collections::BTreeMap;
 
 use serde::{Deserialize, Serialize};
 
-/// Where one PLC stands in the rollout. The last step of each PLC is what the report shows.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(rename_all = "snake_case")]
-pub enum Step {
-    /// Not reached yet, or its load was refused and nothing changed.
-    Untouched,
-    /// The package was sent; waiting for it to run in quarantine.
-    Loading,
-    /// The candidate runs in quarantine; waiting out the least time (and the verdict).
-    Quarantine,
-    /// The substitution was sent; waiting for probation.
-    Substituting,
-    /// The new program drives the outputs; waiting out the least time in probation.
-    Probation,
-    /// The accept was sent; waiting for the update to be final.
-    Accepting,
-    /// The PLC runs the package's program, accepted: final (docs/live-update.md).
-    Done,
-    /// Not updated: it runs another base program, or is otherwise not the package's to update.
-    Skipped,
-    /// The remove (or abort) was sent; waiting for the candidate to be gone.
-    Removing,
-    /// Its candidate was removed from quarantine; it runs its old program.
-    Removed,
-    /// The revert was sent; waiting for the old program to be primary again.
-    Reverting,
-    /// Reverted in probation; it runs its old program.
-    Reverted,
+cetratus_vocab::names! {
+    /// Where one PLC stands in the rollout. The last step of each PLC is what the report shows.
+    Step, "rollout step",
+        "untouched, loading, quarantine, substituting, probation, accepting, done, skipped, \
+         removing, removed, reverting or reverted" {
+        /// Not reached yet, or its load was refused and nothing changed.
+        Untouched = "untouched",
+        /// The package was sent; waiting for it to run in quarantine.
+        Loading = "loading",
+        /// The candidate runs in quarantine; waiting out the least time (and the verdict).
+        Quarantine = "quarantine",
+        /// The substitution was sent; waiting for probation.
+        Substituting = "substituting",
+        /// The new program drives the outputs; waiting out the least time in probation.
+        Probation = "probation",
+        /// The accept was sent; waiting for the update to be final.
+        Accepting = "accepting",
+        /// The PLC runs the package's program, accepted: final (docs/live-update.md).
+        Done = "done",
+        /// Not updated: it runs another base program, or is otherwise not the package's to
+        /// update.
+        Skipped = "skipped",
+        /// The remove (or abort) was sent; waiting for the candidate to be gone.
+        Removing = "removing",
+        /// Its candidate was removed from quarantine; it runs its old program.
+        Removed = "removed",
+        /// The revert was sent; waiting for the old program to be primary again.
+        Reverting = "reverting",
+        /// Reverted in probation; it runs its old program.
+        Reverted = "reverted",
+    }
 }
 
 impl Step {
@@ -56,24 +59,6 @@ impl Step {
     /// Whether the PLC has passed its stage.
     pub fn passed(self) -> bool {
         matches!(self, Step::Done | Step::Skipped)
-    }
-
-    /// The step as the report writes it.
-    pub fn as_str(self) -> &'static str {
-        match self {
-            Step::Untouched => "untouched",
-            Step::Loading => "loading",
-            Step::Quarantine => "quarantine",
-            Step::Substituting => "substituting",
-            Step::Probation => "probation",
-            Step::Accepting => "accepting",
-            Step::Done => "done",
-            Step::Skipped => "skipped",
-            Step::Removing => "removing",
-            Step::Removed => "removed",
-            Step::Reverting => "reverting",
-            Step::Reverted => "reverted",
-        }
     }
 }
 

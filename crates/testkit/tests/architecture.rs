@@ -78,7 +78,12 @@ const RULES: &[(&str, Allowed)] = &[
     ("cetratus-mct", Only(&["cetratus-vocab", "cetratus-proto"])),
     (
         "cetratus-fleet",
-        Only(&["cetratus-program", "cetratus-proto", "cetratus-mct"]),
+        Only(&[
+            "cetratus-vocab",
+            "cetratus-program",
+            "cetratus-proto",
+            "cetratus-mct",
+        ]),
     ),
     (
         "cetratus-dashboard",

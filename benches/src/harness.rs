@@ -365,13 +365,14 @@ pub(crate) fn start_mosquitto() -> Result<(Child, u16), BenchError> {
 }
 
 /// Starts `n` runtime processes of the Vernadat program on its twin (`cell0`, `cell1`, …) with
-/// the `cetratus` binary `exe`, publishing to the broker at `url`, each with its state in `dir`.
-fn start_plcs(
+/// the `cetratus` binary `exe`, publishing to the broker at `url`, each with its state in `dir`
+/// and the arguments `extra` (its period, speed, configuration).
+pub(crate) fn start_plcs(
     exe: &std::path::Path,
     n: usize,
-    period: &str,
     url: &str,
     dir: &std::path::Path,
+    extra: &[&std::ffi::OsStr],
 ) -> Result<Vec<Child>, BenchError> {
     use std::process::{Command, Stdio};
     let program = program::examples_dir().join("vernadat/vernadat.toml");
@@ -381,20 +382,10 @@ fn start_plcs(
             Command::new(exe)
                 .arg("run")
                 .arg(&program)
-                .args([
-                    "--twin",
-                    "vernadat",
-                    "--period",
-                    period,
-                    "--for",
-                    "10h",
-                    "--no-dashboard",
-                    "--plc",
-                    &format!("cell{k}"),
-                    "--broker",
-                    url,
-                    "--state-dir",
-                ])
+                .args(["--twin", "vernadat", "--no-dashboard"])
+                .args(["--plc", &format!("cell{k}"), "--broker", url])
+                .args(extra)
+                .arg("--state-dir")
                 .arg(dir.join(format!("cell{k}")))
                 .stdout(Stdio::null())
                 .stderr(Stdio::null())
@@ -402,6 +393,14 @@ fn start_plcs(
         ));
     }
     Ok(plcs)
+}
+
+/// The value at share `p` (0 to 1) of `sorted`, the nearest rank; NaN when it is empty.
+pub(crate) fn quantile(sorted: &[f64], p: f64) -> f64 {
+    sorted
+        .get(((sorted.len() as f64 - 1.0) * p).round() as usize)
+        .copied()
+        .unwrap_or(f64::NAN)
 }
 
 /// Starts `cetratus dashboard` on the broker at `url` with its dashboard on a free port, and logs in;
@@ -502,7 +501,18 @@ pub fn fleet(
     let dir = std::env::temp_dir().join(format!("cetratus-fleet-{}", std::process::id()));
     std::fs::create_dir_all(&dir)?;
     let url = format!("mqtt://127.0.0.1:{port}");
-    let plcs = start_plcs(exe, n, period, &url, &dir)?;
+    let plcs = start_plcs(
+        exe,
+        n,
+        &url,
+        &dir,
+        &[
+            "--period".as_ref(),
+            period.as_ref(),
+            "--for".as_ref(),
+            "10h".as_ref(),
+        ],
+    )?;
     let (dashboard, http, cookie) = start_dashboard(exe, &url)?;
     // Let every PLC connect before measuring.
     std::thread::sleep(Duration::from_secs(5));
@@ -516,12 +526,7 @@ pub fn fleet(
     drop(dashboard);
     let _ = std::fs::remove_dir_all(&dir);
     lat_ms.sort_by(|a, b| a.total_cmp(b));
-    let q = |p: f64| {
-        lat_ms
-            .get(((lat_ms.len() as f64 - 1.0) * p).round() as usize)
-            .copied()
-            .unwrap_or(f64::NAN)
-    };
+    let q = |p: f64| quantile(&lat_ms, p);
     let mut out: BTreeMap<String, serde_json::Value> = BTreeMap::new();
     out.insert(s("plcs"), n.into());
     out.insert(s("plcs_seen_by_dashboard"), plcs_seen.into());

@@ -16,7 +16,7 @@ use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
 use crate::harness::{
-    start_dashboard, start_mosquitto, update_latencies, BenchError, Child, Figures,
+    self, quantile, start_dashboard, start_mosquitto, update_latencies, BenchError, Child, Figures,
 };
 use crate::program;
 
@@ -105,7 +105,8 @@ fn package(exe: &Path, dir: &Path) -> Result<PathBuf, BenchError> {
     Ok(package)
 }
 
-/// `n` PLCs `cell0` … on the broker at `url`, each with a probation window of 20 s.
+/// `n` PLCs `cell0` … on the broker at `url`, at [`SPEED`], trusting the bench's key, each with
+/// a probation window of 20 s.
 fn start_plcs(
     exe: &Path,
     n: usize,
@@ -119,33 +120,24 @@ fn start_plcs(
         config.join("config.toml"),
         "[labels]\nline = \"1\"\n\n[updates]\nprobation = \"20s\"\n",
     )?;
-    let program = program::examples_dir().join("vernadat/vernadat.toml");
-    let mut plcs = Vec::with_capacity(n);
-    for k in 0..n {
-        plcs.push(Child(
-            Command::new(exe)
-                .arg("run")
-                .arg(&program)
-                .args(["--twin", "vernadat", "--speed", &SPEED.to_string()])
-                .args([
-                    "--period",
-                    period,
-                    "--no-dashboard",
-                    "--plc",
-                    &format!("cell{k}"),
-                ])
-                .args(["--broker", url, "--trust"])
-                .arg(dir.join("trusted"))
-                .arg("--config")
-                .arg(&config)
-                .arg("--state-dir")
-                .arg(dir.join(format!("cell{k}")))
-                .stdout(Stdio::null())
-                .stderr(Stdio::null())
-                .spawn()?,
-        ));
-    }
-    Ok(plcs)
+    let speed = SPEED.to_string();
+    let trusted = dir.join("trusted");
+    harness::start_plcs(
+        exe,
+        n,
+        url,
+        dir,
+        &[
+            "--speed".as_ref(),
+            speed.as_ref(),
+            "--period".as_ref(),
+            period.as_ref(),
+            "--trust".as_ref(),
+            trusted.as_os_str(),
+            "--config".as_ref(),
+            config.as_os_str(),
+        ],
+    )
 }
 
 /// Runs the rollout to its end under bash, whose `times` gives the CPU time of its child, while
@@ -234,19 +226,14 @@ fn control_plane(
         e.0 = e.0.min(*s);
         e.1 = e.1.max(*d);
     }
-    let q = |xs: &[f64], p: f64| {
-        xs.get(((xs.len() as f64 - 1.0) * p).round() as usize)
-            .copied()
-            .unwrap_or(f64::NAN)
-    };
     out.insert("wait_s_per_plc".into(), waits.into());
     out.insert(
         "control_plane_ms_per_plc_p50".into(),
-        q(&per_plc, 0.5).into(),
+        quantile(&per_plc, 0.5).into(),
     );
     out.insert(
         "control_plane_ms_per_plc_max".into(),
-        q(&per_plc, 1.0).into(),
+        quantile(&per_plc, 1.0).into(),
     );
     let stage_ms: Vec<serde_json::Value> = (stages.values())
         .map(|(a, b)| (1000.0 * (b - a - waits)).into())
@@ -258,12 +245,7 @@ fn control_plane(
 /// The quantiles of `lat_ms`, as `<name>_latency_ms_p50` and so on.
 fn latency(name: &str, mut lat_ms: Vec<f64>, out: &mut Figures) {
     lat_ms.sort_by(f64::total_cmp);
-    let q = |p: f64| {
-        lat_ms
-            .get(((lat_ms.len() as f64 - 1.0) * p).round() as usize)
-            .copied()
-            .unwrap_or(f64::NAN)
-    };
+    let q = |p: f64| quantile(&lat_ms, p);
     out.insert(format!("{name}_messages_measured"), lat_ms.len().into());
     out.insert(format!("{name}_latency_ms_p50"), q(0.5).into());
     out.insert(format!("{name}_latency_ms_p99"), q(0.99).into());

@@ -202,8 +202,10 @@ pub fn run(args: &BenchArgs) -> anyhow::Result<()> {
         cetratus_net::pnml::write_file(&net, out)?;
         return Ok(());
     }
-    if let Some(done) = over_mqtt(args) {
-        return done;
+    if let Some(what) = &args.what {
+        if let Some((out, json)) = over_mqtt(what)? {
+            return print(&out, json || args.json);
+        }
     }
     if let Some(What::Fuzz {
         for_,
@@ -282,58 +284,41 @@ pub fn run(args: &BenchArgs) -> anyhow::Result<()> {
     print(&out, args.json)
 }
 
-/// The harnesses of many processes over MQTT (`fleet`, `rollout`, `command-load`): their result,
-/// or `None` when `args` asks for another.
-fn over_mqtt(args: &BenchArgs) -> Option<anyhow::Result<()>> {
-    if let Some(What::Fleet {
-        n,
-        period,
-        for_,
-        json,
-    }) = &args.what
-    {
-        let exe = match std::env::current_exe() {
-            Ok(e) => e,
-            Err(e) => return Some(Err(e.into())),
-        };
-        let out = parse_duration_us(for_).and_then(|us| {
-            harness::fleet(&exe, *n, period, us).map_err(|e| anyhow::anyhow!("{e}"))
-        });
-        let out = match out {
-            Ok(out) => out,
-            Err(e) => return Some(Err(e)),
-        };
-        return Some(print(&out, *json || args.json));
-    }
-    if let Some(What::Rollout { n, period, json }) = &args.what {
-        let exe = match std::env::current_exe() {
-            Ok(e) => e,
-            Err(e) => return Some(Err(e.into())),
-        };
-        let out = match cetratus_bench::rollout::rollout(&exe, *n, period) {
-            Ok(out) => out,
-            Err(e) => return Some(Err(anyhow::anyhow!("{e}"))),
-        };
-        return Some(print(&out, *json || args.json));
-    }
-    if let Some(What::CommandLoad {
-        rate,
-        for_,
-        period,
-        json,
-    }) = &args.what
-    {
-        let out = parse_duration_us(for_).and_then(|f| {
-            let p = parse_duration_us(period)?;
-            harness::command_load(*rate, f, p).map_err(|e| anyhow::anyhow!("{e}"))
-        });
-        let out = match out {
-            Ok(out) => out,
-            Err(e) => return Some(Err(e)),
-        };
-        return Some(print(&out, *json || args.json));
-    }
-    None
+/// The harnesses of many processes over MQTT (`fleet`, `rollout`, `command-load`): their
+/// figures and whether to print them as JSON, or `None` when `what` is another.
+fn over_mqtt(what: &What) -> anyhow::Result<Option<(harness::Figures, bool)>> {
+    let bench = |e: harness::BenchError| anyhow::anyhow!("{e}");
+    Ok(Some(match what {
+        What::Fleet {
+            n,
+            period,
+            for_,
+            json,
+        } => {
+            let exe = std::env::current_exe()?;
+            let for_us = parse_duration_us(for_)?;
+            (
+                harness::fleet(&exe, *n, period, for_us).map_err(bench)?,
+                *json,
+            )
+        }
+        What::Rollout { n, period, json } => {
+            let exe = std::env::current_exe()?;
+            let out = cetratus_bench::rollout::rollout(&exe, *n, period).map_err(bench)?;
+            (out, *json)
+        }
+        What::CommandLoad {
+            rate,
+            for_,
+            period,
+            json,
+        } => {
+            let (for_us, period_us) = (parse_duration_us(for_)?, parse_duration_us(period)?);
+            let out = harness::command_load(*rate, for_us, period_us).map_err(bench)?;
+            (out, *json)
+        }
+        _ => return Ok(None),
+    }))
 }
 
 fn print(out: &BTreeMap<String, serde_json::Value>, json: bool) -> anyhow::Result<()> {

@@ -465,3 +465,135 @@ fn a_rollout_on_one_of_two_bridged_brokers_updates_the_plcs_of_both() {
     assert_eq!(loads.len(), 4, "{loads:?}");
     assert!(loads.values().all(|n| *n == 1), "{loads:?}");
 }
+
+/// A publisher as anyone on the broker could run one: `mosquitto_pub -l`, one connection that
+/// publishes each line written to it on `topic`, with MQTT 5 correlation data when given.
+fn forger(port: u16, topic: &str, correlation: Option<&str>) -> std::process::Child {
+    let mut cmd = std::process::Command::new(cetratus_testkit::mqtt::tool("mosquitto_pub"));
+    cmd.args(["-h", "127.0.0.1", "-p", &port.to_string(), "-V", "mqttv5"])
+        .args(["-t", topic, "-l"]);
+    if let Some(c) = correlation {
+        cmd.args(["-D", "publish", "correlation-data", c]);
+    }
+    cmd.stdin(Stdio::piped())
+        .stdout(Stdio::null())
+        .stderr(Stdio::null())
+        .spawn()
+        .expect("mosquitto_pub starts")
+}
+
+/// Anyone who may publish on an anonymous broker sends, all through a rollout: `ok: false`
+/// replies on the rollout's own reply topic (with no correlation data, and with made-up ones),
+/// and garbage `state`, `exec_info` and `events` of its PLCs and of PLCs that do not exist. The
+/// rollout takes none of it: both PLCs are updated, and no forged word reaches the report.
+#[test]
+fn forged_replies_and_garbage_on_the_broker_do_not_stop_a_rollout() {
+    let _t = turn();
+    let mut fleet = Fleet::new();
+    let u1 = fleet.package(&u1_declared(&fleet.root.path().join("u1")), "u1");
+    fleet.start(2, "vernadat/vernadat.toml");
+    fleet.wait_online();
+    let plan = fleet.plan(&u1, "line=1", r#"["1", "100%"]"#, "on_failure = \"stop\"\n");
+    let state = fleet.root.path().join("rollout");
+    let child = fleet
+        .rollout(&["start"], &state)
+        .arg(&plan)
+        .args(["--wait", "--json"])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let pid = child.id();
+    let port = fleet.broker.port();
+    let stop = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
+    // Blind forgers: `ok: false` replies on the rollout's reply topic with no correlation data
+    // or made-up ones, sent the moment the attacker sees a command go to a PLC (racing the
+    // PLC's own reply), and garbage of every kind all along.
+    let attacker = {
+        let stop = stop.clone();
+        std::thread::spawn(move || {
+            use std::io::{BufRead as _, Write as _};
+            let forged = r#"{"ok":false,"request_id":1,"verb":"load","error":{"code":"refused","message":"FORGED"}}"#;
+            let big = format!("[{}]", "7,".repeat(300_000) + "7");
+            let mut replies = std::collections::BTreeMap::new();
+            let mut garbage: Vec<(std::process::Child, String, u32)> = Vec::new();
+            for plc in ["plc-00", "plc-01"] {
+                let reply = format!("cetratus/{plc}/reply/rollout-{pid}");
+                let forgers: Vec<_> = [None, Some("rollout-load-1"), Some("")]
+                    .into_iter()
+                    .map(|c| forger(port, &reply, c))
+                    .collect();
+                replies.insert(plc.to_string(), forgers);
+                for (leaf, text) in [("state", "{\"online\": 7"), ("events", "{\"kind\": []}")] {
+                    let topic = format!("cetratus/{plc}/{leaf}");
+                    garbage.push((forger(port, &topic, None), text.to_string(), 1));
+                }
+                let topic = format!("cetratus/{plc}/exec_info");
+                garbage.push((forger(port, &topic, None), big.clone(), 50));
+            }
+            let ghost = forger(port, "cetratus/ghost/state", None);
+            garbage.push((ghost, "{\"online\": true}".into(), 10));
+            let mut watch =
+                std::process::Command::new(cetratus_testkit::mqtt::tool("mosquitto_sub"))
+                    .args([
+                        "-h",
+                        "127.0.0.1",
+                        "-p",
+                        &port.to_string(),
+                        "-t",
+                        "cetratus/+/cmd/#",
+                    ])
+                    .args(["-F", "%t"])
+                    .stdout(Stdio::piped())
+                    .spawn()
+                    .expect("mosquitto_sub starts");
+            let commands = watch.stdout.take().expect("stdout");
+            let (seen_tx, seen_rx) = std::sync::mpsc::channel::<String>();
+            std::thread::spawn(move || {
+                for line in std::io::BufReader::new(commands)
+                    .lines()
+                    .map_while(Result::ok)
+                {
+                    let plc = line.split('/').nth(1).unwrap_or("").to_string();
+                    if seen_tx.send(plc).is_err() {
+                        return;
+                    }
+                }
+            });
+            let mut round = 0u32;
+            while !stop.load(std::sync::atomic::Ordering::Relaxed) {
+                while let Ok(plc) = seen_rx.try_recv() {
+                    for f in replies.get_mut(&plc).into_iter().flatten() {
+                        let stdin = f.stdin.as_mut().expect("stdin");
+                        for _ in 0..20 {
+                            let _ = writeln!(stdin, "{forged}");
+                        }
+                    }
+                }
+                for (child, text, every) in &mut garbage {
+                    if round % *every == 0 {
+                        let stdin = child.stdin.as_mut().expect("stdin");
+                        let _ = writeln!(stdin, "{text}");
+                    }
+                }
+                round += 1;
+                std::thread::sleep(Duration::from_millis(2));
+            }
+            let all = garbage.into_iter().map(|g| g.0);
+            for mut child in all.chain(replies.into_values().flatten()).chain([watch]) {
+                let _ = child.kill();
+                let _ = child.wait();
+            }
+        })
+    };
+    let out = child.wait_with_output().unwrap();
+    stop.store(true, std::sync::atomic::Ordering::Relaxed);
+    attacker.join().unwrap();
+    let r = report(&out);
+    assert_eq!(r["outcome"], "done", "{r}");
+    for id in ["plc-00", "plc-01"] {
+        assert_eq!(r["plcs"][id]["step"], "done", "{id}: {r}");
+    }
+    assert!(!r.to_string().contains("FORGED"), "{r}");
+    assert!(r["plcs"].get("ghost").is_none(), "{r}");
+}

@@ -10,7 +10,7 @@ use base64::Engine as _;
 use cetratus_mct::client::{command_payload, unique, OperatorKey};
 use cetratus_mct::{client_options, unix_now};
 use cetratus_proto::{command_body, Command, PlcId, SubstituteArgs, Topics, Verb};
-use rumqttc::v5::mqttbytes::v5::{Filter, Packet, PublishProperties};
+use rumqttc::v5::mqttbytes::v5::{Filter, Packet, Publish, PublishProperties};
 use rumqttc::v5::mqttbytes::QoS;
 use rumqttc::v5::{Client, Event};
 
@@ -45,6 +45,8 @@ pub struct Incoming {
     pub leaf: String,
     /// The payload.
     pub payload: Vec<u8>,
+    /// Its MQTT 5 correlation data, if it had any.
+    pub correlation: Option<Vec<u8>>,
 }
 
 /// The connection: a reader thread fills a bounded queue, the rollout's loop takes from it and
@@ -88,7 +90,7 @@ impl Link {
                             let _ = sub.subscribe_many(filters.clone());
                             None
                         }
-                        Ok(Event::Incoming(Packet::Publish(p))) => incoming(&p.topic, &p.payload),
+                        Ok(Event::Incoming(Packet::Publish(p))) => incoming(&p),
                         Ok(_) => continue,
                         Err(_) => {
                             std::thread::sleep(Duration::from_millis(500));
@@ -138,8 +140,9 @@ impl Link {
         }
     }
 
-    /// Sends `verb` to `plc`, as a request whose reply comes to the rollout's reply topic.
-    pub fn send(&self, plc: &str, verb: Verb) -> Result<(), FleetError> {
+    /// Sends `verb` to `plc`, as a request whose reply comes to the rollout's reply topic and
+    /// carries `correlation` ([`correlation`]) back.
+    pub fn send(&self, plc: &str, verb: Verb, correlation: &[u8]) -> Result<(), FleetError> {
         let plc_id = PlcId::new(plc).map_err(FleetError::Proto)?;
         let topics = Topics::new(plc_id);
         let command: Command = match verb {
@@ -149,18 +152,17 @@ impl Link {
             Verb::Substitute => Command::Substitute(SubstituteArgs::default()),
             bare => Command::bare(bare).unwrap_or(Command::ExecInfo),
         };
-        let correlation = format!("rollout-{verb}-{}", unique()).into_bytes();
         let body = command_payload(
             (self.key.as_ref(), self.account.as_deref()),
             plc,
             verb,
-            &correlation,
+            correlation,
             &command_body(&command),
         )
         .map_err(FleetError::Broker)?;
         let props = PublishProperties {
             response_topic: Some(format!("{}{}", topics.prefix(), self.reply_leaf)),
-            correlation_data: Some(correlation.into()),
+            correlation_data: Some(correlation.to_vec().into()),
             content_type: Some("application/json".into()),
             ..Default::default()
         };
@@ -181,15 +183,23 @@ impl Link {
     }
 }
 
+/// Fresh correlation data for a command of `verb`: unique to this process's commands, so that a
+/// reply is matched to the one command it answers.
+pub fn correlation(verb: Verb) -> Vec<u8> {
+    format!("rollout-{verb}-{}", unique()).into_bytes()
+}
+
 /// A publish on `cetratus/<plc>/<leaf>`; anything else is dropped.
-fn incoming(topic: &[u8], payload: &[u8]) -> Option<Incoming> {
-    let topic = std::str::from_utf8(topic).ok()?;
+fn incoming(p: &Publish) -> Option<Incoming> {
+    let topic = std::str::from_utf8(&p.topic).ok()?;
     let rest = topic.strip_prefix("cetratus/")?;
     let (plc, leaf) = rest.split_once('/')?;
     PlcId::new(plc).ok()?;
+    let correlation = (p.properties.as_ref()).and_then(|pr| pr.correlation_data.clone());
     Some(Incoming {
         plc: plc.to_string(),
         leaf: leaf.to_string(),
-        payload: payload.to_vec(),
+        payload: p.payload.to_vec(),
+        correlation: correlation.map(|c| c.to_vec()),
     })
 }

@@ -175,7 +175,13 @@ fn listen(link: &Link, view: &mut View, wait: Duration) -> Result<(), FleetError
             return Ok(());
         }
         if let Some(m) = link.recv(left)? {
-            view.take(&m.plc, &m.leaf, &m.payload, Instant::now());
+            view.take(
+                &m.plc,
+                &m.leaf,
+                &m.payload,
+                m.correlation.as_deref(),
+                Instant::now(),
+            );
         }
     }
 }
@@ -224,10 +230,7 @@ fn drive(
     view.watch(rollout.record.plcs.keys().cloned());
     let mut saved = rollout.record.clone();
     loop {
-        let end = Instant::now() + TICK;
-        while let Some(m) = link.recv(end.saturating_duration_since(Instant::now()))? {
-            view.take(&m.plc, &m.leaf, &m.payload, Instant::now());
-        }
+        listen(&link, &mut view, TICK)?;
         if let Some(r) = journal.take_request() {
             rollout.request(r);
         }
@@ -241,8 +244,9 @@ fn drive(
             saved = rollout.record.clone();
         }
         for o in orders {
-            view.sent(&o.plc, o.verb, now);
-            link.send(&o.plc, o.verb)?;
+            let correlation = crate::link::correlation(o.verb);
+            link.send(&o.plc, o.verb, &correlation)?;
+            view.sent(&o.plc, o.verb, correlation, now);
         }
         if !rollout.log.is_empty() {
             let lines = std::mem::take(&mut rollout.log);

@@ -21,6 +21,8 @@ pub struct Pending {
     pub verb: Verb,
     /// When it was sent.
     pub at: Instant,
+    /// The correlation data it was sent with: only a reply that carries it back is its reply.
+    pub correlation: Vec<u8>,
     /// The PLC's reply, once it came.
     pub reply: Option<Reply>,
     /// The event that ended it, once it came.
@@ -96,20 +98,30 @@ impl View {
         self.plcs.iter()
     }
 
-    /// Notes that `verb` was sent to `plc` now.
-    pub fn sent(&mut self, plc: &str, verb: Verb, now: Instant) {
+    /// Notes that `verb` was sent to `plc` now, with `correlation` as its correlation data.
+    pub fn sent(&mut self, plc: &str, verb: Verb, correlation: Vec<u8>, now: Instant) {
         if let Some(s) = self.plcs.get_mut(plc) {
             s.pending = Some(Pending {
                 verb,
                 at: now,
+                correlation,
                 reply: None,
                 ended: None,
             });
         }
     }
 
-    /// Takes in one message from `cetratus/<plc>/<leaf>`; what is not the protocol's is dropped.
-    pub fn take(&mut self, plc: &str, leaf: &str, payload: &[u8], now: Instant) {
+    /// Takes in one message from `cetratus/<plc>/<leaf>`, with the MQTT correlation data it
+    /// carried; what is not the protocol's is dropped, and so is a reply whose correlation data
+    /// is not the pending command's (anyone who may publish there could send it).
+    pub fn take(
+        &mut self,
+        plc: &str,
+        leaf: &str,
+        payload: &[u8],
+        correlation: Option<&[u8]>,
+        now: Instant,
+    ) {
         if !self.plcs.contains_key(plc) && (self.plcs.len() >= MAX_PLCS || leaf != "state") {
             return;
         }
@@ -151,8 +163,9 @@ impl View {
                 take_event(seen, event);
             }
         } else if reply {
-            if let (Ok(r), Some(p)) = (serde_json::from_slice::<Reply>(payload), &mut seen.pending)
-            {
+            let pending = (seen.pending.as_mut())
+                .filter(|p| correlation == Some(p.correlation.as_slice()) && p.reply.is_none());
+            if let (Ok(r), Some(p)) = (serde_json::from_slice::<Reply>(payload), pending) {
                 p.reply = Some(r);
             }
         }

@@ -53,7 +53,7 @@ fn state(status: &str, primary: &str, a: &str, b: Option<&str>, ms: u64) -> Valu
 }
 
 fn put(v: &mut View, plc: &str, leaf: &str, payload: &Value, now: Instant) {
-    v.take(plc, leaf, payload.to_string().as_bytes(), now);
+    v.take(plc, leaf, payload.to_string().as_bytes(), None, now);
 }
 
 /// An `exec_info` whose candidate (B, running `NEW`) diverged on `out` in `n` cycles.
@@ -75,7 +75,12 @@ fn verbs(orders: &[Order]) -> Vec<(String, Verb)> {
 fn tick(r: &mut Rollout, v: &mut View, now: Instant) -> Vec<(String, Verb)> {
     let orders = r.tick(v, now);
     for o in &orders {
-        v.sent(&o.plc, o.verb, now);
+        v.sent(
+            &o.plc,
+            o.verb,
+            format!("{}-{}", o.plc, o.verb).into_bytes(),
+            now,
+        );
     }
     verbs(&orders)
 }
@@ -293,7 +298,17 @@ fn a_refused_load_halts_with_the_plcs_reason_and_touches_nothing() {
     tick(&mut r, &mut v, t0);
     let reply = json!({"ok": false, "request_id": 1, "verb": "load",
                        "error": {"code": "refused", "message": "not signed by a trusted key"}});
+    let forged = Some(b"p1-unload".as_slice());
+    v.take("p1", "reply/x", reply.to_string().as_bytes(), forged, t0);
     put(&mut v, "p1", "reply/x", &reply, t0);
+    assert!(tick(&mut r, &mut v, t0).is_empty());
+    assert_eq!(
+        r.record.outcome,
+        Outcome::Running,
+        "a reply without the load's correlation"
+    );
+    let load = Some(b"p1-load".as_slice());
+    v.take("p1", "reply/x", reply.to_string().as_bytes(), load, t0);
     assert!(tick(&mut r, &mut v, t0).is_empty());
     assert_eq!(r.record.outcome, Outcome::Halted);
     assert_eq!(r.record.plcs["p1"].step, Step::Untouched);

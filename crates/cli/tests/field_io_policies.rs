@@ -161,6 +161,15 @@ fn a_device_that_answers_three_cycles_late_goes_stale_without_stalling_the_scan(
     // ten cycles after the one it was for, past `stale_after = 2` even when a loaded machine
     // stretches the cycles threefold.
     let _dev = modbus::device(port, &["--di", "1", "--delay-ms", "100"]);
+    // The device answers a real read before the PLC starts: an open port alone has been seen
+    // refusing the PLC's first connections on a loaded machine.
+    let answered = (0..50).any(|_| {
+        read(port, "di", 0, 1) == "1" || {
+            std::thread::sleep(Duration::from_millis(100));
+            false
+        }
+    });
+    assert!(answered, "the pymodbus device never answered");
     let io = io_file(
         dir.path(),
         port,

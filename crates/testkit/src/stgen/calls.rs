@@ -40,7 +40,7 @@ impl ProgramGen<'_> {
 
     /// `MUX(k, args…)` with `k` always selecting one of them.
     pub(super) fn mux(&mut self, args: Vec<Expr>, d: u32) -> Expr {
-        let kty = *self.rng.pick(&INT_TYPES);
+        let kty = *self.rng.pick(INT_TYPES);
         let k = self.int(
             kty,
             Iv::new(0, args.len() as i128 - 1),
@@ -151,6 +151,7 @@ impl ProgramGen<'_> {
                     konst: false,
                 }
             }
+            24..=25 if self.rng.pct(15) => self.string_to_bool(d),
             24..=25 => {
                 let src = *self.rng.pick(&CONV_TYPES[1..]);
                 let a = self.any_of(src, d - 1);
@@ -348,7 +349,7 @@ impl ProgramGen<'_> {
             },
             d - 1,
         );
-        let nty = *self.rng.pick(&INT_TYPES);
+        let nty = *self.rng.pick(INT_TYPES);
         let n = if name.starts_with("RO") {
             // A rotation by 0 is a C shift by the width (rule 4).
             self.rotation(nty, w, d - 1)
@@ -386,7 +387,10 @@ impl ProgramGen<'_> {
     }
 
     pub(super) fn conv_to_bits(&mut self, ty: Ty, d: u32) -> Expr {
-        let src = *self.rng.pick(&CONV_TYPES);
+        if self.rng.pct(10) {
+            return self.string_to_bits(ty, d);
+        }
+        let src = *self.rng.pick(CONV_TYPES);
         let arg = if src == ty {
             return self.bits_leaf(ty, true);
         } else if src.is_real() {

@@ -400,7 +400,10 @@ impl ProgramGen<'_> {
 
     /// `<SRC>_TO_<ty>(e)` from any other numeric, bit-string or BOOL type (rule 3).
     pub(super) fn conv_to_int(&mut self, ty: Ty, want: Iv, d: u32) -> Option<Expr> {
-        let src = *self.rng.pick(&CONV_TYPES);
+        if self.rng.pct(10) {
+            return Some(self.string_to_int(ty, want, d));
+        }
+        let src = *self.rng.pick(CONV_TYPES);
         if src == ty {
             return None;
         }

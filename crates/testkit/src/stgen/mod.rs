@@ -52,7 +52,7 @@
 //! * Standard functions: ABS, SQRT, EXPT, MIN and MAX (2 or 3 inputs), LIMIT, SEL, MUX (2 to 4
 //!   inputs), SHL, SHR, ROL, ROR, TRUNC, LEN, LEFT, RIGHT, MID, CONCAT (2 or 3 inputs), INSERT,
 //!   DELETE, REPLACE, FIND; the conversions `<A>_TO_<B>` between any two of BOOL, SINT…ULINT,
-//!   BYTE…LWORD, REAL and LREAL; `<integer or BOOL>_TO_STRING`.
+//!   BYTE…LWORD, REAL and LREAL; `<integer or BOOL>_TO_STRING`; `STRING_TO_<type>` but TIME.
 //!
 //! # What is never generated, and why
 //!
@@ -111,8 +111,7 @@
 //!    trigraphs), no `$00`, no `{` (MATIEC's lexer, looking for the first `;` of a body, takes it
 //!    for a pragma and scans for the `}`: quadratic time, and a failure past 16 KB). No
 //!    `<bit string>_TO_STRING` (MATIEC writes `16#ff`, which IEC does not fix), no
-//!    `STRING_TO_<type>` (MATIEC's parser skips what is not a digit and overflows at 19 digits;
-//!    `cetratus-st` has none yet).
+//!    `STRING_TO_<type>` but as rule 13 says.
 //! 10. Loops terminate and mean the same to both. A FOR's bounds and step are literals or read
 //!     inputs only (MATIEC evaluates them in every iteration) and have the counter's type; its
 //!     counter is never assigned and never read after the loop (its last value is
@@ -125,6 +124,14 @@
 //! 12. No enumeration value in a structure or array initialiser (MATIEC stops with an internal
 //!     error in `enum_declaration_check.cc`); CASE labels never overlap; statement lists are
 //!     never empty.
+//! 13. `STRING_TO_<type>` of integers, bit strings and BOOL reads any string (MATIEC reads within
+//!     the length, skips what is not a digit and wraps past 19 digits, as `cetratus-st` does);
+//!     where the value must stay in a budget, the text is a literal the generator wrote (decimal
+//!     digits after spaces or a `+`, or `2#`, `8#` and `16#` literals of at most 16, 24 and 64
+//!     bits) or what `<integer>_TO_STRING` printed, and otherwise the result goes through
+//!     `LIMIT`. To REAL and LREAL only literals, without underscores: MATIEC's `atof` reads past
+//!     a string's length into the bytes a variable held before. Never to TIME (MATIEC reads
+//!     whole seconds only).
 //!
 //! What MATIEC does in its own way, which the implementation under test must do too: CTU
 //! counts only while `CV < PV` and CTD only while `CV > 0`; F_TRIG's Q is TRUE in the first scan
@@ -262,35 +269,12 @@ const ALL_TYPES: [Ty; 17] = [
     Ty::Time,
     Ty::String,
 ];
-const INT_TYPES: [Ty; 8] = [
-    Ty::Sint,
-    Ty::Int,
-    Ty::Dint,
-    Ty::Lint,
-    Ty::Usint,
-    Ty::Uint,
-    Ty::Udint,
-    Ty::Ulint,
-];
-const BIT_TYPES: [Ty; 4] = [Ty::Byte, Ty::Word, Ty::Dword, Ty::Lword];
-/// The sources of the numeric conversions `<A>_TO_<B>`.
-const CONV_TYPES: [Ty; 15] = [
-    Ty::Bool,
-    Ty::Sint,
-    Ty::Int,
-    Ty::Dint,
-    Ty::Lint,
-    Ty::Usint,
-    Ty::Uint,
-    Ty::Udint,
-    Ty::Ulint,
-    Ty::Byte,
-    Ty::Word,
-    Ty::Dword,
-    Ty::Lword,
-    Ty::Real,
-    Ty::Lreal,
-];
+/// The integer types: [`ALL_TYPES`] from SINT to ULINT.
+const INT_TYPES: &[Ty] = ALL_TYPES.split_at(9).0.split_at(1).1;
+/// The bit strings: [`ALL_TYPES`] from BYTE to LWORD.
+const BIT_TYPES: &[Ty] = ALL_TYPES.split_at(13).0.split_at(9).1;
+/// The sources of the numeric conversions `<A>_TO_<B>`: [`ALL_TYPES`] up to LREAL.
+const CONV_TYPES: &[Ty] = ALL_TYPES.split_at(15).0;
 
 /// What the generator needs to know of an elementary type.
 trait TyInfo: Copy {
@@ -832,6 +816,7 @@ enum Depth {
 
 mod calls;
 mod declarations;
+mod from_string;
 mod inputs;
 mod ints;
 mod literals;

@@ -262,7 +262,10 @@ impl ProgramGen<'_> {
     }
 
     pub(super) fn conv_to_real(&mut self, ty: Ty, want: Rv, d: u32) -> Option<Expr> {
-        let src = *self.rng.pick(&CONV_TYPES);
+        if self.rng.pct(10) {
+            return Some(self.string_to_real(ty, want));
+        }
+        let src = *self.rng.pick(CONV_TYPES);
         if src == ty {
             return None;
         }

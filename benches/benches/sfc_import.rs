@@ -83,5 +83,38 @@ fn vernadat_scan(c: &mut Criterion) {
     g.finish();
 }
 
-criterion_group!(benches, charts, import, vernadat_scan);
+/// The press of `examples/press-sfc`, a chart on the Structured Text compiler: its import, and
+/// 30 000 scans with `start` pressed for 20 scans in every 100.
+fn press(c: &mut Criterion) {
+    let xml =
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../examples/press-sfc/press.xml");
+    let text = std::fs::read_to_string(&xml).expect("the press example");
+    let mut g = c.benchmark_group("press");
+    g.bench_function("import", |b| {
+        b.iter(|| {
+            cetratus_sfc::import_str(&text, "press.xml", None, "Press.pnml").expect("imports")
+        })
+    });
+    let program = Arc::new(
+        cetratus_sfc::import_str(&text, "press.xml", None, "Press.pnml")
+            .expect("imports")
+            .program,
+    );
+    let images: Vec<Vec<cetratus_program::Value>> = (0..30_000)
+        .map(|k| vec![cetratus_program::Value::Bool(k % 100 < 20)])
+        .collect();
+    let fresh = Container::new(program, 0);
+    g.throughput(Throughput::Elements(30_000));
+    g.bench_function("scan", |b| {
+        b.iter(|| {
+            let mut c = fresh.clone();
+            for (k, img) in images.iter().enumerate() {
+                black_box(c.scan(k as u64 * 10_000, img).expect("runs"));
+            }
+        })
+    });
+    g.finish();
+}
+
+criterion_group!(benches, charts, import, vernadat_scan, press);
 criterion_main!(benches);

@@ -128,7 +128,7 @@ fn bad_charts_are_clear_errors_from_the_binary_never_a_crash() {
         (
             "unknown-variable",
             body("Nowhere := TRUE;"),
-            "unknown name `Nowhere`",
+            "unknown variable `Nowhere`",
         ),
         (
             "deep-body",
@@ -439,4 +439,67 @@ fn a_chart_that_starts_itself_is_refused_by_the_binary_not_a_recursion() {
         assert!(err.contains("one level deep"), "{err}");
     }
     assert!(!dir.path().join("out").join("P.toml").exists());
+}
+
+/// The press of `examples/press-sfc`, a chart as CODESYS writes it (a TON called in an action,
+/// its VAR_INPUT assigned there, an `END_IF` without `;`), imported and run by the binary from
+/// the example's replayed trace: the lamp is Run's `Q`, and the SINT stroke counter wraps.
+#[test]
+fn the_codesys_press_chart_imports_on_the_st_compiler_and_runs_from_a_replay() {
+    let dir = tempfile::tempdir().expect("a temporary directory");
+    let example = |f: &str| cetratus_testkit::paths::example(&format!("press-sfc/{f}"));
+    let out = cetratus(&[
+        "import",
+        "plcopen",
+        example("press.xml").to_str().expect("UTF-8"),
+        "-o",
+        dir.path().to_str().expect("UTF-8"),
+    ]);
+    let said =
+        String::from_utf8_lossy(&out.stderr).to_string() + &String::from_utf8_lossy(&out.stdout);
+    assert!(out.status.success(), "{said}");
+    assert!(said.contains("ST compiler"), "{said}");
+    let trace = dir.path().join("out.csv");
+    let run = cetratus(&[
+        "run",
+        dir.path().join("Press.toml").to_str().expect("UTF-8"),
+        "--replay",
+        example("start.csv").to_str().expect("UTF-8"),
+        "--virtual",
+        "--for",
+        "150ms",
+        "--trace",
+        trace.to_str().expect("UTF-8"),
+        "--no-mqtt",
+    ]);
+    assert!(
+        run.status.success(),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    let csv = std::fs::read_to_string(&trace).expect("the trace");
+    assert_eq!(
+        csv.lines().next(),
+        Some("scan,time_ms,start,lamp,strokes"),
+        "{csv}"
+    );
+    let rows: Vec<Vec<&str>> = csv
+        .lines()
+        .skip(1)
+        .map(|l| l.split(',').collect())
+        .collect();
+    let lamp_on = rows.iter().find(|r| r[3] == "1").map(|r| r[0]);
+    assert_eq!(
+        lamp_on,
+        Some("2"),
+        "Run entered with start, at scan 2: {csv}"
+    );
+    assert!(
+        rows.iter().any(|r| r[4] == "-128"),
+        "the SINT wrapped: {csv}"
+    );
+    assert!(
+        rows.last().is_some_and(|r| r[3] == "0"),
+        "back in Idle at the end: {csv}"
+    );
 }

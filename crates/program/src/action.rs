@@ -103,6 +103,9 @@ pub enum Target {
     Variable(u32),
     /// An action body, by index into [`Program::bodies`].
     Body(u32),
+    /// A BOOL variable of a chart's Structured Text, by its slot in the ST state
+    /// ([`crate::st::StProgram::bool_var`]).
+    St(u32),
 }
 
 /// An action attached to a place.
@@ -405,6 +408,11 @@ impl ActionState {
     ) -> Result<(), ActError> {
         let now_us = ctx.now_us;
         self.stored_timers(program, now_us);
+        // A chart's ST reads this scan's inputs, once: a VAR_INPUT one body assigns, the next sees.
+        let chart = program.st().filter(|s| s.is_chart());
+        if let (Some(st), Some(state)) = (chart, self.st.as_mut()) {
+            st.copy_in(ctx.inputs, state);
+        }
         for (a, &slot) in program.actions.iter().zip(&program.action_slot) {
             let marked = ctx.marking.get(a.place.index()).is_some_and(|&m| m > 0);
             if !marked {
@@ -458,6 +466,13 @@ impl ActionState {
                 Target::Output(i) => outputs.get_mut(i as usize),
                 Target::Variable(i) => vars.get_mut(i as usize),
                 Target::Body(_) => None,
+                Target::St(at) => {
+                    let st = self.st.as_mut().and_then(|s| s.slots.get_mut(at as usize));
+                    if let Some(c) = st {
+                        *c = u64::from(q);
+                    }
+                    None
+                }
             };
             if let Some(c) = cell {
                 *c = Value::Bool(q);
@@ -475,8 +490,11 @@ impl ActionState {
                                 body: body.name().to_string(),
                             });
                         }
-                        match (body.st(), self.st.as_mut()) {
-                            (Some(st), Some(state)) => st
+                        match (body.st(), self.st.as_mut(), body.st_entry()) {
+                            (Some(st), Some(state), Some(k)) => st
+                                .run_entry(k, ctx, outputs, state, work)
+                                .map_err(|f| st_fault(body, f))?,
+                            (Some(st), Some(state), None) => st
                                 .run(ctx.inputs, outputs, state, now_us, work)
                                 .map_err(|f| st_fault(body, f))?,
                             _ => body.run(ctx, vars, outputs)?,
@@ -485,6 +503,10 @@ impl ActionState {
                 }
                 running |= stored;
             }
+        }
+        // A chart's ST holds its outputs: the ones its actions set go out even when no body ran.
+        if let (Some(st), Some(state)) = (chart, self.st.as_ref()) {
+            st.copy_out(outputs, state);
         }
         // A pulse lasts one scan, and a body whose Q holds runs again: the next scan must run.
         self.settled = !self.pulsed && !running;

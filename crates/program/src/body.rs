@@ -35,6 +35,8 @@ pub struct Body {
     vars: Vec<u32>,
     /// A POU of the program's Structured Text (`[st]`) instead of guard-language code.
     st: Option<Arc<StProgram>>,
+    /// The entry of that ST this body runs (a chart's `[st.bodies]`), else its POU's body.
+    entry: Option<u32>,
 }
 
 /// A body that failed while running: which, where in its text, and why.
@@ -135,9 +137,10 @@ impl Body {
     /// What one run costs in units of [`crate::Work`]: the length of its code, at least 1 (for
     /// Structured Text, its straight-line cost; its loops charge more as they go round).
     pub fn cost(&self) -> u64 {
-        match &self.st {
-            Some(st) => st.unit().cost.max(1),
-            None => (self.code.len() as u64).max(1),
+        match (&self.st, self.entry) {
+            (Some(st), Some(k)) => (st.unit().entries.get(k as usize)).map_or(1, |e| e.cost.max(1)),
+            (Some(st), None) => st.unit().cost.max(1),
+            (None, _) => (self.code.len() as u64).max(1),
         }
     }
 
@@ -178,8 +181,19 @@ impl Body {
         self.st.as_deref()
     }
 
-    /// A body that runs the POU of the program's Structured Text; `source` is the ST text.
-    pub(crate) fn structured_text(name: &str, source: &str, st: Arc<StProgram>) -> Body {
+    /// The entry of the program's ST this body runs, when it is a chart's `[st.bodies]`.
+    pub fn st_entry(&self) -> Option<u32> {
+        self.entry
+    }
+
+    /// A body that runs the POU of the program's Structured Text, or its `entry`; `source` is
+    /// the ST text.
+    pub(crate) fn structured_text(
+        name: &str,
+        source: &str,
+        st: Arc<StProgram>,
+        entry: Option<u32>,
+    ) -> Body {
         let mut outputs: Vec<u32> = st.driven_outputs().map(|i| i as u32).collect();
         outputs.sort_unstable();
         Body {
@@ -189,6 +203,7 @@ impl Body {
             outputs,
             vars: Vec::new(),
             st: Some(st),
+            entry,
         }
     }
 
@@ -417,6 +432,7 @@ impl Builder<'_, '_> {
             outputs: self.outputs,
             vars: self.vars,
             st: None,
+            entry: None,
         })
     }
 }

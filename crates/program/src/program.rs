@@ -19,10 +19,11 @@ use crate::value::{Signal, Value};
 use crate::ProgramError;
 
 mod resolve;
+mod structured;
 
 use resolve::{
     action_slots, actions, actions_by_place, bodies, guards, invariants, settings, signal,
-    structured_text, watchdogs, Kind, Settings,
+    watchdogs, Kind, Settings,
 };
 
 /// The tool name of the net-level `<toolspecific>` element that carries a program in a PNML file.
@@ -58,6 +59,8 @@ pub struct Program {
     pub(crate) outputs: Vec<Signal>,
     pub(crate) variables: Vec<Signal>,
     guards: Vec<Option<Guard>>,
+    /// Per transition, the entry of the ST that is its condition (`[st.conditions]`).
+    st_conditions: Vec<Option<u32>>,
     pub(crate) actions: Vec<Action>,
     /// Action bodies, in declaration order.
     pub(crate) bodies: Vec<Body>,
@@ -193,8 +196,9 @@ impl Program {
             net: &net,
         };
         let guards = guards(&o, &doc, &scope)?;
+        let st_conditions = structured::st_conditions(&o, &doc, &net)?;
         // Bodies, then the actions that run them or drive a signal.
-        let st = structured_text(&o, &doc, &inputs, &outputs)?;
+        let st = structured::structured_text(&o, &doc, &net, (&inputs, &outputs))?;
         let bodies = bodies(&o, &doc, &scope, st.as_ref())?;
         let mut output_held = vec![false; outputs.len()];
         for b in &bodies {
@@ -203,7 +207,7 @@ impl Program {
             }
         }
         let signals = (&outputs[..], &variables[..], &inputs[..]);
-        let actions = actions(&o, &doc, &net, signals, &bodies)?;
+        let actions = actions(&o, &doc, &net, signals, &bodies, st.as_deref())?;
         let (action_targets, action_slot) = action_slots(&actions);
         let (place_action_start, place_actions) = actions_by_place(net.num_places(), &actions);
         let invariants = invariants(&o, &doc, &net)?;
@@ -224,6 +228,7 @@ impl Program {
             outputs,
             variables,
             guards,
+            st_conditions,
             actions,
             bodies,
             st,
@@ -381,17 +386,25 @@ impl Program {
     pub fn guard(&self, t: TransIdx) -> Option<&Guard> {
         self.guards.get(t.index()).and_then(Option::as_ref)
     }
-    /// True when the transition has a guard (one without is always true).
+    /// True when the transition has a guard or an ST condition (one without is always true).
     pub fn has_guard(&self, t: TransIdx) -> bool {
-        self.guard(t).is_some()
+        self.guard(t).is_some() || self.st_condition(t).is_some()
+    }
+    /// The entry of the program's ST that is the transition's condition (`[st.conditions]`),
+    /// which [`crate::st::StProgram::condition`] evaluates in place of a guard.
+    #[inline]
+    pub fn st_condition(&self, t: TransIdx) -> Option<u32> {
+        self.st_conditions.get(t.index()).copied().flatten()
     }
     /// What evaluating a transition's guard costs in units of [`crate::Work`]: its code's
-    /// length, or 1 to look at a transition without one.
+    /// length, or 1 to look at a transition without one (an ST condition charges its own
+    /// cost when it runs).
     #[inline]
     pub fn guard_cost(&self, t: TransIdx) -> u64 {
         self.guard(t).map_or(1, Guard::cost)
     }
-    /// Evaluates a transition's guard; a transition without one is always true. Never allocates.
+    /// Evaluates a transition's guard; a transition without one is always true, and so is one
+    /// whose condition is ST (see [`Program::st_condition`]). Never allocates.
     pub fn eval_guard(&self, t: TransIdx, ctx: &EvalCtx) -> Result<bool, EvalError> {
         match self.guard(t) {
             Some(g) => g.eval(ctx),

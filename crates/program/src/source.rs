@@ -40,6 +40,22 @@ pub(crate) struct Doc {
 pub(crate) struct StDecl {
     pub pou: Spanned<String>,
     pub source: Spanned<String>,
+    /// `[st.bodies]`: action bodies in ST, on the POU's state (a chart's actions).
+    #[serde(default)]
+    pub bodies: BTreeMap<Spanned<String>, Spanned<String>>,
+    /// `[st.conditions]`: transition id to an ST BOOL expression, its guard.
+    #[serde(default)]
+    pub conditions: BTreeMap<Spanned<String>, Spanned<String>>,
+    /// `[st.steps]`: place id to the POU's variable that holds its step flags (`X`, `T`).
+    #[serde(default)]
+    pub steps: BTreeMap<Spanned<String>, Spanned<String>>,
+}
+
+impl StDecl {
+    /// Whether the ST is a chart's: entries of its own, the POU's body not run.
+    pub fn is_chart(&self) -> bool {
+        !(self.bodies.is_empty() && self.conditions.is_empty() && self.steps.is_empty())
+    }
 }
 
 /// `[program]`.

@@ -25,6 +25,11 @@ use cetratus_st::{Fault, State, Unit, Var, Work};
 
 use crate::value::{Signal, Type, Value};
 
+mod chart;
+
+pub use chart::ConditionFault;
+use chart::{ns, StepFlags};
+
 /// Nanoseconds in a millisecond, the unit a TIME signal counts.
 const NS_PER_MS: i64 = 1_000_000;
 
@@ -36,6 +41,8 @@ pub struct StProgram {
     inputs: Vec<(u32, Elem, u32)>,
     /// Per VAR_OUTPUT wired to a signal: the output's index and the variable.
     outputs: Vec<(u32, Elem, u32)>,
+    /// The step flags of a chart's places (`[st.steps]`).
+    steps: Vec<StepFlags>,
 }
 
 /// A RETAIN variable of a POU as persisted: its name and its part of the state.
@@ -107,6 +114,7 @@ impl StProgram {
             inputs: wire_one(inputs, Section::Input)?,
             outputs: wire_one(outputs, Section::Output)?,
             unit: Arc::new(unit),
+            steps: Vec::new(),
         })
     }
 
@@ -197,6 +205,14 @@ impl StProgram {
         now_us: u64,
         work: &mut Work,
     ) -> Result<(), Fault> {
+        self.copy_in(inputs, state);
+        let ran = self.unit.run(state, ns(now_us), work);
+        self.copy_out(outputs, state);
+        ran
+    }
+
+    /// The input image copied into the wired VAR_INPUTs.
+    pub(crate) fn copy_in(&self, inputs: &[Value], state: &mut State) {
         for &(i, e, slot) in &self.inputs {
             if let (Some(&v), Some(s)) =
                 (inputs.get(i as usize), state.slots.get_mut(slot as usize))
@@ -204,10 +220,10 @@ impl StProgram {
                 *s = to_slot(e, v);
             }
         }
-        let now = i64::try_from(now_us)
-            .unwrap_or(i64::MAX / 1000)
-            .saturating_mul(1000);
-        let ran = self.unit.run(state, now, work);
+    }
+
+    /// The wired VAR_OUTPUTs copied to the output image.
+    pub(crate) fn copy_out(&self, outputs: &mut [Value], state: &State) {
         for &(i, e, slot) in &self.outputs {
             if let (Some(o), Some(&s)) =
                 (outputs.get_mut(i as usize), state.slots.get(slot as usize))
@@ -215,7 +231,6 @@ impl StProgram {
                 *o = from_slot(e, s);
             }
         }
-        ran
     }
 }
 

@@ -59,6 +59,34 @@ enum Stop {
     Budget,
 }
 
+/// Whether transition `t`'s guard holds, by `holds`, with its evaluation and its firing charged
+/// to `work`.
+#[inline(always)]
+fn charged(
+    program: &Program,
+    t: cetratus_net::TransIdx,
+    work: &mut Work,
+    holds: impl FnOnce(&mut Work) -> Result<bool, Stop>,
+) -> Result<bool, Stop> {
+    if !work.charge(program.guard_cost(t)) {
+        return Err(Stop::Budget);
+    }
+    let holds = holds(work)?;
+    if holds && !work.charge(1) {
+        return Err(Stop::Budget);
+    }
+    Ok(holds)
+}
+
+/// A fault of an ST condition, as a failing guard (or a scan out of work).
+#[cold]
+fn condition_fault(f: cetratus_program::st::ConditionFault) -> Stop {
+    match f {
+        cetratus_program::st::ConditionFault::OutOfWork => Stop::Budget,
+        cetratus_program::st::ConditionFault::Failed(e) => Stop::Guard(e),
+    }
+}
+
 /// A failed action body in the runtime's words.
 #[cold]
 fn act_error(e: ActError, budget: u64) -> RuntimeError {
@@ -220,11 +248,12 @@ impl Container {
         let vars: Vec<Value> = program.variables().iter().map(|s| s.initial).collect();
         let outputs: Vec<Value> = program.outputs().iter().map(|s| s.initial).collect();
         let actions = ActionState::new(&program);
+        // An ST condition may read a step's time or a timer's output: never skipped.
         let timed_guard = (0..program.net().num_transitions() as u32)
             .map(|t| {
-                program
-                    .guard(TransIdx(t))
-                    .is_some_and(|g| !g.timers().is_empty())
+                let t = TransIdx(t);
+                program.st_condition(t).is_some()
+                    || program.guard(t).is_some_and(|g| !g.timers().is_empty())
             })
             .collect();
         Container {
@@ -375,19 +404,25 @@ impl Container {
             now_us,
         };
         let policy = program.policy();
-        let result = self
-            .engine
-            .scan(policy, |t| {
-                if !work.charge(program.guard_cost(t)) {
-                    return Err(Stop::Budget);
-                }
-                let holds = program.eval_guard(t, &ctx).map_err(Stop::Guard)?;
-                if holds && !work.charge(1) {
-                    return Err(Stop::Budget);
-                }
-                Ok(holds)
-            })
-            .map(|f| f.len());
+        let guard = |t| program.eval_guard(t, &ctx).map_err(Stop::Guard);
+        // A chart's ST conditions read its state, with this scan's inputs and step flags; any
+        // other program keeps the plain guard path.
+        let result = match (
+            program.st().filter(|s| s.is_chart()),
+            self.actions.st_state_mut(),
+        ) {
+            (Some(st), Some(state)) => {
+                st.prepare(&ctx, state);
+                self.engine.scan(policy, |t| {
+                    charged(program, t, work, |work| match program.st_condition(t) {
+                        Some(k) => (st.condition(k, state, now_us, work)).map_err(condition_fault),
+                        None => guard(t),
+                    })
+                })
+            }
+            _ => (self.engine).scan(policy, |t| charged(program, t, work, |_| guard(t))),
+        }
+        .map(|f| f.len());
         result.map_err(|e| {
             // The failing guard must fail again on the next scan, not be skipped as quiet.
             self.force_full = true;

@@ -281,6 +281,10 @@ fn retained_latch_map(program: &Program, primary: &Program) -> Vec<Option<u32>> 
         Target::Output(i) => (0u8, p.outputs()[i as usize].name.clone()),
         Target::Variable(i) => (1u8, p.variables()[i as usize].name.clone()),
         Target::Body(i) => (2u8, p.bodies()[i as usize].name().to_string()),
+        Target::St(at) => {
+            let name = p.st().and_then(|s| s.slot_name(at)).unwrap_or_default();
+            (3u8, name.to_ascii_uppercase())
+        }
     };
     let theirs: Vec<(u8, String)> = primary
         .action_targets()

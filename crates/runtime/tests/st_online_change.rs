@@ -271,3 +271,75 @@ fn a_retain_variable_that_would_be_lost_is_refused_unless_given_up_or_renamed() 
         .to_string();
     assert!(e.contains("`nothing`"), "{e}");
 }
+
+/// A chart in Structured Text (`[st.bodies]`, `[st.conditions]`, `[st.steps]`): Run's action
+/// runs a TON with preset `pt`; Run is left when its Q comes, and entered again at once.
+fn chart(version: &str, pt: &str, extra: &str) -> Arc<Program> {
+    let net = cetratus_testkit::nets::sequence(
+        &[("Run", 1), ("Idle", 0)],
+        &[("T1", "Idle", "Run"), ("T2", "Run", "Idle")],
+    );
+    let toml = format!(
+        r#"[program]
+name = "press"
+version = "{version}"
+chart = "sfc"
+[[output]]
+name = "et"
+type = "int"
+[[output]]
+name = "n"
+type = "int"
+[[action]]
+place = "Run"
+qualifier = "N"
+body = "RunAct"
+[st]
+pou = "Press"
+source = '''
+TYPE CETRATUS_STEP : STRUCT X : BOOL; T : TIME; END_STRUCT; END_TYPE
+FUNCTION_BLOCK Press
+VAR_OUTPUT et : TIME; n : DINT; END_VAR
+VAR t : TON; Run, Idle : CETRATUS_STEP; {extra} END_VAR
+END_FUNCTION_BLOCK
+'''
+[st.bodies]
+RunAct = "t(IN := Run.X, PT := {pt}); et := t.ET; n := n + 1;"
+[st.conditions]
+T2 = "t.Q"
+[st.steps]
+Run = "Run"
+Idle = "Idle"
+"#
+    );
+    Arc::new(Program::from_sources(&toml, "press.toml", net).unwrap_or_else(|e| panic!("{e}")))
+}
+
+#[test]
+fn a_chart_in_st_carries_its_running_ton_and_its_counter_into_a_new_version() {
+    let old = chart("1", "T#1s", "");
+    let new = chart("2", "T#2s", "m : DINT;");
+    let mut r = Rig::new(&old);
+    r.run(50);
+    assert_eq!(
+        r.outputs(Slot::A)["et"],
+        Value::Int(490),
+        "{:?}",
+        r.outputs(Slot::A)
+    );
+    let up = r.prepare(&old, &new, &[]).expect("prepared");
+    r.load(up);
+    r.run(1);
+    // The candidate took the primary's TON and counter before its first scan.
+    let cand = r.outputs(Slot::B);
+    assert_eq!(
+        (cand["et"], cand["n"]),
+        (Value::Int(500), Value::Int(51)),
+        "{cand:?}"
+    );
+    // Past the old preset: the old chart left Run and came back (its TON started again), the
+    // new one (2 s) is still in its first stroke.
+    r.run(60);
+    assert!(matches!(r.outputs(Slot::A)["et"], Value::Int(ms) if ms < 200));
+    assert_eq!(r.outputs(Slot::B)["et"], Value::Int(1100));
+}

@@ -418,23 +418,7 @@ impl Mapping<'_> {
     /// program (and hash) under any file name, and a chart that `cetratus export` writes back
     /// imports as the program it came from.
     fn header(&self, net_file: &str) -> String {
-        let (file, pou) = (self.project, &self.pou.name);
-        let mut out = String::new();
-        // A comment is one line: a project named across lines (`&#10;`) stays in it.
-        let one_line = |s: &str| s.replace(char::is_control, " ");
-        let _ = writeln!(
-            out,
-            "# Imported from the PLCopen TC6 XML project {}, POU {}.",
-            one_line(file),
-            one_line(pou)
-        );
-        let _ = writeln!(out, "[program]");
-        let _ = writeln!(out, "name = {}", q(pou));
-        let _ = writeln!(out, "version = \"1\"");
-        let _ = writeln!(out, "description = {}", q(&format!("SFC {pou} of {file}")));
-        let _ = writeln!(out, "net = {}", q(net_file));
-        let _ = writeln!(out, "chart = \"sfc\"");
-        out
+        header(self.project, &self.pou.name, net_file)
     }
 
     /// The lines of `[guards]`: a transition whose guard is always true has none, and the hold
@@ -626,6 +610,29 @@ impl Mapping<'_> {
     }
 }
 
+/// The `[program]` table of a chart of `project`'s POU `pou` whose net is `net_file`: what the
+/// file holds, not where it is or what it is called, so that the same chart is the same program
+/// (and hash) under any file name, and a chart that `cetratus export` writes back imports as the
+/// program it came from.
+pub(crate) fn header(file: &str, pou: &str, net_file: &str) -> String {
+    let mut out = String::new();
+    // A comment is one line: a project named across lines (`&#10;`) stays in it.
+    let one_line = |s: &str| s.replace(char::is_control, " ");
+    let _ = writeln!(
+        out,
+        "# Imported from the PLCopen TC6 XML project {}, POU {}.",
+        one_line(file),
+        one_line(pou)
+    );
+    let _ = writeln!(out, "[program]");
+    let _ = writeln!(out, "name = {}", q(pou));
+    let _ = writeln!(out, "version = \"1\"");
+    let _ = writeln!(out, "description = {}", q(&format!("SFC {pou} of {file}")));
+    let _ = writeln!(out, "net = {}", q(net_file));
+    let _ = writeln!(out, "chart = \"sfc\"");
+    out
+}
+
 /// The type of a signal declared with the IEC type `iec` (upper case), when the subset has it.
 fn signal_type(iec: &str) -> Option<Ty> {
     match iec {
@@ -666,7 +673,7 @@ fn write_signals(out: &mut String, signals: &[Signal]) {
 }
 
 /// The qualifier as the program format names it.
-fn qualifier_name(qualifier: Qualifier) -> &'static str {
+pub(crate) fn qualifier_name(qualifier: Qualifier) -> &'static str {
     match qualifier {
         Qualifier::N => "N",
         Qualifier::S => "S",
@@ -683,7 +690,7 @@ fn qualifier_name(qualifier: Qualifier) -> &'static str {
 }
 
 /// The `[bodies]` table, then the `[[action]]` tables.
-fn write_actions(out: &mut String, bodies: &[NamedBody], actions: &[Action]) {
+pub(crate) fn write_actions(out: &mut String, bodies: &[NamedBody], actions: &[Action]) {
     if !bodies.is_empty() {
         let _ = writeln!(out, "\n[bodies]");
         for (name, text) in bodies {
@@ -710,14 +717,15 @@ fn write_actions(out: &mut String, bodies: &[NamedBody], actions: &[Action]) {
 }
 
 /// An `[[action]]` of the program: one action association of the chart.
-struct Action {
+pub(crate) struct Action {
     /// The step's place.
-    place: String,
+    pub place: String,
     /// The qualifier, as the program format names it.
-    qualifier: &'static str,
-    drive: Drive,
+    pub qualifier: &'static str,
+    /// What it drives.
+    pub drive: Drive,
     /// The duration of a timed qualifier, in microseconds.
-    duration: Option<u64>,
+    pub duration: Option<u64>,
 }
 
 /// What an association runs, before its body is compiled.
@@ -733,7 +741,7 @@ enum Runs {
 }
 
 /// What an action association drives in the program.
-enum Drive {
+pub(crate) enum Drive {
     /// A BOOL variable, by its Cetratus name.
     Target(String),
     /// A body of `[bodies]`, by name.

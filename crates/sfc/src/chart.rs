@@ -737,22 +737,14 @@ fn condition(
                 .find(|t| t.name.eq_ignore_ascii_case(name))
             {
                 Some(t) => match &t.body {
-                    Body::St { text, at } => {
-                        // A transition body in ST is `transition_name := expr;` or, as some
-                        // editors write it, `:= expr;`; both are assignments, not expressions.
-                        if text.trim_start().starts_with(":=") {
-                            unsupported(
-                                &format!("the function-call form `:= …` of the body of transition {name}"),
-                                *at,
-                            )
-                        } else {
-                            Condition::St {
-                                text: text.clone(),
-                                at: *at,
-                                negated: false,
-                            }
-                        }
-                    }
+                    // A transition body in ST is `transition_name := expr;` or, as some editors
+                    // write it, `:= expr;`: the guard subset refuses both forms, and the chart then
+                    // goes to the ST compiler, which reads the expression (docs/sfc.md).
+                    Body::St { text, at } => Condition::St {
+                        text: text.clone(),
+                        at: *at,
+                        negated: false,
+                    },
                     Body::Other { language, at } => unsupported(
                         &format!("the {language} body of transition {name}"),
                         *at,

@@ -63,26 +63,7 @@ pub(crate) fn import_st_from(
     what: &str,
     locate: &Locate,
 ) -> Result<ImportedSt, SfcError> {
-    let src = Source {
-        origin: label,
-        text,
-    };
-    let located = |d: cetratus_st::Diagnostic, pou: &str| {
-        let e = src.error(d);
-        let (pos, written) = locate(e.line, e.column);
-        let message = match written {
-            Some(line) => format!(
-                "{} (in the Structured Text written for it: `{line}`)",
-                e.message
-            ),
-            None => e.message,
-        };
-        SfcError::St {
-            pos,
-            pou: pou.to_string(),
-            message,
-        }
-    };
+    let located = |d, pou: &str| st_error((label, text), locate, pou, d);
     let lib =
         cetratus_st::parse::parse_library(text).map_err(|d| located(d, pou.unwrap_or("-")))?;
     let unit = cetratus_st::compile(&lib, pou).map_err(|d| located(d, pou.unwrap_or("-")))?;
@@ -119,6 +100,35 @@ pub(crate) fn import_st_from(
     })
 }
 
+/// An error in the Structured Text `text` (read from, or written for, the file `label`) placed
+/// where `locate` puts its line and column in the file, quoting the line when the text was
+/// written rather than read.
+pub(crate) fn st_error(
+    (label, text): (&str, &str),
+    locate: &Locate,
+    pou: &str,
+    d: cetratus_st::Diagnostic,
+) -> SfcError {
+    let e = Source {
+        origin: label,
+        text,
+    }
+    .error(d);
+    let (pos, written) = locate(e.line, e.column);
+    let message = match written {
+        Some(line) => format!(
+            "{} (in the Structured Text written for it: `{line}`)",
+            e.message
+        ),
+        None => e.message,
+    };
+    SfcError::St {
+        pos,
+        pou: pou.to_string(),
+        message,
+    }
+}
+
 /// The program TOML of an imported POU.
 fn program_toml(
     unit: &Unit,
@@ -147,6 +157,31 @@ fn program_toml(
     if let Some(ns) = unit.interval.filter(|&ns| ns > 0) {
         let _ = writeln!(out, "scan_period = \"{}us\"", (ns / 1000).max(1));
     }
+    write_signals(unit, label, &mut out, notes);
+    let _ = writeln!(
+        out,
+        "\n[[action]]\nplace = \"{MAIN_STEP}\"\nqualifier = \"N\"\nbody = {}",
+        q(&unit.name)
+    );
+    let _ = writeln!(out, "\n[st]\npou = {}", q(&unit.name));
+    let _ = writeln!(out, "source = {}", toml_text(text));
+    out
+}
+
+/// A TOML string of `text`: a literal string, whose characters are the text's so that error
+/// positions map one to one, unless the text holds `'''` or control characters.
+pub(crate) fn toml_text(text: &str) -> String {
+    let plain = !text.contains("'''")
+        && !(text.chars()).any(|c| c.is_control() && !matches!(c, '\n' | '\r' | '\t'));
+    match plain {
+        true => format!("'''\n{text}'''"),
+        false => q(text),
+    }
+}
+
+/// The `[[input]]` and `[[output]]` tables of a POU's variables that cross the I/O image: its
+/// VAR_INPUTs and VAR_OUTPUTs (or variables located at `%I`, `%Q`) of elementary types.
+pub(crate) fn write_signals(unit: &Unit, label: &str, out: &mut String, notes: &mut Vec<String>) {
     for (kind, section) in [("input", Section::Input), ("output", Section::Output)] {
         for v in unit.vars.iter().filter(|v| crosses(v) == Some(section)) {
             let Ty::Elem(e) = v.ty else {
@@ -169,21 +204,4 @@ fn program_toml(
             let _ = writeln!(out, "description = \"{} {}\"", v.section.keyword(), e);
         }
     }
-    let _ = writeln!(
-        out,
-        "\n[[action]]\nplace = \"{MAIN_STEP}\"\nqualifier = \"N\"\nbody = {}",
-        q(&unit.name)
-    );
-    let _ = writeln!(out, "\n[st]\npou = {}", q(&unit.name));
-    if text.contains("'''")
-        || text
-            .chars()
-            .any(|c| c.is_control() && !matches!(c, '\n' | '\r' | '\t'))
-    {
-        let _ = writeln!(out, "source = {}", q(text));
-    } else {
-        // A literal string: its characters are the text's, so error positions map one to one.
-        let _ = writeln!(out, "source = '''\n{text}'''");
-    }
-    out
 }

@@ -48,20 +48,12 @@ fn importing_the_same_file_twice_gives_the_same_program_hash() {
 
 #[test]
 fn refusals_name_the_construct_the_pou_and_the_line_and_column() {
-    let cases = [
-        (
-            "iec-checker-example.xml",
-            Some("SFCTest"),
-            "iec-checker-example.xml:504:",
-            "function-call form",
-        ),
-        (
-            "beremiz-svghmi-traffic-light.xml",
-            None,
-            "beremiz-svghmi-traffic-light.xml:",
-            "FBD body of transition STOP",
-        ),
-    ];
+    let cases = [(
+        "beremiz-svghmi-traffic-light.xml",
+        None,
+        "beremiz-svghmi-traffic-light.xml:",
+        "FBD body of transition STOP",
+    )];
     for (file, pou, at, construct) in cases {
         let err = import(file, pou).expect_err(file);
         let text = err.to_string();
@@ -70,6 +62,33 @@ fn refusals_name_the_construct_the_pou_and_the_line_and_column() {
         assert!(text.contains(construct), "{text}");
         assert!(text.contains("in POU `"), "{text}");
     }
+}
+
+/// The iec-checker chart's transition `TR1` is a named transition whose ST body has the
+/// function-call form `:= AND(IN1, IN2, IN3);`: the ST compiler takes its expression. The chart
+/// is then refused for its D action's duration `10s`, which is no IEC time literal; written as
+/// `T#10s` (and its task's interval `10ms` as `T#10ms`), the chart imports.
+#[test]
+fn a_transition_body_in_the_function_call_form_is_read_as_its_expression() {
+    let err = import("iec-checker-example.xml", Some("SFCTest")).expect_err("10s");
+    let text = err.to_string();
+    assert!(
+        text.starts_with("iec-checker-example.xml:802:29:"),
+        "{text}"
+    );
+    assert!(text.contains("T#10s"), "{text}");
+    let fixed = read("plcopen/iec-checker-example.xml")
+        .replace(r#"duration="10s""#, r#"duration="T#10s""#)
+        .replace(r#"interval="10ms""#, r#"interval="T#10ms""#);
+    let imported =
+        cetratus_sfc::import_str(&fixed, "iec-checker-example.xml", Some("SFCTest"), "c.pnml")
+            .unwrap_or_else(|e| panic!("{e}"));
+    assert!(
+        imported.toml.contains("AND(IN1, IN2, IN3)"),
+        "{}",
+        imported.toml
+    );
+    assert!(!imported.toml.contains(":= AND"), "{}", imported.toml);
 }
 
 #[test]

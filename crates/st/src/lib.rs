@@ -18,7 +18,9 @@ pub mod types;
 pub mod vm;
 mod work;
 
-pub use compile::{compile, Unit, Var};
+pub use compile::{
+    compile, compile_entry_texts, compile_with_entries, Entry, EntryError, EntryText, Unit, Var,
+};
 pub use error::{Diagnostic, Source, StError};
 pub use vm::{Fault, State};
 pub use work::Work;

@@ -260,3 +260,19 @@ fn a_var_external_that_does_not_match_a_global_is_refused_at_its_place() {
     ));
     assert!(shadow.contains("has the name of a VAR_GLOBAL"), "{shadow}");
 }
+
+#[test]
+fn operators_called_as_functions_and_bool_literals_0_and_1_read_as_iec_writes_them() {
+    let u = build(
+        "PROGRAM P VAR_OUTPUT a : BOOL; o : BOOL; x : BOOL; m : INT; b : BOOL; END_VAR
+         a := AND(TRUE, TRUE, FALSE); o := OR(FALSE, FALSE, TRUE); x := XOR(TRUE, FALSE);
+         m := MOD(INT#7, 3); b := 1; END_PROGRAM",
+    );
+    let mut s = u.new_state();
+    scan(&u, &mut s, 0);
+    let got: Vec<u64> = ["a", "o", "x", "m", "b"]
+        .iter()
+        .map(|n| slot(&u, &s, n))
+        .collect();
+    assert_eq!(got, [0, 1, 1, 1, 1]);
+}

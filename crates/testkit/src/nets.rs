@@ -54,3 +54,21 @@ pub fn small() -> Net {
     }
     b.build().expect("the small net is well-formed")
 }
+
+/// A net of `places` (id, initial tokens) and `transitions` (id, from, to), each taking one
+/// token from its place and putting one into the next: the shape of a chart's sequence.
+pub fn sequence(places: &[(&str, u32)], transitions: &[(&str, &str, &str)]) -> Net {
+    let mut b = NetBuilder::new("sequence");
+    for &(id, m) in places {
+        b.add_place(Place::new(id, m)).expect("unique place ids");
+    }
+    for &(t, from, to) in transitions {
+        b.add_transition(Transition::new(t))
+            .expect("unique transition ids");
+        b.add_arc(&format!("{from}-{t}"), from, t, 1, ArcKind::Normal)
+            .expect("arcs between declared nodes");
+        b.add_arc(&format!("{t}-{to}"), t, to, 1, ArcKind::Normal)
+            .expect("arcs between declared nodes");
+    }
+    b.build().expect("the sequence is well-formed")
+}

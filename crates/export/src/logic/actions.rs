@@ -188,6 +188,8 @@ impl Logic<'_> {
                         let _ = writeln!(s, "{was} := {};", slot.stored());
                     }
                 }
+                // Refused before the logic is written (`refuse_st_chart`).
+                Target::St(_) => {}
             }
         }
         Ok(())

@@ -108,7 +108,7 @@ fn positive_duration(
 
 /// The entries of a `[guards]` or `[bodies]` table in document order, so that errors come in
 /// the order a reader fixes them.
-fn in_document_order(
+pub(super) fn in_document_order(
     table: &BTreeMap<Spanned<String>, Spanned<String>>,
 ) -> Vec<(&Spanned<String>, &Spanned<String>)> {
     let mut entries: Vec<_> = table.iter().collect();
@@ -167,12 +167,12 @@ pub(super) fn bodies(
     let entries = in_document_order(&doc.bodies);
     let mut bodies: Vec<Body> = Vec::with_capacity(entries.len() + 1);
     if let (Some(st), Some(decl)) = (st, &doc.st) {
-        let decl = decl.get_ref();
-        bodies.push(Body::structured_text(
-            decl.pou.get_ref(),
-            decl.source.get_ref(),
-            st.clone(),
-        ));
+        bodies.extend(super::structured::st_bodies(
+            o,
+            decl.get_ref(),
+            st,
+            &doc.bodies,
+        )?);
     }
     for (key, text) in entries {
         let b = Body::compile(key.get_ref(), text.get_ref(), scope).map_err(|e| {
@@ -193,10 +193,11 @@ pub(super) fn actions(
     net: &Net,
     signals: (&[Signal], &[Signal], &[Signal]),
     bodies: &[Body],
+    st: Option<&StProgram>,
 ) -> Result<Vec<Action>, ProgramError> {
     let mut actions = Vec::with_capacity(doc.action.len());
     for a in &doc.action {
-        actions.push(action(o, net, signals, bodies, a.get_ref())?);
+        actions.push(action(o, net, (signals, st), bodies, a.get_ref())?);
     }
     for (i, b) in bodies.iter().enumerate() {
         if !actions.iter().any(|a| a.target == Target::Body(i as u32)) {
@@ -368,10 +369,13 @@ pub(super) fn signal(
     })
 }
 
+/// The program's outputs, variables and inputs.
+type Signals<'a> = (&'a [Signal], &'a [Signal], &'a [Signal]);
+
 fn action(
     o: &Origin,
     net: &Net,
-    (outputs, variables, inputs): (&[Signal], &[Signal], &[Signal]),
+    (signals, st): (Signals<'_>, Option<&StProgram>),
     bodies: &[Body],
     d: &crate::source::ActionDecl,
 ) -> Result<Action, ProgramError> {
@@ -385,7 +389,12 @@ fn action(
         )
     })?;
     let target = match (&d.target, &d.body) {
-        (Some(t), None) => signal_target(o, t, outputs, variables, inputs)?,
+        (Some(t), None) => match st.filter(|s| s.is_chart()) {
+            Some(st) => st.bool_var(t.get_ref()).map(Target::St).ok_or_else(|| {
+                o.err(t.span().start, format!("action target `{}` is not a BOOL variable of the chart's POU `{}`; declare it there", t.get_ref(), st.unit().name))
+            })?,
+            None => signal_target(o, t, signals.0, signals.1, signals.2)?,
+        },
         (None, Some(b)) => {
             let i = bodies
                 .iter()
@@ -528,31 +537,4 @@ pub(super) fn watchdogs(
         }
     };
     Ok((out, no_firing))
-}
-
-/// `[st]` compiled: the POU named, wired to the program's inputs and outputs. An error in the
-/// ST is placed in the file where the text of `source` says (exact for a literal string,
-/// `'''…'''`, whose characters are the text's).
-pub(super) fn structured_text(
-    o: &Origin,
-    doc: &Doc,
-    inputs: &[Signal],
-    outputs: &[Signal],
-) -> Result<Option<Arc<StProgram>>, ProgramError> {
-    let Some(decl) = &doc.st else {
-        return Ok(None);
-    };
-    let decl = decl.get_ref();
-    let text = decl.source.get_ref();
-    let located = |d: cetratus_st::Diagnostic| {
-        o.err(
-            o.in_string(&decl.source, d.pos as usize),
-            format!("in the Structured Text: {}", d.message),
-        )
-    };
-    let lib = cetratus_st::parse::parse_library(text).map_err(located)?;
-    let unit = cetratus_st::compile(&lib, Some(decl.pou.get_ref())).map_err(located)?;
-    let st = StProgram::wire(unit, inputs, outputs)
-        .map_err(|w| o.err(decl.pou.span().start, format!("`[st] pou`: {}", w.message)))?;
-    Ok(Some(Arc::new(st)))
 }

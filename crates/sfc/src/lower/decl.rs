@@ -14,12 +14,15 @@ use crate::SfcError;
 pub(super) fn library(
     source: &Source,
     doc: &Document,
-    pous: &[Pou],
-    chosen: &Pou,
+    (pous, chosen): (&[Pou], &Pou),
+    chart_vars: Option<&[String]>,
     out: &mut Written,
     notes: &mut Notes,
 ) -> Result<String, SfcError> {
     let root = doc.root_element();
+    if chart_vars.is_some() {
+        out.line(chosen.node.range().start, STEP_TYPE);
+    }
     let fail = |at: usize, construct: &str, message: &str| SfcError::Unsupported {
         pos: source.pos(at),
         pou: chosen.name.clone(),
@@ -36,14 +39,17 @@ pub(super) fn library(
         .iter()
         .filter(|p| needed.contains(&p.name.to_ascii_uppercase()))
     {
-        match body_language(pou) {
-            Some(l) if textual(l) => {
+        match (body_language(pou), chart_vars) {
+            (_, Some(vars)) if std::ptr::eq(pou, chosen) => {
+                write_chart_pou(pou, vars, out, notes).map_err(|(at, w, y)| fail(at, &w, &y))?;
+            }
+            (Some(l), _) if textual(l) => {
                 write_pou(source, pou, &names, out, notes).map_err(|e| match e {
                     Refusal::Here(at, what, why) => fail(at, &what, &why),
                     Refusal::Error(e) => e,
                 })?;
             }
-            other => notes.at(
+            (other, _) => notes.at(
                 pou.node.range().start,
                 format!(
                     "POU `{}` ({}) is not part of the Structured Text written for `{}`",
@@ -208,6 +214,39 @@ fn write_pou(
         for (at, note) in lowered.notes.drain(..) {
             notes.at(at, note);
         }
+    }
+    out.line(at, close);
+    Ok(())
+}
+
+/// The structure of a chart's step flags (`S.X`, `S.T`), declared before the chart's POU.
+pub(crate) const STEP_TYPE: &str =
+    "TYPE CETRATUS_STEP : STRUCT X : BOOL; T : TIME; END_STRUCT; END_TYPE";
+
+/// A chart's POU: its header, interface, the chart's own variables (`vars`: its steps' flags,
+/// its nested charts' `Q`), and no body, which its actions and conditions take.
+fn write_chart_pou(
+    pou: &Pou,
+    vars: &[String],
+    out: &mut Written,
+    notes: &mut Notes,
+) -> Result<(), Refused> {
+    let at = pou.node.range().start;
+    let (open, close) = match pou_kind(pou) {
+        PouKind::FunctionBlock => (format!("FUNCTION_BLOCK {}", pou.name), "END_FUNCTION_BLOCK"),
+        _ => (format!("PROGRAM {}", pou.name), "END_PROGRAM"),
+    };
+    out.line(at, &open);
+    let interface = child(pou.node, "interface");
+    for section in interface.iter().flat_map(|i| i.children()) {
+        var_block(section, out, notes, &|_| true)?;
+    }
+    if !vars.is_empty() {
+        out.line(at, "VAR");
+        for v in vars {
+            out.line(at, &format!("  {v};"));
+        }
+        out.line(at, "END_VAR");
     }
     out.line(at, close);
     Ok(())

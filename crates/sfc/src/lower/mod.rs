@@ -62,7 +62,7 @@ pub(crate) fn import(
         });
     }
     let mut out = Written::default();
-    let run = decl::library(source, doc, &pous, chosen, &mut out, &mut noted)?;
+    let run = decl::library(source, doc, (&pous, chosen), None, &mut out, &mut noted)?;
     notes.append(&mut noted.lines);
     let what = format!("{language} from PLCopen XML");
     import_st_from(
@@ -73,6 +73,37 @@ pub(crate) fn import(
         &|line, column| out.locate(source, line, column),
     )
     .map_err(|e| hint_skipped(e, &pous))
+}
+
+/// The Structured Text of an SFC POU's chart: the file's data types and the POUs the chart
+/// uses, then the chart's POU `chosen` with its interface and the chart's own variables
+/// (`chart_vars`), and no body; with where each line came from, and what was noted.
+pub(crate) fn chart_library(
+    source: &Source,
+    doc: &Document,
+    chosen: &str,
+    chart_vars: &[String],
+    notes: &mut Vec<String>,
+) -> Result<Written, SfcError> {
+    let mut noted = decl::Notes::new(*source);
+    let pous = pou::pous(source, doc);
+    let Some(pou) = pous.iter().find(|p| p.name == chosen) else {
+        return Err(SfcError::Pou {
+            file: source.label.to_string(),
+            message: format!("no POU `{chosen}`; the file's POUs are: {}", listing(&pous)),
+        });
+    };
+    let mut out = Written::default();
+    decl::library(
+        source,
+        doc,
+        (&pous, pou),
+        Some(chart_vars),
+        &mut out,
+        &mut noted,
+    )?;
+    notes.append(&mut noted.lines);
+    Ok(out)
 }
 
 /// `NAME (LANGUAGE)` for every POU of the file.
@@ -145,7 +176,12 @@ impl Written {
 
     /// The file position of line `line`, column `column` (1-based) of the text, and the line
     /// itself when the importer wrote it (a message then quotes what it is about).
-    fn locate(&self, source: &Source, line: u32, column: u32) -> (SourcePos, Option<String>) {
+    pub(crate) fn locate(
+        &self,
+        source: &Source,
+        line: u32,
+        column: u32,
+    ) -> (SourcePos, Option<String>) {
         let index = line.saturating_sub(1) as usize;
         let Some(&(at, verbatim)) = self.origins.get(index) else {
             return (source.pos(0), None);

@@ -52,12 +52,12 @@ impl<'a> Compiler<'a> {
         match &e.kind {
             ExprKind::Lit(lit) => self.literal(lit, want, e.pos),
             ExprKind::Name(id) if !self.scope().vars.contains_key(&id.key()) => {
-                let c = self.constant(e, want)?;
-                let Const::Enum(ty, v) = c else {
-                    return Err(Diagnostic::new(
-                        e.pos,
-                        format!("unknown variable `{}`", id.text),
-                    ));
+                let unknown = || {
+                    let what = format!("unknown variable `{}`: declare it in the POU", id.text);
+                    Diagnostic::new(e.pos, what)
+                };
+                let Ok(Const::Enum(ty, v)) = self.constant(e, want) else {
+                    return Err(unknown());
                 };
                 Ok(Val::Scalar(Ty::Enum(ty), self.const_slot(v as u64, e.pos)?))
             }
@@ -125,6 +125,14 @@ impl<'a> Compiler<'a> {
             self.init.text[at..at + 2].copy_from_slice(&cap.to_le_bytes());
             self.init.text[at + 2..at + 2 + bytes.len()].copy_from_slice(bytes);
             return Ok(Val::Str(cap, at as TextAt));
+        }
+        // 0 and 1 are BOOL literals too where a BOOL is wanted (IEC 61131-3 table 5; MATIEC
+        // takes `x := 1` for a BOOL `x`).
+        if let (Literal::Int { value, ty: None }, Some(Ty::Elem(Elem::Bool))) = (lit, want) {
+            if matches!(value, 0 | 1) {
+                let bool_ty = Ty::Elem(Elem::Bool);
+                return Ok(Val::Scalar(bool_ty, self.const_slot(*value as u64, pos)?));
+            }
         }
         let ty = self.literal_type(lit, want, pos)?;
         let c = self.constant(

@@ -33,7 +33,8 @@ use expr::Val;
 
 pub use decl::Var;
 
-/// Most instructions in one compiled program, after expanding calls.
+/// Most instructions in one compiled program, after expanding calls: its body and its entries
+/// together.
 pub const MAX_OPS: usize = 1 << 22;
 /// Deepest chain of calls of user functions and function blocks.
 pub const MAX_CALL_DEPTH: usize = 32;
@@ -159,6 +160,9 @@ pub(crate) struct Compiler<'a> {
     pub returns: Vec<Vec<usize>>,
     /// Slots holding constants, by their bits.
     pub consts: HashMap<u64, Slot>,
+    /// Instructions already compiled into other code of the unit (the body, earlier entries):
+    /// [`MAX_OPS`] bounds them all together.
+    pub emitted: usize,
     /// Temporaries: slots that hold one operation's result for one reader.
     pub temps: std::collections::HashSet<Slot>,
     /// The configuration's `VAR_GLOBAL`s, by upper-case name, for `VAR_EXTERNAL`.
@@ -187,6 +191,68 @@ pub struct Unit {
     pub fb_names: Vec<String>,
     /// The members of the function block types, by id.
     pub fb_fields: Vec<Vec<Field>>,
+    /// Code that runs on the same state besides the body: a chart's action bodies and
+    /// transition conditions ([`compile_with_entries`]), in the order they were given.
+    pub entries: Vec<Entry>,
+}
+
+/// Structured Text that runs on a POU's state besides its body: the statements of an SFC
+/// action, or the BOOL expression of a transition's condition.
+#[derive(Clone, Copy, Debug)]
+pub enum EntryText<'t> {
+    /// Statements, run as a body is (RETURN ends them).
+    Body(&'t [crate::ast::Stmt]),
+    /// A BOOL expression, whose value a run leaves in the entry's result slot.
+    Condition(&'t Expr),
+}
+
+/// An entry's text, parsed: what [`EntryText`] borrows.
+#[derive(Clone, Debug)]
+enum ParsedEntry {
+    /// Statements.
+    Body(Vec<crate::ast::Stmt>),
+    /// A condition.
+    Condition(Expr),
+}
+
+impl ParsedEntry {
+    /// Parses `text` as statements (`body`) or as a condition.
+    fn parse(text: &str, body: bool) -> Result<ParsedEntry, Diagnostic> {
+        match body {
+            true => crate::parse::parse_statements(text).map(ParsedEntry::Body),
+            false => crate::parse::parse_expression(text).map(ParsedEntry::Condition),
+        }
+    }
+
+    /// The entry to compile.
+    fn text(&self) -> EntryText<'_> {
+        match self {
+            ParsedEntry::Body(s) => EntryText::Body(s),
+            ParsedEntry::Condition(e) => EntryText::Condition(e),
+        }
+    }
+}
+
+/// An entry, compiled.
+#[derive(Clone, Debug)]
+pub struct Entry {
+    /// Its name, as given.
+    pub name: String,
+    /// Its code.
+    pub code: Code,
+    /// What running its straight-line code once costs, in units of work.
+    pub cost: u64,
+    /// For a condition, the slot that holds its value after a run.
+    pub result: Option<Slot>,
+}
+
+/// An error in the POU or in one of the entries of [`compile_with_entries`].
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct EntryError {
+    /// The entry whose text it is in, by position; `None` for the POU's own source.
+    pub entry: Option<usize>,
+    /// What is wrong, at an offset of that text.
+    pub diagnostic: Diagnostic,
 }
 
 impl Unit {
@@ -203,6 +269,31 @@ impl Unit {
         work: &mut crate::Work,
     ) -> Result<(), crate::vm::Fault> {
         crate::vm::run(&self.code, self.cost, state, now, work)
+    }
+
+    /// Runs entry `k` ([`Unit::entries`]) once at time `now`, within `work`; for a condition,
+    /// its value. An entry that does not exist runs nothing and is false.
+    pub fn run_entry(
+        &self,
+        k: usize,
+        state: &mut State,
+        now: i64,
+        work: &mut crate::Work,
+    ) -> Result<bool, crate::vm::Fault> {
+        let Some(e) = self.entries.get(k) else {
+            return Ok(false);
+        };
+        crate::vm::run(&e.code, e.cost, state, now, work)?;
+        Ok(e.result
+            .and_then(|r| state.slots.get(r as usize))
+            .is_some_and(|&v| v != 0))
+    }
+
+    /// The position of the entry named `name` (case-insensitive).
+    pub fn entry(&self, name: &str) -> Option<usize> {
+        self.entries
+            .iter()
+            .position(|e| e.name.eq_ignore_ascii_case(name))
     }
 
     /// The PROGRAM's variable named `name` (case-insensitive).
@@ -325,6 +416,66 @@ impl Unit {
 /// Compiles the PROGRAM (or FUNCTION_BLOCK) named `pou` of `lib`, or the file's only PROGRAM
 /// when `pou` is `None`.
 pub fn compile(lib: &Library, pou: Option<&str>) -> Result<Unit, Diagnostic> {
+    compile_with_entries(lib, pou, &[]).map_err(|e| e.diagnostic)
+}
+
+/// [`compile`], and `entries` compiled in the scope of the POU, on its state: each sees the
+/// POU's variables (VAR_INPUTs may be assigned, as in the POU's own body) and the file's
+/// functions and types.
+pub fn compile_with_entries(
+    lib: &Library,
+    pou: Option<&str>,
+    entries: &[(String, EntryText<'_>)],
+) -> Result<Unit, EntryError> {
+    let in_pou = |diagnostic| EntryError {
+        entry: None,
+        diagnostic,
+    };
+    let (mut c, main, vars) = compile_pou(lib, pou).map_err(in_pou)?;
+    let body = std::mem::take(&mut c.code);
+    c.emitted = body.ops.len();
+    let mut compiled = Vec::with_capacity(entries.len());
+    for (k, (name, text)) in entries.iter().enumerate() {
+        let entry = c.entry(name, *text).map_err(|diagnostic| EntryError {
+            entry: Some(k),
+            diagnostic,
+        })?;
+        compiled.push(entry);
+    }
+    c.code = body;
+    let mut unit = c.finish(main, vars).map_err(in_pou)?;
+    unit.entries = compiled;
+    Ok(unit)
+}
+
+/// [`compile_with_entries`] of entries given as text: `(name, text, body)`, each text parsed as
+/// statements when `body`, else as a condition. A parse error is an [`EntryError`] of its entry,
+/// as a compile error is.
+pub fn compile_entry_texts(
+    lib: &Library,
+    pou: Option<&str>,
+    texts: &[(&str, &str, bool)],
+) -> Result<Unit, EntryError> {
+    let mut parsed = Vec::with_capacity(texts.len());
+    for (k, &(_, text, body)) in texts.iter().enumerate() {
+        parsed.push(
+            ParsedEntry::parse(text, body).map_err(|diagnostic| EntryError {
+                entry: Some(k),
+                diagnostic,
+            })?,
+        );
+    }
+    let entries: Vec<(String, EntryText<'_>)> = (texts.iter().zip(&parsed))
+        .map(|(&(name, _, _), p)| (name.to_string(), p.text()))
+        .collect();
+    compile_with_entries(lib, pou, &entries)
+}
+
+/// The compiler after the POU's body, with the POU and its variables.
+fn compile_pou<'a>(
+    lib: &'a Library,
+    pou: Option<&str>,
+) -> Result<(Compiler<'a>, &'a Pou, Vec<Var>), Diagnostic> {
     let main = pick(lib, pou)?;
     let mut c = Compiler::new(lib)?;
     let globals = c.global_vars()?;
@@ -342,7 +493,7 @@ pub fn compile(lib: &Library, pou: Option<&str>) -> Result<Unit, Diagnostic> {
     }
     vars.retain(|v| v.section != Section::External);
     c.body(&main.body)?;
-    c.finish(main, vars)
+    Ok((c, main, vars))
 }
 
 /// The POU to compile.
@@ -416,6 +567,7 @@ impl<'a> Compiler<'a> {
             loops: Vec::new(),
             returns: Vec::new(),
             consts: HashMap::new(),
+            emitted: 0,
             temps: std::collections::HashSet::new(),
             globals: HashMap::new(),
         };
@@ -468,6 +620,39 @@ impl<'a> Compiler<'a> {
                 .iter()
                 .map(|f| f.fields.iter().map(|(field, _)| field.clone()).collect())
                 .collect(),
+            entries: Vec::new(),
+        })
+    }
+
+    /// One entry compiled into code of its own, in the POU's scope.
+    fn entry(&mut self, name: &str, text: EntryText<'_>) -> Result<Entry, Diagnostic> {
+        self.code = Code::default();
+        let result = match text {
+            EntryText::Body(stmts) => {
+                self.body(stmts)?;
+                None
+            }
+            EntryText::Condition(e) => match self.expr(e, Some(Ty::Elem(Elem::Bool)))? {
+                Val::Scalar(Ty::Elem(Elem::Bool), slot) => Some(slot),
+                v => {
+                    return Err(Diagnostic::new(
+                        e.pos,
+                        format!(
+                            "a transition's condition is BOOL, and this is {}; compare it (x > 0)",
+                            self.describe(v.ty())
+                        ),
+                    ))
+                }
+            },
+        };
+        let code = std::mem::take(&mut self.code);
+        self.emitted += code.ops.len();
+        let cost = code.ops.iter().map(|op| op.cost(&code)).sum();
+        Ok(Entry {
+            name: name.to_string(),
+            code,
+            cost,
+            result,
         })
     }
 
@@ -494,7 +679,7 @@ impl<'a> Compiler<'a> {
 
     /// Appends an instruction compiled from the text at `pos`; its index.
     pub fn emit(&mut self, op: Op, pos: Pos) -> Result<usize, Diagnostic> {
-        if self.code.ops.len() >= MAX_OPS {
+        if self.emitted + self.code.ops.len() >= MAX_OPS {
             return Err(Diagnostic::new(
                 pos,
                 format!("the program is too large: more than {MAX_OPS} instructions once its calls are expanded; split it, or call fewer function blocks from inside other function blocks"),

@@ -23,7 +23,7 @@
 //! | 1 | `OR` |
 
 use super::{lit, Parsed, Parser};
-use crate::ast::{Arg, BinOp, Call, Expr, ExprKind, Literal, UnOp};
+use crate::ast::{Arg, BinOp, Call, Expr, ExprKind, Ident, Literal, UnOp};
 use crate::error::Diagnostic;
 use crate::lex::{Kw, Tok};
 
@@ -119,6 +119,9 @@ impl Parser<'_> {
             Tok::Typed => lit::typed(text, t.pos)?,
             Tok::Kw(Kw::True) => Literal::Bool(true),
             Tok::Kw(Kw::False) => Literal::Bool(false),
+            Tok::Kw(Kw::And | Kw::Or | Kw::Xor | Kw::Mod) if self.tok(1).tok == Tok::LParen => {
+                return self.operator_call();
+            }
             Tok::Ident => {
                 if let Some(refused) = self.refusal() {
                     return Err(refused);
@@ -155,6 +158,19 @@ impl Parser<'_> {
     /// A name and its members, indices and call: what can be assigned to, called, or read.
     pub(super) fn variable(&mut self, what: &str) -> Result<Parsed, Diagnostic> {
         let name = self.name(what)?;
+        self.variable_from(name)
+    }
+
+    /// An operator called as the function IEC 61131-3 also makes it (`AND(a, b, c)`,
+    /// `MOD(a, b)`): its keyword read as the function's name.
+    fn operator_call(&mut self) -> Result<Parsed, Diagnostic> {
+        let t = self.bump();
+        let name = self.ident_of(t);
+        self.variable_from(name)
+    }
+
+    /// [`Parser::variable`] once its name is read.
+    fn variable_from(&mut self, name: Ident) -> Result<Parsed, Diagnostic> {
         let pos = name.pos;
         let mut e = (
             Expr {

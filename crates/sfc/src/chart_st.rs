@@ -1,0 +1,333 @@
+//! A chart on the one Structured Text compiler (docs/sfc.md, *Charts in Structured Text*): the
+//! POU's declarations, with a step-flags variable per step and a `Q` per nested chart, become
+//! the program's `[st]`; each action body its `[st.bodies]` entry and each condition its
+//! `[st.conditions]` entry, as the file writes them. Everything is compiled here first, so that
+//! an error names the file's line and column; the program then compiles the same text.
+
+use std::fmt::Write as _;
+
+use cetratus_st::parse::parse_library;
+use cetratus_st::types::{Elem, Ty};
+use cetratus_st::{compile_entry_texts, Unit};
+
+use crate::build::{header, q, qualifier_name, write_actions, Action, Drive, ExtraGuard};
+use crate::chart::{ActionRef, Chart, Condition};
+use crate::nest::{Nest, SEP};
+use crate::pou::{Body, Pou};
+use crate::source::Source;
+use crate::structured::{st_error, toml_text, write_signals};
+use crate::SfcError;
+
+/// What a chart is imported from.
+pub(crate) struct Parts<'p> {
+    pub source: &'p Source<'p>,
+    pub doc: &'p cetratus_net::xml::Document<'p>,
+    pub project: &'p str,
+    pub pou: &'p Pou<'p, 'p>,
+    pub chart: &'p Chart,
+    pub nests: &'p [Nest],
+    /// The net's transition ids, one per transition of the chart.
+    pub ids: &'p [String],
+    /// The hold and resume transitions of nested steps, with their guards.
+    pub extra: &'p [ExtraGuard],
+    pub net_file: &'p str,
+}
+
+/// An entry of the chart's ST: its name, its text, where the file's text starts in it (after
+/// what the importer put before it), and where that is in the file.
+struct Entry {
+    name: String,
+    text: String,
+    lead: usize,
+    at: Option<usize>,
+    body: bool,
+}
+
+/// The program TOML of the chart on the ST compiler.
+pub(crate) fn program_toml(p: &Parts, notes: &mut Vec<String>) -> Result<String, SfcError> {
+    let vars = chart_vars(p)?;
+    let written = crate::lower::chart_library(p.source, p.doc, &p.pou.name, &vars, notes)?;
+    // Conditions first, as the chart reads: the first refusal is the same as the subset's.
+    let conditions = conditions(p)?;
+    let (actions, mut entries) = actions(p)?;
+    entries.extend(conditions);
+    let unit = compile(p, &written, &entries)?;
+    check_targets(p, &unit, &actions)?;
+    let mut out = header(p.project, &p.pou.name, p.net_file);
+    write_signals(&unit, p.source.label, &mut out, notes);
+    write_actions(&mut out, &[], &actions);
+    let _ = writeln!(out, "\n[st]\npou = {}", q(&p.pou.name));
+    let _ = writeln!(out, "source = {}", toml_text(&written.text));
+    for (table, body) in [("bodies", true), ("conditions", false)] {
+        let mine: Vec<&Entry> = entries.iter().filter(|e| e.body == body).collect();
+        if !mine.is_empty() {
+            let _ = writeln!(out, "\n[st.{table}]");
+        }
+        for e in mine {
+            let _ = writeln!(out, "{} = {}", q(&e.name), toml_text(&e.text));
+        }
+    }
+    let _ = writeln!(out, "\n[st.steps]");
+    for s in &p.chart.steps {
+        let _ = writeln!(out, "{} = {}", q(&s.name), q(local_name(p, &s.name)));
+    }
+    Ok(out)
+}
+
+/// A step's name as the ST reads it: a nested chart's step without its action's prefix.
+fn local_name<'s>(p: &Parts, step: &'s str) -> &'s str {
+    (p.nests.iter())
+        .find_map(|n| step.strip_prefix(&format!("{}{SEP}", n.action)))
+        .unwrap_or(step)
+}
+
+/// The chart's own variables: each step's flags, and each nested chart's `Q`; a name that is
+/// taken already is refused.
+fn chart_vars(p: &Parts) -> Result<Vec<String>, SfcError> {
+    let mut names: Vec<&str> = Vec::new();
+    let mut out = Vec::new();
+    let steps = p
+        .chart
+        .steps
+        .iter()
+        .map(|s| (local_name(p, &s.name), s.at, true));
+    let nested = p.nests.iter().map(|n| (n.action.as_str(), 0, false));
+    for (name, at, step) in steps.chain(nested) {
+        let taken = (p.pou.variables.iter()).any(|v| v.name.eq_ignore_ascii_case(name))
+            || names.iter().any(|n| n.eq_ignore_ascii_case(name));
+        if taken {
+            return Err(SfcError::Chart {
+                pos: p.source.pos(at),
+                pou: p.pou.name.clone(),
+                message: format!("the name `{name}` is declared twice among the POU's variables, its steps and its nested charts (IEC names are case-insensitive); rename one"),
+            });
+        }
+        names.push(name);
+        out.push(match step {
+            true => format!("{name} : CETRATUS_STEP"),
+            false => format!("{name} : BOOL"),
+        });
+    }
+    Ok(out)
+}
+
+/// The `[[action]]`s, and the bodies they run as entries: a named action associated with
+/// several steps is one body, with one action control, as in IEC 61131-3.
+fn actions(p: &Parts) -> Result<(Vec<Action>, Vec<Entry>), SfcError> {
+    let (mut actions, mut bodies) = (Vec::new(), Vec::<Entry>::new());
+    for (k, a) in p.chart.associations.iter().enumerate() {
+        let step = p.chart.steps[a.step].name.clone();
+        let duration = match (a.qualifier.is_timed(), &a.duration) {
+            (false, _) => None,
+            (true, Some(d)) => {
+                Some(crate::st::duration(d).map_err(|e| st_err(p, a.at, e.message))?)
+            }
+            (true, None) => {
+                let why = format!(
+                    "the qualifier {} needs a duration; add duration=\"T#…\"",
+                    a.qualifier
+                );
+                return Err(chart_err(p, a.at, why));
+            }
+        };
+        let refuse = |construct: String, why: &str| Err(unsupported(p, a.at, construct, why));
+        let drive = match &a.action {
+            ActionRef::Reference(name) => {
+                let named = p
+                    .pou
+                    .actions
+                    .iter()
+                    .find(|n| n.name.eq_ignore_ascii_case(name));
+                match named.map(|n| (n, &n.body)) {
+                    Some((n, Body::St { text, at })) => body(&mut bodies, &n.name, text, *at),
+                    Some((n, Body::Other { .. })) if p.nests.iter().any(|x| x.action == n.name) => {
+                        Drive::Target(n.name.clone())
+                    }
+                    Some((_, Body::Other { language, .. })) => {
+                        return refuse(format!("the action `{name}` with a {language} body"), "action bodies must be Structured Text or a chart (an FBD, LD or IL body is not imported)");
+                    }
+                    None => Drive::Target(name.clone()),
+                }
+            }
+            ActionRef::Inline(Body::St { text, at }) => {
+                body(&mut bodies, &format!("{step}_inline{}", k + 1), text, *at)
+            }
+            ActionRef::Inline(Body::Other { language, .. }) => {
+                return refuse(
+                    format!("an inline {language} action"),
+                    "action bodies must be Structured Text",
+                );
+            }
+        };
+        actions.push(Action {
+            place: step,
+            qualifier: qualifier_name(a.qualifier),
+            drive,
+            duration,
+        });
+    }
+    Ok((actions, bodies))
+}
+
+/// The body `name` (its `text` at byte `at` of the file) as an entry, once, and run.
+fn body(bodies: &mut Vec<Entry>, name: &str, text: &str, at: usize) -> Drive {
+    if !bodies.iter().any(|b| b.name.eq_ignore_ascii_case(name)) {
+        bodies.push(Entry {
+            name: name.to_string(),
+            text: text.to_string(),
+            lead: 0,
+            at: Some(at),
+            body: true,
+        });
+    }
+    Drive::Body(name.to_string())
+}
+
+/// The conditions as entries: negated as their box says, and a nested chart's only while its
+/// action is on; the hold and resume transitions of nested steps last.
+fn conditions(p: &Parts) -> Result<Vec<Entry>, SfcError> {
+    let mut out = Vec::new();
+    for (i, (t, id)) in p.chart.transitions.iter().zip(p.ids).enumerate() {
+        let (text, at, negated) = match &t.condition {
+            Condition::St { text, at, negated } => (text, *at, *negated),
+            Condition::Unsupported { form, at } => {
+                return Err(unsupported(p, *at, form.clone(), &format!("the condition of transition {id} must be Structured Text (inline, in an inVariable box, or a named transition's ST body)")))
+            }
+        };
+        let nest = Nest::of_transition(p.nests, i);
+        let always = text.trim().eq_ignore_ascii_case("TRUE") && !negated;
+        let (open, close) = match (negated, nest) {
+            (true, Some(n)) => (format!("{} AND NOT (", n.action), ")"),
+            (false, Some(n)) if always => (n.action.clone(), ""),
+            (false, Some(n)) => (format!("{} AND (", n.action), ")"),
+            (true, None) => ("NOT (".to_string(), ")"),
+            (false, None) if always => continue,
+            (false, None) => (String::new(), ""),
+        };
+        let (skipped, expr) = expression_of(text);
+        let body = if close.is_empty() && !open.is_empty() {
+            ""
+        } else {
+            expr
+        };
+        out.push(Entry {
+            name: id.clone(),
+            lead: open.len(),
+            text: format!("{open}{body}{close}"),
+            at: Some(at + skipped),
+            body: false,
+        });
+    }
+    for (id, guard) in p.extra {
+        let text = match guard.strip_prefix('!') {
+            Some(action) => format!("NOT {action}"),
+            None => guard.clone(),
+        };
+        out.push(Entry {
+            name: id.clone(),
+            text,
+            lead: 0,
+            at: None,
+            body: false,
+        });
+    }
+    Ok(out)
+}
+
+/// The expression of a condition's text, and how many bytes before it were left out: a named
+/// transition's ST body may be written as an assignment, `name := expr;` or `:= expr;` (the
+/// forms of IEC 61131-3's textual SFC and of some editors), whose value is the expression. No
+/// expression starts with a name and `:=`, so the form is told apart by its first tokens.
+fn expression_of(text: &str) -> (usize, &str) {
+    let trimmed = text.trim_start();
+    let ident = trimmed
+        .find(|c: char| !(c.is_ascii_alphanumeric() || c == '_'))
+        .unwrap_or(trimmed.len());
+    let after_name = trimmed[ident..].trim_start();
+    let assigned = match after_name.strip_prefix(":=") {
+        Some(rest) if ident > 0 => Some(rest),
+        _ => trimmed.strip_prefix(":="),
+    };
+    let Some(rest) = assigned else {
+        return (0, text);
+    };
+    let body = rest.trim_end();
+    let body = body.strip_suffix(';').unwrap_or(body);
+    (text.len() - rest.len(), body)
+}
+
+/// The chart's ST compiled: the declarations, then every entry, each error placed in the file.
+fn compile(
+    p: &Parts,
+    written: &crate::lower::Written,
+    entries: &[Entry],
+) -> Result<Unit, SfcError> {
+    let locate = |line, column| written.locate(p.source, line, column);
+    let declared = |d| st_error((p.source.label, &written.text), &locate, &p.pou.name, d);
+    let lib = parse_library(&written.text).map_err(declared)?;
+    let in_entry = |e: &Entry, d: cetratus_st::Diagnostic| {
+        let offset = (d.pos as usize).saturating_sub(e.lead);
+        st_err(
+            p,
+            e.at.map_or(0, |at| at + offset),
+            format!("in {}: {}", what(e), d.message),
+        )
+    };
+    let texts: Vec<(&str, &str, bool)> = (entries.iter())
+        .map(|e| (e.name.as_str(), e.text.as_str(), e.body))
+        .collect();
+    compile_entry_texts(&lib, Some(&p.pou.name), &texts).map_err(|err| {
+        match err.entry.and_then(|k| entries.get(k)) {
+            Some(e) => in_entry(e, err.diagnostic),
+            None => declared(err.diagnostic),
+        }
+    })
+}
+
+/// What an entry is, for messages.
+fn what(e: &Entry) -> String {
+    match e.body {
+        true => format!("the action `{}`", e.name),
+        false => format!("the condition of transition {}", e.name),
+    }
+}
+
+/// Each variable an association sets is a BOOL of the POU.
+fn check_targets(p: &Parts, unit: &Unit, actions: &[Action]) -> Result<(), SfcError> {
+    for (a, assoc) in actions.iter().zip(&p.chart.associations) {
+        let Drive::Target(name) = &a.drive else {
+            continue;
+        };
+        match unit.var(name) {
+            Some(v) if v.ty == Ty::Elem(Elem::Bool) => {}
+            Some(v) => return Err(unsupported(p, assoc.at, format!("the {} variable `{name}` as an action", unit.describe(v.ty)), "a variable named as an action must be BOOL")),
+            None => return Err(chart_err(p, assoc.at, format!("the action `{name}` is neither an action of the POU nor a BOOL variable; declare it"))),
+        }
+    }
+    Ok(())
+}
+
+fn chart_err(p: &Parts, at: usize, message: String) -> SfcError {
+    SfcError::Chart {
+        pos: p.source.pos(at),
+        pou: p.pou.name.clone(),
+        message,
+    }
+}
+
+fn st_err(p: &Parts, at: usize, message: String) -> SfcError {
+    SfcError::St {
+        pos: p.source.pos(at),
+        pou: p.pou.name.clone(),
+        message,
+    }
+}
+
+fn unsupported(p: &Parts, at: usize, construct: String, message: &str) -> SfcError {
+    SfcError::Unsupported {
+        pos: p.source.pos(at),
+        pou: p.pou.name.clone(),
+        construct,
+        message: message.to_string(),
+    }
+}

@@ -312,7 +312,7 @@ fn scan_latency(
     let stop = AtomicBool::new(false);
     let mut round = 0u64;
     while off.reached_us < for_us || on.reached_us < for_us {
-        let (first, second) = if round % 2 == 0 {
+        let (first, second) = if round.is_multiple_of(2) {
             (&mut off, &mut on)
         } else {
             (&mut on, &mut off)

@@ -53,8 +53,13 @@ pub struct StFigure {
     pub scans: u64,
     /// Median ns of one Cetratus scan (the container: the ST pass and the net around it).
     pub cetratus_ns: f64,
-    /// Median ns of one pass of the compiled ST alone (the register machine, no net).
-    pub vm_ns: f64,
+    /// Median ns of one pass of the compiled ST alone, as a scan runs it (in machine code where
+    /// this machine has a code generator; no net).
+    pub pass_ns: f64,
+    /// Median ns of the same pass on the register machine's interpreter.
+    pub interpreted_ns: f64,
+    /// Whether the pass ran in machine code.
+    pub machine_code: bool,
     /// Median ns of one scan of MATIEC's C (`cc -O2`), when MATIEC was given.
     pub matiec_ns: Option<f64>,
     /// `cetratus_ns / matiec_ns`.
@@ -250,7 +255,8 @@ pub fn figures(matiec: Option<&Path>, quick: bool) -> Result<StFigures, BenchErr
     };
     let mut out = Vec::new();
     for p in programs() {
-        let (cetratus_ns, vm_ns, ours) = cetratus_side(&p, scans)?;
+        let (cetratus_ns, ours) = cetratus_side(&p, scans)?;
+        let pass = pass_ns(&p, scans)?;
         let matiec_ns = match &compiler {
             Ok(m) => Some(matiec_side(m, &p, scans, &ours)?),
             Err(_) => None,
@@ -259,7 +265,9 @@ pub fn figures(matiec: Option<&Path>, quick: bool) -> Result<StFigures, BenchErr
             name: p.name.to_string(),
             scans,
             cetratus_ns,
-            vm_ns,
+            pass_ns: pass.native,
+            interpreted_ns: pass.interpreted,
+            machine_code: pass.machine_code,
             matiec_ns,
             ratio: matiec_ns.map(|m| cetratus_ns / m),
         });
@@ -273,9 +281,9 @@ pub fn figures(matiec: Option<&Path>, quick: bool) -> Result<StFigures, BenchErr
     })
 }
 
-/// Median ns of a Cetratus scan and of a bare pass of the compiled ST, and the outputs after
-/// the last scan in MATIEC's canonical text.
-fn cetratus_side(p: &StBench, scans: u64) -> Result<(f64, f64, Vec<String>), BenchError> {
+/// Median ns of a Cetratus scan, and the outputs after the last scan in MATIEC's canonical
+/// text.
+fn cetratus_side(p: &StBench, scans: u64) -> Result<(f64, Vec<String>), BenchError> {
     let imported = cetratus_sfc::structured::import_st(&p.source, p.name, None)?;
     let program = Arc::new(imported.program);
     let inputs = program
@@ -304,8 +312,7 @@ fn cetratus_side(p: &StBench, scans: u64) -> Result<(f64, f64, Vec<String>), Ben
             Ok(canonical(*ty, last.outputs()[i]))
         })
         .collect::<Result<Vec<String>, BenchError>>()?;
-    let vm = vm_pass_ns(p, scans)?;
-    Ok((ns, vm, outputs))
+    Ok((ns, outputs))
 }
 
 /// Median ns of one scan of a copy of `fresh` over `scans` scans (of [`RUNS`] runs), `inputs`
@@ -330,21 +337,41 @@ pub(crate) fn time_scans(
     (ns / scans as f64, last)
 }
 
-/// Median ns of one pass of the compiled ST alone, its inputs written once.
-fn vm_pass_ns(p: &StBench, scans: u64) -> Result<f64, BenchError> {
+/// Median ns of one pass of the compiled ST alone, as a scan runs it and interpreted.
+struct Pass {
+    native: f64,
+    interpreted: f64,
+    machine_code: bool,
+}
+
+/// [`Pass`] of `p`, its inputs left at their initial values.
+fn pass_ns(p: &StBench, scans: u64) -> Result<Pass, BenchError> {
     let lib = cetratus_st::parse::parse_library(&p.source).map_err(|d| d.message)?;
     let unit = cetratus_st::compile(&lib, None).map_err(|d| d.message)?;
+    unit.prepare_machine_code();
     let tick = TICK.as_nanos() as i64;
-    let ns = median((0..RUNS).map(|_| {
-        let mut state = unit.new_state();
-        let t0 = Instant::now();
-        for k in 0..scans {
-            let mut work = cetratus_st::Work::unlimited();
-            black_box(unit.run(&mut state, k as i64 * tick, &mut work).is_ok());
-        }
-        t0.elapsed()
-    }));
-    Ok(ns / scans as f64)
+    let time = |interpret: bool| {
+        let ns = median((0..RUNS).map(|_| {
+            let mut state = unit.new_state();
+            let t0 = Instant::now();
+            for k in 0..scans {
+                let mut work = cetratus_st::Work::unlimited();
+                let now = k as i64 * tick;
+                let r = match interpret {
+                    true => unit.run_interpreted(&mut state, now, &mut work),
+                    false => unit.run(&mut state, now, &mut work),
+                };
+                black_box(r.is_ok());
+            }
+            t0.elapsed()
+        }));
+        ns / scans as f64
+    };
+    Ok(Pass {
+        native: time(false),
+        interpreted: time(true),
+        machine_code: unit.in_machine_code(),
+    })
 }
 
 /// Median ns of one scan of MATIEC's C, after checking that its outputs after the last scan

@@ -98,7 +98,7 @@ impl Nodes {
         (link != NO_PARENT).then_some(((link >> 32) as usize, link as u32))
     }
     fn push(&mut self, m: &[u64], link: u64) {
-        if self.len % NODE_CHUNK == 0 {
+        if self.len.is_multiple_of(NODE_CHUNK) {
             self.chunks
                 .push(Vec::with_capacity(NODE_CHUNK * self.width));
         }
@@ -350,7 +350,7 @@ impl<'a> KarpMiller<'a> {
             self.stopped = Some(Stop::MaxStates(self.max_states));
             return ControlFlow::Break(());
         }
-        let chunk = if self.nodes.len % NODE_CHUNK == 0 {
+        let chunk = if self.nodes.len.is_multiple_of(NODE_CHUNK) {
             NODE_CHUNK * self.nodes.width * 8
         } else {
             0

@@ -32,18 +32,19 @@ pub fn run(args: &StArgs) -> anyhow::Result<()> {
         println!("MATIEC's side skipped: {why}");
     }
     println!(
-        "{:<8} {:>8} {:>12} {:>12} {:>12} {:>7}",
-        "program", "scans", "cetratus ns", "st pass ns", "matiec ns", "ratio"
+        "{:<8} {:>8} {:>12} {:>12} {:>14} {:>12} {:>7}",
+        "program", "scans", "cetratus ns", "st pass ns", "interpreted ns", "matiec ns", "ratio"
     );
     for p in &f.programs {
         let or_dash =
             |x: Option<f64>, digits: usize| x.map_or("-".to_string(), |v| format!("{v:.digits$}"));
         println!(
-            "{:<8} {:>8} {:>12.0} {:>12.0} {:>12} {:>7}",
+            "{:<8} {:>8} {:>12.0} {:>12.0} {:>14.0} {:>12} {:>7}",
             p.name,
             p.scans,
             p.cetratus_ns,
-            p.vm_ns,
+            p.pass_ns,
+            p.interpreted_ns,
             or_dash(p.matiec_ns, 0),
             or_dash(p.ratio, 2)
         );

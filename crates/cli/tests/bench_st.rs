@@ -38,8 +38,17 @@ fn every_program_runs_on_both_sides_with_the_same_outputs_and_gets_a_ratio() {
     let names: Vec<&str> = programs.iter().filter_map(|p| p["name"].as_str()).collect();
     assert_eq!(names, ["pid", "rungs", "machine", "filter"]);
     for p in programs {
-        for key in ["cetratus_ns", "vm_ns", "matiec_ns", "ratio"] {
+        for key in [
+            "cetratus_ns",
+            "pass_ns",
+            "interpreted_ns",
+            "matiec_ns",
+            "ratio",
+        ] {
             assert!(p[key].as_f64().is_some_and(|v| v > 0.0), "{key}: {p}");
+        }
+        if cfg!(any(target_arch = "x86_64", target_arch = "aarch64")) {
+            assert_eq!(p["machine_code"], Value::Bool(true), "{p}");
         }
     }
     assert!(
@@ -68,6 +77,9 @@ fn bench_export_measures_both_programs_and_the_chart() {
     for p in f["programs"].as_array().expect("programs") {
         for key in ["export_ms", "cetratus_ns", "compiled_ns"] {
             assert!(p[key].as_f64().is_some_and(|v| v > 0.0), "{key}: {p}");
+        }
+        if cfg!(any(target_arch = "x86_64", target_arch = "aarch64")) {
+            assert_eq!(p["machine_code"], Value::Bool(true), "{p}");
         }
     }
     let chart = &f["chart"];

@@ -160,7 +160,7 @@ fn sigkill_at_random_moments_leaves_a_consistent_state_within_the_loss_bound() {
             if cold {
                 cmd.arg("--cold");
             }
-            let ending = if rng.next() % 4 == 0 {
+            let ending = if rng.next().is_multiple_of(4) {
                 "abort"
             } else {
                 "substitute"

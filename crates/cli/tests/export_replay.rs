@@ -414,7 +414,7 @@ fn random_inputs(scans: u64) -> String {
             .wrapping_mul(6364136223846793005)
             .wrapping_add(1442695040888963407);
         let r = x >> 33;
-        let bit = |i: u32, odds: u64| u8::from((r >> i) % odds == 0);
+        let bit = |i: u32, odds: u64| u8::from((r >> i).is_multiple_of(odds));
         s.push_str(&format!(
             "{k},{},{},{},{},{},{}\n",
             k * 10,

@@ -571,7 +571,7 @@ fn forged_replies_and_garbage_on_the_broker_do_not_stop_a_rollout() {
                     }
                 }
                 for (child, text, every) in &mut garbage {
-                    if round % *every == 0 {
+                    if round.is_multiple_of(*every) {
                         let stdin = child.stdin.as_mut().expect("stdin");
                         let _ = writeln!(stdin, "{text}");
                     }

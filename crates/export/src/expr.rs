@@ -156,9 +156,9 @@ pub(crate) fn real_literal(r: f64) -> String {
 /// A duration in microseconds as an IEC TIME literal: whole seconds as `T#3s`, else
 /// milliseconds, with a fraction below them.
 pub(crate) fn time_literal(us: u64) -> String {
-    if us % 1_000_000 == 0 {
+    if us.is_multiple_of(1_000_000) {
         format!("T#{}s", us / 1_000_000)
-    } else if us % 1000 == 0 {
+    } else if us.is_multiple_of(1000) {
         format!("T#{}ms", us / 1000)
     } else {
         let frac = format!("{:03}", us % 1000);

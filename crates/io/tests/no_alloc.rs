@@ -111,7 +111,7 @@ struct Moving {
 impl cetratus_runtime::Provider for Moving {
     fn read_inputs(&mut self, _now_us: u64, inputs: &mut [cetratus_program::Value]) {
         for (i, v) in inputs.iter_mut().enumerate() {
-            *v = cetratus_program::Value::Bool((self.cycle + i as u64) % 7 == 0);
+            *v = cetratus_program::Value::Bool((self.cycle + i as u64).is_multiple_of(7));
         }
         self.cycle += 1;
     }
@@ -170,9 +170,9 @@ fn a_plc_of_200_signals_records_every_cycle_for_the_timing_diagram_without_alloc
     // Signal 150 is output y50; both signals past the 64th have their bits in the record.
     let bit = |words: &[u64], i: usize| words[i / 64] & (1 << (i % 64)) != 0;
     let c = io.cycle - 1;
-    assert_eq!(bit(last.inputs, 99), (c + 99) % 7 == 0);
-    assert_eq!(bit(last.inputs, 70), (c + 70) % 7 == 0);
-    assert_eq!(bit(last.dispatched, 90), (c - 1 + 90) % 7 == 0);
+    assert_eq!(bit(last.inputs, 99), (c + 99).is_multiple_of(7));
+    assert_eq!(bit(last.inputs, 70), (c + 70).is_multiple_of(7));
+    assert_eq!(bit(last.dispatched, 90), (c - 1 + 90).is_multiple_of(7));
     assert_eq!(plc.monitor().recent.len(), 8192);
     assert_eq!(counted, 0);
 }

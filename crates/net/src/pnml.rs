@@ -666,7 +666,7 @@ fn parse_count(text: &str) -> Result<Option<Tokens>, CountError> {
         return parse_number(text).map(Some);
     }
     let parts: Vec<&str> = text.split(',').map(str::trim).collect();
-    if parts.len() % 2 != 0 {
+    if !parts.len().is_multiple_of(2) {
         return Err(CountError::BadList);
     }
     let mut total: Tokens = 0;

@@ -183,7 +183,7 @@ fn guard_of(seed: u64, scan: u64) -> impl Fn(usize) -> bool {
         let mut x = seed ^ (scan.wrapping_mul(0x9E37_79B9_7F4A_7C15)) ^ (t as u64 * 0xBF58_476D);
         x ^= x >> 31;
         x = x.wrapping_mul(0x94D0_49BB_1331_11EB);
-        x % 4 != 0
+        !x.is_multiple_of(4)
     }
 }
 

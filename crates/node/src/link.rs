@@ -317,7 +317,7 @@ impl ControlLink {
             self.last_key = key;
             self.net_due = true;
         }
-        let due = self.first || changed || plc.cycles() % self.publish_every == 0;
+        let due = self.first || changed || plc.cycles().is_multiple_of(self.publish_every);
         // Taken before the snapshot is built: when the publisher is behind, the scan thread
         // does not copy what would be dropped.
         let permit = if due {

@@ -424,7 +424,7 @@ impl<IO: Provider + Dispatcher> Node<IO> {
             let progress = self
                 .opts
                 .progress_every
-                .filter(|&n| n > 0 && self.plc.cycles() % n == 0)
+                .filter(|&n| n > 0 && self.plc.cycles().is_multiple_of(n))
                 .map(|_| p.committed_cycle());
             if let Some(committed) = progress {
                 let cycle = self.plc.cycles();

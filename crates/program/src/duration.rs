@@ -123,7 +123,7 @@ pub fn parse_us(text: &str, bare: Bare) -> Result<u64, DurationError> {
 /// Writes `us` with the largest unit that divides it (`90s`, `1500ms`, `2min`).
 pub fn format_us(us: u64) -> String {
     for (unit, scale) in UNITS {
-        if us != 0 && us % scale == 0 {
+        if us != 0 && us.is_multiple_of(scale) {
             return format!("{}{unit}", us / scale);
         }
     }

@@ -354,6 +354,13 @@ impl Program {
     pub fn st(&self) -> Option<&StProgram> {
         self.st.as_deref()
     }
+    /// Translates the program's Structured Text into machine code, once, if it has some: what
+    /// a container does when it is built, off the scan thread (docs/st.md, *Machine code*).
+    pub fn prepare_machine_code(&self) {
+        if let Some(st) = &self.st {
+            st.prepare_machine_code();
+        }
+    }
     /// The distinct signals actions drive; [`crate::ActionState::latches`] follows this order.
     pub fn action_targets(&self) -> &[Target] {
         &self.action_targets

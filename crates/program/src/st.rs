@@ -195,6 +195,13 @@ impl StProgram {
         }
     }
 
+    /// Translates the POU's code into machine code, once (`cetratus_st::Unit::
+    /// prepare_machine_code`): called where the program is made ready to run, off the scan
+    /// thread. Until then the interpreter runs it.
+    pub fn prepare_machine_code(&self) -> bool {
+        self.unit.prepare_machine_code()
+    }
+
     /// One run of the POU on `state` at `now_us`: the inputs copied in, its code run within
     /// `work`, its outputs copied out. Never allocates.
     pub fn run(

@@ -243,6 +243,9 @@ impl Container {
     }
 
     fn assemble(program: Arc<Program>, engine: Engine, marking: Vec<Tokens>, now_us: u64) -> Self {
+        // Containers are built where a program is loaded or prepared, never on the scan thread:
+        // the one place its ST is translated into machine code.
+        program.prepare_machine_code();
         let place_since_us = marking.iter().map(|&m| (m > 0).then_some(now_us)).collect();
         let inputs: Vec<Value> = program.inputs().iter().map(|s| s.initial).collect();
         let vars: Vec<Value> = program.variables().iter().map(|s| s.initial).collect();

@@ -73,6 +73,13 @@ impl Rel {
             Rel::Ne => o != Equal,
         }
     }
+
+    /// Whether two values whose order is `o` satisfy the comparison; `None`, values that do not
+    /// compare (a NaN), satisfy only `<>`, as in C.
+    #[inline]
+    pub fn holds_partial(self, o: Option<std::cmp::Ordering>) -> bool {
+        o.map_or(self == Rel::Ne, |o| self.holds(o))
+    }
 }
 
 /// One-argument numeric functions.

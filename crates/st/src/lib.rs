@@ -11,6 +11,8 @@ pub mod code;
 pub mod compile;
 pub mod error;
 mod format;
+#[cfg(feature = "jit")]
+pub mod jit;
 mod lex;
 pub mod parse;
 pub mod stdfb;

@@ -52,37 +52,6 @@ pub fn run(
     while let Some(op) = code.ops.get(pc) {
         pc += 1;
         match *op {
-            Op::Const { dst, bits } => s[dst as usize] = bits,
-            Op::Move { dst, src } => s[dst as usize] = s[src as usize],
-            Op::Copy { dst, src, len } => copy_slots(s, dst, src, len),
-            Op::CopyText { dst, src, len } => copy_text(t, dst, src, len),
-            Op::Arith { op, e, dst, a, b } => {
-                s[dst as usize] =
-                    arith(op, e, s[a as usize], s[b as usize]).map_err(|k| fault(pc - 1, k))?
-            }
-            Op::Cmp { op, e, dst, a, b } => {
-                s[dst as usize] = op.holds(compare(e, s[a as usize], s[b as usize])) as u64
-            }
-            Op::Neg { e, dst, a } => s[dst as usize] = neg(e, s[a as usize]),
-            Op::Not { e, dst, a } => {
-                s[dst as usize] = match e {
-                    Elem::Bool => u64::from(s[a as usize] == 0),
-                    _ => wrap(promote(e), !s[a as usize]),
-                }
-            }
-            Op::Conv { from, to, dst, a } => s[dst as usize] = convert(from, to, s[a as usize]),
-            Op::Trunc { from, to, dst, a } => s[dst as usize] = trunc(from, to, s[a as usize]),
-            Op::Math { f, e, dst, a } => s[dst as usize] = math(f, e, s[a as usize]),
-            Op::Shift { f, e, dst, a, n } => {
-                s[dst as usize] = shift(f, e, s[a as usize], s[n as usize])
-            }
-            Op::Select { dst, c, a, b } => {
-                s[dst as usize] = if s[c as usize] != 0 {
-                    s[a as usize]
-                } else {
-                    s[b as usize]
-                }
-            }
             Op::Jump { to } => pc = to as usize,
             Op::JumpIf { c, to } => {
                 if s[c as usize] != 0 {
@@ -100,74 +69,122 @@ pub fn run(
                 }
                 pc = to as usize;
             }
-            Op::Index {
-                e,
-                acc,
-                idx,
-                lo,
-                len,
-            } => {
-                let at = index(e, s[idx as usize], lo, len).map_err(|k| fault(pc - 1, k))?;
-                s[acc as usize] = s[acc as usize] * u64::from(len) + at;
-            }
-            Op::Index1 {
-                e,
-                dst,
-                idx,
-                lo,
-                len,
-                base,
-            } => {
-                let at = index(e, s[idx as usize], lo, len).map_err(|k| fault(pc - 1, k))?;
-                s[dst as usize] = u64::from(base) + at;
-            }
-            Op::Addr {
-                dst,
-                lin,
-                stride,
-                base,
-            } => s[dst as usize] = u64::from(base) + s[lin as usize] * u64::from(stride),
-            Op::LoadInd { dst, addr, off } => s[dst as usize] = s[ind(s, addr, off)],
-            Op::StoreInd { addr, off, src } => s[ind(s, addr, off)] = s[src as usize],
-            Op::CopyFromInd {
-                dst,
-                addr,
-                off,
-                len,
-            } => copy_slots(s, dst, ind(s, addr, off) as u32, len),
-            Op::CopyToInd {
-                addr,
-                off,
-                src,
-                len,
-            } => copy_slots(s, ind(s, addr, off) as u32, src, len),
-            Op::TextFromInd {
-                dst,
-                addr,
-                off,
-                len,
-            } => copy_text(t, dst, ind(s, addr, off) as u32, len),
-            Op::TextToInd {
-                addr,
-                off,
-                src,
-                len,
-            } => copy_text(t, ind(s, addr, off) as u32, src, len),
-            Op::StrLit { .. }
-            | Op::StrMove { .. }
-            | Op::StrLen { .. }
-            | Op::FromStr { .. }
-            | Op::StrFind { .. }
-            | Op::StrCmp { .. }
-            | Op::Str { .. }
-            | Op::ToStr { .. } => text_op(*op, code, s, t),
-            Op::TimeScale { div, dst, a, f } => {
-                let factor = f64::from_bits(s[f as usize]);
-                s[dst as usize] =
-                    crate::format::time_scale(div, s[a as usize] as i64, factor) as u64
-            }
-            Op::StdFb { fb, base } => fb.step(&mut s[base as usize..], now),
+            op => exec(op, code, s, t, now).map_err(|k| fault(pc - 1, k))?,
         }
+    }
+    Ok(())
+}
+
+/// Runs one instruction that does not jump: the body of [`run`]'s loop, and what machine code
+/// calls for the instructions it does not compile itself (`jit`). On a fault nothing is
+/// written.
+#[inline(always)]
+pub(crate) fn exec(
+    op: Op,
+    code: &Code,
+    s: &mut [u64],
+    t: &mut [u8],
+    now: i64,
+) -> Result<(), FaultKind> {
+    match op {
+        Op::Const { dst, bits } => s[dst as usize] = bits,
+        Op::Move { dst, src } => s[dst as usize] = s[src as usize],
+        Op::Copy { dst, src, len } => copy_slots(s, dst, src, len),
+        Op::CopyText { dst, src, len } => copy_text(t, dst, src, len),
+        Op::Arith { op, e, dst, a, b } => {
+            s[dst as usize] = arith(op, e, s[a as usize], s[b as usize])?
+        }
+        Op::Cmp { op, e, dst, a, b } => {
+            s[dst as usize] = op.holds_partial(compare(e, s[a as usize], s[b as usize])) as u64
+        }
+        Op::Neg { e, dst, a } => s[dst as usize] = neg(e, s[a as usize]),
+        Op::Not { e, dst, a } => {
+            s[dst as usize] = match e {
+                Elem::Bool => u64::from(s[a as usize] == 0),
+                _ => wrap(promote(e), !s[a as usize]),
+            }
+        }
+        Op::Conv { from, to, dst, a } => s[dst as usize] = convert(from, to, s[a as usize]),
+        Op::Trunc { from, to, dst, a } => s[dst as usize] = trunc(from, to, s[a as usize]),
+        Op::Math { f, e, dst, a } => s[dst as usize] = math(f, e, s[a as usize]),
+        Op::Shift { f, e, dst, a, n } => {
+            s[dst as usize] = shift(f, e, s[a as usize], s[n as usize])
+        }
+        Op::Select { dst, c, a, b } => {
+            s[dst as usize] = if s[c as usize] != 0 {
+                s[a as usize]
+            } else {
+                s[b as usize]
+            }
+        }
+        Op::Index {
+            e,
+            acc,
+            idx,
+            lo,
+            len,
+        } => {
+            let at = index(e, s[idx as usize], lo, len)?;
+            s[acc as usize] = s[acc as usize] * u64::from(len) + at;
+        }
+        Op::Index1 {
+            e,
+            dst,
+            idx,
+            lo,
+            len,
+            base,
+        } => {
+            let at = index(e, s[idx as usize], lo, len)?;
+            s[dst as usize] = u64::from(base) + at;
+        }
+        Op::Addr {
+            dst,
+            lin,
+            stride,
+            base,
+        } => s[dst as usize] = u64::from(base) + s[lin as usize] * u64::from(stride),
+        Op::LoadInd { dst, addr, off } => s[dst as usize] = s[ind(s, addr, off)],
+        Op::StoreInd { addr, off, src } => s[ind(s, addr, off)] = s[src as usize],
+        Op::CopyFromInd {
+            dst,
+            addr,
+            off,
+            len,
+        } => copy_slots(s, dst, ind(s, addr, off) as u32, len),
+        Op::CopyToInd {
+            addr,
+            off,
+            src,
+            len,
+        } => copy_slots(s, ind(s, addr, off) as u32, src, len),
+        Op::TextFromInd {
+            dst,
+            addr,
+            off,
+            len,
+        } => copy_text(t, dst, ind(s, addr, off) as u32, len),
+        Op::TextToInd {
+            addr,
+            off,
+            src,
+            len,
+        } => copy_text(t, ind(s, addr, off) as u32, src, len),
+        Op::StrLit { .. }
+        | Op::StrMove { .. }
+        | Op::StrLen { .. }
+        | Op::FromStr { .. }
+        | Op::StrFind { .. }
+        | Op::StrCmp { .. }
+        | Op::Str { .. }
+        | Op::ToStr { .. } => text_op(op, code, s, t),
+        Op::TimeScale { div, dst, a, f } => {
+            let factor = f64::from_bits(s[f as usize]);
+            s[dst as usize] = crate::format::time_scale(div, s[a as usize] as i64, factor) as u64
+        }
+        Op::StdFb { fb, base } => fb.step(&mut s[base as usize..], now),
+        // The jumps are [`run`]'s: here they do nothing.
+        Op::Jump { .. } | Op::JumpIf { .. } | Op::JumpUnless { .. } | Op::Loop { .. } => {}
     }
     Ok(())
 }
@@ -228,7 +245,7 @@ fn of_f32(x: f32) -> u64 {
 /// division by zero faults, where C would trap), MOD by zero is 0 (MATIEC's `MOD` function).
 /// `i - lo` for an index `i` of integer type `e`, when `lo <= i < lo + len`.
 #[inline]
-fn index(e: Elem, i: u64, lo: i32, len: u32) -> Result<u64, FaultKind> {
+pub(crate) fn index(e: Elem, i: u64, lo: i32, len: u32) -> Result<u64, FaultKind> {
     let at = if e.is_signed() || e == Elem::Bool {
         (i as i64).checked_sub(i64::from(lo))
     } else {
@@ -306,14 +323,14 @@ fn int_op(op: Arith, e: Elem, a: u64, b: u64) -> Result<u64, FaultKind> {
         Arith::Or => a | b,
         Arith::Xor => a ^ b,
         Arith::Max => {
-            if compare(e, a, b) == Ordering::Greater {
+            if compare(e, a, b) == Some(Ordering::Greater) {
                 a
             } else {
                 b
             }
         }
         Arith::Min => {
-            if compare(e, a, b) == Ordering::Less {
+            if compare(e, a, b) == Some(Ordering::Less) {
                 a
             } else {
                 b
@@ -326,28 +343,31 @@ fn int_op(op: Arith, e: Elem, a: u64, b: u64) -> Result<u64, FaultKind> {
 /// The type C computes `e` in: SINT … UINT, BYTE and WORD are promoted to a 32-bit `int`
 /// (docs/st.md, *Operators*); the result is cut to `e` where it is stored.
 #[inline]
-fn promote(e: Elem) -> Elem {
+pub(crate) fn promote(e: Elem) -> Elem {
     match e {
         Elem::Sint | Elem::Int | Elem::Usint | Elem::Uint | Elem::Byte | Elem::Word => Elem::Dint,
         e => e,
     }
 }
 
-/// Orders two values of type `e`. REALs that do not compare (NaN) are unequal and unordered:
-/// every comparison but `<>` is false, as in C.
+/// Orders two values of type `e`; `None` for REALs that do not compare (a NaN), which
+/// [`crate::code::Rel::holds_partial`] makes unequal and unordered: every comparison but `<>` is
+/// false, as in C.
 #[inline]
-fn compare(e: Elem, a: u64, b: u64) -> Ordering {
+pub(crate) fn compare(e: Elem, a: u64, b: u64) -> Option<Ordering> {
     match e {
-        Elem::Real => f32_of(a).partial_cmp(&f32_of(b)).unwrap_or(Ordering::Less),
-        Elem::Lreal => f64::from_bits(a)
-            .partial_cmp(&f64::from_bits(b))
-            .unwrap_or(Ordering::Less),
-        // Promoted values (module doc) compare as the signed 32-bit ints C makes them.
-        e if e.is_signed() || e == Elem::Time || promote(e) == Elem::Dint => {
-            (a as i64).cmp(&(b as i64))
-        }
-        _ => a.cmp(&b),
+        Elem::Real => f32_of(a).partial_cmp(&f32_of(b)),
+        Elem::Lreal => f64::from_bits(a).partial_cmp(&f64::from_bits(b)),
+        e if signed_order(e) => Some((a as i64).cmp(&(b as i64))),
+        _ => Some(a.cmp(&b)),
     }
+}
+
+/// Whether integers of type `e` are ordered as signed: the signed types, TIME, and the types
+/// promoted to DINT (module doc), which compare as the signed 32-bit ints C makes them.
+#[inline]
+pub(crate) fn signed_order(e: Elem) -> bool {
+    e.is_signed() || e == Elem::Time || promote(e) == Elem::Dint
 }
 
 fn neg(e: Elem, a: u64) -> u64 {

@@ -38,6 +38,12 @@ impl Work {
         }
     }
 
+    /// Sets the units charged so far, as code that charged them without this value reports
+    /// (`jit`): never past the budget.
+    pub(crate) fn set_used(&mut self, used: u64) {
+        self.used = used.min(self.budget);
+    }
+
     /// Units charged so far.
     pub fn used(&self) -> u64 {
         self.used

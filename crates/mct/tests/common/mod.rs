@@ -272,7 +272,7 @@ impl FakeScan {
                     }
                     answered += 1;
                 }
-                if cycle % 10 == 0 {
+                if cycle.is_multiple_of(10) {
                     let _ = link.send(Outgoing::Io(io(cycle)));
                     let _ = link.send(Outgoing::ExecInfo(Box::default()));
                 }

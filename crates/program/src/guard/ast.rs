@@ -169,7 +169,7 @@ pub(crate) fn write_duration(f: &mut impl fmt::Write, micros: u64) -> fmt::Resul
         return f.write_str("0s");
     }
     for (unit, scale) in UNITS {
-        if micros % scale == 0 {
+        if micros.is_multiple_of(scale) {
             return write!(f, "{}{unit}", micros / scale);
         }
     }

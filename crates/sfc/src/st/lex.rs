@@ -207,7 +207,7 @@ pub(super) fn time_literal(src: &str, from: usize) -> Result<(u64, usize), StErr
                     if !d.is_ascii_digit() {
                         return Err(StError::new(start, "a malformed number in the duration"));
                     }
-                    if place % 10 != 0 {
+                    if !place.is_multiple_of(10) {
                         return Err(StError::new(
                             start,
                             "the duration is finer than a microsecond",

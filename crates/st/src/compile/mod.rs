@@ -194,6 +194,11 @@ pub struct Unit {
     /// Code that runs on the same state besides the body: a chart's action bodies and
     /// transition conditions ([`compile_with_entries`]), in the order they were given.
     pub entries: Vec<Entry>,
+    /// The body and the entries in machine code (`crate::jit`), once
+    /// [`Unit::prepare_machine_code`] has made them; until then, and where this machine has no
+    /// code generator, the interpreter runs them. Clones share it.
+    #[cfg(feature = "jit")]
+    machine: std::sync::Arc<std::sync::OnceLock<Option<crate::jit::Machine>>>,
 }
 
 /// Structured Text that runs on a POU's state besides its body: the statements of an SFC
@@ -268,7 +273,53 @@ impl Unit {
         now: i64,
         work: &mut crate::Work,
     ) -> Result<(), crate::vm::Fault> {
+        #[cfg(feature = "jit")]
+        if let Some(done) = (self.machine.get().and_then(Option::as_ref))
+            .and_then(|m| m.run(0, &self.code, self.cost, state, now, work))
+        {
+            return done;
+        }
         crate::vm::run(&self.code, self.cost, state, now, work)
+    }
+
+    /// Translates the body and the entries into machine code, once: later calls, and calls on
+    /// clones, return at once. It takes about 12 µs an instruction (docs/st.md, *Machine
+    /// code*), so it is called where a program is made ready to run, off the scan thread, never
+    /// by [`Unit::run`], which interprets until it is done. Whether the body is now in machine
+    /// code.
+    pub fn prepare_machine_code(&self) -> bool {
+        #[cfg(feature = "jit")]
+        {
+            let machine = self.machine.get_or_init(|| {
+                let pieces: Vec<&Code> = std::iter::once(&self.code)
+                    .chain(self.entries.iter().map(|e| &e.code))
+                    .collect();
+                crate::jit::Machine::compile(&pieces)
+            });
+            machine.as_ref().is_some_and(|m| m.is_native(0))
+        }
+        #[cfg(not(feature = "jit"))]
+        false
+    }
+
+    /// [`Unit::run`] on the interpreter, whether or not the unit is in machine code: the
+    /// reference the machine code is tested against, and the bench's second figure.
+    pub fn run_interpreted(
+        &self,
+        state: &mut State,
+        now: i64,
+        work: &mut crate::Work,
+    ) -> Result<(), crate::vm::Fault> {
+        crate::vm::run(&self.code, self.cost, state, now, work)
+    }
+
+    /// Whether the body runs in machine code (after [`Unit::prepare_machine_code`]).
+    pub fn in_machine_code(&self) -> bool {
+        #[cfg(feature = "jit")]
+        if let Some(Some(m)) = self.machine.get() {
+            return m.is_native(0);
+        }
+        false
     }
 
     /// Runs entry `k` ([`Unit::entries`]) once at time `now`, within `work`; for a condition,
@@ -283,7 +334,12 @@ impl Unit {
         let Some(e) = self.entries.get(k) else {
             return Ok(false);
         };
-        crate::vm::run(&e.code, e.cost, state, now, work)?;
+        #[cfg(feature = "jit")]
+        let done = (self.machine.get().and_then(Option::as_ref))
+            .and_then(|m| m.run(k + 1, &e.code, e.cost, state, now, work));
+        #[cfg(not(feature = "jit"))]
+        let done = None;
+        done.unwrap_or_else(|| crate::vm::run(&e.code, e.cost, state, now, work))?;
         Ok(e.result
             .and_then(|r| state.slots.get(r as usize))
             .is_some_and(|&v| v != 0))
@@ -621,6 +677,8 @@ impl<'a> Compiler<'a> {
                 .map(|f| f.fields.iter().map(|(field, _)| field.clone()).collect())
                 .collect(),
             entries: Vec::new(),
+            #[cfg(feature = "jit")]
+            machine: Default::default(),
         })
     }
 

@@ -65,7 +65,7 @@ pub(super) fn based(rng: &mut Rng, v: i128) -> String {
 pub(super) fn group(digits: &str, n: usize) -> String {
     let mut out = String::new();
     for (i, c) in digits.chars().enumerate() {
-        if i > 0 && (digits.len() - i) % n == 0 {
+        if i > 0 && (digits.len() - i).is_multiple_of(n) {
             out.push('_');
         }
         out.push(c);

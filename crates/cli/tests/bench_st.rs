@@ -78,9 +78,6 @@ fn bench_export_measures_both_programs_and_the_chart() {
         for key in ["export_ms", "cetratus_ns", "compiled_ns"] {
             assert!(p[key].as_f64().is_some_and(|v| v > 0.0), "{key}: {p}");
         }
-        if cfg!(any(target_arch = "x86_64", target_arch = "aarch64")) {
-            assert_eq!(p["machine_code"], Value::Bool(true), "{p}");
-        }
     }
     let chart = &f["chart"];
     assert_eq!(chart["steps"], 10, "{chart}");

@@ -69,31 +69,31 @@ pub fn run(
                 }
                 pc = to as usize;
             }
-            op => exec(op, code, s, t, now).map_err(|k| fault(pc - 1, k))?,
+            op => {
+                if !exec(op, code, s, t, now) {
+                    return Err(fault(pc - 1, fault_of(op, s)));
+                }
+            }
         }
     }
     Ok(())
 }
 
 /// Runs one instruction that does not jump: the body of [`run`]'s loop, and what machine code
-/// calls for the instructions it does not compile itself (`jit`). On a fault nothing is
-/// written.
+/// calls for the instructions it does not compile itself (`jit`). False when it faults, and then
+/// nothing is written: [`fault_of`] says why. (A flag, not a `Result` of the fault: returned in
+/// a register, it costs the loop nothing on the instructions that cannot fault.)
 #[inline(always)]
-pub(crate) fn exec(
-    op: Op,
-    code: &Code,
-    s: &mut [u64],
-    t: &mut [u8],
-    now: i64,
-) -> Result<(), FaultKind> {
+pub(crate) fn exec(op: Op, code: &Code, s: &mut [u64], t: &mut [u8], now: i64) -> bool {
     match op {
         Op::Const { dst, bits } => s[dst as usize] = bits,
         Op::Move { dst, src } => s[dst as usize] = s[src as usize],
         Op::Copy { dst, src, len } => copy_slots(s, dst, src, len),
         Op::CopyText { dst, src, len } => copy_text(t, dst, src, len),
-        Op::Arith { op, e, dst, a, b } => {
-            s[dst as usize] = arith(op, e, s[a as usize], s[b as usize])?
-        }
+        Op::Arith { op, e, dst, a, b } => match arith(op, e, s[a as usize], s[b as usize]) {
+            Ok(v) => s[dst as usize] = v,
+            Err(_) => return false,
+        },
         Op::Cmp { op, e, dst, a, b } => {
             s[dst as usize] = op.holds_partial(compare(e, s[a as usize], s[b as usize])) as u64
         }
@@ -124,7 +124,9 @@ pub(crate) fn exec(
             lo,
             len,
         } => {
-            let at = index(e, s[idx as usize], lo, len)?;
+            let Ok(at) = index(e, s[idx as usize], lo, len) else {
+                return false;
+            };
             s[acc as usize] = s[acc as usize] * u64::from(len) + at;
         }
         Op::Index1 {
@@ -135,7 +137,9 @@ pub(crate) fn exec(
             len,
             base,
         } => {
-            let at = index(e, s[idx as usize], lo, len)?;
+            let Ok(at) = index(e, s[idx as usize], lo, len) else {
+                return false;
+            };
             s[dst as usize] = u64::from(base) + at;
         }
         Op::Addr {
@@ -186,7 +190,28 @@ pub(crate) fn exec(
         // The jumps are [`run`]'s: here they do nothing.
         Op::Jump { .. } | Op::JumpIf { .. } | Op::JumpUnless { .. } | Op::Loop { .. } => {}
     }
-    Ok(())
+    true
+}
+
+/// Why `op` faulted, read from the state it left unwritten: a division by zero, an index out of
+/// its bounds, or else (a loop's backward jump) the work budget.
+#[cold]
+pub(crate) fn fault_of(op: Op, s: &[u64]) -> FaultKind {
+    let index_fault = |e, idx: u32, lo, len| {
+        let i = s.get(idx as usize).copied().unwrap_or(0);
+        index(e, i, lo, len).err()
+    };
+    let kind = match op {
+        Op::Arith { .. } => Some(FaultKind::DivisionByZero),
+        Op::Index {
+            e, idx, lo, len, ..
+        }
+        | Op::Index1 {
+            e, idx, lo, len, ..
+        } => index_fault(e, idx, lo, len),
+        _ => None,
+    };
+    kind.unwrap_or(FaultKind::Budget)
 }
 
 /// The instructions on strings, out of the dispatch loop: each moves up to a string's bytes,

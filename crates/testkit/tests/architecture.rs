@@ -709,12 +709,6 @@ const LONG_FUNCTIONS: &[(&str, &str, usize, &str)] = &[
         "the interpreter of compiled guards and bodies: one loop over the instructions, each arm of its match an instruction; split, every instruction would pay a call on the scan's hot path",
     ),
     (
-        "crates/st/src/vm.rs",
-        "run",
-        139,
-        "the register machine of Structured Text: one loop over the instructions, each arm of its match an instruction; split, every instruction would pay a call on the scan's hot path",
-    ),
-    (
         "crates/sfc/src/st/lex.rs",
         "lex",
         140,

@@ -29,7 +29,7 @@ use cranelift_codegen::settings::{self, Configurable};
 use cranelift_jit::{JITBuilder, JITModule};
 use cranelift_module::{default_libcall_names, Linkage, Module};
 
-use crate::code::{Code, FaultKind, Op};
+use crate::code::{Code, FaultKind};
 use crate::vm::{Fault, State};
 use crate::work::Work;
 
@@ -198,9 +198,12 @@ impl Machine {
             0 => Ok(()),
             _ => {
                 let pc = (status - 1) as usize;
-                let kind = frame
-                    .fault
-                    .unwrap_or_else(|| inline_fault(code, pc, &state.slots));
+                // An instruction the generated code checks itself (a loop out of budget, a
+                // division by zero, an index out of bounds) left the state unwritten.
+                let kind = (frame.fault).unwrap_or_else(|| match code.ops.get(pc) {
+                    Some(&op) => crate::vm::fault_of(op, &state.slots),
+                    None => FaultKind::Budget,
+                });
                 Err(fault(code, pc, kind))
             }
         })
@@ -255,27 +258,6 @@ fn fault(code: &Code, pc: usize, kind: FaultKind) -> Fault {
     }
 }
 
-/// The fault of an instruction that the generated code checks itself, from the state it left
-/// (which the instruction did not write): a loop out of budget, a division by zero, an index
-/// out of its bounds.
-fn inline_fault(code: &Code, pc: usize, s: &[u64]) -> FaultKind {
-    let index = |e, idx: u32, lo, len| {
-        let i = s.get(idx as usize).copied().unwrap_or(0);
-        crate::vm::index(e, i, lo, len).err()
-    };
-    let kind = match code.ops.get(pc) {
-        Some(Op::Arith { .. }) => Some(FaultKind::DivisionByZero),
-        Some(&Op::Index {
-            e, idx, lo, len, ..
-        })
-        | Some(&Op::Index1 {
-            e, idx, lo, len, ..
-        }) => index(e, idx, lo, len),
-        _ => None,
-    };
-    kind.unwrap_or(FaultKind::Budget)
-}
-
 /// Runs instruction `pc` on the interpreter, for the generated code: 0 when it went through,
 /// else 1 and the frame holds its fault, or its panic, which [`Machine::run`] resumes past the
 /// generated code (a panic cannot unwind through it).
@@ -292,9 +274,9 @@ extern "C" fn call_back(frame: *mut Frame<'_>, pc: u64) -> u64 {
         return 1;
     };
     match catch_unwind(AssertUnwindSafe(|| crate::vm::exec(op, code, s, t, now))) {
-        Ok(Ok(())) => 0,
-        Ok(Err(kind)) => {
-            frame.fault = Some(kind);
+        Ok(true) => 0,
+        Ok(false) => {
+            frame.fault = Some(crate::vm::fault_of(op, s));
             1
         }
         Err(payload) => {

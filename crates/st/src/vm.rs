@@ -51,48 +51,46 @@ pub fn run(
     let mut pc = 0usize;
     while let Some(op) = code.ops.get(pc) {
         pc += 1;
-        match *op {
-            Op::Jump { to } => pc = to as usize,
-            Op::JumpIf { c, to } => {
-                if s[c as usize] != 0 {
-                    pc = to as usize
-                }
-            }
-            Op::JumpUnless { c, to } => {
-                if s[c as usize] == 0 {
-                    pc = to as usize
-                }
-            }
-            Op::Loop { to, cost } => {
-                if !work.charge(u64::from(cost)) {
-                    return Err(fault(pc - 1, FaultKind::Budget));
-                }
-                pc = to as usize;
-            }
-            op => {
-                if !exec(op, code, s, t, now) {
-                    return Err(fault(pc - 1, fault_of(op, s)));
-                }
-            }
+        match exec(op, code, s, t, now, work) {
+            Flow::Next => {}
+            Flow::Goto(to) => pc = to as usize,
+            Flow::Fault => return Err(fault(pc - 1, fault_of(*op, s))),
         }
     }
     Ok(())
 }
 
-/// Runs one instruction that does not jump: the body of [`run`]'s loop, and what machine code
-/// calls for the instructions it does not compile itself (`jit`). False when it faults, and then
-/// nothing is written: [`fault_of`] says why. (A flag, not a `Result` of the fault: returned in
-/// a register, it costs the loop nothing on the instructions that cannot fault.)
+/// Where the code goes after an instruction.
+pub(crate) enum Flow {
+    /// To the next instruction.
+    Next,
+    /// To this one.
+    Goto(u32),
+    /// Nowhere: the instruction faulted, and wrote nothing; [`fault_of`] says why.
+    Fault,
+}
+
+/// Runs one instruction: the body of [`run`]'s loop (one match, one dispatch an instruction), and
+/// what machine code calls for the instructions it does not compile itself (`jit`). A loop's
+/// backward jump charges `work`. (The fault is read back by [`fault_of`], not returned: a small
+/// [`Flow`] comes back in registers, and the instructions that cannot fault pay nothing for it.)
 #[inline(always)]
-pub(crate) fn exec(op: Op, code: &Code, s: &mut [u64], t: &mut [u8], now: i64) -> bool {
-    match op {
+pub(crate) fn exec(
+    op: &Op,
+    code: &Code,
+    s: &mut [u64],
+    t: &mut [u8],
+    now: i64,
+    work: &mut Work,
+) -> Flow {
+    match *op {
         Op::Const { dst, bits } => s[dst as usize] = bits,
         Op::Move { dst, src } => s[dst as usize] = s[src as usize],
         Op::Copy { dst, src, len } => copy_slots(s, dst, src, len),
         Op::CopyText { dst, src, len } => copy_text(t, dst, src, len),
         Op::Arith { op, e, dst, a, b } => match arith(op, e, s[a as usize], s[b as usize]) {
             Ok(v) => s[dst as usize] = v,
-            Err(_) => return false,
+            Err(_) => return Flow::Fault,
         },
         Op::Cmp { op, e, dst, a, b } => {
             s[dst as usize] = op.holds_partial(compare(e, s[a as usize], s[b as usize])) as u64
@@ -125,7 +123,7 @@ pub(crate) fn exec(op: Op, code: &Code, s: &mut [u64], t: &mut [u8], now: i64) -
             len,
         } => {
             let Ok(at) = index(e, s[idx as usize], lo, len) else {
-                return false;
+                return Flow::Fault;
             };
             s[acc as usize] = s[acc as usize] * u64::from(len) + at;
         }
@@ -138,7 +136,7 @@ pub(crate) fn exec(op: Op, code: &Code, s: &mut [u64], t: &mut [u8], now: i64) -
             base,
         } => {
             let Ok(at) = index(e, s[idx as usize], lo, len) else {
-                return false;
+                return Flow::Fault;
             };
             s[dst as usize] = u64::from(base) + at;
         }
@@ -181,16 +179,24 @@ pub(crate) fn exec(op: Op, code: &Code, s: &mut [u64], t: &mut [u8], now: i64) -
         | Op::StrFind { .. }
         | Op::StrCmp { .. }
         | Op::Str { .. }
-        | Op::ToStr { .. } => text_op(op, code, s, t),
+        | Op::ToStr { .. } => text_op(*op, code, s, t),
         Op::TimeScale { div, dst, a, f } => {
             let factor = f64::from_bits(s[f as usize]);
             s[dst as usize] = crate::format::time_scale(div, s[a as usize] as i64, factor) as u64
         }
         Op::StdFb { fb, base } => fb.step(&mut s[base as usize..], now),
-        // The jumps are [`run`]'s: here they do nothing.
-        Op::Jump { .. } | Op::JumpIf { .. } | Op::JumpUnless { .. } | Op::Loop { .. } => {}
+        Op::Jump { to } => return Flow::Goto(to),
+        Op::JumpIf { c, to } if s[c as usize] != 0 => return Flow::Goto(to),
+        Op::JumpUnless { c, to } if s[c as usize] == 0 => return Flow::Goto(to),
+        Op::JumpIf { .. } | Op::JumpUnless { .. } => {}
+        Op::Loop { to, cost } => {
+            return match work.charge(u64::from(cost)) {
+                true => Flow::Goto(to),
+                false => Flow::Fault,
+            }
+        }
     }
-    true
+    Flow::Next
 }
 
 /// Why `op` faulted, read from the state it left unwritten: a division by zero, an index out of

@@ -146,6 +146,9 @@ fn differences(seed: u64, count: usize, scans: usize) -> Vec<String> {
                 continue;
             }
         };
+        // What a scan runs: the machine code where there is a code generator
+        // (machine_code.rs holds it to the interpreter).
+        unit.prepare_machine_code();
         let got = run_here(&unit, case);
         let first = got.iter().zip(want).position(|(g, w)| g != w);
         if let Some(k) = first.or((got.len() != want.len()).then_some(got.len().min(want.len()))) {

@@ -273,9 +273,14 @@ extern "C" fn call_back(frame: *mut Frame<'_>, pc: u64) -> u64 {
     let Some(&op) = code.ops.get(pc as usize) else {
         return 1;
     };
-    match catch_unwind(AssertUnwindSafe(|| crate::vm::exec(op, code, s, t, now))) {
-        Ok(true) => 0,
-        Ok(false) => {
+    // Only instructions that do not jump come here, so the work is never charged.
+    let mut work = Work::unlimited();
+    let ran = catch_unwind(AssertUnwindSafe(|| {
+        crate::vm::exec(&op, code, s, t, now, &mut work)
+    }));
+    match ran {
+        Ok(crate::vm::Flow::Next | crate::vm::Flow::Goto(_)) => 0,
+        Ok(crate::vm::Flow::Fault) => {
             frame.fault = Some(crate::vm::fault_of(op, s));
             1
         }

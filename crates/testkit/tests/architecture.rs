@@ -709,6 +709,12 @@ const LONG_FUNCTIONS: &[(&str, &str, usize, &str)] = &[
         "the interpreter of compiled guards and bodies: one loop over the instructions, each arm of its match an instruction; split, every instruction would pay a call on the scan's hot path",
     ),
     (
+        "crates/st/src/vm.rs",
+        "exec",
+        123,
+        "the register machine of Structured Text: one match over the instructions, an arm per instruction, which the interpreter's loop and the machine code's call back share; split, every instruction would pay a second dispatch on the scan's hot path",
+    ),
+    (
         "crates/sfc/src/st/lex.rs",
         "lex",
         140,

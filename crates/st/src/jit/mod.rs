@@ -33,9 +33,11 @@ use crate::code::{Code, FaultKind};
 use crate::vm::{Fault, State};
 use crate::work::Work;
 
-/// The longest code that is translated; longer code runs on the interpreter, whose speed does
-/// not depend on the code's length while the translation's time grows with it.
-pub const MAX_OPS: usize = 200_000;
+/// The longest code that is translated, about a second of translation (some 11 µs an
+/// instruction); longer code runs on the interpreter, whose speed does not depend on the code's
+/// length while the translation's time grows with it, and a package cannot make a load spend
+/// more than that on it.
+pub const MAX_OPS: usize = 100_000;
 
 /// What the generated code and its call back share, laid out for the generated code: it reads
 /// the first five fields at fixed offsets ([`lower`]).

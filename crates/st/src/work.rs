@@ -40,6 +40,7 @@ impl Work {
 
     /// Sets the units charged so far, as code that charged them without this value reports
     /// (`jit`): never past the budget.
+    #[cfg(feature = "jit")]
     pub(crate) fn set_used(&mut self, used: u64) {
         self.used = used.min(self.budget);
     }

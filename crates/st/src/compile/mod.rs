@@ -273,17 +273,33 @@ impl Unit {
         now: i64,
         work: &mut crate::Work,
     ) -> Result<(), crate::vm::Fault> {
+        self.run_piece(0, &self.code, self.cost, state, now, work)
+    }
+
+    /// Runs piece `k` of the machine code (0 the body, `k + 1` entry `k`), whose code is `code`:
+    /// in machine code once it is there, else on the interpreter.
+    fn run_piece(
+        &self,
+        k: usize,
+        code: &Code,
+        cost: u64,
+        state: &mut State,
+        now: i64,
+        work: &mut crate::Work,
+    ) -> Result<(), crate::vm::Fault> {
         #[cfg(feature = "jit")]
         if let Some(done) = (self.machine.get().and_then(Option::as_ref))
-            .and_then(|m| m.run(0, &self.code, self.cost, state, now, work))
+            .and_then(|m| m.run(k, code, cost, state, now, work))
         {
             return done;
         }
-        crate::vm::run(&self.code, self.cost, state, now, work)
+        #[cfg(not(feature = "jit"))]
+        let _ = k;
+        crate::vm::run(code, cost, state, now, work)
     }
 
     /// Translates the body and the entries into machine code, once: later calls, and calls on
-    /// clones, return at once. It takes about 12 µs an instruction (docs/st.md, *Machine
+    /// clones, return at once. It takes about 11 µs an instruction (docs/st.md, *Machine
     /// code*), so it is called where a program is made ready to run, off the scan thread, never
     /// by [`Unit::run`], which interprets until it is done. Whether the body is now in machine
     /// code.
@@ -334,12 +350,7 @@ impl Unit {
         let Some(e) = self.entries.get(k) else {
             return Ok(false);
         };
-        #[cfg(feature = "jit")]
-        let done = (self.machine.get().and_then(Option::as_ref))
-            .and_then(|m| m.run(k + 1, &e.code, e.cost, state, now, work));
-        #[cfg(not(feature = "jit"))]
-        let done = None;
-        done.unwrap_or_else(|| crate::vm::run(&e.code, e.cost, state, now, work))?;
+        self.run_piece(k + 1, &e.code, e.cost, state, now, work)?;
         Ok(e.result
             .and_then(|r| state.slots.get(r as usize))
             .is_some_and(|&v| v != 0))

@@ -158,9 +158,9 @@ pub(crate) fn spelled(types: &[ArrayType], name: &str) -> String {
 
 /// The kernel in the dialect: without its VAR_EXTERNAL block where POUs see globals anyway.
 pub(crate) fn kernel(d: Dialect) -> String {
-    let text = crate::kernel::KERNEL;
+    let text = crate::kernel::text();
     if d.externals() {
-        return text.to_string();
+        return text;
     }
     let start = text
         .find("VAR_EXTERNAL CONSTANT\n")

@@ -9,8 +9,59 @@
 //! dialects disagree on FOR (MATIEC runs `FOR i := 3 TO 3` no time and evaluates the bounds
 //! again in every iteration), and a WHILE means the same everywhere.
 
-/// The kernel's declarations and body, in IEC 61131-3 Structured Text.
-pub(crate) const KERNEL: &str = r#"FUNCTION_BLOCK CETRATUS_KERNEL
+/// The kernel's declarations and body, in IEC 61131-3 Structured Text. The enabling test
+/// stands twice in the body, once against the marking being built in the step (`AVAIL` for the
+/// inputs, `NEXT` for the inhibitors and capacities) and once against `M`; it is written once, in
+/// [`enabling_test`].
+pub(crate) fn text() -> String {
+    [
+        HEAD,
+        &enabling_test("AVAIL", "NEXT", 8),
+        STEP_REST,
+        &enabling_test("M", "M", 6),
+        TAIL,
+    ]
+    .concat()
+}
+
+/// The test that sets `OK := FALSE` when transition `T` is not enabled: an input place of
+/// `inputs` holds less than its arc's weight, an inhibitor place of `after` holds its arc's weight
+/// or more, or the firing would fill a place of `after` over its capacity.
+fn enabling_test(inputs: &str, after: &str, indent: usize) -> String {
+    let test = format!(
+        "I := NET_PRE_START[T];
+WHILE I < NET_PRE_START[T + 1] DO
+  IF {inputs}[NET_PRE_PLACE[I]] < NET_PRE_WEIGHT[I] THEN
+    OK := FALSE;
+  END_IF;
+  I := I + 1;
+END_WHILE;
+I := NET_INHIBITOR_START[T];
+WHILE I < NET_INHIBITOR_START[T + 1] DO
+  IF {after}[NET_INHIBITOR_PLACE[I]] >= NET_INHIBITOR_WEIGHT[I] THEN
+    OK := FALSE;
+  END_IF;
+  I := I + 1;
+END_WHILE;
+I := C_START[T];
+WHILE I < C_START[T + 1] DO
+  P := C_PLACE[I];
+  IF NET_CAPACITY[P] > 0 AND C_DELTA[I] > 0 THEN
+    IF {after}[P] + C_DELTA[I] > NET_CAPACITY[P] THEN
+      OK := FALSE;
+    END_IF;
+  END_IF;
+  I := I + 1;
+END_WHILE;
+"
+    );
+    test.lines()
+        .map(|l| format!("{:indent$}{l}\n", ""))
+        .collect()
+}
+
+/// The kernel up to the enabling test of the step.
+const HEAD: &str = r#"FUNCTION_BLOCK CETRATUS_KERNEL
 (* The semi-compiled Petri-net algorithm. It reads the net from the constants NET_* and keeps
    nothing of it in its code: called once with STARTUP on the first scan, then once a scan after
    the caller has written the condition of each CANDIDATE into COND. *)
@@ -128,31 +179,10 @@ ELSE
       T := NET_ORDER[R];
       IF COND[T] AND (ENABLED[T] OR LATE[T]) THEN
         OK := TRUE;
-        I := NET_PRE_START[T];
-        WHILE I < NET_PRE_START[T + 1] DO
-          IF AVAIL[NET_PRE_PLACE[I]] < NET_PRE_WEIGHT[I] THEN
-            OK := FALSE;
-          END_IF;
-          I := I + 1;
-        END_WHILE;
-        I := NET_INHIBITOR_START[T];
-        WHILE I < NET_INHIBITOR_START[T + 1] DO
-          IF NEXT[NET_INHIBITOR_PLACE[I]] >= NET_INHIBITOR_WEIGHT[I] THEN
-            OK := FALSE;
-          END_IF;
-          I := I + 1;
-        END_WHILE;
-        I := C_START[T];
-        WHILE I < C_START[T + 1] DO
-          P := C_PLACE[I];
-          IF NET_CAPACITY[P] > 0 AND C_DELTA[I] > 0 THEN
-            IF NEXT[P] + C_DELTA[I] > NET_CAPACITY[P] THEN
-              OK := FALSE;
-            END_IF;
-          END_IF;
-          I := I + 1;
-        END_WHILE;
-        IF OK THEN
+"#;
+
+/// From the step's enabling test to the enabling test at `M`.
+const STEP_REST: &str = r#"        IF OK THEN
           I := NET_PRE_START[T];
           WHILE I < NET_PRE_START[T + 1] DO
             AVAIL[NET_PRE_PLACE[I]] := AVAIL[NET_PRE_PLACE[I]] - NET_PRE_WEIGHT[I];
@@ -222,31 +252,10 @@ IF DIRTY THEN
   WHILE T <= NET_TRANSITIONS DO
     IF STALE[T] THEN
       OK := TRUE;
-      I := NET_PRE_START[T];
-      WHILE I < NET_PRE_START[T + 1] DO
-        IF M[NET_PRE_PLACE[I]] < NET_PRE_WEIGHT[I] THEN
-          OK := FALSE;
-        END_IF;
-        I := I + 1;
-      END_WHILE;
-      I := NET_INHIBITOR_START[T];
-      WHILE I < NET_INHIBITOR_START[T + 1] DO
-        IF M[NET_INHIBITOR_PLACE[I]] >= NET_INHIBITOR_WEIGHT[I] THEN
-          OK := FALSE;
-        END_IF;
-        I := I + 1;
-      END_WHILE;
-      I := C_START[T];
-      WHILE I < C_START[T + 1] DO
-        P := C_PLACE[I];
-        IF NET_CAPACITY[P] > 0 AND C_DELTA[I] > 0 THEN
-          IF M[P] + C_DELTA[I] > NET_CAPACITY[P] THEN
-            OK := FALSE;
-          END_IF;
-        END_IF;
-        I := I + 1;
-      END_WHILE;
-      ENABLED[T] := OK;
+"#;
+
+/// From the enabling test at `M` to the end.
+const TAIL: &str = r#"      ENABLED[T] := OK;
       CANDIDATE[T] := OK OR (NET_POLICY = 0 AND LATE[T]);
       STALE[T] := FALSE;
     END_IF;

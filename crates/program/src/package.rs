@@ -25,10 +25,7 @@ pub use build::{
 };
 
 use crate::source::{NetOnly, Origin};
-use crate::transform::{
-    explicit_dense, explicit_sparse, Between, DenseMatrix, Projection, StateTransform,
-    TransformError,
-};
+use crate::transform::{Between, DenseMatrix, Linear, Projection, StateTransform, TransformError};
 use crate::{Program, ProgramError};
 
 /// The `format` of a package file this version writes and reads.
@@ -602,17 +599,18 @@ fn resolve<M: Between>(
                     &zeros
                 }
             };
-            explicit_dense(on, nn, rows, cols, matrix, base)
+            M::build(on, nn, |role, r, c| {
+                Linear::dense(role, r, c, rows, cols, matrix, base)
+            })
         }
         TransformSpec::Sparse {
             entries,
             base,
             identity_on_kept,
-        } => {
-            let (row_net, col_net) = M::axes(on, nn);
-            let entries = triples(entries, *identity_on_kept, row_net, col_net);
-            explicit_sparse(on, nn, &entries, base)
-        }
+        } => M::build(on, nn, |role, r, c| {
+            let entries = triples(entries, *identity_on_kept, r, c);
+            Linear::sparse(role, r, c, &entries, base)
+        }),
     }
 }
 

@@ -68,7 +68,7 @@ impl Linear {
         }
     }
 
-    fn dense(
+    pub(crate) fn dense(
         role: Role,
         row_net: &Net,
         col_net: &Net,
@@ -125,7 +125,7 @@ impl Linear {
         Ok(Self::from_rows(rows, base.to_vec(), row_net, col_net))
     }
 
-    fn sparse(
+    pub(crate) fn sparse(
         role: Role,
         row_net: &Net,
         col_net: &Net,
@@ -334,7 +334,9 @@ macro_rules! explicit_constructors_and_sizes {
             matrix: &[Vec<i64>],
             base: &[i64],
         ) -> Result<Self, TransformError> {
-            explicit_dense(old, new, row_ids, col_ids, matrix, base)
+            <Self as Between>::build(old, new, |role, rows, cols| {
+                Linear::dense(role, rows, cols, row_ids, col_ids, matrix, base)
+            })
         }
 
         #[doc = $sparse]
@@ -344,7 +346,9 @@ macro_rules! explicit_constructors_and_sizes {
             entries: &[(String, String, i64)],
             base: &BTreeMap<String, i64>,
         ) -> Result<Self, TransformError> {
-            explicit_sparse(old, new, entries, base)
+            <Self as Between>::build(old, new, |role, rows, cols| {
+                Linear::sparse(role, rows, cols, entries, base)
+            })
         }
 
         #[doc = $rows]
@@ -373,32 +377,16 @@ pub(crate) trait Between: Sized {
     fn axes<'n>(old: &'n Net, new: &'n Net) -> (&'n Net, &'n Net);
     /// Wraps a resolved matrix with what the map keeps of the two nets (timers, places to check).
     fn from_map(map: Linear, old: &Net, new: &Net) -> Self;
-}
 
-/// A map from a dense matrix whose row and column ids are its nets' place ids, in order.
-pub(crate) fn explicit_dense<M: Between>(
-    old: &Net,
-    new: &Net,
-    row_ids: &[String],
-    col_ids: &[String],
-    matrix: &[Vec<i64>],
-    base: &[i64],
-) -> Result<M, TransformError> {
-    let (rows, cols) = M::axes(old, new);
-    let map = Linear::dense(M::ROLE, rows, cols, row_ids, col_ids, matrix, base)?;
-    Ok(M::from_map(map, old, new))
-}
-
-/// A map from `(row place, column place, coefficient)` entries and a base keyed by row place.
-pub(crate) fn explicit_sparse<M: Between>(
-    old: &Net,
-    new: &Net,
-    entries: &[(String, String, i64)],
-    base: &BTreeMap<String, i64>,
-) -> Result<M, TransformError> {
-    let (rows, cols) = M::axes(old, new);
-    let map = Linear::sparse(M::ROLE, rows, cols, entries, base)?;
-    Ok(M::from_map(map, old, new))
+    /// The map that `linear` resolves on this kind's row and column nets.
+    fn build(
+        old: &Net,
+        new: &Net,
+        linear: impl FnOnce(Role, &Net, &Net) -> Result<Linear, TransformError>,
+    ) -> Result<Self, TransformError> {
+        let (rows, cols) = Self::axes(old, new);
+        Ok(Self::from_map(linear(Self::ROLE, rows, cols)?, old, new))
+    }
 }
 
 /// A state transformation `M_new = ST·M_old + ST_base`, resolved against an old and a new net.

@@ -357,6 +357,34 @@ pub enum Op {
 }
 
 impl Op {
+    /// The slot of the one result, for the instructions that write one slot and do not read it:
+    /// what the compiler may redirect, and what the machine code knows such an instruction
+    /// writes.
+    pub(crate) fn result_mut(&mut self) -> Option<&mut Slot> {
+        match self {
+            Op::Const { dst, .. }
+            | Op::Move { dst, .. }
+            | Op::Arith { dst, .. }
+            | Op::Cmp { dst, .. }
+            | Op::Neg { dst, .. }
+            | Op::Not { dst, .. }
+            | Op::Conv { dst, .. }
+            | Op::Trunc { dst, .. }
+            | Op::Math { dst, .. }
+            | Op::Shift { dst, .. }
+            | Op::Select { dst, .. }
+            | Op::Index1 { dst, .. }
+            | Op::Addr { dst, .. }
+            | Op::LoadInd { dst, .. }
+            | Op::StrLen { dst, .. }
+            | Op::FromStr { dst, .. }
+            | Op::StrFind { dst, .. }
+            | Op::StrCmp { dst, .. }
+            | Op::TimeScale { dst, .. } => Some(dst),
+            _ => None,
+        }
+    }
+
     /// What this instruction costs in units of work: one, and one more per 16 slots or bytes
     /// it moves, so a copy of a large array or string is not as cheap as an addition.
     pub fn cost(&self, code: &Code) -> u64 {

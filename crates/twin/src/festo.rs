@@ -11,7 +11,7 @@
 use serde::{Deserialize, Serialize};
 
 use crate::rng::SplitMix64;
-use crate::{out, Counters, Fault, FaultKind, FaultLog, Physics, Plant, TwinError, SECOND_US};
+use crate::{out, Books, Counters, FaultKind, Physics, TwinError, SECOND_US};
 
 /// The twin's name.
 pub const NAME: &str = "festo";
@@ -376,7 +376,7 @@ pub struct FestoStation {
     params: FestoParams,
     rng: SplitMix64,
     defects: SplitMix64,
-    now: u64,
+    books: Books,
     nests: [Option<Part>; NESTS],
     table: Table,
     tester: Actuator,
@@ -392,8 +392,6 @@ pub struct FestoStation {
     tally: Tally,
     turning_latched: bool,
     misaligned_latched: bool,
-    image_size_reported: bool,
-    faults: FaultLog,
 }
 
 impl FestoStation {
@@ -414,7 +412,7 @@ impl FestoStation {
             rng: SplitMix64::new(seed),
             // A stream of its own, so that jitter draws never shift which parts are defective.
             defects: SplitMix64::new(seed ^ DEFECT_STREAM),
-            now: 0,
+            books: Books::new(),
             nests: [None; NESTS],
             table: Table {
                 motor: false,
@@ -437,21 +435,12 @@ impl FestoStation {
             tally: Tally::default(),
             turning_latched: false,
             misaligned_latched: false,
-            image_size_reported: false,
-            faults: FaultLog::new(),
         }
     }
 
     /// The parameters the station was built with.
     pub fn params(&self) -> &FestoParams {
         &self.params
-    }
-
-    /// Holds button `index` (see [`BUTTONS`]) from `at_us` for `press_us`.
-    fn press_index(&mut self, index: usize, at_us: u64) {
-        if let Some(slot) = self.presses.get_mut(index) {
-            *slot = Some((at_us, at_us.saturating_add(self.params.press_us)));
-        }
     }
 
     fn next_event(&self) -> (u64, Event) {
@@ -550,7 +539,7 @@ impl FestoStation {
     fn reject(&mut self, t: u64) {
         self.rejector.stroke = Stroke::Extended;
         if self.tester.engaged() {
-            self.faults.push(
+            self.books.faults.push(
                 FaultKind::RejectUnderProbe,
                 t,
                 "the rejector pushed against the tester's probe; the part under it stays",
@@ -570,13 +559,13 @@ impl FestoStation {
             return;
         };
         if !self.clamp.extended() {
-            self.faults.push(
+            self.books.faults.push(
                 FaultKind::DrillWithoutClamp,
                 t,
                 "the drill reached a part that was not clamped; the part is not drilled",
             );
         } else if !self.drill_motor {
-            self.faults.push(
+            self.books.faults.push(
                 FaultKind::DrillMotorOff,
                 t,
                 "the drill was fed into the part with its spindle stopped; the part is not drilled",
@@ -629,13 +618,15 @@ impl FestoStation {
         let engaged = self.engaged_module(t);
         let turning = self.table.motor && engaged.is_some();
         if let (true, false, Some(msg)) = (turning, self.turning_latched, engaged) {
-            self.faults.push(FaultKind::TableTurnWhileEngaged, t, msg);
+            self.books
+                .faults
+                .push(FaultKind::TableTurnWhileEngaged, t, msg);
         }
         self.turning_latched = turning;
         let misaligned =
             !self.table.motor && engaged.is_some() && !self.table.in_position(t, &self.params);
         if misaligned && !self.misaligned_latched {
-            self.faults.push(
+            self.books.faults.push(
                 FaultKind::EngagedOutOfPosition,
                 t,
                 "a module engaged while the table stood between two positions",
@@ -645,17 +636,24 @@ impl FestoStation {
     }
 
     fn pressed(&self, index: usize) -> bool {
-        matches!(self.presses[index], Some((from, until)) if from <= self.now && self.now < until)
+        matches!(self.presses[index], Some((from, until)) if from <= self.books.now && self.books.now < until)
     }
 }
 
 impl Physics for FestoStation {
-    fn books(&mut self) -> (&mut u64, &mut FaultLog, &mut bool) {
-        (
-            &mut self.now,
-            &mut self.faults,
-            &mut self.image_size_reported,
-        )
+    const NAME: &'static str = NAME;
+    const INPUT_NAMES: &'static [&'static str] = &INPUT_NAMES;
+    const OUTPUT_NAMES: &'static [&'static str] = &OUTPUT_NAMES;
+    const BUTTONS: &'static [&'static str] = &BUTTONS;
+    /// RESET (homing) at 100 ms and START at 500 ms, as an operator starts the station.
+    const START_PRESSES: &'static [(&'static str, u64)] = &[("RESET", 100_000), ("START", 500_000)];
+
+    fn books(&self) -> &Books {
+        &self.books
+    }
+
+    fn books_mut(&mut self) -> &mut Books {
+        &mut self.books
     }
 
     fn run_events_until(&mut self, now: u64) {
@@ -692,7 +690,7 @@ impl Physics for FestoStation {
             && self.feed.pos_at(now, p) > 0
             && self.nests[position::DRILL].is_some()
         {
-            self.faults.push(
+            self.books.faults.push(
                 FaultKind::DrillWithoutClamp,
                 now,
                 "the clamp opened while the drill was in the part",
@@ -720,28 +718,10 @@ impl Physics for FestoStation {
         self.place_waiting_part(now);
         self.check_engagement(now);
     }
-}
 
-impl Plant for FestoStation {
-    fn name(&self) -> &'static str {
-        NAME
-    }
-
-    fn input_names(&self) -> &[&'static str] {
-        &INPUT_NAMES
-    }
-
-    fn output_names(&self) -> &[&'static str] {
-        &OUTPUT_NAMES
-    }
-
-    fn step(&mut self, now_us: u64, outputs: &[bool]) {
-        self.advance(now_us, outputs);
-    }
-
-    fn inputs(&self, buf: &mut [bool]) {
+    fn read_inputs(&self, buf: &mut [bool]) {
         let p = &self.params;
-        let t = self.now;
+        let t = self.books.now;
         let in_pos = self.table.in_position(t, p);
         let at = |pos: usize| in_pos && self.nests[pos].is_some();
         let feed = self.feed.pos_at(t, p);
@@ -767,19 +747,7 @@ impl Plant for FestoStation {
         }
     }
 
-    fn now_us(&self) -> u64 {
-        self.now
-    }
-
-    fn faults(&self) -> &[Fault] {
-        self.faults.as_slice()
-    }
-
-    fn faults_dropped(&self) -> u64 {
-        self.faults.dropped()
-    }
-
-    fn counters(&self) -> Counters {
+    fn tally(&self) -> Counters {
         let t = &self.tally;
         Counters::from_pairs(&[
             ("parts_supplied", t.supplied),
@@ -796,31 +764,11 @@ impl Plant for FestoStation {
         ])
     }
 
-    fn buttons(&self) -> &[&'static str] {
-        &BUTTONS
-    }
-
-    /// RESET (homing) at 100 ms and START at 500 ms, as an operator starts the station.
-    fn start_presses(&self) -> &'static [(&'static str, u64)] {
-        &[("RESET", 100_000), ("START", 500_000)]
-    }
-
-    fn press(&mut self, button: &str, at_us: u64) -> Result<(), TwinError> {
-        match BUTTONS.iter().position(|b| b.eq_ignore_ascii_case(button)) {
-            Some(i) => {
-                self.press_index(i, at_us);
-                Ok(())
-            }
-            None => Err(TwinError::UnknownButton {
-                twin: NAME,
-                button: button.to_owned(),
-                known: BUTTONS.join(", "),
-            }),
+    /// Holds the button from `at_us` for `press_us`.
+    fn press_index(&mut self, index: usize, at_us: u64) {
+        if let Some(slot) = self.presses.get_mut(index) {
+            *slot = Some((at_us, at_us.saturating_add(self.params.press_us)));
         }
-    }
-
-    fn fork(&self) -> Box<dyn Plant> {
-        Box::new(self.clone())
     }
 }
 

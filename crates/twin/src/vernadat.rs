@@ -5,7 +5,7 @@
 use serde::{Deserialize, Serialize};
 
 use crate::rng::SplitMix64;
-use crate::{out, Counters, Fault, FaultKind, FaultLog, Physics, Plant, TwinError, SECOND_US};
+use crate::{out, Books, Counters, FaultKind, FaultLog, Physics, TwinError, SECOND_US};
 
 /// The twin's name.
 pub const NAME: &str = "vernadat";
@@ -214,7 +214,7 @@ enum Event {
 pub struct VernadatCell {
     params: VernadatParams,
     rng: SplitMix64,
-    now: u64,
+    books: Books,
     infeed: bool,
     infeed_next: Option<u64>,
     robot: Robot,
@@ -224,8 +224,6 @@ pub struct VernadatCell {
     finished: u64,
     scrapped: u64,
     collision_latched: bool,
-    image_size_reported: bool,
-    faults: FaultLog,
 }
 
 impl VernadatCell {
@@ -243,7 +241,7 @@ impl VernadatCell {
     fn build(params: VernadatParams, seed: u64) -> Self {
         Self {
             rng: SplitMix64::new(seed),
-            now: 0,
+            books: Books::new(),
             // A raw part is waiting when the cell starts, as the program's first transition expects.
             infeed: true,
             infeed_next: None,
@@ -254,8 +252,6 @@ impl VernadatCell {
             finished: 0,
             scrapped: 0,
             collision_latched: false,
-            image_size_reported: false,
-            faults: FaultLog::new(),
             params,
         }
     }
@@ -374,7 +370,7 @@ impl VernadatCell {
                     );
                     true
                 } else {
-                    self.faults.push(
+                    self.books.faults.push(
                         FaultKind::EmptySource,
                         now,
                         "CM1 commanded with no raw part at the infeed",
@@ -384,7 +380,7 @@ impl VernadatCell {
             }
             Move::Dm1 => pick_from_machine(
                 &mut self.m1,
-                &mut self.faults,
+                &mut self.books.faults,
                 now,
                 "DM1 commanded with machine 1 empty",
                 "DM1 commanded while machine 1's part is unfinished or clamped (PM1 on)",
@@ -394,7 +390,7 @@ impl VernadatCell {
                     self.buffer -= 1;
                     true
                 } else {
-                    self.faults.push(
+                    self.books.faults.push(
                         FaultKind::EmptySource,
                         now,
                         "CM2 commanded with the buffer empty",
@@ -404,7 +400,7 @@ impl VernadatCell {
             }
             Move::Dm2 => pick_from_machine(
                 &mut self.m2,
-                &mut self.faults,
+                &mut self.books.faults,
                 now,
                 "DM2 commanded with machine 2 empty",
                 "DM2 commanded while machine 2's part is unfinished or clamped (PM2 on)",
@@ -421,7 +417,7 @@ impl VernadatCell {
                     self.m1.start_if_ready(t, &mut self.rng, jitter);
                 } else {
                     self.scrapped += 1;
-                    self.faults.push(
+                    self.books.faults.push(
                         FaultKind::MachineBusy,
                         t,
                         "CM1 loaded a part into machine 1 while it held one; the new part is scrapped",
@@ -433,7 +429,7 @@ impl VernadatCell {
                     self.buffer += 1;
                 } else {
                     self.scrapped += 1;
-                    self.faults.push(
+                    self.books.faults.push(
                         FaultKind::BufferOverflow,
                         t,
                         "DM1 put a part into a full buffer; the part is scrapped",
@@ -446,7 +442,7 @@ impl VernadatCell {
                     self.m2.start_if_ready(t, &mut self.rng, jitter);
                 } else {
                     self.scrapped += 1;
-                    self.faults.push(
+                    self.books.faults.push(
                         FaultKind::MachineBusy,
                         t,
                         "CM2 loaded a part into machine 2 while it held one; the new part is scrapped",
@@ -482,12 +478,16 @@ fn pick_from_machine(
 }
 
 impl Physics for VernadatCell {
-    fn books(&mut self) -> (&mut u64, &mut FaultLog, &mut bool) {
-        (
-            &mut self.now,
-            &mut self.faults,
-            &mut self.image_size_reported,
-        )
+    const NAME: &'static str = NAME;
+    const INPUT_NAMES: &'static [&'static str] = &INPUT_NAMES;
+    const OUTPUT_NAMES: &'static [&'static str] = &OUTPUT_NAMES;
+
+    fn books(&self) -> &Books {
+        &self.books
+    }
+
+    fn books_mut(&mut self) -> &mut Books {
+        &mut self.books
     }
 
     fn run_events_until(&mut self, now: u64) {
@@ -506,7 +506,7 @@ impl Physics for VernadatCell {
                 if carrying {
                     self.scrapped += 1;
                 }
-                self.faults.push(
+                self.books.faults.push(
                     FaultKind::MoveAborted,
                     now,
                     "a robot move command was withdrawn before the move was complete; the part is dropped",
@@ -523,7 +523,7 @@ impl Physics for VernadatCell {
         if several {
             // Reported when it begins, not on every step it lasts.
             if !self.collision_latched {
-                self.faults.push(
+                self.books.faults.push(
                     FaultKind::Collision,
                     now,
                     "two robot moves were commanded at once; the robot starts neither",
@@ -562,7 +562,7 @@ impl Physics for VernadatCell {
             if m.pm && !pm {
                 if let Work::Machining { .. } = m.work {
                     m.work = Work::Raw;
-                    self.faults
+                    self.books.faults
                         .push(FaultKind::MachiningInterrupted, now, what);
                 }
             }
@@ -578,26 +578,8 @@ impl Physics for VernadatCell {
             }
         }
     }
-}
 
-impl Plant for VernadatCell {
-    fn name(&self) -> &'static str {
-        NAME
-    }
-
-    fn input_names(&self) -> &[&'static str] {
-        &INPUT_NAMES
-    }
-
-    fn output_names(&self) -> &[&'static str] {
-        &OUTPUT_NAMES
-    }
-
-    fn step(&mut self, now_us: u64, outputs: &[bool]) {
-        self.advance(now_us, outputs);
-    }
-
-    fn inputs(&self, buf: &mut [bool]) {
+    fn read_inputs(&self, buf: &mut [bool]) {
         let values = [
             self.infeed,
             self.robot == Robot::Done(Move::Cm1),
@@ -613,19 +595,7 @@ impl Plant for VernadatCell {
         }
     }
 
-    fn now_us(&self) -> u64 {
-        self.now
-    }
-
-    fn faults(&self) -> &[Fault] {
-        self.faults.as_slice()
-    }
-
-    fn faults_dropped(&self) -> u64 {
-        self.faults.dropped()
-    }
-
-    fn counters(&self) -> Counters {
+    fn tally(&self) -> Counters {
         Counters::from_pairs(&[
             ("parts_finished", self.finished),
             ("parts_in_buffer", u64::from(self.buffer)),
@@ -636,10 +606,6 @@ impl Plant for VernadatCell {
             ("parts_scrapped", self.scrapped),
         ])
     }
-
-    fn fork(&self) -> Box<dyn Plant> {
-        Box::new(self.clone())
-    }
 }
 
 #[cfg(test)]
@@ -647,6 +613,7 @@ mod tests {
     use super::input::*;
     use super::output::*;
     use super::*;
+    use crate::Plant;
 
     const S: u64 = SECOND_US;
 

@@ -553,24 +553,8 @@ impl<'a> Compiler<'a> {
         if !self.temps.contains(&temp) {
             return false;
         }
-        let Some(op) = self.code.ops.last_mut() else {
+        let Some(d) = self.code.ops.last_mut().and_then(Op::result_mut) else {
             return false;
-        };
-        let d = match op {
-            Op::Arith { dst, .. }
-            | Op::Cmp { dst, .. }
-            | Op::Neg { dst, .. }
-            | Op::Not { dst, .. }
-            | Op::Conv { dst, .. }
-            | Op::Trunc { dst, .. }
-            | Op::Math { dst, .. }
-            | Op::Shift { dst, .. }
-            | Op::LoadInd { dst, .. }
-            | Op::StrLen { dst, .. }
-            | Op::FromStr { dst, .. }
-            | Op::StrFind { dst, .. }
-            | Op::StrCmp { dst, .. } => dst,
-            _ => return false,
         };
         if *d != temp {
             return false;

@@ -718,27 +718,11 @@ enum Written {
     Any,
 }
 
-fn written(op: Op) -> Written {
+fn written(mut op: Op) -> Written {
+    if let Some(dst) = op.result_mut() {
+        return Written::One(*dst);
+    }
     match op {
-        Op::Const { dst, .. }
-        | Op::Move { dst, .. }
-        | Op::Arith { dst, .. }
-        | Op::Cmp { dst, .. }
-        | Op::Neg { dst, .. }
-        | Op::Not { dst, .. }
-        | Op::Conv { dst, .. }
-        | Op::Trunc { dst, .. }
-        | Op::Math { dst, .. }
-        | Op::Shift { dst, .. }
-        | Op::Select { dst, .. }
-        | Op::Index1 { dst, .. }
-        | Op::Addr { dst, .. }
-        | Op::LoadInd { dst, .. }
-        | Op::StrLen { dst, .. }
-        | Op::FromStr { dst, .. }
-        | Op::StrFind { dst, .. }
-        | Op::StrCmp { dst, .. }
-        | Op::TimeScale { dst, .. } => Written::One(dst),
         Op::Index { acc, .. } => Written::One(acc),
         Op::Copy { dst, len, .. } | Op::CopyFromInd { dst, len, .. } => Written::Span(dst, len),
         Op::CopyText { .. }
@@ -752,6 +736,8 @@ fn written(op: Op) -> Written {
         | Op::JumpIf { .. }
         | Op::JumpUnless { .. }
         | Op::Loop { .. } => Written::Nothing,
-        Op::StoreInd { .. } | Op::CopyToInd { .. } | Op::StdFb { .. } => Written::Any,
+        // Stores through an address and the standard FBs, and whatever is added later: the
+        // answer that is always safe.
+        _ => Written::Any,
     }
 }

@@ -3,6 +3,7 @@
 use super::input::*;
 use super::output::*;
 use super::*;
+use crate::Plant;
 
 /// Steps to `t_ms` with the listed outputs on, returns the input image.
 fn drive(st: &mut FestoStation, t_ms: u64, on: &[usize]) -> [bool; 15] {

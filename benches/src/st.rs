@@ -21,7 +21,7 @@ use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use cetratus_matiec::{Case, IecType, Matiec};
-use cetratus_program::Value;
+use cetratus_program::{Program, Value};
 use cetratus_runtime::Container;
 use serde::Serialize;
 
@@ -255,8 +255,9 @@ pub fn figures(matiec: Option<&Path>, quick: bool) -> Result<StFigures, BenchErr
     };
     let mut out = Vec::new();
     for p in programs() {
-        let (cetratus_ns, ours) = cetratus_side(&p, scans)?;
-        let pass = pass_ns(&p, scans)?;
+        let (program, inputs) = imported(&p)?;
+        let (cetratus_ns, ours) = cetratus_side(&p, &program, &inputs, scans)?;
+        let pass = pass_ns(&program, &inputs, scans)?;
         let matiec_ns = match &compiler {
             Ok(m) => Some(matiec_side(m, &p, scans, &ours)?),
             Err(_) => None,
@@ -281,9 +282,8 @@ pub fn figures(matiec: Option<&Path>, quick: bool) -> Result<StFigures, BenchErr
     })
 }
 
-/// Median ns of a Cetratus scan, and the outputs after the last scan in MATIEC's canonical
-/// text.
-fn cetratus_side(p: &StBench, scans: u64) -> Result<(f64, Vec<String>), BenchError> {
+/// `p` imported as `cetratus import st` does, and the input image its inputs hold.
+fn imported(p: &StBench) -> Result<(Arc<Program>, Vec<Value>), BenchError> {
     let imported = cetratus_sfc::structured::import_st(&p.source, p.name, None)?;
     let program = Arc::new(imported.program);
     let inputs = program
@@ -298,8 +298,19 @@ fn cetratus_side(p: &StBench, scans: u64) -> Result<(f64, Vec<String>), BenchErr
             value_of(*ty, text)
         })
         .collect::<Result<Vec<Value>, BenchError>>()?;
+    Ok((program, inputs))
+}
+
+/// Median ns of a Cetratus scan of `program`, its inputs held at `inputs`, and the outputs after
+/// the last scan in MATIEC's canonical text.
+fn cetratus_side(
+    p: &StBench,
+    program: &Arc<Program>,
+    inputs: &[Value],
+    scans: u64,
+) -> Result<(f64, Vec<String>), BenchError> {
     let fresh = Container::new(program.clone(), 0);
-    let (ns, last) = time_scans(&fresh, &inputs, TICK.as_micros() as u64, scans);
+    let (ns, last) = time_scans(&fresh, inputs, TICK.as_micros() as u64, scans);
     let outputs = p
         .outputs
         .iter()
@@ -344,22 +355,25 @@ struct Pass {
     machine_code: bool,
 }
 
-/// [`Pass`] of `p`, its inputs left at their initial values.
-fn pass_ns(p: &StBench, scans: u64) -> Result<Pass, BenchError> {
-    let lib = cetratus_st::parse::parse_library(&p.source).map_err(|d| d.message)?;
-    let unit = cetratus_st::compile(&lib, None).map_err(|d| d.message)?;
+/// [`Pass`] of `program`, as its scan runs it: the same input image, copied in, the POU run,
+/// its outputs copied out.
+fn pass_ns(program: &Program, inputs: &[Value], scans: u64) -> Result<Pass, BenchError> {
+    let st = program
+        .st()
+        .ok_or_else(|| format!("{} has no Structured Text", program.name()))?;
+    let unit = st.unit();
     unit.prepare_machine_code();
-    let tick = TICK.as_nanos() as i64;
     let time = |interpret: bool| {
         let ns = median((0..RUNS).map(|_| {
             let mut state = unit.new_state();
+            let mut outputs: Vec<Value> = program.outputs().iter().map(|s| s.initial).collect();
             let t0 = Instant::now();
             for k in 0..scans {
                 let mut work = cetratus_st::Work::unlimited();
-                let now = k as i64 * tick;
+                let now = k * TICK.as_micros() as u64;
                 let r = match interpret {
-                    true => unit.run_interpreted(&mut state, now, &mut work),
-                    false => unit.run(&mut state, now, &mut work),
+                    true => st.run_interpreted(inputs, &mut outputs, &mut state, now, &mut work),
+                    false => st.run(inputs, &mut outputs, &mut state, now, &mut work),
                 };
                 black_box(r.is_ok());
             }

@@ -145,7 +145,79 @@ pub struct ActionState {
     st: Option<cetratus_st::State>,
 }
 
+/// The one action of a program that is a Structured Text POU run every scan and nothing else
+/// (what `cetratus import st` makes): no transition, one N action whose body is the POU, every
+/// output held by that body. While its place stays marked, a scan of such a program is one run
+/// of the body, which [`ActionState::run_sole`] runs without the machinery of qualifiers,
+/// latches and timers around it, which has nothing to do.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct SoleBody {
+    place: PlaceIdx,
+    body: u32,
+}
+
+impl SoleBody {
+    /// The sole body of `program`, if it is such a program.
+    pub fn of(program: &Program) -> Option<SoleBody> {
+        let [action] = program.actions.as_slice() else {
+            return None;
+        };
+        let [Target::Body(body)] = *program.action_targets.as_slice() else {
+            return None;
+        };
+        let pou = program.bodies.get(body as usize)?;
+        let sole = program.net().num_transitions() == 0
+            && action.qualifier == Qualifier::N
+            && pou.st().is_some()
+            && pou.st_entry().is_none()
+            && program.output_held.iter().all(|&held| held);
+        sole.then_some(SoleBody {
+            place: action.place,
+            body,
+        })
+    }
+}
+
 impl ActionState {
+    /// Whether the next scan of a [`SoleBody`] program is one run of its body, as
+    /// [`ActionState::apply`] would run it: its place is marked and was in the last scan, whose
+    /// actions ran in full (so that no first or final run is due).
+    pub fn runs_sole(&self, sole: SoleBody, marking: &[Tokens]) -> bool {
+        self.was_on == [true]
+            && !self.quiet
+            && !self.never_quiet
+            && marking.get(sole.place.index()).is_some_and(|&m| m > 0)
+    }
+
+    /// One run of the sole body, after [`ActionState::runs_sole`] said yes: what
+    /// [`ActionState::apply`] does in that scan, charged to `work` the same way. Never allocates,
+    /// unless the body fails or is not run (the error names it).
+    pub fn run_sole(
+        &mut self,
+        program: &Program,
+        sole: SoleBody,
+        inputs: &[Value],
+        outputs: &mut [Value],
+        now_us: u64,
+        work: &mut Work,
+    ) -> Result<(), ActError> {
+        let (Some(body), Some(state)) = (program.bodies.get(sole.body as usize), self.st.as_mut())
+        else {
+            return Ok(());
+        };
+        if !work.charge(body.cost()) {
+            return Err(ActError::OutOfWork {
+                body: body.name().to_string(),
+            });
+        }
+        match body.st() {
+            Some(st) => st
+                .run(inputs, outputs, state, now_us, work)
+                .map_err(|f| st_fault(body, f)),
+            None => Ok(()),
+        }
+    }
+
     /// Fresh state for `program`, every latch off; use it only with that program.
     pub fn new(program: &Program) -> Self {
         let n = program.action_targets.len();

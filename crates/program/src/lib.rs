@@ -28,7 +28,7 @@ mod value;
 
 use std::path::Path;
 
-pub use action::{ActError, Action, ActionState, Qualifier, Target};
+pub use action::{ActError, Action, ActionState, Qualifier, SoleBody, Target};
 pub use body::{Body, BodyError, Statement};
 pub use cetratus_st::Work;
 pub use error::ProgramError;

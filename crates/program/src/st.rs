@@ -218,6 +218,22 @@ impl StProgram {
         ran
     }
 
+    /// [`StProgram::run`] on the interpreter, even when the POU runs in machine code: what the
+    /// machine code is measured against.
+    pub fn run_interpreted(
+        &self,
+        inputs: &[Value],
+        outputs: &mut [Value],
+        state: &mut State,
+        now_us: u64,
+        work: &mut Work,
+    ) -> Result<(), Fault> {
+        self.copy_in(inputs, state);
+        let ran = self.unit.run_interpreted(state, ns(now_us), work);
+        self.copy_out(outputs, state);
+        ran
+    }
+
     /// The input image copied into the wired VAR_INPUTs.
     pub(crate) fn copy_in(&self, inputs: &[Value], state: &mut State) {
         for &(i, e, slot) in &self.inputs {

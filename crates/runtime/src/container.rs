@@ -4,7 +4,7 @@ use std::sync::Arc;
 
 use cetratus_net::{Engine, FireError, PlaceIdx, Tokens, TransIdx};
 use cetratus_program::st::{RetainedSt, StCarry};
-use cetratus_program::{ActError, ActionState, EvalCtx, Program, Value, Work};
+use cetratus_program::{ActError, ActionState, EvalCtx, Program, SoleBody, Value, Work};
 
 use crate::RuntimeError;
 
@@ -44,6 +44,8 @@ pub struct Container {
     edge_memory: bool,
     // Tests compare against a container that never takes the quiet path.
     always_full: bool,
+    // The program is one ST POU run every scan: a scan runs it and nothing else.
+    sole: Option<SoleBody>,
 }
 
 /// Which scan computes the actions: one that fired, or a quiet one that skipped firing.
@@ -267,6 +269,7 @@ impl Container {
             resume: false,
             edge_memory: false,
             always_full: false,
+            sole: SoleBody::of(&program),
             firings: vec![0; program.net().num_transitions()],
             place_dwell_us: vec![0; marking.len()],
             marking_at_start: marking,
@@ -365,6 +368,9 @@ impl Container {
                 expected: self.inputs.len(),
                 got: inputs.len(),
             });
+        }
+        if let Some(sole) = self.sole.filter(|&sole| self.runs_sole(sole)) {
+            return self.sole_scan(sole, now_us, inputs, work_budget);
         }
         if self.is_quiet(inputs, unchanged) {
             return self.quiet_scan(now_us, work_budget);
@@ -521,6 +527,39 @@ impl Container {
                 .enabled()
                 .iter()
                 .any(|t| self.timed_guard[t.index()])
+    }
+
+    /// Whether this scan of a [`SoleBody`] program is one run of its body: not the first from
+    /// this state, nor one that must run in full.
+    fn runs_sole(&self, sole: SoleBody) -> bool {
+        !self.always_full
+            && !self.force_full
+            && !self.fresh_state
+            && self.actions.runs_sole(sole, self.engine.marking())
+    }
+
+    /// The scan of a [`SoleBody`] program: the inputs taken, the body run; no transition can
+    /// fire and no place change, so nothing else moves.
+    fn sole_scan(
+        &mut self,
+        sole: SoleBody,
+        now_us: u64,
+        inputs: &[Value],
+        work_budget: u64,
+    ) -> Result<ScanOutcome, RuntimeError> {
+        // No guard reads `rise`/`fall`, and a scan on the full path takes its own past image
+        // first: only this image is kept.
+        self.inputs.copy_from_slice(inputs);
+        self.edge_memory = true;
+        let mut work = Work::within(work_budget);
+        let (program, outputs) = (&*self.program, &mut self.outputs);
+        let ran = (self.actions).run_sole(program, sole, &self.inputs, outputs, now_us, &mut work);
+        self.scans += 1;
+        ran.map_err(|e| {
+            self.force_full = true;
+            act_error(e, work.budget())
+        })?;
+        Ok(self.outcome(0))
     }
 
     /// A scan that fires nothing: the actions still run, for their timers.

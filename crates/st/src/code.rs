@@ -420,4 +420,15 @@ pub struct Code {
     pub literals: Vec<Vec<u8>>,
     /// Operands of [`Op::Str`].
     pub string_args: Vec<StrArgs>,
+    /// The temporaries, sorted: slots that hold an operation's result for the instructions
+    /// after it in the same run of this code, written before they are read, never read by other
+    /// code or after the run. A condition's result is not among them.
+    pub temps: Vec<Slot>,
+}
+
+impl Code {
+    /// Whether slot `s` is one of [`Code::temps`].
+    pub fn is_temp(&self, s: Slot) -> bool {
+        self.temps.binary_search(&s).is_ok()
+    }
 }

@@ -1,5 +1,6 @@
 //! The machine code against the interpreter (docs/st.md, *Machine code*): the same programs, the
-//! same inputs and times, and after every scan the same state, slot for slot and byte for byte,
+//! same inputs and times, and after every scan the same state, slot for slot (but the
+//! temporaries, which nothing reads after a run) and byte for byte,
 //! the same work charged and the same faults at the same places. The interpreter is the
 //! reference that MATIEC checks (`differential.rs`); this checks the translation against it on
 //! every instruction the generator makes, and on the faults it does not make.
@@ -26,6 +27,7 @@ fn agree(
     );
     assert!(unit.in_machine_code());
     let (mut native, mut reference) = (unit.new_state(), unit.new_state());
+    let code = &unit.code;
     let mut results = Vec::new();
     for k in 0..scans {
         inputs(k, &mut native);
@@ -36,7 +38,10 @@ fn agree(
         let want = unit.run_interpreted(&mut reference, now, &mut w2);
         assert_eq!(got, want, "{}: scan {k}: the results differ", unit.name);
         assert_eq!(w1.used(), w2.used(), "{}: scan {k}: work", unit.name);
-        if let Some(at) = (0..native.slots.len()).find(|&i| native.slots[i] != reference.slots[i]) {
+        // A temporary is only stored where something may read it: after the run, it may hold
+        // an older value in machine code.
+        let differs = |&i: &usize| native.slots[i] != reference.slots[i] && !code.is_temp(i as u32);
+        if let Some(at) = (0..native.slots.len()).find(differs) {
             panic!(
                 "{}: scan {k}: slot {at} is {:#x} in machine code, {:#x} interpreted",
                 unit.name, native.slots[at], reference.slots[at]

@@ -550,7 +550,7 @@ impl<'a> Compiler<'a> {
     /// Makes the last instruction write `dst` instead of `temp`, when it wrote the temporary
     /// `temp` that nothing else reads; true if it did.
     fn retarget(&mut self, temp: Slot, dst: Slot) -> bool {
-        if !self.temps.contains(&temp) {
+        if self.temps.binary_search(&temp).is_err() {
             return false;
         }
         let Some(d) = self.code.ops.last_mut().and_then(Op::result_mut) else {

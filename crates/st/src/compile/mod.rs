@@ -163,8 +163,9 @@ pub(crate) struct Compiler<'a> {
     /// Instructions already compiled into other code of the unit (the body, earlier entries):
     /// [`MAX_OPS`] bounds them all together.
     pub emitted: usize,
-    /// Temporaries: slots that hold one operation's result for one reader.
-    pub temps: std::collections::HashSet<Slot>,
+    /// Temporaries: slots that hold one operation's result for one reader, in the order they
+    /// were made, which is their order (slots are allocated upwards).
+    pub temps: Vec<Slot>,
     /// The configuration's `VAR_GLOBAL`s, by upper-case name, for `VAR_EXTERNAL`.
     pub globals: HashMap<String, VarRef>,
 }
@@ -635,7 +636,7 @@ impl<'a> Compiler<'a> {
             returns: Vec::new(),
             consts: HashMap::new(),
             emitted: 0,
-            temps: std::collections::HashSet::new(),
+            temps: Vec::new(),
             globals: HashMap::new(),
         };
         c.index_pous()?;
@@ -670,8 +671,9 @@ impl<'a> Compiler<'a> {
     }
 
     /// The unit, once the body is compiled.
-    fn finish(self, main: &Pou, vars: Vec<Var>) -> Result<Unit, Diagnostic> {
+    fn finish(mut self, main: &Pou, vars: Vec<Var>) -> Result<Unit, Diagnostic> {
         let interval = self.task_interval(main)?;
+        self.code.temps = self.temps.clone();
         let cost = self.code.ops.iter().map(|op| op.cost(&self.code)).sum();
         Ok(Unit {
             name: main.name.text.clone(),
@@ -696,6 +698,7 @@ impl<'a> Compiler<'a> {
     /// One entry compiled into code of its own, in the POU's scope.
     fn entry(&mut self, name: &str, text: EntryText<'_>) -> Result<Entry, Diagnostic> {
         self.code = Code::default();
+        let first = self.temps.len();
         let result = match text {
             EntryText::Body(stmts) => {
                 self.body(stmts)?;
@@ -714,7 +717,12 @@ impl<'a> Compiler<'a> {
                 }
             },
         };
-        let code = std::mem::take(&mut self.code);
+        let mut code = std::mem::take(&mut self.code);
+        // This code's temporaries are the ones made since it began, but the result, which the
+        // caller reads.
+        code.temps = (self.temps[first..].iter().copied())
+            .filter(|&t| Some(t) != result)
+            .collect();
         self.emitted += code.ops.len();
         let cost = code.ops.iter().map(|op| op.cost(&code)).sum();
         Ok(Entry {
@@ -795,7 +803,7 @@ impl<'a> Compiler<'a> {
     /// A fresh temporary slot.
     pub fn temp(&mut self, pos: Pos) -> Result<Slot, Diagnostic> {
         let slot = self.alloc(Size { slots: 1, text: 0 }, pos)?.slots;
-        self.temps.insert(slot);
+        self.temps.push(slot);
         Ok(slot)
     }
 

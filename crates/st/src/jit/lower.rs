@@ -21,6 +21,8 @@ use cranelift_codegen::isa::TargetIsa;
 use cranelift_frontend::{FunctionBuilder, FunctionBuilderContext, Variable};
 
 use super::offset;
+
+mod stdfb;
 use crate::code::{Arith, Code, Op, Rel, Slot};
 use crate::types::Elem;
 use crate::vm::{promote, signed_order};
@@ -64,6 +66,8 @@ struct Lower<'a, 'f> {
     len: Value,
     budget: Value,
     back: Value,
+    /// The scan's time, in nanoseconds.
+    now: Value,
     back_sig: SigRef,
     /// Work charged so far.
     used: Variable,
@@ -103,6 +107,7 @@ impl<'a, 'f> Lower<'a, 'f> {
         let used0 = load(b, offset::USED);
         let budget = load(b, offset::BUDGET);
         let back = load(b, offset::BACK);
+        let now = load(b, offset::NOW);
         let used = b.declare_var(types::I64);
         b.def_var(used, used0);
         let mut sig = Signature::new(isa.default_call_conv());
@@ -130,6 +135,7 @@ impl<'a, 'f> Lower<'a, 'f> {
             len,
             budget,
             back,
+            now,
             back_sig,
             used,
             blocks,
@@ -156,7 +162,8 @@ impl<'a, 'f> Lower<'a, 'f> {
     fn finish(mut self) -> (usize, bool) {
         let end = self.code.ops.len();
         self.at(end);
-        self.flush();
+        // What is still not stored is temporaries, which nothing reads after the run.
+        self.dirty.clear();
         let zero = self.b.ins().iconst(types::I64, 0);
         self.leave(zero);
         for fail in std::mem::take(&mut self.fails) {
@@ -233,8 +240,16 @@ impl<'a, 'f> Lower<'a, 'f> {
         v
     }
 
-    /// `v` into slot `s`, stored by the next [`Lower::flush`].
+    /// `v` into slot `s`: stored at once, and known in a register for the instructions that
+    /// read it next. A temporary is only kept in the register, and stored by the next
+    /// [`Lower::flush`], where the code jumps, hands an instruction back or faults; what nothing
+    /// reads after the run is never stored.
     fn set(&mut self, s: Slot, v: Value) {
+        if !self.code.is_temp(s) {
+            self.store(s, v);
+            self.known.insert(s, (v, true));
+            return;
+        }
         self.offset(s);
         let pending = self
             .known
@@ -370,6 +385,7 @@ impl<'a, 'f> Lower<'a, 'f> {
                 self.b.switch_to_block(next);
             }
             Op::Loop { to, cost } => self.charge(pc, to, cost),
+            Op::StdFb { fb, base } => self.std_fb(fb, base),
             _ => self.addressing(pc, op),
         }
     }

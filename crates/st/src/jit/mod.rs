@@ -2,9 +2,9 @@
 //! unit (its body, each chart entry) is translated once, at load, by Cranelift into a native
 //! function that does what [`crate::vm::run`] does on the same state, instruction for
 //! instruction. The register machine stays the reference: what the translation does not compile
-//! itself (strings, the standard function blocks, conversions that round, the functions of
-//! `math.h`) it hands to [`crate::vm::exec`] through one call, and a unit that cannot be
-//! translated (a target Cranelift does not know, code past [`MAX_OPS`]) runs on the interpreter.
+//! itself (strings, conversions that round, the functions of `math.h`) it hands to
+//! [`crate::vm::exec`] through one call, and a unit that cannot be translated (a target
+//! Cranelift does not know, code past [`MAX_OPS`]) runs on the interpreter.
 //!
 //! The one `unsafe` of the crate is here, and it is the fourth exception of the workspace's
 //! `unsafe_code` rule (ARCHITECTURE.md): calling the generated function, the call back from it,
@@ -40,7 +40,7 @@ use crate::work::Work;
 pub const MAX_OPS: usize = 100_000;
 
 /// What the generated code and its call back share, laid out for the generated code: it reads
-/// the first five fields at fixed offsets ([`lower`]).
+/// the first six fields at fixed offsets ([`lower`]).
 #[repr(C)]
 pub(crate) struct Frame<'a> {
     /// The first slot.
@@ -53,14 +53,14 @@ pub(crate) struct Frame<'a> {
     budget: u64,
     /// [`call_back`].
     back: extern "C" fn(*mut Frame<'_>, u64) -> u64,
+    /// The scan's time.
+    now: i64,
     /// The text, for the interpreter's instructions.
     text: *mut u8,
     /// Its length.
     text_len: usize,
     /// The code, for the instructions handed back.
     code: &'a Code,
-    /// The scan's time.
-    now: i64,
     /// The fault an instruction handed back had.
     fault: Option<FaultKind>,
     /// The panic of an instruction handed back, carried across the generated code.
@@ -79,7 +79,20 @@ pub(crate) mod offset {
     pub const BUDGET: i32 = 24;
     /// `back`.
     pub const BACK: i32 = 32;
+    /// `now`.
+    pub const NOW: i32 = 40;
 }
+
+// The generated code reads the frame at these offsets: the layout must be what it reads.
+const _: () = {
+    use std::mem::offset_of;
+    assert!(offset_of!(Frame<'static>, slots) == offset::SLOTS as usize);
+    assert!(offset_of!(Frame<'static>, len) == offset::LEN as usize);
+    assert!(offset_of!(Frame<'static>, used) == offset::USED as usize);
+    assert!(offset_of!(Frame<'static>, budget) == offset::BUDGET as usize);
+    assert!(offset_of!(Frame<'static>, back) == offset::BACK as usize);
+    assert!(offset_of!(Frame<'static>, now) == offset::NOW as usize);
+};
 
 type Entry = extern "C" fn(*mut Frame<'_>) -> u64;
 
@@ -184,10 +197,10 @@ impl Machine {
             used: work.used(),
             budget: work.budget(),
             back: call_back,
+            now,
             text: state.text.as_mut_ptr(),
             text_len: state.text.len(),
             code,
-            now,
             fault: None,
             panic: None,
         };

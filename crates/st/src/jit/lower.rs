@@ -752,8 +752,8 @@ fn written(mut op: Op) -> Written {
         | Op::JumpIf { .. }
         | Op::JumpUnless { .. }
         | Op::Loop { .. } => Written::Nothing,
-        // Stores through an address and the standard FBs, and whatever is added later: the
-        // answer that is always safe.
+        // Stores through an address, and whatever is handed back later: the answer that is
+        // always safe.
         _ => Written::Any,
     }
 }

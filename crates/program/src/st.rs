@@ -212,10 +212,9 @@ impl StProgram {
         now_us: u64,
         work: &mut Work,
     ) -> Result<(), Fault> {
-        self.copy_in(inputs, state);
-        let ran = self.unit.run(state, ns(now_us), work);
-        self.copy_out(outputs, state);
-        ran
+        self.around(inputs, outputs, state, |unit, state| {
+            unit.run(state, ns(now_us), work)
+        })
     }
 
     /// [`StProgram::run`] on the interpreter, even when the POU runs in machine code: what the
@@ -228,8 +227,21 @@ impl StProgram {
         now_us: u64,
         work: &mut Work,
     ) -> Result<(), Fault> {
+        self.around(inputs, outputs, state, |unit, state| {
+            unit.run_interpreted(state, ns(now_us), work)
+        })
+    }
+
+    /// `run` of the unit on `state`, the inputs copied in before and the outputs out after.
+    fn around(
+        &self,
+        inputs: &[Value],
+        outputs: &mut [Value],
+        state: &mut State,
+        run: impl FnOnce(&Unit, &mut State) -> Result<(), Fault>,
+    ) -> Result<(), Fault> {
         self.copy_in(inputs, state);
-        let ran = self.unit.run_interpreted(state, ns(now_us), work);
+        let ran = run(&self.unit, state);
         self.copy_out(outputs, state);
         ran
     }

@@ -183,7 +183,7 @@ impl ActionState {
     /// [`ActionState::apply`] would run it: its place is marked and was in the last scan, whose
     /// actions ran in full (so that no first or final run is due).
     pub fn runs_sole(&self, sole: SoleBody, marking: &[Tokens]) -> bool {
-        self.was_on == [true]
+        matches!(self.was_on.as_slice(), [true])
             && !self.quiet
             && !self.never_quiet
             && marking.get(sole.place.index()).is_some_and(|&m| m > 0)

@@ -426,6 +426,19 @@ pub struct Code {
     pub temps: Vec<Slot>,
 }
 
+/// One piece of a unit's code, as it is run: its place among the unit's pieces (0 the body,
+/// `k + 1` the entry `k`), which is also its function in the machine code, the code, and what
+/// its straight-line code costs a run.
+#[derive(Clone, Copy, Debug)]
+pub struct Piece<'a> {
+    /// Its place among the unit's pieces.
+    pub index: usize,
+    /// Its code.
+    pub code: &'a Code,
+    /// What running its straight-line code once costs, in units of work.
+    pub cost: u64,
+}
+
 impl Code {
     /// Whether slot `s` is one of [`Code::temps`].
     pub fn is_temp(&self, s: Slot) -> bool {

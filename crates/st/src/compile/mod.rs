@@ -24,7 +24,7 @@ mod stmt;
 use std::collections::HashMap;
 
 use crate::ast::{Expr, Library, Pos, Pou, PouKind, Section};
-use crate::code::{Code, Op, Slot, TextAt};
+use crate::code::{Code, Op, Piece, Slot, TextAt};
 use crate::error::Diagnostic;
 use crate::stdfb::StdFb;
 use crate::types::{Elem, FbId, Field, Size, Ty, Types};
@@ -274,29 +274,29 @@ impl Unit {
         now: i64,
         work: &mut crate::Work,
     ) -> Result<(), crate::vm::Fault> {
-        self.run_piece(0, &self.code, self.cost, state, now, work)
+        let piece = Piece {
+            index: 0,
+            code: &self.code,
+            cost: self.cost,
+        };
+        self.run_piece(piece, state, now, work)
     }
 
-    /// Runs piece `k` of the machine code (0 the body, `k + 1` entry `k`), whose code is `code`:
-    /// in machine code once it is there, else on the interpreter.
+    /// Runs `piece`: in machine code once it is there, else on the interpreter.
     fn run_piece(
         &self,
-        k: usize,
-        code: &Code,
-        cost: u64,
+        piece: Piece<'_>,
         state: &mut State,
         now: i64,
         work: &mut crate::Work,
     ) -> Result<(), crate::vm::Fault> {
         #[cfg(feature = "jit")]
         if let Some(done) = (self.machine.get().and_then(Option::as_ref))
-            .and_then(|m| m.run(k, code, cost, state, now, work))
+            .and_then(|m| m.run(piece, state, now, work))
         {
             return done;
         }
-        #[cfg(not(feature = "jit"))]
-        let _ = k;
-        crate::vm::run(code, cost, state, now, work)
+        crate::vm::run(piece.code, piece.cost, state, now, work)
     }
 
     /// Translates the body and the entries into machine code, once: later calls, and calls on
@@ -351,7 +351,12 @@ impl Unit {
         let Some(e) = self.entries.get(k) else {
             return Ok(false);
         };
-        self.run_piece(k + 1, &e.code, e.cost, state, now, work)?;
+        let piece = Piece {
+            index: k + 1,
+            code: &e.code,
+            cost: e.cost,
+        };
+        self.run_piece(piece, state, now, work)?;
         Ok(e.result
             .and_then(|r| state.slots.get(r as usize))
             .is_some_and(|&v| v != 0))

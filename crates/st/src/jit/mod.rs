@@ -29,7 +29,7 @@ use cranelift_codegen::settings::{self, Configurable};
 use cranelift_jit::{JITBuilder, JITModule};
 use cranelift_module::{default_libcall_names, Linkage, Module};
 
-use crate::code::{Code, FaultKind};
+use crate::code::{Code, FaultKind, Piece};
 use crate::vm::{Fault, State};
 use crate::work::Work;
 
@@ -173,18 +173,17 @@ impl Machine {
         matches!(self.functions.get(k), Some(Some(_)))
     }
 
-    /// Runs piece `k`, whose code is `code`, as [`crate::vm::run`] runs it; `None` when that
-    /// piece is interpreted or `state` is too short for it (the caller then interprets).
+    /// Runs `piece` as [`crate::vm::run`] runs it; `None` when that piece is interpreted or
+    /// `state` is too short for it (the caller then interprets).
     pub fn run(
         &self,
-        k: usize,
-        code: &Code,
-        cost: u64,
+        piece: Piece<'_>,
         state: &mut State,
         now: i64,
         work: &mut Work,
     ) -> Option<Result<(), Fault>> {
-        let compiled = (*self.functions.get(k)?)?;
+        let Piece { index, code, cost } = piece;
+        let compiled = (*self.functions.get(index)?)?;
         if state.slots.len() < compiled.needs {
             return None;
         }

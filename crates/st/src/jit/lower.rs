@@ -21,11 +21,11 @@ use cranelift_codegen::isa::TargetIsa;
 use cranelift_frontend::{FunctionBuilder, FunctionBuilderContext, Variable};
 
 use super::offset;
-
-mod stdfb;
 use crate::code::{Arith, Code, Op, Rel, Slot};
 use crate::types::Elem;
 use crate::vm::{promote, signed_order};
+
+mod stdfb;
 
 /// The largest slot index whose byte offset fits the 32-bit offset of a load.
 const FARTHEST: Slot = (i32::MAX / 8) as Slot;

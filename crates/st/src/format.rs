@@ -191,7 +191,9 @@ fn integer_text(text: &[u8]) -> i64 {
                     res = res.wrapping_add(i64::from(c - b'0').wrapping_mul(fac));
                     fac = fac.wrapping_mul(10);
                     shift += 1;
-                } else if c >= b'.' {
+                } else if (b'.'..0x80).contains(&c) {
+                    // MATIEC compares a C `char`, signed where it runs here (x86-64): a byte of
+                    // 0x80 or more is below `.`, and skipped.
                     (res, fac, shift) = (0, sign, 0);
                 }
             }
@@ -361,5 +363,20 @@ mod tests {
         assert_eq!(t("90"), 90 * NS_PER_S);
         assert_eq!(t("1.5"), 1_500_000_000);
         assert_eq!((t("T#5x"), t("T#"), t("abc")), (0, 0, 0));
+    }
+
+    /// A decimal text read from the right as MATIEC reads it on x86-64: a character from `.` up
+    /// starts the number again, anything below `.` (a byte of 0x80 or more among them, C's
+    /// `char` being signed there) is skipped.
+    #[test]
+    fn integers_read_from_the_right_skip_what_is_below_a_dot() {
+        let i = |s: &[u8]| from_text(Elem::Dint, s) as i64;
+        assert_eq!(i(b"+42"), 42);
+        assert_eq!(i(b"1_000"), 1);
+        assert_eq!(i(b"abc"), 0);
+        assert_eq!(i(b"-12"), -12);
+        assert_eq!(i(b"\xb8,2#fOT0E!"), 2);
+        assert_eq!(i(b"3\xb87"), 37);
+        assert_eq!(i(b"3x7"), 3);
     }
 }

@@ -356,8 +356,7 @@ struct Pass {
 }
 
 /// [`Pass`] of `program`, as its scan runs it: the same input image, copied in, the POU run,
-/// its outputs copied out (on the interpreter, the same steps as
-/// [`cetratus_program::st::StProgram::run`]).
+/// its outputs copied out.
 fn pass_ns(program: &Program, inputs: &[Value], scans: u64) -> Result<Pass, BenchError> {
     let st = program
         .st()
@@ -373,13 +372,7 @@ fn pass_ns(program: &Program, inputs: &[Value], scans: u64) -> Result<Pass, Benc
                 let mut work = cetratus_st::Work::unlimited();
                 let now = k * TICK.as_micros() as u64;
                 let r = match interpret {
-                    true => {
-                        st.copy_in(inputs, &mut state);
-                        let ns = (now as i64).saturating_mul(1_000);
-                        let r = unit.run_interpreted(&mut state, ns, &mut work);
-                        st.copy_out(&mut outputs, &state);
-                        r
-                    }
+                    true => st.run_interpreted(inputs, &mut outputs, &mut state, now, &mut work),
                     false => st.run(inputs, &mut outputs, &mut state, now, &mut work),
                 };
                 black_box(r.is_ok());

@@ -212,14 +212,42 @@ impl StProgram {
         now_us: u64,
         work: &mut Work,
     ) -> Result<(), Fault> {
+        self.around(inputs, outputs, state, |unit, state| {
+            unit.run(state, ns(now_us), work)
+        })
+    }
+
+    /// [`StProgram::run`] on the interpreter, even when the POU runs in machine code: what the
+    /// machine code is measured against.
+    pub fn run_interpreted(
+        &self,
+        inputs: &[Value],
+        outputs: &mut [Value],
+        state: &mut State,
+        now_us: u64,
+        work: &mut Work,
+    ) -> Result<(), Fault> {
+        self.around(inputs, outputs, state, |unit, state| {
+            unit.run_interpreted(state, ns(now_us), work)
+        })
+    }
+
+    /// `run` of the unit on `state`, the inputs copied in before and the outputs out after.
+    fn around(
+        &self,
+        inputs: &[Value],
+        outputs: &mut [Value],
+        state: &mut State,
+        run: impl FnOnce(&Unit, &mut State) -> Result<(), Fault>,
+    ) -> Result<(), Fault> {
         self.copy_in(inputs, state);
-        let ran = self.unit.run(state, ns(now_us), work);
+        let ran = run(&self.unit, state);
         self.copy_out(outputs, state);
         ran
     }
 
-    /// The input image copied into the wired VAR_INPUTs (what [`StProgram::run`] does first).
-    pub fn copy_in(&self, inputs: &[Value], state: &mut State) {
+    /// The input image copied into the wired VAR_INPUTs.
+    pub(crate) fn copy_in(&self, inputs: &[Value], state: &mut State) {
         for &(i, e, slot) in &self.inputs {
             if let (Some(&v), Some(s)) =
                 (inputs.get(i as usize), state.slots.get_mut(slot as usize))
@@ -229,8 +257,8 @@ impl StProgram {
         }
     }
 
-    /// The wired VAR_OUTPUTs copied to the output image (what [`StProgram::run`] does last).
-    pub fn copy_out(&self, outputs: &mut [Value], state: &State) {
+    /// The wired VAR_OUTPUTs copied to the output image.
+    pub(crate) fn copy_out(&self, outputs: &mut [Value], state: &State) {
         for &(i, e, slot) in &self.outputs {
             if let (Some(o), Some(&s)) =
                 (outputs.get_mut(i as usize), state.slots.get(slot as usize))

@@ -678,7 +678,7 @@ impl<'a> Compiler<'a> {
     /// The unit, once the body is compiled.
     fn finish(mut self, main: &Pou, vars: Vec<Var>) -> Result<Unit, Diagnostic> {
         let interval = self.task_interval(main)?;
-        self.code.temps = self.temps.clone();
+        self.code.temps = std::mem::take(&mut self.temps);
         let cost = self.code.ops.iter().map(|op| op.cost(&self.code)).sum();
         Ok(Unit {
             name: main.name.text.clone(),

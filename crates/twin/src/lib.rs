@@ -186,23 +186,13 @@ pub trait Plant: Send {
     /// The plant's production counters.
     fn counters(&self) -> Counters;
     /// Names of the operator buttons [`Plant::press`] accepts.
-    fn buttons(&self) -> &[&'static str] {
-        &[]
-    }
+    fn buttons(&self) -> &[&'static str];
     /// The presses an operator gives the plant to start it (button, virtual time in µs), when
-    /// no others are asked for: none by default.
-    fn start_presses(&self) -> &'static [(&'static str, u64)] {
-        &[]
-    }
-    /// Schedules an operator's press of `button` at virtual time `at_us`.
-    fn press(&mut self, button: &str, at_us: u64) -> Result<(), TwinError> {
-        let _ = at_us;
-        Err(TwinError::UnknownButton {
-            twin: self.name(),
-            button: button.to_owned(),
-            known: self.buttons().join(", "),
-        })
-    }
+    /// no others are asked for.
+    fn start_presses(&self) -> &'static [(&'static str, u64)];
+    /// Schedules an operator's press of `button` at virtual time `at_us`; a button the plant
+    /// does not have is refused with the ones it has.
+    fn press(&mut self, button: &str, at_us: u64) -> Result<(), TwinError>;
     /// A copy of the twin in its current state, which evolves independently from now on.
     fn fork(&self) -> Box<dyn Plant>;
 }

@@ -370,11 +370,16 @@ fn pass_ns(program: &Program, inputs: &[Value], scans: u64) -> Result<Pass, Benc
             let t0 = Instant::now();
             for k in 0..scans {
                 let mut work = cetratus_st::Work::unlimited();
-                let now = k * TICK.as_micros() as u64;
-                let r = match interpret {
-                    true => st.run_interpreted(inputs, &mut outputs, &mut state, now, &mut work),
-                    false => st.run(inputs, &mut outputs, &mut state, now, &mut work),
-                };
+                let now = (k * TICK.as_nanos() as u64) as i64;
+                let r = st.run_with(
+                    inputs,
+                    &mut outputs,
+                    &mut state,
+                    |unit, state| match interpret {
+                        true => unit.run_interpreted(state, now, &mut work),
+                        false => unit.run(state, now, &mut work),
+                    },
+                );
                 black_box(r.is_ok());
             }
             t0.elapsed()

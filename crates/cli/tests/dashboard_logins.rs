@@ -7,7 +7,7 @@ use std::time::Duration;
 
 use cetratus_testkit::http;
 use cetratus_testkit::mqtt::Mosquitto;
-use cetratus_testkit::ports::{free_port, wait_for_port};
+use cetratus_testkit::ports::{self, free_port, wait_for_port};
 use cetratus_testkit::process::{login_link, stderr_lines, stdout_lines, ChildGuard};
 
 const BIN: &str = env!("CARGO_BIN_EXE_cetratus");
@@ -69,9 +69,8 @@ fn dashboard_with_ops(
 /// A login as `ops` with `password` from `source`: the HTTP status.
 fn login_from(source: [u8; 4], addr: std::net::SocketAddr, password: &str) -> u16 {
     let body = format!("{{\"account\": \"ops\", \"password\": \"{password}\"}}");
-    http::request_from(
-        source.into(),
-        addr,
+    http::exchange(
+        ports::connect_from(source.into(), addr),
         "POST",
         "/api/login",
         &[&format!("Host: {addr}"), "Content-Type: application/json"],

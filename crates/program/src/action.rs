@@ -292,14 +292,9 @@ impl ActionState {
         work: &mut Work,
     ) -> Result<(), ActError> {
         // A first scan always recomputes, whatever the state did before it.
-        self.quiet = false;
-        self.begin();
-        for (p, &m) in ctx.marking.iter().enumerate() {
-            if m > 0 {
-                self.edge(program, PlaceIdx(p as u32), true, ctx.now_us);
-            }
-        }
-        self.finish(program, ctx, outputs, vars, work)
+        let marked = ctx.marking.iter().enumerate().filter(|&(_, &m)| m > 0);
+        let entered = marked.map(|(p, _)| (PlaceIdx(p as u32), true));
+        self.recompute(program, ctx, entered, (outputs, vars), work)
     }
 
     /// Computes the driven outputs and variables after this scan's marking update, and runs the
@@ -332,17 +327,12 @@ impl ActionState {
             self.quiet = true;
             return Ok(());
         }
-        self.quiet = false;
-        self.begin();
-        for &(p, old) in changes {
+        let edges = changes.iter().filter_map(|&(p, old)| {
             let new = ctx.marking.get(p.index()).copied().unwrap_or(0);
-            if old == 0 && new > 0 {
-                self.edge(program, p, true, ctx.now_us);
-            } else if old > 0 && new == 0 {
-                self.edge(program, p, false, ctx.now_us);
-            }
-        }
-        self.finish(program, ctx, outputs, vars, work)
+            // Entered (true) or left (false); a count that stays above zero is neither.
+            ((old == 0) != (new == 0)).then_some((p, new > 0))
+        });
+        self.recompute(program, ctx, edges, (outputs, vars), work)
     }
 
     /// True when the last `apply` changed nothing: no place changed, no pulse ended, no timer was
@@ -470,14 +460,21 @@ impl ActionState {
         }
     }
 
-    fn finish(
+    /// A scan that is not quiet: the places entered (true) and left (false) in `edges`, then the
+    /// timers, the actions and the bodies, into `outputs` and `vars`.
+    fn recompute(
         &mut self,
         program: &Program,
         ctx: &EvalCtx,
-        outputs: &mut [Value],
-        vars: &mut [Value],
+        edges: impl Iterator<Item = (PlaceIdx, bool)>,
+        (outputs, vars): (&mut [Value], &mut [Value]),
         work: &mut Work,
     ) -> Result<(), ActError> {
+        self.quiet = false;
+        self.begin();
+        for (p, entered) in edges {
+            self.edge(program, p, entered, ctx.now_us);
+        }
         let now_us = ctx.now_us;
         self.stored_timers(program, now_us);
         // A chart's ST reads this scan's inputs, once: a VAR_INPUT one body assigns, the next sees.

@@ -212,28 +212,15 @@ impl StProgram {
         now_us: u64,
         work: &mut Work,
     ) -> Result<(), Fault> {
-        self.around(inputs, outputs, state, |unit, state| {
+        self.run_with(inputs, outputs, state, |unit, state| {
             unit.run(state, ns(now_us), work)
         })
     }
 
-    /// [`StProgram::run`] on the interpreter, even when the POU runs in machine code: what the
-    /// machine code is measured against.
-    pub fn run_interpreted(
-        &self,
-        inputs: &[Value],
-        outputs: &mut [Value],
-        state: &mut State,
-        now_us: u64,
-        work: &mut Work,
-    ) -> Result<(), Fault> {
-        self.around(inputs, outputs, state, |unit, state| {
-            unit.run_interpreted(state, ns(now_us), work)
-        })
-    }
-
-    /// `run` of the unit on `state`, the inputs copied in before and the outputs out after.
-    fn around(
+    /// `run` of the unit on `state`, the inputs copied in before and the outputs out after: what
+    /// [`StProgram::run`] does with [`Unit::run`], open to another way of running the unit (the
+    /// bench's [`Unit::run_interpreted`]).
+    pub fn run_with(
         &self,
         inputs: &[Value],
         outputs: &mut [Value],

@@ -409,18 +409,8 @@ pub enum BinOp {
     Add,
     /// `-`.
     Sub,
-    /// `<`.
-    Lt,
-    /// `>`.
-    Gt,
-    /// `<=`.
-    Le,
-    /// `>=`.
-    Ge,
-    /// `=`.
-    Eq,
-    /// `<>`.
-    Ne,
+    /// A comparison: `<`, `>`, `<=`, `>=`, `=`, `<>`.
+    Cmp(Rel),
     /// `AND`, `&`.
     And,
     /// `XOR`.
@@ -439,16 +429,63 @@ impl BinOp {
             BinOp::Mod => "MOD",
             BinOp::Add => "+",
             BinOp::Sub => "-",
-            BinOp::Lt => "<",
-            BinOp::Gt => ">",
-            BinOp::Le => "<=",
-            BinOp::Ge => ">=",
-            BinOp::Eq => "=",
-            BinOp::Ne => "<>",
+            BinOp::Cmp(rel) => rel.symbol(),
             BinOp::And => "AND",
             BinOp::Xor => "XOR",
             BinOp::Or => "OR",
         }
+    }
+}
+
+/// Comparisons.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Rel {
+    /// `<`.
+    Lt,
+    /// `>`.
+    Gt,
+    /// `<=`.
+    Le,
+    /// `>=`.
+    Ge,
+    /// `=`.
+    Eq,
+    /// `<>`.
+    Ne,
+}
+
+impl Rel {
+    /// The comparison as written, for messages.
+    pub fn symbol(self) -> &'static str {
+        match self {
+            Rel::Lt => "<",
+            Rel::Gt => ">",
+            Rel::Le => "<=",
+            Rel::Ge => ">=",
+            Rel::Eq => "=",
+            Rel::Ne => "<>",
+        }
+    }
+
+    /// Whether an ordering satisfies the comparison.
+    #[inline]
+    pub fn holds(self, o: std::cmp::Ordering) -> bool {
+        use std::cmp::Ordering::*;
+        match self {
+            Rel::Lt => o == Less,
+            Rel::Gt => o == Greater,
+            Rel::Le => o != Greater,
+            Rel::Ge => o != Less,
+            Rel::Eq => o == Equal,
+            Rel::Ne => o != Equal,
+        }
+    }
+
+    /// Whether two values whose order is `o` satisfy the comparison; `None`, values that do not
+    /// compare (a NaN), satisfy only `<>`, as in C.
+    #[inline]
+    pub fn holds_partial(self, o: Option<std::cmp::Ordering>) -> bool {
+        o.map_or(self == Rel::Ne, |o| self.holds(o))
     }
 }
 

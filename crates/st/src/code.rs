@@ -7,6 +7,7 @@
 //! no call stack either; what is left is straight code, forward jumps, and the backward jumps of
 //! loops ([`Op::Loop`]), each of which charges the loop body's cost to the work budget.
 
+use crate::ast::Rel;
 use crate::stdfb::StdFb;
 use crate::types::Elem;
 
@@ -40,46 +41,6 @@ pub enum Arith {
     Max,
     /// MIN.
     Min,
-}
-
-/// Comparisons.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Rel {
-    /// `<`.
-    Lt,
-    /// `>`.
-    Gt,
-    /// `<=`.
-    Le,
-    /// `>=`.
-    Ge,
-    /// `=`.
-    Eq,
-    /// `<>`.
-    Ne,
-}
-
-impl Rel {
-    /// Whether an ordering satisfies the comparison.
-    #[inline]
-    pub fn holds(self, o: std::cmp::Ordering) -> bool {
-        use std::cmp::Ordering::*;
-        match self {
-            Rel::Lt => o == Less,
-            Rel::Gt => o == Greater,
-            Rel::Le => o != Greater,
-            Rel::Ge => o != Less,
-            Rel::Eq => o == Equal,
-            Rel::Ne => o != Equal,
-        }
-    }
-
-    /// Whether two values whose order is `o` satisfy the comparison; `None`, values that do not
-    /// compare (a NaN), satisfy only `<>`, as in C.
-    #[inline]
-    pub fn holds_partial(self, o: Option<std::cmp::Ordering>) -> bool {
-        o.map_or(self == Rel::Ne, |o| self.holds(o))
-    }
 }
 
 /// One-argument numeric functions.

@@ -95,6 +95,24 @@ const COUNTER_TYPES: [(&str, Elem); 5] = [
     ("_ULINT", Elem::Ulint),
 ];
 
+/// A counter's members: its BOOL inputs, `PV`, its BOOL outputs, `CV`, then the hidden edge
+/// memory of each counting input (`CU_T_M`, `CD_T_M`), as MATIEC lays them out.
+fn counter(e: Elem, inputs: &[&'static str], outputs: &[&'static str]) -> Vec<StdField> {
+    let mut fields: Vec<StdField> = inputs
+        .iter()
+        .map(|&n| field(n, Elem::Bool, Input))
+        .collect();
+    fields.push(field("PV", e, Input));
+    fields.extend(outputs.iter().map(|&n| field(n, Elem::Bool, Output)));
+    fields.push(field("CV", e, Output));
+    for (counting, memory) in [("CU", "CU_T_M"), ("CD", "CD_T_M")] {
+        if inputs.contains(&counting) {
+            fields.push(field(memory, Elem::Bool, Hidden));
+        }
+    }
+    fields
+}
+
 impl StdFb {
     /// The standard FB named `upper` (upper case), if it is one.
     pub fn from_name(upper: &str) -> Option<StdFb> {
@@ -151,34 +169,9 @@ impl StdFb {
             StdFb::Rs => RS.to_vec(),
             StdFb::RTrig | StdFb::FTrig => TRIG.to_vec(),
             StdFb::Tp | StdFb::Ton | StdFb::Tof => TIMER.to_vec(),
-            StdFb::Ctu(e) => vec![
-                field("CU", Elem::Bool, Input),
-                field("R", Elem::Bool, Input),
-                field("PV", e, Input),
-                field("Q", Elem::Bool, Output),
-                field("CV", e, Output),
-                field("CU_T_M", Elem::Bool, Hidden),
-            ],
-            StdFb::Ctd(e) => vec![
-                field("CD", Elem::Bool, Input),
-                field("LD", Elem::Bool, Input),
-                field("PV", e, Input),
-                field("Q", Elem::Bool, Output),
-                field("CV", e, Output),
-                field("CD_T_M", Elem::Bool, Hidden),
-            ],
-            StdFb::Ctud(e) => vec![
-                field("CU", Elem::Bool, Input),
-                field("CD", Elem::Bool, Input),
-                field("R", Elem::Bool, Input),
-                field("LD", Elem::Bool, Input),
-                field("PV", e, Input),
-                field("QU", Elem::Bool, Output),
-                field("QD", Elem::Bool, Output),
-                field("CV", e, Output),
-                field("CU_T_M", Elem::Bool, Hidden),
-                field("CD_T_M", Elem::Bool, Hidden),
-            ],
+            StdFb::Ctu(e) => counter(e, &["CU", "R"], &["Q"]),
+            StdFb::Ctd(e) => counter(e, &["CD", "LD"], &["Q"]),
+            StdFb::Ctud(e) => counter(e, &["CU", "CD", "R", "LD"], &["QU", "QD"]),
         }
     }
 

@@ -2,7 +2,7 @@
 //! script or an attacker would, and the dashboard's one-time login links.
 
 use std::io::{Read, Write};
-use std::net::{IpAddr, SocketAddr};
+use std::net::SocketAddr;
 
 /// A response: status, head (status line and headers) and body.
 #[derive(Debug)]
@@ -42,26 +42,10 @@ pub fn request(
     exchange(s, method, path, headers, body)
 }
 
-/// [`request`] from the local address `source` (another address of the loopback network,
-/// 127.0.0.2 and up, stands for another host).
-pub fn request_from(
-    source: IpAddr,
-    addr: SocketAddr,
-    method: &str,
-    path: &str,
-    headers: &[&str],
-    body: &[u8],
-) -> Response {
-    exchange(
-        crate::ports::connect_from(source, addr),
-        method,
-        path,
-        headers,
-        body,
-    )
-}
-
-fn exchange(
+/// Sends one request on the connection `s` and reads the response: [`request`] on a
+/// connection made otherwise, such as from another local address
+/// ([`crate::ports::connect_from`]).
+pub fn exchange(
     mut s: std::net::TcpStream,
     method: &str,
     path: &str,

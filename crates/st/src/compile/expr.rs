@@ -212,9 +212,7 @@ impl<'a> Compiler<'a> {
             ExprKind::Call(call) => self.peek_call(call),
             ExprKind::Unary(_, inner) => self.peek(inner),
             ExprKind::Binary(op, a, b) => match op {
-                BinOp::Lt | BinOp::Gt | BinOp::Le | BinOp::Ge | BinOp::Eq | BinOp::Ne => {
-                    Some(Ty::Elem(Elem::Bool))
-                }
+                BinOp::Cmp(_) => Some(Ty::Elem(Elem::Bool)),
                 _ => self.peek(a).or_else(|| self.peek(b)),
             },
         }

@@ -11,8 +11,8 @@
 //! function or a function block, used as a CASE selector ([`Compiler::narrow`]). An operand
 //! (`operand`) is left wide; every other use of an expression (`expr`) is narrowed.
 
-use crate::ast::{BinOp, Expr, ExprKind, Literal, Pos, UnOp};
-use crate::code::{Arith, Op, Rel, Slot};
+use crate::ast::{BinOp, Expr, ExprKind, Literal, Pos, Rel, UnOp};
+use crate::code::{Arith, Op, Slot};
 use crate::error::Diagnostic;
 use crate::types::{Elem, Ty};
 
@@ -159,14 +159,14 @@ impl<'a> Compiler<'a> {
         want: Option<Ty>,
         pos: Pos,
     ) -> Result<(Val, bool), Diagnostic> {
-        let compare = matches!(
-            op,
-            BinOp::Lt | BinOp::Gt | BinOp::Le | BinOp::Ge | BinOp::Eq | BinOp::Ne
-        );
+        let compare = match op {
+            BinOp::Cmp(rel) => Some(rel),
+            _ => None,
+        };
         let hint = self
             .peek(a)
             .or_else(|| self.peek(b))
-            .or(if compare { None } else { want });
+            .or(if compare.is_some() { None } else { want });
         if op == BinOp::Pow {
             return self.power(a, b, hint, pos);
         }
@@ -177,8 +177,8 @@ impl<'a> Compiler<'a> {
                 .map(|v| (v, false));
         }
         let (y, wy) = self.operand(b, Some(hint.unwrap_or(x.ty())))?;
-        if compare {
-            return Ok((self.comparison(op, (x, wx), (y, wy), pos)?, false));
+        if let Some(rel) = compare {
+            return Ok((self.comparison(rel, (x, wx), (y, wy), pos)?, false));
         }
         let (Val::Scalar(tx, sa), Val::Scalar(ty, sb)) = (x, y) else {
             return Err(Diagnostic::new(
@@ -329,12 +329,11 @@ impl<'a> Compiler<'a> {
 
     fn comparison(
         &mut self,
-        op: BinOp,
+        rel: Rel,
         (x, wx): (Val, bool),
         (y, wy): (Val, bool),
         pos: Pos,
     ) -> Result<Val, Diagnostic> {
-        let rel = rel(op);
         let dst = self.temp(pos)?;
         match (x, y) {
             (Val::Str(_, a), Val::Str(_, b)) => {
@@ -372,7 +371,7 @@ impl<'a> Compiler<'a> {
                     pos,
                     format!(
                         "`{}` compares two values of one type, found {} and {}",
-                        op.symbol(),
+                        rel.symbol(),
                         self.describe(x.ty()),
                         self.describe(y.ty())
                     ),
@@ -405,16 +404,5 @@ fn arith(op: BinOp) -> Arith {
         BinOp::And => Arith::And,
         BinOp::Or => Arith::Or,
         _ => Arith::Xor,
-    }
-}
-
-fn rel(op: BinOp) -> Rel {
-    match op {
-        BinOp::Lt => Rel::Lt,
-        BinOp::Gt => Rel::Gt,
-        BinOp::Le => Rel::Le,
-        BinOp::Ge => Rel::Ge,
-        BinOp::Eq => Rel::Eq,
-        _ => Rel::Ne,
     }
 }

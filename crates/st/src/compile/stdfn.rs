@@ -2,8 +2,8 @@
 //! shift, bitwise, selection, comparison and string functions, each with the semantics of
 //! MATIEC's library where the standard leaves a choice (docs/st.md, *The standard library*).
 
-use crate::ast::{Arg, BinOp, Expr, ExprKind, Ident, Pos, UnOp};
-use crate::code::{Arith, MathFn, Op, Rel, ShiftFn, Slot, StrArgs, StrFn};
+use crate::ast::{Arg, BinOp, Expr, ExprKind, Ident, Pos, Rel, UnOp};
+use crate::code::{Arith, MathFn, Op, ShiftFn, Slot, StrArgs, StrFn};
 use crate::error::Diagnostic;
 use crate::types::{Elem, Ty, MAX_STRING};
 
@@ -52,11 +52,11 @@ const OPERATORS: [(&str, BinOp); 13] = [
     ("AND", BinOp::And),
     ("OR", BinOp::Or),
     ("XOR", BinOp::Xor),
-    ("GT", BinOp::Gt),
-    ("GE", BinOp::Ge),
-    ("EQ", BinOp::Eq),
-    ("LE", BinOp::Le),
-    ("LT", BinOp::Lt),
+    ("GT", BinOp::Cmp(Rel::Gt)),
+    ("GE", BinOp::Cmp(Rel::Ge)),
+    ("EQ", BinOp::Cmp(Rel::Eq)),
+    ("LE", BinOp::Cmp(Rel::Le)),
+    ("LT", BinOp::Cmp(Rel::Lt)),
 ];
 
 /// Whether `key` (upper case) names a standard function.
@@ -196,7 +196,7 @@ impl<'a> Compiler<'a> {
             return self.operator_chain(op, &args, want, pos);
         }
         match key.as_str() {
-            "NE" => self.operator_chain(BinOp::Ne, &args, want, pos),
+            "NE" => self.operator_chain(BinOp::Cmp(Rel::Ne), &args, want, pos),
             "NOT" => {
                 arity(1)?;
                 self.expr(

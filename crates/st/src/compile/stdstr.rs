@@ -1,8 +1,8 @@
 //! The selection functions on strings (MAX, MIN, LIMIT, MUX) and the conversions to STRING, with
 //! MATIEC's semantics: strings compare byte-wise, the longer greater after a common prefix.
 
-use crate::ast::{Expr, Pos};
-use crate::code::{Op, Rel, Slot, TextAt};
+use crate::ast::{Expr, Pos, Rel};
+use crate::code::{Op, Slot, TextAt};
 use crate::error::Diagnostic;
 use crate::types::{Elem, Ty, MAX_STRING};
 

@@ -3,8 +3,8 @@
 //! Every loop closes with an [`Op::Loop`] that charges its body's cost to the work budget each
 //! time round, so the budget bounds what any loop can do; code outside loops only jumps forward.
 
-use crate::ast::{CaseLabel, Expr, ExprKind, Pos, Stmt, StmtKind};
-use crate::code::{Arith, Op, Rel, Slot};
+use crate::ast::{CaseLabel, Expr, ExprKind, Pos, Rel, Stmt, StmtKind};
+use crate::code::{Arith, Op, Slot};
 use crate::error::Diagnostic;
 use crate::types::{Elem, Size, Ty};
 

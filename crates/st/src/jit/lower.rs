@@ -21,7 +21,8 @@ use cranelift_codegen::isa::TargetIsa;
 use cranelift_frontend::{FunctionBuilder, FunctionBuilderContext, Variable};
 
 use super::offset;
-use crate::code::{Arith, Code, Op, Rel, Slot};
+use crate::ast::Rel;
+use crate::code::{Arith, Code, Op, Slot};
 use crate::types::Elem;
 use crate::vm::{promote, signed_order};
 

@@ -23,7 +23,7 @@
 //! | 1 | `OR` |
 
 use super::{lit, Parsed, Parser};
-use crate::ast::{Arg, BinOp, Call, Expr, ExprKind, Ident, Literal, UnOp};
+use crate::ast::{Arg, BinOp, Call, Expr, ExprKind, Ident, Literal, Rel, UnOp};
 use crate::error::Diagnostic;
 use crate::lex::{Kw, Tok};
 
@@ -314,12 +314,12 @@ fn binary_op(t: Tok) -> Option<(BinOp, u8)> {
         Tok::Kw(Kw::Or) => (BinOp::Or, 1),
         Tok::Kw(Kw::Xor) => (BinOp::Xor, 2),
         Tok::Kw(Kw::And) | Tok::Amp => (BinOp::And, 3),
-        Tok::Eq => (BinOp::Eq, 4),
-        Tok::Ne => (BinOp::Ne, 4),
-        Tok::Lt => (BinOp::Lt, 5),
-        Tok::Gt => (BinOp::Gt, 5),
-        Tok::Le => (BinOp::Le, 5),
-        Tok::Ge => (BinOp::Ge, 5),
+        Tok::Eq => (BinOp::Cmp(Rel::Eq), 4),
+        Tok::Ne => (BinOp::Cmp(Rel::Ne), 4),
+        Tok::Lt => (BinOp::Cmp(Rel::Lt), 5),
+        Tok::Gt => (BinOp::Cmp(Rel::Gt), 5),
+        Tok::Le => (BinOp::Cmp(Rel::Le), 5),
+        Tok::Ge => (BinOp::Cmp(Rel::Ge), 5),
         Tok::Plus => (BinOp::Add, 6),
         Tok::Minus => (BinOp::Sub, 6),
         Tok::Star => (BinOp::Mul, 7),

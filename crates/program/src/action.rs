@@ -154,6 +154,8 @@ pub struct ActionState {
 pub struct SoleBody {
     place: PlaceIdx,
     body: u32,
+    /// [`Body::cost`](crate::Body::cost) of the body, read once.
+    cost: u64,
 }
 
 impl SoleBody {
@@ -174,6 +176,7 @@ impl SoleBody {
         sole.then_some(SoleBody {
             place: action.place,
             body,
+            cost: pou.cost(),
         })
     }
 }
@@ -192,6 +195,7 @@ impl ActionState {
     /// One run of the sole body, after [`ActionState::runs_sole`] said yes: what
     /// [`ActionState::apply`] does in that scan, charged to `work` the same way. Never allocates,
     /// unless the body fails or is not run (the error names it).
+    #[inline]
     pub fn run_sole(
         &mut self,
         program: &Program,
@@ -205,7 +209,7 @@ impl ActionState {
         else {
             return Ok(());
         };
-        if !work.charge(body.cost()) {
+        if !work.charge(sole.cost) {
             return Err(ActError::OutOfWork {
                 body: body.name().to_string(),
             });

@@ -136,6 +136,7 @@ impl Body {
     }
     /// What one run costs in units of [`crate::Work`]: the length of its code, at least 1 (for
     /// Structured Text, its straight-line cost; its loops charge more as they go round).
+    #[inline]
     pub fn cost(&self) -> u64 {
         match (&self.st, self.entry) {
             (Some(st), Some(k)) => (st.unit().entries.get(k as usize)).map_or(1, |e| e.cost.max(1)),

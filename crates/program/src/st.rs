@@ -204,6 +204,7 @@ impl StProgram {
 
     /// One run of the POU on `state` at `now_us`: the inputs copied in, its code run within
     /// `work`, its outputs copied out. Never allocates.
+    #[inline]
     pub fn run(
         &self,
         inputs: &[Value],
@@ -220,6 +221,7 @@ impl StProgram {
     /// `run` of the unit on `state`, the inputs copied in before and the outputs out after: what
     /// [`StProgram::run`] does with [`Unit::run`], open to another way of running the unit (the
     /// bench's [`Unit::run_interpreted`]).
+    #[inline]
     pub fn run_with(
         &self,
         inputs: &[Value],
@@ -234,6 +236,7 @@ impl StProgram {
     }
 
     /// The input image copied into the wired VAR_INPUTs.
+    #[inline]
     pub(crate) fn copy_in(&self, inputs: &[Value], state: &mut State) {
         for &(i, e, slot) in &self.inputs {
             if let (Some(&v), Some(s)) =
@@ -245,6 +248,7 @@ impl StProgram {
     }
 
     /// The wired VAR_OUTPUTs copied to the output image.
+    #[inline]
     pub(crate) fn copy_out(&self, outputs: &mut [Value], state: &State) {
         for &(i, e, slot) in &self.outputs {
             if let (Some(o), Some(&s)) =

@@ -16,6 +16,7 @@ pub struct Work {
 
 impl Work {
     /// No work done yet, `budget` units allowed.
+    #[inline]
     pub fn within(budget: u64) -> Self {
         Work { used: 0, budget }
     }
@@ -41,16 +42,19 @@ impl Work {
     /// Sets the units charged so far, as code that charged them without this value reports
     /// (`jit`): never past the budget.
     #[cfg(feature = "jit")]
+    #[inline]
     pub(crate) fn set_used(&mut self, used: u64) {
         self.used = used.min(self.budget);
     }
 
     /// Units charged so far.
+    #[inline]
     pub fn used(&self) -> u64 {
         self.used
     }
 
     /// Units allowed in all.
+    #[inline]
     pub fn budget(&self) -> u64 {
         self.budget
     }

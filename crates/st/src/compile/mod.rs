@@ -268,6 +268,7 @@ impl Unit {
     }
 
     /// Runs one scan at time `now` (nanoseconds), within `work`.
+    #[inline]
     pub fn run(
         &self,
         state: &mut State,
@@ -283,6 +284,7 @@ impl Unit {
     }
 
     /// Runs `piece`: in machine code once it is there, else on the interpreter.
+    #[inline]
     fn run_piece(
         &self,
         piece: Piece<'_>,

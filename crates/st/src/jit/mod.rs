@@ -175,6 +175,7 @@ impl Machine {
 
     /// Runs `piece` as [`crate::vm::run`] runs it; `None` when that piece is interpreted or
     /// `state` is too short for it (the caller then interprets).
+    #[inline]
     pub fn run(
         &self,
         piece: Piece<'_>,
@@ -210,18 +211,22 @@ impl Machine {
         }
         Some(match status {
             0 => Ok(()),
-            _ => {
-                let pc = (status - 1) as usize;
-                // An instruction the generated code checks itself (a loop out of budget, a
-                // division by zero, an index out of bounds) left the state unwritten.
-                let kind = (frame.fault).unwrap_or_else(|| match code.ops.get(pc) {
-                    Some(&op) => crate::vm::fault_of(op, &state.slots),
-                    None => FaultKind::Budget,
-                });
-                Err(fault(code, pc, kind))
-            }
+            _ => Err(stopped(code, status, frame.fault, state)),
         })
     }
+}
+
+/// The fault of a run that stopped with `status` (the faulting instruction's index plus one).
+#[cold]
+fn stopped(code: &Code, status: u64, checked: Option<FaultKind>, state: &State) -> Fault {
+    let pc = (status - 1) as usize;
+    // An instruction the generated code checks itself (a loop out of budget, a division by
+    // zero, an index out of bounds) left the state unwritten.
+    let kind = checked.unwrap_or_else(|| match code.ops.get(pc) {
+        Some(&op) => crate::vm::fault_of(op, &state.slots),
+        None => FaultKind::Budget,
+    });
+    fault(code, pc, kind)
 }
 
 impl Drop for Machine {

@@ -75,6 +75,12 @@ pub struct StFigures {
     pub import_lines: usize,
     /// Median ms to import and compile it (parse, type-check, compile, build the program).
     pub import_ms: f64,
+    /// Instructions of its compiled body.
+    pub translate_ops: usize,
+    /// Median ms to translate that body into machine code (what a load does once, off the
+    /// scan thread); `None` where there is no machine code (a build without the `jit`
+    /// feature, a machine Cranelift has no code generator for).
+    pub translate_ms: Option<f64>,
     /// Why MATIEC's side was not measured, when it was not.
     pub matiec_skipped: Option<String>,
 }
@@ -274,10 +280,13 @@ pub fn figures(matiec: Option<&Path>, quick: bool) -> Result<StFigures, BenchErr
         });
     }
     let (import_lines, import_ms) = import_figure(quick)?;
+    let (translate_ops, translate_ms) = translation_figure(quick)?;
     Ok(StFigures {
         programs: out,
         import_lines,
         import_ms,
+        translate_ops,
+        translate_ms,
         matiec_skipped: compiler.err(),
     })
 }
@@ -451,6 +460,26 @@ fn import_figure(quick: bool) -> Result<(usize, f64), BenchError> {
         5,
     );
     Ok((lines, ns / 1e6))
+}
+
+/// Instructions of the file of [`import_figure`] and the median ms to translate them into
+/// machine code, each run on a program imported afresh (a program translates once).
+fn translation_figure(quick: bool) -> Result<(usize, Option<f64>), BenchError> {
+    let text = rungs(2_180);
+    let (mut ops, mut took) = (0, Vec::new());
+    for _ in 0..if quick { 3 } else { 5 } {
+        let imported = cetratus_sfc::structured::import_st(&text, "rungs", None)?;
+        let unit = (imported.program.st())
+            .ok_or("the generated rungs have no Structured Text")?
+            .unit();
+        ops = unit.code.ops.len();
+        let t0 = Instant::now();
+        if !unit.prepare_machine_code() {
+            return Ok((ops, None));
+        }
+        took.push(t0.elapsed());
+    }
+    Ok((ops, Some(median(took.into_iter()) / 1e6)))
 }
 
 /// The median of `runs`, in ns.

@@ -53,6 +53,15 @@ pub fn run(args: &StArgs) -> anyhow::Result<()> {
         "import and compile of {} lines of ST: {:.1} ms",
         f.import_lines, f.import_ms
     );
+    match f.translate_ms {
+        Some(ms) => println!(
+            "translation of its {} instructions into machine code: {ms:.0} ms",
+            f.translate_ops
+        ),
+        None => {
+            println!("no machine code in this build or on this machine: the interpreter runs ST")
+        }
+    }
     Ok(())
 }
 

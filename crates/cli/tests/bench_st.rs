@@ -1,7 +1,7 @@
 //! `cetratus bench st` end to end: the four programs run on both sides, agree on their outputs
-//! after the last scan (the bench refuses a figure otherwise), and each gets a ratio; without
-//! MATIEC the bench says so and measures Cetratus's side alone. `cetratus bench export` the
-//! same way.
+//! after the last scan (the bench refuses a figure otherwise), and each gets a ratio; the long
+//! file is imported and translated into machine code; without MATIEC the bench says so and
+//! measures Cetratus's side alone. `cetratus bench export` the same way.
 
 use std::process::Command;
 
@@ -55,6 +55,13 @@ fn every_program_runs_on_both_sides_with_the_same_outputs_and_gets_a_ratio() {
         f["import_lines"].as_u64().is_some_and(|n| n >= 4_800),
         "{f}"
     );
+    assert!(
+        f["translate_ops"].as_u64().is_some_and(|n| n >= 10_000),
+        "{f}"
+    );
+    if cfg!(any(target_arch = "x86_64", target_arch = "aarch64")) {
+        assert!(f["translate_ms"].as_f64().is_some_and(|ms| ms > 0.0), "{f}");
+    }
 }
 
 #[test]

@@ -178,3 +178,31 @@ fn reals_that_do_not_compare_are_unequal_and_unordered_as_in_c() {
         assert_eq!(get(name), want, "{name} of a NaN");
     }
 }
+
+/// Code past the translation's limit (`jit::MAX_OPS`) is not translated, so that no load spends
+/// more than the limit's time on it, and the scan runs it on the interpreter.
+#[test]
+fn code_past_the_limit_runs_on_the_interpreter() {
+    let increments = cetratus_st::jit::MAX_OPS / 2 + 1;
+    let mut source = String::from("PROGRAM Long\n  VAR_OUTPUT x : DINT; y : DINT; END_VAR\n");
+    for _ in 0..increments {
+        source.push_str("  x := x + 1; y := x;\n");
+    }
+    source.push_str("END_PROGRAM\n");
+    let u = unit(&source);
+    assert!(
+        u.code.ops.len() > cetratus_st::jit::MAX_OPS,
+        "{}",
+        u.code.ops.len()
+    );
+    assert!(
+        !u.prepare_machine_code(),
+        "code past the limit is not translated"
+    );
+    assert!(!u.in_machine_code());
+    let mut state = u.new_state();
+    u.run(&mut state, 0, &mut Work::unlimited())
+        .expect("a scan on the interpreter");
+    let x = state.slots[u.var("x").expect("x").at.slots as usize];
+    assert_eq!(x, increments as u64);
+}

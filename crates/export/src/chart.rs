@@ -48,6 +48,9 @@ pub(crate) fn project(program: &Program, file_name: &str) -> Result<(String, Vec
         .into_iter()
         .filter(|r| !r.assigned)
         .collect();
+    if program.st().is_some_and(|s| s.is_chart()) {
+        return Err("its conditions and bodies are Structured Text on the state of its POU (`[st.conditions]`, `[st.bodies]`), which the chart form does not carry yet".into());
+    }
     let parts = parts(program)?;
     let charts = (parts.iter())
         .map(|p| Sequence::new(program, p, &parts))

@@ -95,21 +95,8 @@ pub fn to_st(program: &Program, dialect: Dialect) -> Result<StExport, ExportErro
 /// rewritten (part of [`StExport::pous`]), and its CONFIGURATION's `VAR_GLOBAL` blocks.
 type OwnSt = Option<(String, String)>;
 
-/// A chart whose bodies and conditions are Structured Text (`[st.bodies]`, `[st.conditions]`)
-/// is not exported yet.
-pub(crate) fn refuse_st_chart(program: &Program) -> Result<(), ExportError> {
-    match program.st().is_some_and(|s| s.is_chart()) {
-        true => Err(ExportError::Unsupported {
-            what: "the program is a chart in Structured Text ([st.bodies], [st.conditions])".into(),
-            hint: "such a chart is not exported yet; export its PLCopen source instead",
-        }),
-        false => Ok(()),
-    }
-}
-
 /// [`to_st`], and the program's own Structured Text.
 fn st_parts(program: &Program, dialect: Dialect) -> Result<(StExport, OwnSt), ExportError> {
-    refuse_st_chart(program)?;
     let d = dialect;
     let data = data::NetData::new(program.net(), program.policy());
     let mut global = names::Names::new(data::GLOBALS);
@@ -140,9 +127,10 @@ fn st_parts(program: &Program, dialect: Dialect) -> Result<(StExport, OwnSt), Ex
     pous.push_str("\n(* Part 1: the kernel. *)\n");
     pous.push_str(&dialect::kernel(d));
     if let Some(library) = logic.st_library() {
-        pous.push_str(
-            "\n(* Part 3: the program's Structured Text, its PROGRAM made a FUNCTION_BLOCK. *)\n",
-        );
+        pous.push_str(match program.st().is_some_and(|s| s.is_chart()) {
+            true => "\n(* Part 3: the program's Structured Text, its chart's POU given a body that runs each part. *)\n",
+            false => "\n(* Part 3: the program's Structured Text, its PROGRAM made a FUNCTION_BLOCK. *)\n",
+        });
         pous.push_str(library);
     }
     pous.push_str("\n(* Part 3: the interpretation. *)\n");

@@ -225,6 +225,11 @@ fn reads(program: &Program) -> Result<Reads, ExportError> {
             r.walk(g.expr());
         }
     }
+    // A chart's ST reads the step flags, `X` and `T`: a timer and a dwell per step.
+    for (place, _) in program.chart_texts().iter().flat_map(|c| &c.steps) {
+        r.timers.insert(place.clone());
+        r.dwells.insert(place.clone());
+    }
     for b in program.bodies().iter().filter(|b| b.st().is_none()) {
         for s in statements(b)? {
             match s {
@@ -336,6 +341,7 @@ fn value(v: cetratus_program::Value) -> String {
 
 mod actions;
 mod st_body;
+mod st_chart;
 mod write;
 
 pub(crate) use self::st_body::library_names;

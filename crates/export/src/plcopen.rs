@@ -64,7 +64,6 @@ pub(crate) fn elementary(ty: &str) -> bool {
 /// as that chart (module `chart`), any other, or a chart the SFC POU cannot carry (said in the
 /// export's notes), as the POUs of the IEC text.
 pub fn to_plcopen(program: &Program) -> Result<StExport, ExportError> {
-    crate::refuse_st_chart(program)?;
     let file_name = format!("{}.xml", program.file_stem());
     let mut notes = Vec::new();
     if program.is_sfc() {

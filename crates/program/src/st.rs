@@ -27,8 +27,8 @@ use crate::value::{Signal, Type, Value};
 
 mod chart;
 
-pub use chart::ConditionFault;
 use chart::{ns, StepFlags};
+pub use chart::{ChartTexts, ConditionFault};
 
 /// Nanoseconds in a millisecond, the unit a TIME signal counts.
 const NS_PER_MS: i64 = 1_000_000;

@@ -124,6 +124,22 @@ pub fn parse_statements(text: &str) -> Result<Vec<Stmt>, Diagnostic> {
     Ok(body)
 }
 
+/// `text`, a statement list that parses ([`parse_statements`]), with the `;` written in that the
+/// vendors' form leaves out after its last `END_IF`, `END_CASE`, `END_FOR` or `END_WHILE`
+/// (docs/st.md), for a compiler that wants it: what an export writes. A text that ends in `;`
+/// comes back as it is.
+pub fn terminated(text: &str) -> Result<String, Diagnostic> {
+    let lexed = lex::lex(text)?;
+    let last = (lexed.tokens.iter().rev()).find(|t| !matches!(t.tok, Tok::End));
+    Ok(match last {
+        Some(t) if t.tok != Tok::Semi => {
+            let end = t.end as usize;
+            format!("{};{}", &text[..end], &text[end..])
+        }
+        _ => text.to_string(),
+    })
+}
+
 /// Parses an expression alone (a transition's condition).
 pub fn parse_expression(text: &str) -> Result<Expr, Diagnostic> {
     let mut p = Parser::new(text)?;

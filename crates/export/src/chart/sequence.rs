@@ -389,7 +389,7 @@ impl Sequence<'_> {
                     }
                     Target::Output(i) => reference(&program.outputs()[i as usize].name),
                     Target::Variable(i) => reference(&program.variables()[i as usize].name),
-                    // Refused before the chart is written (`refuse_st_chart`).
+                    // A chart in ST is written as POUs instead (`project`).
                     Target::St(at) => {
                         reference(program.st().and_then(|s| s.slot_name(at)).unwrap_or("?"))
                     }

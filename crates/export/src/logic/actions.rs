@@ -153,6 +153,7 @@ impl Logic<'_> {
                 let _ = writeln!(s, "{} := {};", self.signal(&o.name), zero(o.ty));
             }
         }
+        self.chart_inputs(s);
         for (slot, target) in self.slots.iter().zip(p.action_targets()) {
             match *target {
                 Target::Output(i) => {
@@ -179,8 +180,9 @@ impl Logic<'_> {
                         None => slot.q(),
                     };
                     let _ = writeln!(s, "IF {run} THEN  (* body {} *)", comment(body.name()));
-                    match &self.st_body {
-                        Some(st) if body.st().is_some() => self.st_call(s, st),
+                    match (&self.st_body, body.st(), body.st_entry()) {
+                        (Some(_), Some(_), Some(k)) => self.chart_body(s, k),
+                        (Some(st), Some(_), None) => self.st_call(s, st),
                         _ => self.body(s, body)?,
                     }
                     s.push_str("END_IF;\n");
@@ -188,33 +190,18 @@ impl Logic<'_> {
                         let _ = writeln!(s, "{was} := {};", slot.stored());
                     }
                 }
-                // Refused before the logic is written (`refuse_st_chart`).
-                Target::St(_) => {}
+                Target::St(at) => self.chart_target(s, at, &slot.q()),
             }
         }
+        self.chart_outputs(s);
         Ok(())
     }
 
     /// A Structured Text body: its inputs copied in, one pass, its outputs copied out.
     fn st_call(&self, s: &mut String, st: &super::st_body::StBody) {
-        let args: Vec<String> = (st.wires.iter().filter(|w| w.3))
-            .map(|(var, e, sig, _)| {
-                format!(
-                    "{var} := {}",
-                    super::st_body::into_pou(*e, &self.signal(sig))
-                )
-            })
-            .collect();
+        let args = self.st_inputs(st);
         let _ = writeln!(s, "  {}({});", st.instance, args.join(", "));
-        for (var, e, sig, _) in st.wires.iter().filter(|w| !w.3) {
-            let from = format!("{}.{var}", st.instance);
-            let _ = writeln!(
-                s,
-                "  {} := {};",
-                self.signal(sig),
-                super::st_body::from_pou(*e, &from)
-            );
-        }
+        self.st_outputs(s, st, "  ");
     }
 
     /// A guard-language body as ST statements, indented under its `IF`.

@@ -22,15 +22,27 @@ pub(crate) struct StBody {
     pub(crate) globals: String,
     /// The wired variables: the POU's variable, its type, the signal, whether an input.
     pub(crate) wires: Vec<(String, Elem, String, bool)>,
+    /// For a chart's Structured Text, how the interpretation runs its parts.
+    pub(crate) chart: Option<super::st_chart::ChartCalls>,
+}
+
+/// The text of the program's ST library and what to name it by in messages: a chart's
+/// `[st] source`, or the POU body's own text.
+fn library_source(program: &Program) -> Option<(String, String)> {
+    if let Some(chart) = program.chart_texts() {
+        return Some((chart.library, "the chart".to_string()));
+    }
+    let body = program.bodies().iter().find(|b| b.st().is_some())?;
+    Some((body.source().to_string(), format!("`{}`", body.name())))
 }
 
 /// The names of the POUs and types an ST library declares, which the export's own names must
 /// not take.
 pub(crate) fn library_names(program: &Program) -> Vec<String> {
-    let Some(body) = program.bodies().iter().find(|b| b.st().is_some()) else {
+    let Some((source, _)) = library_source(program) else {
         return Vec::new();
     };
-    let Ok(lib) = cetratus_st::parse::parse_library(body.source()) else {
+    let Ok(lib) = cetratus_st::parse::parse_library(&source) else {
         return Vec::new();
     };
     let globals = (lib.configs.iter())
@@ -48,19 +60,17 @@ pub(crate) fn prepare(
     program: &Program,
     claim: &mut impl FnMut(&str) -> String,
 ) -> Result<Option<StBody>, ExportError> {
-    let Some(body) = program.bodies().iter().find(|b| b.st().is_some()) else {
+    let (Some(st), Some((source, what))) = (program.st(), library_source(program)) else {
         return Ok(None);
     };
-    let st = body.st().expect("found by it");
     let unit = st.unit();
     let refuse = |what: String| ExportError::Unsupported {
         what,
         hint: "keep that part of the program's Structured Text out of what the export writes",
     };
-    let lib = cetratus_st::parse::parse_library(body.source()).map_err(|d| {
+    let lib = cetratus_st::parse::parse_library(&source).map_err(|d| {
         refuse(format!(
-            "the ST of `{}` does not parse again: {}",
-            body.name(),
+            "the ST of {what} does not parse again: {}",
             d.message
         ))
     })?;
@@ -91,13 +101,18 @@ pub(crate) fn prepare(
             wires.push((v.name.clone(), e, s.name.clone(), input));
         }
     }
-    let (text, globals) = library_text(body.source(), &unit.name)?;
+    let (mut text, globals) = library_text(&source, &unit.name)?;
+    let chart = match program.chart_texts() {
+        Some(texts) => Some(super::st_chart::prepare(program, st, &texts, &mut text)?),
+        None => None,
+    };
     Ok(Some(StBody {
         pou: unit.name.clone(),
         instance: claim(&format!("{}_BODY", unit.name)),
         text,
         globals,
         wires,
+        chart,
     }))
 }
 

@@ -126,10 +126,15 @@ impl Logic<'_> {
     fn conditions(&self, s: &mut String) {
         let p = self.program;
         let net = p.net();
+        self.chart_prepare(s);
         s.push_str("(* The condition of each candidate transition (enabled, or able to join the step);\n   one without a guard is always TRUE. *)\n");
         for (j, tr) in net.transitions().iter().enumerate() {
             let t = cetratus_net::TransIdx(j as u32);
             let (c, n) = (&self.locals.cond, j + 1);
+            if let (None, Some(k)) = (p.guard(t), p.st_condition(t)) {
+                self.chart_condition(s, n, k, &comment(&tr.id));
+                continue;
+            }
             match p.guard(t) {
                 Some(g) => {
                     let line = source_line(p.source(), "[guards]", |l| key_is(l, &tr.id));

@@ -12,9 +12,9 @@ use toml::Spanned;
 use super::resolve::in_document_order;
 use crate::body::Body;
 use crate::source::{Doc, Origin, StDecl};
-use crate::st::StProgram;
+use crate::st::{ChartTexts, StProgram};
 use crate::value::Signal;
-use crate::ProgramError;
+use crate::{Program, ProgramError};
 
 /// The texts of a chart's entries, in the order they are compiled: bodies, then conditions.
 fn entry_texts(decl: &StDecl) -> Vec<(&Spanned<String>, &Spanned<String>, bool)> {
@@ -150,4 +150,29 @@ pub(super) fn st_conditions(
         out[t.index()] = Some(first + j as u32);
     }
     Ok(out)
+}
+
+impl Program {
+    /// The texts of the program's chart in Structured Text (`[st]` with `[st.bodies]`,
+    /// `[st.conditions]` or `[st.steps]`), read again from its text; `None` for any other
+    /// program.
+    pub fn chart_texts(&self) -> Option<ChartTexts> {
+        if !self.st()?.is_chart() {
+            return None;
+        }
+        let doc: Doc = toml::from_str(self.source()).ok()?;
+        let decl = doc.st?.into_inner();
+        let owned = |table: &std::collections::BTreeMap<Spanned<String>, Spanned<String>>| {
+            (in_document_order(table).into_iter())
+                .map(|(k, v)| (k.get_ref().clone(), v.get_ref().clone()))
+                .collect()
+        };
+        Some(ChartTexts {
+            bodies: owned(&decl.bodies),
+            conditions: owned(&decl.conditions),
+            steps: owned(&decl.steps),
+            pou: decl.pou.into_inner(),
+            library: decl.source.into_inner(),
+        })
+    }
 }

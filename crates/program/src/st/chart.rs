@@ -154,6 +154,24 @@ impl StProgram {
     }
 }
 
+/// A chart's Structured Text as the program's text writes it (`[st]`), for writing it out again
+/// (`cetratus export`). The entries are in the order they are compiled: the bodies, then the
+/// conditions, so that entry `k` of [`cetratus_st::Unit::entries`] is `bodies[k]`, or
+/// `conditions[k - bodies.len()]`.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct ChartTexts {
+    /// `[st] pou`: the POU whose state the entries run on.
+    pub pou: String,
+    /// `[st] source`: the library that declares it.
+    pub library: String,
+    /// `[st.bodies]`, in document order: each body's name and statements.
+    pub bodies: Vec<(String, String)>,
+    /// `[st.conditions]`, in document order: each transition's id and expression.
+    pub conditions: Vec<(String, String)>,
+    /// `[st.steps]`, in document order: each place's id and the POU's variable of its flags.
+    pub steps: Vec<(String, String)>,
+}
+
 /// Why an ST condition gave no value.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum ConditionFault {

@@ -253,3 +253,15 @@ fn a_body_that_calls_a_ton_instance_and_then_reads_its_output_parses() {
     };
     assert_eq!(show(value), "(t.ET > 1000000000ns)");
 }
+
+#[test]
+fn the_vendors_missing_semicolon_is_written_in_for_an_export() {
+    let body = "IF a THEN\n  b := 1;\nEND_IF  (* done *)\n";
+    let done = crate::parse::terminated(body).expect("lexes");
+    assert_eq!(done, "IF a THEN\n  b := 1;\nEND_IF;  (* done *)\n");
+    assert!(crate::parse::parse_statements(&done).is_ok());
+    assert_eq!(
+        crate::parse::terminated("x := 1; // end").expect("lexes"),
+        "x := 1; // end"
+    );
+}

@@ -831,9 +831,10 @@ fn programs_with_structured_text_bodies_replay_scan_for_scan() {
 }
 
 /// A chart in Structured Text (examples/press-sfc: an action that calls a TON, assigns a
-/// VAR_INPUT of its POU and writes a STRING, a condition on a step's time) exports as its POU
-/// given a body that runs each of its parts, and MATIEC's build of the export agrees with the
-/// run at every scan of a random walk of its input. As a PLCopen project it is written as the
+/// VAR_INPUT of its POU and writes a STRING, a condition on a step's time; and Beremiz's
+/// traffic light, with an action in LD and a transition in FBD) exports as its POU given a
+/// body that runs each of its parts, and MATIEC's build of the export agrees with the run at
+/// every scan of a random walk of its inputs. As a PLCopen project it is written as the
 /// same POUs, and the export says why it is not a chart.
 #[test]
 fn a_chart_in_structured_text_replays_scan_for_scan() {
@@ -860,6 +861,22 @@ fn a_chart_in_structured_text_replays_scan_for_scan() {
         "{notes}"
     );
     assert!(xml.join("Press.xml").exists());
+    // Beremiz's traffic light: a named transition in FBD, an action in LD (docs/sfc.md).
+    let xml = dir.path().join("light.xml");
+    std::fs::write(&xml, cetratus_testkit::paths::traffic_light_inline()).unwrap();
+    let light = dir.path().join("light");
+    import("plcopen", &xml, &light);
+    let program = light.join("traffic_light_sequence.toml");
+    // Switched on, a pedestrian at 30 s and at 50 s, switched off at 70 s.
+    let inputs = dir.path().join("light.csv");
+    std::fs::write(
+        &inputs,
+        "scan,time_ms,SWITCH_BUTTON,PEDESTRIAN_BUTTON\n0,0,0,0\n100,1000,1,0\n\
+         3000,30000,1,1\n3010,30100,1,0\n5000,50000,1,1\n5010,50100,1,0\n7000,70000,0,0\n",
+    )
+    .unwrap();
+    let compared = prove(&program, &["--replay", path(&inputs), "--for", "80s"]);
+    assert_eq!(columns_changing(&compared), 5, "every light changes");
 }
 
 /// The other POUs of the PLCopen fixtures that import and run: Beremiz's counters in ST, FBD

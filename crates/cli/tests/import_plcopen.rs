@@ -92,7 +92,10 @@ fn a_chart_outside_the_mapping_is_refused_with_its_construct_and_position() {
     assert!(!out.status.success());
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(err.contains("beremiz-svghmi-traffic-light.xml:"), "{err}");
-    assert!(err.contains("FBD body of transition STOP"), "{err}");
+    assert!(
+        err.contains("an LD network drawn in the chart as a condition"),
+        "{err}"
+    );
     assert!(!dir.path().join("traffic_light_sequence.toml").exists());
 }
 
@@ -401,7 +404,10 @@ fn check_on_a_plcopen_file_runs_the_chart_checks_of_the_imported_program() {
     let out = cetratus(&["check", light.to_str().expect("UTF-8")]);
     assert_eq!(out.status.code(), Some(1));
     let err = String::from_utf8_lossy(&out.stderr);
-    assert!(err.contains("FBD body of transition STOP"), "{err}");
+    assert!(
+        err.contains("an LD network drawn in the chart as a condition"),
+        "{err}"
+    );
 }
 
 #[test]

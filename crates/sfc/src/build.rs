@@ -462,6 +462,14 @@ impl Mapping<'_> {
                     ),
                 ))
             }
+            // The ST compiler reads a network (`chart_st`).
+            Condition::Network { name, language, at } => {
+                return Err(self.unsupported(
+                    *at,
+                    format!("the {language} body of transition {name}"),
+                    "the guard subset reads Structured Text only",
+                ))
+            }
         };
         let mut e = st::condition(text, &scope).map_err(|e| self.st_err(at, e))?;
         if negated {

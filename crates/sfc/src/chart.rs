@@ -39,7 +39,17 @@ pub enum Condition {
         /// Negated by the `<inVariable negated="true">` that holds it.
         negated: bool,
     },
-    /// A form Cetratus does not import (FBD or LD network, IL, a function-call body).
+    /// The LD or FBD network of a named transition, which assigns the transition's name: the ST
+    /// compiler reads the expression it computes (docs/sfc.md).
+    Network {
+        /// The transition's name.
+        name: String,
+        /// The network's language (`LD`, `FBD`).
+        language: String,
+        /// Byte offset of the network's element.
+        at: usize,
+    },
+    /// A form Cetratus does not import (IL, a function-call body, a network in the chart).
     Unsupported {
         /// The form, as the README of the fixtures names it.
         form: String,
@@ -53,6 +63,7 @@ impl Condition {
     pub fn form(&self) -> &str {
         match self {
             Condition::St { .. } => "ST",
+            Condition::Network { language, .. } => language,
             Condition::Unsupported { form, .. } => form,
         }
     }
@@ -745,6 +756,13 @@ fn condition(
                         at: *at,
                         negated: false,
                     },
+                    Body::Other { language, at } if matches!(language.as_str(), "LD" | "FBD") => {
+                        Condition::Network {
+                            name: t.name.clone(),
+                            language: language.clone(),
+                            at: *at,
+                        }
+                    }
                     Body::Other { language, at } => unsupported(
                         &format!("the {language} body of transition {name}"),
                         *at,
@@ -774,10 +792,14 @@ fn condition(
                     },
                     None => unsupported("an <inVariable> with no expression", v.range().start),
                 },
-                Some(v) if matches!(v.name(), "contact" | "leftPowerRail" | "coil") => {
-                    unsupported("an LD network condition", v.range().start)
-                }
-                Some(v) => unsupported("an FBD network condition", v.range().start),
+                Some(v) if matches!(v.name(), "contact" | "leftPowerRail" | "coil") => unsupported(
+                    "an LD network drawn in the chart as a condition",
+                    v.range().start,
+                ),
+                Some(v) => unsupported(
+                    "an FBD network drawn in the chart as a condition",
+                    v.range().start,
+                ),
                 None => unsupported("a condition wired to nothing", at),
             }
         }

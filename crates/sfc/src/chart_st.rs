@@ -45,12 +45,19 @@ struct Entry {
 
 /// The program TOML of the chart on the ST compiler.
 pub(crate) fn program_toml(p: &Parts, notes: &mut Vec<String>) -> Result<String, SfcError> {
-    let vars = chart_vars(p)?;
-    let written = crate::lower::chart_library(p.source, p.doc, &p.pou.name, &vars, notes)?;
     // Conditions first, as the chart reads: the first refusal is the same as the subset's.
-    let conditions = conditions(p)?;
-    let (actions, mut entries) = actions(p)?;
+    let conditions = conditions(p, notes)?;
+    let mut networks = Networks::default();
+    let (actions, mut entries) = actions(p, &mut networks)?;
     entries.extend(conditions);
+    let mut vars = chart_vars(p)?;
+    for d in networks.decls {
+        if !vars.contains(&d) {
+            vars.push(d);
+        }
+    }
+    let written = crate::lower::chart_library(p.source, p.doc, &p.pou.name, &vars, notes)?;
+    notes.extend(networks.notes);
     let unit = compile(p, &written, &entries)?;
     check_targets(p, &unit, &actions)?;
     let mut out = header(p.project, &p.pou.name, p.net_file);
@@ -111,9 +118,18 @@ fn chart_vars(p: &Parts) -> Result<Vec<String>, SfcError> {
     Ok(out)
 }
 
+/// What the LD and FBD bodies of the chart's actions add to its POU: the declarations their
+/// networks need (`name : type`), and the notes of their lowering.
+#[derive(Default)]
+struct Networks {
+    decls: Vec<String>,
+    notes: Vec<String>,
+}
+
 /// The `[[action]]`s, and the bodies they run as entries: a named action associated with
-/// several steps is one body, with one action control, as in IEC 61131-3.
-fn actions(p: &Parts) -> Result<(Vec<Action>, Vec<Entry>), SfcError> {
+/// several steps is one body, with one action control, as in IEC 61131-3. A body in LD or FBD
+/// is the Structured Text its network means (docs/st.md, *LD and FBD*).
+fn actions(p: &Parts, networks: &mut Networks) -> Result<(Vec<Action>, Vec<Entry>), SfcError> {
     let (mut actions, mut bodies) = (Vec::new(), Vec::<Entry>::new());
     for (k, a) in p.chart.associations.iter().enumerate() {
         let step = p.chart.steps[a.step].name.clone();
@@ -142,6 +158,20 @@ fn actions(p: &Parts) -> Result<(Vec<Action>, Vec<Entry>), SfcError> {
                     Some((n, Body::St { text, at })) => body(&mut bodies, &n.name, text, *at),
                     Some((n, Body::Other { .. })) if p.nests.iter().any(|x| x.action == n.name) => {
                         Drive::Target(n.name.clone())
+                    }
+                    Some((n, Body::Other { language, at }))
+                        if matches!(language.as_str(), "LD" | "FBD") =>
+                    {
+                        let (text, decls, notes) =
+                            crate::lower::chart_network(p.source, p.doc, p.pou, *at)?;
+                        networks.decls.extend(decls);
+                        networks.notes.extend(notes);
+                        let drive = body(&mut bodies, &n.name, &text, *at);
+                        // The text is the importer's: an error in it is placed at the network.
+                        if let Some(b) = bodies.iter_mut().find(|b| b.name == n.name) {
+                            b.lead = b.text.len();
+                        }
+                        drive
                     }
                     Some((_, Body::Other { language, .. })) => {
                         return refuse(format!("the action `{name}` with a {language} body"), "action bodies must be Structured Text or a chart (an FBD, LD or IL body is not imported)");
@@ -185,15 +215,20 @@ fn body(bodies: &mut Vec<Entry>, name: &str, text: &str, at: usize) -> Drive {
 
 /// The conditions as entries: negated as their box says, and a nested chart's only while its
 /// action is on; the hold and resume transitions of nested steps last.
-fn conditions(p: &Parts) -> Result<Vec<Entry>, SfcError> {
+fn conditions(p: &Parts, notes: &mut Vec<String>) -> Result<Vec<Entry>, SfcError> {
     let mut out = Vec::new();
     for (i, (t, id)) in p.chart.transitions.iter().zip(p.ids).enumerate() {
-        let (text, at, negated) = match &t.condition {
-            Condition::St { text, at, negated } => (text, *at, *negated),
+        let (text, at, negated, lowered) = match &t.condition {
+            Condition::St { text, at, negated } => (text.clone(), *at, *negated, false),
+            Condition::Network { name, language, at } => {
+                let text = network_condition(p, name, language, *at, notes)?;
+                (text, *at, false, true)
+            }
             Condition::Unsupported { form, at } => {
-                return Err(unsupported(p, *at, form.clone(), &format!("the condition of transition {id} must be Structured Text (inline, in an inVariable box, or a named transition's ST body)")))
+                return Err(unsupported(p, *at, form.clone(), &format!("the condition of transition {id} must be Structured Text (inline, in an inVariable box, or a named transition's ST or FBD or LD body)")))
             }
         };
+        let text = &text;
         let nest = Nest::of_transition(p.nests, i);
         let always = text.trim().eq_ignore_ascii_case("TRUE") && !negated;
         let (open, close) = match (negated, nest) {
@@ -205,16 +240,19 @@ fn conditions(p: &Parts) -> Result<Vec<Entry>, SfcError> {
             (false, None) => (String::new(), ""),
         };
         let (skipped, expr) = expression_of(text);
+        let expr = if lowered { expr.trim() } else { expr };
         let body = if close.is_empty() && !open.is_empty() {
             ""
         } else {
             expr
         };
+        let text = format!("{open}{body}{close}");
         out.push(Entry {
             name: id.clone(),
-            lead: open.len(),
-            text: format!("{open}{body}{close}"),
-            at: Some(at + skipped),
+            // The importer's text: an error in it is placed at the network.
+            lead: if lowered { text.len() } else { open.len() },
+            text,
+            at: Some(if lowered { at } else { at + skipped }),
             body: false,
         });
     }
@@ -232,6 +270,30 @@ fn conditions(p: &Parts) -> Result<Vec<Entry>, SfcError> {
         });
     }
     Ok(out)
+}
+
+/// The named transition `name`'s network in `language` (at byte `at`) as the statement that
+/// assigns its value, `name := expr;`, which [`expression_of`] reads: a network that needs
+/// more than that one statement (a block instance, a value kept between elements) is refused,
+/// since a condition on the ST compiler is one expression.
+fn network_condition(
+    p: &Parts,
+    name: &str,
+    language: &str,
+    at: usize,
+    notes: &mut Vec<String>,
+) -> Result<String, SfcError> {
+    let (text, decls, mut noted) = crate::lower::chart_network(p.source, p.doc, p.pou, at)?;
+    if text.lines().count() != 1 || !decls.is_empty() {
+        return Err(unsupported(
+            p,
+            at,
+            format!("the {language} body of transition {name}"),
+            "its network computes the condition in more than one statement (through a function block, or a value it keeps); a condition is one expression: draw it with functions only, or write it in ST",
+        ));
+    }
+    notes.append(&mut noted);
+    Ok(text)
 }
 
 /// The expression of a condition's text, and how many bytes before it were left out: a named

@@ -52,7 +52,7 @@ fn refusals_name_the_construct_the_pou_and_the_line_and_column() {
         "beremiz-svghmi-traffic-light.xml",
         None,
         "beremiz-svghmi-traffic-light.xml:",
-        "FBD body of transition STOP",
+        "an LD network drawn in the chart as a condition",
     )];
     for (file, pou, at, construct) in cases {
         let err = import(file, pou).expect_err(file);

@@ -106,6 +106,33 @@ pub(crate) fn chart_library(
     Ok(out)
 }
 
+/// An LD or FBD network of a chart, the body of one of the named actions or transitions of
+/// `pou` (the element at byte `at` of the file), as Structured Text: its statements, the
+/// declarations it needs in the chart's POU (`name : type`: the block instances the interface
+/// does not declare, and the values the network keeps between its elements), and what the
+/// importer added that the file did not say.
+pub(crate) fn chart_network(
+    source: &Source,
+    doc: &Document,
+    pou: &Pou,
+    at: usize,
+) -> Result<(String, Vec<String>, Vec<String>), SfcError> {
+    let pous = pou::pous(source, doc);
+    let names = network::Names::of(doc, &pous);
+    let Some(body) = pou.node.descendants().find(|n| n.range().start == at) else {
+        return Err(SfcError::Pou {
+            file: source.label.to_string(),
+            message: format!("no network at {} in `{}`", source.pos(at), pou.name),
+        });
+    };
+    let (stmts, decls, notes) = network::lower(source, pou, body, &names)?.into_parts();
+    let text: String = stmts.iter().map(|(_, s)| format!("{s}\n")).collect();
+    let notes = (notes.into_iter())
+        .map(|(at, note)| format!("{}: {note}", source.pos(at)))
+        .collect();
+    Ok((text, decls, notes))
+}
+
 /// `NAME (LANGUAGE)` for every POU of the file.
 pub(crate) fn listing(pous: &[Pou]) -> String {
     let all: Vec<String> = pous

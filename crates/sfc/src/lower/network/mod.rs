@@ -118,6 +118,9 @@ fn elementary_or_derived(t: Node) -> String {
     }
 }
 
+/// Lines each at the byte offset of the file they come from: statements, or notes.
+pub(crate) type Placed = Vec<(usize, String)>;
+
 /// A network written as Structured Text.
 pub(super) struct Lowered {
     /// The statements, in order, each with the byte offset of the element it comes from.
@@ -133,6 +136,15 @@ pub(super) struct Lowered {
 }
 
 impl Lowered {
+    /// The statements, and the declarations the network needs (`name : type`): the instances
+    /// it adds, then the values it keeps.
+    pub fn into_parts(self) -> (Placed, Vec<String>, Placed) {
+        let decls = (self.instances.iter().chain(&self.temps))
+            .map(|(name, ty)| format!("{name} : {ty}"))
+            .collect();
+        (self.stmts, decls, self.notes)
+    }
+
     /// Writes the variables the network needs, then its statements. In a FUNCTION the values
     /// kept between elements are its VAR, which a function starts afresh at every call: IEC has
     /// no VAR_TEMP in a FUNCTION, and MATIEC refuses one.

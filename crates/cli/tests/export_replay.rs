@@ -832,7 +832,7 @@ fn programs_with_structured_text_bodies_replay_scan_for_scan() {
 
 /// A chart in Structured Text (examples/press-sfc: an action that calls a TON, assigns a
 /// VAR_INPUT of its POU and writes a STRING, a condition on a step's time; and Beremiz's
-/// traffic light, with an action in LD and a transition in FBD) exports as its POU given a
+/// traffic light, with LD and FBD in its chart) exports as its POU given a
 /// body that runs each of its parts, and MATIEC's build of the export agrees with the run at
 /// every scan of a random walk of its inputs. As a PLCopen project it is written as the
 /// same POUs, and the export says why it is not a chart.
@@ -861,11 +861,14 @@ fn a_chart_in_structured_text_replays_scan_for_scan() {
         "{notes}"
     );
     assert!(xml.join("Press.xml").exists());
-    // Beremiz's traffic light: a named transition in FBD, an action in LD (docs/sfc.md).
-    let xml = dir.path().join("light.xml");
-    std::fs::write(&xml, cetratus_testkit::paths::traffic_light_inline()).unwrap();
+    // Beremiz's traffic light: a named transition in FBD, an action in LD, and conditions
+    // drawn in the chart as networks (docs/sfc.md).
     let light = dir.path().join("light");
-    import("plcopen", &xml, &light);
+    import(
+        "plcopen",
+        &binary::fixture("beremiz-svghmi-traffic-light.xml"),
+        &light,
+    );
     let program = light.join("traffic_light_sequence.toml");
     // Switched on, a pedestrian at 30 s and at 50 s, switched off at 70 s.
     let inputs = dir.path().join("light.csv");

@@ -81,7 +81,9 @@ fn importing_a_chart_twice_writes_the_same_program_hash() {
 #[test]
 fn a_chart_outside_the_mapping_is_refused_with_its_construct_and_position() {
     let dir = tempfile::tempdir().expect("a temporary directory");
-    let file = fixture("beremiz-svghmi-traffic-light.xml");
+    // Beremiz's traffic light with a condition in IL (`cetratus_testkit::paths`).
+    let file = dir.path().join("light.xml");
+    std::fs::write(&file, cetratus_testkit::paths::traffic_light_il()).expect("written");
     let out = cetratus(&[
         "import",
         "plcopen",
@@ -91,11 +93,8 @@ fn a_chart_outside_the_mapping_is_refused_with_its_construct_and_position() {
     ]);
     assert!(!out.status.success());
     let err = String::from_utf8_lossy(&out.stderr);
-    assert!(err.contains("beremiz-svghmi-traffic-light.xml:"), "{err}");
-    assert!(
-        err.contains("an LD network drawn in the chart as a condition"),
-        "{err}"
-    );
+    assert!(err.contains("light.xml:"), "{err}");
+    assert!(err.contains("an inline IL condition"), "{err}");
     assert!(!dir.path().join("traffic_light_sequence.toml").exists());
 }
 
@@ -400,14 +399,13 @@ fn check_on_a_plcopen_file_runs_the_chart_checks_of_the_imported_program() {
     ]));
     assert!(check.contains("sfc chart"), "{check}");
     // A chart the import refuses is the same refusal.
-    let light = fixture("beremiz-svghmi-traffic-light.xml");
+    let dir = tempfile::tempdir().expect("a temporary directory");
+    let light = dir.path().join("light.xml");
+    std::fs::write(&light, cetratus_testkit::paths::traffic_light_il()).expect("written");
     let out = cetratus(&["check", light.to_str().expect("UTF-8")]);
     assert_eq!(out.status.code(), Some(1));
     let err = String::from_utf8_lossy(&out.stderr);
-    assert!(
-        err.contains("an LD network drawn in the chart as a condition"),
-        "{err}"
-    );
+    assert!(err.contains("an inline IL condition"), "{err}");
 }
 
 #[test]

@@ -470,6 +470,13 @@ impl Mapping<'_> {
                     "the guard subset reads Structured Text only",
                 ))
             }
+            Condition::Drawn { language, at } => {
+                return Err(self.unsupported(
+                    *at,
+                    format!("an {language} network drawn in the chart as the condition of {id}"),
+                    "the guard subset reads Structured Text only",
+                ))
+            }
         };
         let mut e = st::condition(text, &scope).map_err(|e| self.st_err(at, e))?;
         if negated {

@@ -49,7 +49,15 @@ pub enum Condition {
         /// Byte offset of the network's element.
         at: usize,
     },
-    /// A form Cetratus does not import (IL, a function-call body, a network in the chart).
+    /// An LD or FBD network drawn in the chart and wired to the transition's condition: the
+    /// ST compiler reads the statements it means, which assign the condition's value.
+    Drawn {
+        /// The network's language (`LD`, `FBD`).
+        language: String,
+        /// Byte offset of the condition's `<connectionPointIn>`.
+        at: usize,
+    },
+    /// A form Cetratus does not import (IL, a function-call body).
     Unsupported {
         /// The form, as the README of the fixtures names it.
         form: String,
@@ -63,7 +71,7 @@ impl Condition {
     pub fn form(&self) -> &str {
         match self {
             Condition::St { .. } => "ST",
-            Condition::Network { language, .. } => language,
+            Condition::Network { language, .. } | Condition::Drawn { language, .. } => language,
             Condition::Unsupported { form, .. } => form,
         }
     }
@@ -792,14 +800,14 @@ fn condition(
                     },
                     None => unsupported("an <inVariable> with no expression", v.range().start),
                 },
-                Some(v) if matches!(v.name(), "contact" | "leftPowerRail" | "coil") => unsupported(
-                    "an LD network drawn in the chart as a condition",
-                    v.range().start,
-                ),
-                Some(v) => unsupported(
-                    "an FBD network drawn in the chart as a condition",
-                    v.range().start,
-                ),
+                Some(v) => Condition::Drawn {
+                    language: match v.name() {
+                        "contact" | "leftPowerRail" | "coil" => "LD",
+                        _ => "FBD",
+                    }
+                    .into(),
+                    at,
+                },
                 None => unsupported("a condition wired to nothing", at),
             }
         }

@@ -46,8 +46,8 @@ struct Entry {
 /// The program TOML of the chart on the ST compiler.
 pub(crate) fn program_toml(p: &Parts, notes: &mut Vec<String>) -> Result<String, SfcError> {
     // Conditions first, as the chart reads: the first refusal is the same as the subset's.
-    let conditions = conditions(p, notes)?;
     let mut networks = Networks::default();
+    let conditions = conditions(p, &mut networks)?;
     let (actions, mut entries) = actions(p, &mut networks)?;
     entries.extend(conditions);
     let mut vars = chart_vars(p)?;
@@ -215,21 +215,37 @@ fn body(bodies: &mut Vec<Entry>, name: &str, text: &str, at: usize) -> Drive {
 
 /// The conditions as entries: negated as their box says, and a nested chart's only while its
 /// action is on; the hold and resume transitions of nested steps last.
-fn conditions(p: &Parts, notes: &mut Vec<String>) -> Result<Vec<Entry>, SfcError> {
+fn conditions(p: &Parts, networks: &mut Networks) -> Result<Vec<Entry>, SfcError> {
     let mut out = Vec::new();
     for (i, (t, id)) in p.chart.transitions.iter().zip(p.ids).enumerate() {
-        let (text, at, negated, lowered) = match &t.condition {
-            Condition::St { text, at, negated } => (text.clone(), *at, *negated, false),
-            Condition::Network { name, language, at } => {
-                let text = network_condition(p, name, language, *at, notes)?;
-                (text, *at, false, true)
-            }
-            Condition::Unsupported { form, at } => {
-                return Err(unsupported(p, *at, form.clone(), &format!("the condition of transition {id} must be Structured Text (inline, in an inVariable box, or a named transition's ST or FBD or LD body)")))
-            }
-        };
-        let text = &text;
+        let (text, at, negated, form) = condition_text(p, &t.condition, id, networks)?;
         let nest = Nest::of_transition(p.nests, i);
+        if form == Form::Statements {
+            if let Some(n) = nest {
+                let what = format!(
+                    "a network of statements as the condition of {id}, in the nested chart {}",
+                    n.action
+                );
+                return Err(unsupported(
+                    p,
+                    at,
+                    what,
+                    "draw the nested chart's condition with functions only, or write it in ST",
+                ));
+            }
+            // The importer's text: an error in it is placed at the network.
+            let lead = text.len();
+            out.push(Entry {
+                name: id.clone(),
+                text,
+                lead,
+                at: Some(at),
+                body: false,
+            });
+            continue;
+        }
+        let lowered = form == Form::Lowered;
+        let text = &text;
         let always = text.trim().eq_ignore_ascii_case("TRUE") && !negated;
         let (open, close) = match (negated, nest) {
             (true, Some(n)) => (format!("{} AND NOT (", n.action), ")"),
@@ -272,6 +288,50 @@ fn conditions(p: &Parts, notes: &mut Vec<String>) -> Result<Vec<Entry>, SfcError
     Ok(out)
 }
 
+/// Where a condition's text comes from.
+#[derive(Clone, Copy, PartialEq, Eq)]
+enum Form {
+    /// The file's own ST.
+    File,
+    /// A network that means one statement, `id := expr;`, whose expression is the condition.
+    Lowered,
+    /// A network that means several statements, the last of which assigns the condition's
+    /// value to the transition's id (a condition the ST compiler reads as statements).
+    Statements,
+}
+
+/// The text of a transition's condition `c` (the transition `id`), where in the file it is,
+/// whether its box negates it, and where it comes from; a network's declarations and notes go
+/// into `networks`.
+fn condition_text(
+    p: &Parts,
+    c: &Condition,
+    id: &str,
+    networks: &mut Networks,
+) -> Result<(String, usize, bool, Form), SfcError> {
+    Ok(match c {
+        Condition::St { text, at, negated } => (text.clone(), *at, *negated, Form::File),
+        Condition::Network { name, language, at } => {
+            let text = network_condition(p, name, language, *at, networks)?;
+            (text, *at, false, Form::Lowered)
+        }
+        Condition::Drawn { at, .. } => {
+            let (text, decls, notes) =
+                crate::lower::chart_condition(p.source, p.doc, p.pou, *at, id)?;
+            let form = match text.lines().count() == 1 && decls.is_empty() {
+                true => Form::Lowered,
+                false => Form::Statements,
+            };
+            networks.decls.extend(decls);
+            networks.notes.extend(notes);
+            (text, *at, false, form)
+        }
+        Condition::Unsupported { form, at } => {
+            return Err(unsupported(p, *at, form.clone(), &format!("the condition of transition {id} must be Structured Text (inline, in an inVariable box, or a named transition's ST, FBD or LD body) or a network drawn in the chart")))
+        }
+    })
+}
+
 /// The named transition `name`'s network in `language` (at byte `at`) as the statement that
 /// assigns its value, `name := expr;`, which [`expression_of`] reads: a network that needs
 /// more than that one statement (a block instance, a value kept between elements) is refused,
@@ -281,7 +341,7 @@ fn network_condition(
     name: &str,
     language: &str,
     at: usize,
-    notes: &mut Vec<String>,
+    networks: &mut Networks,
 ) -> Result<String, SfcError> {
     let (text, decls, mut noted) = crate::lower::chart_network(p.source, p.doc, p.pou, at)?;
     if text.lines().count() != 1 || !decls.is_empty() {
@@ -292,7 +352,7 @@ fn network_condition(
             "its network computes the condition in more than one statement (through a function block, or a value it keeps); a condition is one expression: draw it with functions only, or write it in ST",
         ));
     }
-    notes.append(&mut noted);
+    networks.notes.append(&mut noted);
     Ok(text)
 }
 

@@ -48,14 +48,14 @@ fn importing_the_same_file_twice_gives_the_same_program_hash() {
 
 #[test]
 fn refusals_name_the_construct_the_pou_and_the_line_and_column() {
+    // Beremiz's traffic light with a condition in IL (`cetratus_testkit::paths`).
     let cases = [(
-        "beremiz-svghmi-traffic-light.xml",
-        None,
-        "beremiz-svghmi-traffic-light.xml:",
-        "an LD network drawn in the chart as a condition",
+        cetratus_testkit::paths::traffic_light_il(),
+        "light.xml:",
+        "an inline IL condition",
     )];
-    for (file, pou, at, construct) in cases {
-        let err = import(file, pou).expect_err(file);
+    for (xml, at, construct) in cases {
+        let err = cetratus_sfc::import_str(&xml, "light.xml", None, "chart.pnml").expect_err(at);
         let text = err.to_string();
         assert!(matches!(err, SfcError::Unsupported { .. }), "{text}");
         assert!(text.starts_with(at), "{text}");

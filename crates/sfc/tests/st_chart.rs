@@ -74,26 +74,26 @@ fn traffic_light() -> String {
     .expect("the fixture")
 }
 
+/// The whole of Beremiz's SVGHMI traffic light, as the editor wrote it: its named transition
+/// `STOP` is an FBD network, its action `BLINK_ORANGE_LIGHT` an LD network (two TONs, two
+/// R_TRIGs, set and reset coils), and two conditions are networks drawn in the chart itself, a
+/// negated contact and, for the pedestrian's request, a latch (SR) and a 2 s timer (TON) behind
+/// an OR, which become statements that assign the condition's value.
 #[test]
-fn a_named_fbd_transition_and_an_ld_action_import_on_the_st_compiler_and_run() {
-    // Two of the chart's conditions are networks drawn in the chart itself, a form that stays
-    // refused (the next test); written inline, the rest of the file imports as it is.
-    let xml = cetratus_testkit::paths::traffic_light_inline();
-    let imported = cetratus_sfc::import_str(&xml, "light.xml", None, "Light.pnml")
+fn beremizs_traffic_light_with_ld_and_fbd_in_its_chart_imports_and_runs() {
+    let imported = cetratus_sfc::import_str(&traffic_light(), "light.xml", None, "Light.pnml")
         .unwrap_or_else(|e| panic!("{e}"));
     let toml = &imported.toml;
-    assert!(
-        toml.contains("\"T16\" = '''\n(NOT SWITCH_BUTTON)'''"),
-        "{toml}"
-    );
-    assert!(
-        toml.contains("TON1(IN := (NOT ORANGE_LIGHT), PT := T#500ms);"),
-        "{toml}"
-    );
-    assert!(
-        toml.contains("IF R_TRIG0.Q THEN ORANGE_LIGHT := FALSE; END_IF;"),
-        "{toml}"
-    );
+    for part in [
+        "\"T16\" = '''\n(NOT SWITCH_BUTTON)'''",
+        "\"T26\" = '''\n(NOT SWITCH_BUTTON)'''",
+        "TON1(IN := (NOT ORANGE_LIGHT), PT := T#500ms);",
+        "IF R_TRIG0.Q THEN ORANGE_LIGHT := FALSE; END_IF;",
+        "SR0(S1 := PEDESTRIAN_BUTTON, R := TON3.Q);",
+        "T37 := (TON3.Q OR WARN_CARS);",
+    ] {
+        assert!(toml.contains(part), "{part} in {toml}");
+    }
     let p = Arc::new(imported.program);
     let output = |c: &Container, name: &str| {
         let i = (p.outputs().iter().position(|o| o.name == name)).expect("an output");
@@ -101,36 +101,49 @@ fn a_named_fbd_transition_and_an_ld_action_import_on_the_st_compiler_and_run() {
     };
     let mut c = Container::new(p.clone(), 0);
     let mut ms = 0u64;
-    let mut run = |c: &mut Container, switch: bool, for_ms: u64| {
+    let mut run = |c: &mut Container, switch: bool, pedestrian: bool, for_ms: u64| {
         for _ in 0..for_ms / 10 {
             ms += 10;
-            let inputs = [Value::Bool(switch), Value::Bool(false)];
+            let inputs = [Value::Bool(switch), Value::Bool(pedestrian)];
             c.scan(ms * 1000, &inputs)
                 .unwrap_or_else(|e| panic!("at {ms} ms: {e}"));
         }
     };
-    run(&mut c, true, 100);
+    run(&mut c, true, false, 100);
     assert_eq!(
         output(&c, "ORANGE_LIGHT"),
         Value::Bool(true),
         "switched on: orange"
     );
-    run(&mut c, true, 2_100);
+    run(&mut c, true, false, 2_100);
     assert_eq!(output(&c, "RED_LIGHT"), Value::Bool(true), "2 s later: red");
-    assert_eq!(output(&c, "ORANGE_LIGHT"), Value::Bool(false));
+    run(&mut c, true, false, 14_100);
+    assert_eq!(
+        output(&c, "GREEN_LIGHT"),
+        Value::Bool(true),
+        "then green for the cars"
+    );
+    // A pedestrian's request latches (SR0), and 2 s later (TON3) the cars get orange.
+    run(&mut c, true, true, 100);
+    run(&mut c, true, false, 1_500);
+    assert_eq!(output(&c, "GREEN_LIGHT"), Value::Bool(true), "not yet");
+    run(&mut c, true, false, 600);
+    assert_eq!(
+        output(&c, "ORANGE_LIGHT"),
+        Value::Bool(true),
+        "the request is served"
+    );
     // Switched off: the FBD transition STOP (NOT SWITCH_BUTTON) takes the chart back.
-    run(&mut c, false, 100);
+    run(&mut c, false, false, 100);
     assert!(c.marking()[0] > 0, "back in Standstill: {:?}", c.marking());
 }
 
 #[test]
-fn a_network_drawn_in_the_chart_as_a_condition_is_refused_by_name_and_place() {
-    let err = cetratus_sfc::import_str(&traffic_light(), "light.xml", None, "Light.pnml")
-        .expect_err("refused");
+fn an_il_condition_is_refused_by_name_and_place() {
+    let xml = cetratus_testkit::paths::traffic_light_il();
+    let err = cetratus_sfc::import_str(&xml, "light.xml", None, "Light.pnml").expect_err("refused");
     let text = err.to_string();
-    assert!(text.starts_with("light.xml:1191:13:"), "{text}");
-    assert!(
-        text.contains("an LD network drawn in the chart as a condition"),
-        "{text}"
-    );
+    assert!(text.starts_with("light.xml:"), "{text}");
+    assert!(text.contains("an inline IL condition"), "{text}");
+    assert!(text.contains("in POU `traffic_light_sequence`"), "{text}");
 }

@@ -125,3 +125,35 @@ fn entries_share_one_bound_on_code_so_many_small_texts_cannot_expand_without_end
     assert!(err.entry.is_some(), "{err:?}");
     assert!(err.diagnostic.message.contains("too large"), "{err:?}");
 }
+
+/// A condition may be statements that assign its value to its own name, as IEC writes a named
+/// transition's body and as an FBD network drawn for a condition lowers: here a TON that runs
+/// only when the condition is evaluated. The name is the condition's alone (FALSE until the
+/// statements assign it), and a POU variable of that name is refused.
+#[test]
+fn a_condition_written_as_statements_assigns_its_own_name() {
+    let lib = parse_library(POU).expect("the POU parses");
+    let texts = [(
+        "T9",
+        "t(IN := start, PT := T#20ms);\nIF t.Q THEN T9 := TRUE; END_IF;",
+        false,
+    )];
+    let u = cetratus_st::compile_entry_texts(&lib, Some("Chart"), &texts)
+        .unwrap_or_else(|e| panic!("{:?}", e.diagnostic));
+    let t9 = u.entry("T9").expect("the condition");
+    assert!(u.entries[t9].result.is_some());
+    let mut s = u.new_state();
+    s.slots[u.var("start").unwrap().at.slots as usize] = 1;
+    let mut work = Work::unlimited();
+    let at = |ms: i64| ms * MS;
+    assert!(!u.run_entry(t9, &mut s, at(0), &mut work).unwrap());
+    assert!(!u.run_entry(t9, &mut s, at(10), &mut work).unwrap());
+    assert!(u.run_entry(t9, &mut s, at(20), &mut work).unwrap());
+    let clash = [("lamp", "lamp := start;", false)];
+    let err = cetratus_st::compile_entry_texts(&lib, Some("Chart"), &clash).expect_err("a clash");
+    assert!(
+        err.diagnostic.message.contains("is a variable of the POU"),
+        "{:?}",
+        err.diagnostic
+    );
+}

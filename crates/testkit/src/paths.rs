@@ -1,5 +1,5 @@
 //! Paths the tests share: the workspace, its examples, the reference nets, and where tests leave
-//! artifacts; and a fixture edited where the import refuses a form of it.
+//! artifacts; and a fixture edited into a form the import refuses.
 
 use std::path::{Path, PathBuf};
 
@@ -31,25 +31,17 @@ pub fn artifacts_dir() -> PathBuf {
     dir
 }
 
-/// Beremiz's SVGHMI traffic light (`plcopen/beremiz-svghmi-traffic-light.xml`), a chart whose
-/// named transition `STOP` is an FBD network and whose action `BLINK_ORANGE_LIGHT` is an LD
-/// network, with the two conditions that it draws as networks in the chart itself (a form the
-/// import refuses) written inline in ST: `NOT SWITCH_BUTTON`, which its LD contact means, and
-/// `PEDESTRIAN_BUTTON OR WARN_CARS` in place of its latch and 2 s timer.
-pub fn traffic_light_inline() -> String {
+/// Beremiz's SVGHMI traffic light (`plcopen/beremiz-svghmi-traffic-light.xml`) with the
+/// condition of its transition 26, a negated contact drawn in the chart, written instead as an
+/// inline Instruction List condition (`LDN SWITCH_BUTTON`): a form IEC 61131-3's 3rd edition
+/// deprecates and the import refuses by name.
+pub fn traffic_light_il() -> String {
     let xml = std::fs::read_to_string(fixture("plcopen/beremiz-svghmi-traffic-light.xml"))
         .expect("the traffic light fixture");
-    let xml = inline_condition(&xml, "refLocalId=\"48\"", "NOT SWITCH_BUTTON");
-    inline_condition(&xml, "refLocalId=\"35\"", "PEDESTRIAN_BUTTON OR WARN_CARS")
-}
-
-/// `xml` with the `<condition>` that holds `needle` replaced by an inline ST condition `st`.
-fn inline_condition(xml: &str, needle: &str, st: &str) -> String {
+    let needle = "refLocalId=\"48\"";
     let at = xml.find(needle).expect("the condition's connection");
     let open = xml[..at].rfind("<condition>").expect("its <condition>");
     let close = at + xml[at..].find("</condition>").expect("its end") + "</condition>".len();
-    let inline = format!(
-        "<condition><inline name=\"\"><ST><xhtml:p><![CDATA[{st}]]></xhtml:p></ST></inline></condition>"
-    );
+    let inline = "<condition><inline name=\"\"><IL><xhtml:p><![CDATA[LDN SWITCH_BUTTON]]></xhtml:p></IL></inline></condition>";
     format!("{}{inline}{}", &xml[..open], &xml[close..])
 }

@@ -73,6 +73,17 @@ impl ChartCalls {
             let _ = writeln!(s, "  CETRATUS_X{i} : BOOL;\n  CETRATUS_T{i} : TIME;");
         }
         let _ = writeln!(s, "END_VAR\nVAR_OUTPUT\n  {COND} : BOOL;\nEND_VAR");
+        // A condition written as statements assigns its value to its transition's id.
+        let assigned: Vec<&(String, String)> = (texts.conditions.iter())
+            .filter(|(_, text)| cetratus_st::parse::parse_expression(text).is_err())
+            .collect();
+        if !assigned.is_empty() {
+            s.push_str("VAR\n");
+            for (id, _) in &assigned {
+                let _ = writeln!(s, "  {id} : BOOL;");
+            }
+            s.push_str("END_VAR\n");
+        }
         s.push_str("(* The step flags, as the interpretation passes them. *)\n");
         for (i, (_, var)) in texts.steps.iter().enumerate() {
             let _ = writeln!(
@@ -84,11 +95,7 @@ impl ChartCalls {
         }
         let mut parts = String::new();
         for (k, (name, text)) in texts.bodies.iter().enumerate() {
-            let statements =
-                cetratus_st::parse::terminated(text).map_err(|d| ExportError::Unsupported {
-                    what: format!("the ST body `{name}` does not lex again: {}", d.message),
-                    hint: "this is a fault of the exporter; report it with the program",
-                })?;
+            let statements = terminated(name, text)?;
             let _ = writeln!(
                 parts,
                 "  {}:  (* the body {} *)\n{statements}",
@@ -98,12 +105,18 @@ impl ChartCalls {
         }
         let first = texts.bodies.len();
         for (j, (id, text)) in texts.conditions.iter().enumerate() {
-            let _ = writeln!(
-                parts,
-                "  {}:  (* the condition of {} *)\n  {COND} := (\n{text}\n  );",
-                first + j + 1,
-                comment(id)
-            );
+            let (label, what) = (first + j + 1, comment(id));
+            let _ = match assigned.iter().any(|(a, _)| a == id) {
+                true => writeln!(
+                    parts,
+                    "  {label}:  (* the condition of {what}, as statements *)\n  {id} := FALSE;\n{}\n  {COND} := {id};",
+                    terminated(id, text)?
+                ),
+                false => writeln!(
+                    parts,
+                    "  {label}:  (* the condition of {what} *)\n  {COND} := (\n{text}\n  );"
+                ),
+            };
         }
         for &(at, label) in &self.targets {
             let var = st.slot_name(at).unwrap_or_default();
@@ -117,6 +130,14 @@ impl ChartCalls {
         }
         Ok(s)
     }
+}
+
+/// The statements `text` of the part `name` with the `;` that the vendors' form leaves out.
+fn terminated(name: &str, text: &str) -> Result<String, ExportError> {
+    cetratus_st::parse::terminated(text).map_err(|d| ExportError::Unsupported {
+        what: format!("the ST of `{name}` does not lex again: {}", d.message),
+        hint: "this is a fault of the exporter; report it with the program",
+    })
 }
 
 /// `body` put into the FUNCTION_BLOCK `pou` of `text`, before its `END_FUNCTION_BLOCK`.

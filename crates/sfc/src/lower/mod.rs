@@ -125,12 +125,45 @@ pub(crate) fn chart_network(
             message: format!("no network at {} in `{}`", source.pos(at), pou.name),
         });
     };
-    let (stmts, decls, notes) = network::lower(source, pou, body, &names)?.into_parts();
+    let lowered = network::lower(source, pou, body, &names)?;
+    Ok(chart_text(source, lowered))
+}
+
+/// A network drawn in a chart of `pou` and wired to a transition's condition, whose
+/// `<connectionPointIn>` is at byte `at` of the file, as Structured Text that assigns its value
+/// to `result` (the transition's id); the same parts as [`chart_network`]'s.
+pub(crate) fn chart_condition(
+    source: &Source,
+    doc: &Document,
+    pou: &Pou,
+    at: usize,
+    result: &str,
+) -> Result<(String, Vec<String>, Vec<String>), SfcError> {
+    let pous = pou::pous(source, doc);
+    let names = network::Names::of(doc, &pous);
+    let within = |n: &cetratus_net::xml::Node| n.range().contains(&at);
+    let sfc = (pou.node.descendants())
+        .filter(|n| n.name() == "SFC" && within(n))
+        .last();
+    let point = pou.node.descendants().find(|n| n.range().start == at);
+    let (Some(sfc), Some(point)) = (sfc, point) else {
+        return Err(SfcError::Pou {
+            file: source.label.to_string(),
+            message: format!("no condition at {} in `{}`", source.pos(at), pou.name),
+        });
+    };
+    let lowered = network::lower_condition(source, pou, (sfc, point), result, &names)?;
+    Ok(chart_text(source, lowered))
+}
+
+/// A lowered network as a chart's text: its statements, its declarations and its notes.
+fn chart_text(source: &Source, lowered: network::Lowered) -> (String, Vec<String>, Vec<String>) {
+    let (stmts, decls, notes) = lowered.into_parts();
     let text: String = stmts.iter().map(|(_, s)| format!("{s}\n")).collect();
     let notes = (notes.into_iter())
         .map(|(at, note)| format!("{}: {note}", source.pos(at)))
         .collect();
-    Ok((text, decls, notes))
+    (text, decls, notes)
 }
 
 /// `NAME (LANGUAGE)` for every POU of the file.

@@ -210,6 +210,10 @@ pub enum EntryText<'t> {
     Body(&'t [crate::ast::Stmt]),
     /// A BOOL expression, whose value a run leaves in the entry's result slot.
     Condition(&'t Expr),
+    /// A condition written as statements that assign its value to the entry's own name, as
+    /// IEC 61131-3 writes a named transition's body (`T1 := …;`); the name is a BOOL of this
+    /// code alone, FALSE until assigned, and its slot the entry's result.
+    Assigned(&'t [crate::ast::Stmt]),
 }
 
 /// An entry's text, parsed: what [`EntryText`] borrows.
@@ -219,15 +223,23 @@ enum ParsedEntry {
     Body(Vec<crate::ast::Stmt>),
     /// A condition.
     Condition(Expr),
+    /// A condition as statements that assign the entry's name.
+    Assigned(Vec<crate::ast::Stmt>),
 }
 
 impl ParsedEntry {
-    /// Parses `text` as statements (`body`) or as a condition.
+    /// Parses `text` as statements (`body`) or as a condition: an expression, else statements
+    /// that assign the condition's name (the expression's error when it is neither).
     fn parse(text: &str, body: bool) -> Result<ParsedEntry, Diagnostic> {
-        match body {
-            true => crate::parse::parse_statements(text).map(ParsedEntry::Body),
-            false => crate::parse::parse_expression(text).map(ParsedEntry::Condition),
+        if body {
+            return crate::parse::parse_statements(text).map(ParsedEntry::Body);
         }
+        crate::parse::parse_expression(text)
+            .map(ParsedEntry::Condition)
+            .or_else(|e| match crate::parse::parse_statements(text) {
+                Ok(stmts) => Ok(ParsedEntry::Assigned(stmts)),
+                Err(_) => Err(e),
+            })
     }
 
     /// The entry to compile.
@@ -235,6 +247,7 @@ impl ParsedEntry {
         match self {
             ParsedEntry::Body(s) => EntryText::Body(s),
             ParsedEntry::Condition(e) => EntryText::Condition(e),
+            ParsedEntry::Assigned(s) => EntryText::Assigned(s),
         }
     }
 }
@@ -723,6 +736,7 @@ impl<'a> Compiler<'a> {
                     ))
                 }
             },
+            EntryText::Assigned(stmts) => Some(self.assigned(name, stmts)?),
         };
         let mut code = std::mem::take(&mut self.code);
         // This code's temporaries are the ones made since it began, but the result, which the
@@ -738,6 +752,35 @@ impl<'a> Compiler<'a> {
             cost,
             result,
         })
+    }
+
+    /// A condition as statements that assign its value to `name` ([`EntryText::Assigned`]): a
+    /// BOOL slot of its own, FALSE at the start of each run, which the statements see by that
+    /// name; its slot.
+    fn assigned(&mut self, name: &str, stmts: &[crate::ast::Stmt]) -> Result<Slot, Diagnostic> {
+        let key = name.to_ascii_uppercase();
+        let pos = stmts.first().map_or(0, |s| s.pos);
+        if self.scope().vars.contains_key(&key) {
+            return Err(Diagnostic::new(
+                pos,
+                format!("the condition is statements that assign its value to `{name}`, and `{name}` is a variable of the POU; rename one"),
+            ));
+        }
+        let slot = self.alloc(Size { slots: 1, text: 0 }, pos)?.slots;
+        self.emit(Op::Const { dst: slot, bits: 0 }, pos)?;
+        let last = self.scopes.len() - 1;
+        let var = VarRef {
+            ty: Ty::Elem(Elem::Bool),
+            loc: Loc::Static(Size {
+                slots: slot,
+                text: 0,
+            }),
+            constant: false,
+        };
+        self.scopes[last].vars.insert(key.clone(), var);
+        let compiled = self.body(stmts);
+        self.scopes[last].vars.remove(&key);
+        compiled.map(|_| slot)
     }
 
     /// The INTERVAL of the task that runs `main` in the file's configuration, if any.

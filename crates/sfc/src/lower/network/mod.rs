@@ -17,7 +17,7 @@ mod element;
 mod order;
 mod writer;
 
-use element::{name_block_outputs, read_element, Kind};
+use element::{name_block_outputs, read_element, Element, Kind};
 use order::execution_order;
 use writer::Writer;
 
@@ -186,6 +186,95 @@ pub(super) fn lower(
     for node in body.children() {
         elements.push(read_element(node).map_err(|(at, c, m)| fail(at, c, &m))?);
     }
+    lower_elements(source, pou, elements, names)
+}
+
+/// The elements of an SFC body that are the chart's own, not a network's.
+const SFC_ELEMENTS: &[&str] = &[
+    "step",
+    "macroStep",
+    "transition",
+    "selectionDivergence",
+    "selectionConvergence",
+    "simultaneousDivergence",
+    "simultaneousConvergence",
+    "jumpStep",
+    "actionBlock",
+];
+
+/// The network drawn in the chart `sfc` that feeds a transition's condition through
+/// `condition` (its `<connectionPointIn>`): the network elements that the condition reads,
+/// directly or through others, ending in `result := …;`.
+pub(super) fn lower_condition(
+    source: &Source,
+    pou: &Pou,
+    (sfc, condition): (Node, Node),
+    result: &str,
+    names: &Names,
+) -> Result<Lowered, SfcError> {
+    let fail = |at: usize, construct: String, message: &str| SfcError::Unsupported {
+        pos: source.pos(at),
+        pou: pou.name.clone(),
+        construct,
+        message: message.to_string(),
+    };
+    let mut all = Vec::new();
+    for node in sfc.children() {
+        if !SFC_ELEMENTS.contains(&node.name()) {
+            all.push(read_element(node).map_err(|(at, c, m)| fail(at, c, &m))?);
+        }
+    }
+    let from = element::connections(Some(condition));
+    let mut wanted: Vec<u64> = from.iter().map(|f| f.id).collect();
+    let mut kept = std::collections::HashSet::new();
+    while let Some(id) = wanted.pop() {
+        if !kept.insert(id) {
+            continue;
+        }
+        for e in all.iter().filter(|e| e.id == id) {
+            wanted.extend(e.inputs.iter().flat_map(|p| p.from.iter().map(|f| f.id)));
+            if let Kind::Continuation { name } = &e.kind {
+                let connectors = all.iter().filter(
+                    |c| matches!(&c.kind, Kind::Connector { name: n } if n.eq_ignore_ascii_case(name)),
+                );
+                wanted.extend(connectors.map(|c| c.id));
+            }
+        }
+    }
+    let mut elements: Vec<Element> = all.into_iter().filter(|e| kept.contains(&e.id)).collect();
+    elements.push(Element {
+        id: u64::MAX - 1,
+        at: condition.range().start,
+        kind: Kind::Out {
+            expr: result.to_string(),
+            negated: false,
+        },
+        inputs: vec![element::Pin {
+            formal: String::new(),
+            negated: false,
+            edge: element::Edge::None,
+            from,
+        }],
+        order: 0,
+        // Last in the order of the drawing: below and right of every element.
+        position: (i64::MAX, i64::MAX),
+    });
+    lower_elements(source, pou, elements, names)
+}
+
+/// Lowers the elements of one network.
+fn lower_elements(
+    source: &Source,
+    pou: &Pou,
+    mut elements: Vec<Element>,
+    names: &Names,
+) -> Result<Lowered, SfcError> {
+    let fail = |at: usize, construct: String, message: &str| SfcError::Unsupported {
+        pos: source.pos(at),
+        pou: pou.name.clone(),
+        construct,
+        message: message.to_string(),
+    };
     name_block_outputs(&mut elements);
     let order = execution_order(&elements).map_err(|(at, c, m)| fail(at, c, &m))?;
     let mut w = Writer::new(&pou.variables, names, &elements);

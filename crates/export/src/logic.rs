@@ -280,7 +280,11 @@ fn slots(
             _ => flag(&mut slot.on, "ON"),
         }
         let holds = !matches!(a.qualifier, Qualifier::P1 | Qualifier::P0 | Qualifier::R);
-        if let (Target::Body(_), true) = (a.target, holds) {
+        // A body's Q in the last scan, for its final run; a chart variable's, for its last write.
+        if matches!(
+            (a.target, holds),
+            (Target::Body(_), true) | (Target::St(_), _)
+        ) {
             flag(&mut slot.was, "WAS");
         }
         stored.push(match a.qualifier {

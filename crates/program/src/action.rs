@@ -129,7 +129,8 @@ pub struct ActionState {
     on: Vec<bool>,
     pulse: Vec<bool>,
     reset: Vec<bool>,
-    /// Per target: its Q in the last scan, pulses left out (a body's final run follows its fall).
+    /// Per target: its Q in the last scan, pulses left out for a body (whose final run follows
+    /// its fall) and counted for a variable of a chart's ST (written once more as it falls).
     was_on: Vec<bool>,
     /// Per action: when its SD or SL timer started; `None` when it runs no such timer.
     stored_since: Vec<Option<u64>>,
@@ -535,25 +536,32 @@ impl ActionState {
             let stored = self.on.get(slot).copied().unwrap_or(false)
                 || self.latch.get(slot).copied().unwrap_or(false);
             let q = stored || self.pulse.get(slot).copied().unwrap_or(false);
+            let last = if matches!(target, Target::St(_)) {
+                q
+            } else {
+                stored
+            };
+            let was = self
+                .was_on
+                .get_mut(slot)
+                .is_some_and(|w| std::mem::replace(w, last));
             let cell = match *target {
                 Target::Output(i) => outputs.get_mut(i as usize),
                 Target::Variable(i) => vars.get_mut(i as usize),
                 Target::Body(_) => None,
-                Target::St(at) => {
+                // While Q is on, and once more as it falls; else the chart's code has it.
+                Target::St(at) if q || was => {
                     let st = self.st.as_mut().and_then(|s| s.slots.get_mut(at as usize));
                     if let Some(c) = st {
                         *c = u64::from(q);
                     }
                     None
                 }
+                Target::St(_) => None,
             };
             if let Some(c) = cell {
                 *c = Value::Bool(q);
             }
-            let was = self
-                .was_on
-                .get_mut(slot)
-                .is_some_and(|w| std::mem::replace(w, stored));
             if let Target::Body(b) = *target {
                 // Q, or the IEC final run in the scan in which a non-pulse Q falls.
                 if q || was {

@@ -109,6 +109,17 @@ fn beremizs_traffic_light_with_ld_and_fbd_in_its_chart_imports_and_runs() {
                 .unwrap_or_else(|e| panic!("at {ms} ms: {e}"));
         }
     };
+    // Switched off, the orange lamp blinks: the LD action sets and resets it every 500 ms,
+    // and the S association of the step ORANGE, whose Q is off, leaves it to the action.
+    let mut changes = 0;
+    let mut last = Value::Bool(false);
+    for _ in 0..30 {
+        run(&mut c, false, false, 100);
+        let now = output(&c, "ORANGE_LIGHT");
+        changes += usize::from(now != last);
+        last = now;
+    }
+    assert!((5..=7).contains(&changes), "{changes} changes in 3 s");
     run(&mut c, true, false, 100);
     assert_eq!(
         output(&c, "ORANGE_LIGHT"),

@@ -190,7 +190,16 @@ impl Logic<'_> {
                         let _ = writeln!(s, "{was} := {};", slot.stored());
                     }
                 }
-                Target::St(at) => self.chart_target(s, at, &slot.q()),
+                Target::St(at) => {
+                    // Written while Q is on and once more as it falls, as the runtime does.
+                    let was = slot.was.as_deref().unwrap_or("FALSE");
+                    let _ = writeln!(s, "IF {} OR {was} THEN", slot.q());
+                    self.chart_target(s, at, &slot.q());
+                    s.push_str("END_IF;\n");
+                    if let Some(was) = &slot.was {
+                        let _ = writeln!(s, "{was} := {};", slot.q());
+                    }
+                }
             }
         }
         self.chart_outputs(s);

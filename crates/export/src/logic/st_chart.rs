@@ -276,7 +276,7 @@ impl Logic<'_> {
             return;
         };
         if let Some(&(_, label)) = calls.targets.iter().find(|t| t.0 == slot) {
-            let _ = writeln!(s, "{}({ENTRY} := {label}, {Q} := {q});", st.instance);
+            let _ = writeln!(s, "  {}({ENTRY} := {label}, {Q} := {q});", st.instance);
         }
     }
 

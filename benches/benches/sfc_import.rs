@@ -44,6 +44,7 @@ fn import(c: &mut Criterion) {
         ("twincat-sfc-evolution-6.xml", None),
         ("beremiz-first-steps.xml", Some("CounterSFC")),
         ("codesys-nested-sfc.xml", None),
+        ("beremiz-svghmi-traffic-light.xml", None),
     ] {
         let text = read(name);
         g.throughput(Throughput::Bytes(text.len() as u64));

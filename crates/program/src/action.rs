@@ -465,28 +465,9 @@ impl ActionState {
         }
     }
 
-    /// A scan that is not quiet: the places entered (true) and left (false) in `edges`, then the
-    /// timers, the actions and the bodies, into `outputs` and `vars`.
-    fn recompute(
-        &mut self,
-        program: &Program,
-        ctx: &EvalCtx,
-        edges: impl Iterator<Item = (PlaceIdx, bool)>,
-        (outputs, vars): (&mut [Value], &mut [Value]),
-        work: &mut Work,
-    ) -> Result<(), ActError> {
-        self.quiet = false;
-        self.begin();
-        for (p, entered) in edges {
-            self.edge(program, p, entered, ctx.now_us);
-        }
-        let now_us = ctx.now_us;
-        self.stored_timers(program, now_us);
-        // A chart's ST reads this scan's inputs, once: a VAR_INPUT one body assigns, the next sees.
-        let chart = program.st().filter(|s| s.is_chart());
-        if let (Some(st), Some(state)) = (chart, self.st.as_mut()) {
-            st.copy_in(ctx.inputs, state);
-        }
+    /// The non-stored and timed qualifiers of the marked places: N on, L before its time, D
+    /// after it, DS latched after it unless reset in this scan; a time still to come is due.
+    fn qualifiers(&mut self, program: &Program, ctx: &EvalCtx) {
         for (a, &slot) in program.actions.iter().zip(&program.action_slot) {
             let marked = ctx.marking.get(a.place.index()).is_some_and(|&m| m > 0);
             if !marked {
@@ -497,8 +478,8 @@ impl ActionState {
                 .get(a.place.index())
                 .copied()
                 .flatten()
-                .unwrap_or(now_us);
-            let elapsed = now_us.saturating_sub(since);
+                .unwrap_or(ctx.now_us);
+            let elapsed = ctx.now_us.saturating_sub(since);
             let on = match a.qualifier {
                 Qualifier::N => true,
                 Qualifier::L(d) | Qualifier::D(d) => {
@@ -522,6 +503,31 @@ impl ActionState {
                 *c = true;
             }
         }
+    }
+
+    /// A scan that is not quiet: the places entered (true) and left (false) in `edges`, then the
+    /// timers, the actions and the bodies, into `outputs` and `vars`.
+    fn recompute(
+        &mut self,
+        program: &Program,
+        ctx: &EvalCtx,
+        edges: impl Iterator<Item = (PlaceIdx, bool)>,
+        (outputs, vars): (&mut [Value], &mut [Value]),
+        work: &mut Work,
+    ) -> Result<(), ActError> {
+        self.quiet = false;
+        self.begin();
+        for (p, entered) in edges {
+            self.edge(program, p, entered, ctx.now_us);
+        }
+        let now_us = ctx.now_us;
+        self.stored_timers(program, now_us);
+        // A chart's ST reads this scan's inputs, once: a VAR_INPUT one body assigns, the next sees.
+        let chart = program.st().filter(|s| s.is_chart());
+        if let (Some(st), Some(state)) = (chart, self.st.as_mut()) {
+            st.copy_in(ctx.inputs, state);
+        }
+        self.qualifiers(program, ctx);
         for ((o, s), &held) in outputs
             .iter_mut()
             .zip(&program.outputs)

@@ -176,15 +176,9 @@ pub(super) fn lower(
     body: Node,
     names: &Names,
 ) -> Result<Lowered, SfcError> {
-    let fail = |at: usize, construct: String, message: &str| SfcError::Unsupported {
-        pos: source.pos(at),
-        pou: pou.name.clone(),
-        construct,
-        message: message.to_string(),
-    };
     let mut elements = Vec::new();
     for node in body.children() {
-        elements.push(read_element(node).map_err(|(at, c, m)| fail(at, c, &m))?);
+        elements.push(read_element(node).map_err(refusal(source, pou))?);
     }
     lower_elements(source, pou, elements, names)
 }
@@ -212,16 +206,10 @@ pub(super) fn lower_condition(
     result: &str,
     names: &Names,
 ) -> Result<Lowered, SfcError> {
-    let fail = |at: usize, construct: String, message: &str| SfcError::Unsupported {
-        pos: source.pos(at),
-        pou: pou.name.clone(),
-        construct,
-        message: message.to_string(),
-    };
     let mut all = Vec::new();
     for node in sfc.children() {
         if !SFC_ELEMENTS.contains(&node.name()) {
-            all.push(read_element(node).map_err(|(at, c, m)| fail(at, c, &m))?);
+            all.push(read_element(node).map_err(refusal(source, pou))?);
         }
     }
     let from = element::connections(Some(condition));
@@ -269,14 +257,8 @@ fn lower_elements(
     mut elements: Vec<Element>,
     names: &Names,
 ) -> Result<Lowered, SfcError> {
-    let fail = |at: usize, construct: String, message: &str| SfcError::Unsupported {
-        pos: source.pos(at),
-        pou: pou.name.clone(),
-        construct,
-        message: message.to_string(),
-    };
     name_block_outputs(&mut elements);
-    let order = execution_order(&elements).map_err(|(at, c, m)| fail(at, c, &m))?;
+    let order = execution_order(&elements).map_err(refusal(source, pou))?;
     let mut w = Writer::new(&pou.variables, names, &elements);
     let mut notes = Vec::new();
     for e in &elements {
@@ -309,8 +291,7 @@ fn lower_elements(
         }
     }
     for index in order {
-        w.element(&elements[index])
-            .map_err(|(at, c, m)| fail(at, c, &m))?;
+        w.element(&elements[index]).map_err(refusal(source, pou))?;
     }
     let mut lowered = w.finish();
     lowered.notes = notes;
@@ -319,3 +300,13 @@ fn lower_elements(
 
 /// Why an element cannot be written: where, the construct, and what to do.
 type Refused = (usize, String, String);
+
+/// A [`Refused`] element of `pou`'s network as the importer's error, at its place in the file.
+fn refusal<'a>(source: &'a Source, pou: &'a Pou) -> impl Fn(Refused) -> SfcError + 'a {
+    move |(at, construct, message)| SfcError::Unsupported {
+        pos: source.pos(at),
+        pou: pou.name.clone(),
+        construct,
+        message,
+    }
+}

@@ -221,18 +221,11 @@ fn conditions(p: &Parts, networks: &mut Networks) -> Result<Vec<Entry>, SfcError
         let (text, at, negated, form) = condition_text(p, &t.condition, id, networks)?;
         let nest = Nest::of_transition(p.nests, i);
         if form == Form::Statements {
-            if let Some(n) = nest {
-                let what = format!(
-                    "a network of statements as the condition of {id}, in the nested chart {}",
-                    n.action
-                );
-                return Err(unsupported(
-                    p,
-                    at,
-                    what,
-                    "draw the nested chart's condition with functions only, or write it in ST",
-                ));
-            }
+            // Inside a nested chart, the condition holds only while the chart's action is on.
+            let text = match nest {
+                Some(n) => format!("{text}{id} := {} AND {id};\n", n.action),
+                None => text,
+            };
             // The importer's text: an error in it is placed at the network.
             let lead = text.len();
             out.push(Entry {
@@ -311,49 +304,35 @@ fn condition_text(
 ) -> Result<(String, usize, bool, Form), SfcError> {
     Ok(match c {
         Condition::St { text, at, negated } => (text.clone(), *at, *negated, Form::File),
-        Condition::Network { name, language, at } => {
-            let text = network_condition(p, name, language, *at, networks)?;
-            (text, *at, false, Form::Lowered)
-        }
-        Condition::Drawn { at, .. } => {
-            let (text, decls, notes) =
-                crate::lower::chart_condition(p.source, p.doc, p.pou, *at, id)?;
-            let form = match text.lines().count() == 1 && decls.is_empty() {
-                true => Form::Lowered,
-                false => Form::Statements,
-            };
-            networks.decls.extend(decls);
-            networks.notes.extend(notes);
-            (text, *at, false, form)
-        }
+        Condition::Network { name, at, .. } => network_text(p, *at, Some(name), id, networks)?,
+        Condition::Drawn { at, .. } => network_text(p, *at, None, id, networks)?,
         Condition::Unsupported { form, at } => {
             return Err(unsupported(p, *at, form.clone(), &format!("the condition of transition {id} must be Structured Text (inline, in an inVariable box, or a named transition's ST, FBD or LD body) or a network drawn in the chart")))
         }
     })
 }
 
-/// The named transition `name`'s network in `language` (at byte `at`) as the statement that
-/// assigns its value, `name := expr;`, which [`expression_of`] reads: a network that needs
-/// more than that one statement (a block instance, a value kept between elements) is refused,
-/// since a condition on the ST compiler is one expression.
-fn network_condition(
+/// The condition of transition `id` from a network at byte `at`: the body of the named
+/// transition `name`, or one drawn in the chart. A network of one statement gives its
+/// expression; a longer one, statements that assign the condition's value to `id`.
+fn network_text(
     p: &Parts,
-    name: &str,
-    language: &str,
     at: usize,
+    name: Option<&str>,
+    id: &str,
     networks: &mut Networks,
-) -> Result<String, SfcError> {
-    let (text, decls, mut noted) = crate::lower::chart_network(p.source, p.doc, p.pou, at)?;
-    if text.lines().count() != 1 || !decls.is_empty() {
-        return Err(unsupported(
-            p,
-            at,
-            format!("the {language} body of transition {name}"),
-            "its network computes the condition in more than one statement (through a function block, or a value it keeps); a condition is one expression: draw it with functions only, or write it in ST",
-        ));
-    }
-    networks.notes.append(&mut noted);
-    Ok(text)
+) -> Result<(String, usize, bool, Form), SfcError> {
+    let (text, decls, notes) = match name {
+        Some(name) => crate::lower::chart_transition(p.source, p.doc, p.pou, at, (name, id))?,
+        None => crate::lower::chart_condition(p.source, p.doc, p.pou, at, id)?,
+    };
+    let form = match text.lines().count() == 1 && decls.is_empty() {
+        true => Form::Lowered,
+        false => Form::Statements,
+    };
+    networks.decls.extend(decls);
+    networks.notes.extend(notes);
+    Ok((text, at, false, form))
 }
 
 /// The expression of a condition's text, and how many bytes before it were left out: a named

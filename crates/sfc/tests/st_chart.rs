@@ -158,3 +158,38 @@ fn an_il_condition_is_refused_by_name_and_place() {
     assert!(text.contains("an inline IL condition"), "{text}");
     assert!(text.contains("in POU `traffic_light_sequence`"), "{text}");
 }
+
+/// A named transition whose network needs more than one statement (here the traffic light's
+/// `STOP` drawn with an R_TRIG instead of its NOT) is a condition written as statements: each
+/// transition that refers to it assigns its own id.
+#[test]
+fn a_named_transition_of_several_statements_assigns_each_referring_transitions_id() {
+    let xml = traffic_light();
+    let (from, to) = (
+        xml.find("<transition name=\"STOP\">").expect("STOP"),
+        xml.find("</transitions>").expect("its end"),
+    );
+    let stop = xml[from..to]
+        .replace(
+            "typeName=\"NOT\"",
+            "typeName=\"R_TRIG\" instanceName=\"EDGE0\"",
+        )
+        .replace("formalParameter=\"IN\"", "formalParameter=\"CLK\"")
+        .replace("formalParameter=\"OUT\"", "formalParameter=\"Q\"");
+    let xml = format!("{}{stop}{}", &xml[..from], &xml[to..]);
+    let imported = cetratus_sfc::import_str(&xml, "light.xml", None, "Light.pnml")
+        .unwrap_or_else(|e| panic!("{e}"));
+    let toml = &imported.toml;
+    for part in [
+        "EDGE0(CLK := SWITCH_BUTTON);\nT16 := EDGE0.Q;",
+        "T4 := EDGE0.Q;",
+        "EDGE0 : R_TRIG",
+    ] {
+        assert!(toml.contains(part), "{part} in {toml}");
+    }
+    let mut c = Container::new(Arc::new(imported.program), 0);
+    for k in 1..=10u64 {
+        c.scan(k * 10_000, &[Value::Bool(k > 5), Value::Bool(false)])
+            .unwrap_or_else(|e| panic!("scan {k}: {e}"));
+    }
+}

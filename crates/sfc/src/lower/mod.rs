@@ -129,6 +129,28 @@ pub(crate) fn chart_network(
     Ok(chart_text(source, lowered))
 }
 
+/// The LD or FBD body (at byte `at`) of `pou`'s named transition `name`, as Structured Text that
+/// assigns its value to the transition `id` that refers to it; the same parts as
+/// [`chart_network`]'s.
+pub(crate) fn chart_transition(
+    source: &Source,
+    doc: &Document,
+    pou: &Pou,
+    at: usize,
+    (name, id): (&str, &str),
+) -> Result<(String, Vec<String>, Vec<String>), SfcError> {
+    let pous = pou::pous(source, doc);
+    let names = network::Names::of(doc, &pous);
+    let Some(body) = pou.node.descendants().find(|n| n.range().start == at) else {
+        return Err(SfcError::Pou {
+            file: source.label.to_string(),
+            message: format!("no network at {} in `{}`", source.pos(at), pou.name),
+        });
+    };
+    let lowered = network::lower_transition(source, pou, body, &names, (name, id))?;
+    Ok(chart_text(source, lowered))
+}
+
 /// A network drawn in a chart of `pou` and wired to a transition's condition, whose
 /// `<connectionPointIn>` is at byte `at` of the file, as Structured Text that assigns its value
 /// to `result` (the transition's id); the same parts as [`chart_network`]'s.

@@ -183,6 +183,29 @@ pub(super) fn lower(
     lower_elements(source, pou, elements, names)
 }
 
+/// The body of the named transition `name`, whose network assigns its value to `name`, lowered
+/// to assign it to the transition `id` instead: the form a condition written as statements takes
+/// (`id := …;`).
+pub(super) fn lower_transition(
+    source: &Source,
+    pou: &Pou,
+    body: Node,
+    names: &Names,
+    (name, id): (&str, &str),
+) -> Result<Lowered, SfcError> {
+    let mut elements = Vec::new();
+    for node in body.children() {
+        let mut e = read_element(node).map_err(refusal(source, pou))?;
+        if let Kind::Out { expr, .. } = &mut e.kind {
+            if expr.eq_ignore_ascii_case(name) {
+                *expr = id.to_string();
+            }
+        }
+        elements.push(e);
+    }
+    lower_elements(source, pou, elements, names)
+}
+
 /// The elements of an SFC body that are the chart's own, not a network's.
 const SFC_ELEMENTS: &[&str] = &[
     "step",

@@ -315,7 +315,7 @@ impl Unit {
     }
 
     /// Translates the body and the entries into machine code, once: later calls, and calls on
-    /// clones, return at once. It takes about 11 µs an instruction (docs/st.md, *Machine
+    /// clones, return at once. It takes about 7 µs an instruction (docs/st.md, *Machine
     /// code*), so it is called where a program is made ready to run, off the scan thread, never
     /// by [`Unit::run`], which interprets until it is done. Whether the body is now in machine
     /// code.

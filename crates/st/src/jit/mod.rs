@@ -33,7 +33,7 @@ use crate::code::{Code, FaultKind, Piece};
 use crate::vm::{Fault, State};
 use crate::work::Work;
 
-/// The longest code that is translated, about a second of translation (some 11 µs an
+/// The longest code that is translated, under a second of translation (some 7 µs an
 /// instruction); longer code runs on the interpreter, whose speed does not depend on the code's
 /// length while the translation's time grows with it, and a package cannot make a load spend
 /// more than that on it.

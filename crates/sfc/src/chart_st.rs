@@ -221,11 +221,13 @@ fn conditions(p: &Parts, networks: &mut Networks) -> Result<Vec<Entry>, SfcError
         let (text, at, negated, form) = condition_text(p, &t.condition, id, networks)?;
         let nest = Nest::of_transition(p.nests, i);
         if form == Form::Statements {
-            // Inside a nested chart, the condition holds only while the chart's action is on.
-            let text = match nest {
-                Some(n) => format!("{text}{id} := {} AND {id};\n", n.action),
-                None => text,
-            };
+            if let Some(n) = nest {
+                let what = format!(
+                    "a network of statements as the condition of {id}, in the nested chart {}",
+                    n.action
+                );
+                return Err(unsupported(p, at, what, "the condition's value would go to a name with its action's prefix, which is no IEC identifier; draw it with functions only, or write it in ST"));
+            }
             // The importer's text: an error in it is placed at the network.
             let lead = text.len();
             out.push(Entry {

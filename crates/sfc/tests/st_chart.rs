@@ -193,3 +193,36 @@ fn a_named_transition_of_several_statements_assigns_each_referring_transitions_i
             .unwrap_or_else(|e| panic!("scan {k}: {e}"));
     }
 }
+
+/// In a nested chart a network of statements as a condition is refused by name: its value would
+/// go to the transition's id, `A__T<n>`, which is no IEC identifier. (CODESYS's nested chart,
+/// with an R_TRIG drawn between its condition and the box that holds it.)
+#[test]
+fn a_network_of_statements_in_a_nested_chart_is_refused_by_name() {
+    let xml = std::fs::read_to_string(cetratus_testkit::paths::fixture(
+        "plcopen/codesys-nested-sfc.xml",
+    ))
+    .expect("the fixture");
+    let (from, to) = (
+        xml.find("<action name=\"sub_sfc1\">")
+            .expect("the nested chart"),
+        xml.find("<action name=\"shared_st1\"")
+            .expect("the next action"),
+    );
+    let block = "<block localId=\"900\" typeName=\"R_TRIG\" instanceName=\"EDGE9\"><inputVariables><variable formalParameter=\"CLK\"><connectionPointIn><connection refLocalId=\"4\" /></connectionPointIn></variable></inputVariables><inOutVariables /><outputVariables><variable formalParameter=\"Q\"><connectionPointOut /></variable></outputVariables></block><inVariable localId=\"4\">";
+    let nested = xml[from..to]
+        .replace(
+            "<connection refLocalId=\"4\" />",
+            "<connection refLocalId=\"900\" formalParameter=\"Q\" />",
+        )
+        .replace("<inVariable localId=\"4\">", block);
+    let xml = format!("{}{nested}{}", &xml[..from], &xml[to..]);
+    let err =
+        cetratus_sfc::import_str(&xml, "nested.xml", None, "Nested.pnml").expect_err("refused");
+    let text = err.to_string();
+    assert!(text.starts_with("nested.xml:"), "{text}");
+    assert!(
+        text.contains("a network of statements as the condition of sub_sfc1__T5"),
+        "{text}"
+    );
+}

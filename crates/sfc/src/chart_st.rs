@@ -163,7 +163,7 @@ fn actions(p: &Parts, networks: &mut Networks) -> Result<(Vec<Action>, Vec<Entry
                         if matches!(language.as_str(), "LD" | "FBD") =>
                     {
                         let (text, decls, notes) =
-                            crate::lower::chart_network(p.source, p.doc, p.pou, *at)?;
+                            crate::lower::chart_network(p.source, p.doc, p.pou, *at, None)?;
                         networks.decls.extend(decls);
                         networks.notes.extend(notes);
                         let drive = body(&mut bodies, &n.name, &text, *at);
@@ -325,7 +325,7 @@ fn network_text(
     networks: &mut Networks,
 ) -> Result<(String, usize, bool, Form), SfcError> {
     let (text, decls, notes) = match name {
-        Some(name) => crate::lower::chart_transition(p.source, p.doc, p.pou, at, (name, id))?,
+        Some(name) => crate::lower::chart_network(p.source, p.doc, p.pou, at, Some((name, id)))?,
         None => crate::lower::chart_condition(p.source, p.doc, p.pou, at, id)?,
     };
     let form = match text.lines().count() == 1 && decls.is_empty() {

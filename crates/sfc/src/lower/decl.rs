@@ -209,7 +209,7 @@ fn write_pou(
             out.verbatim(source, text_at, &text);
         }
     } else {
-        let mut lowered = network::lower(source, pou, body, names).map_err(Refusal::Error)?;
+        let mut lowered = network::lower(source, pou, body, names, None).map_err(Refusal::Error)?;
         lowered.write(at, out, matches!(pou_kind(pou), PouKind::Function));
         for (at, note) in lowered.notes.drain(..) {
             notes.at(at, note);

@@ -110,12 +110,14 @@ pub(crate) fn chart_library(
 /// `pou` (the element at byte `at` of the file), as Structured Text: its statements, the
 /// declarations it needs in the chart's POU (`name : type`: the block instances the interface
 /// does not declare, and the values the network keeps between its elements), and what the
-/// importer added that the file did not say.
+/// importer added that the file did not say. With `renamed` `(name, id)`, the body of the named
+/// transition `name`, assigning its value to the transition `id` that refers to it.
 pub(crate) fn chart_network(
     source: &Source,
     doc: &Document,
     pou: &Pou,
     at: usize,
+    renamed: Option<(&str, &str)>,
 ) -> Result<(String, Vec<String>, Vec<String>), SfcError> {
     let pous = pou::pous(source, doc);
     let names = network::Names::of(doc, &pous);
@@ -125,29 +127,7 @@ pub(crate) fn chart_network(
             message: format!("no network at {} in `{}`", source.pos(at), pou.name),
         });
     };
-    let lowered = network::lower(source, pou, body, &names)?;
-    Ok(chart_text(source, lowered))
-}
-
-/// The LD or FBD body (at byte `at`) of `pou`'s named transition `name`, as Structured Text that
-/// assigns its value to the transition `id` that refers to it; the same parts as
-/// [`chart_network`]'s.
-pub(crate) fn chart_transition(
-    source: &Source,
-    doc: &Document,
-    pou: &Pou,
-    at: usize,
-    (name, id): (&str, &str),
-) -> Result<(String, Vec<String>, Vec<String>), SfcError> {
-    let pous = pou::pous(source, doc);
-    let names = network::Names::of(doc, &pous);
-    let Some(body) = pou.node.descendants().find(|n| n.range().start == at) else {
-        return Err(SfcError::Pou {
-            file: source.label.to_string(),
-            message: format!("no network at {} in `{}`", source.pos(at), pou.name),
-        });
-    };
-    let lowered = network::lower_transition(source, pou, body, &names, (name, id))?;
+    let lowered = network::lower(source, pou, body, &names, renamed)?;
     Ok(chart_text(source, lowered))
 }
 

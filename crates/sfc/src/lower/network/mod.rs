@@ -169,34 +169,21 @@ impl Lowered {
     }
 }
 
-/// Lowers the LD or FBD body `body` of `pou`.
+/// Lowers the LD or FBD body `body` of `pou`. With `renamed` `(name, id)`, the body of the
+/// named transition `name`, whose network assigns its value to `name`, assigns it to the
+/// transition `id` that refers to it instead: the form a condition written as statements takes
+/// (`id := …;`).
 pub(super) fn lower(
     source: &Source,
     pou: &Pou,
     body: Node,
     names: &Names,
-) -> Result<Lowered, SfcError> {
-    let mut elements = Vec::new();
-    for node in body.children() {
-        elements.push(read_element(node).map_err(refusal(source, pou))?);
-    }
-    lower_elements(source, pou, elements, names)
-}
-
-/// The body of the named transition `name`, whose network assigns its value to `name`, lowered
-/// to assign it to the transition `id` instead: the form a condition written as statements takes
-/// (`id := …;`).
-pub(super) fn lower_transition(
-    source: &Source,
-    pou: &Pou,
-    body: Node,
-    names: &Names,
-    (name, id): (&str, &str),
+    renamed: Option<(&str, &str)>,
 ) -> Result<Lowered, SfcError> {
     let mut elements = Vec::new();
     for node in body.children() {
         let mut e = read_element(node).map_err(refusal(source, pou))?;
-        if let Kind::Out { expr, .. } = &mut e.kind {
+        if let (Kind::Out { expr, .. }, Some((name, id))) = (&mut e.kind, renamed) {
             if expr.eq_ignore_ascii_case(name) {
                 *expr = id.to_string();
             }

@@ -6,6 +6,7 @@ use std::collections::{BTreeSet, HashMap};
 use std::fmt::Write as _;
 
 use cetratus_program::guard::{Expr, ExprKind};
+use cetratus_program::st::ChartTexts;
 use cetratus_program::{Program, Qualifier, Signal, Statement, Target, Type};
 
 use crate::expr::{st, time_literal, Symbols};
@@ -138,7 +139,9 @@ impl<'p> Logic<'p> {
                 signals.insert(s.name.clone(), names.claim(Some(kind), &s.name));
             }
         }
-        let reads = reads(program)?;
+        // A chart's ST texts, read again from the program's text once for the whole export.
+        let chart = program.chart_texts();
+        let reads = reads(program, chart.as_ref())?;
         let net = program.net();
         let mut claim = |n: &str| names.claim(None, n);
         let kernel = claim("KERNEL");
@@ -174,7 +177,7 @@ impl<'p> Logic<'p> {
             .map(|x| (x.clone(), claim(&format!("PREV_{x}"))))
             .collect();
         let (slots, stored) = slots(program, &mut claim);
-        let st_body = st_body::prepare(program, &mut claim)?;
+        let st_body = st_body::prepare(program, chart.as_ref(), &mut claim)?;
         let sym = Symbols {
             signals,
             places,
@@ -218,7 +221,7 @@ impl<'p> Logic<'p> {
 
 /// What the guards and the guard-language bodies read (a Structured Text body keeps its own
 /// timers and edges).
-fn reads(program: &Program) -> Result<Reads, ExportError> {
+fn reads(program: &Program, chart: Option<&ChartTexts>) -> Result<Reads, ExportError> {
     let mut r = Reads::default();
     for t in 0..program.net().num_transitions() {
         if let Some(g) = program.guard(cetratus_net::TransIdx(t as u32)) {
@@ -226,7 +229,7 @@ fn reads(program: &Program) -> Result<Reads, ExportError> {
         }
     }
     // A chart's ST reads the step flags, `X` and `T`: a timer and a dwell per step.
-    for (place, _) in program.chart_texts().iter().flat_map(|c| &c.steps) {
+    for (place, _) in chart.iter().flat_map(|c| &c.steps) {
         r.timers.insert(place.clone());
         r.dwells.insert(place.clone());
     }

@@ -5,6 +5,7 @@
 //! and the library's CONFIGURATION goes (the export has its own). The interpretation calls it
 //! as the runtime runs it: the inputs copied in, one pass, the outputs copied out.
 
+use cetratus_program::st::ChartTexts;
 use cetratus_st::types::Elem;
 
 use super::*;
@@ -27,10 +28,10 @@ pub(crate) struct StBody {
 }
 
 /// The text of the program's ST library and what to name it by in messages: a chart's
-/// `[st] source`, or the POU body's own text.
-fn library_source(program: &Program) -> Option<(String, String)> {
-    if let Some(chart) = program.chart_texts() {
-        return Some((chart.library, "the chart".to_string()));
+/// `[st] source` (`chart`, the program's [`Program::chart_texts`]), or the POU body's own text.
+fn library_source(program: &Program, chart: Option<&ChartTexts>) -> Option<(String, String)> {
+    if let Some(chart) = chart {
+        return Some((chart.library.clone(), "the chart".to_string()));
     }
     let body = program.bodies().iter().find(|b| b.st().is_some())?;
     Some((body.source().to_string(), format!("`{}`", body.name())))
@@ -39,7 +40,7 @@ fn library_source(program: &Program) -> Option<(String, String)> {
 /// The names of the POUs and types an ST library declares, which the export's own names must
 /// not take.
 pub(crate) fn library_names(program: &Program) -> Vec<String> {
-    let Some((source, _)) = library_source(program) else {
+    let Some((source, _)) = library_source(program, program.chart_texts().as_ref()) else {
         return Vec::new();
     };
     let Ok(lib) = cetratus_st::parse::parse_library(&source) else {
@@ -55,12 +56,14 @@ pub(crate) fn library_names(program: &Program) -> Vec<String> {
         .collect()
 }
 
-/// The program's ST body, if it has one; `claim` names its instance.
+/// The program's ST body, if it has one, with `chart` its [`Program::chart_texts`]; `claim`
+/// names its instance.
 pub(crate) fn prepare(
     program: &Program,
+    chart: Option<&ChartTexts>,
     claim: &mut impl FnMut(&str) -> String,
 ) -> Result<Option<StBody>, ExportError> {
-    let (Some(st), Some((source, what))) = (program.st(), library_source(program)) else {
+    let (Some(st), Some((source, what))) = (program.st(), library_source(program, chart)) else {
         return Ok(None);
     };
     let unit = st.unit();
@@ -102,8 +105,8 @@ pub(crate) fn prepare(
         }
     }
     let (mut text, globals) = library_text(&source, &unit.name)?;
-    let chart = match program.chart_texts() {
-        Some(texts) => Some(super::st_chart::prepare(program, st, &texts, &mut text)?),
+    let chart = match chart {
+        Some(texts) => Some(super::st_chart::prepare(program, st, texts, &mut text)?),
         None => None,
     };
     Ok(Some(StBody {

@@ -50,12 +50,22 @@ pub fn all_figures(quick: bool) -> Result<Figures, BenchError> {
     out.insert(s("guard_ns_per_instruction"), guard_ns.into());
     out.insert(s("body_ns_per_instruction"), body_ns.into());
     // A chart four times longer costs four times more when the import is linear.
+    let import_ms = |text: String| program::plcopen_import_ms(&text, 3);
     let (short, long) = (
-        program::plcopen_import_ms(5_000, 3),
-        program::plcopen_import_ms(20_000, 3),
+        import_ms(program::plcopen_chain(5_000)),
+        import_ms(program::plcopen_chain(20_000)),
     );
     out.insert(s("plcopen_import_20k_steps_ms"), long.into());
     out.insert(s("plcopen_import_ratio_20k_vs_5k"), (long / short).into());
+    let (short, long) = (
+        import_ms(program::plcopen_networks(2_000)),
+        import_ms(program::plcopen_networks(8_000)),
+    );
+    out.insert(s("plcopen_networks_import_8k_ms"), long.into());
+    out.insert(
+        s("plcopen_networks_import_ratio_8k_vs_2k"),
+        (long / short).into(),
+    );
     let hour = program::twin_hour();
     out.insert(s("twin_hour_wall_ms"), hour.wall_ms.into());
     out.insert(s("twin_hour_parts_finished"), hour.parts_finished.into());

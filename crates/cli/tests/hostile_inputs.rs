@@ -23,7 +23,7 @@ use cetratus_program::guard::MAX_TOKENS;
 use cetratus_testkit::mqtt;
 use cetratus_testkit::paths::example;
 use cetratus_testkit::ports::{free_port, wait_for_port};
-use cetratus_testkit::process::ChildGuard;
+use cetratus_testkit::process::{output_within, ChildGuard};
 use serde_json::{json, Value};
 
 const BIN: &str = env!("CARGO_BIN_EXE_cetratus");
@@ -261,29 +261,6 @@ fn a_pnml_entity_that_expands_to_gigabytes_is_refused_naming_the_limit() {
     }
 }
 
-/// `cetratus check FILE`, killed if it has not ended within `limit`: a reader that is quadratic
-/// in its input takes hours on the files below, a linear one well under a second.
-fn check_within(file: &Path, limit: Duration) -> Output {
-    let mut child = Command::new(BIN)
-        .args(["check", path(file)])
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .expect("cetratus runs");
-    let started = Instant::now();
-    while child.try_wait().expect("wait").is_none() {
-        if started.elapsed() > limit {
-            child.kill().ok();
-            panic!(
-                "`cetratus check {}` was still reading after {limit:?}",
-                file.display()
-            );
-        }
-        std::thread::sleep(Duration::from_millis(50));
-    }
-    child.wait_with_output().expect("output")
-}
-
 /// A PNML root whose `attributes` (a million of them) precede one net of one place.
 fn pnml_with_root_attributes(attributes: &str, children: &str) -> String {
     format!(
@@ -317,7 +294,10 @@ fn pnml_files_with_a_million_attributes_or_prefixes_are_read_in_linear_time() {
     for (name, text) in cases {
         let file = dir.path().join(name);
         std::fs::write(&file, text).expect("write");
-        let out = check_within(&file, Duration::from_secs(120));
+        let out = output_within(
+            Command::new(BIN).args(["check", path(&file)]),
+            Duration::from_secs(120),
+        );
         if name == "duplicate.pnml" {
             refused(name, &out, &[name, "`a7` appears twice"]);
         } else {

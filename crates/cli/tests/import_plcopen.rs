@@ -507,3 +507,31 @@ fn the_codesys_press_chart_imports_on_the_st_compiler_and_runs_from_a_replay() {
         "back in Idle at the end: {csv}"
     );
 }
+
+/// A chart of thousands of networks imports in time that grows with its size: each network was
+/// lowered by walking the whole file again (its POUs, its names, the chart's elements), and
+/// each note placed by counting the lines before it, hours of CPU at the size limit.
+#[test]
+#[cfg(feature = "bench")]
+fn a_chart_of_thousands_of_networks_imports_in_time_linear_in_its_size() {
+    let dir = tempfile::tempdir().expect("a temporary directory");
+    let n = 6000;
+    let file = dir.path().join("ring.xml");
+    std::fs::write(&file, cetratus_bench::program::plcopen_networks(n)).expect("write");
+    let out = cetratus_testkit::process::output_within(
+        std::process::Command::new(binary::BIN).args([
+            "import",
+            "plcopen",
+            file.to_str().expect("UTF-8"),
+            "-o",
+            dir.path().to_str().expect("UTF-8"),
+        ]),
+        std::time::Duration::from_secs(120),
+    );
+    let printed = ok(&out);
+    let what = format!("{n} steps, {n} transitions, {n} actions");
+    assert!(printed.contains(&what), "{printed}");
+    let notes = String::from_utf8_lossy(&out.stderr);
+    let last = format!("the block instance `E{}` (R_TRIG) is not declared", n - 1);
+    assert!(notes.contains(&last), "{}", &notes[..notes.len().min(2000)]);
+}

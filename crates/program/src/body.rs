@@ -327,16 +327,16 @@ impl Builder<'_, '_> {
         expr_at: usize,
     ) -> Result<(), SyntaxError> {
         let scope = self.c.scope;
-        let (store, want) = if let Some(i) = scope.vars.iter().position(|s| s.name == name) {
+        let (store, want) = if let Some(i) = scope.var(name) {
             self.vars.push(i as u32);
             (Op::StoreVar(i as u32, scope.vars[i].ty), scope.vars[i].ty)
-        } else if let Some(i) = scope.outputs.iter().position(|s| s.name == name) {
+        } else if let Some(i) = scope.output(name) {
             self.outputs.push(i as u32);
             (
                 Op::StoreOut(i as u32, scope.outputs[i].ty),
                 scope.outputs[i].ty,
             )
-        } else if scope.inputs.iter().any(|s| s.name == name) {
+        } else if scope.input(name).is_some() {
             return Err(SyntaxError::new(at, format!("`{name}` is an input, which the program cannot assign; assign a variable or an output")));
         } else {
             return Err(SyntaxError::new(

@@ -189,12 +189,7 @@ impl Program {
         let outputs = signals(&doc.output, Kind::Output)?;
         let variables = signals(&doc.variable, Kind::Variable)?;
 
-        let scope = Scope {
-            inputs: &inputs,
-            outputs: &outputs,
-            vars: &variables,
-            net: &net,
-        };
+        let scope = Scope::new(&inputs, &outputs, &variables, &net);
         let guards = guards(&o, &doc, &scope)?;
         let st_conditions = structured::st_conditions(&o, &doc, &net)?;
         // Bodies, then the actions that run them or drive a signal.
@@ -206,8 +201,7 @@ impl Program {
                 output_held[i as usize] = true;
             }
         }
-        let signals = (&outputs[..], &variables[..], &inputs[..]);
-        let actions = actions(&o, &doc, &net, signals, &bodies, st.as_deref())?;
+        let actions = actions(&o, &doc, &scope, &bodies, st.as_deref())?;
         let (action_targets, action_slot) = action_slots(&actions);
         let (place_action_start, place_actions) = actions_by_place(net.num_places(), &actions);
         let invariants = invariants(&o, &doc, &net)?;
@@ -316,12 +310,8 @@ impl Program {
     /// guard language), e.g. `P10 == 1 && P20 == 1` for `substitute --when`. The error names the
     /// column in `text`.
     pub fn compile_condition(&self, text: &str) -> Result<Guard, ProgramError> {
-        let scope = crate::guard::Scope {
-            inputs: &self.inputs,
-            outputs: &self.outputs,
-            vars: &self.variables,
-            net: &self.net,
-        };
+        let scope =
+            crate::guard::Scope::new(&self.inputs, &self.outputs, &self.variables, &self.net);
         Guard::compile(text, &scope).map_err(|e| ProgramError::File {
             path: "<condition>".to_string(),
             message: format!("column {}: {}", e.offset + 1, e.message),

@@ -388,12 +388,7 @@ impl Mapping<'_> {
         }
         // The `Q` of each action with a nested chart, as a BOOL variable named after the action.
         for n in self.nests {
-            if let Some(v) = self
-                .pou
-                .variables
-                .iter()
-                .find(|v| v.name.eq_ignore_ascii_case(&n.action))
-            {
+            if let Some(v) = self.pou.variable(&n.action) {
                 return Err(self.chart_err(
                     v.at,
                     format!(

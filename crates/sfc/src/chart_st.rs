@@ -4,6 +4,7 @@
 //! `[st.conditions]` entry, as the file writes them. Everything is compiled here first, so that
 //! an error names the file's line and column; the program then compiles the same text.
 
+use std::collections::{HashMap, HashSet};
 use std::fmt::Write as _;
 
 use cetratus_st::parse::parse_library;
@@ -12,8 +13,9 @@ use cetratus_st::{compile_entry_texts, Unit};
 
 use crate::build::{header, q, qualifier_name, write_actions, Action, Drive, ExtraGuard};
 use crate::chart::{ActionRef, Chart, Condition};
+use crate::lower::{ChartNetworks, Text};
 use crate::nest::{Nest, SEP};
-use crate::pou::{Body, Pou};
+use crate::pou::{Body, Named, Pou};
 use crate::source::Source;
 use crate::structured::{st_error, toml_text, write_signals};
 use crate::SfcError;
@@ -46,13 +48,18 @@ struct Entry {
 /// The program TOML of the chart on the ST compiler.
 pub(crate) fn program_toml(p: &Parts, notes: &mut Vec<String>) -> Result<String, SfcError> {
     // Conditions first, as the chart reads: the first refusal is the same as the subset's.
-    let mut networks = Networks::default();
+    let mut networks = Networks {
+        lower: ChartNetworks::new(p.source, p.doc, p.pou),
+        decls: Vec::new(),
+        notes: Vec::new(),
+    };
     let conditions = conditions(p, &mut networks)?;
     let (actions, mut entries) = actions(p, &mut networks)?;
     entries.extend(conditions);
     let mut vars = chart_vars(p)?;
+    let mut declared: HashSet<String> = vars.iter().cloned().collect();
     for d in networks.decls {
-        if !vars.contains(&d) {
+        if declared.insert(d.clone()) {
             vars.push(d);
         }
     }
@@ -75,41 +82,43 @@ pub(crate) fn program_toml(p: &Parts, notes: &mut Vec<String>) -> Result<String,
         }
     }
     let _ = writeln!(out, "\n[st.steps]");
-    for s in &p.chart.steps {
-        let _ = writeln!(out, "{} = {}", q(&s.name), q(local_name(p, &s.name)));
+    for (i, s) in p.chart.steps.iter().enumerate() {
+        let _ = writeln!(out, "{} = {}", q(&s.name), q(local_name(p, i)));
     }
     Ok(out)
 }
 
-/// A step's name as the ST reads it: a nested chart's step without its action's prefix.
-fn local_name<'s>(p: &Parts, step: &'s str) -> &'s str {
-    (p.nests.iter())
-        .find_map(|n| step.strip_prefix(&format!("{}{SEP}", n.action)))
+/// Step `s`'s name as the ST reads it: a nested chart's step without its action's prefix.
+fn local_name<'p>(p: &Parts<'p>, s: usize) -> &'p str {
+    let step = p.chart.steps[s].name.as_str();
+    let nest = Nest::of_step(p.nests, s);
+    (nest.and_then(|n| step.strip_prefix(n.action.as_str())))
+        .and_then(|rest| rest.strip_prefix(SEP))
         .unwrap_or(step)
 }
 
 /// The chart's own variables: each step's flags, and each nested chart's `Q`; a name that is
 /// taken already is refused.
 fn chart_vars(p: &Parts) -> Result<Vec<String>, SfcError> {
-    let mut names: Vec<&str> = Vec::new();
+    let mut names: HashSet<String> = (p.pou.variables.iter())
+        .map(|v| v.name.to_ascii_uppercase())
+        .collect();
     let mut out = Vec::new();
     let steps = p
         .chart
         .steps
         .iter()
-        .map(|s| (local_name(p, &s.name), s.at, true));
+        .enumerate()
+        .map(|(i, s)| (local_name(p, i), s.at, true));
     let nested = p.nests.iter().map(|n| (n.action.as_str(), 0, false));
     for (name, at, step) in steps.chain(nested) {
-        let taken = (p.pou.variables.iter()).any(|v| v.name.eq_ignore_ascii_case(name))
-            || names.iter().any(|n| n.eq_ignore_ascii_case(name));
-        if taken {
+        if !names.insert(name.to_ascii_uppercase()) {
             return Err(SfcError::Chart {
                 pos: p.source.pos(at),
                 pou: p.pou.name.clone(),
                 message: format!("the name `{name}` is declared twice among the POU's variables, its steps and its nested charts (IEC names are case-insensitive); rename one"),
             });
         }
-        names.push(name);
         out.push(match step {
             true => format!("{name} : CETRATUS_STEP"),
             false => format!("{name} : BOOL"),
@@ -118,19 +127,34 @@ fn chart_vars(p: &Parts) -> Result<Vec<String>, SfcError> {
     Ok(out)
 }
 
-/// What the LD and FBD bodies of the chart's actions add to its POU: the declarations their
-/// networks need (`name : type`), and the notes of their lowering.
-#[derive(Default)]
-struct Networks {
+/// The LD and FBD networks of the chart, and what they add to its POU: the declarations they
+/// need (`name : type`), and the notes of their lowering.
+struct Networks<'s, 'a, 'i> {
+    lower: ChartNetworks<'s, 'a, 'i>,
     decls: Vec<String>,
     notes: Vec<String>,
+}
+
+impl Networks<'_, '_, '_> {
+    /// The statements of a lowered network, its declarations and notes taken.
+    fn take(&mut self, (text, decls, notes): Text) -> String {
+        self.decls.extend(decls);
+        self.notes.extend(notes);
+        text
+    }
 }
 
 /// The `[[action]]`s, and the bodies they run as entries: a named action associated with
 /// several steps is one body, with one action control, as in IEC 61131-3. A body in LD or FBD
 /// is the Structured Text its network means (docs/st.md, *LD and FBD*).
 fn actions(p: &Parts, networks: &mut Networks) -> Result<(Vec<Action>, Vec<Entry>), SfcError> {
-    let (mut actions, mut bodies) = (Vec::new(), Vec::<Entry>::new());
+    let mut actions = Vec::new();
+    let mut bodies = Bodies::default();
+    let mut named: HashMap<String, &Named> = HashMap::new();
+    for n in &p.pou.actions {
+        named.entry(n.name.to_ascii_uppercase()).or_insert(n);
+    }
+    let nested: HashSet<&str> = p.nests.iter().map(|n| n.action.as_str()).collect();
     for (k, a) in p.chart.associations.iter().enumerate() {
         let step = p.chart.steps[a.step].name.clone();
         let duration = match (a.qualifier.is_timed(), &a.duration) {
@@ -148,39 +172,35 @@ fn actions(p: &Parts, networks: &mut Networks) -> Result<(Vec<Action>, Vec<Entry
         };
         let refuse = |construct: String, why: &str| Err(unsupported(p, a.at, construct, why));
         let drive = match &a.action {
-            ActionRef::Reference(name) => {
-                let named = p
-                    .pou
-                    .actions
-                    .iter()
-                    .find(|n| n.name.eq_ignore_ascii_case(name));
-                match named.map(|n| (n, &n.body)) {
-                    Some((n, Body::St { text, at })) => body(&mut bodies, &n.name, text, *at),
-                    Some((n, Body::Other { .. })) if p.nests.iter().any(|x| x.action == n.name) => {
-                        Drive::Target(n.name.clone())
-                    }
-                    Some((n, Body::Other { language, at }))
-                        if matches!(language.as_str(), "LD" | "FBD") =>
-                    {
-                        let (text, decls, notes) =
-                            crate::lower::chart_network(p.source, p.doc, p.pou, *at, None)?;
-                        networks.decls.extend(decls);
-                        networks.notes.extend(notes);
-                        let drive = body(&mut bodies, &n.name, &text, *at);
-                        // The text is the importer's: an error in it is placed at the network.
-                        if let Some(b) = bodies.iter_mut().find(|b| b.name == n.name) {
-                            b.lead = b.text.len();
-                        }
-                        drive
-                    }
-                    Some((_, Body::Other { language, .. })) => {
-                        return refuse(format!("the action `{name}` with a {language} body"), "action bodies must be Structured Text or a chart (an FBD, LD or IL body is not imported)");
-                    }
-                    None => Drive::Target(name.clone()),
+            ActionRef::Reference(name) => match named.get(&name.to_ascii_uppercase()) {
+                Some(n) if nested.contains(n.name.as_str()) => Drive::Target(n.name.clone()),
+                Some(n) if bodies.has(&n.name) => Drive::Body(n.name.clone()),
+                Some(Named {
+                    name,
+                    body: Body::St { text, at },
+                }) => bodies.add(name, text.clone(), *at, false),
+                Some(Named {
+                    name,
+                    body: Body::Other { language, at },
+                }) if matches!(language.as_str(), "LD" | "FBD") => {
+                    let text = networks.lower.body(*at, None)?;
+                    // The text is the importer's: an error in it is placed at the network.
+                    bodies.add(name, networks.take(text), *at, true)
                 }
-            }
+                Some(Named {
+                    body: Body::Other { language, .. },
+                    ..
+                }) => {
+                    return refuse(format!("the action `{name}` with a {language} body"), "action bodies must be Structured Text or a chart (an FBD, LD or IL body is not imported)");
+                }
+                None => Drive::Target(name.clone()),
+            },
             ActionRef::Inline(Body::St { text, at }) => {
-                body(&mut bodies, &format!("{step}_inline{}", k + 1), text, *at)
+                let name = format!("{step}_inline{}", k + 1);
+                match bodies.has(&name) {
+                    true => Drive::Body(name),
+                    false => bodies.add(&name, text.clone(), *at, false),
+                }
             }
             ActionRef::Inline(Body::Other { language, .. }) => {
                 return refuse(
@@ -196,21 +216,37 @@ fn actions(p: &Parts, networks: &mut Networks) -> Result<(Vec<Action>, Vec<Entry
             duration,
         });
     }
-    Ok((actions, bodies))
+    Ok((actions, bodies.entries))
 }
 
-/// The body `name` (its `text` at byte `at` of the file) as an entry, once, and run.
-fn body(bodies: &mut Vec<Entry>, name: &str, text: &str, at: usize) -> Drive {
-    if !bodies.iter().any(|b| b.name.eq_ignore_ascii_case(name)) {
-        bodies.push(Entry {
+/// The action bodies of the chart, each once.
+#[derive(Default)]
+struct Bodies {
+    entries: Vec<Entry>,
+    /// Their names, upper case (IEC names are case-insensitive).
+    names: HashSet<String>,
+}
+
+impl Bodies {
+    /// Whether the body `name` is there.
+    fn has(&self, name: &str) -> bool {
+        self.names.contains(&name.to_ascii_uppercase())
+    }
+
+    /// The body `name` (its `text` at byte `at` of the file) as an entry, and run; an error
+    /// in the text is placed at `at` if it is the importer's (`written`), at its own place in
+    /// the file if it is the file's.
+    fn add(&mut self, name: &str, text: String, at: usize, written: bool) -> Drive {
+        self.names.insert(name.to_ascii_uppercase());
+        self.entries.push(Entry {
             name: name.to_string(),
-            text: text.to_string(),
-            lead: 0,
+            lead: if written { text.len() } else { 0 },
+            text,
             at: Some(at),
             body: true,
         });
+        Drive::Body(name.to_string())
     }
-    Drive::Body(name.to_string())
 }
 
 /// The conditions as entries: negated as their box says, and a nested chart's only while its
@@ -306,8 +342,8 @@ fn condition_text(
 ) -> Result<(String, usize, bool, Form), SfcError> {
     Ok(match c {
         Condition::St { text, at, negated } => (text.clone(), *at, *negated, Form::File),
-        Condition::Network { name, at, .. } => network_text(p, *at, Some(name), id, networks)?,
-        Condition::Drawn { at, .. } => network_text(p, *at, None, id, networks)?,
+        Condition::Network { name, at, .. } => network_text(*at, Some(name), id, networks)?,
+        Condition::Drawn { at, .. } => network_text(*at, None, id, networks)?,
         Condition::Unsupported { form, at } => {
             return Err(unsupported(p, *at, form.clone(), &format!("the condition of transition {id} must be Structured Text (inline, in an inVariable box, or a named transition's ST, FBD or LD body) or a network drawn in the chart")))
         }
@@ -318,23 +354,20 @@ fn condition_text(
 /// transition `name`, or one drawn in the chart. A network of one statement gives its
 /// expression; a longer one, statements that assign the condition's value to `id`.
 fn network_text(
-    p: &Parts,
     at: usize,
     name: Option<&str>,
     id: &str,
     networks: &mut Networks,
 ) -> Result<(String, usize, bool, Form), SfcError> {
-    let (text, decls, notes) = match name {
-        Some(name) => crate::lower::chart_network(p.source, p.doc, p.pou, at, Some((name, id)))?,
-        None => crate::lower::chart_condition(p.source, p.doc, p.pou, at, id)?,
+    let lowered = match name {
+        Some(name) => networks.lower.body(at, Some((name, id)))?,
+        None => networks.lower.condition(at, id)?,
     };
-    let form = match text.lines().count() == 1 && decls.is_empty() {
+    let form = match lowered.0.lines().count() == 1 && lowered.1.is_empty() {
         true => Form::Lowered,
         false => Form::Statements,
     };
-    networks.decls.extend(decls);
-    networks.notes.extend(notes);
-    Ok((text, at, false, form))
+    Ok((networks.take(lowered), at, false, form))
 }
 
 /// The expression of a condition's text, and how many bytes before it were left out: a named

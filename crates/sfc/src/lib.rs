@@ -24,6 +24,8 @@ mod source;
 pub mod st;
 pub mod structured;
 
+use std::collections::HashSet;
+
 use cetratus_net::Net;
 use cetratus_program::Program;
 
@@ -58,7 +60,7 @@ pub struct Imported {
 /// its named actions. `label` names the file in messages.
 pub fn charts(text: &str, label: &str) -> Result<Vec<Chart>, SfcError> {
     let text = text.strip_prefix('\u{feff}').unwrap_or(text);
-    let source = Source { label, text };
+    let source = Source::new(label, text);
     let doc = source.parse()?;
     let mut out = Vec::new();
     for pou in pou::pous(&source, &doc) {
@@ -73,7 +75,7 @@ pub fn charts(text: &str, label: &str) -> Result<Vec<Chart>, SfcError> {
 /// [`import_str`] builds, for analysis of charts that do not import as programs.
 pub fn chart_net(text: &str, label: &str, chart: &Chart) -> Result<Net, SfcError> {
     let text = text.strip_prefix('\u{feff}').unwrap_or(text);
-    let source = Source { label, text };
+    let source = Source::new(label, text);
     Ok(build::net(&source, chart, &[])?.0)
 }
 
@@ -96,7 +98,7 @@ pub fn import_str(
     net_file: &str,
 ) -> Result<Imported, SfcError> {
     let text = text.strip_prefix('\u{feff}').unwrap_or(text);
-    let source = Source { label, text };
+    let source = Source::new(label, text);
     let doc = source.parse()?;
     let pous = pou::pous(&source, &doc);
     let with_sfc: Vec<&pou::Pou> = pous
@@ -164,9 +166,10 @@ pub fn import_str(
         })?;
     let chart = chart::read(&source, chosen, "body", sfc)?;
     let (merged, nests, nested) = nest::merge(&source, chosen, &chart)?;
+    let associated: HashSet<&str> = nests.iter().map(|n| n.action.as_str()).collect();
+    let charts = nest::sfc_actions(chosen);
     for a in &chosen.actions {
-        if nest::sfc_action(chosen, &a.name).is_some() && !nests.iter().any(|n| n.action == a.name)
-        {
+        if charts.contains_key(&a.name.to_ascii_uppercase()) && !associated.contains(&*a.name) {
             notes.push(format!(
                 "{label}: the action `{}` has a SFC body and no step of the chart associates it: not imported",
                 a.name
@@ -281,7 +284,7 @@ impl ImportedPou {
 /// only SFC POU, else its only PROGRAM. IL is refused by name.
 pub fn import_pou(text: &str, label: &str, pou: Option<&str>) -> Result<ImportedPou, SfcError> {
     let bare = text.strip_prefix('\u{feff}').unwrap_or(text);
-    let source = Source { label, text: bare };
+    let source = Source::new(label, bare);
     let doc = source.parse()?;
     let pous = pou::pous(&source, &doc);
     let language = |p: &pou::Pou| lower::body_language(p).unwrap_or("no body").to_string();

@@ -12,10 +12,11 @@
 //! held, so the nested chart starts at its initial step in the scan after its first activation.
 //! A chart nested in a nested chart is refused: nesting is one level, whatever the file says.
 
+use std::collections::{HashMap, HashSet};
 use std::ops::Range;
 
 use crate::chart::{self, ActionRef, Chart};
-use crate::pou::{self, Body, Pou};
+use crate::pou::{self, Body, Named, Pou};
 use crate::source::Source;
 use crate::SfcError;
 
@@ -34,24 +35,31 @@ pub(crate) struct Nest {
 }
 
 impl Nest {
-    /// The nest that holds step `s` of the merged chart.
+    /// The nest that holds step `s` of the merged chart. The nests are in the order merged, so
+    /// their ranges ascend, and are searched by halving.
     pub(crate) fn of_step(nests: &[Nest], s: usize) -> Option<&Nest> {
-        nests.iter().find(|n| n.steps.contains(&s))
+        let i = nests.partition_point(|n| n.steps.end <= s);
+        nests.get(i).filter(|n| n.steps.contains(&s))
     }
 
-    /// The nest that holds transition `t` of the merged chart.
+    /// The nest that holds transition `t` of the merged chart (searched as in [`Nest::of_step`]).
     pub(crate) fn of_transition(nests: &[Nest], t: usize) -> Option<&Nest> {
-        nests.iter().find(|n| n.transitions.contains(&t))
+        let i = nests.partition_point(|n| n.transitions.end <= t);
+        nests.get(i).filter(|n| n.transitions.contains(&t))
     }
 }
 
-/// Whether `name` is a named action of `pou` with an SFC body; its name as declared.
-pub(crate) fn sfc_action<'p>(pou: &'p Pou, name: &str) -> Option<&'p str> {
-    pou.actions
-        .iter()
-        .find(|a| a.name.eq_ignore_ascii_case(name))
-        .filter(|a| matches!(&a.body, Body::Other { language, .. } if language == "SFC"))
-        .map(|a| a.name.as_str())
+/// The named actions of `pou` whose body is a chart: each name as declared, by its upper case
+/// (IEC names are case-insensitive; of two actions of one name, the first is the action).
+pub(crate) fn sfc_actions<'p>(pou: &'p Pou) -> HashMap<String, &'p str> {
+    let mut first: HashMap<String, &Named> = HashMap::new();
+    for a in &pou.actions {
+        first.entry(a.name.to_ascii_uppercase()).or_insert(a);
+    }
+    (first.into_iter())
+        .filter(|(_, a)| matches!(&a.body, Body::Other { language, .. } if language == "SFC"))
+        .map(|(key, a)| (key, a.name.as_str()))
+        .collect()
 }
 
 /// The POU's chart `main` with the charts of the SFC-bodied actions that it associates merged
@@ -64,28 +72,31 @@ pub(crate) fn merge(
     let mut merged = main.clone();
     let mut nests: Vec<Nest> = Vec::new();
     let mut drawn: Vec<Chart> = Vec::new();
+    let actions = sfc_actions(pou);
+    let mut charts = HashMap::new();
+    for (location, node) in pou::sfc_bodies(pou) {
+        charts.entry(location).or_insert(node);
+    }
+    let mut merged_actions = HashSet::new();
     for a in &main.associations {
         let ActionRef::Reference(name) = &a.action else {
             continue;
         };
-        let Some(action) = sfc_action(pou, name) else {
+        let Some(&action) = actions.get(&name.to_ascii_uppercase()) else {
             continue;
         };
-        if nests.iter().any(|n| n.action == action) {
+        if !merged_actions.insert(action) {
             continue;
         }
         let location = format!("action {action}");
-        let Some((_, node)) = pou::sfc_bodies(pou)
-            .into_iter()
-            .find(|(l, _)| *l == location)
-        else {
+        let Some(&node) = charts.get(&location) else {
             continue;
         };
         let nested = chart::read(source, pou, &location, node)?;
         // One level: a nested chart that associates an SFC-bodied action is refused.
         for inner in &nested.associations {
             if let ActionRef::Reference(n) = &inner.action {
-                if let Some(deeper) = sfc_action(pou, n) {
+                if let Some(deeper) = actions.get(&n.to_ascii_uppercase()) {
                     return Err(SfcError::Unsupported {
                         pos: source.pos(inner.at),
                         pou: pou.name.clone(),

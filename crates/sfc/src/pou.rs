@@ -1,5 +1,7 @@
 //! The POUs of a PLCopen project: their interface, named actions and transitions, and bodies.
 
+use std::collections::HashMap;
+
 use cetratus_net::xml::{Document, Node};
 
 use crate::source::{body_text, child, children, Source};
@@ -64,12 +66,23 @@ pub struct Named {
 pub(crate) struct Pou<'a, 'i> {
     pub name: String,
     pub variables: Vec<Variable>,
+    /// Each variable's index in `variables` by its name in upper case (the first, where two
+    /// have one name): what a network looks its names up in, once per element.
+    declared: HashMap<String, usize>,
     pub actions: Vec<Named>,
     pub transitions: Vec<Named>,
     /// The `<pou>` element.
     pub node: Node<'a, 'i>,
     /// Where it was found: `types/pous`, or (TwinCAT) project-level `addData`.
     pub in_add_data: bool,
+}
+
+impl Pou<'_, '_> {
+    /// The variable `name` of the interface (IEC names are case-insensitive).
+    pub fn variable(&self, name: &str) -> Option<&Variable> {
+        let i = *self.declared.get(&name.to_ascii_uppercase())?;
+        self.variables.get(i)
+    }
 }
 
 /// The data name under which TwinCAT puts a POU in project-level `addData`.
@@ -142,9 +155,14 @@ fn read_pou<'a, 'i>(source: &Source, node: Node<'a, 'i>, in_add_data: bool) -> P
             })
             .unwrap_or_default()
     };
+    let mut declared = HashMap::new();
+    for (i, v) in variables.iter().enumerate() {
+        declared.entry(v.name.to_ascii_uppercase()).or_insert(i);
+    }
     Pou {
         name: node.attribute("name").unwrap_or("").to_string(),
         variables,
+        declared,
         actions: named("actions", "action"),
         transitions: named("transitions", "transition"),
         node,

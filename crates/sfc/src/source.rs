@@ -1,5 +1,7 @@
 //! The PLCopen file as text: its label, the limits on it, and positions for messages.
 
+use std::cell::OnceCell;
+
 use cetratus_net::xml::{Document, ErrorKind, Node};
 use cetratus_net::SourcePos;
 
@@ -19,16 +21,48 @@ pub const MAX_FILE_BYTES: usize = 32 << 20;
 pub const MAX_ELEMENTS: usize = 1 << 20;
 
 /// A PLCopen file's text and the label that names it in messages.
-#[derive(Clone, Copy)]
 pub(crate) struct Source<'t> {
     pub label: &'t str,
     pub text: &'t str,
+    /// The line and column at every [`MARK_BYTES`]th byte, found when a position is first
+    /// asked for: a position then costs a scan of at most that many bytes, not of the text
+    /// before it, however many the import names (a note per element of a large file).
+    marks: OnceCell<Vec<(u32, u32)>>,
 }
 
+/// How far apart the marks of [`Source`] are.
+const MARK_BYTES: usize = 4096;
+
 impl<'t> Source<'t> {
+    /// The text `text` of the file named `label` in messages.
+    pub fn new(label: &'t str, text: &'t str) -> Self {
+        Source {
+            label,
+            text,
+            marks: OnceCell::new(),
+        }
+    }
+
     /// The file:line:column of a byte offset.
     pub fn pos(&self, offset: usize) -> SourcePos {
-        let (line, column) = Document::text_pos_at_in(self.text, offset);
+        let bytes = self.text.as_bytes();
+        let marks = self.marks.get_or_init(|| {
+            let mut at = (1, 1);
+            let chunks = bytes.chunks(MARK_BYTES);
+            let mark = |c| {
+                let before = at;
+                at = advance(at, c);
+                before
+            };
+            chunks.map(mark).collect()
+        });
+        let mut end = offset.min(bytes.len());
+        while !self.text.is_char_boundary(end) {
+            end -= 1;
+        }
+        let k = (end / MARK_BYTES).min(marks.len().saturating_sub(1));
+        let from = marks.get(k).copied().unwrap_or((1, 1));
+        let (line, column) = advance(from, &bytes[k * MARK_BYTES..end]);
         SourcePos {
             file: self.label.to_string(),
             line,
@@ -82,6 +116,21 @@ impl<'t> Source<'t> {
             });
         }
         Ok(doc)
+    }
+}
+
+/// The line and column after `bytes`, from `(line, column)` before them: a column counts
+/// characters, which are the bytes that do not continue a UTF-8 sequence.
+fn advance((line, column): (u32, u32), bytes: &[u8]) -> (u32, u32) {
+    let chars = |b: &[u8]| b.iter().filter(|&&b| b & 0xC0 != 0x80).count();
+    let count = |n: usize| u32::try_from(n).unwrap_or(u32::MAX);
+    match bytes.iter().rposition(|&b| b == b'\n') {
+        Some(last) => {
+            let newlines = bytes.iter().filter(|&&b| b == b'\n').count();
+            let after = chars(&bytes[last + 1..]);
+            (line.saturating_add(count(newlines)), 1 + count(after))
+        }
+        None => (line, column.saturating_add(count(chars(bytes)))),
     }
 }
 
@@ -141,4 +190,33 @@ fn text_start(source: &Source, node: Node) -> usize {
         at += rest.len() - trimmed.len() + "<![CDATA[".len();
     }
     at
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The marks give every offset the position that counting from the start gives: across
+    /// marks, in multi-byte characters, on long lines and on empty ones.
+    #[test]
+    fn a_position_from_the_marks_is_the_position_counted_from_the_start() {
+        let line = |i: usize| {
+            "é€x".repeat(i * 131 % 400) + if i.is_multiple_of(5) { "\n\n" } else { "\n" }
+        };
+        let text: String = (0..24).map(line).collect();
+        let source = Source::new("f.xml", &text);
+        for offset in (0..=text.len() + 3)
+            .step_by(11)
+            .chain([0, 4096, 8192, text.len()])
+        {
+            let pos = source.pos(offset);
+            let mut end = offset.min(text.len());
+            while !text.is_char_boundary(end) {
+                end -= 1;
+            }
+            let counted = Document::text_pos_at_in(&text, end);
+            assert_eq!((pos.line, pos.column), counted, "offset {offset}");
+        }
+        assert_eq!(Source::new("e", "").pos(5).line, 1);
+    }
 }

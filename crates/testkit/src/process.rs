@@ -1,7 +1,7 @@
 //! The programs a test runs beside itself: finding them, and stopping them when the test ends.
 
 use std::path::PathBuf;
-use std::process::{Child, Command};
+use std::process::{Child, Command, Stdio};
 
 /// A child process, killed and reaped when the guard drops, so that a failing test does not
 /// leave a broker, a driver or a PLC running.
@@ -40,6 +40,42 @@ impl Drop for ChildGuard {
 }
 
 pub use cetratus_matiec::find_program;
+
+/// The output of `cmd`, killed if it has not ended within `limit`: the bound on a reader whose
+/// work must grow with its input's size, not faster (a quadratic one takes hours on the inputs
+/// that such tests give it, a linear one seconds). Its output is read while it runs, so that a
+/// full pipe never stops it.
+pub fn output_within(cmd: &mut Command, limit: std::time::Duration) -> std::process::Output {
+    let mut child = (cmd.stdout(Stdio::piped()).stderr(Stdio::piped()).spawn())
+        .unwrap_or_else(|e| panic!("{cmd:?} does not start: {e}"));
+    let drain = |pipe: Option<Box<dyn std::io::Read + Send>>| {
+        std::thread::spawn(move || {
+            let mut bytes = Vec::new();
+            if let Some(mut pipe) = pipe {
+                std::io::Read::read_to_end(&mut pipe, &mut bytes).ok();
+            }
+            bytes
+        })
+    };
+    let stdout = drain(child.stdout.take().map(|p| Box::new(p) as _));
+    let stderr = drain(child.stderr.take().map(|p| Box::new(p) as _));
+    let started = std::time::Instant::now();
+    let status = loop {
+        if let Some(status) = child.try_wait().expect("wait") {
+            break status;
+        }
+        if started.elapsed() > limit {
+            child.kill().ok();
+            panic!("{cmd:?} was still running after {limit:?}");
+        }
+        std::thread::sleep(std::time::Duration::from_millis(50));
+    };
+    std::process::Output {
+        status,
+        stdout: stdout.join().expect("stdout read"),
+        stderr: stderr.join().expect("stderr read"),
+    }
+}
 
 /// Where the program `name` is installed.
 ///

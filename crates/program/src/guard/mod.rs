@@ -9,6 +9,7 @@ mod eval;
 mod lexer;
 mod parser;
 
+use std::collections::HashMap;
 use std::fmt;
 
 pub use ast::{BinOp, Expr, ExprKind, Func, UnOp};
@@ -200,6 +201,49 @@ pub(crate) struct Scope<'a> {
     pub outputs: &'a [Signal],
     pub vars: &'a [Signal],
     pub net: &'a Net,
+    /// Each list's positions by name, so that a name costs one lookup however many signals
+    /// the program declares.
+    index: [HashMap<&'a str, usize>; 3],
+}
+
+impl<'a> Scope<'a> {
+    /// The scope of a program's `inputs`, `outputs` and `vars`, and its net's places.
+    pub(crate) fn new(
+        inputs: &'a [Signal],
+        outputs: &'a [Signal],
+        vars: &'a [Signal],
+        net: &'a Net,
+    ) -> Self {
+        let index = [inputs, outputs, vars].map(|list| {
+            let mut at = HashMap::with_capacity(list.len());
+            for (i, s) in list.iter().enumerate() {
+                at.entry(s.name.as_str()).or_insert(i);
+            }
+            at
+        });
+        Scope {
+            inputs,
+            outputs,
+            vars,
+            net,
+            index,
+        }
+    }
+
+    /// The position of the input `name`.
+    pub(crate) fn input(&self, name: &str) -> Option<usize> {
+        self.index[0].get(name).copied()
+    }
+
+    /// The position of the output `name`.
+    pub(crate) fn output(&self, name: &str) -> Option<usize> {
+        self.index[1].get(name).copied()
+    }
+
+    /// The position of the variable `name`.
+    pub(crate) fn var(&self, name: &str) -> Option<usize> {
+        self.index[2].get(name).copied()
+    }
 }
 
 /// A guard compiled for one transition.
@@ -371,7 +415,7 @@ impl<'s, 'a> Compiler<'s, 'a> {
     }
 
     fn bool_input(&mut self, name: &str, pos: usize, func: &str) -> Result<u32, SyntaxError> {
-        match self.scope.inputs.iter().position(|s| s.name == name) {
+        match self.scope.input(name) {
             Some(i) if self.scope.inputs[i].ty == Type::Bool => {
                 self.inputs.push(i as u32);
                 Ok(i as u32)
@@ -451,13 +495,12 @@ impl<'s, 'a> Compiler<'s, 'a> {
     /// A bare name reads an input, a variable or a place's token count (the program keeps
     /// signal names and place ids apart); only a body may read an output.
     fn name(&mut self, n: &str, pos: usize) -> Result<GType, SyntaxError> {
-        let find = |signals: &[Signal]| signals.iter().position(|s| s.name == n);
-        if let Some(i) = find(self.scope.inputs) {
+        if let Some(i) = self.scope.input(n) {
             let ty = self.scope.inputs[i].ty;
             self.inputs.push(i as u32);
             self.emit(Op::Input(i as u32, ty), pos, 1);
             Ok(ty.into())
-        } else if let Some(i) = find(self.scope.vars) {
+        } else if let Some(i) = self.scope.var(n) {
             let ty = self.scope.vars[i].ty;
             self.vars.push(i as u32);
             self.emit(Op::Var(i as u32, ty), pos, 1);
@@ -466,11 +509,11 @@ impl<'s, 'a> Compiler<'s, 'a> {
             self.places.push(p.0);
             self.emit(Op::Tokens(p.0), pos, 1);
             Ok(GType::Int)
-        } else if let (true, Some(i)) = (self.body, find(self.scope.outputs)) {
+        } else if let (true, Some(i)) = (self.body, self.scope.output(n)) {
             let ty = self.scope.outputs[i].ty;
             self.emit(Op::Out(i as u32, ty), pos, 1);
             Ok(ty.into())
-        } else if find(self.scope.outputs).is_some() {
+        } else if self.scope.output(n).is_some() {
             Err(SyntaxError::new(
                 pos,
                 format!("`{n}` is an output; guards read inputs, variables, places (token count) and place timers"),

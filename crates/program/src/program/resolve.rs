@@ -1,7 +1,7 @@
 //! Resolving a program document against its net, table by table: every name looked up, every
 //! guard and body compiled, every setting checked, each error at the file:line:column to fix.
 
-use std::collections::{BTreeMap, HashMap};
+use std::collections::{BTreeMap, HashMap, HashSet};
 use std::time::Duration;
 
 use cetratus_vocab::UnknownName;
@@ -190,17 +190,21 @@ pub(super) fn bodies(
 pub(super) fn actions(
     o: &Origin,
     doc: &Doc,
-    net: &Net,
-    signals: (&[Signal], &[Signal], &[Signal]),
+    scope: &Scope,
     bodies: &[Body],
     st: Option<&StProgram>,
 ) -> Result<Vec<Action>, ProgramError> {
     let mut actions = Vec::with_capacity(doc.action.len());
-    for a in &doc.action {
-        actions.push(action(o, net, (signals, st), bodies, a.get_ref())?);
-    }
+    let mut named = HashMap::with_capacity(bodies.len());
     for (i, b) in bodies.iter().enumerate() {
-        if !actions.iter().any(|a| a.target == Target::Body(i as u32)) {
+        named.entry(b.name()).or_insert(i);
+    }
+    for a in &doc.action {
+        actions.push(action(o, (scope, st), &named, a.get_ref())?);
+    }
+    let run: HashSet<Target> = actions.iter().map(|a| a.target).collect();
+    for (i, b) in bodies.iter().enumerate() {
+        if !run.contains(&Target::Body(i as u32)) {
             let key = doc.bodies.keys().find(|k| k.get_ref() == b.name());
             return Err(o.err(
                 key.map_or(0, |k| k.span().start),
@@ -216,14 +220,12 @@ pub(super) fn actions(
 pub(super) fn action_slots(actions: &[Action]) -> (Vec<Target>, Vec<u32>) {
     let mut action_targets: Vec<Target> = Vec::new();
     let mut action_slot = Vec::with_capacity(actions.len());
+    let mut slots = HashMap::new();
     for a in actions {
-        let slot = match action_targets.iter().position(|t| *t == a.target) {
-            Some(s) => s,
-            None => {
-                action_targets.push(a.target);
-                action_targets.len() - 1
-            }
-        };
+        let slot = *slots.entry(a.target).or_insert_with(|| {
+            action_targets.push(a.target);
+            action_targets.len() - 1
+        });
         action_slot.push(slot as u32);
     }
     (action_targets, action_slot)
@@ -369,17 +371,15 @@ pub(super) fn signal(
     })
 }
 
-/// The program's outputs, variables and inputs.
-type Signals<'a> = (&'a [Signal], &'a [Signal], &'a [Signal]);
-
+/// One `[[action]]` resolved: its place, and what it drives, a signal, a BOOL variable of the
+/// chart's POU, or a body (`bodies` by name).
 fn action(
     o: &Origin,
-    net: &Net,
-    (signals, st): (Signals<'_>, Option<&StProgram>),
-    bodies: &[Body],
+    (scope, st): (&Scope, Option<&StProgram>),
+    bodies: &HashMap<&str, usize>,
     d: &crate::source::ActionDecl,
 ) -> Result<Action, ProgramError> {
-    let place = net.place_by_id(d.place.get_ref()).ok_or_else(|| {
+    let place = scope.net.place_by_id(d.place.get_ref()).ok_or_else(|| {
         o.err(
             d.place.span().start,
             format!(
@@ -393,13 +393,10 @@ fn action(
             Some(st) => st.bool_var(t.get_ref()).map(Target::St).ok_or_else(|| {
                 o.err(t.span().start, format!("action target `{}` is not a BOOL variable of the chart's POU `{}`; declare it there", t.get_ref(), st.unit().name))
             })?,
-            None => signal_target(o, t, signals.0, signals.1, signals.2)?,
+            None => signal_target(o, t, scope)?,
         },
         (None, Some(b)) => {
-            let i = bodies
-                .iter()
-                .position(|x| x.name() == b.get_ref())
-                .ok_or_else(|| {
+            let i = (bodies.get(b.get_ref().as_str()).copied()).ok_or_else(|| {
                     o.err(
                         b.span().start,
                         format!(
@@ -471,20 +468,14 @@ fn action(
 }
 
 /// The bool output or variable an action drives.
-fn signal_target(
-    o: &Origin,
-    t: &Spanned<String>,
-    outputs: &[Signal],
-    variables: &[Signal],
-    inputs: &[Signal],
-) -> Result<Target, ProgramError> {
+fn signal_target(o: &Origin, t: &Spanned<String>, scope: &Scope) -> Result<Target, ProgramError> {
     let tname = t.get_ref();
     let tat = t.span().start;
-    let (target, sig) = if let Some(i) = outputs.iter().position(|s| &s.name == tname) {
-        (Target::Output(i as u32), &outputs[i])
-    } else if let Some(i) = variables.iter().position(|s| &s.name == tname) {
-        (Target::Variable(i as u32), &variables[i])
-    } else if inputs.iter().any(|s| &s.name == tname) {
+    let (target, sig) = if let Some(i) = scope.output(tname) {
+        (Target::Output(i as u32), &scope.outputs[i])
+    } else if let Some(i) = scope.var(tname) {
+        (Target::Variable(i as u32), &scope.vars[i])
+    } else if scope.input(tname).is_some() {
         return Err(o.err(tat, format!("`{tname}` is an input, which the program cannot drive; an action targets a bool output or a bool variable")));
     } else {
         return Err(o.err(tat, format!("action target `{tname}` is not declared; expected a bool output or a bool variable")));

@@ -1,6 +1,8 @@
 //! The declarations of a PLCopen file as Structured Text: data types, POUs with their interfaces
 //! and bodies, and the configuration's global variables and tasks.
 
+use std::collections::HashSet;
+
 use cetratus_net::xml::{Document, Node};
 
 use super::network::{self, Names};
@@ -118,23 +120,26 @@ fn needed(pous: &[Pou], chosen: &Pou) -> std::collections::HashSet<String> {
 
 /// What the importer noted while writing the text, each line once, with the file position.
 pub(super) struct Notes<'s> {
-    source: Source<'s>,
+    source: &'s Source<'s>,
     /// The notes, in order.
     pub lines: Vec<String>,
+    /// The notes already taken.
+    seen: HashSet<String>,
 }
 
 impl<'s> Notes<'s> {
-    pub fn new(source: Source<'s>) -> Self {
+    pub fn new(source: &'s Source<'s>) -> Self {
         Notes {
             source,
             lines: Vec::new(),
+            seen: HashSet::new(),
         }
     }
 
     /// Notes `message` about the element at byte offset `at`, unless it is noted already.
     pub fn at(&mut self, at: usize, message: String) {
         let line = format!("{}: {message}", self.source.pos(at));
-        if !self.lines.contains(&line) {
+        if self.seen.insert(line.clone()) {
             self.lines.push(line);
         }
     }

@@ -12,7 +12,10 @@
 mod decl;
 mod network;
 
-use cetratus_net::xml::Document;
+use std::cell::OnceCell;
+use std::collections::HashMap;
+
+use cetratus_net::xml::{Document, Node};
 use cetratus_net::SourcePos;
 
 use crate::pou::{self, Pou};
@@ -39,7 +42,7 @@ pub(crate) fn import(
     name: &str,
     notes: &mut Vec<String>,
 ) -> Result<ImportedSt, SfcError> {
-    let mut noted = decl::Notes::new(*source);
+    let mut noted = decl::Notes::new(source);
     let pous = pou::pous(source, doc);
     let chosen = pous
         .iter()
@@ -85,7 +88,7 @@ pub(crate) fn chart_library(
     chart_vars: &[String],
     notes: &mut Vec<String>,
 ) -> Result<Written, SfcError> {
-    let mut noted = decl::Notes::new(*source);
+    let mut noted = decl::Notes::new(source);
     let pous = pou::pous(source, doc);
     let Some(pou) = pous.iter().find(|p| p.name == chosen) else {
         return Err(SfcError::Pou {
@@ -106,60 +109,96 @@ pub(crate) fn chart_library(
     Ok(out)
 }
 
-/// An LD or FBD network of a chart, the body of one of the named actions or transitions of
-/// `pou` (the element at byte `at` of the file), as Structured Text: its statements, the
-/// declarations it needs in the chart's POU (`name : type`: the block instances the interface
-/// does not declare, and the values the network keeps between its elements), and what the
-/// importer added that the file did not say. With `renamed` `(name, id)`, the body of the named
-/// transition `name`, assigning its value to the transition `id` that refers to it.
-pub(crate) fn chart_network(
-    source: &Source,
-    doc: &Document,
-    pou: &Pou,
-    at: usize,
-    renamed: Option<(&str, &str)>,
-) -> Result<(String, Vec<String>, Vec<String>), SfcError> {
-    let pous = pou::pous(source, doc);
-    let names = network::Names::of(doc, &pous);
-    let Some(body) = pou.node.descendants().find(|n| n.range().start == at) else {
-        return Err(SfcError::Pou {
-            file: source.label.to_string(),
-            message: format!("no network at {} in `{}`", source.pos(at), pou.name),
-        });
-    };
-    let lowered = network::lower(source, pou, body, &names, renamed)?;
-    Ok(chart_text(source, lowered))
+/// The LD and FBD networks of an SFC POU's chart, lowered from what is read of the file once per
+/// chart: the file's names, the POU's elements by where they start, and the network elements
+/// drawn in each of its charts. A chart of many networks so costs the sum of their sizes, not
+/// their number times the file's.
+pub(crate) struct ChartNetworks<'s, 'a, 'i> {
+    source: &'s Source<'s>,
+    pou: &'s Pou<'a, 'i>,
+    names: network::Names,
+    /// The POU's elements by the byte where they start (the outermost, where several do).
+    nodes: HashMap<usize, Node<'a, 'i>>,
+    /// The POU's SFC bodies in document order, each with its drawn network once read.
+    charts: Vec<(
+        Node<'a, 'i>,
+        OnceCell<Result<network::Drawn, network::Refused>>,
+    )>,
 }
 
-/// A network drawn in a chart of `pou` and wired to a transition's condition, whose
-/// `<connectionPointIn>` is at byte `at` of the file, as Structured Text that assigns its value
-/// to `result` (the transition's id); the same parts as [`chart_network`]'s.
-pub(crate) fn chart_condition(
-    source: &Source,
-    doc: &Document,
-    pou: &Pou,
-    at: usize,
-    result: &str,
-) -> Result<(String, Vec<String>, Vec<String>), SfcError> {
-    let pous = pou::pous(source, doc);
-    let names = network::Names::of(doc, &pous);
-    let within = |n: &cetratus_net::xml::Node| n.range().contains(&at);
-    let sfc = (pou.node.descendants())
-        .filter(|n| n.name() == "SFC" && within(n))
-        .last();
-    let point = pou.node.descendants().find(|n| n.range().start == at);
-    let (Some(sfc), Some(point)) = (sfc, point) else {
-        return Err(SfcError::Pou {
-            file: source.label.to_string(),
-            message: format!("no condition at {} in `{}`", source.pos(at), pou.name),
-        });
-    };
-    let lowered = network::lower_condition(source, pou, (sfc, point), result, &names)?;
-    Ok(chart_text(source, lowered))
+impl<'s, 'a, 'i> ChartNetworks<'s, 'a, 'i> {
+    /// The networks of `pou`'s chart in the file `doc`.
+    pub(crate) fn new(source: &'s Source<'s>, doc: &Document, pou: &'s Pou<'a, 'i>) -> Self {
+        let names = network::Names::of(doc, &pou::pous(source, doc));
+        let mut nodes = HashMap::new();
+        let mut charts = Vec::new();
+        for n in pou.node.descendants() {
+            nodes.entry(n.range().start).or_insert(n);
+            if n.name() == "SFC" {
+                charts.push((n, OnceCell::new()));
+            }
+        }
+        ChartNetworks {
+            source,
+            pou,
+            names,
+            nodes,
+            charts,
+        }
+    }
+
+    /// The element of the POU at byte `at`, or the error that no `what` is there.
+    fn node(&self, at: usize, what: &str) -> Result<Node<'a, 'i>, SfcError> {
+        (self.nodes.get(&at).copied()).ok_or_else(|| self.missing(at, what))
+    }
+
+    /// The error that the POU has no `what` at byte `at`.
+    fn missing(&self, at: usize, what: &str) -> SfcError {
+        SfcError::Pou {
+            file: self.source.label.to_string(),
+            message: format!(
+                "no {what} at {} in `{}`",
+                self.source.pos(at),
+                self.pou.name
+            ),
+        }
+    }
+
+    /// The body of one of the chart's named actions or transitions (the element at byte `at`
+    /// of the file) as Structured Text: its statements, the declarations it needs in the
+    /// chart's POU (`name : type`: the block instances the interface does not declare, and the
+    /// values the network keeps between its elements), and what the importer added that the
+    /// file did not say. With `renamed` `(name, id)`, the body of the named transition `name`,
+    /// assigning its value to the transition `id` that refers to it.
+    pub(crate) fn body(&self, at: usize, renamed: Option<(&str, &str)>) -> Result<Text, SfcError> {
+        let body = self.node(at, "network")?;
+        let lowered = network::lower(self.source, self.pou, body, &self.names, renamed)?;
+        Ok(chart_text(self.source, lowered))
+    }
+
+    /// A network drawn in the chart and wired to a transition's condition, whose
+    /// `<connectionPointIn>` is at byte `at` of the file, as Structured Text that assigns its
+    /// value to `result` (the transition's id); the same parts as [`ChartNetworks::body`]'s.
+    pub(crate) fn condition(&self, at: usize, result: &str) -> Result<Text, SfcError> {
+        let point = self.node(at, "condition")?;
+        let within = (self.charts.iter()).rfind(|(n, _)| n.range().contains(&at));
+        let Some((sfc, drawn)) = within else {
+            return Err(self.missing(at, "chart around the condition"));
+        };
+        let drawn = (drawn.get_or_init(|| network::Drawn::read(*sfc)).as_ref())
+            .map_err(|r| network::refusal(self.source, self.pou)(r.clone()))?;
+        let lowered =
+            network::lower_condition(self.source, self.pou, (drawn, point), result, &self.names)?;
+        Ok(chart_text(self.source, lowered))
+    }
 }
+
+/// A network of a chart as Structured Text: its statements, the declarations it needs, and the
+/// notes of its lowering.
+pub(crate) type Text = (String, Vec<String>, Vec<String>);
 
 /// A lowered network as a chart's text: its statements, its declarations and its notes.
-fn chart_text(source: &Source, lowered: network::Lowered) -> (String, Vec<String>, Vec<String>) {
+fn chart_text(source: &Source, lowered: network::Lowered) -> Text {
     let (stmts, decls, notes) = lowered.into_parts();
     let text: String = stmts.iter().map(|(_, s)| format!("{s}\n")).collect();
     let notes = (notes.into_iter())

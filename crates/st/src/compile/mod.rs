@@ -186,6 +186,8 @@ pub struct Unit {
     /// The PROGRAM's own variables, in declaration order, then the configuration's global
     /// variables (section [`Section::Global`]).
     pub vars: Vec<Var>,
+    /// Each variable's index in `vars` by its name in upper case (the first of a name).
+    var_index: HashMap<String, usize>,
     /// The interval of the TASK that runs the program, if the file has one (nanoseconds).
     pub interval: Option<i64>,
     /// The names of the function block types, by id.
@@ -386,8 +388,8 @@ impl Unit {
 
     /// The PROGRAM's variable named `name` (case-insensitive).
     pub fn var(&self, name: &str) -> Option<&Var> {
-        let key = name.to_ascii_uppercase();
-        self.vars.iter().find(|v| v.name.eq_ignore_ascii_case(&key))
+        let i = *self.var_index.get(&name.to_ascii_uppercase())?;
+        self.vars.get(i)
     }
 
     /// The part of `state` that holds `v`: its slots and its bytes of text.
@@ -695,6 +697,10 @@ impl<'a> Compiler<'a> {
         let interval = self.task_interval(main)?;
         self.code.temps = std::mem::take(&mut self.temps);
         let cost = self.code.ops.iter().map(|op| op.cost(&self.code)).sum();
+        let mut var_index = HashMap::new();
+        for (i, v) in vars.iter().enumerate() {
+            var_index.entry(v.name.to_ascii_uppercase()).or_insert(i);
+        }
         Ok(Unit {
             name: main.name.text.clone(),
             code: self.code,
@@ -702,6 +708,7 @@ impl<'a> Compiler<'a> {
             init: self.init,
             types: self.types,
             vars,
+            var_index,
             interval,
             fb_names: self.fbs.iter().map(|f| f.name.clone()).collect(),
             fb_fields: self

@@ -16,6 +16,7 @@ pub(super) struct From {
 
 /// An input of an element: its formal name (empty for a one-input element), whether it is
 /// negated or edge-sensing, and the connections into it (several into one LD input are an OR).
+#[derive(Clone)]
 pub(super) struct Pin {
     pub(super) formal: String,
     pub(super) negated: bool,
@@ -50,6 +51,7 @@ impl Edge {
 }
 
 /// What an element of the network is.
+#[derive(Clone)]
 pub(super) enum Kind {
     LeftRail,
     Contact {
@@ -93,6 +95,7 @@ pub(super) enum Kind {
 }
 
 /// An element with its inputs, position and execution order.
+#[derive(Clone)]
 pub(super) struct Element {
     pub(super) id: u64,
     pub(super) at: usize,

@@ -21,7 +21,7 @@ use element::{name_block_outputs, read_element, Element, Kind};
 use order::execution_order;
 use writer::Writer;
 
-use std::collections::HashMap;
+use std::collections::{HashMap, HashSet};
 
 use cetratus_net::xml::{Document, Node};
 
@@ -206,40 +206,71 @@ const SFC_ELEMENTS: &[&str] = &[
     "actionBlock",
 ];
 
-/// The network drawn in the chart `sfc` that feeds a transition's condition through
+/// The network elements drawn in a chart (the elements of its body that are not the chart's
+/// own), read once for all the conditions they feed, with the indexes that find what an element
+/// reads from: an element by its id, and the connectors by their names (upper case).
+pub(super) struct Drawn {
+    elements: Vec<Element>,
+    by_id: HashMap<u64, Vec<usize>>,
+    connectors: HashMap<String, Vec<u64>>,
+}
+
+impl Drawn {
+    /// The network elements of the chart `sfc`, or the first that cannot be written.
+    pub(super) fn read(sfc: Node) -> Result<Drawn, Refused> {
+        let mut drawn = Drawn {
+            elements: Vec::new(),
+            by_id: HashMap::new(),
+            connectors: HashMap::new(),
+        };
+        let nodes = sfc.children().filter(|n| !SFC_ELEMENTS.contains(&n.name()));
+        for (index, node) in nodes.enumerate() {
+            let e = read_element(node)?;
+            drawn.by_id.entry(e.id).or_default().push(index);
+            if let Kind::Connector { name } = &e.kind {
+                let key = name.to_ascii_uppercase();
+                drawn.connectors.entry(key).or_default().push(e.id);
+            }
+            drawn.elements.push(e);
+        }
+        Ok(drawn)
+    }
+
+    /// The elements that `from` reads, directly or through others, in the order drawn.
+    fn feeding(&self, from: &[element::From]) -> Vec<Element> {
+        let mut wanted: Vec<u64> = from.iter().map(|f| f.id).collect();
+        let (mut seen, mut kept) = (std::collections::HashSet::new(), Vec::new());
+        while let Some(id) = wanted.pop() {
+            if !seen.insert(id) {
+                continue;
+            }
+            for &index in self.by_id.get(&id).into_iter().flatten() {
+                let e = &self.elements[index];
+                kept.push(index);
+                wanted.extend(e.inputs.iter().flat_map(|p| p.from.iter().map(|f| f.id)));
+                if let Kind::Continuation { name } = &e.kind {
+                    let key = name.to_ascii_uppercase();
+                    wanted.extend(self.connectors.get(&key).into_iter().flatten());
+                }
+            }
+        }
+        kept.sort_unstable();
+        kept.into_iter().map(|i| self.elements[i].clone()).collect()
+    }
+}
+
+/// The network drawn in a chart (`drawn`) that feeds a transition's condition through
 /// `condition` (its `<connectionPointIn>`): the network elements that the condition reads,
 /// directly or through others, ending in `result := …;`.
 pub(super) fn lower_condition(
     source: &Source,
     pou: &Pou,
-    (sfc, condition): (Node, Node),
+    (drawn, condition): (&Drawn, Node),
     result: &str,
     names: &Names,
 ) -> Result<Lowered, SfcError> {
-    let mut all = Vec::new();
-    for node in sfc.children() {
-        if !SFC_ELEMENTS.contains(&node.name()) {
-            all.push(read_element(node).map_err(refusal(source, pou))?);
-        }
-    }
     let from = element::connections(Some(condition));
-    let mut wanted: Vec<u64> = from.iter().map(|f| f.id).collect();
-    let mut kept = std::collections::HashSet::new();
-    while let Some(id) = wanted.pop() {
-        if !kept.insert(id) {
-            continue;
-        }
-        for e in all.iter().filter(|e| e.id == id) {
-            wanted.extend(e.inputs.iter().flat_map(|p| p.from.iter().map(|f| f.id)));
-            if let Kind::Continuation { name } = &e.kind {
-                let connectors = all.iter().filter(
-                    |c| matches!(&c.kind, Kind::Connector { name: n } if n.eq_ignore_ascii_case(name)),
-                );
-                wanted.extend(connectors.map(|c| c.id));
-            }
-        }
-    }
-    let mut elements: Vec<Element> = all.into_iter().filter(|e| kept.contains(&e.id)).collect();
+    let mut elements = drawn.feeding(&from);
     elements.push(Element {
         id: u64::MAX - 1,
         at: condition.range().start,
@@ -269,8 +300,8 @@ fn lower_elements(
 ) -> Result<Lowered, SfcError> {
     name_block_outputs(&mut elements);
     let order = execution_order(&elements).map_err(refusal(source, pou))?;
-    let mut w = Writer::new(&pou.variables, names, &elements);
-    let mut notes = Vec::new();
+    let mut w = Writer::new(pou, names, &elements);
+    let (mut notes, mut added) = (Vec::new(), HashSet::new());
     for e in &elements {
         let Kind::Block {
             ty,
@@ -280,16 +311,7 @@ fn lower_elements(
         else {
             continue;
         };
-        let declared = pou
-            .variables
-            .iter()
-            .any(|v| v.name.eq_ignore_ascii_case(instance));
-        if !declared
-            && !w
-                .instances
-                .iter()
-                .any(|(n, _)| n.eq_ignore_ascii_case(instance))
-        {
+        if pou.variable(instance).is_none() && added.insert(instance.to_ascii_uppercase()) {
             w.instances.push((instance.clone(), ty.clone()));
             notes.push((
                 e.at,
@@ -309,10 +331,10 @@ fn lower_elements(
 }
 
 /// Why an element cannot be written: where, the construct, and what to do.
-type Refused = (usize, String, String);
+pub(super) type Refused = (usize, String, String);
 
 /// A [`Refused`] element of `pou`'s network as the importer's error, at its place in the file.
-fn refusal<'a>(source: &'a Source, pou: &'a Pou) -> impl Fn(Refused) -> SfcError + 'a {
+pub(super) fn refusal<'a>(source: &'a Source, pou: &'a Pou) -> impl Fn(Refused) -> SfcError + 'a {
     move |(at, construct, message)| SfcError::Unsupported {
         pos: source.pos(at),
         pou: pou.name.clone(),

@@ -4,7 +4,7 @@ use std::collections::HashMap;
 
 use super::element::{Edge, Element, From, Kind};
 use super::{Lowered, Names, Refused};
-use crate::pou::Variable;
+use crate::pou::Pou;
 
 /// A value computed by an element, as the elements that read it see it.
 #[derive(Clone)]
@@ -24,12 +24,14 @@ pub(super) const MAX_DEPTH: usize = 8;
 
 /// Writes the elements of one network, in order.
 pub(super) struct Writer<'n> {
-    /// The POU's interface.
-    pub(super) variables: &'n [Variable],
+    /// The POU, whose interface the network reads.
+    pub(super) pou: &'n Pou<'n, 'n>,
     pub(super) names: &'n Names,
     pub(super) by_id: HashMap<u64, &'n Element>,
     /// How many inputs read each output.
     pub(super) readers: HashMap<From, usize>,
+    /// The outputs that inputs read, by their element's id.
+    outputs: HashMap<u64, Vec<String>>,
     pub(super) values: HashMap<From, Value>,
     pub(super) connectors: HashMap<String, Value>,
     /// Statements; `None` is a place kept for a temporary that no reader asked for.
@@ -39,23 +41,27 @@ pub(super) struct Writer<'n> {
 }
 
 impl<'n> Writer<'n> {
-    pub(super) fn new(
-        variables: &'n [Variable],
-        names: &'n Names,
-        elements: &'n [Element],
-    ) -> Self {
-        let mut readers = HashMap::new();
+    pub(super) fn new(pou: &'n Pou<'n, 'n>, names: &'n Names, elements: &'n [Element]) -> Self {
+        let (mut readers, mut outputs) = (HashMap::new(), HashMap::<u64, Vec<String>>::new());
         for from in elements
             .iter()
             .flat_map(|e| e.inputs.iter().flat_map(|p| &p.from))
         {
-            *readers.entry(from.clone()).or_insert(0) += 1;
+            let count = readers.entry(from.clone()).or_insert(0);
+            if *count == 0 {
+                outputs
+                    .entry(from.id)
+                    .or_default()
+                    .push(from.formal.clone());
+            }
+            *count += 1;
         }
         Writer {
-            variables,
+            pou,
             names,
             by_id: elements.iter().map(|e| (e.id, e)).collect(),
             readers,
+            outputs,
             values: HashMap::new(),
             connectors: HashMap::new(),
             stmts: Vec::new(),
@@ -77,6 +83,16 @@ impl<'n> Writer<'n> {
         }
     }
 
+    /// The outputs of the element `id` that an input reads.
+    fn read_of(&self, id: u64) -> Vec<From> {
+        let read = self.outputs.get(&id).into_iter().flatten();
+        read.map(|formal| From {
+            id,
+            formal: formal.clone(),
+        })
+        .collect()
+    }
+
     fn push(&mut self, at: usize, stmt: String) {
         self.stmts.push((at, Some(stmt)));
     }
@@ -95,13 +111,7 @@ impl<'n> Writer<'n> {
                     depth: 0,
                     slot: None,
                 };
-                for f in self
-                    .readers
-                    .keys()
-                    .filter(|f| f.id == e.id)
-                    .cloned()
-                    .collect::<Vec<_>>()
-                {
+                for f in self.read_of(e.id) {
                     self.values.insert(f, on.clone());
                 }
             }
@@ -548,10 +558,7 @@ impl<'n> Writer<'n> {
         }
         let declared = |name: &str| {
             let key = name.to_ascii_uppercase();
-            self.variables
-                .iter()
-                .find(|v| v.name.eq_ignore_ascii_case(name))
-                .map(|v| v.ty.clone())
+            (self.pou.variable(name).map(|v| v.ty.clone()))
                 .or_else(|| self.names.globals.get(&key).cloned())
         };
         match e.split_once('.') {

@@ -64,6 +64,28 @@ fn canonical(v: &Value, ty: IecType) -> String {
     }
 }
 
+/// The integer type that the exported `text` declares `name` with in the ST body's function
+/// block: INT or DINT as an ST variable is declared, else LINT (the interpretation's own
+/// variables).
+fn declared_int(text: &str, name: &str) -> IecType {
+    let body = (text.lines())
+        .find(|l| l.ends_with("(* the program's Structured Text *)"))
+        .and_then(|l| l.split(" : ").nth(1)?.split(';').next());
+    let start = body.and_then(|ty| text.find(&format!("\nFUNCTION_BLOCK {ty}\n")));
+    let fb = start.map_or("", |at| &text[at..]);
+    let fb = &fb[..fb.find("END_FUNCTION_BLOCK").unwrap_or(fb.len())];
+    let declared = fb.lines().find_map(|l| {
+        let (n, rest) = l.trim().split_once(" : ")?;
+        n.eq_ignore_ascii_case(name)
+            .then(|| rest.split([' ', ';']).next())?
+    });
+    match declared {
+        Some("INT") => IecType::Int,
+        Some("DINT") => IecType::Dint,
+        _ => IecType::Lint,
+    }
+}
+
 /// Every scan's values of one side of the trace (which records a row only when something
 /// changed), each row checked to be at `scan × period`.
 fn every_scan(trace: &Value, side: &str, types: &[IecType], period_us: u64) -> Vec<Vec<String>> {
@@ -146,7 +168,7 @@ fn prove(program: &Path, run_args: &[&str]) -> Vec<Vec<String>> {
         let types: Vec<IecType> = (0..names.len())
             .map(|i| match &first[i] {
                 Value::Bool(_) => IecType::Bool,
-                v if v.is_i64() => IecType::Lint,
+                v if v.is_i64() => declared_int(&text, names[i].as_str().unwrap_or_default()),
                 _ => IecType::Lreal,
             })
             .collect();
@@ -852,6 +874,8 @@ fn a_chart_in_structured_text_replays_scan_for_scan() {
         columns_changing(&compared) > 1,
         "lamp and strokes both move"
     );
+    let none = dir.path().join("none.csv");
+    std::fs::write(&none, "scan,time_ms\n0,0\n").unwrap();
     let xml = dir.path().join("xml");
     let written = export(&program, &["--to", "plcopen"], &xml);
     ok(&written);
@@ -880,6 +904,19 @@ fn a_chart_in_structured_text_replays_scan_for_scan() {
     .unwrap();
     let compared = prove(&program, &["--replay", path(&inputs), "--for", "80s"]);
     assert_eq!(columns_changing(&compared), 5, "every light changes");
+    // CODESYS's nested chart with an edge in its nested condition: statements, gated by the
+    // chart's action, whose value goes to the transition's name in its chart.
+    let nested = dir.path().join("nested.xml");
+    std::fs::write(&nested, cetratus_testkit::paths::codesys_nested_edge()).unwrap();
+    let edge = dir.path().join("edge");
+    import("plcopen", &nested, &edge);
+    let program = edge.join("PLC_PRG.toml");
+    let watched = ["--watch", "i", "--watch", "j", "--watch", "k"];
+    let compared = prove(
+        &program,
+        &[&["--replay", path(&none), "--for", "20s"][..], &watched].concat(),
+    );
+    assert_eq!(columns_changing(&compared), 3, "the three counters move");
 }
 
 /// The other POUs of the PLCopen fixtures that import and run: Beremiz's counters in ST, FBD

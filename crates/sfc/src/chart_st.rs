@@ -254,16 +254,17 @@ impl Bodies {
 fn conditions(p: &Parts, networks: &mut Networks) -> Result<Vec<Entry>, SfcError> {
     let mut out = Vec::new();
     for (i, (t, id)) in p.chart.transitions.iter().zip(p.ids).enumerate() {
-        let (text, at, negated, form) = condition_text(p, &t.condition, id, networks)?;
         let nest = Nest::of_transition(p.nests, i);
+        // A nested chart's transition `A__T5` is `T5` in its chart: what its statements assign.
+        let local = nest.and_then(|n| id.strip_prefix(&n.action)?.strip_prefix(SEP));
+        let result = local.unwrap_or(id);
+        let (text, at, negated, form) = condition_text(p, &t.condition, (id, result), networks)?;
         if form == Form::Statements {
-            if let Some(n) = nest {
-                let what = format!(
-                    "a network of statements as the condition of {id}, in the nested chart {}",
-                    n.action
-                );
-                return Err(unsupported(p, at, what, "the condition's value would go to a name with its action's prefix, which is no IEC identifier; draw it with functions only, or write it in ST"));
-            }
+            // A nested chart's condition holds only while its action is on.
+            let text = match nest {
+                Some(n) => format!("{text}{result} := {} AND {result};\n", n.action),
+                None => text,
+            };
             // The importer's text: an error in it is placed at the network.
             let lead = text.len();
             out.push(Entry {
@@ -331,19 +332,19 @@ enum Form {
     Statements,
 }
 
-/// The text of a transition's condition `c` (the transition `id`), where in the file it is,
-/// whether its box negates it, and where it comes from; a network's declarations and notes go
-/// into `networks`.
+/// The text of a transition's condition `c` (the transition `id`, whose value a network of
+/// statements assigns to `result`), where in the file it is, whether its box negates it, and
+/// where it comes from; a network's declarations and notes go into `networks`.
 fn condition_text(
     p: &Parts,
     c: &Condition,
-    id: &str,
+    (id, result): (&str, &str),
     networks: &mut Networks,
 ) -> Result<(String, usize, bool, Form), SfcError> {
     Ok(match c {
         Condition::St { text, at, negated } => (text.clone(), *at, *negated, Form::File),
-        Condition::Network { name, at, .. } => network_text(*at, Some(name), id, networks)?,
-        Condition::Drawn { at, .. } => network_text(*at, None, id, networks)?,
+        Condition::Network { name, at, .. } => network_text(*at, Some(name), result, networks)?,
+        Condition::Drawn { at, .. } => network_text(*at, None, result, networks)?,
         Condition::Unsupported { form, at } => {
             return Err(unsupported(p, *at, form.clone(), &format!("the condition of transition {id} must be Structured Text (inline, in an inVariable box, or a named transition's ST, FBD or LD body) or a network drawn in the chart")))
         }

@@ -21,7 +21,8 @@ pub mod vm;
 mod work;
 
 pub use compile::{
-    compile, compile_entry_texts, compile_with_entries, Entry, EntryError, EntryText, Unit, Var,
+    assigned_name, compile, compile_entry_texts, compile_with_entries, Entry, EntryError,
+    EntryText, Unit, Var,
 };
 pub use error::{Diagnostic, Source, StError};
 pub use vm::{Fault, State};

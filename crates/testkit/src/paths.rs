@@ -45,3 +45,30 @@ pub fn traffic_light_il() -> String {
     let inline = "<condition><inline name=\"\"><IL><xhtml:p><![CDATA[LDN SWITCH_BUTTON]]></xhtml:p></IL></inline></condition>";
     format!("{}{inline}{}", &xml[..open], &xml[close..])
 }
+
+/// CODESYS's nested chart (`codesys-nested-sfc.xml`) with an R_TRIG drawn between the condition
+/// of its nested transition and the box that feeds it, which reads `(i MOD 3) = 0`: a condition
+/// that needs statements (the edge's call, then its `Q`), in a nested chart, where it holds only
+/// while the chart's action is on.
+pub fn codesys_nested_edge() -> String {
+    let xml = std::fs::read_to_string(fixture("plcopen/codesys-nested-sfc.xml"))
+        .expect("the nested chart fixture");
+    let from = xml
+        .find("<action name=\"sub_sfc1\">")
+        .expect("the nested chart");
+    let to = xml
+        .find("<action name=\"shared_st1\"")
+        .expect("the next action");
+    let block = "<block localId=\"900\" typeName=\"R_TRIG\" instanceName=\"EDGE9\"><inputVariables><variable formalParameter=\"CLK\"><connectionPointIn><connection refLocalId=\"4\" /></connectionPointIn></variable></inputVariables><inOutVariables /><outputVariables><variable formalParameter=\"Q\"><connectionPointOut /></variable></outputVariables></block><inVariable localId=\"4\">";
+    let nested = xml[from..to]
+        .replace(
+            "<connection refLocalId=\"4\" />",
+            "<connection refLocalId=\"900\" formalParameter=\"Q\" />",
+        )
+        .replace("<inVariable localId=\"4\">", block)
+        .replace(
+            "<expression>FALSE</expression>",
+            "<expression>(i MOD 3) = 0</expression>",
+        );
+    format!("{}{nested}{}", &xml[..from], &xml[to..])
+}

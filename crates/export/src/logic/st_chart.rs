@@ -9,6 +9,7 @@
 //! pass.
 
 use cetratus_program::st::{ChartTexts, StProgram};
+use cetratus_st::assigned_name;
 
 use super::st_body::{from_pou, into_pou, StBody};
 use super::*;
@@ -79,8 +80,12 @@ impl ChartCalls {
             .collect();
         if !assigned.is_empty() {
             s.push_str("VAR\n");
+            let mut declared = std::collections::HashSet::new();
             for (id, _) in &assigned {
-                let _ = writeln!(s, "  {id} : BOOL;");
+                let name = assigned_name(id);
+                if declared.insert(name.to_ascii_uppercase()) {
+                    let _ = writeln!(s, "  {name} : BOOL;");
+                }
             }
             s.push_str("END_VAR\n");
         }
@@ -106,10 +111,11 @@ impl ChartCalls {
         let first = texts.bodies.len();
         for (j, (id, text)) in texts.conditions.iter().enumerate() {
             let (label, what) = (first + j + 1, comment(id));
+            let result = assigned_name(id);
             let _ = match assigned.iter().any(|(a, _)| a == id) {
                 true => writeln!(
                     parts,
-                    "  {label}:  (* the condition of {what}, as statements *)\n  {id} := FALSE;\n{}\n  {COND} := {id};",
+                    "  {label}:  (* the condition of {what}, as statements *)\n  {result} := FALSE;\n{}\n  {COND} := {result};",
                     terminated(id, text)?
                 ),
                 false => writeln!(

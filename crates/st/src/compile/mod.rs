@@ -214,8 +214,16 @@ pub enum EntryText<'t> {
     Condition(&'t Expr),
     /// A condition written as statements that assign its value to the entry's own name, as
     /// IEC 61131-3 writes a named transition's body (`T1 := …;`); the name is a BOOL of this
-    /// code alone, FALSE until assigned, and its slot the entry's result.
+    /// code alone, FALSE until assigned, and its slot the entry's result. The name of a nested
+    /// chart's transition, `A__T5`, is `T5` here, its name in its chart.
     Assigned(&'t [crate::ast::Stmt]),
+}
+
+/// The name to which the statements of the condition `entry` ([`EntryText::Assigned`]) assign
+/// its value: the entry's own, or for a nested chart's transition `A__T5`, whose name is no IEC
+/// name, `T5`, its name in its chart.
+pub fn assigned_name(entry: &str) -> &str {
+    entry.rsplit("__").next().unwrap_or(entry)
 }
 
 /// An entry's text, parsed: what [`EntryText`] borrows.
@@ -763,8 +771,10 @@ impl<'a> Compiler<'a> {
 
     /// A condition as statements that assign its value to `name` ([`EntryText::Assigned`]): a
     /// BOOL slot of its own, FALSE at the start of each run, which the statements see by that
-    /// name; its slot.
+    /// name; its slot. A nested chart's transition `A__T5` (no IEC name) is `T5` in its chart,
+    /// and its statements assign `T5`.
     fn assigned(&mut self, name: &str, stmts: &[crate::ast::Stmt]) -> Result<Slot, Diagnostic> {
+        let name = assigned_name(name);
         let key = name.to_ascii_uppercase();
         let pos = stmts.first().map_or(0, |s| s.pos);
         if self.scope().vars.contains_key(&key) {

@@ -876,15 +876,6 @@ fn a_chart_in_structured_text_replays_scan_for_scan() {
     );
     let none = dir.path().join("none.csv");
     std::fs::write(&none, "scan,time_ms\n0,0\n").unwrap();
-    let xml = dir.path().join("xml");
-    let written = export(&program, &["--to", "plcopen"], &xml);
-    ok(&written);
-    let notes = String::from_utf8_lossy(&written.stderr);
-    assert!(
-        notes.contains("which the chart form does not carry yet"),
-        "{notes}"
-    );
-    assert!(xml.join("Press.xml").exists());
     // Beremiz's traffic light: a named transition in FBD, an action in LD, and conditions
     // drawn in the chart as networks (docs/sfc.md).
     let light = dir.path().join("light");
@@ -917,6 +908,15 @@ fn a_chart_in_structured_text_replays_scan_for_scan() {
         &[&["--replay", path(&none), "--for", "20s"][..], &watched].concat(),
     );
     assert_eq!(columns_changing(&compared), 3, "the three counters move");
+    // Its statements cannot be written back as the condition of a nested chart: the export
+    // writes POUs instead, and says why.
+    let xml = dir.path().join("xml");
+    let written = export(&program, &["--to", "plcopen"], &xml);
+    ok(&written);
+    let notes = String::from_utf8_lossy(&written.stderr);
+    let why = "the condition of `sub_sfc1__T5` is not `sub_sfc1 AND (…)`";
+    assert!(notes.contains(why), "{notes}");
+    assert!(xml.join("PLC_PRG.xml").exists());
 }
 
 /// The other POUs of the PLCopen fixtures that import and run: Beremiz's counters in ST, FBD
@@ -1114,9 +1114,10 @@ fn plcopen_projects_are_valid_tc6_and_import_back_to_the_same_behaviour() {
 }
 
 /// `--to plcopen` of a program imported from an SFC chart writes the chart back: the Vernadat
-/// SFC cell, its U.1 version and the charts of the PLCopen fixtures (the CODESYS one with a
-/// nested chart) each import from their export as the same program text with the same hash,
-/// and each export is valid TC6 XML.
+/// SFC cell, its U.1 version, the charts of the PLCopen fixtures (the CODESYS one with a nested
+/// chart) and the charts in Structured Text (the press, with a TON and a STRING, and Beremiz's
+/// traffic light, whose LD and FBD the import wrote as ST) each import from their export as the
+/// same program text with the same hash, and each export is valid TC6 XML.
 #[test]
 fn sfc_programs_export_as_charts_that_import_back_with_the_same_hash() {
     let dir = tempfile::tempdir().unwrap();
@@ -1127,6 +1128,11 @@ fn sfc_programs_export_as_charts_that_import_back_with_the_same_hash() {
         (binary::fixture("twincat-sfc-evolution-1.xml"), "Main"),
         (binary::fixture("twincat-sfc-evolution-6.xml"), "Main"),
         (binary::fixture("codesys-nested-sfc.xml"), "PLC_PRG"),
+        (examples().join("press-sfc/press.xml"), "Press"),
+        (
+            binary::fixture("beremiz-svghmi-traffic-light.xml"),
+            "traffic_light_sequence",
+        ),
     ];
     let mut projects = Vec::new();
     for (i, (xml, pou)) in sources.iter().enumerate() {

@@ -28,13 +28,16 @@ use std::fmt::Write as _;
 
 use cetratus_net::{xml_escape, Net};
 use cetratus_program::{Program, Type, Value};
+use cetratus_st::types::{Elem, Ty};
 
 use crate::io::IoRow;
 
 mod sequence;
 mod st;
+mod texts;
 
 use sequence::{st_text, Part, Sequence};
+use texts::{Logic, StChart};
 
 /// Between an action's name and the name of one of its nested chart's elements (as the
 /// importer writes it).
@@ -48,36 +51,54 @@ pub(crate) fn project(program: &Program, file_name: &str) -> Result<(String, Vec
         .into_iter()
         .filter(|r| !r.assigned)
         .collect();
-    if program.st().is_some_and(|s| s.is_chart()) {
-        return Err("its conditions and bodies are Structured Text on the state of its POU (`[st.conditions]`, `[st.bodies]`), which the chart form does not carry yet".into());
-    }
+    let logic = match program.chart_texts() {
+        Some(texts) => Logic::St(Box::new(StChart::new(texts)?)),
+        None => Logic::Guards,
+    };
     let parts = parts(program)?;
     let charts = (parts.iter())
         .map(|p| Sequence::new(program, p, &parts))
         .collect::<Result<Vec<_>, _>>()?;
     let nested: HashSet<&str> = parts.iter().filter_map(|p| p.action.as_deref()).collect();
-    let mut x = header(program);
-    interface(&mut x, program, &io, &nested)?;
-    x.push_str(&actions(program, &charts)?);
+    let mut x = header(program, &logic);
+    match &logic {
+        Logic::St(chart) => x.push_str(&chart.interface),
+        Logic::Guards => interface(&mut x, program, &io, &nested)?,
+    }
+    x.push_str(&actions(program, &charts, &logic)?);
     x.push_str("        <body>\n          <SFC>\n");
-    x.push_str(&charts[0].elements(program)?);
+    x.push_str(&charts[0].elements(program, &logic)?);
     x.push_str("          </SFC>\n        </body>\n      </pou>\n    </pous>\n  </types>\n");
-    configuration(&mut x, program);
+    match &logic {
+        // The library says where its POU runs, if anywhere; the chart adds nothing.
+        Logic::St(chart) => {
+            let configs = &chart.configurations;
+            let _ = write!(x, "  <instances>\n    <configurations>\n{configs}    </configurations>\n  </instances>\n</project>\n");
+        }
+        Logic::Guards => configuration(&mut x, program),
+    }
     verify(program, &x, file_name)?;
     Ok((x, io))
 }
 
-/// The project's opening, named as the program's description names its project.
-fn header(program: &Program) -> String {
+/// The project's opening, named as the program's description names its project, through the
+/// chart POU's start tag: a chart in ST brings its library's data types and other POUs.
+fn header(program: &Program, logic: &Logic) -> String {
     let project = program
         .description()
         .strip_prefix(&format!("SFC {} of ", program.name()))
         .unwrap_or(program.name());
-    format!(
-        "{}  <types>\n    <dataTypes/>\n    <pous>\n      <pou name=\"{}\" pouType=\"program\">\n",
-        crate::plcopen::opening(project, program.version()),
-        xml_escape(program.name()),
-    )
+    let opening = crate::plcopen::opening(project, program.version());
+    match logic {
+        Logic::St(chart) => format!(
+            "{opening}  <types>\n    <dataTypes>\n{}    </dataTypes>\n    <pous>\n{}{}",
+            chart.data_types, chart.pous, chart.start
+        ),
+        Logic::Guards => format!(
+            "{opening}  <types>\n    <dataTypes/>\n    <pous>\n      <pou name=\"{}\" pouType=\"program\">\n",
+            xml_escape(program.name()),
+        ),
+    }
 }
 
 /// The POU's interface: inputs, outputs and variables, a located one typed by its address.
@@ -197,13 +218,19 @@ fn net_difference(a: &Net, b: &Net) -> String {
 /// them; the held places and the hold and resume transitions it added are left out.
 fn parts(program: &Program) -> Result<Vec<Part>, String> {
     let net = program.net();
-    let actions: Vec<&str> = (program.variables().iter())
+    // An action's name is an IEC name, without `__`: its places' ids start with it and SEP.
+    let prefixes: HashSet<&str> = (net.places().iter())
+        .filter_map(|p| Some(p.id.split_once(SEP)?.0))
+        .collect();
+    let bools = (program.variables().iter())
         .filter(|v| v.ty == Type::Bool)
-        .map(|v| v.name.as_str())
-        .filter(|a| {
-            let prefix = format!("{a}{SEP}");
-            net.places().iter().any(|p| p.id.starts_with(&prefix))
-        })
+        .map(|v| v.name.as_str());
+    let st_bools = (program.st().into_iter())
+        .flat_map(|s| &s.unit().vars)
+        .filter(|v| v.ty == Ty::Elem(Elem::Bool))
+        .map(|v| v.name.as_str());
+    let actions: Vec<&str> = (bools.chain(st_bools))
+        .filter(|a| prefixes.contains(a))
         .collect();
     let of = |id: &str| {
         (actions.iter())
@@ -264,7 +291,7 @@ fn parts(program: &Program) -> Result<Vec<Part>, String> {
 
 /// The POU's named actions: the ST bodies an association refers to by name, and the nested
 /// charts.
-fn actions(program: &Program, charts: &[Sequence]) -> Result<String, String> {
+fn actions(program: &Program, charts: &[Sequence], logic: &Logic) -> Result<String, String> {
     let net = program.net();
     let inline: HashSet<String> = (program.actions().iter().enumerate())
         .map(|(k, a)| format!("{}_inline{}", net.places()[a.place.index()].id, k + 1))
@@ -274,7 +301,7 @@ fn actions(program: &Program, charts: &[Sequence]) -> Result<String, String> {
         if inline.contains(body.name()) {
             continue;
         }
-        let text = charts[0].body_text(program, b as u32)?;
+        let text = charts[0].body_text(program, b as u32, logic)?;
         let _ = writeln!(
             x,
             "          <action name=\"{}\">\n            <body>\n              {}\n            </body>\n          </action>",
@@ -287,7 +314,7 @@ fn actions(program: &Program, charts: &[Sequence]) -> Result<String, String> {
             x,
             "          <action name=\"{}\">\n            <body>\n              <SFC>\n{}              </SFC>\n            </body>\n          </action>",
             xml_escape(chart.action().unwrap_or_default()),
-            chart.elements(program)?
+            chart.elements(program, logic)?
         );
     }
     Ok(match x.is_empty() {

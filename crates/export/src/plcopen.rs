@@ -16,7 +16,7 @@ use cetratus_program::Program;
 use crate::data::{ArrayType, Constant};
 use crate::io::IoRow;
 
-mod library;
+pub(crate) mod library;
 use crate::{Dialect, ExportError, StExport};
 
 /// The TC6 namespace the project is written in (version 2.01).
@@ -89,8 +89,8 @@ pub fn to_plcopen(program: &Program) -> Result<StExport, ExportError> {
         x.push_str(&own.data_types);
     }
     x.push_str("    </dataTypes>\n    <pous>\n");
-    if let Some(own) = &own {
-        x.push_str(&own.pous);
+    for (_, pou) in own.iter().flat_map(|o| &o.pous) {
+        x.push_str(pou);
     }
     let exporters = match &library {
         Some((l, _)) => st.pous.replacen(l.as_str(), "", 1),

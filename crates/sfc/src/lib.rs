@@ -31,6 +31,7 @@ use cetratus_program::Program;
 
 pub use chart::{ActionRef, Association, Chart, Condition, Qualifier, Step, Transition};
 pub use error::SfcError;
+pub use lower::STEP_TYPE;
 pub use pou::{Body, Named, VarKind, Variable};
 pub use source::{is_plcopen, MAX_ELEMENTS, MAX_FILE_BYTES, NAMESPACES};
 

@@ -10,6 +10,7 @@ use cetratus_program::guard::{BinOp, Expr, ExprKind};
 use cetratus_program::{Program, Qualifier, Target};
 
 use super::st;
+use super::texts::Logic;
 use super::SEP;
 
 /// Vertical distance between two steps of the drawing.
@@ -219,7 +220,7 @@ fn position(x: u32, y: u32) -> String {
 impl Sequence<'_> {
     /// The SFC elements: steps with their convergences, transitions with their branches and
     /// jumps, then the action blocks, each kind in the program's order.
-    pub(super) fn elements(&self, program: &Program) -> Result<String, String> {
+    pub(super) fn elements(&self, program: &Program, logic: &Logic) -> Result<String, String> {
         let mut ids = Ids::new(self);
         let mut x = String::new();
         let entering = self.entering(&mut ids);
@@ -261,8 +262,8 @@ impl Sequence<'_> {
                 );
             }
         }
-        self.transitions(program, &mut ids, &mut x)?;
-        self.action_blocks(program, &ids, &mut x)?;
+        self.transitions(program, logic, &mut ids, &mut x)?;
+        self.action_blocks(program, logic, &ids, &mut x)?;
         Ok(x)
     }
 
@@ -284,7 +285,13 @@ impl Sequence<'_> {
     }
 
     /// The transitions, each with its simultaneous convergence, divergence and jumps.
-    fn transitions(&self, program: &Program, ids: &mut Ids, x: &mut String) -> Result<(), String> {
+    fn transitions(
+        &self,
+        program: &Program,
+        logic: &Logic,
+        ids: &mut Ids,
+        x: &mut String,
+    ) -> Result<(), String> {
         for (t, &global) in self.part.transitions.iter().enumerate() {
             let tr = &self.net.transitions()[global];
             let first = self.from[t].iter().min().copied().unwrap_or(0);
@@ -305,11 +312,9 @@ impl Sequence<'_> {
                     c
                 }
             };
-            let guard = program.guard(TransIdx(global as u32)).map(|g| g.expr());
-            let condition = match self.own_condition(guard, &tr.id)? {
-                Some(e) => (self.steps.expr(e))
-                    .map_err(|e| format!("transition `{}`'s guard reads {e}", tr.id))?,
-                None => "TRUE".into(),
+            let condition = match logic {
+                Logic::St(chart) => chart.condition(&tr.id, self.action())?,
+                Logic::Guards => self.guard_text(program, global, &tr.id)?,
             };
             let _ = writeln!(
                 x,
@@ -351,7 +356,13 @@ impl Sequence<'_> {
     }
 
     /// The action blocks: one per run of `[[action]]`s on the same step, in the program's order.
-    fn action_blocks(&self, program: &Program, ids: &Ids, x: &mut String) -> Result<(), String> {
+    fn action_blocks(
+        &self,
+        program: &Program,
+        logic: &Logic,
+        ids: &Ids,
+        x: &mut String,
+    ) -> Result<(), String> {
         let actions = program.actions();
         let mut place_of = HashMap::new();
         for (i, &p) in self.part.places.iter().enumerate() {
@@ -382,14 +393,14 @@ impl Sequence<'_> {
                         let body = &program.bodies()[b as usize];
                         let place = &self.net.places()[global].id;
                         if body.name() == format!("{place}_inline{}", k + j + 1) {
-                            inline(&self.body_text(program, b)?)
+                            inline(&self.body_text(program, b, logic)?)
                         } else {
                             format!("<reference name=\"{}\"/>", xml_escape(body.name()))
                         }
                     }
                     Target::Output(i) => reference(&program.outputs()[i as usize].name),
                     Target::Variable(i) => reference(&program.variables()[i as usize].name),
-                    // A chart in ST is written as POUs instead (`project`).
+                    // A BOOL variable of a chart in ST.
                     Target::St(at) => {
                         reference(program.st().and_then(|s| s.slot_name(at)).unwrap_or("?"))
                     }
@@ -427,9 +438,28 @@ impl Sequence<'_> {
         }
     }
 
-    /// A body's statements in the chart's ST.
-    pub(super) fn body_text(&self, program: &Program, b: u32) -> Result<String, String> {
+    /// The guard of the transition `global` (whose id is `id`) as the chart's ST condition.
+    fn guard_text(&self, program: &Program, global: usize, id: &str) -> Result<String, String> {
+        let guard = program.guard(TransIdx(global as u32)).map(|g| g.expr());
+        match self.own_condition(guard, id)? {
+            Some(e) => {
+                (self.steps.expr(e)).map_err(|e| format!("transition `{id}`'s guard reads {e}"))
+            }
+            None => Ok("TRUE".into()),
+        }
+    }
+
+    /// A body's statements in the chart's ST: a chart in ST's as written.
+    pub(super) fn body_text(
+        &self,
+        program: &Program,
+        b: u32,
+        logic: &Logic,
+    ) -> Result<String, String> {
         let body = &program.bodies()[b as usize];
+        if let Logic::St(chart) = logic {
+            return chart.body(body.name()).map(str::to_string);
+        }
         let statements = body
             .statements()
             .map_err(|e| format!("the body `{}` does not read: {e}", body.name()))?;

@@ -15,11 +15,12 @@ use cetratus_st::ast::{self, Library, PouKind, Section, TypeDeclKind, TypeRef};
 use crate::ExportError;
 
 /// The library's data types and POUs as TC6 XML, in that order.
-pub(super) struct Written {
-    pub(super) data_types: String,
-    pub(super) pous: String,
+pub(crate) struct Written {
+    pub(crate) data_types: String,
+    /// Each POU's name and `<pou>` element, in the library's order.
+    pub(crate) pous: Vec<(String, String)>,
     /// The `globalVars` of the library's CONFIGURATION, for the project's configuration.
-    pub(super) globals: String,
+    pub(crate) globals: String,
 }
 
 fn refuse(what: String) -> ExportError {
@@ -31,7 +32,7 @@ fn refuse(what: String) -> ExportError {
 
 /// The TC6 XML of the library `text` and of the `VAR_GLOBAL` blocks `globals` of its
 /// CONFIGURATION.
-pub(super) fn write(text: &str, globals: &str) -> Result<Written, ExportError> {
+pub(crate) fn write(text: &str, globals: &str) -> Result<Written, ExportError> {
     let whole = match globals.is_empty() {
         true => text.to_string(),
         false => format!("{text}\nCONFIGURATION CETRATUS_GLOBALS\n{globals}END_CONFIGURATION\n"),
@@ -47,10 +48,12 @@ pub(super) fn write(text: &str, globals: &str) -> Result<Written, ExportError> {
     for t in &lib.types {
         src.data_type(&mut data_types, t)?;
     }
-    let mut pous = String::new();
+    let mut pous = Vec::with_capacity(lib.pous.len());
     for (i, p) in lib.pous.iter().enumerate() {
         let end = lib.pous.get(i + 1).map_or(text.len(), |n| n.pos as usize);
-        src.pou(&mut pous, p, end)?;
+        let mut xml = String::new();
+        src.pou(&mut xml, p, end)?;
+        pous.push((p.name.text.clone(), xml));
     }
     let mut global_xml = String::new();
     for block in lib.configs.iter().flat_map(|c| &c.globals) {
@@ -425,7 +428,7 @@ END_PROGRAM
         assert!(d.contains("<simpleValue value=\"-3\"/>"), "{d}");
         assert!(d.contains("<array><dimension lower=\"1\" upper=\"3\"/><baseType><REAL/>"));
         assert!(d.contains("<simpleValue value=\"[1.5, 2(0.0)]\"/>"), "{d}");
-        let p = &w.pous;
+        let p: String = w.pous.iter().map(|(_, xml)| xml.as_str()).collect();
         assert!(
             p.contains("<pou name=\"Twice\" pouType=\"function\">"),
             "{p}"

@@ -225,8 +225,7 @@ fn write_pou(
 }
 
 /// The structure of a chart's step flags (`S.X`, `S.T`), declared before the chart's POU.
-pub(crate) const STEP_TYPE: &str =
-    "TYPE CETRATUS_STEP : STRUCT X : BOOL; T : TIME; END_STRUCT; END_TYPE";
+pub const STEP_TYPE: &str = "TYPE CETRATUS_STEP : STRUCT X : BOOL; T : TIME; END_STRUCT; END_TYPE";
 
 /// A chart's POU: its header, interface, the chart's own variables (`vars`: its steps' flags,
 /// its nested charts' `Q`), and no body, which its actions and conditions take.

@@ -12,6 +12,8 @@
 mod decl;
 mod network;
 
+pub use decl::STEP_TYPE;
+
 use std::cell::OnceCell;
 use std::collections::HashMap;
 

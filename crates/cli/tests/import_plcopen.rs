@@ -198,8 +198,8 @@ fn the_nested_codesys_chart_runs_only_while_its_action_is_set() {
         place("sub_sfc1__Init_sub_sfc1"),
         place("sub_sfc1__Init_sub_sfc1__held"),
     );
-    let var = |name: &str| p.variable_index(name).expect(name);
-    let (on, k, i) = (var("sub_sfc1"), var("k"), var("i"));
+    // The action's `Q` and the counters are variables of the chart's ST.
+    let read = |c: &cetratus_runtime::Container, name: &str| c.watch(name).expect(name);
     let mut c = cetratus_runtime::Container::new(p.clone(), 0);
     let (mut was_on, mut was_active, mut last_k) = (false, false, 0i64);
     let (mut scans_on, mut k_while_off_after) = (0u32, None::<i64>);
@@ -209,8 +209,8 @@ fn the_nested_codesys_chart_runs_only_while_its_action_is_set() {
     for n in 1..=3_000u64 {
         c.scan(n * 10_000, &[]).expect("scans");
         let m = c.marking();
-        let now_on = c.variables()[on] == Value::Bool(true);
-        let Value::Int(k_now) = c.variables()[k] else {
+        let now_on = read(&c, "sub_sfc1") == Value::Bool(true);
+        let Value::Int(k_now) = read(&c, "k") else {
             panic!("k is an int")
         };
         entered_step1 |= m[step1] == 1;
@@ -259,7 +259,7 @@ fn the_nested_codesys_chart_runs_only_while_its_action_is_set() {
     );
     assert!(k_while_off_after.is_some(), "sub_sfc1 was reset");
     assert!(!was_on, "sub_sfc1 is reset at the end");
-    let Value::Int(i_end) = c.variables()[i] else {
+    let Value::Int(i_end) = read(&c, "i") else {
         panic!("i is an int")
     };
     assert!(
@@ -462,7 +462,6 @@ fn the_codesys_press_chart_imports_on_the_st_compiler_and_runs_from_a_replay() {
     let said =
         String::from_utf8_lossy(&out.stderr).to_string() + &String::from_utf8_lossy(&out.stdout);
     assert!(out.status.success(), "{said}");
-    assert!(said.contains("ST compiler"), "{said}");
     let trace = dir.path().join("out.csv");
     let run = cetratus(&[
         "run",

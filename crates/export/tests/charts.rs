@@ -247,19 +247,24 @@ fn the_same_chart_is_the_same_program_under_any_file_name() {
         .starts_with("# Imported from the PLCopen TC6 XML project vernadat-sfc, POU Cell.\n"));
 }
 
-/// A program that says it is a chart but reads what a chart's ST cannot (here an edge, edited
-/// into a guard by hand) is written as Structured Text POUs, and the note says why.
+/// A program that says it is a chart but holds what no chart imports as (here a variable
+/// edited by hand into the block of the chart's own variables, which the importer writes) is
+/// written as Structured Text POUs, and the note says why.
 #[test]
 fn what_a_chart_cannot_carry_is_written_as_st_pous_with_the_reason() {
     let cell = vernadat_sfc();
-    let edited = cell.toml.replace("T5 = \"FCM1\"", "T5 = \"rise(FCM1)\"");
+    let edited = cell.toml.replacen(
+        " : CETRATUS_STEP;\n",
+        " : CETRATUS_STEP;\n  Extra : INT;\n",
+        1,
+    );
     assert_ne!(edited, cell.toml);
     let program =
         cetratus_program::Program::from_sources(&edited, "Cell.toml", cell.net.clone()).unwrap();
     let export = to_plcopen(&program).expect("it exports");
     assert!(!export.chart);
     assert!(
-        export.notes[0].contains("transition `T5`'s guard reads `rise(FCM1)`"),
+        export.notes[0].contains("rather than as a chart: its line `  Extra : INT;`"),
         "{:?}",
         export.notes
     );

@@ -757,8 +757,7 @@ fn condition(
             {
                 Some(t) => match &t.body {
                     // A transition body in ST is `transition_name := expr;` or, as some editors
-                    // write it, `:= expr;`: the guard subset refuses both forms, and the chart then
-                    // goes to the ST compiler, which reads the expression (docs/sfc.md).
+                    // write it, `:= expr;`: the importer reads the expression (docs/sfc.md).
                     Body::St { text, at } => Condition::St {
                         text: text.clone(),
                         at: *at,

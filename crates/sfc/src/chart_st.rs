@@ -7,6 +7,7 @@
 use std::collections::{HashMap, HashSet};
 use std::fmt::Write as _;
 
+use cetratus_st::ast::{Expr, ExprKind, Literal};
 use cetratus_st::parse::parse_library;
 use cetratus_st::types::{Elem, Ty};
 use cetratus_st::{compile_entry_texts, Unit};
@@ -69,7 +70,7 @@ pub(crate) fn program_toml(p: &Parts, notes: &mut Vec<String>) -> Result<String,
     check_targets(p, &unit, &actions)?;
     let mut out = header(p.project, &p.pou.name, p.net_file);
     write_signals(&unit, p.source.label, &mut out, notes);
-    write_actions(&mut out, &[], &actions);
+    write_actions(&mut out, &actions);
     let _ = writeln!(out, "\n[st]\npou = {}", q(&p.pou.name));
     let _ = writeln!(out, "source = {}", toml_text(&written.text));
     for (table, body) in [("bodies", true), ("conditions", false)] {
@@ -159,9 +160,7 @@ fn actions(p: &Parts, networks: &mut Networks) -> Result<(Vec<Action>, Vec<Entry
         let step = p.chart.steps[a.step].name.clone();
         let duration = match (a.qualifier.is_timed(), &a.duration) {
             (false, _) => None,
-            (true, Some(d)) => {
-                Some(crate::st::duration(d).map_err(|e| st_err(p, a.at, e.message))?)
-            }
+            (true, Some(d)) => Some(duration(d).map_err(|message| st_err(p, a.at, message))?),
             (true, None) => {
                 let why = format!(
                     "the qualifier {} needs a duration; add duration=\"T#…\"",
@@ -217,6 +216,23 @@ fn actions(p: &Parts, networks: &mut Networks) -> Result<(Vec<Action>, Vec<Entry
         });
     }
     Ok((actions, bodies.entries))
+}
+
+/// The microseconds of a timed qualifier's duration, an IEC time literal (`T#10s`).
+fn duration(text: &str) -> Result<u64, String> {
+    let literal = |e: Expr| match e.kind {
+        ExprKind::Lit(Literal::Time(ns)) => u64::try_from(ns / 1000).ok(),
+        _ => None,
+    };
+    let not = || {
+        format!(
+            "the duration `{}` is not an IEC time literal; write it as T#10s",
+            text.trim()
+        )
+    };
+    cetratus_st::parse::parse_expression(text)
+        .map_err(|_| not())
+        .and_then(|e| literal(e).ok_or_else(not))
 }
 
 /// The action bodies of the chart, each once.

@@ -21,7 +21,6 @@ mod lower;
 mod nest;
 mod pou;
 mod source;
-pub mod st;
 pub mod structured;
 
 use std::collections::HashSet;
@@ -190,7 +189,7 @@ pub fn import_str(
         extra: &extra,
         net_file,
     };
-    let toml = chart_toml(&parts, &mut notes)?;
+    let toml = chart_st::program_toml(&parts, &mut notes)?;
     let program =
         Program::from_sources(&toml, label, net.clone()).map_err(|e| SfcError::Program {
             file: label.to_string(),
@@ -204,36 +203,6 @@ pub fn import_str(
         program,
         notes,
     })
-}
-
-/// The program TOML of a chart: its conditions and bodies translated into guards when they are
-/// within the subset of docs/sfc.md, else on the one ST compiler (*Charts in Structured Text*).
-fn chart_toml(p: &chart_st::Parts, notes: &mut Vec<String>) -> Result<String, SfcError> {
-    let mut subset_notes = notes.clone();
-    let (ids, extra) = (p.ids, p.extra);
-    let subset = build::program_toml(
-        p.source,
-        p.project,
-        p.pou,
-        p.chart,
-        p.nests,
-        ids,
-        extra,
-        p.net_file,
-        &mut subset_notes,
-    );
-    match subset {
-        Ok(toml) => {
-            *notes = subset_notes;
-            Ok(toml)
-        }
-        Err(why @ (SfcError::St { .. } | SfcError::Unsupported { .. })) => {
-            let toml = chart_st::program_toml(p, notes)?;
-            notes.push(format!("{}: the chart's Structured Text runs on the ST compiler, with IEC 61131-3's types: it is outside the guard subset ({why})", p.source.label));
-            Ok(toml)
-        }
-        Err(e) => Err(e),
-    }
 }
 
 /// A POU of a PLCopen file imported as a program.

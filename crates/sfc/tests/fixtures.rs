@@ -112,8 +112,7 @@ fn check_chart(file: &str, chart: &Chart, e: &Value, text: &str) {
         }
         assert_eq!((from, to), (want_from, want_to), "{what}: transition {id}");
         let form = t["condition_form"].as_str().expect("condition_form");
-        // Every ST form is read as ST, the function-call form `:= …` of a body included (the
-        // ST compiler takes it when the guard subset does not).
+        // Every ST form is read as ST, the function-call form `:= …` of a body included.
         let supported = ours.condition.form() == "ST";
         let ours_st = form == "inline ST" || form == "inVariable" || form == "reference (ST body)";
         assert_eq!(supported, ours_st, "{what}: transition {id} is {form}");

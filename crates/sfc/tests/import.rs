@@ -19,16 +19,22 @@ fn import(file: &str, pou: Option<&str>) -> Result<cetratus_sfc::Imported, SfcEr
 }
 
 #[test]
-fn the_twincat_charts_import_as_programs_with_their_conditions_as_guards() {
+fn the_twincat_charts_import_as_programs_with_their_conditions_in_structured_text() {
     let one = import("twincat-sfc-evolution-1.xml", None).expect("imports");
     let p = &one.program;
     assert_eq!(p.name(), "Main");
     assert_eq!(p.net().num_places(), 2);
     assert_eq!(p.net().initial_marking().as_slice(), &[1, 0]);
-    assert!(one.toml.contains("T2 = \"Condition_1\""), "{}", one.toml);
+    let q = "'".repeat(3);
+    let condition = format!("\"T2\" = {q}\nCondition_1{q}");
+    assert!(one.toml.contains(&condition), "{}", one.toml);
     let six = import("twincat-sfc-evolution-6.xml", Some("main")).expect("imports");
     // The action ACT writes `changed`; the variable is declared `Changed`: one name, IEC case.
-    assert!(six.toml.contains("Changed := true"), "{}", six.toml);
+    assert!(six.toml.contains("changed := TRUE;"), "{}", six.toml);
+    assert!(six
+        .program
+        .st()
+        .is_some_and(|s| s.bool_var("CHANGED").is_some()));
     assert!(six.toml.contains("body = \"ACT\""), "{}", six.toml);
     assert!(six
         .notes
@@ -107,81 +113,33 @@ fn a_pnml_file_is_not_taken_for_plcopen() {
     assert!(err.to_string().contains("not PLCopen TC6 XML"), "{err}");
 }
 
+/// Beremiz's `CounterSFC` counts in every scan of its step `Count` and runs its bodies once more
+/// as the step is left (IEC 61131-3's final run of a non-BOOL action), then `ResetCounter`
+/// loads the configuration's constant 17.
 #[test]
 fn beremiz_counter_bodies_count_in_every_scan_of_their_step_with_the_iec_final_run() {
-    use cetratus_program::{ActionState, EvalCtx, Value, Work};
+    use cetratus_program::Value;
     let imported = import("beremiz-first-steps.xml", Some("CounterSFC")).expect("imports");
-    let p = &imported.program;
     assert!(
         imported.toml.contains("Cnt := Cnt + 1"),
         "{}",
         imported.toml
     );
-    let count = p.net().place_by_id("Count").expect("step Count").index();
-    let start = p.net().place_by_id("Start").expect("step Start").index();
-    let mut st = ActionState::new(p);
-    let mut marking = p.net().initial_marking().0;
-    let mut since: Vec<Option<u64>> = marking.iter().map(|&m| (m > 0).then_some(0)).collect();
-    let (mut outputs, mut vars) = (vec![Value::Int(0)], vec![Value::Int(0), Value::Int(0)]);
-    let run = |st: &mut ActionState,
-               m: &[u32],
-               s: &[Option<u64>],
-               changes: &[(cetratus_net::PlaceIdx, u32)],
-               now: u64,
-               o: &mut Vec<Value>,
-               v: &mut Vec<Value>| {
-        let c = EvalCtx {
-            inputs: &[Value::Bool(false)],
-            prev_inputs: &[Value::Bool(false)],
-            vars: &[],
-            marking: m,
-            place_since_us: s,
-            place_dwell_us: &[],
-            now_us: now,
-        };
-        st.apply(p, &c, changes, o, v, &mut Work::unlimited())
-            .expect("runs");
-    };
-    // Start -> Count.
-    marking[start] = 0;
-    marking[count] = 1;
-    since[start] = None;
-    since[count] = Some(10);
-    let entered = [
-        (cetratus_net::PlaceIdx(start as u32), 1),
-        (cetratus_net::PlaceIdx(count as u32), 0),
-    ];
-    run(
-        &mut st,
-        &marking,
-        &since,
-        &entered,
-        10,
-        &mut outputs,
-        &mut vars,
+    let mut c = cetratus_runtime::Container::new(std::sync::Arc::new(imported.program), 0);
+    let mut outs = Vec::new();
+    for (k, reset) in [false, false, false, false, true, true, true, false]
+        .iter()
+        .enumerate()
+    {
+        c.scan(10_000 * (k as u64 + 1), &[Value::Bool(*reset)])
+            .unwrap_or_else(|e| panic!("scan {k}: {e}"));
+        outs.push(c.outputs()[0]);
+    }
+    let counted: Vec<Value> = [1, 2, 3, 4, 5, 17, 17, 17].map(Value::Int).into();
+    assert_eq!(
+        outs, counted,
+        "counts 1 to 4, the final run 5, then the constant"
     );
-    run(&mut st, &marking, &since, &[], 20, &mut outputs, &mut vars);
-    run(&mut st, &marking, &since, &[], 30, &mut outputs, &mut vars);
-    assert_eq!((vars[0], outputs[0]), (Value::Int(3), Value::Int(3)));
-    // Count -> Start: one final run, then nothing.
-    marking[start] = 1;
-    marking[count] = 0;
-    since[count] = None;
-    let left = [
-        (cetratus_net::PlaceIdx(start as u32), 0),
-        (cetratus_net::PlaceIdx(count as u32), 1),
-    ];
-    run(
-        &mut st,
-        &marking,
-        &since,
-        &left,
-        40,
-        &mut outputs,
-        &mut vars,
-    );
-    run(&mut st, &marking, &since, &[], 50, &mut outputs, &mut vars);
-    assert_eq!((vars[0], outputs[0]), (Value::Int(4), Value::Int(4)));
 }
 
 #[test]
@@ -272,12 +230,14 @@ fn a_nested_chart_reads_its_own_steps_and_evolves_only_while_its_action_is_on() 
     let text = nested_pou(&loop_chart("A", "go"), &loop_chart("B", "go"));
     let imported = cetratus_sfc::import_str(&text, "n.xml", None, "P.pnml").expect("imports");
     let toml = &imported.toml;
-    assert!(
-        toml.contains("Sub__T3 = \"Sub && Sub__A.dwell > 1s\""),
-        "{toml}"
-    );
-    assert!(toml.contains("Sub__A__hold = \"!Sub\""), "{toml}");
-    assert!(toml.contains("Sub__A__resume = \"Sub\""), "{toml}");
+    let q = "'".repeat(3);
+    for condition in [
+        format!("\"Sub__T3\" = {q}\nSub AND (A.T > T#1s){q}"),
+        format!("\"Sub__A__hold\" = {q}\nNOT Sub{q}"),
+        format!("\"Sub__A__resume\" = {q}\nSub{q}"),
+    ] {
+        assert!(toml.contains(&condition), "{condition} in {toml}");
+    }
     assert!(
         toml.contains("place = \"Run\"\nqualifier = \"S\"\ntarget = \"Sub\""),
         "{toml}"

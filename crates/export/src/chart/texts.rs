@@ -96,7 +96,6 @@ impl StChart {
             return Ok("TRUE".into());
         }
         (text.strip_prefix(&format!("{action} AND ("))).and_then(|t| t.strip_suffix(')'))
-            .filter(|t| !t.starts_with("NOT ("))
             .map(str::to_string)
             .ok_or_else(|| format!("the condition of `{id}` is not `{action} AND (…)` as a nested chart's plain condition is"))
     }

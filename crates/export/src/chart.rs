@@ -4,7 +4,7 @@
 //!
 //! The importer's mapping (docs/sfc.md) is inverted element by element: a place is a step (its
 //! initial marking the initial step), a transition `T<n>` is the transition of localId `n`, its
-//! guard the ST condition, and the left-to-right order of the transitions that leave a step
+//! condition as `[st.conditions]` holds it (module `texts`), and the left-to-right order of the transitions that leave a step
 //! (their x position) gives back their priorities. Steps with several transitions leaving them
 //! get a selection divergence, with several entering a selection convergence; a transition with
 //! several source steps a simultaneous convergence, with several targets a simultaneous
@@ -16,28 +16,28 @@
 //! transitions `A__T<n>`, a held place and a hold and a resume transition per step, and a BOOL
 //! variable `A` that the action's `Q` drives) is written back as the action `A` with an SFC
 //! body: its own steps and transitions under their names in it, its conditions without the
-//! `A && …` the importer adds, its initial step the one whose held place is marked.
+//! `A AND (…)` the importer adds, its initial step the one whose held place is marked.
 //!
 //! The writer does not trust itself: the chart is imported back in process, and only a chart
-//! that gives the program's own hash is returned. A program the chart cannot carry (a guard
-//! outside the chart's ST subset, a hand edit the importer never writes) is said with the
-//! reason, and the caller writes it as Structured Text POUs instead.
+//! that gives the program's own hash is returned. A program the chart cannot carry (statements
+//! as a nested chart's condition, a chart written by hand in the guard language, a hand edit
+//! the importer never writes) is said with the reason, and the caller writes it as Structured
+//! Text POUs instead.
 
 use std::collections::HashSet;
 use std::fmt::Write as _;
 
 use cetratus_net::{xml_escape, Net};
-use cetratus_program::{Program, Type, Value};
+use cetratus_program::Program;
 use cetratus_st::types::{Elem, Ty};
 
 use crate::io::IoRow;
 
 mod sequence;
-mod st;
 mod texts;
 
 use sequence::{st_text, Part, Sequence};
-use texts::{Logic, StChart};
+use texts::StChart;
 
 /// Between an action's name and the name of one of its nested chart's elements (as the
 /// importer writes it).
@@ -51,134 +51,41 @@ pub(crate) fn project(program: &Program, file_name: &str) -> Result<(String, Vec
         .into_iter()
         .filter(|r| !r.assigned)
         .collect();
-    let logic = match program.chart_texts() {
-        Some(texts) => Logic::St(Box::new(StChart::new(texts)?)),
-        None => Logic::Guards,
+    let Some(texts) = program.chart_texts() else {
+        return Err("its conditions are guards of the program format, and the chart form carries a chart in Structured Text; import the chart's PLCopen file again to get one".into());
     };
+    let chart = StChart::new(texts)?;
     let parts = parts(program)?;
     let charts = (parts.iter())
-        .map(|p| Sequence::new(program, p, &parts))
+        .map(|p| Sequence::new(program, p))
         .collect::<Result<Vec<_>, _>>()?;
-    let nested: HashSet<&str> = parts.iter().filter_map(|p| p.action.as_deref()).collect();
-    let mut x = header(program, &logic);
-    match &logic {
-        Logic::St(chart) => x.push_str(&chart.interface),
-        Logic::Guards => interface(&mut x, program, &io, &nested)?,
-    }
-    x.push_str(&actions(program, &charts, &logic)?);
+    let mut x = header(program, &chart);
+    x.push_str(&chart.interface);
+    x.push_str(&actions(program, &charts, &chart)?);
     x.push_str("        <body>\n          <SFC>\n");
-    x.push_str(&charts[0].elements(program, &logic)?);
+    x.push_str(&charts[0].elements(program, &chart)?);
     x.push_str("          </SFC>\n        </body>\n      </pou>\n    </pous>\n  </types>\n");
-    match &logic {
-        // The library says where its POU runs, if anywhere; the chart adds nothing.
-        Logic::St(chart) => {
-            let configs = &chart.configurations;
-            let _ = write!(x, "  <instances>\n    <configurations>\n{configs}    </configurations>\n  </instances>\n</project>\n");
-        }
-        Logic::Guards => configuration(&mut x, program),
-    }
+    // The library says where its POU runs, if anywhere; the chart adds nothing.
+    let configs = &chart.configurations;
+    let _ = write!(x, "  <instances>\n    <configurations>\n{configs}    </configurations>\n  </instances>\n</project>\n");
     verify(program, &x, file_name)?;
     Ok((x, io))
 }
 
 /// The project's opening, named as the program's description names its project, through the
-/// chart POU's start tag: a chart in ST brings its library's data types and other POUs.
-fn header(program: &Program, logic: &Logic) -> String {
+/// chart POU's start tag, with the library's data types and other POUs.
+fn header(program: &Program, chart: &StChart) -> String {
     let project = program
         .description()
         .strip_prefix(&format!("SFC {} of ", program.name()))
         .unwrap_or(program.name());
-    let opening = crate::plcopen::opening(project, program.version());
-    match logic {
-        Logic::St(chart) => format!(
-            "{opening}  <types>\n    <dataTypes>\n{}    </dataTypes>\n    <pous>\n{}{}",
-            chart.data_types, chart.pous, chart.start
-        ),
-        Logic::Guards => format!(
-            "{opening}  <types>\n    <dataTypes/>\n    <pous>\n      <pou name=\"{}\" pouType=\"program\">\n",
-            xml_escape(program.name()),
-        ),
-    }
-}
-
-/// The POU's interface: inputs, outputs and variables, a located one typed by its address.
-/// The BOOL variables that nested charts' actions drive are not declared: the importer adds them.
-fn interface(
-    x: &mut String,
-    program: &Program,
-    io: &[IoRow],
-    nested: &HashSet<&str>,
-) -> Result<(), String> {
-    let declared = declared_initials(program)?;
-    x.push_str("        <interface>\n");
-    let blocks = [
-        ("inputVars", program.inputs()),
-        ("outputVars", program.outputs()),
-        ("localVars", program.variables()),
-    ];
-    for (element, signals) in blocks {
-        let declared_here: Vec<_> = (signals.iter())
-            .filter(|s| !nested.contains(s.name.as_str()))
-            .collect();
-        if declared_here.is_empty() {
-            continue;
-        }
-        let _ = writeln!(x, "          <{element}>");
-        for s in declared_here {
-            let row = io.iter().find(|r| r.signal == s.name);
-            let ty = match (s.ty, row) {
-                (_, Some(r)) => r.iec_type,
-                (Type::Bool, None) => "BOOL",
-                (Type::Int, None) => "LINT",
-                (Type::Real, None) => "LREAL",
-            };
-            let address = (row.map(|r| format!(" address=\"{}\"", xml_escape(&r.address))))
-                .unwrap_or_default();
-            let _ = writeln!(
-                x,
-                "            <variable name=\"{}\"{address}>\n              <type><{ty}/></type>",
-                xml_escape(&s.name)
-            );
-            if declared.contains(s.name.as_str()) {
-                let v = match s.initial {
-                    Value::Bool(b) => (if b { "TRUE" } else { "FALSE" }).to_string(),
-                    Value::Int(i) => i.to_string(),
-                    Value::Real(r) => format!("{r:?}"),
-                };
-                let _ = writeln!(
-                    x,
-                    "              <initialValue><simpleValue value=\"{v}\"/></initialValue>"
-                );
-            }
-            x.push_str("            </variable>\n");
-        }
-        let _ = writeln!(x, "          </{element}>");
-    }
-    x.push_str("        </interface>\n");
-    Ok(())
-}
-
-/// The variables whose `initial` the program text declares (a zero declared and a zero by
-/// default are one value, and two programs).
-fn declared_initials(program: &Program) -> Result<HashSet<String>, String> {
-    let table: toml::Table = program
-        .source()
-        .parse()
-        .map_err(|e| format!("the program text does not read back as TOML: {e}"))?;
-    let variables = table.get("variable").and_then(|v| v.as_array());
-    Ok(variables
-        .into_iter()
-        .flatten()
-        .filter(|v| v.get("initial").is_some())
-        .filter_map(|v| v.get("name")?.as_str().map(str::to_string))
-        .collect())
-}
-
-/// The configuration: one task at the scan period running the chart.
-fn configuration(x: &mut String, program: &Program) {
-    x.push_str("  <instances>\n    <configurations>\n");
-    x.push_str(&crate::plcopen::task(program, program.name()));
-    x.push_str("      </configuration>\n    </configurations>\n  </instances>\n</project>\n");
+    format!(
+        "{}  <types>\n    <dataTypes>\n{}    </dataTypes>\n    <pous>\n{}{}",
+        crate::plcopen::opening(project, program.version()),
+        chart.data_types,
+        chart.pous,
+        chart.start
+    )
 }
 
 /// Imports the chart back and compares: the same program text and net, or the first line that
@@ -222,14 +129,10 @@ fn parts(program: &Program) -> Result<Vec<Part>, String> {
     let prefixes: HashSet<&str> = (net.places().iter())
         .filter_map(|p| Some(p.id.split_once(SEP)?.0))
         .collect();
-    let bools = (program.variables().iter())
-        .filter(|v| v.ty == Type::Bool)
-        .map(|v| v.name.as_str());
-    let st_bools = (program.st().into_iter())
+    let actions: Vec<&str> = (program.st().into_iter())
         .flat_map(|s| &s.unit().vars)
         .filter(|v| v.ty == Ty::Elem(Elem::Bool))
-        .map(|v| v.name.as_str());
-    let actions: Vec<&str> = (bools.chain(st_bools))
+        .map(|v| v.name.as_str())
         .filter(|a| prefixes.contains(a))
         .collect();
     let of = |id: &str| {
@@ -291,30 +194,30 @@ fn parts(program: &Program) -> Result<Vec<Part>, String> {
 
 /// The POU's named actions: the ST bodies an association refers to by name, and the nested
 /// charts.
-fn actions(program: &Program, charts: &[Sequence], logic: &Logic) -> Result<String, String> {
+fn actions(program: &Program, charts: &[Sequence], chart: &StChart) -> Result<String, String> {
     let net = program.net();
     let inline: HashSet<String> = (program.actions().iter().enumerate())
         .map(|(k, a)| format!("{}_inline{}", net.places()[a.place.index()].id, k + 1))
         .collect();
     let mut x = String::new();
-    for (b, body) in program.bodies().iter().enumerate() {
+    for body in program.bodies() {
         if inline.contains(body.name()) {
             continue;
         }
-        let text = charts[0].body_text(program, b as u32, logic)?;
+        let text = chart.body(body.name())?;
         let _ = writeln!(
             x,
             "          <action name=\"{}\">\n            <body>\n              {}\n            </body>\n          </action>",
             xml_escape(body.name()),
-            st_text(&text)
+            st_text(text)
         );
     }
-    for chart in &charts[1..] {
+    for nested in &charts[1..] {
         let _ = writeln!(
             x,
             "          <action name=\"{}\">\n            <body>\n              <SFC>\n{}              </SFC>\n            </body>\n          </action>",
-            xml_escape(chart.action().unwrap_or_default()),
-            chart.elements(program, logic)?
+            xml_escape(nested.action().unwrap_or_default()),
+            nested.elements(program, chart)?
         );
     }
     Ok(match x.is_empty() {

@@ -270,3 +270,21 @@ fn what_a_chart_cannot_carry_is_written_as_st_pous_with_the_reason() {
     );
     assert!(export.text.contains("FUNCTION_BLOCK") || export.text.contains("functionBlock"));
 }
+
+/// A chart written by hand in the guard language (`chart = "sfc"` with `[guards]`, no `[st]`)
+/// is written as Structured Text POUs: its file would import as a chart in Structured Text, a
+/// different program, and the note says so.
+#[test]
+fn a_chart_in_the_guard_language_is_written_as_st_pous_saying_why() {
+    let cell = vernadat_sfc();
+    let toml = "[program]\nname = \"Cell\"\nversion = \"1\"\nnet = \"Cell.pnml\"\nchart = \"sfc\"\n\n[[input]]\nname = \"FCM1\"\ntype = \"bool\"\n\n[guards]\nT5 = \"FCM1\"\n";
+    let program =
+        cetratus_program::Program::from_sources(toml, "Cell.toml", cell.net.clone()).unwrap();
+    let export = to_plcopen(&program).expect("it exports");
+    assert!(!export.chart);
+    assert!(
+        export.notes[0].contains("its conditions are guards of the program format"),
+        "{:?}",
+        export.notes
+    );
+}

@@ -48,7 +48,7 @@ struct Entry {
 
 /// The program TOML of the chart on the ST compiler.
 pub(crate) fn program_toml(p: &Parts, notes: &mut Vec<String>) -> Result<String, SfcError> {
-    // Conditions first, as the chart reads: the first refusal is the same as the subset's.
+    // Conditions first, then the actions: the first refusal is the first as the chart reads.
     let mut networks = Networks {
         lower: ChartNetworks::new(p.source, p.doc, p.pou),
         decls: Vec::new(),
@@ -190,7 +190,7 @@ fn actions(p: &Parts, networks: &mut Networks) -> Result<(Vec<Action>, Vec<Entry
                     body: Body::Other { language, .. },
                     ..
                 }) => {
-                    return refuse(format!("the action `{name}` with a {language} body"), "action bodies must be Structured Text or a chart (an FBD, LD or IL body is not imported)");
+                    return refuse(format!("the action `{name}` with a {language} body"), "action bodies are Structured Text, LD, FBD or a chart; Instruction List, which IEC 61131-3 deprecates, is not imported: rewrite the action in ST");
                 }
                 None => Drive::Target(name.clone()),
             },

@@ -5,12 +5,10 @@
 use std::collections::HashMap;
 use std::fmt::Write as _;
 
-use cetratus_net::{xml_escape, ArcKind, Net, NodeRef, TransIdx};
-use cetratus_program::guard::{BinOp, Expr, ExprKind};
+use cetratus_net::{xml_escape, ArcKind, Net, NodeRef};
 use cetratus_program::{Program, Qualifier, Target};
 
-use super::st;
-use super::texts::Logic;
+use super::texts::StChart;
 use super::SEP;
 
 /// Vertical distance between two steps of the drawing.
@@ -40,8 +38,6 @@ pub(super) struct Sequence<'n> {
     to: Vec<Vec<usize>>,
     leaving: Vec<Vec<usize>>,
     rank: Vec<u32>,
-    /// How the conditions and bodies of this chart name each step.
-    steps: st::Steps<'n>,
     /// The next free localId.
     next: u64,
 }
@@ -52,11 +48,7 @@ impl<'n> Sequence<'n> {
         self.part.action.as_deref()
     }
 
-    pub(super) fn new(
-        program: &'n Program,
-        part: &'n Part,
-        parts: &'n [Part],
-    ) -> Result<Self, String> {
+    pub(super) fn new(program: &'n Program, part: &'n Part) -> Result<Self, String> {
         let net = program.net().as_ref();
         let mut place_of = vec![usize::MAX; net.num_places()];
         for (i, &p) in part.places.iter().enumerate() {
@@ -111,7 +103,6 @@ impl<'n> Sequence<'n> {
             to,
             leaving,
             rank,
-            steps: step_names(net, part, parts),
             next,
         })
     }
@@ -141,21 +132,6 @@ fn local_ids(net: &Net, part: &Part) -> Result<Vec<u64>, String> {
         }
     }
     Ok(local)
-}
-
-/// How the text of `part` names each step: its own by their names in it, the other charts'
-/// by their place ids (which the importer finds too).
-fn step_names<'n>(net: &'n Net, part: &Part, parts: &[Part]) -> st::Steps<'n> {
-    let mut names: std::collections::HashMap<&str, String> = HashMap::new();
-    for other in parts {
-        for &p in &other.places {
-            names.insert(&net.places()[p].id, net.places()[p].id.clone());
-        }
-    }
-    for (i, &p) in part.places.iter().enumerate() {
-        names.insert(&net.places()[p].id, part.names[i].clone());
-    }
-    st::Steps(names)
 }
 
 /// Each transition's x rank, from which the importer gives back its priority: among the
@@ -220,7 +196,7 @@ fn position(x: u32, y: u32) -> String {
 impl Sequence<'_> {
     /// The SFC elements: steps with their convergences, transitions with their branches and
     /// jumps, then the action blocks, each kind in the program's order.
-    pub(super) fn elements(&self, program: &Program, logic: &Logic) -> Result<String, String> {
+    pub(super) fn elements(&self, program: &Program, chart: &StChart) -> Result<String, String> {
         let mut ids = Ids::new(self);
         let mut x = String::new();
         let entering = self.entering(&mut ids);
@@ -262,8 +238,8 @@ impl Sequence<'_> {
                 );
             }
         }
-        self.transitions(program, logic, &mut ids, &mut x)?;
-        self.action_blocks(program, logic, &ids, &mut x)?;
+        self.transitions(chart, &mut ids, &mut x)?;
+        self.action_blocks(program, chart, &ids, &mut x)?;
         Ok(x)
     }
 
@@ -285,13 +261,7 @@ impl Sequence<'_> {
     }
 
     /// The transitions, each with its simultaneous convergence, divergence and jumps.
-    fn transitions(
-        &self,
-        program: &Program,
-        logic: &Logic,
-        ids: &mut Ids,
-        x: &mut String,
-    ) -> Result<(), String> {
+    fn transitions(&self, chart: &StChart, ids: &mut Ids, x: &mut String) -> Result<(), String> {
         for (t, &global) in self.part.transitions.iter().enumerate() {
             let tr = &self.net.transitions()[global];
             let first = self.from[t].iter().min().copied().unwrap_or(0);
@@ -312,10 +282,7 @@ impl Sequence<'_> {
                     c
                 }
             };
-            let condition = match logic {
-                Logic::St(chart) => chart.condition(&tr.id, self.action())?,
-                Logic::Guards => self.guard_text(program, global, &tr.id)?,
-            };
+            let condition = chart.condition(&tr.id, self.action())?;
             let _ = writeln!(
                 x,
                 "            <transition localId=\"{}\">\n              {}{}\n              <condition><inline name=\"\">{}</inline></condition>\n            </transition>",
@@ -359,7 +326,7 @@ impl Sequence<'_> {
     fn action_blocks(
         &self,
         program: &Program,
-        logic: &Logic,
+        chart: &StChart,
         ids: &Ids,
         x: &mut String,
     ) -> Result<(), String> {
@@ -393,7 +360,7 @@ impl Sequence<'_> {
                         let body = &program.bodies()[b as usize];
                         let place = &self.net.places()[global].id;
                         if body.name() == format!("{place}_inline{}", k + j + 1) {
-                            inline(&self.body_text(program, b, logic)?)
+                            inline(chart.body(body.name())?)
                         } else {
                             format!("<reference name=\"{}\"/>", xml_escape(body.name()))
                         }
@@ -416,54 +383,6 @@ impl Sequence<'_> {
             k += run;
         }
         Ok(())
-    }
-
-    /// The guard of a nested chart's transition without the `A && …` the importer adds (the
-    /// chart evolves only while its action is on); the POU's own as it is.
-    fn own_condition<'e>(
-        &self,
-        guard: Option<&'e Expr>,
-        id: &str,
-    ) -> Result<Option<&'e Expr>, String> {
-        let Some(action) = &self.part.action else {
-            return Ok(guard);
-        };
-        let is_action = |e: &Expr| matches!(&e.kind, ExprKind::Name(n) if n == action);
-        match guard.map(|g| &g.kind) {
-            Some(ExprKind::Binary(BinOp::And, l, r)) if is_action(l) => Ok(Some(r)),
-            Some(_) if guard.is_some_and(is_action) => Ok(None),
-            _ => Err(format!(
-                "the guard of `{id}` does not read `{action} && …` as a nested chart's does"
-            )),
-        }
-    }
-
-    /// The guard of the transition `global` (whose id is `id`) as the chart's ST condition.
-    fn guard_text(&self, program: &Program, global: usize, id: &str) -> Result<String, String> {
-        let guard = program.guard(TransIdx(global as u32)).map(|g| g.expr());
-        match self.own_condition(guard, id)? {
-            Some(e) => {
-                (self.steps.expr(e)).map_err(|e| format!("transition `{id}`'s guard reads {e}"))
-            }
-            None => Ok("TRUE".into()),
-        }
-    }
-
-    /// A body's statements in the chart's ST: a chart in ST's as written.
-    pub(super) fn body_text(
-        &self,
-        program: &Program,
-        b: u32,
-        logic: &Logic,
-    ) -> Result<String, String> {
-        let body = &program.bodies()[b as usize];
-        if let Logic::St(chart) = logic {
-            return chart.body(body.name()).map(str::to_string);
-        }
-        let statements = body
-            .statements()
-            .map_err(|e| format!("the body `{}` does not read: {e}", body.name()))?;
-        (self.steps.body(&statements)).map_err(|e| format!("the body `{}` reads {e}", body.name()))
     }
 }
 

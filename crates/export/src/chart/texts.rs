@@ -1,8 +1,7 @@
-//! Where a chart's conditions and bodies come from in the chart form: the program's guards and
-//! bodies, translated into ST (module `st`), or for a chart in Structured Text, its
-//! `[st.conditions]` and `[st.bodies]` as written, with its POU's declarations read from
-//! `[st] source` without what the importer added there (the step flags' type, and the chart's
-//! own variables: the step flags and the nested charts' `Q`).
+//! A chart in Structured Text in the chart form: its `[st.conditions]` and `[st.bodies]` as
+//! written, with its POU's declarations read from `[st] source` without what the importer added
+//! there (the step flags' type, and the chart's own variables: the step flags and the nested
+//! charts' `Q`).
 //!
 //! The importer writes a nested chart's condition `c` as `A AND (c)`, its box negated as
 //! `NOT (c)`, and a network that needs statements as those statements; the chart form writes
@@ -15,14 +14,6 @@ use std::fmt::Write as _;
 
 use cetratus_net::xml_escape;
 use cetratus_program::st::ChartTexts;
-
-/// The conditions and bodies of the chart.
-pub(crate) enum Logic {
-    /// The program's guards and `[bodies]`.
-    Guards,
-    /// A chart in Structured Text.
-    St(Box<StChart>),
-}
 
 /// A chart in Structured Text, as the chart form writes it.
 pub(crate) struct StChart {

@@ -10,8 +10,8 @@ use crate::nest::{Nest, SEP};
 use crate::source::Source;
 use crate::SfcError;
 
-/// A transition the mapping adds (a nested step's hold or resume), with its guard.
-pub(crate) type ExtraGuard = (String, String);
+/// A transition the mapping adds (a nested step's hold or resume), with its ST condition.
+pub(crate) type ExtraCondition = (String, String);
 
 /// The structural net of a chart: steps as places (initial steps marked), transitions as
 /// transitions with their left-to-right priorities, jumps as arcs to their target. Refuses a
@@ -22,7 +22,7 @@ pub(crate) fn net(
     source: &Source,
     chart: &Chart,
     nests: &[Nest],
-) -> Result<(Net, Vec<String>, Vec<ExtraGuard>), SfcError> {
+) -> Result<(Net, Vec<String>, Vec<ExtraCondition>), SfcError> {
     check_networks(source, chart)?;
     let mut used: HashSet<String> = chart
         .steps
@@ -109,8 +109,13 @@ pub(crate) fn net(
     let mut extra = Vec::new();
     for (i, place, action) in held {
         let step = &chart.steps[i].name;
-        for (suffix, from, to, guard) in [
-            ("hold", step.as_str(), place.as_str(), format!("!{action}")),
+        for (suffix, from, to, condition) in [
+            (
+                "hold",
+                step.as_str(),
+                place.as_str(),
+                format!("NOT {action}"),
+            ),
             ("resume", place.as_str(), step.as_str(), action.clone()),
         ] {
             let id = fresh(format!("{step}{SEP}{suffix}"));
@@ -122,7 +127,7 @@ pub(crate) fn net(
             let arc = fresh(format!("{id}_to_{to}"));
             b.add_arc(&arc, &id, to, 1, ArcKind::Normal)
                 .map_err(|e| net_err(source, e))?;
-            extra.push((id, guard));
+            extra.push((id, condition));
         }
     }
     Ok((b.build().map_err(|e| net_err(source, e))?, ids, extra))

@@ -750,11 +750,7 @@ fn condition(
         },
         "reference" => {
             let name = form.attribute("name").unwrap_or("");
-            match pou
-                .transitions
-                .iter()
-                .find(|t| t.name.eq_ignore_ascii_case(name))
-            {
+            match pou.transition(name) {
                 Some(t) => match &t.body {
                     // A transition body in ST is `transition_name := expr;` or, as some editors
                     // write it, `:= expr;`: the importer reads the expression (docs/sfc.md).

@@ -4,7 +4,7 @@
 //! `[st.conditions]` entry, as the file writes them. Everything is compiled here first, so that
 //! an error names the file's line and column; the program then compiles the same text.
 
-use std::collections::{HashMap, HashSet};
+use std::collections::HashSet;
 use std::fmt::Write as _;
 
 use cetratus_st::ast::{Expr, ExprKind, Literal};
@@ -12,7 +12,7 @@ use cetratus_st::parse::parse_library;
 use cetratus_st::types::{Elem, Ty};
 use cetratus_st::{compile_entry_texts, Unit};
 
-use crate::build::{header, q, qualifier_name, write_actions, Action, Drive, ExtraGuard};
+use crate::build::{header, q, qualifier_name, write_actions, Action, Drive, ExtraCondition};
 use crate::chart::{ActionRef, Chart, Condition};
 use crate::lower::{ChartNetworks, Text};
 use crate::nest::{Nest, SEP};
@@ -26,13 +26,15 @@ pub(crate) struct Parts<'p> {
     pub source: &'p Source<'p>,
     pub doc: &'p cetratus_net::xml::Document<'p>,
     pub project: &'p str,
+    /// The file's POUs, and the chart's among them.
+    pub pous: &'p [Pou<'p, 'p>],
     pub pou: &'p Pou<'p, 'p>,
     pub chart: &'p Chart,
     pub nests: &'p [Nest],
     /// The net's transition ids, one per transition of the chart.
     pub ids: &'p [String],
     /// The hold and resume transitions of nested steps, with their guards.
-    pub extra: &'p [ExtraGuard],
+    pub extra: &'p [ExtraCondition],
     pub net_file: &'p str,
 }
 
@@ -50,7 +52,7 @@ struct Entry {
 pub(crate) fn program_toml(p: &Parts, notes: &mut Vec<String>) -> Result<String, SfcError> {
     // Conditions first, then the actions: the first refusal is the first as the chart reads.
     let mut networks = Networks {
-        lower: ChartNetworks::new(p.source, p.doc, p.pou),
+        lower: ChartNetworks::new(p.source, p.doc, (p.pous, p.pou)),
         decls: Vec::new(),
         notes: Vec::new(),
     };
@@ -64,7 +66,7 @@ pub(crate) fn program_toml(p: &Parts, notes: &mut Vec<String>) -> Result<String,
             vars.push(d);
         }
     }
-    let written = crate::lower::chart_library(p.source, p.doc, &p.pou.name, &vars, notes)?;
+    let written = networks.lower.library(p.doc, &vars, notes)?;
     notes.extend(networks.notes);
     let unit = compile(p, &written, &entries)?;
     check_targets(p, &unit, &actions)?;
@@ -151,10 +153,6 @@ impl Networks<'_, '_, '_> {
 fn actions(p: &Parts, networks: &mut Networks) -> Result<(Vec<Action>, Vec<Entry>), SfcError> {
     let mut actions = Vec::new();
     let mut bodies = Bodies::default();
-    let mut named: HashMap<String, &Named> = HashMap::new();
-    for n in &p.pou.actions {
-        named.entry(n.name.to_ascii_uppercase()).or_insert(n);
-    }
     let nested: HashSet<&str> = p.nests.iter().map(|n| n.action.as_str()).collect();
     for (k, a) in p.chart.associations.iter().enumerate() {
         let step = p.chart.steps[a.step].name.clone();
@@ -171,7 +169,7 @@ fn actions(p: &Parts, networks: &mut Networks) -> Result<(Vec<Action>, Vec<Entry
         };
         let refuse = |construct: String, why: &str| Err(unsupported(p, a.at, construct, why));
         let drive = match &a.action {
-            ActionRef::Reference(name) => match named.get(&name.to_ascii_uppercase()) {
+            ActionRef::Reference(name) => match p.pou.action(name) {
                 Some(n) if nested.contains(n.name.as_str()) => Drive::Target(n.name.clone()),
                 Some(n) if bodies.has(&n.name) => Drive::Body(n.name.clone()),
                 Some(Named {
@@ -320,14 +318,10 @@ fn conditions(p: &Parts, networks: &mut Networks) -> Result<Vec<Entry>, SfcError
             body: false,
         });
     }
-    for (id, guard) in p.extra {
-        let text = match guard.strip_prefix('!') {
-            Some(action) => format!("NOT {action}"),
-            None => guard.clone(),
-        };
+    for (id, condition) in p.extra {
         out.push(Entry {
             name: id.clone(),
-            text,
+            text: condition.clone(),
             lead: 0,
             at: None,
             body: false,

@@ -167,9 +167,8 @@ pub fn import_str(
     let chart = chart::read(&source, chosen, "body", sfc)?;
     let (merged, nests, nested) = nest::merge(&source, chosen, &chart)?;
     let associated: HashSet<&str> = nests.iter().map(|n| n.action.as_str()).collect();
-    let charts = nest::sfc_actions(chosen);
     for a in &chosen.actions {
-        if charts.contains_key(&a.name.to_ascii_uppercase()) && !associated.contains(&*a.name) {
+        if nest::sfc_action(chosen, &a.name).is_some() && !associated.contains(&*a.name) {
             notes.push(format!(
                 "{label}: the action `{}` has a SFC body and no step of the chart associates it: not imported",
                 a.name
@@ -182,6 +181,7 @@ pub fn import_str(
         source: &source,
         doc: &doc,
         project,
+        pous: &pous,
         pou: chosen,
         chart: &merged,
         nests: &nests,

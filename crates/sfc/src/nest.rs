@@ -16,7 +16,7 @@ use std::collections::{HashMap, HashSet};
 use std::ops::Range;
 
 use crate::chart::{self, ActionRef, Chart};
-use crate::pou::{self, Body, Named, Pou};
+use crate::pou::{self, Body, Pou};
 use crate::source::Source;
 use crate::SfcError;
 
@@ -49,17 +49,11 @@ impl Nest {
     }
 }
 
-/// The named actions of `pou` whose body is a chart: each name as declared, by its upper case
-/// (IEC names are case-insensitive; of two actions of one name, the first is the action).
-pub(crate) fn sfc_actions<'p>(pou: &'p Pou) -> HashMap<String, &'p str> {
-    let mut first: HashMap<String, &Named> = HashMap::new();
-    for a in &pou.actions {
-        first.entry(a.name.to_ascii_uppercase()).or_insert(a);
-    }
-    (first.into_iter())
-        .filter(|(_, a)| matches!(&a.body, Body::Other { language, .. } if language == "SFC"))
-        .map(|(key, a)| (key, a.name.as_str()))
-        .collect()
+/// Whether `name` is a named action of `pou` with an SFC body; its name as declared.
+pub(crate) fn sfc_action<'p>(pou: &'p Pou, name: &str) -> Option<&'p str> {
+    (pou.action(name))
+        .filter(|a| matches!(&a.body, Body::Other { language, .. } if language == "SFC"))
+        .map(|a| a.name.as_str())
 }
 
 /// The POU's chart `main` with the charts of the SFC-bodied actions that it associates merged
@@ -72,7 +66,6 @@ pub(crate) fn merge(
     let mut merged = main.clone();
     let mut nests: Vec<Nest> = Vec::new();
     let mut drawn: Vec<Chart> = Vec::new();
-    let actions = sfc_actions(pou);
     let mut charts = HashMap::new();
     for (location, node) in pou::sfc_bodies(pou) {
         charts.entry(location).or_insert(node);
@@ -82,7 +75,7 @@ pub(crate) fn merge(
         let ActionRef::Reference(name) = &a.action else {
             continue;
         };
-        let Some(&action) = actions.get(&name.to_ascii_uppercase()) else {
+        let Some(action) = sfc_action(pou, name) else {
             continue;
         };
         if !merged_actions.insert(action) {
@@ -96,7 +89,7 @@ pub(crate) fn merge(
         // One level: a nested chart that associates an SFC-bodied action is refused.
         for inner in &nested.associations {
             if let ActionRef::Reference(n) = &inner.action {
-                if let Some(deeper) = actions.get(&n.to_ascii_uppercase()) {
+                if let Some(deeper) = sfc_action(pou, n) {
                     return Err(SfcError::Unsupported {
                         pos: source.pos(inner.at),
                         pou: pou.name.clone(),

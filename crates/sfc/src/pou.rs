@@ -66,11 +66,11 @@ pub struct Named {
 pub(crate) struct Pou<'a, 'i> {
     pub name: String,
     pub variables: Vec<Variable>,
-    /// Each variable's index in `variables` by its name in upper case (the first, where two
-    /// have one name): what a network looks its names up in, once per element.
-    declared: HashMap<String, usize>,
     pub actions: Vec<Named>,
     pub transitions: Vec<Named>,
+    /// The indexes of `variables`, `actions` and `transitions` by name, which the import looks
+    /// names up in once per element, reference and association.
+    index: [HashMap<String, usize>; 3],
     /// The `<pou>` element.
     pub node: Node<'a, 'i>,
     /// Where it was found: `types/pous`, or (TwinCAT) project-level `addData`.
@@ -80,9 +80,33 @@ pub(crate) struct Pou<'a, 'i> {
 impl Pou<'_, '_> {
     /// The variable `name` of the interface (IEC names are case-insensitive).
     pub fn variable(&self, name: &str) -> Option<&Variable> {
-        let i = *self.declared.get(&name.to_ascii_uppercase())?;
-        self.variables.get(i)
+        self.variables.get(self.find(0, name)?)
     }
+
+    /// The named action `name`.
+    pub fn action(&self, name: &str) -> Option<&Named> {
+        self.actions.get(self.find(1, name)?)
+    }
+
+    /// The named transition `name`.
+    pub fn transition(&self, name: &str) -> Option<&Named> {
+        self.transitions.get(self.find(2, name)?)
+    }
+
+    /// Where `name` is in the list `k` of [`Pou::index`].
+    fn find(&self, k: usize, name: &str) -> Option<usize> {
+        self.index[k].get(&name.to_ascii_uppercase()).copied()
+    }
+}
+
+/// Each name's position among `names`, by its upper case (IEC names are case-insensitive): the
+/// first, where two are one name.
+fn by_name<'n>(names: impl Iterator<Item = &'n str>) -> HashMap<String, usize> {
+    let mut index = HashMap::new();
+    for (i, name) in names.enumerate() {
+        index.entry(name.to_ascii_uppercase()).or_insert(i);
+    }
+    index
 }
 
 /// The data name under which TwinCAT puts a POU in project-level `addData`.
@@ -155,16 +179,21 @@ fn read_pou<'a, 'i>(source: &Source, node: Node<'a, 'i>, in_add_data: bool) -> P
             })
             .unwrap_or_default()
     };
-    let mut declared = HashMap::new();
-    for (i, v) in variables.iter().enumerate() {
-        declared.entry(v.name.to_ascii_uppercase()).or_insert(i);
-    }
+    let (actions, transitions) = (
+        named("actions", "action"),
+        named("transitions", "transition"),
+    );
+    let index = [
+        by_name(variables.iter().map(|v| v.name.as_str())),
+        by_name(actions.iter().map(|a| a.name.as_str())),
+        by_name(transitions.iter().map(|t| t.name.as_str())),
+    ];
     Pou {
         name: node.attribute("name").unwrap_or("").to_string(),
         variables,
-        declared,
-        actions: named("actions", "action"),
-        transitions: named("transitions", "transition"),
+        actions,
+        transitions,
+        index,
         node,
         in_add_data,
     }

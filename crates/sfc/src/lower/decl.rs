@@ -17,6 +17,7 @@ pub(super) fn library(
     source: &Source,
     doc: &Document,
     (pous, chosen): (&[Pou], &Pou),
+    names: &Names,
     chart_vars: Option<&[String]>,
     out: &mut Written,
     notes: &mut Notes,
@@ -35,7 +36,6 @@ pub(super) fn library(
     for dt in data_types.iter().flat_map(|d| children(*d, "dataType")) {
         data_type(dt, out, notes).map_err(|(at, what, why)| fail(at, &what, &why))?;
     }
-    let names = Names::of(doc, pous);
     let needed = needed(pous, chosen);
     for pou in pous
         .iter()
@@ -46,7 +46,7 @@ pub(super) fn library(
                 write_chart_pou(pou, vars, out, notes).map_err(|(at, w, y)| fail(at, &w, &y))?;
             }
             (Some(l), _) if textual(l) => {
-                write_pou(source, pou, &names, out, notes).map_err(|e| match e {
+                write_pou(source, pou, names, out, notes).map_err(|e| match e {
                     Refusal::Here(at, what, why) => fail(at, &what, &why),
                     Refusal::Error(e) => e,
                 })?;

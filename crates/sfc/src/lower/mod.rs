@@ -67,7 +67,16 @@ pub(crate) fn import(
         });
     }
     let mut out = Written::default();
-    let run = decl::library(source, doc, (&pous, chosen), None, &mut out, &mut noted)?;
+    let names = network::Names::of(doc, &pous);
+    let run = decl::library(
+        source,
+        doc,
+        (&pous, chosen),
+        &names,
+        None,
+        &mut out,
+        &mut noted,
+    )?;
     notes.append(&mut noted.lines);
     let what = format!("{language} from PLCopen XML");
     import_st_from(
@@ -80,43 +89,14 @@ pub(crate) fn import(
     .map_err(|e| hint_skipped(e, &pous))
 }
 
-/// The Structured Text of an SFC POU's chart: the file's data types and the POUs the chart
-/// uses, then the chart's POU `chosen` with its interface and the chart's own variables
-/// (`chart_vars`), and no body; with where each line came from, and what was noted.
-pub(crate) fn chart_library(
-    source: &Source,
-    doc: &Document,
-    chosen: &str,
-    chart_vars: &[String],
-    notes: &mut Vec<String>,
-) -> Result<Written, SfcError> {
-    let mut noted = decl::Notes::new(source);
-    let pous = pou::pous(source, doc);
-    let Some(pou) = pous.iter().find(|p| p.name == chosen) else {
-        return Err(SfcError::Pou {
-            file: source.label.to_string(),
-            message: format!("no POU `{chosen}`; the file's POUs are: {}", listing(&pous)),
-        });
-    };
-    let mut out = Written::default();
-    decl::library(
-        source,
-        doc,
-        (&pous, pou),
-        Some(chart_vars),
-        &mut out,
-        &mut noted,
-    )?;
-    notes.append(&mut noted.lines);
-    Ok(out)
-}
-
 /// The LD and FBD networks of an SFC POU's chart, lowered from what is read of the file once per
 /// chart: the file's names, the POU's elements by where they start, and the network elements
 /// drawn in each of its charts. A chart of many networks so costs the sum of their sizes, not
 /// their number times the file's.
 pub(crate) struct ChartNetworks<'s, 'a, 'i> {
     source: &'s Source<'s>,
+    /// The file's POUs, and the chart's among them.
+    pous: &'s [Pou<'a, 'i>],
     pou: &'s Pou<'a, 'i>,
     names: network::Names,
     /// The POU's elements by the byte where they start (the outermost, where several do).
@@ -129,9 +109,13 @@ pub(crate) struct ChartNetworks<'s, 'a, 'i> {
 }
 
 impl<'s, 'a, 'i> ChartNetworks<'s, 'a, 'i> {
-    /// The networks of `pou`'s chart in the file `doc`.
-    pub(crate) fn new(source: &'s Source<'s>, doc: &Document, pou: &'s Pou<'a, 'i>) -> Self {
-        let names = network::Names::of(doc, &pou::pous(source, doc));
+    /// The networks of the chart of `pou`, one of the POUs `pous` of the file `doc`.
+    pub(crate) fn new(
+        source: &'s Source<'s>,
+        doc: &Document,
+        (pous, pou): (&'s [Pou<'a, 'i>], &'s Pou<'a, 'i>),
+    ) -> Self {
+        let names = network::Names::of(doc, pous);
         let mut nodes = HashMap::new();
         let mut charts = Vec::new();
         for n in pou.node.descendants() {
@@ -142,11 +126,37 @@ impl<'s, 'a, 'i> ChartNetworks<'s, 'a, 'i> {
         }
         ChartNetworks {
             source,
+            pous,
             pou,
             names,
             nodes,
             charts,
         }
+    }
+
+    /// The Structured Text of the chart's POU: the file's data types and the POUs the chart
+    /// uses, then the chart's POU with its interface and the chart's own variables
+    /// (`chart_vars`), and no body; with where each line came from, and what was noted.
+    pub(crate) fn library(
+        &self,
+        doc: &Document,
+        chart_vars: &[String],
+        notes: &mut Vec<String>,
+    ) -> Result<Written, SfcError> {
+        let mut noted = decl::Notes::new(self.source);
+        let mut out = Written::default();
+        let (pous, chart) = ((self.pous, self.pou), Some(chart_vars));
+        decl::library(
+            self.source,
+            doc,
+            pous,
+            &self.names,
+            chart,
+            &mut out,
+            &mut noted,
+        )?;
+        notes.append(&mut noted.lines);
+        Ok(out)
     }
 
     /// The element of the POU at byte `at`, or the error that no `what` is there.

@@ -31,7 +31,7 @@ pub(super) struct Writer<'n> {
     /// How many inputs read each output.
     pub(super) readers: HashMap<From, usize>,
     /// The outputs that inputs read, by their element's id.
-    outputs: HashMap<u64, Vec<String>>,
+    outputs: HashMap<u64, Vec<From>>,
     pub(super) values: HashMap<From, Value>,
     pub(super) connectors: HashMap<String, Value>,
     /// Statements; `None` is a place kept for a temporary that no reader asked for.
@@ -42,17 +42,14 @@ pub(super) struct Writer<'n> {
 
 impl<'n> Writer<'n> {
     pub(super) fn new(pou: &'n Pou<'n, 'n>, names: &'n Names, elements: &'n [Element]) -> Self {
-        let (mut readers, mut outputs) = (HashMap::new(), HashMap::<u64, Vec<String>>::new());
+        let (mut readers, mut outputs) = (HashMap::new(), HashMap::<u64, Vec<From>>::new());
         for from in elements
             .iter()
             .flat_map(|e| e.inputs.iter().flat_map(|p| &p.from))
         {
             let count = readers.entry(from.clone()).or_insert(0);
             if *count == 0 {
-                outputs
-                    .entry(from.id)
-                    .or_default()
-                    .push(from.formal.clone());
+                outputs.entry(from.id).or_default().push(from.clone());
             }
             *count += 1;
         }
@@ -85,12 +82,7 @@ impl<'n> Writer<'n> {
 
     /// The outputs of the element `id` that an input reads.
     fn read_of(&self, id: u64) -> Vec<From> {
-        let read = self.outputs.get(&id).into_iter().flatten();
-        read.map(|formal| From {
-            id,
-            formal: formal.clone(),
-        })
-        .collect()
+        self.outputs.get(&id).cloned().unwrap_or_default()
     }
 
     fn push(&mut self, at: usize, stmt: String) {

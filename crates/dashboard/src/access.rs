@@ -25,10 +25,10 @@ use std::sync::Mutex;
 use std::time::{Duration, Instant};
 
 use axum::http::{header, HeaderMap};
-use cetratus_mct::budget::TokenBucket;
 use cetratus_mct::logins::LoginGate;
 pub use cetratus_mct::password::hash_password;
 use cetratus_mct::password::HashedPassword;
+use cetratus_slots::rate::{PerAddress, Rate};
 
 /// The name of the session cookie.
 pub const COOKIE: &str = "cetratus_session";
@@ -52,16 +52,16 @@ pub const LINK_LIFETIME: Duration = Duration::from_secs(24 * 3600);
 pub const MAX_NAME: usize = 64;
 
 /// Login attempts per second from all clients together, and the burst allowed above it.
-const LOGINS_PER_S: f64 = 4.0;
-const LOGIN_BURST: f64 = 8.0;
+const LOGINS: Rate = Rate {
+    per_s: 4.0,
+    burst: 8.0,
+};
 
 /// Login attempts per second from one address, and the burst allowed above it.
-const LOGINS_PER_S_PER_ADDR: f64 = 0.5;
-const LOGIN_BURST_PER_ADDR: f64 = 4.0;
-
-/// Addresses whose login rate is tracked; past it, the table starts again (the limit for all
-/// clients together still holds).
-const MAX_TRACKED_ADDRS: usize = 1024;
+const LOGINS_PER_ADDRESS: Rate = Rate {
+    per_s: 0.5,
+    burst: 4.0,
+};
 
 /// A dashboard account: a name and its password's argon2 hash, as a PHC string
 /// (`$argon2id$v=19$…`, what `cetratus hash-password` prints).
@@ -129,7 +129,8 @@ struct Session {
 struct Limits {
     /// All clients together, with a share for those who logged in before.
     all: LoginGate,
-    by_addr: HashMap<IpAddr, TokenBucket>,
+    /// Each address on its own.
+    by_addr: PerAddress,
 }
 
 /// The dashboard's accounts, sessions and login links.
@@ -198,8 +199,8 @@ impl Access {
             sessions: Mutex::new(HashMap::new()),
             links: Mutex::new(HashMap::new()),
             limits: Mutex::new(Limits {
-                all: LoginGate::new(LOGINS_PER_S, LOGIN_BURST, Instant::now()),
-                by_addr: HashMap::new(),
+                all: LoginGate::new(LOGINS, Instant::now()),
+                by_addr: PerAddress::new(LOGINS_PER_ADDRESS),
             }),
             refused: std::sync::atomic::AtomicU64::new(0),
             decoy,
@@ -288,14 +289,7 @@ impl Access {
     /// address logged in to this account before).
     fn may_try(&self, from: IpAddr, account: &str, now: Instant) -> bool {
         let mut limits = self.limits.lock().unwrap_or_else(|e| e.into_inner());
-        if limits.by_addr.len() >= MAX_TRACKED_ADDRS && !limits.by_addr.contains_key(&from) {
-            limits.by_addr.clear();
-        }
-        let mine = limits
-            .by_addr
-            .entry(from)
-            .or_insert_with(|| TokenBucket::new(LOGINS_PER_S_PER_ADDR, LOGIN_BURST_PER_ADDR, now))
-            .take(1.0, now);
+        let mine = limits.by_addr.admit(from, now);
         mine && limits.all.admit(Some(from), account, now)
     }
 

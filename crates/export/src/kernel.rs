@@ -16,7 +16,7 @@
 pub(crate) fn text() -> String {
     [
         HEAD,
-        &enabling_test("AVAIL", "NEXT", 8),
+        &enabling_test("AVAIL", "NEXT", 6),
         STEP_REST,
         &enabling_test("M", "M", 6),
         TAIL,
@@ -28,22 +28,16 @@ pub(crate) fn text() -> String {
 /// `inputs` holds less than its arc's weight, an inhibitor place of `after` holds its arc's weight
 /// or more, or the firing would fill a place of `after` over its capacity.
 fn enabling_test(inputs: &str, after: &str, indent: usize) -> String {
-    let test = format!(
-        "I := NET_PRE_START[T];
-WHILE I < NET_PRE_START[T + 1] DO
-  IF {inputs}[NET_PRE_PLACE[I]] < NET_PRE_WEIGHT[I] THEN
-    OK := FALSE;
-  END_IF;
-  I := I + 1;
-END_WHILE;
-I := NET_INHIBITOR_START[T];
-WHILE I < NET_INHIBITOR_START[T + 1] DO
-  IF {after}[NET_INHIBITOR_PLACE[I]] >= NET_INHIBITOR_WEIGHT[I] THEN
-    OK := FALSE;
-  END_IF;
-  I := I + 1;
-END_WHILE;
-I := C_START[T];
+    let pre = arc_test(
+        "PRE",
+        &format!("{inputs}[NET_PRE_PLACE[I]] < NET_PRE_WEIGHT[I]"),
+    );
+    let inhibitors = arc_test(
+        "INHIBITOR",
+        &format!("{after}[NET_INHIBITOR_PLACE[I]] >= NET_INHIBITOR_WEIGHT[I]"),
+    );
+    let capacities = format!(
+        "I := C_START[T];
 WHILE I < C_START[T + 1] DO
   P := C_PLACE[I];
   IF NET_CAPACITY[P] > 0 AND C_DELTA[I] > 0 THEN
@@ -55,9 +49,26 @@ WHILE I < C_START[T + 1] DO
 END_WHILE;
 "
     );
-    test.lines()
+    [pre, inhibitors, capacities]
+        .concat()
+        .lines()
         .map(|l| format!("{:indent$}{l}\n", ""))
         .collect()
+}
+
+/// The loop over transition `T`'s arcs of the table `NET_<arcs>_*` that sets `OK := FALSE` when
+/// an arc `I` `fails`.
+fn arc_test(arcs: &str, fails: &str) -> String {
+    format!(
+        "I := NET_{arcs}_START[T];
+WHILE I < NET_{arcs}_START[T + 1] DO
+  IF {fails} THEN
+    OK := FALSE;
+  END_IF;
+  I := I + 1;
+END_WHILE;
+"
+    )
 }
 
 /// The kernel up to the enabling test of the step.
@@ -170,37 +181,10 @@ ELSE
     NEXT[P] := M[P];
     P := P + 1;
   END_WHILE;
-  IF NET_POLICY = 0 THEN
-    (* Step: visit by priority, then declaration order; a transition joins when its condition
-       holds, Pre <= M - Pre(chosen), its inhibitors hold and its outputs fit in
-       M + C(chosen). *)
-    R := 1;
-    WHILE R <= NET_TRANSITIONS DO
-      T := NET_ORDER[R];
-      IF COND[T] AND (ENABLED[T] OR LATE[T]) THEN
-        OK := TRUE;
-"#;
-
-/// From the step's enabling test to the enabling test at `M`.
-const STEP_REST: &str = r#"        IF OK THEN
-          I := NET_PRE_START[T];
-          WHILE I < NET_PRE_START[T + 1] DO
-            AVAIL[NET_PRE_PLACE[I]] := AVAIL[NET_PRE_PLACE[I]] - NET_PRE_WEIGHT[I];
-            I := I + 1;
-          END_WHILE;
-          I := C_START[T];
-          WHILE I < C_START[T + 1] DO
-            NEXT[C_PLACE[I]] := NEXT[C_PLACE[I]] + C_DELTA[I];
-            I := I + 1;
-          END_WHILE;
-        END_IF;
-      END_IF;
-      R := R + 1;
-    END_WHILE;
-  ELSE
+  CHOSEN := 0;
+  IF NET_POLICY <> 0 THEN
     (* Single: one firing among the firable, the last (1), the first (2) or the highest
        priority, ties to the first declared (3). *)
-    CHOSEN := 0;
     T := 1;
     WHILE T <= NET_TRANSITIONS DO
       IF ENABLED[T] AND COND[T] THEN
@@ -214,14 +198,38 @@ const STEP_REST: &str = r#"        IF OK THEN
       END_IF;
       T := T + 1;
     END_WHILE;
-    IF CHOSEN > 0 THEN
-      I := C_START[CHOSEN];
-      WHILE I < C_START[CHOSEN + 1] DO
+  END_IF;
+  (* The firings, visited by priority, then declaration order: under a single firing the one
+     chosen; in a step, each transition whose condition holds, Pre <= M - Pre(chosen), whose
+     inhibitors hold and whose outputs fit in M + C(chosen). *)
+  R := 1;
+  WHILE R <= NET_TRANSITIONS DO
+    T := NET_ORDER[R];
+    OK := FALSE;
+    IF NET_POLICY <> 0 THEN
+      OK := T = CHOSEN;
+    ELSIF COND[T] AND (ENABLED[T] OR LATE[T]) THEN
+      OK := TRUE;
+"#;
+
+/// From the step's enabling test to the enabling test at `M`.
+const STEP_REST: &str = r#"      IF OK THEN
+        I := NET_PRE_START[T];
+        WHILE I < NET_PRE_START[T + 1] DO
+          AVAIL[NET_PRE_PLACE[I]] := AVAIL[NET_PRE_PLACE[I]] - NET_PRE_WEIGHT[I];
+          I := I + 1;
+        END_WHILE;
+      END_IF;
+    END_IF;
+    IF OK THEN
+      I := C_START[T];
+      WHILE I < C_START[T + 1] DO
         NEXT[C_PLACE[I]] := NEXT[C_PLACE[I]] + C_DELTA[I];
         I := I + 1;
       END_WHILE;
     END_IF;
-  END_IF;
+    R := R + 1;
+  END_WHILE;
   (* The marking update; the first scan enters every place marked after it. *)
   P := 1;
   WHILE P <= NET_PLACES DO

@@ -22,7 +22,7 @@ use tokio_modbus::server::Service;
 use tokio_modbus::{ExceptionCode, Request, Response, SlaveRequest};
 
 use crate::IoError;
-use cetratus_slots::{Idle, Slot, Slots};
+use cetratus_slots::{Idle, IdleTimeout, Slot, Slots};
 
 /// The four tables of a Modbus device, and which of them clients may write.
 #[derive(Debug, Default, Clone)]
@@ -332,7 +332,10 @@ impl BankServer {
                                 slot,
                                 served: AtomicBool::new(false),
                             };
-                            Ok(Some((svc, Idle::new(stream, idle_timeout))))
+                            Ok(Some((
+                                svc,
+                                Idle::new(stream, IdleTimeout::after(idle_timeout)),
+                            )))
                         }
                     };
                     tokio::select! {

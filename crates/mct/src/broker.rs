@@ -29,7 +29,7 @@
 //! so that what a session is charged for is what it holds.
 //!
 //! An account's password is checked with argon2 on one blocking thread at a time, at most
-//! [`LOGINS_PER_S`] a second: a flood of wrong passwords costs a core at most and never the
+//! [`LOGINS`]`.per_s` a second: a flood of wrong passwords costs a core at most and never the
 //! internal logins, which compare a random secret.
 
 use std::collections::HashMap;
@@ -39,6 +39,8 @@ use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{Arc, Mutex};
 use std::thread::JoinHandle;
 use std::time::Duration;
+
+use cetratus_slots::rate::Rate;
 
 use crate::acl::{Acl, BrokerSettings, Login, DASHBOARD_USER, PLC_USER};
 use crate::checks::{Auth, PublishAcl, SubscribeLimits};
@@ -152,11 +154,11 @@ pub const PARTIAL_FLOOR_BYTES: usize = 64 << 10;
 pub const CONNECTION_BUFFER_BYTES: usize = 64 << 10;
 
 /// Account logins whose password the broker checks per second, for all clients together; past
-/// it (and [`LOGIN_BURST`]) a login is refused without being checked.
-pub const LOGINS_PER_S: f64 = 8.0;
-
-/// Account logins that may arrive at once before [`LOGINS_PER_S`] applies.
-pub const LOGIN_BURST: f64 = 16.0;
+/// it (16 may arrive at once) a login is refused without being checked.
+pub const LOGINS: Rate = Rate {
+    per_s: 8.0,
+    burst: 16.0,
+};
 
 /// A copy of `publish` that shares no memory with the buffer it was read into. rmqtt's codec
 /// cuts a packet's topic, payload and properties out of the connection's read buffer without
@@ -584,24 +586,6 @@ fn bind_error(addr: SocketAddr, e: rmqtt::Error) -> MctError {
 #[cfg(test)]
 mod tests {
     use super::{MemRetain, RETAINED_BYTES};
-    use crate::budget::TokenBucket as Bucket;
-    use std::time::{Duration, Instant};
-
-    #[test]
-    fn the_bucket_passes_a_burst_then_its_rate() {
-        let t0 = Instant::now();
-        let mut b = Bucket::new(100.0, 300.0, t0);
-        assert!(b.take(300.0, t0), "the burst");
-        assert!(!b.take(1.0, t0), "nothing left");
-        assert!(
-            !b.take(60.0, t0 + Duration::from_millis(500)),
-            "50 came back, not 60"
-        );
-        assert!(b.take(100.0, t0 + Duration::from_secs(1)));
-        // Saved up to the burst, not beyond.
-        assert!(!b.take(301.0, t0 + Duration::from_secs(100)));
-        assert!(b.take(300.0, t0 + Duration::from_secs(100)));
-    }
 
     /// A message of `n` payload bytes on the topic `t`.
     fn message(n: usize) -> rmqtt::types::Publish {

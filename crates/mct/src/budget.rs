@@ -8,7 +8,6 @@
 
 use std::sync::atomic::{AtomicU64, AtomicUsize, Ordering};
 use std::sync::Arc;
-use std::time::Instant;
 
 #[derive(Debug)]
 struct Inner {
@@ -92,47 +91,7 @@ impl Drop for Permit {
     }
 }
 
-/// A token bucket: `rate` units a second, at most `burst` saved up. The embedded broker meters
-/// bytes with it, the broker and the dashboard login attempts.
-#[derive(Clone, Copy, Debug)]
-pub struct TokenBucket {
-    tokens: f64,
-    at: Instant,
-    rate: f64,
-    burst: f64,
-}
-
-impl TokenBucket {
-    /// A full bucket at `now`.
-    pub fn new(rate: f64, burst: f64, now: Instant) -> Self {
-        TokenBucket {
-            tokens: burst,
-            at: now,
-            rate,
-            burst,
-        }
-    }
-
-    /// Takes `amount` at `now`, or refuses (and takes nothing). A `now` before the last one
-    /// refills nothing.
-    pub fn take(&mut self, amount: f64, now: Instant) -> bool {
-        let dt = now.saturating_duration_since(self.at).as_secs_f64();
-        self.tokens = (self.tokens + dt * self.rate).min(self.burst);
-        self.at = now;
-        if amount <= self.tokens {
-            self.tokens -= amount;
-            true
-        } else {
-            false
-        }
-    }
-}
-
-/// Whether `n` is worth a log line: the 1st, 2nd, 4th, 8th… occurrence, so that a flood is
-/// reported with its size without writing one line per dropped message.
-pub fn worth_logging(n: u64) -> bool {
-    n.is_power_of_two()
-}
+pub use cetratus_slots::rate::worth_logging;
 
 #[cfg(test)]
 mod tests {
@@ -180,11 +139,5 @@ mod tests {
         assert_eq!(held.iter().map(Vec::len).sum::<usize>(), 1000);
         drop(held);
         assert_eq!(b.used(), 0, "every permit came back");
-    }
-
-    #[test]
-    fn logging_thins_out_as_a_flood_goes_on() {
-        let logged: Vec<u64> = (1..=100).filter(|&n| worth_logging(n)).collect();
-        assert_eq!(logged, [1, 2, 4, 8, 16, 32, 64]);
     }
 }

@@ -14,7 +14,7 @@ use rmqtt::hook::{Handler, HookResult, Parameter, ReturnType};
 use rmqtt::types::AuthResult;
 
 use crate::acl::{Acl, Checked, Who};
-use crate::broker::{LOGINS_PER_S, LOGIN_BURST};
+use crate::broker::LOGINS;
 use crate::logins::LoginGate;
 use crate::password::HashedPassword;
 use crate::topics::{check_topic, TopicRefusal};
@@ -46,7 +46,7 @@ impl Tally {
 }
 
 /// Checks logins: the internal ones against their secrets at once, an account's password with
-/// argon2 on a blocking thread, one at a time and at most [`LOGINS_PER_S`] a second, with a share
+/// argon2 on a blocking thread, one at a time and at most [`LOGINS`] a second, with a share
 /// kept for those who logged in before ([`crate::logins`]). Then what
 /// the client asked for at CONNECT: a client id reserved for the process's own clients
 /// ([`crate::acl::is_internal_client_id`]) is refused to everyone else, before any password is
@@ -69,12 +69,12 @@ fn will_topic(info: &rmqtt::types::ConnectInfo) -> Option<&str> {
 }
 
 impl Auth {
-    /// Checks logins against `acl`, at most [`LOGINS_PER_S`] account passwords a second.
+    /// Checks logins against `acl`, at most [`LOGINS`] account passwords a second.
     pub(crate) fn new(acl: Arc<Acl>) -> Self {
         Auth {
             acl,
             one_at_a_time: tokio::sync::Semaphore::new(1),
-            rate: Mutex::new(LoginGate::new(LOGINS_PER_S, LOGIN_BURST, Instant::now())),
+            rate: Mutex::new(LoginGate::new(LOGINS, Instant::now())),
             reserved_ids: Tally::default(),
             wills: Tally::default(),
         }
@@ -153,7 +153,7 @@ impl Auth {
                 .unwrap_or_else(|e| e.into_inner())
                 .admit(ip, user, Instant::now());
         if !taken {
-            tracing::warn!(?from, user = %user.escape_debug(), "MQTT login refused: more than {LOGINS_PER_S} logins a second");
+            tracing::warn!(?from, user = %user.escape_debug(), "MQTT login refused: more than {} logins a second", LOGINS.per_s);
             return Err(AuthResult::NotAuthorized);
         }
         let known = hash.is_some();

@@ -35,8 +35,8 @@ use rmqtt::types::{Publish, PublishAclResult};
 
 use crate::acl::{Acl, PLC_USER};
 use crate::broker::{detached, BROKER_MAX_PACKET};
-use crate::budget::{worth_logging, TokenBucket as Bucket};
 use crate::strikes::{Strikes, STRIKES, STRIKE_WINDOW};
+use cetratus_slots::rate::{worth_logging, Rate, TokenBucket as Bucket};
 
 /// Bytes per second the broker takes from all clients together but the PLC's own: sixteen
 /// full-size packages a second, far more than operators and dashboards send, and less than the
@@ -138,6 +138,10 @@ enum Verdict {
     Refuse(TurnedAway),
 }
 
+fn rate(per_s: f64, burst: f64) -> Rate {
+    Rate { per_s, burst }
+}
+
 /// The three buckets, taken under one lock.
 struct Buckets {
     bytes: Bucket,
@@ -148,9 +152,9 @@ struct Buckets {
 impl Buckets {
     fn new(now: Instant) -> Self {
         Buckets {
-            bytes: Bucket::new(INGRESS_BYTES_PER_S, INGRESS_BURST, now),
-            commands: Bucket::new(COMMANDS_PER_S, COMMAND_BURST, now),
-            busy: Bucket::new(BUSY_ANSWERS_PER_S, BUSY_BURST, now),
+            bytes: Bucket::new(rate(INGRESS_BYTES_PER_S, INGRESS_BURST), now),
+            commands: Bucket::new(rate(COMMANDS_PER_S, COMMAND_BURST), now),
+            busy: Bucket::new(rate(BUSY_ANSWERS_PER_S, BUSY_BURST), now),
         }
     }
 

@@ -6,7 +6,7 @@
 //! out: every token goes to the flood. So a second, smaller bucket is kept for the pairs of
 //! address and account that logged in successfully before (at most [`KNOWN_LOGINS`], the oldest
 //! forgotten first): when the common bucket is empty, such a pair still gets in, up to
-//! [`RETURNING_PER_S`] a second.
+//! [`RETURNING`] a second.
 //!
 //! The trade-off (docs/security.md, *Logins under a flood*): a guesser who once logged in from an
 //! address, with a real account, shares the reserve with its owner; an operator on a new machine
@@ -20,16 +20,17 @@ use std::hash::BuildHasher;
 use std::net::IpAddr;
 use std::time::Instant;
 
-use crate::budget::TokenBucket;
+use cetratus_slots::rate::{Rate, TokenBucket};
 
 /// Pairs of address and account remembered as having logged in.
 pub const KNOWN_LOGINS: usize = 64;
 
-/// Attempts a second kept for pairs that logged in before, past the common rate.
-pub const RETURNING_PER_S: f64 = 2.0;
-
-/// Attempts of such pairs that may come at once past the common rate.
-pub const RETURNING_BURST: f64 = 4.0;
+/// Attempts a second kept for pairs that logged in before, past the common rate, and how many
+/// may come at once.
+pub const RETURNING: Rate = Rate {
+    per_s: 2.0,
+    burst: 4.0,
+};
 
 /// The rate of login attempts, and who logged in before.
 #[derive(Debug)]
@@ -41,11 +42,11 @@ pub struct LoginGate {
 }
 
 impl LoginGate {
-    /// `rate` attempts a second from everyone (`burst` at once), plus the reserve.
-    pub fn new(rate: f64, burst: f64, now: Instant) -> Self {
+    /// `rate` for everyone together, plus the reserve.
+    pub fn new(rate: Rate, now: Instant) -> Self {
         LoginGate {
-            all: TokenBucket::new(rate, burst, now),
-            returning: TokenBucket::new(RETURNING_PER_S, RETURNING_BURST, now),
+            all: TokenBucket::new(rate, now),
+            returning: TokenBucket::new(RETURNING, now),
             known: VecDeque::with_capacity(KNOWN_LOGINS),
             keys: RandomState::new(),
         }
@@ -86,7 +87,13 @@ mod tests {
     #[test]
     fn a_flood_spends_the_common_rate_and_a_returning_operator_still_gets_in() {
         let t0 = Instant::now();
-        let mut g = LoginGate::new(8.0, 16.0, t0);
+        let mut g = LoginGate::new(
+            Rate {
+                per_s: 8.0,
+                burst: 16.0,
+            },
+            t0,
+        );
         let ops: Option<IpAddr> = Some([10, 0, 0, 1].into());
         assert!(g.admit(ops, "ops", t0));
         g.succeeded(ops, "ops");
@@ -94,7 +101,7 @@ mod tests {
         while g.admit(flood, "ops", t0) {}
         assert!(!g.admit(flood, "ops", t0), "the flood is held back");
         assert!(!g.admit(ops, "root", t0), "another account is not known");
-        for _ in 0..RETURNING_BURST as usize {
+        for _ in 0..RETURNING.burst as usize {
             assert!(g.admit(ops, "ops", t0), "the reserve lets the operator in");
         }
         assert!(!g.admit(ops, "ops", t0), "and is bounded too");
@@ -102,7 +109,13 @@ mod tests {
 
     #[test]
     fn at_most_known_logins_pairs_are_remembered() {
-        let mut g = LoginGate::new(0.0, 0.0, Instant::now());
+        let mut g = LoginGate::new(
+            Rate {
+                per_s: 0.0,
+                burst: 0.0,
+            },
+            Instant::now(),
+        );
         for k in 0..=KNOWN_LOGINS {
             g.succeeded(None, &format!("a{k}"));
         }

@@ -7,7 +7,9 @@
 //! browser, remembered for the server's lifetime, at most [`KNOWN_ADDRESSES`] of them): a host
 //! that opens sockets and sends nothing can neither take every slot nor keep the known clients
 //! out. A connection that sends nothing for the idle timeout is closed ([`Idle`]), so that even
-//! slots taken by one address come back.
+//! slots taken by one address come back. How often a client may do something is [`rate`]'s.
+
+pub mod rate;
 
 use std::collections::{HashMap, VecDeque};
 use std::future::Future;
@@ -136,82 +138,106 @@ fn lock(s: &Mutex<Slots>) -> std::sync::MutexGuard<'_, Slots> {
     s.lock().unwrap_or_else(|e| e.into_inner())
 }
 
-/// A connection that ends with [`io::ErrorKind::TimedOut`] when it sends nothing for `idle`.
-pub struct Idle<S> {
-    inner: S,
-    idle: Duration,
-    deadline: Pin<Box<tokio::time::Sleep>>,
-}
+/// What a [`Watched`] stream is told of its reads.
+pub trait ReadWatch {
+    /// `bytes` were just read (none at the end of the stream).
+    fn read(&mut self, bytes: &[u8]);
 
-impl<S> Idle<S> {
-    /// `inner`, closed after `idle` without a byte from the client.
-    pub fn new(inner: S, idle: Duration) -> Self {
-        Idle {
-            inner,
-            idle,
-            deadline: Box::pin(tokio::time::sleep(idle)),
-        }
+    /// No byte is ready: `Ready` ends the read with that result instead (a timeout, say). The
+    /// default waits.
+    fn pending(&mut self, _cx: &mut Context<'_>) -> Poll<io::Result<()>> {
+        Poll::Pending
     }
 }
 
-impl<S: AsyncRead + Unpin> AsyncRead for Idle<S> {
+/// A stream whose reads a [`ReadWatch`] sees; what is written goes straight through (the
+/// servers watch what their clients and their inner servers say, not what they are told).
+pub struct Watched<S, W> {
+    inner: S,
+    watch: W,
+}
+
+impl<S, W> Watched<S, W> {
+    /// `inner`, its reads shown to `watch`.
+    pub fn new(inner: S, watch: W) -> Self {
+        Watched { inner, watch }
+    }
+}
+
+impl<S: AsyncRead + Unpin, W: ReadWatch + Unpin> AsyncRead for Watched<S, W> {
     fn poll_read(
         mut self: Pin<&mut Self>,
         cx: &mut Context<'_>,
         buf: &mut ReadBuf<'_>,
     ) -> Poll<io::Result<()>> {
         let before = buf.filled().len();
-        match Pin::new(&mut self.inner).poll_read(cx, buf) {
-            Poll::Ready(r) => {
-                if buf.filled().len() > before {
-                    let next = tokio::time::Instant::now() + self.idle;
-                    self.deadline.as_mut().reset(next);
-                }
-                Poll::Ready(r)
+        let this = &mut *self;
+        match Pin::new(&mut this.inner).poll_read(cx, buf) {
+            Poll::Ready(Ok(())) => {
+                this.watch.read(&buf.filled()[before..]);
+                Poll::Ready(Ok(()))
             }
-            Poll::Pending => match self.deadline.as_mut().poll(cx) {
-                Poll::Ready(()) => Poll::Ready(Err(io::Error::new(
-                    io::ErrorKind::TimedOut,
-                    "the client sent nothing for the idle timeout",
-                ))),
-                Poll::Pending => Poll::Pending,
-            },
+            Poll::Ready(Err(e)) => Poll::Ready(Err(e)),
+            Poll::Pending => this.watch.pending(cx),
         }
     }
 }
 
-write_through!([S: AsyncWrite + Unpin] Idle<S>);
+impl<S: AsyncWrite + Unpin, W: Unpin> AsyncWrite for Watched<S, W> {
+    fn poll_write(
+        mut self: Pin<&mut Self>,
+        cx: &mut Context<'_>,
+        buf: &[u8],
+    ) -> Poll<io::Result<usize>> {
+        Pin::new(&mut self.inner).poll_write(cx, buf)
+    }
 
-/// Implements tokio's `AsyncWrite` for a stream wrapper whose writes go straight to its field
-/// `inner` (the wrappers here watch what is read, not what is written):
-/// `write_through!([S: AsyncWrite + Unpin] Idle<S>);`.
-#[macro_export]
-macro_rules! write_through {
-    ([$($g:tt)*] $t:ty) => {
-        impl<$($g)*> ::tokio::io::AsyncWrite for $t {
-            fn poll_write(
-                mut self: ::std::pin::Pin<&mut Self>,
-                cx: &mut ::std::task::Context<'_>,
-                buf: &[u8],
-            ) -> ::std::task::Poll<::std::io::Result<usize>> {
-                ::tokio::io::AsyncWrite::poll_write(::std::pin::Pin::new(&mut self.inner), cx, buf)
-            }
+    fn poll_flush(mut self: Pin<&mut Self>, cx: &mut Context<'_>) -> Poll<io::Result<()>> {
+        Pin::new(&mut self.inner).poll_flush(cx)
+    }
 
-            fn poll_flush(
-                mut self: ::std::pin::Pin<&mut Self>,
-                cx: &mut ::std::task::Context<'_>,
-            ) -> ::std::task::Poll<::std::io::Result<()>> {
-                ::tokio::io::AsyncWrite::poll_flush(::std::pin::Pin::new(&mut self.inner), cx)
-            }
+    fn poll_shutdown(mut self: Pin<&mut Self>, cx: &mut Context<'_>) -> Poll<io::Result<()>> {
+        Pin::new(&mut self.inner).poll_shutdown(cx)
+    }
+}
 
-            fn poll_shutdown(
-                mut self: ::std::pin::Pin<&mut Self>,
-                cx: &mut ::std::task::Context<'_>,
-            ) -> ::std::task::Poll<::std::io::Result<()>> {
-                ::tokio::io::AsyncWrite::poll_shutdown(::std::pin::Pin::new(&mut self.inner), cx)
-            }
+/// A connection that ends with [`io::ErrorKind::TimedOut`] when its client sends nothing for a
+/// while: `Idle::new(stream, IdleTimeout::after(duration))`.
+pub type Idle<S> = Watched<S, IdleTimeout>;
+
+/// The watch of an [`Idle`] connection: a deadline that each byte read moves on.
+pub struct IdleTimeout {
+    idle: Duration,
+    deadline: Pin<Box<tokio::time::Sleep>>,
+}
+
+impl IdleTimeout {
+    /// Ends the connection `idle` after the last byte from the client.
+    pub fn after(idle: Duration) -> Self {
+        IdleTimeout {
+            idle,
+            deadline: Box::pin(tokio::time::sleep(idle)),
         }
-    };
+    }
+}
+
+impl ReadWatch for IdleTimeout {
+    fn read(&mut self, bytes: &[u8]) {
+        if !bytes.is_empty() {
+            let next = tokio::time::Instant::now() + self.idle;
+            self.deadline.as_mut().reset(next);
+        }
+    }
+
+    fn pending(&mut self, cx: &mut Context<'_>) -> Poll<io::Result<()>> {
+        match self.deadline.as_mut().poll(cx) {
+            Poll::Ready(()) => Poll::Ready(Err(io::Error::new(
+                io::ErrorKind::TimedOut,
+                "the client sent nothing for the idle timeout",
+            ))),
+            Poll::Pending => Poll::Pending,
+        }
+    }
 }
 
 #[cfg(test)]
@@ -244,7 +270,7 @@ mod tests {
         use tokio::io::{AsyncReadExt, AsyncWriteExt};
 
         let (client, server) = tokio::io::duplex(64);
-        let mut idle = Idle::new(server, Duration::from_secs(5));
+        let mut idle = Idle::new(server, IdleTimeout::after(Duration::from_secs(5)));
         let mut client = client;
         let talker = tokio::spawn(async move {
             for _ in 0..3 {

@@ -23,7 +23,7 @@
 //!   names, `DT`, `TOD`, `DATE`, `ON`, `WITH`, `TASK`, `STEP`, `ACTION`, `TRANSITION`. The parser
 //!   gives them their meaning where one is expected (a type, a resource, a statement).
 
-use crate::ast::Pos;
+use crate::ast::{Pos, Rel};
 use crate::error::Diagnostic;
 use crate::parse::{DATES, MAX_TOKENS, WSTRING};
 
@@ -80,18 +80,8 @@ pub(crate) enum Tok {
     Slash,
     /// `&`.
     Amp,
-    /// `=`.
-    Eq,
-    /// `<>`.
-    Ne,
-    /// `<`.
-    Lt,
-    /// `<=`.
-    Le,
-    /// `>`.
-    Gt,
-    /// `>=`.
-    Ge,
+    /// A comparison: `=`, `<>`, `<`, `<=`, `>`, `>=`.
+    Rel(Rel),
     /// `^`: only to be refused by name.
     Caret,
     /// The end of the text; always the last token.
@@ -689,12 +679,12 @@ impl Lexer<'_> {
             (b':', b'=') => (Tok::Assign, 2),
             (b':', _) => (Tok::Colon, 1),
             (b'=', b'>') => (Tok::Arrow, 2),
-            (b'=', _) => (Tok::Eq, 1),
-            (b'<', b'=') => (Tok::Le, 2),
-            (b'<', b'>') => (Tok::Ne, 2),
-            (b'<', _) => (Tok::Lt, 1),
-            (b'>', b'=') => (Tok::Ge, 2),
-            (b'>', _) => (Tok::Gt, 1),
+            (b'=', _) => (Tok::Rel(Rel::Eq), 1),
+            (b'<', b'=') => (Tok::Rel(Rel::Le), 2),
+            (b'<', b'>') => (Tok::Rel(Rel::Ne), 2),
+            (b'<', _) => (Tok::Rel(Rel::Lt), 1),
+            (b'>', b'=') => (Tok::Rel(Rel::Ge), 2),
+            (b'>', _) => (Tok::Rel(Rel::Gt), 1),
             (b'*', b'*') => (Tok::Power, 2),
             (b'*', _) => (Tok::Star, 1),
             (b'.', b'.') => (Tok::DotDot, 2),

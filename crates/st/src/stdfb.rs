@@ -55,36 +55,26 @@ pub struct StdField {
     pub access: Access,
 }
 
-const fn field(name: &'static str, elem: Elem, access: Access) -> StdField {
-    StdField { name, elem, access }
-}
-
 use Access::{Hidden, Input, Output};
 
-const SR: [StdField; 3] = [
-    field("S1", Elem::Bool, Input),
-    field("R", Elem::Bool, Input),
-    field("Q1", Elem::Bool, Output),
-];
-const RS: [StdField; 3] = [
-    field("S", Elem::Bool, Input),
-    field("R1", Elem::Bool, Input),
-    field("Q1", Elem::Bool, Output),
-];
-const TRIG: [StdField; 3] = [
-    field("CLK", Elem::Bool, Input),
-    field("Q", Elem::Bool, Output),
-    field("M", Elem::Bool, Hidden),
-];
-const TIMER: [StdField; 7] = [
-    field("IN", Elem::Bool, Input),
-    field("PT", Elem::Time, Input),
-    field("Q", Elem::Bool, Output),
-    field("ET", Elem::Time, Output),
-    field("STATE", Elem::Sint, Hidden),
-    field("PREV_IN", Elem::Bool, Hidden),
-    field("START_TIME", Elem::Time, Hidden),
-];
+/// A member's name and type.
+type Member = (&'static str, Elem);
+
+/// The members of an instance in slot order, from the block's interface as the standard declares
+/// it: its VAR_INPUT, its VAR_OUTPUT, then its internal state.
+fn members(inputs: &[Member], outputs: &[Member], hidden: &[Member]) -> Vec<StdField> {
+    let tagged = |list: &[Member], access| {
+        list.iter()
+            .map(move |&(name, elem)| StdField { name, elem, access })
+            .collect::<Vec<_>>()
+    };
+    [
+        tagged(inputs, Input),
+        tagged(outputs, Output),
+        tagged(hidden, Hidden),
+    ]
+    .concat()
+}
 
 /// The counter types MATIEC's library defines.
 const COUNTER_TYPES: [(&str, Elem); 5] = [
@@ -98,19 +88,17 @@ const COUNTER_TYPES: [(&str, Elem); 5] = [
 /// A counter's members: its BOOL inputs, `PV`, its BOOL outputs, `CV`, then the hidden edge
 /// memory of each counting input (`CU_T_M`, `CD_T_M`), as MATIEC lays them out.
 fn counter(e: Elem, inputs: &[&'static str], outputs: &[&'static str]) -> Vec<StdField> {
-    let mut fields: Vec<StdField> = inputs
-        .iter()
-        .map(|&n| field(n, Elem::Bool, Input))
+    let bools = |names: &[&'static str]| names.iter().map(|&n| (n, Elem::Bool)).collect::<Vec<_>>();
+    let memories: Vec<Member> = [("CU", "CU_T_M"), ("CD", "CD_T_M")]
+        .into_iter()
+        .filter(|(counting, _)| inputs.contains(counting))
+        .map(|(_, memory)| (memory, Elem::Bool))
         .collect();
-    fields.push(field("PV", e, Input));
-    fields.extend(outputs.iter().map(|&n| field(n, Elem::Bool, Output)));
-    fields.push(field("CV", e, Output));
-    for (counting, memory) in [("CU", "CU_T_M"), ("CD", "CD_T_M")] {
-        if inputs.contains(&counting) {
-            fields.push(field(memory, Elem::Bool, Hidden));
-        }
-    }
-    fields
+    members(
+        &[bools(inputs), vec![("PV", e)]].concat(),
+        &[bools(outputs), vec![("CV", e)]].concat(),
+        &memories,
+    )
 }
 
 impl StdFb {
@@ -164,11 +152,18 @@ impl StdFb {
 
     /// The members of an instance, in slot order.
     pub fn fields(self) -> Vec<StdField> {
+        use Elem::{Bool, Sint, Time};
         match self {
-            StdFb::Sr => SR.to_vec(),
-            StdFb::Rs => RS.to_vec(),
-            StdFb::RTrig | StdFb::FTrig => TRIG.to_vec(),
-            StdFb::Tp | StdFb::Ton | StdFb::Tof => TIMER.to_vec(),
+            StdFb::Sr => members(&[("S1", Bool), ("R", Bool)], &[("Q1", Bool)], &[]),
+            StdFb::Rs => members(&[("S", Bool), ("R1", Bool)], &[("Q1", Bool)], &[]),
+            StdFb::RTrig | StdFb::FTrig => {
+                members(&[("CLK", Bool)], &[("Q", Bool)], &[("M", Bool)])
+            }
+            StdFb::Tp | StdFb::Ton | StdFb::Tof => members(
+                &[("IN", Bool), ("PT", Time)],
+                &[("Q", Bool), ("ET", Time)],
+                &[("STATE", Sint), ("PREV_IN", Bool), ("START_TIME", Time)],
+            ),
             StdFb::Ctu(e) => counter(e, &["CU", "R"], &["Q"]),
             StdFb::Ctd(e) => counter(e, &["CD", "LD"], &["Q"]),
             StdFb::Ctud(e) => counter(e, &["CU", "CD", "R", "LD"], &["QU", "QD"]),

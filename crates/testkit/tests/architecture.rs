@@ -75,7 +75,10 @@ const RULES: &[(&str, Allowed)] = &[
             "cetratus-slots",
         ]),
     ),
-    ("cetratus-mct", Only(&["cetratus-vocab", "cetratus-proto"])),
+    (
+        "cetratus-mct",
+        Only(&["cetratus-vocab", "cetratus-proto", "cetratus-slots"]),
+    ),
     (
         "cetratus-fleet",
         Only(&[

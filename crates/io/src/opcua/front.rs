@@ -9,18 +9,15 @@
 //! every slot nor keep the known clients out. A connection whose client sends no byte for
 //! [`IDLE_TIMEOUT`] is closed.
 
-use std::io;
 use std::net::SocketAddr;
-use std::pin::Pin;
 use std::sync::atomic::Ordering;
 use std::sync::Arc;
-use std::task::{Context, Poll};
 
-use tokio::io::{AsyncRead, ReadBuf};
 use tokio::net::{TcpListener, TcpStream};
 
 use super::Shared;
-use cetratus_slots::{Idle, Slot, Slots};
+use cetratus_slots::rate::PerAddress;
+use cetratus_slots::{Idle, IdleTimeout, ReadWatch, Slot, Slots, Watched};
 
 /// A connection whose client sends no byte for this long is closed. An OPC UA client with a
 /// session publishes, reads or renews far more often; one that only said hello does not.
@@ -29,7 +26,7 @@ pub const IDLE_TIMEOUT: std::time::Duration = std::time::Duration::from_secs(60)
 /// Relays every accepted connection that gets one of `max` slots to `inner`; runs until dropped.
 pub(crate) async fn relay(public: TcpListener, inner: SocketAddr, max: usize, shared: Arc<Shared>) {
     let slots = Slots::shared(max);
-    let mut rates = super::limit::PerAddress::new();
+    let mut rates = PerAddress::new(super::limit::CONNECTIONS_PER_ADDRESS);
     loop {
         let Ok((client, from)) = public.accept().await else {
             // Out of descriptors, say: wait a little rather than spin.
@@ -53,8 +50,8 @@ pub(crate) async fn relay(public: TcpListener, inner: SocketAddr, max: usize, sh
             if let Ok(server) = TcpStream::connect(inner).await {
                 let _ = client.set_nodelay(true);
                 let _ = server.set_nodelay(true);
-                let mut client = Idle::new(client, IDLE_TIMEOUT);
-                let mut server = OpenWatch::new(server, slot);
+                let mut client = Idle::new(client, IdleTimeout::after(IDLE_TIMEOUT));
+                let mut server = Watched::new(server, OpenWatch::new(slot));
                 let _ = tokio::io::copy_bidirectional(&mut client, &mut server).await;
             }
         });
@@ -66,15 +63,13 @@ pub(crate) async fn relay(public: TcpListener, inner: SocketAddr, max: usize, sh
 /// included): once the server answers an `OPN`, the client opened a secure channel, and its
 /// address counts as served from then on. The slot is given back when the connection ends.
 struct OpenWatch {
-    inner: TcpStream,
     slot: Slot,
     scan: HeaderScan,
 }
 
 impl OpenWatch {
-    fn new(inner: TcpStream, slot: Slot) -> Self {
+    fn new(slot: Slot) -> Self {
         OpenWatch {
-            inner,
             slot,
             scan: HeaderScan::default(),
         }
@@ -128,23 +123,13 @@ impl HeaderScan {
     }
 }
 
-impl AsyncRead for OpenWatch {
-    fn poll_read(
-        mut self: Pin<&mut Self>,
-        cx: &mut Context<'_>,
-        buf: &mut ReadBuf<'_>,
-    ) -> Poll<io::Result<()>> {
-        let before = buf.filled().len();
-        let polled = Pin::new(&mut self.inner).poll_read(cx, buf);
-        let this = &mut *self;
-        if matches!(polled, Poll::Ready(Ok(()))) && this.scan.feed(&buf.filled()[before..]) {
-            this.slot.served();
+impl ReadWatch for OpenWatch {
+    fn read(&mut self, bytes: &[u8]) {
+        if self.scan.feed(bytes) {
+            self.slot.served();
         }
-        polled
     }
 }
-
-cetratus_slots::write_through!([] OpenWatch);
 
 #[cfg(test)]
 mod tests {

@@ -22,8 +22,9 @@ use opcua::server::{ServerBuilder, ServerEndpoint, ServerUserToken, ANONYMOUS_US
 use opcua::types::{Error, StatusCode, UAString, UserTokenPolicy, UserTokenType};
 
 use super::config::{OpcUaConfig, Policy, Security, User};
-use super::limit::{worth_logging, Bucket, LOGINS_PER_S, LOGIN_BURST};
+use super::limit::LOGINS;
 use super::{PasswordCheck, Shared};
+use cetratus_slots::rate::{worth_logging, TokenBucket};
 
 /// The endpoint token id of users with passwords.
 const USERS: &str = "cetratus-users";
@@ -76,7 +77,7 @@ pub(crate) fn configure(
                 .with_authenticator(Arc::new(Accounts {
                     users: config.users.clone(),
                     check,
-                    rate: Mutex::new(Bucket::new(LOGINS_PER_S, LOGIN_BURST, Instant::now())),
+                    rate: Mutex::new(TokenBucket::new(LOGINS, Instant::now())),
                     shared,
                 }));
             for p in policies {
@@ -128,7 +129,7 @@ struct Accounts {
     check: Option<PasswordCheck>,
     /// Password checks for all clients together (async-opcua does not tell an authenticator
     /// which address a login comes from; the front listener limits connections per address).
-    rate: Mutex<Bucket>,
+    rate: Mutex<TokenBucket>,
     shared: Arc<Shared>,
 }
 
@@ -160,7 +161,7 @@ impl AuthManager for Accounts {
             .rate
             .lock()
             .unwrap_or_else(|p| p.into_inner())
-            .take(Instant::now());
+            .take(1.0, Instant::now());
         if !may {
             // Refused before the (slow) check, counted, and logged on the 1st, 2nd, 4th…
             // refusal: a flood of guesses must not become a flood of log lines.

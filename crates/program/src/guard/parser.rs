@@ -136,13 +136,10 @@ impl Parser {
         let mut left = next(self)?;
         while let Some(op) = op_of(self.peek()) {
             let pos = self.bump().offset;
-            let (right, right_depth) = next(self)?;
-            let below = left.1.max(right_depth);
-            left = self.node(
-                ExprKind::Binary(op, Box::new(left.0), Box::new(right)),
-                pos,
-                below,
-            )?;
+            let right = next(self)?;
+            let below = left.1.max(right.1);
+            let kind = ExprKind::Binary(op, Box::new(left.0), Box::new(right.0));
+            left = self.node(kind, pos, below)?;
             if !chain {
                 if op_of(self.peek()).is_some() {
                     return Err(self.error_here(

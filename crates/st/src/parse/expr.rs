@@ -23,7 +23,7 @@
 //! | 1 | `OR` |
 
 use super::{lit, Parsed, Parser};
-use crate::ast::{Arg, BinOp, Call, Expr, ExprKind, Ident, Literal, Rel, UnOp};
+use crate::ast::{Arg, BinOp, Call, Expr, ExprKind, Ident, Literal, Pos, Rel, UnOp};
 use crate::error::Diagnostic;
 use crate::lex::{Kw, Tok};
 
@@ -44,15 +44,23 @@ impl Parser<'_> {
                 break;
             }
             let pos = self.bump().pos;
-            let (right, right_depth) = self.binary(precedence + 1)?;
-            let below = left.1.max(right_depth);
-            left = self.node(
-                ExprKind::Binary(op, Box::new(left.0), Box::new(right)),
-                pos,
-                below,
-            )?;
+            let right = self.binary(precedence + 1)?;
+            left = self.binary_node(op, left, right, pos)?;
         }
         Ok(left)
+    }
+
+    /// `left op right` at `pos`, a level deeper than the deeper operand.
+    fn binary_node(
+        &self,
+        op: BinOp,
+        left: Parsed,
+        right: Parsed,
+        pos: Pos,
+    ) -> Result<Parsed, Diagnostic> {
+        let below = left.1.max(right.1);
+        let kind = ExprKind::Binary(op, Box::new(left.0), Box::new(right.0));
+        self.node(kind, pos, below)
     }
 
     /// `**` chains, refusing the operand with a unary operator that the standard reads two ways
@@ -69,13 +77,8 @@ impl Parser<'_> {
             }
             let pos = self.bump().pos;
             signed = self.at_unary().then(|| self.pos());
-            let (right, right_depth) = self.unary()?;
-            let below = left.1.max(right_depth);
-            left = self.node(
-                ExprKind::Binary(BinOp::Pow, Box::new(left.0), Box::new(right)),
-                pos,
-                below,
-            )?;
+            let right = self.unary()?;
+            left = self.binary_node(BinOp::Pow, left, right, pos)?;
         }
         Ok(left)
     }
@@ -314,12 +317,9 @@ fn binary_op(t: Tok) -> Option<(BinOp, u8)> {
         Tok::Kw(Kw::Or) => (BinOp::Or, 1),
         Tok::Kw(Kw::Xor) => (BinOp::Xor, 2),
         Tok::Kw(Kw::And) | Tok::Amp => (BinOp::And, 3),
-        Tok::Eq => (BinOp::Cmp(Rel::Eq), 4),
-        Tok::Ne => (BinOp::Cmp(Rel::Ne), 4),
-        Tok::Lt => (BinOp::Cmp(Rel::Lt), 5),
-        Tok::Gt => (BinOp::Cmp(Rel::Gt), 5),
-        Tok::Le => (BinOp::Cmp(Rel::Le), 5),
-        Tok::Ge => (BinOp::Cmp(Rel::Ge), 5),
+        // Equality binds weaker than order (Table 71).
+        Tok::Rel(rel @ (Rel::Eq | Rel::Ne)) => (BinOp::Cmp(rel), 4),
+        Tok::Rel(rel) => (BinOp::Cmp(rel), 5),
         Tok::Plus => (BinOp::Add, 6),
         Tok::Minus => (BinOp::Sub, 6),
         Tok::Star => (BinOp::Mul, 7),

@@ -1317,3 +1317,62 @@ fn columns_changing(compared: &[Vec<String>]) -> usize {
         .filter(|&i| compared.windows(2).any(|w| w[0][i] != w[1][i]))
         .count()
 }
+
+/// A ring of `n` places and transitions, each transition guarded by an input of its own and
+/// each place driving an output: a program as large as its file may be, written out.
+fn guarded_ring(dir: &Path, n: usize) -> PathBuf {
+    let mut pnml = String::from(
+        "<pnml xmlns=\"http://www.pnml.org/version-2009/grammar/pnml\"><net id=\"n\" type=\"http://www.pnml.org/version-2009/grammar/ptnet\"><page id=\"pg\">\n",
+    );
+    let mut toml = String::from(
+        "[program]\nname = \"ring\"\nversion = \"1.0.0\"\nnet = \"ring.pnml\"\npolicy = \"step\"\nscan_period = \"10ms\"\n",
+    );
+    let mut guards = String::from("[guards]\n");
+    for i in 0..n {
+        let m0 = u8::from(i == 0);
+        let next = (i + 1) % n;
+        pnml += &format!(
+            "<place id=\"P{i}\"><initialMarking><text>{m0}</text></initialMarking></place>\n<transition id=\"T{i}\"/><arc id=\"a{i}\" source=\"P{i}\" target=\"T{i}\"/><arc id=\"b{i}\" source=\"T{i}\" target=\"P{next}\"/>\n"
+        );
+        let (byte, bit) = (i / 8, i % 8);
+        toml += &format!(
+            "[[input]]\nname = \"I{i}\"\ntype = \"bool\"\naddress = \"%IX{byte}.{bit}\"\n\n[[output]]\nname = \"O{i}\"\ntype = \"bool\"\naddress = \"%QX{byte}.{bit}\"\nsafe = false\n\n[[action]]\nplace = \"P{i}\"\nqualifier = \"N\"\ntarget = \"O{i}\"\n"
+        );
+        guards += &format!("T{i} = \"I{i}\"\n");
+    }
+    pnml += "</page></net></pnml>\n";
+    std::fs::write(dir.join("ring.pnml"), pnml).unwrap();
+    let program = dir.join("ring.toml");
+    std::fs::write(&program, toml + &guards).unwrap();
+    program
+}
+
+/// A program of many guarded transitions exports in time that grows with its size: the line of
+/// each guard, which the export cites beside its condition, was found by reading the whole
+/// program file again for every guard, minutes of CPU for a program of a few megabytes.
+#[test]
+fn a_program_of_thousands_of_guards_exports_in_time_linear_in_its_size() {
+    let dir = tempfile::tempdir().unwrap();
+    let n = 20_000;
+    let program = guarded_ring(dir.path(), n);
+    let out = dir.path().join("out");
+    let run = cetratus_testkit::process::output_within(
+        std::process::Command::new(BIN).args([
+            "export",
+            program.to_str().unwrap(),
+            "--to",
+            "st",
+            "-o",
+            out.to_str().unwrap(),
+        ]),
+        std::time::Duration::from_secs(120),
+    );
+    ok(&run);
+    let text = std::fs::read_to_string(out.join("ring.st")).unwrap();
+    let last = n - 1;
+    let source = std::fs::read_to_string(&program).unwrap();
+    let key = format!("T{last} = ");
+    let line = source.lines().position(|l| l.starts_with(&key)).unwrap() + 1;
+    let cited = format!("(* T{last}, line {line}: I{last} *)");
+    assert!(text.contains(&cited), "the last guard cites its line");
+}

@@ -301,28 +301,28 @@ fn slots(
     (slots, stored)
 }
 
-/// The 1-based line of the source at which `matches` first holds for a trimmed line after the
-/// section header `section`.
-pub(crate) fn source_line(
-    source: &str,
-    section: &str,
-    mut matches: impl FnMut(&str) -> bool,
-) -> Option<usize> {
+/// The 1-based line of each key of the section `section` of a TOML source (bare or quoted; the
+/// first line of a key that stands twice), read in one pass, so that a program with many guards
+/// costs its length once and not once a guard.
+pub(crate) fn section_key_lines(source: &str, section: &str) -> HashMap<String, usize> {
     let mut inside = false;
+    let mut lines = HashMap::new();
     for (i, line) in source.lines().enumerate() {
         let t = line.trim();
         if t.starts_with('[') {
             inside = t == section;
-            if inside && matches(t) {
-                return Some(i + 1);
+        } else if inside {
+            if let Some((key, _)) = t.split_once('=') {
+                let key = key.trim();
+                let key = key
+                    .strip_prefix('"')
+                    .and_then(|k| k.strip_suffix('"'))
+                    .unwrap_or(key);
+                lines.entry(key.to_string()).or_insert(i + 1);
             }
-            continue;
-        }
-        if inside && matches(t) {
-            return Some(i + 1);
         }
     }
-    None
+    lines
 }
 
 /// Declares a signal in a VAR block.

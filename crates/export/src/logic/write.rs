@@ -128,6 +128,7 @@ impl Logic<'_> {
         let net = p.net();
         self.chart_prepare(s);
         s.push_str("(* The condition of each candidate transition (enabled, or able to join the step);\n   one without a guard is always TRUE. *)\n");
+        let guard_lines = section_key_lines(p.source(), "[guards]");
         for (j, tr) in net.transitions().iter().enumerate() {
             let t = cetratus_net::TransIdx(j as u32);
             let (c, n) = (&self.locals.cond, j + 1);
@@ -137,7 +138,7 @@ impl Logic<'_> {
             }
             match p.guard(t) {
                 Some(g) => {
-                    let line = source_line(p.source(), "[guards]", |l| key_is(l, &tr.id));
+                    let line = guard_lines.get(&tr.id);
                     let at = line.map(|n| format!(", line {n}")).unwrap_or_default();
                     let _ = writeln!(
                         s,
@@ -154,12 +155,6 @@ impl Logic<'_> {
             }
         }
     }
-}
-
-/// Whether a TOML line's key is `id` (bare or quoted).
-fn key_is(line: &str, id: &str) -> bool {
-    let key = line.split('=').next().unwrap_or("").trim();
-    key == id || key.trim_matches('"') == id
 }
 
 /// A map's entries in the order of their keys, so that the text never depends on hashing.

@@ -29,7 +29,7 @@
 //! so that what a session is charged for is what it holds.
 //!
 //! An account's password is checked with argon2 on one blocking thread at a time, at most
-//! [`LOGINS`]`.per_s` a second: a flood of wrong passwords costs a core at most and never the
+//! eight a second ([`LOGINS`]): a flood of wrong passwords costs a core at most and never the
 //! internal logins, which compare a random secret.
 
 use std::collections::HashMap;
